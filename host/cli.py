@@ -16,7 +16,10 @@ Start with `ropecam demo` (simulated rig end to end), or `ropecam COMMAND --help
 """
 
 # One module per sub-command; each defines register(subparsers).
-COMMAND_MODULES: tuple[str, ...] = ()
+COMMAND_MODULES: tuple[str, ...] = (
+    "ropecam.host.demo",
+    "ropecam.host.model.cli",
+)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
