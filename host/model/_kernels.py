@@ -509,6 +509,8 @@ def advance(
     out_counters[C_SAMPLES] = 0
     out_counters[C_ITERATIONS] = 0
     samples = 0
+    refactor = 1
+    factored_age = 0
     for step in range(n_steps):
         t = t0 + (step + 1) * h
         # Predictor: the unknown x = q''_{n+1} starts at q''_n; q and v follow from the Newmark relations.
@@ -520,10 +522,10 @@ def advance(
         prescribe_fixed_end(params, t, q, v, scratch[S_CV])
         for i in range(4 if params[P_CLAMPED] != 0.0 else 2):
             delta[i] = scratch[S_CV, i]
-        # Newton on x = q''_{n+1} (dq/dx = beta_p, dv/dx = gamma_p): the tangent is formed and factored at the
-        # first iteration of each step and reused while the updates shrink fast (modified Newton).
+        # Newton on x = q''_{n+1} (dq/dx = beta_p, dv/dx = gamma_p). The factored tangent is kept across
+        # iterations and steps (modified Newton) and rebuilt when an update shrinks by less than 10x, or when
+        # the previous step needed many iterations.
         converged = False
-        refactor = 1
         previous = 0.0
         for iteration in range(max_iter):
             assemble_system(params, mass_band, gravity, q, v, delta, 1.0 / beta_p, gamma_p / beta_p, refactor,
@@ -532,6 +534,7 @@ def advance(
                 status = band_factor(band, pivots)
                 if status < 0:
                     return status
+                factored_age = 0
             for i in range(n):
                 res[i] = -res[i]
             band_solve(band, pivots, res)
@@ -549,6 +552,8 @@ def advance(
                 break
             refactor = 1 if (iteration > 0 and largest > 0.1 * previous) else 0
             previous = largest
+        refactor = 1 if iteration >= 3 or factored_age >= 50 else 0
+        factored_age += 1
         if not converged:
             return KernelStatus.NO_CONVERGENCE
         for i in range(n):

@@ -8,6 +8,8 @@ import pytest
 from ropecam.host.model import CableModel, RopeConfig, SolverConfig
 from ropecam.host.model import _kernels as k
 
+pytestmark = pytest.mark.kernel
+
 EA, EI = 97389.37, 6.086836e-3
 
 
