@@ -480,18 +480,19 @@ def assemble_system(
 @kernel(
     int64(
         f8_1d, f8_1d, f8_1d, f8_1d, float64, int64, int64, f8_1d, f8_2d, f8_1d,
-        f8_2d, f8_1d, f8_1d, i4_1d, f8_2d, f8_3d, f8_1d, f8_2d, f8_2d, i4_1d,
+        f8_2d, f8_1d, f8_1d, i4_1d, f8_2d, f8_3d, f8_2d, f8_1d, f8_2d, f8_2d, i4_1d,
     )
 )  # fmt: skip
 def advance(
     q, v, qdd, acc, t0, n_steps, sample_every, params, mass_band, gravity,
-    band, res, delta, pivots, scratch, mats, out_t, out_q, out_v, out_counters,
+    band, res, delta, pivots, scratch, mats, backup, out_t, out_q, out_v, out_counters,
 ):  # fmt: skip
     """Advance the rope `n_steps` generalized-alpha steps (Arnold & Bruls 2007) from time `t0`.
 
     Updates the state in place: `q`, `v` (nodal coordinates and velocities), `qdd` (accelerations) and `acc` (the
     algorithmic acceleration). After every `sample_every`-th step writes the time and state into `out_t`, `out_q`,
-    `out_v`. Writes `out_counters` (steps done, samples written, Newton iterations). Returns the number of samples
+    `out_v`. `backup` (2, n) is work space holding q and v at the start of the current step. Writes `out_counters`
+    (steps done, samples written, Newton iterations). Returns the number of samples
     written, KernelStatus.FULL when the output is too short, or KernelStatus.NO_CONVERGENCE /
     KernelStatus.SINGULAR, with the state left at the last converged step.
     """
@@ -513,49 +514,65 @@ def advance(
     factored_age = 0
     for step in range(n_steps):
         t = t0 + (step + 1) * h
-        # Predictor: the unknown x = q''_{n+1} starts at q''_n; q and v follow from the Newmark relations.
         for i in range(n):
-            a_new = (qdd[i] - am * acc[i]) / (1.0 - am)
-            q[i] += h * v[i] + h * h * ((0.5 - beta) * acc[i] + beta * a_new)
-            v[i] += h * ((1.0 - gamma) * acc[i] + gamma * a_new)
-            delta[i] = qdd[i]
-        prescribe_fixed_end(params, t, q, v, scratch[S_CV])
-        for i in range(4 if params[P_CLAMPED] != 0.0 else 2):
-            delta[i] = scratch[S_CV, i]
-        # Newton on x = q''_{n+1} (dq/dx = beta_p, dv/dx = gamma_p). The factored tangent is kept across
-        # iterations and steps (modified Newton) and rebuilt when an update shrinks by less than 10x, or when
-        # the previous step needed many iterations.
+            backup[0, i] = q[i]
+            backup[1, i] = v[i]
+        # Newton on x = q''_{n+1} (dq/dx = beta_p, dv/dx = gamma_p). First attempt: modified Newton, keeping the
+        # factored tangent across iterations and steps and rebuilding it when an update shrinks by less than 10x.
+        # If that fails, the step is redone with a fresh tangent at every iteration (full Newton).
         converged = False
-        previous = 0.0
-        for iteration in range(max_iter):
-            assemble_system(params, mass_band, gravity, q, v, delta, 1.0 / beta_p, gamma_p / beta_p, refactor,
-                            scratch, mats, res, band)  # fmt: skip
-            if refactor:
-                status = band_factor(band, pivots)
-                if status < 0:
-                    return status
-                factored_age = 0
+        for attempt in range(2):
+            if attempt == 1:
+                refactor = 1
+                for i in range(n):
+                    q[i] = backup[0, i]
+                    v[i] = backup[1, i]
+            # Predictor: x starts at q''_n; q and v follow from the Newmark relations.
             for i in range(n):
-                res[i] = -res[i]
-            band_solve(band, pivots, res)
-            largest = 0.0
-            for i in range(n):
-                dq = res[i]
-                q[i] += dq
-                v[i] += gamma_p / beta_p * dq
-                delta[i] += dq / beta_p
-                if abs(dq) > largest:
-                    largest = abs(dq)
-            out_counters[C_ITERATIONS] += 1
-            if largest <= tol:
-                converged = True
+                a_new = (qdd[i] - am * acc[i]) / (1.0 - am)
+                q[i] += h * v[i] + h * h * ((0.5 - beta) * acc[i] + beta * a_new)
+                v[i] += h * ((1.0 - gamma) * acc[i] + gamma * a_new)
+                delta[i] = qdd[i]
+            prescribe_fixed_end(params, t, q, v, scratch[S_CV])
+            for i in range(4 if params[P_CLAMPED] != 0.0 else 2):
+                delta[i] = scratch[S_CV, i]
+            previous = 0.0
+            iteration = 0
+            for iteration in range(max_iter):
+                assemble_system(params, mass_band, gravity, q, v, delta, 1.0 / beta_p, gamma_p / beta_p, refactor,
+                                scratch, mats, res, band)  # fmt: skip
+                if refactor:
+                    if band_factor(band, pivots) < 0:
+                        break
+                    factored_age = 0
+                for i in range(n):
+                    res[i] = -res[i]
+                band_solve(band, pivots, res)
+                largest = 0.0
+                for i in range(n):
+                    dq = res[i]
+                    q[i] += dq
+                    v[i] += gamma_p / beta_p * dq
+                    delta[i] += dq / beta_p
+                    if abs(dq) > largest:
+                        largest = abs(dq)
+                out_counters[C_ITERATIONS] += 1
+                if not largest < 1e30:  # diverged (or NaN)
+                    break
+                if largest <= tol:
+                    converged = True
+                    break
+                refactor = 1 if (attempt == 1 or (iteration > 0 and largest > 0.1 * previous)) else 0
+                previous = largest
+            if converged:
                 break
-            refactor = 1 if (iteration > 0 and largest > 0.1 * previous) else 0
-            previous = largest
+        if not converged:
+            for i in range(n):
+                q[i] = backup[0, i]
+                v[i] = backup[1, i]
+            return KernelStatus.NO_CONVERGENCE
         refactor = 1 if iteration >= 3 or factored_age >= 50 else 0
         factored_age += 1
-        if not converged:
-            return KernelStatus.NO_CONVERGENCE
         for i in range(n):
             acc[i] = ((1.0 - af) * delta[i] + af * qdd[i] - am * acc[i]) / (1.0 - am)
             qdd[i] = delta[i]

@@ -76,6 +76,7 @@ class CableModel:
         self._res = np.zeros(self.n_dof)
         self._delta = np.zeros(self.n_dof)
         self._pivots = np.zeros(self.n_dof, dtype=np.int32)
+        self._backup = np.zeros((2, self.n_dof))
         self._counters = np.zeros(k.N_COUNTERS, dtype=np.int32)
 
     def _parameters(self, step_s: float) -> NDArray[np.float64]:
@@ -199,7 +200,8 @@ class CableModel:
             t0 = steps_done * solver.step_s
             status = k.advance(q, v, qdd, acc, t0, n_steps, every, self.params, self.mass_band, self.gravity,
                                self._band, self._res, self._delta, self._pivots, self._scratch, self._mats,
-                               out_t[written:], out_q[written:], out_v[written:], self._counters)  # fmt: skip
+                               self._backup, out_t[written:], out_q[written:], out_v[written:],
+                               self._counters)  # fmt: skip
             done = int(self._counters[k.C_STEPS])
             written += int(self._counters[k.C_SAMPLES])
             iterations += int(self._counters[k.C_ITERATIONS])
@@ -236,7 +238,7 @@ class CableModel:
             self.params = self._parameters(self.solver.step_s / parts)
             status = k.advance(q, v, qdd, acc, t0, parts, parts + 1, self.params, self.mass_band, self.gravity,
                                self._band, self._res, self._delta, self._pivots, self._scratch, self._mats,
-                               dummy_t, dummy, dummy, self._counters)  # fmt: skip
+                               self._backup, dummy_t, dummy, dummy, self._counters)  # fmt: skip
             self.params = self._parameters(self.solver.step_s)
             if status >= 0:
                 return

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from ropecam.host.model import CableModel, FixedEndMotion, RopeConfig, SolverConfig, simulate
+from ropecam.shared.errors import ModelError
 
 
 def _reference(directory: Path, name: str) -> np.ndarray:
@@ -98,3 +99,16 @@ def test_rigid_rotation_initial_velocity() -> None:
     # Hanging down (along +y) and turning from +x towards +y means moving towards -x.
     np.testing.assert_allclose(v.reshape(-1, 4)[:, 0], -2.0 * np.linspace(0, 1, 5))
     np.testing.assert_allclose(v.reshape(-1, 4)[:, 1], 0.0, atol=1e-15)
+
+
+def test_failed_steps_are_refined_or_reported() -> None:
+    """Three Newton iterations are too few for h = 2e-3: adaptive runs refine those steps, strict runs say when."""
+    rope = RopeConfig(length_m=0.411, ei_nm2=4e-5)
+    fine = simulate(rope, SolverConfig(elements=6, step_s=2.5e-4, duration_s=0.2, output_every_s=2e-3))
+    model = CableModel(rope, SolverConfig(elements=6, step_s=2e-3, duration_s=0.2, max_iterations=3))
+    trajectory, stats = model.run()
+    assert stats.refined_steps > 0
+    assert np.max(np.abs(trajectory.tip() - fine.tip())) < 2e-3
+    strict = CableModel(rope, SolverConfig(elements=6, step_s=2e-3, duration_s=0.2, max_iterations=3, adaptive=False))
+    with pytest.raises(ModelError, match=r"Newton did not converge at t = [0-9.]+ s"):
+        strict.run()

@@ -1,0 +1,1 @@
+"""Measurement against the ANCF model: material-point tracks in metres, errors, parameter identification."""

@@ -1,0 +1,87 @@
+"""Measured material-point tracks in metres and their comparison with a model trajectory."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ropecam.host.model.trajectory import Trajectory
+
+__all__ = ["MaterialPointTracks", "PointErrors", "model_positions", "point_errors"]
+
+
+@dataclass(frozen=True)
+class MaterialPointTracks:
+    """Positions of material points measured over time, in the plane frame (metres, y down).
+
+    Parameters
+    ----------
+    times_s
+        Measurement times on the device clock, shape (M,) (two per frame: exposure start and end).
+    s_m
+        Arc lengths of the tracked points along the unstretched rope, shape (K,).
+    positions_m
+        Shape (M, K, 2); NaN where a point was not measured.
+    """
+
+    times_s: NDArray[np.float64]
+    s_m: NDArray[np.float64]
+    positions_m: NDArray[np.float64]
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.times_s, dtype=np.float64)
+        s = np.asarray(self.s_m, dtype=np.float64)
+        p = np.asarray(self.positions_m, dtype=np.float64)
+        if t.ndim != 1 or s.ndim != 1 or p.shape != (t.size, s.size, 2):
+            raise ValueError(f"positions_m must have shape (M={t.size}, K={s.size}, 2), got {p.shape}")
+        if not np.all(np.isfinite(t)) or not np.all(np.isfinite(s)) or np.any(s < 0):
+            raise ValueError("times_s and s_m must be finite, and s_m >= 0")
+        order = np.argsort(t, kind="stable")
+        object.__setattr__(self, "times_s", t[order])
+        object.__setattr__(self, "s_m", s)
+        object.__setattr__(self, "positions_m", p[order])
+
+    @property
+    def measured(self) -> NDArray[np.bool_]:
+        """Mask (M, K) of measured samples."""
+        return np.all(np.isfinite(self.positions_m), axis=-1)
+
+
+def model_positions(trajectory: Trajectory, tracks: MaterialPointTracks, release_time_s: float) -> NDArray[np.float64]:
+    """Evaluate the model at the tracks' times and arc lengths; shape (M, K, 2).
+
+    Model time is ``t - release_time_s``; before the release the rope is in its initial state.
+    """
+    model_t = np.clip(tracks.times_s - release_time_s, trajectory.times_s[0], trajectory.times_s[-1])
+    if np.any(tracks.times_s - release_time_s > trajectory.times_s[-1] + 1e-9):
+        raise ValueError("the model trajectory ends before the last measurement")
+    return trajectory.positions(model_t, tracks.s_m)
+
+
+@dataclass(frozen=True)
+class PointErrors:
+    """Position error of each material point: RMS and max over time (m), and the error series (M, K)."""
+
+    s_m: NDArray[np.float64]
+    rms_m: NDArray[np.float64]
+    max_m: NDArray[np.float64]
+    error_m: NDArray[np.float64]
+
+    @property
+    def overall_rms_m(self) -> float:
+        """RMS over all measured samples of all points."""
+        values = self.error_m[np.isfinite(self.error_m)]
+        return float(np.sqrt(np.mean(values**2))) if values.size else float("nan")
+
+
+def point_errors(tracks: MaterialPointTracks, modelled_m: NDArray[np.float64]) -> PointErrors:
+    """Compare measured and modelled positions (M, K, 2) point by point."""
+    error = np.linalg.norm(tracks.positions_m - modelled_m, axis=-1)  # NaN where not measured
+    with np.errstate(invalid="ignore"):
+        counts = np.sum(np.isfinite(error), axis=0)
+        rms = np.sqrt(np.nansum(error**2, axis=0) / np.maximum(counts, 1))
+        worst = np.where(counts > 0, np.nanmax(np.where(np.isfinite(error), error, -np.inf), axis=0), np.nan)
+    rms[counts == 0] = np.nan
+    return PointErrors(tracks.s_m, rms, worst, error)
