@@ -504,6 +504,7 @@ def advance(
     beta = params[P_BETA]
     tol = params[P_TOLERANCE]
     max_iter = int(params[P_MAX_ITERATIONS])
+    max_update = 0.05 * params[P_LE]
     beta_p = h * h * beta * (1.0 - af) / (1.0 - am)
     gamma_p = h * gamma * (1.0 - af) / (1.0 - am)
     out_counters[C_STEPS] = 0
@@ -550,7 +551,15 @@ def advance(
                 band_solve(band, pivots, res)
                 largest = 0.0
                 for i in range(n):
-                    dq = res[i]
+                    if abs(res[i]) > largest:
+                        largest = abs(res[i])
+                # Damped Newton: a soft rope under slight compression makes the matrix nearly singular (its slope
+                # modes have almost no stiffness and tiny inertia); limit any update to a fraction of an element.
+                limit = max_update
+                shrink = 1.0 if largest <= limit else limit / largest
+                largest = 0.0
+                for i in range(n):
+                    dq = shrink * res[i]
                     q[i] += dq
                     v[i] += gamma_p / beta_p * dq
                     delta[i] += dq / beta_p
@@ -559,7 +568,7 @@ def advance(
                 out_counters[C_ITERATIONS] += 1
                 if not largest < 1e30:  # diverged (or NaN)
                     break
-                if largest <= tol:
+                if largest <= tol and shrink == 1.0:
                     converged = True
                     break
                 refactor = 1 if (attempt == 1 or (iteration > 0 and largest > 0.1 * previous)) else 0
