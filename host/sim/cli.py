@@ -119,7 +119,7 @@ def run(args: argparse.Namespace) -> int:
     from ropecam.host.sim.presets import preset
     from ropecam.shared.config import read_toml
 
-    console = Console(stderr=True, quiet=args.quiet)
+    console = Console(stderr=True, quiet=args.quiet, soft_wrap=True)
     config = preset(args.preset)
     if args.config is not None:
         config = merge_overrides(config, read_toml(args.config), where=str(args.config))

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 
 import numpy as np
 import pytest
 
+from ropecam.host.calibration.geometry import CameraModel
 from ropecam.host.model.trajectory import Trajectory
+from ropecam.host.sim.config import CameraSpec, RopeSpec, SensorSpec, SimConfig
+from ropecam.host.sim.presets import plane_through_pixel
 
 
 def rigid_rod(length_m: float, duration_s: float, step_s: float = 1e-3, elements: int = 4) -> Trajectory:
@@ -69,3 +73,27 @@ def rod_factory() -> Callable[..., Trajectory]:
 def curl_factory() -> Callable[..., Trajectory]:
     """Factory of curling-arc trajectories: ``curl_factory(length_m, duration_s)``."""
     return curling_rope
+
+
+def tiny_config(clean: bool = False, **changes: object) -> SimConfig:
+    """Return a small rig (320x200, distortion, tilted plane at 1.5 m, 0.411 m rope about 2 px wide), 3 frames.
+
+    `clean` removes noise, background non-uniformity and vignetting; `changes` replace `SimConfig` fields.
+    """
+    matrix = np.array([[500.0, 0.0, 161.3], [0.0, 496.0, 99.2], [0.0, 0.0, 1.0]])
+    distortion = (-0.1793, 0.3891, 0.001, -0.0005, 0.0)
+    model = CameraModel(matrix, np.array(distortion), (320, 200))
+    tvec = plane_through_pixel(model, 1.5, (160.0, 30.0))
+    camera = CameraSpec(500.0, 496.0, 161.3, 99.2, 320, 200, 119.0, tvec, (0.05, -0.08, 0.03), distortion)
+    rope = RopeSpec(length_m=0.411, diameter_m=0.001, render_diameter_m=0.006)
+    config = SimConfig("tiny", camera, rope, frames=3, exposure_ms=(4.0,), first_exposure_s=0.1)
+    if clean:
+        scene = dataclasses.replace(config.scene, background_variation=0.0, vignetting=0.0, texture=0.0)
+        config = dataclasses.replace(config, scene=scene, sensor=SensorSpec(0.0, 0.0))
+    return dataclasses.replace(config, **changes) if changes else config
+
+
+@pytest.fixture
+def tiny() -> Callable[..., SimConfig]:
+    """Factory of the small test rig: ``tiny(clean=False, **SimConfig field changes)``."""
+    return tiny_config
