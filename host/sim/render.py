@@ -210,10 +210,10 @@ class RopeRenderer:
         self._signal.fill(0.0)
         middle = len(times) // 2
         half_mid = self.half_width_px(points_m[middle], points_px[middle])
+        # The apparent width changes by far less than 1e-3 px within one exposure: computed once, at mid-exposure.
         for k, weight in enumerate(weights):
-            half = half_mid if k == middle else self.half_width_px(points_m[k], points_px[k])
             status = _kernels.stamp_centreline(
-                np.ascontiguousarray(points_px[k]), half, self.level, self.edge_sigma_px,
+                np.ascontiguousarray(points_px[k]), half_mid, self.level, self.edge_sigma_px,
                 self._dist, self._radius, self._level, self._cut, self._box,
             )  # fmt: skip
             if status < 0:
