@@ -73,3 +73,16 @@ def test_unknown_preset_and_bad_overrides_are_named() -> None:
     changed = merge_overrides(config, {"rope": {"ei_nm2": 3e-6}, "camera": {"plane_rvec": [0.0, 0.1, 0.0]}})
     assert changed.rope.ei_nm2 == 3e-6 and changed.camera.plane_rvec == (0.0, 0.1, 0.0)
     assert changed.rope.length_m == config.rope.length_m
+
+
+def test_documented_config_example_is_valid() -> None:
+    """The TOML example in docs/simulator.md loads onto a preset."""
+    import re
+    import tomllib
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[3] / "docs" / "simulator.md").read_text()
+    example = re.search(r"```toml\n(.*?)```", text, re.DOTALL)
+    assert example is not None
+    config = merge_overrides(preset("rig"), tomllib.loads(example.group(1)), where="docs/simulator.md")
+    assert config.frames == 120 and config.scene.polarity == "dark" and config.rope.ei_nm2 == 3e-6
