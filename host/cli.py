@@ -16,7 +16,11 @@ Start with `ropecam demo` (simulated rig end to end), or `ropecam COMMAND --help
 """
 
 # One module per sub-command; each defines register(subparsers).
-COMMAND_MODULES: tuple[str, ...] = ("ropecam.host.sim.cli",)
+COMMAND_MODULES: tuple[str, ...] = (
+    "ropecam.host.demo",
+    "ropecam.host.model.cli",
+    "ropecam.host.sim.cli",
+)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
