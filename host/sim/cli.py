@@ -131,9 +131,12 @@ def run(args: argparse.Namespace) -> int:
             f"trajectory: {args.trajectory} ({trajectory.duration_s:.3f} s, {trajectory.n_elements} elements)"
         )
     else:
-        with console.status(f"solving the ANCF model: {config.duration_s:.3f} s of motion, {config.rope.elements} "
-                            "elements"):  # fmt: skip
-            trajectory = solve_trajectory(config.rope, config.duration_s)
+        columns = (TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed:.2f}/{task.total:.2f} s"))
+        with Progress(*columns, console=console, disable=args.quiet, transient=True) as bar:
+            task = bar.add_task(f"ANCF model, {config.rope.elements} elements", total=config.duration_s)
+            trajectory = solve_trajectory(
+                config.rope, config.duration_s, lambda t_s: bar.update(task, completed=min(t_s, config.duration_s))
+            )
         console.print(f"model solved: {trajectory.duration_s:.3f} s of motion")
 
     paths = dict(frameset_paths(args.out, config.exposure_ms))

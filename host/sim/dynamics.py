@@ -6,6 +6,7 @@ The simulator never integrates rope dynamics itself; it calls the project's ANCF
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 from ropecam.host.model.trajectory import Trajectory
 from ropecam.host.sim.config import RopeSpec
@@ -14,7 +15,7 @@ from ropecam.shared.errors import ModelError
 __all__ = ["solve_trajectory"]
 
 
-def solve_trajectory(rope: RopeSpec, duration_s: float) -> Trajectory:
+def solve_trajectory(rope: RopeSpec, duration_s: float, progress: Callable[[float], None] | None = None) -> Trajectory:
     """Solve the ANCF model for `rope` from release (t = 0) to at least `duration_s`.
 
     Parameters
@@ -23,6 +24,8 @@ def solve_trajectory(rope: RopeSpec, duration_s: float) -> Trajectory:
         Rope and discretisation parameters.
     duration_s
         Model time needed, seconds; two output steps are added so the last exposure ends inside the trajectory.
+    progress
+        Called with the model time reached (seconds) while solving.
 
     Raises
     ------
@@ -48,7 +51,7 @@ def solve_trajectory(rope: RopeSpec, duration_s: float) -> Trajectory:
         duration_s=steps * rope.output_every_s,
         output_every_s=rope.output_every_s,
     )
-    trajectory = simulate(rope_config, solver)
+    trajectory = simulate(rope_config, solver, progress)
     if not isinstance(trajectory, Trajectory):
         raise ModelError(f"the ANCF model returned {type(trajectory).__name__}, expected a Trajectory")
     return trajectory

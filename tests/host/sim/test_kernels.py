@@ -47,9 +47,14 @@ def _reference_cover(points: np.ndarray, radius: float, shape: tuple[int, int], 
     beyond_start = (uu - points[0, 0]) * start_dir[0] + (vv - points[0, 1]) * start_dir[1] < 0
     beyond_end = (uu - points[-1, 0]) * end_dir[0] + (vv - points[-1, 1]) * end_dir[1] > 0
     for a, b in itertools.pairwise(points):
+        # Only the fine cells within reach of this segment (keeps the reference fast).
+        c0, c1 = (np.array([min(a[0], b[0]), max(a[0], b[0])]) + margin + 0.5 + [-radius - 1, radius + 1]) * fine
+        r0, r1 = (np.array([min(a[1], b[1]), max(a[1], b[1])]) + margin + 0.5 + [-radius - 1, radius + 1]) * fine
+        window = (slice(max(int(r0), 0), int(r1) + 1), slice(max(int(c0), 0), int(c1) + 1))
+        wu, wv = uu[window], vv[window]
         d = b - a
-        t = np.clip(((uu - a[0]) * d[0] + (vv - a[1]) * d[1]) / (d @ d), 0, 1)
-        inside |= np.hypot(uu - a[0] - t * d[0], vv - a[1] - t * d[1]) <= radius
+        t = np.clip(((wu - a[0]) * d[0] + (wv - a[1]) * d[1]) / (d @ d), 0, 1)
+        inside[window] |= np.hypot(wu - a[0] - t * d[0], wv - a[1] - t * d[1]) <= radius
     # The ends are flat: cut at the planes through the end points, but keep the end segments' straight sides.
     inside &= ~beyond_start & ~beyond_end
     blurred = gaussian_filter(inside.astype(np.float64), SIGMA_PX * fine, mode="constant")
