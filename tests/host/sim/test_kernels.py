@@ -135,3 +135,40 @@ def test_rope_outside_the_image_touches_nothing() -> None:
     cover = np.zeros(shape, dtype=np.float32)
     count = _kernels.accumulate_cover(dist, *scratch, box, 0.5, 1.0, cover, cover.copy())
     assert count == 0 and not cover.any()
+
+
+ALLOCATION_SCRIPT = """
+import numpy as np
+from numba.core.runtime import rtsys
+from ropecam.host.sim import _kernels
+shape = (30, 40)
+points = np.ascontiguousarray(np.stack([np.linspace(3, 30, 20), np.linspace(4, 20, 20)], axis=-1))
+dist = np.full(shape, _kernels.FAR, dtype=np.float32)
+scratch = [np.zeros(shape, dtype=np.float32) for _ in range(3)]
+box = np.array([40, 30, -1, -1], dtype=np.int32)
+cover, signal = np.zeros(shape, dtype=np.float32), np.zeros(shape, dtype=np.float32)
+radius, level = np.ones(20), np.ones(20)
+def calls():
+    _kernels.stamp_centreline(points, radius, level, 0.5, dist, *scratch, box)
+    _kernels.accumulate_cover(dist, *scratch, box, 0.5, 1.0, cover, signal)
+calls()
+before = rtsys.get_allocation_stats()
+for _ in range(10):
+    calls()
+after = rtsys.get_allocation_stats()
+print(after.alloc - before.alloc, after.free - before.free)
+"""
+
+
+def test_kernels_do_not_allocate() -> None:
+    """Under NUMBA_NRT_STATS=1, a call allocates only the wrappers of its array arguments (8 + 7 per pair)."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "NUMBA_NRT_STATS": "1"}
+    result = subprocess.run([sys.executable, "-c", ALLOCATION_SCRIPT], env=env, capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    allocs, frees = (int(v) for v in result.stdout.split())
+    assert allocs == frees
+    assert allocs == 10 * (8 + 7)
