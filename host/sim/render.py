@@ -29,8 +29,9 @@ __all__ = ["Exposure", "RopeRenderer", "max_pixels_per_metre"]
 MAX_SUBFRAMES = 100_000
 
 
-def max_pixels_per_metre(camera: CameraModel, plane: PlanePose, xlim_m: tuple[float, float],
-                         ylim_m: tuple[float, float]) -> float:  # fmt: skip
+def max_pixels_per_metre(
+    camera: CameraModel, plane: PlanePose, xlim_m: tuple[float, float], ylim_m: tuple[float, float]
+) -> float:
     """Return the largest image scale (pixels per metre on the plane) over a rectangle of the plane.
 
     Parameters
@@ -179,7 +180,7 @@ class RopeRenderer:
             times = np.linspace(t_begin_s, t_end_s, intervals + 1)
             points_m = trajectory.positions(times, self.s_m)
             points_px = self.project(points_m)
-            step = float(np.linalg.norm(np.diff(points_px, axis=0), axis=-1).max()) if intervals else 0.0
+            step = float(np.linalg.norm(np.diff(points_px, axis=0), axis=-1).max())
             if step <= self.max_step_px or t_end_s == t_begin_s:
                 return times, points_m, points_px, step
             if intervals >= MAX_SUBFRAMES:
