@@ -11,13 +11,15 @@ import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from ropecam.host.calibration.geometry import CameraModel, PlanePose
 from ropecam.shared.config import check_finite, check_in, check_positive, check_range, from_mapping
 from ropecam.shared.errors import ConfigError
+
+if TYPE_CHECKING:  # geometry imports OpenCV; kept out of `ropecam --help`
+    from ropecam.host.calibration.geometry import CameraModel, PlanePose
 
 __all__ = ["CameraSpec", "RopeSpec", "SceneSpec", "SensorSpec", "SimConfig", "merge_overrides"]
 
@@ -83,11 +85,15 @@ class CameraSpec:
 
     def camera_model(self) -> CameraModel:
         """Return the `CameraModel` (K, distortion, image size)."""
+        from ropecam.host.calibration.geometry import CameraModel
+
         k = np.array([[self.fx_px, 0.0, self.cx_px], [0.0, self.fy_px, self.cy_px], [0.0, 0.0, 1.0]])
         return CameraModel(k, np.array(self.distortion, dtype=np.float64), self.image_size)
 
     def plane_pose(self) -> PlanePose:
         """Return the motion plane's `PlanePose`."""
+        from ropecam.host.calibration.geometry import PlanePose
+
         return PlanePose.from_rvec(self.plane_rvec, self.plane_tvec_m)
 
     @property

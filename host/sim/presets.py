@@ -22,12 +22,15 @@ Choices the paper leaves open (documented in docs/simulator.md):
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ropecam.host.calibration.geometry import CameraModel
 from ropecam.host.sim.config import CameraSpec, RopeSpec, SimConfig
 from ropecam.shared.errors import ConfigError
+
+if TYPE_CHECKING:  # geometry imports OpenCV; kept out of `ropecam --help`
+    from ropecam.host.calibration.geometry import CameraModel
 
 __all__ = ["PRESETS", "PRESET_HELP", "plane_through_pixel", "preset"]
 
@@ -52,6 +55,8 @@ def _camera(
     distance_m: float,
     fixed_end_px: tuple[float, float],
 ) -> CameraSpec:
+    from ropecam.host.calibration.geometry import CameraModel
+
     fx, fy, cx, cy = k
     matrix = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1]], dtype=np.float64)
     model = CameraModel(matrix, np.array(distortion), size)
