@@ -19,6 +19,7 @@ Start with `ropecam demo` (simulated rig end to end), or `ropecam COMMAND --help
 COMMAND_MODULES: tuple[str, ...] = (
     "ropecam.host.demo",
     "ropecam.host.model.cli",
+    "ropecam.host.sim.cli",
 )
 
 

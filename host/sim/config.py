@@ -1,0 +1,327 @@
+"""Configuration of a simulated rig: camera and motion plane, rope, scene and sensor, and the recording itself.
+
+Each part is a frozen, slotted dataclass validated on construction; `SimConfig` composes them. Presets
+(`ropecam.host.sim.presets`) are instances of `SimConfig`; a TOML file can override any field of a preset
+(`merge_overrides`), with unknown keys refused.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+
+from ropecam.shared.config import check_finite, check_in, check_positive, check_range, from_mapping
+from ropecam.shared.errors import ConfigError
+
+if TYPE_CHECKING:  # geometry imports OpenCV; kept out of `ropecam --help`
+    from ropecam.host.calibration.geometry import CameraModel, PlanePose
+
+__all__ = ["CameraSpec", "RopeSpec", "SceneSpec", "SensorSpec", "SimConfig", "merge_overrides"]
+
+Polarity = Literal["bright", "dark"]
+
+
+@dataclass(frozen=True, slots=True)
+class CameraSpec:
+    """Camera intrinsics, the motion plane's pose, frame rate and optical blur.
+
+    Parameters
+    ----------
+    fx_px, fy_px, cx_px, cy_px
+        Pinhole intrinsics (pixels).
+    distortion
+        OpenCV distortion coefficients (k1, k2, p1, p2, k3).
+    width_px, height_px
+        Image size.
+    fps
+        Frame rate (frames per second); frame k's exposure starts at ``first_exposure_s + k / fps``.
+    plane_rvec
+        OpenCV Rodrigues vector of the plane pose (``X_camera = R X_plane + t``), radians.
+    plane_tvec_m
+        Translation of that pose: the fixed end of the rope (plane origin) in camera coordinates, metres.
+    psf_sigma_px
+        Standard deviation of the lens blur (Gaussian point-spread function), pixels; the pixel's own area is
+        added to it as a box of variance 1/12.
+    """
+
+    fx_px: float
+    fy_px: float
+    cx_px: float
+    cy_px: float
+    width_px: int
+    height_px: int
+    fps: float
+    plane_tvec_m: tuple[float, float, float]
+    plane_rvec: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    distortion: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    psf_sigma_px: float = 0.4
+
+    def __post_init__(self) -> None:
+        for name in ("fx_px", "fy_px", "fps"):
+            check_positive(f"camera.{name}", getattr(self, name))
+        check_finite("camera.cx_px", self.cx_px)
+        check_finite("camera.cy_px", self.cy_px)
+        check_range("camera.width_px", self.width_px, 8, 16384)
+        check_range("camera.height_px", self.height_px, 8, 16384)
+        check_range("camera.psf_sigma_px", self.psf_sigma_px, 0.0, 5.0)
+        if len(self.distortion) not in (4, 5, 8):
+            raise ConfigError(f"camera.distortion must hold 4, 5 or 8 coefficients, got {list(self.distortion)}")
+        for value in (*self.distortion, *self.plane_rvec, *self.plane_tvec_m):
+            check_finite("camera.distortion/plane_rvec/plane_tvec_m entries", value)
+        if self.plane_tvec_m[2] <= 0:
+            raise ConfigError(
+                f"camera.plane_tvec_m: the plane origin must lie in front (z > 0), got {self.plane_tvec_m}"
+            )
+
+    @property
+    def image_size(self) -> tuple[int, int]:
+        """(width, height) in pixels."""
+        return (self.width_px, self.height_px)
+
+    def camera_model(self) -> CameraModel:
+        """Return the `CameraModel` (K, distortion, image size)."""
+        from ropecam.host.calibration.geometry import CameraModel
+
+        k = np.array([[self.fx_px, 0.0, self.cx_px], [0.0, self.fy_px, self.cy_px], [0.0, 0.0, 1.0]])
+        return CameraModel(k, np.array(self.distortion, dtype=np.float64), self.image_size)
+
+    def plane_pose(self) -> PlanePose:
+        """Return the motion plane's `PlanePose`."""
+        from ropecam.host.calibration.geometry import PlanePose
+
+        return PlanePose.from_rvec(self.plane_rvec, self.plane_tvec_m)
+
+    @property
+    def edge_sigma_px(self) -> float:
+        """Total edge blur: lens blur and the pixel's box (variance 1/12) combined, pixels."""
+        return math.sqrt(self.psf_sigma_px**2 + 1.0 / 12.0)
+
+
+@dataclass(frozen=True, slots=True)
+class RopeSpec:
+    """The rope: dynamics parameters (passed to the ANCF model) and the diameter it is drawn with.
+
+    Parameters
+    ----------
+    length_m, diameter_m, youngs_modulus_pa, density_kg_m3
+        The physical rope (the dynamics use these).
+    render_diameter_m
+        Diameter the rope is drawn with. Chosen per preset so the rope appears 1.5-4 px wide at the preset's plane
+        distance (a real 1 mm rope at 1.5 m is about 1 px wide); it does not enter the dynamics.
+    ei_nm2
+        Bending stiffness; None uses the solid section E pi d^4 / 64. Lower it for a soft, curling rope.
+    angle_deg
+        Initial straight direction of the rope, from +x towards +y (down); released at rest.
+    drag_coefficient
+        Aerodynamic drag coefficient of the model (0: none).
+    gravity_m_s2
+        Gravity along +y.
+    elements, step_s, output_every_s
+        ANCF discretisation: element count, solver time step, output sample spacing.
+    """
+
+    length_m: float
+    diameter_m: float
+    render_diameter_m: float
+    youngs_modulus_pa: float = 1.24e11
+    density_kg_m3: float = 1440.0
+    ei_nm2: float | None = None
+    angle_deg: float = 0.0
+    drag_coefficient: float = 0.0
+    gravity_m_s2: float = 9.81
+    elements: int = 16
+    step_s: float = 1e-3
+    output_every_s: float = 1e-3
+
+    def __post_init__(self) -> None:
+        for name in ("length_m", "diameter_m", "render_diameter_m", "youngs_modulus_pa", "density_kg_m3"):
+            check_positive(f"rope.{name}", getattr(self, name))
+        if self.ei_nm2 is not None:
+            check_positive("rope.ei_nm2", self.ei_nm2)
+        check_range("rope.angle_deg", self.angle_deg, -180.0, 180.0)
+        check_range("rope.drag_coefficient", self.drag_coefficient, 0.0, 10.0)
+        check_finite("rope.gravity_m_s2", self.gravity_m_s2)
+        check_range("rope.elements", self.elements, 1, 1024)
+        check_positive("rope.step_s", self.step_s)
+        check_positive("rope.output_every_s", self.output_every_s)
+
+
+@dataclass(frozen=True, slots=True)
+class SceneSpec:
+    """What the camera looks at: levels, background, lighting fall-off and the optional distractions.
+
+    Parameters
+    ----------
+    polarity
+        "bright": a bright rope on a dark background (the paper's black board); "dark": a dark rope on a bright one.
+    rope_level_dn, background_level_dn
+        Mean rope and background brightness before vignetting, in 8-bit digital numbers (None: from the polarity,
+        bright 210 on 25, dark 35 on 200).
+    background_variation
+        Relative amplitude of the smooth background non-uniformity (a gradient and a broad bump), 0 = uniform.
+    vignetting
+        Relative brightness loss in the image corners (quadratic in the distance from the image centre), 0 = none.
+    texture
+        Relative amplitude of a fine, static background texture (blurred noise, about 2 px grain), 0 = none.
+    rope_unevenness
+        Relative amplitude of brightness variation along the rope (moves with the material), 0 = uniform.
+    scratch
+        Draw a static bright scratch across the swing region of the background.
+    clamp
+        Draw a clamp block over the fixed end (it hides the first few millimetres of rope).
+    """
+
+    polarity: Polarity = "bright"
+    rope_level_dn: float | None = None
+    background_level_dn: float | None = None
+    background_variation: float = 0.08
+    vignetting: float = 0.2
+    texture: float = 0.0
+    rope_unevenness: float = 0.0
+    scratch: bool = False
+    clamp: bool = False
+
+    def __post_init__(self) -> None:
+        check_in("scene.polarity", self.polarity, ("bright", "dark"))
+        for name in ("rope_level_dn", "background_level_dn"):
+            value = getattr(self, name)
+            if value is not None:
+                check_range(f"scene.{name}", value, 0.0, 255.0)
+        for name in ("background_variation", "vignetting", "texture", "rope_unevenness"):
+            check_range(f"scene.{name}", getattr(self, name), 0.0, 0.9)
+        if abs(self.rope_level - self.background_level) < 10:
+            raise ConfigError(
+                f"scene: rope level {self.rope_level} and background level {self.background_level} must differ "
+                "by at least 10 DN (the rope would be invisible)"
+            )
+
+    @property
+    def rope_level(self) -> float:
+        """Rope brightness in DN (explicit or from the polarity)."""
+        if self.rope_level_dn is not None:
+            return float(self.rope_level_dn)
+        return 210.0 if self.polarity == "bright" else 35.0
+
+    @property
+    def background_level(self) -> float:
+        """Background brightness in DN (explicit or from the polarity)."""
+        if self.background_level_dn is not None:
+            return float(self.background_level_dn)
+        return 25.0 if self.polarity == "bright" else 200.0
+
+
+@dataclass(frozen=True, slots=True)
+class SensorSpec:
+    """Sensor noise: Gaussian read noise and photon shot noise, then rounding and clipping to 8 bits.
+
+    Parameters
+    ----------
+    read_noise_dn
+        Standard deviation of the signal-independent noise, DN.
+    gain_dn_per_electron
+        Conversion gain; shot noise has variance ``gain * signal`` (DN^2). 0 switches shot noise off.
+    """
+
+    read_noise_dn: float = 1.5
+    gain_dn_per_electron: float = 0.05
+
+    def __post_init__(self) -> None:
+        check_range("sensor.read_noise_dn", self.read_noise_dn, 0.0, 50.0)
+        check_range("sensor.gain_dn_per_electron", self.gain_dn_per_electron, 0.0, 10.0)
+
+
+@dataclass(frozen=True, slots=True)
+class SimConfig:
+    """One simulated recording: the rig and how many frames, which exposures, from when.
+
+    Parameters
+    ----------
+    preset
+        Name of the preset this configuration came from (recorded in the metadata).
+    camera, rope, scene, sensor
+        The rig.
+    frames
+        Number of frames per exposure time.
+    exposure_ms
+        Exposure times; one frame set per value.
+    first_exposure_s
+        Start of frame 0's exposure, seconds after the release (the model's t = 0).
+    seed
+        Seed of every random choice (background, texture, scratch, rope brightness, noise).
+    """
+
+    preset: str
+    camera: CameraSpec
+    rope: RopeSpec
+    scene: SceneSpec = field(default_factory=SceneSpec)
+    sensor: SensorSpec = field(default_factory=SensorSpec)
+    frames: int = 60
+    exposure_ms: tuple[float, ...] = (4.0,)
+    first_exposure_s: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        check_range("frames", self.frames, 1, 1_000_000)
+        if not self.exposure_ms:
+            raise ConfigError("exposure_ms must hold at least one exposure time")
+        period_ms = 1000.0 / self.camera.fps
+        for value in self.exposure_ms:
+            check_range("exposure_ms", value, 0.001, period_ms)
+        if len(set(self.exposure_ms)) != len(self.exposure_ms):
+            raise ConfigError(f"exposure_ms has duplicates: {list(self.exposure_ms)}")
+        check_range("first_exposure_s", self.first_exposure_s, 0.0, 3600.0)
+        check_range("seed", self.seed, 0, 2**63 - 1)
+
+    @property
+    def duration_s(self) -> float:
+        """Model time needed: up to the end of the last frame's longest exposure."""
+        return self.first_exposure_s + (self.frames - 1) / self.camera.fps + max(self.exposure_ms) / 1000.0
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return the configuration as plain JSON/TOML-compatible data."""
+        return _plain(dataclasses.asdict(self))
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, tuple | list):
+        return [_plain(v) for v in value]
+    return value
+
+
+def _deep_merge(base: dict[str, Any], update: Mapping[str, Any]) -> dict[str, Any]:
+    merged = dict(base)
+    for key, value in update.items():
+        if isinstance(value, Mapping) and isinstance(merged.get(key), dict):
+            merged[key] = _deep_merge(merged[key], value)
+        else:
+            merged[key] = value
+    return merged
+
+
+def merge_overrides(config: SimConfig, overrides: Mapping[str, Any], where: str = "overrides") -> SimConfig:
+    """Return `config` with the (nested) keys of `overrides` replaced, validated like a TOML file.
+
+    Parameters
+    ----------
+    config
+        The base configuration (usually a preset).
+    overrides
+        Mapping with any of the top-level keys of `SimConfig` and tables ``camera``, ``rope``, ``scene``,
+        ``sensor`` holding any of their fields.
+    where
+        Name for error messages (the file name).
+
+    Raises
+    ------
+    ConfigError
+        An unknown key, a wrong type or a value out of range (the message names `where` and the key).
+    """
+    merged = _deep_merge(config.to_dict(), overrides)
+    return from_mapping(SimConfig, merged, where=where)

@@ -1,0 +1,113 @@
+"""The simulator's presets: the paper's simulation, the paper's physical rig, and a soft-rope variant of each.
+
+Choices the paper leaves open (documented in docs/simulator.md):
+
+* Plane distance. ``rig``: 1.5 m (the paper's). ``paper``: not given; 3.3 m so the 2 m wide, 1 m deep swing of the
+  1 m rope fits the 800x512 image (364 px per metre) with margin.
+* Fixed end. Placed near the top centre of the image (the rope swings below it): ``paper`` at pixel (400, 90),
+  ``rig`` at (508, 80), leaving room above for a soft rope's tip to whip over the horizontal.
+* Plane tilt. ``paper``: none (the paper's ideal camera); ``rig``: a small realistic misalignment (rvec
+  (0.02, -0.03, 0.01) rad, about 2 degrees), which the calibration must recover.
+* Rendered diameter. A 1 mm rope is 0.36 px wide at 3.3 m and 1 px at 1.5 m; it is drawn 7 mm (``paper``) and
+  2.5 mm (``rig``) thick so it appears about 2.5 px wide (inside the 1.5-4 px the issue asks for). The dynamics keep
+  the 1 mm diameter.
+* Soft variants: bending stiffness lowered from the solid section's 6.1e-3 N m^2 to 1e-4 (``paper-soft``) and
+  1e-5 N m^2 (``rig-soft``): gravity's bending length (EI / (m g))^(1/3) drops from 0.8 m to 0.21 m (L / 5) and
+  0.097 m (L / 4), so the rope curls as it swings (bowing up to 0.31 L and 0.17 L away from its chord, its ends
+  up to 122 and 60 degrees apart in direction); 32 elements resolve the curvature. Softer ropes would curl more,
+  but the ANCF solver's Newton iteration does not converge for them at present (EI <= 3e-5 N m^2 for L = 1 m,
+  <= 3e-6 N m^2 for L = 0.411 m).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ropecam.host.sim.config import CameraSpec, RopeSpec, SimConfig
+from ropecam.shared.errors import ConfigError
+
+if TYPE_CHECKING:  # geometry imports OpenCV; kept out of `ropecam --help`
+    from ropecam.host.calibration.geometry import CameraModel
+
+__all__ = ["PRESETS", "PRESET_HELP", "plane_through_pixel", "preset"]
+
+
+def plane_through_pixel(
+    camera: CameraModel, distance_m: float, pixel: tuple[float, float]
+) -> tuple[float, float, float]:
+    """Return the plane translation putting the plane origin at distorted `pixel`, `distance_m` deep (camera z).
+
+    The origin's position does not depend on the plane's rotation, so any rvec can go with it.
+    """
+    x, y = camera.undistort(np.array(pixel, dtype=np.float64))
+    return (float(x * distance_m), float(y * distance_m), float(distance_m))
+
+
+def _camera(
+    k: tuple[float, float, float, float],
+    distortion: tuple[float, ...],
+    size: tuple[int, int],
+    fps: float,
+    rvec: tuple[float, float, float],
+    distance_m: float,
+    fixed_end_px: tuple[float, float],
+) -> CameraSpec:
+    from ropecam.host.calibration.geometry import CameraModel
+
+    fx, fy, cx, cy = k
+    matrix = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1]], dtype=np.float64)
+    model = CameraModel(matrix, np.array(distortion), size)
+    tvec = plane_through_pixel(model, distance_m, fixed_end_px)
+    # Round to 0.1 um: the preset's numbers are then what the metadata and the docs show.
+    tvec = (round(tvec[0], 7), round(tvec[1], 7), round(tvec[2], 7))
+    return CameraSpec(fx, fy, cx, cy, size[0], size[1], fps, tvec, rvec, distortion)
+
+
+def _paper(soft: bool) -> SimConfig:
+    camera = _camera((1200.0, 1200.0, 400.0, 256.0), (0.0, 0.0, 0.0, 0.0, 0.0), (800, 512), 30.0,
+                     (0.0, 0.0, 0.0), 3.3, (400.0, 90.0))  # fmt: skip
+    rope = RopeSpec(length_m=1.0, diameter_m=0.001, render_diameter_m=0.007)
+    if soft:
+        rope = RopeSpec(length_m=1.0, diameter_m=0.001, render_diameter_m=0.007, ei_nm2=1e-4, elements=32)
+    return SimConfig("paper-soft" if soft else "paper", camera, rope, frames=60, exposure_ms=(1.0, 5.0, 9.0, 15.0))
+
+
+def _rig(soft: bool) -> SimConfig:
+    camera = _camera((1495.2341, 1483.2726, 508.0598, 275.6076), (-0.1793, 0.3891, 0.0, 0.0, 0.0), (1024, 544),
+                     119.0, (0.02, -0.03, 0.01), 1.5, (508.0, 80.0))  # fmt: skip
+    rope = RopeSpec(length_m=0.411, diameter_m=0.001, render_diameter_m=0.0025)
+    if soft:
+        rope = RopeSpec(length_m=0.411, diameter_m=0.001, render_diameter_m=0.0025, ei_nm2=1e-5, elements=32)
+    return SimConfig("rig-soft" if soft else "rig", camera, rope, frames=60, exposure_ms=(4.0,))
+
+
+PRESETS: dict[str, Callable[[], SimConfig]] = {
+    "paper": lambda: _paper(False),
+    "paper-soft": lambda: _paper(True),
+    "rig": lambda: _rig(False),
+    "rig-soft": lambda: _rig(True),
+}
+
+PRESET_HELP: dict[str, str] = {
+    "paper": "the paper's simulation: L = 1 m, f = 1200 px, 800x512, 30 FPS, exposures 1, 5, 9, 15 ms, plane 3.3 m",
+    "paper-soft": "as paper, bending stiffness 1e-4 N m^2: the rope curls",
+    "rig": "the paper's rig: L = 0.411 m, its calibrated camera (k1, k2), 1024x544, 119 FPS, 4 ms, plane 1.5 m",
+    "rig-soft": "as rig, bending stiffness 1e-5 N m^2: the rope curls",
+}
+
+
+def preset(name: str) -> SimConfig:
+    """Return the configuration of preset `name`.
+
+    Raises
+    ------
+    ConfigError
+        `name` is not a preset (the message lists them).
+    """
+    try:
+        return PRESETS[name]()
+    except KeyError:
+        raise ConfigError(f"unknown preset {name!r} (presets: {', '.join(PRESETS)})") from None

@@ -1,0 +1,99 @@
+"""Trajectories built by hand for the simulator's tests (the renderer only depends on the `Trajectory` interface)."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+
+from ropecam.host.calibration.geometry import CameraModel
+from ropecam.host.model.trajectory import Trajectory
+from ropecam.host.sim.config import CameraSpec, RopeSpec, SensorSpec, SimConfig
+from ropecam.host.sim.presets import plane_through_pixel
+
+
+def rigid_rod(length_m: float, duration_s: float, step_s: float = 1e-3, elements: int = 4) -> Trajectory:
+    """Return a rigid uniform rod released at rest from horizontal (+x), swinging down (+y) about the origin.
+
+    theta'' = (3 g / 2 L) cos(theta), integrated with RK4; nodes on the line, slopes = the unit direction.
+    """
+    g = 9.81
+    times = np.arange(0.0, duration_s + step_s / 2, step_s)
+    state = np.zeros((times.size, 2))
+
+    def rate(y: np.ndarray) -> np.ndarray:
+        return np.array([y[1], 1.5 * g / length_m * np.cos(y[0])])
+
+    for i in range(1, times.size):
+        y = state[i - 1]
+        k1 = rate(y)
+        k2 = rate(y + step_s / 2 * k1)
+        k3 = rate(y + step_s / 2 * k2)
+        k4 = rate(y + step_s * k3)
+        state[i] = y + step_s / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    theta, omega = state[:, 0], state[:, 1]
+    s = np.linspace(0.0, length_m, elements + 1)
+    direction = np.stack([np.cos(theta), np.sin(theta)], axis=-1)
+    turning = np.stack([-np.sin(theta), np.cos(theta)], axis=-1) * omega[:, None]
+    q = np.zeros((times.size, elements + 1, 4))
+    qdot = np.zeros_like(q)
+    q[:, :, 0:2] = s[None, :, None] * direction[:, None, :]
+    q[:, :, 2:4] = direction[:, None, :]
+    qdot[:, :, 0:2] = s[None, :, None] * turning[:, None, :]
+    qdot[:, :, 2:4] = turning[:, None, :]
+    return Trajectory(length_m, times, q.reshape(times.size, -1), qdot.reshape(times.size, -1))
+
+
+def curling_rope(length_m: float, duration_s: float, step_s: float = 1e-3, elements: int = 16) -> Trajectory:
+    """Return a rope bent into a circular arc whose curvature grows while it rotates (a curl, not dynamics).
+
+    Nodal slopes are the arc's unit tangents; velocities are central differences of the nodal coordinates.
+    """
+    times = np.arange(0.0, duration_s + step_s / 2, step_s)
+    s = np.linspace(0.0, length_m, elements + 1)
+    heading = 0.2 + 2.0 * times  # rad, direction at the fixed end
+    curvature = (0.5 + 6.0 * times / max(duration_s, 1e-9)) / length_m  # 1/m
+    angle = heading[:, None] + curvature[:, None] * s[None, :]
+    x = (np.sin(angle) - np.sin(heading)[:, None]) / curvature[:, None]
+    y = (np.cos(heading)[:, None] - np.cos(angle)) / curvature[:, None]
+    q = np.stack([x, y, np.cos(angle), np.sin(angle)], axis=-1).reshape(times.size, -1)
+    qdot = np.gradient(q, times, axis=0)
+    return Trajectory(length_m, times, q, qdot)
+
+
+@pytest.fixture
+def rod_factory() -> Callable[..., Trajectory]:
+    """Factory of rigid-rod trajectories: ``rod_factory(length_m, duration_s)``."""
+    return rigid_rod
+
+
+@pytest.fixture
+def curl_factory() -> Callable[..., Trajectory]:
+    """Factory of curling-arc trajectories: ``curl_factory(length_m, duration_s)``."""
+    return curling_rope
+
+
+def tiny_config(clean: bool = False, **changes: object) -> SimConfig:
+    """Return a small rig (320x200, distortion, tilted plane at 1.5 m, 0.411 m rope about 2 px wide), 3 frames.
+
+    `clean` removes noise, background non-uniformity and vignetting; `changes` replace `SimConfig` fields.
+    """
+    matrix = np.array([[500.0, 0.0, 161.3], [0.0, 496.0, 99.2], [0.0, 0.0, 1.0]])
+    distortion = (-0.1793, 0.3891, 0.001, -0.0005, 0.0)
+    model = CameraModel(matrix, np.array(distortion), (320, 200))
+    tvec = plane_through_pixel(model, 1.5, (160.0, 30.0))
+    camera = CameraSpec(500.0, 496.0, 161.3, 99.2, 320, 200, 119.0, tvec, (0.05, -0.08, 0.03), distortion)
+    rope = RopeSpec(length_m=0.411, diameter_m=0.001, render_diameter_m=0.006)
+    config = SimConfig("tiny", camera, rope, frames=3, exposure_ms=(4.0,), first_exposure_s=0.1)
+    if clean:
+        scene = dataclasses.replace(config.scene, background_variation=0.0, vignetting=0.0, texture=0.0)
+        config = dataclasses.replace(config, scene=scene, sensor=SensorSpec(0.0, 0.0))
+    return dataclasses.replace(config, **changes) if changes else config
+
+
+@pytest.fixture
+def tiny() -> Callable[..., SimConfig]:
+    """Factory of the small test rig: ``tiny(clean=False, **SimConfig field changes)``."""
+    return tiny_config

@@ -1,0 +1,142 @@
+"""`ropecam simulate` end to end: tiny sets from a saved trajectory, readable by the frame-set reader; clear errors."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ropecam.device.capture.frameset import FrameSet
+from ropecam.host.cli import main
+from ropecam.host.model.trajectory import Trajectory
+from ropecam.host.sim.config import SimConfig
+from ropecam.host.sim.generate import write_frameset
+
+SMALL_CAMERA = """
+[camera]
+fx_px = 500.0
+fy_px = 495.0
+cx_px = 160.0
+cy_px = 100.0
+width_px = 320
+height_px = 200
+plane_tvec_m = [0.0, -0.12, 1.5]
+[rope]
+render_diameter_m = 0.006
+"""
+
+
+@pytest.fixture
+def rod_file(tmp_path: Path, rod_factory: Callable[..., Trajectory]) -> Path:
+    path = tmp_path / "rod.npz"
+    rod_factory(0.411, 0.1).save(path)
+    return path
+
+
+@pytest.fixture
+def small_toml(tmp_path: Path) -> Path:
+    path = tmp_path / "small.toml"
+    path.write_text(SMALL_CAMERA)
+    return path
+
+
+def test_simulate_writes_a_readable_set(
+    tmp_path: Path, rod_file: Path, small_toml: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "set"
+    argv = ["simulate", "rig", "--out", str(out), "--frames", "3", "--trajectory", str(rod_file)]
+    argv += ["--config", str(small_toml), "--seed", "7", "--polarity", "dark", "--clamp", "--scratch"]
+    assert main(argv) == 0
+    frames = FrameSet(out)
+    assert len(frames) == 3 and frames.image_size == (320, 200) and frames.fps == 119.0
+    assert frames.exposure_us == 4000
+    rig = frames.meta["rig"]
+    assert rig["preset"] == "rig" and rig["polarity"] == "dark" and rig["seed"] == 7
+    assert rig["rope_length_m"] == 0.411 and rig["render_diameter_m"] == 0.006 and "clamp_box_px" in rig
+    assert frames.meta["camera"]["distortion"] == [-0.1793, 0.3891, 0.0, 0.0, 0.0]
+    assert frames.meta["plane"]["tvec_m"] == [0.0, -0.12, 1.5]
+    truth = frames.truth()
+    assert truth is not None and truth["begin_px"].shape[0] == 3
+    images = [image for _, image in frames]
+    # Dark rope on a bright background: the rope pixels are the darkest.
+    tip = np.rint(truth["tip_begin_px"][0]).astype(int)
+    middle = np.rint(truth["begin_px"][0][len(truth["s_m"]) // 2]).astype(int)
+    assert images[0][middle[1], middle[0]] < 100 < np.median(images[0])
+    assert 0 <= tip[0] < 320 and 0 <= tip[1] < 200
+    assert "3 frames, 4000 us" in capsys.readouterr().err
+    # Reproducible: the same command gives the same frames.
+    assert main([*argv[:2], "--out", str(tmp_path / "again"), *argv[4:]]) == 0
+    for (_, a), b in zip(FrameSet(tmp_path / "again"), images, strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_several_exposures_give_one_set_each(tmp_path: Path, rod_file: Path, small_toml: Path) -> None:
+    out = tmp_path / "sets"
+    argv = ["simulate", "rig", "--out", str(out), "--frames", "2", "--trajectory", str(rod_file), "-q"]
+    assert main([*argv, "--config", str(small_toml), "--exposure-ms", "1", "5", "--first-exposure-ms", "60"]) == 0
+    assert FrameSet(out / "exposure_1ms").exposure_us == 1000
+    assert FrameSet(out / "exposure_5ms").exposure_us == 5000
+    one, five = (FrameSet(out / f"exposure_{ms}ms").truth() for ms in (1, 5))
+    assert one is not None and five is not None
+    np.testing.assert_array_equal(one["begin_px"], five["begin_px"])  # same motion, same start times
+    assert np.all(five["subframes"] > one["subframes"])
+
+
+def test_refuses_to_overwrite_and_explains_errors(
+    tmp_path: Path, rod_file: Path, small_toml: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "set"
+    base = ["simulate", "rig", "--out", str(out), "--trajectory", str(rod_file), "--config", str(small_toml), "-q"]
+    assert main([*base, "--frames", "2"]) == 0
+    before = (out / "frames" / "000000.png").read_bytes()
+    assert main([*base, "--frames", "2", "--seed", "3"]) == 2
+    assert "exists already" in capsys.readouterr().err
+    assert (out / "frames" / "000000.png").read_bytes() == before
+    assert main([*base, "--frames", "2", "--seed", "3", "--overwrite"]) == 0
+    # The 0.1 s trajectory holds 12 frames at 119 FPS with 4 ms exposures, not 50.
+    assert main([*base, "--frames", "50", "--overwrite"]) == 2
+    err = capsys.readouterr().err
+    assert "holds 12 frames" in err and "fewer frames" in err
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[scene]\npolarty = 'dark'\n")
+    assert main([*base, "--config", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert "polarty" in err and str(bad) in err
+    assert main([*base, "--exposure-ms", "9"]) == 2  # longer than the frame period at 119 FPS
+    assert "exposure_ms" in capsys.readouterr().err
+    assert main([*base, "--trajectory", str(tmp_path / "missing.npz")]) == 2
+    assert "missing.npz" in capsys.readouterr().err
+
+
+def test_wrong_rope_length_is_refused(tmp_path: Path, rod_factory: Callable[..., Trajectory],
+                                      small_toml: Path, capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
+    path = tmp_path / "long.npz"
+    rod_factory(1.0, 0.1).save(path)
+    argv = ["simulate", "rig", "--out", str(tmp_path / "s"), "--trajectory", str(path), "--config", str(small_toml)]
+    assert main(argv) == 2
+    assert "rope.length_m" in capsys.readouterr().err
+
+
+def test_interrupted_run_keeps_frames_and_their_truth(
+    tmp_path: Path, tiny: Callable[..., SimConfig], rod_factory: Callable[..., Trajectory]
+) -> None:
+    def stop_after_two(done: int, total: int) -> None:
+        if done == 2:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        write_frameset(tiny(frames=5), rod_factory(0.411, 0.2), tmp_path / "set", 4.0, progress=stop_after_two)
+    frames = FrameSet(tmp_path / "set")
+    truth = frames.truth()
+    assert len(frames) == 2 and truth is not None
+    assert truth["begin_px"].shape[0] == 2 and truth["t_begin_ns"].tolist() == [r.t_ns for r in frames.records]
+
+
+def test_help_lists_presets(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        main(["simulate", "--help"])
+    text = capsys.readouterr().out
+    for name in ("paper", "paper-soft", "rig", "rig-soft", "--exposure-ms", "--trajectory", "docs/frameset.md"):
+        assert name in text

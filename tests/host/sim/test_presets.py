@@ -1,0 +1,88 @@
+"""Presets: the issue's numbers, ropes 1.5-4 px wide, the whole swing in view; configuration overrides validated."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ropecam.host.calibration.geometry import plane_to_pixels
+from ropecam.host.sim.config import merge_overrides
+from ropecam.host.sim.presets import PRESETS, preset
+from ropecam.host.sim.render import RopeRenderer
+from ropecam.shared.errors import ConfigError
+
+
+def test_rig_and_paper_follow_the_issue() -> None:
+    rig = preset("rig")
+    k = rig.camera.camera_model().camera_matrix
+    np.testing.assert_array_equal(k, [[1495.2341, 0, 508.0598], [0, 1483.2726, 275.6076], [0, 0, 1]])
+    assert rig.camera.distortion[:2] == (-0.1793, 0.3891) and rig.camera.image_size == (1024, 544)
+    assert (rig.camera.fps, rig.exposure_ms, rig.frames, rig.rope.length_m) == (119.0, (4.0,), 60, 0.411)
+    assert rig.camera.plane_tvec_m[2] == 1.5
+    paper = preset("paper")
+    k = paper.camera.camera_model().camera_matrix
+    np.testing.assert_array_equal(k, [[1200, 0, 400], [0, 1200, 256], [0, 0, 1]])
+    assert paper.camera.image_size == (800, 512) and paper.camera.fps == 30.0
+    assert paper.exposure_ms == (1.0, 5.0, 9.0, 15.0) and paper.rope.length_m == 1.0
+    for name in PRESETS:
+        config = preset(name)
+        assert config.rope.diameter_m == 0.001 and config.rope.youngs_modulus_pa == 1.24e11
+        assert (config.rope.ei_nm2 is not None) == name.endswith("-soft")
+    solid_ei = 1.24e11 * np.pi * 0.001**4 / 64
+    assert preset("rig-soft").rope.ei_nm2 < solid_ei / 100 and preset("paper-soft").rope.ei_nm2 < solid_ei / 50
+
+
+@pytest.mark.parametrize("name", list(PRESETS))
+def test_rope_width_and_swing_fit_the_image(name: str) -> None:
+    config = preset(name)
+    camera, plane = config.camera.camera_model(), config.camera.plane_pose()
+    length = config.rope.length_m
+    # Every point the rope can reach below the horizontal through the fixed end, plus 10 % of L above it.
+    angle = np.linspace(-np.pi, 0, 181)
+    radius = np.linspace(0, length, 41)
+    disc = np.stack(np.meshgrid(radius, angle), axis=-1)
+    points = np.stack([disc[..., 0] * np.cos(disc[..., 1]), -disc[..., 0] * np.sin(disc[..., 1])], axis=-1)
+    above = np.stack(np.meshgrid(np.linspace(-length, length, 41), np.linspace(-0.1 * length, 0, 5)), axis=-1)
+    pixels = plane_to_pixels(np.concatenate([points.reshape(-1, 2), above.reshape(-1, 2)]), camera, plane)
+    width, height = config.camera.image_size
+    assert pixels[:, 0].min() >= 5 and pixels[:, 0].max() <= width - 6
+    assert pixels[:, 1].min() >= 5 and pixels[:, 1].max() <= height - 6
+    # Apparent width of a straight rope in several directions.
+    s = np.linspace(0, length, 200)
+    renderer = RopeRenderer(camera, plane, s, config.rope.render_diameter_m, np.ones_like(s), 0.5)
+    for theta in np.linspace(0, np.pi, 7):
+        line = s[:, None] * np.array([np.cos(theta), np.sin(theta)])
+        widths = 2 * renderer.half_width_px(line, renderer.project(line))
+        assert widths.min() >= 1.5 and widths.max() <= 4.0, f"{name}: {widths.min():.2f}..{widths.max():.2f} px"
+
+
+def test_unknown_preset_and_bad_overrides_are_named() -> None:
+    with pytest.raises(ConfigError, match=r"unknown preset .rigg.*rig-soft"):
+        preset("rigg")
+    config = preset("rig")
+    with pytest.raises(ConfigError, match=r"my\.toml.*unknown key 'exposure'"):
+        merge_overrides(config, {"exposure": 3}, where="my.toml")
+    with pytest.raises(ConfigError, match=r"scene\.polarity"):
+        merge_overrides(config, {"scene": {"polarity": "grey"}})
+    with pytest.raises(ConfigError, match="frames"):
+        merge_overrides(config, {"frames": 0})
+    with pytest.raises(ConfigError, match="exposure_ms"):
+        merge_overrides(config, {"exposure_ms": [9.0]})  # longer than 1/119 s
+    with pytest.raises(ConfigError, match="differ by at least 10"):
+        merge_overrides(config, {"scene": {"rope_level_dn": 30.0}})
+    changed = merge_overrides(config, {"rope": {"ei_nm2": 3e-6}, "camera": {"plane_rvec": [0.0, 0.1, 0.0]}})
+    assert changed.rope.ei_nm2 == 3e-6 and changed.camera.plane_rvec == (0.0, 0.1, 0.0)
+    assert changed.rope.length_m == config.rope.length_m
+
+
+def test_documented_config_example_is_valid() -> None:
+    """The TOML example in docs/simulator.md loads onto a preset."""
+    import re
+    import tomllib
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[3] / "docs" / "simulator.md").read_text()
+    example = re.search(r"```toml\n(.*?)```", text, re.DOTALL)
+    assert example is not None
+    config = merge_overrides(preset("rig"), tomllib.loads(example.group(1)), where="docs/simulator.md")
+    assert config.frames == 120 and config.scene.polarity == "dark" and config.rope.ei_nm2 == 3e-6
