@@ -48,12 +48,12 @@ def assert_frame_results_match(original: FrameResult, decoded: FrameResult, tole
 
 
 @pytest.fixture(scope="session")
-def frames_match():  # noqa: ANN201
+def frames_match():
     """The `assert_frame_results_match` helper."""
     return assert_frame_results_match
 
 
 @pytest.fixture(scope="session")
-def shape_error():  # noqa: ANN201
+def shape_error():
     """The `shape_error_px` helper."""
     return shape_error_px

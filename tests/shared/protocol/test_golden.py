@@ -52,7 +52,7 @@ def _name(message_type: MessageType, signed: bool) -> str:
 def test_golden_file_decodes_to_the_example(
     message_type: MessageType,
     signed: bool,
-    frames_match,  # noqa: ANN001
+    frames_match,
 ) -> None:
     path = _path(PROTOCOL_VERSION, _name(message_type, signed))
     if REGENERATE:

@@ -96,7 +96,7 @@ def _trip(record: object, t_ns: int = 0, sequence: int = 7, device_id: int = 2) 
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(frame_results(), T_NS)
-def test_frame_result_round_trip(frames_match, record: FrameResult, t_ns: int) -> None:  # noqa: ANN001
+def test_frame_result_round_trip(frames_match, record: FrameResult, t_ns: int) -> None:
     frames_match(record, _trip(record, t_ns))
 
 
