@@ -71,7 +71,7 @@ def test_rig_shapes_stay_within_tolerance(noise: str, shape_error) -> None:
 
 def test_tighter_tolerance_holds_and_costs_more_bytes(shape_error) -> None:
     frame = rig_frames(1, seed=2)[0]
-    loose, decoded_loose = _round_trip(frame.begin_px, ShapeCodecConfig(tolerance_px=0.05))
+    loose, _ = _round_trip(frame.begin_px, ShapeCodecConfig(tolerance_px=0.05))
     tight, decoded_tight = _round_trip(frame.begin_px, ShapeCodecConfig(tolerance_px=0.02, quantum_shift=8))
     assert shape_error(frame.begin_px, decoded_tight) <= 0.02 + 1e-9
     assert len(tight.data) > len(loose.data)
