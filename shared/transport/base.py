@@ -58,6 +58,10 @@ class Transport(ABC):
     def receive(self, timeout_s: float | None = 0.0) -> bytes | None:
         """Return the next message, waiting up to `timeout_s` (None: forever); None when none arrived."""
 
+    def drain(self, timeout_s: float = 1.0) -> bool:
+        """Wait up to `timeout_s` until everything accepted by `send` has left this end; True when it has."""
+        return True
+
     def close(self) -> None:
         """Release the line; further calls fail with TransportError."""
         self._closed = True
