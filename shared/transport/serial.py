@@ -132,27 +132,35 @@ class SerialTransport(Transport):
             raise TransportError(f"{self.url}: receive on a closed transport")
         self._flush_pending()
         deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        waited = False
         while not self._ready:
             try:
                 data = os.read(self._fd, _READ_BYTES)
             except BlockingIOError:
-                data = None
+                data = b""
             except OSError as exc:
                 raise TransportError(f"{self.url}: read failed (port lost?): {exc}") from exc
             if data:
-                before = self._deframer.stats.bad_frames + self._deframer.stats.overlong
-                self.stats.bytes_received += len(data)
-                self._ready.extend(self._deframer.feed(data))
-                self.stats.bad_frames += self._deframer.stats.bad_frames + self._deframer.stats.overlong - before
+                waited = False
+                self._feed(data)
                 continue
-            if data == b"":
-                raise TransportError(f"{self.url}: the serial device closed (unplugged?)")
+            if waited:
+                # A tty with VMIN = VTIME = 0 reads b"" when empty; after select said readable it means hang-up.
+                raise TransportError(f"{self.url}: the serial device reports data but gives none (unplugged?)")
             remaining = None if deadline is None else deadline - time.monotonic()
             if remaining is not None and remaining <= 0:
                 return None
-            select.select([self._fd], [], [], remaining)
+            readable, _, _ = select.select([self._fd], [], [], remaining)
+            waited = bool(readable)
         self.stats.received += 1
         return self._ready.pop(0)
+
+    def _feed(self, data: bytes) -> None:
+        stats = self._deframer.stats
+        before = stats.bad_frames + stats.overlong
+        self.stats.bytes_received += len(data)
+        self._ready.extend(self._deframer.feed(data))
+        self.stats.bad_frames += stats.bad_frames + stats.overlong - before
 
     def close(self) -> None:
         """Close the port (a pending partial message is abandoned)."""
