@@ -35,7 +35,7 @@ def test_messages_arrive_whole_and_in_order_both_ways(link: tuple[Transport, Tra
 
 
 def test_receive_times_out_with_none(link: tuple[Transport, Transport]) -> None:
-    device, host = link
+    _, host = link
     assert host.receive(0.0) is None
     assert host.receive(0.05) is None
 

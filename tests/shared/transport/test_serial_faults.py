@@ -22,7 +22,7 @@ BATCH = 20
 
 @pytest.mark.slow
 @pytest.mark.parametrize("pty_link", [{"fault_rate": 0.01, "seed": 7}], indirect=True)
-def test_acceptance_one_percent_faults_on_a_pty_pair(pty_link) -> None:  # noqa: ANN001
+def test_acceptance_one_percent_faults_on_a_pty_pair(pty_link) -> None:
     device, host, relay = pty_link
     rng = np.random.default_rng(1)
     texts = ["m" * int(n) for n in rng.integers(4, 60, 64)]
