@@ -26,7 +26,6 @@ Wire format of one shape (integers are varints, coordinates in units of ``2**-sh
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 from enum import IntEnum
 from typing import Final
@@ -36,7 +35,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ropecam.shared.config import check_range
 from ropecam.shared.errors import ConfigError, ProtocolError
-from ropecam.shared.protocol._kernels import distances_to_polyline
+from ropecam.shared.protocol._kernels import distances_to_polyline, fit_bspline, sample_bspline
 from ropecam.shared.protocol.bytecodec import ByteReader, ByteWriter
 
 __all__ = [
@@ -109,50 +108,11 @@ class EncodedShape:
     max_error_px: float
 
 
-@functools.lru_cache(maxsize=64)
-def _knots(control_count: int) -> NDArray[np.float64]:
-    degree = min(_DEGREE, control_count - 1)
-    inner = np.linspace(0.0, 1.0, control_count - degree + 1)[1:-1]
-    return np.concatenate([np.zeros(degree + 1), inner, np.ones(degree + 1)])
-
-
-def _basis(t: NDArray[np.float64], control_count: int) -> NDArray[np.float64]:
-    """Return the clamped uniform B-spline basis matrix, shape (len(t), control_count) (Piegl & Tiller A2.2)."""
-    degree = min(_DEGREE, control_count - 1)
-    knots = _knots(control_count)
-    segments = control_count - degree
-    span = degree + np.minimum((t * segments).astype(np.int64), segments - 1)
-    n = len(t)
-    values = np.zeros((n, degree + 1))
-    values[:, 0] = 1.0
-    left = np.zeros((n, degree + 1))
-    right = np.zeros((n, degree + 1))
-    for j in range(1, degree + 1):
-        left[:, j] = t - knots[span + 1 - j]
-        right[:, j] = knots[span + j] - t
-        saved = np.zeros(n)
-        for r in range(j):
-            temp = values[:, r] / (right[:, r + 1] + left[:, j - r])
-            values[:, r] = saved + right[:, r + 1] * temp
-            saved = left[:, j - r] * temp
-        values[:, j] = saved
-    matrix = np.zeros((n, control_count))
-    rows = np.repeat(np.arange(n), degree + 1)
-    cols = (span[:, None] - degree + np.arange(degree + 1)[None, :]).ravel()
-    matrix[rows, cols] = values.ravel()
-    return matrix
-
-
-@functools.lru_cache(maxsize=256)
-def _uniform_basis(point_count: int, control_count: int) -> NDArray[np.float64]:
-    matrix = _basis(np.linspace(0.0, 1.0, point_count), control_count)
-    matrix.flags.writeable = False
-    return matrix
-
-
 def _spline_samples(control_q: NDArray[np.int64], point_count: int, shift: int) -> NDArray[np.float64]:
-    """The decoder's spline samples: identical arithmetic on both sides, so the encoder's check is exact."""
-    return _uniform_basis(point_count, len(control_q)) @ (control_q / float(1 << shift))
+    """The decoder's polyline before corrections; the encoder's check runs the very same arithmetic."""
+    out = np.empty((point_count, 2))
+    sample_bspline(np.ascontiguousarray(control_q / float(1 << shift)), np.empty(4), out)
+    return out
 
 
 def _relative_position(points: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -318,10 +278,16 @@ def encode_shape(
     scale = float(1 << config.quantum_shift)
     cache: dict[int, _Candidate | None] = {}
 
+    work_basis = np.empty(4)
+    work_normal = np.empty((MAX_CONTROL_POINTS, MAX_CONTROL_POINTS))
+    control = np.empty((MAX_CONTROL_POINTS, 2))
+
     def attempt(m: int) -> _Candidate | None:
         if m not in cache:
-            control, *_ = np.linalg.lstsq(_basis(t, m), points, rcond=None)
-            cache[m] = _correct(points, t, np.rint(control * scale).astype(np.int64), config)
+            if fit_bspline(points, t, m, work_basis, work_normal, control) != m:
+                cache[m] = None  # singular: a span without points
+            else:
+                cache[m] = _correct(points, t, np.rint(control[:m] * scale).astype(np.int64), config)
         return cache[m]
 
     def size(m: int) -> float:

@@ -8,7 +8,7 @@ import pytest
 from ropecam.host.sim.rig_polylines import rig_frames
 from ropecam.shared.errors import ConfigError, ProtocolError
 from ropecam.shared.protocol import FrameResult, ShapeCodecConfig, ShapeHint, decode_message, encode_message
-from ropecam.shared.protocol._kernels import distances_to_polyline
+from ropecam.shared.protocol._kernels import distances_to_polyline, fit_bspline, sample_bspline
 from ropecam.shared.protocol.bytecodec import ByteReader
 from ropecam.shared.protocol.examples import arc_polyline
 from ropecam.shared.protocol.shapes import ShapeKind, decode_shape, encode_shape, polyline_distances_px
@@ -24,6 +24,43 @@ def _reference_distances(points: np.ndarray, curve: np.ndarray) -> np.ndarray:
         s = np.clip(np.einsum("ij,ij->i", p - a, d) / np.where(length2 > 0, length2, 1), 0, 1)
         out.append(np.min(np.hypot(*(p - a - s[:, None] * d).T)))
     return np.array(out)
+
+
+def _reference_basis(t: np.ndarray, m: int) -> np.ndarray:
+    """Slow, obvious Cox-de Boor recursion on the clamped uniform knots, shape (len(t), m)."""
+    p = min(3, m - 1)
+    knots = np.concatenate([np.zeros(p + 1), np.linspace(0, 1, m - p + 1)[1:-1], np.ones(p + 1)])
+
+    def basis(i: int, k: int, x: float) -> float:
+        if k == 0:
+            if knots[i] <= x < knots[i + 1] or (x == 1.0 and knots[i] < 1.0 == knots[i + 1]):
+                return 1.0
+            return 0.0
+        total = 0.0
+        if knots[i + k] > knots[i]:
+            total += (x - knots[i]) / (knots[i + k] - knots[i]) * basis(i, k - 1, x)
+        if knots[i + k + 1] > knots[i + 1]:
+            total += (knots[i + k + 1] - x) / (knots[i + k + 1] - knots[i + 1]) * basis(i + 1, k - 1, x)
+        return total
+
+    return np.array([[basis(i, p, float(x)) for i in range(m)] for x in t])
+
+
+@pytest.mark.parametrize("m", [2, 3, 4, 7, 12])
+def test_bspline_kernels_match_the_reference(m: int) -> None:
+    rng = np.random.default_rng(m)
+    points = np.cumsum(rng.normal(0, 1, (80, 2)), axis=0)
+    t = np.sort(np.concatenate([[0.0, 1.0], rng.uniform(0, 1, 78)]))
+    reference_basis = _reference_basis(t, m)
+    reference, *_ = np.linalg.lstsq(reference_basis, points, rcond=None)
+    control = np.empty((m, 2))
+    assert fit_bspline(points, t, m, np.empty(4), np.empty((m, m)), control) == m
+    np.testing.assert_allclose(control, reference, atol=1e-9)
+    samples = np.empty((33, 2))
+    assert sample_bspline(control, np.empty(4), samples) == 33
+    np.testing.assert_allclose(samples, _reference_basis(np.linspace(0, 1, 33), m) @ control, atol=1e-9)
+    # Too few points to determine the control points: a status, not a crash.
+    assert fit_bspline(points[:2], t[[0, -1]], 8, np.empty(4), np.empty((8, 8)), np.empty((8, 2))) < 0
 
 
 def _round_trip(points: np.ndarray | None, config: ShapeCodecConfig, origin=(0.0, 0.0)):
