@@ -95,9 +95,9 @@ def fit_bspline(points, t, control_count, work_basis, work_normal, out_control):
     """Least-squares fit of a clamped uniform B-spline (degree min(3, m - 1)) through `points` at parameters `t`.
 
     Writes the m = `control_count` control points into ``out_control[:m]`` (rows (u, v)), using `work_basis`
-    (>= 4 values) and ``work_normal[:m, :m]`` for the normal equations (solved by Cholesky). Returns m, KernelStatus.INVALID for
-    inconsistent sizes (m < 2, buffers too small) or KernelStatus.SINGULAR when the points do not determine the
-    control points (too few, or a span without points).
+    (>= 4 values) and ``work_normal[:m, :m]`` for the normal equations (solved by Cholesky). Returns m,
+    KernelStatus.INVALID for inconsistent sizes (m < 2, buffers too small) or KernelStatus.SINGULAR when the
+    points do not determine the control points (too few, or a span without points).
     """
     n = points.shape[0]
     m = control_count

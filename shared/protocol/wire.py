@@ -22,9 +22,10 @@ from __future__ import annotations
 
 import struct
 import zlib
+from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import IntEnum, IntFlag
-from typing import TYPE_CHECKING, ClassVar, Final, Protocol
+from typing import TYPE_CHECKING, Any, ClassVar, Final, Protocol
 
 from ropecam.shared.errors import ProtocolError
 
@@ -166,7 +167,15 @@ def _check_int(name: str, value: int, low: int, high: int) -> None:
         raise ValueError(f"{name} must be an integer in [{low}, {high}], got {value!r}")
 
 
-def encode_message(record: Record, *, device_id: int, sequence: int, t_ns: int, signer: Signer | None = None) -> bytes:
+def encode_message(
+    record: Record,
+    *,
+    device_id: int,
+    sequence: int,
+    t_ns: int,
+    signer: Signer | None = None,
+    pack_options: Mapping[str, Any] | None = None,
+) -> bytes:
     """Return the complete bytes of one message carrying `record`.
 
     Parameters
@@ -181,6 +190,8 @@ def encode_message(record: Record, *, device_id: int, sequence: int, t_ns: int, 
         Device (or host) clock when the message was made, int64 nanoseconds.
     signer
         Adds the authentication trailer (required for control messages the device should accept).
+    pack_options
+        Extra keyword arguments of the record's `pack` (FrameResult: ``shape_config``, ``hint``).
 
     Raises
     ------
@@ -190,7 +201,7 @@ def encode_message(record: Record, *, device_id: int, sequence: int, t_ns: int, 
     _check_int("device_id", device_id, 0, _U16)
     _check_int("sequence", sequence, 0, _U32)
     _check_int("t_ns", t_ns, -_I64, _I64 - 1)
-    payload = record.pack(t_ns)
+    payload = record.pack(t_ns, **(pack_options or {}))
     if len(payload) > MAX_PAYLOAD_BYTES:
         raise ValueError(f"{type(record).__name__} payload is {len(payload)} bytes, more than {MAX_PAYLOAD_BYTES}")
     flags = HeaderFlags.AUTHENTICATED if signer is not None else HeaderFlags.NONE
