@@ -151,3 +151,18 @@ def test_keys_come_from_hex_or_a_file(tmp_path) -> None:
         load_key(AuthConfig(key_file=tmp_path / "missing.key"))
     with pytest.raises(ConfigError, match="not both"):
         AuthConfig(key_hex=KEY.hex(), key_file=path)
+
+
+def test_the_data_stream_can_be_authenticated_too() -> None:
+    from ropecam.shared.protocol.examples import example_records
+    from ropecam.shared.protocol.wire import MessageType
+
+    data_key = bytes(range(100, 132))
+    record = example_records()[MessageType.FRAME_RESULT]
+    signer = Signer(data_key)
+    verifier = Verifier(data_key)
+    messages = [encode_message(record, device_id=1, sequence=i, t_ns=0, signer=signer) for i in range(3)]
+    assert [verifier.verify(decode_message(m)) for m in messages] == [Verdict.ACCEPTED] * 3
+    assert verifier.verify(decode_message(messages[1])) is Verdict.REPLAYED
+    plain = encode_message(record, device_id=1, sequence=9, t_ns=0)
+    assert verifier.verify(decode_message(plain)) is Verdict.UNAUTHENTICATED
