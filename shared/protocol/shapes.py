@@ -6,11 +6,13 @@ fixed-point code costs several bits per point and coordinate (hundreds of bytes 
 by least squares over the normalised arc length, carries the curve in 15-30 bytes.
 
 The bound is guaranteed by construction. The decoded shape is the polyline through the spline sampled at the device's
-point count, at equally spaced parameters. The encoder builds exactly that polyline from the quantised control points,
-measures the distance of every device point to it, and corrects the few points a smooth curve cannot reach (noise
-outliers, a kink): the decoded sample nearest such a point is moved onto it (an offset at the coding quantum).
-Corrections are iterated until every device point and both end points are within ``tolerance_px``. The number of
-control points is chosen to minimise the bytes (spline points versus corrections), starting from the previous frame's.
+point count, at equally spaced parameters. The encoder builds exactly that polyline from the quantised control points
+(same kernel, same arithmetic as the decoder) and measures the distance of every device point to it (the nearest
+segment is searched in a window around the point's position along the rope, which can only overestimate). Where a
+smooth curve cannot reach a point (noise outliers, a kink) it adds a correction: the decoded sample nearest the point
+is moved onto it (an offset at the coding quantum). Corrections are iterated until every device point and both end
+points are within ``tolerance_px``. The number of control points is chosen to minimise the bytes (spline points
+versus corrections), starting from the previous frame's.
 
 Wire format of one shape (integers are varints, coordinates in units of ``2**-shift`` px)::
 
@@ -56,7 +58,7 @@ _MIN_CONTROL_POINTS: Final = 4
 _COORD_LIMIT_PX: Final = 65536.0
 """Coordinates beyond +-this are refused (keeps integers on the wire bounded)."""
 _DEGREE: Final = 3
-_SEARCH_HALF_WINDOW: Final = 12
+_SEARCH_HALF_WINDOW: Final = 6
 _MAX_CORRECTION_ROUNDS: Final = 8
 
 
@@ -295,18 +297,31 @@ def encode_shape(
         return float("inf") if candidate is None else candidate.size
 
     ref_count = None if reference is None or reference.control_q is None else len(reference.control_q)
-    start = ref_count or control_hint or 6
-    best = int(min(max(start, _MIN_CONTROL_POINTS), most))
-    # Local descent on the byte estimate: consecutive frames need about the same count, so this takes 2-3 fits.
-    for step in (1, -1):
-        while _MIN_CONTROL_POINTS <= best + step <= most and size(best + step) < size(best):
-            best += step
+    if ref_count is not None and _MIN_CONTROL_POINTS <= ref_count <= most:
+        relative_candidate = attempt(ref_count)
+        if relative_candidate is not None and len(relative_candidate.index) == 0:
+            # The usual case for the end shape: the begin shape's count fits without corrections, and offsets from
+            # the begin shape are the cheapest code there is.
+            return _write_spline(relative_candidate, n, config, origin_px, reference)
+    best = int(min(max(control_hint or ref_count or 6, _MIN_CONTROL_POINTS), most))
+    # One step of descent on the byte estimate per frame: consecutive frames need about the same count, so the
+    # count converges over a few frames and a frame costs 2-3 fits.
+    first = attempt(best)
+    if first is not None and len(first.index) == 0:
+        if best - 1 >= _MIN_CONTROL_POINTS and size(best - 1) < size(best):
+            best -= 1
+    else:
+        improved = False
+        while best + 1 <= most and size(best + 1) < size(best):
+            best, improved = best + 1, True
+        if not improved and best - 1 >= _MIN_CONTROL_POINTS and size(best - 1) < size(best):
+            best -= 1
     chosen = attempt(best)
     if chosen is None:
         return _encode_raw(points, config, origin_px)
     relative = ref_count == best
     # The reference's count may still win once the halved control-point cost is counted.
-    if ref_count is not None and not relative and ref_count <= most and size(ref_count) - ref_count < size(best):
+    if ref_count is not None and not relative and ref_count in cache and size(ref_count) - ref_count < size(best):
         best, chosen, relative = ref_count, cache[ref_count], True
     assert chosen is not None
     return _write_spline(chosen, n, config, origin_px, reference if relative else None)
