@@ -65,6 +65,7 @@ class SerialTransport(Transport):
                 self._port.set_low_latency_mode(True)
             except (ValueError, AttributeError, OSError) as exc:
                 if low_latency is True:
+                    self._port.close()
                     raise TransportError(f"{url}: cannot set low-latency mode: {exc}") from exc
                 _log.warning("%s: low-latency mode not available: %s", path, exc)
         self._pending = b""
