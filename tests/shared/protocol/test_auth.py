@@ -166,3 +166,18 @@ def test_the_data_stream_can_be_authenticated_too() -> None:
     assert verifier.verify(decode_message(messages[1])) is Verdict.REPLAYED
     plain = encode_message(record, device_id=1, sequence=9, t_ns=0)
     assert verifier.verify(decode_message(plain)) is Verdict.UNAUTHENTICATED
+
+
+def test_auth_config_loads_from_toml_and_refuses_unknown_keys(tmp_path) -> None:
+    from ropecam.shared.config import load_toml
+
+    key_path = tmp_path / "control.key"
+    key_path.write_text(KEY.hex())
+    config_path = tmp_path / "device.toml"
+    config_path.write_text(f'[control]\nkey_file = "{key_path}"\n')
+    assert load_key(load_toml(config_path, AuthConfig, "control")) == KEY
+    config_path.write_text('[control]\nkey = "00"\n')
+    with pytest.raises(ConfigError, match=r"device.toml \[control\]: unknown key 'key' \(allowed: key_file, key_hex\)"):
+        load_toml(config_path, AuthConfig, "control")
+    config_path.write_text("")
+    assert load_key(load_toml(config_path, AuthConfig, "control")) is None  # no key: control off
