@@ -67,10 +67,16 @@ class _Flags(IntFlag):
 
 @dataclass(slots=True)
 class ShapeHint:
-    """Mutable per-stream memory of the shape encoder (control points used last frame), to speed up the next."""
+    """Mutable per-stream memory of the shape encoder, to speed up the next frame.
+
+    The encoder reuses last frame's numbers of control points and searches for fewer bytes only every
+    `explore_every` frames (the bound holds on every frame regardless; only the size can be a few bytes off).
+    """
 
     begin_control_points: int | None = None
     end_control_points: int | None = None
+    explore_every: int = 8
+    frames: int = 0
 
 
 def _polyline(value: ArrayLike | None, name: str) -> NDArray[np.float64] | None:
@@ -249,8 +255,10 @@ class FrameResult:
             origin = _write_point(w, self.fixed_end_px, origin)
         origin_px = origin / _POINT_SCALE
         hint = hint if hint is not None else ShapeHint()
-        begin = encode_shape(self.begin_px, config, origin_px, control_hint=hint.begin_control_points)
-        end = encode_shape(self.end_px, config, origin_px, reference=begin, control_hint=hint.end_control_points)
+        explore = hint.frames % max(1, hint.explore_every) == 0
+        hint.frames += 1
+        begin = encode_shape(self.begin_px, config, origin_px, control_hint=hint.begin_control_points, explore=explore)
+        end = encode_shape(self.end_px, config, origin_px, begin, control_hint=hint.end_control_points, explore=explore)
         for encoded, attr in ((begin, "begin_control_points"), (end, "end_control_points")):
             if encoded.control_q is not None:
                 setattr(hint, attr, len(encoded.control_q))

@@ -241,6 +241,7 @@ def encode_shape(
     origin_px: tuple[float, float] | NDArray[np.float64] | None = None,
     reference: EncodedShape | None = None,
     control_hint: int | None = None,
+    explore: bool = True,
 ) -> EncodedShape:
     """Encode one polyline (fixed end first) so that every point lies within ``config.tolerance_px`` of the decoded one.
 
@@ -259,6 +260,9 @@ def encode_shape(
         which costs about half.
     control_hint
         Number of control points to try first (what the previous frame needed; consecutive frames are alike).
+    explore
+        Also try neighbouring counts to find fewer bytes. With False a fitting `control_hint` is taken as it is
+        (one fit instead of 2-3; the stream explores every few frames, see `ShapeHint`).
 
     Returns
     -------
@@ -304,6 +308,8 @@ def encode_shape(
             # the begin shape are the cheapest code there is.
             return _write_spline(relative_candidate, n, config, origin_px, reference)
     best = int(min(max(control_hint or ref_count or 6, _MIN_CONTROL_POINTS), most))
+    if not explore and control_hint is not None and (hinted := attempt(best)) is not None:
+        return _write_spline(hinted, n, config, origin_px, None)
     # One step of descent on the byte estimate per frame: consecutive frames need about the same count, so the
     # count converges over a few frames and a frame costs 2-3 fits.
     first = attempt(best)
