@@ -15,6 +15,7 @@ import logging
 import os
 import select
 import time
+from collections import deque
 from pathlib import Path
 from typing import Final
 
@@ -70,7 +71,7 @@ class SerialTransport(Transport):
                 _log.warning("%s: low-latency mode not available: %s", path, exc)
         self._pending = b""
         self._deframer = Deframer()
-        self._ready: list[bytes] = []
+        self._ready: deque[bytes] = deque()
 
     @property
     def deframer_stats(self) -> DeframerStats:
@@ -154,7 +155,7 @@ class SerialTransport(Transport):
             readable, _, _ = select.select([self._fd], [], [], remaining)
             waited = bool(readable)
         self.stats.received += 1
-        return self._ready.pop(0)
+        return self._ready.popleft()
 
     def _feed(self, data: bytes) -> None:
         stats = self._deframer.stats
