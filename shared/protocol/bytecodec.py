@@ -1,0 +1,140 @@
+"""Bounds-checked little-endian byte writer and reader with LEB128 varints and zigzag signed varints.
+
+Every read past the end, every over-long varint and every value out of its declared range raises `ProtocolError`, so a
+decoder built on `ByteReader` cannot raise anything else on hostile input.
+"""
+
+from __future__ import annotations
+
+import struct
+from typing import Final
+
+from ropecam.shared.errors import ProtocolError
+
+__all__ = ["ByteReader", "ByteWriter", "unzigzag", "zigzag"]
+
+_MAX_VARINT_BYTES: Final = 10  # 64-bit values
+_U64_MAX: Final = (1 << 64) - 1
+_STRUCTS: Final = {code: struct.Struct("<" + code) for code in "bBhHiIqQfd"}
+
+
+def zigzag(value: int) -> int:
+    """Map a signed integer to an unsigned one (0, -1, 1, -2, ... -> 0, 1, 2, 3, ...)."""
+    return (value << 1) if value >= 0 else ((-value) << 1) - 1
+
+
+def unzigzag(value: int) -> int:
+    """Inverse of `zigzag`."""
+    return (value >> 1) if not value & 1 else -((value + 1) >> 1)
+
+
+class ByteWriter:
+    """Append fixed-width little-endian values and varints to a growing buffer."""
+
+    __slots__ = ("_buffer",)
+
+    def __init__(self) -> None:
+        self._buffer = bytearray()
+
+    def __len__(self) -> int:
+        return len(self._buffer)
+
+    def getvalue(self) -> bytes:
+        """Return the bytes written so far."""
+        return bytes(self._buffer)
+
+    def fixed(self, code: str, value: float) -> None:
+        """Write one value in `struct` format `code` (one of ``bBhHiIqQfd``), little-endian."""
+        try:
+            self._buffer += _STRUCTS[code].pack(value)
+        except (struct.error, OverflowError) as exc:
+            raise ValueError(f"value {value!r} does not fit struct format {code!r}: {exc}") from exc
+
+    def uvarint(self, value: int) -> None:
+        """Write an unsigned LEB128 varint (0 <= value < 2**64)."""
+        if not 0 <= value <= _U64_MAX:
+            raise ValueError(f"uvarint value must be in [0, 2**64), got {value}")
+        while value >= 0x80:
+            self._buffer.append((value & 0x7F) | 0x80)
+            value >>= 7
+        self._buffer.append(value)
+
+    def svarint(self, value: int) -> None:
+        """Write a signed integer as a zigzag varint."""
+        self.uvarint(zigzag(value))
+
+    def raw(self, data: bytes | bytearray | memoryview) -> None:
+        """Write bytes as they are."""
+        self._buffer += data
+
+    def blob(self, data: bytes | bytearray | memoryview) -> None:
+        """Write a varint length followed by the bytes."""
+        self.uvarint(len(data))
+        self._buffer += data
+
+
+class ByteReader:
+    """Read what `ByteWriter` wrote; any inconsistency raises `ProtocolError` naming `what` was being read."""
+
+    __slots__ = ("_data", "_pos")
+
+    def __init__(self, data: bytes | bytearray | memoryview) -> None:
+        self._data = memoryview(data).cast("B") if not isinstance(data, bytes) else memoryview(data)
+        self._pos = 0
+
+    @property
+    def remaining(self) -> int:
+        """Number of unread bytes."""
+        return len(self._data) - self._pos
+
+    def _take(self, count: int, what: str) -> memoryview:
+        if count < 0 or self._pos + count > len(self._data):
+            raise ProtocolError(f"truncated payload: {what} needs {count} bytes, {self.remaining} left")
+        view = self._data[self._pos : self._pos + count]
+        self._pos += count
+        return view
+
+    def fixed(self, code: str, what: str) -> int | float:
+        """Read one value in `struct` format `code`."""
+        layout = _STRUCTS[code]
+        return layout.unpack(self._take(layout.size, what))[0]
+
+    def uvarint(self, what: str, maximum: int = _U64_MAX) -> int:
+        """Read an unsigned varint and check ``value <= maximum``."""
+        value = 0
+        for index in range(_MAX_VARINT_BYTES):
+            byte = self._take(1, what)[0]
+            value |= (byte & 0x7F) << (7 * index)
+            if not byte & 0x80:
+                if value > maximum:
+                    raise ProtocolError(f"{what} = {value} exceeds its maximum {maximum}")
+                return value
+        raise ProtocolError(f"{what}: varint longer than {_MAX_VARINT_BYTES} bytes")
+
+    def svarint(self, what: str, limit: int = 1 << 62) -> int:
+        """Read a zigzag varint and check ``abs(value) <= limit``."""
+        value = unzigzag(self.uvarint(what))
+        if abs(value) > limit:
+            raise ProtocolError(f"{what} = {value} exceeds its limit {limit}")
+        return value
+
+    def raw(self, count: int, what: str) -> bytes:
+        """Read exactly `count` bytes."""
+        return bytes(self._take(count, what))
+
+    def blob(self, what: str, maximum: int) -> bytes:
+        """Read a varint length (<= `maximum`) and that many bytes."""
+        return self.raw(self.uvarint(f"{what} length", maximum), what)
+
+    def text(self, what: str, maximum: int) -> str:
+        """Read a length-prefixed UTF-8 string."""
+        data = self.blob(what, maximum)
+        try:
+            return data.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise ProtocolError(f"{what} is not valid UTF-8: {exc}") from exc
+
+    def finish(self, what: str) -> None:
+        """Raise `ProtocolError` if bytes are left over after `what`."""
+        if self.remaining:
+            raise ProtocolError(f"{what}: {self.remaining} unexpected trailing bytes")

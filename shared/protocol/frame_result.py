@@ -1,0 +1,407 @@
+"""FrameResult: what the device measured in one frame (the record streamed at camera rate).
+
+Wire resolution (what survives `unpack(pack(r))`): times exactly; pixel points (fixed end, tips, material points) to
+1/64 px; shapes within the shape codec's tolerance (`shapes`, 0.05 px by default); order confidence to 1/65535;
+stretch ratios to 1e-5; material arc lengths to 0.1 mm. Coordinates are chained (each coded relative to a nearby
+point both sides already know) so a typical frame costs ~100-150 bytes with header and CRC.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from enum import IntEnum, IntFlag
+from typing import ClassVar, Final
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ropecam.shared.errors import ProtocolError
+from ropecam.shared.protocol.bytecodec import ByteReader, ByteWriter
+from ropecam.shared.protocol.shapes import ShapeCodecConfig, decode_shape, encode_shape
+from ropecam.shared.protocol.wire import MessageType, register_record
+
+__all__ = ["FrameResult", "FrameStatus", "Method", "ShapeHint"]
+
+POINT_SHIFT: Final = 6
+"""Pixel points are coded in units of 1/64 px."""
+_POINT_SCALE: Final = float(1 << POINT_SHIFT)
+_POINT_LIMIT: Final = 65536 * (1 << POINT_SHIFT)
+_S_SCALE: Final = 1e4  # material arc lengths in units of 0.1 mm
+_STRETCH_SCALE: Final = 1e5
+_CONFIDENCE_SCALE: Final = 65535
+MAX_MATERIAL_POINTS: Final = 64
+_U32: Final = 0xFFFF_FFFF
+_DEFAULT_SHAPES: Final = ShapeCodecConfig()
+
+
+class FrameStatus(IntEnum):
+    """Outcome of a frame (uint8 on the wire; add members at the end, never renumber)."""
+
+    OK = 0
+    NO_ROPE = 1
+    BAD_FRAME = 2
+    LOST_TRACK = 3
+    PARTIAL = 4
+    """Some of the rope was measured (a shape or the tips are missing)."""
+    OVERRUN = 5
+    """The pipeline ran out of time and skipped work on this frame."""
+
+
+class Method(IntEnum):
+    """How the device turned the blurred frame into begin and end shapes (uint8 on the wire)."""
+
+    BLUR_SPLIT = 0
+    PAPER = 1
+    CENTERLINE = 2
+    STATIC_FALLBACK = 3
+
+
+class _Flags(IntFlag):
+    FIXED_END = 1
+    BEGIN_TIP = 2
+    END_TIP = 4
+    STRETCH_BEGIN = 8
+    STRETCH_END = 16
+
+
+@dataclass(slots=True)
+class ShapeHint:
+    """Mutable per-stream memory of the shape encoder, to speed up the next frame.
+
+    The encoder reuses last frame's numbers of control points and searches for fewer bytes only every
+    `explore_every` frames (the bound holds on every frame regardless; only the size can be a few bytes off).
+    """
+
+    begin_control_points: int | None = None
+    end_control_points: int | None = None
+    explore_every: int = 8
+    frames: int = 0
+
+
+def _polyline(value: ArrayLike | None, name: str) -> NDArray[np.float64] | None:
+    if value is None:
+        return None
+    array = np.array(value, dtype=np.float64)
+    if array.ndim != 2 or array.shape[1:] != (2,) or len(array) < 2:
+        raise ValueError(f"{name} must be None or an (n >= 2, 2) array of (u, v) pixels, got shape {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} must hold finite pixel coordinates")
+    array.flags.writeable = False
+    return array
+
+
+def _point(value: ArrayLike | None, name: str) -> tuple[float, float] | None:
+    if value is None:
+        return None
+    array = np.asarray(value, dtype=np.float64).ravel()
+    if array.shape != (2,) or not np.all(np.isfinite(array)) or np.any(np.abs(array) >= 65536):
+        raise ValueError(f"{name} must be None or a finite (u, v) pixel within +-65536, got {value!r}")
+    return float(array[0]), float(array[1])
+
+
+def _material(value: ArrayLike | None, count: int, name: str) -> NDArray[np.float64]:
+    if value is None:
+        array = np.full((count, 2), np.nan)
+    else:
+        array = np.array(value, dtype=np.float64).reshape(-1, 2) if np.size(value) else np.zeros((0, 2))
+    if array.shape != (count, 2):
+        raise ValueError(f"{name} must have shape ({count}, 2) (one row per material_s_m), got {array.shape}")
+    partial = np.isnan(array).any(axis=1) & ~np.isnan(array).all(axis=1)
+    if np.any(partial) or np.any(np.isinf(array)) or np.any(np.abs(array[~np.isnan(array)]) >= 65536):
+        raise ValueError(f"{name} rows must be finite (u, v) pixels within +-65536 or (nan, nan) when not measured")
+    array.flags.writeable = False
+    return array
+
+
+@register_record
+@dataclass(frozen=True, eq=False)
+class FrameResult:
+    """The measurement of one frame.
+
+    Parameters
+    ----------
+    frame_index
+        Camera frame counter, uint32.
+    exposure_start_t_ns, exposure_end_t_ns
+        Device clock at the start and end of the exposure, int64 ns (end >= start).
+    status, method
+        Outcome and segmentation method.
+    order_confidence
+        Confidence in [0, 1] that begin and end are not swapped.
+    begin_px, end_px
+        Rope centrelines at the start and end of the exposure: (n, 2) float (u, v) distorted pixels, fixed end
+        first, or None when not measured.
+    begin_tip_px, end_tip_px, fixed_end_px
+        (u, v) pixels or None.
+    material_s_m
+        Arc lengths (metres of unstretched rope from the fixed end) of the configured material points, >= 0.
+    material_begin_px, material_end_px
+        (len(material_s_m), 2) pixels on the begin and end shapes; rows of nan where not measured.
+    stretch_begin, stretch_end
+        Lc / Lc0 of each shape; nan when not measured.
+    pipeline_us
+        Device processing time of the frame, microseconds.
+    """
+
+    TYPE: ClassVar[MessageType] = MessageType.FRAME_RESULT
+
+    frame_index: int
+    exposure_start_t_ns: int
+    exposure_end_t_ns: int
+    status: FrameStatus = FrameStatus.OK
+    method: Method = Method.BLUR_SPLIT
+    order_confidence: float = 1.0
+    begin_px: NDArray[np.float64] | None = None
+    end_px: NDArray[np.float64] | None = None
+    begin_tip_px: tuple[float, float] | None = None
+    end_tip_px: tuple[float, float] | None = None
+    fixed_end_px: tuple[float, float] | None = None
+    material_s_m: tuple[float, ...] = ()
+    material_begin_px: NDArray[np.float64] = field(default=None)  # type: ignore[assignment]
+    material_end_px: NDArray[np.float64] = field(default=None)  # type: ignore[assignment]
+    stretch_begin: float = math.nan
+    stretch_end: float = math.nan
+    pipeline_us: int = 0
+
+    def __post_init__(self) -> None:
+        def put(name: str, value: object) -> None:
+            object.__setattr__(self, name, value)
+
+        for name, high in (("frame_index", _U32), ("pipeline_us", _U32)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or not 0 <= value <= high:
+                raise ValueError(f"{name} must be an integer in [0, {high}], got {value!r}")
+            put(name, int(value))
+        for name in ("exposure_start_t_ns", "exposure_end_t_ns"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or not -(2**63) <= value < 2**63:
+                raise ValueError(f"{name} must be an int64 of nanoseconds, got {value!r}")
+            put(name, int(value))
+        if not 0 <= self.exposure_end_t_ns - self.exposure_start_t_ns < 2**40:
+            raise ValueError(
+                f"exposure_end_t_ns ({self.exposure_end_t_ns}) must be >= exposure_start_t_ns "
+                f"({self.exposure_start_t_ns}) and less than 2**40 ns later"
+            )
+        put("status", FrameStatus(self.status))
+        put("method", Method(self.method))
+        if not 0.0 <= float(self.order_confidence) <= 1.0:
+            raise ValueError(f"order_confidence must be in [0, 1], got {self.order_confidence!r}")
+        put("order_confidence", float(self.order_confidence))
+        put("begin_px", _polyline(self.begin_px, "begin_px"))
+        put("end_px", _polyline(self.end_px, "end_px"))
+        for name in ("begin_tip_px", "end_tip_px", "fixed_end_px"):
+            put(name, _point(getattr(self, name), name))
+        s_m = tuple(float(s) for s in self.material_s_m)
+        if len(s_m) > MAX_MATERIAL_POINTS or not all(0.0 <= s < 400.0 for s in s_m):
+            raise ValueError(f"material_s_m must hold <= {MAX_MATERIAL_POINTS} arc lengths in [0, 400) m, got {s_m}")
+        put("material_s_m", s_m)
+        put("material_begin_px", _material(self.material_begin_px, len(s_m), "material_begin_px"))
+        put("material_end_px", _material(self.material_end_px, len(s_m), "material_end_px"))
+        for name in ("stretch_begin", "stretch_end"):
+            value = float(getattr(self, name))
+            if not (math.isnan(value) or 0.0 <= value < 50.0):
+                raise ValueError(f"{name} must be nan or in [0, 50), got {value!r}")
+            put(name, value)
+
+    def __repr__(self) -> str:
+        def shape(value: NDArray[np.float64] | None) -> str:
+            return "None" if value is None else f"<{len(value)} points>"
+
+        return (
+            f"FrameResult(frame_index={self.frame_index}, exposure_start_t_ns={self.exposure_start_t_ns}, "
+            f"exposure_end_t_ns={self.exposure_end_t_ns}, status={self.status.name}, method={self.method.name}, "
+            f"order_confidence={self.order_confidence:.4f}, begin_px={shape(self.begin_px)}, "
+            f"end_px={shape(self.end_px)}, begin_tip_px={self.begin_tip_px}, end_tip_px={self.end_tip_px}, "
+            f"fixed_end_px={self.fixed_end_px}, material_s_m={self.material_s_m}, stretch_begin={self.stretch_begin}, "
+            f"stretch_end={self.stretch_end}, pipeline_us={self.pipeline_us})"
+        )
+
+    def pack(
+        self, t_ns_ref: int = 0, shape_config: ShapeCodecConfig | None = None, hint: ShapeHint | None = None
+    ) -> bytes:
+        """Return the payload bytes.
+
+        Parameters
+        ----------
+        t_ns_ref
+            The header's t_ns; the exposure start is coded relative to it.
+        shape_config
+            Tolerance and quantum of the shape codec (default 0.05 px at 1/64 px).
+        hint
+            Per-stream encoder memory, updated in place (saves most of the shape search on consecutive frames).
+        """
+        config = shape_config or _DEFAULT_SHAPES
+        w = ByteWriter()
+        w.uvarint(self.frame_index)
+        w.svarint(self.exposure_start_t_ns - t_ns_ref)
+        w.uvarint(self.exposure_end_t_ns - self.exposure_start_t_ns)
+        w.raw(bytes([self.status, self.method]))
+        w.fixed("H", round(self.order_confidence * _CONFIDENCE_SCALE))
+        w.uvarint(self.pipeline_us)
+        flags = _Flags(0)
+        for bit, present in (
+            (_Flags.FIXED_END, self.fixed_end_px is not None),
+            (_Flags.BEGIN_TIP, self.begin_tip_px is not None),
+            (_Flags.END_TIP, self.end_tip_px is not None),
+            (_Flags.STRETCH_BEGIN, not math.isnan(self.stretch_begin)),
+            (_Flags.STRETCH_END, not math.isnan(self.stretch_end)),
+        ):
+            if present:
+                flags |= bit
+        w.raw(bytes([flags]))
+        origin = np.zeros(2, dtype=np.int64)
+        if self.fixed_end_px is not None:
+            origin = _write_point(w, self.fixed_end_px, origin)
+        origin_px = origin / _POINT_SCALE
+        hint = hint if hint is not None else ShapeHint()
+        explore = hint.frames % max(1, hint.explore_every) == 0
+        hint.frames += 1
+        begin = encode_shape(self.begin_px, config, origin_px, control_hint=hint.begin_control_points, explore=explore)
+        end = encode_shape(self.end_px, config, origin_px, begin, control_hint=hint.end_control_points, explore=explore)
+        for encoded, attr in ((begin, "begin_control_points"), (end, "end_control_points")):
+            if encoded.control_q is not None:
+                setattr(hint, attr, len(encoded.control_q))
+        w.raw(begin.data)
+        w.raw(end.data)
+        tip = origin
+        if self.begin_tip_px is not None:
+            tip = _write_point(w, self.begin_tip_px, tip)
+        if self.end_tip_px is not None:
+            _write_point(w, self.end_tip_px, tip)
+        for present, value in ((_Flags.STRETCH_BEGIN, self.stretch_begin), (_Flags.STRETCH_END, self.stretch_end)):
+            if flags & present:
+                w.svarint(round((value - 1.0) * _STRETCH_SCALE))
+        self._pack_material(w, origin)
+        return w.getvalue()
+
+    def _pack_material(self, w: ByteWriter, origin: NDArray[np.int64]) -> None:
+        w.uvarint(len(self.material_s_m))
+        previous_s = 0
+        for s in self.material_s_m:
+            s_q = round(s * _S_SCALE)
+            w.svarint(s_q - previous_s)
+            previous_s = s_q
+        begin_ok = ~np.isnan(self.material_begin_px[:, 0])
+        end_ok = ~np.isnan(self.material_end_px[:, 0])
+        mask = sum(
+            (int(b) << (2 * k)) | (int(e) << (2 * k + 1)) for k, (b, e) in enumerate(zip(begin_ok, end_ok, strict=True))
+        )
+        w.uvarint(mask)
+        previous = origin
+        for k in range(len(self.material_s_m)):
+            begin_q = None
+            if begin_ok[k]:
+                begin_q = previous = _write_point(w, self.material_begin_px[k], previous)
+            if end_ok[k]:
+                end_q = _write_point(w, self.material_end_px[k], begin_q if begin_q is not None else previous)
+                if begin_q is None:
+                    previous = end_q
+
+    @classmethod
+    def unpack(cls, payload: bytes, t_ns_ref: int = 0) -> FrameResult:
+        """Parse a payload written by `pack`; raise `ProtocolError` on anything malformed."""
+        r = ByteReader(payload)
+        frame_index = r.uvarint("frame_index", _U32)
+        start = t_ns_ref + r.svarint("exposure start", 2**63)
+        end = start + r.uvarint("exposure duration", 2**40 - 1)
+        if not (start >= -(2**63) and end < 2**63):
+            raise ProtocolError(f"exposure times out of int64 range: {start}, {end}")
+        status_code, method_code = r.raw(2, "status and method")
+        try:
+            status, method = FrameStatus(status_code), Method(method_code)
+        except ValueError as exc:
+            raise ProtocolError(f"FrameResult: {exc} (a newer device?)") from exc
+        confidence = r.fixed("H", "order confidence") / _CONFIDENCE_SCALE
+        pipeline_us = r.uvarint("pipeline_us", _U32)
+        flags_byte = r.raw(1, "flags")[0]
+        if flags_byte & ~0x1F:
+            raise ProtocolError(f"FrameResult: unknown flag bits 0x{flags_byte:02x}")
+        flags = _Flags(flags_byte)
+        origin = np.zeros(2, dtype=np.int64)
+        fixed_end = None
+        if flags & _Flags.FIXED_END:
+            origin = _read_point(r, origin, "fixed end")
+            fixed_end = _as_px(origin)
+        origin_px = origin / _POINT_SCALE
+        begin_px, begin_q = decode_shape(r, origin_px, what="begin shape")
+        end_px, _ = decode_shape(r, origin_px, begin_q, what="end shape")
+        tip = origin
+        begin_tip = end_tip = None
+        if flags & _Flags.BEGIN_TIP:
+            tip = _read_point(r, tip, "begin tip")
+            begin_tip = _as_px(tip)
+        if flags & _Flags.END_TIP:
+            end_tip = _as_px(_read_point(r, tip, "end tip"))
+        stretch = [math.nan, math.nan]
+        for i, bit in enumerate((_Flags.STRETCH_BEGIN, _Flags.STRETCH_END)):
+            if flags & bit:
+                stretch[i] = 1.0 + r.svarint("stretch ratio", 4_900_000) / _STRETCH_SCALE
+        s_m, material_begin, material_end = _unpack_material(r, origin)
+        r.finish("FrameResult")
+        return cls(
+            frame_index=frame_index,
+            exposure_start_t_ns=start,
+            exposure_end_t_ns=end,
+            status=status,
+            method=method,
+            order_confidence=confidence,
+            begin_px=begin_px,
+            end_px=end_px,
+            begin_tip_px=begin_tip,
+            end_tip_px=end_tip,
+            fixed_end_px=fixed_end,
+            material_s_m=s_m,
+            material_begin_px=material_begin,
+            material_end_px=material_end,
+            stretch_begin=stretch[0],
+            stretch_end=stretch[1],
+            pipeline_us=pipeline_us,
+        )
+
+
+def _write_point(w: ByteWriter, point: ArrayLike, reference_q: NDArray[np.int64]) -> NDArray[np.int64]:
+    point_q = np.rint(np.asarray(point, dtype=np.float64) * _POINT_SCALE).astype(np.int64)
+    w.svarint(int(point_q[0] - reference_q[0]))
+    w.svarint(int(point_q[1] - reference_q[1]))
+    return point_q
+
+
+def _read_point(r: ByteReader, reference_q: NDArray[np.int64], what: str) -> NDArray[np.int64]:
+    delta = np.array([r.svarint(f"{what} u", 2 * _POINT_LIMIT), r.svarint(f"{what} v", 2 * _POINT_LIMIT)])
+    point_q = reference_q + delta
+    if np.any(np.abs(point_q) >= _POINT_LIMIT):
+        raise ProtocolError(f"{what} beyond +-65536 px")
+    return point_q
+
+
+def _as_px(point_q: NDArray[np.int64]) -> tuple[float, float]:
+    return float(point_q[0] / _POINT_SCALE), float(point_q[1] / _POINT_SCALE)
+
+
+def _unpack_material(
+    r: ByteReader, origin: NDArray[np.int64]
+) -> tuple[tuple[float, ...], NDArray[np.float64], NDArray[np.float64]]:
+    count = r.uvarint("material point count", MAX_MATERIAL_POINTS)
+    s_q = 0
+    s_values = []
+    for _ in range(count):
+        s_q += r.svarint("material s", 4_000_000)
+        if not 0 <= s_q < 4_000_000:
+            raise ProtocolError(f"material arc length {s_q / _S_SCALE} m out of [0, 400)")
+        s_values.append(s_q / _S_SCALE)
+    mask = r.uvarint("material mask", (1 << (2 * count)) - 1)
+    begin = np.full((count, 2), np.nan)
+    end = np.full((count, 2), np.nan)
+    previous = origin
+    for k in range(count):
+        begin_q = None
+        if mask >> (2 * k) & 1:
+            begin_q = previous = _read_point(r, previous, f"material begin {k}")
+            begin[k] = begin_q / _POINT_SCALE
+        if mask >> (2 * k + 1) & 1:
+            end_q = _read_point(r, begin_q if begin_q is not None else previous, f"material end {k}")
+            end[k] = end_q / _POINT_SCALE
+            if begin_q is None:
+                previous = end_q
+    return tuple(s_values), begin, end

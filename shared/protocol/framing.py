@@ -1,0 +1,131 @@
+"""COBS framing for byte streams (serial): each message becomes ``0x00 COBS(message) 0x00``.
+
+Consistent Overhead Byte Stuffing removes every zero byte from the message (one extra byte per 254), so 0x00 can only
+be a delimiter. The delimiter is sent before and after each message: a corrupted or lost delimiter then damages only
+its own message, and garbage on the line is flushed by the next delimiter (resynchronisation within one message).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Final
+
+from ropecam.shared.errors import ProtocolError
+from ropecam.shared.protocol.wire import MAX_MESSAGE_BYTES
+
+__all__ = ["Deframer", "DeframerStats", "cobs_decode", "cobs_encode", "frame"]
+
+DELIMITER: Final = 0
+_MAX_FRAME_BYTES: Final = MAX_MESSAGE_BYTES + MAX_MESSAGE_BYTES // 254 + 2
+
+
+def cobs_encode(data: bytes | bytearray | memoryview) -> bytes:
+    """Return the COBS encoding of `data` (no zero bytes, no delimiter)."""
+    data = bytes(data)
+    out = bytearray()
+    start = 0
+    length = len(data)
+    while True:
+        # A block: a code byte (distance to the next zero, at most 255) and up to 254 non-zero bytes.
+        limit = min(start + 254, length)
+        zero = data.find(b"\x00", start, limit)
+        if zero >= 0:
+            out.append(zero - start + 1)
+            out += data[start:zero]
+            start = zero + 1
+            continue
+        out.append(limit - start + 1)
+        out += data[start:limit]
+        if limit == length:
+            break
+        start = limit
+    return bytes(out)
+
+
+def cobs_decode(data: bytes | bytearray | memoryview) -> bytes:
+    """Invert `cobs_encode`; raise `ProtocolError` on a zero byte or a code that runs past the end."""
+    data = bytes(data)
+    out = bytearray()
+    index = 0
+    length = len(data)
+    while index < length:
+        code = data[index]
+        if code == 0:
+            raise ProtocolError(f"COBS: zero byte at offset {index}")
+        end = index + code
+        if end > length:
+            raise ProtocolError(f"COBS: block of {code - 1} bytes at offset {index} runs past the end ({length})")
+        block = data[index + 1 : end]
+        if b"\x00" in block:
+            raise ProtocolError(f"COBS: zero byte inside block at offset {index}")
+        out += block
+        index = end
+        if code < 0xFF and index < length:
+            out.append(0)
+    return bytes(out)
+
+
+def frame(message: bytes | bytearray | memoryview) -> bytes:
+    """Return `message` framed for a byte stream: delimiter, COBS, delimiter."""
+    return b"\x00" + cobs_encode(message) + b"\x00"
+
+
+@dataclass(slots=True)
+class DeframerStats:
+    """What the deframer saw."""
+
+    frames: int = 0
+    bad_frames: int = 0
+    """Frames whose COBS coding was invalid."""
+    overlong: int = 0
+    """Runs of bytes longer than any message (garbage without delimiters), discarded."""
+    bytes_in: int = 0
+
+
+class Deframer:
+    """Split a byte stream into COBS-decoded frames; never raises on bad input, counts it instead."""
+
+    def __init__(self, max_frame_bytes: int = _MAX_FRAME_BYTES) -> None:
+        self._buffer = bytearray()
+        self._discarding = False
+        self._max = max_frame_bytes
+        self.stats = DeframerStats()
+
+    def feed(self, data: bytes | bytearray | memoryview) -> Iterator[bytes]:
+        """Consume `data` and yield every complete decoded frame in it (the bytes of one message each)."""
+        self.stats.bytes_in += len(data)
+        view = bytes(data)
+        start = 0
+        while start < len(view):
+            zero = view.find(b"\x00", start)
+            if zero < 0:
+                self._append(view[start:])
+                return
+            self._append(view[start:zero])
+            start = zero + 1
+            if self._discarding:
+                self._discarding = False
+                self._buffer.clear()
+                continue
+            if not self._buffer:
+                continue  # empty frame: back-to-back delimiters
+            chunk = bytes(self._buffer)
+            self._buffer.clear()
+            try:
+                decoded = cobs_decode(chunk)
+            except ProtocolError:
+                self.stats.bad_frames += 1
+                continue
+            self.stats.frames += 1
+            yield decoded
+
+    def _append(self, data: bytes) -> None:
+        if self._discarding:
+            return
+        if len(self._buffer) + len(data) > self._max:
+            self.stats.overlong += 1
+            self._buffer.clear()
+            self._discarding = True
+            return
+        self._buffer += data

@@ -1,0 +1,447 @@
+"""Compact, error-bounded coding of rope centrelines (dense subpixel polylines) for the wire.
+
+Why a spline: a device polyline has about one point per pixel (200-600 points) with ~0.02 px noise, so a lossless
+fixed-point code costs several bits per point and coordinate (hundreds of bytes per shape) while the serial budget is
+~200 bytes for a whole frame. The rope is smooth, so a clamped cubic B-spline with a handful of control points, fitted
+by least squares over the normalised arc length, carries the curve in 15-30 bytes.
+
+The bound is guaranteed by construction. The decoded shape is the polyline through the spline sampled at the device's
+point count, at equally spaced parameters. The encoder builds exactly that polyline from the quantised control points
+(same kernel, same arithmetic as the decoder) and measures the distance of every device point to it (the nearest
+segment is searched in a window around the point's position along the rope, which can only overestimate). Where a
+smooth curve cannot reach a point (noise outliers, a kink) it adds a correction: the decoded sample nearest the point
+is moved onto it (an offset at the coding quantum). Corrections are iterated until every device point and both end
+points are within ``tolerance_px``. The number of control points is chosen to minimise the bytes (spline points
+versus corrections), starting from the previous frame's.
+
+Wire format of one shape (integers are varints, coordinates in units of ``2**-shift`` px)::
+
+    byte   kind | shift << 4        kind: 0 absent, 1 spline, 2 raw points, 3 spline relative to another shape
+    uvar   point_count              points the decoder returns (the device's count), >= 2
+    uvar   control_count            spline kinds: 2..MAX_CONTROL_POINTS
+    svar   u, v of item 0           relative to the caller's origin (kinds 1, 2) or to the reference's (kind 3)
+    svar   u, v of item 1 - item 0  (kind 3: of the offsets from the reference's control points)
+    svar   u, v second differences of items 2..count-1
+    uvar   correction_count         spline kinds only
+    uvar   index gap, svar du, dv   per correction: index - previous index - 1, offset from the spline sample
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum
+from typing import Final
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ropecam.shared.config import check_range
+from ropecam.shared.errors import ConfigError, ProtocolError
+from ropecam.shared.protocol._kernels import distances_to_polyline, fit_bspline, sample_bspline
+from ropecam.shared.protocol.bytecodec import ByteReader, ByteWriter
+
+__all__ = [
+    "MAX_CONTROL_POINTS",
+    "MAX_SHAPE_POINTS",
+    "EncodedShape",
+    "ShapeCodecConfig",
+    "ShapeKind",
+    "decode_shape",
+    "encode_shape",
+    "polyline_distances_px",
+]
+
+MAX_SHAPE_POINTS: Final = 8192
+"""Most points a shape may have on the wire (no rope in a 1024 x 544 image is longer)."""
+MAX_CONTROL_POINTS: Final = 64
+_MIN_CONTROL_POINTS: Final = 4
+_COORD_LIMIT_PX: Final = 65536.0
+"""Coordinates beyond +-this are refused (keeps integers on the wire bounded)."""
+_DEGREE: Final = 3
+_SEARCH_HALF_WINDOW: Final = 6
+_MAX_CORRECTION_ROUNDS: Final = 8
+
+
+class ShapeKind(IntEnum):
+    """How a shape is coded (low nibble of its first byte)."""
+
+    ABSENT = 0
+    SPLINE = 1
+    RAW = 2
+    SPLINE_RELATIVE = 3
+
+
+@dataclass(frozen=True, slots=True)
+class ShapeCodecConfig:
+    """Settings of the shape encoder.
+
+    Parameters
+    ----------
+    tolerance_px
+        Largest allowed distance between a device point and the decoded polyline, pixels.
+    quantum_shift
+        Coordinates are coded in units of ``2**-quantum_shift`` px (6 = 1/64 px, the default).
+    """
+
+    tolerance_px: float = 0.05
+    quantum_shift: int = 6
+
+    def __post_init__(self) -> None:
+        check_range("tolerance_px", self.tolerance_px, 1e-4, 10.0)
+        if isinstance(self.quantum_shift, bool) or not isinstance(self.quantum_shift, int):
+            raise ConfigError(f"quantum_shift must be an integer, got {self.quantum_shift!r}")
+        check_range("quantum_shift", self.quantum_shift, 0, 12)
+        if 2.0**-self.quantum_shift > self.tolerance_px:
+            raise ConfigError(
+                f"quantum 2**-{self.quantum_shift} px is coarser than tolerance_px={self.tolerance_px}: "
+                "raise quantum_shift"
+            )
+
+
+@dataclass(frozen=True, slots=True)
+class EncodedShape:
+    """What `encode_shape` produced: the bytes and what the decoder will see (for chaining and statistics)."""
+
+    data: bytes
+    kind: ShapeKind
+    control_q: NDArray[np.int64] | None
+    """Quantised control points (spline kinds), shape (m, 2); None otherwise."""
+    corrections: int
+    max_error_px: float
+
+
+def _spline_samples(control_q: NDArray[np.int64], point_count: int, shift: int) -> NDArray[np.float64]:
+    """The decoder's polyline before corrections; the encoder's check runs the very same arithmetic."""
+    out = np.empty((point_count, 2))
+    sample_bspline(np.ascontiguousarray(control_q / float(1 << shift)), np.empty(4), out)
+    return out
+
+
+def _relative_position(points: NDArray[np.float64]) -> NDArray[np.float64]:
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(points, axis=0).T))])
+    if arc[-1] <= 0.0:
+        return np.linspace(0.0, 1.0, len(points))
+    return arc / arc[-1]
+
+
+def polyline_distances_px(points_px: ArrayLike, curve_px: ArrayLike) -> NDArray[np.float64]:
+    """Return the distance of each of `points_px` (n, 2) to the polyline `curve_px` (m, 2), pixels.
+
+    Both are ordered along the rope (fixed end first); the nearest segment is searched near the point's relative
+    position along the rope, so the cost is linear. Use it to check a decoded shape against the device polyline
+    (together with the distance between the end points).
+    """
+    points = np.ascontiguousarray(points_px, dtype=np.float64)
+    curve = np.ascontiguousarray(curve_px, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1:] != (2,) or curve.ndim != 2 or curve.shape[1:] != (2,):
+        raise ValueError(f"points_px and curve_px must have shape (n, 2), got {points.shape} and {curve.shape}")
+    if len(points) < 1 or len(curve) < 2:
+        raise ValueError(f"need >= 1 point and >= 2 curve points, got {len(points)} and {len(curve)}")
+    out = np.empty(len(points))
+    half_window = max(_SEARCH_HALF_WINDOW, 2 * int(np.ceil(len(curve) / len(points))) * _SEARCH_HALF_WINDOW)
+    distances_to_polyline(points, _relative_position(points), curve, half_window, out)
+    return out
+
+
+def _check_polyline(points_px: ArrayLike, name: str) -> NDArray[np.float64]:
+    points = np.ascontiguousarray(points_px, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1:] != (2,):
+        raise ValueError(f"{name} must have shape (n, 2), got {points.shape}")
+    if not 2 <= len(points) <= MAX_SHAPE_POINTS:
+        raise ValueError(f"{name} must have 2..{MAX_SHAPE_POINTS} points, got {len(points)}")
+    if not np.all(np.isfinite(points)) or np.any(np.abs(points) >= _COORD_LIMIT_PX / 2):
+        raise ValueError(f"{name} must hold finite pixel coordinates within +-{_COORD_LIMIT_PX / 2:g}")
+    return points
+
+
+def _origin_q(origin_px: tuple[float, float] | NDArray[np.float64] | None, shift: int) -> NDArray[np.int64]:
+    """Quantise the coding origin; an absent (None or non-finite) origin is (0, 0) on both sides."""
+    if origin_px is None:
+        return np.zeros(2, dtype=np.int64)
+    origin = np.asarray(origin_px, dtype=np.float64).reshape(2)
+    if not np.all(np.isfinite(origin)) or np.any(np.abs(origin) >= _COORD_LIMIT_PX):
+        return np.zeros(2, dtype=np.int64)
+    return np.rint(origin * float(1 << shift)).astype(np.int64)
+
+
+def _write_chain(writer: ByteWriter, items: NDArray[np.int64]) -> None:
+    """Write item 0, the first difference and the second differences (rows (u, v))."""
+    writer.svarint(int(items[0, 0]))
+    writer.svarint(int(items[0, 1]))
+    if len(items) > 1:
+        writer.svarint(int(items[1, 0] - items[0, 0]))
+        writer.svarint(int(items[1, 1] - items[0, 1]))
+    for du, dv in np.diff(items, n=2, axis=0).tolist():
+        writer.svarint(du)
+        writer.svarint(dv)
+
+
+def _read_chain(reader: ByteReader, count: int, limit: int, what: str) -> NDArray[np.int64]:
+    values = np.empty((count, 2), dtype=np.int64)
+    u = reader.svarint(f"{what} u0", limit)
+    v = reader.svarint(f"{what} v0", limit)
+    values[0] = (u, v)
+    du = dv = 0
+    for i in range(1, count):
+        if i == 1:
+            du = reader.svarint(f"{what} du", 2 * limit)
+            dv = reader.svarint(f"{what} dv", 2 * limit)
+        else:
+            du += reader.svarint(f"{what} d2u", 4 * limit)
+            dv += reader.svarint(f"{what} d2v", 4 * limit)
+        u += du
+        v += dv
+        if abs(u) > limit or abs(v) > limit:
+            raise ProtocolError(f"{what}: coordinate beyond +-{_COORD_LIMIT_PX:g} px")
+        values[i] = (u, v)
+    return values
+
+
+@dataclass(slots=True)
+class _Candidate:
+    control_q: NDArray[np.int64]
+    index: NDArray[np.int64]
+    offset_q: NDArray[np.int64]
+    max_error_px: float
+    size: int
+
+
+def _correct(
+    points: NDArray[np.float64], t: NDArray[np.float64], control_q: NDArray[np.int64], config: ShapeCodecConfig
+) -> _Candidate | None:
+    """Find the corrections that bring every device point within tolerance of the decoded polyline."""
+    n = len(points)
+    shift = config.quantum_shift
+    scale = float(1 << shift)
+    samples = _spline_samples(control_q, n, shift)
+    decoded = samples.copy()
+    corrected = np.zeros(n, dtype=bool)
+    distance = np.empty(n)
+    for _ in range(_MAX_CORRECTION_ROUNDS):
+        distances_to_polyline(points, t, decoded, _SEARCH_HALF_WINDOW, distance)
+        distance[0] = max(distance[0], float(np.hypot(*(points[0] - decoded[0]))))
+        distance[-1] = max(distance[-1], float(np.hypot(*(points[-1] - decoded[-1]))))
+        bad = np.flatnonzero(distance > config.tolerance_px)
+        if len(bad) == 0:
+            index = np.flatnonzero(corrected)
+            offset_q = np.rint((decoded[index] - samples[index]) * scale).astype(np.int64)
+            size = 2 * len(control_q) + 3 * len(index)  # a size estimate to rank candidates
+            return _Candidate(control_q, index, offset_q, float(np.max(distance)), size)
+        # Move the decoded sample nearest each failing point onto it (index space ~ arc length on both sides).
+        target = np.clip(np.rint(t[bad] * (n - 1)).astype(np.int64), 0, n - 1)
+        offset_q = np.rint((points[bad] - samples[target]) * scale).astype(np.int64)
+        decoded[target] = samples[target] + offset_q / scale
+        corrected[target] = True
+    return None
+
+
+def encode_shape(
+    points_px: ArrayLike | None,
+    config: ShapeCodecConfig,
+    origin_px: tuple[float, float] | NDArray[np.float64] | None = None,
+    reference: EncodedShape | None = None,
+    control_hint: int | None = None,
+    explore: bool = True,
+) -> EncodedShape:
+    """Encode one polyline (fixed end first) so that every point lies within ``config.tolerance_px`` of the decoded one.
+
+    Parameters
+    ----------
+    points_px
+        Polyline (n, 2), float (u, v) distorted pixels, 2 <= n <= MAX_SHAPE_POINTS; None for an absent shape.
+    config
+        Tolerance and quantum.
+    origin_px
+        Point the first coordinate is coded relative to (for example the fixed-end pixel); the decoder must be given
+        the same value. None or non-finite means (0, 0).
+    reference
+        A shape encoded before it in the same message (the begin shape, for the end shape). When its spline has a
+        count of control points that suits this polyline too, the control points are coded as offsets from it,
+        which costs about half.
+    control_hint
+        Number of control points to try first (what the previous frame needed; consecutive frames are alike).
+    explore
+        Also try neighbouring counts to find fewer bytes. With False a fitting `control_hint` is taken as it is
+        (one fit instead of 2-3; the stream explores every few frames, see `ShapeHint`).
+
+    Returns
+    -------
+    EncodedShape
+
+    Raises
+    ------
+    ValueError
+        `points_px` has the wrong shape, too few or too many points, or non-finite or huge coordinates.
+    """
+    if points_px is None:
+        return EncodedShape(bytes([ShapeKind.ABSENT]), ShapeKind.ABSENT, None, 0, 0.0)
+    points = _check_polyline(points_px, "points_px")
+    n = len(points)
+    most = min(MAX_CONTROL_POINTS, n // 2)
+    if most < _MIN_CONTROL_POINTS:
+        return _encode_raw(points, config, origin_px)
+    t = _relative_position(points)
+    scale = float(1 << config.quantum_shift)
+    cache: dict[int, _Candidate | None] = {}
+
+    work_basis = np.empty(4)
+    work_normal = np.empty((MAX_CONTROL_POINTS, MAX_CONTROL_POINTS))
+    control = np.empty((MAX_CONTROL_POINTS, 2))
+
+    def attempt(m: int) -> _Candidate | None:
+        if m not in cache:
+            if fit_bspline(points, t, m, work_basis, work_normal, control) != m:
+                cache[m] = None  # singular: a span without points
+            else:
+                cache[m] = _correct(points, t, np.rint(control[:m] * scale).astype(np.int64), config)
+        return cache[m]
+
+    def size(m: int) -> float:
+        candidate = attempt(m)
+        return float("inf") if candidate is None else candidate.size
+
+    ref_count = None if reference is None or reference.control_q is None else len(reference.control_q)
+    if ref_count is not None and _MIN_CONTROL_POINTS <= ref_count <= most:
+        relative_candidate = attempt(ref_count)
+        if relative_candidate is not None and len(relative_candidate.index) == 0:
+            # The usual case for the end shape: the begin shape's count fits without corrections, and offsets from
+            # the begin shape are the cheapest code there is.
+            return _write_spline(relative_candidate, n, config, origin_px, reference)
+    best = int(min(max(control_hint or ref_count or 6, _MIN_CONTROL_POINTS), most))
+    if not explore and control_hint is not None and (hinted := attempt(best)) is not None:
+        return _write_spline(hinted, n, config, origin_px, None)
+    # One step of descent on the byte estimate per frame: consecutive frames need about the same count, so the
+    # count converges over a few frames and a frame costs 2-3 fits.
+    first = attempt(best)
+    if first is not None and len(first.index) == 0:
+        if best - 1 >= _MIN_CONTROL_POINTS and size(best - 1) < size(best):
+            best -= 1
+    else:
+        improved = False
+        while best + 1 <= most and size(best + 1) < size(best):
+            best, improved = best + 1, True
+        if not improved and best - 1 >= _MIN_CONTROL_POINTS and size(best - 1) < size(best):
+            best -= 1
+    chosen = attempt(best)
+    if chosen is None:
+        return _encode_raw(points, config, origin_px)
+    relative = ref_count == best
+    # The reference's count may still win once the halved control-point cost is counted.
+    if ref_count is not None and not relative and ref_count in cache and size(ref_count) - ref_count < size(best):
+        best, chosen, relative = ref_count, cache[ref_count], True
+    assert chosen is not None
+    return _write_spline(chosen, n, config, origin_px, reference if relative else None)
+
+
+def _write_spline(
+    candidate: _Candidate,
+    n: int,
+    config: ShapeCodecConfig,
+    origin_px: tuple[float, float] | NDArray[np.float64] | None,
+    reference: EncodedShape | None,
+) -> EncodedShape:
+    writer = ByteWriter()
+    kind = ShapeKind.SPLINE if reference is None else ShapeKind.SPLINE_RELATIVE
+    writer.raw(bytes([kind | (config.quantum_shift << 4)]))
+    writer.uvarint(n)
+    writer.uvarint(len(candidate.control_q))
+    if reference is not None and reference.control_q is not None:
+        _write_chain(writer, candidate.control_q - reference.control_q)
+    else:
+        _write_chain(writer, candidate.control_q - _origin_q(origin_px, config.quantum_shift))
+    writer.uvarint(len(candidate.index))
+    previous = -1
+    for index, (du, dv) in zip(candidate.index.tolist(), candidate.offset_q.tolist(), strict=True):
+        writer.uvarint(index - previous - 1)
+        writer.svarint(du)
+        writer.svarint(dv)
+        previous = index
+    return EncodedShape(writer.getvalue(), kind, candidate.control_q, len(candidate.index), candidate.max_error_px)
+
+
+def _encode_raw(
+    points: NDArray[np.float64], config: ShapeCodecConfig, origin_px: tuple[float, float] | NDArray | None
+) -> EncodedShape:
+    scale = float(1 << config.quantum_shift)
+    points_q = np.rint(points * scale).astype(np.int64)
+    writer = ByteWriter()
+    writer.raw(bytes([ShapeKind.RAW | (config.quantum_shift << 4)]))
+    writer.uvarint(len(points))
+    _write_chain(writer, points_q - _origin_q(origin_px, config.quantum_shift))
+    error = float(np.max(np.hypot(*(points - points_q / scale).T)))
+    return EncodedShape(writer.getvalue(), ShapeKind.RAW, None, 0, error)
+
+
+def decode_shape(
+    reader: ByteReader,
+    origin_px: tuple[float, float] | NDArray[np.float64] | None = None,
+    reference_control_q: NDArray[np.int64] | None = None,
+    what: str = "shape",
+) -> tuple[NDArray[np.float64] | None, NDArray[np.int64] | None]:
+    """Read one shape written by `encode_shape`.
+
+    Parameters
+    ----------
+    reader
+        Positioned at the shape's first byte.
+    origin_px
+        The origin the encoder was given.
+    reference_control_q
+        Quantised control points of the reference shape (second return value of decoding it), for kind 3.
+    what
+        Name used in error messages.
+
+    Returns
+    -------
+    points, control_q
+        The decoded polyline (n, 2) float64, or None when absent; the quantised control points (for a later
+        relative shape) or None.
+
+    Raises
+    ------
+    ProtocolError
+        Unknown kind, counts out of range, truncated data, coordinates out of range, a relative shape without a
+        matching reference.
+    """
+    head = reader.raw(1, f"{what} kind")[0]
+    try:
+        kind = ShapeKind(head & 0x0F)
+    except ValueError as exc:
+        raise ProtocolError(f"{what}: unknown shape kind {head & 0x0F}") from exc
+    shift = head >> 4
+    if kind is ShapeKind.ABSENT:
+        if shift:
+            raise ProtocolError(f"{what}: absent shape with nonzero quantum bits {shift}")
+        return None, None
+    if shift > 12:
+        raise ProtocolError(f"{what}: quantum shift {shift} > 12")
+    scale = float(1 << shift)
+    limit = int(_COORD_LIMIT_PX * scale)
+    n = reader.uvarint(f"{what} point count", MAX_SHAPE_POINTS)
+    if n < 2:
+        raise ProtocolError(f"{what}: point count {n} < 2")
+    if kind is ShapeKind.RAW:
+        return (_read_chain(reader, n, limit, what) + _origin_q(origin_px, shift)) / scale, None
+    m = reader.uvarint(f"{what} control count", MAX_CONTROL_POINTS)
+    if not 2 <= m <= n:
+        raise ProtocolError(f"{what}: control count {m} not in [2, point count {n}]")
+    chain = _read_chain(reader, m, limit, what)
+    if kind is ShapeKind.SPLINE_RELATIVE:
+        if reference_control_q is None or len(reference_control_q) != m:
+            raise ProtocolError(f"{what}: relative shape without a reference spline of {m} control points")
+        control_q = chain + reference_control_q
+    else:
+        control_q = chain + _origin_q(origin_px, shift)
+    if np.any(np.abs(control_q) > limit):
+        raise ProtocolError(f"{what}: control point beyond +-{_COORD_LIMIT_PX:g} px")
+    corrections = reader.uvarint(f"{what} correction count", n)
+    points = _spline_samples(control_q, n, shift)
+    index = -1
+    for _ in range(corrections):
+        index += reader.uvarint(f"{what} correction index", n) + 1
+        if index >= n:
+            raise ProtocolError(f"{what}: correction index {index} beyond point count {n}")
+        du = reader.svarint(f"{what} correction du", limit)
+        dv = reader.svarint(f"{what} correction dv", limit)
+        points[index] += (du / scale, dv / scale)
+    return points, control_q

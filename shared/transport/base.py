@@ -1,0 +1,153 @@
+"""The transport contract: non-blocking `send` of one message, `receive` of one message, counters, URL factory."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from types import TracebackType
+from urllib.parse import parse_qsl, urlsplit
+
+from ropecam.shared.errors import ConfigError
+
+__all__ = ["Transport", "TransportStats", "open_transport", "parse_url"]
+
+
+@dataclass(slots=True)
+class TransportStats:
+    """Counters every transport keeps.
+
+    Attributes
+    ----------
+    sent, send_dropped
+        Messages handed to the line, and messages dropped whole because it was full.
+    received
+        Complete messages returned by `receive`.
+    bytes_sent, bytes_received
+        Bytes on the line (including framing).
+    bad_frames
+        Framing damage seen by the receiver (invalid COBS, runs of garbage); UDP: datagrams over the size limit.
+    """
+
+    sent: int = 0
+    send_dropped: int = 0
+    received: int = 0
+    bytes_sent: int = 0
+    bytes_received: int = 0
+    bad_frames: int = 0
+
+
+class Transport(ABC):
+    """One end of a message link. Messages are the complete bytes of `encode_message`; the transport never parses them.
+
+    `send` never blocks: when the line cannot take a message now, the whole message is dropped, counted in
+    ``stats.send_dropped`` and `send` returns False. `receive` waits up to `timeout_s` for one message.
+    """
+
+    url: str
+
+    def __init__(self, url: str) -> None:
+        self.url = url
+        self.stats = TransportStats()
+        self._closed = False
+
+    @abstractmethod
+    def send(self, message: bytes) -> bool:
+        """Queue one message without blocking; return False (and count it) if it was dropped."""
+
+    @abstractmethod
+    def receive(self, timeout_s: float | None = 0.0) -> bytes | None:
+        """Return the next message, waiting up to `timeout_s` (None: forever); None when none arrived."""
+
+    def drain(self, timeout_s: float = 1.0) -> bool:
+        """Wait up to `timeout_s` until everything accepted by `send` has left this end; True when it has."""
+        return True
+
+    def close(self) -> None:
+        """Release the line; further calls fail with TransportError."""
+        self._closed = True
+
+    @property
+    def closed(self) -> bool:
+        """True after `close`."""
+        return self._closed
+
+    def __enter__(self) -> Transport:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.url!r})"
+
+
+def parse_url(url: str, allowed: dict[str, type]) -> tuple[str, str, int | None, dict[str, object]]:
+    """Split a transport URL into (scheme, host-or-path, port, options) with typed, checked query options.
+
+    Parameters
+    ----------
+    url
+        ``scheme://host:port?key=value`` or ``scheme:///path?key=value``.
+    allowed
+        Query keys the scheme accepts and their types (int, float, bool, str).
+
+    Raises
+    ------
+    ConfigError
+        Malformed URL, unknown option (the message lists the allowed ones) or a value of the wrong type.
+    """
+    parts = urlsplit(url)
+    try:
+        port = parts.port
+    except ValueError as exc:
+        raise ConfigError(f"transport URL {url!r}: bad port ({exc})") from exc
+    options: dict[str, object] = {}
+    for key, raw in parse_qsl(parts.query, keep_blank_values=True, strict_parsing=False):
+        if key not in allowed:
+            names = ", ".join(sorted(allowed)) or "none"
+            raise ConfigError(f"transport URL {url!r}: unknown option {key!r} (allowed: {names})")
+        kind = allowed[key]
+        try:
+            if kind is bool:
+                if raw.lower() not in ("0", "1", "true", "false", "yes", "no", "auto"):
+                    raise ValueError(raw)
+                options[key] = raw.lower() if raw.lower() == "auto" else raw.lower() in ("1", "true", "yes")
+            else:
+                options[key] = kind(raw)
+        except ValueError as exc:
+            raise ConfigError(f"transport URL {url!r}: option {key}={raw!r} is not a valid {kind.__name__}") from exc
+    where = parts.path if parts.scheme == "serial" else (parts.hostname or "")
+    return parts.scheme, where, port, options
+
+
+def open_transport(url: str) -> Transport:
+    """Open the transport a URL names.
+
+    ``loop://`` (in-process, what is sent comes back), ``loop://NAME`` (the first and second opener of NAME are
+    connected to each other), ``udp://HOST:PORT`` (send to HOST:PORT, receive its replies),
+    ``udp://:PORT`` or ``udp://HOST:PORT?listen=1`` (bind and receive; reply to the last sender),
+    ``serial:///dev/ttyX?baud=921600&rtscts=1&low_latency=auto``.
+
+    Raises
+    ------
+    ConfigError
+        Unknown scheme or malformed URL.
+    TransportError
+        The port or socket cannot be opened.
+    """
+    scheme = urlsplit(url).scheme
+    if scheme == "loop":
+        from ropecam.shared.transport.loop import open_loop
+
+        return open_loop(url)
+    if scheme == "udp":
+        from ropecam.shared.transport.udp import UdpTransport
+
+        return UdpTransport(url)
+    if scheme == "serial":
+        from ropecam.shared.transport.serial import SerialTransport
+
+        return SerialTransport(url)
+    raise ConfigError(f"transport URL {url!r}: unknown scheme {scheme!r} (use loop://, udp:// or serial://)")

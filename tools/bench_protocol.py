@@ -1,0 +1,126 @@
+#!/usr/bin/env python3
+"""Bytes per FrameResult on the rig scenario, and encode / decode time per message.
+
+The rig scenario (`ropecam.host.sim.rig_polylines`): the paper's 0.411 m rope swinging down from horizontal, 119 FPS,
+4 ms exposure, the paper's camera 1.5 m from the plane; each frame carries both shapes (~400 points each, ~0.02 px
+noise), both tips, the fixed end, 4 material points on both shapes, stretch ratios and timings. Encoding keeps a
+`ShapeHint` across frames as the device's sender does. Times are medians over --repeats runs of all frames.
+
+    python tools/bench_protocol.py [--frames 119] [--noise uniform|gaussian|none] [--repeats 5] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import time
+
+import numpy as np
+
+from ropecam.host.sim.rig_polylines import rig_frames
+from ropecam.shared.protocol import FrameResult, FrameStatus, Method, ShapeHint, decode_message, encode_message
+from ropecam.shared.protocol.shapes import polyline_distances_px
+from ropecam.shared.protocol.wire import CRC_BYTES, HEADER_BYTES
+
+SERIAL_BUDGET_BYTES = 921600 / 10 / 119  # 8N1: 10 bits per byte
+
+
+def build_records(count: int, noise: str, seed: int) -> list[FrameResult]:
+    """FrameResults as the device would fill them for `count` rig frames."""
+    records = []
+    for index, frame in enumerate(rig_frames(count, seed=seed, noise=noise)):
+        records.append(
+            FrameResult(
+                frame_index=index,
+                exposure_start_t_ns=frame.t_start_ns,
+                exposure_end_t_ns=frame.t_end_ns,
+                status=FrameStatus.OK,
+                method=Method.BLUR_SPLIT,
+                order_confidence=0.97,
+                begin_px=frame.begin_px,
+                end_px=frame.end_px,
+                begin_tip_px=tuple(frame.begin_px[-1]),
+                end_tip_px=tuple(frame.end_px[-1]),
+                fixed_end_px=tuple(frame.fixed_end_px),
+                material_s_m=frame.material_s_m,
+                material_begin_px=frame.material_begin_px,
+                material_end_px=frame.material_end_px,
+                stretch_begin=1.0 + 0.002 * np.sin(index / 9),
+                stretch_end=1.0 + 0.002 * np.sin((index + 0.5) / 9),
+                pipeline_us=2800 + index % 300,
+            )
+        )
+    return records
+
+
+def encode_stream(records: list[FrameResult]) -> tuple[list[bytes], float]:
+    """Encode all records as one device stream; return the messages and the seconds it took."""
+    hint = ShapeHint()
+    out = []
+    start = time.perf_counter()
+    for sequence, record in enumerate(records):
+        t_ns = record.exposure_end_t_ns + 2_000_000
+        options = {"hint": hint}
+        out.append(encode_message(record, device_id=1, sequence=sequence, t_ns=t_ns, pack_options=options))
+    return out, time.perf_counter() - start
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--frames", type=int, default=119, help="frames of the swing (default 119 = 1 s)")
+    parser.add_argument(
+        "--noise",
+        choices=("uniform", "gaussian", "none"),
+        default="uniform",
+        help="device polyline noise: uniform in +-0.02 px (default), gaussian sigma 0.02 px, none",
+    )
+    parser.add_argument("--repeats", type=int, default=5, help="timing runs; the median is reported (default 5)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    args = parser.parse_args()  # fmt: skip
+
+    records = build_records(args.frames, args.noise, args.seed)
+    encode_s, decode_s = [], []
+    messages: list[bytes] = []
+    for _ in range(args.repeats):
+        messages, seconds = encode_stream(records)
+        encode_s.append(seconds)
+        start = time.perf_counter()
+        decoded = [decode_message(m).record for m in messages]
+        decode_s.append(time.perf_counter() - start)
+    sizes = np.array([len(m) for m in messages])
+    errors = []
+    for record, back in zip(records, decoded, strict=True):
+        for a, b in ((record.begin_px, back.begin_px), (record.end_px, back.end_px)):
+            errors.append(max(float(np.max(polyline_distances_px(a, b))), float(np.hypot(*(a[-1] - b[-1])))))
+    result = {
+        "frames": args.frames,
+        "noise": args.noise,
+        "mean_bytes_per_frame_result": round(float(sizes.mean()), 1),
+        "max_bytes": int(sizes.max()),
+        "header_and_crc_bytes": HEADER_BYTES + CRC_BYTES,
+        "serial_budget_bytes": round(SERIAL_BUDGET_BYTES, 1),
+        "mean_points_per_shape": round(float(np.mean([len(r.begin_px) for r in records])), 1),
+        "max_shape_error_px": round(max(errors), 4),
+        "encode_us_per_message": round(statistics.median(encode_s) / len(records) * 1e6, 1),
+        "decode_us_per_message": round(statistics.median(decode_s) / len(records) * 1e6, 1),
+        "repeats": args.repeats,
+    }
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print(f"rig scenario, {args.frames} frames, {args.noise} noise, {result['mean_points_per_shape']} points/shape")
+        print(
+            f"  FrameResult: mean {result['mean_bytes_per_frame_result']} B, max {result['max_bytes']} B "
+            f"(header + CRC {result['header_and_crc_bytes']} B; serial budget {result['serial_budget_bytes']} B)"
+        )
+        print(f"  worst shape error {result['max_shape_error_px']} px (tolerance 0.05 px)")
+        print(f"  encode {result['encode_us_per_message']} us/message, "
+              f"decode {result['decode_us_per_message']} us/message (median of {args.repeats} runs)")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
