@@ -13,6 +13,8 @@ from ropecam.shared.protocol.bytecodec import ByteReader
 from ropecam.shared.protocol.examples import arc_polyline
 from ropecam.shared.protocol.shapes import ShapeKind, decode_shape, encode_shape, polyline_distances_px
 
+pytestmark = pytest.mark.kernel
+
 
 def _reference_distances(points: np.ndarray, curve: np.ndarray) -> np.ndarray:
     """Slow, obvious: distance of every point to every segment, minimum."""
