@@ -16,7 +16,7 @@ Start with `ropecam demo` (simulated rig end to end), or `ropecam COMMAND --help
 """
 
 # One module per sub-command; each defines register(subparsers).
-COMMAND_MODULES: tuple[str, ...] = ()
+COMMAND_MODULES: tuple[str, ...] = ("ropecam.host.calibration.cli",)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -73,26 +73,35 @@ def detect_views(
     Raises
     ------
     DataError
-        A file is missing or unreadable, or the images do not all have the same size (the message names the files).
+        Files are missing or unreadable (all are named), or the images do not all have the same size.
     """
-    found: list[Detection] = []
-    failed: list[Detection] = []
-    first_size: tuple[int, int] | None = None
-    first_path = ""
-    for index, path in enumerate(paths):
-        image = read_gray(path)
+    if not paths:
+        raise CalibrationError("no images given")
+    images = []
+    unreadable = []
+    for path in paths:
+        try:
+            images.append((path, read_gray(path)))
+        except DataError as exc:
+            unreadable.append(str(exc))
+    if unreadable:
+        raise DataError(f"{len(unreadable)} of {len(paths)} images cannot be read: " + "; ".join(unreadable))
+    first_path, first = images[0]
+    first_size = (int(first.shape[1]), int(first.shape[0]))
+    for path, image in images:
         size = (int(image.shape[1]), int(image.shape[0]))
-        if first_size is None:
-            first_size, first_path = size, str(path)
-        elif size != first_size:
+        if size != first_size:
             raise DataError(
                 f"{path}: image size {size[0]}x{size[1]} differs from {first_size[0]}x{first_size[1]} of {first_path}; "
                 "all views of one intrinsic calibration must come from the same camera mode"
             )
+    found: list[Detection] = []
+    failed: list[Detection] = []
+    for index, (path, image) in enumerate(images):
         detection = detect_corners(image, board, str(path), subpix)
         (found if detection.found else failed).append(detection)
         if progress is not None:
-            progress(index + 1, len(paths), detection)
+            progress(index + 1, len(images), detection)
     return found, failed
 
 
@@ -130,8 +139,6 @@ def calibrate_intrinsics(
     """
     if model not in MODELS:
         raise ValueError(f"model must be one of {', '.join(MODELS)}, got {model!r}")
-    if not paths:
-        raise CalibrationError("no images given")
     used, failed = detect_views(paths, board, subpix, progress)
     if len(used) < MIN_VIEWS:
         details = "; ".join(f"{d.source}: {d.reason}" for d in failed) or "none failed"
@@ -147,7 +154,9 @@ def calibrate_intrinsics(
     object_points = [board.object_points()] * len(used)
     image_points = [d.corners.reshape(-1, 1, 2) for d in used]
     try:
-        rms, k, dist, rvecs, tvecs = cv2.calibrateCamera(object_points, image_points, size, camera_matrix, None, flags=flags)
+        rms, k, dist, rvecs, tvecs = cv2.calibrateCamera(
+            object_points, image_points, size, camera_matrix, None, flags=flags
+        )
     except cv2.error as exc:
         raise CalibrationError(f"cv2.calibrateCamera failed on {len(used)} views: {exc}") from exc
     camera = CameraModel(k, dist.ravel(), size)

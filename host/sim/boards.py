@@ -65,7 +65,7 @@ class BoardArt:
 class RenderSettings:
     """Rendering options: ``supersample`` x ``supersample`` samples per pixel, blur and noise in grey levels."""
 
-    supersample: int = 3
+    supersample: int = 1
     blur_sigma_px: float = 0.5
     noise_std: float = 2.0
 
@@ -74,6 +74,26 @@ class RenderSettings:
             raise ValueError(f"supersample must be in [1, 8], got {self.supersample}")
         if self.blur_sigma_px < 0 or self.noise_std < 0:
             raise ValueError(f"blur_sigma_px and noise_std must be >= 0, got {self.blur_sigma_px}, {self.noise_std}")
+
+
+def _coverage(x: NDArray[np.float64], half: NDArray[np.float64], lo: float, hi: float) -> NDArray[np.float64]:
+    """Fraction of [x - half, x + half] inside [lo, hi]."""
+    with np.errstate(invalid="ignore"):
+        overlap = np.minimum(x + half, hi) - np.maximum(x - half, lo)
+        return np.nan_to_num(np.clip(overlap / (2 * half), 0.0, 1.0))
+
+
+def _square_wave_mean(q: NDArray[np.float64], half: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Mean over [q - half, q + half] of the square wave that is +1 where floor(q) is even, -1 where odd."""
+
+    def integral(t: NDArray[np.float64]) -> NDArray[np.float64]:  # triangle wave: 0 at even, 1 at odd integers
+        return 1.0 - np.abs(np.mod(t, 2.0) - 1.0)
+
+    with np.errstate(invalid="ignore"):
+        mean = (integral(q + half) - integral(q - half)) / (2 * half)
+        # Footprints narrower than float resolution: the point value.
+        point = np.where(np.mod(np.floor(q), 2.0) == 0, 1.0, -1.0)
+        return np.nan_to_num(np.where(half > 1e-6, mean, point))
 
 
 def pixel_rays(camera: CameraModel, supersample: int) -> NDArray[np.float64]:
@@ -138,15 +158,26 @@ def render_board_view(
     x = origin_b[0] + depth * dx
     y = origin_b[1] + depth * dy
     board = art.board
-    s = board.square_m
-    ix = np.floor(x / s)
-    iy = np.floor(y / s)
-    in_squares = (ix >= -1) & (ix <= board.cols - 1) & (iy >= -1) & (iy <= board.rows - 1)
-    x_lo, x_hi = -s - art.margin_m, board.cols * s + art.margin_m
-    y_lo, y_hi = -s - art.margin_m, board.rows * s + art.margin_m
-    on_paper = (depth > 0) & (x >= x_lo) & (x <= x_hi) & (y >= y_lo) & (y <= y_hi)
-    dark = in_squares & ((ix + iy) % 2 == 0)  # the square at the top-left corner is dark
-    samples = np.where(on_paper, np.where(dark, art.dark, art.light), art.background)
+    sq = board.square_m
+    h, ss, w = rays.shape[0], rays.shape[1], rays.shape[2]
+    x = x.reshape(h * ss, w * ss)
+    y = y.reshape(h * ss, w * ss)
+    behind = ~(depth.reshape(h * ss, w * ss) > 0)
+    x[behind] = np.inf
+    y[behind] = np.inf
+    # Each sample is box-filtered over its footprint on the board (half widths from the local Jacobian), so edges
+    # and corners are exact to first order instead of quantised by the sample grid.
+    with np.errstate(invalid="ignore"):
+        half_x = 0.5 * (np.abs(np.gradient(x, axis=0)) + np.abs(np.gradient(x, axis=1))) + 1e-12
+        half_y = 0.5 * (np.abs(np.gradient(y, axis=0)) + np.abs(np.gradient(y, axis=1))) + 1e-12
+    lo_x, hi_x = -sq - art.margin_m, board.cols * sq + art.margin_m
+    lo_y, hi_y = -sq - art.margin_m, board.rows * sq + art.margin_m
+    paper = _coverage(x, half_x, lo_x, hi_x) * _coverage(y, half_y, lo_y, hi_y)
+    squares = _coverage(x, half_x, -sq, board.cols * sq) * _coverage(y, half_y, -sq, board.rows * sq)
+    # Square (i, j) (floor of x/sq, y/sq) is dark when i + j is even: the top-left square is dark.
+    darkness = 0.5 + 0.5 * _square_wave_mean(x / sq, half_x / sq) * _square_wave_mean(y / sq, half_y / sq)
+    samples = art.background + paper * (art.light - art.background) - squares * darkness * (art.light - art.dark)
+    samples = np.where(behind, art.background, samples).reshape(h, ss, w, ss)
     image = samples.mean(axis=(1, 3))
     if settings.blur_sigma_px > 0:
         image = cv2.GaussianBlur(image, (0, 0), settings.blur_sigma_px)
@@ -290,7 +321,9 @@ def make_calibration_set(
     width, height = camera.image_size
     fixed_end_px = np.array([0.5 * width + rng.uniform(-20, 20), 0.3 * height + rng.uniform(-10, 10)])
     ray = np.append(camera.undistort(fixed_end_px), 1.0)
-    plane_rotation = _rotation(math.radians(rng.uniform(-4, 4)), math.radians(rng.uniform(-4, 4)), rng.uniform(-0.02, 0.02))
+    plane_rotation = _rotation(
+        math.radians(rng.uniform(-4, 4)), math.radians(rng.uniform(-4, 4)), rng.uniform(-0.02, 0.02)
+    )
     plane_pose = PlanePose(plane_rotation, plane_distance_m * ray / np.linalg.norm(ray))
     board_origin_in_plane_m = np.array([0.030, 0.060, 0.0])
     board_pose = PlanePose(plane_rotation, plane_pose.translation_m + plane_rotation @ board_origin_in_plane_m)
