@@ -31,9 +31,11 @@ Find the pose of the rope's motion plane from one image of a chessboard lying le
 
 The plane frame: x horizontal (to the right in the image), y along gravity (down), origin at the rope's fixed end,
 given as a pixel (--origin-px) or in board coordinates from the top-left inner corner (--origin-mm); by default the
-top-left inner corner. Prints the paper's error report (corner reprojection errors in u and v, what they are in mm
-on the plane, Table 3 for the whole image) and writes FileStorage YAML with the pose and the camera, plus a PNG
-(corners, residuals, error-propagation map).
+top-left inner corner. Negative values need an equals sign: --origin-mm=-30,-60.
+
+Prints the paper's error report (corner reprojection errors in u and v, what they are in mm on the plane, Table 3
+for the whole image) and writes FileStorage YAML with the pose and the camera, plus a PNG (corners, residuals,
+error-propagation map).
 
 example:
   ropecam calibrate plane plane.png --camera camera.yaml --board 8x7 --square-mm 20 --origin-px 512,140 \\
@@ -225,8 +227,8 @@ def run_plane(args: argparse.Namespace) -> int:
         f"y average {table['average_y_mm']:.4f} mm, maximum {table['maximum_y_mm']:.4f} mm"
     )
     print(
-        f"1 px ({args.pixel_sigma:g} px sigma) means {error_map.sigma_max_mm.min():.3f}-"
-        f"{error_map.sigma_max_mm.max():.3f} mm on the plane across the image"
+        f"a pixel error of {args.pixel_sigma:g} px (1 sigma, u and v) is {error_map.sigma_max_mm.min():.3f} to "
+        f"{error_map.sigma_max_mm.max():.3f} mm on the plane across the image (major semi-axis)"
     )
     print(f"wrote {out} and {png}")
     return 0

@@ -119,7 +119,7 @@ def plot_plane_report(
         result.reprojected_px[:, 0], result.reprojected_px[:, 1], "o", ms=7, mfc="none", color="tab:cyan",
         label="reprojected",
     )  # fmt: skip
-    span_m = 2 * result.board.square_m
+    span_m = 4 * result.board.square_m
     axes_px = plane_to_pixels(np.array([[0.0, 0.0], [span_m, 0.0], [0.0, span_m]]), camera, result.plane)
     for end, label in ((axes_px[1], "x"), (axes_px[2], "y (gravity)")):
         ax.annotate("", xy=end, xytext=axes_px[0], arrowprops={"arrowstyle": "->", "color": "red", "lw": 2})
