@@ -184,9 +184,9 @@ def refine_saddle(image: NDArray[np.uint8], corners: NDArray[np.floating], spaci
     """Refine chessboard corners to the saddle point of a quadratic fitted around each one.
 
     The image is smoothed with a Gaussian (sigma 1.5 px, 1 px on small boards), a weighted quadratic surface is
-    fitted to a (2r+1)^2 patch centred on the nearest pixel, and the corner moves to the surface's stationary point;
-    three passes re-centre the patch. A corner whose fit is not a saddle, moves more than r px or whose patch leaves
-    the image keeps its input position.
+    fitted to a (2r+1)^2 patch centred on the current estimate, and the corner moves to the surface's stationary
+    point, until it moves less than 1e-4 px (8 passes at most). A corner whose fit is not a saddle, moves more than
+    r px or whose patch leaves the image keeps its last good position.
 
     Parameters
     ----------
@@ -212,27 +212,41 @@ def refine_saddle(image: NDArray[np.uint8], corners: NDArray[np.floating], spaci
     solver = np.linalg.pinv(design * weights[:, None]) * weights[None, :]  # (6, patch): coefficients from a patch
     start = np.asarray(corners, dtype=np.float64).reshape(-1, 2)
     points = start.copy()
-    for _ in range(3):
-        centre = np.rint(points).astype(np.int64)
+    active = np.ones(len(points), dtype=bool)
+    for _ in range(8):
+        # The patch is centred on the current estimate (bilinear samples of the smoothed image): a patch centred
+        # on the nearest pixel is asymmetric about the corner and biases the fit by up to a few hundredths of a px.
         inside = (
-            (centre[:, 0] >= radius)
-            & (centre[:, 0] < width - radius)
-            & (centre[:, 1] >= radius)
-            & (centre[:, 1] < height - radius)
+            (points[:, 0] >= radius + 1)
+            & (points[:, 0] < width - radius - 2)
+            & (points[:, 1] >= radius + 1)
+            & (points[:, 1] < height - radius - 2)
         )
-        cu = np.clip(centre[:, 0], radius, width - radius - 1)
-        cv = np.clip(centre[:, 1], radius, height - radius - 1)
-        patches = smooth[cv[:, None] + oy.astype(np.int64)[None, :], cu[:, None] + ox.astype(np.int64)[None, :]]
+        safe = np.where(inside[:, None], points, radius + 1.0)
+        patches = _bilinear(smooth, safe[:, None, 0] + ox[None, :], safe[:, None, 1] + oy[None, :])
         a, b, c, d, e, _ = (patches @ solver.T).T
         det = 4 * a * c - b * b
         with np.errstate(divide="ignore", invalid="ignore"):
             du = (-2 * c * d + b * e) / det
             dv = (b * d - 2 * a * e) / det
-        ok = inside & (det < 0) & np.isfinite(du) & np.isfinite(dv) & (np.abs(du) <= radius) & (np.abs(dv) <= radius)
-        points = np.where(ok[:, None], np.column_stack([cu + du, cv + dv]), points)
+        ok = active & inside & (det < 0) & np.isfinite(du) & np.isfinite(dv) & (np.hypot(du, dv) <= radius)
+        active &= ok
+        points = np.where(ok[:, None], points + np.column_stack([du, dv]), points)
+        if not np.any(ok & (np.hypot(du, dv) > 1e-4)):
+            break
     moved = np.linalg.norm(points - start, axis=1)
     points[moved > radius] = start[moved > radius]
     return points.astype(np.float32)
+
+
+def _bilinear(image: NDArray[np.float32], u: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Sample `image` at (u, v) (any shape, inside the image) by bilinear interpolation."""
+    u0 = np.floor(u).astype(np.int64)
+    v0 = np.floor(v).astype(np.int64)
+    fu, fv = u - u0, v - v0
+    top = image[v0, u0] * (1 - fu) + image[v0, u0 + 1] * fu
+    bottom = image[v0 + 1, u0] * (1 - fu) + image[v0 + 1, u0 + 1] * fu
+    return top * (1 - fv) + bottom * fv
 
 
 def _auto_half_window(corners: NDArray[np.float32], board: Chessboard) -> int:

@@ -93,7 +93,7 @@ def _open_read(path: Path, what: str) -> cv2.FileStorage:
         storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
     except (cv2.error, SystemError) as exc:  # the binding reports some parse errors as SystemError
         detail = exc.err if isinstance(exc, cv2.error) else str(exc.__cause__ or exc)
-        raise DataError(f"{path}: not an OpenCV FileStorage {what} file ({detail})") from exc
+        raise DataError(f"{path}: not an OpenCV FileStorage {what} file ({detail.strip()})") from exc
     if not storage.isOpened():
         raise DataError(f"{path}: not an OpenCV FileStorage {what} file")
     return storage

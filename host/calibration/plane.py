@@ -8,6 +8,7 @@ Fig. 15-16 and Table 3: reprojection errors of the corners in u and v (pixels) a
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -64,13 +65,14 @@ class PlaneResult:
     """Result of `calibrate_plane`.
 
     ``plane`` maps the plane frame (origin at the rope's fixed end) to the camera; ``board_pose`` maps the board
-    frame (origin at the top-left inner corner); ``origin_board_m`` is the fixed end in board coordinates.
-    ``corners_px`` are detected and ``reprojected_px`` reprojected corners, shape (n, 2).
+    frame (origin at the top-left inner corner of the first image's board); ``origin_board_m`` is the fixed end in
+    those board coordinates. ``corners_px`` are detected and ``reprojected_px`` reprojected corners of all boards
+    (first image first), shape (n_boards * n_corners, 2).
     """
 
     camera: CameraModel
     board: Chessboard
-    detection: Detection
+    detections: list[Detection]
     board_pose: PlanePose
     plane: PlanePose
     origin_board_m: NDArray[np.float64]
@@ -85,22 +87,36 @@ def move_origin(board_pose: PlanePose, origin_board_m: NDArray[np.float64]) -> P
     return PlanePose(board_pose.rotation, board_pose.translation_m + board_pose.rotation @ origin)
 
 
-def _pose_sigma(
-    object_points: NDArray[np.float32],
-    rvec: NDArray[np.float64],
-    tvec: NDArray[np.float64],
-    camera: CameraModel,
-    sse: float,
-) -> tuple[float, NDArray[np.float64]]:
-    _, jacobian = cv2.projectPoints(object_points, rvec, tvec, camera.camera_matrix, camera.distortion)
-    j = jacobian[:, :6]
-    dof = max(j.shape[0] - 6, 1)
-    try:
-        covariance = np.linalg.inv(j.T @ j) * (sse / dof)
-    except np.linalg.LinAlgError:
-        return float("nan"), np.full(3, np.nan)
-    rotation_sigma_deg = float(np.degrees(np.sqrt(np.trace(covariance[:3, :3]))))
-    return rotation_sigma_deg, np.sqrt(np.diag(covariance[3:, 3:])) * 1000.0
+def _inplane(offset: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Rotation about z by offset[0] (rad) and translation (offset[1], offset[2], 0) (m) within the plane."""
+    c, s = np.cos(offset[0]), np.sin(offset[0])
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), np.array([offset[1], offset[2], 0.0])
+
+
+def _project_all(params: NDArray[np.float64], object_points: NDArray[np.float64], camera: CameraModel, n_boards: int):
+    """Project every board's corners; params = plane rvec (3), t (3), then (angle, x, y) per extra board."""
+    r_plane, _ = cv2.Rodrigues(params[:3])
+    t_plane = params[3:6]
+    projected = []
+    for i in range(n_boards):
+        r_in, t_in = (np.eye(3), np.zeros(3)) if i == 0 else _inplane(params[6 + 3 * (i - 1) : 9 + 3 * (i - 1)])
+        rvec, _ = cv2.Rodrigues(r_plane @ r_in)
+        tvec = r_plane @ t_in + t_plane
+        uv, _ = cv2.projectPoints(object_points, rvec, tvec, camera.camera_matrix, camera.distortion)
+        projected.append(uv.reshape(-1, 2))
+    return np.concatenate(projected)
+
+
+def _single_pose(corners: NDArray[np.float64], object_points: NDArray[np.float64], camera: CameraModel, source: str):
+    ok, rvec, tvec = cv2.solvePnP(
+        object_points, corners, camera.camera_matrix, camera.distortion, flags=cv2.SOLVEPNP_IPPE
+    )
+    if not ok:
+        raise CalibrationError(f"{source}: cv2.solvePnP found no pose for the board")
+    rvec, tvec = cv2.solvePnPRefineLM(object_points, corners, camera.camera_matrix, camera.distortion, rvec, tvec)
+    if tvec.ravel()[2] <= 0:
+        raise CalibrationError(f"{source}: the board pose puts the board behind the camera")
+    return PlanePose.from_rvec(rvec, tvec)
 
 
 def calibrate_plane(
@@ -113,76 +129,100 @@ def calibrate_plane(
     subpix: SubpixSettings | None = None,
     max_rms_px: float = DEFAULT_MAX_RMS_PX,
     camera_source: str = "the camera file",
+    extra_images: Sequence[tuple[str, NDArray[np.uint8]]] = (),
 ) -> PlaneResult:
-    """Find the motion plane's pose from one image of a board lying level in it.
+    """Find the motion plane's pose from an image of a board lying level in it (and optionally more placements).
 
     Parameters
     ----------
     image
-        Grayscale image, shape (height, width), uint8, from the calibrated camera in the same mode.
+        Grayscale image, shape (height, width), uint8, from the calibrated camera in the same mode. Its board
+        gives the plane's axes (x along its rows) and, with `origin_px`/`origin_mm`, the origin.
     camera
         The calibrated camera.
     board
-        The board in the image.
+        The board in the images.
     origin_px, origin_mm
         The rope's fixed end, as a distorted pixel (u, v) or in board coordinates (x, y) in mm from the top-left
-        inner corner. At most one; default: the top-left inner corner.
+        inner corner of the board in `image`. At most one; default: that corner.
     source
-        Name used in messages (the file name).
+        Name of `image` used in messages (the file name).
     subpix
         Corner refinement settings.
     max_rms_px
-        Refuse a pose whose corners reproject worse than this (the camera file does not fit the image).
+        Refuse a board whose corners reproject worse than this (the camera file does not fit the image).
     camera_source
         Name of the camera file, for messages.
+    extra_images
+        (name, image) pairs showing the same board lying elsewhere in the same plane (any in-plane rotation). All
+        boards are fitted together: one plane pose plus an in-plane offset per extra board. A small board far from
+        the camera fixes the plane's tilt poorly (the paper's board: about 0.05 degrees); boards spread over the
+        field of view fix it several times better.
 
     Raises
     ------
     CalibrationError
-        Size mismatch between image and camera, no board, a poor fit, or a fixed end off the plane.
+        Size mismatch between an image and the camera, no board, a poor fit, or a fixed end off the plane.
     """
     if origin_px is not None and origin_mm is not None:
         raise ValueError("give the fixed end either as origin_px or as origin_mm, not both")
-    size = (int(image.shape[1]), int(image.shape[0]))
-    if size != camera.image_size:
-        raise CalibrationError(
-            f"{source} is {size[0]}x{size[1]} px but {camera_source} was calibrated at "
-            f"{camera.image_size[0]}x{camera.image_size[1]} px; use the camera file of this camera mode"
+    object_points = board.object_points().astype(np.float64)  # float32 points project to float32 pixels
+    detections = []
+    for name, picture in [(source, image), *extra_images]:
+        size = (int(picture.shape[1]), int(picture.shape[0]))
+        if size != camera.image_size:
+            raise CalibrationError(
+                f"{name} is {size[0]}x{size[1]} px but {camera_source} was calibrated at "
+                f"{camera.image_size[0]}x{camera.image_size[1]} px; use the camera file of this camera mode"
+            )
+        detection = detect_corners(picture, board, name, subpix)
+        if detection.corners is None:
+            raise CalibrationError(f"{name}: {detection.reason}")
+        detections.append(detection)
+    corner_sets = [d.corners.astype(np.float64) for d in detections]
+    poses = [_single_pose(c, object_points, camera, d.source) for c, d in zip(corner_sets, detections, strict=True)]
+    for corners, pose, detection in zip(corner_sets, poses, detections, strict=True):
+        single = _project_all(np.concatenate([pose.rvec, pose.translation_m]), object_points, camera, 1)
+        rms_px = float(np.sqrt(np.mean(np.sum((corners - single) ** 2, axis=1))))
+        if rms_px > max_rms_px:
+            raise CalibrationError(
+                f"{detection.source}: the board reprojects with {rms_px:.2f} px RMS (limit {max_rms_px} px); "
+                f"{camera_source} does not match this image (another camera, lens, focus or image mode?)"
+            )
+    # Initial in-plane offsets of the extra boards from their own poses, expressed in the first board's frame.
+    first = poses[0]
+    initial = [first.rvec, first.translation_m]
+    for pose in poses[1:]:
+        relative_r = first.rotation.T @ pose.rotation
+        relative_t = first.rotation.T @ (pose.translation_m - first.translation_m)
+        initial.append(np.array([np.arctan2(relative_r[1, 0], relative_r[0, 0]), relative_t[0], relative_t[1]]))
+    observed = np.concatenate(corner_sets)
+    params = np.concatenate(initial)
+    n_boards = len(detections)
+    if n_boards > 1:
+        from scipy.optimize import least_squares
+
+        fit = least_squares(
+            lambda p: (_project_all(p, object_points, camera, n_boards) - observed).ravel(), params, method="lm"
         )
-    detection = detect_corners(image, board, source, subpix)
-    if detection.corners is None:
-        raise CalibrationError(f"{source}: {detection.reason}")
-    corners = detection.corners.astype(np.float64)
-    object_points = board.object_points()
-    ok, rvec, tvec = cv2.solvePnP(
-        object_points, corners, camera.camera_matrix, camera.distortion, flags=cv2.SOLVEPNP_IPPE
-    )
-    if not ok:
-        raise CalibrationError(f"{source}: cv2.solvePnP found no pose for the board")
-    rvec, tvec = cv2.solvePnPRefineLM(object_points, corners, camera.camera_matrix, camera.distortion, rvec, tvec)
-    board_pose = PlanePose.from_rvec(rvec, tvec)
-    if board_pose.translation_m[2] <= 0:
-        raise CalibrationError(f"{source}: the board pose puts the board behind the camera")
-    reprojected, _ = cv2.projectPoints(object_points, rvec, tvec, camera.camera_matrix, camera.distortion)
-    reprojected = reprojected.reshape(-1, 2)
-    residual = corners - reprojected
+        params = fit.x
+    reprojected = _project_all(params, object_points, camera, n_boards)
+    residual = observed - reprojected
     sse = float(np.sum(residual**2))
-    rms_px = float(np.sqrt(sse / len(corners)))
-    if rms_px > max_rms_px:
-        raise CalibrationError(
-            f"{source}: the board reprojects with {rms_px:.2f} px RMS (limit {max_rms_px} px); {camera_source} does "
-            "not match this image (another camera, lens, focus or image mode?)"
-        )
-    on_plane_m = pixels_to_plane(corners, camera, board_pose)
-    plane_error_mm = (on_plane_m - object_points[:, :2]) * 1000.0
-    rotation_sigma_deg, translation_sigma_mm = _pose_sigma(object_points, rvec, tvec, camera, sse)
+    board_pose = PlanePose.from_rvec(params[:3], params[3:6])
+    rotation_sigma_deg, translation_sigma_mm = _pose_sigma(params, object_points, camera, n_boards, sse)
+    in_plane = [object_points[:, :2].astype(np.float64)]
+    for i in range(1, n_boards):
+        r_in, t_in = _inplane(params[6 + 3 * (i - 1) : 9 + 3 * (i - 1)])
+        in_plane.append(object_points[:, :2] @ r_in[:2, :2].T + t_in[:2])
+    plane_error_mm = (pixels_to_plane(observed, camera, board_pose) - np.concatenate(in_plane)) * 1000.0
     abs_res, abs_mm = np.abs(residual), np.abs(plane_error_mm)
     report = PlaneErrorReport(
         mean_u_px=float(abs_res[:, 0].mean()),
         max_u_px=float(abs_res[:, 0].max()),
         mean_v_px=float(abs_res[:, 1].mean()),
         max_v_px=float(abs_res[:, 1].max()),
-        rms_px=rms_px,
+        rms_px=float(np.sqrt(sse / len(observed))),
         mean_x_mm=float(abs_mm[:, 0].mean()),
         max_x_mm=float(abs_mm[:, 0].max()),
         mean_y_mm=float(abs_mm[:, 1].mean()),
@@ -204,11 +244,32 @@ def calibrate_plane(
     return PlaneResult(
         camera=camera,
         board=board,
-        detection=detection,
+        detections=detections,
         board_pose=board_pose,
         plane=move_origin(board_pose, origin_board_m),
         origin_board_m=origin_board_m,
-        corners_px=corners,
+        corners_px=observed,
         reprojected_px=reprojected,
         report=report,
     )
+
+
+def _pose_sigma(
+    params: NDArray[np.float64], object_points: NDArray[np.float64], camera: CameraModel, n_boards: int, sse: float
+) -> tuple[float, NDArray[np.float64]]:
+    """1-sigma rotation (deg) and translation (mm) of the plane pose from a numerical Jacobian of the fit."""
+    steps = np.concatenate([np.full(3, 1e-6), np.full(3, 1e-6), np.tile([1e-6, 1e-6, 1e-6], n_boards - 1)])
+    base = _project_all(params, object_points, camera, n_boards).ravel()
+    columns = []
+    for i, step in enumerate(steps):
+        shifted = params.copy()
+        shifted[i] += step
+        columns.append((_project_all(shifted, object_points, camera, n_boards).ravel() - base) / step)
+    jacobian = np.column_stack(columns)
+    dof = max(jacobian.shape[0] - jacobian.shape[1], 1)
+    try:
+        covariance = np.linalg.inv(jacobian.T @ jacobian) * (sse / dof)
+    except np.linalg.LinAlgError:
+        return float("nan"), np.full(3, np.nan)
+    rotation_sigma_deg = float(np.degrees(np.sqrt(np.trace(covariance[:3, :3]))))
+    return rotation_sigma_deg, np.sqrt(np.diag(covariance[3:6, 3:6])) * 1000.0

@@ -197,7 +197,10 @@ class View:
 
 @dataclass(frozen=True)
 class CalibrationSet:
-    """Intrinsic views, the motion-plane view and the truth.
+    """Intrinsic views, the motion-plane views and the truth.
+
+    ``plane_view`` shows the board lying level near the rope's fixed end; ``extra_plane_views`` show it lying
+    elsewhere in the same plane (rotated a little within the plane), to pin the plane's tilt down.
 
     ``plane_pose`` maps the plane frame (origin at the rope's fixed end, x horizontal, y down) to the camera;
     ``origin_mm`` is the fixed end in board coordinates of the plane view, ``origin_px`` its true distorted pixel.
@@ -207,6 +210,7 @@ class CalibrationSet:
     art: BoardArt
     views: list[View]
     plane_view: View
+    extra_plane_views: list[View]
     plane_pose: PlanePose
     origin_mm: tuple[float, float]
     origin_px: tuple[float, float]
@@ -256,22 +260,26 @@ def _intrinsic_poses(camera: CameraModel, art: BoardArt, n_views: int, rng: np.r
     grid_v = np.linspace(0.35, 0.65, 2) * height
     targets = [(u, v) for v in grid_v for u in grid_u]
     poses: list[PlanePose] = []
-    attempts = 0
+    attempts = failures = 0
     while len(poses) < n_views:
         attempts += 1
-        if attempts > 200 * n_views:
-            raise RuntimeError(f"could not place {n_views} boards in a {width}x{height} image")
+        if attempts > 300 * n_views:
+            raise ValueError(f"could not place {n_views} boards of {board.describe()} in a {width}x{height} image")
         u, v = targets[len(poses) % len(targets)]
         u += rng.uniform(-0.05, 0.05) * width
         v += rng.uniform(-0.05, 0.05) * height
         tilt_rad = math.radians(rng.uniform(15.0, 45.0))
         direction = rng.uniform(0.0, 2.0 * math.pi) if len(poses) >= 4 else len(poses) * math.pi / 2
         rotation = _rotation(tilt_rad * math.cos(direction), tilt_rad * math.sin(direction), rng.uniform(-0.2, 0.2))
-        distance_m = base_distance_m * rng.uniform(0.85, 1.25)
+        # Step back a little after each run of boards that did not fit (small or square images).
+        distance_m = base_distance_m * rng.uniform(0.85, 1.25) * (1.0 + 0.05 * (failures // 10))
         ray = np.append(camera.undistort([u, v]), 1.0)
         pose = PlanePose(rotation, distance_m * ray / np.linalg.norm(ray) - rotation @ centre_b)
         if _fits(camera, pose, art, margin_px=4.0):
             poses.append(pose)
+            failures = 0
+        else:
+            failures += 1
     return poses
 
 
@@ -282,6 +290,7 @@ def make_calibration_set(
     plane_distance_m: float = 1.5,
     seed: int = 0,
     settings: RenderSettings | None = None,
+    n_extra_plane_views: int = 2,
 ) -> CalibrationSet:
     """Render a complete calibration set with its ground truth.
 
@@ -299,6 +308,8 @@ def make_calibration_set(
         Seeds poses and noise.
     settings
         Rendering options.
+    n_extra_plane_views
+        Further views of the board lying in the motion plane, left and right of the first (0-2).
 
     Returns
     -------
@@ -328,12 +339,33 @@ def make_calibration_set(
     board_origin_in_plane_m = np.array([0.030, 0.060, 0.0])
     board_pose = PlanePose(plane_rotation, plane_pose.translation_m + plane_rotation @ board_origin_in_plane_m)
     plane_view = View("plane", render_board_view(camera, board_pose, art, rng, settings, rays), board_pose)
+    if not 0 <= n_extra_plane_views <= 2:
+        raise ValueError(f"n_extra_plane_views must be 0, 1 or 2, got {n_extra_plane_views}")
+    extra_plane_views = []
+    half_width_m = 0.5 * width / camera.fx * plane_distance_m
+    board_width_m = (art.board.cols + 1) * art.board.square_m + 2 * art.margin_m
+    for index, side in enumerate((-1.0, 1.0)[:n_extra_plane_views]):
+        angle = math.radians(rng.uniform(-6.0, 6.0))
+        rotation_in_plane = _rotation(0.0, 0.0, angle)
+        for reach in np.linspace(0.85, 0.3, 12):  # as far out as the image allows
+            x0 = side * reach * half_width_m - (0.5 + 0.5 * side) * board_width_m * 0.8
+            corner_in_plane = np.array([x0, 0.13, 0.0])
+            pose = PlanePose(
+                plane_rotation @ rotation_in_plane, plane_pose.translation_m + plane_rotation @ corner_in_plane
+            )
+            if _fits(camera, pose, art, margin_px=4.0):
+                break
+        else:
+            raise ValueError(f"no room for a second board in the plane in a {width}x{height} image")
+        image = render_board_view(camera, pose, art, rng, settings, rays)
+        extra_plane_views.append(View(f"plane_{index + 1:02d}", image, pose))
     origin_px = plane_to_pixels(np.zeros(2), camera, plane_pose)
     return CalibrationSet(
         camera=camera,
         art=art,
         views=views,
         plane_view=plane_view,
+        extra_plane_views=extra_plane_views,
         plane_pose=plane_pose,
         origin_mm=(-board_origin_in_plane_m[0] * 1000, -board_origin_in_plane_m[1] * 1000),
         origin_px=(float(origin_px[0]), float(origin_px[1])),
@@ -349,13 +381,14 @@ def write_calibration_set(calib_set: CalibrationSet, folder: str | Path) -> Path
     """Write the views as PNG files and the truth as ``truth.json`` into `folder` (created); return the JSON path."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    for view in [*calib_set.views, calib_set.plane_view]:
+    for view in [*calib_set.views, calib_set.plane_view, *calib_set.extra_plane_views]:
         path = folder / f"{view.name}.png"
         if not cv2.imwrite(str(path), view.image):
             raise DataError(f"{path}: cannot write image")
     camera, board = calib_set.camera, calib_set.art.board
     truth = {
-        "what": "ropecam simulated calibration set: intrinsic views view_*.png and the motion-plane view plane.png",
+        "what": "ropecam simulated calibration set: intrinsic views view_*.png, the motion-plane view plane.png (board "
+        "level near the rope's fixed end) and plane_NN.png (the board elsewhere in the same plane)",
         "seed": calib_set.seed,
         "image_width": camera.image_size[0],
         "image_height": camera.image_size[1],
@@ -364,6 +397,7 @@ def write_calibration_set(calib_set: CalibrationSet, folder: str | Path) -> Path
         "board": {"cols": board.cols, "rows": board.rows, "square_mm": board.square_m * 1000},
         "views": {view.name: _pose_json(view.pose) for view in calib_set.views},
         "plane_board_pose": _pose_json(calib_set.plane_view.pose),
+        "extra_plane_board_poses": {view.name: _pose_json(view.pose) for view in calib_set.extra_plane_views},
         "plane_pose": _pose_json(calib_set.plane_pose),
         "origin_mm": list(calib_set.origin_mm),
         "origin_px": list(calib_set.origin_px),

@@ -24,7 +24,8 @@ def calibrated(sim_set_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> t
     _, _, truth = read_calibration_set(sim_set_dir)
     origin = ",".join(f"{v:.6f}" for v in truth["origin_px"])
     code = main(
-        ["calibrate", "plane", str(sim_set_dir / "plane.png"), "--camera", str(camera_yaml), "--board", "8x7",
+        ["calibrate", "plane", str(sim_set_dir / "plane.png"), str(sim_set_dir / "plane_01.png"),
+         str(sim_set_dir / "plane_02.png"), "--camera", str(camera_yaml), "--board", "8x7",
          "--square-mm", "20", f"--origin-px={origin}", "--out", str(plane_yaml)]
     )  # fmt: skip
     assert code == 0
