@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from ropecam.shared.errors import CalibrationError, DataError
+from ropecam.shared.errors import DataError
 
 __all__ = [
     "Chessboard",
@@ -29,7 +29,6 @@ __all__ = [
     "parse_board",
     "read_gray",
     "refine_saddle",
-    "require_found",
 ]
 
 # Largest cornerSubPix half window (OpenCV's samples use 11, i.e. a 23x23 px search region).
@@ -310,10 +309,3 @@ def detect_corners(
     if not np.all(np.isfinite(ordered)):
         return Detection(source, size, None, "corner refinement produced non-finite coordinates")
     return Detection(source, size, ordered, "", half_window)
-
-
-def require_found(detection: Detection) -> NDArray[np.float32]:
-    """Return the corners of a successful detection, else raise `CalibrationError` naming the source."""
-    if detection.corners is None:
-        raise CalibrationError(f"{detection.source}: {detection.reason}")
-    return detection.corners

@@ -225,12 +225,15 @@ def run_plane(args: argparse.Namespace) -> int:
         "plane_error_y_mm": np.array([[report.mean_y_mm], [report.max_y_mm]]),
     }
     out = write_plane(args.out, camera, result.plane, metadata)
-    png = plot_plane_report(result, error_map, table, image, args.report or args.out.with_suffix(".png"))
+    images = [image, *(picture for _, picture in extra)]
+    png = plot_plane_report(result, error_map, table, images, args.report or args.out.with_suffix(".png"))
     t_mm = result.plane.translation_m * 1000.0
     print(f"plane origin (rope's fixed end): pixel ({origin_px[0]:.2f}, {origin_px[1]:.2f}), board "
           f"({result.origin_board_m[0] * 1000:.2f}, {result.origin_board_m[1] * 1000:.2f}) mm")  # fmt: skip
     print(f"plane pose: rvec {np.round(result.plane.rvec, 6).tolist()}, t ({t_mm[0]:.2f}, {t_mm[1]:.2f}, "
           f"{t_mm[2]:.2f}) mm, distance {np.linalg.norm(t_mm):.1f} mm")  # fmt: skip
+    if extra:
+        print(f"fitted {len(result.detections)} boards in one plane: {', '.join(d.source for d in result.detections)}")
     for line in report.lines():
         print(line)
     print(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -92,7 +93,11 @@ def plot_intrinsics_report(result: IntrinsicResult, path: str | Path) -> Path:
 
 
 def plot_plane_report(
-    result: PlaneResult, error_map: ErrorMap, table: dict[str, float], image: NDArray[np.uint8], path: str | Path
+    result: PlaneResult,
+    error_map: ErrorMap,
+    table: dict[str, float],
+    images: Sequence[NDArray[np.uint8]],
+    path: str | Path,
 ) -> Path:
     """Write a PNG with the plane view (corners, origin, axes), the residual scatter and the error map.
 
@@ -104,8 +109,8 @@ def plot_plane_report(
         `propagate_pixel_error` of the calibrated conversion.
     table
         `error_table` of the corners' mean and max reprojection errors.
-    image
-        The plane image (grayscale).
+    images
+        The plane images (grayscale), first image first; several are shown as their pixelwise maximum.
     path
         Output PNG.
     """
@@ -113,7 +118,7 @@ def plot_plane_report(
     camera, report = result.camera, result.report
     fig, axes = plt.subplots(1, 3, figsize=(18, 5.4), gridspec_kw={"width_ratios": [1.4, 0.9, 1.4]})
     ax = axes[0]
-    ax.imshow(image, cmap="gray", vmin=0, vmax=255)
+    ax.imshow(np.maximum.reduce([np.asarray(image) for image in images]), cmap="gray", vmin=0, vmax=255)
     ax.plot(result.corners_px[:, 0], result.corners_px[:, 1], "*", ms=6, color="tab:orange", label="detected")
     ax.plot(
         result.reprojected_px[:, 0], result.reprojected_px[:, 1], "o", ms=7, mfc="none", color="tab:cyan",
@@ -123,10 +128,11 @@ def plot_plane_report(
     axes_px = plane_to_pixels(np.array([[0.0, 0.0], [span_m, 0.0], [0.0, span_m]]), camera, result.plane)
     for end, label in ((axes_px[1], "x"), (axes_px[2], "y (gravity)")):
         ax.annotate("", xy=end, xytext=axes_px[0], arrowprops={"arrowstyle": "->", "color": "red", "lw": 2})
-        ax.text(*end, f" {label}", color="red", fontsize=9)
+        ax.text(*end, f" {label}", color="red", fontsize=9, bbox={"facecolor": "white", "alpha": 0.7, "lw": 0})
     ax.plot(*axes_px[0], "s", color="red", ms=6, label="origin (rope's fixed end)")
     ax.legend(loc="lower right", fontsize=8)
-    _image_axes(ax, camera.image_size, f"plane view: {result.board.describe()}")
+    shown = f"{len(images)} plane images (brightest of each pixel)" if len(images) > 1 else "plane view"
+    _image_axes(ax, camera.image_size, f"{shown}: {result.board.describe()}")
     ax = axes[1]
     residual = result.corners_px - result.reprojected_px
     ax.plot(residual[:, 0], residual[:, 1], "+", color="tab:blue")
@@ -148,10 +154,10 @@ def plot_plane_report(
     )
     ax = axes[2]
     extent = (error_map.u_px[0], error_map.u_px[-1], error_map.v_px[-1], error_map.v_px[0])
-    shown = ax.imshow(error_map.sigma_max_mm, extent=extent, cmap="magma", aspect="equal")
+    heat = ax.imshow(error_map.sigma_max_mm, extent=extent, cmap="magma", aspect="equal")
     contours = ax.contour(error_map.u_px, error_map.v_px, error_map.sigma_max_mm, colors="w", linewidths=0.7)
     ax.clabel(contours, fmt="%.3g mm", fontsize=7)
-    fig.colorbar(shown, ax=ax, label="plane error, major semi-axis (mm)", shrink=0.8)
+    fig.colorbar(heat, ax=ax, label="plane error, major semi-axis (mm)", shrink=0.8)
     ax.plot(*axes_px[0], "s", color="cyan", ms=6)
     _image_axes(
         ax,
