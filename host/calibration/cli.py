@@ -131,7 +131,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--origin-mm", type=_pair, metavar="X,Y", help="the fixed end in board mm from the top-left inner corner"
     )
     plane.add_argument("--pixel-sigma", type=float, default=1.0, help="pixel uncertainty for the error map (1.0 px)")
-    plane.add_argument("--max-rms-px", type=float, default=2.0, help="refuse a board fit worse than this (2.0 px)")
+    plane.add_argument(
+        "--max-rms-px", type=float, default=1.0,
+        help="refuse a board that reprojects worse than this: wrong camera file or a bent board (1.0 px)",
+    )  # fmt: skip
     plane.add_argument("--out", type=Path, required=True, help="plane file to write (.yaml)")
     plane.add_argument("--report", type=Path, help="PNG report (default: OUT with .png)")
     plane.set_defaults(func=run_plane)

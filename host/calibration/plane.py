@@ -22,7 +22,7 @@ from ropecam.shared.errors import CalibrationError
 __all__ = ["DEFAULT_MAX_RMS_PX", "PlaneErrorReport", "PlaneResult", "calibrate_plane", "move_origin"]
 
 # A board that reprojects worse than this with a good camera file means the camera file does not match the image.
-DEFAULT_MAX_RMS_PX = 2.0
+DEFAULT_MAX_RMS_PX = 1.0
 
 
 @dataclass(frozen=True)

@@ -79,7 +79,8 @@ def plot_intrinsics_report(result: IntrinsicResult, path: str | Path) -> Path:
     ax.set_yticks(range(len(names)), names, fontsize=7)
     ax.invert_yaxis()
     ax.set_xlabel("per-view RMS reprojection error (px)")
-    ax.legend(loc="lower right", fontsize=8)
+    ax.xaxis.set_major_locator(plt.MaxNLocator(4))
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), fontsize=8, frameon=False)
     k, d = camera.camera_matrix, camera.distortion
     text = f"fx {k[0, 0]:.3f}  fy {k[1, 1]:.3f}\ncx {k[0, 2]:.3f}  cy {k[1, 2]:.3f}\ndist " + " ".join(
         f"{c:.4g}" for c in d
