@@ -41,8 +41,11 @@ class PlaneFile:
 
 
 def _open_write(path: Path) -> cv2.FileStorage:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    except (OSError, cv2.error, SystemError) as exc:
+        raise DataError(f"{path}: cannot open for writing: {exc}") from exc
     if not storage.isOpened():
         raise DataError(f"{path}: cannot open for writing")
     return storage

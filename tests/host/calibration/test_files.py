@@ -62,3 +62,10 @@ def test_plane_file_is_not_a_camera_file_and_vice_versa(tmp_path: Path) -> None:
         "data: [ 1495.2", "data: [ 1495.2, 0., 508.1 ]\n   ignored: [ 1495.2", 1))  # fmt: skip
     with pytest.raises(DataError, match=r"bad.yaml"):
         read_camera(bad)
+
+
+def test_unwritable_output_names_the_file(tmp_path: Path) -> None:
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    with pytest.raises(DataError, match=r"a_file/camera.yaml: cannot open for writing"):
+        write_camera(blocker / "camera.yaml", CAMERA, 0.1)
