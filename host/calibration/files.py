@@ -51,6 +51,13 @@ def _open_write(path: Path) -> cv2.FileStorage:
     return storage
 
 
+def _write_camera_fields(storage: cv2.FileStorage, camera: CameraModel) -> None:
+    storage.write("image_width", camera.image_size[0])
+    storage.write("image_height", camera.image_size[1])
+    storage.write("camera_matrix", camera.camera_matrix)
+    storage.write("distortion_coefficients", camera.distortion.reshape(-1, 1))
+
+
 def _write_metadata(storage: cv2.FileStorage, metadata: dict[str, Any]) -> None:
     for key, value in metadata.items():
         if isinstance(value, str | int | float) and not isinstance(value, bool):
@@ -78,10 +85,7 @@ def write_camera(path: str | Path, camera: CameraModel, rms_px: float, metadata:
     path = Path(path)
     storage = _open_write(path)
     try:
-        storage.write("image_width", camera.image_size[0])
-        storage.write("image_height", camera.image_size[1])
-        storage.write("camera_matrix", camera.camera_matrix)
-        storage.write("distortion_coefficients", camera.distortion.reshape(-1, 1))
+        _write_camera_fields(storage, camera)
         storage.write("avg_reprojection_error", float(rms_px))
         _write_metadata(storage, metadata or {})
     finally:
@@ -158,10 +162,7 @@ def write_plane(
     path = Path(path)
     storage = _open_write(path)
     try:
-        storage.write("image_width", camera.image_size[0])
-        storage.write("image_height", camera.image_size[1])
-        storage.write("camera_matrix", camera.camera_matrix)
-        storage.write("distortion_coefficients", camera.distortion.reshape(-1, 1))
+        _write_camera_fields(storage, camera)
         storage.write("plane_rvec", plane.rvec.reshape(3, 1))
         storage.write("plane_rotation", plane.rotation)
         storage.write("plane_translation_m", plane.translation_m.reshape(3, 1))

@@ -87,10 +87,16 @@ def move_origin(board_pose: PlanePose, origin_board_m: NDArray[np.float64]) -> P
     return PlanePose(board_pose.rotation, board_pose.translation_m + board_pose.rotation @ origin)
 
 
-def _inplane(offset: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Rotation about z by offset[0] (rad) and translation (offset[1], offset[2], 0) (m) within the plane."""
-    c, s = np.cos(offset[0]), np.sin(offset[0])
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), np.array([offset[1], offset[2], 0.0])
+def _inplane(params: NDArray[np.float64], board: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Rotation and translation (m) taking board `board`'s frame into the first board's frame, within the plane.
+
+    Board 0 is the reference; board i > 0 has (angle about z in rad, x, y) at params[3 + 3 i : 6 + 3 i].
+    """
+    if board == 0:
+        return np.eye(3), np.zeros(3)
+    angle, x, y = params[3 + 3 * board : 6 + 3 * board]
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), np.array([x, y, 0.0])
 
 
 def _project_all(params: NDArray[np.float64], object_points: NDArray[np.float64], camera: CameraModel, n_boards: int):
@@ -99,7 +105,7 @@ def _project_all(params: NDArray[np.float64], object_points: NDArray[np.float64]
     t_plane = params[3:6]
     projected = []
     for i in range(n_boards):
-        r_in, t_in = (np.eye(3), np.zeros(3)) if i == 0 else _inplane(params[6 + 3 * (i - 1) : 9 + 3 * (i - 1)])
+        r_in, t_in = _inplane(params, i)
         rvec, _ = cv2.Rodrigues(r_plane @ r_in)
         tvec = r_plane @ t_in + t_plane
         uv, _ = cv2.projectPoints(object_points, rvec, tvec, camera.camera_matrix, camera.distortion)
@@ -211,11 +217,8 @@ def calibrate_plane(
     sse = float(np.sum(residual**2))
     board_pose = PlanePose.from_rvec(params[:3], params[3:6])
     rotation_sigma_deg, translation_sigma_mm = _pose_sigma(params, object_points, camera, n_boards, sse)
-    in_plane = [object_points[:, :2].astype(np.float64)]
-    for i in range(1, n_boards):
-        r_in, t_in = _inplane(params[6 + 3 * (i - 1) : 9 + 3 * (i - 1)])
-        in_plane.append(object_points[:, :2] @ r_in[:2, :2].T + t_in[:2])
-    plane_error_mm = (pixels_to_plane(observed, camera, board_pose) - np.concatenate(in_plane)) * 1000.0
+    in_plane = [object_points @ r_in.T + t_in for r_in, t_in in (_inplane(params, i) for i in range(n_boards))]
+    plane_error_mm = (pixels_to_plane(observed, camera, board_pose) - np.concatenate(in_plane)[:, :2]) * 1000.0
     abs_res, abs_mm = np.abs(residual), np.abs(plane_error_mm)
     report = PlaneErrorReport(
         mean_u_px=float(abs_res[:, 0].mean()),
@@ -258,10 +261,10 @@ def _pose_sigma(
     params: NDArray[np.float64], object_points: NDArray[np.float64], camera: CameraModel, n_boards: int, sse: float
 ) -> tuple[float, NDArray[np.float64]]:
     """1-sigma rotation (deg) and translation (mm) of the plane pose from a numerical Jacobian of the fit."""
-    steps = np.concatenate([np.full(3, 1e-6), np.full(3, 1e-6), np.tile([1e-6, 1e-6, 1e-6], n_boards - 1)])
+    step = 1e-6  # rad and m: far above float64 noise of the projection, far below its curvature
     base = _project_all(params, object_points, camera, n_boards).ravel()
     columns = []
-    for i, step in enumerate(steps):
+    for i in range(len(params)):
         shifted = params.copy()
         shifted[i] += step
         columns.append((_project_all(shifted, object_points, camera, n_boards).ravel() - base) / step)
