@@ -101,7 +101,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description=INTRINSICS_HELP,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    intrinsics.add_argument("images", nargs="+", type=Path, help="chessboard images (all the same size)")
+    intrinsics.add_argument(
+        "images", nargs="+", type=Path, help="chessboard images (all the same size), or folders of them"
+    )
     _add_board_arguments(intrinsics)
     intrinsics.add_argument("--fix-aspect-ratio", action="store_true", help="keep fx = fy (CALIB_FIX_ASPECT_RATIO)")
     intrinsics.add_argument(
@@ -140,6 +142,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     plane.set_defaults(func=run_plane)
 
 
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm")
+
+
+def _expand_folders(paths: list[Path]) -> list[Path]:
+    """Replace each folder by the image files in it (sorted by name)."""
+    expanded: list[Path] = []
+    for path in paths:
+        if path.is_dir():
+            found = sorted(p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+            if not found:
+                raise CalibrationError(f"{path}: folder holds no images ({', '.join(IMAGE_SUFFIXES)})")
+            expanded.extend(found)
+        else:
+            expanded.append(path)
+    return expanded
+
+
 def _board_and_subpix(args: argparse.Namespace):
     from ropecam.host.calibration.board import SubpixSettings, parse_board
 
@@ -163,7 +182,8 @@ def run_intrinsics(args: argparse.Namespace) -> int:
         status = f"{board.n_corners} corners" if detection.found else f"NO BOARD: {detection.reason}"
         print(f"[{done}/{total}] {detection.source}: {status}", file=sys.stderr, flush=True)
 
-    result = calibrate_intrinsics(args.images, board, args.fix_aspect_ratio, args.model, subpix, progress)
+    images = _expand_folders(args.images)
+    result = calibrate_intrinsics(images, board, args.fix_aspect_ratio, args.model, subpix, progress)
     camera = result.camera
     metadata = {
         "nframes": len(result.used),
@@ -176,7 +196,7 @@ def run_intrinsics(args: argparse.Namespace) -> int:
     out = write_camera(args.out, camera, result.rms_px, metadata)
     report = plot_intrinsics_report(result, args.report or args.out.with_suffix(".png"))
     k = camera.camera_matrix
-    print(f"views used: {len(result.used)} of {len(args.images)}")
+    print(f"views used: {len(result.used)} of {len(images)}")
     for detection, rms in zip(result.used, result.per_view_rms_px, strict=True):
         print(f"  {detection.source}: RMS {rms:.4f} px")
     for detection in result.failed:

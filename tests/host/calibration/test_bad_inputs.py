@@ -51,6 +51,15 @@ def test_view_without_board_is_listed_with_reason(good: list[Path], tmp_path: Pa
     assert "views used: 5 of 6" in out
 
 
+def test_folder_argument_and_empty_folder(good: list[Path], tmp_path: Path, capsys) -> None:
+    code, out, _ = _run(["calibrate", "intrinsics", str(tmp_path), *BOARD, "--out", str(tmp_path / "c.yaml")], capsys)
+    assert code == 0 and "views used: 5 of 5" in out
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    code, _, err = _run(["calibrate", "intrinsics", str(empty), *BOARD, "--out", str(tmp_path / "d.yaml")], capsys)
+    assert code == 2 and f"{empty}: folder holds no images" in err
+
+
 def test_wrong_board_size(good: list[Path], tmp_path: Path, capsys) -> None:
     code, _, err = _run(["calibrate", "intrinsics", *map(str, good), "--board", "10x7", "--square-mm", "25",
                          "--out", str(tmp_path / "c.yaml")], capsys)  # fmt: skip
