@@ -29,6 +29,7 @@ def calibrated(sim_set_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> t
          "--square-mm", "20", f"--origin-px={origin}", "--out", str(plane_yaml)]
     )  # fmt: skip
     assert code == 0
+    assert (out / "camera.png").stat().st_size > 10_000 and (out / "plane.png").stat().st_size > 10_000
     return camera_yaml, plane_yaml
 
 
