@@ -20,6 +20,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "ropecam.host.demo",
     "ropecam.host.model.cli",
     "ropecam.host.sim.cli",
+    "ropecam.host.calibration.cli",
     "ropecam.host.keygen",
 )
 
