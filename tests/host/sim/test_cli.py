@@ -23,7 +23,7 @@ cy_px = 100.0
 width_px = 320
 height_px = 200
 plane_tvec_m = [0.0, -0.12, 1.5]
-[rope]
+[scene]
 render_diameter_m = 0.006
 """
 
@@ -55,6 +55,9 @@ def test_simulate_writes_a_readable_set(
     rig = frames.meta["rig"]
     assert rig["preset"] == "rig" and rig["polarity"] == "dark" and rig["seed"] == 7
     assert rig["rope_length_m"] == 0.411 and rig["render_diameter_m"] == 0.006 and "clamp_box_px" in rig
+    # A loaded trajectory is named as the motion's source; no model configuration is claimed for it.
+    assert rig["trajectory_source"] == str(rod_file) and rig["model"] is None
+    assert rig["config"]["scene"]["render_diameter_m"] == 0.006 and rig["config"]["rope"]["fixed_end"] == "pinned"
     assert frames.meta["camera"]["distortion"] == [-0.1793, 0.3891, 0.0, 0.0, 0.0]
     assert frames.meta["plane"]["tvec_m"] == [0.0, -0.12, 1.5]
     truth = frames.truth()
