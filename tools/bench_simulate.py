@@ -90,7 +90,11 @@ def main() -> int:
     width, height = config.camera.image_size
     print(f"preset {args.preset}: {config.frames} frames {width}x{height}, {exposure_ms:g} ms, "
           f"{config.camera.fps:g} FPS, {subframes} sub-frames in all, median of {args.repeats}")  # fmt: skip
-    source = "trajectory file load" if args.trajectory else f"ANCF solve ({config.duration_s:.3f} s of motion)"
+    source = (
+        "trajectory file load"
+        if args.trajectory
+        else f"ANCF solve ({config.model_solver().duration_s:.3f} s of motion)"
+    )
     print(f"  {source:<40} {med(solve_s):7.2f} s")
     print(f"  {'render (project, sub-frames, rasterise)':<40} {med(render_s):7.2f} s")
     print(f"  {'sensor model':<40} {med(sensor_s):7.2f} s")
