@@ -19,13 +19,19 @@ Each frame set is a folder of PNG frames, an index, metadata and ground truth (t
 see docs/frameset.md. With several exposure times (the paper preset has four), DIR gets one set per exposure,
 DIR/exposure_<ms>ms. Anything of a preset can be changed with --config FILE.toml, e.g.
 
-    [rope]
+    [rope]                 # the ANCF model's rope: same keys as `ropecam model simulate --config`
     ei_nm2 = 3e-6          # softer rope
+    fixed_end = "clamped"
+    mass_damping_per_s = 0.2
+    [solver]               # the model's [solver]; duration_s is extended to the last exposure
+    elements = 24
     [scene]
+    render_diameter_m = 0.003
     polarity = "dark"
-    vignetting = 0.0
     [camera]
     plane_rvec = [0.0, 0.1, 0.0]
+
+A file written for `ropecam model simulate --config` works as it is: its [rope] and [solver] tables apply.
 
 examples:
   ropecam simulate rig --out sets/rig                      # 60 frames, 4 ms, 119 FPS (about 10 s)
@@ -133,10 +139,9 @@ def run(args: argparse.Namespace) -> int:
     else:
         columns = (TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed:.2f}/{task.total:.2f} s"))
         with Progress(*columns, console=console, disable=args.quiet, transient=True) as bar:
-            task = bar.add_task(f"ANCF model, {config.rope.elements} elements", total=config.duration_s)
-            trajectory = solve_trajectory(
-                config.rope, config.duration_s, lambda t_s: bar.update(task, completed=min(t_s, config.duration_s))
-            )
+            model_s = config.model_solver().duration_s
+            task = bar.add_task(f"ANCF model, {config.solver.elements} elements", total=model_s)
+            trajectory = solve_trajectory(config, lambda t_s: bar.update(task, completed=min(t_s, model_s)))
         console.print(f"model solved: {trajectory.duration_s:.3f} s of motion")
 
     paths = dict(frameset_paths(args.out, config.exposure_ms))
@@ -147,7 +152,10 @@ def run(args: argparse.Namespace) -> int:
         def progress(exposure_ms: float, done: int, total: int) -> None:
             bar.update(tasks[exposure_ms], completed=done, total=total)
 
-        summaries = write_framesets(config, trajectory, args.out, overwrite=args.overwrite, progress=progress)
+        source = None if args.trajectory is None else str(args.trajectory)
+        summaries = write_framesets(
+            config, trajectory, args.out, overwrite=args.overwrite, progress=progress, trajectory_source=source
+        )
     for summary in summaries:
         note = f", rope leaves the image in {summary.frames_out_of_view} frames" if summary.frames_out_of_view else ""
         console.print(
