@@ -36,7 +36,7 @@ def main() -> None:
     """Run the evaluation and print one line per seed."""
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
-    parser.add_argument("--views", type=int, default=30)
+    parser.add_argument("--views", type=int, default=50, help="intrinsic calibration views per set (default 50)")
     parser.add_argument("--extra-planes", type=int, default=2, help="extra plane views to use (0-2)")
     args = parser.parse_args()
     board = parse_board("8x7", 20)

@@ -286,7 +286,7 @@ def _intrinsic_poses(camera: CameraModel, art: BoardArt, n_views: int, rng: np.r
 def make_calibration_set(
     camera: CameraModel | None = None,
     art: BoardArt | None = None,
-    n_views: int = 30,
+    n_views: int = 50,
     plane_distance_m: float = 1.5,
     seed: int = 0,
     settings: RenderSettings | None = None,
