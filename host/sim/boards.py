@@ -291,6 +291,7 @@ def make_calibration_set(
     seed: int = 0,
     settings: RenderSettings | None = None,
     n_extra_plane_views: int = 2,
+    plane_pose: PlanePose | None = None,
 ) -> CalibrationSet:
     """Render a complete calibration set with its ground truth.
 
@@ -310,6 +311,10 @@ def make_calibration_set(
         Rendering options.
     n_extra_plane_views
         Further views of the board lying in the motion plane, left and right of the first (0-2).
+    plane_pose
+        The motion plane (origin at the rope's fixed end), e.g. a simulator preset's, so that rope frames and
+        calibration set share one plane; default: a nearly fronto-parallel plane at `plane_distance_m`, drawn from
+        the seed.
 
     Returns
     -------
@@ -335,7 +340,11 @@ def make_calibration_set(
     plane_rotation = _rotation(
         math.radians(rng.uniform(-4, 4)), math.radians(rng.uniform(-4, 4)), rng.uniform(-0.02, 0.02)
     )
-    plane_pose = PlanePose(plane_rotation, plane_distance_m * ray / np.linalg.norm(ray))
+    if plane_pose is None:
+        plane_pose = PlanePose(plane_rotation, plane_distance_m * ray / np.linalg.norm(ray))
+    else:
+        plane_rotation = plane_pose.rotation
+        plane_distance_m = float(np.linalg.norm(plane_pose.translation_m))
     board_origin_in_plane_m = np.array([0.030, 0.060, 0.0])
     board_pose = PlanePose(plane_rotation, plane_pose.translation_m + plane_rotation @ board_origin_in_plane_m)
     plane_view = View("plane", render_board_view(camera, board_pose, art, rng, settings, rays), board_pose)

@@ -79,6 +79,14 @@ def register(subparsers: Any) -> None:
     parser.add_argument(
         "--trajectory", type=Path, metavar="FILE", help="use a saved trajectory (.npz) instead of solving the model"
     )
+    parser.add_argument(
+        "--calibration-views",
+        type=int,
+        default=0,
+        metavar="N",
+        help="also write a calibration set into DIR/calibration: N checkerboard views (50 recommended) through the "
+        "same camera, plus boards lying in the motion plane, with the true camera and plane in truth.json",
+    )
     parser.add_argument("--overwrite", action="store_true", help="replace existing frame sets in DIR")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     parser.set_defaults(func=run)
@@ -162,5 +170,31 @@ def run(args: argparse.Namespace) -> int:
             f"{summary.path}: {summary.frames} frames, {summary.exposure_us} us, rope {summary.width_px:.2f} px wide, "
             f"up to {summary.subframes_max} sub-frames, {summary.seconds:.1f} s{note}"
         )
+    if args.calibration_views:
+        _write_calibration(config, args, console)
     sys.stderr.flush()
     return 0
+
+
+def _write_calibration(config: Any, args: argparse.Namespace, console: Any) -> None:
+    """Render the calibration set through the preset's camera and motion plane."""
+    from ropecam.host.sim.boards import make_calibration_set, write_calibration_set
+    from ropecam.shared.errors import ConfigError, DataError
+
+    if args.calibration_views < 4:
+        raise ConfigError(f"--calibration-views must be 0 (none) or >= 4, got {args.calibration_views}")
+    folder = args.out / "calibration"
+    if (folder / "truth.json").exists() and not args.overwrite:
+        raise DataError(f"{folder}: a calibration set exists already (use --overwrite to replace it)")
+    with console.status(f"rendering {args.calibration_views} calibration views -> {folder}"):
+        try:
+            calib = make_calibration_set(
+                camera=config.camera.camera_model(),
+                n_views=args.calibration_views,
+                seed=config.seed,
+                plane_pose=config.camera.plane_pose(),
+            )
+        except ValueError as exc:
+            raise ConfigError(f"cannot place the calibration boards for preset {config.preset!r}: {exc}") from exc
+        write_calibration_set(calib, folder)
+    console.print(f"{folder}: {len(calib.views)} views, plane.png + {len(calib.extra_plane_views)} more plane views")
