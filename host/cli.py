@@ -21,6 +21,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "ropecam.host.model.cli",
     "ropecam.host.sim.cli",
     "ropecam.host.calibration.cli",
+    "ropecam.host.compare.cli",
     "ropecam.host.keygen",
 )
 
