@@ -133,6 +133,13 @@ class FakeCamera:
         """Unplug the camera: every later call on it fails with ENODEV."""
         self.vanished = True
 
+    def reconnect(self) -> None:
+        """Plug the camera back in: a fresh node, not streaming, that opens again."""
+        self.vanished = False
+        self.streaming = False
+        self.free.clear()
+        self.done.clear()
+
     def deliver(self, count: int = 1, error: bool = False, short: bool = False) -> int:
         """Let `count` frame periods pass; returns how many frames found a free buffer (the rest are dropped).
 
