@@ -1,0 +1,139 @@
+"""The OS-facing drivers: OpenCV fallback against a stand-in VideoCapture, linuxpy's error path, backend choice."""
+
+from __future__ import annotations
+
+import itertools
+import sys
+from collections import deque
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from ropecam.device.capture.fake import fake_pattern
+from ropecam.device.capture.v4l2 import V4l2Source, default_driver_factory
+from ropecam.device.capture.v4l2_opencv import OpenCvDriver
+from ropecam.shared.errors import CaptureError
+
+W, H = 16, 8
+
+
+class StandInCapture:
+    """Enough of cv2.VideoCapture's V4L2 behaviour: properties, grab/retrieve, buffer timestamps in ms."""
+
+    def __init__(self, fourcc: str = "GREY") -> None:
+        self.props: dict[int, float] = {
+            cv2.CAP_PROP_FRAME_WIDTH: W,
+            cv2.CAP_PROP_FRAME_HEIGHT: H,
+            cv2.CAP_PROP_FOURCC: cv2.VideoWriter.fourcc(*fourcc),
+            cv2.CAP_PROP_FPS: 100.0,
+            cv2.CAP_PROP_EXPOSURE: 157,
+            cv2.CAP_PROP_AUTO_EXPOSURE: 3,
+            cv2.CAP_PROP_GAIN: 0,
+            cv2.CAP_PROP_POS_MSEC: 0.0,
+        }
+        self.frames: deque[tuple[float, np.ndarray]] = deque()
+        self.current: np.ndarray | None = None
+        self.released = False
+
+    def open_as(self, path: str, api: int) -> StandInCapture:
+        assert api == cv2.CAP_V4L2
+        return self
+
+    def isOpened(self) -> bool:
+        return True
+
+    def set(self, prop: int, value: float) -> bool:
+        self.props[prop] = value
+        return True
+
+    def get(self, prop: int) -> float:
+        return self.props.get(prop, 0.0)
+
+    def grab(self) -> bool:
+        if not self.frames:
+            return False
+        t_ms, self.current = self.frames.popleft()
+        self.props[cv2.CAP_PROP_POS_MSEC] = t_ms
+        return True
+
+    def retrieve(self) -> tuple[bool, np.ndarray | None]:
+        return self.current is not None, self.current
+
+    def release(self) -> None:
+        self.released = True
+
+
+def _opencv_source(node: Path, capture: StandInCapture, **kwargs: object) -> V4l2Source:
+    def factory(path: str) -> OpenCvDriver:
+        return OpenCvDriver(path, capture_factory=capture.open_as)
+
+    return V4l2Source(str(node), W, H, 100.0, driver_factory=factory, **kwargs)  # type: ignore[arg-type]
+
+
+def test_opencv_fallback_frames_sequence_from_timestamps_and_exposure(tmp_path: Path) -> None:
+    node = tmp_path / "video0"
+    node.touch()
+    capture = StandInCapture()
+    for k in (0, 1, 4):  # frames 2 and 3 never came
+        capture.frames.append((1000.0 + 10.0 * k, fake_pattern(k, W, H)))
+    with _opencv_source(node, capture, exposure_us=2000) as source:
+        assert capture.props[cv2.CAP_PROP_CONVERT_RGB] == 0
+        assert capture.props[cv2.CAP_PROP_AUTO_EXPOSURE] == 1 and capture.props[cv2.CAP_PROP_EXPOSURE] == 20
+        frames = [source.read(0.1) for _ in range(3)]
+        assert [f.sequence for f in frames if f] == [0, 1, 4]
+        assert [f.t_ns for f in frames if f] == [1_000_000_000 + k * 10_000_000 for k in (0, 1, 4)]
+        np.testing.assert_array_equal(frames[2].image, fake_pattern(4, W, H))  # type: ignore[union-attr]
+        assert source.counters.dropped == 2
+        assert source.read(0.01) is None and source.counters.timeouts == 1
+        node.unlink()  # unplugged: the node disappears
+        with pytest.raises(CaptureError, match="device vanished"):
+            source.read(0.01)
+    assert capture.released
+
+
+def test_opencv_fallback_yuyv_raw_and_a_converted_frame(tmp_path: Path) -> None:
+    node = tmp_path / "video0"
+    node.touch()
+    capture = StandInCapture("YUYV")
+    raw = np.full((H, 2 * W), 128, np.uint8)
+    raw[:, 0::2] = fake_pattern(0, W, H)
+    capture.frames.append((5.0, raw.reshape(1, -1)))  # OpenCV hands raw YUYV as one row of bytes
+    capture.frames.append((15.0, np.zeros((H, W, 3), np.uint8)))  # a BGR image is no luma: dropped
+    with _opencv_source(node, capture, pixel_format="YUYV") as source:
+        frame = source.read(0.1)
+        assert frame is not None
+        np.testing.assert_array_equal(frame.image, fake_pattern(0, W, H))
+        assert source.read(0.1) is None and source.counters.dropped == 1
+
+
+def test_linuxpy_driver_names_a_missing_device() -> None:
+    pytest.importorskip("linuxpy")
+    with pytest.raises(CaptureError, match=r"camera /dev/video-ropecam-missing: No such file or directory"):
+        V4l2Source("/dev/video-ropecam-missing", backend="linuxpy").start()
+
+
+def test_backend_choice_falls_back_to_opencv_without_linuxpy(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setitem(sys.modules, "ropecam.device.capture.v4l2_linuxpy", None)  # import fails
+    assert default_driver_factory("auto") is OpenCvDriver
+    with pytest.raises(CaptureError, match=r"needs linuxpy: pip install 'ropecam\[device\]'"):
+        default_driver_factory("linuxpy")
+    with pytest.raises(ValueError, match="backend must be"):
+        default_driver_factory("gstreamer")
+
+
+def test_opencv_driver_names_a_missing_device() -> None:
+    with pytest.raises(CaptureError, match=r"camera /dev/video-ropecam-missing: .*no such device"):
+        V4l2Source("/dev/video-ropecam-missing", backend="opencv").start()
+
+
+@pytest.mark.hardware
+def test_real_camera_streams_newest_frames() -> None:
+    """On a rig: the first camera delivers frames with increasing sequence numbers and monotonic timestamps."""
+    with V4l2Source("/dev/video0", exposure_us=2000) as source:
+        frames = [source.read(2.0) for _ in range(20)]
+        got = [(f.sequence, f.t_ns) for f in frames if f is not None]
+        assert len(got) == 20
+        assert all(b[0] > a[0] and b[1] > a[1] for a, b in itertools.pairwise(got))
+        assert source.image_size == (frames[0].image.shape[1], frames[0].image.shape[0])  # type: ignore[union-attr]
