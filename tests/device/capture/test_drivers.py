@@ -137,3 +137,49 @@ def test_real_camera_streams_newest_frames() -> None:
         assert len(got) == 20
         assert all(b[0] > a[0] and b[1] > a[1] for a, b in itertools.pairwise(got))
         assert source.image_size == (frames[0].image.shape[1], frames[0].image.shape[0])  # type: ignore[union-attr]
+
+
+# -- linuxpy adapter: the flag and timestamp mapping, with linuxpy's ioctl wrappers replaced -------------------------
+@pytest.mark.parametrize(
+    ("flags", "source", "error"),
+    [
+        (0x2000 | 0x10000, "START_OF_EXPOSURE", False),  # TIMESTAMP_MONOTONIC | TSTAMP_SRC_SOE (uvcvideo)
+        (0x2000, "END_OF_FRAME", False),  # TIMESTAMP_MONOTONIC | TSTAMP_SRC_EOF
+        (0x4000, "NOT_MONOTONIC", False),  # TIMESTAMP_COPY
+        (0x2000 | 0x10000 | 0x40, "START_OF_EXPOSURE", True),  # V4L2_BUF_FLAG_ERROR
+    ],
+)
+def test_linuxpy_dequeue_maps_flags_and_timestamps(
+    monkeypatch: pytest.MonkeyPatch, flags: int, source: str, error: bool
+) -> None:
+    pytest.importorskip("linuxpy")
+    from linuxpy.video import raw
+
+    from ropecam.device.capture import v4l2_linuxpy
+    from ropecam.device.capture.driver import TimestampSource
+
+    buffer = raw.v4l2_buffer()
+    buffer.index, buffer.sequence, buffer.flags, buffer.bytesused = 1, 7, flags, 10
+    buffer.timestamp.secs, buffer.timestamp.usecs = 3, 250
+    monkeypatch.setattr(v4l2_linuxpy.lvd, "dequeue_buffer", lambda *args: buffer)
+    driver = object.__new__(v4l2_linuxpy.LinuxpyDriver)
+    driver._device = None
+    driver._arrays = [np.zeros(10, np.uint8), np.ones(10, np.uint8)]
+    got = driver.dequeue()
+    assert got is not None
+    assert (got.index, got.sequence, got.timestamp_ns, got.bytes_used) == (1, 7, 3_000_250_000, 10)
+    assert got.timestamp_source is TimestampSource[source] and got.error is error
+    assert got.data is driver._arrays[1]
+
+    def empty(*args: object) -> None:
+        raise BlockingIOError(11, "Resource temporarily unavailable")
+
+    monkeypatch.setattr(v4l2_linuxpy.lvd, "dequeue_buffer", empty)
+    assert driver.dequeue() is None
+
+
+def test_linuxpy_fourcc_names() -> None:
+    pytest.importorskip("linuxpy")
+    from ropecam.device.capture.v4l2_linuxpy import fourcc_name
+
+    assert fourcc_name(1448695129) == "YUYV" and fourcc_name(0x59455247) == "GREY"
