@@ -172,24 +172,29 @@ class CameraSource(ABC):
     def set_exposure_us(self, exposure_us: int) -> int:
         """Set the exposure time in microseconds; returns the exposure the device actually uses.
 
+        Control errors are `ValueError` (report them and keep running); `CaptureError` means the device is lost.
+
         Raises
         ------
         ValueError
-            `exposure_us` is out of the device's range or longer than the frame period.
+            `exposure_us` is out of the device's range or longer than the frame period, or the source has no manual
+            exposure.
         CaptureError
-            The device has no manual exposure or refused the value.
+            The device was lost while setting it.
         """
-        raise CaptureError(f"{self.name}: this source cannot change the exposure")
+        raise ValueError(f"{self.name}: this source cannot change the exposure")
 
     def set_gain(self, gain: int) -> int:
         """Set the analogue gain in the device's own units; returns the value in effect.
 
         Raises
         ------
+        ValueError
+            The value is out of range or the source has no gain control.
         CaptureError
-            The device has no gain control.
+            The device was lost while setting it.
         """
-        raise CaptureError(f"{self.name}: this source has no gain control")
+        raise ValueError(f"{self.name}: this source has no gain control")
 
     def describe(self) -> dict[str, object]:
         """Return the settings in effect (for logs and Status): name, size, fps, exposure, pixel format."""

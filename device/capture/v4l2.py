@@ -283,13 +283,16 @@ class V4l2Source(CameraSource):
                 )
         self._fps = float(driver.get_fps())
         self._controls = driver.controls()
-        if self._requested_exposure_us is not None:
-            self._apply_exposure(driver, self._requested_exposure_us)
-        else:
-            exposure = _find(self._controls, EXPOSURE_CONTROLS)
-            self._exposure_us = driver.get_control(exposure.name) * EXPOSURE_UNIT_US if exposure else 0
-        if self._requested_gain is not None:
-            self._apply_gain(driver, self._requested_gain)
+        try:
+            if self._requested_exposure_us is not None:
+                self._apply_exposure(driver, self._requested_exposure_us)
+            else:
+                exposure = _find(self._controls, EXPOSURE_CONTROLS)
+                self._exposure_us = driver.get_control(exposure.name) * EXPOSURE_UNIT_US if exposure else 0
+            if self._requested_gain is not None:
+                self._apply_gain(driver, self._requested_gain)
+        except ValueError as exc:
+            raise CaptureError(f"{self.name}: cannot apply the settings: {exc}") from exc
 
     def _release(self) -> None:
         driver, self._driver = self._driver, None
@@ -329,14 +332,14 @@ class V4l2Source(CameraSource):
         self._check_exposure_value(exposure_us)
         exposure = _find(self._controls, EXPOSURE_CONTROLS)
         if exposure is None:
-            raise CaptureError(
+            raise ValueError(
                 f"{self.name}: no exposure control (looked for {', '.join(EXPOSURE_CONTROLS)}); "
                 f"controls: {', '.join(self._controls) or 'none'}"
             )
         auto = _find(self._controls, AUTO_EXPOSURE_CONTROLS)
         if auto is not None:
             if auto.menu and EXPOSURE_MANUAL not in auto.menu:
-                raise CaptureError(f"{self.name}: {auto.name} has no manual mode (menu {auto.menu})")
+                raise ValueError(f"{self.name}: {auto.name} has no manual mode (menu {auto.menu})")
             driver.set_control(auto.name, EXPOSURE_MANUAL)
         priority = _find(self._controls, AUTO_PRIORITY_CONTROLS)
         if priority is not None and priority.writable:
@@ -368,7 +371,7 @@ class V4l2Source(CameraSource):
     def _apply_gain(self, driver: V4l2Driver, gain: int) -> int:
         control = _find(self._controls, GAIN_CONTROLS)
         if control is None:
-            raise CaptureError(f"{self.name}: this camera has no gain control (looked for {', '.join(GAIN_CONTROLS)})")
+            raise ValueError(f"{self.name}: this camera has no gain control (looked for {', '.join(GAIN_CONTROLS)})")
         low, high = control.minimum, control.maximum
         if low is not None and high is not None and not low <= gain <= high:
             raise ValueError(f"gain={gain} out of the camera's range [{low}, {high}] ({control.name})")

@@ -130,3 +130,13 @@ def test_bad_sets_are_refused(tmp_path: Path) -> None:
         FrameSetSource(tmp_path / "nowhere")
     with pytest.raises(ValueError, match="fps must be > 0"):
         FrameSetSource(tmp_path / "set", fps=0.0)
+
+
+def test_a_recording_has_no_exposure_or_gain_to_set(tmp_path: Path) -> None:
+    _write(tmp_path / "set")
+    with FrameSetSource(tmp_path / "set", paced=False) as source:
+        with pytest.raises(ValueError, match="cannot change the exposure"):
+            source.set_exposure_us(1000)
+        with pytest.raises(ValueError, match="no gain control"):
+            source.set_gain(2)
+        assert source.read(0) is not None
