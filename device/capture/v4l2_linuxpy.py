@@ -12,6 +12,8 @@ import errno
 import logging
 import mmap
 import select
+from types import SimpleNamespace
+from typing import Any
 
 import numpy as np
 from linuxpy.video import device as lvd
@@ -27,7 +29,7 @@ from ropecam.device.capture.driver import (
     V4l2Driver,
 )
 
-__all__ = ["LinuxpyDriver", "fourcc_name"]
+__all__ = ["LinuxpyDriver", "config_name", "fourcc_name"]
 
 log = logging.getLogger(__name__)
 
@@ -38,11 +40,36 @@ _TIMESTAMP_MONOTONIC = int(lvd.BufferFlag.TIMESTAMP_MONOTONIC)
 _TSTAMP_SRC_MASK = int(lvd.BufferFlag.TSTAMP_SRC_MASK)
 _TSTAMP_SRC_SOE = int(lvd.BufferFlag.TSTAMP_SRC_SOE)
 _FLAG_ERROR = int(lvd.BufferFlag.ERROR)
+_HAS_PAYLOAD = int(lvd.ControlFlag.HAS_PAYLOAD)
+_NOT_WRITABLE = int(
+    lvd.ControlFlag.READ_ONLY | lvd.ControlFlag.DISABLED | lvd.ControlFlag.GRABBED | lvd.ControlFlag.INACTIVE
+)
+_MENU = int(lvd.ControlType.MENU)
+_INTEGER_MENU = int(lvd.ControlType.INTEGER_MENU)
+_SIMPLE_CONTROL_TYPES = frozenset(
+    int(t)
+    for t in (
+        lvd.ControlType.INTEGER,
+        lvd.ControlType.BOOLEAN,
+        lvd.ControlType.MENU,
+        lvd.ControlType.INTEGER_MENU,
+        lvd.ControlType.INTEGER64,
+        lvd.ControlType.BUTTON,
+        lvd.ControlType.BITMASK,
+    )
+)
 
 
 def fourcc_name(code: int) -> str:
     """Return the four characters of a V4L2 pixel-format code (``0x59455247`` -> ``"GREY"``)."""
     return int(code).to_bytes(4, "little").decode("ascii", errors="replace").rstrip()
+
+
+def config_name(name: str) -> str:
+    """Return a V4L2 control name as linuxpy and v4l2-ctl spell it (``"Exposure, Auto Priority"`` ->
+    ``"exposure_auto_priority"``)."""
+    name = name.lower().replace("(", "").replace(")", "").replace(",", "")
+    return "_".join(name.split())
 
 
 def _fps(value: object) -> float:
@@ -56,6 +83,7 @@ class LinuxpyDriver(V4l2Driver):
         self.path = path
         self._device = lvd.Device(path, blocking=False)
         self._device.open()
+        self._controls: dict[str, Any] | None = None
         self._maps: list[mmap.mmap] = []
         self._arrays: list[NDArray[np.uint8]] = []
 
@@ -103,44 +131,61 @@ class LinuxpyDriver(V4l2Driver):
         lvd.set_fps(self._device, _CAPTURE, fps)
         return self.get_fps()
 
+    def _raw_controls(self) -> dict[str, Any]:
+        """Query the controls once, by config name (raw `v4l2_query_ext_ctrl` records).
+
+        Raw records rather than linuxpy's `Controls` objects: those refuse a whole device when one control has an
+        odd range, and silently clip values; here every value is range-checked by `V4l2Source` and written as is.
+        """
+        if self._controls is None:
+            found = {}
+            for info in lvd.iter_read_controls(self._device):
+                if info.type not in _SIMPLE_CONTROL_TYPES or info.flags & _HAS_PAYLOAD:
+                    continue  # class headers, strings, compound controls
+                found[config_name(info.name.decode(errors="replace"))] = info
+            self._controls = found
+        return self._controls
+
+    def _menu(self, info: Any) -> dict[int, str]:
+        if info.type not in (_MENU, _INTEGER_MENU):
+            return {}
+        shim = SimpleNamespace(id=info.id, _info=info)
+        return {
+            int(item.index): item.name.decode(errors="replace") if info.type == _MENU else str(item.value)
+            for item in lvd.iter_read_menu(self._device, shim)
+        }
+
     def controls(self) -> dict[str, ControlInfo]:
         result = {}
-        for control in self._device.controls.values():
-            if not isinstance(control, lvd.BaseControl):
-                continue
+        for name, info in self._raw_controls().items():
             try:
-                value = int(control.value) if hasattr(control, "value") else None
-            except (OSError, AttributeError, TypeError, ValueError):
-                value = None  # write-only, inactive or compound controls
-            menu = {int(k): str(v) for k, v in control.data.items()} if isinstance(control, lvd.MenuControl) else {}
-            result[control.config_name] = ControlInfo(
-                name=control.config_name,
-                kind=control.type.name.lower(),
-                minimum=int(control.minimum),
-                maximum=int(control.maximum),
-                step=int(control.step),
-                default=int(control.default) if hasattr(control, "default") else None,
+                value = int(lvd.get_controls_values(self._device, (info,))[0])
+            except OSError:
+                value = None  # write-only or inactive controls cannot be read
+            result[name] = ControlInfo(
+                name=name,
+                kind=lvd.ControlType(info.type).name.lower(),
+                minimum=int(info.minimum),
+                maximum=int(info.maximum),
+                step=int(info.step),
+                default=int(info.default_value),
                 value=value,
-                menu=menu,
-                writable=bool(control.is_writeable),
+                menu=self._menu(info),
+                writable=not info.flags & _NOT_WRITABLE,
             )
         return result
 
-    def _control(self, name: str) -> lvd.BaseControl:
-        try:
-            return self._device.controls[name]
-        except KeyError as exc:
-            raise OSError(errno.EINVAL, f"no control {name!r}", self.path) from exc
+    def _control(self, name: str) -> Any:
+        info = self._raw_controls().get(name)
+        if info is None:
+            raise OSError(errno.EINVAL, f"no control {name!r}", self.path)
+        return info
 
     def get_control(self, name: str) -> int:
-        return int(self._control(name).value)
+        return int(lvd.get_controls_values(self._device, (self._control(name),))[0])
 
     def set_control(self, name: str, value: int) -> None:
-        control = self._control(name)
-        try:
-            control.value = value
-        except AttributeError as exc:  # linuxpy's "not writeable: read-only, inactive"
-            raise OSError(errno.EACCES, str(exc), self.path) from exc
+        lvd.set_controls_values(self._device, ((self._control(name), int(value)),))
 
     def start(self, buffer_count: int) -> int:
         request = lvd.request_buffers(self._device, _CAPTURE, _MMAP, buffer_count)

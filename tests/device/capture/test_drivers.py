@@ -183,3 +183,54 @@ def test_linuxpy_fourcc_names() -> None:
     from ropecam.device.capture.v4l2_linuxpy import fourcc_name
 
     assert fourcc_name(1448695129) == "YUYV" and fourcc_name(0x59455247) == "GREY"
+
+
+def test_linuxpy_controls_from_the_raw_queries(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Controls are read from QUERY_EXT_CTRL records and named like v4l2-ctl; menus, read-only and class headers."""
+    pytest.importorskip("linuxpy")
+    from linuxpy.video import raw
+    from linuxpy.video.device import ControlFlag, ControlType
+
+    from ropecam.device.capture import v4l2_linuxpy
+
+    def record(cid: int, name: bytes, ctype: int, low: int, high: int, default: int, flags: int = 0) -> object:
+        info = raw.v4l2_query_ext_ctrl()
+        info.id, info.name, info.type, info.flags = cid, name, ctype, flags
+        info.minimum, info.maximum, info.step, info.default_value = low, high, 1, default
+        return info
+
+    records = [
+        record(0x9A0001, b"Camera Controls", ControlType.CTRL_CLASS, 0, 0, 0),
+        record(0x9A0901, b"Auto Exposure", ControlType.MENU, 0, 3, 3),
+        record(0x9A0902, b"Exposure Time, Absolute", ControlType.INTEGER, 1, 5000, 157),
+        record(0x9A0903, b"Exposure, Dynamic Framerate", ControlType.BOOLEAN, 0, 1, 0),
+        record(0x980913, b"Gain (Analog)", ControlType.INTEGER, 0, 100, 0, flags=ControlFlag.READ_ONLY),
+    ]
+    values = {0x9A0901: 3, 0x9A0902: 157, 0x9A0903: 1, 0x980913: 4}
+    written: list[tuple[int, int]] = []
+
+    def menu(device: object, shim: object) -> list[object]:
+        items = []
+        for index, label in ((1, b"Manual Mode"), (3, b"Aperture Priority Mode")):
+            item = raw.v4l2_querymenu()
+            item.id, item.index, item.name = shim.id, index, label  # type: ignore[attr-defined]
+            items.append(item)
+        return items
+
+    monkeypatch.setattr(v4l2_linuxpy.lvd, "iter_read_controls", lambda device: iter(records))
+    monkeypatch.setattr(v4l2_linuxpy.lvd, "iter_read_menu", menu)
+    monkeypatch.setattr(v4l2_linuxpy.lvd, "get_controls_values", lambda device, infos: [values[infos[0].id]])
+    monkeypatch.setattr(
+        v4l2_linuxpy.lvd, "set_controls_values", lambda device, pairs: written.append((pairs[0][0].id, pairs[0][1]))
+    )
+    driver = object.__new__(v4l2_linuxpy.LinuxpyDriver)
+    driver._device, driver._controls, driver.path = None, None, "/dev/video0"
+    controls = driver.controls()
+    assert list(controls) == ["auto_exposure", "exposure_time_absolute", "exposure_dynamic_framerate", "gain_analog"]
+    assert controls["auto_exposure"].menu == {1: "Manual Mode", 3: "Aperture Priority Mode"}
+    assert controls["exposure_time_absolute"].maximum == 5000 and controls["exposure_time_absolute"].value == 157
+    assert not controls["gain_analog"].writable and controls["exposure_dynamic_framerate"].kind == "boolean"
+    driver.set_control("exposure_time_absolute", 20)
+    assert written == [(0x9A0902, 20)] and driver.get_control("gain_analog") == 4
+    with pytest.raises(OSError, match="no control 'focus_absolute'"):
+        driver.get_control("focus_absolute")
