@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import itertools
+import mmap
+import os
 import sys
 from collections import deque
 from pathlib import Path
+from types import SimpleNamespace
 
 import cv2
 import numpy as np
@@ -234,3 +237,118 @@ def test_linuxpy_controls_from_the_raw_queries(monkeypatch: pytest.MonkeyPatch) 
     assert written == [(0x9A0902, 20)] and driver.get_control("gain_analog") == 4
     with pytest.raises(OSError, match="no control 'focus_absolute'"):
         driver.get_control("focus_absolute")
+
+
+class StandInKernel:
+    """linuxpy's ioctl wrappers replaced by a tiny in-memory V4L2 driver (real anonymous mmaps as buffers)."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch, width: int = W, height: int = H) -> None:
+        from fractions import Fraction
+
+        from linuxpy.video import device as lvd
+        from linuxpy.video import raw
+
+        self.raw, self.width, self.height = raw, width, height
+        self.maps: list[object] = []
+        self.free: list[int] = []
+        self.done: list[object] = []
+        self.calls: list[str] = []
+        self.fps = Fraction(30)
+        self.read_fd, self.write_fd = os.pipe()
+        kernel = self
+        frame_size = SimpleNamespace(type=lvd.FrameSizeType.DISCRETE, info=SimpleNamespace(width=W, height=H))
+        frame_type = SimpleNamespace(min_fps=Fraction(119), max_fps=Fraction(119))
+        grey = SimpleNamespace(type=lvd.BufferType.VIDEO_CAPTURE, pixel_format=lvd.PixelFormat.GREY, description="Grey")
+        info = SimpleNamespace(
+            card="Stand-in",
+            driver="standin",
+            bus_info="test",
+            formats=[grey],
+            format_frame_sizes=lambda pf: [frame_size],
+            fps_intervals=lambda pf, w, h: [frame_type],
+        )
+
+        class Device:
+            def __init__(self, path: str, blocking: bool) -> None:
+                assert blocking is False
+                self.info = info
+
+            def open(self) -> None:
+                kernel.calls.append("open")
+
+            def close(self) -> None:
+                kernel.calls.append("close")
+
+            def fileno(self) -> int:
+                return kernel.read_fd
+
+        def fmt() -> SimpleNamespace:
+            return SimpleNamespace(width=W, height=H, pixel_format=lvd.PixelFormat.GREY, size=W * H, bytes_per_line=W)
+
+        def query_buffer(device: object, btype: object, memory: object, index: int) -> object:
+            buffer = raw.v4l2_buffer()
+            buffer.index, buffer.length = index, W * H
+            return buffer
+
+        def mmap_from_buffer(device: object, buffer: object) -> mmap.mmap:
+            mapped = mmap.mmap(-1, buffer.length)  # type: ignore[attr-defined]
+            kernel.maps.append(mapped)
+            return mapped
+
+        def dequeue(device: object, btype: object, memory: object) -> object:
+            if not kernel.done:
+                raise BlockingIOError(11, "Resource temporarily unavailable")
+            return kernel.done.pop(0)
+
+        def set_fps(device: object, btype: object, fps: float) -> None:
+            kernel.fps = Fraction(fps).limit_denominator(1000)
+
+        patches = {
+            "Device": Device,
+            "get_format": lambda device, btype: fmt(),
+            "set_format": lambda device, btype, w, h, fourcc: kernel.calls.append(f"set_format {w}x{h} {fourcc}"),
+            "get_fps": lambda device, btype: kernel.fps,
+            "set_fps": set_fps,
+            "iter_read_controls": lambda device: iter(()),
+            "request_buffers": lambda device, btype, memory, count: SimpleNamespace(count=count),
+            "query_buffer": query_buffer,
+            "mmap_from_buffer": mmap_from_buffer,
+            "enqueue_buffer": lambda device, btype, memory, size, index: kernel.free.append(index),
+            "dequeue_buffer": dequeue,
+            "stream_on": lambda device, btype: kernel.calls.append("stream_on"),
+            "stream_off": lambda device, btype: kernel.calls.append("stream_off"),
+            "free_buffers": lambda device, btype, memory: kernel.calls.append("free_buffers"),
+        }
+        for name, value in patches.items():
+            monkeypatch.setattr(lvd, name, value)
+
+    def produce(self, sequence: int) -> None:
+        index = self.free.pop(0)
+        self.maps[index][: W * H] = fake_pattern(sequence, W, H).tobytes()  # type: ignore[index]
+        buffer = self.raw.v4l2_buffer()
+        buffer.index, buffer.sequence, buffer.bytesused, buffer.flags = index, sequence, W * H, 0x2000 | 0x10000
+        buffer.timestamp.secs, buffer.timestamp.usecs = 10, sequence * 8403
+        self.done.append(buffer)
+
+
+def test_v4l2_source_over_linuxpy_with_a_stand_in_kernel(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The linuxpy driver end to end under V4l2Source: mapped buffers, newest frame, requeue, timeout, stop."""
+    pytest.importorskip("linuxpy")
+    from ropecam.device.capture.v4l2_linuxpy import LinuxpyDriver
+
+    kernel = StandInKernel(monkeypatch)
+    source = V4l2Source("/dev/video0", W, H, 119.0, "GREY", buffer_count=3, driver_factory=LinuxpyDriver)
+    with source:
+        assert kernel.calls[:2] == ["open", f"set_format {W}x{H} GREY"] and "stream_on" in kernel.calls
+        assert source.fps == 119.0 and kernel.free == [0, 1, 2]
+        for sequence in range(3):
+            kernel.produce(sequence)
+        frame = source.read(0)
+        assert frame is not None and frame.sequence == 2 and frame.t_ns == 10_000_000_000 + 2 * 8_403_000
+        np.testing.assert_array_equal(frame.image, fake_pattern(2, W, H))
+        assert source.counters.skipped == 2 and sorted(kernel.free) == [0, 1]  # buffer 2 is with the consumer
+        assert source.read(0.01) is None  # select on the node times out
+        assert sorted(kernel.free) == [0, 1, 2]
+        del frame
+    assert kernel.calls[-3:] == ["stream_off", "free_buffers", "close"]
+    assert all(m.closed for m in kernel.maps)  # type: ignore[attr-defined]
