@@ -247,19 +247,26 @@ class V4l2Source(CameraSource):
                     f"{self.name}: the camera offers {', '.join(offered) or 'no formats'}; "
                     f"ropecam needs GREY (Y8) or YUYV"
                 )
-            fourcc = usable[0]
+            candidates = usable
         elif fourcc not in offered:
             raise CaptureError(
                 f"{self.name}: pixel format {fourcc} not offered; the camera offers {', '.join(offered)}"
             )
+        else:
+            candidates = [fourcc]
         if width is None or height is None:
             current = driver.get_format()
             width, height = current.width, current.height
-        granted = driver.set_format(width, height, fourcc)
-        if (granted.width, granted.height, granted.fourcc) != (width, height, fourcc):
+        # Without a format asked for, take the first usable one the driver really grants (the OpenCV backend
+        # cannot list formats, so its offer is a guess that set_format settles).
+        for fourcc in candidates:
+            granted = driver.set_format(width, height, fourcc)
+            if (granted.width, granted.height, granted.fourcc) == (width, height, fourcc):
+                break
+        else:
             sizes = ", ".join(f"{s.width}x{s.height}" for s in offered[fourcc].sizes) or "not listed"
             raise CaptureError(
-                f"{self.name}: asked for {width}x{height} {fourcc}, the driver granted "
+                f"{self.name}: asked for {width}x{height} {'/'.join(candidates)}, the driver granted "
                 f"{granted.width}x{granted.height} {granted.fourcc}; sizes for {fourcc}: {sizes}"
             )
         row_bytes = width * _BYTES_PER_PIXEL[fourcc]
@@ -289,6 +296,14 @@ class V4l2Source(CameraSource):
             else:
                 exposure = _find(self._controls, EXPOSURE_CONTROLS)
                 self._exposure_us = driver.get_control(exposure.name) * EXPOSURE_UNIT_US if exposure else 0
+                auto = _find(self._controls, AUTO_EXPOSURE_CONTROLS)
+                if auto is not None and driver.get_control(auto.name) != EXPOSURE_MANUAL:
+                    log.warning(
+                        "%s: exposure is automatic (%s = %s): motion blur will vary; set exposure_us",
+                        self.name,
+                        auto.name,
+                        auto.menu.get(driver.get_control(auto.name), driver.get_control(auto.name)),
+                    )
             if self._requested_gain is not None:
                 self._apply_gain(driver, self._requested_gain)
         except ValueError as exc:

@@ -111,6 +111,22 @@ def test_opencv_fallback_yuyv_raw_and_a_converted_frame(tmp_path: Path) -> None:
         assert source.read(0.1) is None and source.counters.dropped == 1
 
 
+def test_opencv_fallback_settles_on_yuyv_when_the_camera_refuses_grey(tmp_path: Path) -> None:
+    node = tmp_path / "video0"
+    node.touch()
+    capture = StandInCapture("YUYV")
+    original_set = capture.set
+
+    def refuse_grey(prop: int, value: float) -> bool:
+        if prop == cv2.CAP_PROP_FOURCC and value == cv2.VideoWriter.fourcc(*"GREY"):
+            return False  # a YUYV-only camera: the format stays YUYV
+        return original_set(prop, value)
+
+    capture.set = refuse_grey  # type: ignore[method-assign]
+    with _opencv_source(node, capture) as source:
+        assert source.pixel_format == "YUYV"
+
+
 def test_linuxpy_driver_names_a_missing_device() -> None:
     pytest.importorskip("linuxpy")
     with pytest.raises(CaptureError, match=r"camera /dev/video-ropecam-missing: No such file or directory"):

@@ -72,6 +72,8 @@ def test_a_size_the_driver_changes_is_an_error_listing_the_sizes() -> None:
     with pytest.raises(
         CaptureError, match=r"asked for 640x480 GREY.*granted 1024x544 GREY; sizes for GREY: 1280x800, 1024x544, 64x32"
     ):
+        _source(uvc_like_camera(), width=640, height=480, pixel_format="GREY").start()
+    with pytest.raises(CaptureError, match=r"asked for 640x480 GREY/YUYV, the driver granted 1024x544 YUYV"):
         _source(uvc_like_camera(), width=640, height=480).start()
 
 
