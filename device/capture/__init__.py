@@ -7,6 +7,7 @@ Public API::
         frame = cam.read(timeout_s=1.0)      # newest frame or None; frame.image valid until the next read
         cam.counters                          # delivered, skipped, dropped, timeouts
 
+- `ropecam.device.capture.config`: `CaptureConfig` (the ``[capture]`` table: source URL, fps, exposure_us, loop)
 - `ropecam.device.capture.source`: `CameraSource`, `CapturedFrame`, `CaptureCounters`
 - `ropecam.device.capture.v4l2`: `V4l2Source` (over a `V4l2Driver`: linuxpy, OpenCV fallback, or the fake)
 - `ropecam.device.capture.replay`: `FrameSetSource` (recorded frame sets, paced or as fast as possible)
