@@ -12,6 +12,7 @@ microseconds; larger sets are decoded from disk on each read.
 
 from __future__ import annotations
 
+import itertools
 import logging
 import time
 from collections.abc import Callable
@@ -83,6 +84,12 @@ class FrameSetSource(CameraSource):
         self._clock = clock
         self._sleep = sleep
         records = self.frameset.records
+        for before, after in itertools.pairwise(records):
+            if after.t_ns <= before.t_ns or after.frame <= before.frame:
+                raise DataError(
+                    f"{self.frameset.root}: index goes back at frame {after.frame} (t_ns {after.t_ns} after "
+                    f"{before.t_ns}, frame {after.frame} after {before.frame}); times and numbers must increase"
+                )
         scale = self.frameset.fps / self._fps
         t0 = records[0].t_ns
         # Offsets of each frame from the first, at the replay rate; one loop lasts the set plus one frame period.

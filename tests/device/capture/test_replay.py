@@ -123,6 +123,11 @@ def test_bad_sets_are_refused(tmp_path: Path) -> None:
             assert streaming.read(0) is not None
         with pytest.raises(CaptureError, match=r"000003\.png"):
             streaming.read(0)
+    with FrameSetWriter(tmp_path / "backwards", (16, 12), FPS) as writer:
+        for t_ns in (0, PERIOD_NS, PERIOD_NS):
+            writer.add(np.zeros((12, 16), np.uint8), t_ns=t_ns, exposure_us=100)
+    with pytest.raises(DataError, match="index goes back at frame 2"):
+        FrameSetSource(tmp_path / "backwards")
     FrameSetWriter(tmp_path / "empty", (16, 12), FPS).close()
     with pytest.raises(DataError, match="has no frames"):
         FrameSetSource(tmp_path / "empty")
