@@ -77,6 +77,8 @@ class CameraSource(ABC):
     started/stopped state and the sequence-gap accounting.
     """
 
+    _last_sequence: int | None
+
     def __init__(self, name: str) -> None:
         self.name = name
         self.counters = CaptureCounters()
