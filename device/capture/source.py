@@ -83,7 +83,7 @@ class CameraSource(ABC):
         self.name = name
         self.counters = CaptureCounters()
         self._started = False
-        self._last_sequence: int | None = None
+        self._last_sequence = None
 
     # -- lifecycle -----------------------------------------------------------------------------------------------
     def start(self) -> None:
