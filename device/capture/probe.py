@@ -70,9 +70,12 @@ def probe_camera(path: str, driver_factory: DriverFactory) -> dict[str, Any]:
                 }
                 for fmt in driver.formats()
             ]
-            current = driver.get_format()
-            report["current"] = {"width": current.width, "height": current.height, "fourcc": current.fourcc}
-            report["fps"] = driver.get_fps()
+            try:
+                current = driver.get_format()
+                report["current"] = {"width": current.width, "height": current.height, "fourcc": current.fourcc}
+                report["fps"] = driver.get_fps()
+            except OSError:  # a metadata node (uvcvideo makes one per camera) has no capture format
+                report["current"], report["fps"] = None, None
             report["controls"] = [
                 {
                     "name": c.name,
@@ -116,7 +119,9 @@ def format_report(cameras: Sequence[dict[str, Any]]) -> str:
             continue
         lines.append(f"{camera['path']}: {camera.get('card', '?')} (driver {camera.get('driver', '?')})")
         current = camera["current"]
-        lines.append(f"  current: {current['width']}x{current['height']} {current['fourcc']} at {camera['fps']:g} fps")
+        if current is not None:
+            size = f"{current['width']}x{current['height']} {current['fourcc']}"
+            lines.append(f"  current: {size} at {camera['fps']:g} fps")
         if not camera["formats"]:
             lines.append("  no capture formats (a metadata node?)")
         for fmt in camera["formats"]:

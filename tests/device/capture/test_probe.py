@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 
 from ropecam.device.capture import probe
-from ropecam.device.capture.fake import fake_factory, uvc_like_camera
+from ropecam.device.capture.driver import FormatInfo
+from ropecam.device.capture.fake import FakeCamera, FakeV4l2Driver, fake_factory, uvc_like_camera
 from ropecam.device.cli import main
 
 
@@ -55,6 +56,17 @@ def test_only_unopenable_cameras_exit_non_zero(two_cameras: None, capsys: pytest
     captured = capsys.readouterr()
     assert "/dev/video7: cannot probe: camera /dev/video7: No such file or directory" in captured.out
     assert "no camera could be opened" in captured.err
+
+
+def test_a_metadata_node_is_listed_without_formats(monkeypatch: pytest.MonkeyPatch, capsys) -> None:  # type: ignore[no-untyped-def]
+    """uvcvideo adds a metadata node per camera: no capture formats, G_FMT fails with EINVAL."""
+    camera = FakeCamera("/dev/video1", [FormatInfo("GREY", "grey")], {})
+    camera.format_list = []  # what the node lists
+    monkeypatch.setattr(FakeV4l2Driver, "get_format", lambda self: (_ for _ in ()).throw(OSError(22, "Invalid")))
+    monkeypatch.setattr(probe, "default_driver_factory", lambda backend="auto": fake_factory(camera))
+    assert main(["probe", "/dev/video1"]) == 0
+    out = capsys.readouterr().out
+    assert "/dev/video1: Fake global-shutter camera" in out and "no capture formats (a metadata node?)" in out
 
 
 def test_lists_nodes_in_numeric_order(tmp_path: Path) -> None:
