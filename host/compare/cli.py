@@ -97,8 +97,13 @@ def run_compare(args: argparse.Namespace) -> int:
     print(f"{args.input}: {len(frames)} frames, {int(measured.sum())} measured samples; fitting the release time",
           file=sys.stderr)  # fmt: skip
 
+    last = [-1]
+
     def report(evaluations: int, rms_m: float) -> None:
-        print(f"  model runs {evaluations}: RMS {rms_m * 1e3:.3f} mm", file=sys.stderr, end="\r")
+        if evaluations != last[0] and (sys.stderr.isatty() or evaluations % 5 == 0):
+            end = "\r" if sys.stderr.isatty() else "\n"
+            print(f"  model runs {evaluations}: RMS {rms_m * 1e3:.3f} mm", file=sys.stderr, end=end)
+        last[0] = evaluations
 
     before = fit_parameters(tracks, rope, solver, names=("t0",), release_time_s=start_t0, progress=report)
     fit = before

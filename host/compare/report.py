@@ -112,7 +112,11 @@ def _plots(c: Comparison, out: Path) -> list[tuple[str, str]]:
     ax.bar(positions - 0.2, c.errors.rms_m * 1e3, 0.4, label="RMS")
     ax.bar(positions + 0.2, c.errors.max_m * 1e3, 0.4, label="max")
     if c.errors_before is not None:
-        ax.plot(positions - 0.2, c.errors_before.rms_m * 1e3, "kx", label="RMS before the fit")
+        ax.plot(positions - 0.2, c.errors_before.rms_m * 1e3, "kx", ms=9, label="RMS before the fit")
+        ax.set_yscale("log")  # before and after differ by orders of magnitude
+    for x, value in zip(positions - 0.2, c.errors.rms_m * 1e3, strict=True):
+        if np.isfinite(value):
+            ax.annotate(f"{value:.3g}", (x, value), ha="center", va="bottom", fontsize=8)
     ax.set_xticks(positions, [f"{s:.3f}" for s in c.tracks.s_m])
     ax.set_xlabel("material point: unstretched arc length s (m)")
     ax.set_ylabel("position error (mm)")

@@ -1,0 +1,107 @@
+"""`ropecam compare` end to end on a simulated rig recording.
+
+The measurement file here is written from the simulator's pixel ground truth in the extract JSON-lines format, so
+these tests check the comparison machinery (pixel -> metre conversion with the calibration files, material-point
+tracking, release-time and parameter fits, the report), not the pipeline's measurement accuracy.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ropecam.device.capture.frameset import FrameSet
+from ropecam.host.calibration.files import write_plane
+from ropecam.host.calibration.geometry import CameraModel, PlanePose
+from ropecam.host.cli import main
+
+EI_TRUE = 4e-5
+MODEL_TOML = """[rope]
+length_m = 0.411
+ei_nm2 = {ei}
+[solver]
+elements = 8
+step_s = 1e-3
+"""
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A 24-frame simulated rig recording (soft rope), its plane file, model files and truth-made JSON lines."""
+    root = tmp_path_factory.mktemp("recording")
+    config = root / "sim.toml"
+    config.write_text(MODEL_TOML.format(ei=EI_TRUE) + "[scene]\nrender_diameter_m = 0.0025\n")
+    args = ["simulate", "rig", "--out", str(root / "set"), "--frames", "24", "--first-exposure-ms", "100"]
+    assert main([*args, "--config", str(config), "-q"]) == 0
+    frames = FrameSet(root / "set")
+    truth = frames.truth()
+    assert truth is not None
+    camera = CameraModel(
+        np.array(frames.meta["camera"]["camera_matrix"]),
+        np.array(frames.meta["camera"]["distortion"]),
+        tuple(frames.meta["camera"]["image_size"]),
+    )
+    plane = PlanePose.from_rvec(frames.meta["plane"]["rvec"], frames.meta["plane"]["tvec_m"])
+    write_plane(root / "plane.yaml", camera, plane)
+    with (root / "truth.jsonl").open("w") as handle:
+        for i, record in enumerate(frames.records):
+            line = {
+                "frame": record.frame,
+                "t_ns": int(truth["t_begin_ns"][i]),
+                "t_end_ns": int(truth["t_end_ns"][i]),
+                "status": "OK",
+                "begin": truth["begin_px"][i].tolist(),
+                "end": truth["end_px"][i].tolist(),
+            }
+            handle.write(json.dumps(line) + "\n")
+    (root / "true.toml").write_text(MODEL_TOML.format(ei=EI_TRUE))
+    (root / "wrong.toml").write_text(MODEL_TOML.format(ei=3 * EI_TRUE))
+    return root
+
+
+def _compare(root: Path, model: str, out: Path, *extra: str) -> int:
+    return main(["compare", str(root / "truth.jsonl"), "--plane", str(root / "plane.yaml"),
+                 "--model", str(root / model), "--out", str(out), *extra])  # fmt: skip
+
+
+def test_true_model_matches_and_report_is_written(recording: Path, tmp_path: Path) -> None:
+    assert _compare(recording, "true.toml", tmp_path / "report") == 0
+    summary = json.loads((tmp_path / "report" / "summary.json").read_text())
+    assert max(summary["rms_error_mm"]) < 0.5
+    assert abs(summary["release_time_s"]) < 0.5e-3  # the simulator's clock starts at the release
+    for name in ("index.html", "trajectories.png", "error_vs_time.png", "error_per_point.png", "shapes.png"):
+        assert (tmp_path / "report" / name).stat().st_size > 1000
+    assert "summary.json" in (tmp_path / "report" / "index.html").read_text()
+
+
+def test_identification_recovers_ei_and_release_time(recording: Path, tmp_path: Path) -> None:
+    assert _compare(recording, "wrong.toml", tmp_path / "report", "--fit", "ei") == 0
+    fit = json.loads((tmp_path / "report" / "summary.json").read_text())["fit"]
+    assert fit["values"]["ei"] == pytest.approx(EI_TRUE, rel=0.05)
+    assert abs(fit["values"]["t0"]) < 0.5e-3
+    assert fit["rms_after_mm"] < fit["rms_before_mm"]
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--fit", "stiffness"], "unknown parameter 'stiffness'"),
+        (["--points", "0.2,0.9"], r"--points must lie in \[0, 0.411\]"),
+    ],
+)
+def test_bad_options_are_named(
+    recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], message: str
+) -> None:
+    assert _compare(recording, "true.toml", tmp_path / "r", *args) == 2
+    assert __import__("re").search(message, capsys.readouterr().err)
+
+
+def test_bad_measurement_line_is_named(recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    broken = tmp_path / "broken.jsonl"
+    broken.write_text((recording / "truth.jsonl").read_text().splitlines()[0] + "\n{not json\n")
+    code = main(["compare", str(broken), "--plane", str(recording / "plane.yaml"), "--out", str(tmp_path / "r")])
+    assert code == 2
+    assert f"{broken}:2" in capsys.readouterr().err
