@@ -105,3 +105,21 @@ def test_bad_measurement_line_is_named(recording: Path, tmp_path: Path, capsys: 
     code = main(["compare", str(broken), "--plane", str(recording / "plane.yaml"), "--out", str(tmp_path / "r")])
     assert code == 2
     assert f"{broken}:2" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_batch_on_local_dask_gives_the_single_run_numbers(recording: Path, tmp_path: Path) -> None:
+    lines = (recording / "truth.jsonl").read_text().splitlines()
+    runs = tmp_path / "runs"
+    runs.mkdir()
+    for name, part in {"a": lines[:12], "b": lines[6:18], "c": lines[12:], "d": lines}.items():
+        (runs / f"{name}.jsonl").write_text("\n".join(part) + "\n")
+    common = ["--plane", str(recording / "plane.yaml"), "--model", str(recording / "true.toml")]
+    assert main(["compare", str(runs), *common, "--out", str(tmp_path / "batch"), "--workers", "2"]) == 0
+    batch = json.loads((tmp_path / "batch" / "summary.json").read_text())
+    assert sorted(batch) == ["a", "b", "c", "d"]
+    for name in batch:
+        assert main(["compare", str(runs / f"{name}.jsonl"), *common, "--out", str(tmp_path / name)]) == 0
+        single = json.loads((tmp_path / name / "summary.json").read_text())
+        for key in ("release_time_s", "rms_error_mm", "max_error_mm", "overall_rms_error_mm", "samples"):
+            assert batch[name][key] == single[key], (name, key)

@@ -1,0 +1,116 @@
+"""Compare one recording with the model, end to end: the function both `ropecam compare` and its batch mode run.
+
+It takes only paths and plain values, so Dask can ship it to worker processes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ropecam.host.calibration.files import read_camera, read_plane
+from ropecam.host.calibration.geometry import pixels_to_plane
+from ropecam.host.compare.identify import FITTABLE, fit_parameters
+from ropecam.host.compare.measurement import read_extract_jsonl, tracks_from_frames
+from ropecam.host.compare.report import Comparison, summary, write_report
+from ropecam.host.compare.tracks import model_positions, point_errors
+from ropecam.host.model.cli import load_model_config
+from ropecam.host.model.solver import CableModel
+from ropecam.shared.errors import ConfigError
+
+__all__ = ["compare_recording", "default_points"]
+
+
+def default_points(length_m: float) -> list[float]:
+    """Material points tracked by default: a quarter, half, three quarters of the rope, and its tip."""
+    return [length_m * f for f in (0.25, 0.5, 0.75, 1.0)]
+
+
+def compare_recording(
+    measurement: Path,
+    plane_path: Path,
+    out: Path,
+    camera_path: Path | None = None,
+    model_path: Path | None = None,
+    points_m: Sequence[float] | None = None,
+    fit: Sequence[str] = (),
+    release_time_s: float | None = None,
+    verbose: bool = True,
+) -> dict[str, Any]:
+    """Compare one measurement file with the model, write its report into `out`, return the summary mapping.
+
+    Raises
+    ------
+    ConfigError, DataError, ModelError
+        Unknown fit parameters, unreadable files, a model that cannot be simulated (messages name the file).
+    """
+    unknown = [name for name in fit if name not in FITTABLE or name == "t0"]
+    if unknown:
+        raise ConfigError(f"--fit: unknown parameter {unknown[0]!r} (choose from ei, damping, drag)")
+    plane_file = read_plane(plane_path)
+    camera = read_camera(camera_path).camera if camera_path else plane_file.camera
+    plane = plane_file.plane
+    rope, solver = load_model_config(model_path)
+    points = list(points_m) if points_m else default_points(rope.length_m)
+    frames = read_extract_jsonl(measurement)
+    tracks, _ = tracks_from_frames(frames, camera, plane, points, rope.length_m)
+    measured = tracks.measured.any(axis=1)
+    if not measured.any():
+        raise ConfigError(f"{measurement}: no frame has a measured rope shape")
+    start_t0 = release_time_s if release_time_s is not None else float(tracks.times_s[measured][0])
+    last = [-1]
+
+    def report(evaluations: int, rms_m: float) -> None:
+        if verbose and evaluations != last[0] and (sys.stderr.isatty() or evaluations % 5 == 0):
+            end = "\r" if sys.stderr.isatty() else "\n"
+            print(f"  model runs {evaluations}: RMS {rms_m * 1e3:.3f} mm", file=sys.stderr, end=end)
+        last[0] = evaluations
+
+    if verbose:
+        print(f"{measurement}: {len(frames)} frames, {int(measured.sum())} measured samples", file=sys.stderr)
+    before = fit_parameters(tracks, rope, solver, names=("t0",), release_time_s=start_t0, progress=report)
+    result = before
+    if fit:
+        result = fit_parameters(tracks, rope, solver, names=(*fit, "t0"), release_time_s=before.release_time_s,
+                                progress=report)  # fmt: skip
+    if verbose:
+        print(file=sys.stderr)
+
+    def run_model(rope_config: Any, t0: float) -> Any:
+        duration = max(float(tracks.times_s[-1] - t0) + 0.01, 2 * solver.step_s)
+        trajectory, _ = CableModel(rope_config, dataclasses.replace(solver, duration_s=duration)).run()
+        return trajectory
+
+    trajectory = run_model(result.rope, result.release_time_s)
+    errors = point_errors(tracks, model_positions(trajectory, tracks, result.release_time_s))
+    errors_before = None
+    if fit:
+        trajectory_before = run_model(rope, before.release_time_s)
+        errors_before = point_errors(tracks, model_positions(trajectory_before, tracks, before.release_time_s))
+    curves = [
+        (f.t_begin_ns * 1e-9, pixels_to_plane(f.begin_px, camera, plane)) for f in frames if f.begin_px is not None
+    ]
+    comparison = Comparison(
+        source=str(measurement),
+        tracks=tracks,
+        curves_m=curves,
+        trajectory=trajectory,
+        release_time_s=result.release_time_s,
+        errors=errors,
+        fit=result if fit else None,
+        errors_before=errors_before,
+        notes=[
+            f"model: L = {rope.length_m} m, EI = {result.rope.bending_stiffness_nm2:.4g} N m², "
+            f"{solver.elements} elements, h = {solver.step_s} s"
+        ],
+    )
+    index = write_report(comparison, out)
+    numbers = summary(comparison)
+    numbers["report"] = str(index)
+    numbers["finite"] = bool(np.isfinite(errors.overall_rms_m))
+    return numbers
