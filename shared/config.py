@@ -26,6 +26,7 @@ __all__ = [
     "check_positive",
     "check_range",
     "from_mapping",
+    "load_tables",
     "load_toml",
     "read_toml",
 ]
@@ -84,7 +85,9 @@ def load_toml(path: str | Path, cls: type[T], section: str | None = None) -> T:
     cls
         A (frozen) dataclass type.
     section
-        Name of a top-level table to read; the whole file when None. A missing table gives the defaults.
+        Name of a top-level table to read; the whole file when None. A missing table gives the defaults. Other
+        tables are not checked here: an application reading a multi-table file uses `load_tables`, which refuses
+        unknown (e.g. misspelled) tables.
 
     Raises
     ------
@@ -97,6 +100,40 @@ def load_toml(path: str | Path, cls: type[T], section: str | None = None) -> T:
         data = data.get(section, {})
         where = f"{path} [{section}]"
     return from_mapping(cls, data, where=where)
+
+
+def load_tables(path: str | Path | None, tables: dict[str, type], **overrides: dict[str, Any]) -> dict[str, Any]:
+    """Load a TOML file whose top-level tables are component configs; an unknown table is an error.
+
+    Parameters
+    ----------
+    path
+        The file; None gives every component its defaults (plus overrides).
+    tables
+        Table name -> dataclass type, e.g. ``{"rope": RopeConfig, "solver": SolverConfig}``.
+    overrides
+        Per table, values that replace the file's (None values are ignored), e.g. from command-line options.
+
+    Returns
+    -------
+    dict
+        Table name -> config instance, for every name in `tables` (missing tables get defaults).
+
+    Raises
+    ------
+    ConfigError
+        The file is missing or malformed, a table or key is unknown, a value is wrong (naming file, table, key).
+    """
+    data: dict[str, Any] = read_toml(path) if path is not None else {}
+    where = str(path) if path is not None else "command line"
+    unknown = sorted(set(data) - set(tables))
+    if unknown:
+        allowed = ", ".join(f"[{name}]" for name in tables)
+        raise ConfigError(f"{where}: unknown table [{unknown[0]}] (allowed: {allowed})")
+    return {
+        name: from_mapping(cls, data.get(name, {}), where=f"{where} [{name}]", **overrides.get(name, {}))
+        for name, cls in tables.items()
+    }
 
 
 def from_mapping(cls: type[T], data: Mapping[str, Any], where: str = "config", **overrides: Any) -> T:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -14,10 +15,10 @@ __all__ = ["compare_batch"]
 
 
 def _one(measurement: Path, out: Path, options: dict[str, Any]) -> dict[str, Any]:
-    """Worker task: one recording; our own errors become an entry instead of failing the batch."""
+    """Worker task: one recording. Any failure becomes that recording's entry; the other recordings go on."""
     try:
         return compare_recording(measurement, out=out, verbose=False, **options)
-    except RopecamError as exc:
+    except Exception as exc:  # one bad recording must not cost the batch the others
         return {"error": f"{type(exc).__name__}: {exc}"}
 
 
@@ -46,6 +47,12 @@ def compare_batch(
     names = [path.stem for path in recordings]
     if len(set(names)) != len(names):
         raise RopecamError("recordings in one batch must have distinct file names")
+    if workers < 1:
+        raise RopecamError(f"--workers must be >= 1, got {workers}")
+    # Workers (maybe on other machines sharing the file system) must not resolve paths against their own cwd.
+    recordings = [Path(path).resolve() for path in recordings]
+    out = Path(out).resolve()
+    options = {k: (v.resolve() if isinstance(v, Path) else v) for k, v in options.items()}
     out.mkdir(parents=True, exist_ok=True)
     cluster = None
     if scheduler is None:
@@ -61,8 +68,14 @@ def compare_batch(
         }
         for done, future in enumerate(as_completed(futures), start=1):
             name = futures[future]
-            results[name] = future.result()
-            print(f"[{done}/{len(futures)}] {name} done", file=sys.stderr, flush=True)
+            try:
+                results[name] = future.result()
+            except Exception as exc:  # a lost worker: record it, keep the rest
+                results[name] = {"error": f"{type(exc).__name__}: {exc}"}
+            partial = {n: results[n] for n in names if n in results}
+            (out / "summary.json").write_text(json.dumps(partial, indent=2) + "\n")  # finished work is never lost
+            print(f"[{done}/{len(futures)}] {name} {'failed' if 'error' in results[name] else 'done'}",
+                  file=sys.stderr, flush=True)  # fmt: skip
     finally:
         client.close()
         if cluster is not None:

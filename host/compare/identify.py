@@ -23,7 +23,7 @@ from ropecam.host.model.solver import CableModel
 from ropecam.host.model.trajectory import Trajectory
 from ropecam.shared.errors import ModelError
 
-__all__ = ["FITTABLE", "FitResult", "fit_parameters"]
+__all__ = ["FITTABLE", "FitResult", "fit_parameters", "model_for_tracks"]
 
 FITTABLE = ("ei", "damping", "drag", "t0")
 # Internal scaling: the optimiser works on (value - start) / scale (log for ei), all of order one.
@@ -49,6 +49,15 @@ class FitResult:
     evaluations: int
     success: bool
     message: str
+
+
+def model_for_tracks(
+    rope: RopeConfig, solver: SolverConfig, tracks: MaterialPointTracks, release_time_s: float, margin_s: float = 0.05
+) -> Trajectory:
+    """Simulate the model from the release until `margin_s` after the last measurement (at least two steps)."""
+    duration = max(float(tracks.times_s[-1] - release_time_s) + margin_s, 2 * solver.step_s)
+    trajectory, _ = CableModel(rope, dataclasses.replace(solver, duration_s=duration)).run()
+    return trajectory
 
 
 def _physical(rope: RopeConfig, names: Sequence[str], values: dict[str, float]) -> RopeConfig:
@@ -113,7 +122,7 @@ def fit_parameters(
     measured = tracks.positions_m[mask]
     cache: dict[tuple[float, ...], Trajectory] = {}
     evaluations = [0]
-    span = float(tracks.times_s[-1] - min(release_time_s, tracks.times_s[0]))
+    earliest_t0 = min(release_time_s, float(tracks.times_s[0]))
 
     def decode(theta: NDArray[np.float64]) -> dict[str, float]:
         values = dict(start)
@@ -126,10 +135,8 @@ def fit_parameters(
         needed = tracks.times_s[-1] - values["t0"]
         cached = cache.get(key)
         if cached is None or cached.times_s[-1] < needed:
-            duration = max(needed, span) + 0.05
-            physical = _physical(rope, names, values)
-            config = dataclasses.replace(solver, duration_s=max(duration, solver.step_s * 2))
-            cached, _ = CableModel(physical, config).run()
+            # Long enough for any release time down to the earliest plausible one, so t0 steps reuse it.
+            cached = model_for_tracks(_physical(rope, names, values), solver, tracks, min(values["t0"], earliest_t0))
             cache.clear()  # keep memory bounded: finite differences revisit only the latest point
             cache[key] = cached
             evaluations[0] += 1

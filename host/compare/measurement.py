@@ -68,9 +68,14 @@ def read_extract_jsonl(path: str | Path) -> list[MeasuredFrame]:
             record = json.loads(line)
             frame = int(record["frame"])
             t_begin = int(record["t_ns"])
-            t_end = int(record.get("t_end_ns") or t_begin)
-        except (json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
+            end_time = record.get("t_end_ns")
+            t_end = t_begin if end_time is None else int(end_time)
+        except (json.JSONDecodeError, KeyError, TypeError, ValueError, AttributeError) as exc:
             raise DataError(f"{where}: not an extract record (needs frame, t_ns): {exc}") from exc
+        if record.get("end") is not None and (end_time is None or t_end <= t_begin):
+            # The end shape belongs to the end of the exposure: without its own later time it would be placed at
+            # the start and bias every fit by one exposure.
+            raise DataError(f"{where}: an 'end' shape needs 't_end_ns' after 't_ns', got {end_time!r}")
         frames.append(
             MeasuredFrame(
                 frame=frame,
@@ -139,7 +144,7 @@ def tracks_from_frames(
     for frame in frames:
         for t_ns, shape in ((frame.t_begin_ns, frame.begin_px), (frame.t_end_ns, frame.end_px)):
             times.append(t_ns * 1e-9)
-            if shape is None:
+            if shape is None or frame.status != "OK":
                 positions.append(np.full((s.size, 2), np.nan))
                 stretches.append(np.nan)
                 continue

@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.host.compare.identify import FitResult
-from ropecam.host.compare.tracks import MaterialPointTracks, PointErrors
+from ropecam.host.compare.tracks import MaterialPointTracks, PointErrors, model_positions
 from ropecam.host.model.trajectory import Trajectory
 from ropecam.shared.errors import DataError
 
@@ -38,6 +38,11 @@ def _mm(values: NDArray[np.float64]) -> list[float | None]:
     return [None if not np.isfinite(v) else round(float(v) * 1e3, 4) for v in values]
 
 
+def _finite(values: dict[str, float]) -> dict[str, float | None]:
+    """JSON has no NaN or infinity: an undetermined value (e.g. an unidentifiable parameter's error) is null."""
+    return {name: (float(v) if np.isfinite(v) else None) for name, v in values.items()}
+
+
 def summary(comparison: Comparison) -> dict[str, Any]:
     """The numbers of the report as a JSON-ready mapping (lengths in mm, times in s)."""
     c = comparison
@@ -49,15 +54,15 @@ def summary(comparison: Comparison) -> dict[str, Any]:
         "material_points_s_m": [float(s) for s in c.tracks.s_m],
         "rms_error_mm": _mm(c.errors.rms_m),
         "max_error_mm": _mm(c.errors.max_m),
-        "overall_rms_error_mm": round(c.errors.overall_rms_m * 1e3, 4),
+        "overall_rms_error_mm": _mm(np.array([c.errors.overall_rms_m]))[0],
         "notes": c.notes,
     }
     if c.fit is not None:
         result["fit"] = {
             "parameters": list(c.fit.names),
-            "start": c.fit.start,
-            "values": c.fit.values,
-            "std_errors": c.fit.std_errors,
+            "start": _finite(c.fit.start),
+            "values": _finite(c.fit.values),
+            "std_errors": _finite(c.fit.std_errors),
             "rms_before_mm": round(c.fit.rms_before_m * 1e3, 4),
             "rms_after_mm": round(c.fit.rms_after_m * 1e3, 4),
             "model_evaluations": c.fit.evaluations,
@@ -75,8 +80,7 @@ def _plots(c: Comparison, out: Path) -> list[tuple[str, str]]:
 
     written = []
     t = c.tracks.times_s
-    model_t = np.clip(t - c.release_time_s, c.trajectory.times_s[0], c.trajectory.times_s[-1])
-    model = c.trajectory.positions(model_t, c.tracks.s_m)
+    model = model_positions(c.trajectory, c.tracks, c.release_time_s)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
 
     fig, ax = plt.subplots(figsize=(7.5, 6), constrained_layout=True)
@@ -152,6 +156,10 @@ def _plots(c: Comparison, out: Path) -> list[tuple[str, str]]:
     return written
 
 
+def _num(value: float | None) -> str:
+    return "–" if value is None else f"{value:.6g}"
+
+
 def write_report(comparison: Comparison, out: str | Path) -> Path:
     """Write plots, ``summary.json`` and ``index.html`` into `out` (created); return the HTML path."""
     out = Path(out)
@@ -159,7 +167,7 @@ def write_report(comparison: Comparison, out: str | Path) -> Path:
         out.mkdir(parents=True, exist_ok=True)
         plots = _plots(comparison, out)
         numbers = summary(comparison)
-        (out / "summary.json").write_text(json.dumps(numbers, indent=2) + "\n")
+        (out / "summary.json").write_text(json.dumps(numbers, indent=2, allow_nan=False) + "\n")
     except OSError as exc:
         raise DataError(f"{out}: cannot write the report: {exc}") from exc
     rows = "".join(
@@ -170,8 +178,8 @@ def write_report(comparison: Comparison, out: str | Path) -> Path:
     if comparison.fit is not None:
         fit = numbers["fit"]
         fit_rows = "".join(
-            f"<tr><td>{html.escape(name)}</td><td>{fit['start'][name]:.6g}</td><td>{fit['values'][name]:.6g}</td>"
-            f"<td>{fit['std_errors'][name]:.3g}</td></tr>"
+            f"<tr><td>{html.escape(name)}</td><td>{_num(fit['start'][name])}</td><td>{_num(fit['values'][name])}</td>"
+            f"<td>{_num(fit['std_errors'][name])}</td></tr>"
             for name in fit["parameters"]
         )
         fit_html = (

@@ -5,7 +5,6 @@ It takes only paths and plain values, so Dask can ship it to worker processes.
 
 from __future__ import annotations
 
-import dataclasses
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -15,12 +14,11 @@ import numpy as np
 
 from ropecam.host.calibration.files import read_camera, read_plane
 from ropecam.host.calibration.geometry import pixels_to_plane
-from ropecam.host.compare.identify import FITTABLE, fit_parameters
+from ropecam.host.compare.identify import FITTABLE, fit_parameters, model_for_tracks
 from ropecam.host.compare.measurement import read_extract_jsonl, tracks_from_frames
 from ropecam.host.compare.report import Comparison, summary, write_report
 from ropecam.host.compare.tracks import model_positions, point_errors
 from ropecam.host.model.cli import load_model_config
-from ropecam.host.model.solver import CableModel
 from ropecam.shared.errors import ConfigError
 
 __all__ = ["compare_recording", "default_points"]
@@ -81,16 +79,11 @@ def compare_recording(
     if verbose:
         print(file=sys.stderr)
 
-    def run_model(rope_config: Any, t0: float) -> Any:
-        duration = max(float(tracks.times_s[-1] - t0) + 0.01, 2 * solver.step_s)
-        trajectory, _ = CableModel(rope_config, dataclasses.replace(solver, duration_s=duration)).run()
-        return trajectory
-
-    trajectory = run_model(result.rope, result.release_time_s)
+    trajectory = model_for_tracks(result.rope, solver, tracks, result.release_time_s)
     errors = point_errors(tracks, model_positions(trajectory, tracks, result.release_time_s))
     errors_before = None
     if fit:
-        trajectory_before = run_model(rope, before.release_time_s)
+        trajectory_before = model_for_tracks(rope, solver, tracks, before.release_time_s)
         errors_before = point_errors(tracks, model_positions(trajectory_before, tracks, before.release_time_s))
     curves = [
         (f.t_begin_ns * 1e-9, pixels_to_plane(f.begin_px, camera, plane)) for f in frames if f.begin_px is not None

@@ -479,18 +479,19 @@ def assemble_system(
 
 @kernel(
     int64(
-        f8_1d, f8_1d, f8_1d, f8_1d, float64, int64, int64, f8_1d, f8_2d, f8_1d,
+        f8_1d, f8_1d, f8_1d, f8_1d, float64, int64, int64, int64, f8_1d, f8_2d, f8_1d,
         f8_2d, f8_1d, f8_1d, i4_1d, f8_2d, f8_3d, f8_2d, f8_1d, f8_2d, f8_2d, i4_1d,
     )
 )  # fmt: skip
 def advance(
-    q, v, qdd, acc, t0, n_steps, sample_every, params, mass_band, gravity,
+    q, v, qdd, acc, t0, step0, n_steps, sample_every, params, mass_band, gravity,
     band, res, delta, pivots, scratch, mats, backup, out_t, out_q, out_v, out_counters,
 ):  # fmt: skip
-    """Advance the rope `n_steps` generalized-alpha steps (Arnold & Bruls 2007) from time `t0`.
+    """Advance the rope `n_steps` generalized-alpha steps (Arnold & Bruls 2007) from time `t0` (step number `step0`).
 
     Updates the state in place: `q`, `v` (nodal coordinates and velocities), `qdd` (accelerations) and `acc` (the
-    algorithmic acceleration). After every `sample_every`-th step writes the time and state into `out_t`, `out_q`,
+    algorithmic acceleration). After each step whose absolute number (step0 + 1, step0 + 2, ...) is a multiple of
+    `sample_every` writes the time and state into `out_t`, `out_q`,
     `out_v`. `backup` (2, n) is work space holding q and v at the start of the current step. Writes `out_counters`
     (steps done, samples written, Newton iterations). Returns the number of samples
     written, KernelStatus.FULL when the output is too short, or KernelStatus.NO_CONVERGENCE /
@@ -586,7 +587,7 @@ def advance(
             acc[i] = ((1.0 - af) * delta[i] + af * qdd[i] - am * acc[i]) / (1.0 - am)
             qdd[i] = delta[i]
         out_counters[C_STEPS] = step + 1
-        if (step + 1) % sample_every == 0:
+        if (step0 + step + 1) % sample_every == 0:
             if samples >= out_t.shape[0]:
                 return KernelStatus.FULL
             out_t[samples] = t

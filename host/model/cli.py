@@ -80,21 +80,14 @@ def register(subparsers: Any) -> None:
 def load_model_config(path: Path | None, args: argparse.Namespace | None = None) -> tuple[Any, Any]:
     """Build (RopeConfig, SolverConfig) from an optional TOML file and command-line overrides."""
     from ropecam.host.model.config import RopeConfig, SolverConfig
-    from ropecam.shared.config import from_mapping, read_toml
-    from ropecam.shared.errors import ConfigError
+    from ropecam.shared.config import load_tables
 
-    data: dict[str, Any] = read_toml(path) if path is not None else {}
-    where = str(path) if path is not None else "command line"
-    unknown = sorted(set(data) - {"rope", "solver"})
-    if unknown:
-        raise ConfigError(f"{where}: unknown table [{unknown[0]}] (allowed: [rope], [solver])")
     rope_over = {n: getattr(args, n, None) for n, _, _ in ROPE_OPTIONS} if args else {}
     if args is not None:
         rope_over["fixed_end"] = args.fixed_end
     solver_over = {n: getattr(args, n, None) for n, _, _ in SOLVER_OPTIONS} if args else {}
-    rope = from_mapping(RopeConfig, data.get("rope", {}), where=f"{where} [rope]", **rope_over)
-    solver = from_mapping(SolverConfig, data.get("solver", {}), where=f"{where} [solver]", **solver_over)
-    return rope, solver
+    configs = load_tables(path, {"rope": RopeConfig, "solver": SolverConfig}, rope=rope_over, solver=solver_over)
+    return configs["rope"], configs["solver"]
 
 
 def run_simulate(args: argparse.Namespace) -> int:

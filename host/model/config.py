@@ -184,5 +184,10 @@ class SolverConfig:
 
     @property
     def total_steps(self) -> int:
-        """Number of time steps to cover `duration_s` (the last one may end slightly past it)."""
-        return math.ceil(self.duration_s / self.step_s - 1e-9)
+        """Number of time steps: `duration_s` rounded up to a whole number of output samples.
+
+        The trajectory therefore always reaches `duration_s` (its last sample may lie up to one output spacing past
+        it), and samples lie on a uniform grid.
+        """
+        every = self.steps_per_output
+        return every * math.ceil(self.duration_s / (self.step_s * every) - 1e-9)

@@ -78,6 +78,8 @@ class CableModel:
         self._pivots = np.zeros(self.n_dof, dtype=np.int32)
         self._backup = np.zeros((2, self.n_dof))
         self._counters = np.zeros(k.N_COUNTERS, dtype=np.int32)
+        # Work space of `advance`, in its argument order.
+        self._work = (self._band, self._res, self._delta, self._pivots, self._scratch, self._mats, self._backup)
 
     def _parameters(self, step_s: float) -> NDArray[np.float64]:
         rope, solver = self.rope, self.solver
@@ -180,6 +182,8 @@ class CableModel:
         every = solver.steps_per_output
         total = solver.total_steps
         n_samples = total // every + 1
+        if total % every:
+            raise ModelError("internal error: total steps must be a multiple of the output spacing")
         out_t = np.zeros(n_samples)
         out_q = np.zeros((n_samples, self.n_dof))
         out_v = np.zeros((n_samples, self.n_dof))
@@ -195,13 +199,11 @@ class CableModel:
         start = time.perf_counter()
         while steps_done < total:
             n_steps = min(chunk, total - steps_done)
-            if n_steps % every:
-                n_steps = max(every, n_steps - n_steps % every) if total - steps_done >= every else n_steps
             t0 = steps_done * solver.step_s
-            status = k.advance(q, v, qdd, acc, t0, n_steps, every, self.params, self.mass_band, self.gravity,
-                               self._band, self._res, self._delta, self._pivots, self._scratch, self._mats,
-                               self._backup, out_t[written:], out_q[written:], out_v[written:],
-                               self._counters)  # fmt: skip
+            status = k.advance(
+                q, v, qdd, acc, t0, steps_done, n_steps, every, self.params, self.mass_band, self.gravity,
+                *self._work, out_t[written:], out_q[written:], out_v[written:], self._counters,
+            )  # fmt: skip
             done = int(self._counters[k.C_STEPS])
             written += int(self._counters[k.C_SAMPLES])
             iterations += int(self._counters[k.C_ITERATIONS])
@@ -236,9 +238,10 @@ class CableModel:
         for level in range(1, 7):
             parts = 2**level
             self.params = self._parameters(self.solver.step_s / parts)
-            status = k.advance(q, v, qdd, acc, t0, parts, parts + 1, self.params, self.mass_band, self.gravity,
-                               self._band, self._res, self._delta, self._pivots, self._scratch, self._mats,
-                               self._backup, dummy_t, dummy, dummy, self._counters)  # fmt: skip
+            status = k.advance(
+                q, v, qdd, acc, t0, 0, parts, parts + 1, self.params, self.mass_band, self.gravity,
+                *self._work, dummy_t, dummy, dummy, self._counters,
+            )  # fmt: skip
             self.params = self._parameters(self.solver.step_s)
             if status >= 0:
                 return

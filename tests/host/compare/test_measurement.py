@@ -1,0 +1,60 @@
+"""Reading extract results and tracking material points in metres."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ropecam.host.calibration.geometry import CameraModel, PlanePose
+from ropecam.host.compare.measurement import points_at_arc_lengths, read_extract_jsonl, tracks_from_frames
+from ropecam.shared.errors import DataError
+
+CAMERA = CameraModel(np.array([[1000.0, 0, 500], [0, 1000.0, 300], [0, 0, 1]]), np.zeros(5), (1000, 600))
+PLANE = PlanePose(np.eye(3), np.array([0.0, 0.0, 1.0]))  # fronto-parallel at 1 m: 1 px = 1 mm, origin at (500, 300)
+
+
+def _write(path: Path, records: list[dict]) -> Path:
+    path.write_text("".join(json.dumps(r) + "\n" for r in records))
+    return path
+
+
+def test_uniform_stretch_tracking_on_a_straight_curve() -> None:
+    curve = np.column_stack([np.linspace(0.0, 0.22, 23), np.zeros(23)])  # 0.22 m measured for a 0.2 m rope
+    points, stretch = points_at_arc_lengths(curve, np.array([0.0, 0.1, 0.2]), 0.2)
+    assert stretch == pytest.approx(1.1)
+    np.testing.assert_allclose(points, [[0.0, 0.0], [0.11, 0.0], [0.22, 0.0]], atol=1e-12)
+
+
+def test_frames_become_metric_tracks_and_bad_frames_nan(tmp_path: Path) -> None:
+    line = [[500.0, 300.0], [600.0, 300.0], [700.0, 300.0]]  # 0.2 m along +x
+    records = [
+        {"frame": 0, "t_ns": 0, "t_end_ns": 4_000_000, "status": "OK", "begin": line, "end": line},
+        {"frame": 1, "t_ns": 8_000_000, "t_end_ns": 12_000_000, "status": "LOST_TRACK", "begin": line, "end": line},
+        {"frame": 2, "t_ns": 16_000_000, "t_end_ns": 20_000_000, "status": "NO_ROPE", "begin": None, "end": None},
+    ]
+    frames = read_extract_jsonl(_write(tmp_path / "m.jsonl", records))
+    tracks, stretch = tracks_from_frames(frames, CAMERA, PLANE, [0.1, 0.2], 0.2)
+    np.testing.assert_allclose(tracks.times_s, [0, 0.004, 0.008, 0.012, 0.016, 0.020])
+    np.testing.assert_allclose(tracks.positions_m[0], [[0.1, 0.0], [0.2, 0.0]], atol=1e-9)
+    assert tracks.measured.tolist() == [[True, True], [True, True]] + [[False, False]] * 4
+    np.testing.assert_allclose(stretch[:2], 1.0, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("record", "message"),
+    [
+        ({"frame": 0, "t_ns": 0, "begin": [[1, 2], [3, 4]], "end": [[1, 2], [3, 4]]}, "needs 't_end_ns'"),
+        ({"frame": 0, "t_ns": 5, "t_end_ns": 5, "end": [[1, 2], [3, 4]]}, "needs 't_end_ns' after 't_ns'"),
+        ({"frame": 0, "t_ns": 0, "t_end_ns": 4, "begin": [[1, 2]]}, "begin: expected a list of at least two"),
+        ({"t_ns": 0}, "needs frame, t_ns"),
+    ],
+)
+def test_malformed_records_name_file_and_line(tmp_path: Path, record: dict, message: str) -> None:
+    good = {"frame": 0, "t_ns": 0, "t_end_ns": 4, "begin": None, "end": None}
+    path = _write(tmp_path / "bad.jsonl", [good, record])
+    with pytest.raises(DataError, match=message) as info:
+        read_extract_jsonl(path)
+    assert f"{path}:2" in str(info.value)
