@@ -469,8 +469,9 @@ def sample_bilinear(image, r, c):
 
 @kernel(int32(f4_2d_ro, f4_2d_ro, f4_2d_ro, i4_2d_ro, int32, f4_2d))
 def refine_subpixel(mag, gx, gy, chain, n, out_points):
-    """Move each of the first `n` chain pixels to the subpixel maximum of the gradient magnitude along the
-    gradient direction (parabola through the magnitude at -1, 0, +1 px, offset clamped to 1 px).
+    """Move each of the first `n` chain pixels to the subpixel maximum of the gradient magnitude (Devernay 1995:
+    parabola through the magnitude at -1, 0, +1 px along the image axis nearest the gradient, offset clamped to
+    1 px).
 
     Writes `out_points` (row, col) float32; returns `n`."""
     for i in range(n):
@@ -483,17 +484,31 @@ def refine_subpixel(mag, gx, gy, chain, n, out_points):
         out_points[i, 1] = c
         if norm <= 0.0:
             continue
-        u_r = g_r / norm
-        u_c = g_c / norm
+        # Devernay: fit the parabola along the image axis closest to the gradient (exact pixel samples, no
+        # interpolation bias), then move along that axis.
         m0 = mag[r, c]
-        mm = sample_bilinear(mag, r - u_r, c - u_c)
-        mp = sample_bilinear(mag, r + u_r, c + u_c)
+        height = mag.shape[0]
+        width = mag.shape[1]
+        if abs(g_c) >= abs(g_r):
+            if c < 1 or c > width - 2:
+                continue
+            mm = mag[r, c - 1]
+            mp = mag[r, c + 1]
+            a_r = 0.0
+            a_c = 1.0
+        else:
+            if r < 1 or r > height - 2:
+                continue
+            mm = mag[r - 1, c]
+            mp = mag[r + 1, c]
+            a_r = 1.0
+            a_c = 0.0
         denom = mm - 2.0 * m0 + mp
         if denom < 0.0:
             delta = 0.5 * (mm - mp) / denom
             delta = min(max(delta, -1.0), 1.0)
-            out_points[i, 0] = r + delta * u_r
-            out_points[i, 1] = c + delta * u_c
+            out_points[i, 0] = r + delta * a_r
+            out_points[i, 1] = c + delta * a_c
     return n
 
 
@@ -530,15 +545,15 @@ def turning_angles(points, n, scale, out_turn):
     return n
 
 
-@kernel(int32(f4_2d_ro, f4_1d_ro, int32, float32, float32, float32, i4_1d))
-def split_contour(points, turn, n, fixed_r, fixed_c, search_px, out_idx):
+@kernel(int32(f4_2d_ro, f4_1d_ro, int32, float32, float32, float32, int32, i4_1d))
+def split_contour(points, turn, n, fixed_r, fixed_c, search_px, min_gap, out_idx):
     """Find the fixed end, the far point and the two segmentation points on the closed subpixel contour.
 
     The fixed-end index is the contour point nearest to (fixed_r, fixed_c); the far index the point farthest
-    from it. Side A runs forward along the chain from the fixed end to the far point, side B backward. On each
-    side the segmentation point is the point of largest turning angle among those at least
-    ``R_far - search_px`` from the fixed end. Writes ``out_idx = [fixed, seg_a, far, seg_b]``; returns 4 or
-    NOT_FOUND (contour too short).
+    from it. The segmentation points are the two points of largest turning angle, at least `min_gap` chain
+    steps apart, among those at least ``R_far - search_px`` from the fixed end; seg_a is the one reached first
+    going forward along the chain from the fixed end (side A runs forward from the fixed end to seg_a, side B
+    backward to seg_b). Writes ``out_idx = [fixed, seg_a, far, seg_b]``; returns 4 or NOT_FOUND.
     """
     if n < 8:
         return NOT_FOUND
@@ -557,24 +572,31 @@ def split_contour(points, turn, n, fixed_r, fixed_c, search_px, out_idx):
             r_far = d
             i_far = i
     threshold = r_far - search_px
-    len_a = (i_far - i_fix + n) % n
-    len_b = (i_fix - i_far + n) % n
-    if len_a < 2 or len_b < 2:
+    # The best corner in the tip zone, then the best one at least `min_gap` chain steps away from it.
+    c1 = -1
+    best_turn = -1.0
+    for i in range(n):
+        if math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c) >= threshold and turn[i] > best_turn:
+            best_turn = turn[i]
+            c1 = i
+    c2 = -1
+    best_turn = -1.0
+    for i in range(n):
+        gap = abs(i - c1)
+        gap = min(gap, n - gap)
+        if gap < min_gap:
+            continue
+        if math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c) >= threshold and turn[i] > best_turn:
+            best_turn = turn[i]
+            c2 = i
+    if c1 < 0 or c2 < 0 or c1 == i_fix or c2 == i_fix:
         return NOT_FOUND
-    seg_a = i_far
-    best_turn = -1.0
-    for step in range(len_a + 1):
-        i = (i_fix + step) % n
-        if math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c) >= threshold and turn[i] > best_turn:
-            best_turn = turn[i]
-            seg_a = i
-    seg_b = i_far
-    best_turn = -1.0
-    for step in range(len_b + 1):
-        i = (i_fix - step + n) % n
-        if math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c) >= threshold and turn[i] > best_turn:
-            best_turn = turn[i]
-            seg_b = i
+    if (c1 - i_fix + n) % n <= (c2 - i_fix + n) % n:
+        seg_a = c1
+        seg_b = c2
+    else:
+        seg_a = c2
+        seg_b = c1
     out_idx[0] = i_fix
     out_idx[1] = seg_a
     out_idx[2] = i_far
