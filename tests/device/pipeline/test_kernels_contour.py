@@ -41,7 +41,7 @@ def test_largest_component_matches_scipy() -> None:
     lo, hi, labels, stack, start = _label_buffers(mask.shape)
     edges = mask.astype(np.uint8)
     size = K.keep_largest_component(edges, lo, hi, 1, labels, stack, start)
-    ref_labels, count = ndimage.label(mask, structure=np.ones((3, 3)))
+    ref_labels, _ = ndimage.label(mask, structure=np.ones((3, 3)))
     sizes = np.bincount(ref_labels.ravel())[1:]
     best = int(np.argmax(sizes)) + 1
     assert size == sizes.max()
