@@ -550,10 +550,10 @@ def split_contour(points, turn, n, fixed_r, fixed_c, search_px, min_gap, out_idx
     """Find the fixed end, the far point and the two segmentation points on the closed subpixel contour.
 
     The fixed-end index is the contour point nearest to (fixed_r, fixed_c); the far index the point farthest
-    from it. The segmentation points are the two points of largest turning angle, at least `min_gap` chain
-    steps apart, among those at least ``R_far - search_px`` from the fixed end; seg_a is the one reached first
-    going forward along the chain from the fixed end (side A runs forward from the fixed end to seg_a, side B
-    backward to seg_b). Writes ``out_idx = [fixed, seg_a, far, seg_b]``; returns 4 or NOT_FOUND.
+    from it. Side A runs forward along the chain from the fixed end to the far point, side B backward; on each
+    side the segmentation point is the point of largest turning angle among those at least
+    ``R_far - search_px`` from the fixed end, the two at least `min_gap` chain steps apart.
+    Writes ``out_idx = [fixed, seg_a, far, seg_b]``; returns 4 or NOT_FOUND.
     """
     if n < 8:
         return NOT_FOUND
@@ -572,31 +572,45 @@ def split_contour(points, turn, n, fixed_r, fixed_c, search_px, min_gap, out_idx
             r_far = d
             i_far = i
     threshold = r_far - search_px
-    # The best corner in the tip zone, then the best one at least `min_gap` chain steps away from it.
-    c1 = -1
-    best_turn = -1.0
-    for i in range(n):
-        if math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c) >= threshold and turn[i] > best_turn:
-            best_turn = turn[i]
-            c1 = i
-    c2 = -1
-    best_turn = -1.0
-    for i in range(n):
-        gap = abs(i - c1)
-        gap = min(gap, n - gap)
-        if gap < min_gap:
-            continue
-        if math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c) >= threshold and turn[i] > best_turn:
-            best_turn = turn[i]
-            c2 = i
-    if c1 < 0 or c2 < 0 or c1 == i_fix or c2 == i_fix:
+    len_a = (i_far - i_fix + n) % n
+    len_b = (i_fix - i_far + n) % n
+    if len_a < 1 or len_b < 1:
         return NOT_FOUND
-    if (c1 - i_fix + n) % n <= (c2 - i_fix + n) % n:
-        seg_a = c1
-        seg_b = c2
-    else:
-        seg_a = c2
-        seg_b = c1
+    # Side A: forward from the fixed end to the far point; side B: backward. Each gets the point of largest turning
+    # in the tip zone; the pair must be `min_gap` chain steps apart (the far point may itself be a corner), so the
+    # best pair is taken over "A first, then B away from it" and "B first, then A away from it".
+    best_sum = -1.0
+    seg_a = -1
+    seg_b = -1
+    for first in range(2):
+        a = -1
+        b = -1
+        ta = -1.0
+        tb = -1.0
+        for rep in range(2):
+            pick_a = (rep == 0) == (first == 0)
+            length = len_a if pick_a else len_b
+            for step in range(1, length + 1):
+                i = (i_fix + step) % n if pick_a else (i_fix - step + n) % n
+                if math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c) < threshold:
+                    continue
+                other = b if pick_a else a
+                if other >= 0:
+                    gap = abs(i - other)
+                    if min(gap, n - gap) < min_gap:
+                        continue
+                if pick_a and turn[i] > ta:
+                    ta = turn[i]
+                    a = i
+                elif not pick_a and turn[i] > tb:
+                    tb = turn[i]
+                    b = i
+        if a >= 0 and b >= 0 and ta + tb > best_sum:
+            best_sum = ta + tb
+            seg_a = a
+            seg_b = b
+    if seg_a < 0 or seg_b < 0:
+        return NOT_FOUND
     out_idx[0] = i_fix
     out_idx[1] = seg_a
     out_idx[2] = i_far
@@ -647,11 +661,12 @@ def offset_side(points, n, i_start, i_stop, direction, interior_sign, width_px, 
     return count
 
 
-@kernel(int32(f4_2d_ro, int32, f4_2d_ro, int32, f4_2d))
-def midline(side_a, n_a, side_b, n_b, out_poly):
+@kernel(int32(f4_2d_ro, int32, f4_2d_ro, int32, f4_2d, f4_1d))
+def midline(side_a, n_a, side_b, n_b, out_poly, out_dist):
     """Write the midline of two polylines running the same way (fixed end first): each point of `side_a` is
-    paired with its nearest point on `side_b`, the search advancing monotonically; returns `n_a` or FULL."""
-    if n_a > out_poly.shape[0]:
+    paired with its nearest point on `side_b` (the search advancing monotonically), the midpoint goes to
+    `out_poly` and the pair's distance to `out_dist`; returns `n_a` or FULL."""
+    if n_a > out_poly.shape[0] or n_a > out_dist.shape[0]:
         return FULL
     if n_a < 1 or n_b < 1:
         return 0
@@ -688,6 +703,7 @@ def midline(side_a, n_a, side_b, n_b, out_poly):
                 bc = fc
         out_poly[i, 0] = 0.5 * (ar + br)
         out_poly[i, 1] = 0.5 * (ac + bc)
+        out_dist[i] = best
     return n_a
 
 

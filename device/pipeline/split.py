@@ -1,0 +1,198 @@
+"""BlurSplitter: split the closed contour of a motion-blurred rope into the rope at the start and at the end of the
+exposure (and the tip track), or into one centreline when the blur cannot be split."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline.result import Method
+
+__all__ = ["BlurSplitter", "SplitOutcome"]
+
+
+@dataclass(slots=True)
+class SplitOutcome:
+    """The shapes found in one contour (views into the splitter's buffers, valid until its next call).
+
+    `shape_a` and `shape_b` run from the fixed end to the tip; for single-shape methods they are the same array.
+    They are not yet in time order: the pipeline decides which one is the start of the exposure.
+    """
+
+    method: Method
+    shape_a: NDArray[np.float32]
+    shape_b: NDArray[np.float32]
+    segmentation_points: NDArray[np.float32] | None
+    width_px: float
+    sweep_px: float
+
+
+class BlurSplitter:
+    """Split a rope contour by one of the methods (``blur_split``, ``paper``, ``centerline``).
+
+    Parameters
+    ----------
+    capacity
+        Maximum number of contour points.
+    method
+        The configured method.
+    static_ratio
+        Tip sweep / rope width below which the centreline fallback replaces the split.
+    corner_scale_px
+        Chord (points) of the turning angle that finds the segmentation points.
+    paper_radius_px
+        Threshold T of the paper's Feature 3.
+    output_step_px
+        Spacing of the returned polylines.
+    """
+
+    def __init__(
+        self,
+        capacity: int,
+        method: str = "blur_split",
+        static_ratio: float = 1.5,
+        corner_scale_px: int = 3,
+        paper_radius_px: float = 15.0,
+        output_step_px: float = 2.0,
+    ) -> None:
+        self.method = method
+        self.static_ratio = float(static_ratio)
+        self.corner_scale = int(corner_scale_px)
+        self.paper_radius = np.float32(paper_radius_px)
+        self.step = np.float32(output_step_px)
+        self.turn = np.zeros(capacity, np.float32)
+        self.idx = np.zeros(4, np.int32)
+        self.side_a = np.zeros((capacity, 2), np.float32)
+        self.side_b = np.zeros((capacity, 2), np.float32)
+        self.dist = np.zeros(capacity, np.float32)
+        self.mid = np.zeros((capacity, 2), np.float32)
+        self.out_a = np.zeros((capacity, 2), np.float32)
+        self.out_b = np.zeros((capacity, 2), np.float32)
+        self.seg = np.zeros((2, 2), np.float32)
+        self.chain_f = np.zeros((capacity, 2), np.float32)
+        self.tau = np.zeros(capacity, np.int32)
+        self.knots = np.zeros(capacity, np.int32)
+        self.scores = np.zeros(capacity, np.float32)
+
+    def split(
+        self,
+        points: NDArray[np.float32],
+        chain: NDArray[np.int32],
+        n: int,
+        fixed_rc: tuple[float, float],
+        width_px: float | None,
+    ) -> SplitOutcome | None:
+        """Split the closed contour (`n` subpixel `points`, integer `chain`) of a rope fixed at `fixed_rc`.
+
+        Parameters
+        ----------
+        width_px
+            The rope width if known (config or earlier frames); otherwise measured here.
+
+        Returns
+        -------
+        SplitOutcome or None
+            None when the contour cannot be split (too short, no segmentation points).
+        """
+        fixed_r, fixed_c = np.float32(fixed_rc[0]), np.float32(fixed_rc[1])
+        width_guess = width_px if width_px is not None else 4.0
+        scale = max(self.corner_scale, round(0.5 * width_guess))
+        K.turning_angles(points, n, scale, self.turn)
+        search = np.float32(max(3.0 * width_guess, 8.0))
+        if K.split_contour(points, self.turn, n, fixed_r, fixed_c, search, scale + 1, self.idx) < 0:
+            return None
+        i_fix, seg_a, i_far, seg_b = (int(v) for v in self.idx)
+        sign = np.float32(1.0 if K.signed_area(points, n) >= 0 else -1.0)
+        if self.method == "paper":
+            return self._paper(chain, n, fixed_r, fixed_c, i_fix, i_far, sign, width_px)
+        if self.method == "centerline":
+            na = K.offset_side(points, n, i_fix, i_far, 1, sign, 0.0, 0.0, 2, self.side_a)
+            nb = K.offset_side(points, n, i_fix, i_far, -1, sign, 0.0, 0.0, 2, self.side_b)
+            width = self._width(na, nb, width_px)
+            nm = K.midline(self.side_a, na, self.side_b, nb, self.mid, self.dist)
+            shape = self._resample(self.mid, nm, self.out_a)
+            return SplitOutcome(Method.CENTERLINE, shape, shape, None, width, 0.0)
+        na = K.offset_side(points, n, i_fix, seg_a, 1, sign, 0.0, 0.0, 2, self.side_a)
+        nb = K.offset_side(points, n, i_fix, seg_b, -1, sign, 0.0, 0.0, 2, self.side_b)
+        if na < 2 or nb < 2:
+            return None
+        width = self._width(na, nb, width_px)
+        self.seg[0] = points[seg_a]
+        self.seg[1] = points[seg_b]
+        sweep = float(np.hypot(*(points[seg_a] - points[seg_b])))
+        if sweep < self.static_ratio * width:
+            nm = K.midline(self.side_a, na, self.side_b, nb, self.mid, self.dist)
+            shape = self._resample(self.mid, nm, self.out_a)
+            return SplitOutcome(Method.STATIC_FALLBACK, shape, shape, self.seg, width, sweep)
+        w = np.float32(width)
+        sw = np.float32(sweep)
+        na = K.offset_side(points, n, i_fix, seg_a, 1, sign, w, sw, 2, self.side_a)
+        nb = K.offset_side(points, n, i_fix, seg_b, -1, sign, w, sw, 2, self.side_b)
+        shape_a = self._resample(self.side_a, na, self.out_a)
+        shape_b = self._resample(self.side_b, nb, self.out_b)
+        return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, width, sweep)
+
+    def _width(self, na: int, nb: int, width_px: float | None) -> float:
+        """The rope width: the given one, or the narrow end of the band's width profile near the fixed end."""
+        nm = K.midline(self.side_a, na, self.side_b, nb, self.mid, self.dist)
+        if width_px is not None:
+            return float(width_px)
+        lo, hi = int(0.05 * nm), max(int(0.5 * nm), int(0.05 * nm) + 1)
+        return float(np.percentile(self.dist[lo:hi], 20)) if hi <= nm else 1.0
+
+    def _resample(self, poly: NDArray[np.float32], n: int, out: NDArray[np.float32]) -> NDArray[np.float32]:
+        count = K.resample_polyline(poly, n, self.step, out)
+        if count < 0:
+            raise RuntimeError(f"resample_polyline returned status {count}")
+        return out[:count]
+
+    def _paper(
+        self,
+        chain: NDArray[np.int32],
+        n: int,
+        fixed_r: np.float32,
+        fixed_c: np.float32,
+        i_fix: int,
+        i_far: int,
+        sign: np.float32,
+        width_px: float | None,
+    ) -> SplitOutcome | None:
+        """The paper's literal method: operator, Features 1-3, Table 1, clustering, integer chain sides."""
+        self.chain_f[:n] = chain[:n]
+        K.apply_operator(chain, n, self.tau)
+        far_r, far_c = self.chain_f[i_far]
+        m = K.score_knots(
+            chain, self.tau, n, fixed_r, fixed_c, far_r, far_c, self.paper_radius, self.knots, self.scores
+        )
+        if m < 2:
+            return None
+        knots = self.knots[:m]
+        scores = self.scores[:m]
+        pos = self.chain_f[knots]
+        near_fixed = np.hypot(pos[:, 0] - fixed_r, pos[:, 1] - fixed_c) < self.paper_radius
+        candidates = np.flatnonzero((scores >= 2.0) & ~near_fixed)
+        # Cluster candidates that follow each other along the chain within 5 px; keep the best of each.
+        clusters: list[int] = []
+        for k in candidates:
+            if clusters and np.hypot(*(pos[k] - pos[clusters[-1]])) < 5.0:
+                if scores[k] > scores[clusters[-1]]:
+                    clusters[-1] = int(k)
+                continue
+            clusters.append(int(k))
+        if len(clusters) < 2:
+            return None
+        far = np.array([far_r, far_c])
+        clusters.sort(key=lambda k: (-scores[k], float(np.hypot(*(pos[k] - far)))))
+        a, b = (int(knots[k]) for k in clusters[:2])
+        if (a - i_fix) % n > (b - i_fix) % n:
+            a, b = b, a
+        na = K.offset_side(self.chain_f, n, i_fix, a, 1, sign, 0.0, 0.0, 2, self.side_a)
+        nb = K.offset_side(self.chain_f, n, i_fix, b, -1, sign, 0.0, 0.0, 2, self.side_b)
+        width = self._width(na, nb, width_px)
+        self.seg[0] = self.chain_f[a]
+        self.seg[1] = self.chain_f[b]
+        sweep = float(np.hypot(*(self.seg[0] - self.seg[1])))
+        return SplitOutcome(Method.PAPER, self.side_a[:na], self.side_b[:nb], self.seg, width, sweep)
