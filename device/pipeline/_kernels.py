@@ -43,7 +43,9 @@ DIR_COL: Final = np.array([1, 1, 0, -1, -1, -1, 0, 1], dtype=np.int32)
 # The paper's segmentation operator, eq. (7).
 OPERATOR: Final = np.array([[-3, 6, 2], [-5, 0, 5], [-2, -6, 3]], dtype=np.int32)
 
-TAN_22_5: Final = 0.41421356237309503
+TAN_22_5: Final = np.float32(0.41421356237309503)
+ZERO: Final = np.float32(0.0)
+TWO: Final = np.float32(2.0)
 EDGE_NONE: Final = 0
 EDGE_WEAK: Final = 1
 EDGE_STRONG: Final = 2
@@ -155,78 +157,128 @@ def detect_edges(
     grow_spans(lo, hi, 1, 1, sob_lo, sob_hi)
     grow_spans(sob_lo, sob_hi, 1, 1, gau_lo, gau_hi)
     for r in range(height):
-        if sob_hi[r] > width - 1:
-            sob_hi[r] = width - 1
-        if gau_hi[r] > width - 1:
-            gau_hi[r] = width - 1
-    # Separable smoothing: the vertical pass covers the smoothing span widened by the radius.
+        gau_hi[r] = min(gau_hi[r], width - 1)
+    # Separable smoothing, horizontal pass first: over the union of the smoothing spans of the rows it feeds
+    # (rows 0-1 of work_spans are free until the Sobel spans are needed, so they hold that union for a moment).
+    # Hot loops run over 0-based slices of row views: Numba then drops its negative-index checks and the loops
+    # vectorise (about 10x faster than indexing from a non-zero start).
+    hor_lo = work_spans[0]
+    hor_hi = work_spans[1]
+    grow_spans(gau_lo, gau_hi, radius, 0, hor_lo, hor_hi)
     for r in range(height):
-        if gau_hi[r] < gau_lo[r]:
+        c0 = np.int64(hor_lo[r])
+        c1 = min(np.int64(hor_hi[r]), width - 1)
+        if c1 < c0:
             continue
-        c0 = max(0, gau_lo[r] - radius)
-        c1 = min(width - 1, gau_hi[r] + radius)
-        for c in range(c0, c1 + 1):
-            acc = 0.0
+        t_row = out_tmp[r]
+        f_row = frame[r]
+        inner0 = max(c0, radius)
+        inner1 = min(c1, width - 1 - radius)
+        if inner1 >= inner0:
+            t_in = t_row[inner0 : inner1 + 1]
+            t_in[:] = ZERO
             for k in range(-radius, radius + 1):
-                rr = min(max(r + k, 0), height - 1)
-                acc += weights[k + radius] * frame[rr, c]
-            out_tmp[r, c] = acc
-        for c in range(gau_lo[r], gau_hi[r] + 1):
-            acc = 0.0
+                wk = weights[k + radius]
+                f_in = f_row[inner0 + k : inner1 + 1 + k]
+                for i in range(t_in.shape[0]):
+                    t_in[i] += wk * f_in[i]
+        for c in range(c0, c1 + 1):  # border columns: replicate the edge pixel
+            if inner0 <= c <= inner1:
+                continue
+            acc = ZERO
             for k in range(-radius, radius + 1):
-                cc = min(max(c + k, 0), width - 1)
-                acc += weights[k + radius] * out_tmp[r, cc]
-            out_smooth[r, c] = acc
+                acc += weights[k + radius] * f_row[min(max(c + k, 0), width - 1)]
+            t_row[c] = acc
     for r in range(height):
-        if sob_hi[r] < sob_lo[r]:
+        c0 = np.int64(gau_lo[r])
+        c1 = np.int64(gau_hi[r])
+        if c1 < c0:
             continue
-        rm = max(r - 1, 0)
-        rp = min(r + 1, height - 1)
-        for c in range(sob_lo[r], sob_hi[r] + 1):
+        s_in = out_smooth[r, c0 : c1 + 1]
+        s_in[:] = ZERO
+        for k in range(-radius, radius + 1):
+            wk = weights[k + radius]
+            t_in = out_tmp[min(max(r + k, 0), height - 1), c0 : c1 + 1]
+            for i in range(s_in.shape[0]):
+                s_in[i] += wk * t_in[i]
+    grow_spans(lo, hi, 1, 1, sob_lo, sob_hi)
+    for r in range(height):
+        sob_hi[r] = min(sob_hi[r], width - 1)
+    for r in range(height):
+        c0 = np.int64(sob_lo[r])
+        c1 = np.int64(sob_hi[r])
+        if c1 < c0:
+            continue
+        sm = out_smooth[max(r - 1, 0)]
+        s0 = out_smooth[r]
+        sp = out_smooth[min(r + 1, height - 1)]
+        ox = out_gx[r]
+        oy = out_gy[r]
+        om = out_mag[r]
+        for c in (c0, c1):  # the ends may sit on the image border: replicate it
             cm = max(c - 1, 0)
             cp = min(c + 1, width - 1)
-            gx = (out_smooth[rm, cp] + 2.0 * out_smooth[r, cp] + out_smooth[rp, cp]) - (
-                out_smooth[rm, cm] + 2.0 * out_smooth[r, cm] + out_smooth[rp, cm]
-            )
-            gy = (out_smooth[rp, cm] + 2.0 * out_smooth[rp, c] + out_smooth[rp, cp]) - (
-                out_smooth[rm, cm] + 2.0 * out_smooth[rm, c] + out_smooth[rm, cp]
-            )
-            out_gx[r, c] = gx
-            out_gy[r, c] = gy
-            out_mag[r, c] = math.sqrt(gx * gx + gy * gy)
+            gx = (sm[cp] + TWO * s0[cp] + sp[cp]) - (sm[cm] + TWO * s0[cm] + sp[cm])
+            gy = (sp[cm] + TWO * sp[c] + sp[cp]) - (sm[cm] + TWO * sm[c] + sm[cp])
+            ox[c] = gx
+            oy[c] = gy
+            om[c] = np.sqrt(gx * gx + gy * gy)
+        if c1 - c0 < 2:
+            continue
+        sml = sm[c0 : c1 - 1]
+        smc = sm[c0 + 1 : c1]
+        smr = sm[c0 + 2 : c1 + 1]
+        s0l = s0[c0 : c1 - 1]
+        s0r = s0[c0 + 2 : c1 + 1]
+        spl = sp[c0 : c1 - 1]
+        spc = sp[c0 + 1 : c1]
+        spr = sp[c0 + 2 : c1 + 1]
+        oxi = ox[c0 + 1 : c1]
+        oyi = oy[c0 + 1 : c1]
+        omi = om[c0 + 1 : c1]
+        for i in range(oxi.shape[0]):
+            gx = (smr[i] + TWO * s0r[i] + spr[i]) - (sml[i] + TWO * s0l[i] + spl[i])
+            gy = (spl[i] + TWO * spc[i] + spr[i]) - (sml[i] + TWO * smc[i] + smr[i])
+            oxi[i] = gx
+            oyi[i] = gy
+            omi[i] = np.sqrt(gx * gx + gy * gy)
     # Non-maximum suppression with OpenCV's sector rule and tie-breaking; pixels outside the image count as 0.
     top = 0
     for r in range(height):
-        if hi[r] < lo[r]:
+        c0 = np.int64(lo[r])
+        c1 = min(np.int64(hi[r]), width - 1)
+        if c1 < c0:
             continue
-        for c in range(lo[r], min(hi[r], width - 1) + 1):
-            m = out_mag[r, c]
-            out_edges[r, c] = EDGE_NONE
+        e_in = out_edges[r, c0 : c1 + 1]
+        m_in = out_mag[r, c0 : c1 + 1]
+        e_in[:] = EDGE_NONE
+        for i in range(m_in.shape[0]):
+            m = m_in[i]
             if m <= low:
                 continue
+            c = c0 + i
             ax = abs(out_gx[r, c])
             ay = abs(out_gy[r, c])
-            keep = False
             if ay < ax * TAN_22_5:
-                ml = out_mag[r, c - 1] if c > 0 else 0.0
-                mr = out_mag[r, c + 1] if c < width - 1 else 0.0
+                ml = out_mag[r, c - 1] if c > 0 else ZERO
+                mr = out_mag[r, c + 1] if c < width - 1 else ZERO
                 keep = m > ml and m >= mr
-            elif ay > ax * (TAN_22_5 + 2.0):
-                mu = out_mag[r - 1, c] if r > 0 else 0.0
-                md = out_mag[r + 1, c] if r < height - 1 else 0.0
+            elif ay > ax * (TAN_22_5 + TWO):
+                mu = out_mag[r - 1, c] if r > 0 else ZERO
+                md = out_mag[r + 1, c] if r < height - 1 else ZERO
                 keep = m > mu and m >= md
             else:
                 s = -1 if out_gx[r, c] * out_gy[r, c] < 0 else 1
-                mu = out_mag[r - 1, c - s] if (r > 0 and 0 <= c - s < width) else 0.0
-                md = out_mag[r + 1, c + s] if (r < height - 1 and 0 <= c + s < width) else 0.0
+                mu = out_mag[r - 1, c - s] if (r > 0 and 0 <= c - s < width) else ZERO
+                md = out_mag[r + 1, c + s] if (r < height - 1 and 0 <= c + s < width) else ZERO
                 keep = m > mu and m > md
             if keep:
                 if m > high:
-                    out_edges[r, c] = EDGE_STRONG
+                    e_in[i] = EDGE_STRONG
                     stack[top] = r * width + c
                     top += 1
                 else:
-                    out_edges[r, c] = EDGE_WEAK
+                    e_in[i] = EDGE_WEAK
     # Hysteresis: grow strong edges through weak ones (8-connected), never leaving the spans.
     while top > 0:
         top -= 1
@@ -235,20 +287,21 @@ def detect_edges(
         for k in range(8):
             rr = r + DIR_ROW[k]
             cc = c + DIR_COL[k]
-            if in_spans(rr, cc, lo, hi) and cc < width and out_edges[rr, cc] == EDGE_WEAK:
+            if 0 <= rr < height and lo[rr] <= cc <= hi[rr] and cc < width and out_edges[rr, cc] == EDGE_WEAK:
                 out_edges[rr, cc] = EDGE_STRONG
                 stack[top] = rr * width + cc
                 top += 1
     count = 0
     for r in range(height):
-        if hi[r] < lo[r]:
+        c0 = np.int64(lo[r])
+        c1 = min(np.int64(hi[r]), width - 1)
+        if c1 < c0:
             continue
-        for c in range(lo[r], min(hi[r], width - 1) + 1):
-            if out_edges[r, c] == EDGE_STRONG:
-                out_edges[r, c] = 1
-                count += 1
-            else:
-                out_edges[r, c] = 0
+        e_in = out_edges[r, c0 : c1 + 1]
+        for i in range(e_in.shape[0]):
+            v = e_in[i] >> 1  # EDGE_STRONG -> 1, weak and none -> 0
+            e_in[i] = v
+            count += v
     return count
 
 
@@ -266,15 +319,24 @@ def keep_largest_component(edges, lo, hi, min_pixels, out_labels, stack, out_sta
     height = edges.shape[0]
     width = edges.shape[1]
     for r in range(height):
-        for c in range(lo[r], min(hi[r], width - 1) + 1):
-            out_labels[r, c] = 0
+        c0 = np.int64(lo[r])
+        c1 = min(np.int64(hi[r]), width - 1)
+        if c1 >= c0:
+            out_labels[r, c0 : c1 + 1] = 0
     label = 0
     best_label = 0
     best_size = 0
     for r in range(height):
-        for c in range(lo[r], min(hi[r], width - 1) + 1):
-            if edges[r, c] == 0 or out_labels[r, c] != 0:
+        c0 = np.int64(lo[r])
+        c1 = min(np.int64(hi[r]), width - 1)
+        if c1 < c0:
+            continue
+        e_in = edges[r, c0 : c1 + 1]
+        l_in = out_labels[r, c0 : c1 + 1]
+        for i in range(e_in.shape[0]):
+            if e_in[i] == 0 or l_in[i] != 0:
                 continue
+            c = c0 + i
             label += 1
             out_labels[r, c] = label
             top = 0
@@ -299,9 +361,16 @@ def keep_largest_component(edges, lo, hi, min_pixels, out_labels, stack, out_sta
                 out_start[0] = r
                 out_start[1] = c
     found = best_size >= min_pixels and best_size > 0
+    keep = best_label if found else -1
     for r in range(height):
-        for c in range(lo[r], min(hi[r], width - 1) + 1):
-            edges[r, c] = 1 if (found and out_labels[r, c] == best_label) else 0
+        c0 = np.int64(lo[r])
+        c1 = min(np.int64(hi[r]), width - 1)
+        if c1 < c0:
+            continue
+        e_in = edges[r, c0 : c1 + 1]
+        l_in = out_labels[r, c0 : c1 + 1]
+        for i in range(e_in.shape[0]):
+            e_in[i] = 1 if l_in[i] == keep else 0
     return best_size if found else NOT_FOUND
 
 

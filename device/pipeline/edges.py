@@ -13,10 +13,10 @@ __all__ = ["EdgeDetector", "gaussian_weights"]
 
 
 def gaussian_weights(sigma_px: float) -> NDArray[np.float32]:
-    """Return the normalised 1-D Gaussian of standard deviation `sigma_px` (radius ceil(2.5 sigma)); ``[1]`` for 0."""
+    """Return the normalised 1-D Gaussian of standard deviation `sigma_px` (radius ceil(2 sigma)); ``[1]`` for 0."""
     if sigma_px <= 0:
         return np.ones(1, np.float32)
-    radius = max(1, math.ceil(2.5 * sigma_px))
+    radius = max(1, math.ceil(2.0 * sigma_px))
     x = np.arange(-radius, radius + 1, dtype=np.float64)
     w = np.exp(-0.5 * (x / sigma_px) ** 2)
     return (w / w.sum()).astype(np.float32)

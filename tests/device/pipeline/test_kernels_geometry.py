@@ -119,7 +119,9 @@ def test_midline_of_two_parallel_sides() -> None:
     a = np.stack([np.linspace(0, 30, 31), np.zeros(31)], axis=1).astype(np.float32)
     b = np.stack([np.linspace(0, 30, 61), np.full(61, 4.0)], axis=1).astype(np.float32)
     out = np.zeros((31, 2), np.float32)
-    assert K.midline(a, 31, b, 61, out) == 31
+    dist = np.zeros(31, np.float32)
+    assert K.midline(a, 31, b, 61, out, dist) == 31
+    np.testing.assert_allclose(dist, 4.0, atol=1e-5)
     np.testing.assert_allclose(out[:, 1], 2.0, atol=1e-5)
     np.testing.assert_allclose(out[:, 0], a[:, 0], atol=1e-5)
 
