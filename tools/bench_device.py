@@ -129,12 +129,16 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(report))
     else:
         print(f"frames {n} of {width}x{height} ({args.method}), statuses {statuses}")
-        print(f"pipeline median {report['pipeline_median_us']:.0f} us/frame "
-              f"({pipeline.frames_roi} ROI frames, {pipeline.frames_full} full frames)")
+        print(
+            f"pipeline median {report['pipeline_median_us']:.0f} us/frame "
+            f"({pipeline.frames_roi} ROI frames, {pipeline.frames_full} full frames)"
+        )
         print(f"cv2.Canny median {report['canny_median_us']:.0f} us/frame (1 thread)")
         print(f"ratio pipeline / Canny = {report['ratio']:.3f}")
-        print(f"NRT allocations per frame: {report['nrt_extra_allocations_per_frame']:.2f} beyond the "
-              f"{report['array_arguments_per_frame']:.0f} array-argument MemInfos; leaked {report['nrt_leaked']}")
+        print(
+            f"NRT allocations per frame: {report['nrt_extra_allocations_per_frame']:.2f} beyond the "
+            f"{report['array_arguments_per_frame']:.0f} array-argument MemInfos; leaked {report['nrt_leaked']}"
+        )
     return 0
 
 

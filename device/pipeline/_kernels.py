@@ -84,22 +84,41 @@ def grow_spans(lo, hi, rows_apart, cols_apart, out_lo, out_hi):
     return count
 
 
-@kernel(int32(f4_2d_ro, int32, int32, int32, int32, i4_1d, i4_1d))
-def spans_around_points(points, n_points, margin_px, height, width, out_lo, out_hi):
-    """Write the row spans covering a disc-free square of half-size `margin_px` around each of the first
-    `n_points` (row, col) `points`, clipped to the image; returns the number of non-empty rows."""
+@kernel(int32(f4_2d_ro, int32, int32, float32, float32, float32, int32, int32, i4_1d, i4_1d))
+def spans_around_points(points, n_points, margin_px, motion_px, fixed_r, fixed_c, height, width, out_lo, out_hi):
+    """Write the row spans covering a square around each of the first `n_points` (row, col) `points`, clipped to
+    the image; returns the number of non-empty rows.
+
+    The square's half-size is ``margin_px + motion_px * d / d_max`` where d is the point's distance from the fixed
+    end (fixed_r, fixed_c) and d_max the largest such distance: a rope swinging about its fixed end moves in
+    proportion to that distance. Points closer than half the half-size to the last one used are skipped (the
+    chain is 8-connected, so the union is unchanged up to a pixel).
+    """
     for r in range(height):
         out_lo[r] = width
         out_hi[r] = -1
+    d_max = 1e-6
+    for i in range(n_points):
+        d = math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c)
+        if d > d_max:
+            d_max = d
+    last_r = -1e9
+    last_c = -1e9
     for i in range(n_points):
         pr = points[i, 0]
         pc = points[i, 1]
         if not (pr == pr and pc == pc):
             continue
-        r0 = max(0, math.floor(pr) - margin_px)
-        r1 = min(height - 1, math.ceil(pr) + margin_px)
-        c0 = max(0, math.floor(pc) - margin_px)
-        c1 = min(width - 1, math.ceil(pc) + margin_px)
+        d = math.hypot(pr - fixed_r, pc - fixed_c)
+        m = margin_px + math.ceil(motion_px * d / d_max)
+        if i != n_points - 1 and abs(pr - last_r) + abs(pc - last_c) < 0.5 * m:
+            continue
+        last_r = pr
+        last_c = pc
+        r0 = max(0, math.floor(pr) - m)
+        r1 = min(height - 1, math.ceil(pr) + m)
+        c0 = max(0, math.floor(pc) - m)
+        c1 = min(width - 1, math.ceil(pc) + m)
         for r in range(r0, r1 + 1):
             if c0 < out_lo[r]:
                 out_lo[r] = c0

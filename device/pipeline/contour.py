@@ -6,6 +6,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._views import i32, ro
 
 __all__ = ["ContourTracer"]
 
@@ -52,22 +53,24 @@ class ContourTracer:
             The number of contour points (0 when no component has `min_pixels` pixels). `chain` (int32 row, col),
             `codes` (Freeman) and `points` (float32 subpixel row, col) hold them until the next call.
         """
-        size = K.keep_largest_component(edges, lo, hi, self.min_pixels, self.labels, self.stack, self.start)
+        size = K.keep_largest_component(
+            edges, ro(lo), ro(hi), i32(self.min_pixels), self.labels, self.stack, self.start
+        )
         self.component_px = max(int(size), 0)
         if size < 0:
             self.count = 0
             return 0
-        n = K.trace_contour(edges, lo, hi, self.start[0], self.start[1], self.chain, self.codes)
+        n = K.trace_contour(ro(edges), ro(lo), ro(hi), self.start[0], self.start[1], self.chain, self.codes)
         if n < 0:  # FULL: a contour longer than the buffers is not a rope
             self.count = 0
             return 0
-        K.refine_subpixel(mag, gx, gy, self.chain, n, self.points)
+        K.refine_subpixel(ro(mag), ro(gx), ro(gy), ro(self.chain), n, self.points)
         self.count = int(n)
         return self.count
 
     def roi_contacts(self, lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
         """Return how many contour pixels touch the border of the region of interest."""
-        return int(K.count_roi_contacts(self.chain, self.count, lo, hi, self.shape[1]))
+        return int(K.count_roi_contacts(ro(self.chain), i32(self.count), ro(lo), ro(hi), i32(self.shape[1])))
 
     def border_contacts(self, fixed_rc: tuple[float, float] | None, exclude_px: float) -> int:
         """Return how many contour pixels lie on the image border farther than `exclude_px` from the fixed end."""

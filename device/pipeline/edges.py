@@ -8,6 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._views import ro
 
 __all__ = ["EdgeDetector", "gaussian_weights"]
 
@@ -81,7 +82,7 @@ class EdgeDetector:
         if lo.shape != (self.shape[0],) or hi.shape != (self.shape[0],) or lo.dtype != np.int32:
             raise ValueError(f"lo/hi must be int32 of shape ({self.shape[0]},)")
         count = K.detect_edges(
-            frame, self.weights, lo, hi, self.low, self.high, self.work_spans, self.tmp, self.smooth,
+            ro(frame), ro(self.weights), ro(lo), ro(hi), self.low, self.high, self.work_spans, self.tmp, self.smooth,
             self.gx, self.gy, self.mag, self.edges, self.stack,
         )  # fmt: skip
         if count < 0:

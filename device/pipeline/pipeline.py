@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._views import i32, ro
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.contour import ContourTracer
 from ropecam.device.pipeline.edges import EdgeDetector
@@ -66,6 +67,7 @@ class Pipeline:
         if config.fixed_end_uv is not None:
             self.fixed[:] = (config.fixed_end_uv[1], config.fixed_end_uv[0])
         self._widths: list[float] = []
+        self._width_cache: float | None = None
         self._prev_tips: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self._prev_t_ns: tuple[int, int] | None = None
         self._prev_sweep = 0.0
@@ -125,8 +127,15 @@ class Pipeline:
         n = 0
         used_roi = False
         if self.prev_count > 0:
-            margin = self.config.roi_margin_px + self._motion_margin()
-            K.spans_around_points(self.prev_points, self.prev_count, margin, height, width, self.lo, self.hi)
+            motion = np.float32(self._motion_margin())
+            fr, fc = (np.float32(v) for v in self.fixed) if self._fixed_known else (np.float32(0), np.float32(0))
+            if not self._fixed_known:
+                motion = np.float32(0.0)
+            K.spans_around_points(
+                ro(self.prev_points), i32(self.prev_count), i32(self.config.roi_margin_px), motion, fr, fc,
+                i32(height), i32(width),
+                self.lo, self.hi,
+            )  # fmt: skip
             self.edges.detect(image, self.lo, self.hi)
             n = self._trace(self.lo, self.hi)
             used_roi = n > 0 and self.tracer.roi_contacts(self.lo, self.hi) == 0
@@ -164,6 +173,7 @@ class Pipeline:
         measured = math.isfinite(outcome.width_px) and outcome.width_px > 0
         if self.config.rope_width_px is None and measured and len(self._widths) < 50:
             self._widths.append(outcome.width_px)
+            self._width_cache = None
         self._prev_sweep = outcome.sweep_px
         result.method = outcome.method
         result.rope_width_px = outcome.width_px
@@ -184,25 +194,28 @@ class Pipeline:
         e = self.edges
         return self.tracer.trace(e.edges, lo, hi, e.mag, e.gx, e.gy)
 
-    def _motion_margin(self) -> int:
-        """Extra ROI half-width: how far the rope may move from the last contour to the end of this exposure."""
+    def _motion_margin(self) -> float:
+        """Extra ROI half-width at the tip: how far the rope may move from the last contour to the end of this
+        exposure (the last tip sweep scaled from the exposure to the frame period, plus 30 %)."""
         if self._prev_t_ns is None:
-            return 0
+            return 0.0
         exposure_ns = max(1, self._prev_t_ns[1] - self._prev_t_ns[0])
         period_ns = self._period_ns or 2 * exposure_ns
-        return math.ceil(1.3 * self._prev_sweep * period_ns / exposure_ns)
+        return 1.3 * self._prev_sweep * period_ns / exposure_ns
 
     def _width(self) -> float | None:
         if self.config.rope_width_px is not None:
             return self.config.rope_width_px
-        return float(np.median(self._widths)) if self._widths else None
+        if self._widths and self._width_cache is None:
+            self._width_cache = float(np.median(self._widths))
+        return self._width_cache
 
     def _fixed_end(self, points: NDArray[np.float32], n: int, width_px: float | None) -> NDArray[np.float32]:
         """The fixed end (row, col): configured, or the narrow end of the band averaged over the first frames."""
         if self._fixed_known and (self.config.fixed_end_uv is not None or self._fixed_frames >= _FIXED_END_FRAMES):
             return self.fixed
         w = width_px or 4.0
-        K.turning_angles(points, n, max(3, round(w)), self.turn_cap)
+        K.turning_angles(ro(points), i32(n), i32(max(3, round(w))), self.turn_cap)
         e1 = int(np.argmax(self.turn_cap[:n]))
         e2 = int(np.argmax(np.hypot(points[:n, 0] - points[e1, 0], points[:n, 1] - points[e1, 1])))
         if self._fixed_known:

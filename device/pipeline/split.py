@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._views import f32, i32, ro
 from ropecam.device.pipeline.result import Method
 
 __all__ = ["BlurSplitter", "SplitOutcome"]
@@ -98,25 +99,34 @@ class BlurSplitter:
             None when the contour cannot be split (too short, no segmentation points).
         """
         fixed_r, fixed_c = np.float32(fixed_rc[0]), np.float32(fixed_rc[1])
+        points = ro(points)
+        n = i32(n)
+        turn = ro(self.turn)
+        side_a = ro(self.side_a)
+        side_b = ro(self.side_b)
+        zero = f32(0.0)
+        two = i32(2)
+        plus = i32(1)
+        minus = i32(-1)
         width_guess = width_px if width_px is not None else 4.0
         scale = max(self.corner_scale, round(0.5 * width_guess))
-        K.turning_angles(points, n, scale, self.turn)
+        K.turning_angles(points, n, i32(scale), self.turn)
         search = np.float32(max(3.0 * width_guess, 8.0))
-        if K.split_contour(points, self.turn, n, fixed_r, fixed_c, search, scale + 1, self.idx) < 0:
+        if K.split_contour(points, turn, n, fixed_r, fixed_c, search, i32(scale + 1), self.idx) < 0:
             return None
-        i_fix, seg_a, i_far, seg_b = (int(v) for v in self.idx)
+        i_fix, seg_a, i_far, seg_b = (np.int32(v) for v in self.idx)
         sign = np.float32(1.0 if K.signed_area(points, n) >= 0 else -1.0)
         if self.method == "paper":
             return self._paper(chain, n, fixed_r, fixed_c, i_fix, i_far, sign, width_px)
         if self.method == "centerline":
-            na = K.offset_side(points, n, i_fix, i_far, 1, sign, 0.0, 0.0, 2, self.side_a)
-            nb = K.offset_side(points, n, i_fix, i_far, -1, sign, 0.0, 0.0, 2, self.side_b)
+            na = i32(K.offset_side(points, n, i_fix, i_far, plus, sign, zero, zero, two, self.side_a))
+            nb = i32(K.offset_side(points, n, i_fix, i_far, minus, sign, zero, zero, two, self.side_b))
             width = self._width(na, nb, width_px)
-            nm = K.midline(self.side_a, na, self.side_b, nb, self.mid, self.dist)
+            nm = i32(K.midline(side_a, na, side_b, nb, self.mid, self.dist))
             shape = self._resample(self.mid, nm, self.out_a)
             return SplitOutcome(Method.CENTERLINE, shape, shape, None, width, 0.0)
-        na = K.offset_side(points, n, i_fix, seg_a, 1, sign, 0.0, 0.0, 2, self.side_a)
-        nb = K.offset_side(points, n, i_fix, seg_b, -1, sign, 0.0, 0.0, 2, self.side_b)
+        na = i32(K.offset_side(points, n, i_fix, seg_a, plus, sign, zero, zero, two, self.side_a))
+        nb = i32(K.offset_side(points, n, i_fix, seg_b, minus, sign, zero, zero, two, self.side_b))
         if na < 2 or nb < 2:
             return None
         width = self._width(na, nb, width_px)
@@ -124,27 +134,27 @@ class BlurSplitter:
         self.seg[1] = points[seg_b]
         sweep = float(np.hypot(*(points[seg_a] - points[seg_b])))
         if sweep < self.static_ratio * width:
-            nm = K.midline(self.side_a, na, self.side_b, nb, self.mid, self.dist)
+            nm = i32(K.midline(side_a, na, side_b, nb, self.mid, self.dist))
             shape = self._resample(self.mid, nm, self.out_a)
             return SplitOutcome(Method.STATIC_FALLBACK, shape, shape, self.seg, width, sweep)
         w = np.float32(width)
         sw = np.float32(sweep)
-        na = K.offset_side(points, n, i_fix, seg_a, 1, sign, w, sw, 2, self.side_a)
-        nb = K.offset_side(points, n, i_fix, seg_b, -1, sign, w, sw, 2, self.side_b)
+        na = i32(K.offset_side(points, n, i_fix, seg_a, plus, sign, w, sw, two, self.side_a))
+        nb = i32(K.offset_side(points, n, i_fix, seg_b, minus, sign, w, sw, two, self.side_b))
         shape_a = self._resample(self.side_a, na, self.out_a)
         shape_b = self._resample(self.side_b, nb, self.out_b)
         return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, width, sweep)
 
     def _width(self, na: int, nb: int, width_px: float | None) -> float:
         """The rope width: the given one, or the narrow end of the band's width profile near the fixed end."""
-        nm = K.midline(self.side_a, na, self.side_b, nb, self.mid, self.dist)
+        nm = i32(K.midline(ro(self.side_a), i32(na), ro(self.side_b), i32(nb), self.mid, self.dist))
         if width_px is not None:
             return float(width_px)
         lo, hi = int(0.05 * nm), max(int(0.5 * nm), int(0.05 * nm) + 1)
         return float(np.percentile(self.dist[lo:hi], 20)) if hi <= nm else 1.0
 
     def _resample(self, poly: NDArray[np.float32], n: int, out: NDArray[np.float32]) -> NDArray[np.float32]:
-        count = K.resample_polyline(poly, n, self.step, out)
+        count = K.resample_polyline(ro(poly), i32(n), self.step, out)
         if count < 0:
             raise RuntimeError(f"resample_polyline returned status {count}")
         return out[:count]
@@ -162,10 +172,11 @@ class BlurSplitter:
     ) -> SplitOutcome | None:
         """The paper's literal method: operator, Features 1-3, Table 1, clustering, integer chain sides."""
         self.chain_f[:n] = chain[:n]
+        chain = ro(chain)
         K.apply_operator(chain, n, self.tau)
         far_r, far_c = self.chain_f[i_far]
         m = K.score_knots(
-            chain, self.tau, n, fixed_r, fixed_c, far_r, far_c, self.paper_radius, self.knots, self.scores
+            chain, ro(self.tau), n, fixed_r, fixed_c, far_r, far_c, self.paper_radius, self.knots, self.scores
         )
         if m < 2:
             return None
@@ -189,8 +200,10 @@ class BlurSplitter:
         a, b = (int(knots[k]) for k in clusters[:2])
         if (a - i_fix) % n > (b - i_fix) % n:
             a, b = b, a
-        na = K.offset_side(self.chain_f, n, i_fix, a, 1, sign, 0.0, 0.0, 2, self.side_a)
-        nb = K.offset_side(self.chain_f, n, i_fix, b, -1, sign, 0.0, 0.0, 2, self.side_b)
+        chain_f = ro(self.chain_f)
+        zero = f32(0.0)
+        na = i32(K.offset_side(chain_f, n, i32(i_fix), i32(a), i32(1), sign, zero, zero, i32(2), self.side_a))
+        nb = i32(K.offset_side(chain_f, n, i32(i_fix), i32(b), i32(-1), sign, zero, zero, i32(2), self.side_b))
         width = self._width(na, nb, width_px)
         self.seg[0] = self.chain_f[a]
         self.seg[1] = self.chain_f[b]

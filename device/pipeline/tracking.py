@@ -6,6 +6,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._views import i32, ro
 
 __all__ = ["PointTracker"]
 
@@ -36,23 +37,25 @@ class PointTracker:
         self.length0_px = length0_px
         self.length0_frames = int(length0_frames)
         self._lengths: list[float] = []
+        self._median: float | None = None
         self.out = np.zeros((2, len(self.arc_m), 2), np.float32)
 
     def length(self, poly: NDArray[np.float32]) -> float:
         """Return the polyline length Lc in pixels, eq. (9)."""
-        return float(K.polyline_length(poly, len(poly)))
+        return float(K.polyline_length(ro(poly), i32(len(poly))))
 
     def observe(self, length_px: float) -> None:
         """Feed the length of a measured shape to the Lc0 estimate (until it is fixed)."""
         if self.length0_px is None and len(self._lengths) < self.length0_frames:
             self._lengths.append(length_px)
+            self._median = float(np.median(self._lengths))
 
     @property
     def reference_length_px(self) -> float | None:
         """Lc0 in pixels: configured, or the median of the shapes seen so far (None before the first)."""
         if self.length0_px is not None:
             return self.length0_px
-        return float(np.median(self._lengths)) if self._lengths else None
+        return self._median
 
     def track(self, poly: NDArray[np.float32], slot: int) -> tuple[NDArray[np.float32], float]:
         """Return the material points (k, 2) (row, col) on `poly` (fixed end first) and the stretch Lc/Lc0.
@@ -65,7 +68,7 @@ class PointTracker:
         if length0 is None or length0 <= 0:
             length0 = lc
         np.multiply(self.fraction, length0, out=self.arc_px)
-        status = K.track_material_points(poly, len(poly), self.arc_px, length0, self.out[slot])
+        status = K.track_material_points(ro(poly), i32(len(poly)), ro(self.arc_px), float(length0), self.out[slot])
         if status < 0:
             raise ValueError(f"cannot track material points on a polyline of {len(poly)} points")
         return self.out[slot], lc / length0 if length0 > 0 else float("nan")
