@@ -52,8 +52,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     )
     parser.add_argument(
         "--method",
-        choices=("blur_split", "paper", "centerline"),
-        help="split method (default: blur_split, or the config's): paper = the paper's literal operator/scoring",
+        choices=("blur_split", "paper", "centerline", "static"),
+        help="blur_split (default), paper (the paper's literal operator and scoring), centerline (centreline of the "
+        "blurred band) or static (no split: still scenes and photos)",
     )
     parser.add_argument("--config", metavar="TOML", help="device.toml; its [pipeline] table sets the pipeline")
     parser.add_argument(

@@ -329,11 +329,12 @@ def detect_edges(
 # --------------------------------------------------------------------------------------------------------------
 @kernel(int32(u1_2d, i4_1d_ro, i4_1d_ro, int32, i4_2d, i4_1d, i4_1d))
 def keep_largest_component(edges, lo, hi, min_pixels, out_labels, stack, out_start):
-    """Keep only the largest 8-connected component of `edges` (1 = edge) inside the spans; clear the others.
+    """Mark the largest 8-connected component of `edges` (nonzero = edge) inside the spans with 1, the others
+    with 2 (they still count as edges for width measurements, but the contour follows only 1).
 
     Writes `out_labels` (component number + 1, 0 = background, valid inside the spans), rewrites `edges` and
     writes the component's first pixel in raster order into `out_start` (row, col). Returns the component's pixel
-    count, or NOT_FOUND when no component has at least `min_pixels` pixels (then `edges` is cleared).
+    count, or NOT_FOUND when no component has at least `min_pixels` pixels (then every edge is marked 2).
     """
     height = edges.shape[0]
     width = edges.shape[1]
@@ -389,7 +390,8 @@ def keep_largest_component(edges, lo, hi, min_pixels, out_labels, stack, out_sta
         e_in = edges[r, c0 : c1 + 1]
         l_in = out_labels[r, c0 : c1 + 1]
         for i in range(e_in.shape[0]):
-            e_in[i] = 1 if l_in[i] == keep else 0
+            if e_in[i] != 0:
+                e_in[i] = 1 if l_in[i] == keep else 2
     return best_size if found else NOT_FOUND
 
 
@@ -425,7 +427,7 @@ def trace_contour(edges, lo, hi, start_r, start_c, out_chain, out_codes):
             k = (b_idx + step) % 8
             rr = pr + DIR_ROW[k]
             cc = pc + DIR_COL[k]
-            if in_spans(rr, cc, lo, hi) and 0 <= cc < width and edges[rr, cc] != 0:
+            if in_spans(rr, cc, lo, hi) and 0 <= cc < width and edges[rr, cc] == 1:
                 found = k
                 break
         if found < 0:
@@ -892,4 +894,133 @@ def count_roi_contacts(chain, n, lo, hi, width):
             if 0 <= rr < height and 0 <= cc < width and not in_spans(rr, cc, lo, hi):
                 count += 1
                 break
+    return count
+
+
+# --------------------------------------------------------------------------------------------------------------
+# Polarity, rope width and gradient-based inward offsets
+# --------------------------------------------------------------------------------------------------------------
+@kernel(float32(f4_2d_ro, int32, float32, f4_2d_ro, f4_2d_ro, i4_2d_ro))
+def estimate_polarity(points, n, interior_sign, gx, gy, chain):
+    """Return +1 when the gradient at the contour points mostly points into the traced region (a rope brighter
+    than its background), -1 when it mostly points out (a dark rope), 0 when undecided.
+
+    The interior normal of the closed contour is ``interior_sign * (t_col, -t_row)`` for the forward tangent t.
+    """
+    votes = 0
+    for i in range(n):
+        a = (i - 2 + n * 4) % n
+        b = (i + 2) % n
+        t_r = points[b, 0] - points[a, 0]
+        t_c = points[b, 1] - points[a, 1]
+        r = chain[i, 0]
+        c = chain[i, 1]
+        dot = interior_sign * (t_c * gy[r, c] - t_r * gx[r, c])
+        if dot > 0:
+            votes += 1
+        elif dot < 0:
+            votes -= 1
+    if votes > n // 10:
+        return 1.0
+    if votes < -(n // 10):
+        return -1.0
+    return 0.0
+
+
+@kernel(int32(u1_2d_ro, f4_2d_ro, f4_2d_ro, i4_2d_ro, int32, float32, float32, f4_1d))
+def measure_widths(edges, gx, gy, chain, n, polarity, max_px, out_width):
+    """Write for each contour pixel the distance to the opposite edge of the rope, found by stepping (0.5 px)
+    from the pixel into the rope (along ``polarity`` times the gradient) until an edge pixel whose gradient points
+    the other way; ``nan`` when none is found within `max_px`. Returns `n`."""
+    height = edges.shape[0]
+    width = edges.shape[1]
+    for i in range(n):
+        r = chain[i, 0]
+        c = chain[i, 1]
+        g_r = gy[r, c] * polarity
+        g_c = gx[r, c] * polarity
+        norm = math.sqrt(g_r * g_r + g_c * g_c)
+        out_width[i] = np.nan
+        if norm <= 0.0:
+            continue
+        u_r = g_r / norm
+        u_c = g_c / norm
+        steps = int(max_px * 2.0)
+        for k in range(2, steps + 1):
+            t = 0.5 * k
+            rr = math.floor(r + t * u_r + 0.5)
+            cc = math.floor(c + t * u_c + 0.5)
+            if rr < 0 or rr >= height or cc < 0 or cc >= width:
+                break
+            if (rr != r or cc != c) and edges[rr, cc] != 0:
+                dot = (gy[rr, cc] * u_r + gx[rr, cc] * u_c) * polarity
+                if dot < 0.0:
+                    out_width[i] = math.hypot(rr - r, cc - c)
+                    break
+    return n
+
+
+@kernel(int32(f4_1d_ro, int32, int32, i4_1d))
+def find_caps(turn, n, min_gap, out_idx):
+    """Write into `out_idx` the contour indices of the two rope ends: the largest turning angle, then the largest
+    at least `min_gap` chain steps from it. Returns 2 or NOT_FOUND."""
+    if n < 3:
+        return NOT_FOUND
+    e1 = 0
+    for i in range(n):
+        if turn[i] > turn[e1]:
+            e1 = i
+    e2 = -1
+    best = -1.0
+    for i in range(n):
+        gap = abs(i - e1)
+        if min(gap, n - gap) < min_gap:
+            continue
+        if turn[i] > best:
+            best = turn[i]
+            e2 = i
+    if e2 < 0:
+        return NOT_FOUND
+    out_idx[0] = e1
+    out_idx[1] = e2
+    return 2
+
+
+@kernel(int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, f4_2d_ro, float32, float32, float32, f4_2d))
+def offset_by_gradient(
+    points, chain, n, i_start, i_stop, direction, gx, gy, polarity, width_px, sweep_tip_px, out_poly
+):
+    """Copy the contour from `i_start` to `i_stop` (stepping `direction` = +1 or -1, cyclic) into `out_poly`,
+    each point moved into the rope along ``polarity`` times its gradient direction by
+    ``max(0, (width_px - sweep(s)) / 2)``, the sweep growing linearly with arc length s from 0 at `i_start` to
+    `sweep_tip_px` at `i_stop` (see `offset_side`). The gradient knows where the rope is even where the contour
+    doubles back (a rope leaving the image, a crossing). Returns the number of points written or FULL."""
+    count = (i_stop - i_start) * direction
+    count = (count % n + n) % n + 1
+    if count > out_poly.shape[0]:
+        return FULL
+    total = 0.0
+    for k in range(1, count):
+        i0 = (i_start + (k - 1) * direction + n * 4) % n
+        i1 = (i_start + k * direction + n * 4) % n
+        total += math.hypot(points[i1, 0] - points[i0, 0], points[i1, 1] - points[i0, 1])
+    s = 0.0
+    for k in range(count):
+        i = (i_start + k * direction + n * 4) % n
+        if k > 0:
+            ip = (i_start + (k - 1) * direction + n * 4) % n
+            s += math.hypot(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
+        shift = 0.5 * width_px
+        if total > 0.0:
+            shift = max(0.0, 0.5 * (width_px - sweep_tip_px * s / total))
+        r = chain[i, 0]
+        c = chain[i, 1]
+        g_r = gy[r, c] * polarity
+        g_c = gx[r, c] * polarity
+        norm = math.sqrt(g_r * g_r + g_c * g_c)
+        out_poly[k, 0] = points[i, 0]
+        out_poly[k, 1] = points[i, 1]
+        if norm > 0.0:
+            out_poly[k, 0] += shift * g_r / norm
+            out_poly[k, 1] += shift * g_c / norm
     return count

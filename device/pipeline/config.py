@@ -10,7 +10,7 @@ from ropecam.shared.errors import ConfigError
 
 __all__ = ["METHODS", "PipelineConfig"]
 
-METHODS = ("blur_split", "paper", "centerline")
+METHODS = ("blur_split", "paper", "centerline", "static")
 
 
 @dataclass(frozen=True, slots=True)
@@ -22,7 +22,10 @@ class PipelineConfig:
     method
         ``blur_split`` (default: subpixel edges, modelled inward offset, continuity ordering), ``paper`` (the
         paper's literal operator and Table 1 scoring on the integer chain) or ``centerline`` (centreline of the
-        blurred region, one shape per frame).
+        blurred region, one shape per frame) or ``static`` (always the static centreline: still scenes, photos).
+    polarity
+        ``bright`` rope on a dark background, ``dark`` rope on a bright one, or ``auto`` (decided per frame from
+        the gradients along the contour).
     smooth_sigma_px
         Gaussian smoothing before the Sobel gradient (0 disables it).
     canny_low, canny_high
@@ -55,7 +58,8 @@ class PipelineConfig:
         Capacity of the contour buffers (points).
     """
 
-    method: Literal["blur_split", "paper", "centerline"] = "blur_split"
+    method: Literal["blur_split", "paper", "centerline", "static"] = "blur_split"
+    polarity: Literal["auto", "bright", "dark"] = "auto"
     smooth_sigma_px: float = 1.0
     canny_low: float = 20.0
     canny_high: float = 50.0
@@ -75,6 +79,7 @@ class PipelineConfig:
 
     def __post_init__(self) -> None:
         check_in("method", self.method, METHODS)
+        check_in("polarity", self.polarity, ("auto", "bright", "dark"))
         check_range("smooth_sigma_px", self.smooth_sigma_px, 0.0, 5.0)
         check_positive("canny_low", self.canny_low)
         check_positive("canny_high", self.canny_high)

@@ -67,6 +67,7 @@ class Pipeline:
         if config.fixed_end_uv is not None:
             self.fixed[:] = (config.fixed_end_uv[1], config.fixed_end_uv[0])
         self._widths: list[float] = []
+        self._polarity = {"auto": 0.0, "bright": 1.0, "dark": -1.0}[config.polarity]
         self._width_cache: float | None = None
         self._prev_tips: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self._prev_t_ns: tuple[int, int] | None = None
@@ -159,12 +160,24 @@ class Pipeline:
         fixed = self._fixed_end(points, n, width_px)
         result.fixed_end = self.fixed
         exclude = 3.0 * (width_px or 4.0) + 10.0
-        if self.tracer.border_contacts((float(fixed[0]), float(fixed[1])), exclude) > 0:
+        fixed_rc = (float(fixed[0]), float(fixed[1]))
+        clipped = self.tracer.border_contacts(fixed_rc, exclude) > 0
+        e = self.edges
+        outcome = self.splitter.split(
+            points, self.tracer.chain, n, fixed_rc, width_px, e.gx, e.gy, e.edges, self._polarity
+        )
+        if clipped:
+            # The free end is out of view: no tip, no split; give the visible centreline for what it is worth.
+            outcome = self.splitter.static(fixed_rc)
+            self._prev_tips = None
             result.status = FrameStatus.ROPE_CLIPPED
             result.message = "the rope touches the image border: it is leaving the field of view"
-            self._prev_tips = None
+            if outcome is not None:
+                result.method = outcome.method
+                result.begin = result.end = outcome.shape_a
+                result.rope_width_px = outcome.width_px
+                result.order_confidence = 1.0
             return
-        outcome = self.splitter.split(points, self.tracer.chain, n, (float(fixed[0]), float(fixed[1])), width_px)
         if outcome is None:
             result.status = FrameStatus.LOST_TRACK
             result.message = "contour found but no segmentation points"

@@ -85,6 +85,10 @@ class BlurSplitter:
         n: int,
         fixed_rc: tuple[float, float],
         width_px: float | None,
+        gx: NDArray[np.float32],
+        gy: NDArray[np.float32],
+        edges: NDArray[np.uint8],
+        polarity: float = 0.0,
     ) -> SplitOutcome | None:
         """Split the closed contour (`n` subpixel `points`, integer `chain`) of a rope fixed at `fixed_rc`.
 
@@ -92,66 +96,118 @@ class BlurSplitter:
         ----------
         width_px
             The rope width if known (config or earlier frames); otherwise measured here.
+        gx, gy, edges
+            The gradients and edge map the contour came from (read only).
+        polarity
+            +1 bright rope, -1 dark rope, 0 to decide from the gradients.
 
         Returns
         -------
         SplitOutcome or None
             None when the contour cannot be split (too short, no segmentation points).
         """
+        self._prepare(points, chain, n, width_px, gx, gy, edges, polarity)
+        points, chain, n = self._points, self._chain, self._n
         fixed_r, fixed_c = np.float32(fixed_rc[0]), np.float32(fixed_rc[1])
-        points = ro(points)
-        n = i32(n)
-        turn = ro(self.turn)
-        side_a = ro(self.side_a)
-        side_b = ro(self.side_b)
+        width = self.width
+        scale = max(self.corner_scale, round(0.5 * width))
+        K.turning_angles(points, n, i32(scale), self.turn)
+        search = np.float32(max(3.0 * width, 8.0))
+        found = K.split_contour(points, ro(self.turn), n, fixed_r, fixed_c, search, i32(scale + 1), self.idx)
+        if found < 0:
+            return self.static(fixed_rc)
+        i_fix, seg_a, i_far, seg_b = (np.int32(v) for v in self.idx)
         zero = f32(0.0)
-        two = i32(2)
         plus = i32(1)
         minus = i32(-1)
-        width_guess = width_px if width_px is not None else 4.0
-        scale = max(self.corner_scale, round(0.5 * width_guess))
-        K.turning_angles(points, n, i32(scale), self.turn)
-        search = np.float32(max(3.0 * width_guess, 8.0))
-        if K.split_contour(points, turn, n, fixed_r, fixed_c, search, i32(scale + 1), self.idx) < 0:
-            return None
-        i_fix, seg_a, i_far, seg_b = (np.int32(v) for v in self.idx)
-        sign = np.float32(1.0 if K.signed_area(points, n) >= 0 else -1.0)
+        if self.method == "static":
+            return self.static(fixed_rc)
         if self.method == "paper":
-            return self._paper(chain, n, fixed_r, fixed_c, i_fix, i_far, sign, width_px)
+            return self._paper(chain, n, fixed_r, fixed_c, i_fix, i_far)
         if self.method == "centerline":
-            na = i32(K.offset_side(points, n, i_fix, i_far, plus, sign, zero, zero, two, self.side_a))
-            nb = i32(K.offset_side(points, n, i_fix, i_far, minus, sign, zero, zero, two, self.side_b))
-            width = self._width(na, nb, width_px)
-            nm = i32(K.midline(side_a, na, side_b, nb, self.mid, self.dist))
+            na = i32(K.offset_side(points, n, i_fix, i_far, plus, self.sign, zero, zero, i32(2), self.side_a))
+            nb = i32(K.offset_side(points, n, i_fix, i_far, minus, self.sign, zero, zero, i32(2), self.side_b))
+            nm = i32(K.midline(ro(self.side_a), na, ro(self.side_b), nb, self.mid, self.dist))
             shape = self._resample(self.mid, nm, self.out_a)
             return SplitOutcome(Method.CENTERLINE, shape, shape, None, width, 0.0)
-        na = i32(K.offset_side(points, n, i_fix, seg_a, plus, sign, zero, zero, two, self.side_a))
-        nb = i32(K.offset_side(points, n, i_fix, seg_b, minus, sign, zero, zero, two, self.side_b))
-        if na < 2 or nb < 2:
-            return None
-        width = self._width(na, nb, width_px)
         self.seg[0] = points[seg_a]
         self.seg[1] = points[seg_b]
         sweep = float(np.hypot(*(points[seg_a] - points[seg_b])))
         if sweep < self.static_ratio * width:
-            nm = i32(K.midline(side_a, na, side_b, nb, self.mid, self.dist))
-            shape = self._resample(self.mid, nm, self.out_a)
-            return SplitOutcome(Method.STATIC_FALLBACK, shape, shape, self.seg, width, sweep)
+            return self.static(fixed_rc)
         w = np.float32(width)
         sw = np.float32(sweep)
-        na = i32(K.offset_side(points, n, i_fix, seg_a, plus, sign, w, sw, two, self.side_a))
-        nb = i32(K.offset_side(points, n, i_fix, seg_b, minus, sign, w, sw, two, self.side_b))
+        gx, gy, pol = self._gx, self._gy, self.polarity_used
+        na = i32(K.offset_by_gradient(points, chain, n, i_fix, seg_a, plus, gx, gy, pol, w, sw, self.side_a))
+        nb = i32(K.offset_by_gradient(points, chain, n, i_fix, seg_b, minus, gx, gy, pol, w, sw, self.side_b))
         shape_a = self._resample(self.side_a, na, self.out_a)
         shape_b = self._resample(self.side_b, nb, self.out_b)
         return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, width, sweep)
 
-    def _width(self, na: int, nb: int, width_px: float | None) -> float:
-        """The rope width: the given one, or the narrow end of the band's width profile near the fixed end."""
-        nm = i32(K.midline(ro(self.side_a), i32(na), ro(self.side_b), i32(nb), self.mid, self.dist))
+    def _prepare(
+        self,
+        points: NDArray[np.float32],
+        chain: NDArray[np.int32],
+        n: int,
+        width_px: float | None,
+        gx: NDArray[np.float32],
+        gy: NDArray[np.float32],
+        edges: NDArray[np.uint8],
+        polarity: float,
+    ) -> None:
+        """Store read-only views, the contour orientation, the polarity and the rope width of this contour."""
+        self._points, self._chain, self._n = ro(points), ro(chain), i32(n)
+        self._gx, self._gy = ro(gx), ro(gy)
+        self.sign = np.float32(1.0 if K.signed_area(self._points, self._n) >= 0 else -1.0)
+        pol = float(polarity)
+        edges_ro = ro(edges)
+        if pol == 0.0:
+            # The rope is on the side where the opposite edge is near: compare the typical distance to the
+            # opposite edge looking along +gradient (bright rope) and along -gradient (dark rope).
+            medians = []
+            for sign in (1.0, -1.0):
+                K.measure_widths(edges_ro, self._gx, self._gy, self._chain, self._n, f32(sign), f32(64.0), self.dist)
+                found = self.dist[: self._n][np.isfinite(self.dist[: self._n])]
+                medians.append(float(np.median(found)) if found.size > self._n // 4 else np.inf)
+            pol = 1.0 if medians[0] <= medians[1] else -1.0
+        self.polarity_used = np.float32(pol)
+        K.measure_widths(edges_ro, self._gx, self._gy, self._chain, self._n, self.polarity_used, f32(64.0), self.dist)
+        widths = self.dist[: self._n]
+        valid = widths[np.isfinite(widths)]
+        self.width_measured = float(np.percentile(valid, 25)) if valid.size else float("nan")
         if width_px is not None:
-            return float(width_px)
-        lo, hi = int(0.05 * nm), max(int(0.5 * nm), int(0.05 * nm) + 1)
-        return float(np.percentile(self.dist[lo:hi], 20)) if hi <= nm else 1.0
+            self.width = float(width_px)
+        elif np.isfinite(self.width_measured):
+            self.width = self.width_measured
+        else:
+            self.width = 4.0
+
+    def static(self, fixed_rc: tuple[float, float] | None = None) -> SplitOutcome | None:
+        """Return the centreline of a rope that did not move (or cannot be split): one side of the contour, from
+        rope end to rope end, moved half a rope width into the rope along the gradient. The end nearer
+        `fixed_rc` comes first. Call after `split` (or `_prepare`) on the same contour."""
+        points, chain, n = self._points, self._chain, self._n
+        if n < 8:
+            return None
+        K.turning_angles(points, n, i32(max(3, round(self.width))), self.turn)
+        if K.find_caps(ro(self.turn), n, i32(max(4, n // 8)), self.idx) < 0:
+            return None
+        e1, e2 = np.int32(self.idx[0]), np.int32(self.idx[1])
+        if fixed_rc is not None:
+            d1 = np.hypot(points[e1, 0] - fixed_rc[0], points[e1, 1] - fixed_rc[1])
+            d2 = np.hypot(points[e2, 0] - fixed_rc[0], points[e2, 1] - fixed_rc[1])
+            if d2 < d1:
+                e1, e2 = e2, e1
+        w = np.float32(self.width)
+        count = K.offset_by_gradient(
+            points, chain, n, e1, e2, i32(1), self._gx, self._gy, self.polarity_used, w, f32(0.0), self.side_a
+        )
+        if count < 2:
+            return None
+        shape = self._resample(self.side_a, i32(count), self.out_a)
+        self.seg[0] = points[e2]
+        self.seg[1] = points[e2]
+        return SplitOutcome(Method.STATIC_FALLBACK, shape, shape, None, self.width, 0.0)
 
     def _resample(self, poly: NDArray[np.float32], n: int, out: NDArray[np.float32]) -> NDArray[np.float32]:
         count = K.resample_polyline(ro(poly), i32(n), self.step, out)
@@ -167,8 +223,6 @@ class BlurSplitter:
         fixed_c: np.float32,
         i_fix: int,
         i_far: int,
-        sign: np.float32,
-        width_px: float | None,
     ) -> SplitOutcome | None:
         """The paper's literal method: operator, Features 1-3, Table 1, clustering, integer chain sides."""
         self.chain_f[:n] = chain[:n]
@@ -202,9 +256,10 @@ class BlurSplitter:
             a, b = b, a
         chain_f = ro(self.chain_f)
         zero = f32(0.0)
+        sign = self.sign
         na = i32(K.offset_side(chain_f, n, i32(i_fix), i32(a), i32(1), sign, zero, zero, i32(2), self.side_a))
         nb = i32(K.offset_side(chain_f, n, i32(i_fix), i32(b), i32(-1), sign, zero, zero, i32(2), self.side_b))
-        width = self._width(na, nb, width_px)
+        width = self.width
         self.seg[0] = self.chain_f[a]
         self.seg[1] = self.chain_f[b]
         sweep = float(np.hypot(*(self.seg[0] - self.seg[1])))
