@@ -15,20 +15,20 @@ import os
 os.environ.setdefault("NUMBA_NRT_STATS", "1")  # must be set before numba is imported
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-from typing import Any  # noqa: E402
+import argparse
+import json
+import sys
+import time
+from typing import Any
 
-import cv2  # noqa: E402
-import numpy as np  # noqa: E402
-from numba.core.runtime import rtsys  # noqa: E402
+import cv2
+import numpy as np
+from numba.core.runtime import rtsys
 
-from ropecam.device.capture.synthetic import SyntheticRope  # noqa: E402
-from ropecam.device.pipeline import _kernels as K  # noqa: E402
-from ropecam.device.pipeline.config import PipelineConfig  # noqa: E402
-from ropecam.device.pipeline.pipeline import Pipeline  # noqa: E402
+from ropecam.device.capture.synthetic import SyntheticRope
+from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline.config import PipelineConfig
+from ropecam.device.pipeline.pipeline import Pipeline
 
 
 def rig_frames(count: int) -> list[tuple[np.ndarray, int, float]]:
