@@ -927,11 +927,36 @@ def estimate_polarity(points, n, interior_sign, gx, gy, chain):
     return 0.0
 
 
-@kernel(int32(u1_2d_ro, f4_2d_ro, f4_2d_ro, i4_2d_ro, int32, float32, float32, f4_1d))
-def measure_widths(edges, gx, gy, chain, n, polarity, max_px, out_width):
+@kernel(types.UniTuple(float32, 2)(f4_2d_ro, f4_2d_ro, f4_2d_ro, int32, int32))
+def axis_offset(mag, gx, gy, r, c):
+    """Return the (row, col) subpixel offset of the magnitude maximum at pixel (r, c) (as `refine_subpixel`)."""
+    height = mag.shape[0]
+    width = mag.shape[1]
+    if r < 1 or c < 1 or r > height - 2 or c > width - 2:
+        return np.float32(0.0), np.float32(0.0)
+    m0 = mag[r, c]
+    if abs(gx[r, c]) >= abs(gy[r, c]):
+        mm = mag[r, c - 1]
+        mp = mag[r, c + 1]
+        denom = mm - 2.0 * m0 + mp
+        if denom < 0.0:
+            return np.float32(0.0), np.float32(min(max(0.5 * (mm - mp) / denom, -1.0), 1.0))
+    else:
+        mm = mag[r - 1, c]
+        mp = mag[r + 1, c]
+        denom = mm - 2.0 * m0 + mp
+        if denom < 0.0:
+            return np.float32(min(max(0.5 * (mm - mp) / denom, -1.0), 1.0)), np.float32(0.0)
+    return np.float32(0.0), np.float32(0.0)
+
+
+@kernel(int32(u1_2d_ro, f4_2d_ro, f4_2d_ro, f4_2d_ro, i4_2d_ro, int32, float32, float32, f4_1d))
+def measure_widths(edges, mag, gx, gy, chain, n, polarity, max_px, out_width):
     """Write for each contour pixel the distance to the opposite edge of the rope, found by stepping (0.5 px)
     from the pixel into the rope (along ``polarity`` times the gradient) until an edge pixel whose gradient points
-    the other way; ``nan`` when none is found within `max_px`. Returns `n`."""
+    the other way; both ends are refined to subpixel (parabola of `mag` along the image axis nearest the
+    gradient) and the distance is taken along the stepping direction. ``nan`` when no opposite edge lies within
+    `max_px`. Returns `n`."""
     height = edges.shape[0]
     width = edges.shape[1]
     for i in range(n):
@@ -955,7 +980,9 @@ def measure_widths(edges, gx, gy, chain, n, polarity, max_px, out_width):
             if (rr != r or cc != c) and edges[rr, cc] != 0:
                 dot = (gy[rr, cc] * u_r + gx[rr, cc] * u_c) * polarity
                 if dot < 0.0:
-                    out_width[i] = math.hypot(rr - r, cc - c)
+                    d0r, d0c = axis_offset(mag, gx, gy, r, c)
+                    d1r, d1c = axis_offset(mag, gx, gy, rr, cc)
+                    out_width[i] = (rr + d1r - r - d0r) * u_r + (cc + d1c - c - d0c) * u_c
                     break
     return n
 
@@ -1024,3 +1051,21 @@ def offset_by_gradient(
             out_poly[k, 0] += shift * g_r / norm
             out_poly[k, 1] += shift * g_c / norm
     return count
+
+
+@kernel(int32(f4_2d, int32, float32))
+def trim_polyline_end(poly, n, cut_px):
+    """Shorten the polyline of `n` points in place by `cut_px` of arc length at its end (the new last point is
+    interpolated); returns the new count, or 0 when the polyline is not longer than `cut_px`."""
+    remaining = cut_px
+    k = n - 1
+    while k > 0:
+        seg = math.hypot(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
+        if seg >= remaining and seg > 0.0:
+            t = remaining / seg
+            poly[k, 0] = poly[k, 0] + t * (poly[k - 1, 0] - poly[k, 0])
+            poly[k, 1] = poly[k, 1] + t * (poly[k - 1, 1] - poly[k, 1])
+            return k + 1
+        remaining -= seg
+        k -= 1
+    return 0

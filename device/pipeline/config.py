@@ -26,6 +26,9 @@ class PipelineConfig:
     polarity
         ``bright`` rope on a dark background, ``dark`` rope on a bright one, or ``auto`` (decided per frame from
         the gradients along the contour).
+    tip_cap
+        Shape of the rope's free end: ``round`` (the band's edge runs half a width beyond the axis end) or
+        ``flat``.
     smooth_sigma_px
         Gaussian smoothing before the Sobel gradient (0 disables it).
     canny_low, canny_high
@@ -60,6 +63,7 @@ class PipelineConfig:
 
     method: Literal["blur_split", "paper", "centerline", "static"] = "blur_split"
     polarity: Literal["auto", "bright", "dark"] = "auto"
+    tip_cap: Literal["round", "flat"] = "round"
     smooth_sigma_px: float = 1.0
     canny_low: float = 20.0
     canny_high: float = 50.0
@@ -71,7 +75,7 @@ class PipelineConfig:
     length0_px: float | None = None
     length0_frames: int = 5
     material_points_m: tuple[float, ...] = (0.25, 0.5, 0.75, 1.0)
-    static_ratio: float = 1.5
+    static_ratio: float = 1.1
     corner_scale_px: int = 3
     paper_endpoint_radius_px: float = 15.0
     output_step_px: float = 2.0
@@ -80,6 +84,7 @@ class PipelineConfig:
     def __post_init__(self) -> None:
         check_in("method", self.method, METHODS)
         check_in("polarity", self.polarity, ("auto", "bright", "dark"))
+        check_in("tip_cap", self.tip_cap, ("round", "flat"))
         check_range("smooth_sigma_px", self.smooth_sigma_px, 0.0, 5.0)
         check_positive("canny_low", self.canny_low)
         check_positive("canny_high", self.canny_high)

@@ -49,7 +49,7 @@ class Pipeline:
         self.tracer = ContourTracer(height, width, cap, config.min_contour_px)
         self.splitter = BlurSplitter(
             cap, config.method, config.static_ratio, config.corner_scale_px,
-            config.paper_endpoint_radius_px, config.output_step_px,
+            config.paper_endpoint_radius_px, config.output_step_px, config.tip_cap,
         )  # fmt: skip
         self.tracker = PointTracker(
             config.material_points_m, config.rope_length_m, config.length0_px, config.length0_frames
@@ -164,7 +164,7 @@ class Pipeline:
         clipped = self.tracer.border_contacts(fixed_rc, exclude) > 0
         e = self.edges
         outcome = self.splitter.split(
-            points, self.tracer.chain, n, fixed_rc, width_px, e.gx, e.gy, e.edges, self._polarity
+            points, self.tracer.chain, n, fixed_rc, width_px, e.gx, e.gy, e.edges, e.mag, self._polarity
         )
         if clipped:
             # The free end is out of view: no tip, no split; give the visible centreline for what it is worth.

@@ -48,6 +48,8 @@ class BlurSplitter:
         Threshold T of the paper's Feature 3.
     output_step_px
         Spacing of the returned polylines.
+    tip_cap
+        Shape of the rope's free end: ``round`` (half a width beyond the axis end) or ``flat``.
     """
 
     def __init__(
@@ -58,8 +60,10 @@ class BlurSplitter:
         corner_scale_px: int = 3,
         paper_radius_px: float = 15.0,
         output_step_px: float = 2.0,
+        tip_cap: str = "round",
     ) -> None:
         self.method = method
+        self.tip_cap_ratio = 0.5 if tip_cap == "round" else 0.0
         self.static_ratio = float(static_ratio)
         self.corner_scale = int(corner_scale_px)
         self.paper_radius = np.float32(paper_radius_px)
@@ -88,6 +92,7 @@ class BlurSplitter:
         gx: NDArray[np.float32],
         gy: NDArray[np.float32],
         edges: NDArray[np.uint8],
+        mag: NDArray[np.float32],
         polarity: float = 0.0,
     ) -> SplitOutcome | None:
         """Split the closed contour (`n` subpixel `points`, integer `chain`) of a rope fixed at `fixed_rc`.
@@ -96,8 +101,8 @@ class BlurSplitter:
         ----------
         width_px
             The rope width if known (config or earlier frames); otherwise measured here.
-        gx, gy, edges
-            The gradients and edge map the contour came from (read only).
+        gx, gy, edges, mag
+            The gradients, edge map and gradient magnitude the contour came from (read only).
         polarity
             +1 bright rope, -1 dark rope, 0 to decide from the gradients.
 
@@ -106,7 +111,7 @@ class BlurSplitter:
         SplitOutcome or None
             None when the contour cannot be split (too short, no segmentation points).
         """
-        self._prepare(points, chain, n, width_px, gx, gy, edges, polarity)
+        self._prepare(points, chain, n, width_px, gx, gy, edges, polarity, mag, fixed_rc)
         points, chain, n = self._points, self._chain, self._n
         fixed_r, fixed_c = np.float32(fixed_rc[0]), np.float32(fixed_rc[1])
         width = self.width
@@ -140,6 +145,8 @@ class BlurSplitter:
         gx, gy, pol = self._gx, self._gy, self.polarity_used
         na = i32(K.offset_by_gradient(points, chain, n, i_fix, seg_a, plus, gx, gy, pol, w, sw, self.side_a))
         nb = i32(K.offset_by_gradient(points, chain, n, i_fix, seg_b, minus, gx, gy, pol, w, sw, self.side_b))
+        na = self._trim_tip(self.side_a, na)
+        nb = self._trim_tip(self.side_b, nb)
         shape_a = self._resample(self.side_a, na, self.out_a)
         shape_b = self._resample(self.side_b, nb, self.out_b)
         return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, width, sweep)
@@ -154,6 +161,8 @@ class BlurSplitter:
         gy: NDArray[np.float32],
         edges: NDArray[np.uint8],
         polarity: float,
+        mag: NDArray[np.float32],
+        fixed_rc: tuple[float, float] | None,
     ) -> None:
         """Store read-only views, the contour orientation, the polarity and the rope width of this contour."""
         self._points, self._chain, self._n = ro(points), ro(chain), i32(n)
@@ -161,20 +170,33 @@ class BlurSplitter:
         self.sign = np.float32(1.0 if K.signed_area(self._points, self._n) >= 0 else -1.0)
         pol = float(polarity)
         edges_ro = ro(edges)
+        mag = ro(mag)
         if pol == 0.0:
             # The rope is on the side where the opposite edge is near: compare the typical distance to the
             # opposite edge looking along +gradient (bright rope) and along -gradient (dark rope).
             medians = []
             for sign in (1.0, -1.0):
-                K.measure_widths(edges_ro, self._gx, self._gy, self._chain, self._n, f32(sign), f32(64.0), self.dist)
+                K.measure_widths(
+                    edges_ro, mag, self._gx, self._gy, self._chain, self._n, f32(sign), f32(64.0), self.dist
+                )
                 found = self.dist[: self._n][np.isfinite(self.dist[: self._n])]
                 medians.append(float(np.median(found)) if found.size > self._n // 4 else np.inf)
             pol = 1.0 if medians[0] <= medians[1] else -1.0
         self.polarity_used = np.float32(pol)
-        K.measure_widths(edges_ro, self._gx, self._gy, self._chain, self._n, self.polarity_used, f32(64.0), self.dist)
+        K.measure_widths(
+            edges_ro, mag, self._gx, self._gy, self._chain, self._n, self.polarity_used, f32(64.0), self.dist
+        )
         widths = self.dist[: self._n]
-        valid = widths[np.isfinite(widths)]
-        self.width_measured = float(np.percentile(valid, 25)) if valid.size else float("nan")
+        finite = np.isfinite(widths)
+        valid = widths[finite]
+        self.width_measured = float(np.median(valid)) if valid.size else float("nan")
+        if fixed_rc is not None and valid.size:
+            # Where the rope hardly moved (near the fixed end, beyond its end cap) the band is one rope wide.
+            pts = self._points[: self._n]
+            dist = np.hypot(pts[:, 0] - fixed_rc[0], pts[:, 1] - fixed_rc[1])
+            near = finite & (dist > 3.0 * self.width_measured) & (dist < 0.25 * dist.max())
+            if np.count_nonzero(near) >= 4:
+                self.width_measured = float(np.median(widths[near]))
         if width_px is not None:
             self.width = float(width_px)
         elif np.isfinite(self.width_measured):
@@ -208,6 +230,15 @@ class BlurSplitter:
         self.seg[0] = points[e2]
         self.seg[1] = points[e2]
         return SplitOutcome(Method.STATIC_FALLBACK, shape, shape, None, self.width, 0.0)
+
+    def _trim_tip(self, poly: NDArray[np.float32], n: np.int32) -> np.int32:
+        """Shorten the polyline by the cap length at its free end (half the width for a round rope end): the
+        segmentation point lies on the edge of the band, which a round end reaches half a width beyond the axis."""
+        cut = self.tip_cap_ratio * self.width
+        if cut <= 0 or n < 3:
+            return n
+        count = K.trim_polyline_end(poly, n, f32(cut))
+        return i32(count) if count >= 2 else n
 
     def _resample(self, poly: NDArray[np.float32], n: int, out: NDArray[np.float32]) -> NDArray[np.float32]:
         count = K.resample_polyline(ro(poly), i32(n), self.step, out)
