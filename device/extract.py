@@ -125,7 +125,7 @@ def run_extract(
             image = item.image
             if image is not None and pipeline is None:
                 pipeline = Pipeline(config, (image.shape[1], image.shape[0]))
-            if pipeline is None:
+            if pipeline is None or image is None:
                 record = _bad_frame(item.index, item.t_ns, item.exposure_us, item.message or "unreadable frame")
             else:
                 result = pipeline.process(image, item.index, item.t_ns, item.exposure_us)

@@ -235,6 +235,8 @@ class Pipeline:
             d1 = np.hypot(*(points[e1] - self.fixed))
             d2 = np.hypot(*(points[e2] - self.fixed))
             chosen = points[e1] if d1 <= d2 else points[e2]
+            if min(d1, d2) > 3.0 * w + 5.0:
+                return self.fixed  # not the rope seen so far (another object, a clipped view): no update
             k = self._fixed_frames
             self.fixed[:] = (self.fixed * k + chosen) / (k + 1)
         else:
