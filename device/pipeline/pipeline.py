@@ -25,6 +25,10 @@ from ropecam.device.pipeline.tracking import PointTracker
 __all__ = ["Pipeline"]
 
 _FIXED_END_FRAMES = 10
+_WIDTH_FRAMES = 15
+"""Frames whose measured rope width (median) is used afterwards, when the config gives none."""
+_POLARITY_FRAMES = 5
+"""Frames whose polarity votes decide the polarity afterwards, when the config says auto."""
 
 
 class Pipeline:
@@ -68,10 +72,13 @@ class Pipeline:
             self.fixed[:] = (config.fixed_end_uv[1], config.fixed_end_uv[0])
         self._widths: list[float] = []
         self._polarity = {"auto": 0.0, "bright": 1.0, "dark": -1.0}[config.polarity]
+        self._polarity_votes: list[float] = []
         self._width_cache: float | None = None
         self._prev_tips: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self._prev_t_ns: tuple[int, int] | None = None
         self._prev_sweep = 0.0
+        self._prev_step = 0.0
+        self._last_tip: NDArray[np.float64] | None = None
         self._period_ns: int | None = None
         self.frames_full = 0
         self.frames_roi = 0
@@ -158,14 +165,29 @@ class Pipeline:
         self.prev_count = n
         width_px = self._width()
         fixed = self._fixed_end(points, n, width_px)
+        measure = self.config.rope_width_px is None and len(self._widths) < _WIDTH_FRAMES
         result.fixed_end = self.fixed
         exclude = 3.0 * (width_px or 4.0) + 10.0
         fixed_rc = (float(fixed[0]), float(fixed[1]))
         clipped = self.tracer.border_contacts(fixed_rc, exclude) > 0
         e = self.edges
         outcome = self.splitter.split(
-            points, self.tracer.chain, n, fixed_rc, width_px, e.gx, e.gy, e.edges, e.mag, self._polarity
+            points,
+            self.tracer.chain,
+            n,
+            fixed_rc,
+            None if measure else width_px,
+            e.gx,
+            e.gy,
+            e.edges,
+            e.mag,
+            self._polarity_now(),
         )
+        if measure and math.isfinite(self.splitter.width_measured) and self.splitter.width_measured > 0:
+            self._widths.append(self.splitter.width_measured)
+            self._width_cache = None
+        if self._polarity == 0.0 and len(self._polarity_votes) < _POLARITY_FRAMES:
+            self._polarity_votes.append(float(self.splitter.polarity_used))
         if clipped:
             # The free end is out of view: no tip, no split; give the visible centreline for what it is worth.
             outcome = self.splitter.static(fixed_rc)
@@ -183,10 +205,6 @@ class Pipeline:
             result.message = "contour found but no segmentation points"
             self._prev_tips = None
             return
-        measured = math.isfinite(outcome.width_px) and outcome.width_px > 0
-        if self.config.rope_width_px is None and measured and len(self._widths) < 50:
-            self._widths.append(outcome.width_px)
-            self._width_cache = None
         self._prev_sweep = outcome.sweep_px
         result.method = outcome.method
         result.rope_width_px = outcome.width_px
@@ -201,6 +219,9 @@ class Pipeline:
         result.material_end, result.stretch_end = self.tracker.track(end, 1)
         result.status = FrameStatus.OK
         self._prev_tips = (begin[-1].astype(np.float64), end[-1].astype(np.float64))
+        if self._last_tip is not None:
+            self._prev_step = float(np.hypot(*(self._prev_tips[1] - self._last_tip)))
+        self._last_tip = self._prev_tips[1]
         self._prev_t_ns = (result.t_ns, result.t_end_ns)
 
     def _trace(self, lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
@@ -209,12 +230,19 @@ class Pipeline:
 
     def _motion_margin(self) -> float:
         """Extra ROI half-width at the tip: how far the rope may move from the last contour to the end of this
-        exposure (the last tip sweep scaled from the exposure to the frame period, plus 30 %)."""
+        exposure (the larger of the last tip sweep scaled from the exposure to the frame period and the last
+        frame-to-frame tip step, plus 30 % and a pixel)."""
         if self._prev_t_ns is None:
             return 0.0
         exposure_ns = max(1, self._prev_t_ns[1] - self._prev_t_ns[0])
         period_ns = self._period_ns or 2 * exposure_ns
-        return 1.3 * self._prev_sweep * period_ns / exposure_ns
+        return 1.3 * max(self._prev_sweep * period_ns / exposure_ns, self._prev_step) + 1.0
+
+    def _polarity_now(self) -> float:
+        """The configured polarity, or the majority of the first frames' once they are in (0 = decide now)."""
+        if self._polarity != 0.0 or len(self._polarity_votes) < _POLARITY_FRAMES:
+            return self._polarity
+        return 1.0 if sum(self._polarity_votes) >= 0 else -1.0
 
     def _width(self) -> float | None:
         if self.config.rope_width_px is not None:

@@ -183,9 +183,21 @@ class BlurSplitter:
                 medians.append(float(np.median(found)) if found.size > self._n // 4 else np.inf)
             pol = 1.0 if medians[0] <= medians[1] else -1.0
         self.polarity_used = np.float32(pol)
-        K.measure_widths(
-            edges_ro, mag, self._gx, self._gy, self._chain, self._n, self.polarity_used, f32(64.0), self.dist
-        )
+        self.width_measured = float("nan")
+        if width_px is None:
+            self._measure_width(edges_ro, mag, fixed_rc)
+        if width_px is not None:
+            self.width = float(width_px)
+        elif np.isfinite(self.width_measured):
+            self.width = self.width_measured
+        else:
+            self.width = 4.0
+
+    def _measure_width(
+        self, edges: NDArray[np.uint8], mag: NDArray[np.float32], fixed_rc: tuple[float, float] | None
+    ) -> None:
+        """Measure the rope width: the median distance to the opposite edge, near the fixed end if known."""
+        K.measure_widths(edges, mag, self._gx, self._gy, self._chain, self._n, self.polarity_used, f32(64.0), self.dist)
         widths = self.dist[: self._n]
         finite = np.isfinite(widths)
         valid = widths[finite]
@@ -197,12 +209,6 @@ class BlurSplitter:
             near = finite & (dist > 3.0 * self.width_measured) & (dist < 0.25 * dist.max())
             if np.count_nonzero(near) >= 4:
                 self.width_measured = float(np.median(widths[near]))
-        if width_px is not None:
-            self.width = float(width_px)
-        elif np.isfinite(self.width_measured):
-            self.width = self.width_measured
-        else:
-            self.width = 4.0
 
     def static(self, fixed_rc: tuple[float, float] | None = None) -> SplitOutcome | None:
         """Return the centreline of a rope that did not move (or cannot be split): one side of the contour, from
