@@ -75,7 +75,7 @@ class PipelineConfig:
     length0_px: float | None = None
     length0_frames: int = 5
     material_points_m: tuple[float, ...] = (0.25, 0.5, 0.75, 1.0)
-    static_ratio: float = 1.1
+    static_ratio: float = 0.6
     corner_scale_px: int = 3
     paper_endpoint_radius_px: float = 15.0
     output_step_px: float = 2.0

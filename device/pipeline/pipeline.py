@@ -53,7 +53,7 @@ class Pipeline:
         self.tracer = ContourTracer(height, width, cap, config.min_contour_px)
         self.splitter = BlurSplitter(
             cap, config.method, config.static_ratio, config.corner_scale_px,
-            config.paper_endpoint_radius_px, config.output_step_px, config.tip_cap,
+            config.paper_endpoint_radius_px, config.output_step_px, config.tip_cap, config.smooth_sigma_px,
         )  # fmt: skip
         self.tracker = PointTracker(
             config.material_points_m, config.rope_length_m, config.length0_px, config.length0_frames
@@ -181,6 +181,7 @@ class Pipeline:
             e.gy,
             e.edges,
             e.mag,
+            e.smooth,
             self._polarity_now(),
         )
         if measure and math.isfinite(self.splitter.width_measured) and self.splitter.width_measured > 0:
@@ -205,7 +206,7 @@ class Pipeline:
             result.message = "contour found but no segmentation points"
             self._prev_tips = None
             return
-        self._prev_sweep = outcome.sweep_px
+        self._prev_sweep = self.splitter.sweep_px
         result.method = outcome.method
         result.rope_width_px = outcome.width_px
         result.segmentation_points = outcome.segmentation_points

@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import f32, i32, ro
+from ropecam.device.pipeline.edges import gaussian_weights
 from ropecam.device.pipeline.result import Method
 
 __all__ = ["BlurSplitter", "SplitOutcome"]
@@ -61,9 +62,13 @@ class BlurSplitter:
         paper_radius_px: float = 15.0,
         output_step_px: float = 2.0,
         tip_cap: str = "round",
+        smooth_sigma_px: float = 1.0,
     ) -> None:
         self.method = method
         self.tip_cap_ratio = 0.5 if tip_cap == "round" else 0.0
+        self.weights = gaussian_weights(smooth_sigma_px).astype(np.float64)
+        self._responses: dict[int, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
+        self.sweep_px = 0.0
         self.static_ratio = float(static_ratio)
         self.corner_scale = int(corner_scale_px)
         self.paper_radius = np.float32(paper_radius_px)
@@ -93,6 +98,7 @@ class BlurSplitter:
         gy: NDArray[np.float32],
         edges: NDArray[np.uint8],
         mag: NDArray[np.float32],
+        smooth: NDArray[np.float32],
         polarity: float = 0.0,
     ) -> SplitOutcome | None:
         """Split the closed contour (`n` subpixel `points`, integer `chain`) of a rope fixed at `fixed_rc`.
@@ -111,6 +117,7 @@ class BlurSplitter:
         SplitOutcome or None
             None when the contour cannot be split (too short, no segmentation points).
         """
+        self._smooth = smooth
         self._prepare(points, chain, n, width_px, gx, gy, edges, polarity, mag, fixed_rc)
         points, chain, n = self._points, self._chain, self._n
         fixed_r, fixed_c = np.float32(fixed_rc[0]), np.float32(fixed_rc[1])
@@ -138,6 +145,13 @@ class BlurSplitter:
         self.seg[0] = points[seg_a]
         self.seg[1] = points[seg_b]
         sweep = float(np.hypot(*(points[seg_a] - points[seg_b])))
+        if sweep < 1.5 * width:
+            # The corners of the band are a rope width apart whatever the sweep below that: read the sweep from
+            # the edge slope instead (contrast / sweep, see `_sweep_from_gradient`).
+            from_slope = self._sweep_from_gradient(int(i_fix), int(seg_a), int(seg_b), fixed_rc)
+            if np.isfinite(from_slope):
+                sweep = min(from_slope, 1.5 * width)
+        self.sweep_px = sweep
         if sweep < self.static_ratio * width:
             return self.static(fixed_rc)
         w = np.float32(width)
@@ -166,6 +180,7 @@ class BlurSplitter:
     ) -> None:
         """Store read-only views, the contour orientation, the polarity and the rope width of this contour."""
         self._points, self._chain, self._n = ro(points), ro(chain), i32(n)
+        self._mag = mag
         self._gx, self._gy = ro(gx), ro(gy)
         self.sign = np.float32(1.0 if K.signed_area(self._points, self._n) >= 0 else -1.0)
         pol = float(polarity)
@@ -192,6 +207,100 @@ class BlurSplitter:
             self.width = self.width_measured
         else:
             self.width = 4.0
+
+    def _sweep_from_gradient(self, i_fix: int, seg_a: int, seg_b: int, fixed_rc: tuple[float, float]) -> float:
+        """Estimate the tip sweep from the gradient magnitude along the sides.
+
+        Across the band the intensity rises with slope contrast / d (each pixel is covered for a time in proportion
+        to 1/d), whatever the rope width; the smoothed Sobel magnitude at the edge, divided by the contrast, is
+        therefore a decreasing function of the local sweep d, tabulated for this rope width and smoothing by
+        `_response`. The contrast is read from the image near the fixed end, where the rope hardly moved; d(s) is
+        taken as proportional to the arc length s (rotation about the fixed end) and extrapolated to the tip.
+        Returns nan when it cannot be measured.
+        """
+        n = int(self._n)
+        chain = self._chain
+        mag = self._mag
+        smooth = self._smooth
+        pol = float(self.polarity_used)
+        width = self.width
+        pts = self._points
+        # Contrast near the fixed end: inside (half a width into the rope) minus outside (a width out).
+        idx_a = (i_fix + np.arange((seg_a - i_fix) % n + 1)) % n
+        idx_b = (i_fix - np.arange((i_fix - seg_b) % n + 1)) % n
+        dist = np.hypot(pts[:n, 0] - fixed_rc[0], pts[:n, 1] - fixed_rc[1])
+        r_far = float(dist.max())
+        near = np.flatnonzero((dist > 2.0 * width + 2.0) & (dist < 2.0 * width + 2.0 + 0.1 * r_far))
+        if near.size < 4:
+            return float("nan")
+        rc = chain[near]
+        g = np.stack([self._gy[rc[:, 0], rc[:, 1]], self._gx[rc[:, 0], rc[:, 1]]], axis=1) * pol
+        g /= np.maximum(np.hypot(*g.T), 1e-6)[:, None]
+        height, width_img = smooth.shape
+        inside = np.rint(pts[near] + 0.5 * width * g).astype(int)
+        outside = np.rint(pts[near] - (width + 2.0) * g).astype(int)
+        ok = (inside.min(axis=1) >= 0) & (outside.min(axis=1) >= 0)
+        ok &= (inside[:, 0] < height) & (outside[:, 0] < height) & (inside[:, 1] < width_img)
+        ok &= outside[:, 1] < width_img
+        if np.count_nonzero(ok) < 4:
+            return float("nan")
+        contrast = abs(float(np.median(smooth[inside[ok, 0], inside[ok, 1]] - smooth[outside[ok, 0], outside[ok, 1]])))
+        if contrast < 5.0:
+            return float("nan")
+        sweeps, ratios = self._response(width)
+        estimates = []
+        for idx in (idx_a, idx_b):
+            count = idx.size
+            if count < 12:
+                continue
+            lo, hi = int(0.5 * count), int(0.85 * count)
+            frac = np.arange(lo, hi) / (count - 1)
+            sel = idx[lo:hi]
+            m = mag[chain[sel, 0], chain[sel, 1]] / contrast
+            d = np.interp(m, ratios, sweeps)  # ratios increasing (sweeps decreasing)
+            estimates.append(float(np.median(d / frac)))
+        return float(np.median(estimates)) if estimates else float("nan")
+
+    def _response(self, width: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Peak smoothed-Sobel magnitude per unit contrast at the edge of a band swept by d, for d on a grid
+        (both returned sorted by increasing magnitude, for `np.interp`)."""
+        key = round(width * 20)
+        cached = self._responses.get(key)
+        if cached is not None:
+            return cached
+        sweeps = np.geomspace(0.05, 200.0, 160)
+        fine = 0.02
+        peaks = []
+        for d in sweeps:
+            x = np.arange(-4 * width - 20, width + d + 20, fine)
+            a = min(width, d)
+            cover = np.clip(x / a, 0, 1) * min(1.0, width / d)  # the first ramp of the trapezoid
+            values = []
+            for phase in (0.0, 0.25, 0.5, 0.75):
+                edges = np.arange(x[0] + phase, x[-1] - 1, 1.0)
+                idx = ((edges - x[0]) / fine).astype(int)
+                step = round(1.0 / fine)
+                pix = np.add.reduceat(cover, idx)[:-1] / step
+                sm = np.convolve(pix, self.weights[::-1], mode="same")
+                gx = 4.0 * (sm[2:] - sm[:-2])
+                values.append(np.max(np.abs(gx[len(self.weights) : -len(self.weights)])))
+            peaks.append(float(np.mean(values)))
+        # The contrast is measured on the smoothed image at the centre of the still rope: normalise by the same.
+        x = np.arange(-width - 20, 2 * width + 20, fine)
+        rope = ((x >= 0) & (x < width)).astype(float)
+        centres = []
+        for phase in (0.0, 0.25, 0.5, 0.75):
+            edges = np.arange(x[0] + phase, x[-1] - 1, 1.0)
+            idx = ((edges - x[0]) / fine).astype(int)
+            pix = np.add.reduceat(rope, idx)[:-1] / round(1.0 / fine)
+            sm = np.convolve(pix, self.weights[::-1], mode="same")
+            centre = np.argmin(np.abs(edges[:-1] + 0.5 - 0.5 * width))
+            centres.append(sm[centre])
+        peaks_arr = np.minimum.accumulate(np.array(peaks) / float(np.mean(centres)))  # monotone for the inversion
+        order = np.argsort(peaks_arr, kind="stable")
+        result = (sweeps[order], peaks_arr[order])
+        self._responses[key] = result
+        return result
 
     def _measure_width(
         self, edges: NDArray[np.uint8], mag: NDArray[np.float32], fixed_rc: tuple[float, float] | None
