@@ -16,7 +16,10 @@ ropecam-device turns camera frames into rope shapes and tracked material points 
 """
 
 # One module per sub-command; each defines register(subparsers).
-COMMAND_MODULES: tuple[str, ...] = ("ropecam.device.capture.probe",)
+COMMAND_MODULES: tuple[str, ...] = (
+    "ropecam.device.extract",
+    "ropecam.device.capture.probe",
+)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -1,0 +1,144 @@
+"""Synthetic motion-blurred rope frames with ground truth: the in-process frame source for tests, benchmarks and demos.
+
+A rope of `length_px` pixels hangs from a fixed end and swings as a bending pendulum; a frame is the average of
+sub-frames rendered through the exposure (anti-aliased thick polyline), plus Gaussian noise. The ground truth is
+the centreline at the start and at the end of each exposure, in the same (u, v) = (col, row) pixel convention as
+the pipeline's output. This is not the rig simulator (`ropecam simulate`, host side): it has no camera model, no
+physics and no lens; it exists so that the device can be tested and benchmarked on its own.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["SyntheticFrame", "SyntheticRope"]
+
+
+@dataclass(frozen=True, slots=True)
+class SyntheticFrame:
+    """One rendered frame and its truth (points are (u, v) = (col, row) pixels, fixed end first)."""
+
+    index: int
+    t_ns: int
+    exposure_us: int
+    image: NDArray[np.uint8]
+    begin_uv: NDArray[np.float64]
+    end_uv: NDArray[np.float64]
+
+    @property
+    def tip_begin_uv(self) -> NDArray[np.float64]:
+        """The free tip at the start of the exposure."""
+        return self.begin_uv[-1]
+
+    @property
+    def tip_end_uv(self) -> NDArray[np.float64]:
+        """The free tip at the end of the exposure."""
+        return self.end_uv[-1]
+
+
+@dataclass(frozen=True, slots=True)
+class SyntheticRope:
+    """Parameters of the synthetic swinging rope and camera.
+
+    Parameters
+    ----------
+    width, height
+        Image size in pixels.
+    fixed_uv
+        The fixed end (col, row) in pixels.
+    length_px
+        Rope length in pixels.
+    diameter_px
+        Rope diameter in pixels.
+    amplitude_rad, period_s
+        Swing amplitude (from vertical, towards +u) and period.
+    bend
+        Extra angle at the tip relative to the fixed end, as a fraction of the swing angle (whip-like bending).
+    fps, exposure_us
+        Frame rate and exposure time.
+    background, rope_level
+        Grey levels of background and rope (rope darker than background gives a dark rope).
+    noise_dn
+        Standard deviation of the Gaussian noise in grey levels.
+    phase_rad
+        Phase of the swing at t = 0.
+    seed
+        Noise seed.
+    """
+
+    width: int = 320
+    height: int = 240
+    fixed_uv: tuple[float, float] = (160.3, 20.6)
+    length_px: float = 180.0
+    diameter_px: float = 4.0
+    amplitude_rad: float = 0.6
+    period_s: float = 1.2
+    bend: float = 0.3
+    fps: float = 119.0
+    exposure_us: int = 4000
+    background: float = 30.0
+    rope_level: float = 200.0
+    noise_dn: float = 2.0
+    phase_rad: float = 0.3
+    seed: int = 1
+    nodes: int = field(default=64)
+
+    def centreline(self, t_s: float) -> NDArray[np.float64]:
+        """Return the centreline (nodes, 2) as (u, v) pixels at time `t_s`, fixed end first."""
+        omega = 2.0 * math.pi / self.period_s
+        theta = self.amplitude_rad * math.cos(omega * t_s + self.phase_rad)
+        s = np.linspace(0.0, 1.0, self.nodes)
+        phi = theta * (1.0 + self.bend * s)
+        ds = self.length_px / (self.nodes - 1)
+        du = np.concatenate([[0.0], np.cumsum(0.5 * (np.sin(phi[1:]) + np.sin(phi[:-1])) * ds)])
+        dv = np.concatenate([[0.0], np.cumsum(0.5 * (np.cos(phi[1:]) + np.cos(phi[:-1])) * ds)])
+        return np.stack([self.fixed_uv[0] + du, self.fixed_uv[1] + dv], axis=1)
+
+    def coverage(self, line_uv: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Return the fraction (0-1) of each pixel covered by the rope along `line_uv` (anti-aliased)."""
+        radius = 0.5 * self.diameter_px
+        out = np.zeros((self.height, self.width))
+        lo = np.floor(line_uv.min(axis=0) - radius - 2).astype(int)
+        hi = np.ceil(line_uv.max(axis=0) + radius + 2).astype(int)
+        u0, v0 = max(lo[0], 0), max(lo[1], 0)
+        u1, v1 = min(hi[0], self.width - 1), min(hi[1], self.height - 1)
+        if u1 < u0 or v1 < v0:
+            return out
+        vv, uu = np.mgrid[v0 : v1 + 1, u0 : u1 + 1].astype(np.float64)
+        dist = np.full(uu.shape, np.inf)
+        for a, b in itertools.pairwise(line_uv):
+            d = b - a
+            t = np.clip(((uu - a[0]) * d[0] + (vv - a[1]) * d[1]) / max(float(d @ d), 1e-12), 0.0, 1.0)
+            np.minimum(dist, np.hypot(uu - a[0] - t * d[0], vv - a[1] - t * d[1]), out=dist)
+        out[v0 : v1 + 1, u0 : u1 + 1] = np.clip(radius + 0.5 - dist, 0.0, 1.0)
+        return out
+
+    def render(self, index: int, rng: np.random.Generator | None = None) -> SyntheticFrame:
+        """Render frame `index` (exposure starting at ``index / fps``)."""
+        t0 = index / self.fps
+        exposure_s = self.exposure_us * 1e-6
+        begin = self.centreline(t0)
+        end = self.centreline(t0 + exposure_s)
+        travel = float(np.max(np.hypot(*(end - begin).T)))
+        n_sub = int(min(256, max(4, math.ceil(travel / 0.2))))
+        acc = np.zeros((self.height, self.width))
+        for k in range(n_sub):
+            acc += self.coverage(self.centreline(t0 + exposure_s * (k + 0.5) / n_sub))
+        acc /= n_sub
+        image = self.background + (self.rope_level - self.background) * acc
+        if self.noise_dn > 0:
+            rng = rng if rng is not None else np.random.default_rng(self.seed + index)
+            image = image + rng.normal(0.0, self.noise_dn, image.shape)
+        pixels = np.clip(np.rint(image), 0, 255).astype(np.uint8)
+        return SyntheticFrame(index, round(t0 * 1e9), self.exposure_us, pixels, begin, end)
+
+    def frames(self, count: int, start: int = 0) -> Iterator[SyntheticFrame]:
+        """Yield `count` consecutive frames starting at frame `start`."""
+        for index in range(start, start + count):
+            yield self.render(index)

@@ -1,0 +1,110 @@
+"""Configuration of the rope pipeline (the ``[pipeline]`` table of ``device.toml``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+from ropecam.shared.config import check_in, check_positive, check_range
+from ropecam.shared.errors import ConfigError
+
+__all__ = ["METHODS", "PipelineConfig"]
+
+METHODS = ("blur_split", "paper", "centerline", "static")
+
+
+@dataclass(frozen=True, slots=True)
+class PipelineConfig:
+    """Settings of edge detection, contour splitting and material point tracking.
+
+    Parameters
+    ----------
+    method
+        ``blur_split`` (default: subpixel edges, modelled inward offset, continuity ordering), ``paper`` (the
+        paper's literal operator and Table 1 scoring on the integer chain) or ``centerline`` (centreline of the
+        blurred region, one shape per frame) or ``static`` (always the static centreline: still scenes, photos).
+    polarity
+        ``bright`` rope on a dark background, ``dark`` rope on a bright one, or ``auto`` (decided per frame from
+        the gradients along the contour).
+    tip_cap
+        Shape of the rope's free end: ``round`` (the band's edge runs half a width beyond the axis end) or
+        ``flat``.
+    smooth_sigma_px
+        Gaussian smoothing before the Sobel gradient (0 disables it).
+    canny_low, canny_high
+        Hysteresis thresholds on the L2 Sobel magnitude of the smoothed image (grey levels x 8 per pixel).
+    min_contour_px
+        Smallest edge component accepted as a rope.
+    roi_margin_px
+        Half-width of the band processed around the previous contour (plus the previous frame's sweep).
+    fixed_end_uv
+        The fixed end (u, v) in pixels; found automatically over the first frames when not given.
+    rope_width_px
+        Rope diameter in pixels; estimated from the image when not given.
+    rope_length_m
+        Unstretched rope length; material points are given in metres of it.
+    length0_px
+        Unstretched rope length in pixels (Lc0); the median of the first `length0_frames` shapes when not given.
+    length0_frames
+        Number of shapes whose median length becomes Lc0.
+    material_points_m
+        Arc lengths (metres of unstretched rope from the fixed end) of the tracked material points.
+    static_ratio
+        Below this ratio of tip sweep to rope width the blur cannot be split: the centreline fallback is used.
+    corner_scale_px
+        Chord length (contour points) of the turning angle used to find the segmentation points.
+    paper_endpoint_radius_px
+        Threshold T of the paper's Feature 3.
+    output_step_px
+        Spacing of the output polylines.
+    max_contour
+        Capacity of the contour buffers (points).
+    """
+
+    method: Literal["blur_split", "paper", "centerline", "static"] = "blur_split"
+    polarity: Literal["auto", "bright", "dark"] = "auto"
+    tip_cap: Literal["round", "flat"] = "round"
+    smooth_sigma_px: float = 1.0
+    canny_low: float = 20.0
+    canny_high: float = 50.0
+    min_contour_px: int = 40
+    roi_margin_px: int = 6
+    fixed_end_uv: tuple[float, float] | None = None
+    rope_width_px: float | None = None
+    rope_length_m: float = 1.0
+    length0_px: float | None = None
+    length0_frames: int = 5
+    material_points_m: tuple[float, ...] = (0.25, 0.5, 0.75, 1.0)
+    static_ratio: float = 0.6
+    corner_scale_px: int = 3
+    paper_endpoint_radius_px: float = 15.0
+    output_step_px: float = 2.0
+    max_contour: int = 40_000
+
+    def __post_init__(self) -> None:
+        check_in("method", self.method, METHODS)
+        check_in("polarity", self.polarity, ("auto", "bright", "dark"))
+        check_in("tip_cap", self.tip_cap, ("round", "flat"))
+        check_range("smooth_sigma_px", self.smooth_sigma_px, 0.0, 5.0)
+        check_positive("canny_low", self.canny_low)
+        check_positive("canny_high", self.canny_high)
+        if self.canny_high < self.canny_low:
+            raise ConfigError(f"canny_high must be >= canny_low, got {self.canny_high} < {self.canny_low}")
+        check_range("min_contour_px", self.min_contour_px, 4, 1_000_000)
+        check_range("roi_margin_px", self.roi_margin_px, 2, 1000)
+        if self.fixed_end_uv is not None:
+            for value in self.fixed_end_uv:
+                check_range("fixed_end_uv", value, -1e6, 1e6)
+        if self.rope_width_px is not None:
+            check_range("rope_width_px", self.rope_width_px, 0.1, 500.0)
+        check_positive("rope_length_m", self.rope_length_m)
+        if self.length0_px is not None:
+            check_positive("length0_px", self.length0_px)
+        check_range("length0_frames", self.length0_frames, 1, 10_000)
+        for value in self.material_points_m:
+            check_range("material_points_m", value, 0.0, self.rope_length_m)
+        check_range("static_ratio", self.static_ratio, 0.0, 100.0)
+        check_range("corner_scale_px", self.corner_scale_px, 1, 50)
+        check_positive("paper_endpoint_radius_px", self.paper_endpoint_radius_px)
+        check_range("output_step_px", self.output_step_px, 0.25, 100.0)
+        check_range("max_contour", self.max_contour, 100, 10_000_000)

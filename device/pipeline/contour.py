@@ -1,0 +1,83 @@
+"""ContourTracer: the rope's edge component, its closed outer contour (Freeman chain) and subpixel positions."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._views import i32, ro
+
+__all__ = ["ContourTracer"]
+
+
+class ContourTracer:
+    """Keep the largest edge component, trace its outer boundary clockwise and refine it to subpixel positions.
+
+    Parameters
+    ----------
+    height, width
+        Image size.
+    capacity
+        Maximum number of contour points.
+    min_pixels
+        Smallest component accepted.
+    """
+
+    def __init__(self, height: int, width: int, capacity: int, min_pixels: int) -> None:
+        self.shape = (height, width)
+        self.min_pixels = int(min_pixels)
+        self.labels = np.zeros((height, width), np.int32)
+        self.stack = np.zeros(height * width, np.int32)
+        self.start = np.zeros(2, np.int32)
+        self.chain = np.zeros((capacity, 2), np.int32)
+        self.codes = np.zeros(capacity, np.int32)
+        self.points = np.zeros((capacity, 2), np.float32)
+        self.count = 0
+        self.component_px = 0
+
+    def trace(
+        self,
+        edges: NDArray[np.uint8],
+        lo: NDArray[np.int32],
+        hi: NDArray[np.int32],
+        mag: NDArray[np.float32],
+        gx: NDArray[np.float32],
+        gy: NDArray[np.float32],
+    ) -> int:
+        """Trace the rope contour in `edges` (modified: other components are cleared) inside the spans.
+
+        Returns
+        -------
+        int
+            The number of contour points (0 when no component has `min_pixels` pixels). `chain` (int32 row, col),
+            `codes` (Freeman) and `points` (float32 subpixel row, col) hold them until the next call.
+        """
+        size = K.keep_largest_component(
+            edges, ro(lo), ro(hi), i32(self.min_pixels), self.labels, self.stack, self.start
+        )
+        self.component_px = max(int(size), 0)
+        if size < 0:
+            self.count = 0
+            return 0
+        n = K.trace_contour(ro(edges), ro(lo), ro(hi), self.start[0], self.start[1], self.chain, self.codes)
+        if n < 0:  # FULL: a contour longer than the buffers is not a rope
+            self.count = 0
+            return 0
+        K.refine_subpixel(ro(mag), ro(gx), ro(gy), ro(self.chain), n, self.points)
+        self.count = int(n)
+        return self.count
+
+    def roi_contacts(self, lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
+        """Return how many contour pixels touch the border of the region of interest."""
+        return int(K.count_roi_contacts(ro(self.chain), i32(self.count), ro(lo), ro(hi), i32(self.shape[1])))
+
+    def border_contacts(self, fixed_rc: tuple[float, float] | None, exclude_px: float) -> int:
+        """Return how many contour pixels lie on the image border farther than `exclude_px` from the fixed end."""
+        chain = self.chain[: self.count]
+        height, width = self.shape
+        on_border = (chain[:, 0] == 0) | (chain[:, 0] == height - 1) | (chain[:, 1] == 0) | (chain[:, 1] == width - 1)
+        if fixed_rc is not None and on_border.any():
+            far = np.hypot(chain[:, 0] - fixed_rc[0], chain[:, 1] - fixed_rc[1]) > exclude_px
+            on_border &= far
+        return int(np.count_nonzero(on_border))

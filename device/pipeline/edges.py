@@ -1,0 +1,90 @@
+"""EdgeDetector: Canny edges of a frame inside a region of interest given as row spans."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._views import ro
+
+__all__ = ["EdgeDetector", "gaussian_weights"]
+
+
+def gaussian_weights(sigma_px: float) -> NDArray[np.float32]:
+    """Return the normalised 1-D Gaussian of standard deviation `sigma_px` (radius ceil(2 sigma)); ``[1]`` for 0."""
+    if sigma_px <= 0:
+        return np.ones(1, np.float32)
+    radius = max(1, math.ceil(2.0 * sigma_px))
+    x = np.arange(-radius, radius + 1, dtype=np.float64)
+    w = np.exp(-0.5 * (x / sigma_px) ** 2)
+    return (w / w.sum()).astype(np.float32)
+
+
+class EdgeDetector:
+    """Canny edge detection (Gaussian, Sobel, non-maximum suppression, hysteresis) with buffers owned per image size.
+
+    Parameters
+    ----------
+    height, width
+        Image size in pixels.
+    smooth_sigma_px
+        Gaussian smoothing (0: none, then the edges equal ``cv2.Canny(frame, low, high, L2gradient=True)``).
+    low, high
+        Hysteresis thresholds on the L2 Sobel magnitude.
+    """
+
+    def __init__(self, height: int, width: int, smooth_sigma_px: float, low: float, high: float) -> None:
+        if height < 3 or width < 3:
+            raise ValueError(f"image must be at least 3x3 pixels, got {width}x{height}")
+        if not 0 < low <= high:
+            raise ValueError(f"need 0 < low <= high, got low={low}, high={high}")
+        self.shape = (height, width)
+        self.low = np.float32(low)
+        self.high = np.float32(high)
+        self.weights = gaussian_weights(smooth_sigma_px)
+        self.work_spans = np.zeros((4, height), np.int32)
+        self.tmp = np.zeros((height, width), np.float32)
+        self.smooth = np.zeros((height, width), np.float32)
+        self.gx = np.zeros((height, width), np.float32)
+        self.gy = np.zeros((height, width), np.float32)
+        self.mag = np.zeros((height, width), np.float32)
+        self.edges = np.zeros((height, width), np.uint8)
+        self.stack = np.zeros(height * width, np.int32)
+        self.full_lo = np.zeros(height, np.int32)
+        self.full_hi = np.full(height, width - 1, np.int32)
+
+    def detect(self, frame: NDArray[np.uint8], lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
+        """Detect edges of `frame` inside the row spans `lo`/`hi`; returns the number of edge pixels.
+
+        Parameters
+        ----------
+        frame
+            (height, width) uint8, C-contiguous.
+        lo, hi
+            (height,) int32 first and last column of each row to process (empty when ``hi < lo``).
+
+        Returns
+        -------
+        int
+            Edge pixel count; the edge map is `edges` (1 = edge, valid inside the spans until the next call),
+            gradients `gx`, `gy`, `mag`.
+
+        Raises
+        ------
+        ValueError
+            Wrong shape, dtype or layout.
+        """
+        if frame.shape != self.shape or frame.dtype != np.uint8 or not frame.flags.c_contiguous:
+            raise ValueError(f"frame must be C-contiguous uint8 of shape {self.shape}, got {frame.dtype} {frame.shape}")
+        if lo.shape != (self.shape[0],) or hi.shape != (self.shape[0],) or lo.dtype != np.int32:
+            raise ValueError(f"lo/hi must be int32 of shape ({self.shape[0]},)")
+        count = K.detect_edges(
+            ro(frame), ro(self.weights), ro(lo), ro(hi), self.low, self.high, self.work_spans, self.tmp, self.smooth,
+            self.gx, self.gy, self.mag, self.edges, self.stack,
+        )  # fmt: skip
+        if count < 0:
+            raise RuntimeError(f"detect_edges returned status {count}")
+        return int(count)

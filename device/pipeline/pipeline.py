@@ -1,0 +1,297 @@
+"""Pipeline: one frame in, the rope at the start and the end of the exposure out (with material points).
+
+It owns every buffer (allocated once per image size) and keeps the little state that links frames: the region of
+interest around the last rope, the fixed end, the rope width, Lc0 and the previous shapes used to put the two
+shapes of a frame in time order.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._views import i32, ro
+from ropecam.device.pipeline.config import PipelineConfig
+from ropecam.device.pipeline.contour import ContourTracer
+from ropecam.device.pipeline.edges import EdgeDetector
+from ropecam.device.pipeline.result import FrameResult, FrameStatus
+from ropecam.device.pipeline.split import BlurSplitter
+from ropecam.device.pipeline.tracking import PointTracker
+
+__all__ = ["Pipeline"]
+
+_FIXED_END_FRAMES = 10
+_WIDTH_FRAMES = 15
+"""Frames whose measured rope width (median) is used afterwards, when the config gives none."""
+_POLARITY_FRAMES = 5
+"""Frames whose polarity votes decide the polarity afterwards, when the config says auto."""
+
+
+class Pipeline:
+    """Measure the rope in each frame.
+
+    Parameters
+    ----------
+    config
+        Pipeline settings.
+    image_size
+        (width, height) of every frame; frames of another size get status BAD_FRAME.
+    """
+
+    def __init__(self, config: PipelineConfig, image_size: tuple[int, int]) -> None:
+        width, height = (int(v) for v in image_size)
+        if width < 8 or height < 8:
+            raise ValueError(f"image_size must be at least 8x8, got {image_size}")
+        self.config = config
+        self.shape = (height, width)
+        cap = config.max_contour
+        self.edges = EdgeDetector(height, width, config.smooth_sigma_px, config.canny_low, config.canny_high)
+        self.tracer = ContourTracer(height, width, cap, config.min_contour_px)
+        self.splitter = BlurSplitter(
+            cap, config.method, config.static_ratio, config.corner_scale_px,
+            config.paper_endpoint_radius_px, config.output_step_px, config.tip_cap, config.smooth_sigma_px,
+        )  # fmt: skip
+        self.tracker = PointTracker(
+            config.material_points_m, config.rope_length_m, config.length0_px, config.length0_frames
+        )
+        self.lo = np.zeros(height, np.int32)
+        self.hi = np.zeros(height, np.int32)
+        self.prev_points = np.zeros((cap, 2), np.float32)
+        self.prev_count = 0
+        self.turn_cap = np.zeros(cap, np.float32)
+        self.begin_buf = np.zeros((cap, 2), np.float32)
+        self.end_buf = np.zeros((cap, 2), np.float32)
+        self.fixed = np.zeros(2, np.float32)
+        self._fixed_known = config.fixed_end_uv is not None
+        self._fixed_frames = 0
+        if config.fixed_end_uv is not None:
+            self.fixed[:] = (config.fixed_end_uv[1], config.fixed_end_uv[0])
+        self._widths: list[float] = []
+        self._polarity = {"auto": 0.0, "bright": 1.0, "dark": -1.0}[config.polarity]
+        self._polarity_votes: list[float] = []
+        self._width_cache: float | None = None
+        self._prev_tips: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
+        self._prev_t_ns: tuple[int, int] | None = None
+        self._prev_sweep = 0.0
+        self._prev_step = 0.0
+        self._last_tip: NDArray[np.float64] | None = None
+        self._period_ns: int | None = None
+        self.frames_full = 0
+        self.frames_roi = 0
+
+    # ----------------------------------------------------------------------------------------------------------
+    def process(self, frame: object, index: int, t_ns: int, exposure_us: float) -> FrameResult:
+        """Measure one frame.
+
+        Parameters
+        ----------
+        frame
+            (height, width) uint8 image; anything else gives status BAD_FRAME (never an exception).
+        index
+            Frame number.
+        t_ns
+            Start of the exposure in integer nanoseconds.
+        exposure_us
+            Exposure time in microseconds.
+
+        Returns
+        -------
+        FrameResult
+            Arrays in it are views into the pipeline's buffers, valid until the next call.
+        """
+        start_ns = time.perf_counter_ns()
+        t_end_ns = int(t_ns + round(exposure_us * 1000))
+        result = FrameResult(frame=int(index), t_ns=int(t_ns), t_end_ns=t_end_ns, status=FrameStatus.BAD_FRAME)
+        problem = self._check_frame(frame)
+        if problem:
+            result.message = problem
+        else:
+            assert isinstance(frame, np.ndarray)
+            image = frame if frame.flags.c_contiguous else np.ascontiguousarray(frame)
+            self._measure(image, result)
+        if self._prev_t_ns is not None and t_ns > self._prev_t_ns[0]:
+            self._period_ns = int(t_ns - self._prev_t_ns[0])
+        result.pipeline_us = (time.perf_counter_ns() - start_ns) / 1000.0
+        return result
+
+    def _check_frame(self, frame: object) -> str:
+        if not isinstance(frame, np.ndarray):
+            return f"frame is a {type(frame).__name__}, expected a numpy array"
+        if frame.dtype != np.uint8:
+            return f"frame dtype is {frame.dtype}, expected uint8"
+        if frame.ndim != 2:
+            return f"frame has shape {frame.shape}, expected 2-D {self.shape}"
+        if frame.shape != self.shape:
+            return f"frame shape is {frame.shape}, expected {self.shape}"
+        return ""
+
+    # ----------------------------------------------------------------------------------------------------------
+    def _measure(self, image: NDArray[np.uint8], result: FrameResult) -> None:
+        height, width = self.shape
+        n = 0
+        used_roi = False
+        if self.prev_count > 0:
+            motion = np.float32(self._motion_margin())
+            fr, fc = (np.float32(v) for v in self.fixed) if self._fixed_known else (np.float32(0), np.float32(0))
+            if not self._fixed_known:
+                motion = np.float32(0.0)
+            K.spans_around_points(
+                ro(self.prev_points), i32(self.prev_count), i32(self.config.roi_margin_px), motion, fr, fc,
+                i32(height), i32(width),
+                self.lo, self.hi,
+            )  # fmt: skip
+            self.edges.detect(image, self.lo, self.hi)
+            n = self._trace(self.lo, self.hi)
+            used_roi = n > 0 and self.tracer.roi_contacts(self.lo, self.hi) == 0
+        if not used_roi:
+            self.edges.detect(image, self.edges.full_lo, self.edges.full_hi)
+            n = self._trace(self.edges.full_lo, self.edges.full_hi)
+        result.full_frame = not used_roi
+        if used_roi:
+            self.frames_roi += 1
+        else:
+            self.frames_full += 1
+        if n == 0:
+            self.prev_count = 0
+            result.status = FrameStatus.NO_ROPE
+            result.message = "no edge component large enough to be the rope"
+            return
+        points = self.tracer.points
+        self.prev_points[:n] = points[:n]
+        self.prev_count = n
+        width_px = self._width()
+        fixed = self._fixed_end(points, n, width_px)
+        measure = self.config.rope_width_px is None and len(self._widths) < _WIDTH_FRAMES
+        result.fixed_end = self.fixed
+        exclude = 3.0 * (width_px or 4.0) + 10.0
+        fixed_rc = (float(fixed[0]), float(fixed[1]))
+        clipped = self.tracer.border_contacts(fixed_rc, exclude) > 0
+        e = self.edges
+        outcome = self.splitter.split(
+            points,
+            self.tracer.chain,
+            n,
+            fixed_rc,
+            None if measure else width_px,
+            e.gx,
+            e.gy,
+            e.edges,
+            e.mag,
+            e.smooth,
+            self._polarity_now(),
+        )
+        if measure and math.isfinite(self.splitter.width_measured) and self.splitter.width_measured > 0:
+            self._widths.append(self.splitter.width_measured)
+            self._width_cache = None
+        if self._polarity == 0.0 and len(self._polarity_votes) < _POLARITY_FRAMES:
+            self._polarity_votes.append(float(self.splitter.polarity_used))
+        if clipped:
+            # The free end is out of view: no tip, no split; give the visible centreline for what it is worth.
+            outcome = self.splitter.static(fixed_rc)
+            self._prev_tips = None
+            result.status = FrameStatus.ROPE_CLIPPED
+            result.message = "the rope touches the image border: it is leaving the field of view"
+            if outcome is not None:
+                result.method = outcome.method
+                result.begin = result.end = outcome.shape_a
+                result.rope_width_px = outcome.width_px
+                result.order_confidence = 1.0
+            return
+        if outcome is None:
+            result.status = FrameStatus.LOST_TRACK
+            result.message = "contour found but no segmentation points"
+            self._prev_tips = None
+            return
+        self._prev_sweep = self.splitter.sweep_px
+        result.method = outcome.method
+        result.rope_width_px = outcome.width_px
+        result.segmentation_points = outcome.segmentation_points
+        begin, end, confidence = self._order(outcome, result.t_ns)
+        result.begin, result.end, result.order_confidence = begin, end, confidence
+        self.tracker.observe(self.tracker.length(begin))
+        if end is not begin:
+            self.tracker.observe(self.tracker.length(end))
+        result.material_arc_m = self.tracker.arc_m
+        result.material_begin, result.stretch_begin = self.tracker.track(begin, 0)
+        result.material_end, result.stretch_end = self.tracker.track(end, 1)
+        result.status = FrameStatus.OK
+        self._prev_tips = (begin[-1].astype(np.float64), end[-1].astype(np.float64))
+        if self._last_tip is not None:
+            self._prev_step = float(np.hypot(*(self._prev_tips[1] - self._last_tip)))
+        self._last_tip = self._prev_tips[1]
+        self._prev_t_ns = (result.t_ns, result.t_end_ns)
+
+    def _trace(self, lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
+        e = self.edges
+        return self.tracer.trace(e.edges, lo, hi, e.mag, e.gx, e.gy)
+
+    def _motion_margin(self) -> float:
+        """Extra ROI half-width at the tip: how far the rope may move from the last contour to the end of this
+        exposure (the larger of the last tip sweep scaled from the exposure to the frame period and the last
+        frame-to-frame tip step, plus 30 % and a pixel)."""
+        if self._prev_t_ns is None:
+            return 0.0
+        exposure_ns = max(1, self._prev_t_ns[1] - self._prev_t_ns[0])
+        period_ns = self._period_ns or 2 * exposure_ns
+        return 1.3 * max(self._prev_sweep * period_ns / exposure_ns, self._prev_step) + 1.0
+
+    def _polarity_now(self) -> float:
+        """The configured polarity, or the majority of the first frames' once they are in (0 = decide now)."""
+        if self._polarity != 0.0 or len(self._polarity_votes) < _POLARITY_FRAMES:
+            return self._polarity
+        return 1.0 if sum(self._polarity_votes) >= 0 else -1.0
+
+    def _width(self) -> float | None:
+        if self.config.rope_width_px is not None:
+            return self.config.rope_width_px
+        if self._widths and self._width_cache is None:
+            self._width_cache = float(np.median(self._widths))
+        return self._width_cache
+
+    def _fixed_end(self, points: NDArray[np.float32], n: int, width_px: float | None) -> NDArray[np.float32]:
+        """The fixed end (row, col): configured, or the narrow end of the band averaged over the first frames."""
+        if self._fixed_known and (self.config.fixed_end_uv is not None or self._fixed_frames >= _FIXED_END_FRAMES):
+            return self.fixed
+        w = width_px or 4.0
+        K.turning_angles(ro(points), i32(n), i32(max(3, round(w))), self.turn_cap)
+        e1 = int(np.argmax(self.turn_cap[:n]))
+        e2 = int(np.argmax(np.hypot(points[:n, 0] - points[e1, 0], points[:n, 1] - points[e1, 1])))
+        if self._fixed_known:
+            d1 = np.hypot(*(points[e1] - self.fixed))
+            d2 = np.hypot(*(points[e2] - self.fixed))
+            chosen = points[e1] if d1 <= d2 else points[e2]
+            if min(d1, d2) > 3.0 * w + 5.0:
+                return self.fixed  # not the rope seen so far (another object, a clipped view): no update
+            k = self._fixed_frames
+            self.fixed[:] = (self.fixed * k + chosen) / (k + 1)
+        else:
+            m = max(4, round(2 * w))
+            widths = [np.hypot(*(points[(e - m) % n] - points[(e + m) % n])) for e in (e1, e2)]
+            if abs(widths[0] - widths[1]) <= 0.25 * min(widths):
+                chosen = points[e1] if points[e1, 0] <= points[e2, 0] else points[e2]  # tie: the upper end
+            else:
+                chosen = points[e1] if widths[0] < widths[1] else points[e2]
+            self.fixed[:] = chosen
+            self._fixed_known = True
+        self._fixed_frames += 1
+        return self.fixed
+
+    def _order(self, outcome, t_ns: int) -> tuple[NDArray[np.float32], NDArray[np.float32], float]:
+        """Put the two shapes in time order by continuity with the previous frame; returns (begin, end, conf)."""
+        a, b = outcome.shape_a, outcome.shape_b
+        if a is b:
+            return a, b, 1.0
+        if self._prev_tips is None or self._prev_t_ns is None:
+            return a, b, 0.5
+        prev_begin, prev_end = self._prev_tips
+        exposure_ns = max(1, self._prev_t_ns[1] - self._prev_t_ns[0])
+        gap_ns = max(0, t_ns - self._prev_t_ns[1])
+        predicted = prev_end + (prev_end - prev_begin) * (gap_ns / exposure_ns)
+        da = float(np.hypot(*(a[-1] - predicted)))
+        db = float(np.hypot(*(b[-1] - predicted)))
+        confidence = 0.5 + 0.5 * abs(da - db) / (da + db + 1e-6)
+        return (a, b, confidence) if da <= db else (b, a, confidence)

@@ -1,0 +1,412 @@
+"""BlurSplitter: split the closed contour of a motion-blurred rope into the rope at the start and at the end of the
+exposure (and the tip track), or into one centreline when the blur cannot be split."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._views import f32, i32, ro
+from ropecam.device.pipeline.edges import gaussian_weights
+from ropecam.device.pipeline.result import Method
+
+__all__ = ["BlurSplitter", "SplitOutcome"]
+
+
+@dataclass(slots=True)
+class SplitOutcome:
+    """The shapes found in one contour (views into the splitter's buffers, valid until its next call).
+
+    `shape_a` and `shape_b` run from the fixed end to the tip; for single-shape methods they are the same array.
+    They are not yet in time order: the pipeline decides which one is the start of the exposure.
+    """
+
+    method: Method
+    shape_a: NDArray[np.float32]
+    shape_b: NDArray[np.float32]
+    segmentation_points: NDArray[np.float32] | None
+    width_px: float
+    sweep_px: float
+
+
+class BlurSplitter:
+    """Split a rope contour by one of the methods (``blur_split``, ``paper``, ``centerline``).
+
+    Parameters
+    ----------
+    capacity
+        Maximum number of contour points.
+    method
+        The configured method.
+    static_ratio
+        Tip sweep / rope width below which the centreline fallback replaces the split.
+    corner_scale_px
+        Chord (points) of the turning angle that finds the segmentation points.
+    paper_radius_px
+        Threshold T of the paper's Feature 3.
+    output_step_px
+        Spacing of the returned polylines.
+    tip_cap
+        Shape of the rope's free end: ``round`` (half a width beyond the axis end) or ``flat``.
+    """
+
+    def __init__(
+        self,
+        capacity: int,
+        method: str = "blur_split",
+        static_ratio: float = 1.5,
+        corner_scale_px: int = 3,
+        paper_radius_px: float = 15.0,
+        output_step_px: float = 2.0,
+        tip_cap: str = "round",
+        smooth_sigma_px: float = 1.0,
+    ) -> None:
+        self.method = method
+        self.tip_cap_ratio = 0.5 if tip_cap == "round" else 0.0
+        self.weights = gaussian_weights(smooth_sigma_px).astype(np.float64)
+        self._responses: dict[int, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
+        self.sweep_px = 0.0
+        self.static_ratio = float(static_ratio)
+        self.corner_scale = int(corner_scale_px)
+        self.paper_radius = np.float32(paper_radius_px)
+        self.step = np.float32(output_step_px)
+        self.turn = np.zeros(capacity, np.float32)
+        self.idx = np.zeros(4, np.int32)
+        self.side_a = np.zeros((capacity, 2), np.float32)
+        self.side_b = np.zeros((capacity, 2), np.float32)
+        self.dist = np.zeros(capacity, np.float32)
+        self.mid = np.zeros((capacity, 2), np.float32)
+        self.out_a = np.zeros((capacity, 2), np.float32)
+        self.out_b = np.zeros((capacity, 2), np.float32)
+        self.seg = np.zeros((2, 2), np.float32)
+        self.chain_f = np.zeros((capacity, 2), np.float32)
+        self.tau = np.zeros(capacity, np.int32)
+        self.knots = np.zeros(capacity, np.int32)
+        self.scores = np.zeros(capacity, np.float32)
+
+    def split(
+        self,
+        points: NDArray[np.float32],
+        chain: NDArray[np.int32],
+        n: int,
+        fixed_rc: tuple[float, float],
+        width_px: float | None,
+        gx: NDArray[np.float32],
+        gy: NDArray[np.float32],
+        edges: NDArray[np.uint8],
+        mag: NDArray[np.float32],
+        smooth: NDArray[np.float32],
+        polarity: float = 0.0,
+    ) -> SplitOutcome | None:
+        """Split the closed contour (`n` subpixel `points`, integer `chain`) of a rope fixed at `fixed_rc`.
+
+        Parameters
+        ----------
+        width_px
+            The rope width if known (config or earlier frames); otherwise measured here.
+        gx, gy, edges, mag
+            The gradients, edge map and gradient magnitude the contour came from (read only).
+        polarity
+            +1 bright rope, -1 dark rope, 0 to decide from the gradients.
+
+        Returns
+        -------
+        SplitOutcome or None
+            None when the contour cannot be split (too short, no segmentation points).
+        """
+        self._smooth = smooth
+        self._prepare(points, chain, n, width_px, gx, gy, edges, polarity, mag, fixed_rc)
+        points, chain, n = self._points, self._chain, self._n
+        fixed_r, fixed_c = np.float32(fixed_rc[0]), np.float32(fixed_rc[1])
+        width = self.width
+        scale = max(self.corner_scale, round(0.5 * width))
+        K.turning_angles(points, n, i32(scale), self.turn)
+        search = np.float32(max(3.0 * width, 8.0))
+        found = K.split_contour(points, ro(self.turn), n, fixed_r, fixed_c, search, i32(scale + 1), self.idx)
+        if found < 0:
+            return self.static(fixed_rc)
+        i_fix, seg_a, i_far, seg_b = (np.int32(v) for v in self.idx)
+        zero = f32(0.0)
+        plus = i32(1)
+        minus = i32(-1)
+        if self.method == "static":
+            return self.static(fixed_rc)
+        if self.method == "paper":
+            return self._paper(chain, n, fixed_r, fixed_c, i_fix, i_far)
+        if self.method == "centerline":
+            na = i32(K.offset_side(points, n, i_fix, i_far, plus, self.sign, zero, zero, i32(2), self.side_a))
+            nb = i32(K.offset_side(points, n, i_fix, i_far, minus, self.sign, zero, zero, i32(2), self.side_b))
+            nm = i32(K.midline(ro(self.side_a), na, ro(self.side_b), nb, self.mid, self.dist))
+            shape = self._resample(self.mid, nm, self.out_a)
+            return SplitOutcome(Method.CENTERLINE, shape, shape, None, width, 0.0)
+        self.seg[0] = points[seg_a]
+        self.seg[1] = points[seg_b]
+        sweep = float(np.hypot(*(points[seg_a] - points[seg_b])))
+        if sweep < 1.5 * width:
+            # The corners of the band are a rope width apart whatever the sweep below that: read the sweep from
+            # the edge slope instead (contrast / sweep, see `_sweep_from_gradient`).
+            from_slope = self._sweep_from_gradient(int(i_fix), int(seg_a), int(seg_b), fixed_rc)
+            if np.isfinite(from_slope):
+                sweep = min(from_slope, 1.5 * width)
+        self.sweep_px = sweep
+        if sweep < self.static_ratio * width:
+            return self.static(fixed_rc)
+        w = np.float32(width)
+        sw = np.float32(sweep)
+        gx, gy, pol = self._gx, self._gy, self.polarity_used
+        na = i32(K.offset_by_gradient(points, chain, n, i_fix, seg_a, plus, gx, gy, pol, w, sw, self.side_a))
+        nb = i32(K.offset_by_gradient(points, chain, n, i_fix, seg_b, minus, gx, gy, pol, w, sw, self.side_b))
+        na = self._trim_tip(self.side_a, na)
+        nb = self._trim_tip(self.side_b, nb)
+        shape_a = self._resample(self.side_a, na, self.out_a)
+        shape_b = self._resample(self.side_b, nb, self.out_b)
+        return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, width, sweep)
+
+    def _prepare(
+        self,
+        points: NDArray[np.float32],
+        chain: NDArray[np.int32],
+        n: int,
+        width_px: float | None,
+        gx: NDArray[np.float32],
+        gy: NDArray[np.float32],
+        edges: NDArray[np.uint8],
+        polarity: float,
+        mag: NDArray[np.float32],
+        fixed_rc: tuple[float, float] | None,
+    ) -> None:
+        """Store read-only views, the contour orientation, the polarity and the rope width of this contour."""
+        self._points, self._chain, self._n = ro(points), ro(chain), i32(n)
+        self._mag = mag
+        self._gx, self._gy = ro(gx), ro(gy)
+        self.sign = np.float32(1.0 if K.signed_area(self._points, self._n) >= 0 else -1.0)
+        pol = float(polarity)
+        edges_ro = ro(edges)
+        mag = ro(mag)
+        if pol == 0.0:
+            # The rope is on the side where the opposite edge is near: compare the typical distance to the
+            # opposite edge looking along +gradient (bright rope) and along -gradient (dark rope).
+            medians = []
+            for sign in (1.0, -1.0):
+                K.measure_widths(
+                    edges_ro, mag, self._gx, self._gy, self._chain, self._n, f32(sign), f32(64.0), self.dist
+                )
+                found = self.dist[: self._n][np.isfinite(self.dist[: self._n])]
+                medians.append(float(np.median(found)) if found.size > self._n // 4 else np.inf)
+            pol = 1.0 if medians[0] <= medians[1] else -1.0
+        self.polarity_used = np.float32(pol)
+        self.width_measured = float("nan")
+        if width_px is None:
+            self._measure_width(edges_ro, mag, fixed_rc)
+        if width_px is not None:
+            self.width = float(width_px)
+        elif np.isfinite(self.width_measured):
+            self.width = self.width_measured
+        else:
+            self.width = 4.0
+
+    def _sweep_from_gradient(self, i_fix: int, seg_a: int, seg_b: int, fixed_rc: tuple[float, float]) -> float:
+        """Estimate the tip sweep from the gradient magnitude along the sides.
+
+        Across the band the intensity rises with slope contrast / d (each pixel is covered for a time in proportion
+        to 1/d), whatever the rope width; the smoothed Sobel magnitude at the edge, divided by the contrast, is
+        therefore a decreasing function of the local sweep d, tabulated for this rope width and smoothing by
+        `_response`. The contrast is read from the image near the fixed end, where the rope hardly moved; d(s) is
+        taken as proportional to the arc length s (rotation about the fixed end) and extrapolated to the tip.
+        Returns nan when it cannot be measured.
+        """
+        n = int(self._n)
+        chain = self._chain
+        mag = self._mag
+        smooth = self._smooth
+        pol = float(self.polarity_used)
+        width = self.width
+        pts = self._points
+        # Contrast near the fixed end: inside (half a width into the rope) minus outside (a width out).
+        idx_a = (i_fix + np.arange((seg_a - i_fix) % n + 1)) % n
+        idx_b = (i_fix - np.arange((i_fix - seg_b) % n + 1)) % n
+        dist = np.hypot(pts[:n, 0] - fixed_rc[0], pts[:n, 1] - fixed_rc[1])
+        r_far = float(dist.max())
+        near = np.flatnonzero((dist > 2.0 * width + 2.0) & (dist < 2.0 * width + 2.0 + 0.1 * r_far))
+        if near.size < 4:
+            return float("nan")
+        rc = chain[near]
+        g = np.stack([self._gy[rc[:, 0], rc[:, 1]], self._gx[rc[:, 0], rc[:, 1]]], axis=1) * pol
+        g /= np.maximum(np.hypot(*g.T), 1e-6)[:, None]
+        height, width_img = smooth.shape
+        inside = np.rint(pts[near] + 0.5 * width * g).astype(int)
+        outside = np.rint(pts[near] - (width + 2.0) * g).astype(int)
+        ok = (inside.min(axis=1) >= 0) & (outside.min(axis=1) >= 0)
+        ok &= (inside[:, 0] < height) & (outside[:, 0] < height) & (inside[:, 1] < width_img)
+        ok &= outside[:, 1] < width_img
+        if np.count_nonzero(ok) < 4:
+            return float("nan")
+        contrast = abs(float(np.median(smooth[inside[ok, 0], inside[ok, 1]] - smooth[outside[ok, 0], outside[ok, 1]])))
+        if contrast < 5.0:
+            return float("nan")
+        sweeps, ratios = self._response(width)
+        estimates = []
+        for idx in (idx_a, idx_b):
+            count = idx.size
+            if count < 12:
+                continue
+            lo, hi = int(0.5 * count), int(0.85 * count)
+            frac = np.arange(lo, hi) / (count - 1)
+            sel = idx[lo:hi]
+            m = mag[chain[sel, 0], chain[sel, 1]] / contrast
+            d = np.interp(m, ratios, sweeps)  # ratios increasing (sweeps decreasing)
+            estimates.append(float(np.median(d / frac)))
+        return float(np.median(estimates)) if estimates else float("nan")
+
+    def _response(self, width: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Peak smoothed-Sobel magnitude per unit contrast at the edge of a band swept by d, for d on a grid
+        (both returned sorted by increasing magnitude, for `np.interp`)."""
+        key = round(width * 20)
+        cached = self._responses.get(key)
+        if cached is not None:
+            return cached
+        sweeps = np.geomspace(0.05, 200.0, 160)
+        fine = 0.02
+        peaks = []
+        for d in sweeps:
+            x = np.arange(-4 * width - 20, width + d + 20, fine)
+            a = min(width, d)
+            cover = np.clip(x / a, 0, 1) * min(1.0, width / d)  # the first ramp of the trapezoid
+            values = []
+            for phase in (0.0, 0.25, 0.5, 0.75):
+                edges = np.arange(x[0] + phase, x[-1] - 1, 1.0)
+                idx = ((edges - x[0]) / fine).astype(int)
+                step = round(1.0 / fine)
+                pix = np.add.reduceat(cover, idx)[:-1] / step
+                sm = np.convolve(pix, self.weights[::-1], mode="same")
+                gx = 4.0 * (sm[2:] - sm[:-2])
+                values.append(np.max(np.abs(gx[len(self.weights) : -len(self.weights)])))
+            peaks.append(float(np.mean(values)))
+        # The contrast is measured on the smoothed image at the centre of the still rope: normalise by the same.
+        x = np.arange(-width - 20, 2 * width + 20, fine)
+        rope = ((x >= 0) & (x < width)).astype(float)
+        centres = []
+        for phase in (0.0, 0.25, 0.5, 0.75):
+            edges = np.arange(x[0] + phase, x[-1] - 1, 1.0)
+            idx = ((edges - x[0]) / fine).astype(int)
+            pix = np.add.reduceat(rope, idx)[:-1] / round(1.0 / fine)
+            sm = np.convolve(pix, self.weights[::-1], mode="same")
+            centre = np.argmin(np.abs(edges[:-1] + 0.5 - 0.5 * width))
+            centres.append(sm[centre])
+        peaks_arr = np.minimum.accumulate(np.array(peaks) / float(np.mean(centres)))  # monotone for the inversion
+        order = np.argsort(peaks_arr, kind="stable")
+        result = (sweeps[order], peaks_arr[order])
+        self._responses[key] = result
+        return result
+
+    def _measure_width(
+        self, edges: NDArray[np.uint8], mag: NDArray[np.float32], fixed_rc: tuple[float, float] | None
+    ) -> None:
+        """Measure the rope width: the median distance to the opposite edge, near the fixed end if known."""
+        K.measure_widths(edges, mag, self._gx, self._gy, self._chain, self._n, self.polarity_used, f32(64.0), self.dist)
+        widths = self.dist[: self._n]
+        finite = np.isfinite(widths)
+        valid = widths[finite]
+        self.width_measured = float(np.median(valid)) if valid.size else float("nan")
+        if fixed_rc is not None and valid.size:
+            # Where the rope hardly moved (near the fixed end, beyond its end cap) the band is one rope wide.
+            pts = self._points[: self._n]
+            dist = np.hypot(pts[:, 0] - fixed_rc[0], pts[:, 1] - fixed_rc[1])
+            near = finite & (dist > 3.0 * self.width_measured) & (dist < 0.25 * dist.max())
+            if np.count_nonzero(near) >= 4:
+                self.width_measured = float(np.median(widths[near]))
+
+    def static(self, fixed_rc: tuple[float, float] | None = None) -> SplitOutcome | None:
+        """Return the centreline of a rope that did not move (or cannot be split): one side of the contour, from
+        rope end to rope end, moved half a rope width into the rope along the gradient. The end nearer
+        `fixed_rc` comes first. Call after `split` (or `_prepare`) on the same contour."""
+        points, chain, n = self._points, self._chain, self._n
+        if n < 8:
+            return None
+        K.turning_angles(points, n, i32(max(3, round(self.width))), self.turn)
+        if K.find_caps(ro(self.turn), n, i32(max(4, n // 8)), self.idx) < 0:
+            return None
+        e1, e2 = np.int32(self.idx[0]), np.int32(self.idx[1])
+        if fixed_rc is not None:
+            d1 = np.hypot(points[e1, 0] - fixed_rc[0], points[e1, 1] - fixed_rc[1])
+            d2 = np.hypot(points[e2, 0] - fixed_rc[0], points[e2, 1] - fixed_rc[1])
+            if d2 < d1:
+                e1, e2 = e2, e1
+        w = np.float32(self.width)
+        count = K.offset_by_gradient(
+            points, chain, n, e1, e2, i32(1), self._gx, self._gy, self.polarity_used, w, f32(0.0), self.side_a
+        )
+        if count < 2:
+            return None
+        shape = self._resample(self.side_a, i32(count), self.out_a)
+        self.seg[0] = points[e2]
+        self.seg[1] = points[e2]
+        return SplitOutcome(Method.STATIC_FALLBACK, shape, shape, None, self.width, 0.0)
+
+    def _trim_tip(self, poly: NDArray[np.float32], n: np.int32) -> np.int32:
+        """Shorten the polyline by the cap length at its free end (half the width for a round rope end): the
+        segmentation point lies on the edge of the band, which a round end reaches half a width beyond the axis."""
+        cut = self.tip_cap_ratio * self.width
+        if cut <= 0 or n < 3:
+            return n
+        count = K.trim_polyline_end(poly, n, f32(cut))
+        return i32(count) if count >= 2 else n
+
+    def _resample(self, poly: NDArray[np.float32], n: int, out: NDArray[np.float32]) -> NDArray[np.float32]:
+        count = K.resample_polyline(ro(poly), i32(n), self.step, out)
+        if count < 0:
+            raise RuntimeError(f"resample_polyline returned status {count}")
+        return out[:count]
+
+    def _paper(
+        self,
+        chain: NDArray[np.int32],
+        n: int,
+        fixed_r: np.float32,
+        fixed_c: np.float32,
+        i_fix: int,
+        i_far: int,
+    ) -> SplitOutcome | None:
+        """The paper's literal method: operator, Features 1-3, Table 1, clustering, integer chain sides."""
+        self.chain_f[:n] = chain[:n]
+        chain = ro(chain)
+        K.apply_operator(chain, n, self.tau)
+        far_r, far_c = self.chain_f[i_far]
+        m = K.score_knots(
+            chain, ro(self.tau), n, fixed_r, fixed_c, far_r, far_c, self.paper_radius, self.knots, self.scores
+        )
+        if m < 2:
+            return None
+        knots = self.knots[:m]
+        scores = self.scores[:m]
+        pos = self.chain_f[knots]
+        near_fixed = np.hypot(pos[:, 0] - fixed_r, pos[:, 1] - fixed_c) < self.paper_radius
+        candidates = np.flatnonzero((scores >= 2.0) & ~near_fixed)
+        # Cluster candidates that follow each other along the chain within 5 px; keep the best of each.
+        clusters: list[int] = []
+        for k in candidates:
+            if clusters and np.hypot(*(pos[k] - pos[clusters[-1]])) < 5.0:
+                if scores[k] > scores[clusters[-1]]:
+                    clusters[-1] = int(k)
+                continue
+            clusters.append(int(k))
+        if len(clusters) < 2:
+            return None
+        far = np.array([far_r, far_c])
+        clusters.sort(key=lambda k: (-scores[k], float(np.hypot(*(pos[k] - far)))))
+        a, b = (int(knots[k]) for k in clusters[:2])
+        if (a - i_fix) % n > (b - i_fix) % n:
+            a, b = b, a
+        chain_f = ro(self.chain_f)
+        zero = f32(0.0)
+        sign = self.sign
+        na = i32(K.offset_side(chain_f, n, i32(i_fix), i32(a), i32(1), sign, zero, zero, i32(2), self.side_a))
+        nb = i32(K.offset_side(chain_f, n, i32(i_fix), i32(b), i32(-1), sign, zero, zero, i32(2), self.side_b))
+        width = self.width
+        self.seg[0] = self.chain_f[a]
+        self.seg[1] = self.chain_f[b]
+        sweep = float(np.hypot(*(self.seg[0] - self.seg[1])))
+        return SplitOutcome(Method.PAPER, self.side_a[:na], self.side_b[:nb], self.seg, width, sweep)

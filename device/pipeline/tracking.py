@@ -1,0 +1,74 @@
+"""PointTracker: material points at fixed unstretched arc lengths on a rope shape (uniform stretch, eqs. 9-12)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._views import i32, ro
+
+__all__ = ["PointTracker"]
+
+
+class PointTracker:
+    """Locate material points on rope shapes and report their stretch ratio Lc/Lc0.
+
+    Parameters
+    ----------
+    arc_m
+        Arc lengths of the material points in metres of unstretched rope, from the fixed end.
+    rope_length_m
+        Unstretched rope length in metres.
+    length0_px
+        Unstretched length in pixels (Lc0); None to take the median of the first `length0_frames` shapes.
+    length0_frames
+        Number of shapes for the Lc0 estimate.
+    """
+
+    def __init__(
+        self, arc_m: tuple[float, ...], rope_length_m: float, length0_px: float | None, length0_frames: int = 5
+    ) -> None:
+        if rope_length_m <= 0:
+            raise ValueError(f"rope_length_m must be > 0, got {rope_length_m}")
+        self.arc_m = tuple(float(a) for a in arc_m)
+        self.fraction = np.array(self.arc_m, np.float64) / rope_length_m
+        self.arc_px = np.zeros(len(self.arc_m), np.float64)
+        self.length0_px = length0_px
+        self.length0_frames = int(length0_frames)
+        self._lengths: list[float] = []
+        self._median: float | None = None
+        self.out = np.zeros((2, len(self.arc_m), 2), np.float32)
+
+    def length(self, poly: NDArray[np.float32]) -> float:
+        """Return the polyline length Lc in pixels, eq. (9)."""
+        return float(K.polyline_length(ro(poly), i32(len(poly))))
+
+    def observe(self, length_px: float) -> None:
+        """Feed the length of a measured shape to the Lc0 estimate (until it is fixed)."""
+        if self.length0_px is None and len(self._lengths) < self.length0_frames:
+            self._lengths.append(length_px)
+            self._median = float(np.median(self._lengths))
+
+    @property
+    def reference_length_px(self) -> float | None:
+        """Lc0 in pixels: configured, or the median of the shapes seen so far (None before the first)."""
+        if self.length0_px is not None:
+            return self.length0_px
+        return self._median
+
+    def track(self, poly: NDArray[np.float32], slot: int) -> tuple[NDArray[np.float32], float]:
+        """Return the material points (k, 2) (row, col) on `poly` (fixed end first) and the stretch Lc/Lc0.
+
+        `slot` (0 or 1) selects the output buffer, so the two shapes of a frame do not overwrite each other; the
+        points are valid until the next call with the same slot.
+        """
+        length0 = self.reference_length_px
+        lc = self.length(poly)
+        if length0 is None or length0 <= 0:
+            length0 = lc
+        np.multiply(self.fraction, length0, out=self.arc_px)
+        status = K.track_material_points(ro(poly), i32(len(poly)), ro(self.arc_px), float(length0), self.out[slot])
+        if status < 0:
+            raise ValueError(f"cannot track material points on a polyline of {len(poly)} points")
+        return self.out[slot], lc / length0 if length0 > 0 else float("nan")

@@ -1,0 +1,70 @@
+"""Zero Numba allocations per frame after warm-up (NUMBA_NRT_STATS=1, in a subprocess).
+
+Passing a NumPy array into a compiled function costs one NRT MemInfo; that is the only NRT allocation allowed per
+frame, so the test counts the array arguments of every kernel call and asserts the NRT allocation count equals it
+(and that every allocation is freed).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+SCRIPT = textwrap.dedent(
+    """
+    import json
+    import numpy as np
+    from numba.core.runtime import rtsys
+    from ropecam.device.capture.synthetic import SyntheticRope
+    from ropecam.device.pipeline import _kernels as K
+    from ropecam.device.pipeline.config import PipelineConfig
+    from ropecam.device.pipeline.pipeline import Pipeline
+
+    rope = SyntheticRope(exposure_us=12000, amplitude_rad=0.7, period_s=0.9, diameter_px=3.0, phase_rad=1.2)
+    frames = list(rope.frames(7))
+    report = {}
+    for method in ("blur_split", "paper", "centerline"):
+        pipeline = Pipeline(PipelineConfig(method=method), (rope.width, rope.height))
+        for f in frames[:3]:
+            pipeline.process(f.image, f.index, f.t_ns, f.exposure_us)
+        count = [0]
+        originals = {}
+        for name in dir(K):
+            fn = getattr(K, name)
+            if hasattr(fn, "py_func"):
+                originals[name] = fn
+                def wrapper(*args, _fn=fn):
+                    count[0] += sum(isinstance(a, np.ndarray) for a in args)
+                    return _fn(*args)
+                setattr(K, name, wrapper)
+        before = rtsys.get_allocation_stats()
+        statuses = []
+        for f in frames[3:]:
+            statuses.append(str(pipeline.process(f.image, f.index, f.t_ns, f.exposure_us).status))
+        after = rtsys.get_allocation_stats()
+        for name, fn in originals.items():
+            setattr(K, name, fn)
+        report[method] = {
+            "alloc": after.alloc - before.alloc,
+            "free": after.free - before.free,
+            "array_args": count[0],
+            "statuses": statuses,
+        }
+    print(json.dumps(report))
+    """
+)
+
+
+def test_no_numba_allocations_per_frame_after_warm_up() -> None:
+    env = dict(os.environ, NUMBA_NRT_STATS="1")
+    done = subprocess.run([sys.executable, "-c", SCRIPT], env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    for method, stats in report.items():
+        assert stats["array_args"] > 0, method
+        assert stats["alloc"] == stats["array_args"], (method, stats)
+        assert stats["free"] == stats["alloc"], (method, stats)
+    assert set(report["blur_split"]["statuses"]) == {"OK"}

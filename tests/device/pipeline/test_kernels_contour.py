@@ -1,0 +1,164 @@
+"""Component selection, contour tracing, the paper's operator and scoring, against slow obvious references."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from ropecam.device.pipeline import _kernels as K
+
+FREEMAN = {(0, 1): 0, (-1, 1): 1, (-1, 0): 2, (-1, -1): 3, (0, -1): 4, (1, -1): 5, (1, 0): 6, (1, 1): 7}
+
+
+def _label_buffers(shape):
+    height, width = shape
+    return (
+        np.zeros(height, np.int32),
+        np.full(height, width - 1, np.int32),
+        np.zeros(shape, np.int32),
+        np.zeros(height * width, np.int32),
+        np.zeros(2, np.int32),
+    )
+
+
+def _trace(mask):
+    lo, hi, labels, stack, start = _label_buffers(mask.shape)
+    edges = mask.astype(np.uint8).copy()
+    size = K.keep_largest_component(edges, lo, hi, 1, labels, stack, start)
+    chain = np.zeros((4 * mask.size, 2), np.int32)
+    codes = np.zeros(4 * mask.size, np.int32)
+    n = K.trace_contour(edges, lo, hi, start[0], start[1], chain, codes)
+    return size, edges, chain[:n], codes[:n]
+
+
+def test_largest_component_matches_scipy() -> None:
+    rng = np.random.default_rng(5)
+    mask = rng.random((60, 80)) < 0.3
+    lo, hi, labels, stack, start = _label_buffers(mask.shape)
+    edges = mask.astype(np.uint8)
+    size = K.keep_largest_component(edges, lo, hi, 1, labels, stack, start)
+    ref_labels, _ = ndimage.label(mask, structure=np.ones((3, 3)))
+    sizes = np.bincount(ref_labels.ravel())[1:]
+    best = int(np.argmax(sizes)) + 1
+    assert size == sizes.max()
+    np.testing.assert_array_equal(edges == 1, ref_labels == best)
+    np.testing.assert_array_equal(edges == 2, mask & (ref_labels != best))
+    first = np.argwhere(ref_labels == best)[0]
+    assert tuple(start) == tuple(first)
+
+
+def test_largest_component_too_small_is_not_found() -> None:
+    mask = np.zeros((10, 10), np.uint8)
+    mask[2, 2:5] = 1
+    lo, hi, labels, stack, start = _label_buffers(mask.shape)
+    assert K.keep_largest_component(mask, lo, hi, 4, labels, stack, start) == K.NOT_FOUND
+    assert not (mask == 1).any()
+
+
+@pytest.mark.parametrize("shape", ["ring", "disk", "band", "spur"])
+def test_trace_matches_opencv_outer_contour(shape) -> None:
+    mask = np.zeros((40, 50), np.uint8)
+    if shape == "ring":
+        cv2.circle(mask, (25, 20), 12, 1, 1)
+    elif shape == "disk":
+        cv2.circle(mask, (25, 20), 9, 1, -1)
+    elif shape == "band":
+        cv2.ellipse(mask, (25, 20), (18, 5), 30, 0, 360, 1, 1)
+    else:
+        cv2.rectangle(mask, (10, 10), (35, 25), 1, 1)
+        mask[25:33, 20] = 1  # an outward spur
+    _, edges, chain, codes = _trace(mask)
+    contours, _ = cv2.findContours((edges == 1).astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    ref = contours[0][:, 0, ::-1]  # (row, col)
+    assert len(chain) == len(ref)
+    assert {tuple(p) for p in chain} == {tuple(p) for p in ref}
+    assert K.signed_area(chain.astype(np.float32), len(chain)) >= 0  # clockwise on screen
+    for i in range(len(chain)):
+        step = tuple(chain[(i + 1) % len(chain)] - chain[i])
+        assert codes[i] == FREEMAN[step]
+
+
+def test_trace_single_pixel() -> None:
+    mask = np.zeros((5, 5), np.uint8)
+    mask[2, 3] = 1
+    _, _, chain, _ = _trace(mask)
+    assert chain.tolist() == [[2, 3]]
+
+
+def _tau_reference(chain):
+    operator = {(-1, -1): -3, (-1, 0): 6, (-1, 1): 2, (0, -1): -5, (0, 1): 5, (1, -1): -2, (1, 0): -6, (1, 1): 3}
+    n = len(chain)
+    taus = []
+    for i in range(n):
+        image = np.zeros((3, 3), int)
+        for j in (i - 1, (i + 1) % n):
+            d = tuple(chain[j] - chain[i])
+            if d in operator:
+                image[d[0] + 1, d[1] + 1] = 1
+        kernel = np.array([[-3, 6, 2], [-5, 0, 5], [-2, -6, 3]])
+        taus.append(int((kernel * image).sum()))
+    return taus
+
+
+def test_operator_matches_reference_and_is_zero_on_straight_runs() -> None:
+    mask = np.zeros((40, 50), np.uint8)
+    cv2.ellipse(mask, (25, 20), (18, 9), 20, 0, 360, 1, 1)
+    _, _, chain, _ = _trace(mask)
+    tau = np.zeros(len(chain), np.int32)
+    K.apply_operator(chain, len(chain), tau)
+    assert tau.tolist() == _tau_reference(chain)
+    square = np.zeros((20, 20), np.uint8)
+    cv2.rectangle(square, (4, 4), (14, 14), 1, 1)
+    _, _, chain, _ = _trace(square)
+    tau = np.zeros(len(chain), np.int32)
+    K.apply_operator(chain, len(chain), tau)
+    corners = {(4, 4), (4, 14), (14, 4), (14, 14)}
+    for p, t in zip(chain.tolist(), tau.tolist(), strict=True):
+        assert (t != 0) == (tuple(p) in corners)
+
+
+def _score_reference(chain, tau, e1, e2, radius):
+    knots = [i for i in range(len(chain)) if tau[i] != 0]
+    m = len(knots)
+    scores = []
+    for k in range(m):
+        t = tau[knots[k]]
+        tp, tn = tau[knots[k - 1]], tau[knots[(k + 1) % m]]
+        tpp, tnn = tau[knots[k - 2]], tau[knots[(k + 2) % m]]
+        score = 0.0
+        if t + tn != 0 and t + tp != 0:
+            score += 1.0
+        elif (t + tn == 0) != (t + tp == 0) and not (tp + tnn == 0 or tn + tpp == 0):
+            score += 0.5
+        if t in (1, -1, 5, -5):
+            r1 = chain[knots[k]] - chain[knots[k - 2]]
+            r2 = chain[knots[k]] - chain[knots[(k + 2) % m]]
+            theta = math.degrees(math.acos(np.clip(r1 @ r2 / np.linalg.norm(r1) / np.linalg.norm(r2), -1, 1)))
+            score += 0.5 if theta < 120 else 0.0
+        elif (t, tn) in {(3, -4), (-3, 4), (-2, -9), (2, 9)}:
+            score += 0.5
+        near = min(np.hypot(*(chain[knots[k]] - e1)), np.hypot(*(chain[knots[k]] - e2))) < radius
+        score += 1.0 if near else 0.0
+        scores.append(score)
+    return knots, scores
+
+
+def test_scoring_matches_reference() -> None:
+    mask = np.zeros((60, 60), np.uint8)
+    pts = np.array([[10, 10], [30, 12], [50, 40], [35, 50], [20, 30]], np.int32)
+    cv2.polylines(mask, [pts], True, 1, 1)
+    _, _, chain, _ = _trace(mask)
+    tau = np.zeros(len(chain), np.int32)
+    K.apply_operator(chain, len(chain), tau)
+    knots = np.zeros(len(chain), np.int32)
+    scores = np.zeros(len(chain), np.float32)
+    e1, e2 = np.array([10.0, 10.0]), np.array([40.0, 50.0])
+    m = K.score_knots(chain, tau, len(chain), e1[0], e1[1], e2[0], e2[1], 8.0, knots, scores)
+    ref_knots, ref_scores = _score_reference(chain.astype(float), tau, e1, e2, 8.0)
+    assert knots[:m].tolist() == ref_knots
+    np.testing.assert_allclose(scores[:m], ref_scores)
+    assert set(np.unique(scores[:m])) <= {0.0, 0.5, 1.0, 1.5, 2.0, 2.5}

@@ -1,0 +1,139 @@
+"""Canny kernel and span kernels against OpenCV, SciPy and slow obvious references."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from ropecam.device.pipeline import _kernels as K
+
+
+def _buffers(height: int, width: int) -> dict[str, np.ndarray]:
+    return {
+        "work": np.zeros((4, height), np.int32),
+        "tmp": np.zeros((height, width), np.float32),
+        "smooth": np.zeros((height, width), np.float32),
+        "gx": np.zeros((height, width), np.float32),
+        "gy": np.zeros((height, width), np.float32),
+        "mag": np.zeros((height, width), np.float32),
+        "edges": np.zeros((height, width), np.uint8),
+        "stack": np.zeros(height * width, np.int32),
+    }
+
+
+def _canny(image, lo, hi, low, high, weights=(1.0,)):
+    b = _buffers(*image.shape)
+    w = np.asarray(weights, np.float32)
+    count = K.detect_edges(
+        image,
+        w,
+        lo,
+        hi,
+        low,
+        high,
+        b["work"],
+        b["tmp"],
+        b["smooth"],
+        b["gx"],
+        b["gy"],
+        b["mag"],
+        b["edges"],
+        b["stack"],
+    )
+    return count, b
+
+
+def _agreement(ours: np.ndarray, ref: np.ndarray) -> float:
+    union = np.count_nonzero(ours | ref)
+    return 1.0 if union == 0 else np.count_nonzero(ours & ref) / union
+
+
+@pytest.mark.parametrize(("low", "high"), [(20, 60), (50, 100), (5, 10)])
+def test_canny_matches_opencv_on_rope_frames(blurred_frames, spans_full, low, high) -> None:
+    for frame in blurred_frames[:3]:
+        image = frame.image
+        lo, hi = spans_full(*image.shape)
+        count, b = _canny(image, lo, hi, low, high)
+        ref = cv2.Canny(image, low, high, L2gradient=True) > 0
+        ours = b["edges"] > 0
+        assert count == np.count_nonzero(ours)
+        assert _agreement(ours, ref) >= 0.99
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_canny_matches_opencv_on_noise(spans_full, seed) -> None:
+    image = np.random.default_rng(seed).integers(0, 256, (61, 83)).astype(np.uint8)
+    lo, hi = spans_full(*image.shape)
+    for low, high in [(100, 300), (300, 800)]:
+        _, b = _canny(image, lo, hi, low, high)
+        ref = cv2.Canny(image, low, high, L2gradient=True) > 0
+        assert _agreement(b["edges"] > 0, ref) >= 0.99
+
+
+def test_smoothing_matches_scipy(blurred_frames, spans_full) -> None:
+    image = blurred_frames[0].image
+    x = np.arange(-2, 3)
+    weights = np.exp(-0.5 * x**2).astype(np.float32)
+    weights /= weights.sum()
+    lo, hi = spans_full(*image.shape)
+    _, b = _canny(image, lo, hi, 10, 30, weights)
+    ref = ndimage.convolve1d(image.astype(np.float64), weights, axis=0, mode="nearest")
+    ref = ndimage.convolve1d(ref, weights, axis=1, mode="nearest")
+    np.testing.assert_allclose(b["smooth"], ref, atol=1e-3)
+    gx = ndimage.correlate(ref, np.array([[-1, 0, 1], [-2, 0, 2], [-1, 0, 1]], float), mode="nearest")
+    np.testing.assert_allclose(b["gx"], gx, atol=1e-2)
+
+
+def test_canny_inside_spans_equals_full_frame(blurred_frames, spans_full) -> None:
+    image = blurred_frames[1].image
+    height, width = image.shape
+    lo_full, hi_full = spans_full(height, width)
+    _, full = _canny(image, lo_full, hi_full, 20, 50, (0.25, 0.5, 0.25))
+    points = np.ascontiguousarray(np.argwhere(full["edges"] > 0).astype(np.float32))
+    lo = np.zeros(height, np.int32)
+    hi = np.zeros(height, np.int32)
+    K.spans_around_points(points, len(points), 6, 0.0, 0.0, 0.0, height, width, lo, hi)
+    _, roi = _canny(image, lo, hi, 20, 50, (0.25, 0.5, 0.25))
+    inside = np.zeros((height, width), bool)
+    for r in range(height):
+        inside[r, lo[r] : hi[r] + 1] = hi[r] >= lo[r]
+    np.testing.assert_array_equal(roi["edges"][inside], full["edges"][inside])
+    assert inside.mean() < 0.25
+
+
+def test_spans_around_points_matches_reference() -> None:
+    rng = np.random.default_rng(3)
+    height, width = 50, 70
+    points = rng.uniform([-3, -3], [height + 3, width + 3], (12, 2)).astype(np.float32)
+    lo = np.zeros(height, np.int32)
+    hi = np.zeros(height, np.int32)
+    rows = K.spans_around_points(points, len(points), 3, 4.0, 10.0, 20.0, height, width, lo, hi)
+    mask = np.zeros((height, width), bool)
+    dist = np.hypot(points[:, 0] - 10.0, points[:, 1] - 20.0)
+    for (pr, pc), d in zip(points, dist, strict=True):
+        m = 3 + int(np.ceil(4.0 * d / dist.max()))
+        r0, r1 = max(0, int(np.floor(pr)) - m), min(height - 1, int(np.ceil(pr)) + m)
+        c0, c1 = max(0, int(np.floor(pc)) - m), min(width - 1, int(np.ceil(pc)) + m)
+        if r0 <= r1 and c0 <= c1:
+            mask[r0 : r1 + 1, c0 : c1 + 1] = True
+    assert rows == int(mask.any(axis=1).sum())
+    for r in range(height):
+        cols = np.flatnonzero(mask[r])
+        if cols.size:
+            assert (lo[r], hi[r]) == (cols.min(), cols.max())
+        else:
+            assert hi[r] < lo[r]
+
+
+def test_grow_spans_matches_reference() -> None:
+    lo = np.array([5, 1, 0, 7, 3, 9], np.int32)
+    hi = np.array([6, 0, 2, 8, 3, 12], np.int32)  # row 1 is empty
+    out_lo = np.zeros(6, np.int32)
+    out_hi = np.zeros(6, np.int32)
+    K.grow_spans(lo, hi, 1, 2, out_lo, out_hi)
+    for r in range(6):
+        rows = [rr for rr in range(max(0, r - 1), min(6, r + 2)) if hi[rr] >= lo[rr]]
+        assert out_lo[r] == max(0, min(lo[rr] for rr in rows) - 2)
+        assert out_hi[r] == max(hi[rr] for rr in rows) + 2

@@ -1,0 +1,177 @@
+"""Subpixel refinement, contour geometry and material point tracking against slow obvious references."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.special import erf
+
+from ropecam.device.pipeline import _kernels as K
+
+
+def _edge_image(angle_deg: float, offset_px: float, size: int = 41) -> tuple[np.ndarray, np.ndarray, float]:
+    """A blurred straight step edge through the image centre shifted by `offset_px` along its normal."""
+    normal = np.array([math.sin(math.radians(angle_deg)), math.cos(math.radians(angle_deg))])  # (row, col)
+    rows, cols = np.mgrid[0:size, 0:size].astype(float)
+    centre = (size - 1) / 2
+    signed = (rows - centre) * normal[0] + (cols - centre) * normal[1] - offset_px
+    image = 40 + 150 * 0.5 * (1 + erf(signed / (1.2 * math.sqrt(2))))
+    return np.clip(np.rint(image), 0, 255).astype(np.uint8), normal, centre
+
+
+@pytest.mark.parametrize(("angle", "offset"), [(0.0, 0.3), (17.0, -0.2), (45.0, 0.45), (71.0, 0.1)])
+def test_subpixel_refinement_finds_the_edge(angle, offset) -> None:
+    image, normal, centre = _edge_image(angle, offset)
+    height, width = image.shape
+    lo, hi = np.zeros(height, np.int32), np.full(height, width - 1, np.int32)
+    bufs = [np.zeros((height, width), np.float32) for _ in range(5)]
+    edges = np.zeros((height, width), np.uint8)
+    K.detect_edges(
+        image,
+        np.array([0.25, 0.5, 0.25], np.float32),
+        lo,
+        hi,
+        10.0,
+        30.0,
+        np.zeros((4, height), np.int32),
+        *bufs,
+        edges,
+        np.zeros(height * width, np.int32),
+    )
+    chain = np.ascontiguousarray(np.argwhere(edges[5:-5, 5:-5] > 0) + 5).astype(np.int32)
+    points = np.zeros(chain.shape, np.float32)
+    K.refine_subpixel(bufs[4], bufs[2], bufs[3], chain, len(chain), points)
+    distance = (points[:, 0] - centre) * normal[0] + (points[:, 1] - centre) * normal[1] - offset
+    integer = (chain[:, 0] - centre) * normal[0] + (chain[:, 1] - centre) * normal[1] - offset
+    assert np.abs(distance).mean() < 0.06
+    assert np.abs(distance).mean() < 0.5 * np.abs(integer).mean() + 1e-9
+
+
+def test_subpixel_matches_reference_parabola() -> None:
+    rng = np.random.default_rng(2)
+    mag = rng.uniform(0, 10, (12, 12)).astype(np.float32)
+    gx = rng.normal(size=(12, 12)).astype(np.float32)
+    gy = rng.normal(size=(12, 12)).astype(np.float32)
+    chain = np.array([[3, 4], [5, 5], [8, 2], [6, 9]], np.int32)
+    out = np.zeros((4, 2), np.float32)
+    K.refine_subpixel(mag, gx, gy, chain, 4, out)
+    for (r, c), got in zip(chain, out, strict=True):
+        axis = np.array([0.0, 1.0]) if abs(gx[r, c]) >= abs(gy[r, c]) else np.array([1.0, 0.0])
+        mm = mag[r - int(axis[0]), c - int(axis[1])]
+        mp = mag[r + int(axis[0]), c + int(axis[1])]
+        denom = mm - 2 * mag[r, c] + mp
+        delta = np.clip(0.5 * (mm - mp) / denom, -1, 1) if denom < 0 else 0.0
+        np.testing.assert_allclose(got, [r + delta * axis[0], c + delta * axis[1]], atol=1e-4)
+
+
+def _closed_polygon(points: list[tuple[float, float]], step: float = 0.5) -> np.ndarray:
+    out = []
+    for a, b in zip(points, points[1:] + points[:1], strict=True):
+        a, b = np.array(a, float), np.array(b, float)
+        count = max(1, int(np.ceil(np.hypot(*(b - a)) / step)))
+        out.extend(a + (b - a) * k / count for k in range(count))
+    return np.array(out, np.float32)
+
+
+def test_turning_angles_matches_reference() -> None:
+    pts = _closed_polygon([(0, 0), (0, 10), (10, 10), (10, 0)], 1.0)
+    turn = np.zeros(len(pts), np.float32)
+    K.turning_angles(pts, len(pts), 2, turn)
+    n = len(pts)
+    for i in range(n):
+        v1 = pts[i] - pts[(i - 2) % n]
+        v2 = pts[(i + 2) % n] - pts[i]
+        ref = math.acos(np.clip(v1 @ v2 / np.linalg.norm(v1) / np.linalg.norm(v2), -1, 1))
+        assert turn[i] == pytest.approx(ref, abs=1e-5)
+    assert turn.max() == pytest.approx(math.pi / 2, abs=1e-5)
+
+
+def test_split_finds_the_corners_of_a_swept_band() -> None:
+    # The outline of a band swept about (0, 0): side A along col 0, tip track from (40, 0) to (40, 12), side B back.
+    pts = _closed_polygon([(0, -1), (40, -1), (40, 13), (0, 1)], 0.5)
+    turn = np.zeros(len(pts), np.float32)
+    K.turning_angles(pts, len(pts), 3, turn)
+    idx = np.zeros(4, np.int32)
+    assert K.split_contour(pts, turn, len(pts), 0.0, 0.0, 6.0, 6, idx) == 4
+    fixed, seg_a, far, seg_b = idx
+    assert np.hypot(*pts[fixed]) <= 1.01
+    assert np.allclose(pts[seg_a], (40, -1), atol=0.6)
+    assert np.allclose(pts[seg_b], (40, 13), atol=0.6)
+    assert np.allclose(pts[far], (40, 13), atol=0.6)
+    assert K.split_contour(pts[:6], turn, 6, 0.0, 0.0, 6.0, 6, idx) == K.NOT_FOUND
+
+
+def test_offset_side_moves_inward_by_the_modelled_half_width() -> None:
+    pts = _closed_polygon([(0, 0), (0, 20), (4, 20), (4, 0)], 1.0)  # clockwise on screen
+    assert K.signed_area(pts, len(pts)) > 0
+    out = np.zeros((64, 2), np.float32)
+    count = K.offset_side(pts, len(pts), 2, 18, 1, 1.0, 4.0, 0.0, 1, out)
+    assert count == 17
+    np.testing.assert_allclose(out[:count, 0], 2.0, atol=1e-5)  # moved down by half the width
+    count = K.offset_side(pts, len(pts), 2, 18, 1, 1.0, 4.0, 4.0, 1, out)
+    s = np.arange(count) / (count - 1)
+    np.testing.assert_allclose(out[:count, 0], 0.5 * (4.0 - 4.0 * s), atol=1e-5)
+
+
+def test_midline_of_two_parallel_sides() -> None:
+    a = np.stack([np.linspace(0, 30, 31), np.zeros(31)], axis=1).astype(np.float32)
+    b = np.stack([np.linspace(0, 30, 61), np.full(61, 4.0)], axis=1).astype(np.float32)
+    out = np.zeros((31, 2), np.float32)
+    dist = np.zeros(31, np.float32)
+    assert K.midline(a, 31, b, 61, out, dist) == 31
+    np.testing.assert_allclose(dist, 4.0, atol=1e-5)
+    np.testing.assert_allclose(out[:, 1], 2.0, atol=1e-5)
+    np.testing.assert_allclose(out[:, 0], a[:, 0], atol=1e-5)
+
+
+def _track_reference(poly, arcs, length0):
+    seg = np.hypot(*np.diff(poly, axis=0).T)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    lc = cum[-1]  # eq. (9)
+    out = []
+    for arc in arcs:
+        target = arc * lc / length0
+        j = int(np.searchsorted(cum, target, side="right")) - 1  # eqs. (10)-(11)
+        if target <= 0:
+            out.append(poly[0])
+        elif j >= len(poly) - 1:
+            out.append(poly[-1])
+        else:
+            out.append(poly[j] + (target - cum[j]) / seg[j] * (poly[j + 1] - poly[j]))  # eq. (12)
+    return np.array(out), lc
+
+
+def test_material_point_tracking_matches_equations_9_to_12() -> None:
+    rng = np.random.default_rng(4)
+    poly = np.cumsum(rng.normal(size=(30, 2)), axis=0).astype(np.float32)
+    arcs = np.array([0.0, 1.5, 7.25, 20.0, 33.3, 1000.0])
+    out = np.zeros((len(arcs), 2), np.float32)
+    length0 = 25.0
+    assert K.track_material_points(poly, len(poly), arcs, length0, out) == len(arcs)
+    ref, lc = _track_reference(poly.astype(float), arcs, length0)
+    np.testing.assert_allclose(out, ref, atol=1e-3)
+    assert K.polyline_length(poly, len(poly)) == pytest.approx(lc, rel=1e-6)
+    assert K.track_material_points(poly, 0, arcs, length0, out) == K.INVALID
+    assert K.track_material_points(poly, len(poly), arcs, 0.0, out) == K.INVALID
+
+
+def test_resample_keeps_ends_and_spacing() -> None:
+    poly = np.array([[0, 0], [0, 10], [10, 10]], np.float32)
+    out = np.zeros((50, 2), np.float32)
+    count = K.resample_polyline(poly, 3, 3.0, out)
+    assert count == 8
+    np.testing.assert_allclose(out[0], poly[0])
+    np.testing.assert_allclose(out[count - 1], poly[-1])
+    steps = np.hypot(*np.diff(out[:count], axis=0).T)
+    np.testing.assert_allclose(steps[steps > 2.8], 20 / 7, atol=1e-4)
+    assert K.resample_polyline(poly, 3, 0.1, out) == K.FULL
+
+
+def test_roi_contacts_counts_pixels_at_the_region_border() -> None:
+    lo = np.array([2, 2, 2, 2, 2], np.int32)
+    hi = np.array([6, 6, 6, 6, 6], np.int32)
+    chain = np.array([[2, 2], [2, 4], [2, 6], [0, 4]], np.int32)
+    assert K.count_roi_contacts(chain, 4, lo, hi, 10) == 2
+    assert K.count_roi_contacts(chain, 4, lo, hi, 7) == 1
