@@ -105,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
         t2 = time.perf_counter_ns()
         ours.append((t1 - t0) / 1000)
         canny.append((t2 - t1) / 1000)
-        statuses[str(result.status)] = statuses.get(str(result.status), 0) + 1
+        statuses[result.status.name] = statuses.get(result.status.name, 0) + 1
     after = rtsys.get_allocation_stats()
     counter.uninstall()
     n = len(ours)

@@ -82,7 +82,8 @@ def evaluate(sequence: list, method: str) -> dict[str, Any]:
         if r.begin is None or r.end is None:
             continue
         results += 1
-        methods[str(r.method)] = methods.get(str(r.method), 0) + 1
+        name = "none" if r.method is None else r.method.name
+        methods[name] = methods.get(name, 0) + 1
         ours_b = r.begin[:, ::-1].astype(np.float64)  # (u, v)
         ours_e = r.end[:, ::-1].astype(np.float64)
         tip_errors.append(np.hypot(*(ours_b[-1] - begin_uv[-1])))

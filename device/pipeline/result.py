@@ -3,37 +3,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from enum import StrEnum
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from ropecam.shared.protocol.frame_result import FrameStatus, Method
+
+# FrameStatus and Method are the wire protocol's: one definition of what happened to a frame, on both sides.
 __all__ = ["FrameResult", "FrameStatus", "Method"]
-
-
-class FrameStatus(StrEnum):
-    """What happened to a frame."""
-
-    OK = "OK"
-    """Both shapes measured."""
-    NO_ROPE = "NO_ROPE"
-    """No edge component large enough to be the rope (black, saturated, empty scene)."""
-    BAD_FRAME = "BAD_FRAME"
-    """The frame is not a 2-D uint8 array of the configured size."""
-    LOST_TRACK = "LOST_TRACK"
-    """A rope-like contour was found but could not be split into shapes (no fixed end or segmentation points)."""
-    ROPE_CLIPPED = "ROPE_CLIPPED"
-    """The rope's free part touches the image border: it is leaving the field of view."""
-
-
-class Method(StrEnum):
-    """How the shapes of a frame were obtained."""
-
-    BLUR_SPLIT = "BLUR_SPLIT"
-    PAPER = "PAPER"
-    CENTERLINE = "CENTERLINE"
-    STATIC_FALLBACK = "STATIC_FALLBACK"
 
 
 def _uv(points: NDArray[np.float32] | None, digits: int = 3) -> list[list[float]] | None:
@@ -94,8 +72,8 @@ class FrameResult:
             "frame": self.frame,
             "t_ns": self.t_ns,
             "t_end_ns": self.t_end_ns,
-            "status": str(self.status),
-            "method": None if self.method is None else str(self.method),
+            "status": self.status.name,
+            "method": None if self.method is None else self.method.name,
             "order_confidence": round(float(self.order_confidence), 4),
             "begin": _uv(self.begin),
             "end": _uv(self.end),

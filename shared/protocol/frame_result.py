@@ -46,6 +46,8 @@ class FrameStatus(IntEnum):
     """Some of the rope was measured (a shape or the tips are missing)."""
     OVERRUN = 5
     """The pipeline ran out of time and skipped work on this frame."""
+    ROPE_CLIPPED = 6
+    """The rope's free part touches the image border: it is leaving the field of view."""
 
 
 class Method(IntEnum):

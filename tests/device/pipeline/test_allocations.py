@@ -43,7 +43,7 @@ SCRIPT = textwrap.dedent(
         before = rtsys.get_allocation_stats()
         statuses = []
         for f in frames[3:]:
-            statuses.append(str(pipeline.process(f.image, f.index, f.t_ns, f.exposure_us).status))
+            statuses.append(pipeline.process(f.image, f.index, f.t_ns, f.exposure_us).status.name)
         after = rtsys.get_allocation_stats()
         for name, fn in originals.items():
             setattr(K, name, fn)

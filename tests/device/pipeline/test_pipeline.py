@@ -124,7 +124,7 @@ def test_bad_frame_gets_a_status_and_the_next_good_frame_is_measured(fast_rope, 
     if expected is not FrameStatus.ROPE_CLIPPED:
         assert r.begin is None and r.end is None
     json_record = r.to_json()
-    assert json_record["status"] == expected.value
+    assert json_record["status"] == expected.name
     good = fast_frames[2]
     r = pipeline.process(good.image, 2, good.t_ns, good.exposure_us)
     assert r.status is FrameStatus.OK

@@ -1,0 +1,1 @@
+"""The rig daemon: capture, measure, stream, obey authenticated control, report health, survive faults."""
