@@ -19,6 +19,7 @@ ropecam-device turns camera frames into rope shapes and tracked material points 
 COMMAND_MODULES: tuple[str, ...] = (
     "ropecam.device.extract",
     "ropecam.device.capture.probe",
+    "ropecam.device.daemon.cli",
 )
 
 

@@ -1,0 +1,286 @@
+"""The daemon's main loop: camera -> pipeline -> sender, with control between frames, Status every period,
+and recovery from a lost camera or link.
+
+Threads: the main loop (capture and pipeline; the Numba kernels release the GIL), the sender (encoding and
+sending) and the control listener (receiving). Only the main loop touches the camera and the pipeline.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import threading
+import time
+from collections import Counter
+from collections.abc import Callable
+
+from ropecam.device.capture.driver import DriverFactory
+from ropecam.device.capture.source import CameraSource, CapturedFrame
+from ropecam.device.daemon.config import DeviceConfig
+from ropecam.device.daemon.control import ControlListener
+from ropecam.device.daemon.convert import to_wire
+from ropecam.device.daemon.health import CpuMeter, RateMeter, read_temperature_c
+from ropecam.device.daemon.systemd import Notifier
+from ropecam.device.pipeline.pipeline import Pipeline
+from ropecam.device.senders.stream import ResultSender
+from ropecam.shared.errors import CaptureError, TransportError
+from ropecam.shared.protocol import Command, Control, Log, Status, Verifier, load_key, split_frame
+from ropecam.shared.transport.base import Transport, open_transport
+
+__all__ = ["EXIT_CAMERA_LOST", "EXIT_OK", "Daemon"]
+
+_log = logging.getLogger(__name__)
+EXIT_OK = 0
+EXIT_CAMERA_LOST = 3
+
+
+class Daemon:
+    """Run the rig: measure every frame and stream the results until stopped.
+
+    Parameters
+    ----------
+    config
+        The device configuration.
+    notifier
+        systemd notifications (default: none).
+    driver_factory
+        Replaces the V4L2 driver layer (tests).
+    transport_factory
+        Opens the link from the sink URL (default `open_transport`).
+    """
+
+    def __init__(
+        self,
+        config: DeviceConfig,
+        notifier: Notifier | None = None,
+        driver_factory: DriverFactory | None = None,
+        transport_factory: Callable[[str], Transport] = open_transport,
+    ) -> None:
+        self.config = config
+        self.notifier = notifier or Notifier()
+        self._driver_factory = driver_factory
+        self._transport_factory = transport_factory
+        self._verifier = Verifier(load_key(config.control))
+        self.statuses: Counter[str] = Counter()
+        self.frames_measured = 0
+        self.link_reopened = 0
+        self.camera_reopened = 0
+        self._pipeline_config = config.pipeline
+        self._pipeline: Pipeline | None = None
+        self._running = True
+        self._raw_frame_requested = False
+        self._camera_lost_since: float | None = None
+        self._started = time.monotonic_ns()
+        self._cpu = CpuMeter()
+        self._rate = RateMeter()
+        self._gain = 0.0  # dB; the wire needs a finite value, and sources without gain control report none
+        self.transport: Transport | None = None
+        self.sender: ResultSender | None = None
+        self.listener: ControlListener | None = None
+
+    # -- link ----------------------------------------------------------------------------------------------------
+    def _open_link(self, stop: threading.Event) -> bool:
+        """Open the transport, sender and control listener, retrying with backoff; False if stopped first."""
+        delay = self.config.daemon.retry_initial_s
+        sequence = 0 if self.sender is None else self.sender.next_sequence
+        while not stop.is_set():
+            try:
+                self.transport = self._transport_factory(self.config.sender.sink)
+            except TransportError as exc:
+                _log.error("cannot open the link %s: %s (retrying in %.1f s)", self.config.sender.sink, exc, delay)
+                self.notifier.status(f"link {self.config.sender.sink} unavailable: {exc}")
+                stop.wait(delay)
+                delay = min(delay * 2, self.config.daemon.retry_max_s)
+                continue
+            sender_config = self.config.sender
+            self.sender = ResultSender(self.transport, sender_config.device_id, sender_config.queue_frames, sequence)
+            self.listener = ControlListener(
+                self.transport,
+                self.sender,
+                sender_config.device_id,
+                self._verifier,
+                self._pipeline_config.rope_length_m,
+            )
+            return True
+        return False
+
+    def _close_link(self) -> None:
+        if self.sender is not None:
+            self.sender.close()
+        if self.listener is not None:
+            self.listener.close()
+        if self.transport is not None:
+            self.transport.close()
+
+    def _link_broken(self) -> bool:
+        return self.transport is None or self.transport.closed
+
+    # -- camera --------------------------------------------------------------------------------------------------
+    def _open_camera(self, stop: threading.Event) -> CameraSource | None:
+        """Open and start the camera, retrying with backoff; None when stopped or lost longer than allowed."""
+        delay = self.config.daemon.retry_initial_s
+        while not stop.is_set():
+            source = None
+            try:
+                source = self.config.capture.open(self._driver_factory)
+                source.start()
+                self._camera_lost_since = None
+                return source
+            except CaptureError as exc:
+                if source is not None:
+                    source.stop()
+                now = time.monotonic()
+                self._camera_lost_since = self._camera_lost_since or now
+                lost_s = now - self._camera_lost_since
+                _log.error("camera unavailable for %.1f s: %s", lost_s, exc)
+                self._send_log(f"camera unavailable for {lost_s:.1f} s: {exc}")
+                self.notifier.status(f"camera unavailable: {exc}")
+                if lost_s >= self.config.daemon.camera_give_up_s:
+                    return None
+                self._send_status(None)
+                stop.wait(delay)
+                delay = min(delay * 2, self.config.daemon.retry_max_s)
+        return None
+
+    # -- commands --------------------------------------------------------------------------------------------------
+    def _apply(self, control: Control, source: CameraSource) -> None:
+        command, values = control.command, control.values
+        try:
+            if command is Command.SET_EXPOSURE:
+                source.set_exposure_us(round(values[0]))
+            elif command is Command.SET_GAIN:
+                self._gain = float(source.set_gain(round(values[0])))
+            elif command is Command.SET_THRESHOLDS:
+                self._rebuild(canny_low=values[0], canny_high=values[1])
+            elif command is Command.SET_MATERIAL_POINTS:
+                self._rebuild(material_points_m=tuple(values))
+            elif command is Command.RESET_ROI:
+                self._rebuild()
+            elif command is Command.START:
+                self._running = True
+            elif command is Command.STOP:
+                self._running = False
+            elif command is Command.REQUEST_RAW_FRAME:
+                self._raw_frame_requested = True
+            _log.info("applied %s %s", command.name, list(values))
+        except (ValueError, CaptureError) as exc:
+            _log.warning("could not apply %s %s: %s", command.name, list(values), exc)
+            self._send_log(f"could not apply {command.name}: {exc}")
+
+    def _rebuild(self, **changes: object) -> None:
+        """New pipeline settings (or a reset of its tracking state): rebuild it before the next frame."""
+        self._pipeline_config = dataclasses.replace(self._pipeline_config, **changes)
+        self._pipeline = None
+
+    # -- reporting -----------------------------------------------------------------------------------------------
+    def _send_log(self, text: str, level: int = logging.WARNING) -> None:
+        if self.sender is not None:
+            self.sender.submit(Log(level=level, text=text[:1000]))
+
+    def _send_status(self, source: CameraSource | None) -> None:
+        if self.sender is None:
+            return
+        counters = source.counters if source is not None else None
+        delivered = counters.delivered if counters else 0
+        sender, transport = self.sender.stats, self.transport.stats if self.transport else None
+        named = {
+            "camera_lost": int(self._camera_lost_since is not None),
+            "capture_timeouts": counters.timeouts if counters else 0,
+            "capture_skipped": counters.skipped if counters else 0,
+            "queue_dropped": sender.dropped_queue_full,
+            "encode_errors": sender.encode_errors,
+            "link_errors": sender.link_errors,
+            "link_reopened": self.link_reopened,
+            "camera_reopened": self.camera_reopened,
+            "control_applied": self.listener.endpoint.stats.applied if self.listener else 0,
+            "control_refused": self.listener.endpoint.stats.refused if self.listener else 0,
+            "running": int(self._running),
+        }
+        named.update({f"frames_{status.lower()}": count for status, count in self.statuses.items()})
+        status = Status(
+            frame_rate_hz=self._rate.sample(delivered),
+            frames_captured=delivered,
+            frames_dropped=(counters.dropped + counters.skipped if counters else 0) + sender.dropped_queue_full,
+            messages_dropped=transport.send_dropped if transport else 0,
+            exposure_us=int(source.exposure_us) if source is not None else 0,
+            gain_db=self._gain,
+            uptime_ns=time.monotonic_ns() - self._started,
+            cpu_load=self._cpu.sample(),
+            temperature_c=read_temperature_c(),
+            counters=tuple((name[:32], int(value)) for name, value in named.items()),
+        )
+        self.sender.submit(status)
+
+    # -- the loop ----------------------------------------------------------------------------------------------------
+    def _measure(self, frame: CapturedFrame, source: CameraSource) -> None:
+        if self._pipeline is None:
+            self._pipeline = Pipeline(self._pipeline_config, source.image_size)
+        result = self._pipeline.process(frame.image, frame.sequence, frame.t_ns, frame.exposure_us)
+        self.statuses[result.status.name] += 1
+        self.frames_measured += 1
+        if self.sender is not None:
+            self.sender.submit_frame(to_wire(result))
+
+    def run(self, stop: threading.Event) -> int:
+        """Run until `stop` is set, a recording ends, or the camera stays lost too long; return the exit code."""
+        if not self._open_link(stop):
+            return EXIT_OK
+        source = self._open_camera(stop)
+        if source is None:
+            self._close_link()
+            return EXIT_OK if stop.is_set() else EXIT_CAMERA_LOST
+        self.notifier.ready(f"measuring {source.describe().get('name', '')} -> {self.config.sender.sink}")
+        period_s = self.config.sender.status_period_s
+        next_status = time.monotonic() + period_s
+        next_ping = time.monotonic()
+        timeout_s = self.config.capture.read_timeout_s
+        code = EXIT_OK
+        try:
+            while not stop.is_set():
+                while self.listener is not None and not self.listener.commands.empty():
+                    self._apply(self.listener.commands.get(), source)
+                try:
+                    frame = source.read(timeout_s)
+                except CaptureError as exc:
+                    _log.error("camera lost: %s", exc)
+                    self._send_log(f"camera lost: {exc}", logging.ERROR)
+                    source.stop()
+                    reopened = self._open_camera(stop)
+                    if reopened is None:
+                        code = EXIT_OK if stop.is_set() else EXIT_CAMERA_LOST
+                        break
+                    source = reopened
+                    self.camera_reopened += 1
+                    continue
+                if frame is None:
+                    if source.finished:
+                        _log.info("the recording has ended")
+                        break
+                elif self._running:
+                    self._measure(frame, source)
+                if frame is not None and self._raw_frame_requested and self.sender is not None:
+                    for chunk in split_frame(frame.sequence, frame.image):
+                        self.sender.submit(chunk)
+                    self._raw_frame_requested = False
+                now = time.monotonic()
+                if self.notifier.watchdog_period_s is not None and now >= next_ping:
+                    self.notifier.watchdog()
+                    next_ping = now + self.notifier.watchdog_period_s
+                if now >= next_status:
+                    next_status = now + period_s
+                    if self._link_broken():
+                        self._reopen_link(stop)
+                    self._send_status(source)
+        finally:
+            self.notifier.stopping()
+            source.stop()
+            if self.sender is not None:
+                self._send_status(source)
+            self._close_link()
+        return code
+
+    def _reopen_link(self, stop: threading.Event) -> None:
+        _log.warning("the link %s closed; reopening", self.config.sender.sink)
+        self._close_link()
+        if self._open_link(stop):
+            self.link_reopened += 1

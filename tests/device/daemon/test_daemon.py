@@ -1,0 +1,233 @@
+"""The rig daemon end to end: recorded frames in, every result out over loop, UDP and a serial pty, equal to the
+offline pipeline; authenticated control; a camera that vanishes; systemd notifications; configuration errors."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import pty
+import socket
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ropecam.device.capture.config import CaptureConfig
+from ropecam.device.capture.fake import fake_factory, uvc_like_camera
+from ropecam.device.capture.frameset import FrameSet
+from ropecam.device.daemon.config import DaemonConfig, DeviceConfig, SenderConfig, load_device_config
+from ropecam.device.daemon.convert import to_wire
+from ropecam.device.daemon.runner import EXIT_CAMERA_LOST, EXIT_OK, Daemon
+from ropecam.device.daemon.systemd import Notifier
+from ropecam.device.pipeline.config import PipelineConfig
+from ropecam.device.pipeline.pipeline import Pipeline
+from ropecam.shared.errors import ConfigError
+from ropecam.shared.protocol import (
+    AckResult,
+    Command,
+    Control,
+    ControlAck,
+    Deframer,
+    FrameAssembler,
+    FrameResult,
+    RawFrameChunk,
+    Signer,
+    Status,
+    decode_message,
+    encode_message,
+    polyline_distances_px,
+)
+from ropecam.shared.transport import open_transport
+
+from .conftest import running
+
+PIPELINE = PipelineConfig(rope_length_m=0.411, material_points_m=(0.1, 0.2, 0.3, 0.411))
+KEY_HEX = "00112233445566778899aabbccddeeff"
+
+
+def _config(rig_set: Path, sink: str, **sender: object) -> DeviceConfig:
+    return DeviceConfig(
+        capture=CaptureConfig(source=f"frames:{rig_set}?paced=0"),
+        pipeline=PIPELINE,
+        sender=SenderConfig(sink=sink, queue_frames=1000, status_period_s=0.2, **sender),
+    )
+
+
+def _offline(rig_set: Path) -> list[FrameResult]:
+    frames = FrameSet(rig_set)
+    pipeline = Pipeline(PIPELINE, frames.image_size)
+    return [to_wire(pipeline.process(image, r.frame, r.t_ns, r.exposure_us)) for r, image in frames]
+
+
+def _assert_same_results(received: list[FrameResult], expected: list[FrameResult]) -> None:
+    assert [r.frame_index for r in received] == [e.frame_index for e in expected]
+    for got, want in zip(received, expected, strict=True):
+        assert got.status == want.status and got.method == want.method
+        for name in ("begin_px", "end_px"):
+            a, b = getattr(got, name), getattr(want, name)
+            assert (a is None) == (b is None)
+            if a is not None:
+                # The wire carries a compact curve within 0.05 px of the device's polyline.
+                assert polyline_distances_px(b, a).max() <= 0.05 + 1e-6
+
+
+def _collect(link, until: float, decode=decode_message) -> list:
+    messages = []
+    while time.monotonic() < until:
+        data = link.receive(0.05)
+        if data is not None:
+            messages.append(decode(data))
+    return messages
+
+
+def test_loop_stream_equals_the_offline_pipeline(rig_set: Path) -> None:
+    host = open_transport("loop://daemon-loop")
+    daemon = Daemon(_config(rig_set, "loop://daemon-loop"))
+    handle = running(daemon)
+    with handle as run:
+        assert run.wait() == EXIT_OK  # the recording ends by itself
+    messages = _collect(host, time.monotonic() + 0.5)
+    results = [m.record for m in messages if isinstance(m.record, FrameResult)]
+    _assert_same_results(results, _offline(rig_set))
+    assert any(isinstance(m.record, Status) for m in messages)
+    sequences = [m.header.sequence for m in messages]
+    assert sequences == list(range(len(sequences)))  # nothing lost, nothing reordered
+    host.close()
+
+
+def test_udp_loopback_stream(rig_set: Path) -> None:
+    host = open_transport("udp://127.0.0.1:0?listen=1")
+    port = host.local_address[1]
+    with running(Daemon(_config(rig_set, f"udp://127.0.0.1:{port}"))) as run:
+        assert run.wait() == EXIT_OK
+    results = [m.record for m in _collect(host, time.monotonic() + 0.5) if isinstance(m.record, FrameResult)]
+    _assert_same_results(results, _offline(rig_set))
+    host.close()
+
+
+def test_serial_pty_stream(rig_set: Path) -> None:
+    master, slave = pty.openpty()
+    name = os.ttyname(slave)
+    os.close(slave)
+    os.set_blocking(master, False)
+    deframer = Deframer()
+    received = []
+    with running(Daemon(_config(rig_set, f"serial://{name}?baud=921600"))) as run:
+        deadline = time.monotonic() + 60
+        while run.thread.is_alive() and time.monotonic() < deadline:
+            try:
+                chunk = os.read(master, 65536)
+            except (BlockingIOError, OSError):
+                time.sleep(0.005)
+                continue
+            received.extend(deframer.feed(chunk))
+    time.sleep(0.2)
+    with contextlib.suppress(BlockingIOError, OSError):
+        received.extend(deframer.feed(os.read(master, 65536)))
+    os.close(master)
+    results = [r for r in (decode_message(f).record for f in received) if isinstance(r, FrameResult)]
+    _assert_same_results(results, _offline(rig_set))
+
+
+def test_authenticated_control_is_applied_and_forgeries_refused(rig_set: Path) -> None:
+    config = _config(rig_set, "loop://daemon-ctl")
+    config = DeviceConfig(
+        capture=CaptureConfig(source=f"frames:{rig_set}?fps=20&loop=1"),
+        pipeline=config.pipeline,
+        sender=config.sender,
+        control=type(config.control)(key_hex=KEY_HEX),
+    )
+    host = open_transport("loop://daemon-ctl")
+    signer = Signer(bytes.fromhex(KEY_HEX))
+    forger = Signer(bytes.fromhex("ff" * 16))
+
+    def control(command: Command, values=(), sequence: int = 0, sign=signer) -> None:
+        host.send(encode_message(Control(command, values), device_id=1, sequence=sequence, t_ns=0, signer=sign))
+
+    with running(Daemon(config)) as run:
+        _collect(host, time.monotonic() + 1.0)
+        control(Command.SET_EXPOSURE, (2500,), 1)
+        control(Command.SET_EXPOSURE, (1e9,), 2)  # out of range: acknowledged as invalid
+        control(Command.STOP, (), 3, sign=forger)  # wrong key: refused, no answer
+        host.send(encode_message(Control(Command.STOP), device_id=1, sequence=4, t_ns=0))  # unsigned: refused
+        control(Command.REQUEST_RAW_FRAME, (), 5)
+        messages = _collect(host, time.monotonic() + 2.0)
+        assert run.thread.is_alive()
+    acks = [m.record for m in messages if isinstance(m.record, ControlAck)]
+    assert [(a.command, a.result) for a in acks] == [
+        (Command.SET_EXPOSURE, AckResult.APPLIED),
+        (Command.SET_EXPOSURE, AckResult.INVALID),
+        (Command.REQUEST_RAW_FRAME, AckResult.APPLIED),
+    ]
+    assembler = FrameAssembler()
+    images = [image for m in messages if isinstance(m.record, RawFrameChunk) for image in [assembler.add(m.record)]]
+    image = next(i for i in images if i is not None)
+    assert image.shape == (544, 1024) and image.dtype == np.uint8
+    statuses = [m.record for m in messages if isinstance(m.record, Status)]
+    counters = dict(statuses[-1].counters)
+    assert counters["control_applied"] == 2 and counters["control_refused"] == 2 and counters["running"] == 1
+    host.close()
+
+
+def test_lost_camera_is_reported_and_retried(tmp_path: Path) -> None:
+    camera = uvc_like_camera()
+    camera.on_wait = lambda c: c.deliver(1)
+    config = DeviceConfig(
+        capture=CaptureConfig(source="v4l2:///dev/video0?width=64&height=32&fps=119&format=GREY", read_timeout_s=0.05),
+        pipeline=PIPELINE,
+        sender=SenderConfig(sink="loop://daemon-cam", status_period_s=0.1),
+        daemon=DaemonConfig(retry_initial_s=0.05, retry_max_s=0.1, camera_give_up_s=0.6),
+    )
+    host = open_transport("loop://daemon-cam")
+    daemon = Daemon(config, driver_factory=fake_factory(camera))
+    handle = running(daemon)
+    with handle as run:
+        _collect(host, time.monotonic() + 0.5)
+        camera.vanish()
+        lost = _collect(host, time.monotonic() + 0.3)
+        camera.reconnect()
+        back = _collect(host, time.monotonic() + 0.6)
+        assert run.thread.is_alive() and daemon.camera_reopened == 1
+        camera.vanish()  # for good this time: the daemon gives up after camera_give_up_s
+        assert run.wait(10) == EXIT_CAMERA_LOST
+    assert any(dict(m.record.counters).get("camera_lost") == 1 for m in lost if isinstance(m.record, Status))
+    assert any(isinstance(m.record, FrameResult) for m in back)
+    host.close()
+
+
+def test_systemd_ready_watchdog_and_stopping(rig_set: Path, tmp_path: Path) -> None:
+    path = str(tmp_path / "notify.sock")
+    server = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    server.bind(path)
+    server.settimeout(0.2)
+    notifier = Notifier(path, watchdog_usec=20_000)
+    with running(Daemon(_config(rig_set, "loop://daemon-sd"), notifier=notifier)) as run:
+        run.wait()
+    texts = []
+    while True:
+        try:
+            texts.append(server.recv(4096).decode())
+        except TimeoutError:
+            break
+    server.close()
+    assert texts[0].startswith("READY=1")
+    assert "WATCHDOG=1" in texts and texts[-1] == "STOPPING=1"
+
+
+@pytest.mark.parametrize(
+    ("toml", "message"),
+    [
+        ("[captur]\n", r"unknown table \[captur\]"),
+        ("[sender]\nsink = 'nowhere'\n", "sender.sink must be a transport URL"),
+        ("[sender]\ndevice_id = 0\n", r"sender.device_id must be in \[1, 65534\]"),
+        ("[pipeline]\nmethod = 'magic'\n", "method"),
+        ("[control]\nkey_hex = '12'\n", "at least 16 are required"),
+    ],
+)
+def test_bad_config_names_the_table_and_key(tmp_path: Path, toml: str, message: str) -> None:
+    path = tmp_path / "device.toml"
+    path.write_text(toml)
+    with pytest.raises(ConfigError, match=message) as info:
+        load_device_config(path)
+    assert str(path) in str(info.value)
