@@ -163,3 +163,20 @@ def test_model_config_file_gives_the_model_commands_motion(tmp_path: Path) -> No
     model = FrameSet(out).meta["rig"]["model"]
     assert model["rope"]["fixed_end"] == "clamped" and model["solver"]["elements"] == 6
     assert model["solver"]["duration_s"] == 0.05
+
+
+def test_frame_sets_record_the_version_the_cli_reports(
+    tmp_path: Path,
+    tiny: Callable[..., SimConfig],
+    rod_factory: Callable[..., Trajectory],
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    import ropecam.shared.cli
+
+    monkeypatch.setattr(ropecam.shared.cli, "version", lambda name: "9.8.7-test")
+    with pytest.raises(SystemExit):
+        main(["--version"])
+    assert "9.8.7-test" in capsys.readouterr().out
+    write_frameset(tiny(frames=1), rod_factory(0.411, 0.2), tmp_path / "set", 4.0)
+    assert FrameSet(tmp_path / "set").meta["rig"]["ropecam_version"] == "9.8.7-test"
