@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
+import socket
+import weakref
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from types import TracebackType
@@ -56,14 +59,22 @@ class Transport(ABC):
 
     @abstractmethod
     def receive(self, timeout_s: float | None = 0.0) -> bytes | None:
-        """Return the next message, waiting up to `timeout_s` (None: forever); None when none arrived."""
+        """Return the next message, waiting up to `timeout_s` (None: forever); None when none arrived.
+
+        Raises TransportError when the transport is closed, also when `close` is called by another thread while
+        this one waits.
+        """
 
     def drain(self, timeout_s: float = 1.0) -> bool:
         """Wait up to `timeout_s` until everything accepted by `send` has left this end; True when it has."""
         return True
 
     def close(self) -> None:
-        """Release the line; further calls fail with TransportError."""
+        """Release the line; further calls fail with TransportError.
+
+        Safe to call from another thread: a `receive` blocked in that thread wakes up and raises TransportError.
+        Calling it again does nothing.
+        """
         self._closed = True
 
     @property
@@ -81,6 +92,34 @@ class Transport(ABC):
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.url!r})"
+
+
+class Waker:
+    """A socket pair to wake a thread blocked in ``select``: select on `fileno()`, call `wake()` from another thread.
+
+    The pair stays open until the waker is garbage-collected, so a thread that enters select just after a close
+    never waits on a closed (or reused) descriptor.
+    """
+
+    def __init__(self) -> None:
+        self._read, self._write = socket.socketpair()
+        self._read.setblocking(False)
+        self._write.setblocking(False)
+        weakref.finalize(self, _close_all, self._read, self._write)
+
+    def fileno(self) -> int:
+        """The descriptor that becomes readable on `wake`."""
+        return self._read.fileno()
+
+    def wake(self) -> None:
+        """Make `fileno()` readable (for good: nothing clears it)."""
+        with contextlib.suppress(OSError):  # only when its buffer is full: then it is readable already
+            self._write.send(b"\x00")
+
+
+def _close_all(*sockets: socket.socket) -> None:
+    for item in sockets:
+        item.close()
 
 
 def parse_url(url: str, allowed: dict[str, type]) -> tuple[str, str, int | None, dict[str, object]]:
