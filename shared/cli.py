@@ -16,13 +16,14 @@ from importlib.metadata import PackageNotFoundError, version
 
 from ropecam.shared.errors import RopecamError
 
-__all__ = ["EXIT_ERROR", "EXIT_INTERRUPTED", "build_parser", "run"]
+__all__ = ["EXIT_ERROR", "EXIT_INTERRUPTED", "build_parser", "ropecam_version", "run"]
 
 EXIT_ERROR = 2
 EXIT_INTERRUPTED = 130
 
 
-def _version() -> str:
+def ropecam_version() -> str:
+    """Return the installed ropecam version (``"unknown"`` when the package is not installed)."""
     try:
         return version("ropecam")
     except PackageNotFoundError:
@@ -34,7 +35,7 @@ def build_parser(prog: str, description: str, command_modules: Sequence[str]) ->
     parser = argparse.ArgumentParser(
         prog=prog, description=description, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {ropecam_version()}")
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv for debug)")
     subparsers = parser.add_subparsers(title="commands", metavar="COMMAND")
     for name in command_modules:

@@ -13,13 +13,14 @@ import enum
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from types import TracebackType
-from typing import Self
+from types import MappingProxyType, TracebackType
+from typing import Final, Self
 
 import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
+    "BYTES_PER_PIXEL",
     "ControlInfo",
     "DriverBuffer",
     "DriverFactory",
@@ -28,7 +29,20 @@ __all__ = [
     "NegotiatedFormat",
     "TimestampSource",
     "V4l2Driver",
+    "fourcc_name",
 ]
+
+BYTES_PER_PIXEL: Final = MappingProxyType({"GREY": 1, "YUYV": 2})
+"""Bytes per pixel of the uncompressed formats ropecam turns into 8-bit luma (a YUYV pixel pair is 4 bytes)."""
+
+
+def fourcc_name(code: float) -> str:
+    """Return the four characters of a V4L2 pixel-format code (``0x59455247`` -> ``"GREY"``).
+
+    Trailing NULs and spaces are dropped (``"Y8  "`` -> ``"Y8"``; OpenCV reports 0 for an unknown format, which
+    gives ``""``); bytes that are not ASCII become U+FFFD. `code` may be a float, as ``cv2.CAP_PROP_FOURCC`` is.
+    """
+    return (int(code) & 0xFFFFFFFF).to_bytes(4, "little").decode("ascii", errors="replace").rstrip("\x00 ")
 
 
 class TimestampSource(enum.Enum):

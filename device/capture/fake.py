@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.capture.driver import (
+    BYTES_PER_PIXEL,
     ControlInfo,
     DriverBuffer,
     DriverFactory,
@@ -29,7 +30,8 @@ from ropecam.device.capture.driver import (
 
 __all__ = ["FakeCamera", "FakeV4l2Driver", "fake_factory", "fake_pattern", "uvc_like_camera"]
 
-_BYTES_PER_PIXEL = {"GREY": 1, "YUYV": 2, "MJPG": 2}
+_COMPRESSED_BYTES_PER_PIXEL = 2
+"""Buffer bytes per pixel of a compressed format (MJPG): sized like YUYV, as uvcvideo does."""
 
 
 def _os_error(code: int, what: str) -> OSError:
@@ -126,7 +128,7 @@ class FakeCamera:
         if info.sizes:
             size = min(info.sizes, key=lambda s: abs(s.width - width) + abs(s.height - height))
             width, height = size.width, size.height
-        bytes_per_line = width * _BYTES_PER_PIXEL.get(info.fourcc, 1) + self.row_padding
+        bytes_per_line = width * BYTES_PER_PIXEL.get(info.fourcc, _COMPRESSED_BYTES_PER_PIXEL) + self.row_padding
         return NegotiatedFormat(width, height, info.fourcc, bytes_per_line, bytes_per_line * height)
 
     def vanish(self) -> None:

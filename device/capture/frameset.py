@@ -16,13 +16,15 @@ a writer that dies leaves a readable set of every frame written so far.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
+import math
 import os
 import re
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
-from pathlib import Path
+from pathlib import Path, PurePosixPath, PureWindowsPath
 from typing import Any, Final
 
 import cv2
@@ -31,7 +33,15 @@ from numpy.typing import NDArray
 
 from ropecam.shared.errors import DataError
 
-__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "FrameRecord", "FrameSet", "FrameSetWriter", "is_frameset"]
+__all__ = [
+    "FORMAT_NAME",
+    "FORMAT_VERSION",
+    "FrameRecord",
+    "FrameSet",
+    "FrameSetWriter",
+    "is_frameset",
+    "write_atomically",
+]
 
 FORMAT_NAME: Final = "ropecam-frameset"
 FORMAT_VERSION: Final = 1
@@ -77,42 +87,50 @@ class FrameSet:
         self.root = Path(root)
         meta_path = self.root / _META
         try:
-            self.meta: dict[str, Any] = json.loads(meta_path.read_text())
+            meta = json.loads(meta_path.read_text(encoding="utf-8"))
         except FileNotFoundError as exc:
             raise DataError(f"{self.root}: not a frame set (no {_META})") from exc
-        except (OSError, json.JSONDecodeError) as exc:
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise DataError(f"{meta_path}: cannot read frame-set metadata: {exc}") from exc
-        if self.meta.get("format") != FORMAT_NAME:
-            raise DataError(f"{meta_path}: format is {self.meta.get('format')!r}, expected {FORMAT_NAME!r}")
-        if self.meta.get("version") != FORMAT_VERSION:
-            raise DataError(f"{meta_path}: version {self.meta.get('version')!r} not supported (expected 1)")
-        try:
-            width, height = (int(v) for v in self.meta["image_size"])
-            self.fps = float(self.meta["fps"])
-        except (KeyError, TypeError, ValueError) as exc:
-            raise DataError(f"{meta_path}: needs image_size [width, height] and fps ({exc})") from exc
-        self.image_size = (width, height)
+        if not isinstance(meta, dict):
+            raise DataError(f"{meta_path}: must hold a JSON object, got {type(meta).__name__}")
+        self.meta: dict[str, Any] = meta
+        if meta.get("format") != FORMAT_NAME:
+            raise DataError(f"{meta_path}: format is {meta.get('format')!r}, expected {FORMAT_NAME!r}")
+        if meta.get("version") != FORMAT_VERSION:
+            raise DataError(f"{meta_path}: version {meta.get('version')!r} not supported (expected 1)")
+        self.image_size = _image_size(meta.get("image_size"), meta_path)
+        self.fps = _fps(meta.get("fps"), meta_path)
         self.records = self._read_index()
 
     def _read_index(self) -> list[FrameRecord]:
         index_path = self.root / _INDEX
         records: list[FrameRecord] = []
+        reader = None
         try:
-            with index_path.open(newline="") as handle:
-                reader = csv.reader(handle)
+            with index_path.open(newline="", encoding="utf-8") as handle:
+                reader = csv.reader(handle, strict=True)
                 header = next(reader, None)
                 if tuple(header or ()) != _INDEX_HEADER:
                     raise DataError(f"{index_path}: header must be {','.join(_INDEX_HEADER)}, got {header}")
-                for line, row in enumerate(reader, start=2):
+                for row in reader:
                     if not row:
                         continue
+                    where = f"{index_path}:{reader.line_num}"
                     try:
                         frame, t_ns, exposure_us, name = int(row[0]), int(row[1]), int(row[2]), row[3]
                     except (IndexError, ValueError) as exc:
-                        raise DataError(f"{index_path}:{line}: bad row {row!r} ({exc})") from exc
-                    records.append(FrameRecord(frame, t_ns, exposure_us, self.root / name))
+                        raise DataError(f"{where}: bad row {row!r} ({exc})") from exc
+                    records.append(FrameRecord(frame, t_ns, exposure_us, _member_path(self.root, name, where)))
         except FileNotFoundError as exc:
             raise DataError(f"{self.root}: frame set has no {_INDEX}") from exc
+        except UnicodeDecodeError as exc:
+            raise DataError(f"{index_path}: not UTF-8 text ({exc})") from exc
+        except csv.Error as exc:
+            line = f":{reader.line_num}" if reader is not None else ""
+            raise DataError(f"{index_path}{line}: malformed CSV ({exc})") from exc
+        except OSError as exc:
+            raise DataError(f"{index_path}: cannot read the index: {exc}") from exc
         return records
 
     def __len__(self) -> int:
@@ -158,6 +176,63 @@ class FrameSet:
                 return {key: data[key] for key in data.files}
         except (OSError, ValueError) as exc:
             raise DataError(f"{path}: cannot read ground truth: {exc}") from exc
+
+
+def _image_size(value: object, meta_path: Path) -> tuple[int, int]:
+    """Return the metadata's ``image_size`` as (width, height), both positive integers."""
+    if (
+        not isinstance(value, list)
+        or len(value) != 2
+        or not all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in value)
+    ):
+        raise DataError(f"{meta_path}: image_size must be [width, height], two integers > 0, got {value!r}")
+    return int(value[0]), int(value[1])
+
+
+def _fps(value: object, meta_path: Path) -> float:
+    """Return the metadata's ``fps``: a finite number > 0."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not (math.isfinite(value) and value > 0):
+        raise DataError(f"{meta_path}: fps must be a finite number > 0 (frames per second), got {value!r}")
+    return float(value)
+
+
+def _member_path(root: Path, name: str, where: str) -> Path:
+    """Return ``root / name`` for an index's `file` column, refusing names that leave the frame set's folder."""
+    relative = PurePosixPath(name)
+    if not name or relative.is_absolute() or PureWindowsPath(name).is_absolute() or ".." in relative.parts:
+        raise DataError(
+            f"{where}: file {name!r} must be a path inside the frame set (relative, no '..'), e.g. frames/000000.png"
+        )
+    return root / relative
+
+
+def write_atomically(path: str | Path, write: Callable[[Path], object], what: str = "file") -> None:
+    """Write `path` through a temporary file in the same folder renamed into place, so it is never half written.
+
+    Parameters
+    ----------
+    path
+        The file to (re)place.
+    write
+        Writes the content to the path it is given (``<name>.tmp<suffix>``: same suffix, so writers that add a
+        missing suffix, as `numpy.savez` does, write exactly there).
+    what
+        What the file holds, for the error message (``"ground truth"``).
+
+    Raises
+    ------
+    DataError
+        Writing or renaming failed (an OS error); the temporary file is removed and an existing `path` is kept.
+    """
+    path = Path(path)
+    tmp = path.with_name(f"{path.stem}.tmp{path.suffix}")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
+        raise DataError(f"{path}: cannot write the {what}: {exc}") from exc
 
 
 def _frame_files(folder: Path) -> list[Path]:
@@ -225,8 +300,8 @@ class FrameSetWriter:
             meta = {"format": FORMAT_NAME, "version": FORMAT_VERSION, "image_size": list(self.image_size)}
             meta.update({"fps": float(fps), "camera": None, "plane": None, "rig": {}})
             meta.update(metadata or {})
-            (self.root / _META).write_text(json.dumps(meta, indent=2) + "\n")
-            self._index = (self.root / _INDEX).open("w", newline="")
+            (self.root / _META).write_text(json.dumps(meta, indent=2) + "\n", encoding="utf-8")
+            self._index = (self.root / _INDEX).open("w", newline="", encoding="utf-8")
         except OSError as exc:
             raise DataError(f"{self.root}: cannot create frame set: {exc}") from exc
         self._writer = csv.writer(self._index)
@@ -248,10 +323,14 @@ class FrameSetWriter:
         return record
 
     def write_truth(self, arrays: Mapping[str, NDArray[Any]]) -> None:
-        """Write the ground-truth arrays (atomically: a temporary file renamed into place)."""
-        tmp = self.root / (_TRUTH + ".tmp.npz")
-        np.savez_compressed(tmp, **dict(arrays))
-        os.replace(tmp, self.root / _TRUTH)
+        """Write the ground-truth arrays (atomically: a temporary file renamed into place).
+
+        Raises
+        ------
+        DataError
+            The file cannot be written (the message names it).
+        """
+        write_atomically(self.root / _TRUTH, lambda tmp: np.savez_compressed(tmp, **dict(arrays)), "ground truth")
 
     def close(self) -> None:
         """Close the index file."""

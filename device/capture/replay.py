@@ -102,6 +102,7 @@ class FrameSetSource(CameraSource):
         self._exposures = [r.exposure_us for r in records]
         self._preloaded: NDArray[np.uint8] | None = None
         self._next = 0  # frames (counting across loops) handed over or skipped so far
+        self._last_position = 0  # index position of the frame delivered last
         self._start_ns = 0
 
     # -- properties ----------------------------------------------------------------------------------------------
@@ -115,7 +116,8 @@ class FrameSetSource(CameraSource):
 
     @property
     def exposure_us(self) -> int:
-        return self._exposures[self._next % len(self._exposures)]
+        """Exposure time of the frame delivered last (of the first frame before any)."""
+        return self._exposures[self._last_position]
 
     @property
     def pixel_format(self) -> str:
@@ -151,6 +153,7 @@ class FrameSetSource(CameraSource):
         elif self._preloaded is None:
             log.info("%s: %.1f MB exceed the preload limit; decoding frames on read", self.name, needed / 1e6)
         self._next = 0
+        self._last_position = 0
         self._start_ns = self._clock()
 
     def _close(self) -> None:
@@ -209,6 +212,7 @@ class FrameSetSource(CameraSource):
             self.counters.dropped += (sequence - self._last_sequence - 1) - (k - self._next)
         self._last_sequence = sequence
         self._next = k + 1
+        self._last_position = position
         # Paced: the instant the frame became available on this clock; unpaced: the index time, one set per loop.
         t_ns = self._schedule_ns(k) if self.paced else int(self._index_t_ns[position]) + loops * self._loop_index_ns
         if self._preloaded is not None:

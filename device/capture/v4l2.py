@@ -23,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.capture.driver import (
+    BYTES_PER_PIXEL,
     ControlInfo,
     DriverBuffer,
     DriverFactory,
@@ -60,7 +61,6 @@ EXPOSURE_MANUAL = 1  # V4L2_EXPOSURE_MANUAL in the auto-exposure menu
 # Formats we can turn into an 8-bit luma image, in order of preference; "Y8" is accepted as a name for GREY.
 PIXEL_FORMATS = ("GREY", "YUYV")
 _ALIASES = {"Y8": "GREY", "Y800": "GREY", "GRAY": "GREY"}
-_BYTES_PER_PIXEL = {"GREY": 1, "YUYV": 2}
 
 
 def describe_os_error(path: str, exc: OSError) -> str:
@@ -107,6 +107,11 @@ def default_driver_factory(backend: str = "auto") -> DriverFactory:
     from ropecam.device.capture.v4l2_opencv import OpenCvDriver
 
     return OpenCvDriver
+
+
+def _check_gain_value(gain: object) -> None:
+    if isinstance(gain, bool) or not isinstance(gain, int | np.integer):
+        raise ValueError(f"gain must be an integer in the camera's units, got {gain!r}")
 
 
 def _find(controls: dict[str, ControlInfo], names: tuple[str, ...]) -> ControlInfo | None:
@@ -168,6 +173,8 @@ class V4l2Source(CameraSource):
                 raise ValueError(f"pixel_format must be one of GREY, Y8, YUYV, got {pixel_format!r}")
         if not (isinstance(buffer_count, int) and 2 <= buffer_count <= 32):
             raise ValueError(f"buffer_count must be an integer in [2, 32], got {buffer_count!r}")
+        if gain is not None:
+            _check_gain_value(gain)
         self.path = path
         self._requested = (width, height, fps, pixel_format)
         self._requested_exposure_us = exposure_us
@@ -178,6 +185,8 @@ class V4l2Source(CameraSource):
         self._driver: V4l2Driver | None = None
         self._format = NegotiatedFormat(width or 0, height or 0, pixel_format or "", 0, 0)
         self._fps = float(fps or 0.0)
+        if exposure_us is not None:
+            self._check_exposure_value(exposure_us)  # the camera's own range is checked at `start`
         self._exposure_us = int(exposure_us or 0)
         self._controls: dict[str, ControlInfo] = {}
         self._held: int | None = None
@@ -269,7 +278,7 @@ class V4l2Source(CameraSource):
                 f"{self.name}: asked for {width}x{height} {'/'.join(candidates)}, the driver granted "
                 f"{granted.width}x{granted.height} {granted.fourcc}; sizes for {fourcc}: {sizes}"
             )
-        row_bytes = width * _BYTES_PER_PIXEL[fourcc]
+        row_bytes = width * BYTES_PER_PIXEL[fourcc]
         if granted.bytes_per_line < row_bytes:
             raise CaptureError(f"{self.name}: driver reports {granted.bytes_per_line} bytes per line, < {row_bytes}")
         self._format = granted
@@ -375,6 +384,19 @@ class V4l2Source(CameraSource):
         return self._exposure_us
 
     def set_gain(self, gain: int) -> int:
+        """Set the analogue gain in the camera's units; returns the gain in effect.
+
+        Before `start` the value is only checked for type (the camera's range is known once it is open) and applied
+        at `start`.
+
+        Raises
+        ------
+        ValueError
+            `gain` is not an integer, is out of the camera's range, or the camera has no gain control.
+        CaptureError
+            The camera failed while the control was set.
+        """
+        _check_gain_value(gain)
         if self._driver is None:
             self._requested_gain = int(gain)
             return int(gain)
@@ -384,6 +406,7 @@ class V4l2Source(CameraSource):
             raise CaptureError(describe_os_error(self.path, exc)) from exc
 
     def _apply_gain(self, driver: V4l2Driver, gain: int) -> int:
+        _check_gain_value(gain)
         control = _find(self._controls, GAIN_CONTROLS)
         if control is None:
             raise ValueError(f"{self.name}: this camera has no gain control (looked for {', '.join(GAIN_CONTROLS)})")

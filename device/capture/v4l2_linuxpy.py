@@ -27,9 +27,10 @@ from ropecam.device.capture.driver import (
     NegotiatedFormat,
     TimestampSource,
     V4l2Driver,
+    fourcc_name,
 )
 
-__all__ = ["LinuxpyDriver", "config_name", "fourcc_name"]
+__all__ = ["LinuxpyDriver", "config_name"]
 
 log = logging.getLogger(__name__)
 
@@ -58,11 +59,6 @@ _SIMPLE_CONTROL_TYPES = frozenset(
         lvd.ControlType.BITMASK,
     )
 )
-
-
-def fourcc_name(code: int) -> str:
-    """Return the four characters of a V4L2 pixel-format code (``0x59455247`` -> ``"GREY"``)."""
-    return int(code).to_bytes(4, "little").decode("ascii", errors="replace").rstrip()
 
 
 def config_name(name: str) -> str:

@@ -27,26 +27,23 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.capture.driver import (
+    BYTES_PER_PIXEL,
     ControlInfo,
     DriverBuffer,
     FormatInfo,
     NegotiatedFormat,
     TimestampSource,
     V4l2Driver,
+    fourcc_name,
 )
 
 __all__ = ["OpenCvDriver"]
 
-_BYTES_PER_PIXEL = {"GREY": 1, "YUYV": 2}
 _CONTROLS = {
     "auto_exposure": (cv2.CAP_PROP_AUTO_EXPOSURE, "menu", {1: "Manual Mode", 3: "Aperture Priority Mode"}),
     "exposure_time_absolute": (cv2.CAP_PROP_EXPOSURE, "int", {}),
     "gain": (cv2.CAP_PROP_GAIN, "int", {}),
 }
-
-
-def _fourcc_text(code: float) -> str:
-    return int(code).to_bytes(4, "little").decode("ascii", errors="replace").rstrip("\x00 ")
 
 
 class OpenCvDriver(V4l2Driver):
@@ -72,32 +69,38 @@ class OpenCvDriver(V4l2Driver):
         self._sequence = -1
         self._last_t_ns: int | None = None
         self._buffer = np.zeros(0, dtype=np.uint8)
+        # Read once at `start`: each cap.get is a V4L2 ioctl, too slow for the per-frame path.
+        self._streaming_fps = 0.0
+        self._streaming_bytes = 0
 
     def info(self) -> dict[str, str]:
         return {"card": "(not reported by OpenCV)", "driver": "opencv-v4l2", "bus_info": ""}
 
     def formats(self) -> list[FormatInfo]:
-        return [FormatInfo(name, "unverified (OpenCV backend cannot list formats)") for name in _BYTES_PER_PIXEL]
+        return [FormatInfo(name, "unverified (OpenCV backend cannot list formats)") for name in BYTES_PER_PIXEL]
 
     def get_format(self) -> NegotiatedFormat:
         width = int(self._cap.get(cv2.CAP_PROP_FRAME_WIDTH))
         height = int(self._cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
-        fourcc = _fourcc_text(self._cap.get(cv2.CAP_PROP_FOURCC))
-        row = width * _BYTES_PER_PIXEL.get(fourcc, 1)
+        fourcc = fourcc_name(self._cap.get(cv2.CAP_PROP_FOURCC))
+        row = width * BYTES_PER_PIXEL.get(fourcc, 1)
         return NegotiatedFormat(width, height, fourcc, row, row * height)
 
     def set_format(self, width: int, height: int, fourcc: str) -> NegotiatedFormat:
         self._cap.set(cv2.CAP_PROP_FOURCC, cv2.VideoWriter.fourcc(*fourcc.ljust(4)))
         self._cap.set(cv2.CAP_PROP_FRAME_WIDTH, width)
         self._cap.set(cv2.CAP_PROP_FRAME_HEIGHT, height)
-        return self.get_format()
+        granted = self.get_format()
+        self._streaming_bytes = granted.size_image
+        return granted
 
     def get_fps(self) -> float:
         return float(self._cap.get(cv2.CAP_PROP_FPS))
 
     def set_fps(self, fps: float) -> float:
         self._cap.set(cv2.CAP_PROP_FPS, fps)
-        return self.get_fps()
+        self._streaming_fps = self.get_fps()
+        return self._streaming_fps
 
     def controls(self) -> dict[str, ControlInfo]:
         return {
@@ -118,6 +121,8 @@ class OpenCvDriver(V4l2Driver):
         self._cap.set(cv2.CAP_PROP_BUFFERSIZE, buffer_count)
         self._sequence = -1
         self._last_t_ns = None
+        self._streaming_fps = self.get_fps()
+        self._streaming_bytes = self.get_format().size_image
         return buffer_count
 
     def wait(self, timeout_s: float) -> bool:
@@ -140,7 +145,7 @@ class OpenCvDriver(V4l2Driver):
             return None
         data, self._pending = self._pending, None
         t_ns = self._pending_t_ns
-        fps = self.get_fps()
+        fps = self._streaming_fps
         if self._last_t_ns is not None and fps > 0 and t_ns > 0:
             self._sequence += max(1, round((t_ns - self._last_t_ns) * fps / 1e9))
         else:
@@ -148,7 +153,7 @@ class OpenCvDriver(V4l2Driver):
         self._last_t_ns = t_ns
         source = TimestampSource.START_OF_EXPOSURE if t_ns > 0 else TimestampSource.NOT_MONOTONIC
         # Anything but the raw image size (e.g. a BGR conversion the backend did anyway) is not usable as luma.
-        wrong_size = data.size != self.get_format().size_image
+        wrong_size = data.size != self._streaming_bytes
         return DriverBuffer(0, self._sequence, t_ns, source, int(data.size), data, error=wrong_size)
 
     def queue(self, index: int) -> None:

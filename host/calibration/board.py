@@ -5,7 +5,9 @@ Corner order
 OpenCV may return a chessboard's corners starting from any end of the grid. We reorder every detection so that the
 first corner is the top-left one in the image, rows run towards +u (right) and columns towards +v (down). The board
 frame is then x along the rows, y along the columns, z = x cross y pointing away from the camera, which is the plane
-frame's convention (x horizontal, y down along gravity) for a board laid level in the motion plane.
+frame's convention (x horizontal, y down along gravity) for a board laid level in the motion plane. A board whose
+rows run closer to v than to u (turned by about 90 degrees) keeps z away from the camera with rows towards +v; the
+plane calibration refuses it as its first board, since its x axis would not be horizontal.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ __all__ = [
     "parse_board",
     "read_gray",
     "refine_saddle",
+    "row_angle_deg",
 ]
 
 # Largest cornerSubPix half window (OpenCV's samples use 11, i.e. a 23x23 px search region).
@@ -152,7 +155,13 @@ def read_gray(path: str | Path) -> NDArray[np.uint8]:
 
 
 def order_corners(corners: NDArray[np.floating], board: Chessboard) -> NDArray[np.float32]:
-    """Reorder detected corners so rows run towards +u and columns towards +v, first corner top-left.
+    """Reorder detected corners into the module's fixed order, whatever end of the grid OpenCV started from.
+
+    Rows run towards +u when they lie closer to the u axis than to the v axis, otherwise towards +v (a board turned
+    by about 90 degrees; a square board is transposed instead, so its rows always follow u). Columns then run so
+    that the board frame is right-handed in the image (z = x cross y pointing away from the camera): towards +v for
+    rows along +u, the first corner being the top-left one. The direction of an axis is never decided by the sign
+    of a component that is close to zero, so image noise cannot mirror the board.
 
     Parameters
     ----------
@@ -160,15 +169,40 @@ def order_corners(corners: NDArray[np.floating], board: Chessboard) -> NDArray[n
         Shape (rows*cols, 2) or (rows*cols, 1, 2), pixels, in any of OpenCV's row-major orders.
     board
         The board the corners belong to.
+
+    Returns
+    -------
+    NDArray[np.float32]
+        Shape (rows*cols, 2), row-major (along a row first).
     """
     grid = np.asarray(corners, dtype=np.float32).reshape(board.rows, board.cols, 2)
-    along_row = np.mean(grid[:, -1] - grid[:, 0], axis=0)
-    along_col = np.mean(grid[-1, :] - grid[0, :], axis=0)
-    if along_row[0] < 0:
+    along_row = np.mean(grid[:, -1] - grid[:, 0], axis=0, dtype=np.float64)
+    if board.rows == board.cols and abs(along_row[1]) > abs(along_row[0]):
+        grid = grid.transpose(1, 0, 2)
+        along_row = np.mean(grid[:, -1] - grid[:, 0], axis=0, dtype=np.float64)
+    main_axis = 0 if abs(along_row[0]) >= abs(along_row[1]) else 1
+    if along_row[main_axis] < 0:
         grid = grid[:, ::-1]
-    if along_col[1] < 0:
+        along_row = -along_row
+    along_col = np.mean(grid[-1, :] - grid[0, :], axis=0, dtype=np.float64)
+    if along_row[0] * along_col[1] - along_row[1] * along_col[0] < 0:
         grid = grid[::-1, :]
     return np.ascontiguousarray(grid.reshape(-1, 2))
+
+
+def row_angle_deg(corners: NDArray[np.floating], board: Chessboard) -> float:
+    """Return the angle of the board's rows from the image's +u axis in degrees, (-180, 180], positive towards +v.
+
+    Parameters
+    ----------
+    corners
+        Ordered corners (`order_corners`), shape (rows*cols, 2), pixels.
+    board
+        The board they belong to.
+    """
+    grid = np.asarray(corners, dtype=np.float64).reshape(board.rows, board.cols, 2)
+    along_row = np.mean(grid[:, -1] - grid[:, 0], axis=0)
+    return float(np.degrees(np.arctan2(along_row[1], along_row[0])))
 
 
 def _spacing_px(corners: NDArray[np.float32], board: Chessboard) -> float:

@@ -28,9 +28,16 @@ def _as_points(points: ArrayLike, name: str) -> NDArray[np.float64]:
     return array
 
 
-@dataclass(frozen=True)
+def _padded(values: NDArray[np.float64], size: int) -> NDArray[np.float64]:
+    return np.concatenate([values, np.zeros(size - values.size)])
+
+
+@dataclass(frozen=True, eq=False)
 class CameraModel:
     """Pinhole intrinsics with OpenCV's distortion model.
+
+    Two models are equal when they have the same image size, the same K and the same distortion coefficients
+    (missing trailing coefficients count as zero). Models are not hashable (their arrays are not).
 
     Parameters
     ----------
@@ -60,6 +67,18 @@ class CameraModel:
         object.__setattr__(self, "distortion", d if d.size else np.zeros(5))
         object.__setattr__(self, "image_size", (int(width), int(height)))
 
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, CameraModel):
+            return NotImplemented
+        n = max(self.distortion.size, other.distortion.size)
+        return (
+            self.image_size == other.image_size
+            and np.array_equal(self.camera_matrix, other.camera_matrix)
+            and np.array_equal(_padded(self.distortion, n), _padded(other.distortion, n))
+        )
+
+    __hash__ = None  # type: ignore[assignment]
+
     @property
     def fx(self) -> float:
         """Focal length along u in pixels."""
@@ -85,9 +104,12 @@ class CameraModel:
         return normalised.reshape(uv.shape)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class PlanePose:
-    """Pose of the motion plane in the camera frame: ``X_camera = rotation @ X_plane + translation_m``."""
+    """Pose of the motion plane in the camera frame: ``X_camera = rotation @ X_plane + translation_m``.
+
+    Two poses are equal when their rotations and translations are exactly equal; poses are not hashable.
+    """
 
     rotation: NDArray[np.float64]
     translation_m: NDArray[np.float64]
@@ -101,6 +123,13 @@ class PlanePose:
             raise ValueError(f"translation_m must hold 3 finite values, got {t.tolist()}")
         object.__setattr__(self, "rotation", r)
         object.__setattr__(self, "translation_m", t)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, PlanePose):
+            return NotImplemented
+        return np.array_equal(self.rotation, other.rotation) and np.array_equal(self.translation_m, other.translation_m)
+
+    __hash__ = None  # type: ignore[assignment]
 
     @classmethod
     def from_rvec(cls, rvec: ArrayLike, tvec: ArrayLike) -> PlanePose:

@@ -72,6 +72,8 @@ def detect_views(
 
     Raises
     ------
+    CalibrationError
+        `paths` is empty.
     DataError
         Files are missing or unreadable (all are named), or the images do not all have the same size.
     """
@@ -135,7 +137,8 @@ def calibrate_intrinsics(
     DataError
         Unreadable files, mixed image sizes.
     CalibrationError
-        Fewer than `MIN_VIEWS` views with a board (lists the failed files and reasons), or OpenCV fails.
+        No images, fewer than `MIN_VIEWS` views with a board (lists the failed files and reasons), OpenCV fails or
+        its solution is not finite.
     """
     if model not in MODELS:
         raise ValueError(f"model must be one of {', '.join(MODELS)}, got {model!r}")
@@ -159,15 +162,18 @@ def calibrate_intrinsics(
         )
     except cv2.error as exc:
         raise CalibrationError(f"cv2.calibrateCamera failed on {len(used)} views: {exc}") from exc
-    camera = CameraModel(k, dist.ravel(), size)
+    if not np.isfinite(rms) or not np.all(np.isfinite(k)) or not np.all(np.isfinite(dist)):
+        raise CalibrationError(f"calibration diverged on {len(used)} views (RMS {rms})")
+    try:
+        camera = CameraModel(k, dist.ravel(), size)
+    except ValueError as exc:
+        raise CalibrationError(f"calibration on {len(used)} views gave an unusable camera: {exc}") from exc
     residuals = []
     for view_points, rvec, tvec in zip(image_points, rvecs, tvecs, strict=True):
         projected, _ = cv2.projectPoints(board.object_points(), rvec, tvec, k, dist)
         residuals.append(view_points.reshape(-1, 2) - projected.reshape(-1, 2))
     residuals_px = np.asarray(residuals, dtype=np.float64)
     per_view = np.sqrt(np.mean(np.sum(residuals_px**2, axis=-1), axis=-1))
-    if not np.isfinite(rms) or not np.all(np.isfinite(k)):
-        raise CalibrationError(f"calibration diverged on {len(used)} views (RMS {rms})")
     log.info("calibrated %d views: RMS %.4f px, fx %.3f fy %.3f", len(used), rms, camera.fx, camera.fy)
     return IntrinsicResult(
         camera=camera,

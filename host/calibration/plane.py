@@ -15,14 +15,23 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from ropecam.host.calibration.board import Chessboard, Detection, SubpixSettings, detect_corners
+from ropecam.host.calibration.board import Chessboard, Detection, SubpixSettings, detect_corners, row_angle_deg
 from ropecam.host.calibration.geometry import CameraModel, PlanePose, pixels_to_plane
 from ropecam.shared.errors import CalibrationError
 
-__all__ = ["DEFAULT_MAX_RMS_PX", "PlaneErrorReport", "PlaneResult", "calibrate_plane", "move_origin"]
+__all__ = [
+    "DEFAULT_MAX_RMS_PX",
+    "MAX_ROW_ANGLE_DEG",
+    "PlaneErrorReport",
+    "PlaneResult",
+    "calibrate_plane",
+    "move_origin",
+]
 
 # A board that reprojects worse than this with a good camera file means the camera file does not match the image.
 DEFAULT_MAX_RMS_PX = 1.0
+MAX_ROW_ANGLE_DEG = 30.0
+"""Largest angle between the first board's rows and the image's u axis: its rows are the plane's x axis."""
 
 
 @dataclass(frozen=True)
@@ -85,6 +94,24 @@ def move_origin(board_pose: PlanePose, origin_board_m: NDArray[np.float64]) -> P
     """Return the pose of the frame with the same axes as `board_pose` and its origin at `origin_board_m` (x, y)."""
     origin = np.array([origin_board_m[0], origin_board_m[1], 0.0])
     return PlanePose(board_pose.rotation, board_pose.translation_m + board_pose.rotation @ origin)
+
+
+def _check_level(corners: NDArray[np.float32], board: Chessboard, source: str) -> None:
+    """Refuse a first board whose rows are not roughly horizontal in the image: they set the plane's x axis."""
+    angle_deg = row_angle_deg(corners, board)
+    if abs(angle_deg) <= MAX_ROW_ANGLE_DEG:
+        return
+    if board.cols != board.rows and 90 - MAX_ROW_ANGLE_DEG <= abs(angle_deg) <= 90 + MAX_ROW_ANGLE_DEG:
+        hint = (
+            f"the {board.cols}x{board.rows} board stands on its short side: lay it level, or give "
+            f"--board {board.rows}x{board.cols} if that is how it lies"
+        )
+    else:
+        hint = "lay the board level in the motion plane (rows horizontal in the image)"
+    raise CalibrationError(
+        f"{source}: the board's rows run {angle_deg:.0f} degrees from the image's horizontal (limit "
+        f"{MAX_ROW_ANGLE_DEG:g}); the first board's rows give the plane's x axis, so {hint}"
+    )
 
 
 def _inplane(params: NDArray[np.float64], board: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -168,7 +195,8 @@ def calibrate_plane(
     Raises
     ------
     CalibrationError
-        Size mismatch between an image and the camera, no board, a poor fit, or a fixed end off the plane.
+        Size mismatch between an image and the camera, no board, a first board whose rows are more than
+        `MAX_ROW_ANGLE_DEG` from the image's horizontal, a poor fit, or a fixed end off the plane.
     """
     if origin_px is not None and origin_mm is not None:
         raise ValueError("give the fixed end either as origin_px or as origin_mm, not both")
@@ -184,6 +212,8 @@ def calibrate_plane(
         detection = detect_corners(picture, board, name, subpix)
         if detection.corners is None:
             raise CalibrationError(f"{name}: {detection.reason}")
+        if not detections:
+            _check_level(detection.corners, board, name)
         detections.append(detection)
     corner_sets = [d.corners.astype(np.float64) for d in detections]
     poses = [_single_pose(c, object_points, camera, d.source) for c, d in zip(corner_sets, detections, strict=True)]

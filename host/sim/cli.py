@@ -133,6 +133,7 @@ def run(args: argparse.Namespace) -> int:
     from ropecam.host.sim.presets import preset
     from ropecam.shared.config import read_toml
 
+    _check_calibration_request(args)  # before minutes of model solving and rendering
     console = Console(stderr=True, quiet=args.quiet, soft_wrap=True)
     config = preset(args.preset)
     if args.config is not None:
@@ -176,16 +177,26 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _write_calibration(config: Any, args: argparse.Namespace, console: Any) -> None:
-    """Render the calibration set through the preset's camera and motion plane."""
-    from ropecam.host.sim.boards import make_calibration_set, write_calibration_set
+def _check_calibration_request(args: argparse.Namespace) -> None:
+    """Refuse a bad --calibration-views or an existing calibration set without --overwrite."""
     from ropecam.shared.errors import ConfigError, DataError
 
+    if not args.calibration_views:
+        return
     if args.calibration_views < 4:
         raise ConfigError(f"--calibration-views must be 0 (none) or >= 4, got {args.calibration_views}")
     folder = args.out / "calibration"
     if (folder / "truth.json").exists() and not args.overwrite:
         raise DataError(f"{folder}: a calibration set exists already (use --overwrite to replace it)")
+
+
+def _write_calibration(config: Any, args: argparse.Namespace, console: Any) -> None:
+    """Render the calibration set through the preset's camera and motion plane."""
+    from ropecam.host.sim.boards import make_calibration_set, write_calibration_set
+    from ropecam.shared.errors import ConfigError
+
+    _check_calibration_request(args)  # again: the folder may have appeared while the frame sets were rendered
+    folder = args.out / "calibration"
     with console.status(f"rendering {args.calibration_views} calibration views -> {folder}"):
         try:
             calib = make_calibration_set(

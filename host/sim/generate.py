@@ -10,23 +10,22 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
-import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ropecam.device.capture.frameset import FrameSetWriter, is_frameset
+from ropecam.device.capture.frameset import FrameSetWriter, is_frameset, write_atomically
 from ropecam.host.calibration.geometry import plane_to_pixels
 from ropecam.host.model.trajectory import Trajectory
 from ropecam.host.sim.config import SimConfig
 from ropecam.host.sim.render import RopeRenderer, max_pixels_per_metre
 from ropecam.host.sim.scene import Sensor, build_scene, rope_levels
+from ropecam.shared.cli import ropecam_version
 from ropecam.shared.errors import ConfigError, DataError
 
 __all__ = ["TRAJECTORY_FILE", "SetSummary", "arc_length_samples", "frameset_paths", "write_frameset", "write_framesets"]
@@ -71,13 +70,6 @@ class SetSummary:
     width_px: float
     frames_out_of_view: int
     seconds: float
-
-
-def _version() -> str:
-    try:
-        return version("ropecam")
-    except PackageNotFoundError:
-        return "unknown"
 
 
 def frameset_paths(out: str | Path, exposure_ms: tuple[float, ...]) -> list[tuple[float, Path]]:
@@ -138,7 +130,7 @@ def _metadata(
         "plane": {"rvec": list(camera.plane_rvec), "tvec_m": list(camera.plane_tvec_m)},
         "rig": {
             "source": "ropecam simulate",
-            "ropecam_version": _version(),
+            "ropecam_version": ropecam_version(),
             "preset": config.preset,
             "rope_length_m": rope.length_m,
             "rope_diameter_m": rope.diameter_m,
@@ -169,12 +161,7 @@ def _model_metadata(config: SimConfig) -> dict[str, Any]:
 
 
 def _save_trajectory(trajectory: Trajectory, root: Path) -> None:
-    tmp = root / "trajectory.tmp.npz"
-    try:
-        trajectory.save(tmp)
-        os.replace(tmp, root / TRAJECTORY_FILE)
-    except OSError as exc:
-        raise DataError(f"{root / TRAJECTORY_FILE}: cannot write the trajectory: {exc}") from exc
+    write_atomically(root / TRAJECTORY_FILE, trajectory.save, "trajectory")
 
 
 def write_frameset(

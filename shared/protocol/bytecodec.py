@@ -9,13 +9,25 @@ from __future__ import annotations
 import struct
 from typing import Final
 
+import numpy as np
+
 from ropecam.shared.errors import ProtocolError
 
-__all__ = ["ByteReader", "ByteWriter", "unzigzag", "zigzag"]
+__all__ = ["ByteReader", "ByteWriter", "check_int", "unzigzag", "zigzag"]
 
 _MAX_VARINT_BYTES: Final = 10  # 64-bit values
 _U64_MAX: Final = (1 << 64) - 1
 _STRUCTS: Final = {code: struct.Struct("<" + code) for code in "bBhHiIqQfd"}
+
+
+def check_int(name: str, value: object, *, low: int = 0, high: int) -> int:
+    """Return `value` as a Python int if it is an integer (not a bool) in [low, high]; else raise ValueError.
+
+    NumPy integers are accepted (and converted); the message names the field, the range and the value.
+    """
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or not low <= value <= high:
+        raise ValueError(f"{name} must be an integer in [{low}, {high}], got {value!r}")
+    return int(value)
 
 
 def zigzag(value: int) -> int:

@@ -17,8 +17,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ropecam.shared.errors import ProtocolError
-from ropecam.shared.protocol.bytecodec import ByteReader, ByteWriter
-from ropecam.shared.protocol.shapes import ShapeCodecConfig, decode_shape, encode_shape
+from ropecam.shared.protocol.bytecodec import ByteReader, ByteWriter, check_int
+from ropecam.shared.protocol.shapes import ShapeCodecConfig, check_polyline, decode_shape, encode_shape
 from ropecam.shared.protocol.wire import MessageType, register_record
 
 __all__ = ["FrameResult", "FrameStatus", "Method", "ShapeHint"]
@@ -28,6 +28,7 @@ POINT_SHIFT: Final = 6
 _POINT_SCALE: Final = float(1 << POINT_SHIFT)
 _POINT_LIMIT: Final = 65536 * (1 << POINT_SHIFT)
 _S_SCALE: Final = 1e4  # material arc lengths in units of 0.1 mm
+_S_LIMIT: Final = 4_000_000  # 400 m in units of 0.1 mm
 _STRETCH_SCALE: Final = 1e5
 _CONFIDENCE_SCALE: Final = 65535
 MAX_MATERIAL_POINTS: Final = 64
@@ -87,18 +88,22 @@ def _polyline(value: ArrayLike | None, name: str) -> NDArray[np.float64] | None:
     array = np.array(value, dtype=np.float64)
     if array.ndim != 2 or array.shape[1:] != (2,) or len(array) < 2:
         raise ValueError(f"{name} must be None or an (n >= 2, 2) array of (u, v) pixels, got shape {array.shape}")
-    if not np.all(np.isfinite(array)):
-        raise ValueError(f"{name} must hold finite pixel coordinates")
+    array = check_polyline(array, name).copy()  # the shape codec's limits: what is accepted here can be packed
     array.flags.writeable = False
     return array
+
+
+def _on_wire(array: NDArray[np.float64]) -> bool:
+    """True when every (finite) coordinate still lies within +-65536 px after quantisation to 1/64 px."""
+    return bool(np.all(np.abs(np.rint(array * _POINT_SCALE)) < _POINT_LIMIT))
 
 
 def _point(value: ArrayLike | None, name: str) -> tuple[float, float] | None:
     if value is None:
         return None
     array = np.asarray(value, dtype=np.float64).ravel()
-    if array.shape != (2,) or not np.all(np.isfinite(array)) or np.any(np.abs(array) >= 65536):
-        raise ValueError(f"{name} must be None or a finite (u, v) pixel within +-65536, got {value!r}")
+    if array.shape != (2,) or not np.all(np.isfinite(array)) or not _on_wire(array):
+        raise ValueError(f"{name} must be None or a finite (u, v) pixel within +-65536 (at 1/64 px), got {value!r}")
     return float(array[0]), float(array[1])
 
 
@@ -110,8 +115,10 @@ def _material(value: ArrayLike | None, count: int, name: str) -> NDArray[np.floa
     if array.shape != (count, 2):
         raise ValueError(f"{name} must have shape ({count}, 2) (one row per material_s_m), got {array.shape}")
     partial = np.isnan(array).any(axis=1) & ~np.isnan(array).all(axis=1)
-    if np.any(partial) or np.any(np.isinf(array)) or np.any(np.abs(array[~np.isnan(array)]) >= 65536):
-        raise ValueError(f"{name} rows must be finite (u, v) pixels within +-65536 or (nan, nan) when not measured")
+    if np.any(partial) or np.any(np.isinf(array)) or not _on_wire(array[~np.isnan(array)]):
+        raise ValueError(
+            f"{name} rows must be finite (u, v) pixels within +-65536 (at 1/64 px) or (nan, nan) when not measured"
+        )
     array.flags.writeable = False
     return array
 
@@ -170,16 +177,10 @@ class FrameResult:
         def put(name: str, value: object) -> None:
             object.__setattr__(self, name, value)
 
-        for name, high in (("frame_index", _U32), ("pipeline_us", _U32)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | np.integer) or not 0 <= value <= high:
-                raise ValueError(f"{name} must be an integer in [0, {high}], got {value!r}")
-            put(name, int(value))
+        for name in ("frame_index", "pipeline_us"):
+            put(name, check_int(name, getattr(self, name), high=_U32))
         for name in ("exposure_start_t_ns", "exposure_end_t_ns"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | np.integer) or not -(2**63) <= value < 2**63:
-                raise ValueError(f"{name} must be an int64 of nanoseconds, got {value!r}")
-            put(name, int(value))
+            put(name, check_int(name, getattr(self, name), low=-(2**63), high=2**63 - 1))
         if not 0 <= self.exposure_end_t_ns - self.exposure_start_t_ns < 2**40:
             raise ValueError(
                 f"exposure_end_t_ns ({self.exposure_end_t_ns}) must be >= exposure_start_t_ns "
@@ -195,8 +196,11 @@ class FrameResult:
         for name in ("begin_tip_px", "end_tip_px", "fixed_end_px"):
             put(name, _point(getattr(self, name), name))
         s_m = tuple(float(s) for s in self.material_s_m)
-        if len(s_m) > MAX_MATERIAL_POINTS or not all(0.0 <= s < 400.0 for s in s_m):
-            raise ValueError(f"material_s_m must hold <= {MAX_MATERIAL_POINTS} arc lengths in [0, 400) m, got {s_m}")
+        # Checked after quantisation to 0.1 mm: 399.99996 m would be sent as 400.0 m, which the decoder refuses.
+        if len(s_m) > MAX_MATERIAL_POINTS or not all(s >= 0.0 and round(s * _S_SCALE) < _S_LIMIT for s in s_m):
+            raise ValueError(
+                f"material_s_m must hold <= {MAX_MATERIAL_POINTS} arc lengths in [0, 400) m (at 0.1 mm), got {s_m}"
+            )
         put("material_s_m", s_m)
         put("material_begin_px", _material(self.material_begin_px, len(s_m), "material_begin_px"))
         put("material_end_px", _material(self.material_end_px, len(s_m), "material_end_px"))
@@ -286,10 +290,7 @@ class FrameResult:
             previous_s = s_q
         begin_ok = ~np.isnan(self.material_begin_px[:, 0])
         end_ok = ~np.isnan(self.material_end_px[:, 0])
-        mask = sum(
-            (int(b) << (2 * k)) | (int(e) << (2 * k + 1)) for k, (b, e) in enumerate(zip(begin_ok, end_ok, strict=True))
-        )
-        w.uvarint(mask)
+        w.raw(_pack_mask(begin_ok, end_ok))
         previous = origin
         for k in range(len(self.material_s_m)):
             begin_q = None
@@ -381,6 +382,22 @@ def _as_px(point_q: NDArray[np.int64]) -> tuple[float, float]:
     return float(point_q[0] / _POINT_SCALE), float(point_q[1] / _POINT_SCALE)
 
 
+def _mask_bytes(count: int) -> int:
+    """Bytes of the material mask of `count` points (2 bits each)."""
+    return (2 * count + 7) // 8
+
+
+def _pack_mask(begin_ok: NDArray[np.bool_], end_ok: NDArray[np.bool_]) -> bytes:
+    """Return the material mask: bit 2k = point k measured on the begin shape, bit 2k+1 = on the end shape.
+
+    Little-endian bit order (bit 0 is the lowest bit of the first byte); unused high bits are 0.
+    """
+    mask = 0
+    for k, (begin, end) in enumerate(zip(begin_ok, end_ok, strict=True)):
+        mask |= (int(begin) << (2 * k)) | (int(end) << (2 * k + 1))
+    return mask.to_bytes(_mask_bytes(len(begin_ok)), "little")
+
+
 def _unpack_material(
     r: ByteReader, origin: NDArray[np.int64]
 ) -> tuple[tuple[float, ...], NDArray[np.float64], NDArray[np.float64]]:
@@ -388,11 +405,14 @@ def _unpack_material(
     s_q = 0
     s_values = []
     for _ in range(count):
-        s_q += r.svarint("material s", 4_000_000)
-        if not 0 <= s_q < 4_000_000:
+        s_q += r.svarint("material s", _S_LIMIT)
+        if not 0 <= s_q < _S_LIMIT:
             raise ProtocolError(f"material arc length {s_q / _S_SCALE} m out of [0, 400)")
         s_values.append(s_q / _S_SCALE)
-    mask = r.uvarint("material mask", (1 << (2 * count)) - 1)
+    mask_bytes = r.raw(_mask_bytes(count), "material mask")
+    mask = int.from_bytes(mask_bytes, "little")
+    if mask >> (2 * count):
+        raise ProtocolError(f"material mask {mask_bytes.hex()} has bits set beyond its {count} points")
     begin = np.full((count, 2), np.nan)
     end = np.full((count, 2), np.nan)
     previous = origin

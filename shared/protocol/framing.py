@@ -7,7 +7,6 @@ its own message, and garbage on the line is flushed by the next delimiter (resyn
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Final
 
@@ -92,16 +91,21 @@ class Deframer:
         self._max = max_frame_bytes
         self.stats = DeframerStats()
 
-    def feed(self, data: bytes | bytearray | memoryview) -> Iterator[bytes]:
-        """Consume `data` and yield every complete decoded frame in it (the bytes of one message each)."""
+    def feed(self, data: bytes | bytearray | memoryview) -> list[bytes]:
+        """Consume all of `data` and return every complete decoded frame in it (the bytes of one message each).
+
+        A list, not a generator: the bytes are consumed and counted when `feed` returns, whatever the caller does
+        with the frames.
+        """
         self.stats.bytes_in += len(data)
         view = bytes(data)
+        frames: list[bytes] = []
         start = 0
         while start < len(view):
             zero = view.find(b"\x00", start)
             if zero < 0:
                 self._append(view[start:])
-                return
+                break
             self._append(view[start:zero])
             start = zero + 1
             if self._discarding:
@@ -118,7 +122,8 @@ class Deframer:
                 self.stats.bad_frames += 1
                 continue
             self.stats.frames += 1
-            yield decoded
+            frames.append(decoded)
+        return frames
 
     def _append(self, data: bytes) -> None:
         if self._discarding:

@@ -11,8 +11,10 @@ from dataclasses import dataclass
 from enum import IntEnum
 from typing import ClassVar, Final
 
+import numpy as np
+
 from ropecam.shared.errors import ProtocolError
-from ropecam.shared.protocol.bytecodec import ByteReader, ByteWriter
+from ropecam.shared.protocol.bytecodec import ByteReader, ByteWriter, check_int
 from ropecam.shared.protocol.frame_result import FrameResult, FrameStatus, Method, ShapeHint
 from ropecam.shared.protocol.wire import MAX_PAYLOAD_BYTES, MessageType, register_record
 
@@ -35,15 +37,10 @@ __all__ = [
 _U16: Final = 0xFFFF
 _U32: Final = 0xFFFF_FFFF
 _U64: Final = (1 << 64) - 1
+_F32_MAX: Final = float(np.finfo(np.float32).max)
 MAX_TEXT_BYTES: Final = 1024
 MAX_COUNTERS: Final = 64
 MAX_CHUNK_BYTES: Final = MAX_PAYLOAD_BYTES - 32
-
-
-def _check_int(name: str, value: object, high: int, low: int = 0) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-        raise ValueError(f"{name} must be an integer in [{low}, {high}], got {value!r}")
-    return value
 
 
 def _check_text(name: str, value: object, maximum: int) -> str:
@@ -90,23 +87,30 @@ class Status:
 
     def __post_init__(self) -> None:
         for name in ("frames_captured", "frames_dropped", "messages_dropped", "uptime_ns"):
-            _check_int(name, getattr(self, name), _U64)
-        _check_int("exposure_us", self.exposure_us, _U32)
+            object.__setattr__(self, name, check_int(name, getattr(self, name), high=_U64))
+        object.__setattr__(self, "exposure_us", check_int("exposure_us", self.exposure_us, high=_U32))
         for name in ("frame_rate_hz", "gain_db", "cpu_load", "temperature_c"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | float):
+            if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
                 raise ValueError(f"{name} must be a number, got {value!r}")
-            object.__setattr__(self, name, float(value))
-        if not (self.frame_rate_hz >= 0 and math.isfinite(self.frame_rate_hz)):
-            raise ValueError(f"frame_rate_hz must be finite and >= 0, got {self.frame_rate_hz!r}")
-        if not math.isfinite(self.gain_db):
-            raise ValueError(f"gain_db must be finite, got {self.gain_db!r}")
+            value = float(value)
+            # float32 on the wire: refuse here what pack could not write.
+            if math.isinf(value) or abs(value) > _F32_MAX:
+                raise ValueError(f"{name} must be finite and within +-{_F32_MAX:.7g} (float32), got {value!r}")
+            object.__setattr__(self, name, value)
+        if not self.frame_rate_hz >= 0:
+            raise ValueError(f"frame_rate_hz must be a number >= 0 Hz, got {self.frame_rate_hz!r}")
+        if math.isnan(self.gain_db):
+            raise ValueError(f"gain_db must be a finite number of dB, got {self.gain_db!r}")
+        if not (math.isnan(self.cpu_load) or 0.0 <= self.cpu_load <= 1.0):
+            raise ValueError(f"cpu_load must be in [0, 1] (or nan when unknown), got {self.cpu_load!r}")
         counters = tuple((str(name), value) for name, value in self.counters)
         if len(counters) > MAX_COUNTERS:
             raise ValueError(f"counters holds {len(counters)} entries, at most {MAX_COUNTERS}")
-        for name, value in counters:
-            _check_text("counter name", name, 32)
-            _check_int(f"counter {name!r}", value, _U64)
+        counters = tuple(
+            (_check_text("counter name", name, 32), check_int(f"counter {name!r}", value, high=_U64))
+            for name, value in counters
+        )
         object.__setattr__(self, "counters", counters)
 
     def pack(self, t_ns_ref: int = 0) -> bytes:
@@ -159,7 +163,7 @@ class Log:
     text: str
 
     def __post_init__(self) -> None:
-        _check_int("level", self.level, 255)
+        object.__setattr__(self, "level", check_int("level", self.level, high=255))
         _check_text("text", self.text, MAX_TEXT_BYTES)
 
     def pack(self, t_ns_ref: int = 0) -> bytes:
@@ -275,7 +279,7 @@ class ControlAck:
     detail: str = ""
 
     def __post_init__(self) -> None:
-        _check_int("acked_sequence", self.acked_sequence, _U32)
+        object.__setattr__(self, "acked_sequence", check_int("acked_sequence", self.acked_sequence, high=_U32))
         object.__setattr__(self, "command", Command(self.command))
         object.__setattr__(self, "result", AckResult(self.result))
         _check_text("detail", self.detail, 256)
@@ -325,15 +329,18 @@ class RawFrameChunk:
     data: bytes
 
     def __post_init__(self) -> None:
-        _check_int("frame_index", self.frame_index, _U32)
-        _check_int("width", self.width, _U16, 1)
-        _check_int("height", self.height, _U16, 1)
-        object.__setattr__(self, "pixel_format", PixelFormat(self.pixel_format))
-        _check_int("chunk_count", self.chunk_count, _U16, 1)
-        _check_int("chunk_index", self.chunk_index, self.chunk_count - 1)
+        def put(name: str, value: object) -> None:
+            object.__setattr__(self, name, value)
+
+        put("frame_index", check_int("frame_index", self.frame_index, high=_U32))
+        put("width", check_int("width", self.width, low=1, high=_U16))
+        put("height", check_int("height", self.height, low=1, high=_U16))
+        put("pixel_format", PixelFormat(self.pixel_format))
+        put("chunk_count", check_int("chunk_count", self.chunk_count, low=1, high=_U16))
+        put("chunk_index", check_int("chunk_index", self.chunk_index, high=self.chunk_count - 1))
         if not isinstance(self.data, bytes) or not 0 < len(self.data) <= MAX_CHUNK_BYTES:
             raise ValueError(f"data must be 1..{MAX_CHUNK_BYTES} bytes, got {type(self.data).__name__}")
-        _check_int("offset", self.offset, self.frame_bytes - len(self.data))
+        put("offset", check_int("offset", self.offset, high=self.frame_bytes - len(self.data)))
 
     @property
     def frame_bytes(self) -> int:

@@ -43,9 +43,11 @@ from ropecam.shared.protocol.bytecodec import ByteReader, ByteWriter
 __all__ = [
     "MAX_CONTROL_POINTS",
     "MAX_SHAPE_POINTS",
+    "POLYLINE_LIMIT_PX",
     "EncodedShape",
     "ShapeCodecConfig",
     "ShapeKind",
+    "check_polyline",
     "decode_shape",
     "encode_shape",
     "polyline_distances_px",
@@ -57,6 +59,8 @@ MAX_CONTROL_POINTS: Final = 64
 _MIN_CONTROL_POINTS: Final = 4
 _COORD_LIMIT_PX: Final = 65536.0
 """Coordinates beyond +-this are refused (keeps integers on the wire bounded)."""
+POLYLINE_LIMIT_PX: Final = _COORD_LIMIT_PX / 2
+"""Polyline points to encode must lie within +-this (their second differences then stay in range)."""
 _DEGREE: Final = 3
 _SEARCH_HALF_WINDOW: Final = 6
 _MAX_CORRECTION_ROUNDS: Final = 8
@@ -143,14 +147,18 @@ def polyline_distances_px(points_px: ArrayLike, curve_px: ArrayLike) -> NDArray[
     return out
 
 
-def _check_polyline(points_px: ArrayLike, name: str) -> NDArray[np.float64]:
+def check_polyline(points_px: ArrayLike, name: str) -> NDArray[np.float64]:
+    """Return `points_px` as a C-contiguous (n, 2) float64 array the shape codec can encode, else raise ValueError.
+
+    The codec takes 2..MAX_SHAPE_POINTS finite points within +-POLYLINE_LIMIT_PX.
+    """
     points = np.ascontiguousarray(points_px, dtype=np.float64)
     if points.ndim != 2 or points.shape[1:] != (2,):
         raise ValueError(f"{name} must have shape (n, 2), got {points.shape}")
     if not 2 <= len(points) <= MAX_SHAPE_POINTS:
         raise ValueError(f"{name} must have 2..{MAX_SHAPE_POINTS} points, got {len(points)}")
-    if not np.all(np.isfinite(points)) or np.any(np.abs(points) >= _COORD_LIMIT_PX / 2):
-        raise ValueError(f"{name} must hold finite pixel coordinates within +-{_COORD_LIMIT_PX / 2:g}")
+    if not np.all(np.isfinite(points)) or np.any(np.abs(points) >= POLYLINE_LIMIT_PX):
+        raise ValueError(f"{name} must hold finite pixel coordinates within +-{POLYLINE_LIMIT_PX:g}")
     return points
 
 
@@ -275,7 +283,7 @@ def encode_shape(
     """
     if points_px is None:
         return EncodedShape(bytes([ShapeKind.ABSENT]), ShapeKind.ABSENT, None, 0, 0.0)
-    points = _check_polyline(points_px, "points_px")
+    points = check_polyline(points_px, "points_px")
     n = len(points)
     most = min(MAX_CONTROL_POINTS, n // 2)
     if most < _MIN_CONTROL_POINTS:

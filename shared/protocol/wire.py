@@ -28,6 +28,7 @@ from enum import IntEnum, IntFlag
 from typing import TYPE_CHECKING, Any, ClassVar, Final, Protocol
 
 from ropecam.shared.errors import ProtocolError
+from ropecam.shared.protocol.bytecodec import check_int
 
 if TYPE_CHECKING:
     from ropecam.shared.protocol.auth import Signer
@@ -162,11 +163,6 @@ class Message:
         return self.tag is not None
 
 
-def _check_int(name: str, value: int, low: int, high: int) -> None:
-    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-        raise ValueError(f"{name} must be an integer in [{low}, {high}], got {value!r}")
-
-
 def encode_message(
     record: Record,
     *,
@@ -198,9 +194,9 @@ def encode_message(
     ValueError
         An argument is out of range, or the payload exceeds MAX_PAYLOAD_BYTES.
     """
-    _check_int("device_id", device_id, 0, _U16)
-    _check_int("sequence", sequence, 0, _U32)
-    _check_int("t_ns", t_ns, -_I64, _I64 - 1)
+    device_id = check_int("device_id", device_id, high=_U16)
+    sequence = check_int("sequence", sequence, high=_U32)
+    t_ns = check_int("t_ns", t_ns, low=-_I64, high=_I64 - 1)
     payload = record.pack(t_ns, **(pack_options or {}))
     if len(payload) > MAX_PAYLOAD_BYTES:
         raise ValueError(f"{type(record).__name__} payload is {len(payload)} bytes, more than {MAX_PAYLOAD_BYTES}")

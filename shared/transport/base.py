@@ -2,14 +2,20 @@
 
 from __future__ import annotations
 
+import contextlib
+import math
+import socket
+import weakref
 from abc import ABC, abstractmethod
+from collections.abc import Mapping
 from dataclasses import dataclass
 from types import TracebackType
-from urllib.parse import parse_qsl, urlsplit
+from typing import Final
+from urllib.parse import parse_qsl, unquote, urlsplit
 
 from ropecam.shared.errors import ConfigError
 
-__all__ = ["Transport", "TransportStats", "open_transport", "parse_url"]
+__all__ = ["BOOL_OR_AUTO", "Transport", "TransportStats", "Waker", "open_transport", "parse_url"]
 
 
 @dataclass(slots=True)
@@ -56,14 +62,22 @@ class Transport(ABC):
 
     @abstractmethod
     def receive(self, timeout_s: float | None = 0.0) -> bytes | None:
-        """Return the next message, waiting up to `timeout_s` (None: forever); None when none arrived."""
+        """Return the next message, waiting up to `timeout_s` (None: forever); None when none arrived.
+
+        Raises TransportError when the transport is closed, also when `close` is called by another thread while
+        this one waits.
+        """
 
     def drain(self, timeout_s: float = 1.0) -> bool:
         """Wait up to `timeout_s` until everything accepted by `send` has left this end; True when it has."""
         return True
 
     def close(self) -> None:
-        """Release the line; further calls fail with TransportError."""
+        """Release the line; further calls fail with TransportError.
+
+        Safe to call from another thread: a `receive` blocked in that thread wakes up and raises TransportError.
+        Calling it again does nothing.
+        """
         self._closed = True
 
     @property
@@ -83,42 +97,116 @@ class Transport(ABC):
         return f"{type(self).__name__}({self.url!r})"
 
 
-def parse_url(url: str, allowed: dict[str, type]) -> tuple[str, str, int | None, dict[str, object]]:
-    """Split a transport URL into (scheme, host-or-path, port, options) with typed, checked query options.
+class Waker:
+    """A socket pair to wake a thread blocked in ``select``: select on `fileno()`, call `wake()` from another thread.
+
+    The pair stays open until the waker is garbage-collected, so a thread that enters select just after a close
+    never waits on a closed (or reused) descriptor.
+    """
+
+    def __init__(self) -> None:
+        self._read, self._write = socket.socketpair()
+        self._read.setblocking(False)
+        self._write.setblocking(False)
+        weakref.finalize(self, _close_all, self._read, self._write)
+
+    def fileno(self) -> int:
+        """The descriptor that becomes readable on `wake`."""
+        return self._read.fileno()
+
+    def wake(self) -> None:
+        """Make `fileno()` readable (for good: nothing clears it)."""
+        with contextlib.suppress(OSError):  # only when its buffer is full: then it is readable already
+            self._write.send(b"\x00")
+
+
+def _close_all(*sockets: socket.socket) -> None:
+    for item in sockets:
+        item.close()
+
+
+BOOL_OR_AUTO: Final = "bool-or-auto"
+"""Type marker for `parse_url`: the option is a boolean or the word ``auto`` (returned as the string "auto")."""
+_TRUE: Final = frozenset({"1", "true", "yes", "on"})
+_FALSE: Final = frozenset({"0", "false", "no", "off"})
+_EXPECTED: Final = {
+    int: "an integer",
+    float: "a finite number",
+    bool: "a boolean (1/0, true/false, yes/no, on/off)",
+    BOOL_OR_AUTO: "a boolean (1/0, true/false, yes/no, on/off) or auto",
+    str: "text",
+}
+
+
+def _option_value(raw: str, kind: object) -> object:
+    """Convert one query value; ValueError when it is not of `kind`."""
+    if kind is bool or kind == BOOL_OR_AUTO:
+        word = raw.strip().lower()
+        if word == "auto" and kind == BOOL_OR_AUTO:
+            return "auto"
+        if word in _TRUE or word in _FALSE:
+            return word in _TRUE
+        raise ValueError(raw)
+    if kind is int:
+        return int(raw)
+    if kind is float:
+        value = float(raw)
+        if not math.isfinite(value):
+            raise ValueError(raw)
+        return value
+    if kind is str:
+        return raw
+    raise TypeError(f"unsupported option type {kind!r}")
+
+
+def parse_url(
+    url: str, allowed: Mapping[str, object], *, path: bool | None = None, what: str = "transport URL"
+) -> tuple[str, str, int | None, dict[str, object]]:
+    """Split a URL into (scheme, host-or-path, port, options) with typed, checked query options.
+
+    One parser for every URL ropecam takes (transports, capture sources), so they agree on spellings.
 
     Parameters
     ----------
     url
-        ``scheme://host:port?key=value`` or ``scheme:///path?key=value``.
+        ``scheme://host:port?key=value`` or ``scheme:///path?key=value`` (also ``scheme:path?...``).
     allowed
-        Query keys the scheme accepts and their types (int, float, bool, str).
+        Query keys the scheme accepts and their types: int, float (finite), bool (1/0, true/false, yes/no, on/off,
+        any case), `BOOL_OR_AUTO` (a bool or ``auto``) or str.
+    path
+        True: the location is a path (netloc and path joined, percent-decoded; no port). False: a host name and
+        port. None (default): a path for ``serial``, a host otherwise.
+    what
+        How error messages name the URL ("transport URL", "source URL", ...).
 
     Raises
     ------
     ConfigError
-        Malformed URL, unknown option (the message lists the allowed ones) or a value of the wrong type.
+        Malformed URL, unknown option (the message lists the allowed ones), an option given twice, or a value of
+        the wrong type (the message says what was expected).
     """
     parts = urlsplit(url)
-    try:
-        port = parts.port
-    except ValueError as exc:
-        raise ConfigError(f"transport URL {url!r}: bad port ({exc})") from exc
+    as_path = parts.scheme == "serial" if path is None else path
+    port = None
+    if not as_path:
+        try:
+            port = parts.port
+        except ValueError as exc:
+            raise ConfigError(f"{what} {url!r}: bad port ({exc})") from exc
     options: dict[str, object] = {}
     for key, raw in parse_qsl(parts.query, keep_blank_values=True, strict_parsing=False):
         if key not in allowed:
             names = ", ".join(sorted(allowed)) or "none"
-            raise ConfigError(f"transport URL {url!r}: unknown option {key!r} (allowed: {names})")
+            raise ConfigError(f"{what} {url!r}: unknown option {key!r} (allowed: {names})")
+        if key in options:
+            raise ConfigError(f"{what} {url!r}: option {key!r} given twice")
         kind = allowed[key]
         try:
-            if kind is bool:
-                if raw.lower() not in ("0", "1", "true", "false", "yes", "no", "auto"):
-                    raise ValueError(raw)
-                options[key] = raw.lower() if raw.lower() == "auto" else raw.lower() in ("1", "true", "yes")
-            else:
-                options[key] = kind(raw)
+            options[key] = _option_value(raw, kind)
         except ValueError as exc:
-            raise ConfigError(f"transport URL {url!r}: option {key}={raw!r} is not a valid {kind.__name__}") from exc
-    where = parts.path if parts.scheme == "serial" else (parts.hostname or "")
+            expected = _EXPECTED.get(kind, str(kind))  # type: ignore[call-overload]
+            raise ConfigError(f"{what} {url!r}: option {key}={raw!r} is not {expected}") from exc
+    where = unquote(parts.netloc + parts.path) if as_path else (parts.hostname or "")
     return parts.scheme, where, port, options
 
 

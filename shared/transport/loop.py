@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import threading
 from collections import deque
+from collections.abc import Callable
 from typing import Final
 
 from ropecam.shared.errors import TransportError
@@ -32,11 +33,19 @@ class _Queue:
             self.ready.notify()
             return True
 
-    def get(self, timeout_s: float | None) -> bytes | None:
+    def get(self, timeout_s: float | None, closed: Callable[[], bool]) -> bytes | None:
+        """Pop the oldest message, waiting up to `timeout_s` unless `closed()` becomes true (then None)."""
         with self.ready:
             if not self.items and timeout_s != 0.0:
-                self.ready.wait_for(lambda: bool(self.items), timeout=timeout_s)
+                self.ready.wait_for(lambda: bool(self.items) or closed(), timeout=timeout_s)
+            if closed():
+                return None
             return self.items.popleft() if self.items else None
+
+    def wake_all(self) -> None:
+        """Wake every thread waiting in `get` (they re-check their `closed`)."""
+        with self.ready:
+            self.ready.notify_all()
 
 
 class LoopTransport(Transport):
@@ -70,11 +79,18 @@ class LoopTransport(Transport):
         """Return the next message from the peer, waiting up to `timeout_s`."""
         if self._closed:
             raise TransportError(f"{self.url}: receive on a closed transport")
-        message = self._inbox.get(timeout_s)
+        message = self._inbox.get(timeout_s, lambda: self._closed)
+        if self._closed:
+            raise TransportError(f"{self.url}: closed while receiving")
         if message is not None:
             self.stats.received += 1
             self.stats.bytes_received += len(message)
         return message
+
+    def close(self) -> None:
+        """Close this end; a thread blocked in its `receive` wakes up and raises TransportError."""
+        super().close()
+        self._inbox.wake_all()
 
 
 def open_loop(url: str) -> LoopTransport:

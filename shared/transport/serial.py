@@ -14,6 +14,7 @@ import errno
 import logging
 import os
 import select
+import threading
 import time
 from collections import deque
 from pathlib import Path
@@ -21,13 +22,13 @@ from typing import Final
 
 from ropecam.shared.errors import ConfigError, TransportError
 from ropecam.shared.protocol.framing import Deframer, DeframerStats, frame
-from ropecam.shared.transport.base import Transport, parse_url
+from ropecam.shared.transport.base import BOOL_OR_AUTO, Transport, Waker, parse_url
 
 __all__ = ["SerialTransport"]
 
 _log = logging.getLogger(__name__)
 _READ_BYTES: Final = 4096
-_OPTIONS: Final = {"baud": int, "rtscts": bool, "low_latency": bool}
+_OPTIONS: Final = {"baud": int, "rtscts": bool, "low_latency": BOOL_OR_AUTO}
 
 
 def _is_ftdi(path: str) -> bool:
@@ -44,7 +45,7 @@ class SerialTransport(Transport):
 
     def __init__(self, url: str) -> None:
         super().__init__(url)
-        _, path, _, options = parse_url(url, _OPTIONS)
+        _, path, _, options = parse_url(url, _OPTIONS, path=True)
         if not path:
             raise ConfigError(f"transport URL {url!r}: a device path is required (serial:///dev/ttyUSB0)")
         baud = options.get("baud", 921600)
@@ -72,6 +73,11 @@ class SerialTransport(Transport):
         self._pending = b""
         self._deframer = Deframer()
         self._ready: deque[bytes] = deque()
+        # The daemon sends from its pipeline thread and receives control on another: the write side (pending tail,
+        # send counters) and the read side (deframer, ready queue) each have a lock; close() takes both.
+        self._write_lock = threading.Lock()
+        self._read_lock = threading.Lock()
+        self._waker = Waker()
 
     @property
     def deframer_stats(self) -> DeframerStats:
@@ -89,6 +95,7 @@ class SerialTransport(Transport):
             raise TransportError(f"{self.url}: write failed: {exc}") from exc
 
     def _flush_pending(self) -> None:
+        """Write what the OS takes of the pending tail; call with the write lock held."""
         if self._pending:
             written = self._write_some(self._pending)
             self.stats.bytes_sent += written
@@ -96,32 +103,40 @@ class SerialTransport(Transport):
 
     def send(self, message: bytes) -> bool:
         """Frame and write one message without blocking; False (counted) when the line is still busy."""
-        if self._closed:
-            raise TransportError(f"{self.url}: send on a closed transport")
-        self._flush_pending()
-        if self._pending:
-            self.stats.send_dropped += 1
-            return False
         data = frame(message)
-        written = self._write_some(data)
-        if written == 0:
-            self.stats.send_dropped += 1
-            return False
-        self.stats.bytes_sent += written
-        self._pending = data[written:]
-        self.stats.sent += 1
-        return True
+        with self._write_lock:
+            if self._closed:
+                raise TransportError(f"{self.url}: send on a closed transport")
+            self._flush_pending()
+            if self._pending:
+                self.stats.send_dropped += 1
+                return False
+            written = self._write_some(data)
+            if written == 0:
+                self.stats.send_dropped += 1
+                return False
+            self.stats.bytes_sent += written
+            self._pending = data[written:]
+            self.stats.sent += 1
+            return True
 
     def drain(self, timeout_s: float = 1.0) -> bool:
         """Wait up to `timeout_s` until a partly written message has gone out; True when nothing is pending."""
         deadline = time.monotonic() + timeout_s
-        while self._pending:
+        while True:
+            with self._write_lock:
+                if self._closed:
+                    raise TransportError(f"{self.url}: drain on a closed transport")
+                self._flush_pending()
+                if not self._pending:
+                    return True
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 return False
-            select.select([], [self._fd], [], remaining)
-            self._flush_pending()
-        return True
+            try:
+                select.select([self._waker], [self._fd], [], remaining)
+            except (OSError, ValueError) as exc:
+                raise TransportError(f"{self.url}: drain failed: {exc}") from exc
 
     @property
     def pending_bytes(self) -> int:
@@ -132,30 +147,41 @@ class SerialTransport(Transport):
         """Return the next complete message (COBS-decoded), waiting up to `timeout_s`."""
         if self._closed:
             raise TransportError(f"{self.url}: receive on a closed transport")
-        self._flush_pending()
+        with self._write_lock:
+            if not self._closed:
+                self._flush_pending()
         deadline = None if timeout_s is None else time.monotonic() + timeout_s
         waited = False
-        while not self._ready:
-            try:
-                data = os.read(self._fd, _READ_BYTES)
-            except BlockingIOError:
-                data = b""
-            except OSError as exc:
-                raise TransportError(f"{self.url}: read failed (port lost?): {exc}") from exc
-            if data:
-                waited = False
-                self._feed(data)
-                continue
+        while True:
+            with self._read_lock:
+                if self._closed:
+                    raise TransportError(f"{self.url}: closed while receiving")
+                if self._ready:
+                    self.stats.received += 1
+                    return self._ready.popleft()
+                try:
+                    data = os.read(self._fd, _READ_BYTES)
+                except BlockingIOError:
+                    data = b""
+                except OSError as exc:
+                    raise TransportError(f"{self.url}: read failed (port lost?): {exc}") from exc
+                if data:
+                    waited = False
+                    self._feed(data)
+                    continue
             if waited:
                 # A tty with VMIN = VTIME = 0 reads b"" when empty; after select said readable it means hang-up.
                 raise TransportError(f"{self.url}: the serial device reports data but gives none (unplugged?)")
             remaining = None if deadline is None else deadline - time.monotonic()
             if remaining is not None and remaining <= 0:
                 return None
-            readable, _, _ = select.select([self._fd], [], [], remaining)
-            waited = bool(readable)
-        self.stats.received += 1
-        return self._ready.popleft()
+            try:
+                readable, _, _ = select.select([self._fd, self._waker], [], [], remaining)
+            except (OSError, ValueError) as exc:  # the port was closed by another thread
+                if self._closed:
+                    raise TransportError(f"{self.url}: closed while receiving") from exc
+                raise TransportError(f"{self.url}: waiting for data failed: {exc}") from exc
+            waited = self._fd in readable
 
     def _feed(self, data: bytes) -> None:
         stats = self._deframer.stats
@@ -165,7 +191,10 @@ class SerialTransport(Transport):
         self.stats.bad_frames += stats.bad_frames + stats.overlong - before
 
     def close(self) -> None:
-        """Close the port (a pending partial message is abandoned)."""
-        if not self._closed:
-            self._port.close()
+        """Close the port (a pending partial message is abandoned); a blocked `receive` or `drain` wakes and raises."""
+        if self._closed:
+            return
         super().close()
+        self._waker.wake()
+        with self._write_lock, self._read_lock:
+            self._port.close()

@@ -9,7 +9,7 @@ from typing import Final
 
 from ropecam.shared.errors import ConfigError, TransportError
 from ropecam.shared.protocol.wire import MAX_MESSAGE_BYTES
-from ropecam.shared.transport.base import Transport, parse_url
+from ropecam.shared.transport.base import Transport, Waker, parse_url
 
 __all__ = ["UdpTransport"]
 
@@ -29,20 +29,25 @@ class UdpTransport(Transport):
         if port is None:
             raise ConfigError(f"transport URL {url!r}: a UDP port is required (udp://host:port)")
         listen = options.get("listen") is True or not host
+        self._waker = Waker()
+        sock: socket.socket | None = None
         try:
             infos = socket.getaddrinfo(host or "0.0.0.0", port, type=socket.SOCK_DGRAM)
             family, _, _, _, address = infos[0]
-            self._socket = socket.socket(family, socket.SOCK_DGRAM)
-            self._socket.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, _RECEIVE_BUFFER_BYTES)
+            sock = socket.socket(family, socket.SOCK_DGRAM)
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, _RECEIVE_BUFFER_BYTES)
             if listen:
-                self._socket.bind(address)
+                sock.bind(address)
                 self._peer: tuple | None = None
             else:
-                self._socket.connect(address)
+                sock.connect(address)
                 self._peer = address
-            self._socket.setblocking(False)
+            sock.setblocking(False)
         except OSError as exc:
+            if sock is not None:
+                sock.close()
             raise TransportError(f"{url}: cannot open UDP socket: {exc}") from exc
+        self._socket = sock
         self._listen = listen
 
     @property
@@ -81,7 +86,12 @@ class UdpTransport(Transport):
             except (BlockingIOError, InterruptedError):
                 if timeout_s == 0.0:
                     return None
-                readable, _, _ = select.select([self._socket], [], [], timeout_s)
+                try:
+                    readable, _, _ = select.select([self._socket, self._waker], [], [], timeout_s)
+                except (OSError, ValueError) as exc:  # ValueError: the socket was closed by another thread
+                    self._raise_if_closed()
+                    raise TransportError(f"{self.url}: receive failed: {exc}") from exc
+                self._raise_if_closed()
                 if not readable:
                     return None
                 timeout_s = 0.0  # one wait only; the datagram is there now
@@ -89,6 +99,7 @@ class UdpTransport(Transport):
             except ConnectionRefusedError:
                 continue  # ICMP "port unreachable" for an earlier send: the peer is not up yet
             except OSError as exc:
+                self._raise_if_closed()
                 raise TransportError(f"{self.url}: receive failed: {exc}") from exc
             self.stats.bytes_received += len(data)
             if len(data) > MAX_MESSAGE_BYTES:
@@ -99,8 +110,13 @@ class UdpTransport(Transport):
             self.stats.received += 1
             return data
 
+    def _raise_if_closed(self) -> None:
+        if self._closed:
+            raise TransportError(f"{self.url}: closed while receiving")
+
     def close(self) -> None:
-        """Close the socket."""
+        """Close the socket; a thread blocked in `receive` wakes up and raises TransportError."""
         if not self._closed:
+            super().close()
+            self._waker.wake()
             self._socket.close()
-        super().close()

@@ -14,6 +14,7 @@ import cv2
 import numpy as np
 import pytest
 
+from ropecam.device.capture.driver import BYTES_PER_PIXEL, fourcc_name
 from ropecam.device.capture.fake import fake_pattern
 from ropecam.device.capture.v4l2 import V4l2Source, default_driver_factory
 from ropecam.device.capture.v4l2_opencv import OpenCvDriver
@@ -197,11 +198,50 @@ def test_linuxpy_dequeue_maps_flags_and_timestamps(
     assert driver.dequeue() is None
 
 
-def test_linuxpy_fourcc_names() -> None:
-    pytest.importorskip("linuxpy")
-    from ropecam.device.capture.v4l2_linuxpy import fourcc_name
-
+def test_fourcc_names() -> None:
     assert fourcc_name(1448695129) == "YUYV" and fourcc_name(0x59455247) == "GREY"
+    assert fourcc_name(float(cv2.VideoWriter.fourcc(*"GREY"))) == "GREY"  # CAP_PROP_FOURCC is a float
+    assert fourcc_name(int.from_bytes(b"Y8  ", "little")) == "Y8"
+    assert fourcc_name(int.from_bytes(b"Y8\0\0", "little")) == "Y8"
+    assert fourcc_name(0) == ""  # OpenCV's "unknown"
+    assert fourcc_name(-(2**31) + int.from_bytes(b"ABC", "little")) == "ABC\ufffd"  # a sign-extended code
+
+
+def test_both_backends_decode_formats_with_the_driver_module() -> None:
+    """One FourCC decoder and one bytes-per-pixel table, in the driver module, used by every backend."""
+    pytest.importorskip("linuxpy")
+    from ropecam.device.capture import fake, v4l2, v4l2_linuxpy, v4l2_opencv
+
+    assert v4l2_linuxpy.fourcc_name is v4l2_opencv.fourcc_name is fourcc_name
+    for module in (fake, v4l2, v4l2_opencv):
+        assert module.BYTES_PER_PIXEL is BYTES_PER_PIXEL
+    assert dict(BYTES_PER_PIXEL) == {"GREY": 1, "YUYV": 2}
+
+
+class CountingCapture(StandInCapture):
+    """A stand-in that counts property reads, each a V4L2 ioctl in the real backend."""
+
+    def __init__(self, fourcc: str = "GREY") -> None:
+        super().__init__(fourcc)
+        self.reads: list[int] = []
+
+    def get(self, prop: int) -> float:
+        self.reads.append(prop)
+        return super().get(prop)
+
+
+def test_opencv_driver_reads_format_and_rate_once_per_start(tmp_path: Path) -> None:
+    node = tmp_path / "video0"
+    node.touch()
+    capture = CountingCapture()
+    for k in range(20):
+        capture.frames.append((1000.0 + 10.0 * k, fake_pattern(k, W, H)))
+    with _opencv_source(node, capture) as source:
+        capture.reads.clear()
+        frames = [source.read(0.1) for _ in range(20)]
+        assert [f.sequence for f in frames if f] == list(range(20))
+        # Per frame only the buffer timestamp is read; rate, size and format were read at start.
+        assert set(capture.reads) == {cv2.CAP_PROP_POS_MSEC} and len(capture.reads) == 20
 
 
 def test_linuxpy_controls_from_the_raw_queries(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from ropecam.device.capture.frameset import FrameSet, FrameSetWriter, is_frameset
+from ropecam.device.capture.frameset import FrameSet, FrameSetWriter, is_frameset, write_atomically
 from ropecam.shared.errors import DataError
 
 
@@ -98,3 +99,105 @@ def test_missing_image_is_named(tmp_path: Path) -> None:
     frames.read(0)
     with pytest.raises(DataError, match=r"000001\.png"):
         frames.read(1)
+
+
+def _edit_meta(root: Path, **changes: object) -> None:
+    meta = json.loads((root / "frameset.json").read_text())
+    meta.update(changes)
+    (root / "frameset.json").write_text(json.dumps(meta))
+
+
+@pytest.mark.parametrize(
+    ("changes", "message"),
+    [
+        ({"fps": 0}, r"fps must be a finite number > 0.*got 0"),
+        ({"fps": -119.0}, r"fps must be a finite number > 0.*got -119\.0"),
+        ({"fps": float("nan")}, r"fps must be a finite number > 0.*got nan"),
+        ({"fps": float("inf")}, r"fps must be a finite number > 0.*got inf"),
+        ({"fps": "119"}, r"fps must be a finite number > 0.*got '119'"),
+        ({"fps": None}, r"fps must be a finite number > 0.*got None"),
+        ({"image_size": [0, 12]}, r"image_size must be \[width, height\], two integers > 0, got \[0, 12\]"),
+        ({"image_size": [16, -12]}, r"image_size must be .*got \[16, -12\]"),
+        ({"image_size": [16.5, 12]}, r"image_size must be .*got \[16\.5, 12\]"),
+        ({"image_size": [16]}, r"image_size must be .*got \[16\]"),
+        ({"image_size": "16x12"}, r"image_size must be .*got '16x12'"),
+    ],
+)
+def test_bad_rate_or_size_in_the_metadata_is_refused(tmp_path: Path, changes: dict, message: str) -> None:
+    _write(tmp_path / "set")
+    _edit_meta(tmp_path / "set", **changes)
+    with pytest.raises(DataError, match=r"frameset\.json: " + message):
+        FrameSet(tmp_path / "set")
+
+
+@pytest.mark.parametrize("text", ["[1, 2]", '"ropecam-frameset"', "null", "3"])
+def test_metadata_that_is_not_an_object_is_refused(tmp_path: Path, text: str) -> None:
+    _write(tmp_path / "set")
+    (tmp_path / "set" / "frameset.json").write_text(text)
+    with pytest.raises(DataError, match=r"frameset\.json: must hold a JSON object"):
+        FrameSet(tmp_path / "set")
+
+
+def test_unreadable_index_is_named(tmp_path: Path) -> None:
+    root = tmp_path / "set"
+    _write(root)
+    (root / "index.csv").write_bytes(b"frame,t_ns,exposure_us,file\n0,1,2,\xff\xfe.png\n")
+    with pytest.raises(DataError, match=r"index\.csv: not UTF-8 text"):
+        FrameSet(root)
+    (root / "index.csv").write_text('frame,t_ns,exposure_us,file\n0,1,2,"frames/000000.png\n')
+    with pytest.raises(DataError, match=r"index\.csv:\d+: malformed CSV"):
+        FrameSet(root)
+    (root / "index.csv").unlink()
+    (root / "index.csv").mkdir()
+    with pytest.raises(DataError, match=r"index\.csv: cannot read the index"):
+        FrameSet(root)
+
+
+def test_index_without_read_permission_is_named(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    root = tmp_path / "set"
+    _write(root)
+    real_open = Path.open
+
+    def refuse_index(path: Path, *args: object, **kwargs: object):  # root may read any file: fake the refusal
+        if path.name == "index.csv":
+            raise PermissionError(13, "Permission denied", str(path))
+        return real_open(path, *args, **kwargs)
+
+    monkeypatch.setattr(Path, "open", refuse_index)
+    with pytest.raises(DataError, match=r"index\.csv: cannot read the index.*Permission denied"):
+        FrameSet(root)
+
+
+@pytest.mark.parametrize("name", ["/etc/passwd", "../outside.png", "frames/../../outside.png", "", "C:/x.png"])
+def test_index_entries_outside_the_set_are_refused(tmp_path: Path, name: str) -> None:
+    root = tmp_path / "set"
+    _write(root)
+    (root / "index.csv").write_text(f"frame,t_ns,exposure_us,file\n0,1,2,frames/000000.png\n1,2,2,{name}\n")
+    with pytest.raises(DataError, match=r"index\.csv:3: file .* must be a path inside the frame set"):
+        FrameSet(root)
+
+
+def test_truth_is_replaced_atomically_and_write_errors_are_named(tmp_path: Path) -> None:
+    writer = FrameSetWriter(tmp_path / "other", (16, 12), 30.0)
+    writer.write_truth({"a": np.arange(3)})
+    (tmp_path / "other" / "truth.npz").unlink()
+    (tmp_path / "other" / "truth.npz").mkdir()
+    with pytest.raises(DataError, match=r"truth\.npz: cannot write the ground truth"):
+        writer.write_truth({"a": np.arange(3)})
+    writer.close()
+    assert sorted(p.name for p in (tmp_path / "other").iterdir()) == ["frames", "frameset.json", "index.csv",
+                                                                       "truth.npz"]  # fmt: skip
+
+
+def test_write_atomically_keeps_the_old_file_when_writing_fails(tmp_path: Path) -> None:
+    target = tmp_path / "data.npz"
+    write_atomically(target, lambda tmp: np.savez(tmp, a=np.arange(2)), "data")
+    before = target.read_bytes()
+
+    def fail(tmp: Path) -> None:
+        tmp.write_bytes(b"half")
+        raise OSError(28, "No space left on device")
+
+    with pytest.raises(DataError, match=r"data\.npz: cannot write the data: .*No space left"):
+        write_atomically(target, fail, "data")
+    assert target.read_bytes() == before and [p.name for p in tmp_path.iterdir()] == ["data.npz"]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -145,3 +146,30 @@ def test_a_recording_has_no_exposure_or_gain_to_set(tmp_path: Path) -> None:
         with pytest.raises(ValueError, match="no gain control"):
             source.set_gain(2)
         assert source.read(0) is not None
+
+
+def test_zero_or_nan_rate_in_the_set_is_a_clear_error(tmp_path: Path) -> None:
+    _write(tmp_path / "set")
+    meta_path = tmp_path / "set" / "frameset.json"
+    for fps in ("0", "NaN", "-1"):
+        meta_path.write_text(re.sub(r'"fps": [^,]+', f'"fps": {fps}', meta_path.read_text()))
+        with pytest.raises(DataError, match=r"frameset\.json: fps must be a finite number > 0"):
+            FrameSetSource(tmp_path / "set")
+
+
+@pytest.mark.parametrize("paced", [False, True])
+def test_exposure_is_the_last_delivered_frames(tmp_path: Path, paced: bool) -> None:
+    _write(tmp_path / "set")
+    clock = FakeClock()
+    source = FrameSetSource(tmp_path / "set", paced=paced, clock=clock, sleep=clock.sleep)
+    assert source.exposure_us == 1500  # before any read: the first frame's
+    with source:
+        assert source.exposure_us == 1500
+        if paced:
+            clock.now_ns += 2 * PERIOD_NS  # frames 0..2 are available; the newest (2) is delivered
+        frame = source.read(0)
+        assert frame is not None and source.exposure_us == frame.exposure_us == (1502 if paced else 1500)
+        while not source.finished:
+            clock.now_ns += PERIOD_NS
+            frame = source.read(1.0) or frame
+        assert frame.sequence == 4 and source.exposure_us == 1504

@@ -23,14 +23,33 @@ def _write(root: Path) -> None:
 
 
 def test_parse() -> None:
-    assert parse_source_url("v4l2:///dev/video0?width=1024&height=544") == (
+    assert parse_source_url("v4l2:///dev/video0?width=1024&height=544&fps=119.5&format=GREY") == (
         "v4l2",
         "/dev/video0",
-        {"width": "1024", "height": "544"},
+        {"width": 1024, "height": 544, "fps": 119.5, "format": "GREY"},
     )
     assert parse_source_url("v4l2:/dev/video2") == ("v4l2", "/dev/video2", {})
-    assert parse_source_url("frames:rec/run%201?loop=1") == ("frames", "rec/run 1", {"loop": "1"})
-    assert parse_source_url("frames:///data/run") == ("frames", "/data/run", {})
+    assert parse_source_url("frames:rec/run%201?loop=1") == ("frames", "rec/run 1", {"loop": True})
+    assert parse_source_url("frames:///data/run?paced=off&loop=Yes") == (
+        "frames",
+        "/data/run",
+        {"paced": False, "loop": True},
+    )
+
+
+@pytest.mark.parametrize("word", ["1", "true", "True", "yes", "on"])
+def test_source_and_transport_urls_take_the_same_boolean_spellings(word: str) -> None:
+    from ropecam.shared.transport.base import parse_url
+
+    assert parse_source_url(f"frames:run?loop={word}")[2] == {"loop": True}
+    assert parse_url(f"udp://h:1?listen={word}", {"listen": bool})[3] == {"listen": True}
+
+
+def test_repeated_keys_are_refused_in_transport_urls_too() -> None:
+    from ropecam.shared.transport.base import parse_url
+
+    with pytest.raises(ConfigError, match="'baud' given twice"):
+        parse_url("serial:///dev/ttyS0?baud=9600&baud=115200", {"baud": int})
 
 
 def test_v4l2_url_opens_the_camera_with_its_settings() -> None:
@@ -75,18 +94,20 @@ def test_frames_url(tmp_path: Path) -> None:
         ("rtsp://cam/stream", "scheme must be v4l2 or frames"),
         ("v4l2://", "names no device"),
         ("v4l2:video0", "absolute path"),
-        ("v4l2:///dev/video0?widht=640&height=480", "unknown key 'widht'; v4l2 takes width, height"),
+        ("v4l2:///dev/video0?widht=640&height=480", r"unknown option 'widht' \(allowed: backend, buffers, exposure_us"),
         ("v4l2:///dev/video0?width=640", "both width and height"),
-        ("v4l2:///dev/video0?width=6.5&height=4", "width must be an integer, got '6.5'"),
+        ("v4l2:///dev/video0?width=6.5&height=4", "width='6.5' is not an integer"),
         ("v4l2:///dev/video0?fps=-3", "fps must be > 0"),
-        ("v4l2:///dev/video0?fps=nan", "fps must be > 0"),
+        ("v4l2:///dev/video0?fps=nan", "fps='nan' is not a finite number"),
+        ("v4l2:///dev/video0?gain=-1", "gain must be >= 0"),
         ("v4l2:///dev/video0?fps=1&fps=2", "given twice"),
         ("v4l2:///dev/video0?format=RGB3", "pixel_format must be one of GREY, Y8, YUYV"),
         ("v4l2:///dev/video0?buffers=99", "buffer_count must be an integer in"),
         ("v4l2:///dev/video0?backend=gstreamer", "backend must be auto, linuxpy or opencv"),
         ("frames:/nonexistent/run", "is not a folder"),
-        ("frames:.?exposure_us=3", "unknown key 'exposure_us'; frames takes fps, loop, paced"),
-        ("frames:.?loop=maybe", "loop must be 0 or 1"),
+        ("frames:.?exposure_us=3", r"unknown option 'exposure_us' \(allowed: fps, loop, paced\)"),
+        ("frames:.?loop=maybe", r"loop='maybe' is not a boolean \(1/0, true/false, yes/no, on/off\)"),
+        ("frames:.?loop=auto", "loop='auto' is not a boolean"),
     ],
 )
 def test_bad_urls_are_named(url: str, message: str) -> None:

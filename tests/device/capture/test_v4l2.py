@@ -165,6 +165,30 @@ def test_gain() -> None:
             source.set_gain(101)
 
 
+@pytest.mark.parametrize("gain", ["7", 2.5, None, True, [3]])
+def test_gain_that_is_not_an_integer_is_refused_before_start(gain: object) -> None:
+    camera = uvc_like_camera()
+    source = _source(camera)
+    with pytest.raises(ValueError, match=r"gain must be an integer in the camera's units, got"):
+        source.set_gain(gain)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match=r"gain must be an integer in the camera's units, got"):
+        _source(camera, gain=gain if gain is not None else "x")
+    assert source.set_gain(np.int64(9)) == 9  # kept until start, where the camera's range is known
+    with source:
+        assert camera.values["gain"] == 9
+        with pytest.raises(ValueError, match=r"gain must be an integer"):
+            source.set_gain(3.0)  # type: ignore[arg-type]
+        assert camera.values["gain"] == 9
+
+
+def test_exposure_that_is_not_a_positive_integer_is_refused_at_construction() -> None:
+    for bad in (0, -5, 2.5, "4000", True):
+        with pytest.raises(ValueError, match=r"exposure_us must be a positive integer"):
+            _source(uvc_like_camera(), exposure_us=bad)
+    with pytest.raises(ValueError, match=r"longer than the frame period"):
+        _source(uvc_like_camera(), exposure_us=9000)
+
+
 # -- timestamps ----------------------------------------------------------------------------------------------------
 def test_start_of_exposure_timestamps_pass_through() -> None:
     camera = uvc_like_camera(t0_ns=7_000_000_000)

@@ -149,3 +149,38 @@ def test_bad_arguments(tmp_path: Path) -> None:
         calibrate_intrinsics([], parse_board("9x6", 25))
     with pytest.raises(SystemExit):
         main(["calibrate", "plane", "x.png", "--camera", "c.yaml", *BOARD, "--origin-px", "1;2", "--out", "p.yaml"])
+
+
+@pytest.mark.parametrize("bad", ["nan_k", "zero_fx", "nan_dist"])
+def test_diverged_calibration_is_a_calibration_error(
+    good: list[Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys, bad: str
+) -> None:
+    real = cv2.calibrateCamera
+
+    def diverging(*args, **kwargs):  # type: ignore[no-untyped-def]
+        rms, k, dist, rvecs, tvecs = real(*args, **kwargs)
+        k, dist = k.copy(), dist.copy()
+        if bad == "nan_k":
+            k[0, 0] = np.nan
+        elif bad == "zero_fx":
+            k[0, 0] = 0.0
+        else:
+            dist[0] = np.inf
+        return rms, k, dist, rvecs, tvecs
+
+    monkeypatch.setattr(cv2, "calibrateCamera", diverging)
+    with pytest.raises(CalibrationError, match=r"calibration (diverged|on 4 views gave an unusable camera)"):
+        calibrate_intrinsics(good[:4], parse_board("9x6", 25))
+    code, _, err = _run(["calibrate", "intrinsics", *map(str, good[:4]), *BOARD, "--out", str(tmp_path / "c.yaml")],
+                        capsys)  # fmt: skip
+    assert code == 2 and "calibration" in err and "Traceback" not in err
+    assert not (tmp_path / "c.yaml").exists()
+
+
+def test_no_images_is_the_documented_calibration_error() -> None:
+    from ropecam.host.calibration.intrinsics import detect_views
+
+    with pytest.raises(CalibrationError, match="no images given"):
+        detect_views([], parse_board("9x6", 25))
+    raises = detect_views.__doc__.split("Raises")[1]
+    assert "CalibrationError" in raises and "empty" in raises

@@ -15,6 +15,7 @@ from ropecam.host.calibration.board import (
     parse_board,
     read_gray,
     refine_saddle,
+    row_angle_deg,
 )
 from ropecam.shared.errors import DataError
 
@@ -34,6 +35,57 @@ def _grid(flip_rows: bool, flip_cols: bool) -> np.ndarray:
 def test_order_corners_starts_top_left_rows_to_the_right(flip_rows: bool, flip_cols: bool) -> None:
     ordered = order_corners(_grid(flip_rows, flip_cols), BOARD)
     assert np.array_equal(ordered, _grid(False, False).reshape(-1, 2))
+
+
+def _rotated_grid(board: Chessboard, angle_deg: float, start_row: bool, start_col: bool, noise: float) -> np.ndarray:
+    """Corners of `board` turned by `angle_deg` in the image, numbered from any end, with pixel noise."""
+    a = np.radians(angle_deg)
+    x_dir, y_dir = np.array([np.cos(a), np.sin(a)]), np.array([-np.sin(a), np.cos(a)])
+    cols, rows = np.meshgrid(np.arange(board.cols), np.arange(board.rows))
+    grid = 300 + 20.0 * (cols[..., None] * x_dir + rows[..., None] * y_dir)
+    grid = grid + np.random.default_rng(5).normal(0, noise, grid.shape)
+    grid = grid[::-1] if start_row else grid
+    grid = grid[:, ::-1] if start_col else grid
+    return grid.reshape(-1, 2)
+
+
+def _handedness(ordered: np.ndarray, board: Chessboard) -> float:
+    grid = ordered.reshape(board.rows, board.cols, 2).astype(np.float64)
+    x, y = grid[0, -1] - grid[0, 0], grid[-1, 0] - grid[0, 0]
+    return float(x[0] * y[1] - x[1] * y[0])
+
+
+@pytest.mark.parametrize("angle_deg", [0.0, 20.0, 90.0, -90.0, 180.0, 135.0])
+@pytest.mark.parametrize("start_row", [False, True])
+@pytest.mark.parametrize("start_col", [False, True])
+def test_order_never_mirrors_the_board(angle_deg: float, start_row: bool, start_col: bool) -> None:
+    """Whatever the numbering and rotation: right-handed in the image, rows along the axis they lie closest to."""
+    board = Chessboard(7, 5, 0.02)
+    ordered = order_corners(_rotated_grid(board, angle_deg, start_row, start_col, noise=0.3), board)
+    assert _handedness(ordered, board) > 0
+    along_row = ordered.reshape(5, 7, 2)[0, -1] - ordered[0]
+    main = 0 if abs(along_row[0]) >= abs(along_row[1]) else 1
+    assert along_row[main] > 0
+    # Numbered from any end, the same physical corners come out in the same order.
+    reference = order_corners(_rotated_grid(board, angle_deg, False, False, noise=0.3), board)
+    assert np.array_equal(ordered, reference)
+
+
+def test_square_board_turned_90_degrees_is_transposed_to_rows_along_u() -> None:
+    board = Chessboard(6, 6, 0.02)
+    for start_row in (False, True):
+        ordered = order_corners(_rotated_grid(board, 90.0, start_row, True, noise=0.2), board)
+        assert abs(row_angle_deg(ordered, board)) < 2 and _handedness(ordered, board) > 0
+
+
+def test_order_corners_with_rows_along_v_ignores_the_sign_of_noise() -> None:
+    # Rows exactly along v: the u component of the row direction is noise; it must not decide a flip.
+    board = Chessboard(7, 5, 0.02)
+    reference = order_corners(_rotated_grid(board, 90.0, False, False, noise=0.0), board)
+    for seed in range(20):
+        noisy = _rotated_grid(board, 90.0, seed % 2 == 0, seed % 3 == 0, noise=0.0)
+        noisy = noisy + np.random.default_rng(seed).normal(0, 0.3, noisy.shape)
+        assert np.max(np.abs(order_corners(noisy, board) - reference)) < 2.0
 
 
 def test_object_points_and_parse() -> None:

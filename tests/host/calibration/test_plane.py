@@ -51,6 +51,43 @@ def test_board_seen_upside_down_keeps_the_axes(calib_set) -> None:
     assert np.allclose(result.board_pose.rotation, pose.rotation, atol=2e-3)
 
 
+def _turned_by_90_degrees(pose: PlanePose, board: Chessboard) -> PlanePose:
+    """The pose of a board lying in the same plane, turned by 90 degrees (rows along the plane's y axis)."""
+    quarter = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    shift = np.array([(board.rows - 1) * board.square_m, 0.0, 0.0])
+    return PlanePose(pose.rotation @ quarter, pose.translation_m + pose.rotation @ shift)
+
+
+def test_board_turned_by_90_degrees_is_refused_with_the_swap_named(calib_set) -> None:
+    from ropecam.host.sim.boards import render_board_view
+
+    image = render_board_view(CAMERA, _turned_by_90_degrees(calib_set.plane_view.pose, ART.board), ART,
+                              np.random.default_rng(2))  # fmt: skip
+    with pytest.raises(
+        CalibrationError,
+        match=r"plane\.png: the board's rows run -?(8\d|9\d) degrees from the image's horizontal \(limit 30\).*"
+        r"stands on its short side: lay it level, or give --board 5x6",
+    ):
+        calibrate_plane(image, CAMERA, ART.board, source="plane.png")
+    # As the message says: the swapped board is the one lying level; its rows give x to the right, y down.
+    swapped = calibrate_plane(image, CAMERA, Chessboard(5, 6, ART.board.square_m))
+    assert swapped.plane.rotation[0, 0] > 0.99 and swapped.plane.rotation[1, 1] > 0.99
+    # A turned board is fine as an extra placement: only the first board sets the axes.
+    joint = calibrate_plane(calib_set.plane_view.image, CAMERA, ART.board, extra_images=[("turned.png", image)])
+    assert joint.plane.rotation[0, 0] > 0.99 and joint.report.rms_px < 0.1
+
+
+def test_board_tilted_in_the_image_is_refused(calib_set) -> None:
+    from ropecam.host.sim.boards import render_board_view
+
+    pose = calib_set.plane_view.pose
+    c, s = np.cos(np.radians(40)), np.sin(np.radians(40))
+    tilted = PlanePose(pose.rotation @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]]), pose.translation_m)
+    image = render_board_view(CAMERA, tilted, ART, np.random.default_rng(3))
+    with pytest.raises(CalibrationError, match=r"rows run (39|4\d) degrees .*lay the board level in the motion plane"):
+        calibrate_plane(image, CAMERA, ART.board)
+
+
 def test_extra_placements_are_fitted_in_one_plane(calib_set) -> None:
     extra = [(view.name, view.image) for view in calib_set.extra_plane_views]
     single = calibrate_plane(calib_set.plane_view.image, CAMERA, ART.board, origin_mm=calib_set.origin_mm)

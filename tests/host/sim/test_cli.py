@@ -163,3 +163,48 @@ def test_model_config_file_gives_the_model_commands_motion(tmp_path: Path) -> No
     model = FrameSet(out).meta["rig"]["model"]
     assert model["rope"]["fixed_end"] == "clamped" and model["solver"]["elements"] == 6
     assert model["solver"]["duration_s"] == 0.05
+
+
+def test_frame_sets_record_the_version_the_cli_reports(
+    tmp_path: Path,
+    tiny: Callable[..., SimConfig],
+    rod_factory: Callable[..., Trajectory],
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    import ropecam.shared.cli
+
+    monkeypatch.setattr(ropecam.shared.cli, "version", lambda name: "9.8.7-test")
+    with pytest.raises(SystemExit):
+        main(["--version"])
+    assert "9.8.7-test" in capsys.readouterr().out
+    write_frameset(tiny(frames=1), rod_factory(0.411, 0.2), tmp_path / "set", 4.0)
+    assert FrameSet(tmp_path / "set").meta["rig"]["ropecam_version"] == "9.8.7-test"
+
+
+@pytest.mark.parametrize("views", ["2", "-3"])
+def test_bad_calibration_views_are_refused_before_any_work(
+    tmp_path: Path, views: str, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import ropecam.host.sim.dynamics
+
+    def no_solving(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the model was solved before the arguments were checked")
+
+    monkeypatch.setattr(ropecam.host.sim.dynamics, "solve_trajectory", no_solving)
+    out = tmp_path / "set"
+    assert main(["simulate", "rig", "--out", str(out), "--frames", "1", f"--calibration-views={views}", "-q"]) == 2
+    assert f"--calibration-views must be 0 (none) or >= 4, got {views}" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_existing_calibration_set_is_refused_before_any_work(
+    tmp_path: Path, rod_file: Path, small_toml: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "set"
+    (out / "calibration").mkdir(parents=True)
+    (out / "calibration" / "truth.json").write_text("{}")
+    argv = ["simulate", "rig", "--out", str(out), "--frames", "1", "--trajectory", str(rod_file)]
+    assert main([*argv, "--config", str(small_toml), "--calibration-views", "4", "-q"]) == 2
+    assert "a calibration set exists already (use --overwrite to replace it)" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == ["calibration"]  # no frame set rendered

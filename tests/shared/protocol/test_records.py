@@ -27,6 +27,7 @@ from ropecam.shared.protocol import (
     encode_message,
 )
 from ropecam.shared.protocol.examples import arc_polyline, example_records
+from ropecam.shared.protocol.frame_result import MAX_MATERIAL_POINTS
 from ropecam.shared.protocol.records import COMMAND_VALUES
 
 T_NS = st.integers(-(2**62), 2**62)
@@ -56,7 +57,7 @@ def polylines(draw: st.DrawFn) -> np.ndarray | None:
 @st.composite
 def frame_results(draw: st.DrawFn) -> FrameResult:
     start = draw(T_NS)
-    count = draw(st.integers(0, 6))
+    count = draw(st.integers(0, 6) | st.sampled_from([31, 32, 33, 63, MAX_MATERIAL_POINTS]))  # boundary counts too
     s_m = tuple(sorted(draw(st.lists(st.floats(0.0, 5.0), min_size=count, max_size=count))))
     material = [
         np.array([draw(st.one_of(st.just((math.nan, math.nan)), POINT)) for _ in range(count)]).reshape(count, 2)
