@@ -1,77 +1,125 @@
-"""`ropecam demo`: run the most complete end-to-end path ropecam has, on simulated data, and say where to look.
+"""`ropecam demo`: ropecam end to end on a simulated rig, with a report at the end.
 
-Today: simulate the paper's rope (solid Kevlar, L = 1 m) and a soft rope of the paper's physical rig with the ANCF
-model, and write their tip trajectories, plots and a summary into the output folder.
+Steps (each is a command you can run yourself; the demo prints them):
+
+1. `ropecam simulate rig-soft`: motion-blurred frames of a soft rope swinging in front of the paper's rig camera
+   (1024x544, 119 FPS, 4 ms), with exact ground truth, plus a calibration set through the same camera.
+2. `ropecam calibrate intrinsics` and `ropecam calibrate plane`: camera and motion plane from the checkerboards.
+3. `ropecam-device extract`: the device pipeline measures every frame (the rope at the start and at the end of
+   each exposure) into a measurement file. (The live path, `ropecam-device run` streaming over UDP into
+   `ropecam monitor --record`, joins the demo when the monitor lands.)
+4. `ropecam compare --fit ei`: the measured material points in metres against the ANCF model, with the bending
+   stiffness identified from a deliberately wrong start (3x the truth) and the release time estimated.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 from typing import Any
 
 __all__ = ["register"]
 
+TRUE_EI_NM2 = 1e-5  # the rig-soft preset's rope
+MODEL_TOML = """# The rope of the rig-soft preset, with a wrong bending stiffness to start the identification from.
+[rope]
+length_m = 0.411
+diameter_m = 0.001
+ei_nm2 = {ei}
+[solver]
+elements = 16
+step_s = 1e-3
+"""
+
 
 def register(subparsers: Any) -> None:
     """Add `ropecam demo` to the command line."""
     parser = subparsers.add_parser(
         "demo",
-        help="run ropecam end to end on simulated data and write a report (start here)",
+        help="run ropecam end to end on a simulated rig and write a report (start here)",
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--out", type=Path, default=Path("demo-out"), help="output folder (default ./demo-out)")
-    parser.add_argument("--quiet", action="store_true", help="no progress display")
+    parser.add_argument("--frames", type=int, default=60, help="frames to simulate (default 60: 0.5 s at 119 FPS)")
+    parser.add_argument("--calibration-views", type=int, default=20, help="checkerboard views (default 20)")
+    parser.add_argument("--quiet", action="store_true", help="less output")
     parser.set_defaults(func=run_demo)
 
 
-def run_demo(args: argparse.Namespace) -> int:
-    """Run the demo."""
-    import numpy as np
+def _step(title: str, command: str) -> float:
+    print(f"\n== {title}\n   $ {command}", flush=True)
+    return time.perf_counter()
 
-    from ropecam.host.model import CableModel, RopeConfig, SolverConfig
-    from ropecam.host.model.plot import plot_simulation
-    from ropecam.host.progress import progress_bar
+
+def run_demo(args: argparse.Namespace) -> int:
+    """Run the demo; returns the exit code."""
+    from ropecam.device.cli import main as device_main
+    from ropecam.host.cli import main as host_main
     from ropecam.shared.errors import DataError
 
-    out: Path = args.out
+    out: Path = args.out.resolve()
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise DataError(f"{out}: cannot create output folder: {exc}") from exc
-    cases = {
-        "paper_rope": (RopeConfig(), SolverConfig(elements=16, step_s=1e-3, duration_s=2.0)),
-        "rig_soft_rope": (
-            RopeConfig(length_m=0.411, ei_nm2=2e-5, material_damping_s=2e-4),
-            SolverConfig(elements=24, step_s=5e-4, duration_s=1.0),
-        ),
-    }
-    summary: dict[str, Any] = {}
-    for name, (rope, solver) in cases.items():
-        started = time.perf_counter()
-        with progress_bar(f"simulating {name}", solver.duration_s, "s", enabled=not args.quiet) as report:
-            trajectory, stats = CableModel(rope, solver).run(report)
-        tip = trajectory.tip()
-        np.savetxt(out / f"{name}_tip.csv", np.column_stack([trajectory.times_s, tip]), delimiter=",",
-                   header="t,x,y", comments="", fmt=("%.6f", "%.10f", "%.10f"))  # fmt: skip
-        trajectory.save(out / f"{name}_trajectory.npz")
-        plot_simulation(trajectory, rope, out / f"{name}.png")
-        energy = trajectory.energies["total"]
-        summary[name] = {
-            "length_m": rope.length_m,
-            "ei_nm2": rope.bending_stiffness_nm2,
-            "elements": solver.elements,
-            "step_s": solver.step_s,
-            "duration_s": solver.duration_s,
-            "solve_time_s": round(stats.solve_time_s, 4),
-            "wall_time_s": round(time.perf_counter() - started, 4),
-            "lowest_tip_y_m": float(tip[:, 1].max()),
-            "energy_change_of_mgL2": float((energy[-1] - energy[0]) / rope.potential_scale_j),
-        }
-        print(f"{name}: {solver.duration_s:g} s simulated in {stats.solve_time_s:.3f} s -> {out / (name + '.png')}")
-    (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
-    print(f"demo done: plots, tip CSVs, trajectories and summary.json are in {out.resolve()}")
-    return 0
+        raise DataError(f"{out}: cannot create the demo folder: {exc}") from exc
+    quiet = ["-q"] if args.quiet else []
+    started = time.perf_counter()
+    timings: dict[str, float] = {}
+
+    rig = out / "rig"
+    command = ["simulate", "rig-soft", "--out", str(rig), "--frames", str(args.frames), "--first-exposure-ms", "50",
+               "--calibration-views", str(args.calibration_views), "--overwrite", *quiet]  # fmt: skip
+    t = _step("1. simulate the rig (frames, ground truth, calibration set)", "ropecam " + " ".join(command))
+    if host_main(command) != 0:
+        return 2
+    timings["simulate_s"] = time.perf_counter() - t
+
+    calib = rig / "calibration"
+    truth = json.loads((calib / "truth.json").read_text())
+    board = ["--board", "8x7", "--square-mm", "20"]
+    views = sorted(str(p) for p in calib.glob("view_*.png"))
+    command = ["calibrate", "intrinsics", *views, *board, "--out", str(out / "camera.yaml")]
+    t = _step("2. calibrate the camera and the motion plane", f"ropecam calibrate intrinsics {calib}/view_*.png ...")
+    if host_main(command) != 0:
+        return 2
+    origin = "{:g},{:g}".format(*truth["origin_mm"])
+    planes = [str(calib / "plane.png"), *sorted(str(p) for p in calib.glob("plane_0*.png"))]
+    command = ["calibrate", "plane", *planes, "--camera", str(out / "camera.yaml"), *board, f"--origin-mm={origin}",
+               "--out", str(out / "plane.yaml")]  # fmt: skip
+    print(f"   $ ropecam calibrate plane {' '.join(planes[:1])} ... --origin-mm={origin}", flush=True)
+    if host_main(command) != 0:
+        return 2
+    timings["calibrate_s"] = time.perf_counter() - t
+
+    measurement = out / "measured.jsonl"
+    t = _step(
+        "3. measure every frame with the device pipeline",
+        f"ropecam-device extract {rig} --out {measurement}",
+    )
+    if device_main(["extract", str(rig), "--out", str(measurement)]) != 0:
+        return 2
+    timings["measure_s"] = time.perf_counter() - t
+
+    model = out / "rope.toml"
+    model.write_text(MODEL_TOML.format(ei=3 * TRUE_EI_NM2))
+    report = out / "report"
+    command = ["compare", str(measurement), "--plane", str(out / "plane.yaml"), "--model", str(model), "--fit", "ei",
+               "--out", str(report)]  # fmt: skip
+    t = _step("4. compare with the ANCF model, identify EI from 3x the truth", "ropecam " + " ".join(command))
+    code = host_main(command)
+    timings["compare_s"] = time.perf_counter() - t
+    summary = json.loads((report / "summary.json").read_text()) if (report / "summary.json").exists() else {}
+    fitted = summary.get("fit", {}).get("values", {}).get("ei")
+    total = time.perf_counter() - started
+    print(f"\n== done in {total:.0f} s ({', '.join(f'{k[:-2]} {v:.0f} s' for k, v in timings.items())})")
+    if fitted is not None:
+        print(f"   bending stiffness: started at {3 * TRUE_EI_NM2:.3g}, identified {fitted:.4g} N m^2 "
+              f"(simulated truth {TRUE_EI_NM2:.3g}, {100 * (fitted / TRUE_EI_NM2 - 1):+.1f} %)")  # fmt: skip
+    print(f"   report: {report / 'index.html'}  (plots, summary.json)")
+    print(f"   frames and ground truth: {rig}; calibration: {out / 'camera.yaml'}, {out / 'plane.yaml'}")
+    sys.stdout.flush()
+    return code
