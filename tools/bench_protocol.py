@@ -7,6 +7,10 @@ noise), both tips, the fixed end, 4 material points on both shapes, stretch rati
 `ShapeHint` across frames as the device's sender does. Times are medians over --repeats runs of all frames.
 
     python tools/bench_protocol.py [--frames 119] [--noise uniform|gaussian|none] [--repeats 5] [--json]
+    python tools/bench_protocol.py --frameset sim/rig      # the device pipeline's real output on recorded frames
+
+With --frameset, the FrameResults are what the device pipeline measures on a recorded frame set (e.g. from
+`ropecam simulate rig`), converted exactly as the daemon converts them.
 """
 
 from __future__ import annotations
@@ -55,6 +59,20 @@ def build_records(count: int, noise: str, seed: int) -> list[FrameResult]:
     return records
 
 
+def pipeline_records(frameset: str, rope_length_m: float) -> list[FrameResult]:
+    """FrameResults of the device pipeline over a recorded frame set (the daemon's conversion)."""
+    from ropecam.device.capture.frameset import FrameSet
+    from ropecam.device.daemon.convert import to_wire
+    from ropecam.device.pipeline.config import PipelineConfig
+    from ropecam.device.pipeline.pipeline import Pipeline
+
+    frames = FrameSet(frameset)
+    points = tuple(rope_length_m * f for f in (0.25, 0.5, 0.75, 1.0))
+    pipeline = Pipeline(PipelineConfig(rope_length_m=rope_length_m, material_points_m=points), frames.image_size)
+    records = [to_wire(pipeline.process(image, r.frame, r.t_ns, r.exposure_us)) for r, image in frames]
+    return [r for r in records if r.begin_px is not None and r.end_px is not None]
+
+
 def encode_stream(records: list[FrameResult]) -> tuple[list[bytes], float]:
     """Encode all records as one device stream; return the messages and the seconds it took."""
     hint = ShapeHint()
@@ -79,9 +97,15 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=5, help="timing runs; the median is reported (default 5)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--frameset", help="measure the device pipeline's output on this recorded frame set instead")
+    parser.add_argument("--rope-length-m", type=float, default=0.411, help="with --frameset (default 0.411)")
     args = parser.parse_args()  # fmt: skip
 
-    records = build_records(args.frames, args.noise, args.seed)
+    if args.frameset:
+        records = pipeline_records(args.frameset, args.rope_length_m)
+        args.frames, args.noise = len(records), f"pipeline output on {args.frameset}"
+    else:
+        records = build_records(args.frames, args.noise, args.seed)
     encode_s, decode_s = [], []
     messages: list[bytes] = []
     for _ in range(args.repeats):
