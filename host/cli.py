@@ -21,6 +21,10 @@ COMMAND_MODULES: tuple[str, ...] = (
     "ropecam.host.model.cli",
     "ropecam.host.sim.cli",
     "ropecam.host.keygen",
+    "ropecam.host.monitor.cli",
+    "ropecam.host.replay",
+    "ropecam.host.recording.recover",
+    "ropecam.host.sim.stream",
 )
 
 

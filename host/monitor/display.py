@@ -1,0 +1,150 @@
+"""What the monitor shows: a rich live table (one row per device) or one plain summary line per second."""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from typing import TYPE_CHECKING, TextIO
+
+from ropecam.host.monitor.stats import DeviceRow
+
+if TYPE_CHECKING:
+    from ropecam.host.session import Session
+
+__all__ = ["PlainDisplay", "RichDisplay", "format_row"]
+
+
+def _num(value: float, fmt: str) -> str:
+    return "-" if value is None or (isinstance(value, float) and math.isnan(value)) else format(value, fmt)
+
+
+def _tip(row: DeviceRow) -> str:
+    if row.tip_px is None:
+        return "-"
+    text = f"({row.tip_px[0]:.1f}, {row.tip_px[1]:.1f}) px"
+    if row.tip_plane_m is not None:
+        text += f" ({row.tip_plane_m[0] * 1e3:.1f}, {row.tip_plane_m[1] * 1e3:.1f}) mm"
+    return text
+
+
+def _recording(session: Session) -> str:
+    recorder = session.recorder
+    if recorder is None:
+        return "not recording"
+    if recorder.error:
+        return f"RECORDING STOPPED: {recorder.error}"
+    parts = f" (part {len(recorder.parts)})" if len(recorder.parts) > 1 else ""
+    return f"recording {recorder.path}{parts}: {recorder.messages} messages"
+
+
+def format_row(row: DeviceRow) -> str:
+    """One device as compact text (the --no-ui line)."""
+    text = (
+        f"dev{row.device_id} {_num(row.rate_hz, '.1f')} Hz jit {_num(row.period_jitter_ms, '.2f')} ms "
+        f"rx {row.received} lost {row.lost} dup {row.duplicates} reord {row.reordered} "
+        f"bad {row.crc_errors + row.decode_errors} {_num(row.bytes_per_s / 1e3, '.1f')} kB/s "
+        f"lat {_num(row.latency_ms, '.1f')} ms pipe {_num(row.pipeline_p50_us, '.0f')}/"
+        f"{_num(row.pipeline_p99_us, '.0f')} us tip {_tip(row)} conf {_num(row.order_confidence, '.2f')}"
+    )
+    if row.warnings:
+        text += " !" + ",".join(row.warnings)
+    return text
+
+
+class PlainDisplay:
+    """One line per second: elapsed time, then every device (for scripts, CI and log files)."""
+
+    period_s = 1.0
+
+    def __init__(self, stream: TextIO = sys.stdout) -> None:
+        self._stream = stream
+        self._start = time.monotonic()
+
+    def update(self, session: Session, rows: list[DeviceRow]) -> None:
+        """Print the line for this second."""
+        elapsed = time.monotonic() - self._start
+        devices = " | ".join(format_row(row) for row in rows) or "no device yet"
+        extra = f" | {session.stats.bad_packets} unreadable packets" if session.stats.bad_packets else ""
+        recording = session.recorder
+        if recording is not None and recording.error:
+            extra += f" | {_recording(session)}"
+        print(f"t={elapsed:6.1f}s {devices}{extra}", file=self._stream, flush=True)
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
+class RichDisplay:
+    """A live table refreshed at `period_s` (4 Hz), with the recording state and the latest device log lines."""
+
+    period_s = 0.25
+
+    def __init__(self, source: str) -> None:
+        from rich.console import Console
+        from rich.live import Live
+
+        self._source = source
+        self._console = Console(stderr=False)
+        self._live = Live(console=self._console, auto_refresh=False, transient=False)
+        self._live.start()
+
+    def update(self, session: Session, rows: list[DeviceRow]) -> None:
+        """Redraw the table."""
+        from rich.console import Group
+        from rich.table import Table
+        from rich.text import Text
+
+        table = Table(title=f"ropecam monitor: {self._source}", expand=False)
+        for name, justify in (
+            ("device", "right"),
+            ("rate Hz", "right"),
+            ("jitter ms", "right"),
+            ("received", "right"),
+            ("lost", "right"),
+            ("dup/reord", "right"),
+            ("bad", "right"),
+            ("kB/s", "right"),
+            ("latency ms", "right"),
+            ("pipeline p50/p99 us", "right"),
+            ("tip", "left"),
+            ("order conf", "right"),
+            ("warnings", "left"),
+        ):
+            table.add_column(name, justify=justify)  # type: ignore[arg-type]
+        for row in rows:
+            style = "bold red" if row.warnings else ""
+            table.add_row(
+                str(row.device_id),
+                _num(row.rate_hz, ".1f"),
+                _num(row.period_jitter_ms, ".2f"),
+                str(row.received),
+                str(row.lost),
+                f"{row.duplicates}/{row.reordered}",
+                str(row.crc_errors + row.decode_errors),
+                _num(row.bytes_per_s / 1e3, ".1f"),
+                _num(row.latency_ms, ".1f"),
+                f"{_num(row.pipeline_p50_us, '.0f')}/{_num(row.pipeline_p99_us, '.0f')}",
+                _tip(row),
+                _num(row.order_confidence, ".2f"),
+                Text(", ".join(row.warnings), style=style),
+            )
+        lines = [table]
+        recorder = session.recorder
+        record_style = "bold red" if recorder is not None and recorder.error else "green"
+        lines.append(Text(_recording(session), style=record_style))
+        if session.stats.bad_packets or session.skipped_decodes:
+            lines.append(
+                Text(
+                    f"{session.stats.bad_packets} unreadable packets, {session.skipped_decodes} frames not decoded "
+                    "(host busy; raw bytes recorded)",
+                    style="yellow",
+                )
+            )
+        for device_id, level, text in session.recent_logs:
+            lines.append(Text(f"dev{device_id} [{level}] {text}", style="red" if level >= 30 else "dim"))
+        self._live.update(Group(*lines), refresh=True)
+
+    def close(self) -> None:
+        """Leave the last table on screen."""
+        self._live.stop()

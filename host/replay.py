@@ -1,0 +1,164 @@
+"""`ropecam replay`: feed a recording's raw wire channel through the live path again (statistics, decoding, recording).
+
+Each recorded message re-enters `Session.handle` with its recorded receive time, so the statistics and every decoded
+channel of a new recording (``--record``) come out exactly as the live ones did.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from ropecam.shared.errors import ConfigError, DataError
+
+if TYPE_CHECKING:
+    from ropecam.host.session import Session
+
+__all__ = ["iter_raw", "recording_parts", "register", "replay"]
+
+
+def recording_parts(path: Path) -> list[Path]:
+    """Return `path` and the later parts of its rolled recording (``<stem>_001<suffix>``, ...) that exist."""
+    from ropecam.host.recording.writer import part_path
+
+    if not path.exists():
+        raise DataError(f"recording {path} does not exist")
+    parts = [path]
+    while (following := part_path(path, len(parts))).exists():
+        parts.append(following)
+    return parts
+
+
+def iter_raw(paths: Sequence[Path]) -> Iterator[tuple[bytes, int]]:
+    """Yield (wire bytes, receive time ns) of every raw-channel message of the files, in recorded order.
+
+    Raises
+    ------
+    DataError
+        A file cannot be read as MCAP (for a crashed recording, run `ropecam recover` first) or holds no raw channel.
+    """
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+
+    from ropecam.host.session import RAW_TOPIC
+
+    for path in paths:
+        try:
+            with open(path, "rb") as handle:
+                reader = make_reader(handle)
+                found = False
+                for _, _channel, message in reader.iter_messages(topics=[RAW_TOPIC], log_time_order=False):
+                    found = True
+                    yield message.data, message.log_time
+        except (McapError, OSError, EOFError) as exc:
+            raise DataError(
+                f"cannot read {path}: {exc} (a recording cut by a crash: `ropecam recover {path} --out FIXED.mcap`)"
+            ) from exc
+        if not found:
+            raise DataError(f"{path} holds no {RAW_TOPIC} channel: not a ropecam recording?")
+
+
+def replay(
+    paths: Sequence[Path], session: Session, speed: float | None = None, progress: Callable[[int], None] | None = None
+) -> int:
+    """Run every raw message of `paths` through `session` (a `ropecam.host.session.Session`); return the count.
+
+    Parameters
+    ----------
+    speed
+        1.0 replays in real time (2.0 twice as fast); None as fast as possible.
+    progress
+        Called with the number of messages done (optional).
+    """
+    from ropecam.host.receiver import check_packet
+
+    count = 0
+    first_t_ns = None
+    start = time.monotonic()
+    for data, receive_t_ns in iter_raw(paths):
+        if speed is not None:
+            first_t_ns = receive_t_ns if first_t_ns is None else first_t_ns
+            delay = start + (receive_t_ns - first_t_ns) / 1e9 / speed - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+        session.handle(check_packet(data, receive_t_ns))
+        count += 1
+        if count % 64 == 0:
+            session.tick()
+            if progress is not None:
+                progress(count)
+    return count
+
+
+def _speed(text: str) -> float | None:
+    if text == "max":
+        return None
+    try:
+        value = float(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"--speed must be a positive number or 'max', got {text!r}") from exc
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"--speed must be a positive number or 'max', got {text!r}")
+    return value
+
+
+def _run(args: argparse.Namespace) -> int:
+    from ropecam.host.monitor.cli import rig_metadata
+    from ropecam.host.monitor.display import format_row
+    from ropecam.host.recording.writer import Recorder, RecordingConfig
+    from ropecam.host.session import Session
+
+    source = Path(args.recording)
+    parts = recording_parts(source)
+    recorder = None
+    if args.record:
+        target = Path(args.record)
+        if target.resolve() in {p.resolve() for p in parts}:
+            raise ConfigError(f"--record {target} is the recording being replayed; choose another file")
+        recorder = Recorder(RecordingConfig(target, overwrite=args.overwrite), rig_metadata(f"replay of {source}"))
+    session = Session(recorder)
+    try:
+        count = replay(parts, session, args.speed)
+    finally:
+        session.close()
+    print(f"replayed {count} messages from {', '.join(str(p) for p in parts)}")
+    for row in session.snapshot(session.stats.last_receive_t_ns):
+        print(format_row(row))
+    if session.stats.bad_packets:
+        print(f"{session.stats.bad_packets} unreadable packets")
+    if recorder is not None:
+        if recorder.error:
+            print(f"error: {recorder.error}")
+            return 1
+        print(f"recorded {recorder.messages} messages to {', '.join(str(p) for p in recorder.parts)}")
+    return 0
+
+
+HELP = """\
+Replay a recording made by `ropecam monitor --record`: its raw wire messages go through the same receiving,
+statistics, decoding and recording code as live data, with their recorded receive times. With --record the
+decoded channels are written again (also the frames the live monitor had to skip under load).
+Rolled recordings (run.mcap, run_001.mcap, ...) are replayed in order. A recording cut by a crash needs
+`ropecam recover` first.
+
+examples:
+  ropecam replay run.mcap
+  ropecam replay run.mcap --speed 1
+  ropecam replay run.mcap --record run-decoded.mcap
+"""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the `replay` sub-command."""
+    parser = subparsers.add_parser(
+        "replay", help="replay a recording through the live path", description=HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )  # fmt: skip
+    parser.add_argument("recording", help="the .mcap file (first part of a rolled recording)")
+    parser.add_argument("--speed", type=_speed, default=None, help="1 = real time, 2 = twice as fast, max (default)")
+    parser.add_argument("--record", metavar="NEW.mcap", help="record the replayed stream to a new file")
+    parser.add_argument("--overwrite", action="store_true", help="replace --record if it exists")
+    parser.set_defaults(func=_run)
