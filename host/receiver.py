@@ -13,7 +13,7 @@ import struct
 import time
 import zlib
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Final
 
@@ -143,6 +143,13 @@ class Receiver:
                 queue.popleft()
                 self.overflow += 1
             queue.append((data, clock()))
+
+    def remaining(self) -> Iterator[Packet]:
+        """Yield what the transport holds now and what is queued (at shutdown: nothing received is left behind)."""
+        self._drain()
+        while self._queue:
+            data, receive_t_ns = self._queue.popleft()
+            yield check_packet(data, receive_t_ns)
 
     def poll(self, timeout_s: float) -> Packet | None:
         """Return the next packet, waiting up to `timeout_s` when none is queued; None when nothing came."""

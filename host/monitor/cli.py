@@ -64,11 +64,13 @@ def monitor_loop(
     display: PlainDisplay | RichDisplay | None,
     duration_s: float | None,
     should_stop: Callable[[], bool] = lambda: False,
+    decode_backlog: int = DECODE_BACKLOG,
 ) -> None:
     """Run until `duration_s` passed or `should_stop()`; every packet goes through `session.handle`.
 
-    FrameResults are fully decoded while the backlog is below `DECODE_BACKLOG` (load shedding keeps the receive
-    path at wire rate: nothing is lost, undecoded frames stay in the raw channel).
+    FrameResults are fully decoded while the backlog is below `decode_backlog` (load shedding keeps the receive
+    path at wire rate: nothing is lost, undecoded frames stay in the raw channel). When it stops, the packets
+    already received are still handled.
     """
     start = time.monotonic()
     next_display = start + (display.period_s if display is not None else 1e18)
@@ -76,7 +78,7 @@ def monitor_loop(
     while not should_stop():
         packet = receiver.poll(0.05)
         if packet is not None:
-            session.handle(packet, decode=receiver.backlog < DECODE_BACKLOG)
+            session.handle(packet, decode=receiver.backlog < decode_backlog)
         now = time.monotonic()
         if now >= next_tick:
             session.tick()
@@ -88,6 +90,8 @@ def monitor_loop(
                 next_display = now + display.period_s
         if duration_s is not None and now - start >= duration_s:
             break
+    for packet in receiver.remaining():
+        session.handle(packet, decode=receiver.backlog < decode_backlog)
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -114,6 +118,8 @@ def _run(args: argparse.Namespace) -> int:
     receiver = Receiver(transport)
     stop = {"requested": False}
     previous = signal.signal(signal.SIGTERM, lambda *_: stop.__setitem__("requested", True))
+    where = f", recording to {recorder.path}" if recorder is not None else ""
+    print(f"monitor: receiving on {args.source}{where}; Ctrl-C stops", file=sys.stderr, flush=True)
     use_rich = not args.no_ui and sys.stdout.isatty()
     display = RichDisplay(args.source) if use_rich else PlainDisplay()
     interrupted = False

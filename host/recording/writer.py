@@ -117,6 +117,8 @@ class Recorder:
         self.parts: list[Path] = []
         self.error: str | None = None
         self.messages = 0
+        self.flushed_messages = 0
+        """Messages known to be in the files (written before the last completed flush)."""
         self.unrecorded = 0
         self._writer: Writer | None = None
         self._stream: IO[bytes] | None = None
@@ -236,6 +238,7 @@ class Recorder:
         if self.config.fsync:
             os.fsync(self._stream.fileno())
         self._good_offset = self._stream.tell()
+        self.flushed_messages = self.messages
         self._pending = 0
         self._last_flush = time.monotonic()
 
