@@ -64,7 +64,12 @@ def recover_mcap(source: Path, destination: Path, overwrite: bool = False) -> Re
         handle.close()
         raise DataError(f"cannot write {destination}: {exc.strerror or exc}") from exc
     with handle, out:
-        return _copy(source, handle, out)
+        try:
+            return _copy(source, handle, out)
+        except DataError:
+            out.close()
+            destination.unlink()
+            raise
 
 
 def _copy(source: Path, handle: BinaryIO, out: BinaryIO) -> RecoveryReport:
@@ -124,9 +129,8 @@ def _copy(source: Path, handle: BinaryIO, out: BinaryIO) -> RecoveryReport:
                 for item in inner:
                     handle_record(item)
             elif isinstance(record, DataEnd | Footer):
-                complete = complete or isinstance(record, Footer)
-                if isinstance(record, DataEnd):
-                    break  # the summary section only repeats what was read
+                complete = True  # the data section ended properly; the summary only repeats what was read
+                break
             else:
                 handle_record(record)
     except (McapError, EOFError, struct.error, zlib.error, ValueError, MemoryError) as exc:

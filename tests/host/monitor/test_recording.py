@@ -1,0 +1,197 @@
+"""Recorder durability: SIGKILL + recover, disk full, unwritable paths, rolling; replay reproduces live results."""
+
+from __future__ import annotations
+
+import errno
+import io
+import os
+import signal
+import time
+from pathlib import Path
+
+import pytest
+
+from ropecam.host.cli import main
+from ropecam.host.receiver import check_packet
+from ropecam.host.recording.recover import recover_mcap
+from ropecam.host.recording.writer import Recorder, RecordingConfig, part_path
+from ropecam.host.replay import iter_raw, recording_parts, replay
+from ropecam.host.session import RAW_TOPIC, Session
+from ropecam.shared.errors import ConfigError, DataError
+from ropecam.shared.transport import open_transport
+
+
+def _messages(sim_device, count: int) -> list[bytes]:  # noqa: ANN001
+    return [data for _, data in sim_device.messages(count, start_t_ns=time.time_ns())]
+
+
+def test_sigkill_while_recording_then_recover_keeps_all_but_the_last_second(
+    sim_device, tmp_path: Path, udp_port: int, monitor_process, send_paced, read_mcap  # noqa: ANN001
+) -> None:
+    path = tmp_path / "killed.mcap"
+    monitor = monitor_process(["--source", f"udp://127.0.0.1:{udp_port}?listen=1", "--record", str(path)])
+    messages = _messages(sim_device, 300)
+    with open_transport(f"udp://127.0.0.1:{udp_port}") as link:
+        send_times = send_paced(link, messages, fps=119.0)
+    killed_at = time.monotonic()
+    os.kill(monitor.process.pid, signal.SIGKILL)
+    monitor.finish()
+    with pytest.raises(DataError, match="recover"):
+        list(iter_raw([path]))  # the cut file has no summary: indexed reading fails with a hint
+    fixed = tmp_path / "fixed.mcap"
+    report = recover_mcap(path, fixed)
+    assert not report.complete
+    raw = [data for topic, _, _, data in read_mcap(fixed) if topic == RAW_TOPIC]
+    assert raw == messages[: len(raw)]  # an exact, ordered prefix
+    must_have = sum(1 for t in send_times if t < killed_at - 1.0)
+    assert len(raw) >= must_have, f"recovered {len(raw)} messages, {must_have} were sent more than 1 s before the kill"
+    assert any(topic == "/device7/image/scene" for topic, *_ in read_mcap(fixed))
+
+
+def test_sigterm_closes_the_recording_properly(
+    sim_device, tmp_path: Path, udp_port: int, monitor_process, read_mcap  # noqa: ANN001
+) -> None:
+    path = tmp_path / "term.mcap"
+    monitor = monitor_process(["--source", f"udp://127.0.0.1:{udp_port}?listen=1", "--record", str(path)])
+    messages = _messages(sim_device, 20)
+    with open_transport(f"udp://127.0.0.1:{udp_port}") as link:
+        for data in messages:
+            link.send(data)
+            time.sleep(0.002)
+    time.sleep(0.3)
+    monitor.process.send_signal(signal.SIGTERM)
+    code, out, err = monitor.finish()
+    assert code == 0, err
+    assert "final: dev7" in out and "recorded" in out
+    raw = [data for topic, _, _, data in read_mcap(path) if topic == RAW_TOPIC]  # complete file: indexed read works
+    assert raw == messages
+
+
+class FailingFile(io.FileIO):
+    """A real file that fails with ENOSPC once `limit` bytes have been written (a disk filling up)."""
+
+    def __init__(self, path: Path, limit: int) -> None:
+        super().__init__(path, "w")
+        self.limit = limit
+        self.written = 0
+
+    def write(self, data) -> int:  # noqa: ANN001
+        if self.written + len(data) > self.limit:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        self.written += len(data)
+        return super().write(data)
+
+
+def test_disk_full_stops_recording_with_a_clear_error_and_keeps_what_was_flushed(
+    sim_device, tmp_path: Path, read_mcap  # noqa: ANN001
+) -> None:
+    path = tmp_path / "full.mcap"
+    recorder = Recorder(
+        RecordingConfig(path, flush_s=0.01), opener=lambda p, overwrite: io.BufferedWriter(FailingFile(p, 60_000))
+    )
+    session = Session(recorder)
+    messages = _messages(sim_device, 150)
+    flushed_when_failed = None
+    for data in messages:
+        session.handle(check_packet(data, time.time_ns()))
+        time.sleep(0.002)
+        session.tick()
+        if recorder.error and flushed_when_failed is None:
+            flushed_when_failed = recorder.flushed_messages
+    assert recorder.error is not None and "No space left on device" in recorder.error
+    assert "ropecam recover" in recorder.error and str(path) in recorder.error
+    assert recorder.unrecorded > 0 and not recorder.active
+    (row,) = session.snapshot(time.time_ns())
+    assert row.received == len(messages)  # monitoring went on
+    session.close()  # no exception after the failure
+    report = recover_mcap(path, tmp_path / "fixed.mcap")
+    assert report.messages == flushed_when_failed > 0
+
+
+def test_unwritable_paths(sim_device, tmp_path: Path) -> None:  # noqa: ANN001
+    with pytest.raises(ConfigError, match="cannot create recording file"):
+        Recorder(RecordingConfig(tmp_path / "missing-dir" / "x.mcap"))
+    (tmp_path / "exists.mcap").write_bytes(b"precious")
+    with pytest.raises(ConfigError, match="exists"):
+        Recorder(RecordingConfig(tmp_path / "exists.mcap"))
+    assert (tmp_path / "exists.mcap").read_bytes() == b"precious"
+
+    def opener(path: Path, overwrite: bool):  # noqa: ANN202
+        if path != tmp_path / "roll.mcap":
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(path))
+        return open(path, "xb")
+
+    # the path becomes unwritable when the recording rolls to its second file
+    recorder = Recorder(RecordingConfig(tmp_path / "roll.mcap", roll_bytes=20_000), opener=opener)
+    session = Session(recorder)
+    for data in _messages(sim_device, 60):
+        session.handle(check_packet(data, time.time_ns()))
+        recorder._last_flush = 0.0  # flush on every tick
+        session.tick()
+    assert recorder.error is not None and "Permission denied" in recorder.error
+    assert "roll_001.mcap" in recorder.error
+    assert session.snapshot(time.time_ns())[0].received == 60 + 1  # monitoring went on (60 frames and a Log)
+    assert len(list(iter_raw([tmp_path / "roll.mcap"]))) > 0  # the first part was closed properly
+
+
+def test_rolled_recording_replays_across_parts(sim_device, tmp_path: Path) -> None:  # noqa: ANN001
+    path = tmp_path / "part.mcap"
+    recorder = Recorder(RecordingConfig(path, roll_bytes=3_000))
+    session = Session(recorder)
+    messages = _messages(sim_device, 50)
+    for data in messages:
+        session.handle(check_packet(data, time.time_ns()), decode=False)
+        recorder._last_flush = 0.0
+        session.tick()
+    session.close()
+    parts = recording_parts(path)
+    assert len(parts) >= 3 and parts[1] == part_path(path, 1)
+    assert [data for data, _ in iter_raw(parts)] == messages
+
+
+def test_replay_reproduces_the_live_decoded_results_exactly(
+    sim_device, tmp_path: Path, udp_port: int, monitor_process, send_paced, read_mcap  # noqa: ANN001
+) -> None:
+    live = tmp_path / "live.mcap"
+    monitor = monitor_process(
+        ["--source", f"udp://127.0.0.1:{udp_port}?listen=1", "--record", str(live), "--duration-s", "4"]
+    )
+    messages = _messages(sim_device, 130)
+    damaged = bytearray(messages[50])
+    damaged[25] ^= 1
+    messages.insert(51, bytes(damaged))
+    with open_transport(f"udp://127.0.0.1:{udp_port}") as link:
+        send_paced(link, messages, fps=119.0)
+    code, out, err = monitor.finish()
+    assert code == 0, err
+    lines = [line for line in out.splitlines() if line.startswith("t=")]
+    assert len(lines) >= 3  # one line per second
+    replayed = tmp_path / "replayed.mcap"
+    assert main(["replay", str(live), "--record", str(replayed)]) == 0
+    live_records = [r for r in read_mcap(live)]
+    replay_records = read_mcap(replayed)
+    assert len([r for r in live_records if r[0] == "/device7/image/scene"]) == 130  # nothing skipped live
+    assert sorted(live_records) == sorted(replay_records)
+
+    # the statistics too: a second replay in process against the live statistics from the monitor's output
+    session = Session()
+    assert replay([live], session) == len(messages)
+    (row,) = session.snapshot(session.stats.last_receive_t_ns)
+    assert (row.received, row.crc_errors, row.lost) == (130 + 1 + 1, 1, 0)
+    final = next(line for line in out.splitlines() if line.startswith("final: "))
+    assert f"rx {row.received} lost 0" in final and "bad 1" in final
+
+
+def test_recover_refuses_non_mcap_and_reports_complete_files(tmp_path: Path, sim_device) -> None:  # noqa: ANN001
+    (tmp_path / "junk.mcap").write_bytes(b"not an mcap file at all")
+    with pytest.raises(DataError, match="not an MCAP file"):
+        recover_mcap(tmp_path / "junk.mcap", tmp_path / "out.mcap")
+    recorder = Recorder(RecordingConfig(tmp_path / "ok.mcap"))
+    session = Session(recorder)
+    for data in _messages(sim_device, 5):
+        session.handle(check_packet(data, time.time_ns()))
+    session.close()
+    report = recover_mcap(tmp_path / "ok.mcap", tmp_path / "copy.mcap")
+    assert report.complete and report.messages == recorder.messages
+    with pytest.raises(DataError, match="exists"):
+        recover_mcap(tmp_path / "ok.mcap", tmp_path / "copy.mcap")
