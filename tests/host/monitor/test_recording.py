@@ -21,12 +21,17 @@ from ropecam.shared.errors import ConfigError, DataError
 from ropecam.shared.transport import open_transport
 
 
-def _messages(sim_device, count: int) -> list[bytes]:  # noqa: ANN001
+def _messages(sim_device, count: int) -> list[bytes]:
     return [data for _, data in sim_device.messages(count, start_t_ns=time.time_ns())]
 
 
 def test_sigkill_while_recording_then_recover_keeps_all_but_the_last_second(
-    sim_device, tmp_path: Path, udp_port: int, monitor_process, send_paced, read_mcap  # noqa: ANN001
+    sim_device,
+    tmp_path: Path,
+    udp_port: int,
+    monitor_process,
+    send_paced,
+    read_mcap,
 ) -> None:
     path = tmp_path / "killed.mcap"
     monitor = monitor_process(["--source", f"udp://127.0.0.1:{udp_port}?listen=1", "--record", str(path)])
@@ -49,7 +54,11 @@ def test_sigkill_while_recording_then_recover_keeps_all_but_the_last_second(
 
 
 def test_sigterm_closes_the_recording_properly(
-    sim_device, tmp_path: Path, udp_port: int, monitor_process, read_mcap  # noqa: ANN001
+    sim_device,
+    tmp_path: Path,
+    udp_port: int,
+    monitor_process,
+    read_mcap,
 ) -> None:
     path = tmp_path / "term.mcap"
     monitor = monitor_process(["--source", f"udp://127.0.0.1:{udp_port}?listen=1", "--record", str(path)])
@@ -75,7 +84,7 @@ class FailingFile(io.FileIO):
         self.limit = limit
         self.written = 0
 
-    def write(self, data) -> int:  # noqa: ANN001
+    def write(self, data) -> int:
         if self.written + len(data) > self.limit:
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
         self.written += len(data)
@@ -83,7 +92,9 @@ class FailingFile(io.FileIO):
 
 
 def test_disk_full_stops_recording_with_a_clear_error_and_keeps_what_was_flushed(
-    sim_device, tmp_path: Path, read_mcap  # noqa: ANN001
+    sim_device,
+    tmp_path: Path,
+    read_mcap,
 ) -> None:
     path = tmp_path / "full.mcap"
     recorder = Recorder(
@@ -108,7 +119,7 @@ def test_disk_full_stops_recording_with_a_clear_error_and_keeps_what_was_flushed
     assert report.messages == flushed_when_failed > 0
 
 
-def test_unwritable_paths(sim_device, tmp_path: Path) -> None:  # noqa: ANN001
+def test_unwritable_paths(sim_device, tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="cannot create recording file"):
         Recorder(RecordingConfig(tmp_path / "missing-dir" / "x.mcap"))
     (tmp_path / "exists.mcap").write_bytes(b"precious")
@@ -116,7 +127,7 @@ def test_unwritable_paths(sim_device, tmp_path: Path) -> None:  # noqa: ANN001
         Recorder(RecordingConfig(tmp_path / "exists.mcap"))
     assert (tmp_path / "exists.mcap").read_bytes() == b"precious"
 
-    def opener(path: Path, overwrite: bool):  # noqa: ANN202
+    def opener(path: Path, overwrite: bool):
         if path != tmp_path / "roll.mcap":
             raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(path))
         return open(path, "xb")
@@ -134,7 +145,7 @@ def test_unwritable_paths(sim_device, tmp_path: Path) -> None:  # noqa: ANN001
     assert len(list(iter_raw([tmp_path / "roll.mcap"]))) > 0  # the first part was closed properly
 
 
-def test_rolled_recording_replays_across_parts(sim_device, tmp_path: Path) -> None:  # noqa: ANN001
+def test_rolled_recording_replays_across_parts(sim_device, tmp_path: Path) -> None:
     path = tmp_path / "part.mcap"
     recorder = Recorder(RecordingConfig(path, roll_bytes=3_000))
     session = Session(recorder)
@@ -150,7 +161,12 @@ def test_rolled_recording_replays_across_parts(sim_device, tmp_path: Path) -> No
 
 
 def test_replay_reproduces_the_live_decoded_results_exactly(
-    sim_device, tmp_path: Path, udp_port: int, monitor_process, send_paced, read_mcap  # noqa: ANN001
+    sim_device,
+    tmp_path: Path,
+    udp_port: int,
+    monitor_process,
+    send_paced,
+    read_mcap,
 ) -> None:
     live = tmp_path / "live.mcap"
     monitor = monitor_process(
@@ -182,7 +198,7 @@ def test_replay_reproduces_the_live_decoded_results_exactly(
     assert f"rx {row.received} lost 0" in final and "bad 1" in final
 
 
-def test_recover_refuses_non_mcap_and_reports_complete_files(tmp_path: Path, sim_device) -> None:  # noqa: ANN001
+def test_recover_refuses_non_mcap_and_reports_complete_files(tmp_path: Path, sim_device) -> None:
     (tmp_path / "junk.mcap").write_bytes(b"not an mcap file at all")
     with pytest.raises(DataError, match="not an MCAP file"):
         recover_mcap(tmp_path / "junk.mcap", tmp_path / "out.mcap")

@@ -36,11 +36,11 @@ def test_schemas_are_valid_json_schemas_with_foxglove_names_and_fields() -> None
         if name in FOXGLOVE_FIELDS:
             assert set(schema["properties"]) == FOXGLOVE_FIELDS[name]
     entity = SCHEMAS["foxglove.SceneUpdate"]["properties"]["entities"]["items"]
-    assert ENTITY_FIELDS <= set(entity["properties"])
+    assert set(entity["properties"]) >= ENTITY_FIELDS
     assert set(entity["properties"]["lines"]["items"]["properties"]) == LINE_FIELDS
 
 
-def test_check_packet_sorts_good_crc_damaged_and_garbage(sim_device) -> None:  # noqa: ANN001
+def test_check_packet_sorts_good_crc_damaged_and_garbage(sim_device) -> None:
     _, good = next(m for m in sim_device.messages(2) if m[1][3] == 1)
     assert check_packet(good, 5).ok
     damaged = bytearray(good)
@@ -51,7 +51,7 @@ def test_check_packet_sorts_good_crc_damaged_and_garbage(sim_device) -> None:  #
     assert garbage.header is None and "magic" in garbage.error
 
 
-def test_frame_summary_matches_the_full_decode(sim_device) -> None:  # noqa: ANN001
+def test_frame_summary_matches_the_full_decode(sim_device) -> None:
     for _, data in sim_device.messages(5):
         packet = check_packet(data, 0)
         summary = summarize_frame(packet)
@@ -66,17 +66,17 @@ def test_frame_summary_matches_the_full_decode(sim_device) -> None:  # noqa: ANN
         assert summary.order_confidence == pytest.approx(record.order_confidence, abs=1e-12)
 
 
-def _stream(sim_device, count: int) -> list[bytes]:  # noqa: ANN001
+def _stream(sim_device, count: int) -> list[bytes]:
     return [data for _, data in sim_device.messages(count, start_t_ns=time.time_ns())]
 
 
-def test_loss_duplicates_reordering_and_bad_packets_are_counted_never_fatal(sim_device) -> None:  # noqa: ANN001
+def test_loss_duplicates_reordering_and_bad_packets_are_counted_never_fatal(sim_device) -> None:
     messages = _stream(sim_device, 30)
     # drop two, duplicate one, swap two, insert garbage and a CRC-damaged copy
     sent = messages[:5] + messages[6:8] + [messages[9], messages[8]] + messages[10:12] + [messages[11]] + messages[13:]
     damaged = bytearray(messages[4])
     damaged[-1] ^= 0xFF
-    sent = sent[:3] + [b"RC\x09garbage", bytes(damaged)] + sent[3:]
+    sent = [*sent[:3], b"RC\tgarbage", bytes(damaged), *sent[3:]]
     device, host = LoopTransport.pair()
     session = Session()
     receiver = Receiver(host)
@@ -96,7 +96,11 @@ def test_loss_duplicates_reordering_and_bad_packets_are_counted_never_fatal(sim_
 
 @pytest.mark.parametrize("url", ["loop://monitor-e2e", "udp"])
 def test_recorded_file_holds_every_message_and_the_devices_shapes(
-    sim_device, tmp_path: Path, url: str, udp_port: int, read_mcap  # noqa: ANN001
+    sim_device,
+    tmp_path: Path,
+    url: str,
+    udp_port: int,
+    read_mcap,
 ) -> None:
     messages = _stream(sim_device, 120)
     if url == "udp":
@@ -131,14 +135,14 @@ def test_recorded_file_holds_every_message_and_the_devices_shapes(
             assert polyline_distances_px(device_points, points).max() <= 0.05 + 1e-5
     validators = {name: jsonschema.Draft202012Validator(schema) for name, schema in SCHEMAS.items()}
     names = set()
-    for topic, schema_name, _, data in records:
+    for _topic, schema_name, _, data in records:
         if schema_name is not None:
             names.add(schema_name)
             validators[schema_name].validate(json.loads(data))
     assert names == {"foxglove.SceneUpdate", "foxglove.PointCloud", "foxglove.Log", "ropecam.Status"}
 
 
-def test_plane_channels_in_metres_when_calibrated(sim_device, tmp_path: Path, read_mcap) -> None:  # noqa: ANN001
+def test_plane_channels_in_metres_when_calibrated(sim_device, tmp_path: Path, read_mcap) -> None:
     from ropecam.host.sim.rig_polylines import RIG_CAMERA, RIG_PLANE
 
     recorder = Recorder(RecordingConfig(tmp_path / "cal.mcap"))
