@@ -16,7 +16,7 @@ ropecam-device turns camera frames into rope shapes and tracked material points 
 """
 
 # One module per sub-command; each defines register(subparsers).
-COMMAND_MODULES: tuple[str, ...] = ()
+COMMAND_MODULES: tuple[str, ...] = ("ropecam.device.capture.probe",)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

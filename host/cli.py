@@ -20,6 +20,8 @@ COMMAND_MODULES: tuple[str, ...] = (
     "ropecam.host.demo",
     "ropecam.host.model.cli",
     "ropecam.host.sim.cli",
+    "ropecam.host.calibration.cli",
+    "ropecam.host.compare.cli",
     "ropecam.host.keygen",
     "ropecam.host.monitor.cli",
     "ropecam.host.replay",

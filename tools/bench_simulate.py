@@ -55,15 +55,13 @@ def main() -> int:
     subframes = 0
     for _ in range(args.repeats):
         started = time.perf_counter()
-        trajectory = (
-            Trajectory.load(args.trajectory) if args.trajectory else solve_trajectory(config.rope, config.duration_s)
-        )
+        trajectory = Trajectory.load(args.trajectory) if args.trajectory else solve_trajectory(config)
         solve_s.append(time.perf_counter() - started)
 
         camera, plane = config.camera.camera_model(), config.camera.plane_pose()
         s_m = arc_length_samples(config)
         levels = rope_levels(config.scene, s_m, config.seed)
-        renderer = RopeRenderer(camera, plane, s_m, config.rope.render_diameter_m, levels, config.camera.edge_sigma_px)
+        renderer = RopeRenderer(camera, plane, s_m, config.render_diameter_m, levels, config.camera.edge_sigma_px)
         layers = build_scene(config.scene, config.camera.image_size, (500.0, 80.0), 400.0, 2.5, 0.5, config.seed)
         sensor = Sensor(layers, config.sensor, config.seed)
         renderer.render(trajectory, 0.0, exposure_ms * 1e-3)  # warm-up (kernels are cached; this is I/O-free)
@@ -92,7 +90,11 @@ def main() -> int:
     width, height = config.camera.image_size
     print(f"preset {args.preset}: {config.frames} frames {width}x{height}, {exposure_ms:g} ms, "
           f"{config.camera.fps:g} FPS, {subframes} sub-frames in all, median of {args.repeats}")  # fmt: skip
-    source = "trajectory file load" if args.trajectory else f"ANCF solve ({config.duration_s:.3f} s of motion)"
+    source = (
+        "trajectory file load"
+        if args.trajectory
+        else f"ANCF solve ({config.model_solver().duration_s:.3f} s of motion)"
+    )
     print(f"  {source:<40} {med(solve_s):7.2f} s")
     print(f"  {'render (project, sub-frames, rasterise)':<40} {med(render_s):7.2f} s")
     print(f"  {'sensor model':<40} {med(sensor_s):7.2f} s")

@@ -19,6 +19,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+import re
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -39,6 +40,8 @@ _INDEX: Final = "index.csv"
 _TRUTH: Final = "truth.npz"
 _FRAMES: Final = "frames"
 _INDEX_HEADER: Final = ("frame", "t_ns", "exposure_us", "file")
+_FRAME_NAME: Final = re.compile(r"\d{6,}\.png")
+"""Names the writer gives frames (``000000.png``, ...); only these are removed when a set is overwritten."""
 
 
 def is_frameset(path: str | Path) -> bool:
@@ -157,6 +160,16 @@ class FrameSet:
             raise DataError(f"{path}: cannot read ground truth: {exc}") from exc
 
 
+def _frame_files(folder: Path) -> list[Path]:
+    """Return the files in `folder` named like the writer's frames, sorted (none if the folder does not exist)."""
+    try:
+        return sorted(p for p in folder.iterdir() if _FRAME_NAME.fullmatch(p.name) and p.is_file())
+    except FileNotFoundError:
+        return []
+    except OSError as exc:
+        raise DataError(f"{folder}: cannot list frames: {exc}") from exc
+
+
 class FrameSetWriter:
     """Write a frame set folder frame by frame; usable as a context manager.
 
@@ -171,7 +184,14 @@ class FrameSetWriter:
     metadata
         Extra top-level keys for ``frameset.json`` (``camera``, ``plane``, ``rig``); JSON-serialisable.
     overwrite
-        Replace an existing frame set in `root`; otherwise an existing one is an error.
+        Replace an existing frame set in `root`: its metadata, index, ground truth and the frames the writer named
+        (``frames/NNNNNN.png``; other files are left alone). Otherwise an existing set, or frames without a set's
+        metadata, is an error.
+
+    Raises
+    ------
+    DataError
+        `root` holds a frame set or frame files already (without `overwrite`), or cannot be written.
     """
 
     def __init__(
@@ -185,6 +205,12 @@ class FrameSetWriter:
         self.root = Path(root)
         if is_frameset(self.root) and not overwrite:
             raise DataError(f"{self.root}: a frame set exists already (use overwrite to replace it)")
+        stale_frames = _frame_files(self.root / _FRAMES)
+        if stale_frames and not overwrite:
+            raise DataError(
+                f"{self.root / _FRAMES}: holds {len(stale_frames)} frame files (e.g. {stale_frames[0].name}) but "
+                f"{self.root} has no {_META}; use overwrite to replace them"
+            )
         if not (fps > 0 and np.isfinite(fps)):
             raise ValueError(f"fps must be > 0, got {fps!r}")
         width, height = image_size
@@ -193,7 +219,8 @@ class FrameSetWriter:
         self.image_size = (int(width), int(height))
         try:
             (self.root / _FRAMES).mkdir(parents=True, exist_ok=True)
-            for stale in (self.root / _TRUTH, self.root / _INDEX):
+            # The index goes first: an interrupted overwrite must not leave an index naming deleted frames.
+            for stale in (self.root / _INDEX, self.root / _TRUTH, *stale_frames):
                 stale.unlink(missing_ok=True)
             meta = {"format": FORMAT_NAME, "version": FORMAT_VERSION, "image_size": list(self.image_size)}
             meta.update({"fps": float(fps), "camera": None, "plane": None, "rig": {}})

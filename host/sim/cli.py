@@ -19,13 +19,19 @@ Each frame set is a folder of PNG frames, an index, metadata and ground truth (t
 see docs/frameset.md. With several exposure times (the paper preset has four), DIR gets one set per exposure,
 DIR/exposure_<ms>ms. Anything of a preset can be changed with --config FILE.toml, e.g.
 
-    [rope]
+    [rope]                 # the ANCF model's rope: same keys as `ropecam model simulate --config`
     ei_nm2 = 3e-6          # softer rope
+    fixed_end = "clamped"
+    mass_damping_per_s = 0.2
+    [solver]               # the model's [solver]; duration_s is extended to the last exposure
+    elements = 24
     [scene]
+    render_diameter_m = 0.003
     polarity = "dark"
-    vignetting = 0.0
     [camera]
     plane_rvec = [0.0, 0.1, 0.0]
+
+A file written for `ropecam model simulate --config` works as it is: its [rope] and [solver] tables apply.
 
 examples:
   ropecam simulate rig --out sets/rig                      # 60 frames, 4 ms, 119 FPS (about 10 s)
@@ -72,6 +78,14 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--config", type=Path, metavar="FILE", help="TOML file overriding any preset value")
     parser.add_argument(
         "--trajectory", type=Path, metavar="FILE", help="use a saved trajectory (.npz) instead of solving the model"
+    )
+    parser.add_argument(
+        "--calibration-views",
+        type=int,
+        default=0,
+        metavar="N",
+        help="also write a calibration set into DIR/calibration: N checkerboard views (50 recommended) through the "
+        "same camera, plus boards lying in the motion plane, with the true camera and plane in truth.json",
     )
     parser.add_argument("--overwrite", action="store_true", help="replace existing frame sets in DIR")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
@@ -133,10 +147,9 @@ def run(args: argparse.Namespace) -> int:
     else:
         columns = (TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed:.2f}/{task.total:.2f} s"))
         with Progress(*columns, console=console, disable=args.quiet, transient=True) as bar:
-            task = bar.add_task(f"ANCF model, {config.rope.elements} elements", total=config.duration_s)
-            trajectory = solve_trajectory(
-                config.rope, config.duration_s, lambda t_s: bar.update(task, completed=min(t_s, config.duration_s))
-            )
+            model_s = config.model_solver().duration_s
+            task = bar.add_task(f"ANCF model, {config.solver.elements} elements", total=model_s)
+            trajectory = solve_trajectory(config, lambda t_s: bar.update(task, completed=min(t_s, model_s)))
         console.print(f"model solved: {trajectory.duration_s:.3f} s of motion")
 
     paths = dict(frameset_paths(args.out, config.exposure_ms))
@@ -147,12 +160,41 @@ def run(args: argparse.Namespace) -> int:
         def progress(exposure_ms: float, done: int, total: int) -> None:
             bar.update(tasks[exposure_ms], completed=done, total=total)
 
-        summaries = write_framesets(config, trajectory, args.out, overwrite=args.overwrite, progress=progress)
+        source = None if args.trajectory is None else str(args.trajectory)
+        summaries = write_framesets(
+            config, trajectory, args.out, overwrite=args.overwrite, progress=progress, trajectory_source=source
+        )
     for summary in summaries:
         note = f", rope leaves the image in {summary.frames_out_of_view} frames" if summary.frames_out_of_view else ""
         console.print(
             f"{summary.path}: {summary.frames} frames, {summary.exposure_us} us, rope {summary.width_px:.2f} px wide, "
             f"up to {summary.subframes_max} sub-frames, {summary.seconds:.1f} s{note}"
         )
+    if args.calibration_views:
+        _write_calibration(config, args, console)
     sys.stderr.flush()
     return 0
+
+
+def _write_calibration(config: Any, args: argparse.Namespace, console: Any) -> None:
+    """Render the calibration set through the preset's camera and motion plane."""
+    from ropecam.host.sim.boards import make_calibration_set, write_calibration_set
+    from ropecam.shared.errors import ConfigError, DataError
+
+    if args.calibration_views < 4:
+        raise ConfigError(f"--calibration-views must be 0 (none) or >= 4, got {args.calibration_views}")
+    folder = args.out / "calibration"
+    if (folder / "truth.json").exists() and not args.overwrite:
+        raise DataError(f"{folder}: a calibration set exists already (use --overwrite to replace it)")
+    with console.status(f"rendering {args.calibration_views} calibration views -> {folder}"):
+        try:
+            calib = make_calibration_set(
+                camera=config.camera.camera_model(),
+                n_views=args.calibration_views,
+                seed=config.seed,
+                plane_pose=config.camera.plane_pose(),
+            )
+        except ValueError as exc:
+            raise ConfigError(f"cannot place the calibration boards for preset {config.preset!r}: {exc}") from exc
+        write_calibration_set(calib, folder)
+    console.print(f"{folder}: {len(calib.views)} views, plane.png + {len(calib.extra_plane_views)} more plane views")

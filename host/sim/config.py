@@ -1,8 +1,10 @@
 """Configuration of a simulated rig: camera and motion plane, rope, scene and sensor, and the recording itself.
 
-Each part is a frozen, slotted dataclass validated on construction; `SimConfig` composes them. Presets
-(`ropecam.host.sim.presets`) are instances of `SimConfig`; a TOML file can override any field of a preset
-(`merge_overrides`), with unknown keys refused.
+Each part is a frozen, slotted dataclass validated on construction; `SimConfig` composes them. The rope and the
+time integrator are the ANCF model's own configuration types (`ropecam.host.model.config.RopeConfig` and
+`SolverConfig`), so the simulator's ``[rope]`` and ``[solver]`` tables are exactly those of
+``ropecam model simulate --config``. Presets (`ropecam.host.sim.presets`) are instances of `SimConfig`; a TOML file
+can override any field of a preset (`merge_overrides`), with unknown keys refused.
 """
 
 from __future__ import annotations
@@ -15,13 +17,14 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
+from ropecam.host.model.config import RopeConfig, SolverConfig
 from ropecam.shared.config import check_finite, check_in, check_positive, check_range, from_mapping
 from ropecam.shared.errors import ConfigError
 
 if TYPE_CHECKING:  # geometry imports OpenCV; kept out of `ropecam --help`
     from ropecam.host.calibration.geometry import CameraModel, PlanePose
 
-__all__ = ["CameraSpec", "RopeSpec", "SceneSpec", "SensorSpec", "SimConfig", "merge_overrides"]
+__all__ = ["CameraSpec", "SceneSpec", "SensorSpec", "SimConfig", "merge_overrides"]
 
 Polarity = Literal["bright", "dark"]
 
@@ -103,60 +106,15 @@ class CameraSpec:
 
 
 @dataclass(frozen=True, slots=True)
-class RopeSpec:
-    """The rope: dynamics parameters (passed to the ANCF model) and the diameter it is drawn with.
-
-    Parameters
-    ----------
-    length_m, diameter_m, youngs_modulus_pa, density_kg_m3
-        The physical rope (the dynamics use these).
-    render_diameter_m
-        Diameter the rope is drawn with. Chosen per preset so the rope appears 1.5-4 px wide at the preset's plane
-        distance (a real 1 mm rope at 1.5 m is about 1 px wide); it does not enter the dynamics.
-    ei_nm2
-        Bending stiffness; None uses the solid section E pi d^4 / 64. Lower it for a soft, curling rope.
-    angle_deg
-        Initial straight direction of the rope, from +x towards +y (down); released at rest.
-    drag_coefficient
-        Aerodynamic drag coefficient of the model (0: none).
-    gravity_m_s2
-        Gravity along +y.
-    elements, step_s, output_every_s
-        ANCF discretisation: element count, solver time step, output sample spacing.
-    """
-
-    length_m: float
-    diameter_m: float
-    render_diameter_m: float
-    youngs_modulus_pa: float = 1.24e11
-    density_kg_m3: float = 1440.0
-    ei_nm2: float | None = None
-    angle_deg: float = 0.0
-    drag_coefficient: float = 0.0
-    gravity_m_s2: float = 9.81
-    elements: int = 16
-    step_s: float = 1e-3
-    output_every_s: float = 1e-3
-
-    def __post_init__(self) -> None:
-        for name in ("length_m", "diameter_m", "render_diameter_m", "youngs_modulus_pa", "density_kg_m3"):
-            check_positive(f"rope.{name}", getattr(self, name))
-        if self.ei_nm2 is not None:
-            check_positive("rope.ei_nm2", self.ei_nm2)
-        check_range("rope.angle_deg", self.angle_deg, -180.0, 180.0)
-        check_range("rope.drag_coefficient", self.drag_coefficient, 0.0, 10.0)
-        check_finite("rope.gravity_m_s2", self.gravity_m_s2)
-        check_range("rope.elements", self.elements, 1, 1024)
-        check_positive("rope.step_s", self.step_s)
-        check_positive("rope.output_every_s", self.output_every_s)
-
-
-@dataclass(frozen=True, slots=True)
 class SceneSpec:
-    """What the camera looks at: levels, background, lighting fall-off and the optional distractions.
+    """What the camera looks at: the rope's look, levels, background, lighting fall-off and distractions.
 
     Parameters
     ----------
+    render_diameter_m
+        Diameter the rope is drawn with; None draws the physical diameter (``rope.diameter_m``). Presets choose it
+        so the rope appears 1.5-4 px wide at their plane distance (a real 1 mm rope at 1.5 m is about 1 px wide);
+        it does not enter the dynamics.
     polarity
         "bright": a bright rope on a dark background (the paper's black board); "dark": a dark rope on a bright one.
     rope_level_dn, background_level_dn
@@ -176,6 +134,7 @@ class SceneSpec:
         Draw a clamp block over the fixed end (it hides the first few millimetres of rope).
     """
 
+    render_diameter_m: float | None = None
     polarity: Polarity = "bright"
     rope_level_dn: float | None = None
     background_level_dn: float | None = None
@@ -187,6 +146,8 @@ class SceneSpec:
     clamp: bool = False
 
     def __post_init__(self) -> None:
+        if self.render_diameter_m is not None:
+            check_positive("scene.render_diameter_m", self.render_diameter_m)
         check_in("scene.polarity", self.polarity, ("bright", "dark"))
         for name in ("rope_level_dn", "background_level_dn"):
             value = getattr(self, name)
@@ -243,8 +204,15 @@ class SimConfig:
     ----------
     preset
         Name of the preset this configuration came from (recorded in the metadata).
-    camera, rope, scene, sensor
-        The rig.
+    camera
+        Camera, motion plane and frame rate.
+    rope
+        The rope, its support and environment: the ANCF model's configuration.
+    solver
+        The ANCF model's discretisation and time integration. Its `duration_s` is a minimum: the model is solved
+        at least until the last exposure ends (see `model_solver`).
+    scene, sensor
+        What the camera sees and how the sensor records it.
     frames
         Number of frames per exposure time.
     exposure_ms
@@ -257,7 +225,8 @@ class SimConfig:
 
     preset: str
     camera: CameraSpec
-    rope: RopeSpec
+    rope: RopeConfig
+    solver: SolverConfig = field(default_factory=SolverConfig)
     scene: SceneSpec = field(default_factory=SceneSpec)
     sensor: SensorSpec = field(default_factory=SensorSpec)
     frames: int = 60
@@ -276,11 +245,35 @@ class SimConfig:
             raise ConfigError(f"exposure_ms has duplicates: {list(self.exposure_ms)}")
         check_range("first_exposure_s", self.first_exposure_s, 0.0, 3600.0)
         check_range("seed", self.seed, 0, 2**63 - 1)
+        if self.scene.clamp and self.rope.fixed_end_motion.active:
+            raise ConfigError(
+                "scene.clamp draws a static clamp at the plane origin, but rope.fixed_end_motion moves the fixed "
+                "end: switch one of them off"
+            )
 
     @property
     def duration_s(self) -> float:
         """Model time needed: up to the end of the last frame's longest exposure."""
         return self.first_exposure_s + (self.frames - 1) / self.camera.fps + max(self.exposure_ms) / 1000.0
+
+    @property
+    def render_diameter_m(self) -> float:
+        """Diameter the rope is drawn with: ``scene.render_diameter_m``, else the physical ``rope.diameter_m``."""
+        if self.scene.render_diameter_m is not None:
+            return self.scene.render_diameter_m
+        return self.rope.diameter_m
+
+    def model_solver(self) -> SolverConfig:
+        """Return the solver configuration the simulator runs: `solver` with `duration_s` extended if needed.
+
+        The model runs for ``solver.duration_s`` or until two output samples past the end of the last exposure,
+        whichever is later, so that every exposure lies inside the trajectory.
+        """
+        steps = math.ceil(self.duration_s / self.solver.output_every_s + 1e-9) + 2
+        needed_s = steps * self.solver.output_every_s
+        if needed_s <= self.solver.duration_s:
+            return self.solver
+        return dataclasses.replace(self.solver, duration_s=needed_s)
 
     def to_dict(self) -> dict[str, Any]:
         """Return the configuration as plain JSON/TOML-compatible data."""
@@ -313,8 +306,8 @@ def merge_overrides(config: SimConfig, overrides: Mapping[str, Any], where: str 
     config
         The base configuration (usually a preset).
     overrides
-        Mapping with any of the top-level keys of `SimConfig` and tables ``camera``, ``rope``, ``scene``,
-        ``sensor`` holding any of their fields.
+        Mapping with any of the top-level keys of `SimConfig` and tables ``camera``, ``rope`` (with its
+        ``fixed_end_motion`` sub-table), ``solver``, ``scene``, ``sensor`` holding any of their fields.
     where
         Name for error messages (the file name).
 

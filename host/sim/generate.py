@@ -7,6 +7,7 @@ complete and also when the run stops early (error or Ctrl-C), covering the frame
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import os
@@ -33,6 +34,8 @@ __all__ = ["TRAJECTORY_FILE", "SetSummary", "arc_length_samples", "frameset_path
 log = logging.getLogger(__name__)
 
 TRAJECTORY_FILE = "trajectory.npz"
+MODEL_SOURCE = "ANCF model"
+"""`trajectory_source` of a set whose motion was solved from the configuration (``rig.model`` records how)."""
 SAMPLE_SPACING_PX = 0.5
 """Largest image distance between consecutive centreline samples (truth and rendering)."""
 
@@ -88,11 +91,14 @@ def frameset_paths(out: str | Path, exposure_ms: tuple[float, ...]) -> list[tupl
 def arc_length_samples(config: SimConfig) -> NDArray[np.float64]:
     """Return the arc lengths (S,) of the centreline samples: uniform, at most `SAMPLE_SPACING_PX` apart in the image.
 
-    The image scale is the largest over the region the rope can reach (a disc of radius L around the fixed end).
+    The image scale is the largest over the region the rope can reach (a disc of radius L around the fixed end,
+    widened by the amplitudes of a prescribed fixed-end motion).
     """
     length = config.rope.length_m
+    motion = config.rope.fixed_end_motion
+    reach_x, reach_y = length + abs(motion.amplitude_x_m), length + abs(motion.amplitude_y_m)
     scale = max_pixels_per_metre(
-        config.camera.camera_model(), config.camera.plane_pose(), (-length, length), (-length, length)
+        config.camera.camera_model(), config.camera.plane_pose(), (-reach_x, reach_x), (-reach_y, reach_y)
     )
     count = math.ceil(length * scale / SAMPLE_SPACING_PX) + 1
     return np.linspace(0.0, length, count)
@@ -119,7 +125,9 @@ def _begin_ns(config: SimConfig, frame: int) -> int:
     return round((config.first_exposure_s + frame / config.camera.fps) * 1e9)
 
 
-def _metadata(config: SimConfig, exposure_us: int, fixed_end_px: NDArray[np.float64], s_count: int) -> dict[str, Any]:
+def _metadata(
+    config: SimConfig, exposure_us: int, fixed_end_px: NDArray[np.float64], s_count: int, trajectory_source: str | None
+) -> dict[str, Any]:
     camera, rope = config.camera, config.rope
     return {
         "camera": {
@@ -134,7 +142,7 @@ def _metadata(config: SimConfig, exposure_us: int, fixed_end_px: NDArray[np.floa
             "preset": config.preset,
             "rope_length_m": rope.length_m,
             "rope_diameter_m": rope.diameter_m,
-            "render_diameter_m": rope.render_diameter_m,
+            "render_diameter_m": config.render_diameter_m,
             "polarity": config.scene.polarity,
             "fixed_end_px": fixed_end_px.tolist(),
             "fps": camera.fps,
@@ -146,7 +154,17 @@ def _metadata(config: SimConfig, exposure_us: int, fixed_end_px: NDArray[np.floa
             "trajectory": TRAJECTORY_FILE,
             "truth": "truth.npz",
             "config": config.to_dict(),
+            "trajectory_source": trajectory_source or MODEL_SOURCE,
+            "model": None if trajectory_source else _model_metadata(config),
         },
+    }
+
+
+def _model_metadata(config: SimConfig) -> dict[str, Any]:
+    """The ANCF model's configuration as run: ``[rope]`` and ``[solver]`` of ``ropecam model simulate --config``."""
+    return {
+        "rope": dataclasses.asdict(config.rope),
+        "solver": dataclasses.asdict(config.model_solver()),
     }
 
 
@@ -166,6 +184,7 @@ def write_frameset(
     exposure_ms: float,
     overwrite: bool = False,
     progress: Progress | None = None,
+    trajectory_source: str | None = None,
 ) -> SetSummary:
     """Render `config.frames` frames of `trajectory` at one exposure time into a frame set folder.
 
@@ -183,6 +202,10 @@ def write_frameset(
         Replace an existing frame set in `out`.
     progress
         Called as ``progress(frames_done, frames_total)`` after every frame.
+    trajectory_source
+        Where `trajectory` came from when it was not solved from ``config.rope`` and ``config.model_solver()``
+        (e.g. the file it was loaded from). None (solved): the metadata records the model configuration
+        (``rig.model``); otherwise it records this text as ``rig.trajectory_source`` and ``rig.model`` is null.
 
     Returns
     -------
@@ -208,7 +231,7 @@ def write_frameset(
     levels = rope_levels(config.scene, s_m, config.seed)
     fixed_end_px = plane_to_pixels(np.zeros(2), camera, plane)
     sigma = config.camera.edge_sigma_px
-    renderer = RopeRenderer(camera, plane, s_m, config.rope.render_diameter_m, levels, sigma)
+    renderer = RopeRenderer(camera, plane, s_m, config.render_diameter_m, levels, sigma)
     first_m = trajectory.positions([trajectory.times_s[0]], s_m)[0]
     first_px = renderer.project(first_m)
     rope_length_px = float(np.linalg.norm(np.diff(first_px, axis=0), axis=-1).sum())
@@ -217,7 +240,7 @@ def write_frameset(
         config.scene, config.camera.image_size, tuple(fixed_end_px), rope_length_px, width_px, sigma, config.seed
     )
     sensor = Sensor(layers, config.sensor, config.seed)
-    metadata = _metadata(config, exposure_us, fixed_end_px, s_m.size)
+    metadata = _metadata(config, exposure_us, fixed_end_px, s_m.size, trajectory_source)
     if layers.clamp_box_px is not None:
         metadata["rig"]["clamp_box_px"] = list(layers.clamp_box_px)
     if layers.scratch_px is not None:
@@ -288,6 +311,7 @@ def write_framesets(
     out: str | Path,
     overwrite: bool = False,
     progress: Callable[[float, int, int], None] | None = None,
+    trajectory_source: str | None = None,
 ) -> list[SetSummary]:
     """Write one frame set per exposure time of `config` (folders as `frameset_paths`).
 
@@ -295,6 +319,8 @@ def write_framesets(
     ----------
     progress
         Called as ``progress(exposure_ms, frames_done, frames_total)`` after every frame.
+    trajectory_source
+        As `write_frameset`.
 
     Raises
     ------
@@ -311,5 +337,5 @@ def write_framesets(
     summaries = []
     for exposure_ms, path in paths:
         callback = None if progress is None else (lambda done, total, ms=exposure_ms: progress(ms, done, total))
-        summaries.append(write_frameset(config, trajectory, path, exposure_ms, overwrite, callback))
+        summaries.append(write_frameset(config, trajectory, path, exposure_ms, overwrite, callback, trajectory_source))
     return summaries

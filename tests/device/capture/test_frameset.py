@@ -45,6 +45,36 @@ def test_refuses_overwrite_and_bad_images(tmp_path: Path) -> None:
     writer.close()
 
 
+def test_overwrite_removes_the_old_frames_only(tmp_path: Path) -> None:
+    root = tmp_path / "set"
+    _write(root, frames=5)
+    (root / "frames" / "notes.txt").write_text("keep")
+    (root / "frames" / "snapshot.png").write_bytes(b"not ours")
+    images = []
+    with FrameSetWriter(root, (16, 12), 30.0, overwrite=True) as writer:
+        for i in range(2):
+            images.append(np.full((12, 16), 10 * i, np.uint8))
+            writer.add(images[-1], t_ns=i, exposure_us=100)
+    assert sorted(p.name for p in (root / "frames").iterdir()) == ["000000.png", "000001.png", "notes.txt",
+                                                                    "snapshot.png"]  # fmt: skip
+    frames = FrameSet(root)
+    assert len(frames) == 2 and frames.fps == 30.0 and frames.truth() is None
+    for (_, image), expected in zip(frames, images, strict=True):
+        np.testing.assert_array_equal(image, expected)
+
+
+def test_frames_without_metadata_are_not_overwritten_silently(tmp_path: Path) -> None:
+    root = tmp_path / "set"
+    _write(root)
+    (root / "frameset.json").unlink()
+    before = (root / "frames" / "000000.png").read_bytes()
+    with pytest.raises(DataError, match=r"frames: holds 3 frame files \(e\.g\. 000000\.png\).*no frameset\.json"):
+        FrameSetWriter(root, (16, 12), 30.0)
+    assert (root / "frames" / "000000.png").read_bytes() == before
+    FrameSetWriter(root, (16, 12), 30.0, overwrite=True).close()
+    assert not list((root / "frames").iterdir()) and len(FrameSet(root)) == 0
+
+
 @pytest.mark.parametrize(
     ("damage", "message"),
     [

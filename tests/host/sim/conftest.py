@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from ropecam.host.calibration.geometry import CameraModel
+from ropecam.host.model.config import RopeConfig
 from ropecam.host.model.trajectory import Trajectory
-from ropecam.host.sim.config import CameraSpec, RopeSpec, SensorSpec, SimConfig
+from ropecam.host.sim.config import CameraSpec, SceneSpec, SensorSpec, SimConfig
 from ropecam.host.sim.presets import plane_through_pixel
 
 
@@ -85,8 +86,9 @@ def tiny_config(clean: bool = False, **changes: object) -> SimConfig:
     model = CameraModel(matrix, np.array(distortion), (320, 200))
     tvec = plane_through_pixel(model, 1.5, (160.0, 30.0))
     camera = CameraSpec(500.0, 496.0, 161.3, 99.2, 320, 200, 119.0, tvec, (0.05, -0.08, 0.03), distortion)
-    rope = RopeSpec(length_m=0.411, diameter_m=0.001, render_diameter_m=0.006)
-    config = SimConfig("tiny", camera, rope, frames=3, exposure_ms=(4.0,), first_exposure_s=0.1)
+    rope = RopeConfig(length_m=0.411, diameter_m=0.001)
+    scene = SceneSpec(render_diameter_m=0.006)
+    config = SimConfig("tiny", camera, rope, scene=scene, frames=3, exposure_ms=(4.0,), first_exposure_s=0.1)
     if clean:
         scene = dataclasses.replace(config.scene, background_variation=0.0, vignetting=0.0, texture=0.0)
         config = dataclasses.replace(config, scene=scene, sensor=SensorSpec(0.0, 0.0))

@@ -23,7 +23,7 @@ cy_px = 100.0
 width_px = 320
 height_px = 200
 plane_tvec_m = [0.0, -0.12, 1.5]
-[rope]
+[scene]
 render_diameter_m = 0.006
 """
 
@@ -55,6 +55,9 @@ def test_simulate_writes_a_readable_set(
     rig = frames.meta["rig"]
     assert rig["preset"] == "rig" and rig["polarity"] == "dark" and rig["seed"] == 7
     assert rig["rope_length_m"] == 0.411 and rig["render_diameter_m"] == 0.006 and "clamp_box_px" in rig
+    # A loaded trajectory is named as the motion's source; no model configuration is claimed for it.
+    assert rig["trajectory_source"] == str(rod_file) and rig["model"] is None
+    assert rig["config"]["scene"]["render_diameter_m"] == 0.006 and rig["config"]["rope"]["fixed_end"] == "pinned"
     assert frames.meta["camera"]["distortion"] == [-0.1793, 0.3891, 0.0, 0.0, 0.0]
     assert frames.meta["plane"]["tvec_m"] == [0.0, -0.12, 1.5]
     truth = frames.truth()
@@ -140,3 +143,23 @@ def test_help_lists_presets(capsys: pytest.CaptureFixture[str]) -> None:
     text = capsys.readouterr().out
     for name in ("paper", "paper-soft", "rig", "rig-soft", "--exposure-ms", "--trajectory", "docs/frameset.md"):
         assert name in text
+
+
+def test_model_config_file_gives_the_model_commands_motion(tmp_path: Path) -> None:
+    """One TOML file drives `ropecam model simulate` and `ropecam simulate`: the same motion, bit for bit."""
+    config = tmp_path / "rope.toml"
+    config.write_text(
+        "[rope]\nlength_m = 0.411\nei_nm2 = 1e-4\nfixed_end = 'clamped'\ndrag_coefficient = 1.122\n"
+        "mass_damping_per_s = 0.5\n[solver]\nelements = 6\nduration_s = 0.05\nspectral_radius = 0.8\n"
+    )
+    model_npz = tmp_path / "model.npz"
+    argv = ["model", "simulate", "--config", str(config), "--out", str(tmp_path / "tip.csv")]
+    assert main([*argv, "--trajectory", str(model_npz), "--quiet"]) == 0
+    out = tmp_path / "set"
+    assert main(["simulate", "rig", "--out", str(out), "--frames", "2", "--config", str(config), "-q"]) == 0
+    expected, got = Trajectory.load(model_npz), Trajectory.load(out / "trajectory.npz")
+    np.testing.assert_array_equal(got.times_s, expected.times_s)
+    np.testing.assert_array_equal(got.q, expected.q)
+    model = FrameSet(out).meta["rig"]["model"]
+    assert model["rope"]["fixed_end"] == "clamped" and model["solver"]["elements"] == 6
+    assert model["solver"]["duration_s"] == 0.05

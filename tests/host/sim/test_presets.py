@@ -2,13 +2,19 @@
 
 from __future__ import annotations
 
+import dataclasses
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from ropecam.host.calibration.geometry import plane_to_pixels
+from ropecam.host.model.cli import load_model_config
+from ropecam.host.model.config import RopeConfig, SolverConfig
 from ropecam.host.sim.config import merge_overrides
 from ropecam.host.sim.presets import PRESETS, preset
 from ropecam.host.sim.render import RopeRenderer
+from ropecam.shared.config import read_toml
 from ropecam.shared.errors import ConfigError
 
 
@@ -49,11 +55,63 @@ def test_rope_width_and_swing_fit_the_image(name: str) -> None:
     assert pixels[:, 1].min() >= 5 and pixels[:, 1].max() <= height - 6
     # Apparent width of a straight rope in several directions.
     s = np.linspace(0, length, 200)
-    renderer = RopeRenderer(camera, plane, s, config.rope.render_diameter_m, np.ones_like(s), 0.5)
+    renderer = RopeRenderer(camera, plane, s, config.render_diameter_m, np.ones_like(s), 0.5)
     for theta in np.linspace(0, np.pi, 7):
         line = s[:, None] * np.array([np.cos(theta), np.sin(theta)])
         widths = 2 * renderer.half_width_px(line, renderer.project(line))
         assert widths.min() >= 1.5 and widths.max() <= 4.0, f"{name}: {widths.min():.2f}..{widths.max():.2f} px"
+
+
+@pytest.mark.parametrize(
+    ("name", "length_m", "ei_nm2", "elements", "duration_s", "model_s"),
+    [("rig", 0.411, None, 16, 0.5, 0.502), ("rig-soft", 0.411, 1e-5, 32, 0.5, 0.502),
+     ("paper", 1.0, None, 16, 1.982, 1.984), ("paper-soft", 1.0, 1e-4, 32, 1.982, 1.984)],
+)  # fmt: skip
+def test_presets_model_configuration(
+    name: str, length_m: float, ei_nm2: float | None, elements: int, duration_s: float, model_s: float
+) -> None:
+    """The presets hold the model's own types, with the values the simulator always used (same frames as before)."""
+    config = preset(name)
+    assert config.rope == RopeConfig(length_m=length_m, diameter_m=0.001, ei_nm2=ei_nm2)
+    assert config.solver == SolverConfig(elements=elements, step_s=1e-3, duration_s=duration_s, output_every_s=1e-3)
+    # The model runs two output samples past the last exposure (60 frames), as before the refactoring.
+    run = config.model_solver()
+    assert run == dataclasses.replace(config.solver, duration_s=run.duration_s)
+    assert run.duration_s == pytest.approx(model_s, abs=1e-12)
+    assert config.render_diameter_m == (0.0025 if name.startswith("rig") else 0.007)
+
+
+def test_model_config_file_applies_to_the_simulator(tmp_path: Path) -> None:
+    """A file for `ropecam model simulate --config` works for `ropecam simulate --config`: same tables, same keys."""
+    path = tmp_path / "rope.toml"
+    path.write_text(
+        "[rope]\nei_nm2 = 2e-5\nfixed_end = 'clamped'\ndrag_coefficient = 1.122\nmass_damping_per_s = 0.3\n"
+        "material_damping_s = 1e-3\nangle_deg = -15.0\n"
+        "[rope.fixed_end_motion]\namplitude_y_m = 0.005\nfrequency_hz = 2.0\n"
+        "[solver]\nelements = 24\nstep_s = 5e-4\nspectral_radius = 0.7\nmax_iterations = 40\n"
+    )
+    rope, solver = load_model_config(path)
+    data = read_toml(path)
+    config = merge_overrides(preset("rig"), data, where=str(path))
+    for key in set(data["rope"]) - {"fixed_end_motion"}:
+        assert getattr(config.rope, key) == getattr(rope, key), key
+    assert config.rope.fixed_end_motion == rope.fixed_end_motion
+    for key in data["solver"]:
+        assert getattr(config.solver, key) == getattr(solver, key), key
+    assert config.rope.length_m == 0.411 and config.scene.render_diameter_m == 0.0025  # the rest stays the preset's
+    allowed = ", ".join(sorted(f.name for f in dataclasses.fields(SolverConfig)))
+    with pytest.raises(ConfigError, match=rf"my\.toml\.solver: unknown key 'element' \(allowed: {allowed}\)"):
+        merge_overrides(config, {"solver": {"element": 3}}, where="my.toml")
+    with pytest.raises(
+        ConfigError, match=r"overrides\.rope\.fixed_end: must be one of 'pinned', 'clamped', got 'free'"
+    ):
+        merge_overrides(config, {"rope": {"fixed_end": "free"}})
+    with pytest.raises(ConfigError, match=r"solver: step_s \(0.6\) must not be longer than duration_s"):
+        merge_overrides(config, {"solver": {"step_s": 0.6}})
+    with pytest.raises(ConfigError, match=r"scene.render_diameter_m must be > 0"):
+        merge_overrides(config, {"scene": {"render_diameter_m": 0.0}})
+    with pytest.raises(ConfigError, match=r"scene.clamp .*fixed_end_motion"):
+        merge_overrides(config, {"scene": {"clamp": True}})
 
 
 def test_unknown_preset_and_bad_overrides_are_named() -> None:

@@ -71,7 +71,7 @@ def test_motion_blur_conserves_the_rope_and_uses_fine_subframes(
     config = tiny()
     camera, plane = config.camera.camera_model(), config.camera.plane_pose()
     s = np.linspace(0, 0.411, 400)
-    renderer = RopeRenderer(camera, plane, s, config.rope.render_diameter_m, np.full(400, 100.0), 0.5)
+    renderer = RopeRenderer(camera, plane, s, config.render_diameter_m, np.full(400, 100.0), 0.5)
     rod = rod_factory(0.411, 0.3)
     still = renderer.render(rod, 0.2, 0.2)
     area = float(still.cover.sum())
@@ -90,7 +90,9 @@ def test_dark_polarity_options_end_to_end(
     tmp_path: Path, tiny: Callable[..., SimConfig], curl_factory: Callable[..., Trajectory]
 ) -> None:
     config = tiny(frames=2)
-    scene = SceneSpec(polarity="dark", texture=0.05, rope_unevenness=0.3, scratch=True, clamp=True)
+    scene = dataclasses.replace(
+        config.scene, polarity="dark", texture=0.05, rope_unevenness=0.3, scratch=True, clamp=True
+    )
     config = dataclasses.replace(config, scene=scene, seed=11)
     write_frameset(config, curl_factory(0.411, 0.2), tmp_path / "set", 2.0)
     frames = FrameSet(tmp_path / "set")

@@ -1,0 +1,154 @@
+"""Measured rope shapes in metres: read the device's per-frame results, convert them, track material points.
+
+The device reports each frame's rope at the start and at the end of the exposure as centrelines in distorted
+pixels (fixed end first). Here they are converted to metres on the motion plane with the calibration, and material
+points are tracked on the metric curves by arc length with uniform stretch (the paper's equations 9-12: a point at
+unstretched arc length s sits at ``s * Lc / Lc0`` along the measured curve). Tracking in metres rather than pixels
+keeps perspective and lens distortion out of the arc lengths.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ropecam.host.calibration.geometry import CameraModel, PlanePose, pixels_to_plane
+from ropecam.host.compare.tracks import MaterialPointTracks
+from ropecam.shared.errors import DataError
+
+__all__ = ["MeasuredFrame", "points_at_arc_lengths", "read_extract_jsonl", "tracks_from_frames"]
+
+
+@dataclass(frozen=True)
+class MeasuredFrame:
+    """One frame's measured shapes in distorted pixels (None where not measured) and exposure times in ns."""
+
+    frame: int
+    t_begin_ns: int
+    t_end_ns: int
+    begin_px: NDArray[np.float64] | None
+    end_px: NDArray[np.float64] | None
+    status: str = "OK"
+
+
+def _points(value: Any, where: str) -> NDArray[np.float64] | None:
+    if value is None:
+        return None
+    array = np.asarray(value, dtype=np.float64)
+    if array.ndim != 2 or array.shape[1] != 2 or array.shape[0] < 2 or not np.all(np.isfinite(array)):
+        raise DataError(f"{where}: expected a list of at least two finite [u, v] points")
+    return array
+
+
+def read_extract_jsonl(path: str | Path) -> list[MeasuredFrame]:
+    """Read the JSON lines written by `ropecam-device extract`.
+
+    Raises
+    ------
+    DataError
+        The file is missing, or a line is not JSON or lacks ``frame``/``t_ns`` (the message names file and line).
+    """
+    path = Path(path)
+    frames = []
+    try:
+        lines = path.read_text().splitlines()
+    except OSError as exc:
+        raise DataError(f"{path}: cannot read measurement file: {exc.strerror or exc}") from exc
+    for number, line in enumerate(lines, start=1):
+        if not line.strip():
+            continue
+        where = f"{path}:{number}"
+        try:
+            record = json.loads(line)
+            frame = int(record["frame"])
+            t_begin = int(record["t_ns"])
+            t_end = int(record.get("t_end_ns") or t_begin)
+        except (json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
+            raise DataError(f"{where}: not an extract record (needs frame, t_ns): {exc}") from exc
+        frames.append(
+            MeasuredFrame(
+                frame=frame,
+                t_begin_ns=t_begin,
+                t_end_ns=t_end,
+                begin_px=_points(record.get("begin"), f"{where} begin"),
+                end_px=_points(record.get("end"), f"{where} end"),
+                status=str(record.get("status", "OK")),
+            )
+        )
+    if not frames:
+        raise DataError(f"{path}: no frames in the measurement file")
+    return frames
+
+
+def points_at_arc_lengths(
+    curve_m: NDArray[np.float64], s_m: NDArray[np.float64], length_m: float
+) -> tuple[NDArray[np.float64], float]:
+    """Locate material points on a measured curve by arc length with uniform stretch (paper, eqs. 9-12).
+
+    Parameters
+    ----------
+    curve_m
+        The measured centreline, fixed end first, shape (n, 2), metres.
+    s_m
+        Unstretched arc lengths of the points, shape (K,).
+    length_m
+        The unstretched rope length Lc0.
+
+    Returns
+    -------
+    points, stretch
+        Positions (K, 2) (NaN beyond the measured curve) and the stretch ratio Lc / Lc0.
+    """
+    steps = np.linalg.norm(np.diff(curve_m, axis=0), axis=1)
+    cumulative = np.concatenate([[0.0], np.cumsum(steps)])
+    measured_length = float(cumulative[-1])
+    stretch = measured_length / length_m
+    targets = np.asarray(s_m, dtype=np.float64) * stretch
+    inside = targets <= measured_length * (1 + 1e-9)
+    x = np.interp(targets, cumulative, curve_m[:, 0])
+    y = np.interp(targets, cumulative, curve_m[:, 1])
+    points = np.column_stack([x, y])
+    points[~inside] = np.nan
+    return points, stretch
+
+
+def tracks_from_frames(
+    frames: Iterable[MeasuredFrame],
+    camera: CameraModel,
+    plane: PlanePose,
+    s_m: Sequence[float],
+    length_m: float,
+) -> tuple[MaterialPointTracks, NDArray[np.float64]]:
+    """Convert measured frames into material-point tracks in metres (two samples per frame).
+
+    Returns the tracks and the stretch ratio of every sample (NaN where unmeasured). Frames whose status is not OK
+    or whose shapes are missing contribute NaN samples, so nothing measured is dropped silently.
+    """
+    s = np.asarray(s_m, dtype=np.float64)
+    if s.ndim != 1 or s.size == 0 or np.any(s < 0) or np.any(s > length_m * (1 + 1e-9)):
+        raise ValueError(f"material points s_m must lie in [0, {length_m}] m, got {list(s)}")
+    times: list[float] = []
+    positions: list[NDArray[np.float64]] = []
+    stretches: list[float] = []
+    for frame in frames:
+        for t_ns, shape in ((frame.t_begin_ns, frame.begin_px), (frame.t_end_ns, frame.end_px)):
+            times.append(t_ns * 1e-9)
+            if shape is None:
+                positions.append(np.full((s.size, 2), np.nan))
+                stretches.append(np.nan)
+                continue
+            curve_m = pixels_to_plane(shape, camera, plane)
+            points, stretch = points_at_arc_lengths(curve_m, s, length_m)
+            positions.append(points)
+            stretches.append(stretch)
+    if not times:
+        raise DataError("no frames to convert")
+    tracks = MaterialPointTracks(np.asarray(times), s, np.stack(positions))
+    order = np.argsort(np.asarray(times), kind="stable")
+    return tracks, np.asarray(stretches)[order]

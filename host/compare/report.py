@@ -1,0 +1,197 @@
+"""The comparison report: labelled plots (PNG), a summary JSON and an HTML page that links them."""
+
+from __future__ import annotations
+
+import html
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ropecam.host.compare.identify import FitResult
+from ropecam.host.compare.tracks import MaterialPointTracks, PointErrors
+from ropecam.host.model.trajectory import Trajectory
+from ropecam.shared.errors import DataError
+
+__all__ = ["Comparison", "write_report"]
+
+
+@dataclass
+class Comparison:
+    """Everything a report shows: the measurement, the model at the estimated release time, errors, fits."""
+
+    source: str
+    tracks: MaterialPointTracks
+    curves_m: list[tuple[float, NDArray[np.float64]]]  # (time s, measured centreline (n, 2) m)
+    trajectory: Trajectory
+    release_time_s: float
+    errors: PointErrors
+    fit: FitResult | None = None
+    errors_before: PointErrors | None = None
+    notes: list[str] = field(default_factory=list)
+
+
+def _mm(values: NDArray[np.float64]) -> list[float | None]:
+    return [None if not np.isfinite(v) else round(float(v) * 1e3, 4) for v in values]
+
+
+def summary(comparison: Comparison) -> dict[str, Any]:
+    """The numbers of the report as a JSON-ready mapping (lengths in mm, times in s)."""
+    c = comparison
+    result: dict[str, Any] = {
+        "source": c.source,
+        "samples": int(c.tracks.times_s.size),
+        "measured_samples": int(c.tracks.measured.any(axis=1).sum()),
+        "release_time_s": c.release_time_s,
+        "material_points_s_m": [float(s) for s in c.tracks.s_m],
+        "rms_error_mm": _mm(c.errors.rms_m),
+        "max_error_mm": _mm(c.errors.max_m),
+        "overall_rms_error_mm": round(c.errors.overall_rms_m * 1e3, 4),
+        "notes": c.notes,
+    }
+    if c.fit is not None:
+        result["fit"] = {
+            "parameters": list(c.fit.names),
+            "start": c.fit.start,
+            "values": c.fit.values,
+            "std_errors": c.fit.std_errors,
+            "rms_before_mm": round(c.fit.rms_before_m * 1e3, 4),
+            "rms_after_mm": round(c.fit.rms_after_m * 1e3, 4),
+            "model_evaluations": c.fit.evaluations,
+            "converged": c.fit.success,
+            "message": c.fit.message,
+        }
+    return result
+
+
+def _plots(c: Comparison, out: Path) -> list[tuple[str, str]]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    written = []
+    t = c.tracks.times_s
+    model_t = np.clip(t - c.release_time_s, c.trajectory.times_s[0], c.trajectory.times_s[-1])
+    model = c.trajectory.positions(model_t, c.tracks.s_m)
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+
+    fig, ax = plt.subplots(figsize=(7.5, 6), constrained_layout=True)
+    for k, s in enumerate(c.tracks.s_m):
+        colour = colours[k % len(colours)]
+        ax.plot(c.tracks.positions_m[:, k, 0], c.tracks.positions_m[:, k, 1], ".", ms=3, color=colour,
+                label=f"measured, s = {s:.3f} m")  # fmt: skip
+        ax.plot(model[:, k, 0], model[:, k, 1], "-", lw=1, color=colour, label=f"model, s = {s:.3f} m")
+    ax.set_xlabel("x (m, horizontal)")
+    ax.set_ylabel("y (m, down)")
+    ax.invert_yaxis()
+    ax.set_aspect("equal")
+    ax.set_title("Material point trajectories: measured (dots) and model (lines)")
+    ax.legend(fontsize=7, ncol=2)
+    fig.savefig(out / "trajectories.png", dpi=110)
+    plt.close(fig)
+    written.append(("trajectories.png", "Material point trajectories in the motion plane"))
+
+    fig, ax = plt.subplots(figsize=(9, 4.5), constrained_layout=True)
+    for k, s in enumerate(c.tracks.s_m):
+        ax.plot(t, c.errors.error_m[:, k] * 1e3, ".-", ms=2, lw=0.6, label=f"s = {s:.3f} m")
+    ax.set_xlabel("time on the device clock (s)")
+    ax.set_ylabel("position error |measured - model| (mm)")
+    ax.set_title("Error against time")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.savefig(out / "error_vs_time.png", dpi=110)
+    plt.close(fig)
+    written.append(("error_vs_time.png", "Position error of each material point against time"))
+
+    fig, ax = plt.subplots(figsize=(7, 4), constrained_layout=True)
+    positions = np.arange(c.tracks.s_m.size)
+    ax.bar(positions - 0.2, c.errors.rms_m * 1e3, 0.4, label="RMS")
+    ax.bar(positions + 0.2, c.errors.max_m * 1e3, 0.4, label="max")
+    if c.errors_before is not None:
+        ax.plot(positions - 0.2, c.errors_before.rms_m * 1e3, "kx", label="RMS before the fit")
+    ax.set_xticks(positions, [f"{s:.3f}" for s in c.tracks.s_m])
+    ax.set_xlabel("material point: unstretched arc length s (m)")
+    ax.set_ylabel("position error (mm)")
+    ax.set_title("Error per material point")
+    ax.legend()
+    ax.grid(alpha=0.3, axis="y")
+    fig.savefig(out / "error_per_point.png", dpi=110)
+    plt.close(fig)
+    written.append(("error_per_point.png", "RMS and maximum error per material point"))
+
+    picks = np.linspace(0, len(c.curves_m) - 1, min(6, len(c.curves_m))).astype(int) if c.curves_m else []
+    if len(picks):
+        fig, axes = plt.subplots(1, len(picks), figsize=(3.2 * len(picks), 3.6), constrained_layout=True)
+        axes = np.atleast_1d(axes)
+        s_dense = np.linspace(0, c.trajectory.length_m, 101)
+        for ax, index in zip(axes, picks, strict=True):
+            time_s, curve = c.curves_m[index]
+            shape = c.trajectory.positions([np.clip(time_s - c.release_time_s, 0, c.trajectory.times_s[-1])], s_dense)[
+                0
+            ]
+            ax.plot(curve[:, 0], curve[:, 1], "-", lw=2.5, alpha=0.6, label="measured")
+            ax.plot(shape[:, 0], shape[:, 1], "k--", lw=1, label="model")
+            ax.set_title(f"t = {time_s:.3f} s", fontsize=9)
+            ax.set_xlabel("x (m)")
+            ax.invert_yaxis()
+            ax.set_aspect("equal")
+        axes[0].set_ylabel("y (m, down)")
+        axes[0].legend(fontsize=7)
+        fig.suptitle("Measured and model rope shapes")
+        fig.savefig(out / "shapes.png", dpi=110)
+        plt.close(fig)
+        written.append(("shapes.png", "Measured and model rope shapes at a few times"))
+    return written
+
+
+def write_report(comparison: Comparison, out: str | Path) -> Path:
+    """Write plots, ``summary.json`` and ``index.html`` into `out` (created); return the HTML path."""
+    out = Path(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        plots = _plots(comparison, out)
+        numbers = summary(comparison)
+        (out / "summary.json").write_text(json.dumps(numbers, indent=2) + "\n")
+    except OSError as exc:
+        raise DataError(f"{out}: cannot write the report: {exc}") from exc
+    rows = "".join(
+        f"<tr><td>{s:.3f}</td><td>{rms}</td><td>{worst}</td></tr>"
+        for s, rms, worst in zip(comparison.tracks.s_m, numbers["rms_error_mm"], numbers["max_error_mm"], strict=True)
+    )
+    fit_html = ""
+    if comparison.fit is not None:
+        fit = numbers["fit"]
+        fit_rows = "".join(
+            f"<tr><td>{html.escape(name)}</td><td>{fit['start'][name]:.6g}</td><td>{fit['values'][name]:.6g}</td>"
+            f"<td>{fit['std_errors'][name]:.3g}</td></tr>"
+            for name in fit["parameters"]
+        )
+        fit_html = (
+            "<h2>Identification</h2><table><tr><th>parameter</th><th>start</th><th>fitted</th><th>std. error</th>"
+            f"</tr>{fit_rows}</table><p>RMS error {fit['rms_before_mm']} mm before, {fit['rms_after_mm']} mm after "
+            f"({fit['model_evaluations']} model runs; {html.escape(fit['message'])}). Units: ei N m², damping s, "
+            "drag coefficient –, t0 s.</p>"
+        )
+    figures = "".join(
+        f'<figure><img src="{name}" alt="{html.escape(text)}"><figcaption>{html.escape(text)}</figcaption></figure>'
+        for name, text in plots
+    )
+    notes = "".join(f"<li>{html.escape(n)}</li>" for n in comparison.notes)
+    page = f"""<!doctype html><html><head><meta charset="utf-8"><title>ropecam comparison</title>
+<style>body{{font-family:sans-serif;max-width:1100px;margin:2em auto}}table{{border-collapse:collapse}}
+td,th{{border:1px solid #ccc;padding:3px 8px;text-align:right}}img{{max-width:100%}}</style></head><body>
+<h1>Measurement against the ANCF model</h1>
+<p>Source: {html.escape(comparison.source)}. {numbers["measured_samples"]} of {numbers["samples"]} samples measured
+(two per frame: exposure start and end). Release time (model t = 0) on the device clock:
+{comparison.release_time_s:.6f} s. Overall RMS error {numbers["overall_rms_error_mm"]} mm.</p>
+<h2>Error per material point</h2><table><tr><th>s (m)</th><th>RMS (mm)</th><th>max (mm)</th></tr>{rows}</table>
+{fit_html}<ul>{notes}</ul>{figures}
+<p><a href="summary.json">summary.json</a></p></body></html>
+"""
+    index = out / "index.html"
+    index.write_text(page)
+    return index
