@@ -106,11 +106,14 @@ def _speed(text: str) -> float | None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from ropecam.host.monitor.cli import rig_metadata
+    from ropecam.host.monitor.cli import load_calibration, rig_metadata
     from ropecam.host.monitor.display import format_row
     from ropecam.host.recording.writer import Recorder, RecordingConfig
     from ropecam.host.session import Session
 
+    if args.reprocess and args.plane is None:
+        raise ConfigError("--reprocess needs --plane (and optionally --camera): the calibration to apply")
+    calibration, calibration_metadata, attachments = load_calibration(args.camera, args.plane)
     source = Path(args.recording)
     parts = recording_parts(source)
     recorder = None
@@ -118,8 +121,9 @@ def _run(args: argparse.Namespace) -> int:
         target = Path(args.record)
         if target.resolve() in {p.resolve() for p in parts}:
             raise ConfigError(f"--record {target} is the recording being replayed; choose another file")
-        recorder = Recorder(RecordingConfig(target, overwrite=args.overwrite), rig_metadata(f"replay of {source}"))
-    session = Session(recorder)
+        metadata = rig_metadata(f"replay of {source}") | calibration_metadata
+        recorder = Recorder(RecordingConfig(target, overwrite=args.overwrite), metadata, attachments)
+    session = Session(recorder, calibration)
     try:
         count = replay(parts, session, args.speed)
     finally:
@@ -148,6 +152,7 @@ examples:
   ropecam replay run.mcap
   ropecam replay run.mcap --speed 1
   ropecam replay run.mcap --record run-decoded.mcap
+  ropecam replay run.mcap --reprocess --plane plane.yaml --record run-metres.mcap
 """
 
 
@@ -161,4 +166,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--speed", type=_speed, default=None, help="1 = real time, 2 = twice as fast, max (default)")
     parser.add_argument("--record", metavar="NEW.mcap", help="record the replayed stream to a new file")
     parser.add_argument("--overwrite", action="store_true", help="replace --record if it exists")
+    parser.add_argument(
+        "--reprocess", action="store_true", help="apply --camera/--plane (a new calibration) to the recorded stream"
+    )
+    parser.add_argument("--camera", metavar="camera.yaml", help="intrinsics; default: the plane file's camera")
+    parser.add_argument("--plane", metavar="plane.yaml", help="plane pose: plane channels in metres, tips in mm")
     parser.set_defaults(func=_run)

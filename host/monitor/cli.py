@@ -58,6 +58,44 @@ def rig_metadata(source: str) -> dict[str, dict[str, str]]:
     }
 
 
+def load_calibration(
+    camera_path: str | None, plane_path: str | None
+) -> tuple[tuple | None, dict[str, dict[str, str]], list[tuple[str, str, bytes]]]:
+    """Read --camera/--plane files: return ((camera, plane) or None, metadata records, attachments for the MCAP).
+
+    The plane file (``ropecam calibrate plane``) holds the camera it was measured with; --camera, when given,
+    overrides the intrinsics (e.g. a newer intrinsic calibration).
+
+    Raises
+    ------
+    ConfigError
+        --camera without --plane (pixels cannot become metres without the plane pose).
+    DataError
+        A file is missing or malformed (from `ropecam.host.calibration.files`).
+    """
+    if plane_path is None:
+        if camera_path is not None:
+            raise ConfigError("--camera needs --plane too: metres on the plane need the plane pose (plane.yaml)")
+        return None, {}, []
+    from ropecam.host.calibration.files import read_camera, read_plane
+
+    plane_file = read_plane(plane_path)
+    camera = read_camera(camera_path).camera if camera_path is not None else plane_file.camera
+    metadata = {
+        "calibration": {
+            "camera_file": str(camera_path or plane_path),
+            "plane_file": str(plane_path),
+            "camera_matrix": repr(camera.camera_matrix.tolist()),
+            "distortion": repr(camera.distortion.tolist()),
+            "image_size": repr(camera.image_size),
+            "plane_rotation": repr(plane_file.plane.rotation.tolist()),
+            "plane_translation_m": repr(plane_file.plane.translation_m.tolist()),
+        }
+    }
+    attachments = [(Path(p).name, "application/x-yaml", Path(p).read_bytes()) for p in {camera_path, plane_path} if p]
+    return (camera, plane_file.plane), metadata, attachments
+
+
 def monitor_loop(
     receiver: Receiver,
     session: Session,
@@ -103,6 +141,7 @@ def _run(args: argparse.Namespace) -> int:
 
     if args.duration_s is not None and args.duration_s <= 0:
         raise ConfigError(f"--duration-s must be > 0, got {args.duration_s}")
+    calibration, calibration_metadata, attachments = load_calibration(args.camera, args.plane)
     recorder = None
     if args.record:
         config = RecordingConfig(
@@ -112,9 +151,9 @@ def _run(args: argparse.Namespace) -> int:
             overwrite=args.overwrite,
             fsync=args.fsync,
         )
-        recorder = Recorder(config, rig_metadata(args.source))
+        recorder = Recorder(config, rig_metadata(args.source) | calibration_metadata, attachments)
     transport = open_transport(args.source)
-    session = Session(recorder)
+    session = Session(recorder, calibration)
     receiver = Receiver(transport)
     stop = {"requested": False}
     previous = signal.signal(signal.SIGTERM, lambda *_: stop.__setitem__("requested", True))
@@ -159,6 +198,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--source", required=True, help="transport URL: udp://0.0.0.0:5600, serial:///dev/ttyUSB0?baud=921600, ..."
     )
     parser.add_argument("--record", metavar="FILE.mcap", help="record everything to this MCAP file")
+    parser.add_argument("--camera", metavar="camera.yaml", help="intrinsics (ropecam calibrate); default: plane's")
+    parser.add_argument(
+        "--plane", metavar="plane.yaml", help="plane pose: adds tips in mm and the plane channels in metres"
+    )
     parser.add_argument("--overwrite", action="store_true", help="replace existing recording files")
     parser.add_argument("--roll-mb", type=float, default=0.0, help="start a new file after this many MB (0: never)")
     parser.add_argument("--roll-s", type=float, default=0.0, help="start a new file after this many seconds (0: never)")

@@ -211,3 +211,20 @@ def test_recover_refuses_non_mcap_and_reports_complete_files(tmp_path: Path, sim
     assert report.complete and report.messages == recorder.messages
     with pytest.raises(DataError, match="exists"):
         recover_mcap(tmp_path / "ok.mcap", tmp_path / "copy.mcap")
+
+
+def test_replay_reprocess_with_a_calibration_adds_the_plane_channels(sim_device, tmp_path: Path, read_mcap) -> None:
+    from ropecam.host.calibration.files import write_plane
+    from ropecam.host.sim.rig_polylines import RIG_CAMERA, RIG_PLANE
+
+    recorder = Recorder(RecordingConfig(tmp_path / "raw.mcap"))
+    session = Session(recorder)
+    for data in _messages(sim_device, 4):
+        session.handle(check_packet(data, time.time_ns()))
+    session.close()
+    plane = write_plane(tmp_path / "plane.yaml", RIG_CAMERA, RIG_PLANE)
+    out = tmp_path / "metres.mcap"
+    assert main(["replay", str(tmp_path / "raw.mcap"), "--reprocess", "--plane", str(plane), "--record", str(out)]) == 0
+    topics = [topic for topic, *_ in read_mcap(out)]
+    assert topics.count("/device7/plane/scene") == 4
+    assert main(["replay", str(tmp_path / "raw.mcap"), "--reprocess"]) == 2  # names what is missing
