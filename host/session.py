@@ -51,7 +51,20 @@ class Session:
         self.calibration = calibration
         self.stats = StreamStats()
         self.skipped_decodes = 0
+        self._undecoded_run: dict[int, int] = {}  # FrameResults skipped in a row, per device
         self.recent_logs: deque[tuple[int, int, str]] = deque(maxlen=RECENT_LOGS)  # (device id, level, text)
+
+    def fair_decode(self, packet: Packet) -> bool:
+        """Say whether to decode `packet` when only some frames can be: the device skipped longest goes first.
+
+        Under sustained overload this spreads the decoded frames evenly over the devices (round robin) instead of
+        favouring whichever device happens to send when the backlog dips.
+        """
+        header = packet.header
+        if header is None or header.type != MessageType.FRAME_RESULT:
+            return True
+        runs = self._undecoded_run
+        return runs.get(header.device_id, 0) >= max(runs.values(), default=0)
 
     def handle(self, packet: Packet, decode: bool = True) -> Message | None:
         """Account for, record and (unless skipped) decode one packet; return the decoded message if any.
@@ -67,9 +80,12 @@ class Session:
             recorder.write(RAW_TOPIC, packet.data, packet.receive_t_ns, None, RAW_ENCODING, sequence)
         if not usable or header is None:
             return None
-        if header.type == MessageType.FRAME_RESULT and not decode:
-            self.skipped_decodes += 1
-            return None
+        if header.type == MessageType.FRAME_RESULT:
+            if not decode:
+                self.skipped_decodes += 1
+                self._undecoded_run[header.device_id] = self._undecoded_run.get(header.device_id, 0) + 1
+                return None
+            self._undecoded_run[header.device_id] = 0
         try:
             message = decode_message(packet.data)
         except ProtocolError:

@@ -16,13 +16,14 @@ from ropecam.shared.errors import ConfigError
 
 if TYPE_CHECKING:
     from ropecam.host.monitor.display import PlainDisplay, RichDisplay
-    from ropecam.host.receiver import Receiver
+    from ropecam.host.receiver import Packet, Receiver
     from ropecam.host.session import Session
 
 __all__ = ["DECODE_BACKLOG", "monitor_loop", "register", "rig_metadata"]
 
 DECODE_BACKLOG: Final = 64
-"""FrameResults are fully decoded only while fewer packets than this wait (else recorded raw and counted)."""
+"""Above this backlog no FrameResult is fully decoded (recorded raw and counted); between a quarter of it and it,
+frames are decoded round robin over the devices (`Session.fair_decode`); below, all are."""
 
 HELP = """\
 Receive the device stream(s) on one transport, show a live table with one row per device (rate, period jitter,
@@ -106,17 +107,24 @@ def monitor_loop(
 ) -> None:
     """Run until `duration_s` passed or `should_stop()`; every packet goes through `session.handle`.
 
-    FrameResults are fully decoded while the backlog is below `decode_backlog` (load shedding keeps the receive
-    path at wire rate: nothing is lost, undecoded frames stay in the raw channel). When it stops, the packets
+    FrameResults are fully decoded while the backlog is small (load shedding keeps the receive path at wire rate:
+    nothing is lost, undecoded frames stay in the raw channel; see `DECODE_BACKLOG`). When it stops, the packets
     already received are still handled.
     """
+
+    def decide(packet: Packet) -> bool:
+        backlog = receiver.backlog
+        if backlog < decode_backlog // 4:
+            return True
+        return backlog < decode_backlog and session.fair_decode(packet)
+
     start = time.monotonic()
     next_display = start + (display.period_s if display is not None else 1e18)
     next_tick = start
     while not should_stop():
         packet = receiver.poll(0.05)
         if packet is not None:
-            session.handle(packet, decode=receiver.backlog < decode_backlog)
+            session.handle(packet, decode=decide(packet))
         now = time.monotonic()
         if now >= next_tick:
             session.tick()
@@ -129,7 +137,7 @@ def monitor_loop(
         if duration_s is not None and now - start >= duration_s:
             break
     for packet in receiver.remaining():
-        session.handle(packet, decode=receiver.backlog < decode_backlog)
+        session.handle(packet, decode=decide(packet))
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -12,7 +12,22 @@ from ropecam.host.monitor.stats import DeviceRow
 if TYPE_CHECKING:
     from ropecam.host.session import Session
 
-__all__ = ["PlainDisplay", "RichDisplay", "format_row"]
+__all__ = ["CpuMeter", "PlainDisplay", "RichDisplay", "format_row"]
+
+
+class CpuMeter:
+    """CPU time of this process (all threads) as a percentage of one core since the previous reading."""
+
+    def __init__(self) -> None:
+        self._cpu = time.process_time()
+        self._wall = time.monotonic()
+
+    def percent(self) -> float:
+        """Return the load since the last call (or since creation)."""
+        cpu, wall = time.process_time(), time.monotonic()
+        load = 100.0 * (cpu - self._cpu) / max(wall - self._wall, 1e-9)
+        self._cpu, self._wall = cpu, wall
+        return load
 
 
 def _num(value: float, fmt: str) -> str:
@@ -60,6 +75,7 @@ class PlainDisplay:
     def __init__(self, stream: TextIO = sys.stdout) -> None:
         self._stream = stream
         self._start = time.monotonic()
+        self._cpu = CpuMeter()
 
     def update(self, session: Session, rows: list[DeviceRow]) -> None:
         """Print the line for this second."""
@@ -69,7 +85,9 @@ class PlainDisplay:
         recording = session.recorder
         if recording is not None and recording.error:
             extra += f" | {_recording(session)}"
-        print(f"t={elapsed:6.1f}s {devices}{extra}", file=self._stream, flush=True)
+        if session.skipped_decodes:
+            extra += f" | {session.skipped_decodes} frames not decoded (host busy, raw recorded)"
+        print(f"t={elapsed:6.1f}s cpu {self._cpu.percent():3.0f}% {devices}{extra}", file=self._stream, flush=True)
 
     def close(self) -> None:
         """Nothing to release."""
@@ -85,6 +103,7 @@ class RichDisplay:
         from rich.live import Live
 
         self._source = source
+        self._cpu = CpuMeter()
         self._console = Console(stderr=False)
         self._live = Live(console=self._console, auto_refresh=False, transient=False)
         self._live.start()
@@ -133,6 +152,7 @@ class RichDisplay:
         recorder = session.recorder
         record_style = "bold red" if recorder is not None and recorder.error else "green"
         lines.append(Text(_recording(session), style=record_style))
+        lines.append(Text(f"host CPU {self._cpu.percent():.0f}% of one core", style="dim"))
         if session.stats.bad_packets or session.skipped_decodes:
             lines.append(
                 Text(
