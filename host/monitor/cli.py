@@ -11,6 +11,7 @@ from collections.abc import Callable
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import TYPE_CHECKING, Final
+from urllib.parse import parse_qsl, urlsplit, urlunsplit
 
 from ropecam.shared.errors import ConfigError
 
@@ -57,6 +58,19 @@ def rig_metadata(source: str) -> dict[str, dict[str, str]]:
             "raw_channel": "/ropecam/wire: one message per wire message, bytes as received (docs/protocol.md)",
         }
     }
+
+
+def listening_url(url: str) -> str:
+    """Return `url` made to receive: ``udp://HOST:PORT`` binds HOST:PORT (``listen=1``) unless it says otherwise.
+
+    A transport URL ``udp://HOST:PORT`` on its own means "send to HOST:PORT"; a monitor always receives, so
+    ``udp://0.0.0.0:5600`` (all interfaces) and ``udp://127.0.0.1:5600`` mean "bind there".
+    """
+    parts = urlsplit(url)
+    if parts.scheme != "udp" or "listen" in dict(parse_qsl(parts.query)):
+        return url
+    query = f"{parts.query}&listen=1" if parts.query else "listen=1"
+    return urlunsplit(parts._replace(query=query))
 
 
 def load_calibration(
@@ -160,7 +174,7 @@ def _run(args: argparse.Namespace) -> int:
             fsync=args.fsync,
         )
         recorder = Recorder(config, rig_metadata(args.source) | calibration_metadata, attachments)
-    transport = open_transport(args.source)
+    transport = open_transport(listening_url(args.source))
     session = Session(recorder, calibration)
     receiver = Receiver(transport)
     stop = {"requested": False}

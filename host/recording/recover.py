@@ -15,12 +15,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
 
-from mcap.exceptions import McapError
-from mcap.records import Attachment, Channel, Chunk, DataEnd, Footer, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader, breakup_chunk
-from mcap.writer import CompressionType, Writer
-from zstandard import ZstdError
-
 from ropecam.shared.errors import DataError
 
 __all__ = ["RecoveryReport", "recover_mcap", "register"]
@@ -73,6 +67,12 @@ def recover_mcap(source: Path, destination: Path, overwrite: bool = False) -> Re
 
 
 def _copy(source: Path, handle: BinaryIO, out: BinaryIO) -> RecoveryReport:
+    from mcap.exceptions import McapError
+    from mcap.records import Attachment, Channel, Chunk, DataEnd, Footer, Message, Metadata, Schema
+    from mcap.stream_reader import StreamReader, breakup_chunk
+    from mcap.writer import CompressionType, Writer
+    from zstandard import ZstdError
+
     writer = Writer(out, compression=CompressionType.ZSTD)
     schemas: dict[int, int] = {}
     channels: dict[int, int] = {}

@@ -14,12 +14,10 @@ import struct
 import time
 import zlib
 from collections.abc import Iterator
-from typing import Final
+from typing import TYPE_CHECKING, Final
 
-import numpy as np
-
-from ropecam.shared.protocol.records import FrameResult, Log, ShapeHint, Status
-from ropecam.shared.protocol.wire import CRC_BYTES, HEADER_BYTES, Header, encode_message, peek_header
+if TYPE_CHECKING:  # the protocol imports Numba: load it only when a stream is made, not for `ropecam --help`
+    from ropecam.shared.protocol.records import FrameResult, Log, Status
 
 __all__ = ["SimulatedDevice", "restamp", "rig_frame_results"]
 
@@ -29,6 +27,7 @@ _CRC: Final = struct.Struct("<I")
 def rig_frame_results(count: int, seed: int = 0, fps: float = 119.0) -> list[FrameResult]:
     """Return `count` FrameResults of the simulated rig swing (``host.sim.rig_polylines``), as a device reports them."""
     from ropecam.host.sim.rig_polylines import rig_frames
+    from ropecam.shared.protocol.records import FrameResult
 
     results = []
     for index, frame in enumerate(rig_frames(count, seed=seed, fps=fps)):
@@ -56,6 +55,8 @@ def rig_frame_results(count: int, seed: int = 0, fps: float = 119.0) -> list[Fra
 
 def restamp(message: bytes, sequence: int, t_ns: int) -> bytes:
     """Return `message` (an unauthenticated encoded message) with a new sequence number, device time and CRC."""
+    from ropecam.shared.protocol.wire import CRC_BYTES, HEADER_BYTES, Header, peek_header
+
     header = peek_header(message)
     if header.flags:
         raise ValueError("restamp cannot re-sign authenticated messages")
@@ -82,6 +83,9 @@ class SimulatedDevice:
     def __init__(self, device_id: int, fps: float = 119.0, frame_count: int = 65, seed: int = 0) -> None:
         if fps <= 0 or frame_count < 1:
             raise ValueError(f"fps must be > 0 and frame_count >= 1, got {fps}, {frame_count}")
+        from ropecam.shared.protocol.records import ShapeHint
+        from ropecam.shared.protocol.wire import encode_message
+
         self.device_id = device_id
         self.fps = fps
         hint = ShapeHint()
@@ -94,6 +98,8 @@ class SimulatedDevice:
 
     def messages(self, count: int, start_t_ns: int | None = None) -> Iterator[tuple[float, bytes]]:
         """Yield (send offset in s from the start, message bytes) for `count` frames plus Status and Log messages."""
+        from ropecam.shared.protocol.records import Log, Status
+
         start_t_ns = time.time_ns() if start_t_ns is None else start_t_ns
         period_ns = round(1e9 / self.fps)
         per_status = max(1, round(self.fps))
@@ -117,11 +123,13 @@ class SimulatedDevice:
                     gain_db=0.0,
                     uptime_ns=k * period_ns,
                     cpu_load=0.4,
-                    temperature_c=float(np.float32(55.0)),
+                    temperature_c=55.0,
                 )
                 yield k * period_ns / 1e9, self._next(status, t_ns)
 
     def _next(self, record: Log | Status, t_ns: int) -> bytes:
+        from ropecam.shared.protocol.wire import encode_message
+
         self.sequence = (self.sequence + 1) & 0xFFFF_FFFF
         return encode_message(record, device_id=self.device_id, sequence=self.sequence, t_ns=t_ns)
 
