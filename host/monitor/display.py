@@ -58,7 +58,8 @@ def format_row(row: DeviceRow) -> str:
     text = (
         f"dev{row.device_id} {_num(row.rate_hz, '.1f')} Hz jit {_num(row.period_jitter_ms, '.2f')} ms "
         f"rx {row.received} lost {row.lost} dup {row.duplicates} reord {row.reordered} "
-        f"bad {row.crc_errors + row.decode_errors} {_num(row.bytes_per_s / 1e3, '.1f')} kB/s "
+        f"bad {row.crc_errors + row.decode_errors} devdrop {row.device_dropped} "
+        f"{_num(row.bytes_per_s / 1e3, '.1f')} kB/s "
         f"lat {_num(row.latency_ms, '.1f')} ms pipe {_num(row.pipeline_p50_us, '.0f')}/"
         f"{_num(row.pipeline_p99_us, '.0f')} us tip {_tip(row)} conf {_num(row.order_confidence, '.2f')}"
     )
@@ -123,6 +124,7 @@ class RichDisplay:
             ("lost", "right"),
             ("dup/reord", "right"),
             ("bad", "right"),
+            ("dev drop", "right"),
             ("kB/s", "right"),
             ("latency ms", "right"),
             ("pipeline p50/p99 us", "right"),
@@ -141,6 +143,7 @@ class RichDisplay:
                 str(row.lost),
                 f"{row.duplicates}/{row.reordered}",
                 str(row.crc_errors + row.decode_errors),
+                str(row.device_dropped),
                 _num(row.bytes_per_s / 1e3, ".1f"),
                 _num(row.latency_ms, ".1f"),
                 f"{_num(row.pipeline_p50_us, '.0f')}/{_num(row.pipeline_p99_us, '.0f')}",

@@ -44,6 +44,7 @@ class _Device:
     tip_plane_m: tuple[float, float] | None = None
     lost_reported: int = 0
     device_dropped: int = 0
+    device_dropped_reported: int = 0
 
 
 @dataclass(frozen=True, slots=True)
@@ -179,6 +180,9 @@ class StreamStats:
             if seq.lost > device.lost_reported:
                 warnings.append(f"LOSS +{seq.lost - device.lost_reported}")
             device.lost_reported = seq.lost
+            if device.device_dropped > device.device_dropped_reported:
+                warnings.append(f"DEVICE DROPPED +{device.device_dropped - device.device_dropped_reported} frames")
+            device.device_dropped_reported = device.device_dropped
             if now_ns - device.last_receive_t_ns > STALL_NS:
                 warnings.append(f"silent {(now_ns - device.last_receive_t_ns) / 1e9:.0f} s")
             if device.crc_errors or device.decode_errors:

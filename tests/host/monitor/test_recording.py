@@ -145,14 +145,16 @@ def test_unwritable_paths(sim_device, tmp_path: Path) -> None:
     assert len(list(iter_raw([tmp_path / "roll.mcap"]))) > 0  # the first part was closed properly
 
 
-def test_rolled_recording_replays_across_parts(sim_device, tmp_path: Path) -> None:
+@pytest.mark.parametrize("roll", [{"roll_bytes": 3_000}, {"roll_s": 0.01}])
+def test_rolled_recording_replays_across_parts(sim_device, tmp_path: Path, roll: dict) -> None:
     path = tmp_path / "part.mcap"
-    recorder = Recorder(RecordingConfig(path, roll_bytes=3_000))
+    recorder = Recorder(RecordingConfig(path, **roll))
     session = Session(recorder)
     messages = _messages(sim_device, 50)
     for data in messages:
         session.handle(check_packet(data, time.time_ns()), decode=False)
         recorder._last_flush = 0.0
+        time.sleep(0.001)
         session.tick()
     session.close()
     parts = recording_parts(path)
@@ -198,7 +200,7 @@ def test_replay_reproduces_the_live_decoded_results_exactly(
     assert f"rx {row.received} lost 0" in final and "bad 1" in final
 
 
-def test_recover_refuses_non_mcap_and_reports_complete_files(tmp_path: Path, sim_device) -> None:
+def test_recover_refuses_non_mcap_and_reports_complete_files(tmp_path: Path, sim_device, capsys) -> None:
     (tmp_path / "junk.mcap").write_bytes(b"not an mcap file at all")
     with pytest.raises(DataError, match="not an MCAP file"):
         recover_mcap(tmp_path / "junk.mcap", tmp_path / "out.mcap")
@@ -209,6 +211,8 @@ def test_recover_refuses_non_mcap_and_reports_complete_files(tmp_path: Path, sim
     session.close()
     report = recover_mcap(tmp_path / "ok.mcap", tmp_path / "copy.mcap")
     assert report.complete and report.messages == recorder.messages
+    assert main(["recover", str(tmp_path / "ok.mcap"), "--out", str(tmp_path / "cli.mcap")]) == 0
+    assert f"wrote {recorder.messages} messages" in capsys.readouterr().out
     with pytest.raises(DataError, match="exists"):
         recover_mcap(tmp_path / "ok.mcap", tmp_path / "copy.mcap")
 

@@ -86,6 +86,7 @@ def test_loss_duplicates_reordering_and_bad_packets_are_counted_never_fatal(sim_
         session.handle(packet)
     (row,) = session.snapshot(time.time_ns())
     assert row.device_id == 7
+    assert abs(row.latency_ms) < 1000  # shown: the simulated device stamps with the host wall clock
     assert (row.lost, row.duplicates, row.reordered) == (2, 1, 1)
     assert row.crc_errors == 1
     assert session.stats.bad_packets == 1
@@ -142,6 +143,14 @@ def test_recorded_file_holds_every_message_and_the_devices_shapes(
     assert names == {"foxglove.SceneUpdate", "foxglove.PointCloud", "foxglove.Log", "ropecam.Status"}
 
 
+def test_latency_is_hidden_when_the_device_clock_is_not_the_host_clock(sim_device) -> None:
+    session = Session()
+    for data in [d for _, d in sim_device.messages(5, start_t_ns=123_000_000_000)]:  # a monotonic clock
+        session.handle(check_packet(data, time.time_ns()))
+    (row,) = session.snapshot(time.time_ns())
+    assert np.isnan(row.latency_ms) and row.rate_hz > 0
+
+
 def test_plane_channels_in_metres_when_calibrated(sim_device, tmp_path: Path, read_mcap) -> None:
     from ropecam.host.sim.rig_polylines import RIG_CAMERA, RIG_PLANE
 
@@ -158,3 +167,54 @@ def test_plane_channels_in_metres_when_calibrated(sim_device, tmp_path: Path, re
     points = scenes[0]["entities"][0]["lines"][0]["points"]
     assert scenes[0]["entities"][0]["frame_id"] == "device7/plane"
     assert abs(points[0]["x"]) < 2e-3 and abs(points[0]["y"]) < 2e-3  # fixed end at the origin
+
+
+def test_serial_source_over_a_pty_with_line_noise(sim_device) -> None:
+    import os
+    import pty
+    import threading
+
+    from ropecam.shared.protocol import frame
+
+    master, slave = pty.openpty()
+    name = os.ttyname(slave)
+    host = open_transport(f"serial://{name}?baud=921600")
+    os.close(slave)
+    messages = _stream(sim_device, 25)
+    stream = (
+        b"".join(frame(m) for m in messages[:10])
+        + b"\x13\x37 line noise \xff"
+        + b"".join(frame(m) for m in messages[10:])
+    )
+
+    def write() -> None:
+        view = memoryview(stream)
+        while view:
+            written = os.write(master, view[:512])
+            view = view[written:]
+            time.sleep(0.002)
+
+    writer = threading.Thread(target=write)
+    writer.start()
+    session = Session()
+    receiver = Receiver(host)
+    monitor_loop(receiver, session, None, duration_s=1.5, decode_backlog=1000)
+    writer.join()
+    host.close()
+    os.close(master)
+    (row,) = session.snapshot(time.time_ns())
+    assert (row.received, row.lost) == (len(messages), 0)
+    assert row.tip_px is not None
+
+
+def test_frames_the_device_dropped_raise_a_warning() -> None:
+    from ropecam.shared.protocol import Status, encode_message
+
+    session = Session()
+    for sequence, dropped in enumerate((0, 0, 3)):
+        status = Status(119.0, 100 * sequence, dropped, 0, 4000, 0.0, sequence * 10**9)
+        data = encode_message(status, device_id=2, sequence=sequence, t_ns=time.time_ns())
+        session.handle(check_packet(data, time.time_ns()))
+        rows = session.snapshot(time.time_ns())
+    assert rows[0].device_dropped == 3 and "DEVICE DROPPED +3 frames" in rows[0].warnings
+    assert session.snapshot(time.time_ns())[0].warnings == ()  # reported once
