@@ -163,6 +163,8 @@ def _run(args: argparse.Namespace) -> int:
 
     if args.duration_s is not None and args.duration_s <= 0:
         raise ConfigError(f"--duration-s must be > 0, got {args.duration_s}")
+    if args.roll_mb < 0 or args.roll_s < 0:
+        raise ConfigError(f"--roll-mb and --roll-s must be >= 0 (0: no rolling), got {args.roll_mb}, {args.roll_s}")
     calibration, calibration_metadata, attachments = load_calibration(args.camera, args.plane)
     recorder = None
     if args.record:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import sys
 import time
+from collections.abc import Callable
 from typing import TYPE_CHECKING, TextIO
 
 from ropecam.host.monitor.stats import DeviceRow
@@ -34,9 +35,14 @@ def _num(value: float, fmt: str) -> str:
     return "-" if value is None or (isinstance(value, float) and math.isnan(value)) else format(value, fmt)
 
 
-def _tip(row: DeviceRow) -> str:
+def _tip(row: DeviceRow, compact: bool = False) -> str:
     if row.tip_px is None:
         return "-"
+    if compact:  # table column "tip px (mm)"
+        text = f"{row.tip_px[0]:.0f},{row.tip_px[1]:.0f}"
+        if row.tip_plane_m is not None:
+            text += f" ({row.tip_plane_m[0] * 1e3:.0f},{row.tip_plane_m[1] * 1e3:.0f})"
+        return text
     text = f"({row.tip_px[0]:.1f}, {row.tip_px[1]:.1f}) px"
     if row.tip_plane_m is not None:
         text += f" ({row.tip_plane_m[0] * 1e3:.1f}, {row.tip_plane_m[1] * 1e3:.1f}) mm"
@@ -94,6 +100,23 @@ class PlainDisplay:
         """Nothing to release."""
 
 
+_WIDE_COLUMNS = 100
+"""Narrower terminals leave out jitter, bytes/s and latency (the --no-ui lines always have everything)."""
+_COLUMNS: list[tuple[str, str, bool, Callable[[DeviceRow], str]]] = [  # name, justify, wide only, cell
+    ("dev", "right", False, lambda r: str(r.device_id)),
+    ("Hz", "right", False, lambda r: _num(r.rate_hz, ".1f")),
+    ("jit ms", "right", True, lambda r: _num(r.period_jitter_ms, ".2f")),
+    ("rx", "right", False, lambda r: str(r.received)),
+    ("lost/dup/re", "right", False, lambda r: f"{r.lost}/{r.duplicates}/{r.reordered}"),
+    ("bad/drop", "right", False, lambda r: f"{r.crc_errors + r.decode_errors}/{r.device_dropped}"),
+    ("kB/s", "right", True, lambda r: _num(r.bytes_per_s / 1e3, ".1f")),
+    ("lat ms", "right", True, lambda r: _num(r.latency_ms, ".1f")),
+    ("pipe us", "right", False, lambda r: f"{_num(r.pipeline_p50_us, '.0f')}/{_num(r.pipeline_p99_us, '.0f')}"),
+    ("tip px (mm)", "left", False, lambda r: _tip(r, compact=True)),
+    ("conf", "right", False, lambda r: _num(r.order_confidence, ".2f")),
+]
+
+
 class RichDisplay:
     """A live table refreshed at `period_s` (4 Hz), with the recording state and the latest device log lines."""
 
@@ -111,47 +134,29 @@ class RichDisplay:
 
     def update(self, session: Session, rows: list[DeviceRow]) -> None:
         """Redraw the table."""
+        from rich import box
         from rich.console import Group
         from rich.table import Table
         from rich.text import Text
 
-        table = Table(title=f"ropecam monitor: {self._source}", expand=False)
-        for name, justify in (
-            ("device", "right"),
-            ("rate Hz", "right"),
-            ("jitter ms", "right"),
-            ("received", "right"),
-            ("lost", "right"),
-            ("dup/reord", "right"),
-            ("bad", "right"),
-            ("dev drop", "right"),
-            ("kB/s", "right"),
-            ("latency ms", "right"),
-            ("pipeline p50/p99 us", "right"),
-            ("tip", "left"),
-            ("order conf", "right"),
-            ("warnings", "left"),
-        ):
-            table.add_column(name, justify=justify)  # type: ignore[arg-type]
+        table = Table(
+            title=f"ropecam monitor: {self._source}",
+            caption="lost/dup/re: sequence gaps, duplicates, reordered; bad: CRC/decode errors; drop: frames the "
+            "device dropped; pipe: device pipeline p50/p99; conf: order confidence",
+            expand=False,
+            box=box.SIMPLE_HEAD,
+        )
+        wide = self._console.width >= _WIDE_COLUMNS
+        columns = [column for column in _COLUMNS if wide or not column[2]]
+        for name, justify, _, _ in columns:
+            wraps = name == "tip px (mm)"
+            table.add_column(name, justify=justify, no_wrap=not wraps, min_width=8 if wraps else None)  # type: ignore[arg-type]
         for row in rows:
-            style = "bold red" if row.warnings else ""
-            table.add_row(
-                str(row.device_id),
-                _num(row.rate_hz, ".1f"),
-                _num(row.period_jitter_ms, ".2f"),
-                str(row.received),
-                str(row.lost),
-                f"{row.duplicates}/{row.reordered}",
-                str(row.crc_errors + row.decode_errors),
-                str(row.device_dropped),
-                _num(row.bytes_per_s / 1e3, ".1f"),
-                _num(row.latency_ms, ".1f"),
-                f"{_num(row.pipeline_p50_us, '.0f')}/{_num(row.pipeline_p99_us, '.0f')}",
-                _tip(row),
-                _num(row.order_confidence, ".2f"),
-                Text(", ".join(row.warnings), style=style),
-            )
+            table.add_row(*(cell(row) for _, _, _, cell in columns), style="bold red" if row.warnings else "")
         lines = [table]
+        for row in rows:
+            if row.warnings:
+                lines.append(Text(f"dev{row.device_id}: " + ", ".join(row.warnings), style="bold red"))
         recorder = session.recorder
         record_style = "bold red" if recorder is not None and recorder.error else "green"
         lines.append(Text(_recording(session), style=record_style))

@@ -127,7 +127,6 @@ class Recorder:
         self._good_offset = 0
         self._last_flush = time.monotonic()
         self._part_started = self._last_flush
-        self._pending = 0
         self._open_part(0, fatal=True)
 
     @property
@@ -229,7 +228,6 @@ class Recorder:
             self.unrecorded += 1
             return False
         self.messages += 1
-        self._pending += 1
         return True
 
     def _flush(self) -> None:
@@ -239,7 +237,6 @@ class Recorder:
             os.fsync(self._stream.fileno())
         self._good_offset = self._stream.tell()
         self.flushed_messages = self.messages
-        self._pending = 0
         self._last_flush = time.monotonic()
 
     def tick(self) -> None:
