@@ -15,10 +15,11 @@ from typing import Final
 from ropecam.host.calibration.geometry import CameraModel, PlanePose, pixels_to_plane
 from ropecam.host.monitor.stats import DeviceRow, StreamStats
 from ropecam.host.receiver import Packet, summarize_frame
-from ropecam.host.recording.convert import frame_point_cloud, frame_scene, log_message, status_message
+from ropecam.host.recording.convert import frame_point_cloud, frame_scene, log_message, raw_image, status_message
 from ropecam.host.recording.writer import Recorder
 from ropecam.shared.errors import ProtocolError
-from ropecam.shared.protocol.records import FrameResult, Log, Status
+from ropecam.shared.protocol.rawframe import FrameAssembler
+from ropecam.shared.protocol.records import FrameResult, Log, RawFrameChunk, Status
 from ropecam.shared.protocol.wire import Message, MessageType, decode_message
 
 __all__ = ["LOG_TOPIC", "RAW_ENCODING", "RAW_TOPIC", "Session", "device_topic"]
@@ -52,6 +53,9 @@ class Session:
         self.stats = StreamStats()
         self.skipped_decodes = 0
         self._undecoded_run: dict[int, int] = {}  # FrameResults skipped in a row, per device
+        self._assemblers: dict[int, FrameAssembler] = {}
+        self.raw_frames = 0
+        """Whole raw frames received (requested with REQUEST_RAW_FRAME), recorded as ``foxglove.RawImage``."""
         self.recent_logs: deque[tuple[int, int, str]] = deque(maxlen=RECENT_LOGS)  # (device id, level, text)
 
     def fair_decode(self, packet: Packet) -> bool:
@@ -100,6 +104,8 @@ class Session:
             if recorder is not None:
                 recorder.write(device_topic(device_id, "status"), status_message(record, device_id, t_ns), t_ns,
                                "ropecam.Status", sequence=header.sequence)  # fmt: skip
+        elif isinstance(record, RawFrameChunk):
+            self._raw_chunk(record, device_id, t_ns)
         elif isinstance(record, Log):
             self.recent_logs.append((device_id, record.level, record.text))
             if recorder is not None:
@@ -128,6 +134,20 @@ class Session:
             if record.material_s_m:
                 data = frame_point_cloud(record, device_id, t_ns, self.calibration)
                 recorder.write(device_topic(device_id, "plane/material_points"), data, t_ns, points)
+
+    def _raw_chunk(self, chunk: RawFrameChunk, device_id: int, t_ns: int) -> None:
+        assembler = self._assemblers.setdefault(device_id, FrameAssembler())
+        try:
+            image = assembler.add(chunk)
+        except ProtocolError:
+            self.stats.decode_failed(device_id)
+            return
+        if image is None:
+            return
+        self.raw_frames += 1
+        if self.recorder is not None:
+            data = raw_image(image, device_id, t_ns)
+            self.recorder.write(device_topic(device_id, "image/raw"), data, t_ns, "foxglove.RawImage")
 
     def tick(self) -> None:
         """Let the recorder flush and roll on time; call it at least 10 times a second."""

@@ -24,6 +24,7 @@ __all__ = [
     "frame_point_cloud",
     "frame_scene",
     "log_message",
+    "raw_image",
     "status_message",
 ]
 
@@ -168,6 +169,21 @@ def frame_point_cloud(
         "point_stride": 20,
         "fields": _POINT_FIELDS,
         "data": base64.b64encode(packed.tobytes()).decode("ascii"),
+    }
+    return json.dumps(message, separators=(",", ":")).encode()
+
+
+def raw_image(image: NDArray[np.uint8], device_id: int, t_ns: int) -> bytes:
+    """Return a ``foxglove.RawImage`` (JSON bytes, mono8) of a grey frame the device sent on request."""
+    height, width = image.shape
+    message = {
+        "timestamp": json.loads(_time(t_ns)),
+        "frame_id": f"device{device_id}/image",
+        "width": width,
+        "height": height,
+        "encoding": "mono8",
+        "step": width,
+        "data": base64.b64encode(np.ascontiguousarray(image).tobytes()).decode("ascii"),
     }
     return json.dumps(message, separators=(",", ":")).encode()
 

@@ -191,6 +191,22 @@ def _log() -> dict[str, Any]:
     )
 
 
+def _raw_image() -> dict[str, Any]:
+    return _object(
+        "foxglove.RawImage",
+        "A raw image",
+        {
+            "timestamp": _time("Time of the image"),
+            "frame_id": {"type": "string", "description": "Frame of reference"},
+            "width": {"type": "integer", "minimum": 0},
+            "height": {"type": "integer", "minimum": 0},
+            "encoding": {"type": "string", "description": "Pixel encoding, e.g. mono8"},
+            "step": {"type": "integer", "minimum": 0, "description": "Bytes per row"},
+            "data": {"type": "string", "contentEncoding": "base64", "description": "Pixels, base64"},
+        },
+    )
+
+
 def _status() -> dict[str, Any]:
     schema = _object(
         "ropecam.Status",
@@ -218,6 +234,7 @@ SCHEMAS: Final[dict[str, dict[str, Any]]] = {
     "foxglove.SceneUpdate": _scene_update(),
     "foxglove.PointCloud": _point_cloud(),
     "foxglove.Log": _log(),
+    "foxglove.RawImage": _raw_image(),
     "ropecam.Status": _status(),
 }
 for _schema in SCHEMAS.values():

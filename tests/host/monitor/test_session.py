@@ -24,6 +24,7 @@ FOXGLOVE_FIELDS = {
     "foxglove.SceneUpdate": {"deletions", "entities"},
     "foxglove.PointCloud": {"timestamp", "frame_id", "pose", "point_stride", "fields", "data"},
     "foxglove.Log": {"timestamp", "level", "message", "name", "file", "line"},
+    "foxglove.RawImage": {"timestamp", "frame_id", "width", "height", "encoding", "step", "data"},
 }
 ENTITY_FIELDS = {"timestamp", "frame_id", "id", "lifetime", "frame_locked", "metadata", "lines", "spheres"}
 LINE_FIELDS = {"type", "pose", "thickness", "scale_invariant", "points", "color", "colors", "indices"}
@@ -218,3 +219,23 @@ def test_frames_the_device_dropped_raise_a_warning() -> None:
         rows = session.snapshot(time.time_ns())
     assert rows[0].device_dropped == 3 and "DEVICE DROPPED +3 frames" in rows[0].warnings
     assert session.snapshot(time.time_ns())[0].warnings == ()  # reported once
+
+
+def test_raw_frames_become_foxglove_raw_images(tmp_path: Path, read_mcap) -> None:
+    import base64
+
+    from ropecam.shared.protocol import encode_message, split_frame
+
+    image = (np.arange(40 * 30) % 251).astype(np.uint8).reshape(30, 40)
+    recorder = Recorder(RecordingConfig(tmp_path / "raw.mcap"))
+    session = Session(recorder)
+    for sequence, chunk in enumerate(split_frame(9, image, chunk_bytes=500)):
+        data = encode_message(chunk, device_id=4, sequence=sequence, t_ns=time.time_ns())
+        session.handle(check_packet(data, time.time_ns()))
+    session.close()
+    assert session.raw_frames == 1
+    ((schema_name, payload),) = [(s, d) for t, s, _, d in read_mcap(tmp_path / "raw.mcap") if t == "/device4/image/raw"]
+    message = json.loads(payload)
+    jsonschema.validate(message, SCHEMAS[schema_name])
+    assert (message["width"], message["height"], message["encoding"]) == (40, 30, "mono8")
+    assert base64.b64decode(message["data"]) == image.tobytes()
