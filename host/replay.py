@@ -16,6 +16,7 @@ from ropecam.shared.errors import ConfigError, DataError
 
 if TYPE_CHECKING:
     from ropecam.host.session import Session
+    from ropecam.shared.protocol.wire import Message
 
 __all__ = ["iter_raw", "recording_parts", "register", "replay"]
 
@@ -62,7 +63,11 @@ def iter_raw(paths: Sequence[Path]) -> Iterator[tuple[bytes, int]]:
 
 
 def replay(
-    paths: Sequence[Path], session: Session, speed: float | None = None, progress: Callable[[int], None] | None = None
+    paths: Sequence[Path],
+    session: Session,
+    speed: float | None = None,
+    progress: Callable[[int], None] | None = None,
+    on_message: Callable[[Message], None] | None = None,
 ) -> int:
     """Run every raw message of `paths` through `session` (a `ropecam.host.session.Session`); return the count.
 
@@ -72,6 +77,8 @@ def replay(
         1.0 replays in real time (2.0 twice as fast); None as fast as possible.
     progress
         Called with the number of messages done (optional).
+    on_message
+        Called with every message the session decoded (optional).
     """
     from ropecam.host.receiver import check_packet
 
@@ -84,13 +91,57 @@ def replay(
             delay = start + (receive_t_ns - first_t_ns) / 1e9 / speed - time.monotonic()
             if delay > 0:
                 time.sleep(delay)
-        session.handle(check_packet(data, receive_t_ns))
+        message = session.handle(check_packet(data, receive_t_ns))
+        if message is not None and on_message is not None:
+            on_message(message)
         count += 1
         if count % 64 == 0:
             session.tick()
             if progress is not None:
                 progress(count)
     return count
+
+
+class _JsonlExport:
+    """Write one device's FrameResults as `ropecam-device extract` JSON lines (input of `ropecam compare`)."""
+
+    def __init__(self, path: Path, device_id: int | None, overwrite: bool) -> None:
+        try:
+            self._handle = open(path, "w" if overwrite else "x", encoding="utf-8")  # noqa: SIM115  (closed in close)
+        except FileExistsError as exc:
+            raise ConfigError(f"{path} exists; choose another --export-jsonl or pass --overwrite") from exc
+        except OSError as exc:
+            raise ConfigError(f"cannot write {path}: {exc.strerror or exc}") from exc
+        self.path = path
+        self.device_id = device_id
+        self.frames = 0
+        self.other_devices: set[int] = set()
+
+    def add(self, message: Message) -> None:
+        import json
+
+        from ropecam.host.recording.convert import frame_result_json
+        from ropecam.shared.protocol.records import FrameResult
+
+        if not isinstance(message.record, FrameResult):
+            return
+        device_id = message.header.device_id
+        if self.device_id is None:
+            self.device_id = device_id
+        if device_id != self.device_id:
+            self.other_devices.add(device_id)
+            return
+        self._handle.write(json.dumps(frame_result_json(message.record), separators=(",", ":")) + "\n")
+        self.frames += 1
+
+    def close(self) -> None:
+        self._handle.close()
+
+    def summary(self) -> str:
+        text = f"exported {self.frames} frames of device {self.device_id} to {self.path}"
+        if self.other_devices:
+            text += f" (devices {sorted(self.other_devices)} left out: choose with --device)"
+        return text
 
 
 def _speed(text: str) -> float | None:
@@ -124,15 +175,20 @@ def _run(args: argparse.Namespace) -> int:
         metadata = rig_metadata(f"replay of {source}") | calibration_metadata
         recorder = Recorder(RecordingConfig(target, overwrite=args.overwrite), metadata, attachments)
     session = Session(recorder, calibration)
+    export = _JsonlExport(Path(args.export_jsonl), args.device, args.overwrite) if args.export_jsonl else None
     try:
-        count = replay(parts, session, args.speed)
+        count = replay(parts, session, args.speed, on_message=export.add if export else None)
     finally:
         session.close()
+        if export is not None:
+            export.close()
     print(f"replayed {count} messages from {', '.join(str(p) for p in parts)}")
     for row in session.snapshot(session.stats.last_receive_t_ns):
         print(format_row(row))
     if session.stats.bad_packets:
         print(f"{session.stats.bad_packets} unreadable packets")
+    if export is not None:
+        print(export.summary())
     if recorder is not None:
         if recorder.error:
             print(f"error: {recorder.error}")
@@ -153,6 +209,7 @@ examples:
   ropecam replay run.mcap --speed 1
   ropecam replay run.mcap --record run-decoded.mcap
   ropecam replay run.mcap --reprocess --plane plane.yaml --record run-metres.mcap
+  ropecam replay run.mcap --export-jsonl run.jsonl && ropecam compare run.jsonl --plane plane.yaml --out report/
 """
 
 
@@ -171,4 +228,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--camera", metavar="camera.yaml", help="intrinsics; default: the plane file's camera")
     parser.add_argument("--plane", metavar="plane.yaml", help="plane pose: plane channels in metres, tips in mm")
+    parser.add_argument(
+        "--export-jsonl",
+        metavar="FILE.jsonl",
+        help="also write the FrameResults as `ropecam-device extract` JSON lines (input of `ropecam compare`)",
+    )
+    parser.add_argument("--device", type=int, help="device id to export (default: the first one seen)")
     parser.set_defaults(func=_run)

@@ -232,3 +232,25 @@ def test_replay_reprocess_with_a_calibration_adds_the_plane_channels(sim_device,
     topics = [topic for topic, *_ in read_mcap(out)]
     assert topics.count("/device7/plane/scene") == 4
     assert main(["replay", str(tmp_path / "raw.mcap"), "--reprocess"]) == 2  # names what is missing
+
+
+def test_replay_exports_extract_json_lines_for_ropecam_compare(sim_device, tmp_path: Path, capsys) -> None:
+    from ropecam.host.compare.measurement import read_extract_jsonl
+    from ropecam.shared.protocol import FrameResult, decode_message
+
+    recorder = Recorder(RecordingConfig(tmp_path / "run.mcap"))
+    session = Session(recorder)
+    messages = _messages(sim_device, 6)
+    for data in messages:
+        session.handle(check_packet(data, time.time_ns()))
+    session.close()
+    out = tmp_path / "run.jsonl"
+    assert main(["replay", str(tmp_path / "run.mcap"), "--export-jsonl", str(out)]) == 0
+    assert "exported 6 frames of device 7" in capsys.readouterr().out
+    frames = read_extract_jsonl(out)
+    records = [r for r in (decode_message(m).record for m in messages) if isinstance(r, FrameResult)]
+    assert [f.t_begin_ns for f in frames] == [r.exposure_start_t_ns for r in records]
+    for frame, record in zip(frames, records, strict=True):
+        assert frame.t_end_ns == record.exposure_end_t_ns
+        assert frame.begin_px.tolist() == record.begin_px.tolist() and frame.end_px.tolist() == record.end_px.tolist()
+    assert main(["replay", str(tmp_path / "run.mcap"), "--export-jsonl", str(out)]) == 2  # never overwrites silently
