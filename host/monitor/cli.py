@@ -175,7 +175,9 @@ def _run(args: argparse.Namespace) -> int:
             overwrite=args.overwrite,
             fsync=args.fsync,
         )
-        recorder = Recorder(config, rig_metadata(args.source) | calibration_metadata, attachments)
+        metadata = rig_metadata(args.source) | calibration_metadata
+        metadata["rig"]["decode"] = args.decode
+        recorder = Recorder(config, metadata, attachments)
     transport = open_transport(listening_url(args.source))
     session = Session(recorder, calibration)
     receiver = Receiver(transport)
@@ -187,7 +189,8 @@ def _run(args: argparse.Namespace) -> int:
     display = RichDisplay(args.source) if use_rich else PlainDisplay()
     interrupted = False
     try:
-        monitor_loop(receiver, session, display, args.duration_s, lambda: stop["requested"])
+        backlog = {"auto": DECODE_BACKLOG, "all": 1 << 62, "none": 0}[args.decode]
+        monitor_loop(receiver, session, display, args.duration_s, lambda: stop["requested"], backlog)
     except KeyboardInterrupt:
         interrupted = True
     finally:
@@ -232,4 +235,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--fsync", action="store_true", help="sync each flush to disk (survives power loss)")
     parser.add_argument("--duration-s", type=float, help="stop by itself after this many seconds")
     parser.add_argument("--no-ui", action="store_true", help="print one summary line per second instead of the table")
+    parser.add_argument(
+        "--decode",
+        choices=("auto", "all", "none"),
+        default="auto",
+        help="full decode of FrameResults (shapes, scene channels, tip): auto = as many as the host keeps up with "
+        "(default), all = every frame (a slow host falls behind), none = raw recording and statistics only "
+        "(`ropecam replay --record` decodes later)",
+    )
     parser.set_defaults(func=_run)
