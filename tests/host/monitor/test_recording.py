@@ -172,7 +172,16 @@ def test_replay_reproduces_the_live_decoded_results_exactly(
 ) -> None:
     live = tmp_path / "live.mcap"
     monitor = monitor_process(
-        ["--source", f"udp://127.0.0.1:{udp_port}?listen=1", "--record", str(live), "--duration-s", "4"]
+        [
+            "--source",
+            f"udp://127.0.0.1:{udp_port}?listen=1",
+            "--record",
+            str(live),
+            "--duration-s",
+            "4",
+            "--decode",
+            "all",
+        ]
     )
     messages = _messages(sim_device, 130)
     damaged = bytearray(messages[50])
