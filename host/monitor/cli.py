@@ -166,7 +166,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.roll_mb < 0 or args.roll_s < 0:
         raise ConfigError(f"--roll-mb and --roll-s must be >= 0 (0: no rolling), got {args.roll_mb}, {args.roll_s}")
     calibration, calibration_metadata, attachments = load_calibration(args.camera, args.plane)
-    recorder = None
+    config = None
     if args.record:
         config = RecordingConfig(
             Path(args.record),
@@ -175,10 +175,16 @@ def _run(args: argparse.Namespace) -> int:
             overwrite=args.overwrite,
             fsync=args.fsync,
         )
+    transport = open_transport(listening_url(args.source))  # first: a busy port must not leave a stray file
+    recorder = None
+    if config is not None:
         metadata = rig_metadata(args.source) | calibration_metadata
         metadata["rig"]["decode"] = args.decode
-        recorder = Recorder(config, metadata, attachments)
-    transport = open_transport(listening_url(args.source))
+        try:
+            recorder = Recorder(config, metadata, attachments)
+        except ConfigError:
+            transport.close()
+            raise
     session = Session(recorder, calibration)
     receiver = Receiver(transport)
     stop = {"requested": False}
