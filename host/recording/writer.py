@@ -173,7 +173,8 @@ class Recorder:
         except OSError as exc:
             self._fail(f"writing {path} failed: {exc.strerror or exc}")
             if fatal:
-                raise ConfigError(self.error or str(exc)) from exc
+                path.unlink(missing_ok=True)  # created just now and holds nothing
+                raise ConfigError(f"cannot write recording file {path}: {exc.strerror or exc}") from exc
             return
         self._part_started = time.monotonic()
 

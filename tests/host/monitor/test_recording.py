@@ -126,6 +126,9 @@ def test_unwritable_paths(sim_device, tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="exists"):
         Recorder(RecordingConfig(tmp_path / "exists.mcap"))
     assert (tmp_path / "exists.mcap").read_bytes() == b"precious"
+    with pytest.raises(ConfigError, match="No space left"):  # a disk already full at the start
+        Recorder(RecordingConfig(tmp_path / "full.mcap"), opener=lambda p, o: io.BufferedWriter(FailingFile(p, 10)))
+    assert not (tmp_path / "full.mcap").exists()
 
     def opener(path: Path, overwrite: bool):
         if path != tmp_path / "roll.mcap":
