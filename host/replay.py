@@ -144,6 +144,46 @@ class _JsonlExport:
         return text
 
 
+def _fit_model(parts: Sequence[Path], args: argparse.Namespace, calibration: tuple) -> tuple[object, int]:
+    """First pass over the recording: one device's FrameResults -> `ModelOverlay.fit` (release time, model run)."""
+    import sys
+
+    from ropecam.host.model.cli import load_model_config
+    from ropecam.host.model_overlay import ModelOverlay
+    from ropecam.shared.errors import ProtocolError
+    from ropecam.shared.protocol.records import FrameResult
+    from ropecam.shared.protocol.wire import decode_message
+
+    rope, solver = load_model_config(Path(args.model))
+    frames: dict[int, FrameResult] = {}  # by sequence: duplicates once
+    device_id = args.device
+    for data, _ in iter_raw(parts):
+        try:
+            message = decode_message(data)
+        except ProtocolError:
+            continue
+        if not isinstance(message.record, FrameResult):
+            continue
+        if device_id is None:
+            device_id = message.header.device_id
+        if message.header.device_id == device_id:
+            frames[message.header.sequence] = message.record
+    if device_id is None:
+        raise DataError(f"{parts[0]} holds no FrameResult: nothing to compare with the model")
+    ordered = sorted(frames.values(), key=lambda f: f.exposure_start_t_ns)
+    print(f"device {device_id}: {len(ordered)} frames; fitting the release time of the model", file=sys.stderr)
+
+    def report(evaluations: int, rms_m: float) -> None:
+        print(f"  model runs {evaluations}: RMS {rms_m * 1e3:.3f} mm", file=sys.stderr, end="\r")
+
+    overlay = ModelOverlay.fit(ordered, calibration, rope, solver, release_time_s=args.release_time_s, progress=report)
+    print(
+        f"\nrelease at {overlay.release_time_s:.6f} s (device clock); RMS error {overlay.rms_error_m * 1e3:.3f} mm",
+        file=sys.stderr,
+    )
+    return overlay, device_id
+
+
 def _speed(text: str) -> float | None:
     if text == "max":
         return None
@@ -164,6 +204,8 @@ def _run(args: argparse.Namespace) -> int:
 
     if args.reprocess and args.plane is None:
         raise ConfigError("--reprocess needs --plane (and optionally --camera): the calibration to apply")
+    if args.model is not None and (args.plane is None or not args.record):
+        raise ConfigError("--model needs --plane (the model lives in metres) and --record (where its channels go)")
     calibration, calibration_metadata, attachments = load_calibration(args.camera, args.plane)
     source = Path(args.recording)
     parts = recording_parts(source)
@@ -174,7 +216,10 @@ def _run(args: argparse.Namespace) -> int:
             raise ConfigError(f"--record {target} is the recording being replayed; choose another file")
         metadata = rig_metadata(f"replay of {source}") | calibration_metadata
         recorder = Recorder(RecordingConfig(target, overwrite=args.overwrite), metadata, attachments)
-    session = Session(recorder, calibration)
+    model, model_device = None, args.device
+    if args.model is not None:
+        model, model_device = _fit_model(parts, args, calibration)
+    session = Session(recorder, calibration, model, model_device)
     export = _JsonlExport(Path(args.export_jsonl), args.device, args.overwrite) if args.export_jsonl else None
     try:
         count = replay(parts, session, args.speed, on_message=export.add if export else None)
@@ -210,6 +255,7 @@ examples:
   ropecam replay run.mcap --record run-decoded.mcap
   ropecam replay run.mcap --reprocess --plane plane.yaml --record run-metres.mcap
   ropecam replay run.mcap --export-jsonl run.jsonl && ropecam compare run.jsonl --plane plane.yaml --out report/
+  ropecam replay run.mcap --plane plane.yaml --model rope.toml --record run-model.mcap
 """
 
 
@@ -233,5 +279,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="FILE.jsonl",
         help="also write the FrameResults as `ropecam-device extract` JSON lines (input of `ropecam compare`)",
     )
-    parser.add_argument("--device", type=int, help="device id to export (default: the first one seen)")
+    parser.add_argument(
+        "--device", type=int, help="device id for --export-jsonl and --model (default: the first one seen)"
+    )
+    parser.add_argument(
+        "--model",
+        metavar="rope.toml",
+        help="fit the ANCF model (as `ropecam compare`: release time by least squares) and record its rope "
+        "(/device<ID>/plane/model) and its error at the material points (/device<ID>/model_error); needs --plane",
+    )
+    parser.add_argument("--release-time-s", type=float, help="start value of the release time fit (device clock, s)")
     parser.set_defaults(func=_run)

@@ -10,7 +10,7 @@ rebuilds them later from the raw channel.
 from __future__ import annotations
 
 from collections import deque
-from typing import Final
+from typing import TYPE_CHECKING, Final
 
 from ropecam.host.calibration.geometry import CameraModel, PlanePose, pixels_to_plane
 from ropecam.host.monitor.stats import DeviceRow, StreamStats
@@ -21,6 +21,9 @@ from ropecam.shared.errors import ProtocolError
 from ropecam.shared.protocol.rawframe import FrameAssembler
 from ropecam.shared.protocol.records import FrameResult, Log, RawFrameChunk, Status
 from ropecam.shared.protocol.wire import Message, MessageType, decode_message
+
+if TYPE_CHECKING:
+    from ropecam.host.model_overlay import ModelOverlay
 
 __all__ = ["LOG_TOPIC", "RAW_ENCODING", "RAW_TOPIC", "Session", "device_topic"]
 
@@ -45,11 +48,21 @@ class Session:
         Where to record (None: monitor only).
     calibration
         (camera, plane pose): adds the plane channels in metres and the tip position in millimetres.
+    model, model_device_id
+        A model fitted to this device's frames (replay): adds the model rope and its error channels.
     """
 
-    def __init__(self, recorder: Recorder | None = None, calibration: tuple[CameraModel, PlanePose] | None = None):
+    def __init__(
+        self,
+        recorder: Recorder | None = None,
+        calibration: tuple[CameraModel, PlanePose] | None = None,
+        model: ModelOverlay | None = None,
+        model_device_id: int | None = None,
+    ) -> None:
         self.recorder = recorder
         self.calibration = calibration
+        self.model = model
+        self.model_device_id = model_device_id
         self.stats = StreamStats()
         self.skipped_decodes = 0
         self._undecoded_run: dict[int, int] = {}  # FrameResults skipped in a row, per device
@@ -134,6 +147,9 @@ class Session:
             if record.material_s_m:
                 data = frame_point_cloud(record, device_id, t_ns, self.calibration)
                 recorder.write(device_topic(device_id, "plane/material_points"), data, t_ns, points)
+        if self.model is not None and device_id == self.model_device_id:
+            for topic, data, schema in self.model.messages(record, device_id, t_ns):
+                recorder.write(topic, data, t_ns, schema)
 
     def _raw_chunk(self, chunk: RawFrameChunk, device_id: int, t_ns: int) -> None:
         assembler = self._assemblers.setdefault(device_id, FrameAssembler())

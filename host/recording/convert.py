@@ -25,6 +25,7 @@ __all__ = [
     "frame_result_json",
     "frame_scene",
     "log_message",
+    "model_scene",
     "raw_image",
     "status_message",
 ]
@@ -138,6 +139,26 @@ def frame_scene(
         '{"timestamp":' + _time(t_ns) + ',"frame_id":' + json.dumps(frame_id) + ',"id":"rope",'
         '"lifetime":{"sec":0,"nsec":0},"frame_locked":false,"metadata":' + _metadata(record)
         + ',"lines":[' + ",".join(lines) + '],"spheres":[' + ",".join(spheres) + "]}"
+    )  # fmt: skip
+    return ('{"deletions":[],"entities":[' + entity + "]}").encode()
+
+
+def model_scene(shapes_m: NDArray[np.float64], color: str, device_id: int, t_ns: int, frame_index: int) -> bytes:
+    """Return a ``foxglove.SceneUpdate`` (entity ``model``, frame ``device<ID>/plane``) of model rope shapes in metres.
+
+    Parameters
+    ----------
+    shapes_m
+        (shapes, points, 2) positions on the plane, e.g. the model at exposure start and end.
+    color
+        Foxglove colour object as JSON text.
+    """
+    lines = ",".join(_line(shape, color, 0.003, False, 9) for shape in shapes_m)
+    metadata = json.dumps([{"key": "frame_index", "value": str(frame_index)}], separators=(",", ":"))
+    entity = (
+        '{"timestamp":' + _time(t_ns) + ',"frame_id":' + json.dumps(f"device{device_id}/plane") + ',"id":"model",'
+        '"lifetime":{"sec":0,"nsec":0},"frame_locked":false,"metadata":' + metadata + ',"lines":[' + lines
+        + '],"spheres":[]}'
     )  # fmt: skip
     return ('{"deletions":[],"entities":[' + entity + "]}").encode()
 

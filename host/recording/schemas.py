@@ -230,12 +230,33 @@ def _status() -> dict[str, Any]:
     return schema
 
 
+def _model_error() -> dict[str, Any]:
+    distances = {"type": "array", "items": {"type": ["number", "null"], "minimum": 0}}
+    schema = _object(
+        "ropecam.ModelError",
+        "Distance of measured material points from the ANCF model (ropecam replay --model)",
+        {
+            "timestamp": _time("Host receive time of the frame"),
+            "device_id": {"type": "integer", "minimum": 0, "maximum": 65535},
+            "frame_index": {"type": "integer", "minimum": 0},
+            "release_time_s": {"type": "number", "description": "Fitted release time on the device clock"},
+            "model_time_s": {"type": "array", "items": {"type": "number"}, "description": "At exposure start, end"},
+            "s_m": {"type": "array", "items": {"type": "number", "minimum": 0}, "description": "Material points"},
+            "error_begin_mm": distances | {"description": "Per point at exposure start; null: not measured"},
+            "error_end_mm": distances | {"description": "Per point at exposure end; null: not measured"},
+        },
+    )
+    schema["required"] = ["device_id", "frame_index", "s_m", "error_begin_mm", "error_end_mm"]
+    return schema
+
+
 SCHEMAS: Final[dict[str, dict[str, Any]]] = {
     "foxglove.SceneUpdate": _scene_update(),
     "foxglove.PointCloud": _point_cloud(),
     "foxglove.Log": _log(),
     "foxglove.RawImage": _raw_image(),
     "ropecam.Status": _status(),
+    "ropecam.ModelError": _model_error(),
 }
 for _schema in SCHEMAS.values():
     _schema["$schema"] = _DRAFT

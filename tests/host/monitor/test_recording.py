@@ -266,3 +266,44 @@ def test_replay_exports_extract_json_lines_for_ropecam_compare(sim_device, tmp_p
         assert frame.t_end_ns == record.exposure_end_t_ns
         assert frame.begin_px.tolist() == record.begin_px.tolist() and frame.end_px.tolist() == record.end_px.tolist()
     assert main(["replay", str(tmp_path / "run.mcap"), "--export-jsonl", str(out)]) == 2  # never overwrites silently
+
+
+def test_replay_with_a_model_records_the_model_rope_and_its_error(
+    sim_device, tmp_path: Path, read_mcap, capsys
+) -> None:
+    import json
+
+    import jsonschema
+    import numpy as np
+
+    from ropecam.host.calibration.files import write_plane
+    from ropecam.host.recording.schemas import SCHEMAS
+    from ropecam.host.sim.rig_polylines import RIG_CAMERA, RIG_PLANE
+
+    recorder = Recorder(RecordingConfig(tmp_path / "run.mcap"))
+    session = Session(recorder)
+    for data in _messages(sim_device, 12):
+        session.handle(check_packet(data, time.time_ns()), decode=False)
+    session.close()
+    plane = write_plane(tmp_path / "plane.yaml", RIG_CAMERA, RIG_PLANE)
+    rope = tmp_path / "rope.toml"
+    rope.write_text("[rope]\nlength_m = 0.411\n[solver]\nelements = 4\nstep_s = 0.002\n")
+    out = tmp_path / "model.mcap"
+    args = ["replay", str(tmp_path / "run.mcap"), "--plane", str(plane), "--model", str(rope), "--record", str(out)]
+    assert main(args) == 0
+    assert "release at" in capsys.readouterr().err
+    records = read_mcap(out)
+    errors = [json.loads(d) for t, _, _, d in records if t == "/device7/model_error"]
+    scenes = [json.loads(d) for t, _, _, d in records if t == "/device7/plane/model"]
+    assert len(errors) == len(scenes) == 12
+    for error in errors:
+        jsonschema.validate(error, SCHEMAS["ropecam.ModelError"])
+        assert error["s_m"] == pytest.approx([0.411 * f for f in (0.25, 0.5, 0.75, 1.0)])
+    model_rope = scenes[0]["entities"][0]["lines"][0]["points"]
+    xy = np.array([[p["x"], p["y"]] for p in model_rope])
+    assert np.hypot(*xy[0]) < 1e-6  # pinned at the plane origin, like the measured rope
+    assert np.sum(np.hypot(*np.diff(xy, axis=0).T)) == pytest.approx(0.411, rel=0.01)
+    # the model's swing is not the simulator's curve, but it follows it: errors of centimetres, not metres
+    finite = [e for error in errors for e in error["error_begin_mm"] + error["error_end_mm"] if e is not None]
+    assert finite and max(finite) < 150
+    assert main(["replay", str(tmp_path / "run.mcap"), "--model", str(rope)]) == 2  # needs --plane and --record
