@@ -307,3 +307,16 @@ def test_replay_with_a_model_records_the_model_rope_and_its_error(
     finite = [e for error in errors for e in error["error_begin_mm"] + error["error_end_mm"] if e is not None]
     assert finite and max(finite) < 150
     assert main(["replay", str(tmp_path / "run.mcap"), "--model", str(rope)]) == 2  # needs --plane and --record
+
+
+def test_replay_speed_paces_by_the_recorded_receive_times(sim_device, tmp_path: Path) -> None:
+    recorder = Recorder(RecordingConfig(tmp_path / "paced.mcap"))
+    session = Session(recorder)
+    t0 = time.time_ns()
+    for k, data in enumerate(_messages(sim_device, 5)):
+        session.handle(check_packet(data, t0 + k * 100_000_000), decode=False)  # received 0.1 s apart
+    session.close()
+    parts = [tmp_path / "paced.mcap"]
+    start = time.monotonic()
+    assert replay(parts, Session(), speed=2.0) == 6
+    assert time.monotonic() - start >= 0.5 / 2.0 - 0.01  # 0.5 s of recording at twice the speed (a lower bound)
