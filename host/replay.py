@@ -46,11 +46,11 @@ def iter_raw(paths: Sequence[Path]) -> Iterator[tuple[bytes, int]]:
 
     from ropecam.host.session import RAW_TOPIC
 
+    found = False
     for path in paths:
         try:
             with open(path, "rb") as handle:
                 reader = make_reader(handle)
-                found = False
                 for _, _channel, message in reader.iter_messages(topics=[RAW_TOPIC], log_time_order=False):
                     found = True
                     yield message.data, message.log_time
@@ -58,8 +58,8 @@ def iter_raw(paths: Sequence[Path]) -> Iterator[tuple[bytes, int]]:
             raise DataError(
                 f"cannot read {path}: {exc} (a recording cut by a crash: `ropecam recover {path} --out FIXED.mcap`)"
             ) from exc
-        if not found:
-            raise DataError(f"{path} holds no {RAW_TOPIC} channel: not a ropecam recording?")
+    if not found:
+        raise DataError(f"{', '.join(map(str, paths))} hold no {RAW_TOPIC} messages: not a ropecam recording?")
 
 
 def replay(

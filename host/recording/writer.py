@@ -127,12 +127,13 @@ class Recorder:
         self._good_offset = 0
         self._last_flush = time.monotonic()
         self._part_started = self._last_flush
+        self._next_part: int | None = None  # rolled: the next part opens with its first message (no empty files)
         self._open_part(0, fatal=True)
 
     @property
     def active(self) -> bool:
         """True while messages are being written (False after a failure or `close`)."""
-        return self._writer is not None
+        return self._writer is not None or self._next_part is not None
 
     @property
     def path(self) -> Path | None:
@@ -218,6 +219,9 @@ class Recorder:
         sequence
             The wire sequence number (uint32), for tools that look at it.
         """
+        if self._writer is None and self._next_part is not None:
+            index, self._next_part = self._next_part, None
+            self._open_part(index)
         if self._writer is None:
             self.unrecorded += 1
             return False
@@ -254,10 +258,8 @@ class Recorder:
         except OSError as exc:
             self._fail(f"writing {self.path} failed: {exc.strerror or exc}")
             return
-        if roll:
-            index = len(self.parts)
-            if self._finish():
-                self._open_part(index)
+        if roll and self._finish():
+            self._next_part = len(self.parts)
 
     def _finish(self) -> bool:
         writer, stream = self._writer, self._stream
@@ -300,6 +302,7 @@ class Recorder:
 
     def close(self) -> None:
         """Finish the current file (summary and index written) and stop."""
+        self._next_part = None
         self._finish()
 
     def __enter__(self) -> Recorder:

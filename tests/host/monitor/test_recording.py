@@ -159,8 +159,14 @@ def test_rolled_recording_replays_across_parts(sim_device, tmp_path: Path, roll:
         recorder._last_flush = 0.0
         time.sleep(0.001)
         session.tick()
+    for _ in range(3):  # idle time: no empty parts
+        time.sleep(0.02)
+        recorder._last_flush = 0.0
+        session.tick()
     session.close()
     parts = recording_parts(path)
+    assert all(list(iter_raw([part])) for part in parts)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in parts)
     assert len(parts) >= 3 and parts[1] == part_path(path, 1)
     assert [data for data, _ in iter_raw(parts)] == messages
 
