@@ -36,8 +36,11 @@ scenes and point clouds, Status and Log messages. It is flushed every 0.5 s: aft
 rebuilds everything up to the last flush. A full disk or failing file stops the recording with a message; the
 monitor keeps running. Stop with Ctrl-C or SIGTERM (the recording is closed properly).
 
+A udp:// source binds that address and port (0.0.0.0: all interfaces); several devices may send to it.
+
 examples:
   ropecam monitor --source udp://0.0.0.0:5600 --record run.mcap
+  ropecam sim-device --to udp://127.0.0.1:5600 --device-id 3     (another terminal: a simulated device)
   ropecam monitor --source "serial:///dev/ttyUSB0?baud=921600" --no-ui --duration-s 60
   ropecam monitor --source udp://127.0.0.1:5600 --record run.mcap --roll-mb 1024
 """
