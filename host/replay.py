@@ -62,6 +62,27 @@ def iter_raw(paths: Sequence[Path]) -> Iterator[tuple[bytes, int]]:
         raise DataError(f"{', '.join(map(str, paths))} hold no {RAW_TOPIC} messages: not a ropecam recording?")
 
 
+def count_raw(paths: Sequence[Path]) -> int:
+    """Return the number of raw-channel messages of complete recordings (from their summaries; 0 when unknown)."""
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+
+    from ropecam.host.session import RAW_TOPIC
+
+    total = 0
+    for path in paths:
+        try:
+            with open(path, "rb") as handle:
+                summary = make_reader(handle).get_summary()
+        except (McapError, OSError, EOFError):
+            return 0
+        if summary is None or summary.statistics is None:
+            return 0
+        counts = summary.statistics.channel_message_counts
+        total += sum(counts.get(c.id, 0) for c in summary.channels.values() if c.topic == RAW_TOPIC)
+    return total
+
+
 def replay(
     paths: Sequence[Path],
     session: Session,
@@ -99,6 +120,8 @@ def replay(
             session.tick()
             if progress is not None:
                 progress(count)
+    if progress is not None:
+        progress(count)
     return count
 
 
@@ -199,6 +222,7 @@ def _speed(text: str) -> float | None:
 def _run(args: argparse.Namespace) -> int:
     from ropecam.host.monitor.cli import load_calibration, rig_metadata
     from ropecam.host.monitor.display import format_row
+    from ropecam.host.progress import progress_bar
     from ropecam.host.recording.writer import Recorder, RecordingConfig
     from ropecam.host.session import Session
 
@@ -222,7 +246,8 @@ def _run(args: argparse.Namespace) -> int:
     session = Session(recorder, calibration, model, model_device)
     export = _JsonlExport(Path(args.export_jsonl), args.device, args.overwrite) if args.export_jsonl else None
     try:
-        count = replay(parts, session, args.speed, on_message=export.add if export else None)
+        with progress_bar("replay", max(1, count_raw(parts)), "messages") as progress:
+            count = replay(parts, session, args.speed, progress, on_message=export.add if export else None)
     finally:
         session.close()
         if export is not None:
