@@ -146,7 +146,7 @@ def monitor_loop(
         if now >= next_tick:
             session.tick()
             next_tick = now + 0.05
-        if now >= next_display:
+        if display is not None and now >= next_display:
             display.update(session, session.snapshot(time.time_ns()))
             next_display += display.period_s
             if next_display < now:

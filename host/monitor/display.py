@@ -153,7 +153,7 @@ class RichDisplay:
             table.add_column(name, justify=justify, no_wrap=not wraps, min_width=8 if wraps else None)  # type: ignore[arg-type]
         for row in rows:
             table.add_row(*(cell(row) for _, _, _, cell in columns), style="bold red" if row.warnings else "")
-        lines = [table]
+        lines: list[Table | Text] = [table]
         for row in rows:
             if row.warnings:
                 lines.append(Text(f"dev{row.device_id}: " + ", ".join(row.warnings), style="bold red"))

@@ -179,7 +179,7 @@ def frame_point_cloud(
     table = np.array(rows, dtype=np.float64).reshape(-1, 4)
     xy = table[:, :2]
     if calibration is not None and len(xy):
-        xy = _to_plane(xy, calibration)
+        xy = pixels_to_plane(xy, *calibration)
     packed = np.zeros((len(table), 5), dtype="<f4")
     packed[:, 0:2] = xy
     packed[:, 3:5] = table[:, 2:4]

@@ -295,7 +295,8 @@ class Recorder:
             except (OSError, ValueError) as exc:
                 log.debug("closing %s after the failure: %s", self.path, exc)
             try:
-                os.truncate(self.path, self._good_offset)
+                if self.path is not None:
+                    os.truncate(self.path, self._good_offset)
             except OSError as exc:
                 log.warning("could not cut %s back to its last flush: %s", self.path, exc)
         log.error("recording stopped: %s", self.error)
