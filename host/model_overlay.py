@@ -115,12 +115,22 @@ class ModelOverlay:
         distance_mm = np.linalg.norm(measured - model, axis=1) * 1e3
         return [None if math.isnan(d) else round(float(d), 6) for d in distance_mm]
 
-    def messages(self, record: FrameResult, device_id: int, t_ns: int) -> list[tuple[str, bytes, str]]:
-        """Return (topic, JSON bytes, schema name) of the model channels for one frame."""
+    def frame_errors_mm(self, record: FrameResult) -> tuple[list[float | None], list[float | None]]:
+        """Distances (mm) of the frame's material points from the model at exposure start and end (None: unmeasured)."""
+        return (
+            self._errors_mm(record.begin_px, self._model_time(record.exposure_start_t_ns)),
+            self._errors_mm(record.end_px, self._model_time(record.exposure_end_t_ns)),
+        )
+
+    def messages(
+        self, record: FrameResult, device_id: int, t_ns: int, errors_mm: tuple[list, list] | None = None
+    ) -> list[tuple[str, bytes, str]]:
+        """Return (topic, JSON bytes, schema name) of the model channels for one frame (`errors_mm` if computed)."""
         from ropecam.host.recording.convert import model_scene
         from ropecam.host.session import device_topic
 
         times = (self._model_time(record.exposure_start_t_ns), self._model_time(record.exposure_end_t_ns))
+        begin_mm, end_mm = errors_mm if errors_mm is not None else self.frame_errors_mm(record)
         grid = np.linspace(0.0, self.length_m, MODEL_POINTS)
         shapes = self.trajectory.positions(list(times), grid)
         scene = model_scene(shapes, _MODEL_COLOR, device_id, t_ns, record.frame_index)
@@ -132,8 +142,8 @@ class ModelOverlay:
             "release_time_s": self.release_time_s,
             "model_time_s": list(times),
             "s_m": list(self.s_m),
-            "error_begin_mm": self._errors_mm(record.begin_px, times[0]),
-            "error_end_mm": self._errors_mm(record.end_px, times[1]),
+            "error_begin_mm": begin_mm,
+            "error_end_mm": end_mm,
         }
         return [
             (device_topic(device_id, "plane/model"), scene, "foxglove.SceneUpdate"),

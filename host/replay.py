@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 from ropecam.shared.errors import ConfigError, DataError
 
 if TYPE_CHECKING:
+    from ropecam.host.model_overlay import ModelOverlay
     from ropecam.host.session import Session
     from ropecam.shared.protocol.wire import Message
 
@@ -167,7 +168,7 @@ class _JsonlExport:
         return text
 
 
-def _fit_model(parts: Sequence[Path], args: argparse.Namespace, calibration: tuple) -> tuple[object, int]:
+def _fit_model(parts: Sequence[Path], args: argparse.Namespace, calibration: tuple) -> tuple[ModelOverlay, int]:
     """First pass over the recording: one device's FrameResults -> `ModelOverlay.fit` (release time, model run)."""
     import sys
 
@@ -240,10 +241,11 @@ def _run(args: argparse.Namespace) -> int:
             raise ConfigError(f"--record {target} is the recording being replayed; choose another file")
         metadata = rig_metadata(f"replay of {source}") | calibration_metadata
         recorder = Recorder(RecordingConfig(target, overwrite=args.overwrite), metadata, attachments)
-    model, model_device = None, args.device
+    model = None
     if args.model is not None:
-        model, model_device = _fit_model(parts, args, calibration)
-    session = Session(recorder, calibration, model, model_device)
+        overlay, model_device = _fit_model(parts, args, calibration)
+        model = lambda record, device_id: overlay if device_id == model_device else None  # noqa: E731
+    session = Session(recorder, calibration, model)
     export = _JsonlExport(Path(args.export_jsonl), args.device, args.overwrite) if args.export_jsonl else None
     try:
         with progress_bar("replay", max(1, count_raw(parts)), "messages") as progress:

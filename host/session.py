@@ -9,8 +9,12 @@ rebuilds them later from the raw channel.
 
 from __future__ import annotations
 
+import math
 from collections import deque
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Final
+
+import numpy as np
 
 from ropecam.host.calibration.geometry import CameraModel, PlanePose, pixels_to_plane
 from ropecam.host.monitor.stats import DeviceRow, StreamStats
@@ -24,6 +28,9 @@ from ropecam.shared.protocol.wire import Message, MessageType, decode_message
 
 if TYPE_CHECKING:
     from ropecam.host.model_overlay import ModelOverlay
+
+ModelSource = Callable[[FrameResult, int], "ModelOverlay | None"]
+"""``(record, device_id) -> ModelOverlay | None``: the model aligned with that device's clock, if any."""
 
 __all__ = ["LOG_TOPIC", "RAW_ENCODING", "RAW_TOPIC", "Session", "device_topic"]
 
@@ -48,21 +55,21 @@ class Session:
         Where to record (None: monitor only).
     calibration
         (camera, plane pose): adds the plane channels in metres and the tip position in millimetres.
-    model, model_device_id
-        A model fitted to this device's frames (replay): adds the model rope and its error channels.
+    model
+        ``(record, device_id) -> ModelOverlay | None``: the model aligned with that device's clock, if any (replay:
+        fitted to the whole run; live: `ropecam.host.monitor.live_model.LiveModel` after the release). Adds the model
+        rope and its error channels and the model error column.
     """
 
     def __init__(
         self,
         recorder: Recorder | None = None,
         calibration: tuple[CameraModel, PlanePose] | None = None,
-        model: ModelOverlay | None = None,
-        model_device_id: int | None = None,
+        model: ModelSource | None = None,
     ) -> None:
         self.recorder = recorder
         self.calibration = calibration
         self.model = model
-        self.model_device_id = model_device_id
         self.stats = StreamStats()
         self.skipped_decodes = 0
         self._undecoded_run: dict[int, int] = {}  # FrameResults skipped in a row, per device
@@ -134,8 +141,19 @@ class Session:
             tip_plane = (float(x), float(y))
         self.stats.frame_decoded(device_id, tip, tip_plane)
         recorder = self.recorder
-        if recorder is None:
+        if recorder is not None:
+            self._record_frame(record, device_id, t_ns, recorder)
+        overlay = self.model(record, device_id) if self.model is not None else None
+        if overlay is None:
             return
+        errors = overlay.frame_errors_mm(record)
+        finite = [e for e in errors[0] + errors[1] if e is not None]
+        self.stats.model_compared(device_id, float(np.sqrt(np.mean(np.square(finite)))) if finite else math.nan)
+        if recorder is not None:
+            for topic, data, schema in overlay.messages(record, device_id, t_ns, errors):
+                recorder.write(topic, data, t_ns, schema)
+
+    def _record_frame(self, record: FrameResult, device_id: int, t_ns: int, recorder: Recorder) -> None:
         scene, points = "foxglove.SceneUpdate", "foxglove.PointCloud"
         recorder.write(device_topic(device_id, "image/scene"), frame_scene(record, device_id, t_ns), t_ns, scene)
         if record.material_s_m:
@@ -147,9 +165,6 @@ class Session:
             if record.material_s_m:
                 data = frame_point_cloud(record, device_id, t_ns, self.calibration)
                 recorder.write(device_topic(device_id, "plane/material_points"), data, t_ns, points)
-        if self.model is not None and device_id == self.model_device_id:
-            for topic, data, schema in self.model.messages(record, device_id, t_ns):
-                recorder.write(topic, data, t_ns, schema)
 
     def _raw_chunk(self, chunk: RawFrameChunk, device_id: int, t_ns: int) -> None:
         assembler = self._assemblers.setdefault(device_id, FrameAssembler())

@@ -17,6 +17,7 @@ from ropecam.shared.errors import ConfigError
 
 if TYPE_CHECKING:
     from ropecam.host.monitor.display import PlainDisplay, RichDisplay
+    from ropecam.host.monitor.live_model import LiveModel
     from ropecam.host.receiver import Packet, Receiver
     from ropecam.host.session import Session
 
@@ -114,6 +115,37 @@ def load_calibration(
     return (camera, plane_file.plane), metadata, attachments
 
 
+def load_live_model(
+    model_path: str, calibration: tuple | None
+) -> tuple[LiveModel, dict[str, dict[str, str]], tuple[str, str, bytes]]:
+    """Simulate the rope of `model_path` once and return the live model source, its metadata and attachment.
+
+    Raises
+    ------
+    ConfigError
+        No --plane (the model lives in metres on the plane), or a bad rope.toml.
+    """
+    if calibration is None:
+        raise ConfigError("--model needs --plane: the model is compared in metres on the plane")
+    from ropecam.host.model.cli import load_model_config
+    from ropecam.host.model.solver import CableModel
+    from ropecam.host.monitor.live_model import LiveModel
+
+    rope, solver = load_model_config(Path(model_path))
+    print(f"monitor: simulating the model of {model_path} ({solver.duration_s:g} s of swing)", file=sys.stderr)
+    trajectory, _ = CableModel(rope, solver).run()
+    metadata = {"model": {"file": str(model_path), "rope": repr(rope), "solver": repr(solver)}}
+    return (
+        LiveModel(trajectory, rope.length_m, calibration),
+        metadata,
+        (
+            Path(model_path).name,
+            "application/toml",
+            Path(model_path).read_bytes(),
+        ),
+    )
+
+
 def monitor_loop(
     receiver: Receiver,
     session: Session,
@@ -178,6 +210,11 @@ def _run(args: argparse.Namespace) -> int:
             overwrite=args.overwrite,
             fsync=args.fsync,
         )
+    model = None
+    if args.model is not None:
+        model, model_metadata, model_attachment = load_live_model(args.model, calibration)
+        calibration_metadata |= model_metadata
+        attachments.append(model_attachment)
     transport = open_transport(listening_url(args.source))  # first: a busy port must not leave a stray file
     recorder = None
     if config is not None:
@@ -188,7 +225,7 @@ def _run(args: argparse.Namespace) -> int:
         except ConfigError:
             transport.close()
             raise
-    session = Session(recorder, calibration)
+    session = Session(recorder, calibration, model)
     receiver = Receiver(transport)
     stop = {"requested": False}
     previous = signal.signal(signal.SIGTERM, lambda *_: stop.__setitem__("requested", True))
@@ -237,6 +274,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--camera", metavar="camera.yaml", help="intrinsics (ropecam calibrate); default: plane's")
     parser.add_argument(
         "--plane", metavar="plane.yaml", help="plane pose: adds tips in mm and the plane channels in metres"
+    )
+    parser.add_argument(
+        "--model",
+        metavar="rope.toml",
+        help="ANCF model (as `ropecam model simulate`); needs --plane. Once a device's rope was seen at rest and "
+        "then released, the model is aligned with the release and its rope and error are shown and recorded",
     )
     parser.add_argument("--overwrite", action="store_true", help="replace existing recording files")
     parser.add_argument("--roll-mb", type=float, default=0.0, help="start a new file after this many MB (0: never)")

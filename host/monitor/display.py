@@ -69,6 +69,8 @@ def format_row(row: DeviceRow) -> str:
         f"lat {_num(row.latency_ms, '.1f')} ms pipe {_num(row.pipeline_p50_us, '.0f')}/"
         f"{_num(row.pipeline_p99_us, '.0f')} us tip {_tip(row)} conf {_num(row.order_confidence, '.2f')}"
     )
+    if not math.isnan(row.model_error_mm):
+        text += f" model {row.model_error_mm:.1f} mm"
     if row.warnings:
         text += " !" + ",".join(row.warnings)
     return text
@@ -114,6 +116,7 @@ _COLUMNS: list[tuple[str, str, bool, Callable[[DeviceRow], str]]] = [  # name, j
     ("pipe us", "right", False, lambda r: f"{_num(r.pipeline_p50_us, '.0f')}/{_num(r.pipeline_p99_us, '.0f')}"),
     ("tip px (mm)", "left", False, lambda r: _tip(r, compact=True)),
     ("conf", "right", False, lambda r: _num(r.order_confidence, ".2f")),
+    ("model mm", "right", False, lambda r: _num(r.model_error_mm, ".1f")),
 ]
 
 
@@ -147,7 +150,7 @@ class RichDisplay:
             box=box.SIMPLE_HEAD,
         )
         wide = self._console.width >= _WIDE_COLUMNS
-        columns = [column for column in _COLUMNS if wide or not column[2]]
+        columns = [c for c in _COLUMNS if (wide or not c[2]) and (c[0] != "model mm" or session.model is not None)]
         for name, justify, _, _ in columns:
             wraps = name == "tip px (mm)"
             table.add_column(name, justify=justify, no_wrap=not wraps, min_width=8 if wraps else None)  # type: ignore[arg-type]
@@ -169,6 +172,9 @@ class RichDisplay:
                     style="yellow",
                 )
             )
+        describe = getattr(session.model, "describe", None)
+        if describe is not None:
+            lines.append(Text(describe(), style="cyan"))
         for device_id, level, text in session.recent_logs:
             lines.append(Text(f"dev{device_id} [{level}] {text}", style="red" if level >= 30 else "dim"))
         self._live.update(Group(*lines), refresh=True)

@@ -45,6 +45,7 @@ class _Device:
     lost_reported: int = 0
     device_dropped: int = 0
     device_dropped_reported: int = 0
+    model_error_mm: float = math.nan
 
 
 @dataclass(frozen=True, slots=True)
@@ -70,6 +71,7 @@ class DeviceRow:
     decoded_fraction: float
     device_dropped: int
     warnings: tuple[str, ...]
+    model_error_mm: float = math.nan
 
 
 class StreamStats:
@@ -143,6 +145,10 @@ class StreamStats:
             device.tip_px = tip_px
             device.tip_plane_m = tip_plane_m
 
+    def model_compared(self, device_id: int, rms_error_mm: float) -> None:
+        """Record the RMS distance (mm) of the latest frame's material points from the model."""
+        self._device(device_id).model_error_mm = rms_error_mm
+
     def status_received(self, device_id: int, frames_dropped: int) -> None:
         """Record the device's own count of dropped frames (from its Status)."""
         self._device(device_id).device_dropped = frames_dropped
@@ -210,6 +216,7 @@ class StreamStats:
                     decoded_fraction=device.decoded_frames / device.frames if device.frames else math.nan,
                     device_dropped=device.device_dropped,
                     warnings=tuple(warnings),
+                    model_error_mm=device.model_error_mm,
                 )
             )
         return rows

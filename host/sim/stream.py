@@ -96,8 +96,29 @@ class SimulatedDevice:
         ]
         self.sequence = 0
 
-    def messages(self, count: int, start_t_ns: int | None = None) -> Iterator[tuple[float, bytes]]:
-        """Yield (send offset in s from the start, message bytes) for `count` frames plus Status and Log messages."""
+    def _rest_message(self) -> bytes:
+        """The rope held still before the release: frame 0's start shape at both ends of the exposure."""
+        import dataclasses
+
+        from ropecam.shared.protocol.wire import encode_message
+
+        first = self.frames[0]
+        rest = dataclasses.replace(
+            first,
+            end_px=first.begin_px,
+            end_tip_px=first.begin_tip_px,
+            material_end_px=first.material_begin_px,
+        )
+        return encode_message(rest, device_id=self.device_id, sequence=0, t_ns=rest.exposure_start_t_ns)
+
+    def messages(
+        self, count: int, start_t_ns: int | None = None, rest_frames: int = 0
+    ) -> Iterator[tuple[float, bytes]]:
+        """Yield (send offset in s from the start, message bytes) for `count` frames plus Status and Log messages.
+
+        The first `rest_frames` frames show the rope held at rest; the swing (the release) starts after them, at
+        ``start_t_ns + rest_frames / fps``.
+        """
         from ropecam.shared.protocol.records import Log, Status
 
         start_t_ns = time.time_ns() if start_t_ns is None else start_t_ns
@@ -109,10 +130,12 @@ class SimulatedDevice:
                 Log(logging.INFO, f"simulated device {self.device_id} streaming at {self.fps:g} FPS"), start_t_ns
             ),
         )
+        rest = self._rest_message() if rest_frames else b""
         for k in range(count):
             t_ns = start_t_ns + k * period_ns
             self.sequence = (self.sequence + 1) & 0xFFFF_FFFF
-            yield k * period_ns / 1e9, restamp(self._encoded[k % len(self._encoded)], self.sequence, t_ns)
+            encoded = rest if k < rest_frames else self._encoded[(k - rest_frames) % len(self._encoded)]
+            yield k * period_ns / 1e9, restamp(encoded, self.sequence, t_ns)
             if (k + 1) % per_status == 0:
                 status = Status(
                     frame_rate_hz=self.fps,
