@@ -23,6 +23,10 @@ COMMAND_MODULES: tuple[str, ...] = (
     "ropecam.host.calibration.cli",
     "ropecam.host.compare.cli",
     "ropecam.host.keygen",
+    "ropecam.host.monitor.cli",
+    "ropecam.host.replay",
+    "ropecam.host.recording.recover",
+    "ropecam.host.sim.stream",
 )
 
 

@@ -1,0 +1,155 @@
+"""The ANCF model next to a recorded run: the model's rope and its error, as channels of a replayed recording.
+
+`ModelOverlay.fit` does what `ropecam compare` does (material-point tracks in metres, least-squares release time,
+one model run over the whole recording); `ModelOverlay.messages` then gives, for each replayed FrameResult, the
+model's rope at the start and end of the exposure (``foxglove.SceneUpdate`` in the plane frame) and the distance of
+each measured material point from the model (``ropecam.ModelError``, mm).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Final
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ropecam.host.calibration.geometry import CameraModel, PlanePose, pixels_to_plane
+from ropecam.shared.errors import DataError
+
+if TYPE_CHECKING:
+    from ropecam.host.model.config import RopeConfig, SolverConfig
+    from ropecam.host.model.trajectory import Trajectory
+    from ropecam.shared.protocol.records import FrameResult
+
+__all__ = ["ModelOverlay"]
+
+MODEL_POINTS: Final = 101
+"""Samples of the model rope drawn per shape."""
+_MODEL_COLOR: Final = '{"r":0.2,"g":0.9,"b":0.3,"a":1.0}'
+
+
+@dataclasses.dataclass(frozen=True)
+class ModelOverlay:
+    """A model trajectory aligned with a device's clock.
+
+    Parameters
+    ----------
+    trajectory
+        The model run (model time 0 = release).
+    release_time_s
+        Release time on the device clock (seconds).
+    length_m
+        Unstretched rope length of the model.
+    s_m
+        Material points (arc lengths from the fixed end) whose error is reported.
+    calibration
+        (camera, plane pose) that turns the device's pixels into metres on the plane.
+    """
+
+    trajectory: Trajectory
+    release_time_s: float
+    length_m: float
+    s_m: tuple[float, ...]
+    calibration: tuple[CameraModel, PlanePose]
+    rms_error_m: float = math.nan
+
+    @classmethod
+    def fit(
+        cls,
+        frames: Sequence[FrameResult],
+        calibration: tuple[CameraModel, PlanePose],
+        rope: RopeConfig,
+        solver: SolverConfig,
+        s_m: Sequence[float] | None = None,
+        release_time_s: float | None = None,
+        progress: Callable[[int, float], None] | None = None,
+    ) -> ModelOverlay:
+        """Fit the release time to the measured frames (as `ropecam compare`) and run the model over them.
+
+        Raises
+        ------
+        DataError
+            No frame has a measured shape.
+        """
+        from ropecam.host.compare.identify import fit_parameters
+        from ropecam.host.compare.measurement import MeasuredFrame, tracks_from_frames
+        from ropecam.host.compare.tracks import model_positions, point_errors
+        from ropecam.host.model.solver import CableModel
+
+        points = tuple(s_m) if s_m else tuple(rope.length_m * f for f in (0.25, 0.5, 0.75, 1.0))
+        measured = [
+            MeasuredFrame(
+                f.frame_index, f.exposure_start_t_ns, f.exposure_end_t_ns, f.begin_px, f.end_px, f.status.name
+            )
+            for f in frames
+        ]
+        if not measured:
+            raise DataError("the recording holds no FrameResult of the chosen device: nothing to compare")
+        tracks, _ = tracks_from_frames(measured, *calibration, points, rope.length_m)
+        seen = tracks.measured.any(axis=1)
+        if not seen.any():
+            raise DataError("no frame of the recording has a measured rope shape: nothing to compare")
+        start = release_time_s if release_time_s is not None else float(tracks.times_s[seen][0])
+        fit = fit_parameters(tracks, rope, solver, names=("t0",), release_time_s=start, progress=progress)
+        duration = max(float(tracks.times_s[-1] - fit.release_time_s) + 0.01, 2 * solver.step_s)
+        trajectory, _ = CableModel(fit.rope, dataclasses.replace(solver, duration_s=duration)).run()
+        errors = point_errors(tracks, model_positions(trajectory, tracks, fit.release_time_s))
+        return cls(trajectory, fit.release_time_s, rope.length_m, points, calibration, errors.overall_rms_m)
+
+    def _model_time(self, t_ns: int) -> float:
+        times = self.trajectory.times_s
+        return float(np.clip(t_ns * 1e-9 - self.release_time_s, times[0], times[-1]))
+
+    def _errors_mm(self, shape_px: NDArray[np.float64] | None, model_t_s: float) -> list[float | None]:
+        from ropecam.host.compare.measurement import points_at_arc_lengths
+
+        if shape_px is None:
+            return [None] * len(self.s_m)
+        curve_m = pixels_to_plane(shape_px, *self.calibration)
+        measured, _ = points_at_arc_lengths(curve_m, np.asarray(self.s_m), self.length_m)
+        model = self.trajectory.positions([model_t_s], self.s_m)[0]
+        distance_mm = np.linalg.norm(measured - model, axis=1) * 1e3
+        return [None if math.isnan(d) else round(float(d), 6) for d in distance_mm]
+
+    def frame_errors_mm(self, record: FrameResult) -> tuple[list[float | None], list[float | None]]:
+        """Distances (mm) of the frame's material points from the model at exposure start and end (None: unmeasured)."""
+        return (
+            self._errors_mm(record.begin_px, self._model_time(record.exposure_start_t_ns)),
+            self._errors_mm(record.end_px, self._model_time(record.exposure_end_t_ns)),
+        )
+
+    def messages(
+        self, record: FrameResult, device_id: int, t_ns: int, errors_mm: tuple[list, list] | None = None
+    ) -> list[tuple[str, bytes, str]]:
+        """Return (topic, JSON bytes, schema name) of the model channels for one frame (`errors_mm` if computed)."""
+        from ropecam.host.recording.convert import model_scene
+        from ropecam.host.session import device_topic
+
+        times = (self._model_time(record.exposure_start_t_ns), self._model_time(record.exposure_end_t_ns))
+        begin_mm, end_mm = errors_mm if errors_mm is not None else self.frame_errors_mm(record)
+        grid = np.linspace(0.0, self.length_m, MODEL_POINTS)
+        shapes = self.trajectory.positions(list(times), grid)
+        scene = model_scene(shapes, _MODEL_COLOR, device_id, t_ns, record.frame_index)
+        sec, nsec = divmod(max(0, t_ns), 1_000_000_000)
+        error = {
+            "timestamp": {"sec": sec, "nsec": nsec},
+            "device_id": device_id,
+            "frame_index": record.frame_index,
+            "release_time_s": self.release_time_s,
+            "model_time_s": list(times),
+            "s_m": list(self.s_m),
+            "error_begin_mm": begin_mm,
+            "error_end_mm": end_mm,
+        }
+        return [
+            (device_topic(device_id, "plane/model"), scene, "foxglove.SceneUpdate"),
+            (
+                device_topic(device_id, "model_error"),
+                json.dumps(error, separators=(",", ":")).encode(),
+                "ropecam.ModelError",
+            ),
+        ]

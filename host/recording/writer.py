@@ -1,0 +1,313 @@
+"""MCAP recorder: zstd chunks closed at least every `flush_s`, files rolled by size or time, failures contained.
+
+Durability: the mcap writer keeps the open chunk in memory; `Recorder.tick` closes it and flushes the file every
+`flush_s` (0.5 s by default), so a host killed by SIGKILL loses at most that much: `ropecam recover` rebuilds the
+rest (`recover.recover_mcap`). A write that fails (disk full, file system gone read-only) stops the recording with a
+clear message, cuts the file back to the end of the last complete flush (so it is a clean, recoverable prefix, and
+the space of the broken chunk is freed) and lets the caller go on monitoring: nothing flushed before is lost.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO, Any, Final
+
+from mcap.writer import CompressionType, Writer
+
+from ropecam.host.recording.schemas import schema_bytes
+from ropecam.shared.config import check_positive
+from ropecam.shared.errors import ConfigError
+
+__all__ = ["PROFILE", "Recorder", "RecordingConfig", "part_path"]
+
+PROFILE: Final = "ropecam"
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, slots=True)
+class RecordingConfig:
+    """How to record.
+
+    Parameters
+    ----------
+    path
+        The first file; later parts of a rolled recording are ``<stem>_001<suffix>``, ``<stem>_002<suffix>``, ...
+    flush_s
+        Longest time a message stays in memory before it is in the file (chunk closed and flushed).
+    roll_bytes
+        Start a new file when the current one exceeds this size (0: never).
+    roll_s
+        Start a new file after this many seconds (0: never).
+    chunk_bytes
+        Uncompressed chunk size at which a chunk is closed early (before the flush timer).
+    overwrite
+        Replace existing files instead of refusing to start.
+    fsync
+        Also ask the OS to write each flush to the disk (survives power loss, costs a disk sync per flush).
+    """
+
+    path: Path
+    flush_s: float = 0.5
+    roll_bytes: int = 0
+    roll_s: float = 0.0
+    chunk_bytes: int = 4 << 20
+    overwrite: bool = False
+    fsync: bool = False
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "path", Path(self.path))
+        check_positive("flush_s", self.flush_s)
+        check_positive("chunk_bytes", self.chunk_bytes)
+        if self.flush_s > 1.0:
+            raise ConfigError(f"flush_s must be at most 1.0 s (at most 1 s may be lost in a crash), got {self.flush_s}")
+        if self.roll_bytes < 0 or self.roll_s < 0:
+            raise ConfigError(
+                f"roll_bytes and roll_s must be >= 0 (0: no rolling), got {self.roll_bytes}, {self.roll_s}"
+            )
+
+
+def part_path(path: Path, index: int) -> Path:
+    """Return the file name of part `index` of a recording that starts at `path` (part 0 is `path` itself)."""
+    return path if index == 0 else path.with_name(f"{path.stem}_{index:03d}{path.suffix}")
+
+
+Opener = Callable[[Path, bool], IO[bytes]]
+
+
+def _open_file(path: Path, overwrite: bool) -> IO[bytes]:
+    return open(path, "wb" if overwrite else "xb")  # closed by Recorder
+
+
+class Recorder:
+    """Write messages into (rolled) MCAP files.
+
+    Parameters
+    ----------
+    config
+        Paths, flush and roll settings.
+    metadata
+        Named metadata records written into every part (e.g. ``{"rig": {...}, "calibration": {...}}``).
+    attachments
+        (name, media type, bytes) written into every part (e.g. calibration files).
+    opener
+        ``(path, overwrite) -> binary file``; tests inject failing files here.
+
+    Raises
+    ------
+    ConfigError
+        The first file exists (and `overwrite` is False), or cannot be created.
+    """
+
+    def __init__(
+        self,
+        config: RecordingConfig,
+        metadata: Mapping[str, Mapping[str, str]] | None = None,
+        attachments: Sequence[tuple[str, str, bytes]] = (),
+        opener: Opener = _open_file,
+    ) -> None:
+        self.config = config
+        self._metadata = {name: dict(values) for name, values in (metadata or {}).items()}
+        self._attachments = list(attachments)
+        self._opener = opener
+        self.parts: list[Path] = []
+        self.error: str | None = None
+        self.messages = 0
+        self.flushed_messages = 0
+        """Messages known to be in the files (written before the last completed flush)."""
+        self.unrecorded = 0
+        self._writer: Writer | None = None
+        self._stream: IO[bytes] | None = None
+        self._channels: dict[str, int] = {}
+        self._schemas: dict[str, int] = {}
+        self._good_offset = 0
+        self._last_flush = time.monotonic()
+        self._part_started = self._last_flush
+        self._next_part: int | None = None  # rolled: the next part opens with its first message (no empty files)
+        self._open_part(0, fatal=True)
+
+    @property
+    def active(self) -> bool:
+        """True while messages are being written (False after a failure or `close`)."""
+        return self._writer is not None or self._next_part is not None
+
+    @property
+    def path(self) -> Path | None:
+        """The file being written now."""
+        return self.parts[-1] if self.parts else None
+
+    def _open_part(self, index: int, fatal: bool = False) -> None:
+        path = part_path(self.config.path, index)
+        try:
+            stream = self._opener(path, self.config.overwrite)
+        except FileExistsError as exc:
+            message = f"{path} exists; choose another --record file or pass --overwrite"
+            if fatal:
+                raise ConfigError(message) from exc
+            self._fail(message)
+            return
+        except OSError as exc:
+            message = f"cannot create recording file {path}: {exc.strerror or exc}"
+            if fatal:
+                raise ConfigError(message) from exc
+            self._fail(message)
+            return
+        self._stream = stream
+        self._good_offset = 0
+        self.parts.append(path)
+        self._channels.clear()
+        self._schemas.clear()
+        try:
+            writer = Writer(stream, chunk_size=self.config.chunk_bytes, compression=CompressionType.ZSTD)
+            writer.start(profile=PROFILE, library="ropecam")
+            for name, values in self._metadata.items():
+                writer.add_metadata(name, values)
+            now_ns = time.time_ns()
+            for name, media_type, data in self._attachments:
+                writer.add_attachment(now_ns, now_ns, name, media_type, data)
+            self._writer = writer
+            self._flush()
+        except OSError as exc:
+            self._fail(f"writing {path} failed: {exc.strerror or exc}")
+            if fatal:
+                path.unlink(missing_ok=True)  # created just now and holds nothing
+                raise ConfigError(f"cannot write recording file {path}: {exc.strerror or exc}") from exc
+            return
+        self._part_started = time.monotonic()
+
+    def _channel(self, topic: str, schema_name: str | None, message_encoding: str) -> int:
+        channel_id = self._channels.get(topic)
+        if channel_id is None:
+            assert self._writer is not None
+            schema_id = 0
+            if schema_name is not None:
+                schema_id = self._schemas.get(schema_name, 0)
+                if not schema_id:
+                    schema_id = self._writer.register_schema(schema_name, "jsonschema", schema_bytes(schema_name))
+                    self._schemas[schema_name] = schema_id
+            channel_id = self._writer.register_channel(topic, message_encoding, schema_id)
+            self._channels[topic] = channel_id
+        return channel_id
+
+    def write(
+        self,
+        topic: str,
+        data: bytes,
+        log_time_ns: int,
+        schema_name: str | None = None,
+        message_encoding: str = "json",
+        sequence: int = 0,
+    ) -> bool:
+        """Add one message; False (counted in `unrecorded`) when the recording has stopped.
+
+        Parameters
+        ----------
+        topic
+            Channel topic, registered on first use in each file.
+        data
+            Message bytes.
+        log_time_ns
+            Host receive time (ns since the epoch).
+        schema_name
+            A name of `schemas.SCHEMAS`, or None for schemaless channels (the raw wire channel).
+        message_encoding
+            ``"json"`` for the schema channels; the raw channel uses its own encoding name.
+        sequence
+            The wire sequence number (uint32), for tools that look at it.
+        """
+        if self._writer is None and self._next_part is not None:
+            index, self._next_part = self._next_part, None
+            self._open_part(index)
+        if self._writer is None:
+            self.unrecorded += 1
+            return False
+        try:
+            channel_id = self._channel(topic, schema_name, message_encoding)
+            self._writer.add_message(channel_id, log_time_ns, data, log_time_ns, sequence)
+        except OSError as exc:
+            self._fail(f"writing {self.path} failed: {exc.strerror or exc}")
+            self.unrecorded += 1
+            return False
+        self.messages += 1
+        return True
+
+    def _flush(self) -> None:
+        assert self._writer is not None and self._stream is not None
+        self._writer.flush()
+        if self.config.fsync:
+            os.fsync(self._stream.fileno())
+        self._good_offset = self._stream.tell()
+        self.flushed_messages = self.messages
+        self._last_flush = time.monotonic()
+
+    def tick(self) -> None:
+        """Flush when `flush_s` has passed and roll when the part is big or old enough; call it often (>= 10 Hz)."""
+        if self._writer is None:
+            return
+        now = time.monotonic()
+        try:
+            if now - self._last_flush >= self.config.flush_s:
+                self._flush()
+            roll = (self.config.roll_bytes and self._good_offset >= self.config.roll_bytes) or (
+                self.config.roll_s and now - self._part_started >= self.config.roll_s
+            )
+        except OSError as exc:
+            self._fail(f"writing {self.path} failed: {exc.strerror or exc}")
+            return
+        if roll and self._finish():
+            self._next_part = len(self.parts)
+
+    def _finish(self) -> bool:
+        writer, stream = self._writer, self._stream
+        if writer is None or stream is None:
+            return False
+        try:
+            writer.finish()
+            stream.flush()
+            if self.config.fsync:
+                os.fsync(stream.fileno())
+        except OSError as exc:
+            self._fail(f"closing {self.path} failed: {exc.strerror or exc}")
+            return False
+        self._writer = None
+        self._stream = None
+        try:
+            stream.close()
+        except OSError as exc:
+            self.error = f"closing {self.path} failed: {exc.strerror or exc}"
+            log.error("%s", self.error)
+            return False
+        return True
+
+    def _fail(self, message: str) -> None:
+        """Stop recording after an I/O error, keeping the file's last complete flush."""
+        stream, self._writer, self._stream = self._stream, None, None
+        kept = f"; {self.path} keeps everything up to its last flush" if self.parts else ""
+        self.error = message + kept
+        if stream is not None:
+            self.error += f" (run `ropecam recover {self.path} --out FIXED.mcap` to make it a complete file)"
+            try:
+                stream.close()  # its buffered tail fails again; the file is cut back below anyway
+            except (OSError, ValueError) as exc:
+                log.debug("closing %s after the failure: %s", self.path, exc)
+            try:
+                if self.path is not None:
+                    os.truncate(self.path, self._good_offset)
+            except OSError as exc:
+                log.warning("could not cut %s back to its last flush: %s", self.path, exc)
+        log.error("recording stopped: %s", self.error)
+
+    def close(self) -> None:
+        """Finish the current file (summary and index written) and stop."""
+        self._next_part = None
+        self._finish()
+
+    def __enter__(self) -> Recorder:
+        return self
+
+    def __exit__(self, *exc_info: Any) -> None:
+        self.close()

@@ -1,0 +1,319 @@
+"""`ropecam replay`: feed a recording's raw wire channel through the live path again (statistics, decoding, recording).
+
+Each recorded message re-enters `Session.handle` with its recorded receive time, so the statistics and every decoded
+channel of a new recording (``--record``) come out exactly as the live ones did.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from ropecam.shared.errors import ConfigError, DataError
+
+if TYPE_CHECKING:
+    from ropecam.host.model_overlay import ModelOverlay
+    from ropecam.host.session import Session
+    from ropecam.shared.protocol.wire import Message
+
+__all__ = ["iter_raw", "recording_parts", "register", "replay"]
+
+
+def recording_parts(path: Path) -> list[Path]:
+    """Return `path` and the later parts of its rolled recording (``<stem>_001<suffix>``, ...) that exist."""
+    from ropecam.host.recording.writer import part_path
+
+    if not path.exists():
+        raise DataError(f"recording {path} does not exist")
+    parts = [path]
+    while (following := part_path(path, len(parts))).exists():
+        parts.append(following)
+    return parts
+
+
+def iter_raw(paths: Sequence[Path]) -> Iterator[tuple[bytes, int]]:
+    """Yield (wire bytes, receive time ns) of every raw-channel message of the files, in recorded order.
+
+    Raises
+    ------
+    DataError
+        A file cannot be read as MCAP (for a crashed recording, run `ropecam recover` first) or holds no raw channel.
+    """
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+
+    from ropecam.host.session import RAW_TOPIC
+
+    found = False
+    for path in paths:
+        try:
+            with open(path, "rb") as handle:
+                reader = make_reader(handle)
+                for _, _channel, message in reader.iter_messages(topics=[RAW_TOPIC], log_time_order=False):
+                    found = True
+                    yield message.data, message.log_time
+        except (McapError, OSError, EOFError) as exc:
+            raise DataError(
+                f"cannot read {path}: {exc} (a recording cut by a crash: `ropecam recover {path} --out FIXED.mcap`)"
+            ) from exc
+    if not found:
+        raise DataError(f"{', '.join(map(str, paths))} hold no {RAW_TOPIC} messages: not a ropecam recording?")
+
+
+def count_raw(paths: Sequence[Path]) -> int:
+    """Return the number of raw-channel messages of complete recordings (from their summaries; 0 when unknown)."""
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+
+    from ropecam.host.session import RAW_TOPIC
+
+    total = 0
+    for path in paths:
+        try:
+            with open(path, "rb") as handle:
+                summary = make_reader(handle).get_summary()
+        except (McapError, OSError, EOFError):
+            return 0
+        if summary is None or summary.statistics is None:
+            return 0
+        counts = summary.statistics.channel_message_counts
+        total += sum(counts.get(c.id, 0) for c in summary.channels.values() if c.topic == RAW_TOPIC)
+    return total
+
+
+def replay(
+    paths: Sequence[Path],
+    session: Session,
+    speed: float | None = None,
+    progress: Callable[[int], None] | None = None,
+    on_message: Callable[[Message], None] | None = None,
+) -> int:
+    """Run every raw message of `paths` through `session` (a `ropecam.host.session.Session`); return the count.
+
+    Parameters
+    ----------
+    speed
+        1.0 replays in real time (2.0 twice as fast); None as fast as possible.
+    progress
+        Called with the number of messages done (optional).
+    on_message
+        Called with every message the session decoded (optional).
+    """
+    from ropecam.host.receiver import check_packet
+
+    count = 0
+    first_t_ns = None
+    start = time.monotonic()
+    for data, receive_t_ns in iter_raw(paths):
+        if speed is not None:
+            first_t_ns = receive_t_ns if first_t_ns is None else first_t_ns
+            delay = start + (receive_t_ns - first_t_ns) / 1e9 / speed - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+        message = session.handle(check_packet(data, receive_t_ns))
+        if message is not None and on_message is not None:
+            on_message(message)
+        count += 1
+        if count % 64 == 0:
+            session.tick()
+            if progress is not None:
+                progress(count)
+    if progress is not None:
+        progress(count)
+    return count
+
+
+class _JsonlExport:
+    """Write one device's FrameResults as `ropecam-device extract` JSON lines (input of `ropecam compare`)."""
+
+    def __init__(self, path: Path, device_id: int | None, overwrite: bool) -> None:
+        try:
+            self._handle = open(path, "w" if overwrite else "x", encoding="utf-8")  # noqa: SIM115  (closed in close)
+        except FileExistsError as exc:
+            raise ConfigError(f"{path} exists; choose another --export-jsonl or pass --overwrite") from exc
+        except OSError as exc:
+            raise ConfigError(f"cannot write {path}: {exc.strerror or exc}") from exc
+        self.path = path
+        self.device_id = device_id
+        self.frames = 0
+        self.other_devices: set[int] = set()
+
+    def add(self, message: Message) -> None:
+        import json
+
+        from ropecam.host.recording.convert import frame_result_json
+        from ropecam.shared.protocol.records import FrameResult
+
+        if not isinstance(message.record, FrameResult):
+            return
+        device_id = message.header.device_id
+        if self.device_id is None:
+            self.device_id = device_id
+        if device_id != self.device_id:
+            self.other_devices.add(device_id)
+            return
+        self._handle.write(json.dumps(frame_result_json(message.record), separators=(",", ":")) + "\n")
+        self.frames += 1
+
+    def close(self) -> None:
+        self._handle.close()
+
+    def summary(self) -> str:
+        text = f"exported {self.frames} frames of device {self.device_id} to {self.path}"
+        if self.other_devices:
+            text += f" (devices {sorted(self.other_devices)} left out: choose with --device)"
+        return text
+
+
+def _fit_model(parts: Sequence[Path], args: argparse.Namespace, calibration: tuple) -> tuple[ModelOverlay, int]:
+    """First pass over the recording: one device's FrameResults -> `ModelOverlay.fit` (release time, model run)."""
+    import sys
+
+    from ropecam.host.model.cli import load_model_config
+    from ropecam.host.model_overlay import ModelOverlay
+    from ropecam.shared.errors import ProtocolError
+    from ropecam.shared.protocol.records import FrameResult
+    from ropecam.shared.protocol.wire import decode_message
+
+    rope, solver = load_model_config(Path(args.model))
+    frames: dict[int, FrameResult] = {}  # by sequence: duplicates once
+    device_id = args.device
+    for data, _ in iter_raw(parts):
+        try:
+            message = decode_message(data)
+        except ProtocolError:
+            continue
+        if not isinstance(message.record, FrameResult):
+            continue
+        if device_id is None:
+            device_id = message.header.device_id
+        if message.header.device_id == device_id:
+            frames[message.header.sequence] = message.record
+    if device_id is None:
+        raise DataError(f"{parts[0]} holds no FrameResult: nothing to compare with the model")
+    ordered = sorted(frames.values(), key=lambda f: f.exposure_start_t_ns)
+    print(f"device {device_id}: {len(ordered)} frames; fitting the release time of the model", file=sys.stderr)
+
+    def report(evaluations: int, rms_m: float) -> None:
+        print(f"  model runs {evaluations}: RMS {rms_m * 1e3:.3f} mm", file=sys.stderr, end="\r")
+
+    overlay = ModelOverlay.fit(ordered, calibration, rope, solver, release_time_s=args.release_time_s, progress=report)
+    print(
+        f"\nrelease at {overlay.release_time_s:.6f} s (device clock); RMS error {overlay.rms_error_m * 1e3:.3f} mm",
+        file=sys.stderr,
+    )
+    return overlay, device_id
+
+
+def _speed(text: str) -> float | None:
+    if text == "max":
+        return None
+    try:
+        value = float(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"--speed must be a positive number or 'max', got {text!r}") from exc
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"--speed must be a positive number or 'max', got {text!r}")
+    return value
+
+
+def _run(args: argparse.Namespace) -> int:
+    from ropecam.host.monitor.cli import load_calibration, rig_metadata
+    from ropecam.host.monitor.display import format_row
+    from ropecam.host.progress import progress_bar
+    from ropecam.host.recording.writer import Recorder, RecordingConfig
+    from ropecam.host.session import Session
+
+    if args.reprocess and args.plane is None:
+        raise ConfigError("--reprocess needs --plane (and optionally --camera): the calibration to apply")
+    if args.model is not None and (args.plane is None or not args.record):
+        raise ConfigError("--model needs --plane (the model lives in metres) and --record (where its channels go)")
+    calibration, calibration_metadata, attachments = load_calibration(args.camera, args.plane)
+    source = Path(args.recording)
+    parts = recording_parts(source)
+    recorder = None
+    if args.record:
+        target = Path(args.record)
+        if target.resolve() in {p.resolve() for p in parts}:
+            raise ConfigError(f"--record {target} is the recording being replayed; choose another file")
+        metadata = rig_metadata(f"replay of {source}") | calibration_metadata
+        recorder = Recorder(RecordingConfig(target, overwrite=args.overwrite), metadata, attachments)
+    model = None
+    if args.model is not None:
+        overlay, model_device = _fit_model(parts, args, calibration)
+        model = lambda record, device_id: overlay if device_id == model_device else None  # noqa: E731
+    session = Session(recorder, calibration, model)
+    export = _JsonlExport(Path(args.export_jsonl), args.device, args.overwrite) if args.export_jsonl else None
+    try:
+        with progress_bar("replay", max(1, count_raw(parts)), "messages") as progress:
+            count = replay(parts, session, args.speed, progress, on_message=export.add if export else None)
+    finally:
+        session.close()
+        if export is not None:
+            export.close()
+    print(f"replayed {count} messages from {', '.join(str(p) for p in parts)}")
+    for row in session.snapshot(session.stats.last_receive_t_ns):
+        print(format_row(row))
+    if session.stats.bad_packets:
+        print(f"{session.stats.bad_packets} unreadable packets")
+    if export is not None:
+        print(export.summary())
+    if recorder is not None:
+        if recorder.error:
+            print(f"error: {recorder.error}")
+            return 1
+        print(f"recorded {recorder.messages} messages to {', '.join(str(p) for p in recorder.parts)}")
+    return 0
+
+
+HELP = """\
+Replay a recording made by `ropecam monitor --record`: its raw wire messages go through the same receiving,
+statistics, decoding and recording code as live data, with their recorded receive times. With --record the
+decoded channels are written again (also the frames the live monitor had to skip under load).
+Rolled recordings (run.mcap, run_001.mcap, ...) are replayed in order. A recording cut by a crash needs
+`ropecam recover` first.
+
+examples:
+  ropecam replay run.mcap
+  ropecam replay run.mcap --speed 1
+  ropecam replay run.mcap --record run-decoded.mcap
+  ropecam replay run.mcap --reprocess --plane plane.yaml --record run-metres.mcap
+  ropecam replay run.mcap --export-jsonl run.jsonl && ropecam compare run.jsonl --plane plane.yaml --out report/
+  ropecam replay run.mcap --plane plane.yaml --model rope.toml --record run-model.mcap
+"""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add the `replay` sub-command."""
+    parser = subparsers.add_parser(
+        "replay", help="replay a recording through the live path", description=HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )  # fmt: skip
+    parser.add_argument("recording", help="the .mcap file (first part of a rolled recording)")
+    parser.add_argument("--speed", type=_speed, default=None, help="1 = real time, 2 = twice as fast, max (default)")
+    parser.add_argument("--record", metavar="NEW.mcap", help="record the replayed stream to a new file")
+    parser.add_argument("--overwrite", action="store_true", help="replace --record if it exists")
+    parser.add_argument(
+        "--reprocess", action="store_true", help="apply --camera/--plane (a new calibration) to the recorded stream"
+    )
+    parser.add_argument("--camera", metavar="camera.yaml", help="intrinsics; default: the plane file's camera")
+    parser.add_argument("--plane", metavar="plane.yaml", help="plane pose: plane channels in metres, tips in mm")
+    parser.add_argument(
+        "--export-jsonl",
+        metavar="FILE.jsonl",
+        help="also write the FrameResults as `ropecam-device extract` JSON lines (input of `ropecam compare`)",
+    )
+    parser.add_argument(
+        "--device", type=int, help="device id for --export-jsonl and --model (default: the first one seen)"
+    )
+    parser.add_argument(
+        "--model",
+        metavar="rope.toml",
+        help="fit the ANCF model (as `ropecam compare`: release time by least squares) and record its rope "
+        "(/device<ID>/plane/model) and its error at the material points (/device<ID>/model_error); needs --plane",
+    )
+    parser.add_argument("--release-time-s", type=float, help="start value of the release time fit (device clock, s)")
+    parser.set_defaults(func=_run)

@@ -1,0 +1,113 @@
+"""Fixtures of the receiver, recording, replay and monitor tests: a simulated device and a monitor subprocess."""
+
+from __future__ import annotations
+
+import os
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from ropecam.host.sim.stream import SimulatedDevice
+from ropecam.shared.transport.base import Transport
+
+
+@pytest.fixture(scope="session")
+def sim_device() -> SimulatedDevice:
+    """A simulated device (id 7) with 12 distinct encoded rig frames."""
+    return SimulatedDevice(7, frame_count=12, seed=3)
+
+
+def free_udp_port() -> int:
+    """Return a UDP port on 127.0.0.1 that was free a moment ago."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind(("127.0.0.1", 0))
+        return probe.getsockname()[1]
+
+
+class MonitorProcess:
+    """`ropecam monitor --no-ui` in a subprocess, started and waited for until it listens."""
+
+    def __init__(self, args: list[str]) -> None:
+        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "ropecam.host.cli", "monitor", "--no-ui", *args],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=env,
+        )
+        line = self.process.stderr.readline()
+        if "receiving on" not in line:
+            self.process.kill()
+            out, err = self.process.communicate()
+            raise AssertionError(f"monitor did not start: {line}{err}{out}")
+
+    def finish(self, timeout_s: float = 30.0) -> tuple[int, str, str]:
+        """Wait for the exit; return (code, stdout, stderr)."""
+        out, err = self.process.communicate(timeout=timeout_s)
+        return self.process.returncode, out, err
+
+
+@pytest.fixture
+def monitor_process() -> Iterator[type[MonitorProcess]]:
+    """Factory of monitor subprocesses; any still running at the end is killed."""
+    started: list[MonitorProcess] = []
+
+    class Tracked(MonitorProcess):
+        def __init__(self, args: list[str]) -> None:
+            super().__init__(args)
+            started.append(self)
+
+    yield Tracked
+    for monitor in started:
+        if monitor.process.poll() is None:
+            monitor.process.kill()
+            monitor.process.communicate()
+
+
+def read_mcap(path: Path) -> list[tuple[str, str | None, int, bytes]]:
+    """Return (topic, schema name, log time, data) of every message of a complete MCAP file, in file order."""
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as handle:
+        reader = make_reader(handle)
+        return [
+            (channel.topic, schema.name if schema else None, message.log_time, message.data)
+            for schema, channel, message in reader.iter_messages(log_time_order=False)
+        ]
+
+
+def send_paced(link: Transport, messages: list[bytes], fps: float = 119.0) -> list[float]:
+    """Send `messages` at `fps`; return the monotonic send time of each."""
+    start = time.monotonic()
+    times = []
+    for k, data in enumerate(messages):
+        delay = start + k / fps - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+        link.send(data)
+        times.append(time.monotonic())
+    return times
+
+
+@pytest.fixture
+def udp_port() -> int:
+    """A free UDP port on 127.0.0.1."""
+    return free_udp_port()
+
+
+@pytest.fixture(name="read_mcap")
+def read_mcap_fixture():
+    """`read_mcap(path)` -> [(topic, schema name, log time, data)]."""
+    return read_mcap
+
+
+@pytest.fixture(name="send_paced")
+def send_paced_fixture():
+    """`send_paced(link, messages, fps)` -> send times."""
+    return send_paced

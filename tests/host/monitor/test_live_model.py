@@ -1,0 +1,66 @@
+"""The live model: rest, release detection, model channels and the model error column."""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+
+import pytest
+
+from ropecam.host.cli import main
+from ropecam.host.monitor.live_model import LiveModel
+from ropecam.host.receiver import check_packet
+from ropecam.host.recording.writer import Recorder, RecordingConfig
+from ropecam.host.session import Session
+
+
+@pytest.fixture(scope="module")
+def rig_model() -> tuple:
+    from ropecam.host.model.config import RopeConfig, SolverConfig
+    from ropecam.host.model.solver import CableModel
+    from ropecam.host.sim.rig_polylines import RIG_CAMERA, RIG_PLANE
+
+    rope = RopeConfig(length_m=0.411)
+    trajectory, _ = CableModel(rope, SolverConfig(elements=4, step_s=0.002, duration_s=0.6)).run()
+    return trajectory, rope.length_m, (RIG_CAMERA, RIG_PLANE)
+
+
+def test_release_is_detected_after_rest_and_the_model_follows(sim_device, rig_model, tmp_path: Path, read_mcap) -> None:
+    trajectory, length_m, calibration = rig_model
+    model = LiveModel(trajectory, length_m, calibration)
+    recorder = Recorder(RecordingConfig(tmp_path / "live.mcap"))
+    session = Session(recorder, calibration, model)
+    start_ns, rest = time.time_ns(), 15
+    for _, data in sim_device.messages(40, start_t_ns=start_ns, rest_frames=rest):
+        session.handle(check_packet(data, time.time_ns()))
+    session.close()
+    assert "dev7 released at" in model.describe()
+    release_s = model._devices[7].overlay.release_time_s
+    true_release_s = (start_ns + rest * round(1e9 / 119)) * 1e-9
+    assert abs(release_s - true_release_s) < 0.02  # within about two frame periods
+    errors = [json.loads(d) for t, _, _, d in read_mcap(tmp_path / "live.mcap") if t == "/device7/model_error"]
+    assert 20 <= len(errors) <= 40 - rest  # only frames after the release (a few used to detect it)
+    first_swing = errors[: len(sim_device.frames) - 5]  # the fixture cycles through 12 frames of the swing
+    assert [e["frame_index"] for e in first_swing] == sorted(e["frame_index"] for e in first_swing)
+    distances = [d for e in first_swing for d in e["error_begin_mm"] + e["error_end_mm"] if d is not None]
+    assert distances and max(distances) < 60  # the simulator's swing is not the ANCF rope's, but close early on
+    (row,) = session.snapshot(time.time_ns())
+    assert math.isfinite(row.model_error_mm)
+
+
+def test_a_rope_never_at_rest_never_arms(sim_device, rig_model) -> None:
+    trajectory, length_m, calibration = rig_model
+    model = LiveModel(trajectory, length_m, calibration)
+    session = Session(None, calibration, model)
+    for _, data in sim_device.messages(30, start_t_ns=time.time_ns()):  # swinging from the first frame
+        session.handle(check_packet(data, time.time_ns()))
+    assert "dev7 waiting for the rope at rest" in model.describe()
+    assert math.isnan(session.snapshot(time.time_ns())[0].model_error_mm)
+
+
+def test_model_option_needs_the_plane(tmp_path: Path, capsys) -> None:
+    (tmp_path / "rope.toml").write_text("[rope]\nlength_m = 0.411\n")
+    assert main(["monitor", "--source", "loop://", "--model", str(tmp_path / "rope.toml"), "--duration-s", "0.1"]) == 2
+    assert "--model needs --plane" in capsys.readouterr().err

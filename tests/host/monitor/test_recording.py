@@ -1,0 +1,328 @@
+"""Recorder durability: SIGKILL + recover, disk full, unwritable paths, rolling; replay reproduces live results."""
+
+from __future__ import annotations
+
+import errno
+import io
+import os
+import signal
+import time
+from pathlib import Path
+
+import pytest
+
+from ropecam.host.cli import main
+from ropecam.host.receiver import check_packet
+from ropecam.host.recording.recover import recover_mcap
+from ropecam.host.recording.writer import Recorder, RecordingConfig, part_path
+from ropecam.host.replay import iter_raw, recording_parts, replay
+from ropecam.host.session import RAW_TOPIC, Session
+from ropecam.shared.errors import ConfigError, DataError
+from ropecam.shared.transport import open_transport
+
+
+def _messages(sim_device, count: int) -> list[bytes]:
+    return [data for _, data in sim_device.messages(count, start_t_ns=time.time_ns())]
+
+
+def test_sigkill_while_recording_then_recover_keeps_all_but_the_last_second(
+    sim_device,
+    tmp_path: Path,
+    udp_port: int,
+    monitor_process,
+    send_paced,
+    read_mcap,
+) -> None:
+    path = tmp_path / "killed.mcap"
+    monitor = monitor_process(["--source", f"udp://127.0.0.1:{udp_port}?listen=1", "--record", str(path)])
+    messages = _messages(sim_device, 300)
+    with open_transport(f"udp://127.0.0.1:{udp_port}") as link:
+        send_times = send_paced(link, messages, fps=119.0)
+    killed_at = time.monotonic()
+    os.kill(monitor.process.pid, signal.SIGKILL)
+    monitor.finish()
+    with pytest.raises(DataError, match="recover"):
+        list(iter_raw([path]))  # the cut file has no summary: indexed reading fails with a hint
+    fixed = tmp_path / "fixed.mcap"
+    report = recover_mcap(path, fixed)
+    assert not report.complete
+    raw = [data for topic, _, _, data in read_mcap(fixed) if topic == RAW_TOPIC]
+    assert raw == messages[: len(raw)]  # an exact, ordered prefix
+    must_have = sum(1 for t in send_times if t < killed_at - 1.0)
+    assert len(raw) >= must_have, f"recovered {len(raw)} messages, {must_have} were sent more than 1 s before the kill"
+    assert any(topic == "/device7/image/scene" for topic, *_ in read_mcap(fixed))
+
+
+def test_sigterm_closes_the_recording_properly(
+    sim_device,
+    tmp_path: Path,
+    udp_port: int,
+    monitor_process,
+    read_mcap,
+) -> None:
+    path = tmp_path / "term.mcap"
+    monitor = monitor_process(["--source", f"udp://127.0.0.1:{udp_port}?listen=1", "--record", str(path)])
+    messages = _messages(sim_device, 20)
+    with open_transport(f"udp://127.0.0.1:{udp_port}") as link:
+        for data in messages:
+            link.send(data)
+            time.sleep(0.002)
+    time.sleep(0.3)
+    monitor.process.send_signal(signal.SIGTERM)
+    code, out, err = monitor.finish()
+    assert code == 0, err
+    assert "final: dev7" in out and "recorded" in out
+    raw = [data for topic, _, _, data in read_mcap(path) if topic == RAW_TOPIC]  # complete file: indexed read works
+    assert raw == messages
+
+
+class FailingFile(io.FileIO):
+    """A real file that fails with ENOSPC once `limit` bytes have been written (a disk filling up)."""
+
+    def __init__(self, path: Path, limit: int) -> None:
+        super().__init__(path, "w")
+        self.limit = limit
+        self.written = 0
+
+    def write(self, data) -> int:
+        if self.written + len(data) > self.limit:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        self.written += len(data)
+        return super().write(data)
+
+
+def test_disk_full_stops_recording_with_a_clear_error_and_keeps_what_was_flushed(
+    sim_device,
+    tmp_path: Path,
+    read_mcap,
+) -> None:
+    path = tmp_path / "full.mcap"
+    recorder = Recorder(
+        RecordingConfig(path, flush_s=0.01), opener=lambda p, overwrite: io.BufferedWriter(FailingFile(p, 60_000))
+    )
+    session = Session(recorder)
+    messages = _messages(sim_device, 150)
+    flushed_when_failed = None
+    for data in messages:
+        session.handle(check_packet(data, time.time_ns()))
+        time.sleep(0.002)
+        session.tick()
+        if recorder.error and flushed_when_failed is None:
+            flushed_when_failed = recorder.flushed_messages
+    assert recorder.error is not None and "No space left on device" in recorder.error
+    assert "ropecam recover" in recorder.error and str(path) in recorder.error
+    assert recorder.unrecorded > 0 and not recorder.active
+    (row,) = session.snapshot(time.time_ns())
+    assert row.received == len(messages)  # monitoring went on
+    session.close()  # no exception after the failure
+    report = recover_mcap(path, tmp_path / "fixed.mcap")
+    assert report.messages == flushed_when_failed > 0
+
+
+def test_unwritable_paths(sim_device, tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="cannot create recording file"):
+        Recorder(RecordingConfig(tmp_path / "missing-dir" / "x.mcap"))
+    (tmp_path / "exists.mcap").write_bytes(b"precious")
+    with pytest.raises(ConfigError, match="exists"):
+        Recorder(RecordingConfig(tmp_path / "exists.mcap"))
+    assert (tmp_path / "exists.mcap").read_bytes() == b"precious"
+    with pytest.raises(ConfigError, match="No space left"):  # a disk already full at the start
+        Recorder(RecordingConfig(tmp_path / "full.mcap"), opener=lambda p, o: io.BufferedWriter(FailingFile(p, 10)))
+    assert not (tmp_path / "full.mcap").exists()
+
+    def opener(path: Path, overwrite: bool):
+        if path != tmp_path / "roll.mcap":
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(path))
+        return open(path, "xb")
+
+    # the path becomes unwritable when the recording rolls to its second file
+    recorder = Recorder(RecordingConfig(tmp_path / "roll.mcap", roll_bytes=20_000), opener=opener)
+    session = Session(recorder)
+    for data in _messages(sim_device, 60):
+        session.handle(check_packet(data, time.time_ns()))
+        recorder._last_flush = 0.0  # flush on every tick
+        session.tick()
+    assert recorder.error is not None and "Permission denied" in recorder.error
+    assert "roll_001.mcap" in recorder.error
+    assert session.snapshot(time.time_ns())[0].received == 60 + 1  # monitoring went on (60 frames and a Log)
+    assert len(list(iter_raw([tmp_path / "roll.mcap"]))) > 0  # the first part was closed properly
+
+
+@pytest.mark.parametrize("roll", [{"roll_bytes": 3_000}, {"roll_s": 0.01}])
+def test_rolled_recording_replays_across_parts(sim_device, tmp_path: Path, roll: dict) -> None:
+    path = tmp_path / "part.mcap"
+    recorder = Recorder(RecordingConfig(path, **roll))
+    session = Session(recorder)
+    messages = _messages(sim_device, 50)
+    for data in messages:
+        session.handle(check_packet(data, time.time_ns()), decode=False)
+        recorder._last_flush = 0.0
+        time.sleep(0.001)
+        session.tick()
+    for _ in range(3):  # idle time: no empty parts
+        time.sleep(0.02)
+        recorder._last_flush = 0.0
+        session.tick()
+    session.close()
+    parts = recording_parts(path)
+    assert all(list(iter_raw([part])) for part in parts)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in parts)
+    assert len(parts) >= 3 and parts[1] == part_path(path, 1)
+    assert [data for data, _ in iter_raw(parts)] == messages
+
+
+def test_replay_reproduces_the_live_decoded_results_exactly(
+    sim_device,
+    tmp_path: Path,
+    udp_port: int,
+    monitor_process,
+    send_paced,
+    read_mcap,
+) -> None:
+    live = tmp_path / "live.mcap"
+    monitor = monitor_process(
+        [
+            "--source",
+            f"udp://127.0.0.1:{udp_port}?listen=1",
+            "--record",
+            str(live),
+            "--duration-s",
+            "4",
+            "--decode",
+            "all",
+        ]
+    )
+    messages = _messages(sim_device, 130)
+    damaged = bytearray(messages[50])
+    damaged[25] ^= 1
+    messages.insert(51, bytes(damaged))
+    with open_transport(f"udp://127.0.0.1:{udp_port}") as link:
+        send_paced(link, messages, fps=119.0)
+    code, out, err = monitor.finish()
+    assert code == 0, err
+    lines = [line for line in out.splitlines() if line.startswith("t=")]
+    assert len(lines) >= 3  # one line per second
+    replayed = tmp_path / "replayed.mcap"
+    assert main(["replay", str(live), "--record", str(replayed)]) == 0
+    live_records = [r for r in read_mcap(live)]
+    replay_records = read_mcap(replayed)
+    assert len([r for r in live_records if r[0] == "/device7/image/scene"]) == 130  # nothing skipped live
+    assert sorted(live_records) == sorted(replay_records)
+
+    # the statistics too: a second replay in process against the live statistics from the monitor's output
+    session = Session()
+    assert replay([live], session) == len(messages)
+    (row,) = session.snapshot(session.stats.last_receive_t_ns)
+    assert (row.received, row.crc_errors, row.lost) == (130 + 1 + 1, 1, 0)
+    final = next(line for line in out.splitlines() if line.startswith("final: "))
+    assert f"rx {row.received} lost 0" in final and "bad 1" in final
+
+
+def test_recover_refuses_non_mcap_and_reports_complete_files(tmp_path: Path, sim_device, capsys) -> None:
+    (tmp_path / "junk.mcap").write_bytes(b"not an mcap file at all")
+    with pytest.raises(DataError, match="not an MCAP file"):
+        recover_mcap(tmp_path / "junk.mcap", tmp_path / "out.mcap")
+    recorder = Recorder(RecordingConfig(tmp_path / "ok.mcap"))
+    session = Session(recorder)
+    for data in _messages(sim_device, 5):
+        session.handle(check_packet(data, time.time_ns()))
+    session.close()
+    report = recover_mcap(tmp_path / "ok.mcap", tmp_path / "copy.mcap")
+    assert report.complete and report.messages == recorder.messages
+    assert main(["recover", str(tmp_path / "ok.mcap"), "--out", str(tmp_path / "cli.mcap")]) == 0
+    assert f"wrote {recorder.messages} messages" in capsys.readouterr().out
+    with pytest.raises(DataError, match="exists"):
+        recover_mcap(tmp_path / "ok.mcap", tmp_path / "copy.mcap")
+
+
+def test_replay_reprocess_with_a_calibration_adds_the_plane_channels(sim_device, tmp_path: Path, read_mcap) -> None:
+    from ropecam.host.calibration.files import write_plane
+    from ropecam.host.sim.rig_polylines import RIG_CAMERA, RIG_PLANE
+
+    recorder = Recorder(RecordingConfig(tmp_path / "raw.mcap"))
+    session = Session(recorder)
+    for data in _messages(sim_device, 4):
+        session.handle(check_packet(data, time.time_ns()))
+    session.close()
+    plane = write_plane(tmp_path / "plane.yaml", RIG_CAMERA, RIG_PLANE)
+    out = tmp_path / "metres.mcap"
+    assert main(["replay", str(tmp_path / "raw.mcap"), "--reprocess", "--plane", str(plane), "--record", str(out)]) == 0
+    topics = [topic for topic, *_ in read_mcap(out)]
+    assert topics.count("/device7/plane/scene") == 4
+    assert main(["replay", str(tmp_path / "raw.mcap"), "--reprocess"]) == 2  # names what is missing
+
+
+def test_replay_exports_extract_json_lines_for_ropecam_compare(sim_device, tmp_path: Path, capsys) -> None:
+    from ropecam.host.compare.measurement import read_extract_jsonl
+    from ropecam.shared.protocol import FrameResult, decode_message
+
+    recorder = Recorder(RecordingConfig(tmp_path / "run.mcap"))
+    session = Session(recorder)
+    messages = _messages(sim_device, 6)
+    for data in messages:
+        session.handle(check_packet(data, time.time_ns()))
+    session.close()
+    out = tmp_path / "run.jsonl"
+    assert main(["replay", str(tmp_path / "run.mcap"), "--export-jsonl", str(out)]) == 0
+    assert "exported 6 frames of device 7" in capsys.readouterr().out
+    frames = read_extract_jsonl(out)
+    records = [r for r in (decode_message(m).record for m in messages) if isinstance(r, FrameResult)]
+    assert [f.t_begin_ns for f in frames] == [r.exposure_start_t_ns for r in records]
+    for frame, record in zip(frames, records, strict=True):
+        assert frame.t_end_ns == record.exposure_end_t_ns
+        assert frame.begin_px.tolist() == record.begin_px.tolist() and frame.end_px.tolist() == record.end_px.tolist()
+    assert main(["replay", str(tmp_path / "run.mcap"), "--export-jsonl", str(out)]) == 2  # never overwrites silently
+
+
+def test_replay_with_a_model_records_the_model_rope_and_its_error(
+    sim_device, tmp_path: Path, read_mcap, capsys
+) -> None:
+    import json
+
+    import jsonschema
+    import numpy as np
+
+    from ropecam.host.calibration.files import write_plane
+    from ropecam.host.recording.schemas import SCHEMAS
+    from ropecam.host.sim.rig_polylines import RIG_CAMERA, RIG_PLANE
+
+    recorder = Recorder(RecordingConfig(tmp_path / "run.mcap"))
+    session = Session(recorder)
+    for data in _messages(sim_device, 12):
+        session.handle(check_packet(data, time.time_ns()), decode=False)
+    session.close()
+    plane = write_plane(tmp_path / "plane.yaml", RIG_CAMERA, RIG_PLANE)
+    rope = tmp_path / "rope.toml"
+    rope.write_text("[rope]\nlength_m = 0.411\n[solver]\nelements = 4\nstep_s = 0.002\n")
+    out = tmp_path / "model.mcap"
+    args = ["replay", str(tmp_path / "run.mcap"), "--plane", str(plane), "--model", str(rope), "--record", str(out)]
+    assert main(args) == 0
+    assert "release at" in capsys.readouterr().err
+    records = read_mcap(out)
+    errors = [json.loads(d) for t, _, _, d in records if t == "/device7/model_error"]
+    scenes = [json.loads(d) for t, _, _, d in records if t == "/device7/plane/model"]
+    assert len(errors) == len(scenes) == 12
+    for error in errors:
+        jsonschema.validate(error, SCHEMAS["ropecam.ModelError"])
+        assert error["s_m"] == pytest.approx([0.411 * f for f in (0.25, 0.5, 0.75, 1.0)])
+    model_rope = scenes[0]["entities"][0]["lines"][0]["points"]
+    xy = np.array([[p["x"], p["y"]] for p in model_rope])
+    assert np.hypot(*xy[0]) < 1e-6  # pinned at the plane origin, like the measured rope
+    assert np.sum(np.hypot(*np.diff(xy, axis=0).T)) == pytest.approx(0.411, rel=0.01)
+    # the model's swing is not the simulator's curve, but it follows it: errors of centimetres, not metres
+    finite = [e for error in errors for e in error["error_begin_mm"] + error["error_end_mm"] if e is not None]
+    assert finite and max(finite) < 150
+    assert main(["replay", str(tmp_path / "run.mcap"), "--model", str(rope)]) == 2  # needs --plane and --record
+
+
+def test_replay_speed_paces_by_the_recorded_receive_times(sim_device, tmp_path: Path) -> None:
+    recorder = Recorder(RecordingConfig(tmp_path / "paced.mcap"))
+    session = Session(recorder)
+    t0 = time.time_ns()
+    for k, data in enumerate(_messages(sim_device, 5)):
+        session.handle(check_packet(data, t0 + k * 100_000_000), decode=False)  # received 0.1 s apart
+    session.close()
+    parts = [tmp_path / "paced.mcap"]
+    start = time.monotonic()
+    assert replay(parts, Session(), speed=2.0) == 6
+    assert time.monotonic() - start >= 0.5 / 2.0 - 0.01  # 0.5 s of recording at twice the speed (a lower bound)
