@@ -2,9 +2,14 @@
 
 Paced replay behaves like a camera that started streaming at `start`: frame k becomes available at
 ``start_ns + offset_k``, where ``offset_k`` is the frame's index time minus the first frame's (scaled when another
-frame rate is asked for, continued across loops). Its ``t_ns`` is that instant on CLOCK_MONOTONIC, and a slow
-consumer gets the newest available frame while the ones it missed count as skipped, exactly as with the camera.
-Unpaced replay hands over every frame in order with the index's own ``t_ns`` (plus one set length per loop).
+frame rate is asked for, continued across loops), and a slow consumer gets the newest available frame while the
+ones it missed count as skipped, exactly as with the camera.
+
+A frame's ``t_ns`` (start of its exposure) keeps the recording's time base: ``start_ns`` plus the frame's unscaled
+index offset (one set length more per loop). The exposure times are measurement data: the rope moved between two
+frames as much as the recorded interval says, so a replay at another rate (slow motion) must not rewrite them, or
+everything downstream (time order of the two shapes, velocities, the model's time axis) would be wrong. At the
+set's own rate the two clocks coincide. Unpaced replay uses the index's own ``t_ns`` (plus one set length per loop).
 
 Frames are decoded once and kept in one read-only array when they fit in `max_preload_bytes`, so a read costs a few
 microseconds; larger sets are decoded from disk on each read.
@@ -213,8 +218,9 @@ class FrameSetSource(CameraSource):
         self._last_sequence = sequence
         self._next = k + 1
         self._last_position = position
-        # Paced: the instant the frame became available on this clock; unpaced: the index time, one set per loop.
-        t_ns = self._schedule_ns(k) if self.paced else int(self._index_t_ns[position]) + loops * self._loop_index_ns
+        # The recording's exposure times: moved onto this clock when paced, as in the index otherwise (see above).
+        recorded_ns = int(self._index_t_ns[position] - self._index_t_ns[0]) + loops * self._loop_index_ns
+        t_ns = self._start_ns + recorded_ns if self.paced else int(self._index_t_ns[0]) + recorded_ns
         if self._preloaded is not None:
             image = self._preloaded[position]
         else:

@@ -1,0 +1,97 @@
+"""The live path end to end, as on the rig: `ropecam-device run` replays recorded frames and streams over UDP on
+127.0.0.1 into `ropecam monitor --record`; the recording, replayed and exported, holds every frame's result, equal
+to the offline `ropecam-device extract` of the same frames (issue 6 acceptance 1 at a paced 30 FPS, issue 7
+acceptance 1)."""
+
+from __future__ import annotations
+
+import json
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ropecam.device.cli import main as device_main
+from ropecam.host.cli import main as host_main
+from ropecam.shared.protocol import polyline_distances_px
+
+
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def _read_jsonl(path: Path) -> list[dict]:
+    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+
+
+@pytest.mark.slow
+def test_daemon_streams_into_the_monitor_recording(tmp_path: Path) -> None:
+    frames = tmp_path / "rig"
+    assert (
+        host_main(["simulate", "rig", "--out", str(frames), "--frames", "12", "--first-exposure-ms", "200", "-q"]) == 0
+    )
+    port = _free_udp_port()
+    recording = tmp_path / "run.mcap"
+    monitor = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "ropecam.host.cli",
+            "monitor",
+            "--source",
+            f"udp://127.0.0.1:{port}",
+            "--record",
+            str(recording),
+            "--no-ui",
+            "--duration-s",
+            "120",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    try:
+        time.sleep(2.0)  # the monitor binds its port
+        daemon = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "ropecam.device.cli",
+                "run",
+                "--source",
+                f"frames:{frames}?fps=30",
+                "--sink",
+                f"udp://127.0.0.1:{port}",
+                "--device-id",
+                "7",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
+        assert daemon.returncode == 0, daemon.stdout + daemon.stderr
+        assert "measured 12 frames" in daemon.stdout
+        time.sleep(1.5)
+    finally:
+        monitor.send_signal(signal.SIGTERM)
+        output, _ = monitor.communicate(timeout=30)
+    assert monitor.returncode == 0, output
+
+    exported = tmp_path / "live.jsonl"
+    assert host_main(["replay", str(recording), "--export-jsonl", str(exported), "--device", "7"]) == 0
+    assert device_main(["extract", str(frames), "--out", str(tmp_path / "offline.jsonl")]) == 0
+    live, offline = _read_jsonl(exported), _read_jsonl(tmp_path / "offline.jsonl")
+    assert [r["frame"] for r in live] == [r["frame"] for r in offline] == list(range(12))
+    for got, want in zip(live, offline, strict=True):
+        assert got["status"] == want["status"]
+        for key in ("begin", "end"):
+            assert (got[key] is None) == (want[key] is None)
+            if got[key] is not None:
+                assert polyline_distances_px(np.array(want[key]), np.array(got[key])).max() <= 0.05 + 2e-3
