@@ -5,9 +5,10 @@ Steps (each is a command you can run yourself; the demo prints them):
 1. `ropecam simulate rig-soft`: motion-blurred frames of a soft rope swinging in front of the paper's rig camera
    (1024x544, 119 FPS, 4 ms), with exact ground truth, plus a calibration set through the same camera.
 2. `ropecam calibrate intrinsics` and `ropecam calibrate plane`: camera and motion plane from the checkerboards.
-3. `ropecam-device extract`: the device pipeline measures every frame (the rope at the start and at the end of
-   each exposure) into a measurement file. (The live path, `ropecam-device run` streaming over UDP into
-   `ropecam monitor --record`, joins the demo when the monitor lands.)
+3. `ropecam monitor --record` listens on UDP; `ropecam-device run` (the rig daemon) replays the frames as if they
+   came from the camera, measures every frame (the rope at the start and at the end of each exposure) and streams
+   the results to it over UDP on this machine; `ropecam replay --export-jsonl` turns the recording into a
+   measurement file.
 4. `ropecam compare --fit ei`: the measured material points in metres against the ANCF model, with the bending
    stiffness identified from a deliberately wrong start (3x the truth) and the release time estimated.
 """
@@ -16,6 +17,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
+import socket
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -50,6 +54,44 @@ def register(subparsers: Any) -> None:
     parser.set_defaults(func=run_demo)
 
 
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+def _stream(frames: Path, recording: Path, port: int) -> None:
+    """Run the monitor (recording) and the daemon (replaying `frames`) as the two programs they are on a rig."""
+    from ropecam.shared.errors import RopecamError
+
+    recording.unlink(missing_ok=True)
+    monitor = subprocess.Popen(
+        [sys.executable, "-m", "ropecam.host.cli", "monitor", "--source", f"udp://127.0.0.1:{port}",
+         "--record", str(recording), "--no-ui", "--duration-s", "600"],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+    )  # fmt: skip
+    try:
+        time.sleep(2.0)  # the monitor binds its port
+        if monitor.poll() is not None:
+            raise RopecamError(f"the monitor stopped at once:\n{monitor.communicate()[0]}")
+        device = subprocess.run(
+            [sys.executable, "-m", "ropecam.device.cli", "run", "--source", f"frames:{frames}?fps=30",
+             "--sink", f"udp://127.0.0.1:{port}"],
+            capture_output=True, text=True, timeout=600,
+        )  # fmt: skip
+        print("   device: " + (device.stdout.strip().splitlines() or ["(no output)"])[-1], flush=True)
+        if device.returncode != 0:
+            raise RopecamError(f"ropecam-device run failed ({device.returncode}):\n{device.stdout}{device.stderr}")
+        time.sleep(1.0)  # the last messages reach the monitor
+    finally:
+        monitor.send_signal(signal.SIGTERM)
+        output = monitor.communicate(timeout=60)[0]
+    last = [line for line in output.splitlines() if line.strip()][-1:] or ["(no output)"]
+    print("   monitor: " + last[0], flush=True)
+    if monitor.returncode != 0:
+        raise RopecamError(f"ropecam monitor failed ({monitor.returncode}):\n{output}")
+
+
 def _step(title: str, command: str) -> float:
     print(f"\n== {title}\n   $ {command}", flush=True)
     return time.perf_counter()
@@ -57,7 +99,6 @@ def _step(title: str, command: str) -> float:
 
 def run_demo(args: argparse.Namespace) -> int:
     """Run the demo; returns the exit code."""
-    from ropecam.device.cli import main as device_main
     from ropecam.host.cli import main as host_main
     from ropecam.shared.errors import DataError
 
@@ -96,13 +137,17 @@ def run_demo(args: argparse.Namespace) -> int:
     timings["calibrate_s"] = time.perf_counter() - t
 
     measurement = out / "measured.jsonl"
+    recording = out / "run.mcap"
+    port = _free_udp_port()
     t = _step(
-        "3. measure every frame with the device pipeline",
-        f"ropecam-device extract {rig} --out {measurement}",
+        "3. stream: the rig daemon measures every frame and streams over UDP into the monitor's recording",
+        f"ropecam monitor --source udp://127.0.0.1:{port} --record {recording} --no-ui   (and, meanwhile:)\n"
+        f"   $ ropecam-device run --source frames:{rig}?fps=30 --sink udp://127.0.0.1:{port}",
     )
-    if device_main(["extract", str(rig), "--out", str(measurement)]) != 0:
+    _stream(rig, recording, port)
+    if host_main(["replay", str(recording), "--export-jsonl", str(measurement), "--overwrite"]) != 0:
         return 2
-    timings["measure_s"] = time.perf_counter() - t
+    timings["stream_s"] = time.perf_counter() - t
 
     model = out / "rope.toml"
     model.write_text(MODEL_TOML.format(ei=3 * TRUE_EI_NM2))
@@ -121,5 +166,6 @@ def run_demo(args: argparse.Namespace) -> int:
               f"(simulated truth {TRUE_EI_NM2:.3g}, {100 * (fitted / TRUE_EI_NM2 - 1):+.1f} %)")  # fmt: skip
     print(f"   report: {report / 'index.html'}  (plots, summary.json)")
     print(f"   frames and ground truth: {rig}; calibration: {out / 'camera.yaml'}, {out / 'plane.yaml'}")
+    print(f"   the live recording: {recording} (open it in Foxglove, or `ropecam replay {recording}`)")
     sys.stdout.flush()
     return code

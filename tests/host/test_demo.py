@@ -14,9 +14,12 @@ from ropecam.host.cli import main
 def test_demo_runs_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["demo", "--out", str(tmp_path), "--frames", "24", "--calibration-views", "8", "--quiet"]) == 0
     summary = json.loads((tmp_path / "report" / "summary.json").read_text())
-    assert summary["measured_samples"] == 48  # both shapes of every frame were measured
+    # Both shapes of (nearly) every frame came through daemon, UDP and the monitor's recording; a loaded machine may
+    # make the real-time replay skip a frame or two, as a real camera would.
+    assert summary["measured_samples"] >= 40
     ei = summary["fit"]["values"]["ei"]
     assert ei == pytest.approx(1e-5, rel=0.15)  # from a start at 3e-5
     assert (tmp_path / "report" / "index.html").is_file() and (tmp_path / "camera.yaml").is_file()
+    assert (tmp_path / "run.mcap").stat().st_size > 10_000
     out = capsys.readouterr().out
     assert "report:" in out and "identified" in out
