@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import argparse
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -91,7 +91,54 @@ def replay(
     progress: Callable[[int], None] | None = None,
     on_message: Callable[[Message], None] | None = None,
 ) -> int:
-    """Run every raw message of `paths` through `session` (a `ropecam.host.session.Session`); return the count.
+    """Run every raw message of the recording `paths` through `session`; return the count (see `replay_messages`)."""
+    return replay_messages(iter_raw(paths), session, speed, progress, on_message)
+
+
+def frames_messages(frames: Path, config_path: Path | None = None, device_id: int = 1) -> list[tuple[bytes, int]]:
+    """Measure a raw frame set (or image folder, or video) with the device pipeline, offline, and return the
+    encoded FrameResult messages as the device would send them, each with its exposure end as receive time.
+
+    The pipeline settings come from the ``[pipeline]`` table of a device config file (defaults otherwise).
+    """
+    from ropecam.device.capture.sources import open_source
+    from ropecam.device.pipeline.config import PipelineConfig
+    from ropecam.device.pipeline.pipeline import Pipeline
+    from ropecam.device.pipeline.result import to_wire
+    from ropecam.shared.protocol import ShapeHint, encode_message
+
+    config = PipelineConfig()
+    if config_path is not None:
+        # Only [pipeline] matters here; the other tables of a device config are accepted as they are.
+        from ropecam.device.daemon.config import load_device_config
+
+        config = load_device_config(config_path).pipeline
+    source = open_source(frames, None, None)
+    pipeline = None
+    hint = ShapeHint()
+    messages = []
+    for sequence, frame in enumerate(source):
+        if pipeline is None:
+            size = source.image_size or (frame.image.shape[1], frame.image.shape[0])
+            pipeline = Pipeline(config, size)
+        result = pipeline.process(frame.image, frame.index, frame.t_ns, frame.exposure_us)
+        data = encode_message(to_wire(result), device_id=device_id, sequence=sequence, t_ns=result.t_end_ns,
+                              pack_options={"hint": hint})  # fmt: skip
+        messages.append((data, result.t_end_ns))
+    if not messages:
+        raise DataError(f"{frames}: no frames to measure")
+    return messages
+
+
+def replay_messages(
+    messages: Iterable[tuple[bytes, int]],
+    session: Session,
+    speed: float | None = None,
+    progress: Callable[[int], None] | None = None,
+    on_message: Callable[[Message], None] | None = None,
+) -> int:
+    """Run raw wire messages (bytes, receive time ns) through `session` (a `ropecam.host.session.Session`), as the
+    live receiver does; return the count.
 
     Parameters
     ----------
@@ -107,7 +154,7 @@ def replay(
     count = 0
     first_t_ns = None
     start = time.monotonic()
-    for data, receive_t_ns in iter_raw(paths):
+    for data, receive_t_ns in messages:
         if speed is not None:
             first_t_ns = receive_t_ns if first_t_ns is None else first_t_ns
             delay = start + (receive_t_ns - first_t_ns) / 1e9 / speed - time.monotonic()
@@ -168,7 +215,9 @@ class _JsonlExport:
         return text
 
 
-def _fit_model(parts: Sequence[Path], args: argparse.Namespace, calibration: tuple) -> tuple[ModelOverlay, int]:
+def _fit_model(
+    messages: Callable[[], Iterable[tuple[bytes, int]]], label: str, args: argparse.Namespace, calibration: tuple
+) -> tuple[ModelOverlay, int]:
     """First pass over the recording: one device's FrameResults -> `ModelOverlay.fit` (release time, model run)."""
     import sys
 
@@ -181,7 +230,7 @@ def _fit_model(parts: Sequence[Path], args: argparse.Namespace, calibration: tup
     rope, solver = load_model_config(Path(args.model))
     frames: dict[int, FrameResult] = {}  # by sequence: duplicates once
     device_id = args.device
-    for data, _ in iter_raw(parts):
+    for data, _ in messages():
         try:
             message = decode_message(data)
         except ProtocolError:
@@ -193,7 +242,7 @@ def _fit_model(parts: Sequence[Path], args: argparse.Namespace, calibration: tup
         if message.header.device_id == device_id:
             frames[message.header.sequence] = message.record
     if device_id is None:
-        raise DataError(f"{parts[0]} holds no FrameResult: nothing to compare with the model")
+        raise DataError(f"{label} holds no FrameResult: nothing to compare with the model")
     ordered = sorted(frames.values(), key=lambda f: f.exposure_start_t_ns)
     print(f"device {device_id}: {len(ordered)} frames; fitting the release time of the model", file=sys.stderr)
 
@@ -231,9 +280,26 @@ def _run(args: argparse.Namespace) -> int:
         raise ConfigError("--reprocess needs --plane (and optionally --camera): the calibration to apply")
     if args.model is not None and (args.plane is None or not args.record):
         raise ConfigError("--model needs --plane (the model lives in metres) and --record (where its channels go)")
+    if (args.recording is None) == (args.frames is None):
+        raise ConfigError("give either a recording (run.mcap) or --frames DIR, not both or neither")
     calibration, calibration_metadata, attachments = load_calibration(args.camera, args.plane)
-    source = Path(args.recording)
-    parts = recording_parts(source)
+    if args.frames is not None:
+        source = Path(args.frames)
+        measured = frames_messages(source, Path(args.config) if args.config else None)
+        parts: list[Path] = []
+
+        def messages() -> Iterable[tuple[bytes, int]]:
+            return iter(measured)
+
+        total = len(measured)
+    else:
+        source = Path(args.recording)
+        parts = recording_parts(source)
+
+        def messages() -> Iterable[tuple[bytes, int]]:
+            return iter_raw(parts)
+
+        total = count_raw(parts)
     recorder = None
     if args.record:
         target = Path(args.record)
@@ -243,18 +309,20 @@ def _run(args: argparse.Namespace) -> int:
         recorder = Recorder(RecordingConfig(target, overwrite=args.overwrite), metadata, attachments)
     model = None
     if args.model is not None:
-        overlay, model_device = _fit_model(parts, args, calibration)
+        overlay, model_device = _fit_model(messages, str(source), args, calibration)
         model = lambda record, device_id: overlay if device_id == model_device else None  # noqa: E731
     session = Session(recorder, calibration, model)
     export = _JsonlExport(Path(args.export_jsonl), args.device, args.overwrite) if args.export_jsonl else None
     try:
-        with progress_bar("replay", max(1, count_raw(parts)), "messages") as progress:
-            count = replay(parts, session, args.speed, progress, on_message=export.add if export else None)
+        with progress_bar("replay", max(1, total), "messages") as progress:
+            count = replay_messages(
+                messages(), session, args.speed, progress, on_message=export.add if export else None
+            )
     finally:
         session.close()
         if export is not None:
             export.close()
-    print(f"replayed {count} messages from {', '.join(str(p) for p in parts)}")
+    print(f"replayed {count} messages from {', '.join(str(p) for p in parts) or f'{source} (measured now)'}")
     for row in session.snapshot(session.stats.last_receive_t_ns):
         print(format_row(row))
     if session.stats.bad_packets:
@@ -283,6 +351,7 @@ examples:
   ropecam replay run.mcap --reprocess --plane plane.yaml --record run-metres.mcap
   ropecam replay run.mcap --export-jsonl run.jsonl && ropecam compare run.jsonl --plane plane.yaml --out report/
   ropecam replay run.mcap --plane plane.yaml --model rope.toml --record run-model.mcap
+  ropecam replay --frames sim/rig --config device.toml --record rig.mcap       # raw frames, measured now
 """
 
 
@@ -292,7 +361,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "replay", help="replay a recording through the live path", description=HELP,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )  # fmt: skip
-    parser.add_argument("recording", help="the .mcap file (first part of a rolled recording)")
+    parser.add_argument("recording", nargs="?", help="the .mcap file (first part of a rolled recording)")
+    parser.add_argument(
+        "--frames",
+        metavar="DIR",
+        help="instead of a recording: measure a raw frame set (or image folder, video) with the device pipeline "
+        "offline and send its results through the same path",
+    )
+    parser.add_argument("--config", metavar="device.toml", help="with --frames: the device config ([pipeline])")
     parser.add_argument("--speed", type=_speed, default=None, help="1 = real time, 2 = twice as fast, max (default)")
     parser.add_argument("--record", metavar="NEW.mcap", help="record the replayed stream to a new file")
     parser.add_argument("--overwrite", action="store_true", help="replace --record if it exists")

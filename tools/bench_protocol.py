@@ -62,9 +62,9 @@ def build_records(count: int, noise: str, seed: int) -> list[FrameResult]:
 def pipeline_records(frameset: str, rope_length_m: float) -> list[FrameResult]:
     """FrameResults of the device pipeline over a recorded frame set (the daemon's conversion)."""
     from ropecam.device.capture.frameset import FrameSet
-    from ropecam.device.daemon.convert import to_wire
     from ropecam.device.pipeline.config import PipelineConfig
     from ropecam.device.pipeline.pipeline import Pipeline
+    from ropecam.device.pipeline.result import to_wire
 
     frames = FrameSet(frameset)
     points = tuple(rope_length_m * f for f in (0.25, 0.5, 0.75, 1.0))

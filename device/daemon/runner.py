@@ -18,10 +18,10 @@ from ropecam.device.capture.driver import DriverFactory
 from ropecam.device.capture.source import CameraSource, CapturedFrame
 from ropecam.device.daemon.config import DeviceConfig
 from ropecam.device.daemon.control import ControlListener
-from ropecam.device.daemon.convert import to_wire
 from ropecam.device.daemon.health import CpuMeter, RateMeter, read_temperature_c
 from ropecam.device.daemon.systemd import Notifier
 from ropecam.device.pipeline.pipeline import Pipeline
+from ropecam.device.pipeline.result import to_wire
 from ropecam.device.senders.stream import ResultSender
 from ropecam.shared.errors import CaptureError, TransportError
 from ropecam.shared.protocol import Command, Control, Log, Status, Verifier, load_key, split_frame

@@ -17,11 +17,11 @@ from ropecam.device.capture.config import CaptureConfig
 from ropecam.device.capture.fake import fake_factory, uvc_like_camera
 from ropecam.device.capture.frameset import FrameSet
 from ropecam.device.daemon.config import DaemonConfig, DeviceConfig, SenderConfig, load_device_config
-from ropecam.device.daemon.convert import to_wire
 from ropecam.device.daemon.runner import EXIT_CAMERA_LOST, EXIT_OK, Daemon
 from ropecam.device.daemon.systemd import Notifier
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
+from ropecam.device.pipeline.result import to_wire
 from ropecam.shared.errors import ConfigError
 from ropecam.shared.protocol import (
     AckResult,
