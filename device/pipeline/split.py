@@ -159,8 +159,8 @@ class BlurSplitter:
         gx, gy, pol = self._gx, self._gy, self.polarity_used
         na = i32(K.offset_by_gradient(points, chain, n, i_fix, seg_a, plus, gx, gy, pol, w, sw, self.side_a))
         nb = i32(K.offset_by_gradient(points, chain, n, i_fix, seg_b, minus, gx, gy, pol, w, sw, self.side_b))
-        na = self._trim_tip(self.side_a, na)
-        nb = self._trim_tip(self.side_b, nb)
+        na = self._fit_tip(self.side_a, na)
+        nb = self._fit_tip(self.side_b, nb)
         shape_a = self._resample(self.side_a, na, self.out_a)
         shape_b = self._resample(self.side_b, nb, self.out_b)
         return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, width, sweep)
@@ -345,6 +345,40 @@ class BlurSplitter:
         self.seg[0] = points[e2]
         self.seg[1] = points[e2]
         return SplitOutcome(Method.STATIC_FALLBACK, shape, shape, None, self.width, 0.0)
+
+    def _fit_tip(self, poly: NDArray[np.float32], n: np.int32) -> np.int32:
+        """Put the free end of an axis polyline where the band ends along that axis.
+
+        The segmentation point is only as good as the corner of the band, which a small round end blurs over a
+        few pixels. Instead, extend the axis line (the direction over its last 3 widths) and find the farthest
+        contour point within half a width of it: the end of the band along this shape's axis. The tip is that far
+        along the axis less the cap (half a width for a round end).
+        """
+        if n < 3:
+            return n
+        width = self.width
+        tail = poly[:n]
+        seg = np.hypot(*np.diff(tail, axis=0).T)
+        back = np.cumsum(seg[::-1])
+        k = int(np.searchsorted(back, 3.0 * width)) + 1
+        base = tail[-1].astype(np.float64)
+        direction = base - tail[max(0, n - 1 - k)]
+        norm = float(np.hypot(*direction))
+        if norm < 1e-6:
+            return n
+        direction /= norm
+        rel = self._points[: self._n].astype(np.float64) - base
+        along = rel @ direction
+        across = np.abs(rel[:, 0] * direction[1] - rel[:, 1] * direction[0])
+        ahead = (across < 0.5 * width) & (along > -2.0 * width) & (along < 4.0 * width)
+        if not ahead.any():
+            return n
+        extent = float(along[ahead].max()) - self.tip_cap_ratio * width
+        if extent >= 0:
+            poly[n - 1] = base + extent * direction
+            return n
+        count = K.trim_polyline_end(poly, n, f32(-extent))
+        return i32(count) if count >= 2 else n
 
     def _trim_tip(self, poly: NDArray[np.float32], n: np.int32) -> np.int32:
         """Shorten the polyline by the cap length at its free end (half the width for a round rope end): the
