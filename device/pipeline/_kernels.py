@@ -900,33 +900,6 @@ def count_roi_contacts(chain, n, lo, hi, width):
 # --------------------------------------------------------------------------------------------------------------
 # Polarity, rope width and gradient-based inward offsets
 # --------------------------------------------------------------------------------------------------------------
-@kernel(float32(f4_2d_ro, int32, float32, f4_2d_ro, f4_2d_ro, i4_2d_ro))
-def estimate_polarity(points, n, interior_sign, gx, gy, chain):
-    """Return +1 when the gradient at the contour points mostly points into the traced region (a rope brighter
-    than its background), -1 when it mostly points out (a dark rope), 0 when undecided.
-
-    The interior normal of the closed contour is ``interior_sign * (t_col, -t_row)`` for the forward tangent t.
-    """
-    votes = 0
-    for i in range(n):
-        a = (i - 2 + n * 4) % n
-        b = (i + 2) % n
-        t_r = points[b, 0] - points[a, 0]
-        t_c = points[b, 1] - points[a, 1]
-        r = chain[i, 0]
-        c = chain[i, 1]
-        dot = interior_sign * (t_c * gy[r, c] - t_r * gx[r, c])
-        if dot > 0:
-            votes += 1
-        elif dot < 0:
-            votes -= 1
-    if votes > n // 10:
-        return 1.0
-    if votes < -(n // 10):
-        return -1.0
-    return 0.0
-
-
 @kernel(types.UniTuple(float32, 2)(f4_2d_ro, f4_2d_ro, f4_2d_ro, int32, int32))
 def axis_offset(mag, gx, gy, r, c):
     """Return the (row, col) subpixel offset of the magnitude maximum at pixel (r, c) (as `refine_subpixel`)."""

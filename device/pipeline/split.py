@@ -380,15 +380,6 @@ class BlurSplitter:
         count = K.trim_polyline_end(poly, n, f32(-extent))
         return i32(count) if count >= 2 else n
 
-    def _trim_tip(self, poly: NDArray[np.float32], n: np.int32) -> np.int32:
-        """Shorten the polyline by the cap length at its free end (half the width for a round rope end): the
-        segmentation point lies on the edge of the band, which a round end reaches half a width beyond the axis."""
-        cut = self.tip_cap_ratio * self.width
-        if cut <= 0 or n < 3:
-            return n
-        count = K.trim_polyline_end(poly, n, f32(cut))
-        return i32(count) if count >= 2 else n
-
     def _resample(self, poly: NDArray[np.float32], n: int, out: NDArray[np.float32]) -> NDArray[np.float32]:
         count = K.resample_polyline(ro(poly), i32(n), self.step, out)
         if count < 0:
