@@ -1042,3 +1042,71 @@ def trim_polyline_end(poly, n, cut_px):
         remaining -= seg
         k -= 1
     return 0
+
+
+@kernel(int32(f4_2d, int32, f4_2d_ro, int32, float32, float32))
+def extend_to_band_end(poly, n, points, n_points, width_px, cap_px):
+    """Move the free end of the axis polyline `poly` (n points) to where the band ends along that axis.
+
+    The axis direction is taken over the last 3 widths of arc; the band's end along it is the farthest of the
+    contour `points` lying within half a width of the axis line (and within -2 to +4 widths of the current end);
+    the tip goes `cap_px` short of it (half a width for a round rope end). The polyline is extended along the
+    axis or shortened (`trim_polyline_end`) in place. Returns the new point count (unchanged when nothing is
+    found).
+    """
+    if n < 3:
+        return n
+    back = 0.0
+    k = n - 1
+    while k > 0 and back < 3.0 * width_px:
+        back += math.hypot(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
+        k -= 1
+    base_r = poly[n - 1, 0]
+    base_c = poly[n - 1, 1]
+    dir_r = base_r - poly[k, 0]
+    dir_c = base_c - poly[k, 1]
+    norm = math.sqrt(dir_r * dir_r + dir_c * dir_c)
+    if norm < 1e-6:
+        return n
+    dir_r /= norm
+    dir_c /= norm
+    best = -1e30
+    for i in range(n_points):
+        rel_r = points[i, 0] - base_r
+        rel_c = points[i, 1] - base_c
+        along = rel_r * dir_r + rel_c * dir_c
+        across = abs(rel_r * dir_c - rel_c * dir_r)
+        if across < 0.5 * width_px and -2.0 * width_px < along < 4.0 * width_px and along > best:
+            best = along
+    if best < -1e29:
+        return n
+    extent = best - cap_px
+    if extent >= 0.0:
+        poly[n - 1, 0] = base_r + extent * dir_r
+        poly[n - 1, 1] = base_c + extent * dir_c
+        return n
+    count = trim_polyline_end(poly, n, -extent)
+    return count if count >= 2 else n
+
+
+@kernel(int32(i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, float32, f4_1d))
+def side_slope_samples(chain, n, i_fix, i_seg, direction, mag, lo_frac, hi_frac, out_values):
+    """Write the gradient magnitude at the chain pixels of one side (from `i_fix` stepping `direction` to
+    `i_seg`) whose arc fraction lies in [lo_frac, hi_frac) into `out_values`, each followed by its fraction:
+    ``out_values[2k] = mag``, ``out_values[2k + 1] = fraction`` (fraction by index, the chain being
+    8-connected). Returns the number of pairs written or FULL."""
+    count = ((i_seg - i_fix) * direction % n + n) % n + 1
+    if count < 2:
+        return 0
+    m = 0
+    for k in range(count):
+        frac = k / (count - 1)
+        if frac < lo_frac or frac >= hi_frac:
+            continue
+        if 2 * m + 1 >= out_values.shape[0]:
+            return FULL
+        i = (i_fix + k * direction + 4 * n) % n
+        out_values[2 * m] = mag[chain[i, 0], chain[i, 1]]
+        out_values[2 * m + 1] = frac
+        m += 1
+    return m
