@@ -371,7 +371,9 @@ def keep_largest_component(edges, lo, hi, min_pixels, out_labels, stack, out_sta
                 for k in range(8):
                     rr = pr + DIR_ROW[k]
                     cc = pc + DIR_COL[k]
-                    if in_spans(rr, cc, lo, hi) and cc < width and edges[rr, cc] != 0 and out_labels[rr, cc] == 0:
+                    if rr < 0 or rr >= height or cc < lo[rr] or cc > hi[rr] or cc >= width:
+                        continue
+                    if edges[rr, cc] != 0 and out_labels[rr, cc] == 0:
                         out_labels[rr, cc] = label
                         stack[top] = rr * width + cc
                         top += 1
