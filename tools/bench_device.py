@@ -94,10 +94,8 @@ def main(argv: list[str] | None = None) -> int:
         pipeline.process(image, 0, t_ns, exposure_us)
         cv2.Canny(image, config.canny_low, config.canny_high, L2gradient=True)
     ours, canny, statuses = [], [], {}
-    counter = ArrayArgCounter()
-    counter.install()
-    before = rtsys.get_allocation_stats()
-    for index, (image, t_ns, exposure_us) in enumerate(frames[3:], start=3):
+    timed = frames[3:]
+    for index, (image, t_ns, exposure_us) in enumerate(timed, start=3):
         t0 = time.perf_counter_ns()
         result = pipeline.process(image, index, t_ns, exposure_us)
         t1 = time.perf_counter_ns()
@@ -106,6 +104,15 @@ def main(argv: list[str] | None = None) -> int:
         ours.append((t1 - t0) / 1000)
         canny.append((t2 - t1) / 1000)
         statuses[result.status.name] = statuses.get(result.status.name, 0) + 1
+    # Allocations in a second pass over the same frames (the argument counter's wrappers cost time).
+    allocation_pipeline = Pipeline(config, (width, height))
+    for image, t_ns, exposure_us in frames[:3]:
+        allocation_pipeline.process(image, 0, t_ns, exposure_us)
+    counter = ArrayArgCounter()
+    counter.install()
+    before = rtsys.get_allocation_stats()
+    for index, (image, t_ns, exposure_us) in enumerate(timed, start=3):
+        allocation_pipeline.process(image, index, t_ns, exposure_us)
     after = rtsys.get_allocation_stats()
     counter.uninstall()
     n = len(ours)

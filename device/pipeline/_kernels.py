@@ -193,7 +193,21 @@ def detect_edges(
         f_row = frame[r]
         inner0 = max(c0, radius)
         inner1 = min(c1, width - 1 - radius)
-        if inner1 >= inner0:
+        if inner1 >= inner0 and radius == 2:
+            # The default smoothing (sigma 1 px): one fused loop, no per-tap passes over short spans.
+            t_in = t_row[inner0 : inner1 + 1]
+            fa = f_row[inner0 - 2 : inner1 - 1]
+            fb = f_row[inner0 - 1 : inner1]
+            fc = f_row[inner0 : inner1 + 1]
+            fd = f_row[inner0 + 1 : inner1 + 2]
+            fe = f_row[inner0 + 2 : inner1 + 3]
+            w0 = weights[0]
+            w1 = weights[1]
+            w2 = weights[2]
+            for i in range(t_in.shape[0]):
+                t_in[i] = w0 * (np.float32(fa[i]) + np.float32(fe[i])) + w1 * (np.float32(fb[i]) + np.float32(fd[i]))
+                t_in[i] += w2 * np.float32(fc[i])
+        elif inner1 >= inner0:
             t_in = t_row[inner0 : inner1 + 1]
             t_in[:] = ZERO
             for k in range(-radius, radius + 1):
@@ -201,9 +215,13 @@ def detect_edges(
                 f_in = f_row[inner0 + k : inner1 + 1 + k]
                 for i in range(t_in.shape[0]):
                     t_in[i] += wk * f_in[i]
-        for c in range(c0, c1 + 1):  # border columns: replicate the edge pixel
-            if inner0 <= c <= inner1:
-                continue
+        # Columns within `radius` of the image border: replicate the edge pixel.
+        for c in range(c0, min(c1 + 1, max(inner0, c0))):
+            acc = ZERO
+            for k in range(-radius, radius + 1):
+                acc += weights[k + radius] * f_row[min(max(c + k, 0), width - 1)]
+            t_row[c] = acc
+        for c in range(max(inner1 + 1, c0), c1 + 1):
             acc = ZERO
             for k in range(-radius, radius + 1):
                 acc += weights[k + radius] * f_row[min(max(c + k, 0), width - 1)]
@@ -214,6 +232,18 @@ def detect_edges(
         if c1 < c0:
             continue
         s_in = out_smooth[r, c0 : c1 + 1]
+        if radius == 2:
+            ta = out_tmp[max(r - 2, 0), c0 : c1 + 1]
+            tb = out_tmp[max(r - 1, 0), c0 : c1 + 1]
+            tc = out_tmp[r, c0 : c1 + 1]
+            td = out_tmp[min(r + 1, height - 1), c0 : c1 + 1]
+            te = out_tmp[min(r + 2, height - 1), c0 : c1 + 1]
+            w0 = weights[0]
+            w1 = weights[1]
+            w2 = weights[2]
+            for i in range(s_in.shape[0]):
+                s_in[i] = w0 * (ta[i] + te[i]) + w1 * (tb[i] + td[i]) + w2 * tc[i]
+            continue
         s_in[:] = ZERO
         for k in range(-radius, radius + 1):
             wk = weights[k + radius]
@@ -371,7 +401,9 @@ def keep_largest_component(edges, lo, hi, min_pixels, out_labels, stack, out_sta
                 for k in range(8):
                     rr = pr + DIR_ROW[k]
                     cc = pc + DIR_COL[k]
-                    if in_spans(rr, cc, lo, hi) and cc < width and edges[rr, cc] != 0 and out_labels[rr, cc] == 0:
+                    if rr < 0 or rr >= height or cc < lo[rr] or cc > hi[rr] or cc >= width:
+                        continue
+                    if edges[rr, cc] != 0 and out_labels[rr, cc] == 0:
                         out_labels[rr, cc] = label
                         stack[top] = rr * width + cc
                         top += 1
@@ -900,33 +932,6 @@ def count_roi_contacts(chain, n, lo, hi, width):
 # --------------------------------------------------------------------------------------------------------------
 # Polarity, rope width and gradient-based inward offsets
 # --------------------------------------------------------------------------------------------------------------
-@kernel(float32(f4_2d_ro, int32, float32, f4_2d_ro, f4_2d_ro, i4_2d_ro))
-def estimate_polarity(points, n, interior_sign, gx, gy, chain):
-    """Return +1 when the gradient at the contour points mostly points into the traced region (a rope brighter
-    than its background), -1 when it mostly points out (a dark rope), 0 when undecided.
-
-    The interior normal of the closed contour is ``interior_sign * (t_col, -t_row)`` for the forward tangent t.
-    """
-    votes = 0
-    for i in range(n):
-        a = (i - 2 + n * 4) % n
-        b = (i + 2) % n
-        t_r = points[b, 0] - points[a, 0]
-        t_c = points[b, 1] - points[a, 1]
-        r = chain[i, 0]
-        c = chain[i, 1]
-        dot = interior_sign * (t_c * gy[r, c] - t_r * gx[r, c])
-        if dot > 0:
-            votes += 1
-        elif dot < 0:
-            votes -= 1
-    if votes > n // 10:
-        return 1.0
-    if votes < -(n // 10):
-        return -1.0
-    return 0.0
-
-
 @kernel(types.UniTuple(float32, 2)(f4_2d_ro, f4_2d_ro, f4_2d_ro, int32, int32))
 def axis_offset(mag, gx, gy, r, c):
     """Return the (row, col) subpixel offset of the magnitude maximum at pixel (r, c) (as `refine_subpixel`)."""
@@ -1069,3 +1074,71 @@ def trim_polyline_end(poly, n, cut_px):
         remaining -= seg
         k -= 1
     return 0
+
+
+@kernel(int32(f4_2d, int32, f4_2d_ro, int32, float32, float32))
+def extend_to_band_end(poly, n, points, n_points, width_px, cap_px):
+    """Move the free end of the axis polyline `poly` (n points) to where the band ends along that axis.
+
+    The axis direction is taken over the last 3 widths of arc; the band's end along it is the farthest of the
+    contour `points` lying within half a width of the axis line (and within -2 to +4 widths of the current end);
+    the tip goes `cap_px` short of it (half a width for a round rope end). The polyline is extended along the
+    axis or shortened (`trim_polyline_end`) in place. Returns the new point count (unchanged when nothing is
+    found).
+    """
+    if n < 3:
+        return n
+    back = 0.0
+    k = n - 1
+    while k > 0 and back < 3.0 * width_px:
+        back += math.hypot(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
+        k -= 1
+    base_r = poly[n - 1, 0]
+    base_c = poly[n - 1, 1]
+    dir_r = base_r - poly[k, 0]
+    dir_c = base_c - poly[k, 1]
+    norm = math.sqrt(dir_r * dir_r + dir_c * dir_c)
+    if norm < 1e-6:
+        return n
+    dir_r /= norm
+    dir_c /= norm
+    best = -1e30
+    for i in range(n_points):
+        rel_r = points[i, 0] - base_r
+        rel_c = points[i, 1] - base_c
+        along = rel_r * dir_r + rel_c * dir_c
+        across = abs(rel_r * dir_c - rel_c * dir_r)
+        if across < 0.5 * width_px and -2.0 * width_px < along < 4.0 * width_px and along > best:
+            best = along
+    if best < -1e29:
+        return n
+    extent = best - cap_px
+    if extent >= 0.0:
+        poly[n - 1, 0] = base_r + extent * dir_r
+        poly[n - 1, 1] = base_c + extent * dir_c
+        return n
+    count = trim_polyline_end(poly, n, -extent)
+    return count if count >= 2 else n
+
+
+@kernel(int32(i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, float32, f4_1d))
+def side_slope_samples(chain, n, i_fix, i_seg, direction, mag, lo_frac, hi_frac, out_values):
+    """Write the gradient magnitude at the chain pixels of one side (from `i_fix` stepping `direction` to
+    `i_seg`) whose arc fraction lies in [lo_frac, hi_frac) into `out_values`, each followed by its fraction:
+    ``out_values[2k] = mag``, ``out_values[2k + 1] = fraction`` (fraction by index, the chain being
+    8-connected). Returns the number of pairs written or FULL."""
+    count = ((i_seg - i_fix) * direction % n + n) % n + 1
+    if count < 2:
+        return 0
+    m = 0
+    for k in range(count):
+        frac = k / (count - 1)
+        if frac < lo_frac or frac >= hi_frac:
+            continue
+        if 2 * m + 1 >= out_values.shape[0]:
+            return FULL
+        i = (i_fix + k * direction + 4 * n) % n
+        out_values[2 * m] = mag[chain[i, 0], chain[i, 1]]
+        out_values[2 * m + 1] = frac
+        m += 1
+    return m

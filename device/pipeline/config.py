@@ -68,7 +68,7 @@ class PipelineConfig:
     canny_low: float = 20.0
     canny_high: float = 50.0
     min_contour_px: int = 40
-    roi_margin_px: int = 6
+    roi_margin_px: int = 4
     fixed_end_uv: tuple[float, float] | None = None
     rope_width_px: float | None = None
     rope_length_m: float = 1.0

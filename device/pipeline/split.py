@@ -69,6 +69,9 @@ class BlurSplitter:
         self.weights = gaussian_weights(smooth_sigma_px).astype(np.float64)
         self._responses: dict[int, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
         self.sweep_px = 0.0
+        self.samples = np.zeros(2 * capacity, np.float32)
+        self._contrasts: list[float] = []
+        self._contrast_cache = float("nan")
         self.static_ratio = float(static_ratio)
         self.corner_scale = int(corner_scale_px)
         self.paper_radius = np.float32(paper_radius_px)
@@ -159,8 +162,8 @@ class BlurSplitter:
         gx, gy, pol = self._gx, self._gy, self.polarity_used
         na = i32(K.offset_by_gradient(points, chain, n, i_fix, seg_a, plus, gx, gy, pol, w, sw, self.side_a))
         nb = i32(K.offset_by_gradient(points, chain, n, i_fix, seg_b, minus, gx, gy, pol, w, sw, self.side_b))
-        na = self._trim_tip(self.side_a, na)
-        nb = self._trim_tip(self.side_b, nb)
+        na = self._fit_tip(self.side_a, na)
+        nb = self._fit_tip(self.side_b, nb)
         shape_a = self._resample(self.side_a, na, self.out_a)
         shape_b = self._resample(self.side_b, nb, self.out_b)
         return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, width, sweep)
@@ -218,16 +221,34 @@ class BlurSplitter:
         taken as proportional to the arc length s (rotation about the fixed end) and extrapolated to the tip.
         Returns nan when it cannot be measured.
         """
+        contrast = self._contrast(fixed_rc)
+        if not contrast >= 5.0:
+            return float("nan")
+        sweeps, ratios = self._response(self.width)
+        estimates = []
+        for seg, direction in ((seg_a, 1), (seg_b, -1)):
+            m = K.side_slope_samples(
+                self._chain, self._n, i32(i_fix), i32(seg), i32(direction), ro(self._mag), f32(0.5), f32(0.85),
+                self.samples,
+            )  # fmt: skip
+            if m < 6:
+                continue
+            pairs = self.samples[: 2 * m].reshape(m, 2)
+            d = np.interp(pairs[:, 0] / contrast, ratios, sweeps)  # ratios increasing (sweeps decreasing)
+            estimates.append(float(np.median(d / pairs[:, 1])))
+        return float(np.mean(estimates)) if estimates else float("nan")
+
+    def _contrast(self, fixed_rc: tuple[float, float]) -> float:
+        """Rope contrast on the smoothed image near the fixed end (inside half a width into the rope minus outside
+        a width out); the median of the first 10 frames' values is kept (the lighting does not change)."""
+        if len(self._contrasts) >= 10:
+            return self._contrast_cache
         n = int(self._n)
         chain = self._chain
-        mag = self._mag
         smooth = self._smooth
         pol = float(self.polarity_used)
         width = self.width
         pts = self._points
-        # Contrast near the fixed end: inside (half a width into the rope) minus outside (a width out).
-        idx_a = (i_fix + np.arange((seg_a - i_fix) % n + 1)) % n
-        idx_b = (i_fix - np.arange((i_fix - seg_b) % n + 1)) % n
         dist = np.hypot(pts[:n, 0] - fixed_rc[0], pts[:n, 1] - fixed_rc[1])
         r_far = float(dist.max())
         near = np.flatnonzero((dist > 2.0 * width + 2.0) & (dist < 2.0 * width + 2.0 + 0.1 * r_far))
@@ -244,30 +265,19 @@ class BlurSplitter:
         ok &= outside[:, 1] < width_img
         if np.count_nonzero(ok) < 4:
             return float("nan")
-        contrast = abs(float(np.median(smooth[inside[ok, 0], inside[ok, 1]] - smooth[outside[ok, 0], outside[ok, 1]])))
-        if contrast < 5.0:
-            return float("nan")
-        sweeps, ratios = self._response(width)
-        estimates = []
-        for idx in (idx_a, idx_b):
-            count = idx.size
-            if count < 12:
-                continue
-            lo, hi = int(0.5 * count), int(0.85 * count)
-            frac = np.arange(lo, hi) / (count - 1)
-            sel = idx[lo:hi]
-            m = mag[chain[sel, 0], chain[sel, 1]] / contrast
-            d = np.interp(m, ratios, sweeps)  # ratios increasing (sweeps decreasing)
-            estimates.append(float(np.median(d / frac)))
-        return float(np.median(estimates)) if estimates else float("nan")
+        value = abs(float(np.median(smooth[inside[ok, 0], inside[ok, 1]] - smooth[outside[ok, 0], outside[ok, 1]])))
+        self._contrasts.append(value)
+        self._contrast_cache = float(np.median(self._contrasts))
+        return self._contrast_cache
 
     def _response(self, width: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Peak smoothed-Sobel magnitude per unit contrast at the edge of a band swept by d, for d on a grid
         (both returned sorted by increasing magnitude, for `np.interp`)."""
-        key = round(width * 20)
+        key = max(1, round(width * 4))  # tables on a 0.25 px grid of widths: built once, not per frame
         cached = self._responses.get(key)
         if cached is not None:
             return cached
+        width = key / 4.0
         sweeps = np.geomspace(0.05, 200.0, 160)
         fine = 0.02
         peaks = []
@@ -346,14 +356,14 @@ class BlurSplitter:
         self.seg[1] = points[e2]
         return SplitOutcome(Method.STATIC_FALLBACK, shape, shape, None, self.width, 0.0)
 
-    def _trim_tip(self, poly: NDArray[np.float32], n: np.int32) -> np.int32:
-        """Shorten the polyline by the cap length at its free end (half the width for a round rope end): the
-        segmentation point lies on the edge of the band, which a round end reaches half a width beyond the axis."""
-        cut = self.tip_cap_ratio * self.width
-        if cut <= 0 or n < 3:
-            return n
-        count = K.trim_polyline_end(poly, n, f32(cut))
-        return i32(count) if count >= 2 else n
+    def _fit_tip(self, poly: NDArray[np.float32], n: np.int32) -> np.int32:
+        """Put the free end of an axis polyline where the band ends along that axis, less the cap.
+
+        The segmentation point is only as good as the corner of the band, which a small round end blurs over a
+        few pixels; the extent of the band along the shape's own axis is sharper (`extend_to_band_end`).
+        """
+        cap = f32(self.tip_cap_ratio * self.width)
+        return i32(K.extend_to_band_end(poly, n, self._points, self._n, f32(self.width), cap))
 
     def _resample(self, poly: NDArray[np.float32], n: int, out: NDArray[np.float32]) -> NDArray[np.float32]:
         count = K.resample_polyline(ro(poly), i32(n), self.step, out)

@@ -73,3 +73,19 @@ def test_extract_errors_are_clear(tmp_path, capsys) -> None:
     assert main(["extract", str(folder), "--out", str(tmp_path / "o.jsonl"), "--config", str(config)]) == 2
     err = capsys.readouterr().err
     assert "canny_lo" in err and "bad.toml" in err
+
+
+def test_extract_video(tmp_path, frames) -> None:
+    path = tmp_path / "run.avi"
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 119.0, (ROPE.width, ROPE.height), False)
+    if not writer.isOpened():
+        pytest.skip("this OpenCV build cannot write MJPG video")
+    for f in frames:
+        writer.write(f.image)
+    writer.release()
+    out = tmp_path / "video.jsonl"
+    assert main(["extract", str(path), "--out", str(out), "--exposure-ms", "12", "--quiet"]) == 0
+    records = _read(out)
+    assert len(records) == len(frames)
+    assert all(r["status"] == "OK" for r in records)
+    assert records[1]["t_ns"] == round(1e9 / 119.0)

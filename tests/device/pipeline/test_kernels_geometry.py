@@ -175,3 +175,75 @@ def test_roi_contacts_counts_pixels_at_the_region_border() -> None:
     chain = np.array([[2, 2], [2, 4], [2, 6], [0, 4]], np.int32)
     assert K.count_roi_contacts(chain, 4, lo, hi, 10) == 2
     assert K.count_roi_contacts(chain, 4, lo, hi, 7) == 1
+
+
+def test_trim_polyline_end_matches_reference() -> None:
+    poly = np.array([[0, 0], [0, 10], [5, 10], [5, 12]], np.float32)
+    for cut in (1.0, 2.0, 4.5, 16.9):
+        work = poly.copy()
+        count = K.trim_polyline_end(work, 4, cut)
+        seg = np.hypot(*np.diff(poly, axis=0).T)
+        cum = np.concatenate([[0.0], np.cumsum(seg)])
+        target = cum[-1] - cut
+        j = int(np.searchsorted(cum, target, side="right")) - 1
+        expected = poly[j] + (target - cum[j]) / seg[j] * (poly[j + 1] - poly[j])
+        np.testing.assert_allclose(work[count - 1], expected, atol=1e-5)
+        assert K.polyline_length(work, count) == pytest.approx(target, abs=1e-4)
+    assert K.trim_polyline_end(poly.copy(), 4, 100.0) == 0
+
+
+def test_find_caps_matches_reference() -> None:
+    turn = np.zeros(40, np.float32)
+    turn[[3, 5, 22, 38]] = [3.0, 2.9, 2.5, 2.8]
+    idx = np.zeros(2, np.int32)
+    assert K.find_caps(turn, 40, 8, idx) == 2
+    assert idx.tolist() == [3, 22]  # 5 and 38 are within 8 steps of 3 (cyclic)
+    assert K.find_caps(turn, 2, 1, idx) == K.NOT_FOUND
+
+
+def _rope_image(width_px: float, bright: bool) -> np.ndarray:
+    cols = np.arange(60, dtype=float)
+    coverage = np.clip(np.minimum(cols - 20.0, 20.0 + width_px - cols) + 0.5, 0, 1)
+    row = 30 + 150 * coverage if bright else 200 - 150 * coverage
+    image = np.tile(row, (40, 1))
+    image[:5] = image[35:] = 30 if bright else 200  # the rope ends inside the image: a closed contour
+    return np.clip(np.rint(image), 0, 255).astype(np.uint8)
+
+
+@pytest.mark.parametrize("bright", [True, False])
+def test_widths_polarity_and_gradient_offset_on_a_straight_rope(bright) -> None:
+    width_px = 5.0
+    image = _rope_image(width_px, bright)
+    height, width = image.shape
+    lo, hi = np.zeros(height, np.int32), np.full(height, width - 1, np.int32)
+    bufs = [np.zeros((height, width), np.float32) for _ in range(5)]
+    edges = np.zeros((height, width), np.uint8)
+    K.detect_edges(image, np.array([0.25, 0.5, 0.25], np.float32), lo, hi, 20.0, 60.0,
+                   np.zeros((4, height), np.int32), *bufs, edges, np.zeros(height * width, np.int32))  # fmt: skip
+    mag, gx, gy = bufs[4], bufs[2], bufs[3]
+    labels, stack, start = (
+        np.zeros((height, width), np.int32),
+        np.zeros(height * width, np.int32),
+        np.zeros(2, np.int32),
+    )
+    K.keep_largest_component(edges, lo, hi, 4, labels, stack, start)
+    chain = np.zeros((4000, 2), np.int32)
+    n = K.trace_contour(edges, lo, hi, start[0], start[1], chain, np.zeros(4000, np.int32))
+    points = np.zeros((n, 2), np.float32)
+    K.refine_subpixel(mag, gx, gy, chain[:n], n, points)
+    expected = 1.0 if bright else -1.0
+    widths = np.zeros(n, np.float32)
+    middle = (chain[:n, 0] > 10) & (chain[:n, 0] < height - 11)
+    K.measure_widths(edges, mag, gx, gy, chain[:n], n, np.float32(-expected), 30.0, widths)
+    assert np.isnan(widths[middle]).all()  # looking away from the rope finds no opposite edge
+    K.measure_widths(edges, mag, gx, gy, chain[:n], n, np.float32(expected), 30.0, widths)
+    assert np.nanmedian(widths[middle]) == pytest.approx(width_px, abs=0.15)
+    out = np.zeros((n, 2), np.float32)
+    count = K.offset_by_gradient(points, chain[:n], n, 0, n - 1, 1, gx, gy, np.float32(expected), 5.0, 0.0, out)
+    assert count == n
+    centre = 20.0 + width_px / 2  # columns 20 and 25 are half covered, 21-24 fully: the axis is at 22.5
+    np.testing.assert_allclose(out[:count][middle, 1], centre, atol=0.15)
+    # axis_offset is the offset refine_subpixel applies
+    for i in np.flatnonzero(middle)[:5]:
+        dr, dc = K.axis_offset(mag, gx, gy, chain[i, 0], chain[i, 1])
+        np.testing.assert_allclose(points[i], chain[i] + np.array([dr, dc]), atol=1e-5)

@@ -46,10 +46,10 @@ def test_blur_split_recovers_both_shapes_in_time_order(fast_rope, fast_frames) -
         assert np.hypot(*(begin[0] - frame.begin_uv[0])) < 2.5  # fixed end first
         if frame.index > 0:  # the first frame has no history for the time order
             assert r.order_confidence > 0.5
-            assert np.hypot(*(begin[-1] - frame.tip_begin_uv)) < 2.5
-            assert np.hypot(*(end[-1] - frame.tip_end_uv)) < 2.5
-            assert _curve_error(frame.begin_uv, begin) < 0.5
-            assert _curve_error(frame.end_uv, end) < 0.5
+            assert np.hypot(*(begin[-1] - frame.tip_begin_uv)) < 1.0
+            assert np.hypot(*(end[-1] - frame.tip_end_uv)) < 1.0
+            assert _curve_error(frame.begin_uv, begin) < 0.25
+            assert _curve_error(frame.end_uv, end) < 0.25
         assert 0.9 < r.stretch_begin < 1.1
     assert pipeline.frames_roi >= len(fast_frames) - 2  # after the first frame the ROI is enough
 
