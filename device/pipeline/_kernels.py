@@ -350,7 +350,7 @@ def detect_edges(
         for i in range(e_in.shape[0]):
             v = e_in[i] >> 1  # EDGE_STRONG -> 1, weak and none -> 0
             e_in[i] = v
-            count += v
+            count += np.int64(v)  # a uint8 sum would wrap at 256 (plain Python promotes to the narrower type)
     return count
 
 

@@ -11,6 +11,8 @@ from scipy import ndimage
 
 from ropecam.device.pipeline import _kernels as K
 
+pytestmark = pytest.mark.kernel
+
 FREEMAN = {(0, 1): 0, (-1, 1): 1, (-1, 0): 2, (-1, -1): 3, (0, -1): 4, (1, -1): 5, (1, 0): 6, (1, 1): 7}
 
 

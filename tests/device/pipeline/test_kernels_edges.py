@@ -9,6 +9,8 @@ from scipy import ndimage
 
 from ropecam.device.pipeline import _kernels as K
 
+pytestmark = pytest.mark.kernel
+
 
 def _buffers(height: int, width: int) -> dict[str, np.ndarray]:
     return {

@@ -10,6 +10,8 @@ from scipy.special import erf
 
 from ropecam.device.pipeline import _kernels as K
 
+pytestmark = pytest.mark.kernel
+
 
 def _edge_image(angle_deg: float, offset_px: float, size: int = 41) -> tuple[np.ndarray, np.ndarray, float]:
     """A blurred straight step edge through the image centre shifted by `offset_px` along its normal."""
