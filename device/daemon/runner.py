@@ -81,6 +81,7 @@ class Daemon:
         self.control_results: Counter[str] = Counter()  # by AckResult name, and REFUSED (forged, replayed)
         self._endpoint_counted = (0, 0)
         self._next_ping = 0.0
+        self._ready = False  # READY sent to systemd
         self.transport: Transport | None = None
         self.sender: ResultSender | None = None
         self.listener: ControlListener | None = None
@@ -148,10 +149,10 @@ class Daemon:
 
     # -- watchdog ------------------------------------------------------------------------------------------------
     def _ping(self) -> None:
-        """Ping systemd's watchdog when a ping is due."""
+        """Ping systemd's watchdog when a ping is due (from READY on: start-up is under TimeoutStartSec)."""
         period_s = self.notifier.watchdog_period_s
         now = time.monotonic()
-        if period_s is not None and now >= self._next_ping:
+        if self._ready and period_s is not None and now >= self._next_ping:
             self.notifier.watchdog()
             self._next_ping = now + period_s
 
@@ -330,7 +331,9 @@ class Daemon:
         if source is None:
             self._close_link()
             return EXIT_OK if stop.is_set() else EXIT_CAMERA_LOST
-        self.notifier.ready(f"measuring {source.describe().get('name', '')} -> {self.config.sender.sink}")
+        # READY only after the first frame went through the pipeline: that first call loads (or, with a cold cache,
+        # compiles) the Numba kernels, under TimeoutStartSec; the watchdog only runs from READY on.
+        ready_text = f"measuring {source.describe().get('name', '')} -> {self.config.sender.sink}"
         period_s = self.config.sender.status_period_s
         next_status = time.monotonic() + period_s
         timeout_s = self.config.capture.read_timeout_s
@@ -361,6 +364,9 @@ class Daemon:
                     for chunk in split_frame(frame.sequence, frame.image):
                         self.sender.submit(chunk)
                     self._raw_frame_requested = False
+                if frame is not None and not self._ready:
+                    self.notifier.ready(ready_text)
+                    self._ready = True
                 self._ping()
                 if self._link_broken():
                     self._reopen_link(stop)

@@ -224,6 +224,11 @@ def test_systemd_ready_watchdog_and_stopping(rig_set: Path, tmp_path: Path) -> N
     [
         ("[captur]\n", r"unknown table \[captur\]"),
         ("[sender]\nsink = 'nowhere'\n", "sender.sink must be a transport URL"),
+        ("[sender]\nsink = 'udp://host'\n", "sender.sink: .*a UDP port is required"),
+        ("[sender]\nsink = 'udp://host:70000'\n", "sender.sink: .*bad port"),
+        ("[sender]\nsink = 'tcp://host:5600'\n", "sender.sink: .*unknown scheme 'tcp'"),
+        ("[sender]\nsink = 'serial://'\n", "sender.sink: .*a device path is required"),
+        ("[sender]\nsink = 'serial:///dev/ttyS0?baud=fast'\n", "sender.sink: .*baud='fast' is not an integer"),
         ("[sender]\ndevice_id = 0\n", r"sender.device_id must be in \[1, 65534\]"),
         ("[pipeline]\nmethod = 'magic'\n", "method"),
         ("[control]\nkey_hex = '12'\n", "at least 16 are required"),

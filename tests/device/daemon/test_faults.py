@@ -4,7 +4,6 @@ that survive a camera reopen, a link that fails and comes back, and a watchdog k
 from __future__ import annotations
 
 import logging
-import threading
 import time
 
 import pytest
@@ -174,8 +173,13 @@ class PingLog(Notifier):
         super().__init__(None, watchdog_usec)
         self.times: list[tuple[float, str]] = []
 
+        self.daemon: Daemon | None = None
+        self.measured_at_ready: int | None = None
+
     def notify(self, text: str) -> None:
         self.times.append((time.monotonic(), text.split("\n")[0]))
+        if text.startswith("READY=1") and self.daemon is not None:
+            self.measured_at_ready = self.daemon.frames_measured
 
     def pings_after(self, t: float) -> int:
         return sum(when >= t and text == "WATCHDOG=1" for when, text in self.times)
@@ -187,8 +191,11 @@ def test_watchdog_is_pinged_while_the_camera_is_retried() -> None:
     host = open_transport("loop://faults-wd")
     config = _config("loop://faults-wd", retry_initial_s=0.3, retry_max_s=0.3, camera_give_up_s=1.0)
     daemon = Daemon(config, notifier=notifier, driver_factory=fake_factory(camera))
+    notifier.daemon = daemon
     with running(daemon) as run:
         _collect(host, 0.3)
+        # READY once the first frame went through the pipeline (its kernels are loaded: the watchdog may start).
+        assert notifier.measured_at_ready is not None and notifier.measured_at_ready >= 1
         lost_at = time.monotonic()
         camera.vanish()
         assert run.wait(10) == EXIT_CAMERA_LOST
@@ -199,16 +206,22 @@ def test_watchdog_is_pinged_while_the_camera_is_retried() -> None:
 
 def test_watchdog_is_pinged_while_the_link_is_retried() -> None:
     notifier = PingLog(watchdog_usec=100_000)
-    attempts = threading.Event()
+    links: list[Unpluggable] = []
 
-    def never(url: str) -> LoopTransport:
-        attempts.set()
-        raise TransportError(f"{url}: cannot open serial port: No such file or directory")
+    def factory(url: str) -> Unpluggable:
+        if links:  # once pulled, the port does not come back during this test
+            raise TransportError(f"{url}: cannot open serial port: No such file or directory")
+        device_end, _ = LoopTransport.pair(4096, url)
+        links.append(Unpluggable(url, device_end._inbox, device_end._outbox))
+        return links[0]
 
     config = _config("loop://unused", retry_initial_s=0.3, retry_max_s=0.3)
-    daemon = Daemon(config, notifier=notifier, driver_factory=fake_factory(_camera()), transport_factory=never)
+    daemon = Daemon(config, notifier=notifier, driver_factory=fake_factory(_camera()), transport_factory=factory)
     with running(daemon):
-        assert attempts.wait(10)
-        started = time.monotonic()
+        deadline = time.monotonic() + 10
+        while not any(text.startswith("READY") for _, text in notifier.times) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        pulled_at = time.monotonic()
+        links[0].unplugged = True
         time.sleep(1.0)
-    assert notifier.pings_after(started) >= 8
+    assert notifier.pings_after(pulled_at) >= 8
