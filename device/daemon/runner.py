@@ -18,7 +18,7 @@ from ropecam.device.capture.driver import DriverFactory
 from ropecam.device.capture.source import CameraSource, CaptureCounters, CapturedFrame, ControlUnsupportedError
 from ropecam.device.daemon.config import DeviceConfig
 from ropecam.device.daemon.control import ControlListener, PendingCommand
-from ropecam.device.daemon.health import CpuMeter, RateMeter, read_temperature_c
+from ropecam.device.daemon.health import CpuLoadMeter, RateMeter, read_temperature_c
 from ropecam.device.daemon.systemd import Notifier
 from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam.device.pipeline.result import to_wire
@@ -72,7 +72,7 @@ class Daemon:
         self._raw_frame_requested = False
         self._camera_lost_since: float | None = None
         self._started = time.monotonic_ns()
-        self._cpu = CpuMeter()
+        self._cpu = CpuLoadMeter()
         self._rate = RateMeter()
         # Camera settings changed by control, re-applied whenever the camera is reopened (the config has the rest).
         self.camera_settings: dict[str, int] = {}
@@ -80,6 +80,9 @@ class Daemon:
         self._previous_sources = CaptureCounters()
         self.control_results: Counter[str] = Counter()  # by AckResult name, and REFUSED (forged, replayed)
         self._endpoint_counted = (0, 0)
+        self._previous_links: Counter[str] = Counter()
+        self._link_open = False
+        self._next_sequence = 0  # of the next link's first message
         self._next_ping = 0.0
         self._ready = False  # READY sent to systemd
         self.transport: Transport | None = None
@@ -90,7 +93,7 @@ class Daemon:
     def _open_link(self, stop: threading.Event) -> bool:
         """Open the transport, sender and control listener, retrying with backoff; False if stopped first."""
         delay = self.config.daemon.retry_initial_s
-        sequence = 0 if self.sender is None else self.sender.next_sequence
+        sequence = self._next_sequence
         while not stop.is_set():
             try:
                 self.transport = self._transport_factory(self.config.sender.sink)
@@ -113,6 +116,7 @@ class Daemon:
                 self._pipeline_config.rope_length_m,
                 link_broken=broken,
             )
+            self._link_open = True
             return True
         return False
 
@@ -124,27 +128,52 @@ class Daemon:
             self.control_results["INVALID"] += stats.failed - self._endpoint_counted[1]
             self._endpoint_counted = (stats.refused, stats.failed)
 
+    def _link_counts(self) -> Counter[str]:
+        """Link counters since the daemon started: the closed links' plus the current one's."""
+        totals = self._previous_links.copy()
+        if not self._link_open:
+            return totals
+        if self.sender is not None:
+            stats = self.sender.stats
+            totals.update(
+                queue_dropped=stats.dropped_queue_full,
+                encode_errors=stats.encode_errors,
+                link_errors=stats.link_errors,
+                closed_dropped=stats.dropped_closed,
+            )
+        if self.transport is not None:
+            totals.update(messages_dropped=self.transport.stats.send_dropped)
+        return totals
+
     def _close_link(self) -> None:
+        if not self._link_open:
+            return
         self._count_endpoint()
         self._endpoint_counted = (0, 0)
         if self.sender is not None:
             self.sender.close(_BROKEN_LINK_DRAIN_S if self._link_broken() else 2.0)
+            self._next_sequence = self.sender.next_sequence
+        self._previous_links = self._link_counts()
         if self.listener is not None:
             self.listener.close()
         if self.transport is not None:
             self.transport.close()
+        self._link_open = False  # the objects stay for a look at their stats; their counts are in the totals now
 
     def _link_broken(self) -> bool:
         """True when the transport closed, or the sender or the listener found it failing."""
-        if self.transport is None or self.transport.closed:
+        if not self._link_open or self.transport is None or self.transport.closed:
             return True
         return self.sender is not None and self.sender.link_broken.is_set()
 
     def _reopen_link(self, stop: threading.Event) -> None:
         _log.warning("the link %s is broken; reopening", self.config.sender.sink)
+        waiting = self.listener.commands if self.listener is not None else None
         self._close_link()
         if self._open_link(stop):
             self.link_reopened += 1
+            while waiting is not None and not waiting.empty() and self.listener is not None:
+                self.listener.commands.put(waiting.get())  # verified before the link broke: apply and ack them
             self._send_log(f"link {self.config.sender.sink} reopened")
 
     # -- watchdog ------------------------------------------------------------------------------------------------
@@ -268,16 +297,17 @@ class Daemon:
             return
         counters = self._capture_totals(source)
         delivered = counters.delivered
-        sender, transport = self.sender.stats, self.transport.stats if self.transport else None
+        link = self._link_counts()
         self._count_endpoint()
         applied = self.control_results["APPLIED"]
         named = {
             "camera_lost": int(self._camera_lost_since is not None),
             "capture_timeouts": counters.timeouts,
             "capture_skipped": counters.skipped,
-            "queue_dropped": sender.dropped_queue_full,
-            "encode_errors": sender.encode_errors,
-            "link_errors": sender.link_errors,
+            "queue_dropped": link["queue_dropped"],
+            "encode_errors": link["encode_errors"],
+            "link_errors": link["link_errors"],
+            "closed_dropped": link["closed_dropped"],
             "link_reopened": self.link_reopened,
             "camera_reopened": self.camera_reopened,
             "control_applied": applied,
@@ -289,8 +319,8 @@ class Daemon:
         status = Status(
             frame_rate_hz=self._rate.sample(delivered),
             frames_captured=delivered,
-            frames_dropped=counters.dropped + counters.skipped + sender.dropped_queue_full,
-            messages_dropped=transport.send_dropped if transport else 0,
+            frames_dropped=counters.dropped + counters.skipped + link["queue_dropped"],
+            messages_dropped=link["messages_dropped"],
             exposure_us=int(source.exposure_us) if source is not None else 0,
             gain_db=float(self.camera_settings.get("gain", 0)),  # camera units: see docs/daemon.md
             uptime_ns=time.monotonic_ns() - self._started,
