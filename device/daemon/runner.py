@@ -122,7 +122,7 @@ class Daemon:
 
     def _count_endpoint(self) -> None:
         """Move the listener's counts (refused, invalid at arrival) into the daemon's running totals."""
-        if self.listener is not None:
+        if self._link_open and self.listener is not None:
             stats = self.listener.endpoint.stats
             self.control_results["REFUSED"] += stats.refused - self._endpoint_counted[0]
             self.control_results["INVALID"] += stats.failed - self._endpoint_counted[1]
