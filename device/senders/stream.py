@@ -93,7 +93,7 @@ class ResultSender:
     def submit_frame(self, record: FrameResult) -> None:
         """Queue a frame result; drops (and counts) the oldest waiting one when the queue is full."""
         with self._wake:
-            if self._stop:
+            if self._stop or not self._thread.is_alive():  # closed, or its thread died: nobody would send it
                 self.stats.dropped_closed += 1
                 return
             if len(self._frames) == self._frames.maxlen:
@@ -106,7 +106,7 @@ class ResultSender:
         """Queue a Status, ControlAck, Log or RawFrameChunk; these go ahead of frame results and are never dropped
         here (the transport may still drop them when the line is full); after `close` they are counted and dropped."""
         with self._wake:
-            if self._stop:
+            if self._stop or not self._thread.is_alive():  # closed, or its thread died: nobody would send it
                 self.stats.dropped_closed += 1
                 return
             self._urgent.append(record)
