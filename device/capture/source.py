@@ -24,12 +24,16 @@ from numpy.typing import NDArray
 
 from ropecam.shared.errors import CaptureError
 
-__all__ = ["SEQUENCE_MODULUS", "CameraSource", "CaptureCounters", "CapturedFrame"]
+__all__ = ["SEQUENCE_MODULUS", "CameraSource", "CaptureCounters", "CapturedFrame", "ControlUnsupportedError"]
 
 log = logging.getLogger(__name__)
 
 # V4L2 sequence numbers are u32 and wrap; gaps are computed modulo this.
 SEQUENCE_MODULUS: Final = 2**32
+
+
+class ControlUnsupportedError(ValueError):
+    """The source has no such control at all (a recording has no exposure; a camera without a gain control)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -184,7 +188,7 @@ class CameraSource(ABC):
         CaptureError
             The device was lost while setting it.
         """
-        raise ValueError(f"{self.name}: this source cannot change the exposure")
+        raise ControlUnsupportedError(f"{self.name}: this source cannot change the exposure")
 
     def set_gain(self, gain: int) -> int:
         """Set the analogue gain in the device's own units; returns the value in effect.
@@ -196,7 +200,7 @@ class CameraSource(ABC):
         CaptureError
             The device was lost while setting it.
         """
-        raise ValueError(f"{self.name}: this source has no gain control")
+        raise ControlUnsupportedError(f"{self.name}: this source has no gain control")
 
     def describe(self) -> dict[str, object]:
         """Return the settings in effect (for logs and Status): name, size, fps, exposure, pixel format."""

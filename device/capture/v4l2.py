@@ -31,7 +31,7 @@ from ropecam.device.capture.driver import (
     TimestampSource,
     V4l2Driver,
 )
-from ropecam.device.capture.source import CameraSource, CapturedFrame
+from ropecam.device.capture.source import CameraSource, CapturedFrame, ControlUnsupportedError
 from ropecam.shared.errors import CaptureError
 
 __all__ = [
@@ -356,7 +356,7 @@ class V4l2Source(CameraSource):
         self._check_exposure_value(exposure_us)
         exposure = _find(self._controls, EXPOSURE_CONTROLS)
         if exposure is None:
-            raise ValueError(
+            raise ControlUnsupportedError(
                 f"{self.name}: no exposure control (looked for {', '.join(EXPOSURE_CONTROLS)}); "
                 f"controls: {', '.join(self._controls) or 'none'}"
             )
@@ -409,7 +409,9 @@ class V4l2Source(CameraSource):
         _check_gain_value(gain)
         control = _find(self._controls, GAIN_CONTROLS)
         if control is None:
-            raise ValueError(f"{self.name}: this camera has no gain control (looked for {', '.join(GAIN_CONTROLS)})")
+            raise ControlUnsupportedError(
+                f"{self.name}: this camera has no gain control (looked for {', '.join(GAIN_CONTROLS)})"
+            )
         low, high = control.minimum, control.maximum
         if low is not None and high is not None and not low <= gain <= high:
             raise ValueError(f"gain={gain} out of the camera's range [{low}, {high}] ({control.name})")

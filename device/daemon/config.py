@@ -9,7 +9,9 @@ from typing import Any
 from ropecam.device.capture.config import CaptureConfig
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.shared.config import check_range, load_tables
+from ropecam.shared.errors import ConfigError
 from ropecam.shared.protocol.auth import AuthConfig
+from ropecam.shared.transport.base import check_transport_url
 
 __all__ = ["DaemonConfig", "DeviceConfig", "SenderConfig", "load_device_config"]
 
@@ -38,9 +40,13 @@ class SenderConfig:
 
     def __post_init__(self) -> None:
         if not isinstance(self.sink, str) or "://" not in self.sink:
-            raise ValueError(
+            raise ConfigError(
                 f"sender.sink must be a transport URL (udp://HOST:PORT, serial:///dev/X), got {self.sink!r}"
             )
+        try:
+            check_transport_url(self.sink)  # scheme, host and port, device path, options: refused now, not at open
+        except ConfigError as exc:
+            raise ConfigError(f"sender.sink: {exc}") from exc
         check_range("sender.device_id", self.device_id, 1, 0xFFFE)
         check_range("sender.status_period_s", self.status_period_s, 0.05, 60.0)
         check_range("sender.queue_frames", self.queue_frames, 1, 10_000)

@@ -1,7 +1,12 @@
 """The control channel on the device: a thread that receives, verifies and queues commands for the main loop.
 
 Commands are validated when they arrive (a bad value is acknowledged as INVALID at once) and applied by the main
-loop between two frames, so a frame is never measured with half-changed settings.
+loop between two frames, so a frame is never measured with half-changed settings. The main loop acknowledges a
+valid command once it has applied it: APPLIED, INVALID (the camera refused the value, e.g. an exposure longer than
+the frame period), UNSUPPORTED (the source has no such control) or FAILED (the camera failed while setting it).
+
+A failed receive means the link is broken: the listener sets the shared `link_broken` event and ends; the daemon
+opens a new link with a new listener.
 """
 
 from __future__ import annotations
@@ -10,6 +15,7 @@ import logging
 import math
 import queue
 import threading
+from dataclasses import dataclass
 from typing import Final
 
 from ropecam.device.senders.stream import ResultSender
@@ -17,11 +23,19 @@ from ropecam.shared.errors import ProtocolError, TransportError
 from ropecam.shared.protocol import AckResult, Command, Control, ControlEndpoint, Verifier, decode_message
 from ropecam.shared.transport.base import Transport
 
-__all__ = ["ControlListener", "validate_command"]
+__all__ = ["ControlListener", "PendingCommand", "validate_command"]
 
 _log = logging.getLogger(__name__)
 _EXPOSURE_US: Final = (10, 1_000_000)
-_GAIN_DB: Final = (-20.0, 60.0)
+_GAIN_UNITS: Final = (-(2**31), 2**31 - 1)  # a V4L2 integer control; the camera checks its own range when applied
+
+
+@dataclass(frozen=True, slots=True)
+class PendingCommand:
+    """A verified, validated command waiting for the main loop, and the sequence number its ack refers to."""
+
+    control: Control
+    acked_sequence: int
 
 
 def validate_command(control: Control, rope_length_m: float) -> None:
@@ -32,9 +46,11 @@ def validate_command(control: Control, rope_length_m: float) -> None:
         if not (math.isfinite(values[0]) and low <= values[0] <= high):
             raise ValueError(f"exposure must be in [{low}, {high}] us, got {values[0]}")
     elif control.command is Command.SET_GAIN:
-        low, high = _GAIN_DB
-        if not (math.isfinite(values[0]) and low <= values[0] <= high):
-            raise ValueError(f"gain must be in [{low}, {high}] dB, got {values[0]}")
+        low, high = _GAIN_UNITS
+        if not (math.isfinite(values[0]) and values[0] == round(values[0]) and low <= values[0] <= high):
+            raise ValueError(
+                f"gain must be an integer in the camera's own units (its V4L2 gain control), got {values[0]}"
+            )
     elif control.command is Command.SET_THRESHOLDS:
         low, high = values
         if not (0 < low < high <= 1020):
@@ -58,14 +74,23 @@ class ControlListener:
         Tag and counter checks; without a key every control message is refused (control off).
     rope_length_m
         For validating material points.
+    link_broken
+        Set when a receive fails (shared with the sender); a new event by default.
     """
 
     def __init__(
-        self, transport: Transport, sender: ResultSender, device_id: int, verifier: Verifier, rope_length_m: float
+        self,
+        transport: Transport,
+        sender: ResultSender,
+        device_id: int,
+        verifier: Verifier,
+        rope_length_m: float,
+        link_broken: threading.Event | None = None,
     ) -> None:
         self.transport = transport
         self.sender = sender
-        self.commands: queue.SimpleQueue[Control] = queue.SimpleQueue()
+        self.link_broken = link_broken if link_broken is not None else threading.Event()
+        self.commands: queue.SimpleQueue[PendingCommand] = queue.SimpleQueue()
         self.endpoint = ControlEndpoint(device_id, verifier, self._accept)
         self.bad_messages = 0
         self._rope_length_m = rope_length_m
@@ -74,20 +99,19 @@ class ControlListener:
         self._thread.start()
 
     def _accept(self, control: Control) -> tuple[AckResult, str]:
+        """Validate only: the endpoint's APPLIED here means "valid, queued"; the main loop sends the real ack."""
         validate_command(control, self._rope_length_m)
-        self.commands.put(control)
-        return AckResult.APPLIED, "applied before the next frame"
+        return AckResult.APPLIED, ""
 
     def _run(self) -> None:
         while not self._stop.is_set():
             try:
                 data = self.transport.receive(timeout_s=0.2)
             except TransportError as exc:
-                if self._stop.is_set() or self.transport.closed:
-                    return
-                _log.warning("control receive failed: %s", exc)
-                self._stop.wait(0.5)
-                continue
+                if not (self._stop.is_set() or self.transport.closed):
+                    _log.error("control receive failed, the link is broken: %s", exc)
+                    self.link_broken.set()
+                return
             if data is None:
                 continue
             try:
@@ -97,7 +121,11 @@ class ControlListener:
                 _log.debug("bad message on the control channel: %s", exc)
                 continue
             ack = self.endpoint.handle(message)
-            if ack is not None:
+            if ack is None:
+                continue
+            if ack.result is AckResult.APPLIED:
+                self.commands.put(PendingCommand(message.record, ack.acked_sequence))  # acked once applied
+            else:
                 self.sender.submit(ack)
 
     def close(self) -> None:

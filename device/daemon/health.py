@@ -7,7 +7,7 @@ import os
 import time
 from pathlib import Path
 
-__all__ = ["CpuMeter", "RateMeter", "read_temperature_c"]
+__all__ = ["CpuLoadMeter", "RateMeter", "read_temperature_c"]
 
 _THERMAL = Path("/sys/class/thermal/thermal_zone0/temp")
 
@@ -20,8 +20,12 @@ def read_temperature_c(path: Path = _THERMAL) -> float:
         return math.nan
 
 
-class CpuMeter:
-    """This process's CPU use since the last call, as a fraction of all cores (0..1)."""
+class CpuLoadMeter:
+    """This process's CPU use since the last call as a FRACTION OF ALL CORES, 0..1 (Status.cpu_load).
+
+    1.0 means every core busy with this process; 0.25 on a 4-core board is one core fully used. (The host monitor's
+    own `ropecam.host.monitor.display.CpuMeter` shows percent of ONE core, like `top`; the two are not the same unit.)
+    """
 
     def __init__(self) -> None:
         self._cores = os.cpu_count() or 1
@@ -29,6 +33,7 @@ class CpuMeter:
         self._last_cpu = time.process_time()
 
     def sample(self) -> float:
+        """Fraction of all cores used since the previous call (nan when no time has passed)."""
         wall, cpu = time.monotonic(), time.process_time()
         elapsed = wall - self._last_wall
         load = (cpu - self._last_cpu) / (elapsed * self._cores) if elapsed > 0 else math.nan

@@ -15,16 +15,16 @@ from collections import Counter
 from collections.abc import Callable
 
 from ropecam.device.capture.driver import DriverFactory
-from ropecam.device.capture.source import CameraSource, CapturedFrame
+from ropecam.device.capture.source import CameraSource, CaptureCounters, CapturedFrame, ControlUnsupportedError
 from ropecam.device.daemon.config import DeviceConfig
-from ropecam.device.daemon.control import ControlListener
-from ropecam.device.daemon.health import CpuMeter, RateMeter, read_temperature_c
+from ropecam.device.daemon.control import ControlListener, PendingCommand
+from ropecam.device.daemon.health import CpuLoadMeter, RateMeter, read_temperature_c
 from ropecam.device.daemon.systemd import Notifier
 from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam.device.pipeline.result import to_wire
 from ropecam.device.senders.stream import ResultSender
 from ropecam.shared.errors import CaptureError, TransportError
-from ropecam.shared.protocol import Command, Control, Log, Status, Verifier, load_key, split_frame
+from ropecam.shared.protocol import AckResult, Command, ControlAck, Log, Status, Verifier, load_key, split_frame
 from ropecam.shared.transport.base import Transport, open_transport
 
 __all__ = ["EXIT_CAMERA_LOST", "EXIT_OK", "Daemon"]
@@ -32,6 +32,7 @@ __all__ = ["EXIT_CAMERA_LOST", "EXIT_OK", "Daemon"]
 _log = logging.getLogger(__name__)
 EXIT_OK = 0
 EXIT_CAMERA_LOST = 3
+_BROKEN_LINK_DRAIN_S = 0.2  # a broken link cannot take the backlog: do not wait long for it
 
 
 class Daemon:
@@ -71,9 +72,19 @@ class Daemon:
         self._raw_frame_requested = False
         self._camera_lost_since: float | None = None
         self._started = time.monotonic_ns()
-        self._cpu = CpuMeter()
+        self._cpu = CpuLoadMeter()
         self._rate = RateMeter()
-        self._gain = 0.0  # dB; the wire needs a finite value, and sources without gain control report none
+        # Camera settings changed by control, re-applied whenever the camera is reopened (the config has the rest).
+        self.camera_settings: dict[str, int] = {}
+        # Counts of the sources replaced after a camera loss, so the totals in Status never go backwards.
+        self._previous_sources = CaptureCounters()
+        self.control_results: Counter[str] = Counter()  # by AckResult name, and REFUSED (forged, replayed)
+        self._endpoint_counted = (0, 0)
+        self._previous_links: Counter[str] = Counter()
+        self._link_open = False
+        self._next_sequence = 0  # of the next link's first message
+        self._next_ping = 0.0
+        self._ready = False  # READY sent to systemd
         self.transport: Transport | None = None
         self.sender: ResultSender | None = None
         self.listener: ControlListener | None = None
@@ -82,38 +93,108 @@ class Daemon:
     def _open_link(self, stop: threading.Event) -> bool:
         """Open the transport, sender and control listener, retrying with backoff; False if stopped first."""
         delay = self.config.daemon.retry_initial_s
-        sequence = 0 if self.sender is None else self.sender.next_sequence
+        sequence = self._next_sequence
         while not stop.is_set():
             try:
                 self.transport = self._transport_factory(self.config.sender.sink)
             except TransportError as exc:
                 _log.error("cannot open the link %s: %s (retrying in %.1f s)", self.config.sender.sink, exc, delay)
                 self.notifier.status(f"link {self.config.sender.sink} unavailable: {exc}")
-                stop.wait(delay)
+                self._wait(stop, delay)
                 delay = min(delay * 2, self.config.daemon.retry_max_s)
                 continue
             sender_config = self.config.sender
-            self.sender = ResultSender(self.transport, sender_config.device_id, sender_config.queue_frames, sequence)
+            broken = threading.Event()
+            self.sender = ResultSender(
+                self.transport, sender_config.device_id, sender_config.queue_frames, sequence, link_broken=broken
+            )
             self.listener = ControlListener(
                 self.transport,
                 self.sender,
                 sender_config.device_id,
                 self._verifier,
                 self._pipeline_config.rope_length_m,
+                link_broken=broken,
             )
+            self._link_open = True
             return True
         return False
 
-    def _close_link(self) -> None:
+    def _count_endpoint(self) -> None:
+        """Move the listener's counts (refused, invalid at arrival) into the daemon's running totals."""
+        if self._link_open and self.listener is not None:
+            stats = self.listener.endpoint.stats
+            self.control_results["REFUSED"] += stats.refused - self._endpoint_counted[0]
+            self.control_results["INVALID"] += stats.failed - self._endpoint_counted[1]
+            self._endpoint_counted = (stats.refused, stats.failed)
+
+    def _link_counts(self) -> Counter[str]:
+        """Link counters since the daemon started: the closed links' plus the current one's."""
+        totals = self._previous_links.copy()
+        if not self._link_open:
+            return totals
         if self.sender is not None:
-            self.sender.close()
+            stats = self.sender.stats
+            totals.update(
+                queue_dropped=stats.dropped_queue_full,
+                encode_errors=stats.encode_errors,
+                link_errors=stats.link_errors,
+                closed_dropped=stats.dropped_closed,
+            )
+        if self.transport is not None:
+            totals.update(messages_dropped=self.transport.stats.send_dropped)
+        return totals
+
+    def _close_link(self) -> None:
+        if not self._link_open:
+            return
+        self._count_endpoint()
+        self._endpoint_counted = (0, 0)
+        if self.sender is not None:
+            self.sender.close(_BROKEN_LINK_DRAIN_S if self._link_broken() else 2.0)
+            self._next_sequence = self.sender.next_sequence
+        self._previous_links = self._link_counts()
         if self.listener is not None:
             self.listener.close()
         if self.transport is not None:
             self.transport.close()
+        self._link_open = False  # the objects stay for a look at their stats; their counts are in the totals now
 
     def _link_broken(self) -> bool:
-        return self.transport is None or self.transport.closed
+        """True when the transport closed, or the sender or the listener found it failing."""
+        if not self._link_open or self.transport is None or self.transport.closed:
+            return True
+        return self.sender is not None and self.sender.link_broken.is_set()
+
+    def _reopen_link(self, stop: threading.Event) -> None:
+        _log.warning("the link %s is broken; reopening", self.config.sender.sink)
+        waiting = self.listener.commands if self.listener is not None else None
+        self._close_link()
+        if self._open_link(stop):
+            self.link_reopened += 1
+            while waiting is not None and not waiting.empty() and self.listener is not None:
+                self.listener.commands.put(waiting.get())  # verified before the link broke: apply and ack them
+            self._send_log(f"link {self.config.sender.sink} reopened")
+
+    # -- watchdog ------------------------------------------------------------------------------------------------
+    def _ping(self) -> None:
+        """Ping systemd's watchdog when a ping is due (from READY on: start-up is under TimeoutStartSec)."""
+        period_s = self.notifier.watchdog_period_s
+        now = time.monotonic()
+        if self._ready and period_s is not None and now >= self._next_ping:
+            self.notifier.watchdog()
+            self._next_ping = now + period_s
+
+    def _wait(self, stop: threading.Event, seconds: float) -> None:
+        """Wait `seconds` (or until stopped) in slices no longer than the watchdog period, pinging it."""
+        end = time.monotonic() + seconds
+        slice_s = self.notifier.watchdog_period_s or seconds
+        while not stop.is_set():
+            self._ping()
+            left = end - time.monotonic()
+            if left <= 0:
+                return
+            stop.wait(min(left, slice_s))
 
     # -- camera --------------------------------------------------------------------------------------------------
     def _open_camera(self, stop: threading.Event) -> CameraSource | None:
@@ -121,10 +202,12 @@ class Daemon:
         delay = self.config.daemon.retry_initial_s
         while not stop.is_set():
             source = None
+            self._ping()
             try:
                 source = self.config.capture.open(self._driver_factory)
                 source.start()
                 self._camera_lost_since = None
+                self._reapply_settings(source)
                 return source
             except CaptureError as exc:
                 if source is not None:
@@ -138,18 +221,24 @@ class Daemon:
                 if lost_s >= self.config.daemon.camera_give_up_s:
                     return None
                 self._send_status(None)
-                stop.wait(delay)
+                self._wait(stop, delay)
                 delay = min(delay * 2, self.config.daemon.retry_max_s)
         return None
 
     # -- commands --------------------------------------------------------------------------------------------------
-    def _apply(self, control: Control, source: CameraSource) -> None:
-        command, values = control.command, control.values
+    def _apply(self, pending: PendingCommand, source: CameraSource) -> ControlAck:
+        """Apply one command between frames and return its acknowledgement (what really happened)."""
+        command, values = pending.control.command, pending.control.values
+        result, detail = AckResult.APPLIED, ""
         try:
             if command is Command.SET_EXPOSURE:
-                source.set_exposure_us(round(values[0]))
+                got = source.set_exposure_us(round(values[0]))
+                self.camera_settings["exposure_us"] = round(values[0])
+                detail = f"exposure {got} us"
             elif command is Command.SET_GAIN:
-                self._gain = float(source.set_gain(round(values[0])))
+                got = source.set_gain(round(values[0]))
+                self.camera_settings["gain"] = round(values[0])
+                detail = f"gain {got} (camera units)"
             elif command is Command.SET_THRESHOLDS:
                 self._rebuild(canny_low=values[0], canny_high=values[1])
             elif command is Command.SET_MATERIAL_POINTS:
@@ -162,10 +251,36 @@ class Daemon:
                 self._running = False
             elif command is Command.REQUEST_RAW_FRAME:
                 self._raw_frame_requested = True
+            else:
+                result, detail = AckResult.UNSUPPORTED, "the device does not know this command"
+        except ControlUnsupportedError as exc:
+            result, detail = AckResult.UNSUPPORTED, str(exc)
+        except ValueError as exc:  # the camera refuses the value (its range, the frame period)
+            result, detail = AckResult.INVALID, str(exc)
+        except CaptureError as exc:  # the camera failed while setting it (and is probably lost)
+            result, detail = AckResult.FAILED, str(exc)
+        self.control_results[result.name] += 1  # INVALID at arrival and REFUSED: see _count_endpoint
+        if result is AckResult.APPLIED:
             _log.info("applied %s %s", command.name, list(values))
-        except (ValueError, CaptureError) as exc:
-            _log.warning("could not apply %s %s: %s", command.name, list(values), exc)
-            self._send_log(f"could not apply {command.name}: {exc}")
+        else:
+            _log.warning("could not apply %s %s: %s: %s", command.name, list(values), result.name, detail)
+        return ControlAck(pending.acked_sequence, command, result, detail[:200])
+
+    def _apply_pending(self, source: CameraSource) -> None:
+        while self.listener is not None and not self.listener.commands.empty():
+            ack = self._apply(self.listener.commands.get(), source)
+            if self.sender is not None:
+                self.sender.submit(ack)
+
+    def _reapply_settings(self, source: CameraSource) -> None:
+        """Put back the exposure and gain set by control on a reopened camera (the config has the originals)."""
+        setters = {"exposure_us": source.set_exposure_us, "gain": source.set_gain}
+        for name, value in self.camera_settings.items():
+            try:
+                setters[name](value)
+            except ValueError as exc:
+                _log.warning("could not re-apply %s = %s on the reopened camera: %s", name, value, exc)
+                self._send_log(f"could not re-apply {name} = {value}: {exc}")
 
     def _rebuild(self, **changes: object) -> None:
         """New pipeline settings (or a reset of its tracking state): rebuild it before the next frame."""
@@ -180,36 +295,53 @@ class Daemon:
     def _send_status(self, source: CameraSource | None) -> None:
         if self.sender is None:
             return
-        counters = source.counters if source is not None else None
-        delivered = counters.delivered if counters else 0
-        sender, transport = self.sender.stats, self.transport.stats if self.transport else None
+        counters = self._capture_totals(source)
+        delivered = counters.delivered
+        link = self._link_counts()
+        self._count_endpoint()
+        applied = self.control_results["APPLIED"]
         named = {
             "camera_lost": int(self._camera_lost_since is not None),
-            "capture_timeouts": counters.timeouts if counters else 0,
-            "capture_skipped": counters.skipped if counters else 0,
-            "queue_dropped": sender.dropped_queue_full,
-            "encode_errors": sender.encode_errors,
-            "link_errors": sender.link_errors,
+            "capture_timeouts": counters.timeouts,
+            "capture_skipped": counters.skipped,
+            "queue_dropped": link["queue_dropped"],
+            "encode_errors": link["encode_errors"],
+            "link_errors": link["link_errors"],
+            "closed_dropped": link["closed_dropped"],
             "link_reopened": self.link_reopened,
             "camera_reopened": self.camera_reopened,
-            "control_applied": self.listener.endpoint.stats.applied if self.listener else 0,
-            "control_refused": self.listener.endpoint.stats.refused if self.listener else 0,
+            "control_applied": applied,
+            "control_failed": sum(self.control_results.values()) - applied - self.control_results["REFUSED"],
+            "control_refused": self.control_results["REFUSED"],
             "running": int(self._running),
         }
         named.update({f"frames_{status.lower()}": count for status, count in self.statuses.items()})
         status = Status(
             frame_rate_hz=self._rate.sample(delivered),
             frames_captured=delivered,
-            frames_dropped=(counters.dropped + counters.skipped if counters else 0) + sender.dropped_queue_full,
-            messages_dropped=transport.send_dropped if transport else 0,
+            frames_dropped=counters.dropped + counters.skipped + link["queue_dropped"],
+            messages_dropped=link["messages_dropped"],
             exposure_us=int(source.exposure_us) if source is not None else 0,
-            gain_db=self._gain,
+            gain_db=float(self.camera_settings.get("gain", 0)),  # camera units: see docs/daemon.md
             uptime_ns=time.monotonic_ns() - self._started,
             cpu_load=self._cpu.sample(),
             temperature_c=read_temperature_c(),
             counters=tuple((name[:32], int(value)) for name, value in named.items()),
         )
         self.sender.submit(status)
+
+    def _capture_totals(self, source: CameraSource | None) -> CaptureCounters:
+        """Capture counters since the daemon started: the replaced sources' plus the current one's."""
+        totals = dataclasses.replace(self._previous_sources)
+        if source is not None:
+            for name, value in source.counters.as_dict().items():
+                setattr(totals, name, getattr(totals, name) + value)
+        return totals
+
+    def _retire(self, source: CameraSource) -> None:
+        """Stop a lost source and keep its counts in the running totals."""
+        source.stop()
+        self._previous_sources = self._capture_totals(source)
 
     # -- the loop ----------------------------------------------------------------------------------------------------
     def _measure(self, frame: CapturedFrame, source: CameraSource) -> None:
@@ -229,22 +361,22 @@ class Daemon:
         if source is None:
             self._close_link()
             return EXIT_OK if stop.is_set() else EXIT_CAMERA_LOST
-        self.notifier.ready(f"measuring {source.describe().get('name', '')} -> {self.config.sender.sink}")
+        # READY only after the first frame went through the pipeline: that first call loads (or, with a cold cache,
+        # compiles) the Numba kernels, under TimeoutStartSec; the watchdog only runs from READY on.
+        ready_text = f"measuring {source.describe().get('name', '')} -> {self.config.sender.sink}"
         period_s = self.config.sender.status_period_s
         next_status = time.monotonic() + period_s
-        next_ping = time.monotonic()
         timeout_s = self.config.capture.read_timeout_s
         code = EXIT_OK
         try:
             while not stop.is_set():
-                while self.listener is not None and not self.listener.commands.empty():
-                    self._apply(self.listener.commands.get(), source)
+                self._apply_pending(source)
                 try:
                     frame = source.read(timeout_s)
                 except CaptureError as exc:
                     _log.error("camera lost: %s", exc)
                     self._send_log(f"camera lost: {exc}", logging.ERROR)
-                    source.stop()
+                    self._retire(source)
                     reopened = self._open_camera(stop)
                     if reopened is None:
                         code = EXIT_OK if stop.is_set() else EXIT_CAMERA_LOST
@@ -262,14 +394,15 @@ class Daemon:
                     for chunk in split_frame(frame.sequence, frame.image):
                         self.sender.submit(chunk)
                     self._raw_frame_requested = False
+                if frame is not None and not self._ready:
+                    self.notifier.ready(ready_text)
+                    self._ready = True
+                self._ping()
+                if self._link_broken():
+                    self._reopen_link(stop)
                 now = time.monotonic()
-                if self.notifier.watchdog_period_s is not None and now >= next_ping:
-                    self.notifier.watchdog()
-                    next_ping = now + self.notifier.watchdog_period_s
                 if now >= next_status:
                     next_status = now + period_s
-                    if self._link_broken():
-                        self._reopen_link(stop)
                     self._send_status(source)
         finally:
             self.notifier.stopping()
@@ -278,9 +411,3 @@ class Daemon:
                 self._send_status(source)
             self._close_link()
         return code
-
-    def _reopen_link(self, stop: threading.Event) -> None:
-        _log.warning("the link %s closed; reopening", self.config.sender.sink)
-        self._close_link()
-        if self._open_link(stop):
-            self.link_reopened += 1

@@ -3,6 +3,10 @@
 Frame results queue in a short bounded queue (the oldest is dropped, counted, when the link or the encoder falls
 behind), so the pipeline never waits for the link. Status, acknowledgements and logs go through the same thread
 ahead of frame results, so that one thread owns the transport's send side and the sequence numbers.
+
+A link that fails `broken_after` sends in a row (an unplugged serial adapter, a network that went away) sets the
+`link_broken` event; the daemon then closes this sender and opens a new link. After `close` the sender numbers no
+more messages (a new sender continues from `next_sequence` without overlap) and refuses new ones (counted).
 """
 
 from __future__ import annotations
@@ -35,6 +39,8 @@ class SenderStats:
     encode_errors: int = 0
     link_errors: int = 0
     bytes_sent: int = 0
+    dropped_closed: int = 0
+    """Messages submitted after `close`, or still queued when the drain timeout ran out."""
 
 
 class ResultSender:
@@ -52,6 +58,10 @@ class ResultSender:
         Sequence number of the first message (a reopened link continues the numbering).
     clock_ns
         Device clock for the header time (monotonic ns).
+    broken_after
+        Consecutive failed sends (TransportError) after which `link_broken` is set.
+    link_broken
+        Event set when the link is considered broken (shared with the control listener); a new one by default.
     """
 
     def __init__(
@@ -61,6 +71,8 @@ class ResultSender:
         queue_frames: int = 16,
         first_sequence: int = 0,
         clock_ns: Callable[[], int] = time.monotonic_ns,
+        broken_after: int = 3,
+        link_broken: threading.Event | None = None,
     ) -> None:
         self.transport = transport
         self.device_id = device_id
@@ -71,6 +83,9 @@ class ResultSender:
         self._wake = threading.Condition()
         self._stop = False
         self._sequence = first_sequence & 0xFFFFFFFF
+        self._broken_after = max(1, broken_after)
+        self._failures_in_row = 0
+        self.link_broken = link_broken if link_broken is not None else threading.Event()
         self._hint = ShapeHint()
         self._thread = threading.Thread(target=self._run, name="ropecam-sender", daemon=True)
         self._thread.start()
@@ -78,6 +93,9 @@ class ResultSender:
     def submit_frame(self, record: FrameResult) -> None:
         """Queue a frame result; drops (and counts) the oldest waiting one when the queue is full."""
         with self._wake:
+            if self._stop or not self._thread.is_alive():  # closed, or its thread died: nobody would send it
+                self.stats.dropped_closed += 1
+                return
             if len(self._frames) == self._frames.maxlen:
                 self.stats.dropped_queue_full += 1
             self._frames.append(record)
@@ -86,15 +104,19 @@ class ResultSender:
 
     def submit(self, record: Any) -> None:
         """Queue a Status, ControlAck, Log or RawFrameChunk; these go ahead of frame results and are never dropped
-        here (the transport may still drop them when the line is full)."""
+        here (the transport may still drop them when the line is full); after `close` they are counted and dropped."""
         with self._wake:
+            if self._stop or not self._thread.is_alive():  # closed, or its thread died: nobody would send it
+                self.stats.dropped_closed += 1
+                return
             self._urgent.append(record)
             self._wake.notify()
 
     @property
     def next_sequence(self) -> int:
-        """The sequence number the next message will carry."""
-        return self._sequence
+        """The sequence number the next message will carry (final once `close` has returned)."""
+        with self._wake:
+            return self._sequence
 
     def backlog(self) -> int:
         """Messages waiting to be sent."""
@@ -102,48 +124,74 @@ class ResultSender:
             return len(self._frames) + len(self._urgent)
 
     def close(self, drain_timeout_s: float = 2.0) -> None:
-        """Send what is queued (up to `drain_timeout_s`), then stop the thread."""
+        """Send what is queued for up to `drain_timeout_s` seconds, then stop the thread.
+
+        Returns within about `drain_timeout_s` (plus one send). What is still queued then is dropped and counted in
+        ``stats.dropped_closed``; from then on no message gets a sequence number, so `next_sequence` is final.
+        """
         deadline = time.monotonic() + drain_timeout_s
         while self.backlog() and time.monotonic() < deadline and self._thread.is_alive():
             time.sleep(0.005)
         with self._wake:
             self._stop = True
+            self.stats.dropped_closed += len(self._frames) + len(self._urgent)
+            self._frames.clear()
+            self._urgent.clear()
             self._wake.notify()
-        self._thread.join(timeout=2.0)
+        self._thread.join(timeout=max(deadline - time.monotonic(), 0.05))
 
-    def _next(self) -> Any | None:
+    @property
+    def closed(self) -> bool:
+        """True once `close` has been called."""
+        return self._stop
+
+    def _next(self) -> tuple[Any, int] | None:
+        """The next record and the sequence number it carries (taken under the lock, never after `close`)."""
         with self._wake:
             while not self._stop and not self._frames and not self._urgent:
                 self._wake.wait(timeout=0.5)
-            if self._urgent:
-                return self._urgent.popleft()
-            if self._frames:
-                return self._frames.popleft()
-            return None
+            if self._stop:
+                return None
+            record = self._urgent.popleft() if self._urgent else self._frames.popleft()
+            sequence = self._sequence
+            self._sequence = (sequence + 1) & 0xFFFFFFFF
+            return record, sequence
+
+    def _give_back(self, sequence: int) -> None:
+        """Return an unused sequence number (the record could not be encoded) unless another was taken since."""
+        with self._wake:
+            if self._sequence == (sequence + 1) & 0xFFFFFFFF:
+                self._sequence = sequence
 
     def _run(self) -> None:
         while True:
-            record = self._next()
-            if record is None:
+            taken = self._next()
+            if taken is None:
                 return
+            record, sequence = taken
             options = {"hint": self._hint} if isinstance(record, FrameResult) else None
             try:
                 data = encode_message(
-                    record, device_id=self.device_id, sequence=self._sequence, t_ns=self._clock_ns(),
-                    pack_options=options,
-                )  # fmt: skip
+                    record, device_id=self.device_id, sequence=sequence, t_ns=self._clock_ns(), pack_options=options
+                )
             except (ValueError, ProtocolError) as exc:
+                self._give_back(sequence)
                 self.stats.encode_errors += 1
                 _log.warning("cannot encode %s: %s", type(record).__name__, exc)
                 continue
-            self._sequence = (self._sequence + 1) & 0xFFFFFFFF
             try:
                 if self.transport.send(data):
                     self.stats.sent += 1
                     self.stats.bytes_sent += len(data)
                 else:
                     self.stats.dropped_by_link += 1
+                self._failures_in_row = 0
             except TransportError as exc:
-                # A port that closes or a network that goes away: count, report, keep going (the daemon reopens).
+                # A port that closes or a network that goes away: count it; after a few in a row the daemon reopens.
                 self.stats.link_errors += 1
-                _log.warning("link error: %s", exc)
+                self._failures_in_row += 1
+                if self._failures_in_row == self._broken_after:
+                    _log.error("link broken after %d failed sends: %s", self._failures_in_row, exc)
+                    self.link_broken.set()
+                elif self._failures_in_row < self._broken_after:
+                    _log.warning("link error: %s", exc)

@@ -63,7 +63,8 @@ class Status:
     messages_dropped
         Messages the transport dropped because the line was full.
     exposure_us, gain_db
-        Current camera settings.
+        Current camera settings. Despite its name, ``gain_db`` carries the analogue gain in the CAMERA'S OWN UNITS
+        (the V4L2 ``gain`` control, as SET_GAIN sets it; 0 when never set): UVC cameras publish no dB scale.
     uptime_ns
         Time since the daemon started.
     cpu_load, temperature_c
@@ -101,7 +102,7 @@ class Status:
         if not self.frame_rate_hz >= 0:
             raise ValueError(f"frame_rate_hz must be a number >= 0 Hz, got {self.frame_rate_hz!r}")
         if math.isnan(self.gain_db):
-            raise ValueError(f"gain_db must be a finite number of dB, got {self.gain_db!r}")
+            raise ValueError(f"gain_db must be a finite number (camera gain units), got {self.gain_db!r}")
         if not (math.isnan(self.cpu_load) or 0.0 <= self.cpu_load <= 1.0):
             raise ValueError(f"cpu_load must be in [0, 1] (or nan when unknown), got {self.cpu_load!r}")
         counters = tuple((str(name), value) for name, value in self.counters)
@@ -189,7 +190,7 @@ class Command(IntEnum):
     SET_EXPOSURE = 1
     """values: (exposure_us,)"""
     SET_GAIN = 2
-    """values: (gain_db,)"""
+    """values: (gain,) analogue gain in the camera's own units (an integer: the V4L2 gain control), not dB"""
     SET_THRESHOLDS = 3
     """values: (low, high) edge thresholds, grey levels"""
     RESET_ROI = 4

@@ -15,7 +15,16 @@ from urllib.parse import parse_qsl, unquote, urlsplit
 
 from ropecam.shared.errors import ConfigError
 
-__all__ = ["BOOL_OR_AUTO", "Transport", "TransportStats", "Waker", "open_transport", "parse_url"]
+__all__ = [
+    "BOOL_OR_AUTO",
+    "TRANSPORT_OPTIONS",
+    "Transport",
+    "TransportStats",
+    "Waker",
+    "check_transport_url",
+    "open_transport",
+    "parse_url",
+]
 
 
 @dataclass(slots=True)
@@ -208,6 +217,38 @@ def parse_url(
             raise ConfigError(f"{what} {url!r}: option {key}={raw!r} is not {expected}") from exc
     where = unquote(parts.netloc + parts.path) if as_path else (parts.hostname or "")
     return parts.scheme, where, port, options
+
+
+TRANSPORT_OPTIONS: Final[Mapping[str, Mapping[str, object]]] = {
+    "loop": {"capacity": int},
+    "udp": {"listen": bool},
+    "serial": {"baud": int, "rtscts": bool, "low_latency": BOOL_OR_AUTO},
+}
+"""Query options each transport scheme accepts, and their types (for `parse_url`)."""
+
+
+def check_transport_url(url: str) -> None:
+    """Check a transport URL without opening anything: scheme, host and port (udp), path (serial), options.
+
+    Raises
+    ------
+    ConfigError
+        Unknown scheme, missing UDP port or serial device path, port out of range, unknown or mistyped option.
+    """
+    if not isinstance(url, str):
+        raise ConfigError(f"transport URL must be text, got {url!r}")
+    scheme = urlsplit(url).scheme
+    if scheme not in TRANSPORT_OPTIONS:
+        raise ConfigError(f"transport URL {url!r}: unknown scheme {scheme!r} (use udp://HOST:PORT, serial:///dev/X)")
+    _, where, port, options = parse_url(url, TRANSPORT_OPTIONS[scheme])
+    if scheme == "udp" and port is None:
+        raise ConfigError(f"transport URL {url!r}: a UDP port is required (udp://HOST:PORT)")
+    if scheme == "serial":
+        if not where:
+            raise ConfigError(f"transport URL {url!r}: a device path is required (serial:///dev/ttyUSB0)")
+        baud = options.get("baud", 921600)
+        if not isinstance(baud, int) or baud <= 0:
+            raise ConfigError(f"transport URL {url!r}: baud must be a positive integer, got {baud!r}")
 
 
 def open_transport(url: str) -> Transport:

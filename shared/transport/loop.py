@@ -8,7 +8,7 @@ from collections.abc import Callable
 from typing import Final
 
 from ropecam.shared.errors import TransportError
-from ropecam.shared.transport.base import Transport, parse_url
+from ropecam.shared.transport.base import TRANSPORT_OPTIONS, Transport, parse_url
 
 __all__ = ["LoopTransport", "open_loop"]
 
@@ -98,7 +98,7 @@ def open_loop(url: str) -> LoopTransport:
 
     Option ``capacity`` (messages per direction, default 4096).
     """
-    _, name, _, options = parse_url(url, {"capacity": int})
+    _, name, _, options = parse_url(url, TRANSPORT_OPTIONS["loop"])
     capacity = int(options.get("capacity", DEFAULT_CAPACITY))  # type: ignore[call-overload]
     if capacity < 1:
         raise TransportError(f"{url}: capacity must be >= 1, got {capacity}")

@@ -22,13 +22,12 @@ from typing import Final
 
 from ropecam.shared.errors import ConfigError, TransportError
 from ropecam.shared.protocol.framing import Deframer, DeframerStats, frame
-from ropecam.shared.transport.base import BOOL_OR_AUTO, Transport, Waker, parse_url
+from ropecam.shared.transport.base import TRANSPORT_OPTIONS, Transport, Waker, parse_url
 
 __all__ = ["SerialTransport"]
 
 _log = logging.getLogger(__name__)
 _READ_BYTES: Final = 4096
-_OPTIONS: Final = {"baud": int, "rtscts": bool, "low_latency": BOOL_OR_AUTO}
 
 
 def _is_ftdi(path: str) -> bool:
@@ -45,7 +44,7 @@ class SerialTransport(Transport):
 
     def __init__(self, url: str) -> None:
         super().__init__(url)
-        _, path, _, options = parse_url(url, _OPTIONS, path=True)
+        _, path, _, options = parse_url(url, TRANSPORT_OPTIONS["serial"], path=True)
         if not path:
             raise ConfigError(f"transport URL {url!r}: a device path is required (serial:///dev/ttyUSB0)")
         baud = options.get("baud", 921600)

@@ -9,7 +9,7 @@ from typing import Final
 
 from ropecam.shared.errors import ConfigError, TransportError
 from ropecam.shared.protocol.wire import MAX_MESSAGE_BYTES
-from ropecam.shared.transport.base import Transport, Waker, parse_url
+from ropecam.shared.transport.base import TRANSPORT_OPTIONS, Transport, Waker, parse_url
 
 __all__ = ["UdpTransport"]
 
@@ -25,7 +25,7 @@ class UdpTransport(Transport):
 
     def __init__(self, url: str) -> None:
         super().__init__(url)
-        _, host, port, options = parse_url(url, {"listen": bool})
+        _, host, port, options = parse_url(url, TRANSPORT_OPTIONS["udp"])
         if port is None:
             raise ConfigError(f"transport URL {url!r}: a UDP port is required (udp://host:port)")
         listen = options.get("listen") is True or not host

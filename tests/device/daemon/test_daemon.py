@@ -154,19 +154,23 @@ def test_authenticated_control_is_applied_and_forgeries_refused(rig_set: Path) -
         control(Command.REQUEST_RAW_FRAME, (), 5)
         messages = _collect(host, time.monotonic() + 2.0)
         assert run.thread.is_alive()
-    acks = [m.record for m in messages if isinstance(m.record, ControlAck)]
-    assert [(a.command, a.result) for a in acks] == [
-        (Command.SET_EXPOSURE, AckResult.APPLIED),
-        (Command.SET_EXPOSURE, AckResult.INVALID),
-        (Command.REQUEST_RAW_FRAME, AckResult.APPLIED),
-    ]
+    # An invalid value is answered at once by the listener, the others once the main loop has applied them; a
+    # recorded frame set has no exposure control, so the first is UNSUPPORTED (never a premature APPLIED).
+    acks = {m.record.acked_sequence: m.record for m in messages if isinstance(m.record, ControlAck)}
+    assert {seq: (a.command, a.result) for seq, a in acks.items()} == {
+        1: (Command.SET_EXPOSURE, AckResult.UNSUPPORTED),
+        2: (Command.SET_EXPOSURE, AckResult.INVALID),
+        5: (Command.REQUEST_RAW_FRAME, AckResult.APPLIED),
+    }
+    assert "cannot change the exposure" in acks[1].detail and "exposure must be in" in acks[2].detail
     assembler = FrameAssembler()
     images = [image for m in messages if isinstance(m.record, RawFrameChunk) for image in [assembler.add(m.record)]]
     image = next(i for i in images if i is not None)
     assert image.shape == (544, 1024) and image.dtype == np.uint8
     statuses = [m.record for m in messages if isinstance(m.record, Status)]
     counters = dict(statuses[-1].counters)
-    assert counters["control_applied"] == 2 and counters["control_refused"] == 2 and counters["running"] == 1
+    assert counters["control_applied"] == 1 and counters["control_failed"] == 2 and counters["control_refused"] == 2
+    assert counters["running"] == 1
     host.close()
 
 
@@ -220,6 +224,11 @@ def test_systemd_ready_watchdog_and_stopping(rig_set: Path, tmp_path: Path) -> N
     [
         ("[captur]\n", r"unknown table \[captur\]"),
         ("[sender]\nsink = 'nowhere'\n", "sender.sink must be a transport URL"),
+        ("[sender]\nsink = 'udp://host'\n", "sender.sink: .*a UDP port is required"),
+        ("[sender]\nsink = 'udp://host:70000'\n", "sender.sink: .*bad port"),
+        ("[sender]\nsink = 'tcp://host:5600'\n", "sender.sink: .*unknown scheme 'tcp'"),
+        ("[sender]\nsink = 'serial://'\n", "sender.sink: .*a device path is required"),
+        ("[sender]\nsink = 'serial:///dev/ttyS0?baud=fast'\n", "sender.sink: .*baud='fast' is not an integer"),
         ("[sender]\ndevice_id = 0\n", r"sender.device_id must be in \[1, 65534\]"),
         ("[pipeline]\nmethod = 'magic'\n", "method"),
         ("[control]\nkey_hex = '12'\n", "at least 16 are required"),

@@ -5,7 +5,7 @@ from __future__ import annotations
 import configparser
 from pathlib import Path
 
-from ropecam.device.daemon.config import load_device_config
+from ropecam.device.daemon.config import DaemonConfig, load_device_config
 
 DEPLOY = Path(__file__).resolve().parents[3] / "deploy"
 
@@ -28,3 +28,18 @@ def test_example_device_config_loads(tmp_path: Path) -> None:
     config = load_device_config(tmp_path / "device.toml")
     assert config.capture.exposure_us == 4000 and config.sender.sink.startswith("serial://")
     assert config.pipeline.rope_length_m == 0.411
+
+
+def test_watchdog_outlasts_every_step_that_does_not_ping(tmp_path: Path) -> None:
+    """The daemon pings every WatchdogSec/2 and inside its retry waits; a single step (one read, one backoff slice,
+    one open attempt) must stay well inside the watchdog period, whatever the shipped configuration says."""
+    unit = configparser.ConfigParser(strict=False, interpolation=None)
+    unit.optionxform = str
+    unit.read(DEPLOY / "ropecam-device.service")
+    watchdog_s = int(unit["Service"]["WatchdogSec"])
+    text = (DEPLOY / "device.toml").read_text().replace("/etc/ropecam/control.key", str(tmp_path / "k"))
+    (tmp_path / "device.toml").write_text(text)
+    config = load_device_config(tmp_path / "device.toml")
+    assert watchdog_s >= 2 * max(config.daemon.retry_max_s, config.capture.read_timeout_s)
+    assert watchdog_s >= 2 * DaemonConfig().retry_max_s
+    assert int(unit["Service"]["TimeoutStartSec"]) > config.daemon.camera_give_up_s  # first compile + camera retries

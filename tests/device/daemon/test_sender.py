@@ -1,0 +1,112 @@
+"""The result sender: one numbering without overlap across a close, a drain that keeps its timeout, no queue growth
+after close, and the link-broken event after failed sends in a row."""
+
+from __future__ import annotations
+
+import threading
+
+from ropecam.device.senders.stream import ResultSender
+from ropecam.shared.errors import TransportError
+from ropecam.shared.protocol import Log, MessageType, decode_message
+from ropecam.shared.transport.base import Transport
+
+
+class SlowLine(Transport):
+    """A line whose every send waits until the test lets it go (`gate`), or fails while `failing` is set."""
+
+    def __init__(self) -> None:
+        super().__init__("test://slow")
+        self.gate = threading.Semaphore(0)
+        self.failing = False
+        self.sequences: list[int] = []
+
+    def send(self, message: bytes) -> bool:
+        if self.failing:
+            raise TransportError("write failed: [Errno 5] Input/output error")
+        self.gate.acquire(timeout=5.0)
+        self.sequences.append(decode_message(message).header.sequence)
+        return True
+
+    def receive(self, timeout_s: float | None = 0.0) -> bytes | None:
+        return None
+
+
+def test_close_keeps_its_drain_timeout_and_numbers_nothing_afterwards() -> None:
+    line = SlowLine()
+    sender = ResultSender(line, device_id=1, first_sequence=7)
+    for i in range(50):
+        sender.submit(Log(level=20, text=f"message {i}"))
+    for _ in range(3):
+        line.gate.release()  # three messages get through, then the line hangs
+    sender.close(drain_timeout_s=0.1)
+    final = sender.next_sequence
+    line.gate.release(100)  # the line comes back: the sender thread must not number anything more
+    sender._thread.join(5.0)
+    assert not sender._thread.is_alive()
+    assert sender.next_sequence == final
+    assert line.sequences == list(range(7, final))
+    assert sender.stats.sent + sender.stats.dropped_closed == 50
+    # A sender that continues the numbering starts exactly where this one stopped: no overlap, no gap.
+    follower = ResultSender(SlowLine(), device_id=1, first_sequence=sender.next_sequence)
+    assert follower.next_sequence == line.sequences[-1] + 1
+    follower.close(0.0)
+
+
+def test_submit_after_close_is_counted_not_queued() -> None:
+    sender = ResultSender(SlowLine(), device_id=1)
+    sender.close(0.0)
+    sender.submit(Log(level=20, text="late"))
+    sender.submit_frame(object())  # type: ignore[arg-type]  # never encoded: refused before
+    assert sender.backlog() == 0 and sender.stats.dropped_closed == 2
+
+
+class Unpackable:
+    """A record whose payload cannot be packed (as a value outside what the wire can carry)."""
+
+    TYPE = MessageType.LOG
+
+    def pack(self, *args: object, **kwargs: object) -> bytes:
+        raise ValueError("cannot be packed")
+
+
+def test_encode_error_does_not_use_up_a_sequence_number() -> None:
+    line = SlowLine()
+    line.gate.release(10)
+    sender = ResultSender(line, device_id=1)
+    sender.submit(Unpackable())
+    sender.submit(Log(level=20, text="fine"))
+    sender.close(2.0)
+    assert sender.stats.encode_errors == 1 and line.sequences == [0]
+
+
+def test_three_failed_sends_in_a_row_set_link_broken() -> None:
+    line = SlowLine()
+    line.gate.release(100)
+    sender = ResultSender(line, device_id=1, broken_after=3)
+    line.failing = True
+    for text in ("a", "b"):
+        sender.submit(Log(level=20, text=text))
+    _wait_tried(sender, 2)
+    assert not sender.link_broken.is_set()  # two errors are not yet a broken link
+    line.failing = False
+    sender.submit(Log(level=20, text="ok"))  # a success resets the count
+    _wait_tried(sender, 3)
+    line.failing = True
+    for text in ("c", "d"):
+        sender.submit(Log(level=20, text=text))
+    _wait_tried(sender, 5)
+    assert not sender.link_broken.is_set()
+    sender.submit(Log(level=20, text="last straw"))
+    assert sender.link_broken.wait(5.0)
+    assert sender.stats.link_errors == 5 and sender.stats.sent == 1
+    sender.close(0.5)
+
+
+def _wait_tried(sender: ResultSender, attempts: int) -> None:
+    """Wait until `attempts` messages have been tried (sent or failed)."""
+    event = threading.Event()
+    for _ in range(500):
+        if sender.stats.sent + sender.stats.link_errors >= attempts:
+            return
+        event.wait(0.01)
+    raise AssertionError(f"only {sender.stats.sent + sender.stats.link_errors} of {attempts} sends tried")
