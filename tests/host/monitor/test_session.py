@@ -239,3 +239,22 @@ def test_raw_frames_become_foxglove_raw_images(tmp_path: Path, read_mcap) -> Non
     jsonschema.validate(message, SCHEMAS[schema_name])
     assert (message["width"], message["height"], message["encoding"]) == (40, 30, "mono8")
     assert base64.b64decode(message["data"]) == image.tobytes()
+
+
+def test_control_acks_count_in_the_device_sequence_and_are_not_lost() -> None:
+    from ropecam.device.senders.stream import ResultSender
+    from ropecam.host.monitor.stats import StreamStats
+    from ropecam.shared.protocol import AckResult, Command, ControlAck, Log
+
+    device, host = LoopTransport.pair()
+    sender = ResultSender(device, 1)
+    sender.submit(Log(level=20, text="a"))
+    sender.submit(ControlAck(5, Command.START, AckResult.APPLIED, "ok"))
+    sender.submit(Log(level=20, text="b"))
+    sender.close()
+    stats = StreamStats()
+    while (data := host.receive(0.1)) is not None:
+        assert stats.observe(check_packet(data, time.time_ns()))
+    (row,) = stats.snapshot(time.time_ns())
+    assert (row.received, row.lost) == (3, 0)
+    assert not any(w.startswith("LOSS") for w in row.warnings)
