@@ -53,7 +53,9 @@ def test_sigkill_while_recording_then_recover_keeps_all_but_the_last_second(
     assert any(topic == "/device7/image/scene" for topic, *_ in read_mcap(fixed))
 
 
-def test_sigterm_closes_the_recording_properly(
+@pytest.mark.parametrize("stop_signal", [signal.SIGTERM, signal.SIGINT])
+def test_sigterm_and_ctrl_c_close_the_recording_properly(
+    stop_signal: signal.Signals,
     sim_device,
     tmp_path: Path,
     udp_port: int,
@@ -68,11 +70,42 @@ def test_sigterm_closes_the_recording_properly(
             link.send(data)
             time.sleep(0.002)
     time.sleep(0.3)
-    monitor.process.send_signal(signal.SIGTERM)
+    monitor.process.send_signal(stop_signal)
     code, out, err = monitor.finish()
     assert code == 0, err
     assert "final: dev7" in out and "recorded" in out
+    assert ("stopped by Ctrl-C" if stop_signal == signal.SIGINT else "stopped by SIGTERM") in err
     raw = [data for topic, _, _, data in read_mcap(path) if topic == RAW_TOPIC]  # complete file: indexed read works
+    assert raw == messages
+
+
+def test_ctrl_c_still_records_every_packet_already_received(tmp_path: Path, read_mcap) -> None:
+    from ropecam.host.monitor.cli import StopSignals, monitor_loop
+    from ropecam.host.receiver import Receiver
+    from ropecam.shared.protocol.records import Log
+    from ropecam.shared.protocol.wire import encode_message
+    from ropecam.shared.transport.loop import LoopTransport
+
+    device, host = LoopTransport.pair()
+    messages = [encode_message(Log(level=20, text=f"m{i}"), device_id=1, sequence=i, t_ns=i) for i in range(500)]
+    for data in messages:
+        device.send(data)
+    session = Session(Recorder(RecordingConfig(tmp_path / "int.mcap")))
+    receiver = Receiver(host)
+    checks = []
+    with StopSignals() as stop:
+
+        def should_stop() -> bool:
+            checks.append(1)
+            if len(checks) == 10:
+                signal.raise_signal(signal.SIGINT)  # Ctrl-C with hundreds of packets still queued
+            return stop.requested()
+
+        monitor_loop(receiver, session, None, None, should_stop)
+    session.close()
+    assert stop.signal_name == "SIGINT" and len(checks) == 10
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    raw = [data for topic, _, _, data in read_mcap(tmp_path / "int.mcap") if topic == RAW_TOPIC]
     assert raw == messages
 
 
