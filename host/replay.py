@@ -23,13 +23,29 @@ __all__ = ["iter_raw", "recording_parts", "register", "replay"]
 
 
 def recording_parts(path: Path) -> list[Path]:
-    """Return `path` and the later parts of its rolled recording (``<stem>_001<suffix>``, ...) that exist."""
-    from ropecam.host.recording.writer import part_path
+    """Return `path` and the later parts of its rolled recording (``<stem>_001<suffix>``, ...) that exist.
+
+    Raises
+    ------
+    DataError
+        `path` does not exist, or a following part carries another recording's id or the wrong part index (a
+        leftover of an earlier run: the message names it).
+    """
+    from ropecam.host.recording.writer import part_path, read_part_id
 
     if not path.exists():
         raise DataError(f"recording {path} does not exist")
     parts = [path]
+    first = read_part_id(path)
     while (following := part_path(path, len(parts))).exists():
+        if first is not None:
+            found = read_part_id(following)
+            if found != (first[0], len(parts)):
+                what = "no recording id" if found is None else f"recording {found[0]} part {found[1]}"
+                raise DataError(
+                    f"{following} does not belong to the recording {path} (id {first[0]}): it holds {what}; "
+                    "move it away to replay the recording, or replay it on its own"
+                )
         parts.append(following)
     return parts
 

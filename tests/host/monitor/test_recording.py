@@ -204,6 +204,42 @@ def test_rolled_recording_replays_across_parts(sim_device, tmp_path: Path, roll:
     assert [data for data, _ in iter_raw(parts)] == messages
 
 
+def _record(path: Path, tag: bytes, count: int, roll_s: float, overwrite: bool = False) -> list[Path]:
+    from ropecam.host.session import RAW_ENCODING
+
+    recorder = Recorder(RecordingConfig(path, roll_s=roll_s, overwrite=overwrite))
+    for i in range(count):
+        recorder.write(RAW_TOPIC, tag + bytes([i]), time.time_ns(), None, RAW_ENCODING)
+        recorder._part_started = 0.0 if roll_s else recorder._part_started  # roll at every tick
+        recorder.tick()
+    recorder.close()
+    return recorder.parts
+
+
+def test_parts_of_an_earlier_recording_are_refused_or_deleted_never_mixed_in(tmp_path: Path) -> None:
+    from ropecam.host.recording.writer import read_part_id
+
+    path = tmp_path / "run.mcap"
+    old = _record(path, b"OLD", 4, roll_s=1.0)
+    assert len(old) == 4 and [read_part_id(p)[1] for p in old] == [0, 1, 2, 3]
+    assert len({read_part_id(p)[0] for p in old}) == 1  # one id for all parts
+    path.unlink()
+    with pytest.raises(ConfigError, match=r"run_001\.mcap \(and 2 more\) exists.*--overwrite"):
+        Recorder(RecordingConfig(path, roll_s=1.0))  # a leftover part would stop the recording at its first roll
+    assert not path.exists()
+    new = _record(path, b"NEW", 2, roll_s=0.0, overwrite=True)
+    assert sorted(tmp_path.iterdir()) == new == [path]  # the old parts were deleted
+    assert {data[:3] for data, _ in iter_raw(recording_parts(path))} == {b"NEW"}
+
+
+def test_replay_refuses_a_part_of_another_recording(tmp_path: Path) -> None:
+    first = _record(tmp_path / "a.mcap", b"AAA", 2, roll_s=1.0)
+    other = _record(tmp_path / "b.mcap", b"BBB", 2, roll_s=1.0)
+    other[1].replace(first[1])  # b_001.mcap copied over a_001.mcap by hand
+    with pytest.raises(DataError, match=r"a_001\.mcap does not belong to the recording .*a\.mcap.*part 1"):
+        recording_parts(first[0])
+
+
 def test_replay_reproduces_the_live_decoded_results_exactly(
     sim_device,
     tmp_path: Path,
