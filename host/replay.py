@@ -121,14 +121,11 @@ def frames_messages(frames: Path, config_path: Path | None = None, device_id: in
     from ropecam.device.pipeline.config import PipelineConfig
     from ropecam.device.pipeline.pipeline import Pipeline
     from ropecam.device.pipeline.result import to_wire
+    from ropecam.shared.config import load_toml
     from ropecam.shared.protocol import ShapeHint, encode_message
 
-    config = PipelineConfig()
-    if config_path is not None:
-        # Only [pipeline] matters here; the other tables of a device config are accepted as they are.
-        from ropecam.device.daemon.config import load_device_config
-
-        config = load_device_config(config_path).pipeline
+    # Only [pipeline] matters here; the other tables of a device config are accepted as they are.
+    config = load_toml(config_path, PipelineConfig, "pipeline") if config_path is not None else PipelineConfig()
     source = open_source(frames, None, None)
     pipeline = None
     hint = ShapeHint()
@@ -289,7 +286,7 @@ def _run(args: argparse.Namespace) -> int:
     from ropecam.host.monitor.cli import load_calibration, rig_metadata
     from ropecam.host.monitor.display import format_row
     from ropecam.host.progress import progress_bar
-    from ropecam.host.recording.writer import Recorder, RecordingConfig
+    from ropecam.host.recording.writer import Recorder, RecordingConfig, later_parts
     from ropecam.host.session import Session
 
     if args.reprocess and args.plane is None:
@@ -316,19 +313,34 @@ def _run(args: argparse.Namespace) -> int:
             return iter_raw(parts)
 
         total = count_raw(parts)
-    recorder = None
-    if args.record:
-        target = Path(args.record)
+    # Everything that can fail comes before the output files are created: a refused option or a model that cannot
+    # be fitted leaves no empty or broken file behind.
+    record_path = Path(args.record) if args.record else None
+    for target in (record_path, Path(args.export_jsonl) if args.export_jsonl else None):
+        if target is None:
+            continue
         if target.resolve() in {p.resolve() for p in parts}:
-            raise ConfigError(f"--record {target} is the recording being replayed; choose another file")
-        metadata = rig_metadata(f"replay of {source}") | calibration_metadata
-        recorder = Recorder(RecordingConfig(target, overwrite=args.overwrite), metadata, attachments)
+            raise ConfigError(f"{target} is the recording being replayed; choose another file")
+        if target.exists() and not args.overwrite:
+            raise ConfigError(f"{target} exists; choose another file or pass --overwrite")
+    if record_path is not None and later_parts(record_path) and not args.overwrite:
+        raise ConfigError(f"{later_parts(record_path)[0]} (a part of an earlier recording) exists; pass --overwrite")
     model = None
     if args.model is not None:
         overlay, model_device = _fit_model(messages, str(source), args, calibration)
         model = lambda record, device_id: overlay if device_id == model_device else None  # noqa: E731
-    session = Session(recorder, calibration, model)
     export = _JsonlExport(Path(args.export_jsonl), args.device, args.overwrite) if args.export_jsonl else None
+    recorder = None
+    if record_path is not None:
+        metadata = rig_metadata(f"replay of {source}") | calibration_metadata
+        try:
+            recorder = Recorder(RecordingConfig(record_path, overwrite=args.overwrite), metadata, attachments)
+        except ConfigError:
+            if export is not None:
+                export.close()
+                export.path.unlink(missing_ok=True)  # created just now, holds nothing
+            raise
+    session = Session(recorder, calibration, model)
     try:
         with progress_bar("replay", max(1, total), "messages") as progress:
             count = replay_messages(

@@ -384,6 +384,33 @@ def test_replay_with_a_model_records_the_model_rope_and_its_error(
     assert main(["replay", str(tmp_path / "run.mcap"), "--model", str(rope)]) == 2  # needs --plane and --record
 
 
+def test_replay_that_fails_leaves_no_output_file(tmp_path: Path, capsys) -> None:
+    from ropecam.host.calibration.files import write_plane
+    from ropecam.host.session import RAW_ENCODING
+    from ropecam.host.sim.rig_polylines import RIG_CAMERA, RIG_PLANE
+    from ropecam.shared.protocol.records import Log
+    from ropecam.shared.protocol.wire import encode_message
+
+    with Recorder(RecordingConfig(tmp_path / "logs.mcap")) as recorder:  # no FrameResult: nothing to fit
+        recorder.write(
+            RAW_TOPIC, encode_message(Log(level=20, text="hi"), device_id=1, sequence=0, t_ns=0), 0, None, RAW_ENCODING
+        )
+    plane = write_plane(tmp_path / "plane.yaml", RIG_CAMERA, RIG_PLANE)
+    rope = tmp_path / "rope.toml"
+    rope.write_text("[rope]\nlength_m = 0.411\n[solver]\nelements = 4\nstep_s = 0.002\n")
+    out, jsonl = tmp_path / "out.mcap", tmp_path / "out.jsonl"
+    model = ["--plane", str(plane), "--model", str(rope)]
+    assert (
+        main(["replay", str(tmp_path / "logs.mcap"), *model, "--record", str(out), "--export-jsonl", str(jsonl)]) == 2
+    )
+    assert "holds no FrameResult" in capsys.readouterr().err
+    assert not out.exists() and not jsonl.exists()
+    unwritable = str(tmp_path / "missing" / "out.mcap")
+    assert main(["replay", str(tmp_path / "logs.mcap"), "--record", unwritable, "--export-jsonl", str(jsonl)]) == 2
+    assert "cannot create recording file" in capsys.readouterr().err
+    assert not jsonl.exists()
+
+
 def test_replay_speed_paces_by_the_recorded_receive_times(sim_device, tmp_path: Path) -> None:
     recorder = Recorder(RecordingConfig(tmp_path / "paced.mcap"))
     session = Session(recorder)
