@@ -17,9 +17,10 @@ from ropecam.shared.errors import ConfigError, DataError
 if TYPE_CHECKING:
     from ropecam.host.model_overlay import ModelOverlay
     from ropecam.host.session import Session
+    from ropecam.shared.protocol.records import FrameResult
     from ropecam.shared.protocol.wire import Message
 
-__all__ = ["iter_raw", "recording_parts", "register", "replay"]
+__all__ = ["device_frames", "iter_raw", "recording_parts", "register", "replay"]
 
 
 def recording_parts(path: Path) -> list[Path]:
@@ -228,22 +229,21 @@ class _JsonlExport:
         return text
 
 
-def _fit_model(
-    messages: Callable[[], Iterable[tuple[bytes, int]]], label: str, args: argparse.Namespace, calibration: tuple
-) -> tuple[ModelOverlay, int]:
-    """First pass over the recording: one device's FrameResults -> `ModelOverlay.fit` (release time, model run)."""
-    import sys
+def device_frames(
+    messages: Iterable[tuple[bytes, int]], device_id: int | None = None
+) -> tuple[list[FrameResult], int | None]:
+    """Return one device's distinct FrameResults (by exposure start) and its id (default: the first device seen).
 
-    from ropecam.host.model.cli import load_model_config
-    from ropecam.host.model_overlay import ModelOverlay
+    A frame is identified by (frame index, exposure start): a message received twice counts once, while the frames
+    of a device that restarted within the recording (sequence numbers and frame indices from 0 again) are all kept.
+    Undecodable messages are skipped.
+    """
     from ropecam.shared.errors import ProtocolError
     from ropecam.shared.protocol.records import FrameResult
     from ropecam.shared.protocol.wire import decode_message
 
-    rope, solver = load_model_config(Path(args.model))
-    frames: dict[int, FrameResult] = {}  # by sequence: duplicates once
-    device_id = args.device
-    for data, _ in messages():
+    frames: dict[tuple[int, int], FrameResult] = {}
+    for data, _ in messages:
         try:
             message = decode_message(data)
         except ProtocolError:
@@ -253,10 +253,24 @@ def _fit_model(
         if device_id is None:
             device_id = message.header.device_id
         if message.header.device_id == device_id:
-            frames[message.header.sequence] = message.record
+            record = message.record
+            frames.setdefault((record.frame_index, record.exposure_start_t_ns), record)
+    return sorted(frames.values(), key=lambda f: f.exposure_start_t_ns), device_id
+
+
+def _fit_model(
+    messages: Callable[[], Iterable[tuple[bytes, int]]], label: str, args: argparse.Namespace, calibration: tuple
+) -> tuple[ModelOverlay, int]:
+    """First pass over the recording: one device's FrameResults -> `ModelOverlay.fit` (release time, model run)."""
+    import sys
+
+    from ropecam.host.model.cli import load_model_config
+    from ropecam.host.model_overlay import ModelOverlay
+
+    rope, solver = load_model_config(Path(args.model))
+    ordered, device_id = device_frames(messages(), args.device)
     if device_id is None:
         raise DataError(f"{label} holds no FrameResult: nothing to compare with the model")
-    ordered = sorted(frames.values(), key=lambda f: f.exposure_start_t_ns)
     print(f"device {device_id}: {len(ordered)} frames; fitting the release time of the model", file=sys.stderr)
 
     def report(evaluations: int, rms_m: float) -> None:

@@ -422,3 +422,25 @@ def test_replay_speed_paces_by_the_recorded_receive_times(sim_device, tmp_path: 
     start = time.monotonic()
     assert replay(parts, Session(), speed=2.0) == 6
     assert time.monotonic() - start >= 0.5 / 2.0 - 0.01  # 0.5 s of recording at twice the speed (a lower bound)
+
+
+def test_model_frames_of_a_device_that_restarted_are_all_kept_duplicates_once() -> None:
+    import numpy as np
+
+    from ropecam.host.replay import device_frames
+    from ropecam.shared.protocol.records import FrameResult
+    from ropecam.shared.protocol.wire import encode_message
+
+    shape = np.array([[10.0, 10.0], [10.0, 50.0]])
+    messages = []
+    for run_start_ns in (1_000_000_000, 5_000_000_000):  # the device restarts: sequence and frame index from 0
+        for k in range(4):
+            t_ns = run_start_ns + k * 10_000_000
+            record = FrameResult(k, t_ns, t_ns + 4_000_000, begin_px=shape, end_px=shape)
+            messages.append((encode_message(record, device_id=3, sequence=k, t_ns=t_ns), t_ns))
+    messages.append(messages[2])  # received twice
+    frames, device_id = device_frames(messages)
+    assert device_id == 3
+    assert [f.exposure_start_t_ns for f in frames] == sorted({t for _, t in messages})
+    assert len(frames) == 8
+    assert device_frames(messages, device_id=4) == ([], 4)
