@@ -100,14 +100,18 @@ class ModelOverlay:
         errors = point_errors(tracks, model_positions(trajectory, tracks, fit.release_time_s))
         return cls(trajectory, fit.release_time_s, rope.length_m, points, calibration, errors.overall_rms_m)
 
-    def _model_time(self, t_ns: int) -> float:
+    def _model_time(self, t_ns: int) -> float | None:
+        """Model time (s) of a device time; before the release the rope rests (time 0); None past the model's end."""
         times = self.trajectory.times_s
-        return float(np.clip(t_ns * 1e-9 - self.release_time_s, times[0], times[-1]))
+        t_s = t_ns * 1e-9 - self.release_time_s
+        if t_s > times[-1] + 1e-9:
+            return None  # the model run stopped: no model to compare with (not its last state)
+        return float(max(t_s, times[0]))
 
-    def _errors_mm(self, shape_px: NDArray[np.float64] | None, model_t_s: float) -> list[float | None]:
+    def _errors_mm(self, shape_px: NDArray[np.float64] | None, model_t_s: float | None) -> list[float | None]:
         from ropecam.host.compare.measurement import points_at_arc_lengths
 
-        if shape_px is None:
+        if shape_px is None or model_t_s is None:
             return [None] * len(self.s_m)
         curve_m = pixels_to_plane(shape_px, *self.calibration)
         measured, _ = points_at_arc_lengths(curve_m, np.asarray(self.s_m), self.length_m)
@@ -116,7 +120,15 @@ class ModelOverlay:
         return [None if math.isnan(d) else round(float(d), 6) for d in distance_mm]
 
     def frame_errors_mm(self, record: FrameResult) -> tuple[list[float | None], list[float | None]]:
-        """Distances (mm) of the frame's material points from the model at exposure start and end (None: unmeasured)."""
+        """Distances (mm) of the frame's material points from the model at exposure start and end.
+
+        None where not measured, for every point of a frame whose status is not OK (the fit ignores those too), and
+        for a time past the end of the model run.
+        """
+        from ropecam.shared.protocol.records import FrameStatus
+
+        if record.status != FrameStatus.OK:
+            return [None] * len(self.s_m), [None] * len(self.s_m)
         return (
             self._errors_mm(record.begin_px, self._model_time(record.exposure_start_t_ns)),
             self._errors_mm(record.end_px, self._model_time(record.exposure_end_t_ns)),
@@ -132,7 +144,8 @@ class ModelOverlay:
         times = (self._model_time(record.exposure_start_t_ns), self._model_time(record.exposure_end_t_ns))
         begin_mm, end_mm = errors_mm if errors_mm is not None else self.frame_errors_mm(record)
         grid = np.linspace(0.0, self.length_m, MODEL_POINTS)
-        shapes = self.trajectory.positions(list(times), grid)
+        running = [t for t in times if t is not None]  # past the end of the model run nothing is drawn
+        shapes = self.trajectory.positions(running, grid) if running else np.zeros((0, MODEL_POINTS, 2))
         scene = model_scene(shapes, _MODEL_COLOR, device_id, t_ns, record.frame_index)
         sec, nsec = divmod(max(0, t_ns), 1_000_000_000)
         error = {
