@@ -205,7 +205,7 @@ class _JsonlExport:
     def add(self, message: Message) -> None:
         import json
 
-        from ropecam.host.recording.convert import frame_result_json
+        from ropecam.shared.protocol.jsonl import frame_result_json
         from ropecam.shared.protocol.records import FrameResult
 
         if not isinstance(message.record, FrameResult):
