@@ -452,3 +452,14 @@ def test_model_frames_of_a_device_that_restarted_are_all_kept_duplicates_once() 
     assert [f.exposure_start_t_ns for f in frames] == sorted({t for _, t in messages})
     assert len(frames) == 8
     assert device_frames(messages, device_id=4) == ([], 4)
+
+
+def test_monitor_process_reports_a_monitor_that_cannot_start(udp_port: int) -> None:
+    from ropecam.host.monitor.process import MonitorProcess
+    from ropecam.shared.errors import RopecamError
+
+    with pytest.raises(RopecamError, match=r"stopped at once \(2\)[\s\S]*--duration-s must be > 0"):
+        MonitorProcess(["--source", f"udp://127.0.0.1:{udp_port}?listen=1", "--duration-s", "-1"])
+    monitor = MonitorProcess(["--source", f"udp://127.0.0.1:{udp_port}?listen=1", "--no-ui"], start_timeout_s=60)
+    code, _, err = monitor.stop()
+    assert code == 0 and "receiving on" in err and "stopped by SIGTERM" in err
