@@ -304,6 +304,29 @@ def test_recover_refuses_non_mcap_and_reports_complete_files(tmp_path: Path, sim
         recover_mcap(tmp_path / "ok.mcap", tmp_path / "copy.mcap")
 
 
+def test_recover_onto_a_full_disk_is_a_data_error_and_leaves_no_file(
+    tmp_path: Path, sim_device, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import builtins
+
+    from ropecam.host.recording import recover
+
+    recorder = Recorder(RecordingConfig(tmp_path / "ok.mcap"))
+    session = Session(recorder)
+    for data in _messages(sim_device, 5):
+        session.handle(check_packet(data, time.time_ns()))
+    session.close()
+    full = tmp_path / "full.mcap"
+
+    def open_on_a_full_disk(path, mode="r", *args, **kwargs):
+        return FailingFile(Path(path), limit=200) if Path(path) == full else builtins.open(path, mode, *args, **kwargs)
+
+    monkeypatch.setattr(recover, "open", open_on_a_full_disk, raising=False)
+    with pytest.raises(DataError, match=r"recovering .*ok\.mcap into .*full\.mcap failed: No space left.*unchanged"):
+        recover_mcap(tmp_path / "ok.mcap", full)
+    assert not full.exists() and (tmp_path / "ok.mcap").stat().st_size > 0
+
+
 def test_replay_reprocess_with_a_calibration_adds_the_plane_channels(sim_device, tmp_path: Path, read_mcap) -> None:
     from ropecam.host.calibration.files import write_plane
     from ropecam.host.sim.rig_polylines import RIG_CAMERA, RIG_PLANE
