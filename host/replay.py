@@ -413,7 +413,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--config", metavar="device.toml", help="with --frames: the device config ([pipeline])")
     parser.add_argument("--speed", type=_speed, default=None, help="1 = real time, 2 = twice as fast, max (default)")
     parser.add_argument("--record", metavar="NEW.mcap", help="record the replayed stream to a new file")
-    parser.add_argument("--overwrite", action="store_true", help="replace --record if it exists")
+    parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace --record / --export-jsonl if they exist (and earlier parts of --record)",
+    )
     parser.add_argument(
         "--reprocess", action="store_true", help="apply --camera/--plane (a new calibration) to the recorded stream"
     )

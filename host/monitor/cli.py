@@ -313,7 +313,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="ANCF model (as `ropecam model simulate`); needs --plane. Once a device's rope was seen at rest and "
         "then released, the model is aligned with the release and its rope and error are shown and recorded",
     )
-    parser.add_argument("--overwrite", action="store_true", help="replace existing recording files")
+    parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace an existing --record file and delete the later parts (NAME_001.mcap, ...) of an earlier "
+        "recording to it (without: refuse to start)",
+    )
     parser.add_argument("--roll-mb", type=float, default=0.0, help="start a new file after this many MB (0: never)")
     parser.add_argument("--roll-s", type=float, default=0.0, help="start a new file after this many seconds (0: never)")
     parser.add_argument("--fsync", action="store_true", help="sync each flush to disk (survives power loss)")
