@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import signal
 import socket
 import subprocess
 import sys
@@ -62,18 +61,13 @@ def _free_udp_port() -> int:
 
 def _stream(frames: Path, recording: Path, port: int) -> None:
     """Run the monitor (recording) and the daemon (replaying `frames`) as the two programs they are on a rig."""
+    from ropecam.host.monitor.process import MonitorProcess
     from ropecam.shared.errors import RopecamError
 
     recording.unlink(missing_ok=True)
-    monitor = subprocess.Popen(
-        [sys.executable, "-m", "ropecam.host.cli", "monitor", "--source", f"udp://127.0.0.1:{port}",
-         "--record", str(recording), "--no-ui", "--duration-s", "600"],
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-    )  # fmt: skip
+    monitor = MonitorProcess(["--source", f"udp://127.0.0.1:{port}", "--record", str(recording), "--no-ui",
+                              "--duration-s", "600"])  # fmt: skip
     try:
-        time.sleep(2.0)  # the monitor binds its port
-        if monitor.poll() is not None:
-            raise RopecamError(f"the monitor stopped at once:\n{monitor.communicate()[0]}")
         device = subprocess.run(
             [sys.executable, "-m", "ropecam.device.cli", "run", "--source", f"frames:{frames}?fps=30",
              "--sink", f"udp://127.0.0.1:{port}"],
@@ -82,14 +76,15 @@ def _stream(frames: Path, recording: Path, port: int) -> None:
         print("   device: " + (device.stdout.strip().splitlines() or ["(no output)"])[-1], flush=True)
         if device.returncode != 0:
             raise RopecamError(f"ropecam-device run failed ({device.returncode}):\n{device.stdout}{device.stderr}")
-        time.sleep(1.0)  # the last messages reach the monitor
-    finally:
-        monitor.send_signal(signal.SIGTERM)
-        output = monitor.communicate(timeout=60)[0]
-    last = [line for line in output.splitlines() if line.strip()][-1:] or ["(no output)"]
+        time.sleep(1.0)  # the last datagrams on their way through the loopback reach the monitor
+    except BaseException:
+        monitor.kill()
+        raise
+    code, out, err = monitor.stop()
+    last = [line for line in out.splitlines() if line.strip()][-1:] or ["(no output)"]
     print("   monitor: " + last[0], flush=True)
-    if monitor.returncode != 0:
-        raise RopecamError(f"ropecam monitor failed ({monitor.returncode}):\n{output}")
+    if code != 0:
+        raise RopecamError(f"ropecam monitor failed ({code}):\n{err}{out}")
 
 
 def _step(title: str, command: str) -> float:

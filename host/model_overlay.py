@@ -1,9 +1,10 @@
 """The ANCF model next to a recorded run: the model's rope and its error, as channels of a replayed recording.
 
-`ModelOverlay.fit` does what `ropecam compare` does (material-point tracks in metres, least-squares release time,
-one model run over the whole recording); `ModelOverlay.messages` then gives, for each replayed FrameResult, the
-model's rope at the start and end of the exposure (``foxglove.SceneUpdate`` in the plane frame) and the distance of
-each measured material point from the model (``ropecam.ModelError``, mm).
+`ModelOverlay.fit` runs `ropecam compare`'s release-time fit (`ropecam.host.compare.release.fit_release`:
+material-point tracks in metres, least-squares release time, one model run over the whole recording);
+`ModelOverlay.messages` then gives, for each replayed FrameResult, the model's rope at the start and end of the
+exposure (``foxglove.SceneUpdate`` in the plane frame) and the distance of each measured material point from the
+model (``ropecam.ModelError``, mm).
 """
 
 from __future__ import annotations
@@ -17,7 +18,8 @@ from typing import TYPE_CHECKING, Final
 import numpy as np
 from numpy.typing import NDArray
 
-from ropecam.host.calibration.geometry import CameraModel, PlanePose, pixels_to_plane
+from ropecam.host.calibration.geometry import CameraModel, PlanePose
+from ropecam.host.compare.measurement import default_points
 from ropecam.shared.errors import DataError
 
 if TYPE_CHECKING:
@@ -75,48 +77,45 @@ class ModelOverlay:
         DataError
             No frame has a measured shape.
         """
-        from ropecam.host.compare.identify import fit_parameters
-        from ropecam.host.compare.measurement import MeasuredFrame, tracks_from_frames
-        from ropecam.host.compare.tracks import model_positions, point_errors
-        from ropecam.host.model.solver import CableModel
+        from ropecam.host.compare.measurement import measured_frame
+        from ropecam.host.compare.release import fit_release
 
-        points = tuple(s_m) if s_m else tuple(rope.length_m * f for f in (0.25, 0.5, 0.75, 1.0))
-        measured = [
-            MeasuredFrame(
-                f.frame_index, f.exposure_start_t_ns, f.exposure_end_t_ns, f.begin_px, f.end_px, f.status.name
-            )
-            for f in frames
-        ]
-        if not measured:
+        points = tuple(s_m) if s_m else tuple(default_points(rope.length_m))
+        if not frames:
             raise DataError("the recording holds no FrameResult of the chosen device: nothing to compare")
-        tracks, _ = tracks_from_frames(measured, *calibration, points, rope.length_m)
-        seen = tracks.measured.any(axis=1)
-        if not seen.any():
-            raise DataError("no frame of the recording has a measured rope shape: nothing to compare")
-        start = release_time_s if release_time_s is not None else float(tracks.times_s[seen][0])
-        fit = fit_parameters(tracks, rope, solver, names=("t0",), release_time_s=start, progress=progress)
-        duration = max(float(tracks.times_s[-1] - fit.release_time_s) + 0.01, 2 * solver.step_s)
-        trajectory, _ = CableModel(fit.rope, dataclasses.replace(solver, duration_s=duration)).run()
-        errors = point_errors(tracks, model_positions(trajectory, tracks, fit.release_time_s))
-        return cls(trajectory, fit.release_time_s, rope.length_m, points, calibration, errors.overall_rms_m)
+        measured = [measured_frame(f) for f in frames]
+        release = fit_release(measured, calibration, rope, solver, points, release_time_s, progress, "the recording")
+        return cls(release.trajectory, release.release_time_s, rope.length_m, points, calibration,
+                   release.errors.overall_rms_m)  # fmt: skip
 
-    def _model_time(self, t_ns: int) -> float:
+    def _model_time(self, t_ns: int) -> float | None:
+        """Model time (s) of a device time; before the release the rope rests (time 0); None past the model's end."""
         times = self.trajectory.times_s
-        return float(np.clip(t_ns * 1e-9 - self.release_time_s, times[0], times[-1]))
+        t_s = t_ns * 1e-9 - self.release_time_s
+        if t_s > times[-1] + 1e-9:
+            return None  # the model run stopped: no model to compare with (not its last state)
+        return float(max(t_s, times[0]))
 
-    def _errors_mm(self, shape_px: NDArray[np.float64] | None, model_t_s: float) -> list[float | None]:
-        from ropecam.host.compare.measurement import points_at_arc_lengths
+    def _errors_mm(self, shape_px: NDArray[np.float64] | None, model_t_s: float | None) -> list[float | None]:
+        from ropecam.host.compare.measurement import shape_points_m
 
-        if shape_px is None:
+        if shape_px is None or model_t_s is None:
             return [None] * len(self.s_m)
-        curve_m = pixels_to_plane(shape_px, *self.calibration)
-        measured, _ = points_at_arc_lengths(curve_m, np.asarray(self.s_m), self.length_m)
+        measured, _ = shape_points_m(shape_px, "OK", *self.calibration, np.asarray(self.s_m), self.length_m)
         model = self.trajectory.positions([model_t_s], self.s_m)[0]
         distance_mm = np.linalg.norm(measured - model, axis=1) * 1e3
         return [None if math.isnan(d) else round(float(d), 6) for d in distance_mm]
 
     def frame_errors_mm(self, record: FrameResult) -> tuple[list[float | None], list[float | None]]:
-        """Distances (mm) of the frame's material points from the model at exposure start and end (None: unmeasured)."""
+        """Distances (mm) of the frame's material points from the model at exposure start and end.
+
+        None where not measured, for every point of a frame whose status is not OK (the fit ignores those too), and
+        for a time past the end of the model run.
+        """
+        from ropecam.shared.protocol.records import FrameStatus
+
+        if record.status != FrameStatus.OK:
+            return [None] * len(self.s_m), [None] * len(self.s_m)
         return (
             self._errors_mm(record.begin_px, self._model_time(record.exposure_start_t_ns)),
             self._errors_mm(record.end_px, self._model_time(record.exposure_end_t_ns)),
@@ -132,7 +131,8 @@ class ModelOverlay:
         times = (self._model_time(record.exposure_start_t_ns), self._model_time(record.exposure_end_t_ns))
         begin_mm, end_mm = errors_mm if errors_mm is not None else self.frame_errors_mm(record)
         grid = np.linspace(0.0, self.length_m, MODEL_POINTS)
-        shapes = self.trajectory.positions(list(times), grid)
+        running = [t for t in times if t is not None]  # past the end of the model run nothing is drawn
+        shapes = self.trajectory.positions(running, grid) if running else np.zeros((0, MODEL_POINTS, 2))
         scene = model_scene(shapes, _MODEL_COLOR, device_id, t_ns, record.frame_index)
         sec, nsec = divmod(max(0, t_ns), 1_000_000_000)
         error = {

@@ -18,27 +18,13 @@ from dataclasses import dataclass
 from typing import Final
 
 from ropecam.shared.errors import ProtocolError
-from ropecam.shared.protocol.bytecodec import ByteReader
+from ropecam.shared.protocol.frame_result import FrameSummary, peek_frame_summary
 from ropecam.shared.protocol.wire import CRC_BYTES, HEADER_BYTES, Header, MessageType, peek_header
 from ropecam.shared.transport.base import Transport
 
 __all__ = ["FrameSummary", "Packet", "Receiver", "check_packet", "summarize_frame"]
 
 _CRC: Final = struct.Struct("<I")
-_CONFIDENCE_SCALE: Final = 65535
-
-
-@dataclass(frozen=True, slots=True)
-class FrameSummary:
-    """The fixed-size fields at the start of a FrameResult payload (read without decoding the shapes)."""
-
-    frame_index: int
-    exposure_start_t_ns: int
-    exposure_end_t_ns: int
-    status: int
-    method: int
-    order_confidence: float
-    pipeline_us: int
 
 
 @dataclass(frozen=True, slots=True)
@@ -90,17 +76,11 @@ def summarize_frame(packet: Packet) -> FrameSummary | None:
     header = packet.header
     if header is None or not packet.ok or header.type != MessageType.FRAME_RESULT:
         return None
-    r = ByteReader(memoryview(packet.data)[HEADER_BYTES : HEADER_BYTES + header.payload_length])
     try:
-        frame_index = r.uvarint("frame_index", 0xFFFF_FFFF)
-        start = header.t_ns + r.svarint("exposure start", 2**63)
-        end = start + r.uvarint("exposure duration", 2**40 - 1)
-        status, method = r.raw(2, "status and method")
-        confidence = r.fixed("H", "order confidence") / _CONFIDENCE_SCALE
-        pipeline_us = r.uvarint("pipeline_us", 0xFFFF_FFFF)
+        return peek_frame_summary(memoryview(packet.data)[HEADER_BYTES : HEADER_BYTES + header.payload_length],
+                                  header.t_ns)  # fmt: skip
     except ProtocolError:
         return None
-    return FrameSummary(frame_index, start, end, status, method, confidence, pipeline_us)
 
 
 class Receiver:

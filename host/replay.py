@@ -17,19 +17,36 @@ from ropecam.shared.errors import ConfigError, DataError
 if TYPE_CHECKING:
     from ropecam.host.model_overlay import ModelOverlay
     from ropecam.host.session import Session
+    from ropecam.shared.protocol.records import FrameResult
     from ropecam.shared.protocol.wire import Message
 
-__all__ = ["iter_raw", "recording_parts", "register", "replay"]
+__all__ = ["device_frames", "iter_raw", "recording_parts", "register", "replay"]
 
 
 def recording_parts(path: Path) -> list[Path]:
-    """Return `path` and the later parts of its rolled recording (``<stem>_001<suffix>``, ...) that exist."""
-    from ropecam.host.recording.writer import part_path
+    """Return `path` and the later parts of its rolled recording (``<stem>_001<suffix>``, ...) that exist.
+
+    Raises
+    ------
+    DataError
+        `path` does not exist, or a following part carries another recording's id or the wrong part index (a
+        leftover of an earlier run: the message names it).
+    """
+    from ropecam.host.recording.writer import part_path, read_part_id
 
     if not path.exists():
         raise DataError(f"recording {path} does not exist")
     parts = [path]
+    first = read_part_id(path)
     while (following := part_path(path, len(parts))).exists():
+        if first is not None:
+            found = read_part_id(following)
+            if found != (first[0], len(parts)):
+                what = "no recording id" if found is None else f"recording {found[0]} part {found[1]}"
+                raise DataError(
+                    f"{following} does not belong to the recording {path} (id {first[0]}): it holds {what}; "
+                    "move it away to replay the recording, or replay it on its own"
+                )
         parts.append(following)
     return parts
 
@@ -105,14 +122,11 @@ def frames_messages(frames: Path, config_path: Path | None = None, device_id: in
     from ropecam.device.pipeline.config import PipelineConfig
     from ropecam.device.pipeline.pipeline import Pipeline
     from ropecam.device.pipeline.result import to_wire
+    from ropecam.shared.config import load_toml
     from ropecam.shared.protocol import ShapeHint, encode_message
 
-    config = PipelineConfig()
-    if config_path is not None:
-        # Only [pipeline] matters here; the other tables of a device config are accepted as they are.
-        from ropecam.device.daemon.config import load_device_config
-
-        config = load_device_config(config_path).pipeline
+    # Only [pipeline] matters here; the other tables of a device config are accepted as they are.
+    config = load_toml(config_path, PipelineConfig, "pipeline") if config_path is not None else PipelineConfig()
     source = open_source(frames, None, None)
     pipeline = None
     hint = ShapeHint()
@@ -191,7 +205,7 @@ class _JsonlExport:
     def add(self, message: Message) -> None:
         import json
 
-        from ropecam.host.recording.convert import frame_result_json
+        from ropecam.shared.protocol.jsonl import frame_result_json
         from ropecam.shared.protocol.records import FrameResult
 
         if not isinstance(message.record, FrameResult):
@@ -215,22 +229,21 @@ class _JsonlExport:
         return text
 
 
-def _fit_model(
-    messages: Callable[[], Iterable[tuple[bytes, int]]], label: str, args: argparse.Namespace, calibration: tuple
-) -> tuple[ModelOverlay, int]:
-    """First pass over the recording: one device's FrameResults -> `ModelOverlay.fit` (release time, model run)."""
-    import sys
+def device_frames(
+    messages: Iterable[tuple[bytes, int]], device_id: int | None = None
+) -> tuple[list[FrameResult], int | None]:
+    """Return one device's distinct FrameResults (by exposure start) and its id (default: the first device seen).
 
-    from ropecam.host.model.cli import load_model_config
-    from ropecam.host.model_overlay import ModelOverlay
+    A frame is identified by (frame index, exposure start): a message received twice counts once, while the frames
+    of a device that restarted within the recording (sequence numbers and frame indices from 0 again) are all kept.
+    Undecodable messages are skipped.
+    """
     from ropecam.shared.errors import ProtocolError
     from ropecam.shared.protocol.records import FrameResult
     from ropecam.shared.protocol.wire import decode_message
 
-    rope, solver = load_model_config(Path(args.model))
-    frames: dict[int, FrameResult] = {}  # by sequence: duplicates once
-    device_id = args.device
-    for data, _ in messages():
+    frames: dict[tuple[int, int], FrameResult] = {}
+    for data, _ in messages:
         try:
             message = decode_message(data)
         except ProtocolError:
@@ -240,10 +253,24 @@ def _fit_model(
         if device_id is None:
             device_id = message.header.device_id
         if message.header.device_id == device_id:
-            frames[message.header.sequence] = message.record
+            record = message.record
+            frames.setdefault((record.frame_index, record.exposure_start_t_ns), record)
+    return sorted(frames.values(), key=lambda f: f.exposure_start_t_ns), device_id
+
+
+def _fit_model(
+    messages: Callable[[], Iterable[tuple[bytes, int]]], label: str, args: argparse.Namespace, calibration: tuple
+) -> tuple[ModelOverlay, int]:
+    """First pass over the recording: one device's FrameResults -> `ModelOverlay.fit` (release time, model run)."""
+    import sys
+
+    from ropecam.host.model.cli import load_model_config
+    from ropecam.host.model_overlay import ModelOverlay
+
+    rope, solver = load_model_config(Path(args.model))
+    ordered, device_id = device_frames(messages(), args.device)
     if device_id is None:
         raise DataError(f"{label} holds no FrameResult: nothing to compare with the model")
-    ordered = sorted(frames.values(), key=lambda f: f.exposure_start_t_ns)
     print(f"device {device_id}: {len(ordered)} frames; fitting the release time of the model", file=sys.stderr)
 
     def report(evaluations: int, rms_m: float) -> None:
@@ -273,7 +300,7 @@ def _run(args: argparse.Namespace) -> int:
     from ropecam.host.monitor.cli import load_calibration, rig_metadata
     from ropecam.host.monitor.display import format_row
     from ropecam.host.progress import progress_bar
-    from ropecam.host.recording.writer import Recorder, RecordingConfig
+    from ropecam.host.recording.writer import Recorder, RecordingConfig, later_parts
     from ropecam.host.session import Session
 
     if args.reprocess and args.plane is None:
@@ -300,19 +327,34 @@ def _run(args: argparse.Namespace) -> int:
             return iter_raw(parts)
 
         total = count_raw(parts)
-    recorder = None
-    if args.record:
-        target = Path(args.record)
+    # Everything that can fail comes before the output files are created: a refused option or a model that cannot
+    # be fitted leaves no empty or broken file behind.
+    record_path = Path(args.record) if args.record else None
+    for target in (record_path, Path(args.export_jsonl) if args.export_jsonl else None):
+        if target is None:
+            continue
         if target.resolve() in {p.resolve() for p in parts}:
-            raise ConfigError(f"--record {target} is the recording being replayed; choose another file")
-        metadata = rig_metadata(f"replay of {source}") | calibration_metadata
-        recorder = Recorder(RecordingConfig(target, overwrite=args.overwrite), metadata, attachments)
+            raise ConfigError(f"{target} is the recording being replayed; choose another file")
+        if target.exists() and not args.overwrite:
+            raise ConfigError(f"{target} exists; choose another file or pass --overwrite")
+    if record_path is not None and later_parts(record_path) and not args.overwrite:
+        raise ConfigError(f"{later_parts(record_path)[0]} (a part of an earlier recording) exists; pass --overwrite")
     model = None
     if args.model is not None:
         overlay, model_device = _fit_model(messages, str(source), args, calibration)
         model = lambda record, device_id: overlay if device_id == model_device else None  # noqa: E731
-    session = Session(recorder, calibration, model)
     export = _JsonlExport(Path(args.export_jsonl), args.device, args.overwrite) if args.export_jsonl else None
+    recorder = None
+    if record_path is not None:
+        metadata = rig_metadata(f"replay of {source}") | calibration_metadata
+        try:
+            recorder = Recorder(RecordingConfig(record_path, overwrite=args.overwrite), metadata, attachments)
+        except ConfigError:
+            if export is not None:
+                export.close()
+                export.path.unlink(missing_ok=True)  # created just now, holds nothing
+            raise
+    session = Session(recorder, calibration, model)
     try:
         with progress_bar("replay", max(1, total), "messages") as progress:
             count = replay_messages(
@@ -371,7 +413,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--config", metavar="device.toml", help="with --frames: the device config ([pipeline])")
     parser.add_argument("--speed", type=_speed, default=None, help="1 = real time, 2 = twice as fast, max (default)")
     parser.add_argument("--record", metavar="NEW.mcap", help="record the replayed stream to a new file")
-    parser.add_argument("--overwrite", action="store_true", help="replace --record if it exists")
+    parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace --record / --export-jsonl if they exist (and earlier parts of --record)",
+    )
     parser.add_argument(
         "--reprocess", action="store_true", help="apply --camera/--plane (a new calibration) to the recorded stream"
     )

@@ -93,7 +93,9 @@ class Session:
     def handle(self, packet: Packet, decode: bool = True) -> Message | None:
         """Account for, record and (unless skipped) decode one packet; return the decoded message if any.
 
-        Never raises on bad packets: they are counted (per device when the header is readable) and recorded raw.
+        Never raises on bad packets: they are counted (per device when the header is readable) and recorded raw. A
+        FrameResult with a pixel that does not map onto the plane is counted as bad too, recorded raw and in
+        pixels, and left out of the plane and model channels.
         """
         summary = summarize_frame(packet)
         usable = self.stats.observe(packet, summary)
@@ -135,36 +137,58 @@ class Session:
 
     def _frame(self, record: FrameResult, device_id: int, t_ns: int) -> None:
         tip = record.end_tip_px if record.end_tip_px is not None else record.begin_tip_px
-        tip_plane = None
-        if tip is not None and self.calibration is not None:
-            x, y = pixels_to_plane([tip], *self.calibration)[0]
-            tip_plane = (float(x), float(y))
-        self.stats.frame_decoded(device_id, tip, tip_plane)
         recorder = self.recorder
         if recorder is not None:
-            self._record_frame(record, device_id, t_ns, recorder)
-        overlay = self.model(record, device_id) if self.model is not None else None
-        if overlay is None:
+            scene, points = "foxglove.SceneUpdate", "foxglove.PointCloud"
+            recorder.write(device_topic(device_id, "image/scene"), frame_scene(record, device_id, t_ns), t_ns, scene)
+            if record.material_s_m:
+                data = frame_point_cloud(record, device_id, t_ns)
+                recorder.write(device_topic(device_id, "image/material_points"), data, t_ns, points)
+        if self.calibration is None:
+            self.stats.frame_decoded(device_id, tip, None)
             return
-        errors = overlay.frame_errors_mm(record)
-        finite = [e for e in errors[0] + errors[1] if e is not None]
-        self.stats.model_compared(device_id, float(np.sqrt(np.mean(np.square(finite)))) if finite else math.nan)
+        try:
+            tip_plane, model_rms_mm, messages = self._plane_results(record, device_id, t_ns, tip)
+        except ValueError:
+            # A pixel whose viewing ray misses the plane (behind the camera, parallel): the frame is counted as bad
+            # and stays recorded raw and in pixels; none of its plane or model channels is written.
+            self.stats.decode_failed(device_id)
+            self.stats.frame_decoded(device_id, tip, None)
+            return
+        self.stats.frame_decoded(device_id, tip, tip_plane)
+        if model_rms_mm is not None:
+            self.stats.model_compared(device_id, model_rms_mm)
         if recorder is not None:
-            for topic, data, schema in overlay.messages(record, device_id, t_ns, errors):
+            for topic, data, schema in messages:
                 recorder.write(topic, data, t_ns, schema)
 
-    def _record_frame(self, record: FrameResult, device_id: int, t_ns: int, recorder: Recorder) -> None:
-        scene, points = "foxglove.SceneUpdate", "foxglove.PointCloud"
-        recorder.write(device_topic(device_id, "image/scene"), frame_scene(record, device_id, t_ns), t_ns, scene)
-        if record.material_s_m:
-            data = frame_point_cloud(record, device_id, t_ns)
-            recorder.write(device_topic(device_id, "image/material_points"), data, t_ns, points)
-        if self.calibration is not None:
-            data = frame_scene(record, device_id, t_ns, self.calibration)
-            recorder.write(device_topic(device_id, "plane/scene"), data, t_ns, scene)
+    def _plane_results(
+        self, record: FrameResult, device_id: int, t_ns: int, tip: tuple[float, float] | None
+    ) -> tuple[tuple[float, float] | None, float | None, list[tuple[str, bytes, str]]]:
+        """Everything of a frame in metres: (tip on the plane, model RMS error mm, channel messages); nothing is
+        written here, so a `ValueError` (pixel off the plane) leaves no partial output."""
+        calibration = self.calibration
+        assert calibration is not None
+        tip_plane = None
+        if tip is not None:
+            x, y = pixels_to_plane([tip], *calibration)[0]
+            tip_plane = (float(x), float(y))
+        messages: list[tuple[str, bytes, str]] = []
+        if self.recorder is not None:
+            data = frame_scene(record, device_id, t_ns, calibration)
+            messages.append((device_topic(device_id, "plane/scene"), data, "foxglove.SceneUpdate"))
             if record.material_s_m:
-                data = frame_point_cloud(record, device_id, t_ns, self.calibration)
-                recorder.write(device_topic(device_id, "plane/material_points"), data, t_ns, points)
+                data = frame_point_cloud(record, device_id, t_ns, calibration)
+                messages.append((device_topic(device_id, "plane/material_points"), data, "foxglove.PointCloud"))
+        overlay = self.model(record, device_id) if self.model is not None else None
+        if overlay is None:
+            return tip_plane, None, messages
+        errors = overlay.frame_errors_mm(record)
+        finite = [e for e in errors[0] + errors[1] if e is not None]
+        rms_mm = float(np.sqrt(np.mean(np.square(finite)))) if finite else math.nan
+        if self.recorder is not None:
+            messages += overlay.messages(record, device_id, t_ns, errors)
+        return tip_plane, rms_mm, messages
 
     def _raw_chunk(self, chunk: RawFrameChunk, device_id: int, t_ns: int) -> None:
         assembler = self._assemblers.setdefault(device_id, FrameAssembler())

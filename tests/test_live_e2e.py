@@ -6,7 +6,6 @@ acceptance 1)."""
 from __future__ import annotations
 
 import json
-import signal
 import socket
 import subprocess
 import sys
@@ -18,6 +17,7 @@ import pytest
 
 from ropecam.device.cli import main as device_main
 from ropecam.host.cli import main as host_main
+from ropecam.host.monitor.process import MonitorProcess
 from ropecam.shared.protocol import polyline_distances_px
 
 
@@ -39,50 +39,23 @@ def test_daemon_streams_into_the_monitor_recording(tmp_path: Path) -> None:
     )
     port = _free_udp_port()
     recording = tmp_path / "run.mcap"
-    monitor = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "ropecam.host.cli",
-            "monitor",
-            "--source",
-            f"udp://127.0.0.1:{port}",
-            "--record",
-            str(recording),
-            "--no-ui",
-            "--duration-s",
-            "120",
-        ],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
+    monitor = MonitorProcess(
+        ["--source", f"udp://127.0.0.1:{port}", "--record", str(recording), "--no-ui", "--duration-s", "120"]
     )
     try:
-        time.sleep(2.0)  # the monitor binds its port
         daemon = subprocess.run(
-            [
-                sys.executable,
-                "-m",
-                "ropecam.device.cli",
-                "run",
-                "--source",
-                f"frames:{frames}?fps=30",
-                "--sink",
-                f"udp://127.0.0.1:{port}",
-                "--device-id",
-                "7",
-            ],
-            capture_output=True,
-            text=True,
-            timeout=120,
-        )
+            [sys.executable, "-m", "ropecam.device.cli", "run", "--source", f"frames:{frames}?fps=30",
+             "--sink", f"udp://127.0.0.1:{port}", "--device-id", "7"],
+            capture_output=True, text=True, timeout=120,
+        )  # fmt: skip
         assert daemon.returncode == 0, daemon.stdout + daemon.stderr
         assert "measured 12 frames" in daemon.stdout
-        time.sleep(1.5)
-    finally:
-        monitor.send_signal(signal.SIGTERM)
-        output, _ = monitor.communicate(timeout=30)
-    assert monitor.returncode == 0, output
+        time.sleep(1.5)  # the last datagrams reach the monitor
+    except BaseException:
+        monitor.kill()
+        raise
+    code, out, err = monitor.stop(timeout_s=30)
+    assert code == 0, err + out
 
     exported = tmp_path / "live.jsonl"
     assert host_main(["replay", str(recording), "--export-jsonl", str(exported), "--device", "7"]) == 0

@@ -20,7 +20,6 @@ import re
 import signal
 import socket
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
@@ -59,18 +58,15 @@ def run(devices: int, fps: float, duration_s: float, workdir: Path, decode: str 
     """Run the benchmark once and return its figures."""
     from mcap.reader import make_reader
 
+    from ropecam.host.monitor.process import MonitorProcess
+
     port = _free_port()
     record = workdir / "bench.mcap"
-    log_path = workdir / "monitor.out"
-    with open(log_path, "w") as log:  # a file, not a pipe: a full pipe would stall the monitor's prints
-        monitor = subprocess.Popen(
-            [sys.executable, "-m", "ropecam.host.cli", "monitor", "--no-ui", "--source",
-             f"udp://127.0.0.1:{port}?listen=1", "--record", str(record), "--decode", decode],
-            stdout=log, stderr=subprocess.PIPE, text=True,
-        )  # fmt: skip
-    if "receiving on" not in monitor.stderr.readline():
-        monitor.kill()
-        raise SystemExit(f"monitor did not start: {monitor.communicate()}")
+    # Output into files and a start that waits with a timeout (MonitorProcess): never a pipe nobody reads.
+    monitor = MonitorProcess(
+        ["--no-ui", "--source", f"udp://127.0.0.1:{port}?listen=1", "--record", str(record), "--decode", decode],
+        log_dir=workdir,
+    )
     monitor_start = time.time()
     results: mp.Queue = mp.Queue()
     ready = mp.Barrier(devices)
@@ -84,14 +80,20 @@ def run(devices: int, fps: float, duration_s: float, workdir: Path, decode: str 
     for process in senders:
         process.join()
     time.sleep(1.0)  # the last datagrams reach the host
-    monitor.send_signal(signal.SIGTERM)
-    _, status, usage = os.wait4(monitor.pid, 0)
+    monitor.process.send_signal(signal.SIGTERM)
+    deadline = time.monotonic() + 120.0
+    while (waited := os.wait4(monitor.pid, os.WNOHANG))[0] == 0:  # with rusage, but never forever
+        if time.monotonic() > deadline:
+            monitor.kill()
+            raise SystemExit(f"monitor did not exit 120 s after SIGTERM: {monitor.stderr_path.read_text()}")
+        time.sleep(0.05)
+    _, status, usage = waited
     host_wall_s = time.time() - monitor_start
-    monitor.returncode = os.waitstatus_to_exitcode(status)
-    err = monitor.stderr.read()
-    out = log_path.read_text()
-    if monitor.returncode != 0:
-        raise SystemExit(f"monitor failed ({monitor.returncode}): {err}")
+    monitor.process.returncode = os.waitstatus_to_exitcode(status)
+    err = monitor.stderr_path.read_text()
+    out = monitor.stdout_path.read_text()
+    if monitor.process.returncode != 0:
+        raise SystemExit(f"monitor failed ({monitor.process.returncode}): {err}")
     stream_from = max(v[3] for v in sent.values()) - monitor_start
     stream_to = min(v[4] for v in sent.values()) - monitor_start
     received: Counter[int] = Counter()

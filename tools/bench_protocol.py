@@ -23,8 +23,8 @@ import time
 
 import numpy as np
 
-from ropecam.host.sim.rig_polylines import rig_frames
-from ropecam.shared.protocol import FrameResult, FrameStatus, Method, ShapeHint, decode_message, encode_message
+from ropecam.host.sim.stream import rig_frame_results
+from ropecam.shared.protocol import FrameResult, ShapeHint, decode_message, encode_message
 from ropecam.shared.protocol.shapes import polyline_distances_px
 from ropecam.shared.protocol.wire import CRC_BYTES, HEADER_BYTES
 
@@ -32,31 +32,8 @@ SERIAL_BUDGET_BYTES = 921600 / 10 / 119  # 8N1: 10 bits per byte
 
 
 def build_records(count: int, noise: str, seed: int) -> list[FrameResult]:
-    """FrameResults as the device would fill them for `count` rig frames."""
-    records = []
-    for index, frame in enumerate(rig_frames(count, seed=seed, noise=noise)):
-        records.append(
-            FrameResult(
-                frame_index=index,
-                exposure_start_t_ns=frame.t_start_ns,
-                exposure_end_t_ns=frame.t_end_ns,
-                status=FrameStatus.OK,
-                method=Method.BLUR_SPLIT,
-                order_confidence=0.97,
-                begin_px=frame.begin_px,
-                end_px=frame.end_px,
-                begin_tip_px=tuple(frame.begin_px[-1]),
-                end_tip_px=tuple(frame.end_px[-1]),
-                fixed_end_px=tuple(frame.fixed_end_px),
-                material_s_m=frame.material_s_m,
-                material_begin_px=frame.material_begin_px,
-                material_end_px=frame.material_end_px,
-                stretch_begin=1.0 + 0.002 * np.sin(index / 9),
-                stretch_end=1.0 + 0.002 * np.sin((index + 0.5) / 9),
-                pipeline_us=2800 + index % 300,
-            )
-        )
-    return records
+    """FrameResults as the device would fill them for `count` rig frames (`host.sim.stream.rig_frame_results`)."""
+    return rig_frame_results(count, seed=seed, noise=noise, stretch_wobble=0.002)
 
 
 def pipeline_records(frameset: str, rope_length_m: float) -> list[FrameResult]:
@@ -65,9 +42,10 @@ def pipeline_records(frameset: str, rope_length_m: float) -> list[FrameResult]:
     from ropecam.device.pipeline.config import PipelineConfig
     from ropecam.device.pipeline.pipeline import Pipeline
     from ropecam.device.pipeline.result import to_wire
+    from ropecam.host.compare.measurement import default_points
 
     frames = FrameSet(frameset)
-    points = tuple(rope_length_m * f for f in (0.25, 0.5, 0.75, 1.0))
+    points = tuple(default_points(rope_length_m))
     pipeline = Pipeline(PipelineConfig(rope_length_m=rope_length_m, material_points_m=points), frames.image_size)
     records = [to_wire(pipeline.process(image, r.frame, r.t_ns, r.exposure_us)) for r, image in frames]
     return [r for r in records if r.begin_px is not None and r.end_px is not None]

@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 
 from ropecam.shared.protocol.frame_result import FrameResult as WireFrameResult
 from ropecam.shared.protocol.frame_result import FrameStatus, Method
+from ropecam.shared.protocol.jsonl import frame_result_json
 
 # FrameStatus and Method are the wire protocol's: one definition of what happened to a frame, on both sides.
 __all__ = ["FrameResult", "FrameStatus", "Method", "to_wire"]
@@ -60,36 +61,16 @@ class FrameResult:
         return self.begin[-1], self.end[-1]
 
     def to_json(self) -> dict[str, Any]:
-        """Return the JSON object of this frame (points as [u, v] pixels, OpenCV convention)."""
-        tips = self.tips
-        material = None
-        if self.material_begin is not None and self.material_end is not None:
-            material = {
-                "s_m": list(self.material_arc_m),
-                "begin": _uv(self.material_begin),
-                "end": _uv(self.material_end),
-            }
-        return {
-            "frame": self.frame,
-            "t_ns": self.t_ns,
-            "t_end_ns": self.t_end_ns,
-            "status": self.status.name,
-            "method": None if self.method is None else self.method.name,
-            "order_confidence": round(float(self.order_confidence), 4),
-            "begin": _uv(self.begin),
-            "end": _uv(self.end),
-            "tips": None if tips is None else {"begin": _uv(tips[0][None])[0], "end": _uv(tips[1][None])[0]},
-            "fixed_end": None if self.fixed_end is None else _uv(self.fixed_end[None])[0],
-            "segmentation_points": _uv(self.segmentation_points),
-            "material_points": material,
-            "stretch": None
-            if self.stretch_begin is None
-            else {"begin": round(self.stretch_begin, 6), "end": round(float(self.stretch_end or 0.0), 6)},
-            "rope_width_px": None if self.rope_width_px is None else round(self.rope_width_px, 3),
-            "roi": not self.full_frame,
-            "pipeline_us": round(self.pipeline_us, 1),
-            "message": self.message,
-        }
+        """Return the JSON object of this frame: the wire record's (`ropecam.shared.protocol.jsonl`, pixels to
+        1/1000 px) plus the fields only the device knows (``DEVICE_ONLY_FIELDS`` there)."""
+        record = frame_result_json(to_wire(self), digits=3)
+        record.update(
+            segmentation_points=_uv(self.segmentation_points),
+            rope_width_px=None if self.rope_width_px is None else round(float(self.rope_width_px), 3),
+            roi=not self.full_frame,
+            message=self.message,
+        )
+        return record
 
 
 def _wire_uv(points: NDArray[np.float32] | None) -> NDArray[np.float64] | None:

@@ -10,19 +10,36 @@ keeps perspective and lens distortion out of the arc lengths.
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.host.calibration.geometry import CameraModel, PlanePose, pixels_to_plane
 from ropecam.host.compare.tracks import MaterialPointTracks
-from ropecam.shared.errors import DataError
+from ropecam.shared.errors import ConfigError, DataError
 
-__all__ = ["MeasuredFrame", "points_at_arc_lengths", "read_extract_jsonl", "tracks_from_frames"]
+if TYPE_CHECKING:
+    from ropecam.shared.protocol.records import FrameResult
+
+__all__ = [
+    "MeasuredFrame",
+    "default_points",
+    "measured_frame",
+    "points_at_arc_lengths",
+    "read_extract_jsonl",
+    "shape_points_m",
+    "tracks_from_frames",
+]
+
+
+def default_points(length_m: float) -> list[float]:
+    """Material points tracked by default: a quarter, half, three quarters of the rope, and its tip."""
+    return [length_m * f for f in (0.25, 0.5, 0.75, 1.0)]
 
 
 @dataclass(frozen=True)
@@ -35,6 +52,18 @@ class MeasuredFrame:
     begin_px: NDArray[np.float64] | None
     end_px: NDArray[np.float64] | None
     status: str = "OK"
+
+
+def measured_frame(record: FrameResult) -> MeasuredFrame:
+    """Return the `MeasuredFrame` of a decoded FrameResult (what ``ropecam-device extract`` writes of it)."""
+    return MeasuredFrame(
+        record.frame_index,
+        record.exposure_start_t_ns,
+        record.exposure_end_t_ns,
+        record.begin_px,
+        record.end_px,
+        record.status.name,
+    )
 
 
 def _points(value: Any, where: str) -> NDArray[np.float64] | None:
@@ -123,6 +152,28 @@ def points_at_arc_lengths(
     return points, stretch
 
 
+def shape_points_m(
+    shape_px: NDArray[np.float64] | None,
+    status: str,
+    camera: CameraModel,
+    plane: PlanePose,
+    s_m: NDArray[np.float64],
+    length_m: float,
+) -> tuple[NDArray[np.float64], float]:
+    """Material points (K, 2) in metres of one measured shape, and its stretch ratio.
+
+    All NaN when the shape is missing or its frame's `status` is not ``"OK"`` (the comparison never uses those).
+
+    Raises
+    ------
+    ValueError
+        A pixel's viewing ray misses the plane (from `pixels_to_plane`): the calibration does not fit the shape.
+    """
+    if shape_px is None or status != "OK":
+        return np.full((np.size(s_m), 2), np.nan), math.nan
+    return points_at_arc_lengths(pixels_to_plane(shape_px, camera, plane), s_m, length_m)
+
+
 def tracks_from_frames(
     frames: Iterable[MeasuredFrame],
     camera: CameraModel,
@@ -134,22 +185,29 @@ def tracks_from_frames(
 
     Returns the tracks and the stretch ratio of every sample (NaN where unmeasured). Frames whose status is not OK
     or whose shapes are missing contribute NaN samples, so nothing measured is dropped silently.
+
+    Raises
+    ------
+    ConfigError
+        A material point outside [0, `length_m`].
+    DataError
+        No frames, or a frame with a pixel whose viewing ray misses the plane (names the frame).
     """
     s = np.asarray(s_m, dtype=np.float64)
     if s.ndim != 1 or s.size == 0 or np.any(s < 0) or np.any(s > length_m * (1 + 1e-9)):
-        raise ValueError(f"material points s_m must lie in [0, {length_m}] m, got {list(s)}")
+        raise ConfigError(f"material points must lie in [0, {length_m}] m (the rope length), got {list(s)}")
     times: list[float] = []
     positions: list[NDArray[np.float64]] = []
     stretches: list[float] = []
     for frame in frames:
         for t_ns, shape in ((frame.t_begin_ns, frame.begin_px), (frame.t_end_ns, frame.end_px)):
             times.append(t_ns * 1e-9)
-            if shape is None or frame.status != "OK":
-                positions.append(np.full((s.size, 2), np.nan))
-                stretches.append(np.nan)
-                continue
-            curve_m = pixels_to_plane(shape, camera, plane)
-            points, stretch = points_at_arc_lengths(curve_m, s, length_m)
+            try:
+                points, stretch = shape_points_m(shape, frame.status, camera, plane, s, length_m)
+            except ValueError as exc:
+                raise DataError(
+                    f"frame {frame.frame} (t_ns {t_ns}): {exc}; does the plane calibration belong to this camera?"
+                ) from exc
             positions.append(points)
             stretches.append(stretch)
     if not times:

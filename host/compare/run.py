@@ -15,18 +15,14 @@ import numpy as np
 from ropecam.host.calibration.files import read_camera, read_plane
 from ropecam.host.calibration.geometry import pixels_to_plane
 from ropecam.host.compare.identify import FITTABLE, fit_parameters, model_for_tracks
-from ropecam.host.compare.measurement import read_extract_jsonl, tracks_from_frames
+from ropecam.host.compare.measurement import default_points, read_extract_jsonl
+from ropecam.host.compare.release import fit_release
 from ropecam.host.compare.report import Comparison, summary, write_report
 from ropecam.host.compare.tracks import model_positions, point_errors
 from ropecam.host.model.cli import load_model_config
 from ropecam.shared.errors import ConfigError
 
 __all__ = ["compare_recording", "default_points"]
-
-
-def default_points(length_m: float) -> list[float]:
-    """Material points tracked by default: a quarter, half, three quarters of the rope, and its tip."""
-    return [length_m * f for f in (0.25, 0.5, 0.75, 1.0)]
 
 
 def compare_recording(
@@ -56,11 +52,6 @@ def compare_recording(
     rope, solver = load_model_config(model_path)
     points = list(points_m) if points_m else default_points(rope.length_m)
     frames = read_extract_jsonl(measurement)
-    tracks, _ = tracks_from_frames(frames, camera, plane, points, rope.length_m)
-    measured = tracks.measured.any(axis=1)
-    if not measured.any():
-        raise ConfigError(f"{measurement}: no frame has a measured rope shape")
-    start_t0 = release_time_s if release_time_s is not None else float(tracks.times_s[measured][0])
     last = [-1]
 
     def report(evaluations: int, rms_m: float) -> None:
@@ -70,23 +61,21 @@ def compare_recording(
         last[0] = evaluations
 
     if verbose:
-        print(f"{measurement}: {len(frames)} frames, {int(measured.sum())} measured samples", file=sys.stderr)
-    before = fit_parameters(tracks, rope, solver, names=("t0",), release_time_s=start_t0, progress=report)
-    result = before
+        print(f"{measurement}: {len(frames)} frames", file=sys.stderr)
+    release = fit_release(frames, (camera, plane), rope, solver, points, release_time_s, report, str(measurement))
+    tracks, before = release.tracks, release.fit
+    result, trajectory, errors, errors_before = before, release.trajectory, release.errors, None
     if fit:
         result = fit_parameters(tracks, rope, solver, names=(*fit, "t0"), release_time_s=before.release_time_s,
                                 progress=report)  # fmt: skip
+        trajectory = model_for_tracks(result.rope, solver, tracks, result.release_time_s)
+        errors, errors_before = point_errors(tracks, model_positions(trajectory, tracks, result.release_time_s)), errors
     if verbose:
-        print(file=sys.stderr)
-
-    trajectory = model_for_tracks(result.rope, solver, tracks, result.release_time_s)
-    errors = point_errors(tracks, model_positions(trajectory, tracks, result.release_time_s))
-    errors_before = None
-    if fit:
-        trajectory_before = model_for_tracks(rope, solver, tracks, before.release_time_s)
-        errors_before = point_errors(tracks, model_positions(trajectory_before, tracks, before.release_time_s))
-    curves = [
-        (f.t_begin_ns * 1e-9, pixels_to_plane(f.begin_px, camera, plane)) for f in frames if f.begin_px is not None
+        print(f"\n{int(tracks.measured.any(axis=1).sum())} measured samples", file=sys.stderr)
+    curves = [  # the shapes the tracks were made of (those of non-OK frames are not drawn)
+        (f.t_begin_ns * 1e-9, pixels_to_plane(f.begin_px, camera, plane))
+        for f in frames
+        if f.begin_px is not None and f.status == "OK"
     ]
     comparison = Comparison(
         source=str(measurement),

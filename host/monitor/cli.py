@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from ropecam.host.receiver import Packet, Receiver
     from ropecam.host.session import Session
 
-__all__ = ["DECODE_BACKLOG", "monitor_loop", "register", "rig_metadata"]
+__all__ = ["DECODE_BACKLOG", "StopSignals", "monitor_loop", "register", "rig_metadata"]
 
 DECODE_BACKLOG: Final = 64
 """Above this backlog no FrameResult is fully decoded (recorded raw and counted); between a quarter of it and it,
@@ -189,6 +189,37 @@ def monitor_loop(
         session.handle(packet, decode=decide(packet))
 
 
+class StopSignals:
+    """Turn Ctrl-C (SIGINT) and SIGTERM into a stop request while in the ``with`` block; restore the old handlers.
+
+    The loop then ends at its next check and still handles every packet already received (`monitor_loop`'s final
+    drain), instead of a KeyboardInterrupt skipping it. A second Ctrl-C while stopping interrupts as usual.
+    """
+
+    def __init__(self) -> None:
+        self.signal_name: str | None = None
+        """Name of the first stop signal received (None: none)."""
+        self._previous: dict[int, object] = {}
+
+    def requested(self) -> bool:
+        """Say whether a stop signal arrived."""
+        return self.signal_name is not None
+
+    def _handle(self, number: int, _frame: object) -> None:
+        if self.signal_name is not None and number == signal.SIGINT:
+            raise KeyboardInterrupt  # the second Ctrl-C: the user insists
+        self.signal_name = signal.Signals(number).name
+
+    def __enter__(self) -> StopSignals:
+        for number in (signal.SIGINT, signal.SIGTERM):
+            self._previous[number] = signal.signal(number, self._handle)
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        for number, handler in self._previous.items():
+            signal.signal(number, handler)
+
+
 def _run(args: argparse.Namespace) -> int:
     from ropecam.host.monitor.display import PlainDisplay, RichDisplay, format_row
     from ropecam.host.receiver import Receiver
@@ -227,23 +258,22 @@ def _run(args: argparse.Namespace) -> int:
             raise
     session = Session(recorder, calibration, model)
     receiver = Receiver(transport)
-    stop = {"requested": False}
-    previous = signal.signal(signal.SIGTERM, lambda *_: stop.__setitem__("requested", True))
     where = f", recording to {recorder.path}" if recorder is not None else ""
     print(f"monitor: receiving on {args.source}{where}; Ctrl-C stops", file=sys.stderr, flush=True)
     use_rich = not args.no_ui and sys.stdout.isatty()
     display = RichDisplay(args.source) if use_rich else PlainDisplay()
     interrupted = False
+    stop = StopSignals()
     try:
         backlog = {"auto": DECODE_BACKLOG, "all": 1 << 62, "none": 0}[args.decode]
-        monitor_loop(receiver, session, display, args.duration_s, lambda: stop["requested"], backlog)
+        with stop:
+            monitor_loop(receiver, session, display, args.duration_s, stop.requested, backlog)
     except KeyboardInterrupt:
-        interrupted = True
+        interrupted = True  # a second Ctrl-C during the final drain: what was handled is still recorded
     finally:
         display.close()
         session.close()
         transport.close()
-        signal.signal(signal.SIGTERM, previous)
     for row in session.snapshot(time.time_ns()):
         print("final: " + format_row(row))
     if receiver.overflow:
@@ -257,7 +287,9 @@ def _run(args: argparse.Namespace) -> int:
         parts = ", ".join(str(p) for p in recorder.parts)
         print(f"recorded {recorder.messages} messages to {parts}")
     if interrupted:
-        print("stopped by Ctrl-C", file=sys.stderr)
+        print(f"interrupted by a second Ctrl-C: {receiver.backlog} received packets were not handled", file=sys.stderr)
+    elif stop.signal_name is not None:
+        print(f"stopped by {'Ctrl-C' if stop.signal_name == 'SIGINT' else stop.signal_name}", file=sys.stderr)
     return 0
 
 
@@ -281,7 +313,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="ANCF model (as `ropecam model simulate`); needs --plane. Once a device's rope was seen at rest and "
         "then released, the model is aligned with the release and its rope and error are shown and recorded",
     )
-    parser.add_argument("--overwrite", action="store_true", help="replace existing recording files")
+    parser.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace an existing --record file and delete the later parts (NAME_001.mcap, ...) of an earlier "
+        "recording to it (without: refuse to start)",
+    )
     parser.add_argument("--roll-mb", type=float, default=0.0, help="start a new file after this many MB (0: never)")
     parser.add_argument("--roll-s", type=float, default=0.0, help="start a new file after this many seconds (0: never)")
     parser.add_argument("--fsync", action="store_true", help="sync each flush to disk (survives power loss)")

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Final
 import numpy as np
 
 from ropecam.host.calibration.geometry import CameraModel, PlanePose, pixels_to_plane
+from ropecam.host.compare.measurement import default_points
 from ropecam.host.model_overlay import ModelOverlay
 from ropecam.shared.errors import ModelError
 
@@ -76,7 +77,7 @@ class LiveModel:
         self.trajectory = trajectory
         self.length_m = length_m
         self.calibration = calibration
-        self.s_m = s_m or tuple(length_m * f for f in (0.25, 0.5, 0.75, 1.0))
+        self.s_m = s_m or tuple(default_points(length_m))
         self.rest_frames = rest_frames
         self.rest_tolerance_m = rest_tolerance_m
         self.release_move_m = release_move_m

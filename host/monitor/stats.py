@@ -77,8 +77,9 @@ class DeviceRow:
 class StreamStats:
     """Accumulate per-device statistics from packets.
 
-    Sequence numbers are tracked per device across all its data messages (one counter per device and stream, as
-    the protocol defines). Packets whose header cannot be read have no device and are counted in `bad_packets`.
+    Sequence numbers are tracked per device across everything the device sends (data, logs, status and control
+    acks share one counter per device, as the protocol defines); only host -> device `CONTROL` messages are left
+    out. Packets whose header cannot be read have no device and are counted in `bad_packets`.
     """
 
     def __init__(self) -> None:
@@ -118,8 +119,8 @@ class StreamStats:
             device.crc_errors += packet.crc_error
             device.decode_errors += not packet.crc_error
             return False
-        if header.type in (MessageType.CONTROL, MessageType.CONTROL_ACK):
-            return True  # the control stream has its own sequence numbers
+        if header.type == MessageType.CONTROL:
+            return True  # host -> device commands have the host's own sequence numbers
         if not self.tracker.observe(header.device_id, header.sequence).accept:
             return False
         if header.type == MessageType.FRAME_RESULT:

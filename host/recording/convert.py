@@ -22,7 +22,6 @@ from ropecam.shared.protocol.records import FrameResult, Log, Status
 
 __all__ = [
     "frame_point_cloud",
-    "frame_result_json",
     "frame_scene",
     "log_message",
     "model_scene",
@@ -193,45 +192,6 @@ def frame_point_cloud(
         "data": base64.b64encode(packed.tobytes()).decode("ascii"),
     }
     return json.dumps(message, separators=(",", ":")).encode()
-
-
-def _json_points(points: NDArray[np.float64] | None) -> list | None:
-    if points is None:
-        return None
-    return [None if math.isnan(u) else [u, v] for u, v in np.asarray(points, dtype=np.float64).tolist()]
-
-
-def frame_result_json(record: FrameResult) -> dict[str, Any]:
-    """Return a FrameResult as the JSON object `ropecam-device extract` writes per frame (`ropecam compare` input).
-
-    Unmeasured values (nan) become null.
-    """
-
-    def number(value: float) -> float | None:
-        return None if math.isnan(value) else value
-
-    return {
-        "frame": record.frame_index,
-        "t_ns": record.exposure_start_t_ns,
-        "t_end_ns": record.exposure_end_t_ns,
-        "status": record.status.name,
-        "method": record.method.name,
-        "order_confidence": record.order_confidence,
-        "begin": _json_points(record.begin_px),
-        "end": _json_points(record.end_px),
-        "tips": {
-            "begin": None if record.begin_tip_px is None else list(record.begin_tip_px),
-            "end": None if record.end_tip_px is None else list(record.end_tip_px),
-        },
-        "fixed_end": None if record.fixed_end_px is None else list(record.fixed_end_px),
-        "material_points": {
-            "s_m": list(record.material_s_m),
-            "begin": _json_points(record.material_begin_px),
-            "end": _json_points(record.material_end_px),
-        },
-        "stretch": {"begin": number(record.stretch_begin), "end": number(record.stretch_end)},
-        "pipeline_us": record.pipeline_us,
-    }
 
 
 def raw_image(image: NDArray[np.uint8], device_id: int, t_ns: int) -> bytes:

@@ -9,6 +9,7 @@ damaged one, and writes all of it into a new, complete file.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import struct
 import zlib
 from dataclasses import dataclass
@@ -40,7 +41,7 @@ def recover_mcap(source: Path, destination: Path, overwrite: bool = False) -> Re
     ------
     DataError
         `source` cannot be read or is not an MCAP file; `destination` exists (and `overwrite` is False) or cannot
-        be written.
+        be written (an I/O error or a full disk on the way: the incomplete `destination` is removed).
     """
     source, destination = Path(source), Path(destination)
     if source.resolve() == destination.resolve():
@@ -57,13 +58,28 @@ def recover_mcap(source: Path, destination: Path, overwrite: bool = False) -> Re
     except OSError as exc:
         handle.close()
         raise DataError(f"cannot write {destination}: {exc.strerror or exc}") from exc
-    with handle, out:
-        try:
-            return _copy(source, handle, out)
-        except DataError:
-            out.close()
-            destination.unlink()
-            raise
+    try:
+        with handle:
+            report = _copy(source, handle, out)
+        out.close()  # the last buffered bytes: may still fail on a full disk
+        return report
+    except DataError:
+        _discard(out, destination)
+        raise
+    except OSError as exc:  # reading the input or writing the output failed (I/O error, disk full, ...)
+        _discard(out, destination)
+        raise DataError(
+            f"recovering {source} into {destination} failed: {exc.strerror or exc}; the incomplete {destination} "
+            f"was removed, {source} is unchanged"
+        ) from exc
+
+
+def _discard(out: BinaryIO, destination: Path) -> None:
+    """Close and delete a half-written output file (its buffered tail may fail again: that is expected)."""
+    with contextlib.suppress(OSError):
+        out.close()
+    with contextlib.suppress(OSError):
+        destination.unlink()
 
 
 def _copy(source: Path, handle: BinaryIO, out: BinaryIO) -> RecoveryReport:

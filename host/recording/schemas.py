@@ -240,10 +240,15 @@ def _model_error() -> dict[str, Any]:
             "device_id": {"type": "integer", "minimum": 0, "maximum": 65535},
             "frame_index": {"type": "integer", "minimum": 0},
             "release_time_s": {"type": "number", "description": "Fitted release time on the device clock"},
-            "model_time_s": {"type": "array", "items": {"type": "number"}, "description": "At exposure start, end"},
+            "model_time_s": {
+                "type": "array",
+                "items": {"type": ["number", "null"]},
+                "description": "At exposure start, end (s since the release); null: past the end of the model run",
+            },
             "s_m": {"type": "array", "items": {"type": "number", "minimum": 0}, "description": "Material points"},
             "error_begin_mm": distances | {"description": "Per point at exposure start; null: not measured"},
             "error_end_mm": distances | {"description": "Per point at exposure end; null: not measured"},
+            # null also for every point of a frame whose status is not OK and past the end of the model run
         },
     )
     schema["required"] = ["device_id", "frame_index", "s_m", "error_begin_mm", "error_end_mm"]

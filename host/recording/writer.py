@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import logging
 import os
+import re
 import time
+import uuid
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,9 +25,11 @@ from ropecam.host.recording.schemas import schema_bytes
 from ropecam.shared.config import check_positive
 from ropecam.shared.errors import ConfigError
 
-__all__ = ["PROFILE", "Recorder", "RecordingConfig", "part_path"]
+__all__ = ["PART_METADATA", "PROFILE", "Recorder", "RecordingConfig", "later_parts", "part_path", "read_part_id"]
 
 PROFILE: Final = "ropecam"
+PART_METADATA: Final = "recording"
+"""Metadata record in every part: ``id`` (shared by all parts of one recording) and ``part`` (0, 1, ...)."""
 log = logging.getLogger(__name__)
 
 
@@ -76,6 +80,37 @@ def part_path(path: Path, index: int) -> Path:
     return path if index == 0 else path.with_name(f"{path.stem}_{index:03d}{path.suffix}")
 
 
+def later_parts(path: Path) -> list[Path]:
+    """Return the files next to `path` named like later parts of a recording starting there (``<stem>_NNN``)."""
+    pattern = re.compile(re.escape(path.stem) + r"_\d{3,}" + re.escape(path.suffix) + "$")
+    try:
+        names = sorted(p for p in path.parent.iterdir() if pattern.fullmatch(p.name))
+    except OSError:
+        return []  # no such directory: creating the first part reports it
+    return names
+
+
+def read_part_id(path: Path) -> tuple[str, int] | None:
+    """Return (recording id, part index) from a part's `PART_METADATA`, or None (older file, or none readable).
+
+    Reads only the records before the first chunk, so it works on files cut by a crash as well.
+    """
+    from mcap.exceptions import McapError
+    from mcap.records import Chunk, DataEnd, Message, Metadata
+    from mcap.stream_reader import StreamReader
+
+    try:
+        with open(path, "rb") as handle:
+            for record in StreamReader(handle).records:
+                if isinstance(record, Metadata) and record.name == PART_METADATA:
+                    return str(record.metadata["id"]), int(record.metadata["part"])
+                if isinstance(record, (Chunk, Message, DataEnd)):
+                    return None
+    except (McapError, OSError, EOFError, KeyError, ValueError):
+        return None  # an unreadable file has no id; reading its messages later names the problem
+    return None
+
+
 Opener = Callable[[Path, bool], IO[bytes]]
 
 
@@ -97,10 +132,14 @@ class Recorder:
     opener
         ``(path, overwrite) -> binary file``; tests inject failing files here.
 
+    Every part carries a `PART_METADATA` record (recording id, part index), so replay can tell the parts of this
+    recording from leftovers of an older one.
+
     Raises
     ------
     ConfigError
-        The first file exists (and `overwrite` is False), or cannot be created.
+        The first file or a later part (``<stem>_NNN<suffix>``, left by an earlier rolled recording) exists and
+        `overwrite` is False, or a file cannot be created or (with `overwrite`) a stale part cannot be removed.
     """
 
     def __init__(
@@ -128,7 +167,27 @@ class Recorder:
         self._last_flush = time.monotonic()
         self._part_started = self._last_flush
         self._next_part: int | None = None  # rolled: the next part opens with its first message (no empty files)
+        self.recording_id = uuid.uuid4().hex
+        self._remove_stale_parts()
         self._open_part(0, fatal=True)
+
+    def _remove_stale_parts(self) -> None:
+        """Refuse (or with `overwrite` delete) later parts of an earlier recording: they would mix with this one."""
+        stale = later_parts(self.config.path)
+        if not stale:
+            return
+        if not self.config.overwrite:
+            more = f" (and {len(stale) - 1} more)" if len(stale) > 1 else ""
+            raise ConfigError(
+                f"{stale[0]}{more} exists: a part of an earlier rolled recording to {self.config.path}; choose "
+                "another --record file, move those files away, or pass --overwrite to delete them"
+            )
+        for path in stale:
+            try:
+                path.unlink()
+            except OSError as exc:
+                raise ConfigError(f"cannot remove {path} of an earlier recording: {exc.strerror or exc}") from exc
+            log.info("removed %s of an earlier recording (--overwrite)", path)
 
     @property
     def active(self) -> bool:
@@ -164,6 +223,7 @@ class Recorder:
         try:
             writer = Writer(stream, chunk_size=self.config.chunk_bytes, compression=CompressionType.ZSTD)
             writer.start(profile=PROFILE, library="ropecam")
+            writer.add_metadata(PART_METADATA, {"id": self.recording_id, "part": str(index)})
             for name, values in self._metadata.items():
                 writer.add_metadata(name, values)
             now_ns = time.time_ns()

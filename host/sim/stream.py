@@ -24,13 +24,26 @@ __all__ = ["SimulatedDevice", "restamp", "rig_frame_results"]
 _CRC: Final = struct.Struct("<I")
 
 
-def rig_frame_results(count: int, seed: int = 0, fps: float = 119.0) -> list[FrameResult]:
-    """Return `count` FrameResults of the simulated rig swing (``host.sim.rig_polylines``), as a device reports them."""
+def rig_frame_results(
+    count: int, seed: int = 0, fps: float = 119.0, noise: str = "uniform", stretch_wobble: float = 0.0
+) -> list[FrameResult]:
+    """Return `count` FrameResults of the simulated rig swing (``host.sim.rig_polylines``), as a device reports them.
+
+    Parameters
+    ----------
+    count, seed, fps, noise
+        As `ropecam.host.sim.rig_polylines.rig_frames` (device polyline noise: uniform, gaussian or none).
+    stretch_wobble
+        Amplitude of a slow variation of the reported stretch ratios around 1 (0: exactly 1), so that they cost
+        the bytes real ones do.
+    """
+    import math
+
     from ropecam.host.sim.rig_polylines import rig_frames
     from ropecam.shared.protocol.records import FrameResult
 
     results = []
-    for index, frame in enumerate(rig_frames(count, seed=seed, fps=fps)):
+    for index, frame in enumerate(rig_frames(count, seed=seed, fps=fps, noise=noise)):
         results.append(
             FrameResult(
                 frame_index=index,
@@ -45,8 +58,8 @@ def rig_frame_results(count: int, seed: int = 0, fps: float = 119.0) -> list[Fra
                 material_s_m=frame.material_s_m,
                 material_begin_px=frame.material_begin_px,
                 material_end_px=frame.material_end_px,
-                stretch_begin=1.0,
-                stretch_end=1.0,
+                stretch_begin=1.0 + stretch_wobble * math.sin(index / 9),
+                stretch_end=1.0 + stretch_wobble * math.sin((index + 0.5) / 9),
                 pipeline_us=2500 + 37 * (index % 11),
             )
         )

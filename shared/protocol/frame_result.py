@@ -21,7 +21,7 @@ from ropecam.shared.protocol.bytecodec import ByteReader, ByteWriter, check_int
 from ropecam.shared.protocol.shapes import ShapeCodecConfig, check_polyline, decode_shape, encode_shape
 from ropecam.shared.protocol.wire import MessageType, register_record
 
-__all__ = ["FrameResult", "FrameStatus", "Method", "ShapeHint"]
+__all__ = ["FrameResult", "FrameStatus", "FrameSummary", "Method", "ShapeHint", "peek_frame_summary"]
 
 POINT_SHIFT: Final = 6
 """Pixel points are coded in units of 1/64 px."""
@@ -121,6 +121,53 @@ def _material(value: ArrayLike | None, count: int, name: str) -> NDArray[np.floa
         )
     array.flags.writeable = False
     return array
+
+
+@dataclass(frozen=True, slots=True)
+class FrameSummary:
+    """The fixed-size fields at the start of a FrameResult payload (read without decoding the shapes).
+
+    `status` and `method` are the raw codes (a newer device may send codes this side does not know).
+    """
+
+    frame_index: int
+    exposure_start_t_ns: int
+    exposure_end_t_ns: int
+    status: int
+    method: int
+    order_confidence: float
+    pipeline_us: int
+
+
+def _read_summary(r: ByteReader, t_ns_ref: int) -> FrameSummary:
+    """Read the leading fields `FrameResult.pack` writes first (the one parser of that layout)."""
+    frame_index = r.uvarint("frame_index", _U32)
+    start = t_ns_ref + r.svarint("exposure start", 2**63)
+    end = start + r.uvarint("exposure duration", 2**40 - 1)
+    if not (start >= -(2**63) and end < 2**63):
+        raise ProtocolError(f"exposure times out of int64 range: {start}, {end}")
+    status_code, method_code = r.raw(2, "status and method")
+    confidence = r.fixed("H", "order confidence") / _CONFIDENCE_SCALE
+    pipeline_us = r.uvarint("pipeline_us", _U32)
+    return FrameSummary(frame_index, start, end, status_code, method_code, confidence, pipeline_us)
+
+
+def peek_frame_summary(payload: bytes | memoryview, t_ns_ref: int = 0) -> FrameSummary:
+    """Read only the leading fields of a FrameResult payload (a few microseconds; the shapes stay undecoded).
+
+    Parameters
+    ----------
+    payload
+        The payload bytes (after the header).
+    t_ns_ref
+        The header's t_ns (the exposure start is coded relative to it).
+
+    Raises
+    ------
+    ProtocolError
+        The payload is too short or a field is out of range.
+    """
+    return _read_summary(ByteReader(payload), t_ns_ref)
 
 
 @register_record
@@ -305,18 +352,13 @@ class FrameResult:
     def unpack(cls, payload: bytes, t_ns_ref: int = 0) -> FrameResult:
         """Parse a payload written by `pack`; raise `ProtocolError` on anything malformed."""
         r = ByteReader(payload)
-        frame_index = r.uvarint("frame_index", _U32)
-        start = t_ns_ref + r.svarint("exposure start", 2**63)
-        end = start + r.uvarint("exposure duration", 2**40 - 1)
-        if not (start >= -(2**63) and end < 2**63):
-            raise ProtocolError(f"exposure times out of int64 range: {start}, {end}")
-        status_code, method_code = r.raw(2, "status and method")
+        summary = _read_summary(r, t_ns_ref)
+        frame_index, start, end = summary.frame_index, summary.exposure_start_t_ns, summary.exposure_end_t_ns
         try:
-            status, method = FrameStatus(status_code), Method(method_code)
+            status, method = FrameStatus(summary.status), Method(summary.method)
         except ValueError as exc:
             raise ProtocolError(f"FrameResult: {exc} (a newer device?)") from exc
-        confidence = r.fixed("H", "order confidence") / _CONFIDENCE_SCALE
-        pipeline_us = r.uvarint("pipeline_us", _U32)
+        confidence, pipeline_us = summary.order_confidence, summary.pipeline_us
         flags_byte = r.raw(1, "flags")[0]
         if flags_byte & ~0x1F:
             raise ProtocolError(f"FrameResult: unknown flag bits 0x{flags_byte:02x}")

@@ -123,3 +123,13 @@ def test_batch_on_local_dask_gives_the_single_run_numbers(recording: Path, tmp_p
         single = json.loads((tmp_path / name / "summary.json").read_text())
         for key in ("release_time_s", "rms_error_mm", "max_error_mm", "overall_rms_error_mm", "samples"):
             assert batch[name][key] == single[key], (name, key)
+
+
+def test_no_measured_shape_is_a_clear_error_not_a_traceback(
+    recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    empty = tmp_path / "empty.jsonl"
+    empty.write_text('{"frame": 0, "t_ns": 0, "t_end_ns": 4, "status": "NO_ROPE", "begin": null, "end": null}\n')
+    code = main(["compare", str(empty), "--plane", str(recording / "plane.yaml"), "--out", str(tmp_path / "r")])
+    err = capsys.readouterr().err
+    assert code == 2 and f"{empty}: no frame has a measured rope shape" in err and "Traceback" not in err

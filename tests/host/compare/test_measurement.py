@@ -58,3 +58,32 @@ def test_malformed_records_name_file_and_line(tmp_path: Path, record: dict, mess
     with pytest.raises(DataError, match=message) as info:
         read_extract_jsonl(path)
     assert f"{path}:2" in str(info.value)
+
+
+def test_a_shape_off_the_plane_or_a_point_off_the_rope_is_a_named_error(tmp_path: Path) -> None:
+    from ropecam.shared.errors import ConfigError
+
+    tilted = PlanePose.from_rvec([0.6, 0, 0], [0, 0, 1.0])  # rows far below the image meet it behind the camera
+    line = [[500.0, 100.0], [500.0, 200.0]]
+    records = [
+        {"frame": 4, "t_ns": 0, "t_end_ns": 4, "status": "OK", "begin": line, "end": line},
+        {"frame": 5, "t_ns": 8, "t_end_ns": 12, "status": "OK", "begin": [[500.0, 100.0], [500.0, 3000.0]]},
+    ]
+    frames = read_extract_jsonl(_write(tmp_path / "m.jsonl", records))
+    with pytest.raises(DataError, match=r"frame 5 \(t_ns 8\): .*behind the camera.*plane calibration"):
+        tracks_from_frames(frames, CAMERA, tilted, [0.1], 0.2)
+    records[1]["status"] = "LOST_TRACK"  # a frame the comparison ignores is never converted
+    frames = read_extract_jsonl(_write(tmp_path / "m.jsonl", records))
+    assert tracks_from_frames(frames, CAMERA, tilted, [0.1], 0.2)[0].measured.sum() == 2
+    with pytest.raises(ConfigError, match=r"must lie in \[0, 0.2\] m"):
+        tracks_from_frames(frames, CAMERA, tilted, [0.1, 0.3], 0.2)
+
+
+def test_no_measured_shape_is_a_data_error(tmp_path: Path) -> None:
+    from ropecam.host.compare.release import fit_release
+    from ropecam.host.model.config import RopeConfig, SolverConfig
+
+    records = [{"frame": 0, "t_ns": 0, "t_end_ns": 4, "status": "NO_ROPE", "begin": None, "end": None}]
+    frames = read_extract_jsonl(_write(tmp_path / "m.jsonl", records))
+    with pytest.raises(DataError, match=r"m\.jsonl: no frame has a measured rope shape"):
+        fit_release(frames, (CAMERA, PLANE), RopeConfig(length_m=0.2), SolverConfig(), label=str(tmp_path / "m.jsonl"))

@@ -2,16 +2,14 @@
 
 from __future__ import annotations
 
-import os
 import socket
-import subprocess
-import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
+from ropecam.host.monitor.process import MonitorProcess
 from ropecam.host.sim.stream import SimulatedDevice
 from ropecam.shared.transport.base import Transport
 
@@ -29,30 +27,6 @@ def free_udp_port() -> int:
         return probe.getsockname()[1]
 
 
-class MonitorProcess:
-    """`ropecam monitor --no-ui` in a subprocess, started and waited for until it listens."""
-
-    def __init__(self, args: list[str]) -> None:
-        env = dict(os.environ, PYTHONUNBUFFERED="1")
-        self.process = subprocess.Popen(
-            [sys.executable, "-m", "ropecam.host.cli", "monitor", "--no-ui", *args],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            env=env,
-        )
-        line = self.process.stderr.readline()
-        if "receiving on" not in line:
-            self.process.kill()
-            out, err = self.process.communicate()
-            raise AssertionError(f"monitor did not start: {line}{err}{out}")
-
-    def finish(self, timeout_s: float = 30.0) -> tuple[int, str, str]:
-        """Wait for the exit; return (code, stdout, stderr)."""
-        out, err = self.process.communicate(timeout=timeout_s)
-        return self.process.returncode, out, err
-
-
 @pytest.fixture
 def monitor_process() -> Iterator[type[MonitorProcess]]:
     """Factory of monitor subprocesses; any still running at the end is killed."""
@@ -65,9 +39,7 @@ def monitor_process() -> Iterator[type[MonitorProcess]]:
 
     yield Tracked
     for monitor in started:
-        if monitor.process.poll() is None:
-            monitor.process.kill()
-            monitor.process.communicate()
+        monitor.kill()
 
 
 def read_mcap(path: Path) -> list[tuple[str, str | None, int, bytes]]:

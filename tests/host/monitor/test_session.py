@@ -239,3 +239,49 @@ def test_raw_frames_become_foxglove_raw_images(tmp_path: Path, read_mcap) -> Non
     jsonschema.validate(message, SCHEMAS[schema_name])
     assert (message["width"], message["height"], message["encoding"]) == (40, 30, "mono8")
     assert base64.b64decode(message["data"]) == image.tobytes()
+
+
+def test_control_acks_count_in_the_device_sequence_and_are_not_lost() -> None:
+    from ropecam.device.senders.stream import ResultSender
+    from ropecam.host.monitor.stats import StreamStats
+    from ropecam.shared.protocol import AckResult, Command, ControlAck, Log
+
+    device, host = LoopTransport.pair()
+    sender = ResultSender(device, 1)
+    sender.submit(Log(level=20, text="a"))
+    sender.submit(ControlAck(5, Command.START, AckResult.APPLIED, "ok"))
+    sender.submit(Log(level=20, text="b"))
+    sender.close()
+    stats = StreamStats()
+    while (data := host.receive(0.1)) is not None:
+        assert stats.observe(check_packet(data, time.time_ns()))
+    (row,) = stats.snapshot(time.time_ns())
+    assert (row.received, row.lost) == (3, 0)
+    assert not any(w.startswith("LOSS") for w in row.warnings)
+
+
+def test_a_pixel_off_the_plane_is_counted_bad_and_never_stops_the_session(tmp_path: Path, read_mcap) -> None:
+    from ropecam.host.calibration.geometry import CameraModel, PlanePose
+    from ropecam.shared.protocol.wire import encode_message
+
+    camera = CameraModel(np.array([[1000.0, 0, 512], [0, 1000.0, 272], [0, 0, 1]]), np.zeros(5), (1024, 544))
+    plane = PlanePose.from_rvec([0.6, 0, 0], [0, 0, 1.0])  # tilted 34 degrees: rows far below the image miss it
+    good = np.array([[500.0, 100.0], [500.0, 300.0]])
+    bad = np.array([[500.0, 100.0], [500.0, 3000.0]])  # valid on the wire, its ray meets the plane behind the camera
+    shapes = [good, bad, good]
+    recorder = Recorder(RecordingConfig(tmp_path / "bad.mcap"))
+    model_calls = []
+    session = Session(recorder, (camera, plane), model=lambda record, device: model_calls.append(record) or None)
+    for index, shape in enumerate(shapes):
+        tip = tuple(shape[-1])
+        record = FrameResult(index, index * 10_000_000, index * 10_000_000 + 4_000_000, begin_px=shape, end_px=shape,
+                             begin_tip_px=tip, end_tip_px=tip)  # fmt: skip
+        data = encode_message(record, device_id=1, sequence=index, t_ns=time.time_ns())
+        session.handle(check_packet(data, time.time_ns()))
+    session.close()
+    (row,) = session.snapshot(time.time_ns())
+    assert row.decode_errors == 1 and row.received == 3
+    assert [r.frame_index for r in model_calls] == [0, 2]
+    topics = [t for t, _, _, _ in read_mcap(tmp_path / "bad.mcap")]
+    assert topics.count("/device1/image/scene") == 3 and topics.count("/device1/plane/scene") == 2
+    assert topics.count(RAW_TOPIC) == 3

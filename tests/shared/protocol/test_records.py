@@ -217,3 +217,23 @@ def _fields(record: object) -> dict[str, object]:
     import dataclasses
 
     return {f.name: getattr(record, f.name) for f in dataclasses.fields(record)}  # type: ignore[arg-type]
+
+
+def test_frame_summary_is_read_by_the_parser_of_unpack() -> None:
+    import pytest
+
+    from ropecam.host.receiver import FrameSummary as ReceiverSummary
+    from ropecam.shared.errors import ProtocolError
+    from ropecam.shared.protocol.frame_result import FrameSummary, peek_frame_summary
+
+    shape = np.array([[10.0, 20.0], [30.0, 40.0]])
+    record = FrameResult(70000, 5_000_123, 9_000_456, status=FrameStatus.LOST_TRACK, method=Method.CENTERLINE,
+                         order_confidence=0.25, begin_px=shape, pipeline_us=1234)  # fmt: skip
+    payload = record.pack(t_ns_ref=5_000_000)
+    summary = peek_frame_summary(payload, 5_000_000)
+    decoded = FrameResult.unpack(payload, 5_000_000)
+    assert summary == FrameSummary(70000, 5_000_123, 9_000_456, FrameStatus.LOST_TRACK, Method.CENTERLINE,
+                                   decoded.order_confidence, 1234)  # fmt: skip
+    assert ReceiverSummary is FrameSummary
+    with pytest.raises(ProtocolError):
+        peek_frame_summary(payload[:4])

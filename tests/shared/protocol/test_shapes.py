@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 from ropecam.host.sim.rig_polylines import rig_frames
+from ropecam.host.sim.stream import rig_frame_results
 from ropecam.shared.errors import ConfigError, ProtocolError
-from ropecam.shared.protocol import FrameResult, ShapeCodecConfig, ShapeHint, decode_message, encode_message
+from ropecam.shared.protocol import ShapeCodecConfig, ShapeHint, decode_message, encode_message
 from ropecam.shared.protocol._kernels import distances_to_polyline, fit_bspline, sample_bspline
 from ropecam.shared.protocol.bytecodec import ByteReader
 from ropecam.shared.protocol.examples import arc_polyline
@@ -149,26 +150,8 @@ def test_relative_shape_without_reference_is_a_protocol_error() -> None:
 def test_rig_frame_results_average_at_most_200_bytes(frames_match) -> None:
     hint = ShapeHint()
     sizes = []
-    frames = rig_frames(24, seed=9)
-    for index, frame in enumerate(frames):
-        record = FrameResult(
-            frame_index=index,
-            exposure_start_t_ns=frame.t_start_ns,
-            exposure_end_t_ns=frame.t_end_ns,
-            order_confidence=0.9,
-            begin_px=frame.begin_px,
-            end_px=frame.end_px,
-            begin_tip_px=tuple(frame.begin_px[-1]),
-            end_tip_px=tuple(frame.end_px[-1]),
-            fixed_end_px=tuple(frame.fixed_end_px),
-            material_s_m=frame.material_s_m,
-            material_begin_px=frame.material_begin_px,
-            material_end_px=frame.material_end_px,
-            stretch_begin=1.001,
-            stretch_end=1.002,
-            pipeline_us=3100,
-        )
-        t_ns = frame.t_end_ns + 2_000_000
+    for index, record in enumerate(rig_frame_results(24, seed=9, stretch_wobble=0.002)):
+        t_ns = record.exposure_end_t_ns + 2_000_000
         data = encode_message(record, device_id=1, sequence=index, t_ns=t_ns, pack_options={"hint": hint})
         sizes.append(len(data))
         frames_match(record, decode_message(data).record)
