@@ -14,6 +14,8 @@ import time
 from collections import Counter
 from collections.abc import Callable
 
+import numpy as np
+
 from ropecam.device.capture.driver import DriverFactory
 from ropecam.device.capture.source import CameraSource, CaptureCounters, CapturedFrame, ControlUnsupportedError
 from ropecam.device.daemon.config import DeviceConfig
@@ -206,6 +208,11 @@ class Daemon:
             try:
                 source = self.config.capture.open(self._driver_factory)
                 source.start()
+                if self._warm_up(source):
+                    # Frames that streamed in while the pipeline was built are not part of the measurement: start
+                    # the stream again (this also zeroes the source's counters), so the first frame is not skipped.
+                    source.stop()
+                    source.start()
                 self._camera_lost_since = None
                 self._reapply_settings(source)
                 return source
@@ -224,6 +231,17 @@ class Daemon:
                 self._wait(stop, delay)
                 delay = min(delay * 2, self.config.daemon.retry_max_s)
         return None
+
+    def _warm_up(self, source: CameraSource) -> bool:
+        """Build the pipeline for the camera's image size and run one blank frame through it (buffers allocated,
+        every kernel called once), so that the first camera frame is measured at full speed; True if it built one.
+        """
+        width, height = source.image_size
+        if self._pipeline is not None and self._pipeline.shape == (height, width):
+            return False
+        self._pipeline = Pipeline(self._pipeline_config, (width, height))
+        self._pipeline.process(np.zeros((height, width), np.uint8), 0, 0, 0.0)  # no rope: leaves no tracking state
+        return True
 
     # -- commands --------------------------------------------------------------------------------------------------
     def _apply(self, pending: PendingCommand, source: CameraSource) -> ControlAck:
