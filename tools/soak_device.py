@@ -92,6 +92,7 @@ def main(argv: list[str] | None = None) -> int:
             next_report += args.report_s
             print(f"{elapsed:7.1f} s: measured {daemon.frames_measured}, received {received['frames']}, "
                   f"RSS {rss_kib() / 1024:.1f} MiB", file=sys.stderr, flush=True)  # fmt: skip
+    rss_end = rss_kib()  # while still running: after the stop, buffers are freed and growth would read negative
     stop.set()
     runner.join(30)
     time.sleep(0.5)
@@ -108,10 +109,10 @@ def main(argv: list[str] | None = None) -> int:
         "queue_dropped": sender.dropped_queue_full if sender else None,
         "link_dropped": sender.dropped_by_link if sender else None,
         "statuses": dict(daemon.statuses),
-        "rss_mib": round(rss_kib() / 1024, 2),
+        "rss_mib": round(rss_end / 1024, 2),
         "rss_growth_after_warmup_mib": None
         if rss_after_warmup is None
-        else round((rss_kib() - rss_after_warmup) / 1024, 3),
+        else round((rss_end - rss_after_warmup) / 1024, 3),
         "max_rss_mib": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
         "cpu_ms_per_frame": round(1000 * cpu / max(daemon.frames_measured, 1), 3),
     }

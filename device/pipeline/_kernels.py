@@ -13,7 +13,7 @@ import math
 from typing import Final
 
 import numpy as np
-from numba import boolean, float32, float64, int32, types
+from numba import boolean, float32, float64, int32, int64, types
 
 from ropecam.shared.jit import (
     KernelStatus,
@@ -740,6 +740,17 @@ def split_contour(points, turn, n, fixed_r, fixed_c, search_px, min_gap, out_idx
     return 4
 
 
+@kernel(float64(f4_2d_ro, int64, int64, int64, int64))
+def chain_length(points, n, i_start, count, direction):
+    """Return the length of the `count` contour points from `i_start`, stepping `direction` (+1/-1), cyclic."""
+    total = 0.0
+    for k in range(1, count):
+        i0 = (i_start + (k - 1) * direction + n * 4) % n
+        i1 = (i_start + k * direction + n * 4) % n
+        total += math.hypot(points[i1, 0] - points[i0, 0], points[i1, 1] - points[i0, 1])
+    return total
+
+
 @kernel(int32(f4_2d_ro, int32, int32, int32, int32, float32, float32, float32, int32, f4_2d))
 def offset_side(points, n, i_start, i_stop, direction, interior_sign, width_px, sweep_tip_px, tangent_span, out_poly):
     """Copy the contour from `i_start` to `i_stop` (stepping `direction` = +1 or -1, cyclic) into `out_poly`,
@@ -755,11 +766,7 @@ def offset_side(points, n, i_start, i_stop, direction, interior_sign, width_px, 
     count = (count % n + n) % n + 1
     if count > out_poly.shape[0]:
         return FULL
-    total = 0.0
-    for k in range(1, count):
-        i0 = (i_start + (k - 1) * direction + n * 4) % n
-        i1 = (i_start + k * direction + n * 4) % n
-        total += math.hypot(points[i1, 0] - points[i0, 0], points[i1, 1] - points[i0, 1])
+    total = chain_length(points, n, i_start, count, direction)
     s = 0.0
     for k in range(count):
         i = (i_start + k * direction + n * 4) % n
@@ -1031,11 +1038,7 @@ def offset_by_gradient(
     count = (count % n + n) % n + 1
     if count > out_poly.shape[0]:
         return FULL
-    total = 0.0
-    for k in range(1, count):
-        i0 = (i_start + (k - 1) * direction + n * 4) % n
-        i1 = (i_start + k * direction + n * 4) % n
-        total += math.hypot(points[i1, 0] - points[i0, 0], points[i1, 1] - points[i0, 1])
+    total = chain_length(points, n, i_start, count, direction)
     s = 0.0
     for k in range(count):
         i = (i_start + k * direction + n * 4) % n

@@ -143,3 +143,22 @@ def link(request: pytest.FixtureRequest) -> Iterator[tuple[Transport, Transport]
     finally:
         device.close()
         host.close()
+
+
+def _read_available(master: int) -> bytes:
+    """Everything readable now on a non-blocking pty master."""
+    out = bytearray()
+    while True:
+        try:
+            chunk = os.read(master, 65536)
+        except (BlockingIOError, OSError):
+            return bytes(out)
+        if not chunk:
+            return bytes(out)
+        out += chunk
+
+
+@pytest.fixture
+def read_available():
+    """Return a function reading everything readable now from a non-blocking pty master fd."""
+    return _read_available

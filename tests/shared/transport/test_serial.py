@@ -22,19 +22,7 @@ def pty_port():
     os.close(master)
 
 
-def _read_all(master: int) -> bytes:
-    out = bytearray()
-    while True:
-        try:
-            chunk = os.read(master, 65536)
-        except (BlockingIOError, OSError):
-            return bytes(out)
-        if not chunk:
-            return bytes(out)
-        out += chunk
-
-
-def test_full_line_drops_whole_messages_and_counts_them(pty_port) -> None:
+def test_full_line_drops_whole_messages_and_counts_them(pty_port, read_available) -> None:
     master, name = pty_port
     link = open_transport(f"serial://{name}?baud=921600")
     try:
@@ -46,8 +34,8 @@ def test_full_line_drops_whole_messages_and_counts_them(pty_port) -> None:
         assert link.stats.sent + link.stats.send_dropped == attempts
         stream = bytearray()
         while True:  # drain the line as a receiver would, letting the pending remainder go out
-            stream += _read_all(master)
-            if link.drain(0.05) and not (more := _read_all(master)):
+            stream += read_available(master)
+            if link.drain(0.05) and not (more := read_available(master)):
                 break
             stream += more
         deframer = Deframer()

@@ -83,7 +83,9 @@ def pty_port() -> Iterator[tuple[int, str]]:
     os.close(master)
 
 
-def test_serial_send_and_receive_threads_never_duplicate_a_pending_tail(pty_port: tuple[int, str]) -> None:
+def test_serial_send_and_receive_threads_never_duplicate_a_pending_tail(
+    pty_port: tuple[int, str], read_available
+) -> None:
     master, name = pty_port
     link = open_transport(f"serial://{name}?baud=921600")
     stop = threading.Event()
@@ -100,13 +102,13 @@ def test_serial_send_and_receive_threads_never_duplicate_a_pending_tail(pty_port
         for i in range(3000):
             results.append(link.send(encode_message(Log(20, "z" * 300), device_id=2, sequence=i, t_ns=i)))
             if i % 100 == 0:
-                stream += _read_some(master)  # the line drains slowly: partial writes and pending tails happen
+                stream += read_available(master)  # the line drains slowly: partial writes and pending tails happen
     finally:
         stop.set()
         receiver.join(5.0)
     while True:
-        stream += _read_some(master)
-        if link.drain(0.05) and not (more := _read_some(master)):
+        stream += read_available(master)
+        if link.drain(0.05) and not (more := read_available(master)):
             break
         stream += more
     link.close()
@@ -116,18 +118,6 @@ def test_serial_send_and_receive_threads_never_duplicate_a_pending_tail(pty_port
     assert deframer.stats.bad_frames == 0 and deframer.stats.overlong == 0
     assert sequences == [i for i, ok in enumerate(results) if ok]
     assert link.stats.bytes_sent == len(stream)
-
-
-def _read_some(master: int) -> bytes:
-    out = bytearray()
-    while True:
-        try:
-            chunk = os.read(master, 65536)
-        except (BlockingIOError, OSError):
-            return bytes(out)
-        if not chunk:
-            return bytes(out)
-        out += chunk
 
 
 def test_deframer_feed_consumes_everything_at_once() -> None:
