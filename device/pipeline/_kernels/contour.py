@@ -1,0 +1,167 @@
+"""Component selection and the closed contour: keep the largest edge component, trace its chain, count its
+contacts with the ROI border."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import int32
+
+from ropecam.device.pipeline._kernels._common import DIR_COL, DIR_ROW, FULL, NOT_FOUND
+from ropecam.device.pipeline._kernels.spans import in_spans
+from ropecam.shared.jit import (
+    i4_1d,
+    i4_1d_ro,
+    i4_2d,
+    i4_2d_ro,
+    kernel,
+    u1_2d,
+    u1_2d_ro,
+)
+
+
+@kernel(int32(u1_2d, i4_1d_ro, i4_1d_ro, int32, i4_2d, i4_1d, i4_1d))
+def keep_largest_component(edges, lo, hi, min_pixels, out_labels, stack, out_start):
+    """Mark the largest 8-connected component of `edges` (nonzero = edge) inside the spans with 1, the others
+    with 2 (they still count as edges for width measurements, but the contour follows only 1).
+
+    Writes `out_labels` (component number + 1, 0 = background, valid inside the spans), rewrites `edges` and
+    writes the component's first pixel in raster order into `out_start` (row, col). Returns the component's pixel
+    count, or NOT_FOUND when no component has at least `min_pixels` pixels (then every edge is marked 2).
+    """
+    height = edges.shape[0]
+    width = edges.shape[1]
+    for r in range(height):
+        c0 = np.int64(lo[r])
+        c1 = min(np.int64(hi[r]), width - 1)
+        if c1 >= c0:
+            out_labels[r, c0 : c1 + 1] = 0
+    label = 0
+    best_label = 0
+    best_size = 0
+    for r in range(height):
+        c0 = np.int64(lo[r])
+        c1 = min(np.int64(hi[r]), width - 1)
+        if c1 < c0:
+            continue
+        e_in = edges[r, c0 : c1 + 1]
+        l_in = out_labels[r, c0 : c1 + 1]
+        for i in range(e_in.shape[0]):
+            if e_in[i] == 0 or l_in[i] != 0:
+                continue
+            c = c0 + i
+            label += 1
+            out_labels[r, c] = label
+            top = 0
+            stack[top] = r * width + c
+            top += 1
+            size = 0
+            while top > 0:
+                top -= 1
+                pr = stack[top] // width
+                pc = stack[top] - pr * width
+                size += 1
+                for k in range(8):
+                    rr = pr + DIR_ROW[k]
+                    cc = pc + DIR_COL[k]
+                    if rr < 0 or rr >= height or cc < lo[rr] or cc > hi[rr] or cc >= width:
+                        continue
+                    if edges[rr, cc] != 0 and out_labels[rr, cc] == 0:
+                        out_labels[rr, cc] = label
+                        stack[top] = rr * width + cc
+                        top += 1
+            if size > best_size:
+                best_size = size
+                best_label = label
+                out_start[0] = r
+                out_start[1] = c
+    found = best_size >= min_pixels and best_size > 0
+    keep = best_label if found else -1
+    for r in range(height):
+        c0 = np.int64(lo[r])
+        c1 = min(np.int64(hi[r]), width - 1)
+        if c1 < c0:
+            continue
+        e_in = edges[r, c0 : c1 + 1]
+        l_in = out_labels[r, c0 : c1 + 1]
+        for i in range(e_in.shape[0]):
+            if e_in[i] != 0:
+                e_in[i] = 1 if l_in[i] == keep else 2
+    return best_size if found else NOT_FOUND
+
+
+@kernel(int32(u1_2d_ro, i4_1d_ro, i4_1d_ro, int32, int32, i4_2d, i4_1d))
+def trace_contour(edges, lo, hi, start_r, start_c, out_chain, out_codes):
+    """Trace the outer boundary of the edge component containing (start_r, start_c), its first pixel in raster
+    order, clockwise on screen (Moore-neighbour tracing; stops when the first move repeats).
+
+    Writes the chain pixels (row, col) into `out_chain` and the Freeman code (0 = east, counter-clockwise on
+    screen) of the move from each pixel to the next into `out_codes`. Returns the chain length or FULL.
+    """
+    capacity = out_chain.shape[0]
+    if capacity < 1 or out_codes.shape[0] < capacity:
+        return FULL
+    width = edges.shape[1]
+    pr = start_r
+    pc = start_c
+    br = start_r
+    bc = start_c - 1
+    first_r = -1
+    first_c = -1
+    n = 0
+    while True:
+        # Direction index of the backtrack pixel seen from the current one.
+        dr = br - pr
+        dc = bc - pc
+        b_idx = 0
+        for k in range(8):
+            if DIR_ROW[k] == dr and DIR_COL[k] == dc:
+                b_idx = k
+        found = -1
+        for step in range(1, 9):
+            k = (b_idx + step) % 8
+            rr = pr + DIR_ROW[k]
+            cc = pc + DIR_COL[k]
+            if in_spans(rr, cc, lo, hi) and 0 <= cc < width and edges[rr, cc] == 1:
+                found = k
+                break
+        if found < 0:
+            out_chain[0, 0] = pr
+            out_chain[0, 1] = pc
+            out_codes[0] = 0
+            return 1
+        nr = pr + DIR_ROW[found]
+        nc = pc + DIR_COL[found]
+        if n == 0:
+            first_r = nr
+            first_c = nc
+        elif pr == start_r and pc == start_c and nr == first_r and nc == first_c:
+            return n
+        if n >= capacity:
+            return FULL
+        out_chain[n, 0] = pr
+        out_chain[n, 1] = pc
+        out_codes[n] = (8 - found) % 8
+        n += 1
+        prev = (found + 7) % 8
+        br = pr + DIR_ROW[prev]
+        bc = pc + DIR_COL[prev]
+        pr = nr
+        pc = nc
+
+
+@kernel(int32(i4_2d_ro, int32, i4_1d_ro, i4_1d_ro, int32))
+def count_roi_contacts(chain, n, lo, hi, width):
+    """Return how many of the first `n` chain pixels have an 8-neighbour inside the image but outside the row
+    spans `lo`/`hi` (the contour reaches the border of the region of interest)."""
+    height = lo.shape[0]
+    count = 0
+    for i in range(n):
+        r = chain[i, 0]
+        c = chain[i, 1]
+        for k in range(8):
+            rr = r + DIR_ROW[k]
+            cc = c + DIR_COL[k]
+            if 0 <= rr < height and 0 <= cc < width and not in_spans(rr, cc, lo, hi):
+                count += 1
+                break
+    return count

@@ -1,0 +1,282 @@
+"""Subpixel refinement and geometry along the closed contour: turning angles, the split, side offsets, midlines."""
+
+from __future__ import annotations
+
+import math
+
+from numba import float32, float64, int32, int64
+
+from ropecam.device.pipeline._kernels._common import FULL, NOT_FOUND, f4_1d_ro
+from ropecam.shared.jit import (
+    f4_1d,
+    f4_2d,
+    f4_2d_ro,
+    i4_1d,
+    i4_2d_ro,
+    kernel,
+)
+
+
+@kernel(float32(f4_2d_ro, float32, float32))
+def sample_bilinear(image, r, c):
+    """Return `image` interpolated bilinearly at (r, c), clamped to the image."""
+    height = image.shape[0]
+    width = image.shape[1]
+    r = min(max(r, 0.0), height - 1.0)
+    c = min(max(c, 0.0), width - 1.0)
+    r0 = min(int(r), height - 2) if height > 1 else 0
+    c0 = min(int(c), width - 2) if width > 1 else 0
+    fr = r - r0
+    fc = c - c0
+    r1 = min(r0 + 1, height - 1)
+    c1 = min(c0 + 1, width - 1)
+    top = image[r0, c0] * (1.0 - fc) + image[r0, c1] * fc
+    bottom = image[r1, c0] * (1.0 - fc) + image[r1, c1] * fc
+    return top * (1.0 - fr) + bottom * fr
+
+
+@kernel(int32(f4_2d_ro, f4_2d_ro, f4_2d_ro, i4_2d_ro, int32, f4_2d))
+def refine_subpixel(mag, gx, gy, chain, n, out_points):
+    """Move each of the first `n` chain pixels to the subpixel maximum of the gradient magnitude (Devernay 1995:
+    parabola through the magnitude at -1, 0, +1 px along the image axis nearest the gradient, offset clamped to
+    1 px).
+
+    Writes `out_points` (row, col) float32; returns `n`."""
+    for i in range(n):
+        r = chain[i, 0]
+        c = chain[i, 1]
+        g_r = gy[r, c]
+        g_c = gx[r, c]
+        norm = math.sqrt(g_r * g_r + g_c * g_c)
+        out_points[i, 0] = r
+        out_points[i, 1] = c
+        if norm <= 0.0:
+            continue
+        # Devernay: fit the parabola along the image axis closest to the gradient (exact pixel samples, no
+        # interpolation bias), then move along that axis.
+        m0 = mag[r, c]
+        height = mag.shape[0]
+        width = mag.shape[1]
+        if abs(g_c) >= abs(g_r):
+            if c < 1 or c > width - 2:
+                continue
+            mm = mag[r, c - 1]
+            mp = mag[r, c + 1]
+            a_r = 0.0
+            a_c = 1.0
+        else:
+            if r < 1 or r > height - 2:
+                continue
+            mm = mag[r - 1, c]
+            mp = mag[r + 1, c]
+            a_r = 1.0
+            a_c = 0.0
+        denom = mm - 2.0 * m0 + mp
+        if denom < 0.0:
+            delta = 0.5 * (mm - mp) / denom
+            delta = min(max(delta, -1.0), 1.0)
+            out_points[i, 0] = r + delta * a_r
+            out_points[i, 1] = c + delta * a_c
+    return n
+
+
+@kernel(float64(f4_2d_ro, int32))
+def signed_area(points, n):
+    """Return the signed area (shoelace, in (row, col) coordinates) of the closed polygon of the first `n`
+    points; positive for a clockwise traversal on screen."""
+    acc = 0.0
+    for i in range(n):
+        j = (i + 1) % n
+        acc += float(points[i, 1]) * float(points[j, 0]) - float(points[j, 1]) * float(points[i, 0])
+    return 0.5 * acc
+
+
+@kernel(int32(f4_2d_ro, int32, int32, f4_1d))
+def turning_angles(points, n, scale, out_turn):
+    """Write the unsigned turning angle (radians, 0 to pi) of the closed polyline at each point, measured between
+    the chords to the points `scale` places before and after. Returns `n`."""
+    for i in range(n):
+        a = (i - scale + n * ((scale // n) + 1)) % n
+        b = (i + scale) % n
+        v1r = points[i, 0] - points[a, 0]
+        v1c = points[i, 1] - points[a, 1]
+        v2r = points[b, 0] - points[i, 0]
+        v2c = points[b, 1] - points[i, 1]
+        n1 = math.sqrt(v1r * v1r + v1c * v1c)
+        n2 = math.sqrt(v2r * v2r + v2c * v2c)
+        if n1 <= 0.0 or n2 <= 0.0:
+            out_turn[i] = 0.0
+            continue
+        cos_t = (v1r * v2r + v1c * v2c) / (n1 * n2)
+        cos_t = min(max(cos_t, -1.0), 1.0)
+        out_turn[i] = math.acos(cos_t)
+    return n
+
+
+@kernel(int32(f4_2d_ro, f4_1d_ro, int32, float32, float32, float32, int32, i4_1d))
+def split_contour(points, turn, n, fixed_r, fixed_c, search_px, min_gap, out_idx):
+    """Find the fixed end, the far point and the two segmentation points on the closed subpixel contour.
+
+    The fixed-end index is the contour point nearest to (fixed_r, fixed_c); the far index the point farthest
+    from it. Side A runs forward along the chain from the fixed end to the far point, side B backward; on each
+    side the segmentation point is the point of largest turning angle among those at least
+    ``R_far - search_px`` from the fixed end, the two at least `min_gap` chain steps apart.
+    Writes ``out_idx = [fixed, seg_a, far, seg_b]``; returns 4 or NOT_FOUND.
+    """
+    if n < 8:
+        return NOT_FOUND
+    i_fix = 0
+    best = 1e30
+    for i in range(n):
+        d = math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c)
+        if d < best:
+            best = d
+            i_fix = i
+    i_far = 0
+    r_far = -1.0
+    for i in range(n):
+        d = math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c)
+        if d > r_far:
+            r_far = d
+            i_far = i
+    threshold = r_far - search_px
+    len_a = (i_far - i_fix + n) % n
+    len_b = (i_fix - i_far + n) % n
+    if len_a < 1 or len_b < 1:
+        return NOT_FOUND
+    # Side A: forward from the fixed end to the far point; side B: backward. Each gets the point of largest turning
+    # in the tip zone; the pair must be `min_gap` chain steps apart (the far point may itself be a corner), so the
+    # best pair is taken over "A first, then B away from it" and "B first, then A away from it".
+    best_sum = -1.0
+    seg_a = -1
+    seg_b = -1
+    for first in range(2):
+        a = -1
+        b = -1
+        ta = -1.0
+        tb = -1.0
+        for rep in range(2):
+            pick_a = (rep == 0) == (first == 0)
+            length = len_a if pick_a else len_b
+            for step in range(1, length + 1):
+                i = (i_fix + step) % n if pick_a else (i_fix - step + n) % n
+                if math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c) < threshold:
+                    continue
+                other = b if pick_a else a
+                if other >= 0:
+                    gap = abs(i - other)
+                    if min(gap, n - gap) < min_gap:
+                        continue
+                if pick_a and turn[i] > ta:
+                    ta = turn[i]
+                    a = i
+                elif not pick_a and turn[i] > tb:
+                    tb = turn[i]
+                    b = i
+        if a >= 0 and b >= 0 and ta + tb > best_sum:
+            best_sum = ta + tb
+            seg_a = a
+            seg_b = b
+    if seg_a < 0 or seg_b < 0:
+        return NOT_FOUND
+    out_idx[0] = i_fix
+    out_idx[1] = seg_a
+    out_idx[2] = i_far
+    out_idx[3] = seg_b
+    return 4
+
+
+@kernel(float64(f4_2d_ro, int64, int64, int64, int64))
+def chain_length(points, n, i_start, count, direction):
+    """Return the length of the `count` contour points from `i_start`, stepping `direction` (+1/-1), cyclic."""
+    total = 0.0
+    for k in range(1, count):
+        i0 = (i_start + (k - 1) * direction + n * 4) % n
+        i1 = (i_start + k * direction + n * 4) % n
+        total += math.hypot(points[i1, 0] - points[i0, 0], points[i1, 1] - points[i0, 1])
+    return total
+
+
+@kernel(int32(f4_2d_ro, int32, int32, int32, int32, float32, float32, float32, int32, f4_2d))
+def offset_side(points, n, i_start, i_stop, direction, interior_sign, width_px, sweep_tip_px, tangent_span, out_poly):
+    """Copy the contour from `i_start` to `i_stop` (stepping `direction` = +1 or -1, cyclic) into `out_poly`,
+    each point moved towards the band's interior by ``max(0, (width_px - sweep(s)) / 2)``.
+
+    The edge of a blurred band lies at the centre of the intensity ramp: on the rope axis where the local sweep
+    is at least the rope width, `width_px / 2` outside it where the rope did not move. The sweep is modelled as
+    growing linearly with arc length from the fixed end to `sweep_tip_px` at the tip (rotation about the fixed
+    end). The interior normal is ``interior_sign * (t_col, -t_row)`` for the forward chain tangent t (estimated
+    over +-`tangent_span` points). Returns the number of points written or FULL.
+    """
+    count = (i_stop - i_start) * direction
+    count = (count % n + n) % n + 1
+    if count > out_poly.shape[0]:
+        return FULL
+    total = chain_length(points, n, i_start, count, direction)
+    s = 0.0
+    for k in range(count):
+        i = (i_start + k * direction + n * 4) % n
+        if k > 0:
+            ip = (i_start + (k - 1) * direction + n * 4) % n
+            s += math.hypot(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
+        a = (i - tangent_span + n * 4) % n
+        b = (i + tangent_span) % n
+        t_r = points[b, 0] - points[a, 0]
+        t_c = points[b, 1] - points[a, 1]
+        norm = math.sqrt(t_r * t_r + t_c * t_c)
+        shift = 0.0
+        if total > 0.0:
+            shift = max(0.0, 0.5 * (width_px - sweep_tip_px * s / total))
+        if norm > 0.0:
+            out_poly[k, 0] = points[i, 0] + shift * interior_sign * t_c / norm
+            out_poly[k, 1] = points[i, 1] - shift * interior_sign * t_r / norm
+        else:
+            out_poly[k, 0] = points[i, 0]
+            out_poly[k, 1] = points[i, 1]
+    return count
+
+
+@kernel(int32(f4_2d_ro, int32, f4_2d_ro, int32, f4_2d, f4_1d))
+def midline(side_a, n_a, side_b, n_b, out_poly, out_dist):
+    """Write the midline of two polylines running the same way (fixed end first): each point of `side_a` is
+    paired with its nearest point on `side_b` (the search advancing monotonically), the midpoint goes to
+    `out_poly` and the pair's distance to `out_dist`; returns `n_a` or FULL."""
+    if n_a > out_poly.shape[0] or n_a > out_dist.shape[0]:
+        return FULL
+    if n_a < 1 or n_b < 1:
+        return 0
+    j = 0
+    for i in range(n_a):
+        ar = side_a[i, 0]
+        ac = side_a[i, 1]
+        best = math.hypot(ar - side_b[j, 0], ac - side_b[j, 1])
+        while j + 1 < n_b:
+            d = math.hypot(ar - side_b[j + 1, 0], ac - side_b[j + 1, 1])
+            if d > best:
+                break
+            best = d
+            j += 1
+        # Foot of the perpendicular on the neighbouring segments of side B.
+        br = side_b[j, 0]
+        bc = side_b[j, 1]
+        for jj in (j - 1, j):
+            if jj < 0 or jj + 1 >= n_b:
+                continue
+            sr = side_b[jj + 1, 0] - side_b[jj, 0]
+            sc = side_b[jj + 1, 1] - side_b[jj, 1]
+            ss = sr * sr + sc * sc
+            if ss <= 0.0:
+                continue
+            t = ((ar - side_b[jj, 0]) * sr + (ac - side_b[jj, 1]) * sc) / ss
+            t = min(max(t, 0.0), 1.0)
+            fr = side_b[jj, 0] + t * sr
+            fc = side_b[jj, 1] + t * sc
+            d = math.hypot(ar - fr, ac - fc)
+            if d <= best:
+                best = d
+                br = fr
+                bc = fc
+        out_poly[i, 0] = 0.5 * (ar + br)
+        out_poly[i, 1] = 0.5 * (ac + bc)
+        out_dist[i] = best
+    return n_a

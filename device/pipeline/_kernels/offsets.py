@@ -1,0 +1,165 @@
+"""Polarity, rope width and gradient-based inward offsets of the contour sides."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import float32, int32, types
+
+from ropecam.device.pipeline._kernels._common import FULL, NOT_FOUND, f4_1d_ro
+from ropecam.device.pipeline._kernels.geometry import chain_length
+from ropecam.shared.jit import (
+    f4_1d,
+    f4_2d,
+    f4_2d_ro,
+    i4_1d,
+    i4_2d_ro,
+    kernel,
+    u1_2d_ro,
+)
+
+
+@kernel(types.UniTuple(float32, 2)(f4_2d_ro, f4_2d_ro, f4_2d_ro, int32, int32))
+def axis_offset(mag, gx, gy, r, c):
+    """Return the (row, col) subpixel offset of the magnitude maximum at pixel (r, c) (as `refine_subpixel`)."""
+    height = mag.shape[0]
+    width = mag.shape[1]
+    if r < 1 or c < 1 or r > height - 2 or c > width - 2:
+        return np.float32(0.0), np.float32(0.0)
+    m0 = mag[r, c]
+    if abs(gx[r, c]) >= abs(gy[r, c]):
+        mm = mag[r, c - 1]
+        mp = mag[r, c + 1]
+        denom = mm - 2.0 * m0 + mp
+        if denom < 0.0:
+            return np.float32(0.0), np.float32(min(max(0.5 * (mm - mp) / denom, -1.0), 1.0))
+    else:
+        mm = mag[r - 1, c]
+        mp = mag[r + 1, c]
+        denom = mm - 2.0 * m0 + mp
+        if denom < 0.0:
+            return np.float32(min(max(0.5 * (mm - mp) / denom, -1.0), 1.0)), np.float32(0.0)
+    return np.float32(0.0), np.float32(0.0)
+
+
+@kernel(int32(u1_2d_ro, f4_2d_ro, f4_2d_ro, f4_2d_ro, i4_2d_ro, int32, float32, float32, f4_1d))
+def measure_widths(edges, mag, gx, gy, chain, n, polarity, max_px, out_width):
+    """Write for each contour pixel the distance to the opposite edge of the rope, found by stepping (0.5 px)
+    from the pixel into the rope (along ``polarity`` times the gradient) until an edge pixel whose gradient points
+    the other way; both ends are refined to subpixel (parabola of `mag` along the image axis nearest the
+    gradient) and the distance is taken along the stepping direction. ``nan`` when no opposite edge lies within
+    `max_px`. Returns `n`."""
+    height = edges.shape[0]
+    width = edges.shape[1]
+    for i in range(n):
+        r = chain[i, 0]
+        c = chain[i, 1]
+        g_r = gy[r, c] * polarity
+        g_c = gx[r, c] * polarity
+        norm = math.sqrt(g_r * g_r + g_c * g_c)
+        out_width[i] = np.nan
+        if norm <= 0.0:
+            continue
+        u_r = g_r / norm
+        u_c = g_c / norm
+        steps = int(max_px * 2.0)
+        for k in range(2, steps + 1):
+            t = 0.5 * k
+            rr = math.floor(r + t * u_r + 0.5)
+            cc = math.floor(c + t * u_c + 0.5)
+            if rr < 0 or rr >= height or cc < 0 or cc >= width:
+                break
+            if (rr != r or cc != c) and edges[rr, cc] != 0:
+                dot = (gy[rr, cc] * u_r + gx[rr, cc] * u_c) * polarity
+                if dot < 0.0:
+                    d0r, d0c = axis_offset(mag, gx, gy, r, c)
+                    d1r, d1c = axis_offset(mag, gx, gy, rr, cc)
+                    out_width[i] = (rr + d1r - r - d0r) * u_r + (cc + d1c - c - d0c) * u_c
+                    break
+    return n
+
+
+@kernel(int32(f4_1d_ro, int32, int32, i4_1d))
+def find_caps(turn, n, min_gap, out_idx):
+    """Write into `out_idx` the contour indices of the two rope ends: the largest turning angle, then the largest
+    at least `min_gap` chain steps from it. Returns 2 or NOT_FOUND."""
+    if n < 3:
+        return NOT_FOUND
+    e1 = 0
+    for i in range(n):
+        if turn[i] > turn[e1]:
+            e1 = i
+    e2 = -1
+    best = -1.0
+    for i in range(n):
+        gap = abs(i - e1)
+        if min(gap, n - gap) < min_gap:
+            continue
+        if turn[i] > best:
+            best = turn[i]
+            e2 = i
+    if e2 < 0:
+        return NOT_FOUND
+    out_idx[0] = e1
+    out_idx[1] = e2
+    return 2
+
+
+@kernel(int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, f4_2d_ro, float32, float32, float32, f4_2d))
+def offset_by_gradient(
+    points, chain, n, i_start, i_stop, direction, gx, gy, polarity, width_px, sweep_tip_px, out_poly
+):
+    """Copy the contour from `i_start` to `i_stop` (stepping `direction` = +1 or -1, cyclic) into `out_poly`,
+    each point moved into the rope along ``polarity`` times its gradient direction by
+    ``max(0, (width_px - sweep(s)) / 2)``, the sweep growing linearly with arc length s from 0 at `i_start` to
+    `sweep_tip_px` at `i_stop` (see `offset_side`). The gradient knows where the rope is even where the contour
+    doubles back (a rope leaving the image, a crossing). Returns the number of points written or FULL."""
+    count = (i_stop - i_start) * direction
+    count = (count % n + n) % n + 1
+    if count > out_poly.shape[0]:
+        return FULL
+    total = chain_length(points, n, i_start, count, direction)
+    s = 0.0
+    for k in range(count):
+        i = (i_start + k * direction + n * 4) % n
+        if k > 0:
+            ip = (i_start + (k - 1) * direction + n * 4) % n
+            s += math.hypot(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
+        shift = 0.5 * width_px
+        if total > 0.0:
+            shift = max(0.0, 0.5 * (width_px - sweep_tip_px * s / total))
+        r = chain[i, 0]
+        c = chain[i, 1]
+        g_r = gy[r, c] * polarity
+        g_c = gx[r, c] * polarity
+        norm = math.sqrt(g_r * g_r + g_c * g_c)
+        out_poly[k, 0] = points[i, 0]
+        out_poly[k, 1] = points[i, 1]
+        if norm > 0.0:
+            out_poly[k, 0] += shift * g_r / norm
+            out_poly[k, 1] += shift * g_c / norm
+    return count
+
+
+@kernel(int32(i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, float32, f4_1d))
+def side_slope_samples(chain, n, i_fix, i_seg, direction, mag, lo_frac, hi_frac, out_values):
+    """Write the gradient magnitude at the chain pixels of one side (from `i_fix` stepping `direction` to
+    `i_seg`) whose arc fraction lies in [lo_frac, hi_frac) into `out_values`, each followed by its fraction:
+    ``out_values[2k] = mag``, ``out_values[2k + 1] = fraction`` (fraction by index, the chain being
+    8-connected). Returns the number of pairs written or FULL."""
+    count = ((i_seg - i_fix) * direction % n + n) % n + 1
+    if count < 2:
+        return 0
+    m = 0
+    for k in range(count):
+        frac = k / (count - 1)
+        if frac < lo_frac or frac >= hi_frac:
+            continue
+        if 2 * m + 1 >= out_values.shape[0]:
+            return FULL
+        i = (i_fix + k * direction + 4 * n) % n
+        out_values[2 * m] = mag[chain[i, 0], chain[i, 1]]
+        out_values[2 * m + 1] = frac
+        m += 1
+    return m

@@ -1,0 +1,157 @@
+"""Polylines and material points: length, resampling, tracking by arc length, trimming and extending the free end."""
+
+from __future__ import annotations
+
+import math
+
+from numba import float32, float64, int32
+
+from ropecam.device.pipeline._kernels._common import FULL, INVALID
+from ropecam.shared.jit import (
+    f4_2d,
+    f4_2d_ro,
+    f8_1d_ro,
+    kernel,
+)
+
+
+@kernel(float64(f4_2d_ro, int32))
+def polyline_length(poly, n):
+    """Return the length of the polyline of the first `n` points, eq. (9)."""
+    total = 0.0
+    for i in range(1, n):
+        total += math.hypot(float(poly[i, 0]) - float(poly[i - 1, 0]), float(poly[i, 1]) - float(poly[i - 1, 1]))
+    return total
+
+
+@kernel(int32(f4_2d_ro, int32, float32, f4_2d))
+def resample_polyline(poly, n, step_px, out_poly):
+    """Resample the polyline at equal arc-length steps of at most `step_px`, keeping both ends; returns the count
+    or FULL."""
+    if n < 1:
+        return 0
+    total = polyline_length(poly, n)
+    segments = max(1, math.ceil(total / step_px)) if total > 0.0 else 0
+    if segments + 1 > out_poly.shape[0]:
+        return FULL
+    out_poly[0, 0] = poly[0, 0]
+    out_poly[0, 1] = poly[0, 1]
+    if segments == 0:
+        return 1
+    step = total / segments
+    j = 0
+    acc = 0.0
+    seg_len = math.hypot(poly[1, 0] - poly[0, 0], poly[1, 1] - poly[0, 1]) if n > 1 else 0.0
+    for k in range(1, segments):
+        target = k * step
+        while acc + seg_len < target and j + 2 < n:
+            acc += seg_len
+            j += 1
+            seg_len = math.hypot(poly[j + 1, 0] - poly[j, 0], poly[j + 1, 1] - poly[j, 1])
+        t = (target - acc) / seg_len if seg_len > 0.0 else 0.0
+        t = min(max(t, 0.0), 1.0)
+        out_poly[k, 0] = poly[j, 0] + t * (poly[j + 1, 0] - poly[j, 0])
+        out_poly[k, 1] = poly[j, 1] + t * (poly[j + 1, 1] - poly[j, 1])
+    out_poly[segments, 0] = poly[n - 1, 0]
+    out_poly[segments, 1] = poly[n - 1, 1]
+    return segments + 1
+
+
+@kernel(int32(f4_2d_ro, int32, f8_1d_ro, float64, f4_2d))
+def track_material_points(poly, n, arc_px, length0_px, out_points):
+    """Locate material points on the polyline (fixed end first) by arc length with uniform stretch, eqs. (9)-(12).
+
+    ``arc_px[k]`` is the unstretched distance of point k from the fixed end; with the polyline's length Lc and
+    the unstretched length `length0_px` (Lc0) it sits at ``l' = arc_px[k] * Lc / Lc0``, interpolated between the
+    polyline points bracketing it; beyond the ends it is clamped to them. Writes `out_points` (row, col); returns
+    the number of points or INVALID (empty polyline, Lc0 <= 0).
+    """
+    m = arc_px.shape[0]
+    if n < 1 or not length0_px > 0.0 or out_points.shape[0] < m:
+        return INVALID
+    total = polyline_length(poly, n)
+    ratio = total / length0_px
+    for k in range(m):
+        target = arc_px[k] * ratio
+        if n == 1 or target <= 0.0:
+            out_points[k, 0] = poly[0, 0]
+            out_points[k, 1] = poly[0, 1]
+            continue
+        acc = 0.0
+        done = False
+        for j in range(n - 1):
+            seg = math.hypot(float(poly[j + 1, 0]) - float(poly[j, 0]), float(poly[j + 1, 1]) - float(poly[j, 1]))
+            if acc + seg > target and seg > 0.0:
+                t = (target - acc) / seg
+                out_points[k, 0] = poly[j, 0] + t * (poly[j + 1, 0] - poly[j, 0])
+                out_points[k, 1] = poly[j, 1] + t * (poly[j + 1, 1] - poly[j, 1])
+                done = True
+                break
+            acc += seg
+        if not done:
+            out_points[k, 0] = poly[n - 1, 0]
+            out_points[k, 1] = poly[n - 1, 1]
+    return m
+
+
+@kernel(int32(f4_2d, int32, float32))
+def trim_polyline_end(poly, n, cut_px):
+    """Shorten the polyline of `n` points in place by `cut_px` of arc length at its end (the new last point is
+    interpolated); returns the new count, or 0 when the polyline is not longer than `cut_px`."""
+    remaining = cut_px
+    k = n - 1
+    while k > 0:
+        seg = math.hypot(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
+        if seg >= remaining and seg > 0.0:
+            t = remaining / seg
+            poly[k, 0] = poly[k, 0] + t * (poly[k - 1, 0] - poly[k, 0])
+            poly[k, 1] = poly[k, 1] + t * (poly[k - 1, 1] - poly[k, 1])
+            return k + 1
+        remaining -= seg
+        k -= 1
+    return 0
+
+
+@kernel(int32(f4_2d, int32, f4_2d_ro, int32, float32, float32))
+def extend_to_band_end(poly, n, points, n_points, width_px, cap_px):
+    """Move the free end of the axis polyline `poly` (n points) to where the band ends along that axis.
+
+    The axis direction is taken over the last 3 widths of arc; the band's end along it is the farthest of the
+    contour `points` lying within half a width of the axis line (and within -2 to +4 widths of the current end);
+    the tip goes `cap_px` short of it (half a width for a round rope end). The polyline is extended along the
+    axis or shortened (`trim_polyline_end`) in place. Returns the new point count (unchanged when nothing is
+    found).
+    """
+    if n < 3:
+        return n
+    back = 0.0
+    k = n - 1
+    while k > 0 and back < 3.0 * width_px:
+        back += math.hypot(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
+        k -= 1
+    base_r = poly[n - 1, 0]
+    base_c = poly[n - 1, 1]
+    dir_r = base_r - poly[k, 0]
+    dir_c = base_c - poly[k, 1]
+    norm = math.sqrt(dir_r * dir_r + dir_c * dir_c)
+    if norm < 1e-6:
+        return n
+    dir_r /= norm
+    dir_c /= norm
+    best = -1e30
+    for i in range(n_points):
+        rel_r = points[i, 0] - base_r
+        rel_c = points[i, 1] - base_c
+        along = rel_r * dir_r + rel_c * dir_c
+        across = abs(rel_r * dir_c - rel_c * dir_r)
+        if across < 0.5 * width_px and -2.0 * width_px < along < 4.0 * width_px and along > best:
+            best = along
+    if best < -1e29:
+        return n
+    extent = best - cap_px
+    if extent >= 0.0:
+        poly[n - 1, 0] = base_r + extent * dir_r
+        poly[n - 1, 1] = base_c + extent * dir_c
+        return n
+    count = trim_polyline_end(poly, n, -extent)
+    return count if count >= 2 else n

@@ -1,0 +1,102 @@
+"""Row-span regions of interest: grow, build around a polyline, test membership."""
+
+from __future__ import annotations
+
+import math
+
+from numba import boolean, float32, int32
+
+from ropecam.shared.jit import (
+    f4_2d_ro,
+    i4_1d,
+    i4_1d_ro,
+    kernel,
+)
+
+
+@kernel(int32(i4_1d_ro, i4_1d_ro, int32, int32, i4_1d, i4_1d))
+def grow_spans(lo, hi, rows_apart, cols_apart, out_lo, out_hi):
+    """Write into `out_lo`/`out_hi` the union over rows ``r - rows_apart .. r + rows_apart`` of the spans `lo`/`hi`,
+    widened by `cols_apart` columns and clipped to ``[0, width)`` where width is ``max(hi) + cols_apart + 1``.
+
+    The width of the image is not known here, so clipping to the right is left to the caller through `hi` being
+    already clipped; ``out_hi`` may exceed it by `cols_apart` and is clipped with the image width by the caller's
+    kernels. Returns the number of non-empty rows.
+    """
+    n_rows = lo.shape[0]
+    count = 0
+    for r in range(n_rows):
+        best_lo = 2147483647
+        best_hi = -1
+        for rr in range(max(0, r - rows_apart), min(n_rows, r + rows_apart + 1)):
+            if hi[rr] >= lo[rr]:
+                if lo[rr] < best_lo:
+                    best_lo = lo[rr]
+                if hi[rr] > best_hi:
+                    best_hi = hi[rr]
+        if best_hi >= 0:
+            out_lo[r] = max(0, best_lo - cols_apart)
+            out_hi[r] = best_hi + cols_apart
+            count += 1
+        else:
+            out_lo[r] = 1
+            out_hi[r] = 0
+    return count
+
+
+@kernel(int32(f4_2d_ro, int32, int32, float32, float32, float32, int32, int32, i4_1d, i4_1d))
+def spans_around_points(points, n_points, margin_px, motion_px, fixed_r, fixed_c, height, width, out_lo, out_hi):
+    """Write the row spans covering a square around each of the first `n_points` (row, col) `points`, clipped to
+    the image; returns the number of non-empty rows.
+
+    The square's half-size is ``margin_px + motion_px * d / d_max`` where d is the point's distance from the fixed
+    end (fixed_r, fixed_c) and d_max the largest such distance: a rope swinging about its fixed end moves in
+    proportion to that distance. Points closer than half the half-size to the last one used are skipped (the
+    chain is 8-connected, so the union is unchanged up to a pixel).
+    """
+    for r in range(height):
+        out_lo[r] = width
+        out_hi[r] = -1
+    d_max = 1e-6
+    for i in range(n_points):
+        d = math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c)
+        if d > d_max:
+            d_max = d
+    last_r = -1e9
+    last_c = -1e9
+    for i in range(n_points):
+        pr = points[i, 0]
+        pc = points[i, 1]
+        if not (pr == pr and pc == pc):
+            continue
+        d = math.hypot(pr - fixed_r, pc - fixed_c)
+        m = margin_px + math.ceil(motion_px * d / d_max)
+        if i != n_points - 1 and abs(pr - last_r) + abs(pc - last_c) < 0.5 * m:
+            continue
+        last_r = pr
+        last_c = pc
+        r0 = max(0, math.floor(pr) - m)
+        r1 = min(height - 1, math.ceil(pr) + m)
+        c0 = max(0, math.floor(pc) - m)
+        c1 = min(width - 1, math.ceil(pc) + m)
+        for r in range(r0, r1 + 1):
+            if c0 < out_lo[r]:
+                out_lo[r] = c0
+            if c1 > out_hi[r]:
+                out_hi[r] = c1
+    count = 0
+    for r in range(height):
+        if out_hi[r] >= out_lo[r]:
+            count += 1
+        else:
+            out_lo[r] = 1
+            out_hi[r] = 0
+    return count
+
+
+@kernel(boolean(int32, int32, i4_1d_ro, i4_1d_ro))
+def in_spans(r, c, lo, hi):
+    """Return True when pixel (r, c) lies inside the row spans `lo`/`hi`."""
+    if r < 0 or r >= lo.shape[0]:
+        return False
+    return lo[r] <= c <= hi[r]
