@@ -114,7 +114,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--exposures-ms", type=float, nargs="+", default=[1.0, 5.0, 9.0, 15.0])
     parser.add_argument("--methods", nargs="+", default=["blur_split", "paper", "centerline"])
     parser.add_argument("--frames", type=int, default=24, help="frames per sequence (default 24)")
-    parser.add_argument("--frameset", action="append", help="simulator frame set(s) instead of synthetic frames")
+    parser.add_argument(
+        "--frameset", action="extend", nargs="+", help="simulator frame set(s) instead of synthetic frames"
+    )
     parser.add_argument("--plot", help="write the tip-error-vs-exposure plot (PNG) here")
     parser.add_argument("--json", action="store_true", help="print JSON rows")
     args = parser.parse_args(argv)
