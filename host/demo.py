@@ -7,9 +7,8 @@ Steps (each is a command you can run yourself; the demo prints them):
 2. `ropecam calibrate intrinsics` and `ropecam calibrate plane`: camera and motion plane from the checkerboards.
 3. `ropecam monitor --record` listens on UDP; `ropecam-device run` (the rig daemon) replays the frames as if they
    came from the camera, measures every frame (the rope at the start and at the end of each exposure) and streams
-   the results to it over UDP on this machine; `ropecam replay --export-jsonl` turns the recording into a
-   measurement file.
-4. `ropecam compare --fit ei`: the measured material points in metres against the ANCF model, with the bending
+   the results to it over UDP on this machine.
+4. `ropecam compare run.mcap --fit ei`: the recorded material points in metres against the ANCF model, with the bending
    stiffness identified from a deliberately wrong start (3x the truth) and the release time estimated.
 """
 
@@ -131,7 +130,6 @@ def run_demo(args: argparse.Namespace) -> int:
         return 2
     timings["calibrate_s"] = time.perf_counter() - t
 
-    measurement = out / "measured.jsonl"
     recording = out / "run.mcap"
     port = _free_udp_port()
     t = _step(
@@ -140,14 +138,12 @@ def run_demo(args: argparse.Namespace) -> int:
         f"   $ ropecam-device run --source frames:{rig}?fps=30 --sink udp://127.0.0.1:{port}",
     )
     _stream(rig, recording, port)
-    if host_main(["replay", str(recording), "--export-jsonl", str(measurement), "--overwrite"]) != 0:
-        return 2
     timings["stream_s"] = time.perf_counter() - t
 
     model = out / "rope.toml"
     model.write_text(MODEL_TOML.format(ei=3 * TRUE_EI_NM2))
     report = out / "report"
-    command = ["compare", str(measurement), "--plane", str(out / "plane.yaml"), "--model", str(model), "--fit", "ei",
+    command = ["compare", str(recording), "--plane", str(out / "plane.yaml"), "--model", str(model), "--fit", "ei",
                "--out", str(report)]  # fmt: skip
     t = _step("4. compare with the ANCF model, identify EI from 3x the truth", "ropecam " + " ".join(command))
     code = host_main(command)

@@ -12,14 +12,19 @@ __all__ = ["register"]
 
 EPILOG = """\
 examples:
+  ropecam compare run.mcap --plane plane.yaml --model rope.toml --out report/          # a monitor recording
+  ropecam compare sim/rig --plane plane.yaml --model rope.toml --out report/           # raw frames, measured now
   ropecam-device extract sim/rig --out rig.jsonl
   ropecam compare rig.jsonl --plane plane.yaml --model rope.toml --out report/
   ropecam compare rig.jsonl --plane plane.yaml --model rope.toml --fit ei,damping --out report/
-  ropecam compare runs/ --plane plane.yaml --model rope.toml --out reports/            # every runs/*.jsonl, Dask
+  ropecam compare runs/ --plane plane.yaml --model rope.toml --out reports/            # every run in runs/, Dask
   ropecam compare runs/ --plane plane.yaml --scheduler tcp://10.0.0.5:8786 --out reports/
 
-INPUT is the JSON-lines output of `ropecam-device extract` (one object per frame, shapes in distorted pixels), or
-a folder of such files, compared in parallel on Dask (a local cluster unless --scheduler names one).
+INPUT is a measurement: an MCAP recording of `ropecam monitor --record` (its rolled parts are read too; --device
+picks the device), the JSON-lines output of `ropecam-device extract` (one object per frame, shapes in distorted
+pixels), or a raw frame set folder (measured now with the device pipeline; --config gives its [pipeline] settings).
+A folder of measurements (*.mcap, *.jsonl, frame set sub-folders) is compared in parallel on Dask (a local cluster
+unless --scheduler names one).
 The shapes are converted to metres on the motion plane with the calibration (plane.yaml from `ropecam calibrate
 plane`, which also holds the camera; --camera overrides it), material points are tracked by arc length with
 uniform stretch, and the model (rope.toml as for `ropecam model simulate`) is simulated from the release, whose
@@ -38,7 +43,9 @@ def register(subparsers: Any) -> None:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("input", type=Path, help="measurement: extract JSON lines (.jsonl), or a folder of them")
+    parser.add_argument(
+        "input", type=Path, help="measurement: run.mcap, extract .jsonl, a frame set folder, or a folder of these"
+    )
     parser.add_argument("--plane", type=Path, required=True, help="plane.yaml from `ropecam calibrate plane`")
     parser.add_argument("--camera", type=Path, help="camera.yaml (default: the camera stored in the plane file)")
     parser.add_argument("--model", type=Path, help="rope.toml with [rope] and [solver] (default: the paper's rope)")
@@ -47,6 +54,10 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument("--fit", default="", help="parameters to fit besides t0: any of ei,damping,drag")
     parser.add_argument("--release-time-s", type=float, help="start value of the release time (default: first frame)")
+    parser.add_argument("--device", type=int, help="MCAP input: the device id to compare (default: the first seen)")
+    parser.add_argument(
+        "--config", type=Path, metavar="device.toml", help="frame set input: device config whose [pipeline] to use"
+    )
     parser.add_argument("--out", type=Path, required=True, help="report folder (created)")
     parser.add_argument("--scheduler", help="batch mode: address of an existing Dask scheduler (default: local)")
     parser.add_argument("--workers", type=int, default=2, help="batch mode: local Dask worker processes (default 2)")
@@ -66,9 +77,10 @@ def _parse_points(text: str | None) -> list[float] | None:
 
 def run_compare(args: argparse.Namespace) -> int:
     """Run `ropecam compare` on one file or, for a folder, on every file in it with Dask."""
+    from ropecam.host.compare.inputs import find_measurements, is_single_measurement
     from ropecam.host.compare.run import compare_recording
     from ropecam.host.model.cli import load_model_config
-    from ropecam.shared.errors import ConfigError, DataError
+    from ropecam.shared.errors import ConfigError
 
     fit = tuple(name.strip() for name in args.fit.split(",") if name.strip())
     points = _parse_points(args.points)
@@ -82,14 +94,14 @@ def run_compare(args: argparse.Namespace) -> int:
         "points_m": points,
         "fit": fit,
         "release_time_s": args.release_time_s,
+        "device_id": args.device,
+        "pipeline_config": args.config,
     }
-    if not args.input.is_dir():
+    if is_single_measurement(args.input):
         numbers = compare_recording(args.input, out=args.out, **options)
         _print_summary(numbers)
         return 0 if numbers["finite"] else 2
-    recordings = sorted(args.input.glob("*.jsonl"))
-    if not recordings:
-        raise DataError(f"{args.input}: no *.jsonl measurement files in this folder")
+    recordings = find_measurements(args.input)
     from ropecam.host.compare.batch import compare_batch
 
     results = compare_batch(recordings, args.out, options, scheduler=args.scheduler, workers=args.workers)

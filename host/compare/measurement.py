@@ -180,18 +180,24 @@ def tracks_from_frames(
     plane: PlanePose,
     s_m: Sequence[float],
     length_m: float,
+    skipped: list[str] | None = None,
 ) -> tuple[MaterialPointTracks, NDArray[np.float64]]:
     """Convert measured frames into material-point tracks in metres (two samples per frame).
 
     Returns the tracks and the stretch ratio of every sample (NaN where unmeasured). Frames whose status is not OK
     or whose shapes are missing contribute NaN samples, so nothing measured is dropped silently.
 
+    A shape with a pixel whose viewing ray misses the plane (a wild shape, or a calibration that does not fit) also
+    gives NaN samples, and a line naming its frame is appended to `skipped`: one bad shape must not stop the
+    comparison of the others. When more than half of the measured shapes miss the plane, the calibration is wrong
+    rather than the shapes, and that is an error.
+
     Raises
     ------
     ConfigError
         A material point outside [0, `length_m`].
     DataError
-        No frames, or a frame with a pixel whose viewing ray misses the plane (names the frame).
+        No frames, or most measured shapes miss the plane (names the first such frame).
     """
     s = np.asarray(s_m, dtype=np.float64)
     if s.ndim != 1 or s.size == 0 or np.any(s < 0) or np.any(s > length_m * (1 + 1e-9)):
@@ -199,19 +205,28 @@ def tracks_from_frames(
     times: list[float] = []
     positions: list[NDArray[np.float64]] = []
     stretches: list[float] = []
+    off_plane: list[str] = []
+    shapes = 0
     for frame in frames:
         for t_ns, shape in ((frame.t_begin_ns, frame.begin_px), (frame.t_end_ns, frame.end_px)):
             times.append(t_ns * 1e-9)
+            shapes += shape is not None and frame.status == "OK"
             try:
                 points, stretch = shape_points_m(shape, frame.status, camera, plane, s, length_m)
             except ValueError as exc:
-                raise DataError(
-                    f"frame {frame.frame} (t_ns {t_ns}): {exc}; does the plane calibration belong to this camera?"
-                ) from exc
+                off_plane.append(f"frame {frame.frame} (t_ns {t_ns}): {exc}")
+                points, stretch = np.full((s.size, 2), np.nan), math.nan
             positions.append(points)
             stretches.append(stretch)
     if not times:
         raise DataError("no frames to convert")
+    if off_plane and 2 * len(off_plane) > shapes:
+        raise DataError(
+            f"{len(off_plane)} of {shapes} measured shapes miss the motion plane, e.g. {off_plane[0]}; "
+            "does the plane calibration belong to this camera?"
+        )
+    if skipped is not None:
+        skipped.extend(f"{line}: skipped (off the plane)" for line in off_plane)
     tracks = MaterialPointTracks(np.asarray(times), s, np.stack(positions))
     order = np.argsort(np.asarray(times), kind="stable")
     return tracks, np.asarray(stretches)[order]

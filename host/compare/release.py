@@ -31,6 +31,8 @@ class ReleaseFit:
     fit: FitResult
     trajectory: Trajectory
     errors: PointErrors
+    skipped: tuple[str, ...] = ()
+    """Shapes left out because they miss the motion plane (one line each, naming the frame)."""
 
     @property
     def release_time_s(self) -> float:
@@ -70,7 +72,7 @@ def fit_release(
     Raises
     ------
     DataError
-        No frame has a measured rope shape, or a shape does not map onto the plane.
+        No frame has a measured rope shape, or most shapes do not map onto the plane.
     ConfigError
         A material point outside the rope.
     ModelError
@@ -82,7 +84,8 @@ def fit_release(
     points = list(points_m) if points_m else default_points(rope.length_m)
     if not frames:
         raise DataError(f"{label} holds no frames: nothing to compare with the model")
-    tracks, _ = tracks_from_frames(frames, *calibration, points, rope.length_m)
+    skipped: list[str] = []
+    tracks, _ = tracks_from_frames(frames, *calibration, points, rope.length_m, skipped)
     measured = tracks.measured.any(axis=1)
     if not measured.any():
         raise DataError(f"{label}: no frame has a measured rope shape (status OK): nothing to compare")
@@ -90,4 +93,4 @@ def fit_release(
     fit = fit_parameters(tracks, rope, solver, names=("t0",), release_time_s=start, progress=progress)
     trajectory = model_for_tracks(fit.rope, solver, tracks, fit.release_time_s)
     errors = point_errors(tracks, model_positions(trajectory, tracks, fit.release_time_s))
-    return ReleaseFit(tracks, fit, trajectory, errors)
+    return ReleaseFit(tracks, fit, trajectory, errors, tuple(skipped))

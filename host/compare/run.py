@@ -15,7 +15,8 @@ import numpy as np
 from ropecam.host.calibration.files import read_camera, read_plane
 from ropecam.host.calibration.geometry import pixels_to_plane
 from ropecam.host.compare.identify import FITTABLE, fit_parameters, model_for_tracks
-from ropecam.host.compare.measurement import default_points, read_extract_jsonl
+from ropecam.host.compare.inputs import read_measurement
+from ropecam.host.compare.measurement import default_points
 from ropecam.host.compare.release import fit_release
 from ropecam.host.compare.report import Comparison, summary, write_report
 from ropecam.host.compare.tracks import model_positions, point_errors
@@ -35,8 +36,11 @@ def compare_recording(
     fit: Sequence[str] = (),
     release_time_s: float | None = None,
     verbose: bool = True,
+    device_id: int | None = None,
+    pipeline_config: Path | None = None,
 ) -> dict[str, Any]:
-    """Compare one measurement file with the model, write its report into `out`, return the summary mapping.
+    """Compare one measurement (see `ropecam.host.compare.inputs`) with the model, write its report into `out`,
+    return the summary mapping.
 
     Raises
     ------
@@ -51,7 +55,9 @@ def compare_recording(
     plane = plane_file.plane
     rope, solver = load_model_config(model_path)
     points = list(points_m) if points_m else default_points(rope.length_m)
-    frames = read_extract_jsonl(measurement)
+    if verbose and Path(measurement).is_dir():
+        print(f"{measurement}: measuring the frames with the device pipeline", file=sys.stderr)
+    frames = read_measurement(Path(measurement), device_id, pipeline_config)
     last = [-1]
 
     def report(evaluations: int, rms_m: float) -> None:
@@ -72,11 +78,17 @@ def compare_recording(
         errors, errors_before = point_errors(tracks, model_positions(trajectory, tracks, result.release_time_s)), errors
     if verbose:
         print(f"\n{int(tracks.measured.any(axis=1).sum())} measured samples", file=sys.stderr)
-    curves = [  # the shapes the tracks were made of (those of non-OK frames are not drawn)
-        (f.t_begin_ns * 1e-9, pixels_to_plane(f.begin_px, camera, plane))
-        for f in frames
-        if f.begin_px is not None and f.status == "OK"
-    ]
+        for line in release.skipped[:5]:
+            print(f"warning: {line}", file=sys.stderr)
+        if len(release.skipped) > 5:
+            print(f"warning: {len(release.skipped) - 5} more shapes off the plane skipped", file=sys.stderr)
+    curves = []  # the shapes the tracks were made of (those of non-OK frames and off the plane are not drawn)
+    for f in frames:
+        if f.begin_px is not None and f.status == "OK":
+            try:
+                curves.append((f.t_begin_ns * 1e-9, pixels_to_plane(f.begin_px, camera, plane)))
+            except ValueError:
+                continue
     comparison = Comparison(
         source=str(measurement),
         tracks=tracks,
@@ -88,7 +100,8 @@ def compare_recording(
         errors_before=errors_before,
         notes=[
             f"model: L = {rope.length_m} m, EI = {result.rope.bending_stiffness_nm2:.4g} N m², "
-            f"{solver.elements} elements, h = {solver.step_s} s"
+            f"{solver.elements} elements, h = {solver.step_s} s",
+            *([f"{len(release.skipped)} shapes skipped: they miss the motion plane"] if release.skipped else []),
         ],
     )
     index = write_report(comparison, out)

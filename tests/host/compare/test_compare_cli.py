@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from ropecam.device.capture.frameset import FrameSet
-from ropecam.host.calibration.files import write_plane
+from ropecam.host.calibration.files import read_plane, write_plane
 from ropecam.host.calibration.geometry import CameraModel, PlanePose
 from ropecam.host.cli import main
 
@@ -133,3 +133,59 @@ def test_no_measured_shape_is_a_clear_error_not_a_traceback(
     code = main(["compare", str(empty), "--plane", str(recording / "plane.yaml"), "--out", str(tmp_path / "r")])
     err = capsys.readouterr().err
     assert code == 2 and f"{empty}: no frame has a measured rope shape" in err and "Traceback" not in err
+
+
+def test_a_wild_shape_is_skipped_with_a_warning_and_the_rest_compared(
+    recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    lines = [json.loads(line) for line in (recording / "truth.jsonl").read_text().splitlines()]
+    lines[3]["end"] = [[500.0, 100.0], [500.0, 1e7]]  # far beyond the horizon of the tilted plane: misses it
+    (tmp_path / "m.jsonl").write_text("".join(json.dumps(line) + "\n" for line in lines))
+    # The rig lens's distortion folds far pixels back into view; without it the wild pixel's ray misses the plane.
+    plane_file = read_plane(recording / "plane.yaml")
+    camera = CameraModel(plane_file.camera.camera_matrix, np.zeros(5), plane_file.camera.image_size)
+    write_plane(tmp_path / "plane.yaml", camera, plane_file.plane)
+    (tmp_path / "true.toml").write_text((recording / "true.toml").read_text())
+    out = tmp_path / "report"
+    code = main(["compare", str(tmp_path / "m.jsonl"), "--plane", str(tmp_path / "plane.yaml"),
+                 "--model", str(tmp_path / "true.toml"), "--out", str(out)])  # fmt: skip
+    assert code == 0
+    err = capsys.readouterr().err
+    assert f"warning: frame {lines[3]['frame']} " in err and "skipped (off the plane)" in err
+    summary = json.loads((out / "summary.json").read_text())
+    assert all(np.isfinite(summary["rms_error_mm"]))
+    assert "1 shapes skipped" in (out / "index.html").read_text()
+
+
+def test_mcap_frame_set_and_extract_jsonl_give_the_same_comparison(recording: Path, tmp_path: Path) -> None:
+    """The three measurement kinds of one run: raw frames measured now, the MCAP of their stream, its JSONL."""
+    frames = recording / "set"
+    mcap = tmp_path / "run.mcap"
+    assert main(["replay", "--frames", str(frames), "--record", str(mcap)]) == 0
+    assert main(["replay", str(mcap), "--export-jsonl", str(tmp_path / "run.jsonl")]) == 0
+    numbers = []
+    for name, source in (("set", frames), ("mcap", mcap), ("jsonl", tmp_path / "run.jsonl")):
+        assert _compare_path(recording, source, tmp_path / name) == 0
+        numbers.append(json.loads((tmp_path / name / "summary.json").read_text()))
+    for other in numbers[1:]:
+        assert other["rms_error_mm"] == numbers[0]["rms_error_mm"]
+        assert other["release_time_s"] == numbers[0]["release_time_s"]
+    assert all(np.isfinite(numbers[0]["rms_error_mm"]))
+
+
+def test_unknown_measurement_kinds_and_devices_are_named(
+    recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "notes.txt").write_text("hello\n")
+    assert _compare_path(recording, tmp_path / "notes.txt", tmp_path / "r1") != 0
+    assert "notes.txt: unknown measurement kind '.txt'" in capsys.readouterr().err
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    (empty / "readme.md").write_text("nothing here\n")
+    assert _compare_path(recording, empty, tmp_path / "r2") != 0
+    assert "no measurements in this folder" in capsys.readouterr().err
+
+
+def _compare_path(root: Path, source: Path, out: Path, *extra: str) -> int:
+    return main(["compare", str(source), "--plane", str(root / "plane.yaml"),
+                 "--model", str(root / "true.toml"), "--out", str(out), *extra])  # fmt: skip

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -60,18 +61,26 @@ def test_malformed_records_name_file_and_line(tmp_path: Path, record: dict, mess
     assert f"{path}:2" in str(info.value)
 
 
-def test_a_shape_off_the_plane_or_a_point_off_the_rope_is_a_named_error(tmp_path: Path) -> None:
+def test_a_shape_off_the_plane_is_skipped_and_named_and_most_off_is_an_error(tmp_path: Path) -> None:
     from ropecam.shared.errors import ConfigError
 
     tilted = PlanePose.from_rvec([0.6, 0, 0], [0, 0, 1.0])  # rows far below the image meet it behind the camera
     line = [[500.0, 100.0], [500.0, 200.0]]
+    wild = [[500.0, 100.0], [500.0, 3000.0]]
     records = [
         {"frame": 4, "t_ns": 0, "t_end_ns": 4, "status": "OK", "begin": line, "end": line},
-        {"frame": 5, "t_ns": 8, "t_end_ns": 12, "status": "OK", "begin": [[500.0, 100.0], [500.0, 3000.0]]},
+        {"frame": 5, "t_ns": 8, "t_end_ns": 12, "status": "OK", "begin": wild, "end": line},
     ]
     frames = read_extract_jsonl(_write(tmp_path / "m.jsonl", records))
-    with pytest.raises(DataError, match=r"frame 5 \(t_ns 8\): .*behind the camera.*plane calibration"):
+    skipped: list[str] = []
+    tracks, _ = tracks_from_frames(frames, CAMERA, tilted, [0.1], 0.2, skipped)
+    assert tracks.measured.sum() == 3  # the other shapes are kept
+    assert len(skipped) == 1 and re.search(r"frame 5 \(t_ns 8\): .*behind the camera.*skipped", skipped[0])
+    records[0]["begin"] = records[0]["end"] = wild
+    frames = read_extract_jsonl(_write(tmp_path / "m.jsonl", records))
+    with pytest.raises(DataError, match=r"3 of 4 measured shapes miss the motion plane, e.g. frame 4 .*calibration"):
         tracks_from_frames(frames, CAMERA, tilted, [0.1], 0.2)
+    records[0]["begin"] = records[0]["end"] = line
     records[1]["status"] = "LOST_TRACK"  # a frame the comparison ignores is never converted
     frames = read_extract_jsonl(_write(tmp_path / "m.jsonl", records))
     assert tracks_from_frames(frames, CAMERA, tilted, [0.1], 0.2)[0].measured.sum() == 2
