@@ -101,8 +101,8 @@ def _plots(c: Comparison, out: Path) -> list[tuple[str, str]]:
 
     fig, ax = plt.subplots(figsize=(9, 4.5), constrained_layout=True)
     for k, s in enumerate(c.tracks.s_m):
-        ax.plot(t, c.errors.error_m[:, k] * 1e3, ".-", ms=2, lw=0.6, label=f"s = {s:.3f} m")
-    ax.set_xlabel("time on the device clock (s)")
+        ax.plot(t - c.release_time_s, c.errors.error_m[:, k] * 1e3, ".-", ms=2, lw=0.6, label=f"s = {s:.3f} m")
+    ax.set_xlabel(f"time after the fitted release (s; release at {c.release_time_s:.4f} s on the device clock)")
     ax.set_ylabel("position error |measured - model| (mm)")
     ax.set_title("Error against time")
     ax.grid(alpha=0.3)
@@ -143,7 +143,7 @@ def _plots(c: Comparison, out: Path) -> list[tuple[str, str]]:
             ]
             ax.plot(curve[:, 0], curve[:, 1], "-", lw=2.5, alpha=0.6, label="measured")
             ax.plot(shape[:, 0], shape[:, 1], "k--", lw=1, label="model")
-            ax.set_title(f"t = {time_s:.3f} s", fontsize=9)
+            ax.set_title(f"{time_s - c.release_time_s:.3f} s after release", fontsize=9)
             ax.set_xlabel("x (m)")
             ax.invert_yaxis()
             ax.set_aspect("equal")
