@@ -57,6 +57,7 @@ def _canny_loop(seed: int) -> np.ndarray:
     return (cv2.Canny(np.clip(image, 0, 255).astype(np.uint8), 40, 100, L2gradient=True) > 0).astype(np.uint8)
 
 
+@pytest.mark.kernel
 @pytest.mark.parametrize("seed", [0, 1, 2, 3, 4])
 def test_thin_chain_leaves_a_single_pixel_curve_with_unique_taus(seed) -> None:
     chain = _outer_chain(_canny_loop(seed))
@@ -78,6 +79,7 @@ def test_thin_chain_leaves_a_single_pixel_curve_with_unique_taus(seed) -> None:
     assert sorted(map(tuple, thin.tolist())) == sorted(_thin_reference(chain))
 
 
+@pytest.mark.kernel
 def test_thin_chain_drops_spurs_corners_and_spikes() -> None:
     # A 5x5 square outline traced clockwise with a one-pixel spur out of its top side, and a 4-connected corner.
     chain = np.array(
@@ -95,6 +97,7 @@ def test_thin_chain_drops_spurs_corners_and_spikes() -> None:
     assert K.thin_chain(chain, len(chain), np.zeros((4, 2), np.int32), index) == K.FULL
 
 
+@pytest.mark.kernel
 def test_scores_do_not_depend_on_the_direction_of_the_chain() -> None:
     chain = _outer_chain(_canny_loop(5))
     out = np.zeros_like(chain)
@@ -118,6 +121,7 @@ def _nearest_on_polyline(p: np.ndarray, poly: np.ndarray) -> np.ndarray:
     return foot[np.argmin(np.hypot(*(p - foot).T))]
 
 
+@pytest.mark.kernel
 def test_midline_does_not_stall_at_a_kink_of_the_other_side() -> None:
     # Side B steps back once near its start: a descent that stops at the first increase pairs everything after
     # the kink with one point of B.
