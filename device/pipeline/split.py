@@ -378,7 +378,9 @@ class BlurSplitter:
         line = self.centerline.extract(points, n, i_fix, i_far)
         if line is None:
             return None
-        centre = SplitOutcome(Method.CENTERLINE, line, line, None, self.width, 0.0)
+        # The band is a rope width plus the sweep wide at its widest: the sweep sizes the next frame's ROI.
+        self.sweep_px = max(0.0, self.centerline.band_width_px - self.width)
+        centre = SplitOutcome(Method.CENTERLINE, line, line, None, self.width, self.sweep_px)
         if self.method == "centerline":
             return centre
         e1 = (float(line[0, 0]), float(line[0, 1]))
