@@ -154,6 +154,8 @@ class PaperSegmenter:
         # The free end's two segmentation points bound the tip's track, which holds the band's far point: one lies
         # on each side of the contour (fixed end -> far point forward, and backward). Each side keeps its best
         # cluster.
+        # Walk order from the fixed end: each side is then one run of candidates, whatever the chain's start.
+        tip = tip[np.argsort((self.knots[tip] - i_fix) % m, kind="stable")]
         ahead = (self.knots[tip] - i_fix) % m <= (i_far - i_fix) % m
         chain_to_far = np.minimum((self.knots[tip] - i_far) % m, (i_far - self.knots[tip]) % m)
         picks = []
@@ -189,14 +191,14 @@ class PaperSegmenter:
         scores: NDArray[np.float32],
         chain_to_far: NDArray[np.intp],
     ) -> list[tuple[int, tuple[float, float, int]]]:
-        """Group candidates (knot numbers, in chain order) that follow each other closer than `cluster_px`; keep
+        """Group candidates (knot numbers, in walk order) that follow each other closer than `cluster_px`; keep
         one per group: the best score, ties to the member in the middle.
 
         Returns (kept knot, rank key) per group; the smallest key is the best group: highest member score, then
         highest total score (a corner yields several candidates, noise one), then nearest the far point along the
         chain.
         """
-        groups: list[list[int]] = []
+        groups: list[list[tuple[int, int]]] = []
         for j, c in enumerate(candidates.tolist()):
             if groups and np.hypot(*(pos[c] - pos[groups[-1][-1][0]])) < self.cluster_px:
                 groups[-1].append((c, j))
