@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import f32, i32, ro
+from ropecam.device.pipeline.centerline import CenterlineExtractor
 
 __all__ = ["PaperSegmenter", "PaperSplit"]
 
@@ -51,7 +52,8 @@ class PaperSegmenter:
     radius_scaled
         When true, T is ``max(endpoint_radius_px, band width at the tip + rope width)``: the segmentation points
         lie up to a band width from the centreline's free end, which at long exposures is more than 15 px.
-        When false, T is `endpoint_radius_px` as printed.
+        When false, T is `endpoint_radius_px` as printed. A public attribute (the pipeline sets it from
+        ``paper_endpoint_radius_scaled``).
     cluster_px
         Candidates following each other along the chain closer than this (px) are one cluster.
     output_step_px
@@ -75,6 +77,8 @@ class PaperSegmenter:
         self.radius_scaled = bool(radius_scaled)
         self.cluster_px = float(cluster_px)
         self.step = f32(output_step_px)
+        self.centerline = CenterlineExtractor(capacity, output_step_px)
+        """The centreline whose ends and width Feature 3 uses (extract it first); also `method = "centerline"`."""
         self.thin = np.zeros((capacity, 2), np.int32)
         self.thin_index = np.zeros(capacity, np.int32)
         self.thin_f = np.zeros((capacity, 2), np.float32)

@@ -54,11 +54,11 @@ class Pipeline:
         self.splitter = BlurSplitter(
             cap, config.method, config.static_ratio, config.corner_scale_px,
             config.paper_endpoint_radius_px, config.output_step_px, config.tip_cap, config.smooth_sigma_px,
-            paper_radius_scaled=config.paper_endpoint_radius_scaled,
         )  # fmt: skip
         self.tracker = PointTracker(
             config.material_points_m, config.rope_length_m, config.length0_px, config.length0_frames
         )
+        self.splitter.paper.radius_scaled = config.paper_endpoint_radius_scaled
         self.lo = np.zeros(height, np.int32)
         self.hi = np.zeros(height, np.int32)
         self.prev_points = np.zeros((cap, 2), np.float32)

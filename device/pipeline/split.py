@@ -10,7 +10,6 @@ from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import f32, i32, ro
-from ropecam.device.pipeline.centerline import CenterlineExtractor
 from ropecam.device.pipeline.edges import gaussian_weights
 from ropecam.device.pipeline.paper_method import PaperSegmenter
 from ropecam.device.pipeline.result import Method
@@ -49,8 +48,6 @@ class BlurSplitter:
         Chord (points) of the turning angle that finds the segmentation points.
     paper_radius_px
         Threshold T of the paper's Feature 3.
-    paper_radius_scaled
-        Scale T with the band width at the tip (see `PaperSegmenter`); false keeps T as given.
     output_step_px
         Spacing of the returned polylines.
     tip_cap
@@ -67,11 +64,10 @@ class BlurSplitter:
         output_step_px: float = 2.0,
         tip_cap: str = "round",
         smooth_sigma_px: float = 1.0,
-        paper_radius_scaled: bool = True,
     ) -> None:
         self.method = method
-        self.centerline = CenterlineExtractor(capacity, output_step_px)
-        self.paper = PaperSegmenter(capacity, paper_radius_px, paper_radius_scaled, output_step_px=output_step_px)
+        self.paper = PaperSegmenter(capacity, paper_radius_px, output_step_px=output_step_px)
+        self.centerline = self.paper.centerline
         self.tip_cap_ratio = 0.5 if tip_cap == "round" else 0.0
         self.weights = gaussian_weights(smooth_sigma_px).astype(np.float64)
         self._responses: dict[int, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
