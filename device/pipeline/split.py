@@ -58,7 +58,7 @@ class BlurSplitter:
         self,
         capacity: int,
         method: str = "blur_split",
-        static_ratio: float = 1.5,
+        static_ratio: float = 0.6,
         corner_scale_px: int = 3,
         paper_radius_px: float = 15.0,
         output_step_px: float = 2.0,
