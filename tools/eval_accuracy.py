@@ -9,7 +9,12 @@ Ground truth comes from the synthetic renderer (default; `ropecam.device.capture
 frame sets (``--frameset DIR``, repeatable; uses ``truth.npz``: ``begin_px``/``end_px`` (F, S, 2) in (u, v)).
 
     python tools/eval_accuracy.py [--exposures-ms 1 5 9 15] [--methods blur_split paper centerline]
-                                  [--frames 24] [--frameset DIR ...] [--plot fig.png] [--json]
+                                  [--frames 24] [--frameset DIR ...] [--fixed-end auto|truth]
+                                  [--plot fig.png] [--json]
+
+``--fixed-end truth`` gives the pipeline the true fixed end, to compare the methods without the automatic
+fixed-end search. The "shapes by" column counts which method produced the shapes (``paper`` reports the
+centreline where it finds no two segmentation points; ``blur_split`` its static fallback).
 """
 
 from __future__ import annotations
@@ -18,12 +23,13 @@ import argparse
 import json
 import sys
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ropecam.device.capture.synthetic import SyntheticRope
-from ropecam.device.pipeline.config import PipelineConfig
+from ropecam.device.pipeline.config import METHODS, PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
 
 RIG = SyntheticRope(
@@ -72,10 +78,21 @@ def frameset_sequence(path: str, frames: int) -> list[tuple[np.ndarray, int, flo
     return out
 
 
-def evaluate(sequence: list, method: str) -> dict[str, Any]:
-    """Run `method` over `sequence`; return the error statistics."""
+def truth_fixed_end(path: str) -> tuple[float, float]:
+    """The fixed end (u, v) px recorded in a frame set's truth.npz."""
+    from ropecam.device.capture.frameset import FrameSet
+
+    truth = FrameSet(path).truth()
+    if truth is None or "fixed_end_px" not in truth:
+        raise SystemExit(f"{path}: no fixed_end_px in truth.npz (needed by --fixed-end truth)")
+    u, v = (float(x) for x in truth["fixed_end_px"])
+    return u, v
+
+
+def evaluate(sequence: list, method: str, fixed_uv: tuple[float, float] | None = None) -> dict[str, Any]:
+    """Run `method` over `sequence` (fixed end found by the pipeline, or `fixed_uv`); return the error statistics."""
     height, width = sequence[0][0].shape
-    pipeline = Pipeline(PipelineConfig(method=method), (width, height))
+    pipeline = Pipeline(PipelineConfig(method=method, fixed_end_uv=fixed_uv), (width, height))
     tip_errors, curve_errors, order_ok, results, methods = [], [], [], 0, {}
     for index, (image, t_ns, exposure_us, begin_uv, end_uv) in enumerate(sequence):
         r = pipeline.process(image, index, t_ns, exposure_us)
@@ -109,57 +126,107 @@ def evaluate(sequence: list, method: str) -> dict[str, Any]:
     }
 
 
+def input_label(path: str) -> str:
+    """A short, readable name of a frame set: its folder, with the parent when that says more (paper/exposure_1ms)."""
+    parts = Path(path).resolve().parts
+    return "/".join(parts[-2:]) if parts[-1].startswith("exposure") else parts[-1]
+
+
+def print_table(rows: list[dict[str, Any]]) -> None:
+    """The full table: one row per input and method (the paper's Fig. 9/11 in numbers)."""
+    width = max(12, *(len(r["input"]) for r in rows))
+    print(f"{'input':{width}s} {'exp ms':>6s} {'method':10s} {'tip mean':>8s} {'tip p95':>8s} {'tip max':>8s} "
+          f"{'curve':>6s} {'order':>6s} {'result':>6s}  shapes by")  # fmt: skip
+    print(f"{'':{width}s} {'':6s} {'':10s} {'(px)':>8s} {'(px)':>8s} {'(px)':>8s} {'(px)':>6s} {'(%)':>6s} {'(%)':>6s}")
+    for r in rows:
+        used = ", ".join(f"{k} {v}" for k, v in sorted(r["methods_used"].items(), key=lambda kv: -kv[1]))
+        print(f"{r['input']:{width}s} {r['exposure_ms']:6.1f} {r['method']:10s} {r['tip_mean_px']:8.2f} "
+              f"{r['tip_p95_px']:8.2f} {r['tip_max_px']:8.2f} {r['curve_mean_px']:6.2f} "
+              f"{100 * r['order_right']:6.0f} {100 * r['result_rate']:6.0f}  {used}")  # fmt: skip
+
+
+def plot(path: str, rows: list[dict[str, Any]], methods: list[str]) -> None:
+    """Tip error (mean, bar to p95) and curve error against exposure, one line per method and family of inputs."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    colours = {"blur_split": "tab:orange", "paper": "tab:blue", "centerline": "tab:green", "static": "tab:gray"}
+    fig, (ax_tip, ax_curve) = plt.subplots(1, 2, figsize=(12, 5.4))
+    families = sorted({r["input"].split("/")[0] if "/" in r["input"] else r["input"] for r in rows})
+    markers = dict(zip(families, "osD^v<>ph", strict=False))
+    for number, method in enumerate(methods):
+        colour = colours.get(method)
+        shift = 0.15 * (number - (len(methods) - 1) / 2)  # side by side: the p95 bars do not hide each other
+        for family in families:
+            pts = sorted(
+                (r["exposure_ms"], r["tip_mean_px"], r["tip_p95_px"], r["curve_mean_px"])
+                for r in rows
+                if r["method"] == method and (r["input"].split("/")[0] if "/" in r["input"] else r["input"]) == family
+            )
+            if not pts:
+                continue
+            x = np.array([p[0] for p in pts]) + shift
+            mean = np.array([p[1] for p in pts])
+            p95 = np.array([p[2] for p in pts])
+            label = method if len(families) == 1 else f"{method} ({family} preset)"
+            ax_tip.errorbar(x, mean, yerr=[np.zeros_like(mean), np.maximum(p95 - mean, 0)], marker=markers[family],
+                            color=colour, capsize=3, label=label)  # fmt: skip
+            ax_curve.plot(x, [p[3] for p in pts], marker=markers[family], color=colour, label=label)
+    for ax in (ax_tip, ax_curve):
+        ax.set_yscale("log")
+        ax.set_xlabel("exposure time (ms)")
+        ax.grid(True, which="both", alpha=0.3)
+    ax_tip.set_ylabel("tip error (px): mean, bar up to p95")
+    ax_tip.set_title("Tip error against exposure (cf. the paper's Fig. 9/11)")
+    ax_curve.set_ylabel("mean distance, true centreline to ours (px)")
+    ax_curve.set_title("Curve error against exposure")
+    handles, labels = ax_tip.get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 3), fontsize=8)
+    fig.tight_layout(rect=(0, 0.04 + 0.035 * ((len(labels) + 2) // 3), 1, 1))
+    fig.savefig(path, dpi=120)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--exposures-ms", type=float, nargs="+", default=[1.0, 5.0, 9.0, 15.0])
-    parser.add_argument("--methods", nargs="+", default=["blur_split", "paper", "centerline"])
+    parser.add_argument("--exposures-ms", type=float, nargs="+", default=[1.0, 5.0, 9.0, 15.0],
+                        help="synthetic exposures when no --frameset is given (default 1 5 9 15)")  # fmt: skip
+    parser.add_argument("--methods", nargs="+", choices=METHODS, default=["blur_split", "paper", "centerline"])
     parser.add_argument("--frames", type=int, default=24, help="frames per sequence (default 24)")
     parser.add_argument(
         "--frameset", action="extend", nargs="+", help="simulator frame set(s) instead of synthetic frames"
     )
+    parser.add_argument("--fixed-end", choices=("auto", "truth"), default="auto",
+                        help="find the fixed end (default, as the device does) or take it from the truth")  # fmt: skip
     parser.add_argument("--plot", help="write the tip-error-vs-exposure plot (PNG) here")
     parser.add_argument("--json", action="store_true", help="print JSON rows")
     args = parser.parse_args(argv)
+    if args.frames < 1:
+        parser.error(f"--frames must be >= 1, got {args.frames}")
     sequences = []
     if args.frameset:
         for path in args.frameset:
             seq = frameset_sequence(path, args.frames)
-            sequences.append((path, seq[0][2] / 1000.0, seq))
+            fixed = truth_fixed_end(path) if args.fixed_end == "truth" else None
+            sequences.append((input_label(path), seq[0][2] / 1000.0, seq, fixed))
     else:
+        fixed = (float(RIG.fixed_uv[0]), float(RIG.fixed_uv[1])) if args.fixed_end == "truth" else None
         for exposure in args.exposures_ms:
-            sequences.append(("synthetic", exposure, synthetic_sequence(exposure, args.frames)))
+            sequences.append(("synthetic", exposure, synthetic_sequence(exposure, args.frames), fixed))
     rows = []
-    for name, exposure, seq in sequences:
+    for number, (name, exposure, seq, fixed) in enumerate(sequences, 1):
+        print(f"[{number}/{len(sequences)}] {name}: {exposure:g} ms, {len(seq)} frames", file=sys.stderr, flush=True)
         for method in args.methods:
-            row = {"input": name, "exposure_ms": exposure, **evaluate(seq, method)}
+            row = {"input": name, "exposure_ms": exposure, "fixed_end": args.fixed_end, **evaluate(seq, method, fixed)}
             rows.append(row)
             if args.json:
                 print(json.dumps(row), flush=True)
     if not args.json:
-        print(f"{'input':12s} {'exp ms':>6s} {'method':12s} {'tip mean':>8s} {'tip p95':>8s} {'tip max':>8s} "
-              f"{'curve':>6s} {'order':>6s} {'result':>6s}  methods used")  # fmt: skip
-        for r in rows:
-            print(f"{r['input'][-12:]:12s} {r['exposure_ms']:6.1f} {r['method']:12s} {r['tip_mean_px']:8.2f} "
-                  f"{r['tip_p95_px']:8.2f} {r['tip_max_px']:8.2f} {r['curve_mean_px']:6.2f} "
-                  f"{r['order_right']:6.2f} {r['result_rate']:6.2f}  {r['methods_used']}")  # fmt: skip
+        print_table(rows)
     if args.plot:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        fig, ax = plt.subplots(figsize=(6, 4))
-        for method in args.methods:
-            pts = sorted((r["exposure_ms"], r["tip_mean_px"], r["tip_p95_px"]) for r in rows if r["method"] == method)
-            ax.errorbar([p[0] for p in pts], [p[1] for p in pts], yerr=[[0] * len(pts), [p[2] - p[1] for p in pts]],
-                        marker="o", capsize=3, label=method)  # fmt: skip
-        ax.set_xlabel("exposure time (ms)")
-        ax.set_ylabel("tip error (px): mean, bar to p95")
-        ax.set_title("Tip error against exposure (cf. the paper's Fig. 9/11)")
-        ax.grid(True, alpha=0.3)
-        ax.legend()
-        fig.tight_layout()
-        fig.savefig(args.plot, dpi=120)
+        plot(args.plot, rows, args.methods)
+        print(f"plot written to {args.plot}", file=sys.stderr)
     return 0
 
 

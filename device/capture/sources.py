@@ -58,12 +58,24 @@ class FrameSource:
 
 
 def _gray(image: NDArray[np.generic]) -> tuple[NDArray[np.uint8] | None, str]:
+    """Return the 8-bit grey image of a decoded file or video frame, or None and what is wrong with it.
+
+    1 channel is grey, 2 channels grey + alpha (the alpha channel is dropped: it holds no light), 3 BGR, 4 BGRA.
+    """
     if image.ndim == 3:
-        image = cv2.cvtColor(image, cv2.COLOR_BGRA2GRAY if image.shape[2] == 4 else cv2.COLOR_BGR2GRAY)
+        channels = image.shape[2]
+        if channels in (1, 2):
+            image = image[:, :, 0]
+        elif channels in (3, 4):
+            image = cv2.cvtColor(image, cv2.COLOR_BGRA2GRAY if channels == 4 else cv2.COLOR_BGR2GRAY)
+        else:
+            return None, f"{channels} channels, expected 1 (grey), 2 (grey + alpha), 3 (BGR) or 4 (BGRA)"
+    elif image.ndim != 2:
+        return None, f"image array of shape {image.shape}, expected (height, width[, channels])"
     if image.dtype == np.uint16:
         return None, "16-bit image: convert to 8 bits first"
-    if image.dtype != np.uint8 or image.ndim != 2:
-        return None, f"unsupported image {image.dtype} {image.shape}"
+    if image.dtype != np.uint8:
+        return None, f"unsupported pixel type {image.dtype}, expected uint8"
     return np.ascontiguousarray(image), ""
 
 
@@ -139,6 +151,7 @@ class _VideoSource(FrameSource):
                 if not ok:
                     break
                 image, message = _gray(raw)
+                message = f"{self.path} frame {index}: {message}" if message else ""
                 yield SourceFrame(index, self._time(index), self.exposure_us or 0.0, image, message)
                 index += 1
         finally:

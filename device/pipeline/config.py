@@ -54,7 +54,10 @@ class PipelineConfig:
     corner_scale_px
         Chord length (contour points) of the turning angle used to find the segmentation points.
     paper_endpoint_radius_px
-        Threshold T of the paper's Feature 3.
+        Threshold T of the paper's Feature 3 (px; the paper prints 15).
+    paper_endpoint_radius_scaled
+        ``true``: T = max(`paper_endpoint_radius_px`, band width at the tip + rope width), since the segmentation
+        points lie up to a band width (rope width + sweep) from the centreline's free end; ``false``: T as given.
     output_step_px
         Spacing of the output polylines.
     max_contour
@@ -78,6 +81,7 @@ class PipelineConfig:
     static_ratio: float = 0.6
     corner_scale_px: int = 3
     paper_endpoint_radius_px: float = 15.0
+    paper_endpoint_radius_scaled: bool = True
     output_step_px: float = 2.0
     max_contour: int = 40_000
 
@@ -106,5 +110,9 @@ class PipelineConfig:
         check_range("static_ratio", self.static_ratio, 0.0, 100.0)
         check_range("corner_scale_px", self.corner_scale_px, 1, 50)
         check_positive("paper_endpoint_radius_px", self.paper_endpoint_radius_px)
+        if not isinstance(self.paper_endpoint_radius_scaled, bool):
+            raise ConfigError(
+                f"paper_endpoint_radius_scaled must be true or false, got {self.paper_endpoint_radius_scaled!r}"
+            )
         check_range("output_step_px", self.output_step_px, 0.25, 100.0)
         check_range("max_contour", self.max_contour, 100, 10_000_000)

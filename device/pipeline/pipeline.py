@@ -58,6 +58,7 @@ class Pipeline:
         self.tracker = PointTracker(
             config.material_points_m, config.rope_length_m, config.length0_px, config.length0_frames
         )
+        self.splitter.paper.radius_scaled = config.paper_endpoint_radius_scaled
         self.lo = np.zeros(height, np.int32)
         self.hi = np.zeros(height, np.int32)
         self.prev_points = np.zeros((cap, 2), np.float32)

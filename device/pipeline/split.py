@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import f32, i32, ro
 from ropecam.device.pipeline.edges import gaussian_weights
+from ropecam.device.pipeline.paper_method import PaperSegmenter
 from ropecam.device.pipeline.result import Method
 
 __all__ = ["BlurSplitter", "SplitOutcome"]
@@ -57,7 +58,7 @@ class BlurSplitter:
         self,
         capacity: int,
         method: str = "blur_split",
-        static_ratio: float = 1.5,
+        static_ratio: float = 0.6,
         corner_scale_px: int = 3,
         paper_radius_px: float = 15.0,
         output_step_px: float = 2.0,
@@ -65,6 +66,8 @@ class BlurSplitter:
         smooth_sigma_px: float = 1.0,
     ) -> None:
         self.method = method
+        self.paper = PaperSegmenter(capacity, paper_radius_px, output_step_px=output_step_px)
+        self.centerline = self.paper.centerline
         self.tip_cap_ratio = 0.5 if tip_cap == "round" else 0.0
         self.weights = gaussian_weights(smooth_sigma_px).astype(np.float64)
         self._responses: dict[int, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
@@ -74,21 +77,15 @@ class BlurSplitter:
         self._contrast_cache = float("nan")
         self.static_ratio = float(static_ratio)
         self.corner_scale = int(corner_scale_px)
-        self.paper_radius = np.float32(paper_radius_px)
         self.step = np.float32(output_step_px)
         self.turn = np.zeros(capacity, np.float32)
         self.idx = np.zeros(4, np.int32)
         self.side_a = np.zeros((capacity, 2), np.float32)
         self.side_b = np.zeros((capacity, 2), np.float32)
         self.dist = np.zeros(capacity, np.float32)
-        self.mid = np.zeros((capacity, 2), np.float32)
         self.out_a = np.zeros((capacity, 2), np.float32)
         self.out_b = np.zeros((capacity, 2), np.float32)
         self.seg = np.zeros((2, 2), np.float32)
-        self.chain_f = np.zeros((capacity, 2), np.float32)
-        self.tau = np.zeros(capacity, np.int32)
-        self.knots = np.zeros(capacity, np.int32)
-        self.scores = np.zeros(capacity, np.float32)
 
     def split(
         self,
@@ -123,6 +120,8 @@ class BlurSplitter:
         self._smooth = smooth
         self._prepare(points, chain, n, width_px, gx, gy, edges, polarity, mag, fixed_rc)
         points, chain, n = self._points, self._chain, self._n
+        if self.method in ("paper", "centerline"):
+            return self._comparison(fixed_rc)
         fixed_r, fixed_c = np.float32(fixed_rc[0]), np.float32(fixed_rc[1])
         width = self.width
         scale = max(self.corner_scale, round(0.5 * width))
@@ -131,20 +130,11 @@ class BlurSplitter:
         found = K.split_contour(points, ro(self.turn), n, fixed_r, fixed_c, search, i32(scale + 1), self.idx)
         if found < 0:
             return self.static(fixed_rc)
-        i_fix, seg_a, i_far, seg_b = (np.int32(v) for v in self.idx)
-        zero = f32(0.0)
+        i_fix, seg_a, _, seg_b = (np.int32(v) for v in self.idx)
         plus = i32(1)
         minus = i32(-1)
         if self.method == "static":
             return self.static(fixed_rc)
-        if self.method == "paper":
-            return self._paper(chain, n, fixed_r, fixed_c, i_fix, i_far)
-        if self.method == "centerline":
-            na = i32(K.offset_side(points, n, i_fix, i_far, plus, self.sign, zero, zero, i32(2), self.side_a))
-            nb = i32(K.offset_side(points, n, i_fix, i_far, minus, self.sign, zero, zero, i32(2), self.side_b))
-            nm = i32(K.midline(ro(self.side_a), na, ro(self.side_b), nb, self.mid, self.dist))
-            shape = self._resample(self.mid, nm, self.out_a)
-            return SplitOutcome(Method.CENTERLINE, shape, shape, None, width, 0.0)
         self.seg[0] = points[seg_a]
         self.seg[1] = points[seg_b]
         sweep = float(np.hypot(*(points[seg_a] - points[seg_b])))
@@ -371,52 +361,30 @@ class BlurSplitter:
             raise RuntimeError(f"resample_polyline returned status {count}")
         return out[:count]
 
-    def _paper(
-        self,
-        chain: NDArray[np.int32],
-        n: int,
-        fixed_r: np.float32,
-        fixed_c: np.float32,
-        i_fix: int,
-        i_far: int,
-    ) -> SplitOutcome | None:
-        """The paper's literal method: operator, Features 1-3, Table 1, clustering, integer chain sides."""
-        self.chain_f[:n] = chain[:n]
-        chain = ro(chain)
-        K.apply_operator(chain, n, self.tau)
-        far_r, far_c = self.chain_f[i_far]
-        m = K.score_knots(
-            chain, ro(self.tau), n, fixed_r, fixed_c, far_r, far_c, self.paper_radius, self.knots, self.scores
+    def _comparison(self, fixed_rc: tuple[float, float]) -> SplitOutcome | None:
+        """The comparison methods (`centerline.py`, `paper_method.py`) on the contour stored by `_prepare`.
+
+        ``paper`` scores the knots against the centreline's ends (Feature 3); where it finds no two segmentation
+        points (slow motion: the blur is too narrow to split) it reports the centreline, as the paper does.
+        """
+        n = int(self._n)
+        points = self._points
+        dist = np.hypot(points[:n, 0] - fixed_rc[0], points[:n, 1] - fixed_rc[1])
+        i_fix, i_far = int(np.argmin(dist)), int(np.argmax(dist))
+        line = self.centerline.extract(points, n, i_fix, i_far)
+        if line is None:
+            return None
+        # The band is a rope width plus the sweep wide at its widest: the sweep sizes the next frame's ROI.
+        self.sweep_px = max(0.0, self.centerline.band_width_px - self.width)
+        centre = SplitOutcome(Method.CENTERLINE, line, line, None, self.width, self.sweep_px)
+        if self.method == "centerline":
+            return centre
+        e1 = (float(line[0, 0]), float(line[0, 1]))
+        e2 = (float(line[-1, 0]), float(line[-1, 1]))
+        found = self.paper.segment(self._chain, n, fixed_rc, e1, e2, self.centerline.band_width_px, self.width)
+        if found is None:
+            return centre
+        self.sweep_px = found.sweep_px
+        return SplitOutcome(
+            Method.PAPER, found.shape_a, found.shape_b, found.segmentation_points, self.width, found.sweep_px
         )
-        if m < 2:
-            return None
-        knots = self.knots[:m]
-        scores = self.scores[:m]
-        pos = self.chain_f[knots]
-        near_fixed = np.hypot(pos[:, 0] - fixed_r, pos[:, 1] - fixed_c) < self.paper_radius
-        candidates = np.flatnonzero((scores >= 2.0) & ~near_fixed)
-        # Cluster candidates that follow each other along the chain within 5 px; keep the best of each.
-        clusters: list[int] = []
-        for k in candidates:
-            if clusters and np.hypot(*(pos[k] - pos[clusters[-1]])) < 5.0:
-                if scores[k] > scores[clusters[-1]]:
-                    clusters[-1] = int(k)
-                continue
-            clusters.append(int(k))
-        if len(clusters) < 2:
-            return None
-        far = np.array([far_r, far_c])
-        clusters.sort(key=lambda k: (-scores[k], float(np.hypot(*(pos[k] - far)))))
-        a, b = (int(knots[k]) for k in clusters[:2])
-        if (a - i_fix) % n > (b - i_fix) % n:
-            a, b = b, a
-        chain_f = ro(self.chain_f)
-        zero = f32(0.0)
-        sign = self.sign
-        na = i32(K.offset_side(chain_f, n, i32(i_fix), i32(a), i32(1), sign, zero, zero, i32(2), self.side_a))
-        nb = i32(K.offset_side(chain_f, n, i32(i_fix), i32(b), i32(-1), sign, zero, zero, i32(2), self.side_b))
-        width = self.width
-        self.seg[0] = self.chain_f[a]
-        self.seg[1] = self.chain_f[b]
-        sweep = float(np.hypot(*(self.seg[0] - self.seg[1])))
-        return SplitOutcome(Method.PAPER, self.side_a[:na], self.side_b[:nb], self.seg, width, sweep)

@@ -42,7 +42,7 @@ from ropecam.device.pipeline._kernels.offsets import (
     offset_by_gradient,
     side_slope_samples,
 )
-from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots
+from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots, thin_chain
 from ropecam.device.pipeline._kernels.polylines import (
     extend_to_band_end,
     polyline_length,
@@ -89,6 +89,7 @@ __all__ = [
     "signed_area",
     "spans_around_points",
     "split_contour",
+    "thin_chain",
     "trace_contour",
     "track_material_points",
     "trim_polyline_end",

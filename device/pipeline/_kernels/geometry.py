@@ -239,24 +239,33 @@ def offset_side(points, n, i_start, i_stop, direction, interior_sign, width_px, 
 @kernel(int32(f4_2d_ro, int32, f4_2d_ro, int32, f4_2d, f4_1d))
 def midline(side_a, n_a, side_b, n_b, out_poly, out_dist):
     """Write the midline of two polylines running the same way (fixed end first): each point of `side_a` is
-    paired with its nearest point on `side_b` (the search advancing monotonically), the midpoint goes to
-    `out_poly` and the pair's distance to `out_dist`; returns `n_a` or FULL."""
+    paired with its nearest point on `side_b`, the midpoint goes to `out_poly` and the pair's distance to
+    `out_dist`; returns `n_a` or FULL.
+
+    The pairing never goes back along `side_b` (both sides run from the fixed end to the far end). For each point
+    of `side_a` the vertices of `side_b` are scanned forward from the previous pairing, past local minima, until
+    they are farther than ``3 d + 4`` px (d the nearest distance so far): a greedy descent stalls at the first
+    local minimum (a kink of the far side) and then pairs the rest of `side_a` with one point. The pair is then
+    refined to the foot of the perpendicular on the two segments around the nearest vertex.
+    """
     if n_a > out_poly.shape[0] or n_a > out_dist.shape[0]:
         return FULL
     if n_a < 1 or n_b < 1:
         return 0
-    j = 0
+    j0 = 0
     for i in range(n_a):
         ar = side_a[i, 0]
         ac = side_a[i, 1]
-        best = math.hypot(ar - side_b[j, 0], ac - side_b[j, 1])
-        while j + 1 < n_b:
-            d = math.hypot(ar - side_b[j + 1, 0], ac - side_b[j + 1, 1])
-            if d > best:
+        best = math.hypot(ar - side_b[j0, 0], ac - side_b[j0, 1])
+        j = j0
+        for jj in range(j0 + 1, n_b):
+            d = math.hypot(ar - side_b[jj, 0], ac - side_b[jj, 1])
+            if d < best:
+                best = d
+                j = jj
+            elif d > 3.0 * best + 4.0:
                 break
-            best = d
-            j += 1
-        # Foot of the perpendicular on the neighbouring segments of side B.
+        j0 = j
         br = side_b[j, 0]
         bc = side_b[j, 1]
         for jj in (j - 1, j):

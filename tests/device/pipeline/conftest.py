@@ -28,6 +28,18 @@ def static_frame(rope: SyntheticRope) -> SyntheticFrame:
     return replace(rope, exposure_us=50, phase_rad=0.0).render(0)
 
 
+@pytest.fixture(scope="session")
+def fast_rope() -> SyntheticRope:
+    """A rope blurred over ~10 px at the tip (12 ms exposure)."""
+    return SyntheticRope(exposure_us=12000, amplitude_rad=0.7, period_s=0.9, diameter_px=3.0, phase_rad=1.2)
+
+
+@pytest.fixture(scope="session")
+def fast_frames(fast_rope: SyntheticRope) -> list[SyntheticFrame]:
+    """Six consecutive frames of `fast_rope`."""
+    return list(fast_rope.frames(6))
+
+
 def full_spans(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
     """Return row spans covering the whole image."""
     return np.zeros(height, np.int32), np.full(height, width - 1, np.int32)

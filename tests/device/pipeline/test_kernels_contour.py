@@ -123,6 +123,11 @@ def test_operator_matches_reference_and_is_zero_on_straight_runs() -> None:
         assert (t != 0) == (tuple(p) in corners)
 
 
+# Feature 2.2's 90-degree corners of two adjacent knots: the paper's four pairs and the same corner in the other
+# four orientations, matched in either order.
+CORNERS = [{3, -4}, {-3, 4}, {-2, -9}, {2, 9}, {-4, 9}, {4, -9}, {-2, 3}, {2, -3}]
+
+
 def _score_reference(chain, tau, e1, e2, radius):
     knots = [i for i in range(len(chain)) if tau[i] != 0]
     m = len(knots)
@@ -141,7 +146,7 @@ def _score_reference(chain, tau, e1, e2, radius):
             r2 = chain[knots[k]] - chain[knots[(k + 2) % m]]
             theta = math.degrees(math.acos(np.clip(r1 @ r2 / np.linalg.norm(r1) / np.linalg.norm(r2), -1, 1)))
             score += 0.5 if theta < 120 else 0.0
-        elif (t, tn) in {(3, -4), (-3, 4), (-2, -9), (2, 9)}:
+        elif {t, tn} in CORNERS or {t, tp} in CORNERS:
             score += 0.5
         near = min(np.hypot(*(chain[knots[k]] - e1)), np.hypot(*(chain[knots[k]] - e2))) < radius
         score += 1.0 if near else 0.0

@@ -7,7 +7,6 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from ropecam.device.capture.synthetic import SyntheticRope
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam.device.pipeline.result import FrameStatus, Method
@@ -23,17 +22,6 @@ def _curve_error(true_uv: np.ndarray, ours_uv: np.ndarray) -> float:
     p = true_uv[:, None]
     t = np.clip(((p - a) * d).sum(-1) / np.maximum((d * d).sum(-1), 1e-12), 0, 1)
     return float(np.min(np.hypot(*(p - a - t[..., None] * d).transpose(2, 0, 1)), axis=1).mean())
-
-
-@pytest.fixture(scope="module")
-def fast_rope() -> SyntheticRope:
-    """A rope blurred over ~10 px at the tip (12 ms exposure)."""
-    return SyntheticRope(exposure_us=12000, amplitude_rad=0.7, period_s=0.9, diameter_px=3.0, phase_rad=1.2)
-
-
-@pytest.fixture(scope="module")
-def fast_frames(fast_rope):
-    return list(fast_rope.frames(6))
 
 
 def test_blur_split_recovers_both_shapes_in_time_order(fast_rope, fast_frames) -> None:
@@ -72,7 +60,7 @@ def test_comparison_methods(fast_rope, fast_frames, method, expected) -> None:
         r = pipeline.process(frame.image, frame.index, frame.t_ns, frame.exposure_us)
         statuses.append(r.status)
         if r.status is FrameStatus.OK:
-            assert r.method is expected
+            assert r.method is expected  # the blur is wide enough here: no centreline fallback for "paper"
             assert _curve_error(frame.begin_uv, _uv(r.begin)) < 6.0
     assert FrameStatus.OK in statuses
 

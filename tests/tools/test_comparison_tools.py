@@ -1,0 +1,55 @@
+"""tools/harris_compare.py and tools/eval_accuracy.py end to end on a few synthetic frames (subprocesses)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+TOOLS = Path(__file__).resolve().parents[2] / "tools"
+
+
+def _run(script: str, *args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, str(TOOLS / script), *args], capture_output=True, text=True, timeout=300, check=False
+    )
+
+
+@pytest.mark.slow
+def test_harris_compare_scores_harris_and_the_segmentation_points(tmp_path: Path) -> None:
+    figure = tmp_path / "fig7.png"
+    done = _run("harris_compare.py", "--exposures-ms", "12", "--frames", "3", "--json", "--plot", str(figure))
+    assert done.returncode == 0, done.stderr
+    rows = {row["detector"]: row for row in map(json.loads, done.stdout.splitlines())}
+    assert set(rows) == {"harris", "paper", "blur_split"}
+    for row in rows.values():
+        assert row["frames"] == 3 and row["exposure_ms"] == 12.0
+        assert 0.0 <= row["detected"] <= 1.0
+    # The paper's Fig. 7: Harris marks many points along the edges, the segmentation two per frame near the tips.
+    assert rows["harris"]["points_per_frame"] > 10 * rows["paper"]["points_per_frame"]
+    assert rows["paper"]["points_per_frame"] <= 2.0
+    assert rows["harris"]["precision"] < 0.2 < rows["paper"]["precision"]
+    assert rows["paper"]["dist_mean_px"] < 3.0
+    assert figure.stat().st_size > 10_000 and figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.slow
+def test_eval_accuracy_prints_every_method_and_exposure_and_plots(tmp_path: Path) -> None:
+    figure = tmp_path / "fig11.png"
+    done = _run("eval_accuracy.py", "--exposures-ms", "2", "12", "--frames", "3", "--plot", str(figure))
+    assert done.returncode == 0, done.stderr
+    lines = [line.split() for line in done.stdout.splitlines()[2:]]
+    assert {(line[1], line[2]) for line in lines} == {
+        (e, m) for e in ("2.0", "12.0") for m in ("blur_split", "paper", "centerline")
+    }
+    assert figure.stat().st_size > 10_000
+
+
+def test_tools_refuse_bad_arguments() -> None:
+    done = _run("harris_compare.py", "--frames", "0")
+    assert done.returncode == 2 and "--frames must be >= 1" in done.stderr
+    done = _run("eval_accuracy.py", "--methods", "nonsense")
+    assert done.returncode == 2 and "invalid choice" in done.stderr
