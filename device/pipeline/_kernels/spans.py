@@ -44,15 +44,19 @@ def grow_spans(lo, hi, rows_apart, cols_apart, out_lo, out_hi):
     return count
 
 
-@kernel(int32(f4_2d_ro, int32, int32, float32, float32, float32, int32, int32, i4_1d, i4_1d))
-def spans_around_points(points, n_points, margin_px, motion_px, fixed_r, fixed_c, height, width, out_lo, out_hi):
-    """Write the row spans covering a square around each of the first `n_points` (row, col) `points`, clipped to
-    the image; returns the number of non-empty rows.
+@kernel(int32(f4_2d_ro, int32, int32, float32, float32, float32, float32, float32, int32, int32, i4_1d, i4_1d))
+def spans_around_points(
+    points, n_points, margin_px, motion_px, rot_a, rot_b, fixed_r, fixed_c, height, width, out_lo, out_hi
+):
+    """Write the row spans covering a square around each of the first `n_points` (row, col) `points`, each moved
+    by a rotation and scaling about the fixed end, clipped to the image; returns the number of non-empty rows.
 
-    The square's half-size is ``margin_px + motion_px * d / d_max`` where d is the point's distance from the fixed
-    end (fixed_r, fixed_c) and d_max the largest such distance: a rope swinging about its fixed end moves in
-    proportion to that distance. Points closer than half the half-size to the last one used are skipped (the
-    chain is 8-connected, so the union is unchanged up to a pixel).
+    Seen as complex numbers ``z = (row - fixed_r) + 1j * (col - fixed_c)``, each point moves to
+    ``(rot_a + 1j * rot_b) * z`` (1, 0: no motion): the predicted swing of the rope about its fixed end
+    (fixed_r, fixed_c). With d the point's distance from the fixed end and d_max the largest such distance, the
+    square's half-size is ``margin_px + ceil(motion_px * d / d_max)``: `motion_px` is the uncertainty of the
+    prediction at the farthest point. Points closer than half the half-size to the last one used are skipped
+    (the chain is 8-connected, so the union is unchanged up to a pixel).
     """
     for r in range(height):
         out_lo[r] = width
@@ -70,15 +74,22 @@ def spans_around_points(points, n_points, margin_px, motion_px, fixed_r, fixed_c
         if not (pr == pr and pc == pc):
             continue
         d = math.hypot(pr - fixed_r, pc - fixed_c)
-        m = margin_px + math.ceil(motion_px * d / d_max)
+        share = d / d_max
+        m = margin_px + math.ceil(motion_px * share)
         if i != n_points - 1 and abs(pr - last_r) + abs(pc - last_c) < 0.5 * m:
             continue
         last_r = pr
         last_c = pc
-        r0 = max(0, math.floor(pr) - m)
-        r1 = min(height - 1, math.ceil(pr) + m)
-        c0 = max(0, math.floor(pc) - m)
-        c1 = min(width - 1, math.ceil(pc) + m)
+        zr = pr - fixed_r
+        zc = pc - fixed_c
+        qr = fixed_r + rot_a * zr - rot_b * zc
+        qc = fixed_c + rot_b * zr + rot_a * zc
+        if not (abs(qr) < 1e9 and abs(qc) < 1e9):
+            continue
+        r0 = max(0, math.floor(qr) - m)
+        r1 = min(height - 1, math.ceil(qr) + m)
+        c0 = max(0, math.floor(qc) - m)
+        c1 = min(width - 1, math.ceil(qc) + m)
         for r in range(r0, r1 + 1):
             if c0 < out_lo[r]:
                 out_lo[r] = c0

@@ -96,7 +96,7 @@ def test_canny_inside_spans_equals_full_frame(blurred_frames, spans_full) -> Non
     points = np.ascontiguousarray(np.argwhere(full["edges"] > 0).astype(np.float32))
     lo = np.zeros(height, np.int32)
     hi = np.zeros(height, np.int32)
-    K.spans_around_points(points, len(points), 6, 0.0, 0.0, 0.0, height, width, lo, hi)
+    K.spans_around_points(points, len(points), 6, 0.0, 1.0, 0.0, 0.0, 0.0, height, width, lo, hi)
     _, roi = _canny(image, lo, hi, 20, 50, (0.25, 0.5, 0.25))
     inside = np.zeros((height, width), bool)
     for r in range(height):
@@ -105,17 +105,20 @@ def test_canny_inside_spans_equals_full_frame(blurred_frames, spans_full) -> Non
     assert inside.mean() < 0.25
 
 
-def test_spans_around_points_matches_reference() -> None:
+@pytest.mark.parametrize("rotation", [(1.0, 0.0), (0.9, 0.2)])
+def test_spans_around_points_matches_reference(rotation) -> None:
     rng = np.random.default_rng(3)
     height, width = 50, 70
     points = rng.uniform([-3, -3], [height + 3, width + 3], (12, 2)).astype(np.float32)
     lo = np.zeros(height, np.int32)
     hi = np.zeros(height, np.int32)
-    rows = K.spans_around_points(points, len(points), 3, 4.0, 10.0, 20.0, height, width, lo, hi)
+    rows = K.spans_around_points(points, len(points), 3, 4.0, *rotation, 10.0, 20.0, height, width, lo, hi)
     mask = np.zeros((height, width), bool)
     dist = np.hypot(points[:, 0] - 10.0, points[:, 1] - 20.0)
     for (pr, pc), d in zip(points, dist, strict=True):
         m = 3 + int(np.ceil(4.0 * d / dist.max()))
+        z = complex(*rotation) * complex(pr - 10.0, pc - 20.0)
+        pr, pc = 10.0 + z.real, 20.0 + z.imag
         r0, r1 = max(0, int(np.floor(pr)) - m), min(height - 1, int(np.ceil(pr)) + m)
         c0, c1 = max(0, int(np.floor(pc)) - m), min(width - 1, int(np.ceil(pc)) + m)
         if r0 <= r1 and c0 <= c1:
