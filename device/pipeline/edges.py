@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import ro
+from ropecam.device.pipeline._views import ro, staggered_planes
 
 __all__ = ["EdgeDetector", "gaussian_weights"]
 
@@ -46,11 +46,8 @@ class EdgeDetector:
         self.high = np.float32(high)
         self.weights = gaussian_weights(smooth_sigma_px)
         self.work_spans = np.zeros((4, height), np.int32)
-        self.tmp = np.zeros((height, width), np.float32)
-        self.smooth = np.zeros((height, width), np.float32)
-        self.gx = np.zeros((height, width), np.float32)
-        self.gy = np.zeros((height, width), np.float32)
-        self.mag = np.zeros((height, width), np.float32)
+        # Planes at different offsets within a page (see `staggered_planes`: 4K aliasing halves the speed).
+        self.tmp, self.smooth, self.gx, self.gy, self.mag = staggered_planes(5, (height, width), np.float32)
         self.edges = np.zeros((height, width), np.uint8)
         self.stack = np.zeros(height * width, np.int32)
         self.full_lo = np.zeros(height, np.int32)
