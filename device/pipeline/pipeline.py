@@ -29,6 +29,8 @@ _FIXED_END_FRAMES = 10
 _WIDTH_FRAMES = 15
 """Frames whose measured rope width (median) is used afterwards, when the config gives none."""
 _POLARITY_FRAMES = 5
+_ROI_RETRIES = 2
+"""Times the ROI is widened around a contour that runs out of it before the frame is searched whole."""
 """Frames whose polarity votes decide the polarity afterwards, when the config says auto."""
 
 
@@ -61,6 +63,8 @@ class Pipeline:
         )
         self.lo = np.zeros(height, np.int32)
         self.hi = np.zeros(height, np.int32)
+        self.grow_lo = np.zeros(height, np.int32)
+        self.grow_hi = np.zeros(height, np.int32)
         self.prev_points = np.zeros((cap, 2), np.float32)
         self.prev_count = 0
         self.turn_cap = np.zeros(cap, np.float32)
@@ -81,6 +85,7 @@ class Pipeline:
         self._roi_t_ns: int | None = None
         self.frames_full = 0
         self.frames_roi = 0
+        self.roi_retries = 0
 
     # ----------------------------------------------------------------------------------------------------------
     def process(self, frame: object, index: int, t_ns: int, exposure_us: float | None) -> FrameResult:
@@ -150,26 +155,7 @@ class Pipeline:
 
     # ----------------------------------------------------------------------------------------------------------
     def _measure(self, image: NDArray[np.uint8], result: FrameResult, exposure_ns: int) -> None:
-        height, width = self.shape
-        n = 0
-        used_roi = False
-        if self.prev_count > 0:
-            if self._fixed_known:
-                rot_a, rot_b, motion = self._motion.predict(result.t_ns, exposure_ns)
-                fr, fc = self.fixed
-            else:
-                rot_a, rot_b, motion = 1.0, 0.0, 0.0
-                fr = fc = np.float32(0.0)
-            K.spans_around_points(
-                ro(self.prev_points), i32(self.prev_count), i32(self.config.roi_margin_px), f32(motion),
-                f32(rot_a), f32(rot_b), fr, fc, i32(height), i32(width), self.lo, self.hi,
-            )  # fmt: skip
-            self.edges.detect(image, self.lo, self.hi)
-            n = self._trace(self.lo, self.hi)
-            used_roi = n > 0 and self.tracer.roi_contacts(self.lo, self.hi) == 0
-        if not used_roi:
-            self.edges.detect(image, self.edges.full_lo, self.edges.full_hi)
-            n = self._trace(self.edges.full_lo, self.edges.full_hi)
+        n, used_roi = self._locate(image, result.t_ns, exposure_ns)
         result.full_frame = not used_roi
         if used_roi:
             self.frames_roi += 1
@@ -246,6 +232,41 @@ class Pipeline:
         sweep_px = max(self.splitter.sweep_px, float(np.hypot(*(tip_end - tip_begin))))
         tip_mid = 0.5 * (tip_begin + tip_end)
         self._motion.observe(result.t_ns + exposure_ns // 2, tip_mid, self.fixed, sweep_px, exposure_ns)
+
+    def _locate(self, image: NDArray[np.uint8], t_ns: int, exposure_ns: int) -> tuple[int, bool]:
+        """Find the rope's contour: in the band predicted from the last contour, widened where the contour
+        leaves it (up to `_ROI_RETRIES` times), else in the whole frame. Returns (contour points, in the ROI)."""
+        height, width = self.shape
+        if self.prev_count > 0:
+            margin = self.config.roi_margin_px
+            if self._fixed_known:
+                rot_a, rot_b, motion = self._motion.predict(t_ns, exposure_ns)
+                fr, fc = self.fixed
+            else:
+                rot_a, rot_b, motion = 1.0, 0.0, 0.0
+                fr = fc = np.float32(0.0)
+            K.spans_around_points(
+                ro(self.prev_points), i32(self.prev_count), i32(margin), f32(motion), f32(rot_a), f32(rot_b),
+                fr, fc, i32(height), i32(width), self.lo, self.hi,
+            )  # fmt: skip
+            grow = i32(margin + max(8, math.ceil(2.0 * motion)))
+            for attempt in range(_ROI_RETRIES + 1):
+                self.edges.detect(image, self.lo, self.hi)
+                n = self._trace(self.lo, self.hi)
+                if n == 0:
+                    break
+                if self.tracer.roi_contacts(self.lo, self.hi) == 0:
+                    self.roi_retries += attempt
+                    return n, True
+                if attempt < _ROI_RETRIES:  # the rope runs out of the band: widen it around what was found
+                    K.spans_around_points(
+                        ro(self.tracer.points), i32(n), grow, f32(0.0), f32(1.0), f32(0.0), fr, fc,
+                        i32(height), i32(width), self.grow_lo, self.grow_hi,
+                    )  # fmt: skip
+                    K.union_spans(ro(self.grow_lo), ro(self.grow_hi), self.lo, self.hi)
+            self.roi_retries += _ROI_RETRIES
+        self.edges.detect(image, self.edges.full_lo, self.edges.full_hi)
+        return self._trace(self.edges.full_lo, self.edges.full_hi), False
 
     def _trace(self, lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
         e = self.edges
@@ -394,8 +415,8 @@ class _MotionState:
             dt0 = float(self.times_ns[-2] - self.times_ns[-3])
             accel = (rate - (l0 - self.logs[-3]) / dt0) / (0.5 * (dt0 + dt1))
             step = (rate + 0.5 * dt1 * accel) * gap_ns + 0.5 * accel * gap_ns * gap_ns
-            uncertainty = 0.3 * abs(cmath.exp(rate * gap_ns) - 1.0) * radius + abs(accel) * gap_ns * gap_ns * radius
+            uncertainty = 0.1 * abs(cmath.exp(rate * gap_ns) - 1.0) * radius + abs(accel) * gap_ns * gap_ns * radius
         factor = cmath.exp(step)
         if not (abs(step.real) < 1.0 and math.isfinite(factor.real) and math.isfinite(factor.imag)):
             return 1.0, 0.0, 1.3 * sweep * 2.0 + 1.0  # implausible (a jump): no direction
-        return factor.real, factor.imag, uncertainty + 0.25 * sweep + 1.0
+        return factor.real, factor.imag, uncertainty + 0.1 * sweep + 2.0

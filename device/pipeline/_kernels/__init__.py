@@ -50,7 +50,7 @@ from ropecam.device.pipeline._kernels.polylines import (
     track_material_points,
     trim_polyline_end,
 )
-from ropecam.device.pipeline._kernels.spans import grow_spans, in_spans, spans_around_points
+from ropecam.device.pipeline._kernels.spans import grow_spans, in_spans, spans_around_points, union_spans
 
 __all__ = [
     "DIR_COL",
@@ -93,4 +93,5 @@ __all__ = [
     "track_material_points",
     "trim_polyline_end",
     "turning_angles",
+    "union_spans",
 ]

@@ -111,3 +111,21 @@ def in_spans(r, c, lo, hi):
     if r < 0 or r >= lo.shape[0]:
         return False
     return lo[r] <= c <= hi[r]
+
+
+@kernel(int32(i4_1d_ro, i4_1d_ro, i4_1d, i4_1d))
+def union_spans(lo, hi, out_lo, out_hi):
+    """Widen the row spans `out_lo`/`out_hi` to also cover `lo`/`hi` (an empty span has ``hi < lo``); returns the
+    number of non-empty rows (one span per row: the union of two disjoint spans also covers the gap)."""
+    count = 0
+    for r in range(out_lo.shape[0]):
+        if hi[r] >= lo[r]:
+            if out_hi[r] < out_lo[r]:
+                out_lo[r] = lo[r]
+                out_hi[r] = hi[r]
+            else:
+                out_lo[r] = min(out_lo[r], lo[r])
+                out_hi[r] = max(out_hi[r], hi[r])
+        if out_hi[r] >= out_lo[r]:
+            count += 1
+    return count
