@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["f32", "i32", "ro", "staggered_planes"]
+__all__ = ["f32", "i32", "resident_zeros", "ro", "staggered_planes"]
 
 
 def ro(array: NDArray[Any]) -> NDArray[Any]:
@@ -47,6 +47,17 @@ def staggered_planes(count: int, shape: tuple[int, int], dtype: Any) -> list[NDA
     plane_bytes = int(np.prod(shape)) * dtype.itemsize
     step = max(64, (4096 // max(count, 1)) // 64 * 64)
     stride = -(-plane_bytes // 4096) * 4096 + step  # whole pages plus the stagger
-    raw = np.zeros(stride * count + 4096, np.uint8)
+    raw = resident_zeros(stride * count + 4096, np.uint8)
     start = (-raw.ctypes.data) % 4096
     return [raw[start + i * stride : start + i * stride + plane_bytes].view(dtype).reshape(shape) for i in range(count)]
+
+
+def resident_zeros(shape: int | tuple[int, ...], dtype: Any) -> NDArray[Any]:
+    """Return a zeroed array whose memory is really mapped (written once now).
+
+    ``np.zeros`` of a large array gets pages the kernel maps on first touch: the first frame, which touches every
+    page of every image-sized buffer, then paid some 3000 page faults (tens of ms on a loaded machine).
+    """
+    array = np.empty(shape, dtype)
+    array.fill(0)
+    return array

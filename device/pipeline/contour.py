@@ -6,7 +6,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import i32, ro
+from ropecam.device.pipeline._views import i32, resident_zeros, ro
 
 __all__ = ["ContourTracer"]
 
@@ -27,8 +27,8 @@ class ContourTracer:
     def __init__(self, height: int, width: int, capacity: int, min_pixels: int) -> None:
         self.shape = (height, width)
         self.min_pixels = int(min_pixels)
-        self.labels = np.zeros((height, width), np.int32)
-        self.stack = np.zeros(height * width, np.int32)
+        self.labels = resident_zeros((height, width), np.int32)
+        self.stack = resident_zeros(height * width, np.int32)
         self.start = np.zeros(2, np.int32)
         self.chain = np.zeros((capacity, 2), np.int32)
         self.codes = np.zeros(capacity, np.int32)

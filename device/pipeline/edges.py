@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import ro, staggered_planes
+from ropecam.device.pipeline._views import resident_zeros, ro, staggered_planes
 
 __all__ = ["EdgeDetector", "gaussian_weights"]
 
@@ -48,8 +48,8 @@ class EdgeDetector:
         self.work_spans = np.zeros((4, height), np.int32)
         # Planes at different offsets within a page (see `staggered_planes`: 4K aliasing halves the speed).
         self.tmp, self.smooth, self.gx, self.gy, self.mag = staggered_planes(5, (height, width), np.float32)
-        self.edges = np.zeros((height, width), np.uint8)
-        self.stack = np.zeros(height * width, np.int32)
+        self.edges = resident_zeros((height, width), np.uint8)
+        self.stack = resident_zeros(height * width, np.int32)
         self.full_lo = np.zeros(height, np.int32)
         self.full_hi = np.full(height, width - 1, np.int32)
 
