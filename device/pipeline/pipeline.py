@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import f32, i32, ro
+from ropecam.device.pipeline._views import f32, i32, resident_zeros, ro
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.contour import ContourTracer
 from ropecam.device.pipeline.edges import EdgeDetector
@@ -30,7 +30,13 @@ _WIDTH_FRAMES = 15
 """Frames whose measured rope width (median) is used afterwards, when the config gives none."""
 _POLARITY_FRAMES = 5
 _ROI_RETRIES = 2
-"""Times the ROI is widened around a contour that runs out of it before the frame is searched whole."""
+"""Times a band is widened around a contour that runs out of it before the next way of searching is tried."""
+_COARSE_BLOCK = 4
+"""Cell size (px) of the coarse search for the rope when there is no ROI."""
+_COARSE_MIN_CELLS = 3
+"""Smallest group of active cells the coarse search keeps (isolated noise cells are dropped)."""
+_COARSE_DILATE = 2
+"""Cells added around the kept cells."""
 """Frames whose polarity votes decide the polarity afterwards, when the config says auto."""
 
 
@@ -84,8 +90,16 @@ class Pipeline:
         self._motion = _MotionState()
         self._roi_t_ns: int | None = None
         self.frames_full = 0
+        self.frames_coarse = 0
         self.frames_roi = 0
         self.roi_retries = 0
+        cells = (max(1, height // _COARSE_BLOCK), max(1, width // _COARSE_BLOCK))
+        self.coarse_sums = resident_zeros(cells, np.int32)
+        self.coarse_labels = resident_zeros(cells, np.int32)
+        self.coarse_stack = resident_zeros(max(cells[0] * cells[1], width), np.int32)
+        # A cell is active when its mean differs from a neighbour's by canny_low / 8 grey levels: the step over
+        # which the Sobel magnitude of a sharp edge reaches the low threshold.
+        self._coarse_step = i32(max(1, round(_COARSE_BLOCK * _COARSE_BLOCK * config.canny_low / 8.0)))
 
     # ----------------------------------------------------------------------------------------------------------
     def process(self, frame: object, index: int, t_ns: int, exposure_us: float | None) -> FrameResult:
@@ -157,10 +171,6 @@ class Pipeline:
     def _measure(self, image: NDArray[np.uint8], result: FrameResult, exposure_ns: int) -> None:
         n, used_roi = self._locate(image, result.t_ns, exposure_ns)
         result.full_frame = not used_roi
-        if used_roi:
-            self.frames_roi += 1
-        else:
-            self.frames_full += 1
         if n == 0:
             self.prev_count = 0
             result.status = FrameStatus.NO_ROPE
@@ -234,39 +244,61 @@ class Pipeline:
         self._motion.observe(result.t_ns + exposure_ns // 2, tip_mid, self.fixed, sweep_px, exposure_ns)
 
     def _locate(self, image: NDArray[np.uint8], t_ns: int, exposure_ns: int) -> tuple[int, bool]:
-        """Find the rope's contour: in the band predicted from the last contour, widened where the contour
-        leaves it (up to `_ROI_RETRIES` times), else in the whole frame. Returns (contour points, in the ROI)."""
+        """Find the rope's contour: in the band predicted from the last contour, else around the cells where a
+        coarse look (block sums) sees intensity steps, else in the whole frame; a band the contour runs out of
+        is widened around what was found (up to `_ROI_RETRIES` times) before the next way is tried.
+
+        Returns (contour points, found in the band predicted from the last frame).
+        """
         height, width = self.shape
+        margin = self.config.roi_margin_px
+        if self._fixed_known:
+            fr, fc = self.fixed
+        else:
+            fr = fc = np.float32(0.0)
         if self.prev_count > 0:
-            margin = self.config.roi_margin_px
-            if self._fixed_known:
-                rot_a, rot_b, motion = self._motion.predict(t_ns, exposure_ns)
-                fr, fc = self.fixed
-            else:
-                rot_a, rot_b, motion = 1.0, 0.0, 0.0
-                fr = fc = np.float32(0.0)
+            rot_a, rot_b, motion = self._motion.predict(t_ns, exposure_ns) if self._fixed_known else (1.0, 0.0, 0.0)
             K.spans_around_points(
                 ro(self.prev_points), i32(self.prev_count), i32(margin), f32(motion), f32(rot_a), f32(rot_b),
                 fr, fc, i32(height), i32(width), self.lo, self.hi,
             )  # fmt: skip
-            grow = i32(margin + max(8, math.ceil(2.0 * motion)))
-            for attempt in range(_ROI_RETRIES + 1):
-                self.edges.detect(image, self.lo, self.hi)
-                n = self._trace(self.lo, self.hi)
-                if n == 0:
-                    break
-                if self.tracer.roi_contacts(self.lo, self.hi) == 0:
-                    self.roi_retries += attempt
-                    return n, True
-                if attempt < _ROI_RETRIES:  # the rope runs out of the band: widen it around what was found
-                    K.spans_around_points(
-                        ro(self.tracer.points), i32(n), grow, f32(0.0), f32(1.0), f32(0.0), fr, fc,
-                        i32(height), i32(width), self.grow_lo, self.grow_hi,
-                    )  # fmt: skip
-                    K.union_spans(ro(self.grow_lo), ro(self.grow_hi), self.lo, self.hi)
-            self.roi_retries += _ROI_RETRIES
+            n = self._search(image, i32(margin + max(8, math.ceil(2.0 * motion))), fr, fc)
+            if n > 0:
+                self.frames_roi += 1
+                return n, True
+        kept = K.coarse_spans(
+            ro(image), i32(_COARSE_BLOCK), self._coarse_step, i32(_COARSE_MIN_CELLS), i32(_COARSE_DILATE),
+            self.coarse_sums, self.coarse_labels, self.coarse_stack, self.lo, self.hi,
+        )  # fmt: skip
+        if kept > 0:
+            n = self._search(image, i32(margin + 8), fr, fc)
+            if n > 0:
+                self.frames_coarse += 1
+                return n, False
+        self.frames_full += 1
         self.edges.detect(image, self.edges.full_lo, self.edges.full_hi)
         return self._trace(self.edges.full_lo, self.edges.full_hi), False
+
+    def _search(self, image: NDArray[np.uint8], grow: np.int32, fr: np.float32, fc: np.float32) -> int:
+        """Detect and trace inside the spans `lo`/`hi`, widening them by `grow` px around a contour that reaches
+        their border; returns the contour's points, 0 when it is not found whole inside them."""
+        height, width = self.shape
+        for attempt in range(_ROI_RETRIES + 1):
+            self.edges.detect(image, self.lo, self.hi)
+            n = self._trace(self.lo, self.hi)
+            if n == 0:
+                return 0
+            if self.tracer.roi_contacts(self.lo, self.hi) == 0:
+                self.roi_retries += attempt
+                return n
+            if attempt < _ROI_RETRIES:  # the rope runs out of the band: widen it around what was found
+                K.spans_around_points(
+                    ro(self.tracer.points), i32(n), grow, f32(0.0), f32(1.0), f32(0.0), fr, fc,
+                    i32(height), i32(width), self.grow_lo, self.grow_hi,
+                )  # fmt: skip
+                K.union_spans(ro(self.grow_lo), ro(self.grow_hi), self.lo, self.hi)
+        self.roi_retries += _ROI_RETRIES
+        return 0
 
     def _trace(self, lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
         e = self.edges

@@ -50,7 +50,13 @@ from ropecam.device.pipeline._kernels.polylines import (
     track_material_points,
     trim_polyline_end,
 )
-from ropecam.device.pipeline._kernels.spans import grow_spans, in_spans, spans_around_points, union_spans
+from ropecam.device.pipeline._kernels.spans import (
+    coarse_spans,
+    grow_spans,
+    in_spans,
+    spans_around_points,
+    union_spans,
+)
 
 __all__ = [
     "DIR_COL",
@@ -68,6 +74,7 @@ __all__ = [
     "apply_operator",
     "axis_offset",
     "chain_length",
+    "coarse_spans",
     "count_roi_contacts",
     "detect_edges",
     "extend_to_band_end",
