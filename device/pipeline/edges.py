@@ -52,6 +52,8 @@ class EdgeDetector:
         self.stack = resident_zeros(height * width, np.int32)
         self.full_lo = np.zeros(height, np.int32)
         self.full_hi = np.full(height, width - 1, np.int32)
+        self.count = 0
+        """Edge pixels found by the last `detect`; their flat indices are ``stack[:count]`` (raster order)."""
 
     def detect(self, frame: NDArray[np.uint8], lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
         """Detect edges of `frame` inside the row spans `lo`/`hi`; returns the number of edge pixels.
@@ -67,7 +69,7 @@ class EdgeDetector:
         -------
         int
             Edge pixel count; the edge map is `edges` (1 = edge, valid inside the spans until the next call),
-            gradients `gx`, `gy`, `mag`.
+            gradients `gx`, `gy`, `mag`; ``stack[:count]`` lists the edge pixels (flat indices, raster order).
 
         Raises
         ------
@@ -84,4 +86,5 @@ class EdgeDetector:
         )  # fmt: skip
         if count < 0:
             raise RuntimeError(f"detect_edges returned status {count}")
-        return int(count)
+        self.count = int(count)
+        return self.count

@@ -33,8 +33,9 @@ _ROI_RETRIES = 2
 """Times a band is widened around a contour that runs out of it before the next way of searching is tried."""
 _COARSE_BLOCK = 4
 """Cell size (px) of the coarse search for the rope when there is no ROI."""
-_COARSE_MIN_CELLS = 3
-"""Smallest group of active cells the coarse search keeps (isolated noise cells are dropped)."""
+_COARSE_MIN_CELLS = 8
+"""Smallest group of active cells the coarse search keeps (a hot pixel makes a cross of 5; a rope of the
+smallest accepted contour, 40 px, about 20)."""
 _COARSE_DILATE = 2
 """Cells added around the kept cells."""
 """Frames whose polarity votes decide the polarity afterwards, when the config says auto."""
@@ -228,12 +229,14 @@ class Pipeline:
         result.segmentation_points = outcome.segmentation_points
         begin, end, confidence = self._order(outcome, result.t_ns)
         result.begin, result.end, result.order_confidence = begin, end, confidence
-        self.tracker.observe(self.tracker.length(begin))
+        length_begin = self.tracker.length(begin)
+        length_end = length_begin if end is begin else self.tracker.length(end)
+        self.tracker.observe(length_begin)
         if end is not begin:
-            self.tracker.observe(self.tracker.length(end))
+            self.tracker.observe(length_end)
         result.material_arc_m = self.tracker.arc_m
-        result.material_begin, result.stretch_begin = self.tracker.track(begin, 0)
-        result.material_end, result.stretch_end = self.tracker.track(end, 1)
+        result.material_begin, result.stretch_begin = self.tracker.track(begin, 0, length_begin)
+        result.material_end, result.stretch_end = self.tracker.track(end, 1, length_end)
         result.status = FrameStatus.OK
         tip_begin = begin[-1].astype(np.float64)
         tip_end = end[-1].astype(np.float64)
@@ -302,7 +305,7 @@ class Pipeline:
 
     def _trace(self, lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
         e = self.edges
-        return self.tracer.trace(e.edges, lo, hi, e.mag, e.gx, e.gy)
+        return self.tracer.trace(e.edges, lo, hi, e.mag, e.gx, e.gy, e.stack, e.count)
 
     def _polarity_now(self) -> float:
         """The configured polarity, or the majority of the first frames' once they are in (0 = decide now)."""

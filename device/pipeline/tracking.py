@@ -57,14 +57,17 @@ class PointTracker:
             return self.length0_px
         return self._median
 
-    def track(self, poly: NDArray[np.float32], slot: int) -> tuple[NDArray[np.float32], float]:
+    def track(
+        self, poly: NDArray[np.float32], slot: int, length_px: float | None = None
+    ) -> tuple[NDArray[np.float32], float]:
         """Return the material points (k, 2) (row, col) on `poly` (fixed end first) and the stretch Lc/Lc0.
 
         `slot` (0 or 1) selects the output buffer, so the two shapes of a frame do not overwrite each other; the
-        points are valid until the next call with the same slot.
+        points are valid until the next call with the same slot. `length_px` is `poly`'s length when the caller
+        has it already (`length`), else it is computed.
         """
         length0 = self.reference_length_px
-        lc = self.length(poly)
+        lc = self.length(poly) if length_px is None else float(length_px)
         if length0 is None or length0 <= 0:
             length0 = lc
         np.multiply(self.fraction, length0, out=self.arc_px)

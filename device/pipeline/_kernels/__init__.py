@@ -24,7 +24,13 @@ from ropecam.device.pipeline._kernels._common import (
     f4_1d_ro,
 )
 from ropecam.device.pipeline._kernels.canny import detect_edges
-from ropecam.device.pipeline._kernels.contour import count_roi_contacts, keep_largest_component, trace_contour
+from ropecam.device.pipeline._kernels.contour import (
+    count_border_contacts,
+    count_roi_contacts,
+    keep_largest_component,
+    keep_largest_listed,
+    trace_contour,
+)
 from ropecam.device.pipeline._kernels.geometry import (
     chain_length,
     midline,
@@ -75,6 +81,7 @@ __all__ = [
     "axis_offset",
     "chain_length",
     "coarse_spans",
+    "count_border_contacts",
     "count_roi_contacts",
     "detect_edges",
     "extend_to_band_end",
@@ -83,6 +90,7 @@ __all__ = [
     "grow_spans",
     "in_spans",
     "keep_largest_component",
+    "keep_largest_listed",
     "measure_widths",
     "midline",
     "offset_by_gradient",

@@ -91,7 +91,8 @@ def detect_edges(
     replicated border, the magnitude is the L2 norm. Writes `work_spans` (rows 0-1: Sobel spans, rows 2-3:
     smoothing spans), `out_tmp`, `out_smooth`, `out_gx`, `out_gy`, `out_mag` (valid inside the Sobel spans) and
     `out_edges` (1 on edge pixels, 0 elsewhere, valid inside the spans `lo`/`hi`); `stack` needs one slot per
-    pixel of the spans. Returns the number of edge pixels or INVALID (bad shapes).
+    pixel of the image and holds on return the edge pixels' flat indices ``row * width + col`` in raster order
+    (the first `count`). Returns the number of edge pixels or INVALID (bad shapes).
     """
     height = frame.shape[0]
     width = frame.shape[1]
@@ -274,5 +275,6 @@ def detect_edges(
             k = base + np.uint64(i)
             v = oedge[k] >> 1  # EDGE_STRONG -> 1, weak and none -> 0
             oedge[k] = v
+            stack[count] = np.int32(k)  # the edge list: kept only where v == 1 (count advances)
             count += np.int64(v)  # a uint8 sum would wrap at 256 (plain Python promotes to the narrower type)
     return count
