@@ -144,6 +144,11 @@ class Pipeline:
         result.pipeline_us = (time.perf_counter_ns() - start_ns) / 1000.0
         return result
 
+    def reset_tracking(self) -> None:
+        """Forget the region of interest and the motion: the next frame is searched whole, as the first one.
+        What does not change between frames (fixed end, width, polarity, Lc0) is kept."""
+        self._forget(roi=True)
+
     def _forget(self, roi: bool) -> None:
         """Drop the state that predicts this frame from the last one after a frame without shapes (a gap): the
         tips, steps and sweeps (and with `roi`, the region of interest), so the next frame starts afresh instead
