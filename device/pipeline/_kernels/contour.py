@@ -214,13 +214,18 @@ def count_roi_contacts(chain, n, lo, hi, width):
     for i in range(n):
         r = chain[i, 0]
         c = chain[i, 1]
-        touches = False
-        for rr in range(max(r - 1, 0), min(r + 2, height)):
-            a = lo[rr]
-            b = hi[rr]
-            for cc in range(max(c - 1, 0), min(c + 2, width)):
-                if (rr != r or cc != c) and (cc < a or cc > b):
-                    touches = True
+        left = c - 1
+        right = c + 1
+        cm = max(left, 0)
+        cp = min(right, width - 1)
+        # Row r: the two side neighbours; rows r - 1 and r + 1: the 1-3 neighbours form one interval.
+        a = lo[r]
+        b = hi[r]
+        touches = (left >= 0 and (left < a or left > b)) or (right < width and (right < a or right > b))
+        if r > 0 and (cm < lo[r - 1] or cp > hi[r - 1]):
+            touches = True
+        if r < height - 1 and (cm < lo[r + 1] or cp > hi[r + 1]):
+            touches = True
         if touches:
             count += 1
     return count

@@ -51,15 +51,17 @@ def grow_spans(lo, hi, rows_apart, cols_apart, out_lo, out_hi):
 def spans_around_points(
     points, n_points, margin_px, motion_px, rot_a, rot_b, fixed_r, fixed_c, height, width, out_lo, out_hi
 ):
-    """Write the row spans covering a square around each of the first `n_points` (row, col) `points`, each moved
+    """Write the row spans covering a disc around each of the first `n_points` (row, col) `points`, each moved
     by a rotation and scaling about the fixed end, clipped to the image; returns the number of non-empty rows.
 
     Seen as complex numbers ``z = (row - fixed_r) + 1j * (col - fixed_c)``, each point moves to
     ``(rot_a + 1j * rot_b) * z`` (1, 0: no motion): the predicted swing of the rope about its fixed end
     (fixed_r, fixed_c). With d the point's distance from the fixed end and d_max the largest such distance, the
-    square's half-size is ``margin_px + ceil(motion_px * d / d_max)``: `motion_px` is the uncertainty of the
-    prediction at the farthest point. Points closer than half the half-size to the last one used are skipped
-    (the chain is 8-connected, so the union is unchanged up to a pixel).
+    disc's radius is ``m = margin_px + ceil(motion_px * d / d_max)``: `motion_px` is the uncertainty of the
+    prediction at the farthest point. Row r gets the columns ``floor(c - h) .. ceil(c + h)`` with
+    ``h = sqrt(m**2 - (r - row)**2)`` (discs, not squares: a band along a diagonal rope is 30 % narrower).
+    Points closer than a quarter of the radius (L1) to the last one used are skipped, so every point keeps
+    at least 3/4 of its radius.
     """
     for r in range(height):
         out_lo[r] = width
@@ -79,7 +81,7 @@ def spans_around_points(
         d = math.hypot(pr - fixed_r, pc - fixed_c)
         share = d / d_max
         m = margin_px + math.ceil(motion_px * share)
-        if i != n_points - 1 and abs(pr - last_r) + abs(pc - last_c) < 0.5 * m:
+        if i != n_points - 1 and abs(pr - last_r) + abs(pc - last_c) < 0.25 * m:
             continue
         last_r = pr
         last_c = pc
@@ -89,11 +91,15 @@ def spans_around_points(
         qc = fixed_c + rot_b * zr + rot_a * zc
         if not (abs(qr) < 1e9 and abs(qc) < 1e9):
             continue
-        r0 = max(0, math.floor(qr) - m)
-        r1 = min(height - 1, math.ceil(qr) + m)
-        c0 = max(0, math.floor(qc) - m)
-        c1 = min(width - 1, math.ceil(qc) + m)
+        r0 = max(0, math.ceil(qr - m))
+        r1 = min(height - 1, math.floor(qr + m))
         for r in range(r0, r1 + 1):
+            dy = r - qr
+            half = math.sqrt(max(0.0, m * m - dy * dy))
+            c0 = max(0, math.floor(qc - half))
+            c1 = min(width - 1, math.ceil(qc + half))
+            if c1 < c0:
+                continue
             if c0 < out_lo[r]:
                 out_lo[r] = c0
             if c1 > out_hi[r]:

@@ -197,3 +197,22 @@ def test_border_contacts_match_reference() -> None:
     assert K.count_border_contacts(chain, len(chain), height, width, -1e9, -1e9, 5.0) == len(on_border)
     far = [(r, c) for r, c in on_border if math.hypot(r - 0.0, c - 5.0) > 3.5]
     assert K.count_border_contacts(chain, len(chain), height, width, 0.0, 5.0, 3.5) == len(far)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_roi_contacts_match_reference(seed) -> None:
+    rng = np.random.default_rng(seed)
+    height, width = 30, 40
+    lo = rng.integers(0, 15, height).astype(np.int32)
+    hi = (lo + rng.integers(-3, 30, height)).astype(np.int32)
+    chain = np.stack([rng.integers(0, height, 200), rng.integers(0, width, 200)], axis=1).astype(np.int32)
+
+    def inside(r, c):
+        return lo[r] <= c <= hi[r]
+
+    want = 0
+    for r, c in chain:
+        neighbours = [(r + dr, c + dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if (dr, dc) != (0, 0)]
+        if any(0 <= rr < height and 0 <= cc < width and not inside(rr, cc) for rr, cc in neighbours):
+            want += 1
+    assert K.count_roi_contacts(chain, len(chain), lo, hi, width) == want

@@ -119,14 +119,14 @@ def test_spans_around_points_matches_reference(rotation) -> None:
     rows = K.spans_around_points(points, len(points), 3, 4.0, *rotation, 10.0, 20.0, height, width, lo, hi)
     mask = np.zeros((height, width), bool)
     dist = np.hypot(points[:, 0] - 10.0, points[:, 1] - 20.0)
+    rr, cc = np.mgrid[0:height, 0:width]
     for (pr, pc), d in zip(points, dist, strict=True):
         m = 3 + int(np.ceil(4.0 * d / dist.max()))
         z = complex(*rotation) * complex(pr - 10.0, pc - 20.0)
         pr, pc = 10.0 + z.real, 20.0 + z.imag
-        r0, r1 = max(0, int(np.floor(pr)) - m), min(height - 1, int(np.ceil(pr)) + m)
-        c0, c1 = max(0, int(np.floor(pc)) - m), min(width - 1, int(np.ceil(pc)) + m)
-        if r0 <= r1 and c0 <= c1:
-            mask[r0 : r1 + 1, c0 : c1 + 1] = True
+        half = np.sqrt(np.maximum(0.0, m * m - (rr - pr) ** 2))
+        inside_rows = np.abs(rr - pr) <= m
+        mask |= inside_rows & (cc >= np.floor(pc - half)) & (cc <= np.ceil(pc + half))
     assert rows == int(mask.any(axis=1).sum())
     for r in range(height):
         cols = np.flatnonzero(mask[r])
