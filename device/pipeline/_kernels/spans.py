@@ -60,17 +60,20 @@ def spans_around_points(
     disc's radius is ``m = margin_px + ceil(motion_px * d / d_max)``: `motion_px` is the uncertainty of the
     prediction at the farthest point. Row r gets the columns ``floor(c - h) .. ceil(c + h)`` with
     ``h = sqrt(m**2 - (r - row)**2)`` (discs, not squares: a band along a diagonal rope is 30 % narrower).
-    Points closer than a quarter of the radius (L1) to the last one used are skipped, so every point keeps
-    at least 3/4 of its radius.
+    Points closer than half the radius (L1) to the last one used are skipped (the chain is 8-connected, so
+    every point keeps at least half its radius).
     """
     for r in range(height):
         out_lo[r] = width
         out_hi[r] = -1
-    d_max = 1e-6
+    d2_max = 1e-12
     for i in range(n_points):
-        d = math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c)
-        if d > d_max:
-            d_max = d
+        dr = points[i, 0] - fixed_r
+        dc = points[i, 1] - fixed_c
+        d2 = dr * dr + dc * dc
+        if d2 > d2_max:
+            d2_max = d2
+    d_max = math.sqrt(d2_max)
     last_r = -1e9
     last_c = -1e9
     for i in range(n_points):
@@ -78,15 +81,14 @@ def spans_around_points(
         pc = points[i, 1]
         if not (pr == pr and pc == pc):
             continue
-        d = math.hypot(pr - fixed_r, pc - fixed_c)
-        share = d / d_max
+        zr = pr - fixed_r
+        zc = pc - fixed_c
+        share = math.sqrt(zr * zr + zc * zc) / d_max
         m = margin_px + math.ceil(motion_px * share)
-        if i != n_points - 1 and abs(pr - last_r) + abs(pc - last_c) < 0.25 * m:
+        if i != n_points - 1 and abs(pr - last_r) + abs(pc - last_c) < 0.5 * m:
             continue
         last_r = pr
         last_c = pc
-        zr = pr - fixed_r
-        zc = pc - fixed_c
         qr = fixed_r + rot_a * zr - rot_b * zc
         qc = fixed_c + rot_b * zr + rot_a * zc
         if not (abs(qr) < 1e9 and abs(qc) < 1e9):
