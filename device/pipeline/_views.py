@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["f32", "i32", "resident_zeros", "ro", "staggered_planes"]
+__all__ = ["as_ro", "f32", "i32", "resident_zeros", "ro", "staggered_planes"]
 
 
 def ro(array: NDArray[Any]) -> NDArray[Any]:
@@ -21,6 +21,11 @@ def ro(array: NDArray[Any]) -> NDArray[Any]:
     view = array.view()
     view.flags.writeable = False
     return view
+
+
+def as_ro(array: NDArray[Any]) -> NDArray[Any]:
+    """Return `array` itself when it is read-only already, else a read-only view (`ro`)."""
+    return array if not array.flags.writeable else ro(array)
 
 
 def i32(value: int) -> np.int32:

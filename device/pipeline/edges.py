@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import resident_zeros, ro, staggered_planes
+from ropecam.device.pipeline._views import as_ro, resident_zeros, ro, staggered_planes
 
 __all__ = ["EdgeDetector", "gaussian_weights"]
 
@@ -53,6 +53,11 @@ class EdgeDetector:
         self.full_lo = np.zeros(height, np.int32)
         self.full_hi = np.full(height, width - 1, np.int32)
         self.count = 0
+        # Read-only views made once: a view per kernel call costs microseconds of Python.
+        self.weights_ro = ro(self.weights)
+        self.edges_ro, self.mag_ro, self.gx_ro, self.gy_ro = (ro(a) for a in (self.edges, self.mag, self.gx, self.gy))
+        self.stack_ro = ro(self.stack)
+        self.full_lo_ro, self.full_hi_ro = ro(self.full_lo), ro(self.full_hi)
         """Edge pixels found by the last `detect`; their flat indices are ``stack[:count]`` (raster order)."""
 
     def detect(self, frame: NDArray[np.uint8], lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
@@ -81,8 +86,8 @@ class EdgeDetector:
         if lo.shape != (self.shape[0],) or hi.shape != (self.shape[0],) or lo.dtype != np.int32:
             raise ValueError(f"lo/hi must be int32 of shape ({self.shape[0]},)")
         count = K.detect_edges(
-            ro(frame), ro(self.weights), ro(lo), ro(hi), self.low, self.high, self.work_spans, self.tmp, self.smooth,
-            self.gx, self.gy, self.mag, self.edges, self.stack,
+            as_ro(frame), self.weights_ro, as_ro(lo), as_ro(hi), self.low, self.high, self.work_spans, self.tmp,
+            self.smooth, self.gx, self.gy, self.mag, self.edges, self.stack,
         )  # fmt: skip
         if count < 0:
             raise RuntimeError(f"detect_edges returned status {count}")

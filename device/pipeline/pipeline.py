@@ -72,7 +72,14 @@ class Pipeline:
         self.hi = np.zeros(height, np.int32)
         self.grow_lo = np.zeros(height, np.int32)
         self.grow_hi = np.zeros(height, np.int32)
+        # Read-only views made once (a view per kernel call costs microseconds of Python), int32 constants.
+        self._lo_ro, self._hi_ro, self._grow_lo_ro, self._grow_hi_ro = (
+            ro(a) for a in (self.lo, self.hi, self.grow_lo, self.grow_hi)
+        )
+        self._height32, self._width32 = np.int32(height), np.int32(width)
+        self._margin32 = i32(config.roi_margin_px)
         self.prev_points = np.zeros((cap, 2), np.float32)
+        self._prev_points_ro = ro(self.prev_points)
         self.prev_count = 0
         self.turn_cap = np.zeros(cap, np.float32)
         self.begin_buf = np.zeros((cap, 2), np.float32)
@@ -234,14 +241,16 @@ class Pipeline:
         result.segmentation_points = outcome.segmentation_points
         begin, end, confidence = self._order(outcome, result.t_ns)
         result.begin, result.end, result.order_confidence = begin, end, confidence
-        length_begin = self.tracker.length(begin)
-        length_end = length_begin if end is begin else self.tracker.length(end)
+        begin_ro = ro(begin)
+        end_ro = begin_ro if end is begin else ro(end)
+        length_begin = self.tracker.length(begin_ro)
+        length_end = length_begin if end is begin else self.tracker.length(end_ro)
         self.tracker.observe(length_begin)
         if end is not begin:
             self.tracker.observe(length_end)
         result.material_arc_m = self.tracker.arc_m
-        result.material_begin, result.stretch_begin = self.tracker.track(begin, 0, length_begin)
-        result.material_end, result.stretch_end = self.tracker.track(end, 1, length_end)
+        result.material_begin, result.stretch_begin = self.tracker.track(begin_ro, 0, length_begin)
+        result.material_end, result.stretch_end = self.tracker.track(end_ro, 1, length_end)
         result.status = FrameStatus.OK
         tip_begin = begin[-1].astype(np.float64)
         tip_end = end[-1].astype(np.float64)
@@ -258,7 +267,6 @@ class Pipeline:
 
         Returns (contour points, found in the band predicted from the last frame).
         """
-        height, width = self.shape
         margin = self.config.roi_margin_px
         if self._fixed_known:
             fr, fc = self.fixed
@@ -267,8 +275,8 @@ class Pipeline:
         if self.prev_count > 0:
             rot_a, rot_b, motion = self._motion.predict(t_ns, exposure_ns) if self._fixed_known else (1.0, 0.0, 0.0)
             K.spans_around_points(
-                ro(self.prev_points), i32(self.prev_count), i32(margin), f32(motion), f32(rot_a), f32(rot_b),
-                fr, fc, i32(height), i32(width), self.lo, self.hi,
+                self._prev_points_ro, np.int32(self.prev_count), self._margin32, f32(motion), f32(rot_a), f32(rot_b),
+                fr, fc, self._height32, self._width32, self.lo, self.hi,
             )  # fmt: skip
             n = self._search(image, i32(margin + max(8, math.ceil(2.0 * motion))), fr, fc)
             if n > 0:
@@ -284,33 +292,32 @@ class Pipeline:
                 self.frames_coarse += 1
                 return n, False
         self.frames_full += 1
-        self.edges.detect(image, self.edges.full_lo, self.edges.full_hi)
-        return self._trace(self.edges.full_lo, self.edges.full_hi), False
+        self.edges.detect(image, self.edges.full_lo_ro, self.edges.full_hi_ro)
+        return self._trace(self.edges.full_lo_ro, self.edges.full_hi_ro), False
 
     def _search(self, image: NDArray[np.uint8], grow: np.int32, fr: np.float32, fc: np.float32) -> int:
         """Detect and trace inside the spans `lo`/`hi`, widening them by `grow` px around a contour that reaches
         their border; returns the contour's points, 0 when it is not found whole inside them."""
-        height, width = self.shape
         for attempt in range(_ROI_RETRIES + 1):
-            self.edges.detect(image, self.lo, self.hi)
-            n = self._trace(self.lo, self.hi)
+            self.edges.detect(image, self._lo_ro, self._hi_ro)
+            n = self._trace(self._lo_ro, self._hi_ro)
             if n == 0:
                 return 0
-            if self.tracer.roi_contacts(self.lo, self.hi) == 0:
+            if self.tracer.roi_contacts(self._lo_ro, self._hi_ro) == 0:
                 self.roi_retries += attempt
                 return n
             if attempt < _ROI_RETRIES:  # the rope runs out of the band: widen it around what was found
                 K.spans_around_points(
-                    ro(self.tracer.points), i32(n), grow, f32(0.0), f32(1.0), f32(0.0), fr, fc,
-                    i32(height), i32(width), self.grow_lo, self.grow_hi,
+                    self.tracer.points_ro, np.int32(n), grow, f32(0.0), f32(1.0), f32(0.0), fr, fc,
+                    self._height32, self._width32, self.grow_lo, self.grow_hi,
                 )  # fmt: skip
-                K.union_spans(ro(self.grow_lo), ro(self.grow_hi), self.lo, self.hi)
+                K.union_spans(self._grow_lo_ro, self._grow_hi_ro, self.lo, self.hi)
         self.roi_retries += _ROI_RETRIES
         return 0
 
     def _trace(self, lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
         e = self.edges
-        return self.tracer.trace(e.edges, lo, hi, e.mag, e.gx, e.gy, e.stack, e.count)
+        return self.tracer.trace(e.edges, lo, hi, e.mag_ro, e.gx_ro, e.gy_ro, e.stack_ro, e.count)
 
     def _polarity_now(self) -> float:
         """The configured polarity, or the majority of the first frames' once they are in (0 = decide now)."""
