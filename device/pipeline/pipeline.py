@@ -303,16 +303,19 @@ class Pipeline:
             n = self._trace(self._lo_ro, self._hi_ro)
             if n == 0:
                 return 0
-            if self.tracer.roi_contacts(self._lo_ro, self._hi_ro) == 0:
+            contacts = self.tracer.roi_contacts(self._lo_ro, self._hi_ro)
+            if contacts == 0:
                 self.roi_retries += attempt
                 return n
+            if contacts * 4 > n:  # mostly cut off: the rope is elsewhere, widening would only creep after it
+                break
             if attempt < _ROI_RETRIES:  # the rope runs out of the band: widen it around what was found
                 K.spans_around_points(
                     self.tracer.points_ro, np.int32(n), grow, f32(0.0), f32(1.0), f32(0.0), fr, fc,
                     self._height32, self._width32, self.grow_lo, self.grow_hi,
                 )  # fmt: skip
                 K.union_spans(self._grow_lo_ro, self._grow_hi_ro, self.lo, self.hi)
-        self.roi_retries += _ROI_RETRIES
+        self.roi_retries += attempt
         return 0
 
     def _trace(self, lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
@@ -442,7 +445,8 @@ class _MotionState:
         With one measured frame the direction is unknown: no motion, an uncertainty of 1.3 x the last sweep
         scaled from the exposure to the time gap, plus a pixel. With two, a constant angular and radial velocity
         (uncertainty half the predicted step); with three, a constant acceleration (uncertainty 0.3 x the step
-        plus the acceleration term); both plus a quarter of the sweep and a pixel.
+        plus the acceleration term); both plus a quarter of the sweep and 2 px. (The tip itself is predicted to
+        1-5 px on the simulated rigs; the margin is for the rest of a bending rope.)
         """
         if not self.times_ns:
             return 1.0, 0.0, 0.0
@@ -462,8 +466,8 @@ class _MotionState:
             dt0 = float(self.times_ns[-2] - self.times_ns[-3])
             accel = (rate - (l0 - self.logs[-3]) / dt0) / (0.5 * (dt0 + dt1))
             step = (rate + 0.5 * dt1 * accel) * gap_ns + 0.5 * accel * gap_ns * gap_ns
-            uncertainty = 0.1 * abs(cmath.exp(rate * gap_ns) - 1.0) * radius + abs(accel) * gap_ns * gap_ns * radius
+            uncertainty = 0.3 * abs(cmath.exp(rate * gap_ns) - 1.0) * radius + abs(accel) * gap_ns * gap_ns * radius
         factor = cmath.exp(step)
         if not (abs(step.real) < 1.0 and math.isfinite(factor.real) and math.isfinite(factor.imag)):
             return 1.0, 0.0, 1.3 * sweep * 2.0 + 1.0  # implausible (a jump): no direction
-        return factor.real, factor.imag, uncertainty + 0.1 * sweep + 2.0
+        return factor.real, factor.imag, uncertainty + 0.25 * sweep + 2.0
