@@ -206,10 +206,15 @@ def _timed_stages(pipeline: Pipeline, totals: dict[str, float]) -> None:
     K.spans_around_points = timed_spans
 
 
+_SETTLE_FRAMES = 16
+"""Frames after which the pipeline has stopped measuring its slow state (width, polarity, fixed end, Lc0)."""
+
+
 def stage_report(
     config: PipelineConfig, frames: list[tuple[np.ndarray, int, float]], size: tuple[int, int]
 ) -> dict[str, Any]:
-    """Median per-frame time of each stage; times of frames searched whole and of frames whose ROI misses."""
+    """Median per-frame time of each stage; times of frames searched without a band and of frames whose band
+    misses (both after the first `_SETTLE_FRAMES` frames, when the pipeline measures only what changes)."""
     pipeline = Pipeline(config, size)
     for index, (image, t_ns, exposure_us) in enumerate(frames[:3]):
         pipeline.process(image, index, t_ns, exposure_us)
@@ -234,20 +239,21 @@ def stage_report(
     # A frame searched without an ROI: the pipeline knows the rope (width, fixed end) but not where it is.
     searched, searched_paths = [], []
     pipeline = Pipeline(config, size)
+    settled = min(_SETTLE_FRAMES, len(frames) // 2)  # width, polarity and fixed end are measured until then
     for index, (image, t_ns, exposure_us) in enumerate(frames):
-        if index >= 3:
+        if index >= settled:
             pipeline.reset_tracking()
             before = (pipeline.frames_coarse, pipeline.frames_full)
         result = pipeline.process(image, index, t_ns, exposure_us)
-        if index >= 3:
+        if index >= settled:
             searched.append(result.pipeline_us)
             searched_paths.append("coarse" if pipeline.frames_coarse > before[0] else "full")
     # A frame whose ROI misses: the rope jumped (a frame 12 periods later arrives one period after the last).
     missed, missed_paths = [], []
     period_ns = int(np.median(np.diff([t for _, t, _ in frames]))) if len(frames) > 1 else 8_400_000
-    for start in range(3, max(4, len(frames) - 12), 3):
+    for start in range(settled, max(settled + 1, len(frames) - 12), 3):
         pipeline = Pipeline(config, size)
-        for index in range(start - 3, start):
+        for index in range(start):
             image, t_ns, exposure_us = frames[index]
             pipeline.process(image, index, t_ns, exposure_us)
         image, _, exposure_us = frames[start + 12]
