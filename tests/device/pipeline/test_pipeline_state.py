@@ -92,3 +92,15 @@ def test_invalid_exposure_is_a_bad_frame_naming_it(swing, swing_frames, exposure
     assert "exposure_us" in r.message and r.t_end_ns == r.t_ns
     r = pipeline.process(swing_frames[1].image, 1, swing_frames[1].t_ns, 4000)
     assert r.status is FrameStatus.OK
+
+
+def test_reset_tracking_searches_the_next_frame_afresh(swing, swing_frames) -> None:
+    pipeline = Pipeline(PipelineConfig(), (swing.width, swing.height))
+    results = _run(pipeline, swing_frames, (0, 1, 2))
+    assert not results[-1].full_frame and results[-1].order_confidence > 0.5
+    fixed = pipeline.fixed.copy()
+    pipeline.reset_tracking()
+    r = _run(pipeline, swing_frames, (3,))[0]
+    assert r.status is FrameStatus.OK and r.full_frame and r.order_confidence == 0.5
+    np.testing.assert_allclose(pipeline.fixed, fixed, atol=1.0)  # what does not change is kept
+    assert pipeline.frames_coarse + pipeline.frames_full == 2  # the first frame and this one
