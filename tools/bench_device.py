@@ -251,7 +251,7 @@ def stage_report(
     # A frame whose ROI misses: the rope jumped (a frame 12 periods later arrives one period after the last).
     missed, missed_paths = [], []
     period_ns = int(np.median(np.diff([t for _, t, _ in frames]))) if len(frames) > 1 else 8_400_000
-    for start in range(settled, max(settled + 1, len(frames) - 12), 3):
+    for start in range(settled, len(frames) - 12, 3):  # none with fewer than settled + 13 frames
         pipeline = Pipeline(config, size)
         for index in range(start):
             image, t_ns, exposure_us = frames[index]
