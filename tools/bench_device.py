@@ -5,7 +5,14 @@ contour, split, material points), the median of ``cv2.Canny`` on the full frame,
 pipeline processed in its region of interest, and the Numba (NRT) allocations per frame beyond the one MemInfo per
 array argument that passing a NumPy array to a compiled function costs.
 
-    python tools/bench_device.py [--frames N] [--frameset PATH] [--method M] [--json]
+With ``--stages`` it also reports (in further passes over the same frames, so the main figures are not disturbed):
+the median time per frame of each stage (edges, contour, split, ordering, material points, ROI building; "other"
+is the rest: Python glue, result records), the time of a frame searched without a region of interest (the first
+frame of a fresh pipeline, or after ``reset_tracking``: coarse search, then the band around the rope) and of a
+frame whose predicted region of interest misses (the rope jumped: the band is widened, then the coarse search
+runs), each as a median over several frames.
+
+    python tools/bench_device.py [--frames N] [--frameset PATH] [--method M] [--stages] [--json]
 """
 
 from __future__ import annotations
@@ -83,6 +90,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--frames", type=int, default=40, help="frames to time (default 40)")
     parser.add_argument("--frameset", help="time these frames instead of the synthetic rig frames")
     parser.add_argument("--method", default="blur_split", choices=("blur_split", "paper", "centerline"))
+    parser.add_argument("--stages", action="store_true", help="also time each stage, full-frame and ROI-miss frames")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     args = parser.parse_args(argv)
     cv2.setNumThreads(1)
@@ -90,8 +98,9 @@ def main(argv: list[str] | None = None) -> int:
     height, width = frames[0][0].shape
     config = PipelineConfig(method=args.method)
     pipeline = Pipeline(config, (width, height))
+    warm_up_us = []
     for image, t_ns, exposure_us in frames[:3]:  # warm-up: fixed end, width and Lc0 estimates, caches
-        pipeline.process(image, 0, t_ns, exposure_us)
+        warm_up_us.append(pipeline.process(image, 0, t_ns, exposure_us).pipeline_us)
         cv2.Canny(image, config.canny_low, config.canny_high, L2gradient=True)
     ours, canny, statuses = [], [], {}
     timed = frames[3:]
@@ -125,28 +134,166 @@ def main(argv: list[str] | None = None) -> int:
         "canny_median_us": float(np.median(canny)),
         "ratio": float(np.median(ours) / np.median(canny)),
         "roi_frames": pipeline.frames_roi,
+        "coarse_frames": pipeline.frames_coarse,
         "full_frames": pipeline.frames_full,
+        "roi_retries": pipeline.roi_retries,
+        "first_frame_us": warm_up_us[0],
         "statuses": statuses,
         "nrt_allocations_per_frame": nrt / n,
         "array_arguments_per_frame": counter.count / n,
         "nrt_extra_allocations_per_frame": (nrt - counter.count) / n,
         "nrt_leaked": (after.alloc - before.alloc) - (after.free - before.free),
     }
+    if args.stages:
+        report.update(stage_report(config, frames, (width, height)))
     if args.json:
         print(json.dumps(report))
     else:
         print(f"frames {n} of {width}x{height} ({args.method}), statuses {statuses}")
         print(
             f"pipeline median {report['pipeline_median_us']:.0f} us/frame "
-            f"({pipeline.frames_roi} ROI frames, {pipeline.frames_full} full frames)"
+            f"({pipeline.frames_roi} in the ROI, {pipeline.roi_retries} ROI widenings, {pipeline.frames_coarse} "
+            f"coarse searches, {pipeline.frames_full} whole-frame searches, warm-up frames included)"
         )
+        print(f"first frame of the process (one-time tables built): {warm_up_us[0]:.0f} us")
         print(f"cv2.Canny median {report['canny_median_us']:.0f} us/frame (1 thread)")
         print(f"ratio pipeline / Canny = {report['ratio']:.3f}")
         print(
             f"NRT allocations per frame: {report['nrt_extra_allocations_per_frame']:.2f} beyond the "
             f"{report['array_arguments_per_frame']:.0f} array-argument MemInfos; leaked {report['nrt_leaked']}"
         )
+        if args.stages:
+            print_stages(report)
     return 0
+
+
+_STAGES = (
+    ("edges", "edges", "detect"),
+    ("contour", "tracer", "trace"),
+    ("roi_contacts", "tracer", "roi_contacts"),
+    ("border_contacts", "tracer", "border_contacts"),
+    ("split", "splitter", "split"),
+    ("order", None, "_order"),
+    ("fixed_end", None, "_fixed_end"),
+    ("material_points", "tracker", "track"),
+    ("lengths", "tracker", "length"),
+)
+
+
+def _timed_stages(pipeline: Pipeline, totals: dict[str, float]) -> None:
+    """Wrap the stage methods of `pipeline` so that their time (us) accumulates in `totals`."""
+    for label, owner, name in _STAGES:
+        target = pipeline if owner is None else getattr(pipeline, owner)
+        method = getattr(target, name)
+
+        def timed(*a: Any, _method: Any = method, _label: str = label, **k: Any) -> Any:
+            t0 = time.perf_counter_ns()
+            try:
+                return _method(*a, **k)
+            finally:
+                totals[_label] = totals.get(_label, 0.0) + (time.perf_counter_ns() - t0) / 1000
+
+        setattr(target, name, timed)
+    spans = K.spans_around_points
+
+    def timed_spans(*a: Any) -> Any:
+        t0 = time.perf_counter_ns()
+        try:
+            return spans(*a)
+        finally:
+            totals["roi_spans"] = totals.get("roi_spans", 0.0) + (time.perf_counter_ns() - t0) / 1000
+
+    K.spans_around_points = timed_spans
+
+
+_SETTLE_FRAMES = 16
+"""Frames after which the pipeline has stopped measuring its slow state (width, polarity, fixed end, Lc0)."""
+
+
+def stage_report(
+    config: PipelineConfig, frames: list[tuple[np.ndarray, int, float]], size: tuple[int, int]
+) -> dict[str, Any]:
+    """Median per-frame time of each stage; times of frames searched without a band and of frames whose band
+    misses (both after the first `_SETTLE_FRAMES` frames, when the pipeline measures only what changes)."""
+    pipeline = Pipeline(config, size)
+    for index, (image, t_ns, exposure_us) in enumerate(frames[:3]):
+        pipeline.process(image, index, t_ns, exposure_us)
+    per_frame: list[dict[str, float]] = []
+    totals: dict[str, float] = {}
+    original = K.spans_around_points
+    _timed_stages(pipeline, totals)
+    try:
+        for index, (image, t_ns, exposure_us) in enumerate(frames[3:], start=3):
+            totals.clear()
+            t0 = time.perf_counter_ns()
+            pipeline.process(image, index, t_ns, exposure_us)
+            total = (time.perf_counter_ns() - t0) / 1000
+            row = dict(totals)
+            row["other"] = total - sum(totals.values())
+            row["total"] = total
+            per_frame.append(row)
+    finally:
+        K.spans_around_points = original
+    labels = [label for label, _, _ in _STAGES] + ["roi_spans", "other", "total"]
+    stages = {label: float(np.median([row.get(label, 0.0) for row in per_frame])) for label in labels}
+    # A frame searched without an ROI: the pipeline knows the rope (width, fixed end) but not where it is.
+    searched, searched_paths = [], []
+    pipeline = Pipeline(config, size)
+    settled = min(_SETTLE_FRAMES, len(frames) // 2)  # width, polarity and fixed end are measured until then
+    for index, (image, t_ns, exposure_us) in enumerate(frames):
+        if index >= settled:
+            pipeline.reset_tracking()
+            before = (pipeline.frames_coarse, pipeline.frames_full)
+        result = pipeline.process(image, index, t_ns, exposure_us)
+        if index >= settled:
+            searched.append(result.pipeline_us)
+            searched_paths.append("coarse" if pipeline.frames_coarse > before[0] else "full")
+    # A frame whose ROI misses: the rope jumped (a frame 12 periods later arrives one period after the last).
+    missed, missed_paths = [], []
+    period_ns = int(np.median(np.diff([t for _, t, _ in frames]))) if len(frames) > 1 else 8_400_000
+    for start in range(settled, len(frames) - 12, 3):  # none with fewer than settled + 13 frames
+        pipeline = Pipeline(config, size)
+        for index in range(start):
+            image, t_ns, exposure_us = frames[index]
+            pipeline.process(image, index, t_ns, exposure_us)
+        image, _, exposure_us = frames[start + 12]
+        last_t_ns = frames[start - 1][1]
+        before = (pipeline.frames_roi, pipeline.frames_coarse, pipeline.roi_retries)
+        result = pipeline.process(image, start + 12, last_t_ns + period_ns, exposure_us)
+        missed.append(result.pipeline_us)
+        if pipeline.frames_roi > before[0]:
+            missed_paths.append(f"roi+{pipeline.roi_retries - before[2]}")
+        else:
+            missed_paths.append("coarse" if pipeline.frames_coarse > before[1] else "full")
+    first = Pipeline(config, size)
+    image, t_ns, exposure_us = frames[0]
+    first_us = first.process(image, 0, t_ns, exposure_us).pipeline_us
+    return {
+        "stages_median_us": stages,
+        "searched_frame_median_us": float(np.median(searched)),
+        "searched_frame_max_us": float(np.max(searched)),
+        "searched_paths": {p: searched_paths.count(p) for p in sorted(set(searched_paths))},
+        "roi_miss_frame_median_us": float(np.median(missed)) if missed else None,
+        "roi_miss_frame_max_us": float(np.max(missed)) if missed else None,
+        "roi_miss_paths": {p: missed_paths.count(p) for p in sorted(set(missed_paths))},
+        "first_frame_fresh_pipeline_us": first_us,
+    }
+
+
+def print_stages(report: dict[str, Any]) -> None:
+    """Print the `stage_report` part of `report`."""
+    stages = report["stages_median_us"]
+    print("stages (median us/frame): " + ", ".join(f"{k} {v:.0f}" for k, v in stages.items()))
+    print(
+        f"frame searched without ROI: median {report['searched_frame_median_us']:.0f} us, "
+        f"max {report['searched_frame_max_us']:.0f} us ({report['searched_paths']})"
+    )
+    if report["roi_miss_frame_median_us"] is not None:
+        print(
+            f"frame whose ROI misses (rope jumped 12 frames): median {report['roi_miss_frame_median_us']:.0f} us, "
+            f"max {report['roi_miss_frame_max_us']:.0f} us ({report['roi_miss_paths']})"
+        )
+    print(f"first frame of a fresh pipeline (one-time tables cached): {report['first_frame_fresh_pipeline_us']:.0f} us")
 
 
 if __name__ == "__main__":

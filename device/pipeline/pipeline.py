@@ -7,6 +7,7 @@ shapes of a frame in time order.
 
 from __future__ import annotations
 
+import cmath
 import math
 import time
 
@@ -14,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import i32, ro
+from ropecam.device.pipeline._views import f32, i32, resident_zeros, ro
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.contour import ContourTracer
 from ropecam.device.pipeline.edges import EdgeDetector
@@ -28,6 +29,15 @@ _FIXED_END_FRAMES = 10
 _WIDTH_FRAMES = 15
 """Frames whose measured rope width (median) is used afterwards, when the config gives none."""
 _POLARITY_FRAMES = 5
+_ROI_RETRIES = 2
+"""Times a band is widened around a contour that runs out of it before the next way of searching is tried."""
+_COARSE_BLOCK = 4
+"""Cell size (px) of the coarse search for the rope when there is no ROI."""
+_COARSE_MIN_CELLS = 8
+"""Smallest group of active cells the coarse search keeps (a hot pixel makes a cross of 5; a rope of the
+smallest accepted contour, 40 px, about 20)."""
+_COARSE_DILATE = 2
+"""Cells added around the kept cells."""
 """Frames whose polarity votes decide the polarity afterwards, when the config says auto."""
 
 
@@ -61,7 +71,16 @@ class Pipeline:
         self.splitter.paper.radius_scaled = config.paper_endpoint_radius_scaled
         self.lo = np.zeros(height, np.int32)
         self.hi = np.zeros(height, np.int32)
+        self.grow_lo = np.zeros(height, np.int32)
+        self.grow_hi = np.zeros(height, np.int32)
+        # Read-only views made once (a view per kernel call costs microseconds of Python), int32 constants.
+        self._lo_ro, self._hi_ro, self._grow_lo_ro, self._grow_hi_ro = (
+            ro(a) for a in (self.lo, self.hi, self.grow_lo, self.grow_hi)
+        )
+        self._height32, self._width32 = np.int32(height), np.int32(width)
+        self._margin32 = i32(config.roi_margin_px)
         self.prev_points = np.zeros((cap, 2), np.float32)
+        self._prev_points_ro = ro(self.prev_points)
         self.prev_count = 0
         self.turn_cap = np.zeros(cap, np.float32)
         self.begin_buf = np.zeros((cap, 2), np.float32)
@@ -77,15 +96,22 @@ class Pipeline:
         self._width_cache: float | None = None
         self._prev_tips: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self._prev_t_ns: tuple[int, int] | None = None
-        self._prev_sweep = 0.0
-        self._prev_step = 0.0
-        self._last_tip: NDArray[np.float64] | None = None
-        self._period_ns: int | None = None
+        self._motion = _MotionState()
+        self._roi_t_ns: int | None = None
         self.frames_full = 0
+        self.frames_coarse = 0
         self.frames_roi = 0
+        self.roi_retries = 0
+        cells = (max(1, height // _COARSE_BLOCK), max(1, width // _COARSE_BLOCK))
+        self.coarse_sums = resident_zeros(cells, np.int32)
+        self.coarse_labels = resident_zeros(cells, np.int32)
+        self.coarse_stack = resident_zeros(max(cells[0] * cells[1], width), np.int32)
+        # A cell is active when its mean differs from a neighbour's by canny_low / 8 grey levels: the step over
+        # which the Sobel magnitude of a sharp edge reaches the low threshold.
+        self._coarse_step = i32(max(1, round(_COARSE_BLOCK * _COARSE_BLOCK * config.canny_low / 8.0)))
 
     # ----------------------------------------------------------------------------------------------------------
-    def process(self, frame: object, index: int, t_ns: int, exposure_us: float) -> FrameResult:
+    def process(self, frame: object, index: int, t_ns: int, exposure_us: float | None) -> FrameResult:
         """Measure one frame.
 
         Parameters
@@ -97,7 +123,9 @@ class Pipeline:
         t_ns
             Start of the exposure in integer nanoseconds.
         exposure_us
-            Exposure time in microseconds.
+            Exposure time in microseconds; 0 or None when unknown (then ``t_end_ns == t_ns``, the shapes get no
+            time order (confidence 0.5) and the ROI follows the tip's frame-to-frame steps). A negative or
+            non-finite value gives status BAD_FRAME.
 
         Returns
         -------
@@ -105,19 +133,42 @@ class Pipeline:
             Arrays in it are views into the pipeline's buffers, valid until the next call.
         """
         start_ns = time.perf_counter_ns()
-        t_end_ns = int(t_ns + round(exposure_us * 1000))
-        result = FrameResult(frame=int(index), t_ns=int(t_ns), t_end_ns=t_end_ns, status=FrameStatus.BAD_FRAME)
-        problem = self._check_frame(frame)
+        exposure_ns, exposure_problem = _exposure_ns(exposure_us)
+        result = FrameResult(
+            frame=int(index), t_ns=int(t_ns), t_end_ns=int(t_ns) + exposure_ns, status=FrameStatus.BAD_FRAME
+        )
+        problem = self._check_frame(frame) or exposure_problem
         if problem:
             result.message = problem
+            self._forget(roi=True)
         else:
             assert isinstance(frame, np.ndarray)
             image = frame if frame.flags.c_contiguous else np.ascontiguousarray(frame)
-            self._measure(image, result)
-        if self._prev_t_ns is not None and t_ns > self._prev_t_ns[0]:
-            self._period_ns = int(t_ns - self._prev_t_ns[0])
+            self._measure(image, result, exposure_ns)
+            if result.status is not FrameStatus.OK:
+                self._forget(roi=result.status is FrameStatus.NO_ROPE)
+            elif exposure_ns == 0:
+                result.message = "exposure unknown (0): no time order, the ROI follows the tip steps only"
         result.pipeline_us = (time.perf_counter_ns() - start_ns) / 1000.0
         return result
+
+    def reset_tracking(self) -> None:
+        """Forget the region of interest and the motion: the next frame is searched whole, as the first one.
+        What does not change between frames (fixed end, width, polarity, Lc0) is kept."""
+        self._forget(roi=True)
+
+    def _forget(self, roi: bool) -> None:
+        """Drop the state that predicts this frame from the last one after a frame without shapes (a gap): the
+        tips, steps and sweeps (and with `roi`, the region of interest), so the next frame starts afresh instead
+        of extrapolating stale motion. What does not change between frames (fixed end, width, polarity, Lc0)
+        is kept."""
+        self._prev_tips = None
+        self._prev_t_ns = None
+        self._motion.clear()
+        self.splitter.sweep_px = 0.0
+        if roi:
+            self.prev_count = 0
+            self._roi_t_ns = None
 
     def _check_frame(self, frame: object) -> str:
         if not isinstance(frame, np.ndarray):
@@ -131,31 +182,9 @@ class Pipeline:
         return ""
 
     # ----------------------------------------------------------------------------------------------------------
-    def _measure(self, image: NDArray[np.uint8], result: FrameResult) -> None:
-        height, width = self.shape
-        n = 0
-        used_roi = False
-        if self.prev_count > 0:
-            motion = np.float32(self._motion_margin())
-            fr, fc = (np.float32(v) for v in self.fixed) if self._fixed_known else (np.float32(0), np.float32(0))
-            if not self._fixed_known:
-                motion = np.float32(0.0)
-            K.spans_around_points(
-                ro(self.prev_points), i32(self.prev_count), i32(self.config.roi_margin_px), motion, fr, fc,
-                i32(height), i32(width),
-                self.lo, self.hi,
-            )  # fmt: skip
-            self.edges.detect(image, self.lo, self.hi)
-            n = self._trace(self.lo, self.hi)
-            used_roi = n > 0 and self.tracer.roi_contacts(self.lo, self.hi) == 0
-        if not used_roi:
-            self.edges.detect(image, self.edges.full_lo, self.edges.full_hi)
-            n = self._trace(self.edges.full_lo, self.edges.full_hi)
+    def _measure(self, image: NDArray[np.uint8], result: FrameResult, exposure_ns: int) -> None:
+        n, used_roi = self._locate(image, result.t_ns, exposure_ns)
         result.full_frame = not used_roi
-        if used_roi:
-            self.frames_roi += 1
-        else:
-            self.frames_full += 1
         if n == 0:
             self.prev_count = 0
             result.status = FrameStatus.NO_ROPE
@@ -164,6 +193,7 @@ class Pipeline:
         points = self.tracer.points
         self.prev_points[:n] = points[:n]
         self.prev_count = n
+        self._roi_t_ns = result.t_ns
         width_px = self._width()
         fixed = self._fixed_end(points, n, width_px)
         measure = self.config.rope_width_px is None and len(self._widths) < _WIDTH_FRAMES
@@ -207,38 +237,91 @@ class Pipeline:
             result.message = "contour found but no segmentation points"
             self._prev_tips = None
             return
-        self._prev_sweep = self.splitter.sweep_px
         result.method = outcome.method
         result.rope_width_px = outcome.width_px
         result.segmentation_points = outcome.segmentation_points
         begin, end, confidence = self._order(outcome, result.t_ns)
         result.begin, result.end, result.order_confidence = begin, end, confidence
-        self.tracker.observe(self.tracker.length(begin))
+        begin_ro = ro(begin)
+        end_ro = begin_ro if end is begin else ro(end)
+        length_begin = self.tracker.length(begin_ro)
+        length_end = length_begin if end is begin else self.tracker.length(end_ro)
+        self.tracker.observe(length_begin)
         if end is not begin:
-            self.tracker.observe(self.tracker.length(end))
+            self.tracker.observe(length_end)
         result.material_arc_m = self.tracker.arc_m
-        result.material_begin, result.stretch_begin = self.tracker.track(begin, 0)
-        result.material_end, result.stretch_end = self.tracker.track(end, 1)
+        result.material_begin, result.stretch_begin = self.tracker.track(begin_ro, 0, length_begin)
+        result.material_end, result.stretch_end = self.tracker.track(end_ro, 1, length_end)
         result.status = FrameStatus.OK
-        self._prev_tips = (begin[-1].astype(np.float64), end[-1].astype(np.float64))
-        if self._last_tip is not None:
-            self._prev_step = float(np.hypot(*(self._prev_tips[1] - self._last_tip)))
-        self._last_tip = self._prev_tips[1]
-        self._prev_t_ns = (result.t_ns, result.t_end_ns)
+        tip_begin = begin[-1].astype(np.float64)
+        tip_end = end[-1].astype(np.float64)
+        self._prev_tips = (tip_begin, tip_end)
+        self._prev_t_ns = (result.t_ns, result.t_end_ns) if exposure_ns > 0 else None
+        sweep_px = max(self.splitter.sweep_px, float(np.hypot(*(tip_end - tip_begin))))
+        tip_mid = 0.5 * (tip_begin + tip_end)
+        self._motion.observe(result.t_ns + exposure_ns // 2, tip_mid, self.fixed, sweep_px, exposure_ns)
+
+    def _locate(self, image: NDArray[np.uint8], t_ns: int, exposure_ns: int) -> tuple[int, bool]:
+        """Find the rope's contour: in the band predicted from the last contour, else around the cells where a
+        coarse look (block sums) sees intensity steps, else in the whole frame; a band the contour runs out of
+        is widened around what was found (up to `_ROI_RETRIES` times) before the next way is tried.
+
+        Returns (contour points, found in the band predicted from the last frame).
+        """
+        margin = self.config.roi_margin_px
+        if self._fixed_known:
+            fr, fc = self.fixed
+        else:
+            fr = fc = np.float32(0.0)
+        if self.prev_count > 0:
+            rot_a, rot_b, motion = self._motion.predict(t_ns, exposure_ns) if self._fixed_known else (1.0, 0.0, 0.0)
+            K.spans_around_points(
+                self._prev_points_ro, np.int32(self.prev_count), self._margin32, f32(motion), f32(rot_a), f32(rot_b),
+                fr, fc, self._height32, self._width32, self.lo, self.hi,
+            )  # fmt: skip
+            n = self._search(image, i32(margin + max(8, math.ceil(2.0 * motion))), fr, fc)
+            if n > 0:
+                self.frames_roi += 1
+                return n, True
+        kept = K.coarse_spans(
+            ro(image), i32(_COARSE_BLOCK), self._coarse_step, i32(_COARSE_MIN_CELLS), i32(_COARSE_DILATE),
+            self.coarse_sums, self.coarse_labels, self.coarse_stack, self.lo, self.hi,
+        )  # fmt: skip
+        if kept > 0:
+            n = self._search(image, i32(margin + 8), fr, fc)
+            if n > 0:
+                self.frames_coarse += 1
+                return n, False
+        self.frames_full += 1
+        self.edges.detect(image, self.edges.full_lo_ro, self.edges.full_hi_ro)
+        return self._trace(self.edges.full_lo_ro, self.edges.full_hi_ro), False
+
+    def _search(self, image: NDArray[np.uint8], grow: np.int32, fr: np.float32, fc: np.float32) -> int:
+        """Detect and trace inside the spans `lo`/`hi`, widening them by `grow` px around a contour that reaches
+        their border; returns the contour's points, 0 when it is not found whole inside them."""
+        for attempt in range(_ROI_RETRIES + 1):
+            self.edges.detect(image, self._lo_ro, self._hi_ro)
+            n = self._trace(self._lo_ro, self._hi_ro)
+            if n == 0:
+                return 0
+            contacts = self.tracer.roi_contacts(self._lo_ro, self._hi_ro)
+            if contacts == 0:
+                self.roi_retries += attempt
+                return n
+            if contacts * 4 > n:  # mostly cut off: the rope is elsewhere, widening would only creep after it
+                break
+            if attempt < _ROI_RETRIES:  # the rope runs out of the band: widen it around what was found
+                K.spans_around_points(
+                    self.tracer.points_ro, np.int32(n), grow, f32(0.0), f32(1.0), f32(0.0), fr, fc,
+                    self._height32, self._width32, self.grow_lo, self.grow_hi,
+                )  # fmt: skip
+                K.union_spans(self._grow_lo_ro, self._grow_hi_ro, self.lo, self.hi)
+        self.roi_retries += attempt
+        return 0
 
     def _trace(self, lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
         e = self.edges
-        return self.tracer.trace(e.edges, lo, hi, e.mag, e.gx, e.gy)
-
-    def _motion_margin(self) -> float:
-        """Extra ROI half-width at the tip: how far the rope may move from the last contour to the end of this
-        exposure (the larger of the last tip sweep scaled from the exposure to the frame period and the last
-        frame-to-frame tip step, plus 30 % and a pixel)."""
-        if self._prev_t_ns is None:
-            return 0.0
-        exposure_ns = max(1, self._prev_t_ns[1] - self._prev_t_ns[0])
-        period_ns = self._period_ns or 2 * exposure_ns
-        return 1.3 * max(self._prev_sweep * period_ns / exposure_ns, self._prev_step) + 1.0
+        return self.tracer.trace(e.edges, lo, hi, e.mag_ro, e.gx_ro, e.gy_ro, e.stack_ro, e.count)
 
     def _polarity_now(self) -> float:
         """The configured polarity, or the majority of the first frames' once they are in (0 = decide now)."""
@@ -296,3 +379,96 @@ class Pipeline:
         db = float(np.hypot(*(b[-1] - predicted)))
         confidence = 0.5 + 0.5 * abs(da - db) / (da + db + 1e-6)
         return (a, b, confidence) if da <= db else (b, a, confidence)
+
+
+def _exposure_ns(exposure_us: object) -> tuple[int, str]:
+    """Return the exposure in integer ns (0 = unknown) and a problem message ('' when fine)."""
+    if exposure_us is None:
+        return 0, ""
+    try:
+        value = float(exposure_us)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return 0, f"exposure_us is {exposure_us!r}, expected a number of microseconds (0 = unknown)"
+    if not math.isfinite(value) or value < 0:
+        return 0, f"exposure_us is {value}, expected a finite number of microseconds >= 0 (0 = unknown)"
+    return round(value * 1000.0), ""
+
+
+class _MotionState:
+    """The free end's recent positions, which predict where the rope is in the next frame (the ROI).
+
+    Holds the midpoint of the two tips (independent of the time order) at mid-exposure of up to three
+    consecutive measured frames, as log-polar coordinates about the fixed end (log radius, unwrapped angle), the
+    last tip sweep and exposure. Cleared after a frame without shapes.
+    """
+
+    __slots__ = ("exposure_ns", "logs", "sweep_px", "times_ns")
+
+    def __init__(self) -> None:
+        self.times_ns: list[int] = []
+        self.logs: list[complex] = []
+        self.sweep_px = 0.0
+        self.exposure_ns = 0
+
+    def clear(self) -> None:
+        """Forget everything (a gap in the measurements)."""
+        self.times_ns.clear()
+        self.logs.clear()
+        self.sweep_px = 0.0
+        self.exposure_ns = 0
+
+    def observe(
+        self, t_mid_ns: int, tip_mid: NDArray[np.float64], fixed: NDArray[np.float32], sweep_px: float, exposure_ns: int
+    ) -> None:
+        """Add a measured frame: mid-exposure time, midpoint of the two tips and fixed end (row, col), tip sweep
+        (px) and exposure (ns, 0 = unknown)."""
+        z = complex(float(tip_mid[0] - fixed[0]), float(tip_mid[1] - fixed[1]))
+        if abs(z) < 1.0 or (self.times_ns and t_mid_ns <= self.times_ns[-1]):
+            self.clear()  # tip on the fixed end, or time went backwards or stood still: a new sequence
+            if abs(z) < 1.0:
+                return
+        log = cmath.log(z)
+        if self.logs:  # unwrap the angle
+            turns = round((log.imag - self.logs[-1].imag) / (2.0 * math.pi))
+            log -= 2j * math.pi * turns
+        self.times_ns.append(int(t_mid_ns))
+        self.logs.append(log)
+        if len(self.times_ns) > 3:
+            del self.times_ns[0], self.logs[0]
+        self.sweep_px = float(sweep_px) if math.isfinite(sweep_px) else 0.0
+        self.exposure_ns = int(exposure_ns)
+
+    def predict(self, t_ns: int, exposure_ns: int) -> tuple[float, float, float]:
+        """Return the predicted motion of the rope from the last measured frame to the frame starting at `t_ns`
+        as the complex factor (real, imaginary) that rotates and scales points about the fixed end, and the
+        uncertainty of the free end's position (px).
+
+        With one measured frame the direction is unknown: no motion, an uncertainty of 1.3 x the last sweep
+        scaled from the exposure to the time gap, plus a pixel. With two, a constant angular and radial velocity
+        (uncertainty half the predicted step); with three, a constant acceleration (uncertainty 0.3 x the step
+        plus the acceleration term); both plus a quarter of the sweep and 2 px. (The tip itself is predicted to
+        1-5 px on the simulated rigs; the margin is for the rest of a bending rope.)
+        """
+        if not self.times_ns:
+            return 1.0, 0.0, 0.0
+        gap_ns = float(t_ns + exposure_ns // 2 - self.times_ns[-1])
+        sweep = self.sweep_px
+        if len(self.times_ns) == 1 or gap_ns <= 0:
+            scale = gap_ns / self.exposure_ns if self.exposure_ns > 0 and gap_ns > 0 else 1.0
+            return 1.0, 0.0, 1.3 * sweep * max(1.0, scale) + 1.0
+        l0, l1 = self.logs[-2], self.logs[-1]
+        dt1 = float(self.times_ns[-1] - self.times_ns[-2])
+        rate = (l1 - l0) / dt1
+        radius = math.exp(l1.real)
+        if len(self.times_ns) == 2:
+            step = rate * gap_ns
+            uncertainty = 0.5 * abs(cmath.exp(step) - 1.0) * radius
+        else:
+            dt0 = float(self.times_ns[-2] - self.times_ns[-3])
+            accel = (rate - (l0 - self.logs[-3]) / dt0) / (0.5 * (dt0 + dt1))
+            step = (rate + 0.5 * dt1 * accel) * gap_ns + 0.5 * accel * gap_ns * gap_ns
+            uncertainty = 0.3 * abs(cmath.exp(rate * gap_ns) - 1.0) * radius + abs(accel) * gap_ns * gap_ns * radius
+        factor = cmath.exp(step)
+        if not (abs(step.real) < 1.0 and math.isfinite(factor.real) and math.isfinite(factor.imag)):
+            return 1.0, 0.0, 1.3 * sweep * 2.0 + 1.0  # implausible (a jump): no direction
+        return factor.real, factor.imag, uncertainty + 0.25 * sweep + 2.0

@@ -16,6 +16,10 @@ from ropecam.device.pipeline.result import Method
 
 __all__ = ["BlurSplitter", "SplitOutcome"]
 
+_RESPONSES: dict[tuple[int, bytes], tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
+"""Response tables of `BlurSplitter._response` by (4 x width, smoothing weights), shared by every splitter in the
+process (a rebuilt pipeline does not pay them again: each costs 20-40 ms)."""
+
 
 @dataclass(slots=True)
 class SplitOutcome:
@@ -70,7 +74,6 @@ class BlurSplitter:
         self.centerline = self.paper.centerline
         self.tip_cap_ratio = 0.5 if tip_cap == "round" else 0.0
         self.weights = gaussian_weights(smooth_sigma_px).astype(np.float64)
-        self._responses: dict[int, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
         self.sweep_px = 0.0
         self.samples = np.zeros(2 * capacity, np.float32)
         self._contrasts: list[float] = []
@@ -263,16 +266,16 @@ class BlurSplitter:
     def _response(self, width: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Peak smoothed-Sobel magnitude per unit contrast at the edge of a band swept by d, for d on a grid
         (both returned sorted by increasing magnitude, for `np.interp`)."""
-        key = max(1, round(width * 4))  # tables on a 0.25 px grid of widths: built once, not per frame
-        cached = self._responses.get(key)
+        key = (max(1, round(width * 4)), self.weights.tobytes())  # a 0.25 px grid of widths: built once
+        cached = _RESPONSES.get(key)
         if cached is not None:
             return cached
-        width = key / 4.0
+        width = key[0] / 4.0
         sweeps = np.geomspace(0.05, 200.0, 160)
         fine = 0.02
         peaks = []
         for d in sweeps:
-            x = np.arange(-4 * width - 20, width + d + 20, fine)
+            x = np.arange(-4 * width - 20, width + min(d, width) + 20, fine)  # flat beyond the ramp
             a = min(width, d)
             cover = np.clip(x / a, 0, 1) * min(1.0, width / d)  # the first ramp of the trapezoid
             values = []
@@ -299,7 +302,7 @@ class BlurSplitter:
         peaks_arr = np.minimum.accumulate(np.array(peaks) / float(np.mean(centres)))  # monotone for the inversion
         order = np.argsort(peaks_arr, kind="stable")
         result = (sweeps[order], peaks_arr[order])
-        self._responses[key] = result
+        _RESPONSES[key] = result
         return result
 
     def _measure_width(

@@ -6,7 +6,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import i32, ro
+from ropecam.device.pipeline._views import as_ro, ro
 
 __all__ = ["PointTracker"]
 
@@ -39,10 +39,11 @@ class PointTracker:
         self._lengths: list[float] = []
         self._median: float | None = None
         self.out = np.zeros((2, len(self.arc_m), 2), np.float32)
+        self._arc_px_ro = ro(self.arc_px)
 
     def length(self, poly: NDArray[np.float32]) -> float:
         """Return the polyline length Lc in pixels, eq. (9)."""
-        return float(K.polyline_length(ro(poly), i32(len(poly))))
+        return float(K.polyline_length(as_ro(poly), np.int32(len(poly))))
 
     def observe(self, length_px: float) -> None:
         """Feed the length of a measured shape to the Lc0 estimate (until it is fixed)."""
@@ -57,18 +58,23 @@ class PointTracker:
             return self.length0_px
         return self._median
 
-    def track(self, poly: NDArray[np.float32], slot: int) -> tuple[NDArray[np.float32], float]:
+    def track(
+        self, poly: NDArray[np.float32], slot: int, length_px: float | None = None
+    ) -> tuple[NDArray[np.float32], float]:
         """Return the material points (k, 2) (row, col) on `poly` (fixed end first) and the stretch Lc/Lc0.
 
         `slot` (0 or 1) selects the output buffer, so the two shapes of a frame do not overwrite each other; the
-        points are valid until the next call with the same slot.
+        points are valid until the next call with the same slot. `length_px` is `poly`'s length when the caller
+        has it already (`length`), else it is computed.
         """
         length0 = self.reference_length_px
-        lc = self.length(poly)
+        lc = self.length(poly) if length_px is None else float(length_px)
         if length0 is None or length0 <= 0:
             length0 = lc
         np.multiply(self.fraction, length0, out=self.arc_px)
-        status = K.track_material_points(ro(poly), i32(len(poly)), ro(self.arc_px), float(length0), self.out[slot])
+        status = K.track_material_points(
+            as_ro(poly), np.int32(len(poly)), self._arc_px_ro, float(length0), self.out[slot]
+        )
         if status < 0:
             raise ValueError(f"cannot track material points on a polyline of {len(poly)} points")
         return self.out[slot], lc / length0 if length0 > 0 else float("nan")

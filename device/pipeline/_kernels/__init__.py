@@ -24,7 +24,13 @@ from ropecam.device.pipeline._kernels._common import (
     f4_1d_ro,
 )
 from ropecam.device.pipeline._kernels.canny import detect_edges
-from ropecam.device.pipeline._kernels.contour import count_roi_contacts, keep_largest_component, trace_contour
+from ropecam.device.pipeline._kernels.contour import (
+    count_border_contacts,
+    count_roi_contacts,
+    keep_largest_component,
+    keep_largest_listed,
+    trace_contour,
+)
 from ropecam.device.pipeline._kernels.geometry import (
     chain_length,
     midline,
@@ -50,7 +56,13 @@ from ropecam.device.pipeline._kernels.polylines import (
     track_material_points,
     trim_polyline_end,
 )
-from ropecam.device.pipeline._kernels.spans import grow_spans, in_spans, spans_around_points
+from ropecam.device.pipeline._kernels.spans import (
+    coarse_spans,
+    grow_spans,
+    in_spans,
+    spans_around_points,
+    union_spans,
+)
 
 __all__ = [
     "DIR_COL",
@@ -68,6 +80,8 @@ __all__ = [
     "apply_operator",
     "axis_offset",
     "chain_length",
+    "coarse_spans",
+    "count_border_contacts",
     "count_roi_contacts",
     "detect_edges",
     "extend_to_band_end",
@@ -76,6 +90,7 @@ __all__ = [
     "grow_spans",
     "in_spans",
     "keep_largest_component",
+    "keep_largest_listed",
     "measure_widths",
     "midline",
     "offset_by_gradient",
@@ -94,4 +109,5 @@ __all__ = [
     "track_material_points",
     "trim_polyline_end",
     "turning_angles",
+    "union_spans",
 ]

@@ -3,8 +3,10 @@ contacts with the ROI border."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
-from numba import int32
+from numba import float32, int32
 
 from ropecam.device.pipeline._kernels._common import DIR_COL, DIR_ROW, FULL, NOT_FOUND
 from ropecam.device.pipeline._kernels.spans import in_spans
@@ -89,6 +91,60 @@ def keep_largest_component(edges, lo, hi, min_pixels, out_labels, stack, out_sta
     return best_size if found else NOT_FOUND
 
 
+@kernel(int32(u1_2d, i4_1d_ro, i4_1d_ro, i4_1d_ro, int32, int32, i4_2d, i4_1d, i4_1d))
+def keep_largest_listed(edges, lo, hi, edge_list, n_edges, min_pixels, out_labels, stack, out_start):
+    """`keep_largest_component` for an edge map whose edge pixels are listed: the first `n_edges` flat indices
+    ``row * width + col`` of `edge_list`, in raster order (as `detect_edges` leaves them). Same result, in time
+    proportional to the edges rather than to the pixels of the spans.
+
+    Writes `out_labels` at the listed pixels, rewrites `edges` there (1 = kept component, 2 = others) and
+    `out_start`; returns the component's pixel count or NOT_FOUND.
+    """
+    height = edges.shape[0]
+    width = edges.shape[1]
+    labels = out_labels.reshape(height * width)
+    for t in range(n_edges):
+        labels[edge_list[t]] = 0
+    label = 0
+    best_label = 0
+    best_size = 0
+    for t in range(n_edges):
+        first = edge_list[t]
+        if labels[first] != 0:
+            continue
+        label += 1
+        labels[first] = label
+        stack[0] = first
+        top = 1
+        size = 0
+        while top > 0:
+            top -= 1
+            pr = stack[top] // width
+            pc = stack[top] - pr * width
+            size += 1
+            for k in range(8):
+                rr = pr + DIR_ROW[k]
+                cc = pc + DIR_COL[k]
+                if rr < 0 or rr >= height or cc < lo[rr] or cc > hi[rr] or cc >= width:
+                    continue
+                if edges[rr, cc] != 0 and out_labels[rr, cc] == 0:
+                    out_labels[rr, cc] = label
+                    stack[top] = rr * width + cc
+                    top += 1
+        if size > best_size:
+            best_size = size
+            best_label = label
+            out_start[0] = first // width
+            out_start[1] = first - (first // width) * width
+    found = best_size >= min_pixels and best_size > 0
+    keep = best_label if found else -1
+    flat_edges = edges.reshape(height * width)
+    for t in range(n_edges):
+        k = edge_list[t]
+        flat_edges[k] = 1 if labels[k] == keep else 2
+    return best_size if found else NOT_FOUND
+
+
 @kernel(int32(u1_2d_ro, i4_1d_ro, i4_1d_ro, int32, int32, i4_2d, i4_1d))
 def trace_contour(edges, lo, hi, start_r, start_c, out_chain, out_codes):
     """Trace the outer boundary of the edge component containing (start_r, start_c), its first pixel in raster
@@ -158,10 +214,33 @@ def count_roi_contacts(chain, n, lo, hi, width):
     for i in range(n):
         r = chain[i, 0]
         c = chain[i, 1]
-        for k in range(8):
-            rr = r + DIR_ROW[k]
-            cc = c + DIR_COL[k]
-            if 0 <= rr < height and 0 <= cc < width and not in_spans(rr, cc, lo, hi):
-                count += 1
-                break
+        left = c - 1
+        right = c + 1
+        cm = max(left, 0)
+        cp = min(right, width - 1)
+        # Row r: the two side neighbours; rows r - 1 and r + 1: the 1-3 neighbours form one interval.
+        a = lo[r]
+        b = hi[r]
+        touches = (left >= 0 and (left < a or left > b)) or (right < width and (right < a or right > b))
+        if r > 0 and (cm < lo[r - 1] or cp > hi[r - 1]):
+            touches = True
+        if r < height - 1 and (cm < lo[r + 1] or cp > hi[r + 1]):
+            touches = True
+        if touches:
+            count += 1
+    return count
+
+
+@kernel(int32(i4_2d_ro, int32, int32, int32, float32, float32, float32))
+def count_border_contacts(chain, n, height, width, fixed_r, fixed_c, exclude_px):
+    """Return how many of the first `n` chain pixels lie on the image border (row 0 or height - 1, column 0 or
+    width - 1) farther than `exclude_px` from (fixed_r, fixed_c) (a rope hanging from the border is not leaving
+    the image there)."""
+    count = 0
+    for i in range(n):
+        r = chain[i, 0]
+        c = chain[i, 1]
+        on_border = r == 0 or r == height - 1 or c == 0 or c == width - 1
+        if on_border and math.hypot(r - fixed_r, c - fixed_c) > exclude_px:
+            count += 1
     return count

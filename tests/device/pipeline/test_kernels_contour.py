@@ -169,3 +169,55 @@ def test_scoring_matches_reference() -> None:
     assert knots[:m].tolist() == ref_knots
     np.testing.assert_allclose(scores[:m], ref_scores)
     assert set(np.unique(scores[:m])) <= {0.0, 0.5, 1.0, 1.5, 2.0, 2.5}
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_listed_component_equals_the_span_scan(seed) -> None:
+    rng = np.random.default_rng(seed)
+    height, width = 40, 60
+    edges = (rng.random((height, width)) < 0.3).astype(np.uint8)
+    lo = rng.integers(0, 20, height).astype(np.int32)
+    hi = (lo + rng.integers(-2, 45, height)).astype(np.int32)
+    inside = np.zeros((height, width), bool)
+    for r in range(height):
+        inside[r, lo[r] : min(hi[r], width - 1) + 1] = hi[r] >= lo[r]
+    listed = np.flatnonzero(edges.ravel() & inside.ravel()).astype(np.int32)  # raster order
+    a, b = edges.copy(), edges.copy()
+    la = np.full((height, width), 7, np.int32)  # stale labels must not matter
+    lb = la.copy()
+    sa, sb = np.zeros(height * width, np.int32), np.zeros(height * width, np.int32)
+    start_a, start_b = np.zeros(2, np.int32), np.zeros(2, np.int32)
+    size_a = K.keep_largest_component(a, lo, hi, 3, la, sa, start_a)
+    size_b = K.keep_largest_listed(b, lo, hi, listed, len(listed), 3, lb, sb, start_b)
+    assert size_a == size_b > 0
+    np.testing.assert_array_equal(a[inside], b[inside])
+    np.testing.assert_array_equal(start_a, start_b)
+    assert K.keep_largest_listed(b.copy(), lo, hi, listed, len(listed), 10_000, lb, sb, start_b) == K.NOT_FOUND
+
+
+def test_border_contacts_match_reference() -> None:
+    chain = np.array([[0, 5], [3, 0], [3, 9], [7, 4], [9, 9], [4, 4]], np.int32)
+    height, width = 10, 10
+    on_border = [(r, c) for r, c in chain if r in (0, height - 1) or c in (0, width - 1)]
+    assert K.count_border_contacts(chain, len(chain), height, width, -1e9, -1e9, 5.0) == len(on_border)
+    far = [(r, c) for r, c in on_border if math.hypot(r - 0.0, c - 5.0) > 3.5]
+    assert K.count_border_contacts(chain, len(chain), height, width, 0.0, 5.0, 3.5) == len(far)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_roi_contacts_match_reference(seed) -> None:
+    rng = np.random.default_rng(seed)
+    height, width = 30, 40
+    lo = rng.integers(0, 15, height).astype(np.int32)
+    hi = (lo + rng.integers(-3, 30, height)).astype(np.int32)
+    chain = np.stack([rng.integers(0, height, 200), rng.integers(0, width, 200)], axis=1).astype(np.int32)
+
+    def inside(r, c):
+        return lo[r] <= c <= hi[r]
+
+    want = 0
+    for r, c in chain:
+        neighbours = [(r + dr, c + dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if (dr, dc) != (0, 0)]
+        if any(0 <= rr < height and 0 <= cc < width and not inside(rr, cc) for rr, cc in neighbours):
+            want += 1
+    assert K.count_roi_contacts(chain, len(chain), lo, hi, width) == want

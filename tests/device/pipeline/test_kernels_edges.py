@@ -96,30 +96,37 @@ def test_canny_inside_spans_equals_full_frame(blurred_frames, spans_full) -> Non
     points = np.ascontiguousarray(np.argwhere(full["edges"] > 0).astype(np.float32))
     lo = np.zeros(height, np.int32)
     hi = np.zeros(height, np.int32)
-    K.spans_around_points(points, len(points), 6, 0.0, 0.0, 0.0, height, width, lo, hi)
+    K.spans_around_points(points, len(points), 6, 0.0, 1.0, 0.0, 0.0, 0.0, height, width, lo, hi)
     _, roi = _canny(image, lo, hi, 20, 50, (0.25, 0.5, 0.25))
     inside = np.zeros((height, width), bool)
     for r in range(height):
         inside[r, lo[r] : hi[r] + 1] = hi[r] >= lo[r]
     np.testing.assert_array_equal(roi["edges"][inside], full["edges"][inside])
     assert inside.mean() < 0.25
+    # The edge list left in the stack: every edge pixel of the spans, flat indices in raster order.
+    count = int(np.count_nonzero(roi["edges"][inside]))
+    listed = np.flatnonzero((roi["edges"] > 0) & inside)
+    np.testing.assert_array_equal(roi["stack"][:count], listed)
 
 
-def test_spans_around_points_matches_reference() -> None:
+@pytest.mark.parametrize("rotation", [(1.0, 0.0), (0.9, 0.2)])
+def test_spans_around_points_matches_reference(rotation) -> None:
     rng = np.random.default_rng(3)
     height, width = 50, 70
     points = rng.uniform([-3, -3], [height + 3, width + 3], (12, 2)).astype(np.float32)
     lo = np.zeros(height, np.int32)
     hi = np.zeros(height, np.int32)
-    rows = K.spans_around_points(points, len(points), 3, 4.0, 10.0, 20.0, height, width, lo, hi)
+    rows = K.spans_around_points(points, len(points), 3, 4.0, *rotation, 10.0, 20.0, height, width, lo, hi)
     mask = np.zeros((height, width), bool)
     dist = np.hypot(points[:, 0] - 10.0, points[:, 1] - 20.0)
+    rr, cc = np.mgrid[0:height, 0:width]
     for (pr, pc), d in zip(points, dist, strict=True):
         m = 3 + int(np.ceil(4.0 * d / dist.max()))
-        r0, r1 = max(0, int(np.floor(pr)) - m), min(height - 1, int(np.ceil(pr)) + m)
-        c0, c1 = max(0, int(np.floor(pc)) - m), min(width - 1, int(np.ceil(pc)) + m)
-        if r0 <= r1 and c0 <= c1:
-            mask[r0 : r1 + 1, c0 : c1 + 1] = True
+        z = complex(*rotation) * complex(pr - 10.0, pc - 20.0)
+        pr, pc = 10.0 + z.real, 20.0 + z.imag
+        half = np.sqrt(np.maximum(0.0, m * m - (rr - pr) ** 2))
+        inside_rows = np.abs(rr - pr) <= m
+        mask |= inside_rows & (cc >= np.floor(pc - half)) & (cc <= np.ceil(pc + half))
     assert rows == int(mask.any(axis=1).sum())
     for r in range(height):
         cols = np.flatnonzero(mask[r])
@@ -139,3 +146,53 @@ def test_grow_spans_matches_reference() -> None:
         rows = [rr for rr in range(max(0, r - 1), min(6, r + 2)) if hi[rr] >= lo[rr]]
         assert out_lo[r] == max(0, min(lo[rr] for rr in rows) - 2)
         assert out_hi[r] == max(hi[rr] for rr in rows) + 2
+
+
+def test_union_spans_matches_reference() -> None:
+    lo = np.array([5, 1, 0, 7, 3, 9], np.int32)
+    hi = np.array([6, 0, 2, 8, 2, 12], np.int32)  # rows 1 and 4 empty
+    out_lo = np.array([1, 3, 4, 1, 1, 10], np.int32)
+    out_hi = np.array([0, 5, 9, 0, 4, 11], np.int32)  # rows 0 and 3 empty
+    want = []
+    for a, b, c, d in zip(lo, hi, out_lo.copy(), out_hi.copy(), strict=True):
+        cols = set(range(a, b + 1)) | set(range(c, d + 1))
+        want.append((min(cols), max(cols)) if cols else None)
+    rows = K.union_spans(lo, hi, out_lo, out_hi)
+    assert rows == sum(w is not None for w in want)
+    for r, w in enumerate(want):
+        if w is None:
+            assert out_hi[r] < out_lo[r]
+        else:
+            assert (out_lo[r], out_hi[r]) == w
+
+
+def test_coarse_spans_cover_the_rope_and_drop_noise(blurred_frames) -> None:
+    image = blurred_frames[0].image.copy()
+    height, width = image.shape
+    image[5, 7] = 255  # one hot pixel: a cross of 5 active cells, dropped by min_cells
+    block = 4
+    sums = np.zeros((height // block, width // block), np.int32)
+    labels = np.zeros_like(sums)
+    stack = np.zeros(max(sums.size, width), np.int32)
+    lo = np.zeros(height, np.int32)
+    hi = np.zeros(height, np.int32)
+    kept = K.coarse_spans(image, block, int(block * block * 20 / 8), 8, 2, sums, labels, stack, lo, hi)
+    assert kept > 0
+    # The sums are the block sums.
+    ref = image[: sums.shape[0] * block, : sums.shape[1] * block].astype(np.int64)
+    ref = ref.reshape(sums.shape[0], block, sums.shape[1], block).sum(axis=(1, 3))
+    np.testing.assert_array_equal(sums, ref)
+    inside = np.zeros((height, width), bool)
+    for r in range(height):
+        inside[r, lo[r] : hi[r] + 1] = hi[r] >= lo[r]
+    lo_full = np.zeros(height, np.int32)
+    hi_full = np.full(height, width - 1, np.int32)
+    _, full = _canny(image, lo_full, hi_full, 20, 50, (0.25, 0.5, 0.25))
+    rope = full["edges"] > 0
+    rope[:20, :20] = False  # the hot pixel's own edges
+    assert rope.any() and inside[rope].all()  # every rope edge is inside the coarse spans
+    assert not inside[:10, :10].any()  # the hot pixel is not
+    assert inside.mean() < 0.3
+    blank = np.full((height, width), 30, np.uint8)
+    assert K.coarse_spans(blank, block, 40, 3, 2, sums, labels, stack, lo, hi) == 0
+    assert (hi < lo).all()

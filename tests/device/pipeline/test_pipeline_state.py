@@ -1,0 +1,106 @@
+"""State between frames: the time gap drives the ROI, gaps reset the prediction, unknown exposures are handled."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ropecam.device.capture.synthetic import SyntheticRope
+from ropecam.device.pipeline.config import PipelineConfig
+from ropecam.device.pipeline.pipeline import Pipeline
+from ropecam.device.pipeline.result import FrameStatus
+
+
+@pytest.fixture(scope="module")
+def swing() -> SyntheticRope:
+    """A rope swinging through the bottom (fast, ~5 px of tip blur at 4 ms), 119 FPS."""
+    return SyntheticRope(exposure_us=4000, amplitude_rad=0.6, period_s=0.9, diameter_px=3.0, phase_rad=1.5, fps=119.0)
+
+
+@pytest.fixture(scope="module")
+def swing_frames(swing):
+    return {f.index: f for f in (swing.render(i) for i in (0, 1, 2, 3, 6))}
+
+
+def _roi_px(pipeline: Pipeline) -> int:
+    return int(np.maximum(pipeline.hi - pipeline.lo + 1, 0).sum())
+
+
+def _run(pipeline: Pipeline, frames, indices) -> list:
+    return [pipeline.process(frames[i].image, i, frames[i].t_ns, frames[i].exposure_us) for i in indices]
+
+
+def test_roi_follows_the_time_since_the_last_measured_frame(swing, swing_frames) -> None:
+    # Frames 4 and 5 are dropped: frame 6 comes three periods after frame 3. The ROI must be predicted over that
+    # gap (the rope moved three times as far), not over one guessed period.
+    pipeline = Pipeline(PipelineConfig(), (swing.width, swing.height))
+    results = _run(pipeline, swing_frames, (0, 1, 2, 3, 6))
+    assert all(r.status is FrameStatus.OK for r in results), [r.message for r in results]
+    assert not results[-1].full_frame  # found in the ROI predicted over the real gap
+    # The same frame seen one period after frame 3 (wrong time stamp) is predicted elsewhere: the ROI differs.
+    other = Pipeline(PipelineConfig(), (swing.width, swing.height))
+    _run(other, swing_frames, (0, 1, 2, 3))
+    frame = swing_frames[6]
+    other.process(frame.image, 4, swing_frames[3].t_ns + round(1e9 / swing.fps), frame.exposure_us)
+    moved = Pipeline(PipelineConfig(), (swing.width, swing.height))
+    _run(moved, swing_frames, (0, 1, 2, 3))
+    moved.process(frame.image, 6, frame.t_ns, frame.exposure_us)
+    assert _roi_px(other) != _roi_px(moved) or not np.array_equal(other.lo, moved.lo)
+
+
+@pytest.mark.parametrize("gap", ["black", "none"])
+def test_a_gap_resets_the_prediction(swing, swing_frames, gap) -> None:
+    pipeline = Pipeline(PipelineConfig(), (swing.width, swing.height))
+    assert all(r.status is FrameStatus.OK for r in _run(pipeline, swing_frames, (0, 1, 2)))
+    bad = np.zeros((swing.height, swing.width), np.uint8) if gap == "black" else None
+    r = pipeline.process(bad, 3, swing_frames[3].t_ns, 4000)
+    assert r.status is (FrameStatus.NO_ROPE if gap == "black" else FrameStatus.BAD_FRAME)
+    frame = swing_frames[6]
+    r = pipeline.process(frame.image, 6, frame.t_ns, frame.exposure_us)
+    assert r.status is FrameStatus.OK, r.message
+    assert r.order_confidence == 0.5  # no history across the gap: nothing stale extrapolated
+    assert r.full_frame  # searched afresh, not in a band predicted from frames before the gap
+    # The frame after that has history again.
+    r = pipeline.process(frame.image, 7, frame.t_ns + round(1e9 / swing.fps), frame.exposure_us)
+    assert r.status is FrameStatus.OK
+
+
+@pytest.mark.parametrize("exposure_us", [0, None])
+def test_unknown_exposure_is_measured_without_time_order(swing, swing_frames, exposure_us) -> None:
+    pipeline = Pipeline(PipelineConfig(), (swing.width, swing.height))
+    results = [pipeline.process(swing_frames[i].image, i, swing_frames[i].t_ns, exposure_us) for i in (0, 1, 2, 3)]
+    for r in results:
+        assert r.status is FrameStatus.OK, r.message
+        assert r.t_end_ns == r.t_ns
+        assert r.order_confidence == 0.5
+        assert "exposure unknown" in r.message
+        assert all(math.isfinite(v) for v in r.begin.ravel())
+    # Known again: measured normally, the order is back after one frame of history.
+    frames = [swing_frames[i] for i in (6,)]
+    r = pipeline.process(frames[0].image, 6, frames[0].t_ns, frames[0].exposure_us)
+    assert r.status is FrameStatus.OK and r.t_end_ns == r.t_ns + 4_000_000
+
+
+@pytest.mark.parametrize("exposure_us", [-1.0, float("nan"), float("inf"), "4 ms"])
+def test_invalid_exposure_is_a_bad_frame_naming_it(swing, swing_frames, exposure_us) -> None:
+    pipeline = Pipeline(PipelineConfig(), (swing.width, swing.height))
+    frame = swing_frames[0]
+    r = pipeline.process(frame.image, 0, frame.t_ns, exposure_us)
+    assert r.status is FrameStatus.BAD_FRAME
+    assert "exposure_us" in r.message and r.t_end_ns == r.t_ns
+    r = pipeline.process(swing_frames[1].image, 1, swing_frames[1].t_ns, 4000)
+    assert r.status is FrameStatus.OK
+
+
+def test_reset_tracking_searches_the_next_frame_afresh(swing, swing_frames) -> None:
+    pipeline = Pipeline(PipelineConfig(), (swing.width, swing.height))
+    results = _run(pipeline, swing_frames, (0, 1, 2))
+    assert not results[-1].full_frame and results[-1].order_confidence > 0.5
+    fixed = pipeline.fixed.copy()
+    pipeline.reset_tracking()
+    r = _run(pipeline, swing_frames, (3,))[0]
+    assert r.status is FrameStatus.OK and r.full_frame and r.order_confidence == 0.5
+    np.testing.assert_allclose(pipeline.fixed, fixed, atol=1.0)  # what does not change is kept
+    assert pipeline.frames_coarse + pipeline.frames_full == 2  # the first frame and this one
