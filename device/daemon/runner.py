@@ -258,11 +258,12 @@ class Daemon:
                 self.camera_settings["gain"] = round(values[0])
                 detail = f"gain {got} (camera units)"
             elif command is Command.SET_THRESHOLDS:
-                self._rebuild(canny_low=values[0], canny_high=values[1])
+                self._rebuild(source, canny_low=values[0], canny_high=values[1])
             elif command is Command.SET_MATERIAL_POINTS:
-                self._rebuild(material_points_m=tuple(values))
+                self._rebuild(source, material_points_m=tuple(values))
             elif command is Command.RESET_ROI:
-                self._rebuild()
+                if self._pipeline is not None:
+                    self._pipeline.reset_tracking()
             elif command is Command.START:
                 self._running = True
             elif command is Command.STOP:
@@ -300,10 +301,12 @@ class Daemon:
                 _log.warning("could not re-apply %s = %s on the reopened camera: %s", name, value, exc)
                 self._send_log(f"could not re-apply {name} = {value}: {exc}")
 
-    def _rebuild(self, **changes: object) -> None:
-        """New pipeline settings (or a reset of its tracking state): rebuild it before the next frame."""
+    def _rebuild(self, source: CameraSource, **changes: object) -> None:
+        """New pipeline settings: build and warm the new pipeline now, between frames, so that the next frame is
+        measured at full speed (what it learnt of the rope, such as the fixed end and the width, is learnt again)."""
         self._pipeline_config = dataclasses.replace(self._pipeline_config, **changes)
         self._pipeline = None
+        self._warm_up(source)
 
     # -- reporting -----------------------------------------------------------------------------------------------
     def _send_log(self, text: str, level: int = logging.WARNING) -> None:

@@ -89,3 +89,16 @@ def test_extract_video(tmp_path, frames) -> None:
     assert len(records) == len(frames)
     assert all(r["status"] == "OK" for r in records)
     assert records[1]["t_ns"] == round(1e9 / 119.0)
+
+
+def test_an_image_folder_without_exposure_time_keeps_going_past_a_broken_file(tmp_path, frames) -> None:
+    folder = tmp_path / "png"
+    folder.mkdir()
+    for f in frames[:3]:
+        cv2.imwrite(str(folder / f"{f.index:03d}.png"), f.image)
+    (folder / "001.png").write_bytes(b"not a png")
+    out = tmp_path / "out.jsonl"
+    assert main(["extract", str(folder), "--out", str(out), "--quiet"]) == 0  # no --exposure-ms: unknown
+    records = _read(out)
+    assert [r["status"] for r in records] == ["OK", "BAD_FRAME", "OK"]
+    assert all(r["t_end_ns"] == r["t_ns"] for r in records)

@@ -152,8 +152,12 @@ def test_authenticated_control_is_applied_and_forgeries_refused(rig_set: Path) -
         control(Command.STOP, (), 3, sign=forger)  # wrong key: refused, no answer
         host.send(encode_message(Control(Command.STOP), device_id=1, sequence=4, t_ns=0))  # unsigned: refused
         control(Command.REQUEST_RAW_FRAME, (), 5)
+        control(Command.RESET_ROI, (), 6)
+        control(Command.SET_THRESHOLDS, (15.0, 40.0), 7)
         messages = _collect(host, time.monotonic() + 2.0)
         assert run.thread.is_alive()
+        pipeline = run.daemon._pipeline
+        assert pipeline is not None and (pipeline.config.canny_low, pipeline.config.canny_high) == (15.0, 40.0)
     # An invalid value is answered at once by the listener, the others once the main loop has applied them; a
     # recorded frame set has no exposure control, so the first is UNSUPPORTED (never a premature APPLIED).
     acks = {m.record.acked_sequence: m.record for m in messages if isinstance(m.record, ControlAck)}
@@ -161,6 +165,8 @@ def test_authenticated_control_is_applied_and_forgeries_refused(rig_set: Path) -
         1: (Command.SET_EXPOSURE, AckResult.UNSUPPORTED),
         2: (Command.SET_EXPOSURE, AckResult.INVALID),
         5: (Command.REQUEST_RAW_FRAME, AckResult.APPLIED),
+        6: (Command.RESET_ROI, AckResult.APPLIED),
+        7: (Command.SET_THRESHOLDS, AckResult.APPLIED),
     }
     assert "cannot change the exposure" in acks[1].detail and "exposure must be in" in acks[2].detail
     assembler = FrameAssembler()
@@ -169,7 +175,9 @@ def test_authenticated_control_is_applied_and_forgeries_refused(rig_set: Path) -
     assert image.shape == (544, 1024) and image.dtype == np.uint8
     statuses = [m.record for m in messages if isinstance(m.record, Status)]
     counters = dict(statuses[-1].counters)
-    assert counters["control_applied"] == 1 and counters["control_failed"] == 2 and counters["control_refused"] == 2
+    assert counters["control_applied"] == 3 and counters["control_failed"] == 2 and counters["control_refused"] == 2
+    after = [m.record for m in messages if isinstance(m.record, FrameResult)][-5:]
+    assert after and all(r.status.name == "OK" for r in after)  # measured on after the reset and the rebuild
     assert counters["running"] == 1
     host.close()
 
