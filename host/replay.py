@@ -8,97 +8,20 @@ from __future__ import annotations
 
 import argparse
 import time
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from ropecam.host.offline import frames_messages
+from ropecam.host.recording.reader import count_raw, device_frames, iter_raw, recording_parts
 from ropecam.shared.errors import ConfigError, DataError
 
 if TYPE_CHECKING:
     from ropecam.host.model_overlay import ModelOverlay
     from ropecam.host.session import Session
-    from ropecam.shared.protocol.records import FrameResult
     from ropecam.shared.protocol.wire import Message
 
-__all__ = ["device_frames", "iter_raw", "recording_parts", "register", "replay"]
-
-
-def recording_parts(path: Path) -> list[Path]:
-    """Return `path` and the later parts of its rolled recording (``<stem>_001<suffix>``, ...) that exist.
-
-    Raises
-    ------
-    DataError
-        `path` does not exist, or a following part carries another recording's id or the wrong part index (a
-        leftover of an earlier run: the message names it).
-    """
-    from ropecam.host.recording.writer import part_path, read_part_id
-
-    if not path.exists():
-        raise DataError(f"recording {path} does not exist")
-    parts = [path]
-    first = read_part_id(path)
-    while (following := part_path(path, len(parts))).exists():
-        if first is not None:
-            found = read_part_id(following)
-            if found != (first[0], len(parts)):
-                what = "no recording id" if found is None else f"recording {found[0]} part {found[1]}"
-                raise DataError(
-                    f"{following} does not belong to the recording {path} (id {first[0]}): it holds {what}; "
-                    "move it away to replay the recording, or replay it on its own"
-                )
-        parts.append(following)
-    return parts
-
-
-def iter_raw(paths: Sequence[Path]) -> Iterator[tuple[bytes, int]]:
-    """Yield (wire bytes, receive time ns) of every raw-channel message of the files, in recorded order.
-
-    Raises
-    ------
-    DataError
-        A file cannot be read as MCAP (for a crashed recording, run `ropecam recover` first) or holds no raw channel.
-    """
-    from mcap.exceptions import McapError
-    from mcap.reader import make_reader
-
-    from ropecam.host.session import RAW_TOPIC
-
-    found = False
-    for path in paths:
-        try:
-            with open(path, "rb") as handle:
-                reader = make_reader(handle)
-                for _, _channel, message in reader.iter_messages(topics=[RAW_TOPIC], log_time_order=False):
-                    found = True
-                    yield message.data, message.log_time
-        except (McapError, OSError, EOFError) as exc:
-            raise DataError(
-                f"cannot read {path}: {exc} (a recording cut by a crash: `ropecam recover {path} --out FIXED.mcap`)"
-            ) from exc
-    if not found:
-        raise DataError(f"{', '.join(map(str, paths))} hold no {RAW_TOPIC} messages: not a ropecam recording?")
-
-
-def count_raw(paths: Sequence[Path]) -> int:
-    """Return the number of raw-channel messages of complete recordings (from their summaries; 0 when unknown)."""
-    from mcap.exceptions import McapError
-    from mcap.reader import make_reader
-
-    from ropecam.host.session import RAW_TOPIC
-
-    total = 0
-    for path in paths:
-        try:
-            with open(path, "rb") as handle:
-                summary = make_reader(handle).get_summary()
-        except (McapError, OSError, EOFError):
-            return 0
-        if summary is None or summary.statistics is None:
-            return 0
-        counts = summary.statistics.channel_message_counts
-        total += sum(counts.get(c.id, 0) for c in summary.channels.values() if c.topic == RAW_TOPIC)
-    return total
+__all__ = ["register", "replay", "replay_messages"]
 
 
 def replay(
@@ -110,38 +33,6 @@ def replay(
 ) -> int:
     """Run every raw message of the recording `paths` through `session`; return the count (see `replay_messages`)."""
     return replay_messages(iter_raw(paths), session, speed, progress, on_message)
-
-
-def frames_messages(frames: Path, config_path: Path | None = None, device_id: int = 1) -> list[tuple[bytes, int]]:
-    """Measure a raw frame set (or image folder, or video) with the device pipeline, offline, and return the
-    encoded FrameResult messages as the device would send them, each with its exposure end as receive time.
-
-    The pipeline settings come from the ``[pipeline]`` table of a device config file (defaults otherwise).
-    """
-    from ropecam.device.capture.sources import open_source
-    from ropecam.device.pipeline.config import PipelineConfig
-    from ropecam.device.pipeline.pipeline import Pipeline
-    from ropecam.device.pipeline.result import to_wire
-    from ropecam.shared.config import load_toml
-    from ropecam.shared.protocol import ShapeHint, encode_message
-
-    # Only [pipeline] matters here; the other tables of a device config are accepted as they are.
-    config = load_toml(config_path, PipelineConfig, "pipeline") if config_path is not None else PipelineConfig()
-    source = open_source(frames, None, None)
-    pipeline = None
-    hint = ShapeHint()
-    messages = []
-    for sequence, frame in enumerate(source):
-        if pipeline is None:
-            size = source.image_size or (frame.image.shape[1], frame.image.shape[0])
-            pipeline = Pipeline(config, size)
-        result = pipeline.process(frame.image, frame.index, frame.t_ns, frame.exposure_us)
-        data = encode_message(to_wire(result), device_id=device_id, sequence=sequence, t_ns=result.t_end_ns,
-                              pack_options={"hint": hint})  # fmt: skip
-        messages.append((data, result.t_end_ns))
-    if not messages:
-        raise DataError(f"{frames}: no frames to measure")
-    return messages
 
 
 def replay_messages(
@@ -227,35 +118,6 @@ class _JsonlExport:
         if self.other_devices:
             text += f" (devices {sorted(self.other_devices)} left out: choose with --device)"
         return text
-
-
-def device_frames(
-    messages: Iterable[tuple[bytes, int]], device_id: int | None = None
-) -> tuple[list[FrameResult], int | None]:
-    """Return one device's distinct FrameResults (by exposure start) and its id (default: the first device seen).
-
-    A frame is identified by (frame index, exposure start): a message received twice counts once, while the frames
-    of a device that restarted within the recording (sequence numbers and frame indices from 0 again) are all kept.
-    Undecodable messages are skipped.
-    """
-    from ropecam.shared.errors import ProtocolError
-    from ropecam.shared.protocol.records import FrameResult
-    from ropecam.shared.protocol.wire import decode_message
-
-    frames: dict[tuple[int, int], FrameResult] = {}
-    for data, _ in messages:
-        try:
-            message = decode_message(data)
-        except ProtocolError:
-            continue
-        if not isinstance(message.record, FrameResult):
-            continue
-        if device_id is None:
-            device_id = message.header.device_id
-        if message.header.device_id == device_id:
-            record = message.record
-            frames.setdefault((record.frame_index, record.exposure_start_t_ns), record)
-    return sorted(frames.values(), key=lambda f: f.exposure_start_t_ns), device_id
 
 
 def _fit_model(

@@ -44,7 +44,8 @@ def read_measurement(
     suffix = path.suffix.lower()
     if path.is_file() and suffix == ".jsonl":
         return read_extract_jsonl(path)
-    from ropecam.host.replay import device_frames, frames_messages, iter_raw, recording_parts
+    from ropecam.host.offline import frames_messages
+    from ropecam.host.recording.reader import device_frames, iter_raw, recording_parts
 
     if path.is_file() and suffix == ".mcap":
         records, found = device_frames(iter_raw(recording_parts(path)), device_id)

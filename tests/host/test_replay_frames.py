@@ -11,7 +11,7 @@ import pytest
 
 from ropecam.device.cli import main as device_main
 from ropecam.host.cli import main as host_main
-from ropecam.host.replay import iter_raw
+from ropecam.host.recording.reader import iter_raw
 from ropecam.shared.protocol import polyline_distances_px
 
 

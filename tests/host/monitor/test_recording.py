@@ -13,9 +13,10 @@ import pytest
 
 from ropecam.host.cli import main
 from ropecam.host.receiver import check_packet
+from ropecam.host.recording.reader import iter_raw, recording_parts
 from ropecam.host.recording.recover import recover_mcap
 from ropecam.host.recording.writer import Recorder, RecordingConfig, part_path
-from ropecam.host.replay import iter_raw, recording_parts, replay
+from ropecam.host.replay import replay
 from ropecam.host.session import RAW_TOPIC, Session
 from ropecam.shared.errors import ConfigError, DataError
 from ropecam.shared.transport import open_transport
@@ -458,7 +459,7 @@ def test_replay_speed_paces_by_the_recorded_receive_times(sim_device, tmp_path: 
 def test_model_frames_of_a_device_that_restarted_are_all_kept_duplicates_once() -> None:
     import numpy as np
 
-    from ropecam.host.replay import device_frames
+    from ropecam.host.recording.reader import device_frames
     from ropecam.shared.protocol.records import FrameResult
     from ropecam.shared.protocol.wire import encode_message
 
