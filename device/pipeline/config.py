@@ -57,6 +57,11 @@ class PipelineConfig:
         Threshold T of the paper's Feature 3.
     output_step_px
         Spacing of the output polylines.
+    output_smoothing_px
+        Half-width (pixels of arc length) of the smoothing of the output polylines: a local quadratic fit along the
+        rope (LOESS) that removes pixel-scale measurement wiggles a real rope does not have, without shrinking the
+        ends or flattening bends much longer than the window. 0 disables it. Larger values cost accuracy where
+        the rope bends sharply (tight loops, a kink at a clamp).
     max_contour
         Capacity of the contour buffers (points).
     """
@@ -79,6 +84,7 @@ class PipelineConfig:
     corner_scale_px: int = 3
     paper_endpoint_radius_px: float = 15.0
     output_step_px: float = 2.0
+    output_smoothing_px: float = 24.0
     max_contour: int = 40_000
 
     def __post_init__(self) -> None:
@@ -107,4 +113,5 @@ class PipelineConfig:
         check_range("corner_scale_px", self.corner_scale_px, 1, 50)
         check_positive("paper_endpoint_radius_px", self.paper_endpoint_radius_px)
         check_range("output_step_px", self.output_step_px, 0.25, 100.0)
+        check_range("output_smoothing_px", self.output_smoothing_px, 0.0, 200.0)
         check_range("max_contour", self.max_contour, 100, 10_000_000)

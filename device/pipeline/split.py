@@ -51,6 +51,8 @@ class BlurSplitter:
         Spacing of the returned polylines.
     tip_cap
         Shape of the rope's free end: ``round`` (half a width beyond the axis end) or ``flat``.
+    output_smoothing_px
+        Half-width along the rope of the smoothing of the returned polylines (0: none).
     """
 
     def __init__(
@@ -63,7 +65,9 @@ class BlurSplitter:
         output_step_px: float = 2.0,
         tip_cap: str = "round",
         smooth_sigma_px: float = 1.0,
+        output_smoothing_px: float = 0.0,
     ) -> None:
+        self.output_smoothing = np.float32(output_smoothing_px)
         self.method = method
         self.tip_cap_ratio = 0.5 if tip_cap == "round" else 0.0
         self.weights = gaussian_weights(smooth_sigma_px).astype(np.float64)
@@ -366,6 +370,13 @@ class BlurSplitter:
         return i32(K.extend_to_band_end(poly, n, self._points, self._n, f32(self.width), cap))
 
     def _resample(self, poly: NDArray[np.float32], n: int, out: NDArray[np.float32]) -> NDArray[np.float32]:
+        """Smooth the first `n` points of `poly` along the rope (`smooth_polyline`; they are overwritten), then
+        resample them at the output step into `out`; return the view of `out` holding the result."""
+        if self.output_smoothing > 0.0 and n >= 3:
+            # Smooth before resampling: the output points are then equally spaced along the smooth curve, not
+            # along the noise (the shape coder's parameter and the material points' arc length both assume that).
+            K.smooth_polyline(ro(poly), i32(n), self.output_smoothing, out)
+            poly[:n] = out[:n]
         count = K.resample_polyline(ro(poly), i32(n), self.step, out)
         if count < 0:
             raise RuntimeError(f"resample_polyline returned status {count}")

@@ -155,3 +155,105 @@ def extend_to_band_end(poly, n, points, n_points, width_px, cap_px):
         return n
     count = trim_polyline_end(poly, n, -extent)
     return count if count >= 2 else n
+
+
+@kernel(int32(f4_2d_ro, int32, float32, f4_2d))
+def smooth_polyline(poly, n, half_width_px, out_poly):
+    """Smooth the polyline of `n` points across its direction by local quadratic regression (LOESS), into `out_poly`.
+
+    A rope centreline has no pixel-scale wiggles: those are measurement noise. For point i, the window is the run
+    of points within h = `half_width_px` of arc length from a centre; the centre is the point's own arc length,
+    clamped to ``[h, L - h]`` (L the polyline's length), so near an end the window stays 2h long and one-sided
+    and the end is not averaged inward. In the frame of the window's chord (first to last point), the offset
+    across the chord is fitted by weighted least squares as a quadratic of the position along it (weights fall
+    from 1 at the centre to 0.1 at the window's edge), and the point is moved across the chord onto the fit, at
+    its own position along it. Points only move sideways: the tip keeps its measured extent along the rope, a
+    quadratic is reproduced exactly, an arc of radius R is flattened by ~h**4 / R**3 at most. A window with fewer
+    than three distinct positions falls back to a line (two) or leaves the point (one), and a window whose chord
+    is shorter than half its arc length (a hairpin tighter than the window) leaves its points as they are.
+    `half_width_px` <= 0 or n < 3 copies the points; a polyline shorter than 2h is one window.
+
+    Writes ``out_poly[:n]`` (row, col); returns n, or INVALID when n < 0 or `out_poly` holds fewer than n rows.
+    """
+    if n < 0 or out_poly.shape[0] < n or poly.shape[0] < n:
+        return INVALID
+    for i in range(n):
+        out_poly[i, 0] = poly[i, 0]
+        out_poly[i, 1] = poly[i, 1]
+    total = polyline_length(poly, n)
+    if n < 3 or not half_width_px > 0.0 or not total > 0.0:
+        return n
+    half = float(half_width_px)
+    short = total <= 2.0 * half
+    if short:
+        half = 0.5 * total * (1.0 + 1e-6)  # one window over the whole polyline, its ends inside it
+    inv_half = 1.0 / half
+    limit = 1.0 + 1e-9  # the end points sit at the window's edge up to rounding: keep them
+    lo = 0
+    s_lo = 0.0
+    hi = 0
+    s_hi = 0.0
+    s_i = 0.0
+    for i in range(n):
+        if i > 0:
+            s_i += math.hypot(float(poly[i, 0]) - float(poly[i - 1, 0]), float(poly[i, 1]) - float(poly[i - 1, 1]))
+        centre = 0.5 * total if short else min(max(s_i, half), total - half)
+        while s_lo < centre - half and lo < i:
+            s_lo += math.hypot(float(poly[lo + 1, 0]) - float(poly[lo, 0]), float(poly[lo + 1, 1]) - float(poly[lo, 1]))
+            lo += 1
+        if hi < i:
+            hi = i
+            s_hi = s_i
+        while hi + 1 < n:
+            step = math.hypot(float(poly[hi + 1, 0]) - float(poly[hi, 0]), float(poly[hi + 1, 1]) - float(poly[hi, 1]))
+            if (s_hi + step - centre) * inv_half > limit:
+                break
+            s_hi += step
+            hi += 1
+        chord_r = float(poly[hi, 0]) - float(poly[lo, 0])
+        chord_c = float(poly[hi, 1]) - float(poly[lo, 1])
+        chord = math.hypot(chord_r, chord_c)
+        if hi - lo < 2 or not chord > 0.5 * (s_hi - s_lo):
+            continue
+        along_r = chord_r / chord
+        along_c = chord_c / chord
+        base_r = float(poly[i, 0])
+        base_c = float(poly[i, 1])
+        m0 = m1 = m2 = m3 = m4 = 0.0
+        r0 = r1 = r2 = 0.0
+        s_j = s_lo
+        for j in range(lo, hi + 1):
+            if j > lo:
+                s_j += math.hypot(float(poly[j, 0]) - float(poly[j - 1, 0]), float(poly[j, 1]) - float(poly[j - 1, 1]))
+            d = min(abs(s_j - centre) * inv_half, 1.0)
+            w = 1.0 - 0.9 * d * d
+            dr = float(poly[j, 0]) - base_r
+            dc = float(poly[j, 1]) - base_c
+            x = (dr * along_r + dc * along_c) * inv_half
+            y = dc * along_r - dr * along_c
+            wx = w * x
+            wx2 = wx * x
+            m0 += w
+            m1 += wx
+            m2 += wx2
+            m3 += wx2 * x
+            m4 += wx2 * x * x
+            r0 += w * y
+            r1 += wx * y
+            r2 += wx2 * y
+        # Value at x = 0 (the point's own position along the chord) of the weighted quadratic fit, by Cramer's rule.
+        a = m2 * m4 - m3 * m3
+        b = m1 * m4 - m2 * m3
+        c = m1 * m3 - m2 * m2
+        det = m0 * a - m1 * b + m2 * c
+        if det > 1e-9 * m0 * m0 * m0:
+            offset = (r0 * a - r1 * b + r2 * c) / det
+        else:
+            det = m0 * m2 - m1 * m1
+            if not det > 1e-9 * m0 * m0:
+                continue
+            offset = (r0 * m2 - r1 * m1) / det
+        # y is measured along the normal (-along_c, along_r): move the point there by the fitted offset.
+        out_poly[i, 0] = base_r - offset * along_c
+        out_poly[i, 1] = base_c + offset * along_r
+    return n
