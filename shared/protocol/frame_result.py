@@ -78,6 +78,8 @@ class ShapeHint:
 
     begin_control_points: int | None = None
     end_control_points: int | None = None
+    begin_corrections: int = 0
+    end_corrections: int = 0
     explore_every: int = 8
     frames: int = 0
 
@@ -310,11 +312,16 @@ class FrameResult:
         hint = hint if hint is not None else ShapeHint()
         explore = hint.frames % max(1, hint.explore_every) == 0
         hint.frames += 1
-        begin = encode_shape(self.begin_px, config, origin_px, control_hint=hint.begin_control_points, explore=explore)
-        end = encode_shape(self.end_px, config, origin_px, begin, control_hint=hint.end_control_points, explore=explore)
-        for encoded, attr in ((begin, "begin_control_points"), (end, "end_control_points")):
+        begin = encode_shape(
+            self.begin_px, config, origin_px, None, hint.begin_control_points, explore, hint.begin_corrections
+        )
+        end = encode_shape(
+            self.end_px, config, origin_px, begin, hint.end_control_points, explore, hint.end_corrections
+        )
+        for encoded, side in ((begin, "begin"), (end, "end")):
             if encoded.control_q is not None:
-                setattr(hint, attr, len(encoded.control_q))
+                setattr(hint, f"{side}_control_points", len(encoded.control_q))
+                setattr(hint, f"{side}_corrections", encoded.corrections)
         w.raw(begin.data)
         w.raw(end.data)
         tip = origin
