@@ -113,11 +113,19 @@ class ByteReader:
 
     def uvarint(self, what: str, maximum: int = _U64_MAX) -> int:
         """Read an unsigned varint and check ``value <= maximum``."""
+        # The hot path of every decoder: bytes are read in place, without a view per byte.
+        data = self._data
+        position = self._pos
+        end = len(data)
         value = 0
-        for index in range(_MAX_VARINT_BYTES):
-            byte = self._take(1, what)[0]
-            value |= (byte & 0x7F) << (7 * index)
+        for shift in range(0, 7 * _MAX_VARINT_BYTES, 7):
+            if position >= end:
+                raise ProtocolError(f"truncated payload: {what} needs 1 bytes, 0 left")
+            byte = data[position]
+            position += 1
+            value |= (byte & 0x7F) << shift
             if not byte & 0x80:
+                self._pos = position
                 if value > maximum:
                     raise ProtocolError(f"{what} = {value} exceeds its maximum {maximum}")
                 return value

@@ -34,6 +34,8 @@ _CONFIDENCE_SCALE: Final = 65535
 MAX_MATERIAL_POINTS: Final = 64
 _U32: Final = 0xFFFF_FFFF
 _DEFAULT_SHAPES: Final = ShapeCodecConfig()
+_PointQ = tuple[int, int]
+"""A point in 1/64 px units."""
 
 
 class FrameStatus(IntEnum):
@@ -305,10 +307,10 @@ class FrameResult:
             if present:
                 flags |= bit
         w.raw(bytes([flags]))
-        origin = np.zeros(2, dtype=np.int64)
+        origin: _PointQ = (0, 0)
         if self.fixed_end_px is not None:
             origin = _write_point(w, self.fixed_end_px, origin)
-        origin_px = origin / _POINT_SCALE
+        origin_px = (origin[0] / _POINT_SCALE, origin[1] / _POINT_SCALE)
         hint = hint if hint is not None else ShapeHint()
         explore = hint.frames % max(1, hint.explore_every) == 0
         hint.frames += 1
@@ -335,7 +337,7 @@ class FrameResult:
         self._pack_material(w, origin)
         return w.getvalue()
 
-    def _pack_material(self, w: ByteWriter, origin: NDArray[np.int64]) -> None:
+    def _pack_material(self, w: ByteWriter, origin: _PointQ) -> None:
         w.uvarint(len(self.material_s_m))
         previous_s = 0
         for s in self.material_s_m:
@@ -370,12 +372,12 @@ class FrameResult:
         if flags_byte & ~0x1F:
             raise ProtocolError(f"FrameResult: unknown flag bits 0x{flags_byte:02x}")
         flags = _Flags(flags_byte)
-        origin = np.zeros(2, dtype=np.int64)
+        origin: _PointQ = (0, 0)
         fixed_end = None
         if flags & _Flags.FIXED_END:
             origin = _read_point(r, origin, "fixed end")
             fixed_end = _as_px(origin)
-        origin_px = origin / _POINT_SCALE
+        origin_px = (origin[0] / _POINT_SCALE, origin[1] / _POINT_SCALE)
         begin_px, begin_q = decode_shape(r, origin_px, what="begin shape")
         end_px, _ = decode_shape(r, origin_px, begin_q, what="end shape")
         tip = origin
@@ -412,23 +414,25 @@ class FrameResult:
         )
 
 
-def _write_point(w: ByteWriter, point: ArrayLike, reference_q: NDArray[np.int64]) -> NDArray[np.int64]:
-    point_q = np.rint(np.asarray(point, dtype=np.float64) * _POINT_SCALE).astype(np.int64)
-    w.svarint(int(point_q[0] - reference_q[0]))
-    w.svarint(int(point_q[1] - reference_q[1]))
-    return point_q
+def _write_point(w: ByteWriter, point: ArrayLike, reference_q: _PointQ) -> _PointQ:
+    # Python's round() rounds half to even like np.rint; plain ints keep this per-point path free of NumPy calls.
+    u = round(float(point[0]) * _POINT_SCALE)  # type: ignore[index]
+    v = round(float(point[1]) * _POINT_SCALE)  # type: ignore[index]
+    w.svarint(u - reference_q[0])
+    w.svarint(v - reference_q[1])
+    return u, v
 
 
-def _read_point(r: ByteReader, reference_q: NDArray[np.int64], what: str) -> NDArray[np.int64]:
-    delta = np.array([r.svarint(f"{what} u", 2 * _POINT_LIMIT), r.svarint(f"{what} v", 2 * _POINT_LIMIT)])
-    point_q = reference_q + delta
-    if np.any(np.abs(point_q) >= _POINT_LIMIT):
+def _read_point(r: ByteReader, reference_q: _PointQ, what: str) -> _PointQ:
+    u = reference_q[0] + r.svarint(f"{what} u", 2 * _POINT_LIMIT)
+    v = reference_q[1] + r.svarint(f"{what} v", 2 * _POINT_LIMIT)
+    if abs(u) >= _POINT_LIMIT or abs(v) >= _POINT_LIMIT:
         raise ProtocolError(f"{what} beyond +-65536 px")
-    return point_q
+    return u, v
 
 
-def _as_px(point_q: NDArray[np.int64]) -> tuple[float, float]:
-    return float(point_q[0] / _POINT_SCALE), float(point_q[1] / _POINT_SCALE)
+def _as_px(point_q: _PointQ) -> tuple[float, float]:
+    return point_q[0] / _POINT_SCALE, point_q[1] / _POINT_SCALE
 
 
 def _mask_bytes(count: int) -> int:
@@ -448,7 +452,7 @@ def _pack_mask(begin_ok: NDArray[np.bool_], end_ok: NDArray[np.bool_]) -> bytes:
 
 
 def _unpack_material(
-    r: ByteReader, origin: NDArray[np.int64]
+    r: ByteReader, origin: _PointQ
 ) -> tuple[tuple[float, ...], NDArray[np.float64], NDArray[np.float64]]:
     count = r.uvarint("material point count", MAX_MATERIAL_POINTS)
     s_q = 0
@@ -469,10 +473,10 @@ def _unpack_material(
         begin_q = None
         if mask >> (2 * k) & 1:
             begin_q = previous = _read_point(r, previous, f"material begin {k}")
-            begin[k] = begin_q / _POINT_SCALE
+            begin[k] = _as_px(begin_q)
         if mask >> (2 * k + 1) & 1:
             end_q = _read_point(r, begin_q if begin_q is not None else previous, f"material end {k}")
-            end[k] = end_q / _POINT_SCALE
+            end[k] = _as_px(end_q)
             if begin_q is None:
                 previous = end_q
     return tuple(s_values), begin, end

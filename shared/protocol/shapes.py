@@ -28,6 +28,7 @@ Wire format of one shape (integers are varints, coordinates in units of ``2**-sh
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import IntEnum
 from typing import Final
@@ -181,10 +182,15 @@ def _origin_q(origin_px: tuple[float, float] | NDArray[np.float64] | None, shift
     """Quantise the coding origin; an absent (None or non-finite) origin is (0, 0) on both sides."""
     if origin_px is None:
         return np.zeros(2, dtype=np.int64)
-    origin = np.asarray(origin_px, dtype=np.float64).reshape(2)
-    if not np.all(np.isfinite(origin)) or np.any(np.abs(origin) >= _COORD_LIMIT_PX):
+    if isinstance(origin_px, tuple) and len(origin_px) == 2:
+        u, v = float(origin_px[0]), float(origin_px[1])
+    else:
+        origin = np.asarray(origin_px, dtype=np.float64).reshape(2)
+        u, v = float(origin[0]), float(origin[1])
+    if not (math.isfinite(u) and math.isfinite(v)) or abs(u) >= _COORD_LIMIT_PX or abs(v) >= _COORD_LIMIT_PX:
         return np.zeros(2, dtype=np.int64)
-    return np.rint(origin * float(1 << shift)).astype(np.int64)
+    scale = float(1 << shift)
+    return np.array([round(u * scale), round(v * scale)], dtype=np.int64)
 
 
 def _write_chain(writer: ByteWriter, items: NDArray[np.int64]) -> None:
