@@ -155,3 +155,30 @@ def test_config_key_and_its_effect_in_the_pipeline(rope, blurred_frames) -> None
 
     assert roughness(24.0) < 0.5 * roughness(0.0)
     assert math.isclose(PipelineConfig().output_smoothing_px, 24.0)
+
+
+def test_smooth_output_is_compact_on_the_wire(rope, blurred_frames) -> None:
+    """End to end: pipeline -> FrameResult -> wire. Smooth shapes need (almost) no spline corrections, which makes
+    a FrameResult less than half the bytes, and the decoded shapes still lie within 0.05 px of the device's."""
+    from ropecam.device.pipeline.result import to_wire
+    from ropecam.shared.protocol import ShapeHint, decode_message, encode_message, polyline_distances_px
+
+    def stream(smoothing_px: float) -> list[int]:
+        pipeline = Pipeline(PipelineConfig(output_smoothing_px=smoothing_px), (rope.width, rope.height))
+        hint = ShapeHint()
+        sizes = []
+        for frame in blurred_frames:
+            record = to_wire(pipeline.process(frame.image, frame.index, frame.t_ns, frame.exposure_us))
+            data = encode_message(
+                record, device_id=1, sequence=frame.index, t_ns=frame.t_ns, pack_options={"hint": hint}
+            )
+            sizes.append(len(data))
+            back = decode_message(data).record
+            for device, decoded in ((record.begin_px, back.begin_px), (record.end_px, back.end_px)):
+                assert np.max(polyline_distances_px(device, decoded)) <= 0.05 + 1e-9
+                assert np.hypot(*(device[-1] - decoded[-1])) <= 0.05 + 1e-9
+        return sizes
+
+    smooth, raw = stream(24.0), stream(0.0)
+    assert np.mean(smooth) < 0.6 * np.mean(raw)
+    assert np.mean(smooth) <= 170
