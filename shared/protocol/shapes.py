@@ -391,7 +391,7 @@ def _search(fitter: _Fitter, start: int, most: int, explore: bool, accept: int) 
         while m < most and since < _PATIENCE:
             m += 1
             candidate = fitter.attempt(m)
-            if fitter.size(m) <= fitter.size(best) - _UPWARD_GAIN:
+            if fitter.size(m) < math.inf and fitter.size(m) <= fitter.size(best) - _UPWARD_GAIN:
                 best, since = m, 0
             else:
                 since += 1
@@ -402,10 +402,10 @@ def _search(fitter: _Fitter, start: int, most: int, explore: bool, accept: int) 
     m, since = best, 0
     while m - 1 >= _MIN_CONTROL_POINTS and since < _PATIENCE:
         m -= 1
-        if fitter.size(m) <= fitter.size(best):
+        if fitter.size(m) <= fitter.size(best) and fitter.size(m) < math.inf:
             best, since = m, 0
         else:
-            since += 1
+            since += 1  # also when no count down here converges: never a walk through every count
     return best
 
 

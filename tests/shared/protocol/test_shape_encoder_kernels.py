@@ -180,3 +180,19 @@ def test_hint_with_many_corrections_does_not_stick() -> None:
     assert hinted.corrections <= 2 and len(hinted.data) < 60
     decoded, _ = decode_shape(ByteReader(hinted.data))
     assert decoded is not None and len(decoded) == len(points)
+
+
+def test_shapes_no_spline_can_carry_cost_few_fits(monkeypatch) -> None:
+    # A random walk: no count converges within the correction rounds. The search gives up after a few counts and
+    # sends the points raw (lossless at the quantum) instead of fitting every count up to the maximum.
+    import ropecam.shared.protocol.shapes as shapes_module
+
+    calls = []
+    original = shapes_module.fit_spline_with_corrections
+    monkeypatch.setattr(shapes_module, "fit_spline_with_corrections", lambda *a: (calls.append(1), original(*a))[1])
+    walk = np.cumsum(np.random.default_rng(0).normal(0, 1, (300, 2)), axis=0)
+    encoded = encode_shape(walk, ShapeCodecConfig(), control_hint=20, explore=False)
+    assert encoded.kind.name == "RAW"
+    assert len(calls) <= 6
+    decoded, _ = decode_shape(ByteReader(encoded.data))
+    assert np.max(np.abs(decoded - walk)) <= 1 / 128 + 1e-12
