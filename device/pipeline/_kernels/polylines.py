@@ -10,6 +10,7 @@ from ropecam.device.pipeline._kernels._common import FULL, INVALID
 from ropecam.shared.jit import (
     f4_2d,
     f4_2d_ro,
+    f8_1d,
     f8_1d_ro,
     kernel,
 )
@@ -157,8 +158,8 @@ def extend_to_band_end(poly, n, points, n_points, width_px, cap_px):
     return count if count >= 2 else n
 
 
-@kernel(int32(f4_2d_ro, int32, float32, f4_2d))
-def smooth_polyline(poly, n, half_width_px, out_poly):
+@kernel(int32(f4_2d_ro, int32, float32, f8_1d, f4_2d))
+def smooth_polyline(poly, n, half_width_px, work_arc_px, out_poly):
     """Smooth the polyline of `n` points across its direction by local quadratic regression (LOESS), into `out_poly`.
 
     A rope centreline has no pixel-scale wiggles: those are measurement noise. For point i, the window is the run
@@ -173,16 +174,23 @@ def smooth_polyline(poly, n, half_width_px, out_poly):
     is shorter than half its arc length (a hairpin tighter than the window) leaves its points as they are.
     `half_width_px` <= 0 or n < 3 copies the points; a polyline shorter than 2h is one window.
 
-    Writes ``out_poly[:n]`` (row, col); returns n, or INVALID when n < 0 or `out_poly` holds fewer than n rows.
+    Writes the arc length of every point into ``work_arc_px[:n]`` and the result into ``out_poly[:n]`` (row, col);
+    returns n, or INVALID when n < 0 or a buffer holds fewer than n rows.
     """
-    if n < 0 or out_poly.shape[0] < n or poly.shape[0] < n:
+    if n < 0 or out_poly.shape[0] < n or poly.shape[0] < n or work_arc_px.shape[0] < n:
         return INVALID
+    total = 0.0
     for i in range(n):
         out_poly[i, 0] = poly[i, 0]
         out_poly[i, 1] = poly[i, 1]
-    total = polyline_length(poly, n)
+        if i > 0:
+            dr = float(poly[i, 0]) - float(poly[i - 1, 0])
+            dc = float(poly[i, 1]) - float(poly[i - 1, 1])
+            total += math.sqrt(dr * dr + dc * dc)
+        work_arc_px[i] = total
     if n < 3 or not half_width_px > 0.0 or not total > 0.0:
         return n
+    arc = work_arc_px
     half = float(half_width_px)
     short = total <= 2.0 * half
     if short:
@@ -190,30 +198,18 @@ def smooth_polyline(poly, n, half_width_px, out_poly):
     inv_half = 1.0 / half
     limit = 1.0 + 1e-9  # the end points sit at the window's edge up to rounding: keep them
     lo = 0
-    s_lo = 0.0
     hi = 0
-    s_hi = 0.0
-    s_i = 0.0
     for i in range(n):
-        if i > 0:
-            s_i += math.hypot(float(poly[i, 0]) - float(poly[i - 1, 0]), float(poly[i, 1]) - float(poly[i - 1, 1]))
-        centre = 0.5 * total if short else min(max(s_i, half), total - half)
-        while s_lo < centre - half and lo < i:
-            s_lo += math.hypot(float(poly[lo + 1, 0]) - float(poly[lo, 0]), float(poly[lo + 1, 1]) - float(poly[lo, 1]))
+        centre = 0.5 * total if short else min(max(arc[i], half), total - half)
+        while arc[lo] < centre - half and lo < i:
             lo += 1
-        if hi < i:
-            hi = i
-            s_hi = s_i
-        while hi + 1 < n:
-            step = math.hypot(float(poly[hi + 1, 0]) - float(poly[hi, 0]), float(poly[hi + 1, 1]) - float(poly[hi, 1]))
-            if (s_hi + step - centre) * inv_half > limit:
-                break
-            s_hi += step
+        hi = max(hi, i)
+        while hi + 1 < n and (arc[hi + 1] - centre) * inv_half <= limit:
             hi += 1
         chord_r = float(poly[hi, 0]) - float(poly[lo, 0])
         chord_c = float(poly[hi, 1]) - float(poly[lo, 1])
-        chord = math.hypot(chord_r, chord_c)
-        if hi - lo < 2 or not chord > 0.5 * (s_hi - s_lo):
+        chord = math.sqrt(chord_r * chord_r + chord_c * chord_c)
+        if hi - lo < 2 or not chord > 0.5 * (arc[hi] - arc[lo]):
             continue
         along_r = chord_r / chord
         along_c = chord_c / chord
@@ -221,11 +217,8 @@ def smooth_polyline(poly, n, half_width_px, out_poly):
         base_c = float(poly[i, 1])
         m0 = m1 = m2 = m3 = m4 = 0.0
         r0 = r1 = r2 = 0.0
-        s_j = s_lo
         for j in range(lo, hi + 1):
-            if j > lo:
-                s_j += math.hypot(float(poly[j, 0]) - float(poly[j - 1, 0]), float(poly[j, 1]) - float(poly[j - 1, 1]))
-            d = min(abs(s_j - centre) * inv_half, 1.0)
+            d = min(abs(arc[j] - centre) * inv_half, 1.0)
             w = 1.0 - 0.9 * d * d
             dr = float(poly[j, 0]) - base_r
             dc = float(poly[j, 1]) - base_c

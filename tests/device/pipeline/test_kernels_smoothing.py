@@ -54,7 +54,14 @@ def smooth_reference(poly: np.ndarray, half_width_px: float) -> np.ndarray:
 def _smooth(poly: np.ndarray, half_width_px: float) -> np.ndarray:
     poly = np.ascontiguousarray(poly, dtype=np.float32)
     out = np.full((len(poly) + 3, 2), np.nan, np.float32)
-    assert K.smooth_polyline(poly, np.int32(len(poly)), np.float32(half_width_px), out) == len(poly)
+    arc = np.zeros(len(poly) + 1)
+    assert K.smooth_polyline(poly, np.int32(len(poly)), np.float32(half_width_px), arc, out) == len(poly)
+    if len(poly):
+        np.testing.assert_allclose(
+            arc[: len(poly)],
+            np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(poly.astype(np.float64), axis=0).T))]),
+            atol=1e-9,
+        )
     assert np.all(np.isnan(out[len(poly) :]))  # nothing written beyond n
     return out[: len(poly)].astype(np.float64)
 
@@ -106,7 +113,9 @@ def test_short_polylines_and_zero_width_are_copied(n) -> None:
 def test_refuses_a_small_output_buffer() -> None:
     poly = _arc(100.0, 50.0, 1.0).astype(np.float32)
     out = np.zeros((len(poly) - 1, 2), np.float32)
-    assert K.smooth_polyline(poly, np.int32(len(poly)), np.float32(5.0), out) == K.INVALID
+    assert K.smooth_polyline(poly, np.int32(len(poly)), np.float32(5.0), np.zeros(len(poly)), out) == K.INVALID
+    out = np.zeros((len(poly), 2), np.float32)
+    assert K.smooth_polyline(poly, np.int32(len(poly)), np.float32(5.0), np.zeros(3), out) == K.INVALID
 
 
 def test_quadratics_are_reproduced_and_the_ends_are_not_pulled_in() -> None:
