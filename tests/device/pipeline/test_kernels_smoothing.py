@@ -15,8 +15,9 @@ from ropecam.shared.errors import ConfigError
 pytestmark = pytest.mark.kernel
 
 
-def smooth_reference(poly: np.ndarray, half_width_px: float) -> np.ndarray:
-    """Per point: the window, the chord frame and a weighted quadratic fit by `np.linalg.lstsq`, as documented."""
+def smooth_reference(poly: np.ndarray, half_width_px: float, block: int = 3) -> np.ndarray:
+    """Per run of `block` points: the window of the middle one, its chord frame, a weighted quadratic fit by
+    `np.linalg.lstsq`, every point of the run (or, outside that window, its own fit) moved across onto it."""
     points = np.asarray(poly, dtype=np.float64)
     n = len(points)
     if n < 3 or half_width_px <= 0:
@@ -27,15 +28,16 @@ def smooth_reference(poly: np.ndarray, half_width_px: float) -> np.ndarray:
     short = total <= 2 * half
     if short:
         half = 0.5 * total * (1 + 1e-6)
-    out = points.copy()
-    for i in range(n):
+
+    def fit(i: int):
+        """(window indices, along, normal, coefficients) of the fit for point i, or None."""
         centre = 0.5 * total if short else min(max(s[i], half), total - half)
         d = (s - centre) / half
         inside = np.flatnonzero((d >= -1 - 1e-12) & (d <= 1 + 1e-9))
         lo, hi = inside[0], inside[-1]
         chord = points[hi] - points[lo]
         if hi - lo < 2 or np.hypot(*chord) <= 0.5 * (s[hi] - s[lo]):
-            continue
+            return inside, None
         along = chord / np.hypot(*chord)
         normal = np.array([-along[1], along[0]])
         rel = points[lo : hi + 1] - points[i]
@@ -43,11 +45,24 @@ def smooth_reference(poly: np.ndarray, half_width_px: float) -> np.ndarray:
         w = np.sqrt(1.0 - 0.9 * np.minimum(d[lo : hi + 1] ** 2, 1.0))
         distinct = len(np.unique(np.round(x, 9)))
         if distinct < 2:
-            continue
+            return inside, None
         degree = min(2, distinct - 1)
         basis = np.stack([x**k for k in range(degree + 1)], axis=1)
-        offset = np.linalg.lstsq(basis * w[:, None], y * w, rcond=None)[0][0]
-        out[i] = points[i] + offset * normal
+        return inside, (along, normal, np.linalg.lstsq(basis * w[:, None], y * w, rcond=None)[0])
+
+    out = points.copy()
+    for first in range(0, n, block):
+        run = range(first, min(first + block, n))
+        middle = (run[0] + run[-1]) // 2
+        window, model = fit(middle)
+        for k in run:
+            i, this = (middle, model) if k in window else (k, fit(k)[1])
+            if this is None:
+                continue
+            along, normal, coef = this
+            own = points[k] - points[i]
+            x = own @ along / half
+            out[k] = points[k] + (sum(c * x**p for p, c in enumerate(coef)) - own @ normal) * normal
     return out
 
 
