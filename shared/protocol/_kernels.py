@@ -254,10 +254,11 @@ def fit_spline_with_corrections(
     (`sample_bspline`, into `work_samples`). Then, for up to `max_rounds` rounds: the distance of every point to
     the decoded polyline (`work_decoded`; the end points also to the decoded end points) goes into
     `out_distance_px`; the decoded sample nearest each point farther than `tolerance_px` is moved onto it (an
-    offset at the quantum). Writes the k corrections in sample order to ``out_index[:k]`` and
-    ``out_offset_q[:k]``, and to `out_stats`: [0] the largest distance, [1] the bytes of the shape's control chain
-    relative to `origin_q` plus its correction list. Returns k; KernelStatus.NO_CONVERGENCE when points are still
-    out of tolerance after `max_rounds`; INVALID or SINGULAR from the fit.
+    offset at the quantum), or, when that sample already carries another point, a free neighbour. Writes the k
+    corrections in sample order to ``out_index[:k]`` and ``out_offset_q[:k]``, and to `out_stats`: [0] the largest
+    distance, [1] the bytes of the shape's control chain relative to `origin_q` plus its correction list.
+    Returns k; KernelStatus.NO_CONVERGENCE when points are still out of tolerance after `max_rounds`; INVALID or
+    SINGULAR from the fit.
     """
     n = points.shape[0]
     m = out_control_q.shape[0]
@@ -288,6 +289,7 @@ def fit_spline_with_corrections(
         work_decoded[i, 1] = work_samples[i, 1]
         out_offset_q[i, 0] = 0
         out_offset_q[i, 1] = 0
+        out_index[i] = -1  # until the corrections are listed: the point each sample was moved onto
     converged = False
     for _ in range(max_rounds):
         distances_to_polyline(points, t, work_decoded, half_window, out_distance_px)
@@ -305,10 +307,21 @@ def fit_spline_with_corrections(
         if bad == 0:
             converged = True
             break
-        # Move the decoded sample nearest each failing point onto it (index space ~ arc length on both sides).
+        # Move the decoded sample nearest each failing point onto it (index space ~ arc length on both sides). A
+        # sample already moved onto another point keeps it: the next free sample on the point's side, else on the
+        # other side, takes this one (two points sharing a sample would undo each other round after round).
         for i in range(n):
             if out_distance_px[i] > tolerance_px:
-                target = min(max(int(np.rint(min(1.0, max(0.0, t[i])) * (n - 1))), 0), n - 1)
+                position = min(1.0, max(0.0, t[i])) * (n - 1)
+                target = min(max(int(np.rint(position)), 0), n - 1)
+                if out_index[target] != -1 and out_index[target] != i:
+                    near = target + 1 if position >= target else target - 1
+                    far = 2 * target - near
+                    if 0 <= near < n and (out_index[near] == -1 or out_index[near] == i):
+                        target = near
+                    elif 0 <= far < n and (out_index[far] == -1 or out_index[far] == i):
+                        target = far
+                out_index[target] = i
                 du = int(np.rint((points[i, 0] - work_samples[target, 0]) * scale))
                 dv = int(np.rint((points[i, 1] - work_samples[target, 1]) * scale))
                 out_offset_q[target, 0] = du

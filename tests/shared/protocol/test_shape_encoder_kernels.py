@@ -50,6 +50,7 @@ def _reference_fit_and_correct(points, t, m, shift, tolerance, half_window, roun
     sample_bspline(np.ascontiguousarray(control_q / scale), np.empty(4), samples)
     decoded = samples.copy()
     offsets = np.zeros((len(points), 2), dtype=np.int64)
+    owner: dict[int, int] = {}
     for _ in range(rounds):
         distance = _segment_distances(points, decoded, t, half_window)
         distance[0] = max(distance[0], np.hypot(*(points[0] - decoded[0])))
@@ -58,9 +59,18 @@ def _reference_fit_and_correct(points, t, m, shift, tolerance, half_window, roun
         if len(bad) == 0:
             index = np.flatnonzero(np.any(offsets != 0, axis=1))
             return control_q, index, offsets[index], float(distance.max())
-        target = np.clip(np.rint(np.clip(t[bad], 0, 1) * (len(points) - 1)).astype(np.int64), 0, len(points) - 1)
-        offsets[target] = np.rint((points[bad] - samples[target]) * scale).astype(np.int64)
-        decoded[target] = samples[target] + offsets[target] / scale
+        for i in bad:
+            position = min(1.0, max(0.0, t[i])) * (len(points) - 1)
+            target = int(np.rint(position))
+            if owner.get(target, i) != i:  # taken by another point: a free neighbour, the point's side first
+                near = target + 1 if position >= target else target - 1
+                for other in (near, 2 * target - near):
+                    if 0 <= other < len(points) and owner.get(other, i) == i:
+                        target = other
+                        break
+            owner[target] = i
+            offsets[target] = np.rint((points[i] - samples[target]) * scale).astype(np.int64)
+            decoded[target] = samples[target] + offsets[target] / scale
     return None
 
 
