@@ -18,7 +18,14 @@ from numpy.typing import ArrayLike, NDArray
 
 from ropecam.shared.errors import ProtocolError
 from ropecam.shared.protocol.bytecodec import ByteReader, ByteWriter, check_int
-from ropecam.shared.protocol.shapes import ShapeCodecConfig, check_polyline, decode_shape, encode_shape
+from ropecam.shared.protocol.shapes import (
+    EncodedShape,
+    ShapeCodecConfig,
+    _encode_checked,
+    check_polyline,
+    decode_shape,
+    encode_shape,
+)
 from ropecam.shared.protocol.wire import MessageType, register_record
 
 __all__ = ["FrameResult", "FrameStatus", "FrameSummary", "Method", "ShapeHint", "peek_frame_summary"]
@@ -296,7 +303,7 @@ class FrameResult:
         w.raw(bytes([self.status, self.method]))
         w.fixed("H", round(self.order_confidence * _CONFIDENCE_SCALE))
         w.uvarint(self.pipeline_us)
-        flags = _Flags(0)
+        flags = 0  # plain int: IntFlag arithmetic is slow on this per-frame path
         for bit, present in (
             (_Flags.FIXED_END, self.fixed_end_px is not None),
             (_Flags.BEGIN_TIP, self.begin_tip_px is not None),
@@ -305,7 +312,7 @@ class FrameResult:
             (_Flags.STRETCH_END, not math.isnan(self.stretch_end)),
         ):
             if present:
-                flags |= bit
+                flags |= int(bit)
         w.raw(bytes([flags]))
         origin: _PointQ = (0, 0)
         if self.fixed_end_px is not None:
@@ -314,10 +321,11 @@ class FrameResult:
         hint = hint if hint is not None else ShapeHint()
         explore = hint.frames % max(1, hint.explore_every) == 0
         hint.frames += 1
-        begin = encode_shape(
+        # The constructor checked the polylines (`_polyline`): no second validation on this per-frame path.
+        begin = _encode_shape(
             self.begin_px, config, origin_px, None, hint.begin_control_points, explore, hint.begin_corrections
         )
-        end = encode_shape(
+        end = _encode_shape(
             self.end_px, config, origin_px, begin, hint.end_control_points, explore, hint.end_corrections
         )
         for encoded, side in ((begin, "begin"), (end, "end")):
@@ -414,6 +422,20 @@ class FrameResult:
         )
 
 
+def _encode_shape(
+    points: NDArray[np.float64] | None,
+    config: ShapeCodecConfig,
+    origin_px: tuple[float, float],
+    reference: EncodedShape | None,
+    control_hint: int | None,
+    explore: bool,
+    hint_corrections: int,
+) -> EncodedShape:
+    if points is None:
+        return encode_shape(None, config)
+    return _encode_checked(points, config, origin_px, reference, control_hint, explore, hint_corrections)
+
+
 def _write_point(w: ByteWriter, point: ArrayLike, reference_q: _PointQ) -> _PointQ:
     # Python's round() rounds half to even like np.rint; plain ints keep this per-point path free of NumPy calls.
     u = round(float(point[0]) * _POINT_SCALE)  # type: ignore[index]
@@ -446,7 +468,7 @@ def _pack_mask(begin_ok: NDArray[np.bool_], end_ok: NDArray[np.bool_]) -> bytes:
     Little-endian bit order (bit 0 is the lowest bit of the first byte); unused high bits are 0.
     """
     mask = 0
-    for k, (begin, end) in enumerate(zip(begin_ok, end_ok, strict=True)):
+    for k, (begin, end) in enumerate(zip(begin_ok.tolist(), end_ok.tolist(), strict=True)):
         mask |= (int(begin) << (2 * k)) | (int(end) << (2 * k + 1))
     return mask.to_bytes(_mask_bytes(len(begin_ok)), "little")
 

@@ -241,12 +241,12 @@ class _Fitter:
 
     def __init__(self, points: NDArray[np.float64], config: ShapeCodecConfig, origin_q: NDArray[np.int64]) -> None:
         n = len(points)
-        self.points = _read_only(points)
-        t = np.empty(n)
-        relative_positions(self.points, t)
-        self.t = _read_only(t)
+        # Plain (writable) arrays: Numba dispatches them to the read-only signatures faster than read-only views.
+        self.points = points
+        self.t = np.empty(n)
+        relative_positions(points, self.t)
         self.config = config
-        self.origin_q = _read_only(origin_q)
+        self.origin_q = origin_q
         self.basis = np.empty(4)
         self.normal = np.empty((MAX_CONTROL_POINTS, MAX_CONTROL_POINTS))
         self.samples = np.empty((n, 2))
@@ -282,12 +282,6 @@ class _Fitter:
     def size(self, m: int) -> float:
         candidate = self.attempt(m)
         return float("inf") if candidate is None else candidate.size
-
-
-def _read_only(array: NDArray) -> NDArray:
-    view = array.view()
-    view.flags.writeable = False
-    return view
 
 
 def encode_shape(
@@ -336,6 +330,19 @@ def encode_shape(
     if points_px is None:
         return EncodedShape(bytes([ShapeKind.ABSENT]), ShapeKind.ABSENT, None, 0, 0.0)
     points = check_polyline(points_px, "points_px")
+    return _encode_checked(points, config, origin_px, reference, control_hint, explore, hint_corrections)
+
+
+def _encode_checked(
+    points: NDArray[np.float64],
+    config: ShapeCodecConfig,
+    origin_px: tuple[float, float] | NDArray[np.float64] | None,
+    reference: EncodedShape | None,
+    control_hint: int | None,
+    explore: bool,
+    hint_corrections: int,
+) -> EncodedShape:
+    """`encode_shape` of a polyline `check_polyline` accepted (C-contiguous float64 (n, 2) within the limits)."""
     n = len(points)
     most = min(MAX_CONTROL_POINTS, n // 2)
     if most < _MIN_CONTROL_POINTS:
@@ -368,7 +375,7 @@ def encode_shape(
 
 
 def _chain_size(items: NDArray[np.int64]) -> int:
-    return int(chain_bytes(_read_only(np.ascontiguousarray(items))))
+    return int(chain_bytes(np.ascontiguousarray(items)))
 
 
 def _search(fitter: _Fitter, start: int, most: int, explore: bool, accept: int) -> int:
@@ -428,10 +435,10 @@ def _write_spline(
     # Each value takes at most 10 bytes: a buffer that cannot overflow.
     body = np.empty(10 * (2 * len(candidate.control_q) + 3 * len(candidate.index) + 1), dtype=np.uint8)
     count = write_spline_body(
-        _read_only(candidate.control_q),
-        _read_only(np.ascontiguousarray(base, dtype=np.int64)),
-        _read_only(candidate.index),
-        _read_only(candidate.offset_q),
+        candidate.control_q,
+        np.ascontiguousarray(base, dtype=np.int64),
+        candidate.index,
+        candidate.offset_q,
         body,
     )
     if count < 0:
