@@ -15,6 +15,7 @@ i8_1d: Final = types.Array(types.int64, 1, "C")
 i8_1d_ro: Final = types.Array(types.int64, 1, "C", readonly=True)
 i8_2d: Final = types.Array(types.int64, 2, "C")
 i8_2d_ro: Final = types.Array(types.int64, 2, "C", readonly=True)
+u1_1d_ro: Final = types.Array(types.uint8, 1, "C", readonly=True)
 
 _FULL = int(KernelStatus.FULL)
 _INVALID = int(KernelStatus.INVALID)
@@ -440,4 +441,100 @@ def write_spline_body(control_q, reference_q, index, offset_q, out_bytes):
         if position >= 0:
             position = _put_svarint(offset_q[c, 1], out_bytes, position)
         previous = index[c]
+    return position
+
+
+@kernel(types.UniTuple(int64, 2)(u1_1d_ro, int64))
+def _get_uvarint(data, position):
+    """Read one LEB128 varint of at most 9 bytes at `position`: (value, next position), or (0, FULL) when the data
+    ends and (0, INVALID) for a longer varint (the wire's values are far smaller)."""
+    value = 0
+    for shift in range(0, 63, 7):
+        if position >= data.shape[0]:
+            return 0, _FULL
+        byte = int64(data[position])
+        position += 1
+        value |= (byte & 0x7F) << shift
+        if byte < 0x80:
+            return value, position
+    return 0, _INVALID
+
+
+@kernel(types.UniTuple(int64, 2)(u1_1d_ro, int64))
+def _get_svarint(data, position):
+    """Read one zigzag varint (as `_get_uvarint`): (value, next position) or (0, status)."""
+    zigzag, position = _get_uvarint(data, position)
+    return (zigzag >> 1) ^ -(zigzag & 1), position
+
+
+@kernel(int64(u1_1d_ro, int64, int64, i8_2d))
+def read_chain(data, position, limit, out_items):
+    """Read a chain as `write_spline_body` writes it (2 m zigzag varints from `position`: item 0, the first
+    difference, the second differences) and write its m = len(`out_items`) items (u, v), summed up.
+
+    Item 0 must lie within +-`limit`, the first difference within 2 `limit`, second differences within 4 `limit`,
+    and every item within +-`limit`. Returns the position after the chain; KernelStatus.FULL when the data ends
+    first, INVALID for a varint longer than 9 bytes or a value out of range.
+    """
+    u = 0
+    v = 0
+    du = 0
+    dv = 0
+    for i in range(out_items.shape[0]):
+        bound = limit if i == 0 else (2 * limit if i == 1 else 4 * limit)
+        a, position = _get_svarint(data, position)
+        if position < 0:
+            return position
+        b, position = _get_svarint(data, position)
+        if position < 0:
+            return position
+        if abs(a) > bound or abs(b) > bound:
+            return _INVALID
+        if i == 0:
+            u, v = a, b
+        else:
+            if i == 1:
+                du, dv = a, b
+            else:
+                du += a
+                dv += b
+            u += du
+            v += dv
+        if abs(u) > limit or abs(v) > limit:
+            return _INVALID
+        out_items[i, 0] = u
+        out_items[i, 1] = v
+    return position
+
+
+@kernel(int64(u1_1d_ro, int64, int64, int64, int64, f8_2d))
+def apply_corrections(data, position, count, limit, shift, out_points):
+    """Read `count` corrections from `position` (per correction: the index gap as a varint, then du, dv as zigzag
+    varints in units of ``2**-shift`` px) and add each offset to its point of `out_points`.
+
+    Returns the position after them; KernelStatus.FULL when the data ends first, INVALID for a malformed varint,
+    an offset beyond +-`limit` or an index beyond len(`out_points`).
+    """
+    n = out_points.shape[0]
+    scale = float(1 << shift)
+    index = -1
+    for _ in range(count):
+        gap, position = _get_uvarint(data, position)
+        if position < 0:
+            return position
+        if gap >= n:
+            return _INVALID
+        index += gap + 1
+        if index >= n:
+            return _INVALID
+        du, position = _get_svarint(data, position)
+        if position < 0:
+            return position
+        dv, position = _get_svarint(data, position)
+        if position < 0:
+            return position
+        if abs(du) > limit or abs(dv) > limit:
+            return _INVALID
+        out_points[index, 0] += du / scale
+        out_points[index, 1] += dv / scale
     return position

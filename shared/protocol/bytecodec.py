@@ -10,6 +10,7 @@ import struct
 from typing import Final
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ropecam.shared.errors import ProtocolError
 
@@ -137,6 +138,17 @@ class ByteReader:
         if abs(value) > limit:
             raise ProtocolError(f"{what} = {value} exceeds its limit {limit}")
         return value
+
+    def buffer(self) -> tuple[NDArray[np.uint8], int]:
+        """Return the whole input as a uint8 array (no copy) and the read position, for kernels that parse in
+        place; move on with `seek`."""
+        return np.frombuffer(self._data, dtype=np.uint8), self._pos
+
+    def seek(self, position: int, what: str) -> None:
+        """Continue reading at `position` (forward only, within the data)."""
+        if not self._pos <= position <= len(self._data):
+            raise ProtocolError(f"{what}: position {position} outside [{self._pos}, {len(self._data)}]")
+        self._pos = position
 
     def raw(self, count: int, what: str) -> bytes:
         """Read exactly `count` bytes."""

@@ -38,10 +38,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from ropecam.shared.config import check_range
 from ropecam.shared.errors import ConfigError, ProtocolError
+from ropecam.shared.jit import KernelStatus
 from ropecam.shared.protocol._kernels import (
+    apply_corrections,
     chain_bytes,
     distances_to_polyline,
     fit_spline_with_corrections,
+    read_chain,
     relative_positions,
     sample_bspline,
     write_spline_body,
@@ -206,23 +209,15 @@ def _write_chain(writer: ByteWriter, items: NDArray[np.int64]) -> None:
 
 
 def _read_chain(reader: ByteReader, count: int, limit: int, what: str) -> NDArray[np.int64]:
+    """Read `count` items written by `_write_chain` (in one kernel call: RAW shapes have thousands)."""
     values = np.empty((count, 2), dtype=np.int64)
-    u = reader.svarint(f"{what} u0", limit)
-    v = reader.svarint(f"{what} v0", limit)
-    values[0] = (u, v)
-    du = dv = 0
-    for i in range(1, count):
-        if i == 1:
-            du = reader.svarint(f"{what} du", 2 * limit)
-            dv = reader.svarint(f"{what} dv", 2 * limit)
-        else:
-            du += reader.svarint(f"{what} d2u", 4 * limit)
-            dv += reader.svarint(f"{what} d2v", 4 * limit)
-        u += du
-        v += dv
-        if abs(u) > limit or abs(v) > limit:
-            raise ProtocolError(f"{what}: coordinate beyond +-{_COORD_LIMIT_PX:g} px")
-        values[i] = (u, v)
+    data, position = reader.buffer()
+    position = read_chain(data, position, limit, values)
+    if position == KernelStatus.FULL:
+        raise ProtocolError(f"truncated payload: {what} ends inside its {count} coordinates")
+    if position < 0:
+        raise ProtocolError(f"{what}: over-long varint or coordinate beyond +-{_COORD_LIMIT_PX:g} px")
+    reader.seek(position, what)
     return values
 
 
@@ -524,12 +519,14 @@ def decode_shape(
         raise ProtocolError(f"{what}: control point beyond +-{_COORD_LIMIT_PX:g} px")
     corrections = reader.uvarint(f"{what} correction count", n)
     points = _spline_samples(control_q, n, shift)
-    index = -1
-    for _ in range(corrections):
-        index += reader.uvarint(f"{what} correction index", n) + 1
-        if index >= n:
-            raise ProtocolError(f"{what}: correction index {index} beyond point count {n}")
-        du = reader.svarint(f"{what} correction du", limit)
-        dv = reader.svarint(f"{what} correction dv", limit)
-        points[index] += (du / scale, dv / scale)
+    data, position = reader.buffer()
+    position = apply_corrections(data, position, corrections, limit, shift, points)
+    if position == KernelStatus.FULL:
+        raise ProtocolError(f"truncated payload: {what} ends inside its {corrections} corrections")
+    if position < 0:
+        raise ProtocolError(
+            f"{what}: a correction has an over-long varint, an index beyond point count {n} or an offset beyond "
+            f"+-{_COORD_LIMIT_PX:g} px"
+        )
+    reader.seek(position, what)
     return points, control_q

@@ -12,7 +12,8 @@ import json
 import numpy as np
 from numba.core.runtime import rtsys
 from ropecam.shared.protocol._kernels import (
-    chain_bytes, distances_to_polyline, fit_bspline, fit_spline_with_corrections, relative_positions, sample_bspline,
+    apply_corrections, chain_bytes, distances_to_polyline, fit_bspline, fit_spline_with_corrections, read_chain,
+    relative_positions, sample_bspline,
     write_spline_body,
 )
 pts = np.random.default_rng(0).random((50, 2)); t = np.linspace(0, 1, 50); out = np.empty(50)
@@ -33,6 +34,8 @@ calls = {
         13,
     ),
     "write_spline_body": (lambda: write_spline_body(cq, origin.reshape(1, 2), index[:3], offsets[:3], body), 5),
+    "read_chain": (lambda: read_chain(body, 0, 1 << 22, cq), 2),
+    "apply_corrections": (lambda: apply_corrections(body, 0, 3, 1 << 22, 6, s1), 2),
 }
 result = {}
 for name, (call, arrays) in calls.items():

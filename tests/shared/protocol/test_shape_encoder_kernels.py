@@ -7,9 +7,11 @@ import pytest
 
 from ropecam.shared.jit import KernelStatus
 from ropecam.shared.protocol._kernels import (
+    apply_corrections,
     chain_bytes,
     fit_bspline,
     fit_spline_with_corrections,
+    read_chain,
     relative_positions,
     sample_bspline,
     svarint_bytes,
@@ -206,3 +208,28 @@ def test_shapes_no_spline_can_carry_cost_few_fits(monkeypatch) -> None:
     assert len(calls) <= 6
     decoded, _ = decode_shape(ByteReader(encoded.data))
     assert np.max(np.abs(decoded - walk)) <= 1 / 128 + 1e-12
+
+
+def test_chain_and_correction_readers_match_the_reference() -> None:
+    rng = np.random.default_rng(8)
+    control_q = np.cumsum(rng.integers(-3000, 3000, (9, 2)), axis=0)
+    index = np.array([0, 3, 4, 150, 151, 199])
+    offset_q = rng.integers(-200, 200, (6, 2))
+    data = np.frombuffer(_reference_body(control_q, np.zeros((1, 2), np.int64), index, offset_q), dtype=np.uint8)
+    limit = 65536 * 64
+    items = np.empty((9, 2), dtype=np.int64)
+    position = read_chain(data, 0, limit, items)
+    np.testing.assert_array_equal(items, control_q)
+    assert data[position] == len(index)  # the correction count follows the chain
+    points = rng.normal(0, 100, (200, 2))
+    expected = points.copy()
+    for i, (du, dv) in zip(index, offset_q, strict=True):
+        expected[i] += (du / 64.0, dv / 64.0)
+    assert apply_corrections(data, position + 1, len(index), limit, 6, points) == len(data)
+    np.testing.assert_array_equal(points, expected)
+    # Hostile input: a status, never a read or write out of bounds.
+    assert read_chain(data[:5], 0, limit, items) == KernelStatus.FULL
+    assert read_chain(data, 0, 100, items) == KernelStatus.INVALID  # beyond the limit
+    assert read_chain(np.full(20, 0xFF, dtype=np.uint8), 0, limit, items) == KernelStatus.INVALID  # over-long
+    assert apply_corrections(data, position + 1, len(index), limit, 6, np.zeros((150, 2))) == KernelStatus.INVALID
+    assert apply_corrections(data[:-1], position + 1, len(index), limit, 6, np.zeros((200, 2))) == KernelStatus.FULL
