@@ -91,6 +91,10 @@ class ShapeHint:
     end_corrections: int = 0
     explore_every: int = 8
     frames: int = 0
+    shapes_coded: int = 0
+    """Running totals of the stream: shapes sent as splines and the corrections they carried (a rough shape costs
+    3-4 bytes per correction; see docs/protocol.md)."""
+    corrections_sent: int = 0
 
 
 def _polyline(value: ArrayLike | None, name: str) -> NDArray[np.float64] | None:
@@ -332,6 +336,8 @@ class FrameResult:
             if encoded.control_q is not None:
                 setattr(hint, f"{side}_control_points", len(encoded.control_q))
                 setattr(hint, f"{side}_corrections", encoded.corrections)
+                hint.shapes_coded += 1
+                hint.corrections_sent += encoded.corrections
         w.raw(begin.data)
         w.raw(end.data)
         tip = origin
