@@ -60,6 +60,11 @@ class PipelineConfig:
         points lie up to a band width (rope width + sweep) from the centreline's free end; ``false``: T as given.
     output_step_px
         Spacing of the output polylines.
+    output_smoothing_px
+        Half-width (pixels of arc length) of the smoothing of the output polylines: a local quadratic fit along the
+        rope (LOESS) that removes pixel-scale measurement wiggles a real rope does not have, without shrinking the
+        ends or flattening bends much longer than the window. 0 disables it. Larger values cost accuracy where
+        the rope bends sharply (tight loops, a kink at a clamp).
     max_contour
         Capacity of the contour buffers (points).
     """
@@ -83,6 +88,7 @@ class PipelineConfig:
     paper_endpoint_radius_px: float = 15.0
     paper_endpoint_radius_scaled: bool = True
     output_step_px: float = 2.0
+    output_smoothing_px: float = 24.0
     max_contour: int = 40_000
 
     def __post_init__(self) -> None:
@@ -115,4 +121,5 @@ class PipelineConfig:
                 f"paper_endpoint_radius_scaled must be true or false, got {self.paper_endpoint_radius_scaled!r}"
             )
         check_range("output_step_px", self.output_step_px, 0.25, 100.0)
+        check_range("output_smoothing_px", self.output_smoothing_px, 0.0, 200.0)
         check_range("max_contour", self.max_contour, 100, 10_000_000)

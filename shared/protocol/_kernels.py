@@ -1,16 +1,26 @@
 """Numba kernels of the shape codec (the encoder runs on the device's per-frame path): point-to-polyline
-distances, least-squares B-spline fit and B-spline sampling."""
+distances, least-squares B-spline fit, B-spline sampling, the encoder's fit-and-correct step and byte counts."""
 
 from __future__ import annotations
 
 import math
+from typing import Final
 
-from numba import float64, int64
+import numpy as np
+from numba import float64, int64, types
 
-from ropecam.shared.jit import KernelStatus, f8_1d, f8_1d_ro, f8_2d, f8_2d_ro, kernel
+from ropecam.shared.jit import KernelStatus, f8_1d, f8_1d_ro, f8_2d, f8_2d_ro, kernel, u1_1d
 
+i8_1d: Final = types.Array(types.int64, 1, "C")
+i8_1d_ro: Final = types.Array(types.int64, 1, "C", readonly=True)
+i8_2d: Final = types.Array(types.int64, 2, "C")
+i8_2d_ro: Final = types.Array(types.int64, 2, "C", readonly=True)
+u1_1d_ro: Final = types.Array(types.uint8, 1, "C", readonly=True)
+
+_FULL = int(KernelStatus.FULL)
 _INVALID = int(KernelStatus.INVALID)
 _SINGULAR = int(KernelStatus.SINGULAR)
+_NO_CONVERGENCE = int(KernelStatus.NO_CONVERGENCE)
 
 
 @kernel(int64(f8_2d_ro, f8_1d_ro, f8_2d_ro, int64, f8_1d))
@@ -179,3 +189,352 @@ def sample_bspline(control, work_basis, out_points):
         out_points[i, 0] = u
         out_points[i, 1] = v
     return n
+
+
+@kernel(int64(int64))
+def uvarint_bytes(value):
+    """Return the length in bytes of `value` (>= 0) written as a LEB128 varint."""
+    count = 1
+    while value >= 0x80:
+        value >>= 7
+        count += 1
+    return count
+
+
+@kernel(int64(int64))
+def svarint_bytes(value):
+    """Return the length in bytes of `value` written as a zigzag LEB128 varint."""
+    return uvarint_bytes(value << 1 if value >= 0 else ((-value) << 1) - 1)
+
+
+@kernel(int64(i8_2d_ro))
+def chain_bytes(items):
+    """Return the bytes `shapes._write_chain` spends on `items` (m, 2): item 0, the first and second differences."""
+    m = items.shape[0]
+    if m == 0:
+        return 0
+    total = svarint_bytes(items[0, 0]) + svarint_bytes(items[0, 1])
+    if m > 1:
+        total += svarint_bytes(items[1, 0] - items[0, 0]) + svarint_bytes(items[1, 1] - items[0, 1])
+    for i in range(2, m):
+        total += svarint_bytes(items[i, 0] - 2 * items[i - 1, 0] + items[i - 2, 0])
+        total += svarint_bytes(items[i, 1] - 2 * items[i - 1, 1] + items[i - 2, 1])
+    return total
+
+
+@kernel(
+    int64(
+        f8_2d_ro, f8_1d_ro, int64, int64, float64, int64, i8_1d_ro,
+        f8_1d, f8_2d, f8_2d, f8_2d, f8_2d, f8_1d, i8_2d, i8_1d, i8_2d, f8_1d,
+    )
+)  # fmt: skip
+def fit_spline_with_corrections(
+    points,
+    t,
+    shift,
+    max_rounds,
+    tolerance_px,
+    half_window,
+    origin_q,
+    work_basis,
+    work_normal,
+    work_samples,
+    work_decoded,
+    out_control,
+    out_distance_px,
+    out_control_q,
+    out_index,
+    out_offset_q,
+    out_stats,
+):
+    """Fit a spline of m = len(`out_control_q`) control points to `points` and find the corrections that bring every
+    point within `tolerance_px` of the decoded polyline (the encoder's inner loop, one call per candidate m).
+
+    The control points are fitted (`fit_bspline`), quantised to ``2**-shift`` px into `out_control_q`, turned back
+    into pixels exactly as the decoder does (`out_control`) and sampled at len(`points`) equally spaced parameters
+    (`sample_bspline`, into `work_samples`). Then, for up to `max_rounds` rounds: the distance of every point to
+    the decoded polyline (`work_decoded`; the end points also to the decoded end points) goes into
+    `out_distance_px`; the decoded sample nearest each point farther than `tolerance_px` is moved onto it (an
+    offset at the quantum), or, when that sample already carries another point, a free neighbour. Writes the k
+    corrections in sample order to ``out_index[:k]`` and ``out_offset_q[:k]``, and to `out_stats`: [0] the largest
+    distance, [1] the bytes of the shape's control chain relative to `origin_q` plus its correction list.
+    Returns k; KernelStatus.NO_CONVERGENCE when points are still out of tolerance after `max_rounds`; INVALID or
+    SINGULAR from the fit.
+    """
+    n = points.shape[0]
+    m = out_control_q.shape[0]
+    if (
+        n < 2
+        or t.shape[0] != n
+        or out_control.shape[0] != m
+        or work_samples.shape[0] != n
+        or work_decoded.shape[0] != n
+        or out_distance_px.shape[0] != n
+        or out_index.shape[0] < n
+        or out_offset_q.shape[0] < n
+        or out_stats.shape[0] < 2
+        or origin_q.shape[0] != 2
+    ):
+        return _INVALID
+    status = fit_bspline(points, t, m, work_basis, work_normal, out_control)
+    if status != m:
+        return status
+    scale = float(1 << shift)
+    for a in range(m):
+        for axis in range(2):
+            out_control_q[a, axis] = int(np.rint(out_control[a, axis] * scale))
+            out_control[a, axis] = out_control_q[a, axis] / scale
+    sample_bspline(out_control, work_basis, work_samples)
+    for i in range(n):
+        work_decoded[i, 0] = work_samples[i, 0]
+        work_decoded[i, 1] = work_samples[i, 1]
+        out_offset_q[i, 0] = 0
+        out_offset_q[i, 1] = 0
+        out_index[i] = -1  # until the corrections are listed: the point each sample was moved onto
+    converged = False
+    for _ in range(max_rounds):
+        distances_to_polyline(points, t, work_decoded, half_window, out_distance_px)
+        out_distance_px[0] = max(
+            out_distance_px[0], math.hypot(points[0, 0] - work_decoded[0, 0], points[0, 1] - work_decoded[0, 1])
+        )
+        out_distance_px[n - 1] = max(
+            out_distance_px[n - 1],
+            math.hypot(points[n - 1, 0] - work_decoded[n - 1, 0], points[n - 1, 1] - work_decoded[n - 1, 1]),
+        )
+        bad = 0
+        for i in range(n):
+            if out_distance_px[i] > tolerance_px:
+                bad += 1
+        if bad == 0:
+            converged = True
+            break
+        # Move the decoded sample nearest each failing point onto it (index space ~ arc length on both sides). A
+        # sample already moved onto another point keeps it: the next free sample on the point's side, else on the
+        # other side, takes this one (two points sharing a sample would undo each other round after round).
+        for i in range(n):
+            if out_distance_px[i] > tolerance_px:
+                position = min(1.0, max(0.0, t[i])) * (n - 1)
+                target = min(max(int(np.rint(position)), 0), n - 1)
+                if out_index[target] != -1 and out_index[target] != i:
+                    near = target + 1 if position >= target else target - 1
+                    far = 2 * target - near
+                    if 0 <= near < n and (out_index[near] == -1 or out_index[near] == i):
+                        target = near
+                    elif 0 <= far < n and (out_index[far] == -1 or out_index[far] == i):
+                        target = far
+                out_index[target] = i
+                du = int(np.rint((points[i, 0] - work_samples[target, 0]) * scale))
+                dv = int(np.rint((points[i, 1] - work_samples[target, 1]) * scale))
+                out_offset_q[target, 0] = du
+                out_offset_q[target, 1] = dv
+                work_decoded[target, 0] = work_samples[target, 0] + du / scale
+                work_decoded[target, 1] = work_samples[target, 1] + dv / scale
+    if not converged:
+        return _NO_CONVERGENCE
+    worst = 0.0
+    for i in range(n):
+        worst = max(worst, out_distance_px[i])
+    size = 0
+    count = 0
+    previous = -1
+    for i in range(n):
+        if out_offset_q[i, 0] != 0 or out_offset_q[i, 1] != 0:
+            size += uvarint_bytes(i - previous - 1)
+            size += svarint_bytes(out_offset_q[i, 0]) + svarint_bytes(out_offset_q[i, 1])
+            out_index[count] = i
+            out_offset_q[count, 0] = out_offset_q[i, 0]
+            out_offset_q[count, 1] = out_offset_q[i, 1]
+            count += 1
+            previous = i
+    size += uvarint_bytes(count)
+    size += svarint_bytes(out_control_q[0, 0] - origin_q[0]) + svarint_bytes(out_control_q[0, 1] - origin_q[1])
+    if m > 1:
+        size += svarint_bytes(out_control_q[1, 0] - out_control_q[0, 0])
+        size += svarint_bytes(out_control_q[1, 1] - out_control_q[0, 1])
+    for a in range(2, m):
+        size += svarint_bytes(out_control_q[a, 0] - 2 * out_control_q[a - 1, 0] + out_control_q[a - 2, 0])
+        size += svarint_bytes(out_control_q[a, 1] - 2 * out_control_q[a - 1, 1] + out_control_q[a - 2, 1])
+    out_stats[0] = worst
+    out_stats[1] = size
+    return count
+
+
+@kernel(int64(f8_2d_ro, f8_1d))
+def relative_positions(points, out_t):
+    """Write the normalised arc length of each of `points` (n, 2) into `out_t` (0 at the first, 1 at the last point;
+    equally spaced when the polyline has no length). Returns n, or INVALID when `out_t` is too short."""
+    n = points.shape[0]
+    if out_t.shape[0] < n:
+        return _INVALID
+    total = 0.0
+    if n > 0:
+        out_t[0] = 0.0
+    for i in range(1, n):
+        total += math.hypot(points[i, 0] - points[i - 1, 0], points[i, 1] - points[i - 1, 1])
+        out_t[i] = total
+    for i in range(n):
+        out_t[i] = out_t[i] / total if total > 0.0 else (i / (n - 1) if n > 1 else 0.0)
+    return n
+
+
+@kernel(int64(int64, u1_1d, int64))
+def _put_uvarint(value, out_bytes, position):
+    """Write `value` (>= 0) as LEB128 at `position`; return the next position, or FULL."""
+    while True:
+        if position >= out_bytes.shape[0]:
+            return _FULL
+        if value < 0x80:
+            out_bytes[position] = value
+            return position + 1
+        out_bytes[position] = (value & 0x7F) | 0x80
+        value >>= 7
+        position += 1
+
+
+@kernel(int64(int64, u1_1d, int64))
+def _put_svarint(value, out_bytes, position):
+    """Write `value` as a zigzag LEB128 varint at `position`; return the next position, or FULL."""
+    return _put_uvarint(value << 1 if value >= 0 else ((-value) << 1) - 1, out_bytes, position)
+
+
+@kernel(int64(i8_2d_ro, i8_2d_ro, i8_1d_ro, i8_2d_ro, u1_1d))
+def write_spline_body(control_q, reference_q, index, offset_q, out_bytes):
+    """Write the part of a spline shape after its control count (see `shapes`): the chain of the items
+    ``control_q - reference_q`` (item 0, the first difference, the second differences), the correction count and
+    per correction the index gap and the offset (rows of `index` and `offset_q`, in increasing index order).
+
+    `reference_q` has one (u, v) row per control point (a relative shape) or a single row (the origin) subtracted
+    from every one. Returns the bytes written into `out_bytes`, FULL when it is too small, INVALID when
+    `reference_q` has another number of rows or the corrections disagree in count.
+    """
+    m = control_q.shape[0]
+    k = index.shape[0]
+    per_row = reference_q.shape[0] == m
+    if (not per_row and reference_q.shape[0] != 1) or offset_q.shape[0] != k:
+        return _INVALID
+    position = 0
+    pu = pv = qu = qv = 0
+    for a in range(m):
+        r = a if per_row else 0
+        u = control_q[a, 0] - reference_q[r, 0]
+        v = control_q[a, 1] - reference_q[r, 1]
+        if a == 0:
+            du, dv = u, v
+        elif a == 1:
+            du, dv = u - pu, v - pv
+        else:
+            du, dv = u - 2 * pu + qu, v - 2 * pv + qv
+        qu, qv = pu, pv
+        pu, pv = u, v
+        position = _put_svarint(du, out_bytes, position)
+        if position >= 0:
+            position = _put_svarint(dv, out_bytes, position)
+        if position < 0:
+            return position
+    position = _put_uvarint(k, out_bytes, position)
+    previous = -1
+    for c in range(k):
+        if position >= 0:
+            position = _put_uvarint(index[c] - previous - 1, out_bytes, position)
+        if position >= 0:
+            position = _put_svarint(offset_q[c, 0], out_bytes, position)
+        if position >= 0:
+            position = _put_svarint(offset_q[c, 1], out_bytes, position)
+        previous = index[c]
+    return position
+
+
+@kernel(types.UniTuple(int64, 2)(u1_1d_ro, int64))
+def _get_uvarint(data, position):
+    """Read one LEB128 varint of at most 9 bytes at `position`: (value, next position), or (0, FULL) when the data
+    ends and (0, INVALID) for a longer varint (the wire's values are far smaller)."""
+    value = 0
+    for shift in range(0, 63, 7):
+        if position >= data.shape[0]:
+            return 0, _FULL
+        byte = int64(data[position])
+        position += 1
+        value |= (byte & 0x7F) << shift
+        if byte < 0x80:
+            return value, position
+    return 0, _INVALID
+
+
+@kernel(types.UniTuple(int64, 2)(u1_1d_ro, int64))
+def _get_svarint(data, position):
+    """Read one zigzag varint (as `_get_uvarint`): (value, next position) or (0, status)."""
+    zigzag, position = _get_uvarint(data, position)
+    return (zigzag >> 1) ^ -(zigzag & 1), position
+
+
+@kernel(int64(u1_1d_ro, int64, int64, i8_2d))
+def read_chain(data, position, limit, out_items):
+    """Read a chain as `write_spline_body` writes it (2 m zigzag varints from `position`: item 0, the first
+    difference, the second differences) and write its m = len(`out_items`) items (u, v), summed up.
+
+    Item 0 must lie within +-`limit`, the first difference within 2 `limit`, second differences within 4 `limit`,
+    and every item within +-`limit`. Returns the position after the chain; KernelStatus.FULL when the data ends
+    first, INVALID for a varint longer than 9 bytes or a value out of range.
+    """
+    u = 0
+    v = 0
+    du = 0
+    dv = 0
+    for i in range(out_items.shape[0]):
+        bound = limit if i == 0 else (2 * limit if i == 1 else 4 * limit)
+        a, position = _get_svarint(data, position)
+        if position < 0:
+            return position
+        b, position = _get_svarint(data, position)
+        if position < 0:
+            return position
+        if abs(a) > bound or abs(b) > bound:
+            return _INVALID
+        if i == 0:
+            u, v = a, b
+        else:
+            if i == 1:
+                du, dv = a, b
+            else:
+                du += a
+                dv += b
+            u += du
+            v += dv
+        if abs(u) > limit or abs(v) > limit:
+            return _INVALID
+        out_items[i, 0] = u
+        out_items[i, 1] = v
+    return position
+
+
+@kernel(int64(u1_1d_ro, int64, int64, int64, int64, f8_2d))
+def apply_corrections(data, position, count, limit, shift, out_points):
+    """Read `count` corrections from `position` (per correction: the index gap as a varint, then du, dv as zigzag
+    varints in units of ``2**-shift`` px) and add each offset to its point of `out_points`.
+
+    Returns the position after them; KernelStatus.FULL when the data ends first, INVALID for a malformed varint,
+    an offset beyond +-`limit` or an index beyond len(`out_points`).
+    """
+    n = out_points.shape[0]
+    scale = float(1 << shift)
+    index = -1
+    for _ in range(count):
+        gap, position = _get_uvarint(data, position)
+        if position < 0:
+            return position
+        if gap >= n:
+            return _INVALID
+        index += gap + 1
+        if index >= n:
+            return _INVALID
+        du, position = _get_svarint(data, position)
+        if position < 0:
+            return position
+        dv, position = _get_svarint(data, position)
+        if position < 0:
+            return position
+        if abs(du) > limit or abs(dv) > limit:
+            return _INVALID
+        out_points[index, 0] += du / scale
+        out_points[index, 1] += dv / scale
+    return position

@@ -10,6 +10,7 @@ import struct
 from typing import Final
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ropecam.shared.errors import ProtocolError
 
@@ -113,11 +114,19 @@ class ByteReader:
 
     def uvarint(self, what: str, maximum: int = _U64_MAX) -> int:
         """Read an unsigned varint and check ``value <= maximum``."""
+        # The hot path of every decoder: bytes are read in place, without a view per byte.
+        data = self._data
+        position = self._pos
+        end = len(data)
         value = 0
-        for index in range(_MAX_VARINT_BYTES):
-            byte = self._take(1, what)[0]
-            value |= (byte & 0x7F) << (7 * index)
+        for shift in range(0, 7 * _MAX_VARINT_BYTES, 7):
+            if position >= end:
+                raise ProtocolError(f"truncated payload: {what} needs 1 bytes, 0 left")
+            byte = data[position]
+            position += 1
+            value |= (byte & 0x7F) << shift
             if not byte & 0x80:
+                self._pos = position
                 if value > maximum:
                     raise ProtocolError(f"{what} = {value} exceeds its maximum {maximum}")
                 return value
@@ -129,6 +138,17 @@ class ByteReader:
         if abs(value) > limit:
             raise ProtocolError(f"{what} = {value} exceeds its limit {limit}")
         return value
+
+    def buffer(self) -> tuple[NDArray[np.uint8], int]:
+        """Return the whole input as a uint8 array (no copy) and the read position, for kernels that parse in
+        place; move on with `seek`."""
+        return np.frombuffer(self._data, dtype=np.uint8), self._pos
+
+    def seek(self, position: int, what: str) -> None:
+        """Continue reading at `position` (forward only, within the data)."""
+        if not self._pos <= position <= len(self._data):
+            raise ProtocolError(f"{what}: position {position} outside [{self._pos}, {len(self._data)}]")
+        self._pos = position
 
     def raw(self, count: int, what: str) -> bytes:
         """Read exactly `count` bytes."""

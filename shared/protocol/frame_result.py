@@ -18,7 +18,14 @@ from numpy.typing import ArrayLike, NDArray
 
 from ropecam.shared.errors import ProtocolError
 from ropecam.shared.protocol.bytecodec import ByteReader, ByteWriter, check_int
-from ropecam.shared.protocol.shapes import ShapeCodecConfig, check_polyline, decode_shape, encode_shape
+from ropecam.shared.protocol.shapes import (
+    EncodedShape,
+    ShapeCodecConfig,
+    _encode_checked,
+    check_polyline,
+    decode_shape,
+    encode_shape,
+)
 from ropecam.shared.protocol.wire import MessageType, register_record
 
 __all__ = ["FrameResult", "FrameStatus", "FrameSummary", "Method", "ShapeHint", "peek_frame_summary"]
@@ -34,6 +41,8 @@ _CONFIDENCE_SCALE: Final = 65535
 MAX_MATERIAL_POINTS: Final = 64
 _U32: Final = 0xFFFF_FFFF
 _DEFAULT_SHAPES: Final = ShapeCodecConfig()
+_PointQ = tuple[int, int]
+"""A point in 1/64 px units."""
 
 
 class FrameStatus(IntEnum):
@@ -78,8 +87,14 @@ class ShapeHint:
 
     begin_control_points: int | None = None
     end_control_points: int | None = None
+    begin_corrections: int = 0
+    end_corrections: int = 0
     explore_every: int = 8
     frames: int = 0
+    shapes_coded: int = 0
+    """Running totals of the stream: shapes sent as splines and the corrections they carried (a rough shape costs
+    3-4 bytes per correction; see docs/protocol.md)."""
+    corrections_sent: int = 0
 
 
 def _polyline(value: ArrayLike | None, name: str) -> NDArray[np.float64] | None:
@@ -292,7 +307,7 @@ class FrameResult:
         w.raw(bytes([self.status, self.method]))
         w.fixed("H", round(self.order_confidence * _CONFIDENCE_SCALE))
         w.uvarint(self.pipeline_us)
-        flags = _Flags(0)
+        flags = 0  # plain int: IntFlag arithmetic is slow on this per-frame path
         for bit, present in (
             (_Flags.FIXED_END, self.fixed_end_px is not None),
             (_Flags.BEGIN_TIP, self.begin_tip_px is not None),
@@ -301,20 +316,28 @@ class FrameResult:
             (_Flags.STRETCH_END, not math.isnan(self.stretch_end)),
         ):
             if present:
-                flags |= bit
+                flags |= int(bit)
         w.raw(bytes([flags]))
-        origin = np.zeros(2, dtype=np.int64)
+        origin: _PointQ = (0, 0)
         if self.fixed_end_px is not None:
             origin = _write_point(w, self.fixed_end_px, origin)
-        origin_px = origin / _POINT_SCALE
+        origin_px = (origin[0] / _POINT_SCALE, origin[1] / _POINT_SCALE)
         hint = hint if hint is not None else ShapeHint()
         explore = hint.frames % max(1, hint.explore_every) == 0
         hint.frames += 1
-        begin = encode_shape(self.begin_px, config, origin_px, control_hint=hint.begin_control_points, explore=explore)
-        end = encode_shape(self.end_px, config, origin_px, begin, control_hint=hint.end_control_points, explore=explore)
-        for encoded, attr in ((begin, "begin_control_points"), (end, "end_control_points")):
+        # The constructor checked the polylines (`_polyline`): no second validation on this per-frame path.
+        begin = _encode_shape(
+            self.begin_px, config, origin_px, None, hint.begin_control_points, explore, hint.begin_corrections
+        )
+        end = _encode_shape(
+            self.end_px, config, origin_px, begin, hint.end_control_points, explore, hint.end_corrections
+        )
+        for encoded, side in ((begin, "begin"), (end, "end")):
             if encoded.control_q is not None:
-                setattr(hint, attr, len(encoded.control_q))
+                setattr(hint, f"{side}_control_points", len(encoded.control_q))
+                setattr(hint, f"{side}_corrections", encoded.corrections)
+                hint.shapes_coded += 1
+                hint.corrections_sent += encoded.corrections
         w.raw(begin.data)
         w.raw(end.data)
         tip = origin
@@ -328,7 +351,7 @@ class FrameResult:
         self._pack_material(w, origin)
         return w.getvalue()
 
-    def _pack_material(self, w: ByteWriter, origin: NDArray[np.int64]) -> None:
+    def _pack_material(self, w: ByteWriter, origin: _PointQ) -> None:
         w.uvarint(len(self.material_s_m))
         previous_s = 0
         for s in self.material_s_m:
@@ -363,12 +386,12 @@ class FrameResult:
         if flags_byte & ~0x1F:
             raise ProtocolError(f"FrameResult: unknown flag bits 0x{flags_byte:02x}")
         flags = _Flags(flags_byte)
-        origin = np.zeros(2, dtype=np.int64)
+        origin: _PointQ = (0, 0)
         fixed_end = None
         if flags & _Flags.FIXED_END:
             origin = _read_point(r, origin, "fixed end")
             fixed_end = _as_px(origin)
-        origin_px = origin / _POINT_SCALE
+        origin_px = (origin[0] / _POINT_SCALE, origin[1] / _POINT_SCALE)
         begin_px, begin_q = decode_shape(r, origin_px, what="begin shape")
         end_px, _ = decode_shape(r, origin_px, begin_q, what="end shape")
         tip = origin
@@ -405,23 +428,39 @@ class FrameResult:
         )
 
 
-def _write_point(w: ByteWriter, point: ArrayLike, reference_q: NDArray[np.int64]) -> NDArray[np.int64]:
-    point_q = np.rint(np.asarray(point, dtype=np.float64) * _POINT_SCALE).astype(np.int64)
-    w.svarint(int(point_q[0] - reference_q[0]))
-    w.svarint(int(point_q[1] - reference_q[1]))
-    return point_q
+def _encode_shape(
+    points: NDArray[np.float64] | None,
+    config: ShapeCodecConfig,
+    origin_px: tuple[float, float],
+    reference: EncodedShape | None,
+    control_hint: int | None,
+    explore: bool,
+    hint_corrections: int,
+) -> EncodedShape:
+    if points is None:
+        return encode_shape(None, config)
+    return _encode_checked(points, config, origin_px, reference, control_hint, explore, hint_corrections)
 
 
-def _read_point(r: ByteReader, reference_q: NDArray[np.int64], what: str) -> NDArray[np.int64]:
-    delta = np.array([r.svarint(f"{what} u", 2 * _POINT_LIMIT), r.svarint(f"{what} v", 2 * _POINT_LIMIT)])
-    point_q = reference_q + delta
-    if np.any(np.abs(point_q) >= _POINT_LIMIT):
+def _write_point(w: ByteWriter, point: ArrayLike, reference_q: _PointQ) -> _PointQ:
+    # Python's round() rounds half to even like np.rint; plain ints keep this per-point path free of NumPy calls.
+    u = round(float(point[0]) * _POINT_SCALE)  # type: ignore[index]
+    v = round(float(point[1]) * _POINT_SCALE)  # type: ignore[index]
+    w.svarint(u - reference_q[0])
+    w.svarint(v - reference_q[1])
+    return u, v
+
+
+def _read_point(r: ByteReader, reference_q: _PointQ, what: str) -> _PointQ:
+    u = reference_q[0] + r.svarint(f"{what} u", 2 * _POINT_LIMIT)
+    v = reference_q[1] + r.svarint(f"{what} v", 2 * _POINT_LIMIT)
+    if abs(u) >= _POINT_LIMIT or abs(v) >= _POINT_LIMIT:
         raise ProtocolError(f"{what} beyond +-65536 px")
-    return point_q
+    return u, v
 
 
-def _as_px(point_q: NDArray[np.int64]) -> tuple[float, float]:
-    return float(point_q[0] / _POINT_SCALE), float(point_q[1] / _POINT_SCALE)
+def _as_px(point_q: _PointQ) -> tuple[float, float]:
+    return point_q[0] / _POINT_SCALE, point_q[1] / _POINT_SCALE
 
 
 def _mask_bytes(count: int) -> int:
@@ -435,13 +474,13 @@ def _pack_mask(begin_ok: NDArray[np.bool_], end_ok: NDArray[np.bool_]) -> bytes:
     Little-endian bit order (bit 0 is the lowest bit of the first byte); unused high bits are 0.
     """
     mask = 0
-    for k, (begin, end) in enumerate(zip(begin_ok, end_ok, strict=True)):
+    for k, (begin, end) in enumerate(zip(begin_ok.tolist(), end_ok.tolist(), strict=True)):
         mask |= (int(begin) << (2 * k)) | (int(end) << (2 * k + 1))
     return mask.to_bytes(_mask_bytes(len(begin_ok)), "little")
 
 
 def _unpack_material(
-    r: ByteReader, origin: NDArray[np.int64]
+    r: ByteReader, origin: _PointQ
 ) -> tuple[tuple[float, ...], NDArray[np.float64], NDArray[np.float64]]:
     count = r.uvarint("material point count", MAX_MATERIAL_POINTS)
     s_q = 0
@@ -462,10 +501,10 @@ def _unpack_material(
         begin_q = None
         if mask >> (2 * k) & 1:
             begin_q = previous = _read_point(r, previous, f"material begin {k}")
-            begin[k] = begin_q / _POINT_SCALE
+            begin[k] = _as_px(begin_q)
         if mask >> (2 * k + 1) & 1:
             end_q = _read_point(r, begin_q if begin_q is not None else previous, f"material end {k}")
-            end[k] = end_q / _POINT_SCALE
+            end[k] = _as_px(end_q)
             if begin_q is None:
                 previous = end_q
     return tuple(s_values), begin, end

@@ -79,7 +79,8 @@ def frame_result_json(record: FrameResult, digits: int | None = None) -> dict[st
         "t_end_ns": int(record.exposure_end_t_ns),
         "status": record.status.name,
         "method": record.method.name if measured else None,
-        "order_confidence": round(float(record.order_confidence), 4),
+        # At the wire's resolution (1/65535) first: extract (never packed) and replay (decoded) write the same digits.
+        "order_confidence": round(round(float(record.order_confidence) * 65535) / 65535, 4),
         "begin": _points(record.begin_px, digits),
         "end": _points(record.end_px, digits),
         "tips": tips,

@@ -28,6 +28,7 @@ Wire format of one shape (integers are varints, coordinates in units of ``2**-sh
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import IntEnum
 from typing import Final
@@ -37,7 +38,17 @@ from numpy.typing import ArrayLike, NDArray
 
 from ropecam.shared.config import check_range
 from ropecam.shared.errors import ConfigError, ProtocolError
-from ropecam.shared.protocol._kernels import distances_to_polyline, fit_bspline, sample_bspline
+from ropecam.shared.jit import KernelStatus
+from ropecam.shared.protocol._kernels import (
+    apply_corrections,
+    chain_bytes,
+    distances_to_polyline,
+    fit_spline_with_corrections,
+    read_chain,
+    relative_positions,
+    sample_bspline,
+    write_spline_body,
+)
 from ropecam.shared.protocol.bytecodec import ByteReader, ByteWriter
 
 __all__ = [
@@ -63,7 +74,15 @@ POLYLINE_LIMIT_PX: Final = _COORD_LIMIT_PX / 2
 """Polyline points to encode must lie within +-this (their second differences then stay in range)."""
 _DEGREE: Final = 3
 _SEARCH_HALF_WINDOW: Final = 6
+_ENCODER_HALF_WINDOW: Final = 3
+"""The encoder checks each point against the decoded segments within this many of its own index: samples and
+points both follow the arc length, so the nearest is at most a step away; a point whose nearest segment lies
+outside gets an overestimated distance, which can only add a correction."""
 _MAX_CORRECTION_ROUNDS: Final = 8
+_FIRST_GUESS: Final = 8
+_PATIENCE: Final = 2
+_UPWARD_GAIN: Final = 2
+_ACCEPT_MORE_CORRECTIONS: Final = 2
 
 
 class ShapeKind(IntEnum):
@@ -166,10 +185,15 @@ def _origin_q(origin_px: tuple[float, float] | NDArray[np.float64] | None, shift
     """Quantise the coding origin; an absent (None or non-finite) origin is (0, 0) on both sides."""
     if origin_px is None:
         return np.zeros(2, dtype=np.int64)
-    origin = np.asarray(origin_px, dtype=np.float64).reshape(2)
-    if not np.all(np.isfinite(origin)) or np.any(np.abs(origin) >= _COORD_LIMIT_PX):
+    if isinstance(origin_px, tuple) and len(origin_px) == 2:
+        u, v = float(origin_px[0]), float(origin_px[1])
+    else:
+        origin = np.asarray(origin_px, dtype=np.float64).reshape(2)
+        u, v = float(origin[0]), float(origin[1])
+    if not (math.isfinite(u) and math.isfinite(v)) or abs(u) >= _COORD_LIMIT_PX or abs(v) >= _COORD_LIMIT_PX:
         return np.zeros(2, dtype=np.int64)
-    return np.rint(origin * float(1 << shift)).astype(np.int64)
+    scale = float(1 << shift)
+    return np.array([round(u * scale), round(v * scale)], dtype=np.int64)
 
 
 def _write_chain(writer: ByteWriter, items: NDArray[np.int64]) -> None:
@@ -185,23 +209,15 @@ def _write_chain(writer: ByteWriter, items: NDArray[np.int64]) -> None:
 
 
 def _read_chain(reader: ByteReader, count: int, limit: int, what: str) -> NDArray[np.int64]:
+    """Read `count` items written by `_write_chain` (in one kernel call: RAW shapes have thousands)."""
     values = np.empty((count, 2), dtype=np.int64)
-    u = reader.svarint(f"{what} u0", limit)
-    v = reader.svarint(f"{what} v0", limit)
-    values[0] = (u, v)
-    du = dv = 0
-    for i in range(1, count):
-        if i == 1:
-            du = reader.svarint(f"{what} du", 2 * limit)
-            dv = reader.svarint(f"{what} dv", 2 * limit)
-        else:
-            du += reader.svarint(f"{what} d2u", 4 * limit)
-            dv += reader.svarint(f"{what} d2v", 4 * limit)
-        u += du
-        v += dv
-        if abs(u) > limit or abs(v) > limit:
-            raise ProtocolError(f"{what}: coordinate beyond +-{_COORD_LIMIT_PX:g} px")
-        values[i] = (u, v)
+    data, position = reader.buffer()
+    position = read_chain(data, position, limit, values)
+    if position == KernelStatus.FULL:
+        raise ProtocolError(f"truncated payload: {what} ends inside its {count} coordinates")
+    if position < 0:
+        raise ProtocolError(f"{what}: over-long varint or coordinate beyond +-{_COORD_LIMIT_PX:g} px")
+    reader.seek(position, what)
     return values
 
 
@@ -212,35 +228,55 @@ class _Candidate:
     offset_q: NDArray[np.int64]
     max_error_px: float
     size: int
+    """Bytes of the control chain (relative to the origin) and the corrections: the rank of candidates."""
 
 
-def _correct(
-    points: NDArray[np.float64], t: NDArray[np.float64], control_q: NDArray[np.int64], config: ShapeCodecConfig
-) -> _Candidate | None:
-    """Find the corrections that bring every device point within tolerance of the decoded polyline."""
-    n = len(points)
-    shift = config.quantum_shift
-    scale = float(1 << shift)
-    samples = _spline_samples(control_q, n, shift)
-    decoded = samples.copy()
-    corrected = np.zeros(n, dtype=bool)
-    distance = np.empty(n)
-    for _ in range(_MAX_CORRECTION_ROUNDS):
-        distances_to_polyline(points, t, decoded, _SEARCH_HALF_WINDOW, distance)
-        distance[0] = max(distance[0], float(np.hypot(*(points[0] - decoded[0]))))
-        distance[-1] = max(distance[-1], float(np.hypot(*(points[-1] - decoded[-1]))))
-        bad = np.flatnonzero(distance > config.tolerance_px)
-        if len(bad) == 0:
-            index = np.flatnonzero(corrected)
-            offset_q = np.rint((decoded[index] - samples[index]) * scale).astype(np.int64)
-            size = 2 * len(control_q) + 3 * len(index)  # a size estimate to rank candidates
-            return _Candidate(control_q, index, offset_q, float(np.max(distance)), size)
-        # Move the decoded sample nearest each failing point onto it (index space ~ arc length on both sides).
-        target = np.clip(np.rint(t[bad] * (n - 1)).astype(np.int64), 0, n - 1)
-        offset_q = np.rint((points[bad] - samples[target]) * scale).astype(np.int64)
-        decoded[target] = samples[target] + offset_q / scale
-        corrected[target] = True
-    return None
+class _Fitter:
+    """Work buffers of one `encode_shape` call and the candidates tried (one per control-point count)."""
+
+    def __init__(self, points: NDArray[np.float64], config: ShapeCodecConfig, origin_q: NDArray[np.int64]) -> None:
+        n = len(points)
+        # Plain (writable) arrays: Numba dispatches them to the read-only signatures faster than read-only views.
+        self.points = points
+        self.t = np.empty(n)
+        relative_positions(points, self.t)
+        self.config = config
+        self.origin_q = origin_q
+        self.basis = np.empty(4)
+        self.normal = np.empty((MAX_CONTROL_POINTS, MAX_CONTROL_POINTS))
+        self.samples = np.empty((n, 2))
+        self.decoded = np.empty((n, 2))
+        self.distance = np.empty(n)
+        self.index = np.empty(n, dtype=np.int64)
+        self.offset_q = np.empty((n, 2), dtype=np.int64)
+        self.stats = np.empty(2)
+        self.tried: dict[int, _Candidate | None] = {}
+
+    def attempt(self, m: int) -> _Candidate | None:
+        """The candidate with `m` control points (None: singular fit or no convergence), computed once."""
+        if m not in self.tried:
+            control_q = np.empty((m, 2), dtype=np.int64)
+            count = fit_spline_with_corrections(
+                self.points, self.t, self.config.quantum_shift, _MAX_CORRECTION_ROUNDS, self.config.tolerance_px,
+                _ENCODER_HALF_WINDOW, self.origin_q, self.basis, self.normal, self.samples, self.decoded,
+                np.empty((m, 2)), self.distance, control_q, self.index, self.offset_q, self.stats,
+            )  # fmt: skip
+            self.tried[m] = (
+                None
+                if count < 0
+                else _Candidate(
+                    control_q,
+                    self.index[:count].copy(),
+                    self.offset_q[:count].copy(),
+                    float(self.stats[0]),
+                    int(self.stats[1]),
+                )
+            )
+        return self.tried[m]
+
+    def size(self, m: int) -> float:
+        candidate = self.attempt(m)
+        return float("inf") if candidate is None else candidate.size
 
 
 def encode_shape(
@@ -250,6 +286,7 @@ def encode_shape(
     reference: EncodedShape | None = None,
     control_hint: int | None = None,
     explore: bool = True,
+    hint_corrections: int = 0,
 ) -> EncodedShape:
     """Encode one polyline (fixed end first) so that every point lies within ``config.tolerance_px`` of the decoded one.
 
@@ -269,8 +306,12 @@ def encode_shape(
     control_hint
         Number of control points to try first (what the previous frame needed; consecutive frames are alike).
     explore
-        Also try neighbouring counts to find fewer bytes. With False a fitting `control_hint` is taken as it is
-        (one fit instead of 2-3; the stream explores every few frames, see `ShapeHint`).
+        Also look for fewer bytes below `control_hint`. With False a `control_hint` that needs at most
+        ``hint_corrections + 2`` corrections is taken as it is (one fit; the stream explores every few frames, see
+        `ShapeHint`); one that needs more starts a search upwards.
+    hint_corrections
+        Corrections `control_hint` needed on the previous frame (noise no smooth curve follows needs some on
+        every frame; searching for a count without them would be wasted).
 
     Returns
     -------
@@ -284,61 +325,90 @@ def encode_shape(
     if points_px is None:
         return EncodedShape(bytes([ShapeKind.ABSENT]), ShapeKind.ABSENT, None, 0, 0.0)
     points = check_polyline(points_px, "points_px")
+    return _encode_checked(points, config, origin_px, reference, control_hint, explore, hint_corrections)
+
+
+def _encode_checked(
+    points: NDArray[np.float64],
+    config: ShapeCodecConfig,
+    origin_px: tuple[float, float] | NDArray[np.float64] | None,
+    reference: EncodedShape | None,
+    control_hint: int | None,
+    explore: bool,
+    hint_corrections: int,
+) -> EncodedShape:
+    """`encode_shape` of a polyline `check_polyline` accepted (C-contiguous float64 (n, 2) within the limits)."""
     n = len(points)
     most = min(MAX_CONTROL_POINTS, n // 2)
     if most < _MIN_CONTROL_POINTS:
         return _encode_raw(points, config, origin_px)
-    t = _relative_position(points)
-    scale = float(1 << config.quantum_shift)
-    cache: dict[int, _Candidate | None] = {}
-
-    work_basis = np.empty(4)
-    work_normal = np.empty((MAX_CONTROL_POINTS, MAX_CONTROL_POINTS))
-    control = np.empty((MAX_CONTROL_POINTS, 2))
-
-    def attempt(m: int) -> _Candidate | None:
-        if m not in cache:
-            if fit_bspline(points, t, m, work_basis, work_normal, control) != m:
-                cache[m] = None  # singular: a span without points
-            else:
-                cache[m] = _correct(points, t, np.rint(control[:m] * scale).astype(np.int64), config)
-        return cache[m]
-
-    def size(m: int) -> float:
-        candidate = attempt(m)
-        return float("inf") if candidate is None else candidate.size
-
+    fitter = _Fitter(points, config, _origin_q(origin_px, config.quantum_shift))
     ref_count = None if reference is None or reference.control_q is None else len(reference.control_q)
     if ref_count is not None and _MIN_CONTROL_POINTS <= ref_count <= most:
-        relative_candidate = attempt(ref_count)
+        relative_candidate = fitter.attempt(ref_count)
         if relative_candidate is not None and len(relative_candidate.index) == 0:
             # The usual case for the end shape: the begin shape's count fits without corrections, and offsets from
             # the begin shape are the cheapest code there is.
             return _write_spline(relative_candidate, n, config, origin_px, reference)
-    best = int(min(max(control_hint or ref_count or 6, _MIN_CONTROL_POINTS), most))
-    if not explore and control_hint is not None and (hinted := attempt(best)) is not None:
-        return _write_spline(hinted, n, config, origin_px, None)
-    # One step of descent on the byte estimate per frame: consecutive frames need about the same count, so the
-    # count converges over a few frames and a frame costs 2-3 fits.
-    first = attempt(best)
-    if first is not None and len(first.index) == 0:
-        if best - 1 >= _MIN_CONTROL_POINTS and size(best - 1) < size(best):
-            best -= 1
-    else:
-        improved = False
-        while best + 1 <= most and size(best + 1) < size(best):
-            best, improved = best + 1, True
-        if not improved and best - 1 >= _MIN_CONTROL_POINTS and size(best - 1) < size(best):
-            best -= 1
-    chosen = attempt(best)
+    start = int(min(max(control_hint or ref_count or _FIRST_GUESS, _MIN_CONTROL_POINTS), most))
+    accept = _ACCEPT_MORE_CORRECTIONS + max(0, int(hint_corrections)) if control_hint is not None else 0
+    best = _search(fitter, start, most, explore or control_hint is None, accept)
+    chosen = fitter.attempt(best)
     if chosen is None:
         return _encode_raw(points, config, origin_px)
-    relative = ref_count == best
-    # The reference's count may still win once the halved control-point cost is counted.
-    if ref_count is not None and not relative and ref_count in cache and size(ref_count) - ref_count < size(best):
-        best, chosen, relative = ref_count, cache[ref_count], True
-    assert chosen is not None
+    relative = False
+    if ref_count is not None and reference is not None and reference.control_q is not None:
+        # Offsets from the reference cost about half the control chain: the reference's count may win with them.
+        candidate = fitter.tried.get(ref_count)
+        if candidate is not None:
+            gain = _chain_size(candidate.control_q - fitter.origin_q) - _chain_size(
+                candidate.control_q - reference.control_q
+            )
+            if candidate.size - gain < chosen.size:
+                chosen, relative = candidate, True
     return _write_spline(chosen, n, config, origin_px, reference if relative else None)
+
+
+def _chain_size(items: NDArray[np.int64]) -> int:
+    return int(chain_bytes(np.ascontiguousarray(items)))
+
+
+def _search(fitter: _Fitter, start: int, most: int, explore: bool, accept: int) -> int:
+    """Return the control-point count of fewest bytes found near `start`.
+
+    Bytes against the count are noisy but roughly valley-shaped: corrections fall as control points are added,
+    until none are left and each further point only costs. Upwards (from a count that needs corrections) the
+    search stops at the first count that needs none, or `_PATIENCE` counts after the last gain of at least
+    `_UPWARD_GAIN` bytes (with noise that no smooth curve follows, corrections never vanish, and small gains are
+    noise: without the margin the count would creep up frame after frame). Downwards (when exploring) it goes on
+    while counts cost no more, up to `_PATIENCE` counts past the last gain. Without exploring, a start that needs
+    at most `accept` corrections is taken at once.
+    """
+    best = start
+    first = fitter.attempt(start)
+    if not explore and first is not None and len(first.index) <= accept:
+        return start
+    if first is None or len(first.index) > 0:
+        m, since = start, 0
+        while m < most and since < _PATIENCE:
+            m += 1
+            candidate = fitter.attempt(m)
+            if fitter.size(m) < math.inf and fitter.size(m) <= fitter.size(best) - _UPWARD_GAIN:
+                best, since = m, 0
+            else:
+                since += 1
+            if candidate is not None and len(candidate.index) == 0:
+                break  # more control points than this only cost bytes
+    if not explore and first is not None:
+        return best
+    m, since = best, 0
+    while m - 1 >= _MIN_CONTROL_POINTS and since < _PATIENCE:
+        m -= 1
+        if fitter.size(m) <= fitter.size(best) and fitter.size(m) < math.inf:
+            best, since = m, 0
+        else:
+            since += 1  # also when no count down here converges: never a walk through every count
+    return best
 
 
 def _write_spline(
@@ -348,22 +418,27 @@ def _write_spline(
     origin_px: tuple[float, float] | NDArray[np.float64] | None,
     reference: EncodedShape | None,
 ) -> EncodedShape:
-    writer = ByteWriter()
     kind = ShapeKind.SPLINE if reference is None else ShapeKind.SPLINE_RELATIVE
+    writer = ByteWriter()
     writer.raw(bytes([kind | (config.quantum_shift << 4)]))
     writer.uvarint(n)
     writer.uvarint(len(candidate.control_q))
     if reference is not None and reference.control_q is not None:
-        _write_chain(writer, candidate.control_q - reference.control_q)
+        base = reference.control_q
     else:
-        _write_chain(writer, candidate.control_q - _origin_q(origin_px, config.quantum_shift))
-    writer.uvarint(len(candidate.index))
-    previous = -1
-    for index, (du, dv) in zip(candidate.index.tolist(), candidate.offset_q.tolist(), strict=True):
-        writer.uvarint(index - previous - 1)
-        writer.svarint(du)
-        writer.svarint(dv)
-        previous = index
+        base = _origin_q(origin_px, config.quantum_shift).reshape(1, 2)
+    # Each value takes at most 10 bytes: a buffer that cannot overflow.
+    body = np.empty(10 * (2 * len(candidate.control_q) + 3 * len(candidate.index) + 1), dtype=np.uint8)
+    count = write_spline_body(
+        candidate.control_q,
+        np.ascontiguousarray(base, dtype=np.int64),
+        candidate.index,
+        candidate.offset_q,
+        body,
+    )
+    if count < 0:
+        raise AssertionError(f"write_spline_body returned status {count}")
+    writer.raw(body[:count].tobytes())
     return EncodedShape(writer.getvalue(), kind, candidate.control_q, len(candidate.index), candidate.max_error_px)
 
 
@@ -444,12 +519,14 @@ def decode_shape(
         raise ProtocolError(f"{what}: control point beyond +-{_COORD_LIMIT_PX:g} px")
     corrections = reader.uvarint(f"{what} correction count", n)
     points = _spline_samples(control_q, n, shift)
-    index = -1
-    for _ in range(corrections):
-        index += reader.uvarint(f"{what} correction index", n) + 1
-        if index >= n:
-            raise ProtocolError(f"{what}: correction index {index} beyond point count {n}")
-        du = reader.svarint(f"{what} correction du", limit)
-        dv = reader.svarint(f"{what} correction dv", limit)
-        points[index] += (du / scale, dv / scale)
+    data, position = reader.buffer()
+    position = apply_corrections(data, position, corrections, limit, shift, points)
+    if position == KernelStatus.FULL:
+        raise ProtocolError(f"truncated payload: {what} ends inside its {corrections} corrections")
+    if position < 0:
+        raise ProtocolError(
+            f"{what}: a correction has an over-long varint, an index beyond point count {n} or an offset beyond "
+            f"+-{_COORD_LIMIT_PX:g} px"
+        )
+    reader.seek(position, what)
     return points, control_q

@@ -53,6 +53,7 @@ from ropecam.device.pipeline._kernels.polylines import (
     extend_to_band_end,
     polyline_length,
     resample_polyline,
+    smooth_polyline,
     track_material_points,
     trim_polyline_end,
 )
@@ -102,6 +103,7 @@ __all__ = [
     "score_knots",
     "side_slope_samples",
     "signed_area",
+    "smooth_polyline",
     "spans_around_points",
     "split_contour",
     "thin_chain",
