@@ -27,8 +27,8 @@ class PipelineConfig:
         ``bright`` rope on a dark background, ``dark`` rope on a bright one, or ``auto`` (decided per frame from
         the gradients along the contour).
     tip_cap
-        Shape of the rope's free end: ``round`` (the band's edge runs half a width beyond the axis end) or
-        ``flat``.
+        Shape of the rope's free end: ``flat`` (default: a cut rope or cable ends where its axis ends) or
+        ``round`` (the band's edge runs half a width beyond the axis end).
     smooth_sigma_px
         Gaussian smoothing before the Sobel gradient (0 disables it).
     canny_low, canny_high
@@ -63,7 +63,7 @@ class PipelineConfig:
 
     method: Literal["blur_split", "paper", "centerline", "static"] = "blur_split"
     polarity: Literal["auto", "bright", "dark"] = "auto"
-    tip_cap: Literal["round", "flat"] = "round"
+    tip_cap: Literal["round", "flat"] = "flat"
     smooth_sigma_px: float = 1.0
     canny_low: float = 20.0
     canny_high: float = 50.0

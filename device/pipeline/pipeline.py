@@ -68,6 +68,7 @@ class Pipeline:
         self.fixed = np.zeros(2, np.float32)
         self._fixed_known = config.fixed_end_uv is not None
         self._fixed_frames = 0
+        self._first_ends: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None
         if config.fixed_end_uv is not None:
             self.fixed[:] = (config.fixed_end_uv[1], config.fixed_end_uv[0])
         self._widths: list[float] = []
@@ -253,32 +254,70 @@ class Pipeline:
         return self._width_cache
 
     def _fixed_end(self, points: NDArray[np.float32], n: int, width_px: float | None) -> NDArray[np.float32]:
-        """The fixed end (row, col): configured, or the narrow end of the band averaged over the first frames."""
+        """The fixed end (row, col): configured, or found over the first frames.
+
+        The first frame gives a guess: of the band's two ends the narrower one (the fixed end hardly moves, so
+        its end of the band stays one rope wide), or on a tie (a rope at rest) the one nearer the top centre of
+        the image (a pendulum hangs below its support, and a rig centres the support so the swing stays in view).
+        Over the next frames the end that stays where it was is the fixed end: the guess is corrected as soon as
+        one end has moved away and the other has not, and the position is averaged over those frames.
+        """
         if self._fixed_known and (self.config.fixed_end_uv is not None or self._fixed_frames >= _FIXED_END_FRAMES):
             return self.fixed
         w = width_px or 4.0
         K.turning_angles(ro(points), i32(n), i32(max(3, round(w))), self.turn_cap)
         e1 = int(np.argmax(self.turn_cap[:n]))
         e2 = int(np.argmax(np.hypot(points[:n, 0] - points[e1, 0], points[:n, 1] - points[e1, 1])))
-        if self._fixed_known:
-            d1 = np.hypot(*(points[e1] - self.fixed))
-            d2 = np.hypot(*(points[e2] - self.fixed))
-            chosen = points[e1] if d1 <= d2 else points[e2]
-            if min(d1, d2) > 3.0 * w + 5.0:
-                return self.fixed  # not the rope seen so far (another object, a clipped view): no update
-            k = self._fixed_frames
-            self.fixed[:] = (self.fixed * k + chosen) / (k + 1)
-        else:
+        ends = [self._cap_centre(points, n, e, w) for e in (e1, e2)]
+        if not self._fixed_known:
             m = max(4, round(2 * w))
             widths = [np.hypot(*(points[(e - m) % n] - points[(e + m) % n])) for e in (e1, e2)]
             if abs(widths[0] - widths[1]) <= 0.25 * min(widths):
-                chosen = points[e1] if points[e1, 0] <= points[e2, 0] else points[e2]  # tie: the upper end
+                top_centre = np.array([0.0, 0.5 * (self.shape[1] - 1)])
+                far = [float(np.hypot(*(end - top_centre))) for end in ends]
+                k = 0 if far[0] <= far[1] else 1
             else:
-                chosen = points[e1] if widths[0] < widths[1] else points[e2]
-            self.fixed[:] = chosen
+                k = 0 if widths[0] < widths[1] else 1
+            self.fixed[:] = ends[k]
+            self._first_ends = (ends[k].copy(), ends[1 - k].copy())
             self._fixed_known = True
+            self._fixed_frames = 1
+            return self.fixed
+        if self._first_ends is not None and self.config.fixed_end_uv is None:
+            guess, other = self._first_ends
+            moved_guess = min(float(np.hypot(*(end - guess))) for end in ends)
+            moved_other = min(float(np.hypot(*(end - other))) for end in ends)
+            if max(moved_guess, moved_other) > max(2.0 * w, 5.0) and min(moved_guess, moved_other) < w:
+                self._first_ends = None  # decided
+                if moved_guess > moved_other:
+                    # The guessed end moved: it is the free end. Start again from the other one, and forget what
+                    # was measured relative to the wrong end.
+                    self.fixed[:] = other
+                    self._fixed_frames = 0
+                    self._widths.clear()
+                    self._width_cache = None
+                    self._prev_tips = None
+        d = [float(np.hypot(*(end - self.fixed))) for end in ends]
+        chosen = ends[0] if d[0] <= d[1] else ends[1]
+        if min(d) > 3.0 * w + 5.0:
+            return self.fixed  # not the rope seen so far (another object, a clipped view): no update
+        k = self._fixed_frames
+        self.fixed[:] = (self.fixed * k + chosen) / (k + 1)
         self._fixed_frames += 1
         return self.fixed
+
+    def _cap_centre(self, points: NDArray[np.float32], n: int, e: int, w: float) -> NDArray[np.float32]:
+        """The contour point in the middle of the rope end around contour index `e`: the turning-weighted centroid
+        of the points within a width and a half of it, snapped to the contour (a flat end has two corners, its
+        largest turning angle is at one of them)."""
+        m = max(3, round(1.5 * w))
+        idx = np.arange(e - m, e + m + 1) % n
+        weights = self.turn_cap[idx].astype(np.float64) ** 2
+        if not weights.sum() > 0:
+            return points[e].copy()
+        centre = (points[idx].astype(np.float64) * weights[:, None]).sum(axis=0) / weights.sum()
+        k = idx[int(np.argmin(np.hypot(points[idx, 0] - centre[0], points[idx, 1] - centre[1])))]
+        return points[k].copy()
 
     def _order(self, outcome, t_ns: int) -> tuple[NDArray[np.float32], NDArray[np.float32], float]:
         """Put the two shapes in time order by continuity with the previous frame; returns (begin, end, conf)."""

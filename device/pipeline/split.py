@@ -50,7 +50,8 @@ class BlurSplitter:
     output_step_px
         Spacing of the returned polylines.
     tip_cap
-        Shape of the rope's free end: ``round`` (half a width beyond the axis end) or ``flat``.
+        Shape of the rope's free end: ``flat`` (the axis ends at the band's end) or ``round`` (half a width
+        beyond the axis end).
     """
 
     def __init__(
@@ -61,12 +62,13 @@ class BlurSplitter:
         corner_scale_px: int = 3,
         paper_radius_px: float = 15.0,
         output_step_px: float = 2.0,
-        tip_cap: str = "round",
+        tip_cap: str = "flat",
         smooth_sigma_px: float = 1.0,
     ) -> None:
         self.method = method
         self.tip_cap_ratio = 0.5 if tip_cap == "round" else 0.0
         self.weights = gaussian_weights(smooth_sigma_px).astype(np.float64)
+        self.smooth_sigma = float(smooth_sigma_px)
         self._responses: dict[int, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
         self.sweep_px = 0.0
         self.samples = np.zeros(2 * capacity, np.float32)
@@ -351,6 +353,9 @@ class BlurSplitter:
         )
         if count < 2:
             return None
+        # The cap's edge was moved half a width back along the axis with the gradient: carry the axis on to the
+        # band's end instead, as for the split shapes.
+        count = self._fit_tip(self.side_a, i32(count))
         shape = self._resample(self.side_a, i32(count), self.out_a)
         self.seg[0] = points[e2]
         self.seg[1] = points[e2]
@@ -359,11 +364,16 @@ class BlurSplitter:
     def _fit_tip(self, poly: NDArray[np.float32], n: np.int32) -> np.int32:
         """Put the free end of an axis polyline where the band ends along that axis, less the cap.
 
-        The segmentation point is only as good as the corner of the band, which a small round end blurs over a
-        few pixels; the extent of the band along the shape's own axis is sharper (`extend_to_band_end`).
+        The segmentation point is only as good as the corner of the band, which the smoothing rounds over a few
+        pixels: the axis is fitted on the straight side before the corner and carried on to where the band ends
+        along it (`extend_to_band_end`).
         """
         cap = f32(self.tip_cap_ratio * self.width)
-        return i32(K.extend_to_band_end(poly, n, self._points, self._n, f32(self.width), cap))
+        # The corner is rounded over the edge ramp (up to a rope width) plus the smoothing on each side.
+        skip = f32(self.width + 2.0 * self.smooth_sigma)
+        blur = f32(max(self.smooth_sigma, 0.5))
+        smooth = ro(self._smooth)
+        return i32(K.extend_to_band_end(poly, n, self._points, self._n, smooth, f32(self.width), cap, skip, blur))
 
     def _resample(self, poly: NDArray[np.float32], n: int, out: NDArray[np.float32]) -> NDArray[np.float32]:
         count = K.resample_polyline(ro(poly), i32(n), self.step, out)

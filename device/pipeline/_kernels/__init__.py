@@ -45,6 +45,7 @@ from ropecam.device.pipeline._kernels.offsets import (
 from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots
 from ropecam.device.pipeline._kernels.polylines import (
     extend_to_band_end,
+    half_level_crossing,
     polyline_length,
     resample_polyline,
     track_material_points,
@@ -74,6 +75,7 @@ __all__ = [
     "f4_1d_ro",
     "find_caps",
     "grow_spans",
+    "half_level_crossing",
     "in_spans",
     "keep_largest_component",
     "measure_widths",
