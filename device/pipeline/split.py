@@ -164,8 +164,8 @@ class BlurSplitter:
         gx, gy, pol = self._gx, self._gy, self.polarity_used
         na = i32(K.offset_by_gradient(points, chain, n, i_fix, seg_a, plus, gx, gy, pol, w, sw, self.side_a))
         nb = i32(K.offset_by_gradient(points, chain, n, i_fix, seg_b, minus, gx, gy, pol, w, sw, self.side_b))
-        na = self._fit_tip(self.side_a, na)
-        nb = self._fit_tip(self.side_b, nb)
+        na = self._fit_tip(self.side_a, na, sweep)
+        nb = self._fit_tip(self.side_b, nb, sweep)
         shape_a = self._resample(self.side_a, na, self.out_a)
         shape_b = self._resample(self.side_b, nb, self.out_b)
         return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, width, sweep)
@@ -355,13 +355,13 @@ class BlurSplitter:
             return None
         # The cap's edge was moved half a width back along the axis with the gradient: carry the axis on to the
         # band's end instead, as for the split shapes.
-        count = self._fit_tip(self.side_a, i32(count))
+        count = self._fit_tip(self.side_a, i32(count), 0.0)
         shape = self._resample(self.side_a, i32(count), self.out_a)
         self.seg[0] = points[e2]
         self.seg[1] = points[e2]
         return SplitOutcome(Method.STATIC_FALLBACK, shape, shape, None, self.width, 0.0)
 
-    def _fit_tip(self, poly: NDArray[np.float32], n: np.int32) -> np.int32:
+    def _fit_tip(self, poly: NDArray[np.float32], n: np.int32, sweep_px: float) -> np.int32:
         """Put the free end of an axis polyline where the band ends along that axis, less the cap.
 
         The segmentation point is only as good as the corner of the band, which the smoothing rounds over a few
@@ -373,7 +373,10 @@ class BlurSplitter:
         skip = f32(self.width + 2.0 * self.smooth_sigma)
         blur = f32(max(self.smooth_sigma, 0.5))
         smooth = ro(self._smooth)
-        return i32(K.extend_to_band_end(poly, n, self._points, self._n, smooth, f32(self.width), cap, skip, blur))
+        sweep = f32(sweep_px)
+        return i32(
+            K.extend_to_band_end(poly, n, self._points, self._n, smooth, f32(self.width), cap, skip, blur, sweep)
+        )
 
     def _resample(self, poly: NDArray[np.float32], n: int, out: NDArray[np.float32]) -> NDArray[np.float32]:
         count = K.resample_polyline(ro(poly), i32(n), self.step, out)

@@ -44,6 +44,7 @@ from ropecam.device.pipeline._kernels.offsets import (
 )
 from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots
 from ropecam.device.pipeline._kernels.polylines import (
+    end_on_track,
     extend_to_band_end,
     half_level_crossing,
     polyline_length,
@@ -71,6 +72,7 @@ __all__ = [
     "chain_length",
     "count_roi_contacts",
     "detect_edges",
+    "end_on_track",
     "extend_to_band_end",
     "f4_1d_ro",
     "find_caps",
