@@ -76,6 +76,7 @@ class Pipeline:
         self._polarity_votes: list[float] = []
         self._width_cache: float | None = None
         self._prev_tips: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
+        self._tip_history: list[tuple[int, NDArray[np.float64]]] = []
         self._prev_t_ns: tuple[int, int] | None = None
         self._prev_sweep = 0.0
         self._prev_step = 0.0
@@ -211,7 +212,7 @@ class Pipeline:
         result.method = outcome.method
         result.rope_width_px = outcome.width_px
         result.segmentation_points = outcome.segmentation_points
-        begin, end, confidence = self._order(outcome, result.t_ns)
+        begin, end, confidence = self._order(outcome, result.t_ns, result.t_end_ns)
         result.begin, result.end, result.order_confidence = begin, end, confidence
         self.tracker.observe(self.tracker.length(begin))
         if end is not begin:
@@ -319,18 +320,60 @@ class Pipeline:
         k = idx[int(np.argmin(np.hypot(points[idx, 0] - centre[0], points[idx, 1] - centre[1])))]
         return points[k].copy()
 
-    def _order(self, outcome, t_ns: int) -> tuple[NDArray[np.float32], NDArray[np.float32], float]:
-        """Put the two shapes in time order by continuity with the previous frame; returns (begin, end, conf)."""
+    def _order(
+        self, outcome, t_ns: int, t_end_ns: int | None = None
+    ) -> tuple[NDArray[np.float32], NDArray[np.float32], float]:
+        """Put the two shapes in time order by continuity with the previous frames; returns (begin, end, conf).
+
+        The tips of the last two frames (two time samples each: start and end of the exposure) give a
+        constant-acceleration fit of the tip's path (constant velocity from one frame); it predicts the tip at
+        this frame's start and end, and the pairing of the two shapes with those predictions that fits better
+        wins. A swinging rope reverses every half period: across the gap between frames (several exposures long
+        at low frame rates) a constant velocity overshoots there, a constant acceleration does not.
+        """
         a, b = outcome.shape_a, outcome.shape_b
-        if a is b:
-            return a, b, 1.0
-        if self._prev_tips is None or self._prev_t_ns is None:
-            return a, b, 0.5
-        prev_begin, prev_end = self._prev_tips
-        exposure_ns = max(1, self._prev_t_ns[1] - self._prev_t_ns[0])
-        gap_ns = max(0, t_ns - self._prev_t_ns[1])
-        predicted = prev_end + (prev_end - prev_begin) * (gap_ns / exposure_ns)
-        da = float(np.hypot(*(a[-1] - predicted)))
-        db = float(np.hypot(*(b[-1] - predicted)))
-        confidence = 0.5 + 0.5 * abs(da - db) / (da + db + 1e-6)
-        return (a, b, confidence) if da <= db else (b, a, confidence)
+        if t_end_ns is None:
+            t_end_ns = t_ns
+        if self._prev_tips is None:
+            self._tip_history.clear()
+        if a is b or not self._tip_history:
+            self._remember_tips(a, b, t_ns, t_end_ns)
+            return a, b, (1.0 if a is b else 0.5)
+        pred_begin, pred_end = self._predict_tips(t_ns, t_end_ns)
+        tip_a = a[-1].astype(np.float64)
+        tip_b = b[-1].astype(np.float64)
+        # Squared distances: their difference is 2 (b - a) . (pred_end - pred_begin), so the predicted direction
+        # of motion decides, not where the prediction lies (a path bias moves both predictions alike).
+        straight = float(np.sum((tip_a - pred_begin) ** 2) + np.sum((tip_b - pred_end) ** 2))
+        swapped = float(np.sum((tip_b - pred_begin) ** 2) + np.sum((tip_a - pred_end) ** 2))
+        confidence = 0.5 + 0.5 * abs(straight - swapped) / (straight + swapped + 1e-6)
+        begin, end = (a, b) if straight <= swapped else (b, a)
+        self._remember_tips(begin, end, t_ns, t_end_ns)
+        return begin, end, confidence
+
+    def _remember_tips(self, begin: NDArray[np.float32], end: NDArray[np.float32], t_ns: int, t_end_ns: int) -> None:
+        """Keep the last four tip samples with their times (oldest first): two per split frame, one per single
+        shape."""
+        history = self._tip_history
+        if begin is end:
+            # One shape (no blur to split): the band's centre, a sample at mid-exposure.
+            history.append(((t_ns + t_end_ns) // 2, begin[-1].astype(np.float64)))
+        else:
+            history.append((t_ns, begin[-1].astype(np.float64)))
+            history.append((t_end_ns, end[-1].astype(np.float64)))
+        del history[:-4]
+
+    def _predict_tips(self, t_ns: int, t_end_ns: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Predict the tip at `t_ns` and `t_end_ns` from the remembered tips: a least-squares quadratic in time
+        through four samples, a line through two."""
+        history = self._tip_history
+        t0 = history[-1][0]
+        tau = np.array([(t - t0) * 1e-9 for t, _ in history])
+        tips = np.array([tip for _, tip in history])
+        degree = 2 if len(history) >= 4 else 1
+        scale = max(float(np.ptp(tau)), 1e-9)
+        design = np.vander(tau / scale, degree + 1)
+        coef, *_ = np.linalg.lstsq(design, tips, rcond=None)
+        query = np.array([(t_ns - t0) * 1e-9, (t_end_ns - t0) * 1e-9]) / scale
+        pred = np.vander(query, degree + 1) @ coef
+        return pred[0], pred[1]
