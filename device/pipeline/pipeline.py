@@ -54,6 +54,7 @@ class Pipeline:
         self.splitter = BlurSplitter(
             cap, config.method, config.static_ratio, config.corner_scale_px,
             config.paper_endpoint_radius_px, config.output_step_px, config.tip_cap, config.smooth_sigma_px,
+            config.lens_blur_px,
         )  # fmt: skip
         self.tracker = PointTracker(
             config.material_points_m, config.rope_length_m, config.length0_px, config.length0_frames

@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import f32, i32, ro
+from ropecam.device.pipeline.edge_model import BandEdgeModel
 from ropecam.device.pipeline.edges import gaussian_weights
 from ropecam.device.pipeline.result import Method
 
@@ -52,6 +53,10 @@ class BlurSplitter:
     tip_cap
         Shape of the rope's free end: ``flat`` (the axis ends at the band's end) or ``round`` (half a width
         beyond the axis end).
+    smooth_sigma_px
+        The edge detector's Gaussian smoothing.
+    lens_blur_px
+        Assumed camera blur (Gaussian sigma, px) of the band edge model (`BandEdgeModel`).
     """
 
     def __init__(
@@ -64,12 +69,17 @@ class BlurSplitter:
         output_step_px: float = 2.0,
         tip_cap: str = "flat",
         smooth_sigma_px: float = 1.0,
+        lens_blur_px: float = 0.5,
     ) -> None:
         self.method = method
         self.tip_cap_ratio = 0.5 if tip_cap == "round" else 0.0
         self.weights = gaussian_weights(smooth_sigma_px).astype(np.float64)
         self.smooth_sigma = float(smooth_sigma_px)
-        self._responses: dict[int, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
+        self.model = BandEdgeModel(self.weights, lens_blur_px)
+        self.sweep_window = 3
+        self.sweeps_a = np.zeros(capacity, np.float32)
+        self.sweeps_b = np.zeros(capacity, np.float32)
+        self.work = np.zeros(capacity, np.float32)
         self.sweep_px = 0.0
         self.samples = np.zeros(2 * capacity, np.float32)
         self._contrasts: list[float] = []
@@ -159,16 +169,45 @@ class BlurSplitter:
         self.sweep_px = sweep
         if sweep < self.static_ratio * width:
             return self.static(fixed_rc)
-        w = np.float32(width)
-        sw = np.float32(sweep)
+        tables = self.model.tables(width)
+        table, step = ro(tables.offset_px), f32(tables.sweep_step_px)
         gx, gy, pol = self._gx, self._gy, self.polarity_used
-        na = i32(K.offset_by_gradient(points, chain, n, i_fix, seg_a, plus, gx, gy, pol, w, sw, self.side_a))
-        nb = i32(K.offset_by_gradient(points, chain, n, i_fix, seg_b, minus, gx, gy, pol, w, sw, self.side_b))
-        na = self._fit_tip(self.side_a, na, sweep)
-        nb = self._fit_tip(self.side_b, nb, sweep)
+        # The local sweep along each side, from the edge's slope (contrast / sweep): a whipping rope does not
+        # sweep in proportion to the distance from the fixed end. Without a contrast reading, that proportion.
+        contrast = self._contrast(fixed_rc)
+        local = i32(1 if contrast >= 5.0 else 0)
+        if local:
+            inv, half, mag = f32(1.0 / contrast), i32(self.sweep_window), ro(self._mag)
+            ratios, sweeps = tables.peak_ratio, tables.sweeps_px
+            K.side_sweeps(chain, n, i_fix, seg_a, plus, mag, inv, ratios, sweeps, half, self.work, self.sweeps_a)
+            K.side_sweeps(chain, n, i_fix, seg_b, minus, mag, inv, ratios, sweeps, half, self.work, self.sweeps_b)
+        sweeps_a, sweeps_b = ro(self.sweeps_a), ro(self.sweeps_b)
+        for _ in range(2):
+            sw = np.float32(sweep)
+            na = i32(
+                K.offset_by_table(
+                    points, chain, n, i_fix, seg_a, plus, gx, gy, pol, sweeps_a, local, sw, step, table, self.side_a
+                )
+            )
+            nb = i32(
+                K.offset_by_table(
+                    points, chain, n, i_fix, seg_b, minus, gx, gy, pol, sweeps_b, local, sw, step, table, self.side_b
+                )
+            )
+            na = self._fit_tip(self.side_a, na, sweep)
+            nb = self._fit_tip(self.side_b, nb, sweep)
+            # The fitted tips are sharper than the band's rounded corners: their distance across the rope is the
+            # sideways sweep at the tip. Where it differs, the offsets of the proportional model are redone with it.
+            lateral = self._tip_lateral(na, nb)
+            if local or not (np.isfinite(lateral) and abs(lateral - sweep) > 0.25):
+                break
+            if lateral < self.static_ratio * width:
+                break
+            sweep = lateral
+        self.sweep_px = sweep
         shape_a = self._resample(self.side_a, na, self.out_a)
         shape_b = self._resample(self.side_b, nb, self.out_b)
-        return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, width, sweep)
+        return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, tables.width_px, sweep)
 
     def _prepare(
         self,
@@ -219,14 +258,15 @@ class BlurSplitter:
         Across the band the intensity rises with slope contrast / d (each pixel is covered for a time in proportion
         to 1/d), whatever the rope width; the smoothed Sobel magnitude at the edge, divided by the contrast, is
         therefore a decreasing function of the local sweep d, tabulated for this rope width and smoothing by
-        `_response`. The contrast is read from the image near the fixed end, where the rope hardly moved; d(s) is
+        `BandEdgeModel`. The contrast is read from the image near the fixed end, where the rope hardly moved; d(s) is
         taken as proportional to the arc length s (rotation about the fixed end) and extrapolated to the tip.
         Returns nan when it cannot be measured.
         """
         contrast = self._contrast(fixed_rc)
         if not contrast >= 5.0:
             return float("nan")
-        sweeps, ratios = self._response(self.width)
+        tables = self.model.tables(self.width)
+        sweeps, ratios = tables.sweeps_px, tables.peak_ratio
         estimates = []
         for seg, direction in ((seg_a, 1), (seg_b, -1)):
             m = K.side_slope_samples(
@@ -271,48 +311,6 @@ class BlurSplitter:
         self._contrasts.append(value)
         self._contrast_cache = float(np.median(self._contrasts))
         return self._contrast_cache
-
-    def _response(self, width: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Peak smoothed-Sobel magnitude per unit contrast at the edge of a band swept by d, for d on a grid
-        (both returned sorted by increasing magnitude, for `np.interp`)."""
-        key = max(1, round(width * 4))  # tables on a 0.25 px grid of widths: built once, not per frame
-        cached = self._responses.get(key)
-        if cached is not None:
-            return cached
-        width = key / 4.0
-        sweeps = np.geomspace(0.05, 200.0, 160)
-        fine = 0.02
-        peaks = []
-        for d in sweeps:
-            x = np.arange(-4 * width - 20, width + d + 20, fine)
-            a = min(width, d)
-            cover = np.clip(x / a, 0, 1) * min(1.0, width / d)  # the first ramp of the trapezoid
-            values = []
-            for phase in (0.0, 0.25, 0.5, 0.75):
-                edges = np.arange(x[0] + phase, x[-1] - 1, 1.0)
-                idx = ((edges - x[0]) / fine).astype(int)
-                step = round(1.0 / fine)
-                pix = np.add.reduceat(cover, idx)[:-1] / step
-                sm = np.convolve(pix, self.weights[::-1], mode="same")
-                gx = 4.0 * (sm[2:] - sm[:-2])
-                values.append(np.max(np.abs(gx[len(self.weights) : -len(self.weights)])))
-            peaks.append(float(np.mean(values)))
-        # The contrast is measured on the smoothed image at the centre of the still rope: normalise by the same.
-        x = np.arange(-width - 20, 2 * width + 20, fine)
-        rope = ((x >= 0) & (x < width)).astype(float)
-        centres = []
-        for phase in (0.0, 0.25, 0.5, 0.75):
-            edges = np.arange(x[0] + phase, x[-1] - 1, 1.0)
-            idx = ((edges - x[0]) / fine).astype(int)
-            pix = np.add.reduceat(rope, idx)[:-1] / round(1.0 / fine)
-            sm = np.convolve(pix, self.weights[::-1], mode="same")
-            centre = np.argmin(np.abs(edges[:-1] + 0.5 - 0.5 * width))
-            centres.append(sm[centre])
-        peaks_arr = np.minimum.accumulate(np.array(peaks) / float(np.mean(centres)))  # monotone for the inversion
-        order = np.argsort(peaks_arr, kind="stable")
-        result = (sweeps[order], peaks_arr[order])
-        self._responses[key] = result
-        return result
 
     def _measure_width(
         self, edges: NDArray[np.uint8], mag: NDArray[np.float32], fixed_rc: tuple[float, float] | None
@@ -360,6 +358,18 @@ class BlurSplitter:
         self.seg[0] = points[e2]
         self.seg[1] = points[e2]
         return SplitOutcome(Method.STATIC_FALLBACK, shape, shape, None, self.width, 0.0)
+
+    def _tip_lateral(self, na: int, nb: int) -> float:
+        """Distance between the two fitted tips across the rope (perpendicular to the mean tip direction)."""
+        if na < 3 or nb < 3:
+            return float("nan")
+        a, b = self.side_a, self.side_b
+        u = (a[na - 1] - a[na - 3]).astype(np.float64) + (b[nb - 1] - b[nb - 3]).astype(np.float64)
+        norm = float(np.hypot(*u))
+        if norm <= 0.0:
+            return float("nan")
+        d = (b[nb - 1] - a[na - 1]).astype(np.float64)
+        return abs(float(d[0] * u[1] - d[1] * u[0])) / norm
 
     def _fit_tip(self, poly: NDArray[np.float32], n: np.int32, sweep_px: float) -> np.int32:
         """Put the free end of an axis polyline where the band ends along that axis, less the cap.

@@ -38,9 +38,12 @@ from ropecam.device.pipeline._kernels.geometry import (
 from ropecam.device.pipeline._kernels.offsets import (
     axis_offset,
     find_caps,
+    interp_sorted,
     measure_widths,
     offset_by_gradient,
+    offset_by_table,
     side_slope_samples,
+    side_sweeps,
 )
 from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots
 from ropecam.device.pipeline._kernels.polylines import (
@@ -79,10 +82,12 @@ __all__ = [
     "grow_spans",
     "half_level_crossing",
     "in_spans",
+    "interp_sorted",
     "keep_largest_component",
     "measure_widths",
     "midline",
     "offset_by_gradient",
+    "offset_by_table",
     "offset_side",
     "polyline_length",
     "refine_subpixel",
@@ -90,6 +95,7 @@ __all__ = [
     "sample_bilinear",
     "score_knots",
     "side_slope_samples",
+    "side_sweeps",
     "signed_area",
     "spans_around_points",
     "split_contour",
