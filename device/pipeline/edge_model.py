@@ -10,7 +10,7 @@ to the gradient's height, so that the splitter can invert it:
   half edge spacing m/2 at d = 0, not the half width: blur pushes the edges of a thin rope apart; and it reaches 0
   only when the ramp is wider than the blur, not at d = w);
 * the *rope width* w whose edges lie m apart when it does not move (the width read from the image is m);
-* the *gradient height* per unit contrast as a function of d (the slope of the ramp is contrast / d), to read the
+* the *gradient height* per unit of the rope's full contrast as a function of d (the slope of the ramp is contrast / d), to read the
   local sweep from the image where the band is narrower than the rope plus its blur.
 """
 
@@ -134,30 +134,8 @@ class BandEdgeModel:
             left, peak = self._edge(width, float(d))
             offsets[k] = 0.5 * width - left
             peaks[k] = peak
-        # The contrast is read on the smoothed image at the centre of the still rope: normalise by the same.
-        centre = self._centre_value(width)
-        ratio = np.minimum.accumulate(peaks / centre)
+        ratio = np.minimum.accumulate(peaks)  # per unit of the rope's full contrast; monotone for the inversion
         order = np.argsort(ratio, kind="stable")
         tables = EdgeTables(width, m, step, np.maximum(offsets, 0.0), sweeps[order], ratio[order])
         self._cache[key] = tables
         return tables
-
-    def _centre_value(self, width: float) -> float:
-        """Smoothed value at the centre of a still rope of unit contrast (mean over phases)."""
-        pad = 6.0 + 4.0 * self.lens_blur_px + len(self.weights)
-        x = np.arange(-pad, width + pad, _FINE_PX)
-        cover = ((x >= 0.0) & (x < width)).astype(np.float64)
-        if self.lens_blur_px > 0:
-            k = np.arange(-4.0 * self.lens_blur_px, 4.0 * self.lens_blur_px + _FINE_PX, _FINE_PX)
-            g = np.exp(-0.5 * (k / self.lens_blur_px) ** 2)
-            cover = np.convolve(cover, g / g.sum(), mode="same")
-        step = round(1.0 / _FINE_PX)
-        values = []
-        for phase in _PHASES:
-            start = round(phase / _FINE_PX)
-            count = (len(x) - start) // step
-            pix = cover[start : start + count * step].reshape(count, step).mean(axis=1)
-            centres = x[start] + (np.arange(count) + 0.5) * step * _FINE_PX
-            sm = np.convolve(pix, self.weights[::-1], mode="same")
-            values.append(float(np.interp(0.5 * width, centres, sm)))
-        return float(np.mean(values))

@@ -252,7 +252,8 @@ class Pipeline:
         if self.config.rope_width_px is not None:
             return self.config.rope_width_px
         if self._widths and self._width_cache is None:
-            self._width_cache = float(np.median(self._widths))
+            # Motion only widens the band: the lower quartile of the first frames' spacings is the still rope's.
+            self._width_cache = float(np.percentile(self._widths, 25))
         return self._width_cache
 
     def _fixed_end(self, points: NDArray[np.float32], n: int, width_px: float | None) -> NDArray[np.float32]:

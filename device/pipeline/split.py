@@ -281,8 +281,14 @@ class BlurSplitter:
         return float(np.mean(estimates)) if estimates else float("nan")
 
     def _contrast(self, fixed_rc: tuple[float, float]) -> float:
-        """Rope contrast on the smoothed image near the fixed end (inside half a width into the rope minus outside
-        a width out); the median of the first 10 frames' values is kept (the lighting does not change)."""
+        """Rope contrast (rope minus background, grey levels) near the fixed end; the median of the first 10
+        frames' values is kept (the lighting does not change).
+
+        Across the band the time-averaged coverage integrates to the rope's width whatever the sweep and the blur,
+        so the contrast is the integral of the smoothed image across the band (background removed: a line through
+        the levels on both sides) divided by the unbiased width (`BandEdgeModel`). Read near the fixed end, where
+        the band is narrow and nothing else is likely to lie within it.
+        """
         if len(self._contrasts) >= 10:
             return self._contrast_cache
         n = int(self._n)
@@ -299,15 +305,28 @@ class BlurSplitter:
         rc = chain[near]
         g = np.stack([self._gy[rc[:, 0], rc[:, 1]], self._gx[rc[:, 0], rc[:, 1]]], axis=1) * pol
         g /= np.maximum(np.hypot(*g.T), 1e-6)[:, None]
+        step = 0.5
+        t = np.arange(-(width + 3.0), 3.0 * width + 8.0, step)
+        where = pts[near][:, None, :].astype(np.float64) + t[None, :, None] * g[:, None, :]
         height, width_img = smooth.shape
-        inside = np.rint(pts[near] + 0.5 * width * g).astype(int)
-        outside = np.rint(pts[near] - (width + 2.0) * g).astype(int)
-        ok = (inside.min(axis=1) >= 0) & (outside.min(axis=1) >= 0)
-        ok &= (inside[:, 0] < height) & (outside[:, 0] < height) & (inside[:, 1] < width_img)
-        ok &= outside[:, 1] < width_img
+        ok = np.all((where[..., 0] >= 0) & (where[..., 0] <= height - 1), axis=1)
+        ok &= np.all((where[..., 1] >= 0) & (where[..., 1] <= width_img - 1), axis=1)
         if np.count_nonzero(ok) < 4:
             return float("nan")
-        value = abs(float(np.median(smooth[inside[ok, 0], inside[ok, 1]] - smooth[outside[ok, 0], outside[ok, 1]])))
+        where = where[ok]
+        r0 = np.minimum(np.floor(where[..., 0]).astype(int), height - 2)
+        c0 = np.minimum(np.floor(where[..., 1]).astype(int), width_img - 2)
+        fr, fc = where[..., 0] - r0, where[..., 1] - c0
+        values = (smooth[r0, c0] * (1 - fr) * (1 - fc) + smooth[r0, c0 + 1] * (1 - fr) * fc
+                  + smooth[r0 + 1, c0] * fr * (1 - fc) + smooth[r0 + 1, c0 + 1] * fr * fc)  # fmt: skip
+        first = np.median(values[:, :4], axis=1)
+        last = np.median(values[:, -4:], axis=1)
+        frac = (t - t[0]) / (t[-1] - t[0])
+        background = first[:, None] + (last - first)[:, None] * frac[None, :]
+        area = pol * (values - background).sum(axis=1) * step
+        value = float(np.median(area)) / self.model.tables(width).width_px
+        if not value > 0:
+            return float("nan")
         self._contrasts.append(value)
         self._contrast_cache = float(np.median(self._contrasts))
         return self._contrast_cache
@@ -315,17 +334,22 @@ class BlurSplitter:
     def _measure_width(
         self, edges: NDArray[np.uint8], mag: NDArray[np.float32], fixed_rc: tuple[float, float] | None
     ) -> None:
-        """Measure the rope width: the median distance to the opposite edge, near the fixed end if known."""
+        """Measure the rope's edge spacing: the distance to the opposite edge, near the fixed end if known.
+
+        Motion only widens the band (for a sweep beyond the rope's width the spacing is the sweep), so the
+        spacing is read where the rope moved least: first the lower quartile over the whole contour, then the
+        median just beyond the fixed end's cap (within a tenth of the rope's extent).
+        """
         K.measure_widths(edges, mag, self._gx, self._gy, self._chain, self._n, self.polarity_used, f32(64.0), self.dist)
         widths = self.dist[: self._n]
         finite = np.isfinite(widths)
         valid = widths[finite]
-        self.width_measured = float(np.median(valid)) if valid.size else float("nan")
+        self.width_measured = float(np.percentile(valid, 25)) if valid.size else float("nan")
         if fixed_rc is not None and valid.size:
-            # Where the rope hardly moved (near the fixed end, beyond its end cap) the band is one rope wide.
             pts = self._points[: self._n]
             dist = np.hypot(pts[:, 0] - fixed_rc[0], pts[:, 1] - fixed_rc[1])
-            near = finite & (dist > 3.0 * self.width_measured) & (dist < 0.25 * dist.max())
+            start = 2.0 * self.width_measured + 2.0
+            near = finite & (dist > start) & (dist < start + 0.1 * dist.max())
             if np.count_nonzero(near) >= 4:
                 self.width_measured = float(np.median(widths[near]))
 
