@@ -10,8 +10,8 @@ to the gradient's height, so that the splitter can invert it:
   half edge spacing m/2 at d = 0, not the half width: blur pushes the edges of a thin rope apart; and it reaches 0
   only when the ramp is wider than the blur, not at d = w);
 * the *rope width* w whose edges lie m apart when it does not move (the width read from the image is m);
-* the *gradient height* per unit of the rope's full contrast as a function of d (the slope of the ramp is contrast / d), to read the
-  local sweep from the image where the band is narrower than the rope plus its blur.
+* the *gradient height* per unit of the rope's full contrast as a function of d (the slope of the ramp is
+  contrast / d), to read the local sweep from the image where the band is narrower than the rope plus its blur.
 """
 
 from __future__ import annotations
