@@ -43,6 +43,9 @@ class EdgeTables:
         (k,) float32: inward offset from the edge to the rope's axis, for d = i * sweep_step_px.
     sweeps_px, peak_ratio
         The gradient height per unit contrast against d, sorted by increasing ratio (for `np.interp`).
+    slant_px
+        How far the half-level crossing along a shape's axis lies beyond its flat end per unit slope of the end's
+        track (along per across; `slant_gain`).
     """
 
     width_px: float
@@ -51,6 +54,7 @@ class EdgeTables:
     offset_px: NDArray[np.float32]
     sweeps_px: NDArray[np.float64]
     peak_ratio: NDArray[np.float64]
+    slant_px: float
 
 
 class BandEdgeModel:
@@ -136,6 +140,23 @@ class BandEdgeModel:
             peaks[k] = peak
         ratio = np.minimum.accumulate(peaks)  # per unit of the rope's full contrast; monotone for the inversion
         order = np.argsort(ratio, kind="stable")
-        tables = EdgeTables(width, m, step, np.maximum(offsets, 0.0), sweeps[order], ratio[order])
+        slant = self.slant_gain(width)
+        tables = EdgeTables(width, m, step, np.maximum(offsets, 0.0), sweeps[order], ratio[order], slant)
         self._cache[key] = tables
         return tables
+
+    def slant_gain(self, width: float) -> float:
+        """Return how far the tip read at the half-level crossing lies beyond the true flat end, per unit slope of
+        the end's track (along the axis per unit across: an end that also moves along the rope).
+
+        At lateral position x from a shape's axis (x > 0 into the band) the points are covered while the rope's
+        axis passes within half a width, so the band ends, on average, at the end's position when the axis was at
+        m(x) = (x + w/2) / 2 on the ramp (|x| < w/2) and m(x) = x beyond. The crossing along the axis averages
+        m over the blur (Gaussian of the smoothing, lens and pixel variances) weighted by the coverage ramp.
+        """
+        x = np.linspace(-12.0, 12.0, 4801)
+        grid = np.arange(len(self.weights)) - len(self.weights) // 2
+        variance = float(np.sum(self.weights * grid**2)) + self.lens_blur_px**2 + 1.0 / 12.0
+        weight = np.exp(-0.5 * x**2 / variance) * np.clip((x + 0.5 * width) / width, 0.0, 1.0)
+        m = np.where(x < 0.5 * width, 0.5 * (x + 0.5 * width), x)
+        return float(np.sum(weight * m) / np.sum(weight))

@@ -194,8 +194,8 @@ class BlurSplitter:
                     points, chain, n, i_fix, seg_b, minus, gx, gy, pol, sweeps_b, local, sw, step, table, self.side_b
                 )
             )
-            na = self._fit_tip(self.side_a, na, sweep)
-            nb = self._fit_tip(self.side_b, nb, sweep)
+            na = self._fit_tip(self.side_a, na)
+            nb = self._fit_tip(self.side_b, nb)
             # The fitted tips are sharper than the band's rounded corners: their distance across the rope is the
             # sideways sweep at the tip. Where it differs, the offsets of the proportional model are redone with it.
             lateral = self._tip_lateral(na, nb)
@@ -205,6 +205,7 @@ class BlurSplitter:
                 break
             sweep = lateral
         self.sweep_px = sweep
+        self._correct_slant(int(na), int(nb), tables.slant_px)
         shape_a = self._resample(self.side_a, na, self.out_a)
         shape_b = self._resample(self.side_b, nb, self.out_b)
         return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, tables.width_px, sweep)
@@ -377,11 +378,37 @@ class BlurSplitter:
             return None
         # The cap's edge was moved half a width back along the axis with the gradient: carry the axis on to the
         # band's end instead, as for the split shapes.
-        count = self._fit_tip(self.side_a, i32(count), 0.0)
+        count = self._fit_tip(self.side_a, i32(count))
         shape = self._resample(self.side_a, i32(count), self.out_a)
         self.seg[0] = points[e2]
         self.seg[1] = points[e2]
         return SplitOutcome(Method.STATIC_FALLBACK, shape, shape, None, self.width, 0.0)
+
+    def _correct_slant(self, na: int, nb: int, gain_px: float) -> None:
+        """Undo the bias of the half-level tips when the rope's end also moved along the rope (a whipping tip).
+
+        Each tip read at its axis' half-level crossing lies ``gain_px * slope`` beyond its true end, the slope
+        being the end track's along-per-across displacement seen from that shape (`BandEdgeModel.slant_gain`);
+        seen from the other shape the slope has the other sign. The measured tips' along offset is therefore
+        slope * (across - 2 gain): solved for the slope, both tips are moved back. Skipped when the tips are too
+        close across (the slope would be ill-determined).
+        """
+        if na < 3 or nb < 3 or not gain_px > 0:
+            return
+        a, b = self.side_a, self.side_b
+        u = (a[na - 1] - a[na - 3]).astype(np.float64) + (b[nb - 1] - b[nb - 3]).astype(np.float64)
+        norm = float(np.hypot(*u))
+        if norm <= 0.0:
+            return
+        u /= norm
+        d = (b[nb - 1] - a[na - 1]).astype(np.float64)
+        along = float(d @ u)
+        across = abs(float(d[0] * u[1] - d[1] * u[0]))
+        if across - 2.0 * gain_px < 1.0:
+            return
+        slope = float(np.clip(along / (across - 2.0 * gain_px), -1.5, 1.5))
+        a[na - 1] -= (slope * gain_px * u).astype(np.float32)
+        b[nb - 1] += (slope * gain_px * u).astype(np.float32)
 
     def _tip_lateral(self, na: int, nb: int) -> float:
         """Distance between the two fitted tips across the rope (perpendicular to the mean tip direction)."""
@@ -395,7 +422,7 @@ class BlurSplitter:
         d = (b[nb - 1] - a[na - 1]).astype(np.float64)
         return abs(float(d[0] * u[1] - d[1] * u[0])) / norm
 
-    def _fit_tip(self, poly: NDArray[np.float32], n: np.int32, sweep_px: float) -> np.int32:
+    def _fit_tip(self, poly: NDArray[np.float32], n: np.int32) -> np.int32:
         """Put the free end of an axis polyline where the band ends along that axis, less the cap.
 
         The segmentation point is only as good as the corner of the band, which the smoothing rounds over a few
@@ -407,10 +434,7 @@ class BlurSplitter:
         skip = f32(self.width + 2.0 * self.smooth_sigma)
         blur = f32(max(self.smooth_sigma, 0.5))
         smooth = ro(self._smooth)
-        sweep = f32(sweep_px)
-        return i32(
-            K.extend_to_band_end(poly, n, self._points, self._n, smooth, f32(self.width), cap, skip, blur, sweep)
-        )
+        return i32(K.extend_to_band_end(poly, n, self._points, self._n, smooth, f32(self.width), cap, skip, blur))
 
     def _resample(self, poly: NDArray[np.float32], n: int, out: NDArray[np.float32]) -> NDArray[np.float32]:
         count = K.resample_polyline(ro(poly), i32(n), self.step, out)

@@ -47,7 +47,6 @@ from ropecam.device.pipeline._kernels.offsets import (
 )
 from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots
 from ropecam.device.pipeline._kernels.polylines import (
-    end_on_track,
     extend_to_band_end,
     half_level_crossing,
     polyline_length,
@@ -75,7 +74,6 @@ __all__ = [
     "chain_length",
     "count_roi_contacts",
     "detect_edges",
-    "end_on_track",
     "extend_to_band_end",
     "f4_1d_ro",
     "find_caps",

@@ -167,60 +167,19 @@ def half_level_crossing(image, base_r, base_c, dir_r, dir_c, guess, reach_px, fl
     return best
 
 
-@kernel(float32(f4_2d_ro, int32, float32, float32, float32, float32, float32, float32, float32))
-def end_on_track(points, n_points, base_r, base_c, dir_r, dir_c, guess, lo_px, hi_px):
-    """Return where the band's end edge (the track of the rope's end) crosses an axis line.
-
-    In the frame of the line through (`base_r`, `base_c`) along the unit vector (`dir_r`, `dir_c`), the contour
-    `points` lying `lo_px` to `hi_px` to one side of it and within ``hi_px + 2`` px of `guess` along it are the end
-    edge away from the band's corners (the side with more of them is used); a straight line fitted to them
-    (along as a function of across) is evaluated at across = 0. Returns that distance along the line, or nan with
-    fewer than 4 such points or a result more than `hi_px` from `guess`."""
-    if not hi_px > lo_px:
-        return np.float32(np.nan)
-    best_count = 0
-    best = np.float32(np.nan)
-    for side in (-1.0, 1.0):
-        m = 0
-        sx = 0.0
-        sy = 0.0
-        sxx = 0.0
-        sxy = 0.0
-        for i in range(n_points):
-            rel_r = points[i, 0] - base_r
-            rel_c = points[i, 1] - base_c
-            along = rel_r * dir_r + rel_c * dir_c
-            across = side * (rel_r * dir_c - rel_c * dir_r)
-            if lo_px <= across <= hi_px and abs(along - guess) <= hi_px + 2.0:
-                m += 1
-                sx += across
-                sy += along
-                sxx += across * across
-                sxy += across * along
-        if m < 4 or m <= best_count:
-            continue
-        denom = m * sxx - sx * sx
-        if denom <= 1e-9:
-            continue
-        slope = (m * sxy - sx * sy) / denom
-        value = (sy - slope * sx) / m
-        if abs(value - guess) <= hi_px:
-            best_count = m
-            best = np.float32(value)
-    return best
-
-
-@kernel(int32(f4_2d, int32, f4_2d_ro, int32, f4_2d_ro, float32, float32, float32, float32, float32))
-def extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip_px, blur_px, sweep_px):
+@kernel(int32(f4_2d, int32, f4_2d_ro, int32, f4_2d_ro, float32, float32, float32, float32))
+def extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip_px, blur_px):
     """Replace the free end of the axis polyline `poly` (n points) by the axis carried on to where the band ends.
 
     The last `skip_px` of arc are the band's rounded corner (smoothing and the end's blur pull the edge inward
     there), so the axis is the least-squares line through the polyline points between `skip_px` and
     ``skip_px + max(3 widths, 6 px)`` of arc from the end; its base is the foot of the point `skip_px` from the end.
     The band's end along that line is the farthest of the contour `points` lying within half a width of it (and
-    within -2 to `skip_px` + 4 widths of the base); the tip goes `cap_px` short of it (0 for a flat rope end, half a
-    width for a round one). The polyline is cut `skip_px` from its end and the tip appended, in place. Returns the
-    new point count, or `n` unchanged when the polyline is too short or no band end is found.
+    within -2 to `skip_px` + 4 widths of the base); for a flat end (`cap_px` 0) it is refined to where the smoothed
+    image `smooth` falls halfway from the band to the background along the line (`half_level_crossing`, reach
+    ``3 blur_px + 1``); the tip goes `cap_px` short of it (half a width for a round end). The polyline is cut
+    `skip_px` from its end and the tip appended, in place. Returns the new point count, or `n` unchanged when the
+    polyline is too short or no band end is found.
     """
     if n < 3 or n >= poly.shape[0]:
         return n
@@ -281,23 +240,13 @@ def extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip
     if best < -1e29:
         return n
     if cap_px == 0.0:
-        # The band's end edge is the track of the rope's flat end, a sharp step (the end passes each point of it
-        # once): where it is clear of both corners (half a width of ramp plus the blur), it is fitted and
-        # continued to the axis. This holds when the end also moves along the axis (a whipping tip: the track is
-        # slanted). Too short a track (small sweep): the end sideways covers (lateral ramp) x (step at the end)
-        # near its corner, the smoothed image is that product blurred, so along the axis it falls halfway to the
-        # background exactly at the end (the contour's corner itself is rounded inward by the smoothing).
-        lo = 0.5 * width_px + 2.0 * blur_px
-        hi = min(sweep_px - lo, lo + max(2.0 * width_px, 6.0))
-        b_r = np.float32(base_r)
-        b_c = np.float32(base_c)
-        d_r = np.float32(dir_r)
-        d_c = np.float32(dir_c)
-        guess = np.float32(best)
-        end = end_on_track(points, n_points, b_r, b_c, d_r, d_c, guess, np.float32(lo), np.float32(hi))
-        if math.isnan(end):
-            reach = np.float32(3.0 * blur_px + 1.0)
-            end = half_level_crossing(smooth, b_r, b_c, d_r, d_c, guess, reach, np.float32(2.0))
+        # A flat end moving sideways covers (lateral ramp) x (step at the end) near its corner; the smoothed image
+        # is that product blurred, so along the axis it falls halfway to the background exactly at the end (the
+        # contour's corner itself is rounded inward by the smoothing). An end that also moves along the rope
+        # shifts this crossing; the splitter corrects that from both tips (`BlurSplitter._correct_slant`).
+        reach = np.float32(3.0 * blur_px + 1.0)
+        end = half_level_crossing(smooth, np.float32(base_r), np.float32(base_c), np.float32(dir_r),
+                                  np.float32(dir_c), np.float32(best), reach, np.float32(2.0))  # fmt: skip
         if not math.isnan(end):
             best = end
     extent = max(best - cap_px, 0.0)
