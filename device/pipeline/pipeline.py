@@ -78,6 +78,7 @@ class Pipeline:
         self._width_cache: float | None = None
         self._prev_tips: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self._tip_history: list[tuple[int, NDArray[np.float64]]] = []
+        self._order_rejects = 0
         self._prev_t_ns: tuple[int, int] | None = None
         self._prev_sweep = 0.0
         self._prev_step = 0.0
@@ -206,7 +207,7 @@ class Pipeline:
             return
         if outcome is None:
             result.status = FrameStatus.LOST_TRACK
-            result.message = "contour found but no segmentation points"
+            result.message = self.splitter.failure
             self._prev_tips = None
             return
         self._prev_sweep = self.splitter.sweep_px
@@ -300,6 +301,7 @@ class Pipeline:
                     self._widths.clear()
                     self._width_cache = None
                     self._prev_tips = None
+                    self._tip_history.clear()
         d = [float(np.hypot(*(end - self.fixed))) for end in ends]
         chosen = ends[0] if d[0] <= d[1] else ends[1]
         if min(d) > 3.0 * w + 5.0:
@@ -327,18 +329,19 @@ class Pipeline:
     ) -> tuple[NDArray[np.float32], NDArray[np.float32], float]:
         """Put the two shapes in time order by continuity with the previous frames; returns (begin, end, conf).
 
-        The tips of the last two frames (two time samples each: start and end of the exposure) give a
-        constant-acceleration fit of the tip's path (constant velocity from one frame); it predicts the tip at
-        this frame's start and end, and the pairing of the two shapes with those predictions that fits better
-        wins. A swinging rope reverses every half period: across the gap between frames (several exposures long
+        The tips of the last three frames (two time samples each: start and end of the exposure) give a
+        least-squares constant-acceleration fit of the tip's path (constant velocity from one frame); it predicts
+        the tip at this frame's start and end, and the pairing of the two shapes with those predictions that fits
+        better wins. A swinging rope reverses every half period: across the gap between frames (several exposures long
         at low frame rates) a constant velocity overshoots there, a constant acceleration does not.
         """
         a, b = outcome.shape_a, outcome.shape_b
         if t_end_ns is None:
             t_end_ns = t_ns
-        if self._prev_tips is None:
-            self._tip_history.clear()
-        if a is b or not self._tip_history:
+        history = self._tip_history
+        if history and t_ns - history[-1][0] > 4 * (self._period_ns or 25_000_000):
+            history.clear()  # too old to extrapolate (frames lost): start again
+        if a is b or not history:
             self._remember_tips(a, b, t_ns, t_end_ns)
             return a, b, (1.0 if a is b else 0.5)
         pred_begin, pred_end = self._predict_tips(t_ns, t_end_ns)
@@ -350,11 +353,26 @@ class Pipeline:
         swapped = float(np.sum((tip_b - pred_begin) ** 2) + np.sum((tip_a - pred_end) ** 2))
         confidence = 0.5 + 0.5 * abs(straight - swapped) / (straight + swapped + 1e-6)
         begin, end = (a, b) if straight <= swapped else (b, a)
+        # A frame whose tips lie far from the predicted path (a bad split, something crossing the rope) must not
+        # steer the next predictions: it is left out, unless the next frame disagrees too (the motion changed).
+        # Judged on what does not depend on the order: where the band's middle is and how far the tip swept.
+        pred_sweep = float(np.hypot(*(pred_end - pred_begin)))
+        mid_miss = float(np.hypot(*(0.5 * (tip_a + tip_b - pred_begin - pred_end))))
+        sweep_miss = abs(float(np.hypot(*(tip_b - tip_a))) - pred_sweep)
+        reach = float(np.hypot(*(0.5 * (pred_begin + pred_end) - history[-1][1])))  # how far it extrapolates
+        tolerance = max(3.0, 0.5 * pred_sweep, 0.25 * reach)
+        odd = mid_miss > tolerance or sweep_miss > tolerance
+        if odd and self._order_rejects < 1:
+            self._order_rejects += 1
+            return begin, end, 0.5 + 0.5 * (confidence - 0.5) * 0.5
+        if odd:
+            history.clear()
+        self._order_rejects = 0
         self._remember_tips(begin, end, t_ns, t_end_ns)
         return begin, end, confidence
 
     def _remember_tips(self, begin: NDArray[np.float32], end: NDArray[np.float32], t_ns: int, t_end_ns: int) -> None:
-        """Keep the last four tip samples with their times (oldest first): two per split frame, one per single
+        """Keep the last six tip samples with their times (oldest first): two per split frame, one per single
         shape."""
         history = self._tip_history
         if begin is end:
@@ -363,11 +381,11 @@ class Pipeline:
         else:
             history.append((t_ns, begin[-1].astype(np.float64)))
             history.append((t_end_ns, end[-1].astype(np.float64)))
-        del history[:-4]
+        del history[:-6]
 
     def _predict_tips(self, t_ns: int, t_end_ns: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Predict the tip at `t_ns` and `t_end_ns` from the remembered tips: a least-squares quadratic in time
-        through four samples, a line through two."""
+        through four to six samples, a line through two or three."""
         history = self._tip_history
         t0 = history[-1][0]
         tau = np.array([(t - t0) * 1e-9 for t, _ in history])

@@ -77,6 +77,8 @@ class BlurSplitter:
         self.smooth_sigma = float(smooth_sigma_px)
         self.model = BandEdgeModel(self.weights, lens_blur_px)
         self.sweep_window = 3
+        self.failure = ""
+        """Why the last `split` returned None."""
         self.sweeps_a = np.zeros(capacity, np.float32)
         self.sweeps_b = np.zeros(capacity, np.float32)
         self.work = np.zeros(capacity, np.float32)
@@ -133,6 +135,7 @@ class BlurSplitter:
             None when the contour cannot be split (too short, no segmentation points).
         """
         self._smooth = smooth
+        self.failure = "contour found but no segmentation points"
         self._prepare(points, chain, n, width_px, gx, gy, edges, polarity, mag, fixed_rc)
         points, chain, n = self._points, self._chain, self._n
         fixed_r, fixed_c = np.float32(fixed_rc[0]), np.float32(fixed_rc[1])
@@ -206,6 +209,13 @@ class BlurSplitter:
             sweep = lateral
         self.sweep_px = sweep
         self._correct_slant(int(na), int(nb), tables.slant_px)
+        # A rope keeps its length within an exposure: two shapes of clearly different lengths mean the contour
+        # was not cut at the band's corners (a faint, broken band end traced the wrong way round).
+        len_a = float(K.polyline_length(ro(self.side_a), na))
+        len_b = float(K.polyline_length(ro(self.side_b), nb))
+        if abs(len_a - len_b) > max(3.0 * width, 0.1 * max(len_a, len_b)):
+            self.failure = f"the two shapes differ in length ({len_a:.0f} and {len_b:.0f} px): split rejected"
+            return None
         shape_a = self._resample(self.side_a, na, self.out_a)
         shape_b = self._resample(self.side_b, nb, self.out_b)
         return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, tables.width_px, sweep)
