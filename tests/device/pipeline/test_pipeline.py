@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -166,3 +167,31 @@ def test_config_refuses_bad_values() -> None:
 def test_pipeline_refuses_tiny_images() -> None:
     with pytest.raises(ValueError, match="image_size"):
         Pipeline(PipelineConfig(), (4, 4))
+
+
+def test_fixed_end_is_the_end_that_stays_put() -> None:
+    """A rope released at rest from horizontal: both ends look alike, and the free end lies nearer the top centre
+    (the first guess is wrong); once it has moved, the still end becomes the fixed end and the shapes run from it."""
+    rope = SyntheticRope(width=400, height=260, fixed_uv=(300.4, 30.6), length_px=150.0, diameter_px=3.0,
+                         amplitude_rad=-math.pi / 2, bend=0.0, phase_rad=0.0, exposure_us=8000)  # fmt: skip
+    pipeline = Pipeline(PipelineConfig(), (rope.width, rope.height))
+    for frame in rope.frames(10):
+        r = pipeline.process(frame.image, frame.index, frame.t_ns, frame.exposure_us)
+        assert r.status is FrameStatus.OK, r.message
+    assert np.hypot(*(r.fixed_end[::-1] - rope.fixed_uv)) < 1.0
+    assert np.hypot(*(_uv(r.begin)[0] - frame.begin_uv[0])) < 2.0
+    assert np.hypot(*(_uv(r.begin)[-1] - frame.tip_begin_uv)) < 1.0
+    assert np.hypot(*(_uv(r.end)[-1] - frame.tip_end_uv)) < 1.0
+
+
+def test_synthetic_rope_ends_flat_or_round() -> None:
+    """The synthetic renderer draws a cut (flat) rope end by default; a round end adds a half disc at each end."""
+    flat = SyntheticRope(width=120, height=60, fixed_uv=(20.3, 30.4), length_px=80.0, diameter_px=6.0,
+                         amplitude_rad=math.pi / 2, phase_rad=0.0, bend=0.0, noise_dn=0.0)  # fmt: skip
+    line = flat.centreline(0.0)
+    area_flat = flat.coverage(line).sum()
+    area_round = replace(flat, rope_end="round").coverage(line).sum()
+    assert area_flat == pytest.approx(80.0 * 6.0, rel=0.01)
+    assert area_round - area_flat == pytest.approx(math.pi * 3.0**2, rel=0.05)
+    with pytest.raises(ValueError, match="rope_end"):
+        SyntheticRope(rope_end="pointed")
