@@ -167,13 +167,13 @@ def half_level_crossing(image, base_r, base_c, dir_r, dir_c, guess, reach_px, fl
     return best
 
 
-@kernel(int32(f4_2d, int32, f4_2d_ro, int32, f4_2d_ro, float32, float32, float32, float32))
-def extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip_px, blur_px):
+@kernel(int32(f4_2d, int32, f4_2d_ro, int32, f4_2d_ro, float32, float32, float32, float32, float32))
+def extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip_px, span_px, blur_px):
     """Replace the free end of the axis polyline `poly` (n points) by the axis carried on to where the band ends.
 
     The last `skip_px` of arc are the band's rounded corner (smoothing and the end's blur pull the edge inward
     there), so the axis is the least-squares line through the polyline points between `skip_px` and
-    ``skip_px + max(3 widths, 6 px)`` of arc from the end; its base is the foot of the point `skip_px` from the end.
+    ``skip_px + span_px`` of arc from the end; its base is the foot of the point `skip_px` from the end.
     The band's end along that line is the farthest of the contour `points` lying within half a width of it (and
     within -2 to `skip_px` + 4 widths of the base); for a flat end (`cap_px` 0) it is refined to where the smoothed
     image `smooth` falls halfway from the band to the background along the line (`half_level_crossing`, reach
@@ -183,7 +183,7 @@ def extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip
     """
     if n < 3 or n >= poly.shape[0]:
         return n
-    span = max(3.0 * width_px, 6.0)
+    span = span_px
     # Arc position of each point from the end, walked backwards; accumulate the fit window's moments.
     back = 0.0
     k = n - 1

@@ -100,13 +100,13 @@ def test_extend_to_band_end_carries_the_straight_axis_to_the_end() -> None:
     end = np.stack([np.arange(18.5, 21.6, 0.5), np.full(7, 49.8)], axis=1)
     bottom = np.stack([np.full(45, 21.5), np.arange(49.0, 4.0, -1.0)], axis=1)
     contour = np.concatenate([top, end, bottom]).astype(np.float32)
-    count = K.extend_to_band_end(poly, cols.size, contour, len(contour), image, 3.0, 0.0, 5.0, 1.0)
+    count = K.extend_to_band_end(poly, cols.size, contour, len(contour), image, 3.0, 0.0, 5.0, 9.0, 1.0)
     assert count < cols.size + 1
     np.testing.assert_allclose(poly[count - 1], [20.0, tip], atol=0.05)
     assert np.all(np.abs(poly[: count - 1, 0] - 20.0) < 1e-4)  # the bent corner was cut away
     # A round end: the tip stays `cap_px` short of the band's end (the contour's farthest point along the axis).
     poly[: cols.size] = np.stack([rows, cols], axis=1)
-    count = K.extend_to_band_end(poly, cols.size, contour, len(contour), image, 3.0, 1.5, 5.0, 1.0)
+    count = K.extend_to_band_end(poly, cols.size, contour, len(contour), image, 3.0, 1.5, 5.0, 9.0, 1.0)
     np.testing.assert_allclose(poly[count - 1], [20.0, 49.8 - 1.5], atol=0.05)
 
 
