@@ -77,6 +77,9 @@ class BlurSplitter:
         self.smooth_sigma = float(smooth_sigma_px)
         self.model = BandEdgeModel(self.weights, lens_blur_px)
         self.sweep_window = 3
+        self.corner_rad = 0.5
+        """Smallest turning angle (rad, at the chord scale) taken for a band corner: a slanted band end's obtuse
+        corner turns about 45 degrees, smeared over the chord."""
         self.failure = ""
         """Why the last `split` returned None."""
         self.sweeps_a = np.zeros(capacity, np.float32)
@@ -142,8 +145,15 @@ class BlurSplitter:
         width = self.width
         scale = max(self.corner_scale, round(0.5 * width))
         K.turning_angles(points, n, i32(scale), self.turn)
-        search = np.float32(max(3.0 * width, 8.0))
-        found = K.split_contour(points, ro(self.turn), n, fixed_r, fixed_c, search, i32(scale + 1), self.idx)
+        # The band's corners lie at the free end, but an end that also moves along the rope (a whipping tip)
+        # slants the band's end: the corners can then differ in distance from the fixed end by up to about the
+        # sweep. The last frame's sweep widens the zone searched (a rope does not change its speed much between
+        # frames); the sharpest turn in the zone is still a corner, the sides turn little.
+        search = np.float32(max(3.0 * width, 8.0, 1.2 * self.sweep_px))
+        corner = f32(self.corner_rad)
+        found = K.split_contour(
+            points, ro(self.turn), n, fixed_r, fixed_c, search, i32(scale + 1), corner, self.work, self.idx
+        )
         if found < 0:
             return self.static(fixed_rc)
         i_fix, seg_a, i_far, seg_b = (np.int32(v) for v in self.idx)

@@ -96,13 +96,13 @@ def test_split_finds_the_corners_of_a_swept_band() -> None:
     turn = np.zeros(len(pts), np.float32)
     K.turning_angles(pts, len(pts), 3, turn)
     idx = np.zeros(4, np.int32)
-    assert K.split_contour(pts, turn, len(pts), 0.0, 0.0, 6.0, 6, idx) == 4
+    assert K.split_contour(pts, turn, len(pts), 0.0, 0.0, 6.0, 6, 0.5, np.zeros(len(pts), np.float32), idx) == 4
     fixed, seg_a, far, seg_b = idx
     assert np.hypot(*pts[fixed]) <= 1.01
     assert np.allclose(pts[seg_a], (40, -1), atol=0.6)
     assert np.allclose(pts[seg_b], (40, 13), atol=0.6)
     assert np.allclose(pts[far], (40, 13), atol=0.6)
-    assert K.split_contour(pts[:6], turn, 6, 0.0, 0.0, 6.0, 6, idx) == K.NOT_FOUND
+    assert K.split_contour(pts[:6], turn, 6, 0.0, 0.0, 6.0, 6, 0.5, np.zeros(6, np.float32), idx) == K.NOT_FOUND
 
 
 def test_offset_side_moves_inward_by_the_modelled_half_width() -> None:
