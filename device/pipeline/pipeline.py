@@ -79,6 +79,8 @@ class Pipeline:
         self._prev_tips: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self._tip_history: list[tuple[int, NDArray[np.float64]]] = []
         self._order_rejects = 0
+        self._design = np.zeros((6, 3))
+        self._tips = np.zeros((6, 2))
         self._prev_t_ns: tuple[int, int] | None = None
         self._prev_sweep = 0.0
         self._prev_step = 0.0
@@ -385,15 +387,20 @@ class Pipeline:
 
     def _predict_tips(self, t_ns: int, t_end_ns: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Predict the tip at `t_ns` and `t_end_ns` from the remembered tips: a least-squares quadratic in time
-        through four to six samples, a line through two or three."""
+        through four to six samples, a line through two or three (one sample: no motion)."""
         history = self._tip_history
         t0 = history[-1][0]
-        tau = np.array([(t - t0) * 1e-9 for t, _ in history])
-        tips = np.array([tip for _, tip in history])
-        degree = 2 if len(history) >= 4 else 1
-        scale = max(float(np.ptp(tau)), 1e-9)
-        design = np.vander(tau / scale, degree + 1)
-        coef, *_ = np.linalg.lstsq(design, tips, rcond=None)
-        query = np.array([(t_ns - t0) * 1e-9, (t_end_ns - t0) * 1e-9]) / scale
-        pred = np.vander(query, degree + 1) @ coef
-        return pred[0], pred[1]
+        span = max(1, t0 - history[0][0])
+        size = 3 if len(history) >= 4 else min(len(history), 2)
+        design = self._design[: len(history), :size]
+        tips = self._tips[: len(history)]
+        for k, (t, tip) in enumerate(history):
+            x = (t - t0) / span
+            design[k] = (1.0, x, x * x)[:size]
+            tips[k] = tip
+        coef = np.linalg.solve(design.T @ design, design.T @ tips)
+        out = []
+        for t in (t_ns, t_end_ns):
+            q = (t - t0) / span
+            out.append(coef[0] + sum(coef[j] * q**j for j in range(1, size)))
+        return out[0], out[1]

@@ -174,6 +174,8 @@ def split_contour(points, turn, n, fixed_r, fixed_c, search_px, min_gap, corner_
     # obtuse corner and a faint one kinks: both change one side's length); near-ties go to the sharper pair.
     level_a = corner_rad
     level_b = corner_rad
+    zone_a = len_a
+    zone_b = len_b
     for side in range(2):
         length = len_a if side == 0 else len_b
         for step in range(1, length + 1):
@@ -181,16 +183,18 @@ def split_contour(points, turn, n, fixed_r, fixed_c, search_px, min_gap, corner_
             if math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c) >= threshold:
                 if side == 0:
                     level_a = max(level_a, 0.5 * turn[i])
+                    zone_a = min(zone_a, step)
                 else:
                     level_b = max(level_b, 0.5 * turn[i])
+                    zone_b = min(zone_b, step)
     best_delta = 1e30
     for rep in range(2):
         pick_sum = -1.0
-        for step_a in range(1, len_a):
+        for step_a in range(zone_a, len_a):
             ia = (i_fix + step_a) % n
             if not _is_corner(points, turn, n, ia, fixed_r, fixed_c, threshold, level_a):
                 continue
-            for step_b in range(1, len_b):
+            for step_b in range(zone_b, len_b):
                 ib = (i_fix - step_b + n) % n
                 if not _is_corner(points, turn, n, ib, fixed_r, fixed_c, threshold, level_b):
                     continue
