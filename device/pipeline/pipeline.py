@@ -77,10 +77,8 @@ class Pipeline:
         self._polarity_votes: list[float] = []
         self._width_cache: float | None = None
         self._prev_tips: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
-        self._tip_history: list[tuple[int, NDArray[np.float64]]] = []
+        self._tip_history: list[tuple[int, tuple[float, float]]] = []
         self._order_rejects = 0
-        self._design = np.zeros((6, 3))
-        self._tips = np.zeros((6, 2))
         self._prev_t_ns: tuple[int, int] | None = None
         self._prev_sweep = 0.0
         self._prev_step = 0.0
@@ -346,22 +344,23 @@ class Pipeline:
         if a is b or not history:
             self._remember_tips(a, b, t_ns, t_end_ns)
             return a, b, (1.0 if a is b else 0.5)
-        pred_begin, pred_end = self._predict_tips(t_ns, t_end_ns)
-        tip_a = a[-1].astype(np.float64)
-        tip_b = b[-1].astype(np.float64)
+        (pbr, pbc), (per, pec) = self._predict_tips(t_ns, t_end_ns)
+        ar, ac = a[-1].tolist()
+        br, bc = b[-1].tolist()
         # Squared distances: their difference is 2 (b - a) . (pred_end - pred_begin), so the predicted direction
         # of motion decides, not where the prediction lies (a path bias moves both predictions alike).
-        straight = float(np.sum((tip_a - pred_begin) ** 2) + np.sum((tip_b - pred_end) ** 2))
-        swapped = float(np.sum((tip_b - pred_begin) ** 2) + np.sum((tip_a - pred_end) ** 2))
+        straight = (ar - pbr) ** 2 + (ac - pbc) ** 2 + (br - per) ** 2 + (bc - pec) ** 2
+        swapped = (br - pbr) ** 2 + (bc - pbc) ** 2 + (ar - per) ** 2 + (ac - pec) ** 2
         confidence = 0.5 + 0.5 * abs(straight - swapped) / (straight + swapped + 1e-6)
         begin, end = (a, b) if straight <= swapped else (b, a)
         # A frame whose tips lie far from the predicted path (a bad split, something crossing the rope) must not
         # steer the next predictions: it is left out, unless the next frame disagrees too (the motion changed).
         # Judged on what does not depend on the order: where the band's middle is and how far the tip swept.
-        pred_sweep = float(np.hypot(*(pred_end - pred_begin)))
-        mid_miss = float(np.hypot(*(0.5 * (tip_a + tip_b - pred_begin - pred_end))))
-        sweep_miss = abs(float(np.hypot(*(tip_b - tip_a))) - pred_sweep)
-        reach = float(np.hypot(*(0.5 * (pred_begin + pred_end) - history[-1][1])))  # how far it extrapolates
+        pred_sweep = math.hypot(per - pbr, pec - pbc)
+        mid_miss = 0.5 * math.hypot(ar + br - pbr - per, ac + bc - pbc - pec)
+        sweep_miss = abs(math.hypot(br - ar, bc - ac) - pred_sweep)
+        last_r, last_c = history[-1][1]
+        reach = math.hypot(0.5 * (pbr + per) - last_r, 0.5 * (pbc + pec) - last_c)  # how far it extrapolates
         tolerance = max(3.0, 0.5 * pred_sweep, 0.25 * reach)
         odd = mid_miss > tolerance or sweep_miss > tolerance
         if odd and self._order_rejects < 1:
@@ -374,33 +373,60 @@ class Pipeline:
         return begin, end, confidence
 
     def _remember_tips(self, begin: NDArray[np.float32], end: NDArray[np.float32], t_ns: int, t_end_ns: int) -> None:
-        """Keep the last six tip samples with their times (oldest first): two per split frame, one per single
+        """Keep the last six tip samples (time, (row, col)) oldest first: two per split frame, one per single
         shape."""
         history = self._tip_history
         if begin is end:
             # One shape (no blur to split): the band's centre, a sample at mid-exposure.
-            history.append(((t_ns + t_end_ns) // 2, begin[-1].astype(np.float64)))
+            history.append(((t_ns + t_end_ns) // 2, tuple(begin[-1].tolist())))
         else:
-            history.append((t_ns, begin[-1].astype(np.float64)))
-            history.append((t_end_ns, end[-1].astype(np.float64)))
+            history.append((t_ns, tuple(begin[-1].tolist())))
+            history.append((t_end_ns, tuple(end[-1].tolist())))
         del history[:-6]
 
-    def _predict_tips(self, t_ns: int, t_end_ns: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Predict the tip at `t_ns` and `t_end_ns` from the remembered tips: a least-squares quadratic in time
-        through four to six samples, a line through two or three (one sample: no motion)."""
+    def _predict_tips(self, t_ns: int, t_end_ns: int) -> tuple[tuple[float, float], tuple[float, float]]:
+        """Predict the tip (row, col) at `t_ns` and `t_end_ns` from the remembered tips: a least-squares quadratic
+        in time through four to six samples, a line through two or three, no motion from one. Plain floats (a
+        3x3 normal system costs less by hand than through NumPy's per-call overhead)."""
         history = self._tip_history
         t0 = history[-1][0]
         span = max(1, t0 - history[0][0])
         size = 3 if len(history) >= 4 else min(len(history), 2)
-        design = self._design[: len(history), :size]
-        tips = self._tips[: len(history)]
-        for k, (t, tip) in enumerate(history):
+        m = [0.0] * 5  # sums of x^k
+        r = [[0.0, 0.0] for _ in range(3)]  # sums of x^k * tip
+        for t, (row, col) in history:
             x = (t - t0) / span
-            design[k] = (1.0, x, x * x)[:size]
-            tips[k] = tip
-        coef = np.linalg.solve(design.T @ design, design.T @ tips)
+            xk = 1.0
+            for k in range(2 * size - 1):
+                m[k] += xk
+                if k < size:
+                    r[k][0] += xk * row
+                    r[k][1] += xk * col
+                xk *= x
+        coef = _solve_normal(m, r, size)
         out = []
         for t in (t_ns, t_end_ns):
             q = (t - t0) / span
-            out.append(coef[0] + sum(coef[j] * q**j for j in range(1, size)))
+            out.append((coef[0][0] + coef[1][0] * q + coef[2][0] * q * q,
+                        coef[0][1] + coef[1][1] * q + coef[2][1] * q * q))  # fmt: skip
         return out[0], out[1]
+
+
+def _solve_normal(m: list[float], r: list[list[float]], size: int) -> list[list[float]]:
+    """Solve the polynomial normal equations ``sum_j m[i + j] c_j = r_i`` (size 1 to 3, two right-hand sides) by
+    Gaussian elimination with partial pivoting; unused higher coefficients are 0."""
+    a = [[m[i + j] for j in range(size)] + r[i][:] for i in range(size)]
+    for col in range(size):
+        pivot = max(range(col, size), key=lambda row: abs(a[row][col]))
+        a[col], a[pivot] = a[pivot], a[col]
+        if abs(a[col][col]) < 1e-12:
+            a[col][col] = 1e-12
+        for row in range(size):
+            if row != col:
+                f = a[row][col] / a[col][col]
+                for k in range(col, size + 2):
+                    a[row][k] -= f * a[col][k]
+    coef = [[0.0, 0.0] for _ in range(3)]
+    for i in range(size):
+        coef[i] = [a[i][size] / a[i][i], a[i][size + 1] / a[i][i]]
+    return coef

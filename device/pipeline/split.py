@@ -3,6 +3,7 @@ exposure (and the tip track), or into one centreline when the blur cannot be spl
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -413,34 +414,43 @@ class BlurSplitter:
         slope * (across - 2 gain): solved for the slope, both tips are moved back. Skipped when the tips are too
         close across (the slope would be ill-determined).
         """
-        if na < 3 or nb < 3 or not gain_px > 0:
+        frame = self._tip_frame(na, nb)
+        if frame is None or not gain_px > 0:
             return
-        a, b = self.side_a, self.side_b
-        u = (a[na - 1] - a[na - 3]).astype(np.float64) + (b[nb - 1] - b[nb - 3]).astype(np.float64)
-        norm = float(np.hypot(*u))
-        if norm <= 0.0:
-            return
-        u /= norm
-        d = (b[nb - 1] - a[na - 1]).astype(np.float64)
-        along = float(d @ u)
-        across = abs(float(d[0] * u[1] - d[1] * u[0]))
+        u_r, u_c, d_r, d_c = frame
+        along = d_r * u_r + d_c * u_c
+        across = abs(d_r * u_c - d_c * u_r)
         if across - 2.0 * gain_px < 1.0:
             return
-        slope = float(np.clip(along / (across - 2.0 * gain_px), -1.5, 1.5))
-        a[na - 1] -= (slope * gain_px * u).astype(np.float32)
-        b[nb - 1] += (slope * gain_px * u).astype(np.float32)
+        shift = min(max(along / (across - 2.0 * gain_px), -1.5), 1.5) * gain_px
+        self.side_a[na - 1, 0] -= shift * u_r
+        self.side_a[na - 1, 1] -= shift * u_c
+        self.side_b[nb - 1, 0] += shift * u_r
+        self.side_b[nb - 1, 1] += shift * u_c
+
+    def _tip_frame(self, na: int, nb: int) -> tuple[float, float, float, float] | None:
+        """The mean tip direction (unit, from the last three points of both shapes) and the vector from tip A to
+        tip B, as plain floats; None when a shape is too short or the direction undefined."""
+        if na < 3 or nb < 3:
+            return None
+        a1r, a1c = self.side_a[na - 1].tolist()
+        a3r, a3c = self.side_a[na - 3].tolist()
+        b1r, b1c = self.side_b[nb - 1].tolist()
+        b3r, b3c = self.side_b[nb - 3].tolist()
+        u_r = a1r - a3r + b1r - b3r
+        u_c = a1c - a3c + b1c - b3c
+        norm = math.hypot(u_r, u_c)
+        if norm <= 0.0:
+            return None
+        return u_r / norm, u_c / norm, b1r - a1r, b1c - a1c
 
     def _tip_lateral(self, na: int, nb: int) -> float:
         """Distance between the two fitted tips across the rope (perpendicular to the mean tip direction)."""
-        if na < 3 or nb < 3:
+        frame = self._tip_frame(na, nb)
+        if frame is None:
             return float("nan")
-        a, b = self.side_a, self.side_b
-        u = (a[na - 1] - a[na - 3]).astype(np.float64) + (b[nb - 1] - b[nb - 3]).astype(np.float64)
-        norm = float(np.hypot(*u))
-        if norm <= 0.0:
-            return float("nan")
-        d = (b[nb - 1] - a[na - 1]).astype(np.float64)
-        return abs(float(d[0] * u[1] - d[1] * u[0])) / norm
+        u_r, u_c, d_r, d_c = frame
+        return abs(d_r * u_c - d_c * u_r)
 
     def _fit_tip(self, poly: NDArray[np.float32], n: np.int32) -> np.int32:
         """Put the free end of an axis polyline where the band ends along that axis, less the cap.
