@@ -26,6 +26,7 @@ from ropecam.device.pipeline._kernels._common import (
 from ropecam.device.pipeline._kernels.canny import detect_edges
 from ropecam.device.pipeline._kernels.contour import count_roi_contacts, keep_largest_component, trace_contour
 from ropecam.device.pipeline._kernels.geometry import (
+    axis_offset,
     chain_length,
     midline,
     offset_side,
@@ -36,7 +37,6 @@ from ropecam.device.pipeline._kernels.geometry import (
     turning_angles,
 )
 from ropecam.device.pipeline._kernels.offsets import (
-    axis_offset,
     find_caps,
     interp_sorted,
     measure_widths,

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import math
 
-from numba import boolean, float32, float64, int32, int64
+import numpy as np
+from numba import boolean, float32, float64, int32, int64, types
 
 from ropecam.device.pipeline._kernels._common import FULL, NOT_FOUND, f4_1d_ro
 from ropecam.shared.jit import (
@@ -35,48 +36,48 @@ def sample_bilinear(image, r, c):
     return top * (1.0 - fr) + bottom * fr
 
 
+@kernel(types.UniTuple(float32, 2)(f4_2d_ro, f4_2d_ro, f4_2d_ro, int32, int32))
+def axis_offset(mag, gx, gy, r, c):
+    """Return the (row, col) subpixel offset of the gradient magnitude's maximum at pixel (r, c) (Devernay 1995):
+    the parabola through the magnitude at -1, 0, +1 px along the image axis nearest the gradient (exact pixel
+    samples, no interpolation bias), its vertex offset clamped to 1 px; (0, 0) without a gradient, at the image
+    border along that axis, or when the magnitude is not a maximum there."""
+    g_r = gy[r, c]
+    g_c = gx[r, c]
+    if g_r == 0.0 and g_c == 0.0:
+        return np.float32(0.0), np.float32(0.0)
+    m0 = mag[r, c]
+    if abs(g_c) >= abs(g_r):
+        if c < 1 or c > mag.shape[1] - 2:
+            return np.float32(0.0), np.float32(0.0)
+        mm = mag[r, c - 1]
+        mp = mag[r, c + 1]
+    else:
+        if r < 1 or r > mag.shape[0] - 2:
+            return np.float32(0.0), np.float32(0.0)
+        mm = mag[r - 1, c]
+        mp = mag[r + 1, c]
+    denom = mm - 2.0 * m0 + mp
+    if not denom < 0.0:
+        return np.float32(0.0), np.float32(0.0)
+    delta = np.float32(min(max(0.5 * (mm - mp) / denom, -1.0), 1.0))
+    if abs(g_c) >= abs(g_r):
+        return np.float32(0.0), delta
+    return delta, np.float32(0.0)
+
+
 @kernel(int32(f4_2d_ro, f4_2d_ro, f4_2d_ro, i4_2d_ro, int32, f4_2d))
 def refine_subpixel(mag, gx, gy, chain, n, out_points):
-    """Move each of the first `n` chain pixels to the subpixel maximum of the gradient magnitude (Devernay 1995:
-    parabola through the magnitude at -1, 0, +1 px along the image axis nearest the gradient, offset clamped to
-    1 px).
+    """Move each of the first `n` chain pixels to the subpixel maximum of the gradient magnitude (`axis_offset`:
+    Devernay's parabola along the image axis nearest the gradient).
 
     Writes `out_points` (row, col) float32; returns `n`."""
     for i in range(n):
         r = chain[i, 0]
         c = chain[i, 1]
-        g_r = gy[r, c]
-        g_c = gx[r, c]
-        norm = math.sqrt(g_r * g_r + g_c * g_c)
-        out_points[i, 0] = r
-        out_points[i, 1] = c
-        if norm <= 0.0:
-            continue
-        # Devernay: fit the parabola along the image axis closest to the gradient (exact pixel samples, no
-        # interpolation bias), then move along that axis.
-        m0 = mag[r, c]
-        height = mag.shape[0]
-        width = mag.shape[1]
-        if abs(g_c) >= abs(g_r):
-            if c < 1 or c > width - 2:
-                continue
-            mm = mag[r, c - 1]
-            mp = mag[r, c + 1]
-            a_r = 0.0
-            a_c = 1.0
-        else:
-            if r < 1 or r > height - 2:
-                continue
-            mm = mag[r - 1, c]
-            mp = mag[r + 1, c]
-            a_r = 1.0
-            a_c = 0.0
-        denom = mm - 2.0 * m0 + mp
-        if denom < 0.0:
-            delta = 0.5 * (mm - mp) / denom
-            delta = min(max(delta, -1.0), 1.0)
-            out_points[i, 0] = r + delta * a_r
-            out_points[i, 1] = c + delta * a_c
+        d_r, d_c = axis_offset(mag, gx, gy, r, c)
+        out_points[i, 0] = r + d_r
+        out_points[i, 1] = c + d_c
     return n
 
 

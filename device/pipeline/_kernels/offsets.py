@@ -5,10 +5,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import float32, float64, int32, types
+from numba import float32, float64, int32
 
 from ropecam.device.pipeline._kernels._common import FULL, NOT_FOUND, f4_1d_ro
-from ropecam.device.pipeline._kernels.geometry import chain_length
+from ropecam.device.pipeline._kernels.geometry import axis_offset, chain_length
 from ropecam.shared.jit import (
     f4_1d,
     f4_2d,
@@ -19,29 +19,6 @@ from ropecam.shared.jit import (
     kernel,
     u1_2d_ro,
 )
-
-
-@kernel(types.UniTuple(float32, 2)(f4_2d_ro, f4_2d_ro, f4_2d_ro, int32, int32))
-def axis_offset(mag, gx, gy, r, c):
-    """Return the (row, col) subpixel offset of the magnitude maximum at pixel (r, c) (as `refine_subpixel`)."""
-    height = mag.shape[0]
-    width = mag.shape[1]
-    if r < 1 or c < 1 or r > height - 2 or c > width - 2:
-        return np.float32(0.0), np.float32(0.0)
-    m0 = mag[r, c]
-    if abs(gx[r, c]) >= abs(gy[r, c]):
-        mm = mag[r, c - 1]
-        mp = mag[r, c + 1]
-        denom = mm - 2.0 * m0 + mp
-        if denom < 0.0:
-            return np.float32(0.0), np.float32(min(max(0.5 * (mm - mp) / denom, -1.0), 1.0))
-    else:
-        mm = mag[r - 1, c]
-        mp = mag[r + 1, c]
-        denom = mm - 2.0 * m0 + mp
-        if denom < 0.0:
-            return np.float32(min(max(0.5 * (mm - mp) / denom, -1.0), 1.0)), np.float32(0.0)
-    return np.float32(0.0), np.float32(0.0)
 
 
 @kernel(int32(u1_2d_ro, f4_2d_ro, f4_2d_ro, f4_2d_ro, i4_2d_ro, int32, float32, float32, f4_1d))
