@@ -44,7 +44,8 @@ class PipelineConfig:
     fixed_end_uv
         The fixed end (u, v) in pixels; found automatically over the first frames when not given.
     rope_width_px
-        Rope diameter in pixels; estimated from the image when not given.
+        Rope diameter in pixels (the rope's, not its blurred edges' spacing: the edge model converts); estimated
+        from the image when not given.
     rope_length_m
         Unstretched rope length; material points are given in metres of it.
     length0_px

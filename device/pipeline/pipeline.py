@@ -251,7 +251,10 @@ class Pipeline:
 
     def _width(self) -> float | None:
         if self.config.rope_width_px is not None:
-            return self.config.rope_width_px
+            # The configured width is the rope's; the splitter works with the spacing its blurred edges show.
+            if self._width_cache is None:
+                self._width_cache = self.splitter.model.edge_spacing(self.config.rope_width_px)
+            return self._width_cache
         if self._widths and self._width_cache is None:
             # Motion only widens the band: the lower quartile of the first frames' spacings is the still rope's.
             self._width_cache = float(np.percentile(self._widths, 25))
