@@ -77,6 +77,7 @@ class BlurSplitter:
         self.weights = gaussian_weights(smooth_sigma_px).astype(np.float64)
         self.smooth_sigma = float(smooth_sigma_px)
         self.model = BandEdgeModel(self.weights, lens_blur_px)
+        self.model.rope_width(3.0)  # its width table (~20 ms) now, not on the first frames
         self.sweep_window = 3
         self.corner_rad = 0.5
         """Smallest turning angle (rad, at the chord scale) taken for a band corner: a slanted band end's obtuse
