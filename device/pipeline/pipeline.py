@@ -79,6 +79,7 @@ class Pipeline:
         self._prev_tips: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self._tip_history: list[tuple[int, tuple[float, float]]] = []
         self._order_rejects = 0
+        self._history_ordered = False
         self._prev_t_ns: tuple[int, int] | None = None
         self._prev_sweep = 0.0
         self._prev_step = 0.0
@@ -305,6 +306,7 @@ class Pipeline:
                     self._width_cache = None
                     self._prev_tips = None
                     self._tip_history.clear()
+                    self._history_ordered = False
         d = [float(np.hypot(*(end - self.fixed))) for end in ends]
         chosen = ends[0] if d[0] <= d[1] else ends[1]
         if min(d) > 3.0 * w + 5.0:
@@ -344,9 +346,13 @@ class Pipeline:
         history = self._tip_history
         if history and t_ns - history[-1][0] > 4 * (self._period_ns or 25_000_000):
             history.clear()  # too old to extrapolate (frames lost): start again
+            self._history_ordered = False
         if a is b or not history:
+            self._history_ordered = a is b
             self._remember_tips(a, b, t_ns, t_end_ns)
             return a, b, (1.0 if a is b else 0.5)
+        if not self._history_ordered:
+            return self._order_by_nearness(a, b, t_ns, t_end_ns)
         (pbr, pbc), (per, pec) = self._predict_tips(t_ns, t_end_ns)
         ar, ac = a[-1].tolist()
         br, bc = b[-1].tolist()
@@ -371,7 +377,38 @@ class Pipeline:
             return begin, end, 0.5 + 0.5 * (confidence - 0.5) * 0.5
         if odd:
             history.clear()
+            self._history_ordered = False
         self._order_rejects = 0
+        self._remember_tips(begin, end, t_ns, t_end_ns)
+        return begin, end, confidence
+
+    def _order_by_nearness(
+        self, a: NDArray[np.float32], b: NDArray[np.float32], t_ns: int, t_end_ns: int
+    ) -> tuple[NDArray[np.float32], NDArray[np.float32], float]:
+        """Order this frame's shapes when the history's own order is a guess (one split frame, no earlier one).
+
+        Between two exposures the tip moves on from where the last one ended: of the last frame's two tips and
+        this frame's two, the nearest pair is (last end, this begin) for any motion that does not reverse in the
+        gap. That orders both frames; the remembered one is corrected, so the prediction starts from a consistent
+        history.
+        """
+        history = self._tip_history
+        ar, ac = a[-1].tolist()
+        br, bc = b[-1].tolist()
+        last = history[-2:] if len(history) >= 2 and history[-2][0] < history[-1][0] else history[-1:]
+        best = (math.inf, 0, 0)
+        for j, (_, (r, c)) in enumerate(last):
+            for mine, (qr, qc) in enumerate(((ar, ac), (br, bc))):
+                best = min(best, (math.hypot(qr - r, qc - c), j, mine))
+        _, j, mine = best
+        if len(last) == 2 and j == 0:
+            # The remembered begin is nearer: it was the end; swap the two samples' positions.
+            (t_first, p_first), (t_second, p_second) = history[-2], history[-1]
+            history[-2], history[-1] = (t_first, p_second), (t_second, p_first)
+        begin, end = (a, b) if mine == 0 else (b, a)
+        distances = sorted(math.hypot(qr - r, qc - c) for _, (r, c) in last for qr, qc in ((ar, ac), (br, bc)))
+        confidence = 0.5 + 0.5 * (distances[1] - distances[0]) / (distances[1] + distances[0] + 1e-6)
+        self._history_ordered = True
         self._remember_tips(begin, end, t_ns, t_end_ns)
         return begin, end, confidence
 

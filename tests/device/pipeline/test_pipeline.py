@@ -12,6 +12,7 @@ from ropecam.device.capture.synthetic import SyntheticRope
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam.device.pipeline.result import FrameStatus, Method
+from ropecam.device.pipeline.split import SplitOutcome
 from ropecam.shared.errors import ConfigError
 
 
@@ -195,3 +196,35 @@ def test_synthetic_rope_ends_flat_or_round() -> None:
     assert area_round - area_flat == pytest.approx(math.pi * 3.0**2, rel=0.05)
     with pytest.raises(ValueError, match="rope_end"):
         SyntheticRope(rope_end="pointed")
+
+
+def _two_shapes(begin_tip: np.ndarray, end_tip: np.ndarray) -> SplitOutcome:
+    a = np.array([[0.0, 0.0], begin_tip], np.float32)
+    b = np.array([[0.0, 0.0], end_tip], np.float32)
+    return SplitOutcome(Method.BLUR_SPLIT, a, b, None, 3.0, float(np.hypot(*(end_tip - begin_tip))))
+
+
+def test_time_order_through_reversals_and_a_bad_frame() -> None:
+    """A tip swinging back and forth at 30 FPS, 15 ms exposures (reversals fall in the gaps between frames), the
+    two shapes handed over in random order: continuity puts them right, also after a frame whose split failed
+    (both tips at one place), which must not steer the prediction."""
+    pipeline = Pipeline(PipelineConfig(), (64, 64))
+    rng = np.random.default_rng(5)
+    period_ns, exposure_ns = 33_333_333, 15_000_000
+
+    def tip(t_ns: int) -> np.ndarray:
+        angle = 0.9 * math.cos(2 * math.pi * t_ns * 1e-9 / 1.1)
+        return np.array([200 + 300 * math.cos(angle), 400 + 300 * math.sin(angle)])
+
+    wrong = []
+    for k in range(70):
+        t0, t1 = k * period_ns, k * period_ns + exposure_ns
+        b_tip, e_tip = tip(t0) + rng.normal(0, 0.2, 2), tip(t1) + rng.normal(0, 0.2, 2)
+        if k == 30:
+            e_tip = b_tip + 0.5  # a failed split: both shapes end at one corner
+        swap = bool(rng.integers(2))
+        outcome = _two_shapes(e_tip, b_tip) if swap else _two_shapes(b_tip, e_tip)
+        begin, _, _ = pipeline._order(outcome, t0, t1)
+        if k > 0 and k != 30 and np.hypot(*(tip(t1) - tip(t0))) >= 2.0:
+            wrong += [k] if np.hypot(*(begin[-1] - b_tip)) > 1.0 else []
+    assert wrong == []
