@@ -70,6 +70,9 @@ class SyntheticRope:
         Phase of the swing at t = 0.
     seed
         Noise seed.
+    rope_end
+        ``flat`` (default: a cut rope or cable, as the rig simulator draws it) or ``round`` (a cap of the rope's
+        radius beyond each end of the centreline).
     """
 
     width: int = 320
@@ -88,6 +91,11 @@ class SyntheticRope:
     phase_rad: float = 0.3
     seed: int = 1
     nodes: int = field(default=64)
+    rope_end: str = "flat"
+
+    def __post_init__(self) -> None:
+        if self.rope_end not in ("flat", "round"):
+            raise ValueError(f"rope_end must be 'flat' or 'round', got {self.rope_end!r}")
 
     def centreline(self, t_s: float) -> NDArray[np.float64]:
         """Return the centreline (nodes, 2) as (u, v) pixels at time `t_s`, fixed end first."""
@@ -116,7 +124,20 @@ class SyntheticRope:
             d = b - a
             t = np.clip(((uu - a[0]) * d[0] + (vv - a[1]) * d[1]) / max(float(d @ d), 1e-12), 0.0, 1.0)
             np.minimum(dist, np.hypot(uu - a[0] - t * d[0], vv - a[1] - t * d[1]), out=dist)
-        out[v0 : v1 + 1, u0 : u1 + 1] = np.clip(radius + 0.5 - dist, 0.0, 1.0)
+        cover = np.clip(radius + 0.5 - dist, 0.0, 1.0)
+        if self.rope_end == "flat" and len(line_uv) >= 2:
+            # A flat end: beyond the end's plane the rope stops (anti-aliased over one pixel), whatever the
+            # distance across; inside it the distance to the polyline is the distance across.
+            for end, inner in ((line_uv[-1], line_uv[-2]), (line_uv[0], line_uv[1])):
+                t = end - inner
+                t = t / max(float(np.hypot(*t)), 1e-12)
+                beyond = (uu - end[0]) * t[0] + (vv - end[1]) * t[1]
+                across = np.abs((uu - end[0]) * t[1] - (vv - end[1]) * t[0])
+                near = np.hypot(uu - end[0], vv - end[1]) <= radius + 2.0  # not other parts of a curled rope
+                past = near & (beyond > 0.0)
+                cover[past] = np.clip(radius + 0.5 - across[past], 0.0, 1.0)
+                cover[near] *= np.clip(0.5 - beyond[near], 0.0, 1.0)
+        out[v0 : v1 + 1, u0 : u1 + 1] = cover
         return out
 
     def render(self, index: int, rng: np.random.Generator | None = None) -> SyntheticFrame:

@@ -27,10 +27,14 @@ class PipelineConfig:
         ``bright`` rope on a dark background, ``dark`` rope on a bright one, or ``auto`` (decided per frame from
         the gradients along the contour).
     tip_cap
-        Shape of the rope's free end: ``round`` (the band's edge runs half a width beyond the axis end) or
-        ``flat``.
+        Shape of the rope's free end: ``flat`` (default: a cut rope or cable ends where its axis ends) or
+        ``round`` (the band's edge runs half a width beyond the axis end).
     smooth_sigma_px
         Gaussian smoothing before the Sobel gradient (0 disables it).
+    lens_blur_px
+        The camera's own blur (lens, focus; Gaussian sigma in px, the pixel's area apart) assumed by the model of
+        the blurred band's edge (`ropecam.device.pipeline.edge_model`); results change little with it (0 to 0.8
+        px moves the simulator's errors by < 0.05 px).
     canny_low, canny_high
         Hysteresis thresholds on the L2 Sobel magnitude of the smoothed image (grey levels x 8 per pixel).
     min_contour_px
@@ -40,7 +44,8 @@ class PipelineConfig:
     fixed_end_uv
         The fixed end (u, v) in pixels; found automatically over the first frames when not given.
     rope_width_px
-        Rope diameter in pixels; estimated from the image when not given.
+        Rope diameter in pixels (the rope's, not its blurred edges' spacing: the edge model converts); estimated
+        from the image when not given.
     rope_length_m
         Unstretched rope length; material points are given in metres of it.
     length0_px
@@ -71,8 +76,9 @@ class PipelineConfig:
 
     method: Literal["blur_split", "paper", "centerline", "static"] = "blur_split"
     polarity: Literal["auto", "bright", "dark"] = "auto"
-    tip_cap: Literal["round", "flat"] = "round"
+    tip_cap: Literal["round", "flat"] = "flat"
     smooth_sigma_px: float = 1.0
+    lens_blur_px: float = 0.5
     canny_low: float = 20.0
     canny_high: float = 50.0
     min_contour_px: int = 40
@@ -96,6 +102,7 @@ class PipelineConfig:
         check_in("polarity", self.polarity, ("auto", "bright", "dark"))
         check_in("tip_cap", self.tip_cap, ("round", "flat"))
         check_range("smooth_sigma_px", self.smooth_sigma_px, 0.0, 5.0)
+        check_range("lens_blur_px", self.lens_blur_px, 0.0, 5.0)
         check_positive("canny_low", self.canny_low)
         check_positive("canny_high", self.canny_high)
         if self.canny_high < self.canny_low:

@@ -64,7 +64,7 @@ class Pipeline:
         self.splitter = BlurSplitter(
             cap, config.method, config.static_ratio, config.corner_scale_px,
             config.paper_endpoint_radius_px, config.output_step_px, config.tip_cap, config.smooth_sigma_px,
-            output_smoothing_px=config.output_smoothing_px,
+            config.lens_blur_px, output_smoothing_px=config.output_smoothing_px,
         )  # fmt: skip
         self.tracker = PointTracker(
             config.material_points_m, config.rope_length_m, config.length0_px, config.length0_frames
@@ -89,6 +89,7 @@ class Pipeline:
         self.fixed = np.zeros(2, np.float32)
         self._fixed_known = config.fixed_end_uv is not None
         self._fixed_frames = 0
+        self._first_ends: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None
         if config.fixed_end_uv is not None:
             self.fixed[:] = (config.fixed_end_uv[1], config.fixed_end_uv[0])
         self._widths: list[float] = []
@@ -96,7 +97,12 @@ class Pipeline:
         self._polarity_votes: list[float] = []
         self._width_cache: float | None = None
         self._prev_tips: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
+        self._tip_history: list[tuple[int, tuple[float, float]]] = []
+        self._order_rejects = 0
+        self._history_ordered = False
         self._prev_t_ns: tuple[int, int] | None = None
+        self._period_ns: int | None = None  # the shortest time between frame starts seen: the frame period
+        self._last_frame_t_ns: int | None = None
         self._motion = _MotionState()
         self._roi_t_ns: int | None = None
         self.frames_full = 0
@@ -134,6 +140,10 @@ class Pipeline:
             Arrays in it are views into the pipeline's buffers, valid until the next call.
         """
         start_ns = time.perf_counter_ns()
+        if self._last_frame_t_ns is not None and t_ns > self._last_frame_t_ns:
+            gap_ns = int(t_ns - self._last_frame_t_ns)
+            self._period_ns = gap_ns if self._period_ns is None else min(self._period_ns, gap_ns)
+        self._last_frame_t_ns = int(t_ns)
         exposure_ns, exposure_problem = _exposure_ns(exposure_us)
         result = FrameResult(
             frame=int(index), t_ns=int(t_ns), t_end_ns=int(t_ns) + exposure_ns, status=FrameStatus.BAD_FRAME
@@ -235,13 +245,13 @@ class Pipeline:
             return
         if outcome is None:
             result.status = FrameStatus.LOST_TRACK
-            result.message = "contour found but no segmentation points"
+            result.message = self.splitter.failure
             self._prev_tips = None
             return
         result.method = outcome.method
         result.rope_width_px = outcome.width_px
         result.segmentation_points = outcome.segmentation_points
-        begin, end, confidence = self._order(outcome, result.t_ns)
+        begin, end, confidence = self._order(outcome, result.t_ns, result.t_end_ns)
         result.begin, result.end, result.order_confidence = begin, end, confidence
         begin_ro = ro(begin)
         end_ro = begin_ro if end is begin else ro(end)
@@ -332,54 +342,224 @@ class Pipeline:
 
     def _width(self) -> float | None:
         if self.config.rope_width_px is not None:
-            return self.config.rope_width_px
+            # The configured width is the rope's; the splitter works with the spacing its blurred edges show.
+            if self._width_cache is None:
+                self._width_cache = self.splitter.model.edge_spacing(self.config.rope_width_px)
+            return self._width_cache
         if self._widths and self._width_cache is None:
-            self._width_cache = float(np.median(self._widths))
+            # Motion only widens the band: the lower quartile of the first frames' spacings is the still rope's.
+            self._width_cache = float(np.percentile(self._widths, 25))
         return self._width_cache
 
     def _fixed_end(self, points: NDArray[np.float32], n: int, width_px: float | None) -> NDArray[np.float32]:
-        """The fixed end (row, col): configured, or the narrow end of the band averaged over the first frames."""
+        """The fixed end (row, col): configured, or found over the first frames.
+
+        The first frame gives a guess: of the band's two ends the narrower one (the fixed end hardly moves, so
+        its end of the band stays one rope wide), or on a tie (a rope at rest) the one nearer the top centre of
+        the image (a pendulum hangs below its support, and a rig centres the support so the swing stays in view).
+        Over the next frames the end that stays where it was is the fixed end: the guess is corrected as soon as
+        one end has moved away and the other has not, and the position is averaged over those frames.
+        """
         if self._fixed_known and (self.config.fixed_end_uv is not None or self._fixed_frames >= _FIXED_END_FRAMES):
             return self.fixed
         w = width_px or 4.0
         K.turning_angles(ro(points), i32(n), i32(max(3, round(w))), self.turn_cap)
         e1 = int(np.argmax(self.turn_cap[:n]))
         e2 = int(np.argmax(np.hypot(points[:n, 0] - points[e1, 0], points[:n, 1] - points[e1, 1])))
-        if self._fixed_known:
-            d1 = np.hypot(*(points[e1] - self.fixed))
-            d2 = np.hypot(*(points[e2] - self.fixed))
-            chosen = points[e1] if d1 <= d2 else points[e2]
-            if min(d1, d2) > 3.0 * w + 5.0:
-                return self.fixed  # not the rope seen so far (another object, a clipped view): no update
-            k = self._fixed_frames
-            self.fixed[:] = (self.fixed * k + chosen) / (k + 1)
-        else:
+        ends = [self._cap_centre(points, n, e, w) for e in (e1, e2)]
+        if not self._fixed_known:
             m = max(4, round(2 * w))
             widths = [np.hypot(*(points[(e - m) % n] - points[(e + m) % n])) for e in (e1, e2)]
             if abs(widths[0] - widths[1]) <= 0.25 * min(widths):
-                chosen = points[e1] if points[e1, 0] <= points[e2, 0] else points[e2]  # tie: the upper end
+                top_centre = np.array([0.0, 0.5 * (self.shape[1] - 1)])
+                far = [float(np.hypot(*(end - top_centre))) for end in ends]
+                k = 0 if far[0] <= far[1] else 1
             else:
-                chosen = points[e1] if widths[0] < widths[1] else points[e2]
-            self.fixed[:] = chosen
+                k = 0 if widths[0] < widths[1] else 1
+            self.fixed[:] = ends[k]
+            self._first_ends = (ends[k].copy(), ends[1 - k].copy())
             self._fixed_known = True
+            self._fixed_frames = 1
+            return self.fixed
+        if self._first_ends is not None and self.config.fixed_end_uv is None:
+            guess, other = self._first_ends
+            moved_guess = min(float(np.hypot(*(end - guess))) for end in ends)
+            moved_other = min(float(np.hypot(*(end - other))) for end in ends)
+            if max(moved_guess, moved_other) > max(2.0 * w, 5.0) and min(moved_guess, moved_other) < w:
+                self._first_ends = None  # decided
+                if moved_guess > moved_other:
+                    # The guessed end moved: it is the free end. Start again from the other one, and forget what
+                    # was measured relative to the wrong end.
+                    self.fixed[:] = other
+                    self._fixed_frames = 0
+                    self._widths.clear()
+                    self._width_cache = None
+                    self._prev_tips = None
+                    self._tip_history.clear()
+                    self._history_ordered = False
+        d = [float(np.hypot(*(end - self.fixed))) for end in ends]
+        chosen = ends[0] if d[0] <= d[1] else ends[1]
+        if min(d) > 3.0 * w + 5.0:
+            return self.fixed  # not the rope seen so far (another object, a clipped view): no update
+        k = self._fixed_frames
+        self.fixed[:] = (self.fixed * k + chosen) / (k + 1)
         self._fixed_frames += 1
         return self.fixed
 
-    def _order(self, outcome, t_ns: int) -> tuple[NDArray[np.float32], NDArray[np.float32], float]:
-        """Put the two shapes in time order by continuity with the previous frame; returns (begin, end, conf)."""
+    def _cap_centre(self, points: NDArray[np.float32], n: int, e: int, w: float) -> NDArray[np.float32]:
+        """The contour point in the middle of the rope end around contour index `e`: the turning-weighted centroid
+        of the points within a width and a half of it, snapped to the contour (a flat end has two corners, its
+        largest turning angle is at one of them)."""
+        m = max(3, round(1.5 * w))
+        idx = np.arange(e - m, e + m + 1) % n
+        weights = self.turn_cap[idx].astype(np.float64) ** 2
+        if not weights.sum() > 0:
+            return points[e].copy()
+        centre = (points[idx].astype(np.float64) * weights[:, None]).sum(axis=0) / weights.sum()
+        k = idx[int(np.argmin(np.hypot(points[idx, 0] - centre[0], points[idx, 1] - centre[1])))]
+        return points[k].copy()
+
+    def _order(
+        self, outcome, t_ns: int, t_end_ns: int | None = None
+    ) -> tuple[NDArray[np.float32], NDArray[np.float32], float]:
+        """Put the two shapes in time order by continuity with the previous frames; returns (begin, end, conf).
+
+        The tips of the last three frames (two time samples each: start and end of the exposure) give a
+        least-squares constant-acceleration fit of the tip's path (constant velocity from one frame); it predicts
+        the tip at this frame's start and end, and the pairing of the two shapes with those predictions that fits
+        better wins. A swinging rope reverses every half period: across the gap between frames (several exposures long
+        at low frame rates) a constant velocity overshoots there, a constant acceleration does not.
+        """
         a, b = outcome.shape_a, outcome.shape_b
-        if a is b:
-            return a, b, 1.0
-        if self._prev_tips is None or self._prev_t_ns is None:
-            return a, b, 0.5
-        prev_begin, prev_end = self._prev_tips
-        exposure_ns = max(1, self._prev_t_ns[1] - self._prev_t_ns[0])
-        gap_ns = max(0, t_ns - self._prev_t_ns[1])
-        predicted = prev_end + (prev_end - prev_begin) * (gap_ns / exposure_ns)
-        da = float(np.hypot(*(a[-1] - predicted)))
-        db = float(np.hypot(*(b[-1] - predicted)))
-        confidence = 0.5 + 0.5 * abs(da - db) / (da + db + 1e-6)
-        return (a, b, confidence) if da <= db else (b, a, confidence)
+        if t_end_ns is None:
+            t_end_ns = t_ns
+        history = self._tip_history
+        if history and t_ns - history[-1][0] > 4 * (self._period_ns or 25_000_000):
+            history.clear()  # too old to extrapolate (frames lost): start again
+            self._history_ordered = False
+        if a is b or not history:
+            self._history_ordered = a is b
+            self._remember_tips(a, b, t_ns, t_end_ns)
+            return a, b, (1.0 if a is b else 0.5)
+        if not self._history_ordered:
+            return self._order_by_nearness(a, b, t_ns, t_end_ns)
+        (pbr, pbc), (per, pec) = self._predict_tips(t_ns, t_end_ns)
+        ar, ac = a[-1].tolist()
+        br, bc = b[-1].tolist()
+        # Squared distances: their difference is 2 (b - a) . (pred_end - pred_begin), so the predicted direction
+        # of motion decides, not where the prediction lies (a path bias moves both predictions alike).
+        straight = (ar - pbr) ** 2 + (ac - pbc) ** 2 + (br - per) ** 2 + (bc - pec) ** 2
+        swapped = (br - pbr) ** 2 + (bc - pbc) ** 2 + (ar - per) ** 2 + (ac - pec) ** 2
+        confidence = 0.5 + 0.5 * abs(straight - swapped) / (straight + swapped + 1e-6)
+        begin, end = (a, b) if straight <= swapped else (b, a)
+        # A frame whose tips lie far from the predicted path (a bad split, something crossing the rope) must not
+        # steer the next predictions: it is left out, unless the next frame disagrees too (the motion changed).
+        # Judged on what does not depend on the order: where the band's middle is and how far the tip swept.
+        pred_sweep = math.hypot(per - pbr, pec - pbc)
+        mid_miss = 0.5 * math.hypot(ar + br - pbr - per, ac + bc - pbc - pec)
+        sweep_miss = abs(math.hypot(br - ar, bc - ac) - pred_sweep)
+        last_r, last_c = history[-1][1]
+        reach = math.hypot(0.5 * (pbr + per) - last_r, 0.5 * (pbc + pec) - last_c)  # how far it extrapolates
+        tolerance = max(3.0, 0.5 * pred_sweep, 0.25 * reach)
+        odd = mid_miss > tolerance or sweep_miss > tolerance
+        if odd and self._order_rejects < 1:
+            self._order_rejects += 1
+            return begin, end, 0.5 + 0.5 * (confidence - 0.5) * 0.5
+        if odd:
+            history.clear()
+            self._history_ordered = False
+        self._order_rejects = 0
+        self._remember_tips(begin, end, t_ns, t_end_ns)
+        return begin, end, confidence
+
+    def _order_by_nearness(
+        self, a: NDArray[np.float32], b: NDArray[np.float32], t_ns: int, t_end_ns: int
+    ) -> tuple[NDArray[np.float32], NDArray[np.float32], float]:
+        """Order this frame's shapes when the history's own order is a guess (one split frame, no earlier one).
+
+        Between two exposures the tip moves on from where the last one ended: of the last frame's two tips and
+        this frame's two, the nearest pair is (last end, this begin) for any motion that does not reverse in the
+        gap. That orders both frames; the remembered one is corrected, so the prediction starts from a consistent
+        history.
+        """
+        history = self._tip_history
+        ar, ac = a[-1].tolist()
+        br, bc = b[-1].tolist()
+        last = history[-2:] if len(history) >= 2 and history[-2][0] < history[-1][0] else history[-1:]
+        best = (math.inf, 0, 0)
+        for j, (_, (r, c)) in enumerate(last):
+            for mine, (qr, qc) in enumerate(((ar, ac), (br, bc))):
+                best = min(best, (math.hypot(qr - r, qc - c), j, mine))
+        _, j, mine = best
+        if len(last) == 2 and j == 0:
+            # The remembered begin is nearer: it was the end; swap the two samples' positions.
+            (t_first, p_first), (t_second, p_second) = history[-2], history[-1]
+            history[-2], history[-1] = (t_first, p_second), (t_second, p_first)
+        begin, end = (a, b) if mine == 0 else (b, a)
+        distances = sorted(math.hypot(qr - r, qc - c) for _, (r, c) in last for qr, qc in ((ar, ac), (br, bc)))
+        confidence = 0.5 + 0.5 * (distances[1] - distances[0]) / (distances[1] + distances[0] + 1e-6)
+        self._history_ordered = True
+        self._remember_tips(begin, end, t_ns, t_end_ns)
+        return begin, end, confidence
+
+    def _remember_tips(self, begin: NDArray[np.float32], end: NDArray[np.float32], t_ns: int, t_end_ns: int) -> None:
+        """Keep the last six tip samples (time, (row, col)) oldest first: two per split frame, one per single
+        shape."""
+        history = self._tip_history
+        if begin is end:
+            # One shape (no blur to split): the band's centre, a sample at mid-exposure.
+            history.append(((t_ns + t_end_ns) // 2, tuple(begin[-1].tolist())))
+        else:
+            history.append((t_ns, tuple(begin[-1].tolist())))
+            history.append((t_end_ns, tuple(end[-1].tolist())))
+        del history[:-6]
+
+    def _predict_tips(self, t_ns: int, t_end_ns: int) -> tuple[tuple[float, float], tuple[float, float]]:
+        """Predict the tip (row, col) at `t_ns` and `t_end_ns` from the remembered tips: a least-squares quadratic
+        in time through four to six samples, a line through two or three, no motion from one. Plain floats (a
+        3x3 normal system costs less by hand than through NumPy's per-call overhead)."""
+        history = self._tip_history
+        t0 = history[-1][0]
+        span = max(1, t0 - history[0][0])
+        size = 3 if len(history) >= 4 else min(len(history), 2)
+        m = [0.0] * 5  # sums of x^k
+        r = [[0.0, 0.0] for _ in range(3)]  # sums of x^k * tip
+        for t, (row, col) in history:
+            x = (t - t0) / span
+            xk = 1.0
+            for k in range(2 * size - 1):
+                m[k] += xk
+                if k < size:
+                    r[k][0] += xk * row
+                    r[k][1] += xk * col
+                xk *= x
+        coef = _solve_normal(m, r, size)
+        out = []
+        for t in (t_ns, t_end_ns):
+            q = (t - t0) / span
+            out.append((coef[0][0] + coef[1][0] * q + coef[2][0] * q * q,
+                        coef[0][1] + coef[1][1] * q + coef[2][1] * q * q))  # fmt: skip
+        return out[0], out[1]
+
+
+def _solve_normal(m: list[float], r: list[list[float]], size: int) -> list[list[float]]:
+    """Solve the polynomial normal equations ``sum_j m[i + j] c_j = r_i`` (size 1 to 3, two right-hand sides) by
+    Gaussian elimination with partial pivoting; unused higher coefficients are 0."""
+    a = [[m[i + j] for j in range(size)] + r[i][:] for i in range(size)]
+    for col in range(size):
+        pivot = max(range(col, size), key=lambda row: abs(a[row][col]))
+        a[col], a[pivot] = a[pivot], a[col]
+        if abs(a[col][col]) < 1e-12:
+            a[col][col] = 1e-12
+        for row in range(size):
+            if row != col:
+                f = a[row][col] / a[col][col]
+                for k in range(col, size + 2):
+                    a[row][k] -= f * a[col][k]
+    coef = [[0.0, 0.0] for _ in range(3)]
+    for i in range(size):
+        coef[i] = [a[i][size] / a[i][i], a[i][size + 1] / a[i][i]]
+    return coef
 
 
 def _exposure_ns(exposure_us: object) -> tuple[int, str]:

@@ -32,6 +32,7 @@ from ropecam.device.pipeline._kernels.contour import (
     trace_contour,
 )
 from ropecam.device.pipeline._kernels.geometry import (
+    axis_offset,
     chain_length,
     midline,
     offset_side,
@@ -42,15 +43,18 @@ from ropecam.device.pipeline._kernels.geometry import (
     turning_angles,
 )
 from ropecam.device.pipeline._kernels.offsets import (
-    axis_offset,
     find_caps,
+    interp_sorted,
     measure_widths,
     offset_by_gradient,
+    offset_by_table,
     side_slope_samples,
+    side_sweeps,
 )
 from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots, thin_chain
 from ropecam.device.pipeline._kernels.polylines import (
     extend_to_band_end,
+    half_level_crossing,
     polyline_length,
     resample_polyline,
     smooth_polyline,
@@ -89,12 +93,15 @@ __all__ = [
     "f4_1d_ro",
     "find_caps",
     "grow_spans",
+    "half_level_crossing",
     "in_spans",
+    "interp_sorted",
     "keep_largest_component",
     "keep_largest_listed",
     "measure_widths",
     "midline",
     "offset_by_gradient",
+    "offset_by_table",
     "offset_side",
     "polyline_length",
     "refine_subpixel",
@@ -102,6 +109,7 @@ __all__ = [
     "sample_bilinear",
     "score_knots",
     "side_slope_samples",
+    "side_sweeps",
     "signed_area",
     "smooth_polyline",
     "spans_around_points",

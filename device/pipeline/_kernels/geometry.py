@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import math
 
-from numba import float32, float64, int32, int64
+import numpy as np
+from numba import boolean, float32, float64, int32, int64, types
 
 from ropecam.device.pipeline._kernels._common import FULL, NOT_FOUND, f4_1d_ro
 from ropecam.shared.jit import (
@@ -35,48 +36,48 @@ def sample_bilinear(image, r, c):
     return top * (1.0 - fr) + bottom * fr
 
 
+@kernel(types.UniTuple(float32, 2)(f4_2d_ro, f4_2d_ro, f4_2d_ro, int32, int32))
+def axis_offset(mag, gx, gy, r, c):
+    """Return the (row, col) subpixel offset of the gradient magnitude's maximum at pixel (r, c) (Devernay 1995):
+    the parabola through the magnitude at -1, 0, +1 px along the image axis nearest the gradient (exact pixel
+    samples, no interpolation bias), its vertex offset clamped to 1 px; (0, 0) without a gradient, at the image
+    border along that axis, or when the magnitude is not a maximum there."""
+    g_r = gy[r, c]
+    g_c = gx[r, c]
+    if g_r == 0.0 and g_c == 0.0:
+        return np.float32(0.0), np.float32(0.0)
+    m0 = mag[r, c]
+    if abs(g_c) >= abs(g_r):
+        if c < 1 or c > mag.shape[1] - 2:
+            return np.float32(0.0), np.float32(0.0)
+        mm = mag[r, c - 1]
+        mp = mag[r, c + 1]
+    else:
+        if r < 1 or r > mag.shape[0] - 2:
+            return np.float32(0.0), np.float32(0.0)
+        mm = mag[r - 1, c]
+        mp = mag[r + 1, c]
+    denom = mm - 2.0 * m0 + mp
+    if not denom < 0.0:
+        return np.float32(0.0), np.float32(0.0)
+    delta = np.float32(min(max(0.5 * (mm - mp) / denom, -1.0), 1.0))
+    if abs(g_c) >= abs(g_r):
+        return np.float32(0.0), delta
+    return delta, np.float32(0.0)
+
+
 @kernel(int32(f4_2d_ro, f4_2d_ro, f4_2d_ro, i4_2d_ro, int32, f4_2d))
 def refine_subpixel(mag, gx, gy, chain, n, out_points):
-    """Move each of the first `n` chain pixels to the subpixel maximum of the gradient magnitude (Devernay 1995:
-    parabola through the magnitude at -1, 0, +1 px along the image axis nearest the gradient, offset clamped to
-    1 px).
+    """Move each of the first `n` chain pixels to the subpixel maximum of the gradient magnitude (`axis_offset`:
+    Devernay's parabola along the image axis nearest the gradient).
 
     Writes `out_points` (row, col) float32; returns `n`."""
     for i in range(n):
         r = chain[i, 0]
         c = chain[i, 1]
-        g_r = gy[r, c]
-        g_c = gx[r, c]
-        norm = math.sqrt(g_r * g_r + g_c * g_c)
-        out_points[i, 0] = r
-        out_points[i, 1] = c
-        if norm <= 0.0:
-            continue
-        # Devernay: fit the parabola along the image axis closest to the gradient (exact pixel samples, no
-        # interpolation bias), then move along that axis.
-        m0 = mag[r, c]
-        height = mag.shape[0]
-        width = mag.shape[1]
-        if abs(g_c) >= abs(g_r):
-            if c < 1 or c > width - 2:
-                continue
-            mm = mag[r, c - 1]
-            mp = mag[r, c + 1]
-            a_r = 0.0
-            a_c = 1.0
-        else:
-            if r < 1 or r > height - 2:
-                continue
-            mm = mag[r - 1, c]
-            mp = mag[r + 1, c]
-            a_r = 1.0
-            a_c = 0.0
-        denom = mm - 2.0 * m0 + mp
-        if denom < 0.0:
-            delta = 0.5 * (mm - mp) / denom
-            delta = min(max(delta, -1.0), 1.0)
-            out_points[i, 0] = r + delta * a_r
-            out_points[i, 1] = c + delta * a_c
+        d_r, d_c = axis_offset(mag, gx, gy, r, c)
+        out_points[i, 0] = r + d_r
+        out_points[i, 1] = c + d_c
     return n
 
 
@@ -113,15 +114,27 @@ def turning_angles(points, n, scale, out_turn):
     return n
 
 
-@kernel(int32(f4_2d_ro, f4_1d_ro, int32, float32, float32, float32, int32, i4_1d))
-def split_contour(points, turn, n, fixed_r, fixed_c, search_px, min_gap, out_idx):
+@kernel(boolean(f4_2d_ro, f4_1d_ro, int32, int32, float32, float32, float32, float32))
+def _is_corner(points, turn, n, i, fixed_r, fixed_c, threshold, level):
+    """Whether contour point `i` is a local maximum of `turn` above `level` at least `threshold` from the fixed
+    end."""
+    if turn[i] <= level or turn[i] < turn[(i - 1 + n) % n] or turn[i] < turn[(i + 1) % n]:
+        return False
+    return math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c) >= threshold
+
+
+@kernel(int32(f4_2d_ro, f4_1d_ro, int32, float32, float32, float32, int32, float32, f4_1d, i4_1d))
+def split_contour(points, turn, n, fixed_r, fixed_c, search_px, min_gap, corner_rad, work_arc, out_idx):
     """Find the fixed end, the far point and the two segmentation points on the closed subpixel contour.
 
     The fixed-end index is the contour point nearest to (fixed_r, fixed_c); the far index the point farthest
-    from it. Side A runs forward along the chain from the fixed end to the far point, side B backward; on each
-    side the segmentation point is the point of largest turning angle among those at least
-    ``R_far - search_px`` from the fixed end, the two at least `min_gap` chain steps apart.
-    Writes ``out_idx = [fixed, seg_a, far, seg_b]``; returns 4 or NOT_FOUND.
+    from it. Side A runs forward along the chain from the fixed end to the far point, side B backward. Among the
+    points at least ``R_far - search_px`` from the fixed end, the corner candidates of each side are the local
+    maxima of the turning angle above `corner_rad` and above half the side's sharpest; of the pairs at least
+    `min_gap` chain steps apart, those whose arc lengths from the fixed end differ by at most 2 px more than the
+    best-matching pair's compete, and the sharpest (largest sum) wins. Without candidates, the points of largest
+    turning angle on each side (at least `min_gap` apart) are used. `work_arc` (n) is scratch.
+    Writes ``out_idx = [fixed, seg_a, far, seg_b]``; returns 4, NOT_FOUND or FULL (`work_arc` too short).
     """
     if n < 8:
         return NOT_FOUND
@@ -144,6 +157,64 @@ def split_contour(points, turn, n, fixed_r, fixed_c, search_px, min_gap, out_idx
     len_b = (i_fix - i_far + n) % n
     if len_a < 1 or len_b < 1:
         return NOT_FOUND
+    if work_arc.shape[0] < n:
+        return FULL
+    # Arc length along the contour from the fixed end, forward (side A); side B's is the total minus it.
+    arc = work_arc
+    arc[i_fix] = 0.0
+    total = 0.0
+    for step in range(1, n + 1):
+        i = (i_fix + step) % n
+        ip = (i_fix + step - 1) % n
+        total += math.hypot(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
+        if step < n:
+            arc[i] = total
+    # Corner candidates: local maxima of the turning angle in the tip zone, at least half as sharp as the side's
+    # sharpest there (and above `corner_rad`). The rope keeps its length within the exposure, so the pair whose
+    # arc lengths from the fixed end agree best is the band's two corners (a slanted band end adds a second,
+    # obtuse corner and a faint one kinks: both change one side's length); near-ties go to the sharper pair.
+    level_a = corner_rad
+    level_b = corner_rad
+    zone_a = len_a
+    zone_b = len_b
+    for side in range(2):
+        length = len_a if side == 0 else len_b
+        for step in range(1, length + 1):
+            i = (i_fix + step) % n if side == 0 else (i_fix - step + n) % n
+            if math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c) >= threshold:
+                if side == 0:
+                    level_a = max(level_a, 0.5 * turn[i])
+                    zone_a = min(zone_a, step)
+                else:
+                    level_b = max(level_b, 0.5 * turn[i])
+                    zone_b = min(zone_b, step)
+    best_delta = 1e30
+    for rep in range(2):
+        pick_sum = -1.0
+        for step_a in range(zone_a, len_a):
+            ia = (i_fix + step_a) % n
+            if not _is_corner(points, turn, n, ia, fixed_r, fixed_c, threshold, level_a):
+                continue
+            for step_b in range(zone_b, len_b):
+                ib = (i_fix - step_b + n) % n
+                if not _is_corner(points, turn, n, ib, fixed_r, fixed_c, threshold, level_b):
+                    continue
+                gap = abs(ia - ib)
+                if min(gap, n - gap) < min_gap:
+                    continue
+                delta = abs(arc[ia] - (total - arc[ib]))
+                if rep == 0:
+                    best_delta = min(best_delta, delta)
+                elif delta <= best_delta + 2.0 and turn[ia] + turn[ib] > pick_sum:
+                    pick_sum = turn[ia] + turn[ib]
+                    out_idx[1] = ia
+                    out_idx[3] = ib
+        if rep == 0 and best_delta > 1e29:
+            break
+        if rep == 1 and pick_sum >= 0.0:
+            out_idx[0] = i_fix
+            out_idx[2] = i_far
+            return 4
     # Side A: forward from the fixed end to the far point; side B: backward. Each gets the point of largest turning
     # in the tip zone; the pair must be `min_gap` chain steps apart (the far point may itself be a corner), so the
     # best pair is taken over "A first, then B away from it" and "B first, then A away from it".

@@ -5,42 +5,20 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import float32, int32, types
+from numba import float32, float64, int32
 
 from ropecam.device.pipeline._kernels._common import FULL, NOT_FOUND, f4_1d_ro
-from ropecam.device.pipeline._kernels.geometry import chain_length
+from ropecam.device.pipeline._kernels.geometry import axis_offset, chain_length
 from ropecam.shared.jit import (
     f4_1d,
     f4_2d,
     f4_2d_ro,
+    f8_1d_ro,
     i4_1d,
     i4_2d_ro,
     kernel,
     u1_2d_ro,
 )
-
-
-@kernel(types.UniTuple(float32, 2)(f4_2d_ro, f4_2d_ro, f4_2d_ro, int32, int32))
-def axis_offset(mag, gx, gy, r, c):
-    """Return the (row, col) subpixel offset of the magnitude maximum at pixel (r, c) (as `refine_subpixel`)."""
-    height = mag.shape[0]
-    width = mag.shape[1]
-    if r < 1 or c < 1 or r > height - 2 or c > width - 2:
-        return np.float32(0.0), np.float32(0.0)
-    m0 = mag[r, c]
-    if abs(gx[r, c]) >= abs(gy[r, c]):
-        mm = mag[r, c - 1]
-        mp = mag[r, c + 1]
-        denom = mm - 2.0 * m0 + mp
-        if denom < 0.0:
-            return np.float32(0.0), np.float32(min(max(0.5 * (mm - mp) / denom, -1.0), 1.0))
-    else:
-        mm = mag[r - 1, c]
-        mp = mag[r + 1, c]
-        denom = mm - 2.0 * m0 + mp
-        if denom < 0.0:
-            return np.float32(min(max(0.5 * (mm - mp) / denom, -1.0), 1.0)), np.float32(0.0)
-    return np.float32(0.0), np.float32(0.0)
 
 
 @kernel(int32(u1_2d_ro, f4_2d_ro, f4_2d_ro, f4_2d_ro, i4_2d_ro, int32, float32, float32, f4_1d))
@@ -163,3 +141,94 @@ def side_slope_samples(chain, n, i_fix, i_seg, direction, mag, lo_frac, hi_frac,
         out_values[2 * m + 1] = frac
         m += 1
     return m
+
+
+@kernel(float32(f8_1d_ro, f8_1d_ro, float64))
+def interp_sorted(xs, ys, x):
+    """Return the piecewise-linear interpolation of (`xs`, `ys`) at `x` (`xs` increasing; clamped at the ends)."""
+    m = xs.shape[0]
+    if m == 0:
+        return np.float32(np.nan)
+    if x <= xs[0]:
+        return np.float32(ys[0])
+    if x >= xs[m - 1]:
+        return np.float32(ys[m - 1])
+    lo = 0
+    hi = m - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if xs[mid] <= x:
+            lo = mid
+        else:
+            hi = mid
+    span = xs[hi] - xs[lo]
+    t = (x - xs[lo]) / span if span > 0.0 else 0.0
+    return np.float32(ys[lo] + t * (ys[hi] - ys[lo]))
+
+
+@kernel(int32(i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f8_1d_ro, f8_1d_ro, int32, f4_1d, f4_1d))
+def side_sweeps(chain, n, i_start, i_stop, direction, mag, inv_contrast, ratios, sweeps, half, work, out_sweeps):
+    """Write the local sideways sweep (px) at each contour point of one side (from `i_start` stepping `direction`
+    to `i_stop`, cyclic) into `out_sweeps`: the gradient magnitude at its chain pixel times `inv_contrast`, turned
+    into a sweep by the table (`ratios` increasing, `sweeps`; `BandEdgeModel`), then averaged over +-`half` points
+    (ends repeated). `work` is scratch of the same length. Returns the number of points or FULL."""
+    count = ((i_stop - i_start) * direction % n + n) % n + 1
+    if count > out_sweeps.shape[0] or count > work.shape[0]:
+        return FULL
+    for k in range(count):
+        i = (i_start + k * direction + 4 * n) % n
+        work[k] = interp_sorted(ratios, sweeps, mag[chain[i, 0], chain[i, 1]] * inv_contrast)
+    acc = 0.0
+    for j in range(-half, half + 1):
+        acc += work[min(max(j, 0), count - 1)]
+    width = 2 * half + 1
+    for k in range(count):
+        out_sweeps[k] = acc / width
+        acc += work[min(k + half + 1, count - 1)] - work[max(k - half, 0)]
+    return count
+
+
+@kernel(
+    int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, f4_2d_ro, float32, f4_1d_ro, int32, float32,
+          float32, f4_1d_ro, f4_2d)
+)  # fmt: skip
+def offset_by_table(
+    points, chain, n, i_start, i_stop, direction, gx, gy, polarity, sweeps, local, sweep_tip_px, step_px, table,
+    out_poly,
+):  # fmt: skip
+    """Copy the contour from `i_start` to `i_stop` (stepping `direction`, cyclic) into `out_poly`, each point moved
+    into the rope along ``polarity`` times its gradient direction by the modelled offset from the band's edge to
+    the rope's axis: ``table[d / step_px]`` (linear interpolation, the last entry beyond) for the local sweep d,
+    which is ``sweeps[k]`` when `local` is 1, else ``sweep_tip_px * s / total`` (rotation about the fixed end, s the
+    arc length from `i_start`). Returns the number of points written or FULL."""
+    count = (i_stop - i_start) * direction
+    count = (count % n + n) % n + 1
+    if count > out_poly.shape[0] or (local == 1 and count > sweeps.shape[0]):
+        return FULL
+    total = chain_length(points, n, i_start, count, direction)
+    last = table.shape[0] - 1
+    s = 0.0
+    for k in range(count):
+        i = (i_start + k * direction + n * 4) % n
+        if k > 0:
+            ip = (i_start + (k - 1) * direction + n * 4) % n
+            s += math.hypot(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
+        d = sweep_tip_px * s / total if total > 0.0 else 0.0
+        if local == 1:
+            d = sweeps[k]
+        x = max(d, 0.0) / step_px
+        j = min(int(x), last)
+        shift = table[last]
+        if j < last:
+            shift = table[j] + (x - j) * (table[j + 1] - table[j])
+        r = chain[i, 0]
+        c = chain[i, 1]
+        g_r = gy[r, c] * polarity
+        g_c = gx[r, c] * polarity
+        norm = math.sqrt(g_r * g_r + g_c * g_c)
+        out_poly[k, 0] = points[i, 0]
+        out_poly[k, 1] = points[i, 1]
+        if norm > 0.0:
+            out_poly[k, 0] += shift * g_r / norm
+            out_poly[k, 1] += shift * g_c / norm
+    return count

@@ -5,9 +5,11 @@ from __future__ import annotations
 import math
 from typing import Final
 
+import numpy as np
 from numba import float32, float64, int32, int64, types
 
 from ropecam.device.pipeline._kernels._common import FULL, INVALID
+from ropecam.device.pipeline._kernels.geometry import sample_bilinear
 from ropecam.shared.jit import (
     f4_2d,
     f4_2d_ro,
@@ -114,49 +116,148 @@ def trim_polyline_end(poly, n, cut_px):
     return 0
 
 
-@kernel(int32(f4_2d, int32, f4_2d_ro, int32, float32, float32))
-def extend_to_band_end(poly, n, points, n_points, width_px, cap_px):
-    """Move the free end of the axis polyline `poly` (n points) to where the band ends along that axis.
+@kernel(float32(f4_2d_ro, float32, float32, float32, float32, float32, float32, float32))
+def half_level_crossing(image, base_r, base_c, dir_r, dir_c, guess, reach_px, flank_px):
+    """Return where the intensity along a line drops halfway from its inside to its outside level.
 
-    The axis direction is taken over the last 3 widths of arc; the band's end along it is the farthest of the
-    contour `points` lying within half a width of the axis line (and within -2 to +4 widths of the current end);
-    the tip goes `cap_px` short of it (half a width for a round rope end). The polyline is extended along the
-    axis or shortened (`trim_polyline_end`) in place. Returns the new point count (unchanged when nothing is
-    found).
+    The line runs from (`base_r`, `base_c`) along the unit vector (`dir_r`, `dir_c`); `image` is sampled bilinearly
+    every 0.25 px, averaged over three parallel lines 0.5 px apart. The inside level is the mean over
+    [guess - reach - flank, guess - reach], the outside level over [guess + reach, guess + reach + flank]; the
+    result is the crossing of their mean nearest to `guess` within +-`reach_px` (linear interpolation), as a
+    distance along the line. Returns nan when the two levels differ by less than 2 grey levels or no crossing is
+    found."""
+    inside = 0.0
+    outside = 0.0
+    count = 0
+    t = -reach_px - flank_px
+    while t <= -reach_px:
+        for lateral in (-0.5, 0.0, 0.5):
+            r = base_r + (guess + t) * dir_r + lateral * dir_c
+            c = base_c + (guess + t) * dir_c - lateral * dir_r
+            inside += sample_bilinear(image, r, c)
+            r = base_r + (guess - t) * dir_r + lateral * dir_c
+            c = base_c + (guess - t) * dir_c - lateral * dir_r
+            outside += sample_bilinear(image, r, c)
+        count += 3
+        t += 0.25
+    inside /= count
+    outside /= count
+    if abs(inside - outside) < 2.0:
+        return np.float32(np.nan)
+    half = 0.5 * (inside + outside)
+    sign = 1.0 if inside > outside else -1.0
+    best = np.float32(np.nan)
+    best_gap = 1e30
+    prev = 0.0
+    t = -reach_px
+    k = 0
+    while t <= reach_px:
+        value = 0.0
+        for lateral in (-0.5, 0.0, 0.5):
+            r = base_r + (guess + t) * dir_r + lateral * dir_c
+            c = base_c + (guess + t) * dir_c - lateral * dir_r
+            value += sample_bilinear(image, r, c)
+        value = sign * (value / 3.0 - half)
+        if k > 0 and prev > 0.0 >= value:
+            cross = t - 0.25 + 0.25 * prev / (prev - value)
+            if abs(cross) < best_gap:
+                best_gap = abs(cross)
+                best = np.float32(guess + cross)
+        prev = value
+        t += 0.25
+        k += 1
+    return best
+
+
+@kernel(int32(f4_2d, int32, f4_2d_ro, int32, f4_2d_ro, float32, float32, float32, float32, float32))
+def extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip_px, span_px, blur_px):
+    """Replace the free end of the axis polyline `poly` (n points) by the axis carried on to where the band ends.
+
+    The last `skip_px` of arc are the band's rounded corner (smoothing and the end's blur pull the edge inward
+    there), so the axis is the least-squares line through the polyline points between `skip_px` and
+    ``skip_px + span_px`` of arc from the end; its base is the foot of the point `skip_px` from the end.
+    The band's end along that line is the farthest of the contour `points` lying within half a width of it (and
+    within -2 to `skip_px` + 4 widths of the base); for a flat end (`cap_px` 0) it is refined to where the smoothed
+    image `smooth` falls halfway from the band to the background along the line (`half_level_crossing`, reach
+    ``3 blur_px + 1``); the tip goes `cap_px` short of it (half a width for a round end). The polyline is cut
+    `skip_px` from its end and the tip appended, in place. Returns the new point count, or `n` unchanged when the
+    polyline is too short or no band end is found.
     """
-    if n < 3:
+    if n < 3 or n >= poly.shape[0]:
         return n
+    span = span_px
+    # Arc position of each point from the end, walked backwards; accumulate the fit window's moments.
     back = 0.0
     k = n - 1
-    while k > 0 and back < 3.0 * width_px:
+    m = 0
+    sr = 0.0
+    sc = 0.0
+    srr = 0.0
+    scc = 0.0
+    src = 0.0
+    base_k = -1
+    while k > 0:
+        if back >= skip_px and base_k < 0:
+            base_k = k
+        if back >= skip_px:
+            if back > skip_px + span:
+                break
+            r = float(poly[k, 0])
+            c = float(poly[k, 1])
+            m += 1
+            sr += r
+            sc += c
+            srr += r * r
+            scc += c * c
+            src += r * c
         back += math.hypot(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
         k -= 1
-    base_r = poly[n - 1, 0]
-    base_c = poly[n - 1, 1]
-    dir_r = base_r - poly[k, 0]
-    dir_c = base_c - poly[k, 1]
-    norm = math.sqrt(dir_r * dir_r + dir_c * dir_c)
-    if norm < 1e-6:
+    if m < 3 or base_k < 1:
         return n
-    dir_r /= norm
-    dir_c /= norm
+    mr = sr / m
+    mc = sc / m
+    var_r = srr / m - mr * mr
+    var_c = scc / m - mc * mc
+    cov = src / m - mr * mc
+    # Principal direction of the 2x2 covariance, pointed towards the free end.
+    angle = 0.5 * math.atan2(2.0 * cov, var_c - var_r)
+    dir_r = math.sin(angle)
+    dir_c = math.cos(angle)
+    chord_r = poly[n - 1, 0] - poly[k, 0]
+    chord_c = poly[n - 1, 1] - poly[k, 1]
+    if dir_r * chord_r + dir_c * chord_c < 0.0:
+        dir_r = -dir_r
+        dir_c = -dir_c
+    t = (poly[base_k, 0] - mr) * dir_r + (poly[base_k, 1] - mc) * dir_c
+    base_r = mr + t * dir_r
+    base_c = mc + t * dir_c
     best = -1e30
     for i in range(n_points):
         rel_r = points[i, 0] - base_r
         rel_c = points[i, 1] - base_c
         along = rel_r * dir_r + rel_c * dir_c
         across = abs(rel_r * dir_c - rel_c * dir_r)
-        if across < 0.5 * width_px and -2.0 * width_px < along < 4.0 * width_px and along > best:
+        if across < 0.5 * width_px and -2.0 < along < skip_px + 4.0 * width_px and along > best:
             best = along
     if best < -1e29:
         return n
-    extent = best - cap_px
-    if extent >= 0.0:
-        poly[n - 1, 0] = base_r + extent * dir_r
-        poly[n - 1, 1] = base_c + extent * dir_c
+    if cap_px == 0.0:
+        # A flat end moving sideways covers (lateral ramp) x (step at the end) near its corner; the smoothed image
+        # is that product blurred, so along the axis it falls halfway to the background exactly at the end (the
+        # contour's corner itself is rounded inward by the smoothing). An end that also moves along the rope
+        # shifts this crossing; the splitter corrects that from both tips (`BlurSplitter._correct_slant`).
+        reach = np.float32(3.0 * blur_px + 1.0)
+        end = half_level_crossing(smooth, np.float32(base_r), np.float32(base_c), np.float32(dir_r),
+                                  np.float32(dir_c), np.float32(best), reach, np.float32(2.0))  # fmt: skip
+        if not math.isnan(end):
+            best = end
+    extent = max(best - cap_px, 0.0)
+    count = trim_polyline_end(poly, n, np.float32(skip_px))
+    if count < 2:
         return n
-    count = trim_polyline_end(poly, n, -extent)
-    return count if count >= 2 else n
+    poly[count, 0] = base_r + extent * dir_r
+    poly[count, 1] = base_c + extent * dir_c
+    return count + 1
 
 
 _SMOOTH_BLOCK: Final = 3

@@ -96,13 +96,13 @@ def test_split_finds_the_corners_of_a_swept_band() -> None:
     turn = np.zeros(len(pts), np.float32)
     K.turning_angles(pts, len(pts), 3, turn)
     idx = np.zeros(4, np.int32)
-    assert K.split_contour(pts, turn, len(pts), 0.0, 0.0, 6.0, 6, idx) == 4
+    assert K.split_contour(pts, turn, len(pts), 0.0, 0.0, 6.0, 6, 0.5, np.zeros(len(pts), np.float32), idx) == 4
     fixed, seg_a, far, seg_b = idx
     assert np.hypot(*pts[fixed]) <= 1.01
     assert np.allclose(pts[seg_a], (40, -1), atol=0.6)
     assert np.allclose(pts[seg_b], (40, 13), atol=0.6)
     assert np.allclose(pts[far], (40, 13), atol=0.6)
-    assert K.split_contour(pts[:6], turn, 6, 0.0, 0.0, 6.0, 6, idx) == K.NOT_FOUND
+    assert K.split_contour(pts[:6], turn, 6, 0.0, 0.0, 6.0, 6, 0.5, np.zeros(6, np.float32), idx) == K.NOT_FOUND
 
 
 def test_offset_side_moves_inward_by_the_modelled_half_width() -> None:
@@ -249,3 +249,30 @@ def test_widths_polarity_and_gradient_offset_on_a_straight_rope(bright) -> None:
     for i in np.flatnonzero(middle)[:5]:
         dr, dc = K.axis_offset(mag, gx, gy, chain[i, 0], chain[i, 1])
         np.testing.assert_allclose(points[i], chain[i] + np.array([dr, dc]), atol=1e-5)
+
+
+def _outline(corners: list[tuple[float, float]], step: float = 0.5) -> np.ndarray:
+    points = []
+    for a, b in zip(corners, corners[1:] + corners[:1], strict=True):
+        a_, b_ = np.array(a, float), np.array(b, float)
+        k = max(1, math.ceil(np.hypot(*(b_ - a_)) / step))
+        points += [a_ + (b_ - a_) * t for t in np.arange(k) / k]
+    return np.array(points, np.float32)
+
+
+def test_split_takes_the_corners_whose_sides_are_equally_long() -> None:
+    # A band from a fixed end at (5, 0): both sides 105 px long to the corners (0, 100) and (10, 100); its end
+    # edge has a kink at (2, 102.5) (a faint end breaking up), sharper than the corner before it, which makes that
+    # side 3.2 px too long.
+    pts = _outline([(5, 0), (0, 0), (0, 100), (2, 102.5), (10, 100), (10, 0)])
+    n = len(pts)
+    turn = np.zeros(n, np.float32)
+    K.turning_angles(pts, n, 3, turn)
+    idx = np.zeros(4, np.int32)
+    assert K.split_contour(pts, turn, n, 5.0, 0.0, 20.0, 4, 0.5, np.zeros(n, np.float32), idx) == 4
+    np.testing.assert_allclose(pts[idx[1]], [0, 100], atol=0.6)
+    np.testing.assert_allclose(pts[idx[3]], [10, 100], atol=0.6)
+    # "Largest turning per side" would take the kink: it turns more than the corner of its side.
+    at = [int(np.argmin(np.hypot(*(pts - p).T))) for p in ([0, 100], [2, 102.5])]
+    assert turn[at[1]] > turn[at[0]]
+    assert K.split_contour(pts, turn, n, 5.0, 0.0, 20.0, 4, 0.5, np.zeros(n - 1, np.float32), idx) == K.FULL

@@ -1,0 +1,136 @@
+"""Tips, local sweeps and modelled offsets of the blur split against slow obvious references and closed forms."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.special import erf
+
+from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline.edge_model import BandEdgeModel
+from ropecam.device.pipeline.edges import gaussian_weights
+
+pytestmark = pytest.mark.kernel
+
+
+def test_interp_sorted_matches_numpy() -> None:
+    rng = np.random.default_rng(1)
+    xs = np.sort(rng.uniform(0, 10, 30))
+    ys = rng.normal(size=30)
+    for x in np.concatenate([rng.uniform(-1, 11, 50), xs[:3]]):
+        assert K.interp_sorted(xs, ys, x) == pytest.approx(np.interp(x, xs, ys), abs=1e-5)
+
+
+@pytest.mark.parametrize(("start", "stop", "direction"), [(2, 17, 1), (5, 28, -1), (25, 3, 1)])
+def test_side_sweeps_matches_reference(start, stop, direction) -> None:
+    rng = np.random.default_rng(2)
+    n = 30
+    chain = np.stack([np.arange(n) % 6, np.arange(n) // 6], axis=1).astype(np.int32)
+    mag = rng.uniform(10, 200, (6, 5)).astype(np.float32)
+    ratios = np.linspace(0.1, 2.0, 40)
+    sweeps = np.linspace(8.0, 0.0, 40)
+    out = np.zeros(n, np.float32)
+    count = K.side_sweeps(chain, n, start, stop, direction, mag, np.float32(1 / 100), ratios, sweeps, 2,
+                          np.zeros(n, np.float32), out)  # fmt: skip
+    idx = [(start + k * direction) % n for k in range((stop - start) * direction % n + 1)]
+    assert count == len(idx)
+    raw = np.interp(mag[chain[idx, 0], chain[idx, 1]] / 100, ratios, sweeps)
+    padded = np.concatenate([[raw[0]] * 2, raw, [raw[-1]] * 2])
+    np.testing.assert_allclose(out[:count], np.convolve(padded, np.ones(5) / 5, mode="valid"), atol=1e-4)
+    assert K.side_sweeps(chain, n, 0, n - 1, 1, mag, np.float32(0.01), ratios, sweeps, 2, np.zeros(n, np.float32),
+                         np.zeros(5, np.float32)) == K.FULL  # fmt: skip
+
+
+@pytest.mark.parametrize("local", [0, 1])
+def test_offset_by_table_matches_reference(local) -> None:
+    rng = np.random.default_rng(3)
+    n = 24
+    angle = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    points = np.stack([20 + 8 * np.sin(angle), 20 + 8 * np.cos(angle)], axis=1).astype(np.float32)
+    chain = np.rint(points).astype(np.int32)
+    gx = rng.normal(size=(40, 40)).astype(np.float32)
+    gy = rng.normal(size=(40, 40)).astype(np.float32)
+    table = np.array([1.5, 1.2, 0.8, 0.3, 0.0], np.float32)
+    sweeps = rng.uniform(0, 3, n).astype(np.float32)
+    out = np.zeros((n, 2), np.float32)
+    count = K.offset_by_table(points, chain, n, 3, 15, 1, gx, gy, np.float32(-1.0), sweeps, local, np.float32(2.5),
+                              np.float32(0.5), table, out)  # fmt: skip
+    assert count == 13
+    idx = np.arange(3, 16)
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(points[idx].astype(float), axis=0).T))])
+    d = sweeps[:count] if local else 2.5 * arc / arc[-1]
+    shift = np.interp(d / 0.5, np.arange(5), table)
+    g = -np.stack([gy[chain[idx, 0], chain[idx, 1]], gx[chain[idx, 0], chain[idx, 1]]], axis=1)
+    expected = points[idx] + shift[:, None] * g / np.hypot(*g.T)[:, None]
+    np.testing.assert_allclose(out[:count], expected, atol=1e-4)
+
+
+def _band_image(tip_col: float, row: float = 20.0, width_px: float = 3.0, blur: float = 1.1) -> np.ndarray:
+    """A horizontal rope from column 5 to `tip_col` (flat end), Gaussian-blurred (closed form), as float32."""
+    rows, cols = np.mgrid[0:40, 0:70].astype(float)
+    s = blur * math.sqrt(2)
+    across = 0.5 * (erf((rows - row + width_px / 2) / s) - erf((rows - row - width_px / 2) / s))
+    along = 0.5 * (erf((cols - 5.0) / s) - erf((cols - tip_col) / s))
+    return (30 + 150 * across * along).astype(np.float32)
+
+
+@pytest.mark.parametrize("tip", [50.0, 50.3, 50.75])
+def test_half_level_crossing_finds_a_blurred_flat_end(tip) -> None:
+    image = _band_image(tip)
+    found = K.half_level_crossing(image, np.float32(20.0), np.float32(10.0), np.float32(0.0), np.float32(1.0),
+                                  np.float32(tip - 10.0 + 0.6), np.float32(4.0), np.float32(2.0))  # fmt: skip
+    assert 10.0 + found == pytest.approx(tip, abs=0.05)
+    flat = np.full((40, 70), 50.0, np.float32)
+    f = np.float32
+    assert math.isnan(K.half_level_crossing(flat, f(20.0), f(10.0), f(0.0), f(1.0), f(40.0), f(4.0), f(2.0)))
+
+
+def test_extend_to_band_end_carries_the_straight_axis_to_the_end() -> None:
+    tip = 50.3
+    image = _band_image(tip)
+    # The side polyline: on the axis, but its last 3 px bend inward as a rounded corner does.
+    cols = np.arange(8.0, 49.0, 1.0)
+    rows = 20.0 + np.where(cols > 45.0, 0.4 * (cols - 45.0), 0.0)
+    poly = np.zeros((100, 2), np.float32)
+    poly[: cols.size] = np.stack([rows, cols], axis=1)
+    # The contour of the band: its outline, 1.5 px either side of the axis and across the end.
+    top = np.stack([np.full(45, 18.5), np.arange(5.0, 50.0)], axis=1)
+    end = np.stack([np.arange(18.5, 21.6, 0.5), np.full(7, 49.8)], axis=1)
+    bottom = np.stack([np.full(45, 21.5), np.arange(49.0, 4.0, -1.0)], axis=1)
+    contour = np.concatenate([top, end, bottom]).astype(np.float32)
+    count = K.extend_to_band_end(poly, cols.size, contour, len(contour), image, 3.0, 0.0, 5.0, 9.0, 1.0)
+    assert count < cols.size + 1
+    np.testing.assert_allclose(poly[count - 1], [20.0, tip], atol=0.05)
+    assert np.all(np.abs(poly[: count - 1, 0] - 20.0) < 1e-4)  # the bent corner was cut away
+    # A round end: the tip stays `cap_px` short of the band's end (the contour's farthest point along the axis).
+    poly[: cols.size] = np.stack([rows, cols], axis=1)
+    count = K.extend_to_band_end(poly, cols.size, contour, len(contour), image, 3.0, 1.5, 5.0, 9.0, 1.0)
+    np.testing.assert_allclose(poly[count - 1], [20.0, 49.8 - 1.5], atol=0.05)
+
+
+def test_band_edge_model_limits() -> None:
+    model = BandEdgeModel(gaussian_weights(1.0), 0.5)
+    # A wide rope's edges sit on its outline; blur pushes the edges of a thin one apart.
+    assert model.edge_spacing(12.0) == pytest.approx(12.0, abs=0.05)
+    assert model.edge_spacing(2.5) > 2.9
+    tables = model.tables(3.2)
+    assert model.edge_spacing(tables.width_px) == pytest.approx(3.2, abs=0.03)
+    offsets = tables.offset_px
+    assert offsets[0] == pytest.approx(1.6, abs=0.03)  # still rope: half the edge spacing
+    assert np.all(np.diff(offsets) <= 1e-4)
+    beyond = round((tables.width_px + 4.0) / tables.sweep_step_px)
+    assert offsets[beyond] < 0.02  # swept well beyond its width: the edge is on the axis
+    assert np.all(np.diff(tables.peak_ratio) >= 0)
+    # The gradient's height falls as contrast / d once the ramp is wider than the blur.
+    big = np.interp([8.0, 16.0], tables.sweeps_px[::-1], tables.peak_ratio[::-1])
+    assert big[0] / big[1] == pytest.approx(2.0, rel=0.05)
+
+
+def test_slant_gain_closed_form_without_blur() -> None:
+    # No smoothing and no lens: only the pixel's area (variance v = 1/12). On the ramp m(x) = (x + w/2) / 2, and
+    # the coverage-weighted mean of x under a narrow blur is v c'(0) / c(0) = 2 v / w: m averages w / 4 + v / w.
+    model = BandEdgeModel(np.ones(1), 0.0)
+    for width in (4.0, 8.0):
+        assert model.slant_gain(width) == pytest.approx(width / 4 + 1 / 12 / width, abs=0.005)
