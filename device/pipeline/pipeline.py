@@ -165,14 +165,18 @@ class Pipeline:
 
     def reset_tracking(self) -> None:
         """Forget the region of interest and the motion: the next frame is searched whole, as the first one.
-        What does not change between frames (fixed end, width, polarity, Lc0) is kept."""
+        What does not change between frames (fixed end, width, polarity, Lc0) is kept; the time order starts
+        again too (after a gap in the frames, `_forget`, it goes on from the recent tips)."""
         self._forget(roi=True)
+        self._tip_history.clear()
+        self._history_ordered = False
 
     def _forget(self, roi: bool) -> None:
         """Drop the state that predicts this frame from the last one after a frame without shapes (a gap): the
         tips, steps and sweeps (and with `roi`, the region of interest), so the next frame starts afresh instead
         of extrapolating stale motion. What does not change between frames (fixed end, width, polarity, Lc0)
-        is kept."""
+        is kept, and so is the time-order history, which `_order` drops itself when it is over four frame
+        periods old."""
         self._prev_tips = None
         self._prev_t_ns = None
         self._motion.clear()
@@ -431,8 +435,10 @@ class Pipeline:
         at low frame rates) a constant velocity overshoots there, a constant acceleration does not.
         """
         a, b = outcome.shape_a, outcome.shape_b
-        if t_end_ns is None:
-            t_end_ns = t_ns
+        if t_end_ns is None or t_end_ns <= t_ns:
+            # Exposure unknown: the two shapes carry the same time, nothing can say which came first, and their
+            # tips would put two different positions at one time into the history.
+            return a, b, (1.0 if a is b else 0.5)
         history = self._tip_history
         if history and t_ns - history[-1][0] > 4 * (self._period_ns or 25_000_000):
             history.clear()  # too old to extrapolate (frames lost): start again

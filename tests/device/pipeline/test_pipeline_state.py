@@ -52,19 +52,29 @@ def test_roi_follows_the_time_since_the_last_measured_frame(swing, swing_frames)
 
 @pytest.mark.parametrize("gap", ["black", "none"])
 def test_a_gap_resets_the_prediction(swing, swing_frames, gap) -> None:
-    pipeline = Pipeline(PipelineConfig(), (swing.width, swing.height))
-    assert all(r.status is FrameStatus.OK for r in _run(pipeline, swing_frames, (0, 1, 2)))
-    bad = np.zeros((swing.height, swing.width), np.uint8) if gap == "black" else None
-    r = pipeline.process(bad, 3, swing_frames[3].t_ns, 4000)
-    assert r.status is (FrameStatus.NO_ROPE if gap == "black" else FrameStatus.BAD_FRAME)
-    frame = swing_frames[6]
-    r = pipeline.process(frame.image, 6, frame.t_ns, frame.exposure_us)
-    assert r.status is FrameStatus.OK, r.message
-    assert r.order_confidence == 0.5  # no history across the gap: nothing stale extrapolated
-    assert r.full_frame  # searched afresh, not in a band predicted from frames before the gap
-    # The frame after that has history again.
-    r = pipeline.process(frame.image, 7, frame.t_ns + round(1e9 / swing.fps), frame.exposure_us)
-    assert r.status is FrameStatus.OK
+    """After a frame without shapes the ROI is searched afresh; the time order still uses the tips of the frames
+    before the gap while they are recent (under four frame periods old: a swing is smooth over that), and starts
+    again (confidence 0.5) after a longer gap."""
+    for late_periods in (0, 10):
+        pipeline = Pipeline(PipelineConfig(), (swing.width, swing.height))
+        assert all(r.status is FrameStatus.OK for r in _run(pipeline, swing_frames, (0, 1, 2)))
+        bad = np.zeros((swing.height, swing.width), np.uint8) if gap == "black" else None
+        r = pipeline.process(bad, 3, swing_frames[3].t_ns, 4000)
+        assert r.status is (FrameStatus.NO_ROPE if gap == "black" else FrameStatus.BAD_FRAME)
+        frame = swing_frames[6]
+        t_ns = frame.t_ns + round(late_periods * 1e9 / swing.fps)
+        r = pipeline.process(frame.image, 6, t_ns, frame.exposure_us)
+        assert r.status is FrameStatus.OK, r.message
+        assert r.full_frame  # searched afresh, not in a band predicted from frames before the gap
+        if late_periods:
+            assert r.order_confidence == 0.5  # history too old: nothing stale extrapolated
+        else:
+            assert r.order_confidence > 0.5
+            tip = r.begin[-1]
+            assert np.hypot(*(tip - frame.tip_begin_uv)) < np.hypot(*(tip - frame.tip_end_uv))  # the right order
+        # The frame after that has history again.
+        r = pipeline.process(frame.image, 7, t_ns + round(1e9 / swing.fps), frame.exposure_us)
+        assert r.status is FrameStatus.OK
 
 
 @pytest.mark.parametrize("exposure_us", [0, None])
