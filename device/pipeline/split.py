@@ -223,6 +223,8 @@ class BlurSplitter:
         if abs(len_a - len_b) > max(3.0 * width, 0.1 * max(len_a, len_b)):
             self.failure = f"the two shapes differ in length ({len_a:.0f} and {len_b:.0f} px): split rejected"
             return None
+        na = self._anchor_fixed_end(self.side_a, na, fixed_rc)
+        nb = self._anchor_fixed_end(self.side_b, nb, fixed_rc)
         shape_a = self._resample(self.side_a, na, self.out_a)
         shape_b = self._resample(self.side_b, nb, self.out_b)
         return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, tables.width_px, sweep)
@@ -396,6 +398,8 @@ class BlurSplitter:
         # The cap's edge was moved half a width back along the axis with the gradient: carry the axis on to the
         # band's end instead, as for the split shapes.
         count = self._fit_tip(self.side_a, i32(count))
+        if fixed_rc is not None:
+            count = self._anchor_fixed_end(self.side_a, count, fixed_rc)
         shape = self._resample(self.side_a, i32(count), self.out_a)
         self.seg[0] = points[e2]
         self.seg[1] = points[e2]
@@ -447,6 +451,14 @@ class BlurSplitter:
             return float("nan")
         u_r, u_c, d_r, d_c = frame
         return abs(d_r * u_c - d_c * u_r)
+
+    def _anchor_fixed_end(self, poly: NDArray[np.float32], n: np.int32, fixed_rc: tuple[float, float]) -> np.int32:
+        """Start an axis polyline at the fixed end: the inward offset moved the end cap's contour points along
+        the rope (0.8 px into it on the rig), so the polyline is started at the foot of the fixed end (the cap's
+        centre, on its edge) on the axis fitted just beyond the cap's rounded corners (`anchor_start`)."""
+        skip = f32(self.width + 2.0 * self.smooth_sigma)
+        span = f32(max(8.0 * self.width, 16.0))
+        return i32(K.anchor_start(poly, n, f32(fixed_rc[0]), f32(fixed_rc[1]), skip, span))
 
     def _fit_tip(self, poly: NDArray[np.float32], n: np.int32) -> np.int32:
         """Put the free end of an axis polyline where the band ends along that axis, less the cap.

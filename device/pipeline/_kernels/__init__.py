@@ -53,6 +53,7 @@ from ropecam.device.pipeline._kernels.offsets import (
 )
 from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots, thin_chain
 from ropecam.device.pipeline._kernels.polylines import (
+    anchor_start,
     extend_to_band_end,
     half_level_crossing,
     polyline_length,
@@ -82,6 +83,7 @@ __all__ = [
     "TAN_22_5",
     "TWO",
     "ZERO",
+    "anchor_start",
     "apply_operator",
     "axis_offset",
     "chain_length",

@@ -98,6 +98,86 @@ def track_material_points(poly, n, arc_px, length0_px, out_points):
     return m
 
 
+@kernel(int32(f4_2d, int32, float32, float32, float32, float32))
+def anchor_start(poly, n, point_r, point_c, skip_px, span_px):
+    """Start the polyline `poly` (n points) at the foot of (`point_r`, `point_c`) on its own axis, in place.
+
+    The axis is the line through the polyline's points at arc lengths `skip_px` and `skip_px + span_px` from its
+    start (interpolated); the points before `skip_px` are dropped and the foot of the point on that line becomes
+    the first point. Used at the fixed end: the inward offset moves the contour's end-cap points along the rope,
+    so the side's first points lie inside the rope, while the rope's end is the cap's edge (the point).
+    Returns the new count; `n` unchanged when the polyline is shorter than ``skip_px + span_px``, the foot would
+    not lie before the kept points, or `poly` has no room for the new count."""
+    if n < 3 or not span_px > 0.0 or not skip_px >= 0.0:
+        return n
+    s = 0.0
+    k = 1
+    a_r = poly[0, 0]
+    a_c = poly[0, 1]
+    found_a = skip_px == 0.0
+    k_a = 0
+    b_r = 0.0
+    b_c = 0.0
+    while k < n:
+        seg = math.hypot(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
+        if seg > 0.0:
+            if not found_a and s + seg >= skip_px:
+                f = (skip_px - s) / seg
+                a_r = poly[k - 1, 0] + f * (poly[k, 0] - poly[k - 1, 0])
+                a_c = poly[k - 1, 1] + f * (poly[k, 1] - poly[k - 1, 1])
+                found_a = True
+                k_a = k
+            if found_a and s + seg >= skip_px + span_px:
+                f = (skip_px + span_px - s) / seg
+                b_r = poly[k - 1, 0] + f * (poly[k, 0] - poly[k - 1, 0])
+                b_c = poly[k - 1, 1] + f * (poly[k, 1] - poly[k - 1, 1])
+                break
+        s += seg
+        k += 1
+    if k >= n:
+        return n
+    if skip_px == 0.0:
+        k_a = 1
+    d_r = b_r - a_r
+    d_c = b_c - a_c
+    norm = math.sqrt(d_r * d_r + d_c * d_c)
+    if norm <= 0.0:
+        return n
+    d_r /= norm
+    d_c /= norm
+    t = (point_r - a_r) * d_r + (point_c - a_c) * d_c
+    if t >= 0.0:
+        return n
+    foot_r = a_r + t * d_r
+    foot_c = a_c + t * d_c
+    # Keep the points from the first one at or beyond the axis point A (k_a); A itself joins them when it
+    # differs from that point, so the shape between the foot and the kept points is the axis line.
+    out = 1
+    first_r = poly[k_a, 0]
+    first_c = poly[k_a, 1]
+    if math.hypot(first_r - a_r, first_c - a_c) > 1e-6:
+        out = 2
+    count = out + (n - k_a)
+    if count > poly.shape[0]:
+        return n  # no room for the new start: leave the polyline as it is
+    # Shift the kept points in place, in the order that never overwrites a point still to be read.
+    shift = k_a - out
+    if shift >= 0:
+        for j in range(k_a, n):
+            poly[j - shift, 0] = poly[j, 0]
+            poly[j - shift, 1] = poly[j, 1]
+    else:
+        for j in range(n - 1, k_a - 1, -1):
+            poly[j - shift, 0] = poly[j, 0]
+            poly[j - shift, 1] = poly[j, 1]
+    poly[0, 0] = foot_r
+    poly[0, 1] = foot_c
+    if out == 2:
+        poly[1, 0] = a_r
+        poly[1, 1] = a_c
+    return count
+
+
 @kernel(int32(f4_2d, int32, float32))
 def trim_polyline_end(poly, n, cut_px):
     """Shorten the polyline of `n` points in place by `cut_px` of arc length at its end (the new last point is

@@ -59,7 +59,7 @@ def test_blur_split_tips_curves_and_order_on_simulated_rig(frame_set: tuple[str,
     assert truth is not None
     width, height = frames.meta["image_size"]
     pipeline = Pipeline(PipelineConfig(), (width, height))
-    tips, curves, order = [], [], []
+    tips, curves, order, starts = [], [], [], []
     for k, (record, image) in enumerate(frames):
         r = pipeline.process(image, record.frame, record.t_ns, record.exposure_us)
         assert r.status is FrameStatus.OK, f"{label} frame {k}: {r.status.name} {r.message}"
@@ -69,6 +69,8 @@ def test_blur_split_tips_curves_and_order_on_simulated_rig(frame_set: tuple[str,
         tips += [np.hypot(*(begin[-1] - begin_true[-1])), np.hypot(*(end[-1] - end_true[-1]))]
         for ours, true in ((begin, begin_true), (end, end_true)):
             curves.append(float(_distance_to_polyline(_resample(true, 100), ours).mean()))
+            axis = (true[1] - true[0]) / np.hypot(*(true[1] - true[0]))
+            starts.append(float(np.dot(ours[0] - true[0], axis)))  # the start's offset along the rope
         if k > 0 and np.hypot(*(end_true[-1] - begin_true[-1])) >= 2.0:  # frame 0: no history to order by
             right = np.hypot(*(begin[-1] - begin_true[-1])) + np.hypot(*(end[-1] - end_true[-1]))
             wrong = np.hypot(*(begin[-1] - end_true[-1])) + np.hypot(*(end[-1] - begin_true[-1]))
@@ -80,5 +82,8 @@ def test_blur_split_tips_curves_and_order_on_simulated_rig(frame_set: tuple[str,
     assert tip_mean < 0.35, tips
     assert tip_p95 < 1.0, tips
     assert curve < 0.15, curves
+    # The polylines start at the fixed end, not inside the rope (0.78 px in before `anchor_start`): material
+    # points are placed by arc length from there.
+    assert abs(float(np.mean(starts))) < 0.25, starts
     assert len(order) >= FRAMES - 3
     assert all(order), order
