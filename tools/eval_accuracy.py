@@ -112,6 +112,7 @@ def evaluate(sequence: list, method: str, fixed_uv: tuple[float, float] | None =
             wrong = np.hypot(*(ours_b[-1] - end_uv[-1])) + np.hypot(*(ours_e[-1] - begin_uv[-1]))
             order_ok.append(right <= wrong)
     tips = np.array(tip_errors) if tip_errors else np.array([np.nan])
+    begin_tips, end_tips = (tips[0::2], tips[1::2]) if tip_errors else (tips, tips)
     return {
         "method": method,
         "frames": len(sequence),
@@ -119,6 +120,10 @@ def evaluate(sequence: list, method: str, fixed_uv: tuple[float, float] | None =
         "tip_mean_px": float(np.mean(tips)),
         "tip_p95_px": float(np.percentile(tips, 95)),
         "tip_max_px": float(np.max(tips)),
+        "tip_begin_mean_px": float(np.mean(begin_tips)),
+        "tip_begin_p95_px": float(np.percentile(begin_tips, 95)),
+        "tip_end_mean_px": float(np.mean(end_tips)),
+        "tip_end_p95_px": float(np.percentile(end_tips, 95)),
         "curve_mean_px": float(np.mean(curve_errors)) if curve_errors else float("nan"),
         "order_right": float(np.mean(order_ok)) if order_ok else float("nan"),
         "order_frames": len(order_ok),
@@ -136,12 +141,16 @@ def print_table(rows: list[dict[str, Any]]) -> None:
     """The full table: one row per input and method (the paper's Fig. 9/11 in numbers)."""
     width = max(12, *(len(r["input"]) for r in rows))
     print(f"{'input':{width}s} {'exp ms':>6s} {'method':10s} {'tip mean':>8s} {'tip p95':>8s} {'tip max':>8s} "
-          f"{'curve':>6s} {'order':>6s} {'result':>6s}  shapes by")  # fmt: skip
-    print(f"{'':{width}s} {'':6s} {'':10s} {'(px)':>8s} {'(px)':>8s} {'(px)':>8s} {'(px)':>6s} {'(%)':>6s} {'(%)':>6s}")
+          f"{'begin':>11s} {'end':>11s} {'curve':>6s} {'order':>6s} {'result':>6s}  shapes by")  # fmt: skip
+    print(f"{'':{width}s} {'':6s} {'':10s} {'(px)':>8s} {'(px)':>8s} {'(px)':>8s} {'mean/p95':>11s} "
+          f"{'mean/p95':>11s} {'(px)':>6s} {'(%)':>6s} {'(%)':>6s}")  # fmt: skip
     for r in rows:
         used = ", ".join(f"{k} {v}" for k, v in sorted(r["methods_used"].items(), key=lambda kv: -kv[1]))
         print(f"{r['input']:{width}s} {r['exposure_ms']:6.1f} {r['method']:10s} {r['tip_mean_px']:8.2f} "
-              f"{r['tip_p95_px']:8.2f} {r['tip_max_px']:8.2f} {r['curve_mean_px']:6.2f} "
+              f"{r['tip_p95_px']:8.2f} {r['tip_max_px']:8.2f} "
+              f"{r['tip_begin_mean_px']:5.2f}/{r['tip_begin_p95_px']:<5.2f} "
+              f"{r['tip_end_mean_px']:5.2f}/{r['tip_end_p95_px']:<5.2f} "
+              f"{r['curve_mean_px']:6.2f} "
               f"{100 * r['order_right']:6.0f} {100 * r['result_rate']:6.0f}  {used}")  # fmt: skip
 
 
