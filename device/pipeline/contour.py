@@ -55,7 +55,7 @@ class ContourTracer:
         """Trace the rope contour in `edges` (modified: other components are cleared) inside the spans.
 
         `edge_list` (optional): the first `n_edges` entries are the flat indices of every edge pixel inside the
-        spans in raster order (as `EdgeDetector.detect` leaves them in its `stack`); the component is then
+        spans, in any order (as `EdgeDetector.detect` leaves them in its `stack`); the component is then
         chosen in time proportional to the edges instead of the span pixels (same result).
 
         Returns

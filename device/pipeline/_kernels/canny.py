@@ -424,13 +424,15 @@ def suppress_rows(mag, gx, gy, lo, hi, sob_lo, sob_hi, r_begin, r_end, low, high
     return top
 
 
-@kernel(void(i4_1d_ro, i4_1d_ro, int64, u1_2d, i4_1d))
+@kernel(int64(i4_1d_ro, i4_1d_ro, int64, u1_2d, i4_1d))
 def grow_edges(lo, hi, top, out_edges, stack):
     """Hysteresis: mark EDGE_STRONG every EDGE_WEAK pixel of `out_edges` 8-connected to the strong pixels whose
-    flat indices are ``stack[:top]``, never leaving the spans `lo`/`hi` (`stack` is the work list)."""
+    flat indices are ``stack[:top]``, never leaving the spans `lo`/`hi`; the pixels marked are appended to
+    `stack` (breadth first), which then lists every edge pixel. Returns their number."""
     height = out_edges.shape[0]
     width = out_edges.shape[1]
     oedge = out_edges.reshape(height * width)
+    head = 0
     # Inside the spans and off the image border every neighbour is in the image, and the ring around the spans
     # holds EDGE_NONE (`suppress_rows`): then a weak neighbour is always inside the spans, no test needed.
     inner = True
@@ -439,20 +441,20 @@ def grow_edges(lo, hi, top, out_edges, stack):
             inner = False
     if inner:
         offsets = (-width - 1, -width, -width + 1, -1, 1, width - 1, width, width + 1)
-        while top > 0:
-            top -= 1
-            k = np.int64(stack[top])
+        while head < top:
+            k = np.int64(stack[head])
+            head += 1
             for o in offsets:
                 kk = np.uint64(k + o)
                 if oedge[kk] == EDGE_WEAK:
                     oedge[kk] = EDGE_STRONG
                     stack[top] = np.int32(kk)
                     top += 1
-        return
-    while top > 0:
-        top -= 1
-        r = stack[top] // width
-        c = stack[top] - r * width
+        return top
+    while head < top:
+        r = stack[head] // width
+        c = stack[head] - r * width
+        head += 1
         for k in range(8):
             rr = r + DIR_ROW[k]
             cc = c + DIR_COL[k]
@@ -460,16 +462,16 @@ def grow_edges(lo, hi, top, out_edges, stack):
                 out_edges[rr, cc] = EDGE_STRONG
                 stack[top] = rr * width + cc
                 top += 1
+    return top
 
 
-@kernel(int64(i4_1d_ro, i4_1d_ro, int64, int64, u1_2d, i4_1d))
-def list_edges(lo, hi, r_begin, r_end, out_edges, stack):
-    """Turn the labels in the spans `lo`/`hi` of rows ``r_begin .. r_end`` into 1 (EDGE_STRONG) and 0 (the rest)
-    and write the flat indices of the 1s into `stack` in raster order; returns their number."""
+@kernel(void(i4_1d_ro, i4_1d_ro, int64, int64, u1_2d))
+def finish_edges(lo, hi, r_begin, r_end, out_edges):
+    """Turn the labels in the spans `lo`/`hi` of rows ``r_begin .. r_end`` into 1 (EDGE_STRONG) and 0 (the
+    rest)."""
     height = out_edges.shape[0]
     width = out_edges.shape[1]
     oedge = out_edges.reshape(height * width)
-    count = 0
     for r in range(r_begin, r_end + 1):
         c0 = max(np.int64(lo[r]), 0)
         c1 = min(np.int64(hi[r]), width - 1)
@@ -478,11 +480,7 @@ def list_edges(lo, hi, r_begin, r_end, out_edges, stack):
         base = np.uint64(r * width + c0)
         for i in range(c1 - c0 + 1):
             k = base + np.uint64(i)
-            v = oedge[k] >> 1  # EDGE_STRONG -> 1, weak and none -> 0
-            oedge[k] = v
-            stack[count] = np.int32(k)  # the edge list: kept only where v == 1 (count advances)
-            count += np.int64(v)  # a uint8 sum would wrap at 256 (plain Python promotes to the narrower type)
-    return count
+            oedge[k] = oedge[k] >> 1  # EDGE_STRONG -> 1, weak and none -> 0
 
 
 @kernel(
@@ -501,8 +499,9 @@ def detect_edges(
     grown by one row and column; rows 2-3: smoothing spans, grown by two), `out_tmp`, `out_smooth` (valid inside
     the smoothing spans), `out_gx`, `out_gy`, `out_mag` (valid inside the Sobel spans) and `out_edges` (1 on edge
     pixels, 0 elsewhere inside the Sobel spans; valid inside the spans `lo`/`hi`); `stack` needs one slot per
-    pixel of the image and holds on return the edge pixels' flat indices ``row * width + col`` in raster order
-    (the first `count`). Returns the number of edge pixels or INVALID (bad shapes).
+    pixel of the image and holds on return the edge pixels' flat indices ``row * width + col`` (the first
+    `count`: the strong pixels in raster order, then the weak ones joined to them). Returns the number of edge
+    pixels or INVALID (bad shapes).
     """
     height = frame.shape[0]
     width = frame.shape[1]
@@ -546,5 +545,6 @@ def detect_edges(
     grow_spans_once(lo, hi, r_first, r_last, width, sob_lo, sob_hi)
     sobel_rows(out_smooth, sob_lo, sob_hi, sob_begin, sob_end, out_gx, out_gy, out_mag)
     top = suppress_rows(out_mag, out_gx, out_gy, lo, hi, sob_lo, sob_hi, r_first, r_last, low, high, out_edges, stack)
-    grow_edges(lo, hi, top, out_edges, stack)
-    return list_edges(lo, hi, r_first, r_last, out_edges, stack)
+    count = grow_edges(lo, hi, top, out_edges, stack)
+    finish_edges(lo, hi, r_first, r_last, out_edges)
+    return count

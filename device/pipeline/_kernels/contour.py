@@ -94,8 +94,9 @@ def keep_largest_component(edges, lo, hi, min_pixels, out_labels, stack, out_sta
 @kernel(int32(u1_2d, i4_1d_ro, i4_1d_ro, i4_1d_ro, int32, int32, i4_2d, i4_1d, i4_1d))
 def keep_largest_listed(edges, lo, hi, edge_list, n_edges, min_pixels, out_labels, stack, out_start):
     """`keep_largest_component` for an edge map whose edge pixels are listed: the first `n_edges` flat indices
-    ``row * width + col`` of `edge_list`, in raster order (as `detect_edges` leaves them). Same result, in time
-    proportional to the edges rather than to the pixels of the spans.
+    ``row * width + col`` of `edge_list`, in any order (as `detect_edges` leaves them). Same result (of equal
+    components the one first in raster order wins, the start is the component's first pixel in raster order),
+    in time proportional to the edges rather than to the pixels of the spans.
 
     Writes `out_labels` at the listed pixels, rewrites `edges` there (1 = kept component, 2 = others) and
     `out_start`; returns the component's pixel count or NOT_FOUND.
@@ -108,6 +109,7 @@ def keep_largest_listed(edges, lo, hi, edge_list, n_edges, min_pixels, out_label
     label = 0
     best_label = 0
     best_size = 0
+    best_first = 0
     for t in range(n_edges):
         first = edge_list[t]
         if labels[first] != 0:
@@ -119,6 +121,7 @@ def keep_largest_listed(edges, lo, hi, edge_list, n_edges, min_pixels, out_label
         size = 0
         while top > 0:
             top -= 1
+            first = min(first, stack[top])  # the component's first pixel in raster order
             pr = stack[top] // width
             pc = stack[top] - pr * width
             size += 1
@@ -131,9 +134,10 @@ def keep_largest_listed(edges, lo, hi, edge_list, n_edges, min_pixels, out_label
                     out_labels[rr, cc] = label
                     stack[top] = rr * width + cc
                     top += 1
-        if size > best_size:
+        if size > best_size or (size == best_size and first < best_first):
             best_size = size
             best_label = label
+            best_first = first
             out_start[0] = first // width
             out_start[1] = first - (first // width) * width
     found = best_size >= min_pixels and best_size > 0

@@ -193,6 +193,24 @@ def test_listed_component_equals_the_span_scan(seed) -> None:
     np.testing.assert_array_equal(a[inside], b[inside])
     np.testing.assert_array_equal(start_a, start_b)
     assert K.keep_largest_listed(b.copy(), lo, hi, listed, len(listed), 10_000, lb, sb, start_b) == K.NOT_FOUND
+    # The list in any order gives the same component and start (detect_edges lists strong pixels first).
+    shuffled = rng.permutation(listed).astype(np.int32)
+    c = edges.copy()
+    start_c = np.zeros(2, np.int32)
+    assert K.keep_largest_listed(c, lo, hi, shuffled, len(shuffled), 3, lb, sb, start_c) == size_a
+    np.testing.assert_array_equal(a[inside], c[inside])
+    np.testing.assert_array_equal(start_a, start_c)
+
+
+def test_listed_component_ties_go_to_the_first_in_raster_order() -> None:
+    edges = np.zeros((12, 12), np.uint8)
+    edges[2, 6:9] = 1  # three pixels, first in raster order
+    edges[8, 1:4] = 1  # three pixels too
+    lo, hi, labels, stack, start = _label_buffers(edges.shape)
+    listed = np.flatnonzero(edges.ravel())[::-1].astype(np.int32)  # the later component listed first
+    assert K.keep_largest_listed(edges, lo, hi, listed, len(listed), 2, labels, stack, start) == 3
+    assert tuple(start) == (2, 6)
+    assert (edges[2, 6:9] == 1).all() and (edges[8, 1:4] == 2).all()
 
 
 def test_border_contacts_match_reference() -> None:

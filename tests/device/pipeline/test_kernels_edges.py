@@ -103,10 +103,14 @@ def test_canny_inside_spans_equals_full_frame(blurred_frames, spans_full) -> Non
         inside[r, lo[r] : hi[r] + 1] = hi[r] >= lo[r]
     np.testing.assert_array_equal(roi["edges"][inside], full["edges"][inside])
     assert inside.mean() < 0.25
-    # The edge list left in the stack: every edge pixel of the spans, flat indices in raster order.
+    # The edge list left in the stack: every edge pixel of the spans once (flat indices), the strong ones first
+    # in raster order.
     count = int(np.count_nonzero(roi["edges"][inside]))
     listed = np.flatnonzero((roi["edges"] > 0) & inside)
-    np.testing.assert_array_equal(roi["stack"][:count], listed)
+    np.testing.assert_array_equal(np.sort(roi["stack"][:count]), listed)
+    strong = roi["mag"].ravel()[roi["stack"][:count]] > 50
+    assert strong[: np.count_nonzero(strong)].all()
+    assert np.all(np.diff(roi["stack"][: np.count_nonzero(strong)]) > 0)
 
 
 @pytest.mark.parametrize("rotation", [(1.0, 0.0), (0.9, 0.2)])
