@@ -125,7 +125,16 @@ def main(argv: list[str] | None = None) -> int:
                 np.add(_EVICT, 1, out=_EVICT)
             t0 = time.perf_counter_ns()
             K.keep_largest_listed(
-                e.edges, lo, hi, stack, np.int32(count), np.int32(config.min_contour_px), t.labels, t.stack, t.start
+                e.edges,
+                lo,
+                hi,
+                stack,
+                np.int32(count),
+                np.int32(config.min_contour_px),
+                True,
+                t.labels,
+                t.stack,
+                t.start,
             )
             t1 = time.perf_counter_ns()
             n = K.trace_contour(e.edges_ro, lo, hi, t.start[0], t.start[1], t.chain, t.codes)

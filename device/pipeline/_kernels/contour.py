@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import float32, int32
+from numba import boolean, float32, int32
 
 from ropecam.device.pipeline._kernels._common import DIR_COL, DIR_ROW, FULL, NOT_FOUND
 from ropecam.device.pipeline._kernels.spans import in_spans
@@ -91,12 +91,14 @@ def keep_largest_component(edges, lo, hi, min_pixels, out_labels, stack, out_sta
     return best_size if found else NOT_FOUND
 
 
-@kernel(int32(u1_2d, i4_1d_ro, i4_1d_ro, i4_1d_ro, int32, int32, i4_2d, i4_1d, i4_1d))
-def keep_largest_listed(edges, lo, hi, edge_list, n_edges, min_pixels, out_labels, stack, out_start):
+@kernel(int32(u1_2d, i4_1d_ro, i4_1d_ro, i4_1d_ro, int32, int32, boolean, i4_2d, i4_1d, i4_1d))
+def keep_largest_listed(edges, lo, hi, edge_list, n_edges, min_pixels, ring_clear, out_labels, stack, out_start):
     """`keep_largest_component` for an edge map whose edge pixels are listed: the first `n_edges` flat indices
     ``row * width + col`` of `edge_list`, in any order (as `detect_edges` leaves them). Same result (of equal
     components the one first in raster order wins, the start is the component's first pixel in raster order),
-    in time proportional to the edges rather than to the pixels of the spans.
+    in time proportional to the edges rather than to the pixels of the spans. `ring_clear`: the caller
+    guarantees that `edges` is 0 at every pixel next to the spans but outside them (`detect_edges` leaves its map
+    so); then, when the spans keep off the image border, the flood fill tests no span or border.
 
     Writes `out_labels` at the listed pixels, rewrites `edges` there (1 = kept component, 2 = others) and
     `out_start`; returns the component's pixel count or NOT_FOUND.
@@ -104,8 +106,14 @@ def keep_largest_listed(edges, lo, hi, edge_list, n_edges, min_pixels, out_label
     height = edges.shape[0]
     width = edges.shape[1]
     labels = out_labels.reshape(height * width)
+    flat_edges = edges.reshape(height * width)
     for t in range(n_edges):
         labels[edge_list[t]] = 0
+    inner = ring_clear
+    for r in range(height):
+        if hi[r] >= lo[r] and (r == 0 or r == height - 1 or lo[r] < 1 or hi[r] > width - 2):
+            inner = False
+    offsets = (-width - 1, -width, -width + 1, -1, 1, width - 1, width, width + 1)
     label = 0
     best_label = 0
     best_size = 0
@@ -121,10 +129,19 @@ def keep_largest_listed(edges, lo, hi, edge_list, n_edges, min_pixels, out_label
         size = 0
         while top > 0:
             top -= 1
-            first = min(first, stack[top])  # the component's first pixel in raster order
-            pr = stack[top] // width
-            pc = stack[top] - pr * width
+            here = np.int64(stack[top])
+            first = min(first, here)  # the component's first pixel in raster order
             size += 1
+            if inner:
+                for o in offsets:
+                    kk = np.uint64(here + o)
+                    if flat_edges[kk] != 0 and labels[kk] == 0:
+                        labels[kk] = label
+                        stack[top] = np.int32(kk)
+                        top += 1
+                continue
+            pr = here // width
+            pc = here - pr * width
             for k in range(8):
                 rr = pr + DIR_ROW[k]
                 cc = pc + DIR_COL[k]
@@ -142,7 +159,6 @@ def keep_largest_listed(edges, lo, hi, edge_list, n_edges, min_pixels, out_label
             out_start[1] = first - (first // width) * width
     found = best_size >= min_pixels and best_size > 0
     keep = best_label if found else -1
-    flat_edges = edges.reshape(height * width)
     for t in range(n_edges):
         k = edge_list[t]
         flat_edges[k] = 1 if labels[k] == keep else 2
