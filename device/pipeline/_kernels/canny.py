@@ -416,8 +416,22 @@ def suppress_rows(mag, gx, gy, lo, hi, sob_lo, sob_hi, r_begin, r_end, low, high
         else:
             for c in range(c0, c1 + 1):  # rows 0 and height - 1
                 oedge[row + c] = nms_pixel(mag, gx, gy, r, c, low, high)
+        # The strong pixels seed the hysteresis: looked for 8 at a time (few chunks hold one), then one by one.
         base = np.uint64(row + c0)
-        for i in range(c1 - c0 + 1):
+        n = c1 - c0 + 1
+        j = 0
+        while j + 8 <= n:
+            chunk = base + np.uint64(j)
+            labels = np.uint8(0)
+            for i in range(8):
+                labels |= oedge[chunk + np.uint64(i)]
+            if labels & EDGE_STRONG:
+                for i in range(8):
+                    k = chunk + np.uint64(i)
+                    stack[top] = np.int32(k)
+                    top += np.int64(oedge[k] >> 1)
+            j += 8
+        for i in range(j, n):
             k = base + np.uint64(i)
             stack[top] = np.int32(k)
             top += np.int64(oedge[k] >> 1)
