@@ -14,7 +14,7 @@ from __future__ import annotations
 from typing import Final
 
 import numpy as np
-from numba import float32, int32, int64, uint8, uint64, void
+from numba import float32, int32, int64, uint8, void
 
 from ropecam.device.pipeline._kernels._common import (
     DIR_COL,
@@ -31,13 +31,11 @@ from ropecam.device.pipeline._kernels._common import (
     prefetch_write,
 )
 from ropecam.shared.jit import (
-    f4_1d,
     f4_2d,
     i4_1d,
     i4_1d_ro,
     i4_2d,
     kernel,
-    u1_1d,
     u1_2d,
     u1_2d_ro,
 )
@@ -323,42 +321,6 @@ def nms_pixel(mag, gx, gy, r, c, low, high):
     return EDGE_STRONG if m > high else EDGE_WEAK
 
 
-@kernel(void(f4_1d, f4_1d, f4_1d, uint64, int64, uint64, uint64, int64, float32, float32, u1_1d))
-def nms_run(mag, gx, gy, base, n, k_first, k_last, width, low, high, out_edges):
-    """Write the non-maximum suppression labels of the pixels with flat indices ``k_first .. k_last`` among the
-    `n` pixels from flat index `base` on, all at least one pixel inside the image's border (`mag`, `gx`, `gy`,
-    `out_edges`: flat image planes of row length `width`), without branches: the labels of `nms_pixel`. The
-    others keep their value (the loop runs over whole vectors, the row's span need not)."""
-    uw = np.uint64(width)
-    u1 = np.uint64(1)
-    for i in range(n):
-        k = base + np.uint64(i)
-        m = mag[k]
-        gxv = gx[k]
-        gyv = gy[k]
-        ax = abs(gxv)
-        ay = abs(gyv)
-        horizontal = ay < ax * TAN_22_5
-        vertical = ay > ax * (TAN_22_5 + TWO)
-        falling = gxv * gyv < 0  # the diagonal pair is up-right/down-left, else up-left/down-right
-        up_left = mag[k - uw - u1]
-        up = mag[k - uw]
-        up_right = mag[k - uw + u1]
-        left = mag[k - u1]
-        right = mag[k + u1]
-        down_left = mag[k + uw - u1]
-        down = mag[k + uw]
-        down_right = mag[k + uw + u1]
-        diag_a = up_right if falling else up_left
-        diag_b = down_left if falling else down_right
-        a = left if horizontal else (up if vertical else diag_a)
-        b = right if horizontal else (down if vertical else diag_b)
-        diagonal = not (horizontal or vertical)
-        keep = (m > low) & (m > a) & ((m > b) | ((m == b) & (not diagonal)))
-        label = np.uint8(keep) * (np.uint8(1) + np.uint8(m > high))
-        out_edges[k] = label if (k >= k_first) & (k <= k_last) else out_edges[k]
-
-
 @kernel(int64(f4_2d, f4_2d, f4_2d, i4_1d_ro, i4_1d_ro, i4_1d, i4_1d, int64, int64, float32, float32, u1_2d, i4_1d))
 def suppress_rows(mag, gx, gy, lo, hi, sob_lo, sob_hi, r_begin, r_end, low, high, out_edges, stack):
     """Non-maximum suppression over the spans `lo`/`hi` of the rows ``r_begin .. r_end``: write the labels
@@ -372,6 +334,8 @@ def suppress_rows(mag, gx, gy, lo, hi, sob_lo, sob_hi, r_begin, r_end, low, high
     ogx = gx.reshape(size)
     ogy = gy.reshape(size)
     oedge = out_edges.reshape(size)
+    uw = np.uint64(width)
+    u1 = np.uint64(1)
     top = 0
     for r in range(max(r_begin - 1, 0), min(r_end + 1, height - 1) + 1):
         ahead = min(r + AHEAD, height - 1)
@@ -405,10 +369,37 @@ def suppress_rows(mag, gx, gy, lo, hi, sob_lo, sob_hi, r_begin, r_end, low, high
                 if p0 < 1 or p1 > width - 2:  # near the image border: no padding
                     p0 = i0
                     p1 = i1
-                nms_run(
-                    omag, ogx, ogy, np.uint64(row + p0), p1 - p0 + 1, np.uint64(row + i0), np.uint64(row + i1),
-                    width, low, high, oedge,
-                )  # fmt: skip
+                # Branch-free (all eight neighbours loaded, the pair of the gradient's sector selected): the
+                # labels of `nms_pixel`, written only in ``i0 .. i1`` (the loop runs over whole vectors).
+                base = np.uint64(row + p0)
+                k_first = np.uint64(row + i0)
+                k_last = np.uint64(row + i1)
+                for i in range(p1 - p0 + 1):
+                    k = base + np.uint64(i)
+                    m = omag[k]
+                    gxv = ogx[k]
+                    gyv = ogy[k]
+                    ax = abs(gxv)
+                    ay = abs(gyv)
+                    horizontal = ay < ax * TAN_22_5
+                    vertical = ay > ax * (TAN_22_5 + TWO)
+                    falling = gxv * gyv < 0  # the diagonal pair is up-right/down-left, else up-left/down-right
+                    up_left = omag[k - uw - u1]
+                    up = omag[k - uw]
+                    up_right = omag[k - uw + u1]
+                    left = omag[k - u1]
+                    right = omag[k + u1]
+                    down_left = omag[k + uw - u1]
+                    down = omag[k + uw]
+                    down_right = omag[k + uw + u1]
+                    diag_a = up_right if falling else up_left
+                    diag_b = down_left if falling else down_right
+                    a = left if horizontal else (up if vertical else diag_a)
+                    b = right if horizontal else (down if vertical else diag_b)
+                    diagonal = not (horizontal or vertical)
+                    keep = (m > low) & (m > a) & ((m > b) | ((m == b) & (not diagonal)))
+                    label = np.uint8(keep) * (np.uint8(1) + np.uint8(m > high))
+                    oedge[k] = label if (k >= k_first) & (k <= k_last) else oedge[k]
             for c in range(c0, i0):  # column 0
                 oedge[row + c] = nms_pixel(mag, gx, gy, r, c, low, high)
             for c in range(i1 + 1, c1 + 1):  # column width - 1
