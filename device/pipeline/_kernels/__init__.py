@@ -27,6 +27,7 @@ from ropecam.device.pipeline._kernels.canny import detect_edges
 from ropecam.device.pipeline._kernels.contour import (
     count_border_contacts,
     count_roi_contacts,
+    keep_largest_closed,
     keep_largest_component,
     keep_largest_listed,
     trace_contour,
@@ -89,6 +90,7 @@ __all__ = [
     "find_caps",
     "grow_spans",
     "in_spans",
+    "keep_largest_closed",
     "keep_largest_component",
     "keep_largest_listed",
     "measure_widths",
