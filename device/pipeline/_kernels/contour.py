@@ -225,22 +225,14 @@ def trace_contour(edges, lo, hi, start_r, start_c, out_chain, out_codes):
     width = edges.shape[1]
     pr = start_r
     pc = start_c
-    br = start_r
-    bc = start_c - 1
+    b_idx = 4  # direction of the backtrack pixel seen from the current one: west of the start
     first_r = -1
     first_c = -1
     n = 0
     while True:
-        # Direction index of the backtrack pixel seen from the current one.
-        dr = br - pr
-        dc = bc - pc
-        b_idx = 0
-        for k in range(8):
-            if DIR_ROW[k] == dr and DIR_COL[k] == dc:
-                b_idx = k
         found = -1
         for step in range(1, 9):
-            k = (b_idx + step) % 8
+            k = (b_idx + step) & 7
             rr = pr + DIR_ROW[k]
             cc = pc + DIR_COL[k]
             if in_spans(rr, cc, lo, hi) and 0 <= cc < width and edges[rr, cc] == 1:
@@ -262,11 +254,11 @@ def trace_contour(edges, lo, hi, start_r, start_c, out_chain, out_codes):
             return FULL
         out_chain[n, 0] = pr
         out_chain[n, 1] = pc
-        out_codes[n] = (8 - found) % 8
+        out_codes[n] = (8 - found) & 7
         n += 1
-        prev = (found + 7) % 8
-        br = pr + DIR_ROW[prev]
-        bc = pc + DIR_COL[prev]
+        # The backtrack pixel is the neighbour checked before `found`, (found + 7) mod 8 from the old pixel;
+        # seen from the new one it lies in direction N, N, E, E, S, S, W, W for found = E, SE, ..., NE.
+        b_idx = ((found + 6) // 2 * 2) & 7
         pr = nr
         pc = nc
 
