@@ -55,8 +55,9 @@ class ContourTracer:
         """Trace the rope contour in `edges` (modified: other components are cleared) inside the spans.
 
         `edge_list` (optional): the first `n_edges` entries are the flat indices of every edge pixel inside the
-        spans in raster order (as `EdgeDetector.detect` leaves them in its `stack`); the component is then
-        chosen in time proportional to the edges instead of the span pixels (same result).
+        spans, in any order (as `EdgeDetector.detect` leaves them in its `stack`); the component is then
+        chosen in time proportional to the edges instead of the span pixels (same result). `edges` must then be 0
+        next to the spans outside them, as `EdgeDetector.detect` leaves it.
 
         Returns
         -------
@@ -66,7 +67,7 @@ class ContourTracer:
         """
         if edge_list is not None:
             size = K.keep_largest_listed(
-                edges, as_ro(lo), as_ro(hi), as_ro(edge_list), np.int32(n_edges), self._min32, self.labels,
+                edges, as_ro(lo), as_ro(hi), as_ro(edge_list), np.int32(n_edges), self._min32, True, self.labels,
                 self.stack, self.start,
             )  # fmt: skip
         else:

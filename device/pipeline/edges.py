@@ -58,7 +58,8 @@ class EdgeDetector:
         self.edges_ro, self.mag_ro, self.gx_ro, self.gy_ro = (ro(a) for a in (self.edges, self.mag, self.gx, self.gy))
         self.stack_ro = ro(self.stack)
         self.full_lo_ro, self.full_hi_ro = ro(self.full_lo), ro(self.full_hi)
-        """Edge pixels found by the last `detect`; their flat indices are ``stack[:count]`` (raster order)."""
+        """Edge pixels found by the last `detect`; their flat indices are ``stack[:count]`` (the strong pixels in
+        raster order, then the weak pixels joined to them)."""
 
     def detect(self, frame: NDArray[np.uint8], lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
         """Detect edges of `frame` inside the row spans `lo`/`hi`; returns the number of edge pixels.
@@ -74,7 +75,7 @@ class EdgeDetector:
         -------
         int
             Edge pixel count; the edge map is `edges` (1 = edge, valid inside the spans until the next call),
-            gradients `gx`, `gy`, `mag`; ``stack[:count]`` lists the edge pixels (flat indices, raster order).
+            gradients `gx`, `gy`, `mag`; ``stack[:count]`` lists the edge pixels (flat indices, not sorted).
 
         Raises
         ------

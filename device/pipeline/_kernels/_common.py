@@ -1,11 +1,16 @@
-"""Constants shared by the pipeline kernels: status codes, the neighbour order of the chain code, edge labels."""
+"""Constants shared by the pipeline kernels: status codes, the neighbour order of the chain code, edge labels; the
+cache prefetch hints."""
 
 from __future__ import annotations
 
-from typing import Final
+from typing import Any, Final
 
+import numba
 import numpy as np
+from llvmlite import ir
 from numba import types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 from ropecam.shared.jit import KernelStatus
 
@@ -25,3 +30,40 @@ TWO: Final = np.float32(2.0)
 EDGE_NONE: Final = 0
 EDGE_WEAK: Final = 1
 EDGE_STRONG: Final = 2
+
+
+def _prefetch_intrinsic(write: int) -> Any:
+    """Return a Numba intrinsic ``f(array, index)`` hinting the CPU to fetch the cache line of ``array[index]``
+    (a 1-D array) for reading (`write` 0) or writing (1); no code runs without JIT."""
+    if numba.config.DISABLE_JIT:
+
+        def no_op(array: Any, index: Any) -> None:
+            return None
+
+        return no_op
+
+    @intrinsic
+    def prefetch(typingctx: Any, array: Any, index: Any) -> Any:
+        if not isinstance(array, types.Array) or array.ndim != 1 or not isinstance(index, types.Integer):
+            return None
+
+        def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+            array_type, index_type = signature.args
+            data = context.make_array(array_type)(context, builder, args[0]).data
+            pointer = builder.gep(data, [context.cast(builder, args[1], index_type, types.intp)])
+            pointer = builder.bitcast(pointer, ir.IntType(8).as_pointer())
+            i32 = ir.IntType(32)
+            function_type = ir.FunctionType(ir.VoidType(), [pointer.type, i32, i32, i32])
+            function = cgutils.get_or_insert_function(builder.module, function_type, "llvm.prefetch.p0")
+            builder.call(function, [pointer, i32(write), i32(3), i32(1)])  # locality 3: keep in all levels
+            return context.get_dummy_value()
+
+        return types.void(array, index), codegen
+
+    return prefetch
+
+
+prefetch_read: Final = _prefetch_intrinsic(0)
+"""``prefetch_read(array, index)``: start loading the cache line of ``array[index]`` (1-D) into the caches."""
+prefetch_write: Final = _prefetch_intrinsic(1)
+"""``prefetch_write(array, index)``: the same for a line about to be written."""

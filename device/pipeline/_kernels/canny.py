@@ -1,9 +1,20 @@
-"""Canny edge detection on row spans: smoothing, Sobel, non-maximum suppression, hysteresis."""
+"""Canny edge detection on row spans: smoothing, Sobel, non-maximum suppression, hysteresis.
+
+One kernel per pass, each a loop over the rows of the region of interest; `detect_edges` runs them in order.
+A band around a rope is a few hundred short rows (~40 px each on the rig), so what a pass costs per row matters
+as much as what it costs per pixel: the loops index flat views with unsigned offsets (no wraparound test, no
+slice objects), run branch-free over contiguous columns so that LLVM vectorises them, and the arithmetic passes
+(smoothing, Sobel) run over the row's span padded to whole vectors of `VEC` columns (no scalar remainder loop
+after the vector loop, whose trip count would change from row to row and mispredict). Values in the padding are
+computed from whatever the planes hold there and are not valid; every output is valid where documented.
+"""
 
 from __future__ import annotations
 
+from typing import Final
+
 import numpy as np
-from numba import float32, int32, void
+from numba import float32, int32, int64, uint8, void
 
 from ropecam.device.pipeline._kernels._common import (
     DIR_COL,
@@ -16,8 +27,9 @@ from ropecam.device.pipeline._kernels._common import (
     TWO,
     ZERO,
     f4_1d_ro,
+    prefetch_read,
+    prefetch_write,
 )
-from ropecam.device.pipeline._kernels.spans import grow_spans
 from ropecam.shared.jit import (
     f4_2d,
     i4_1d,
@@ -28,11 +40,202 @@ from ropecam.shared.jit import (
     u1_2d_ro,
 )
 
+VEC: Final = 8
+"""Columns per vector step of float32 arithmetic (AVX2: 8 lanes); the padded spans are whole multiples of it."""
+AHEAD: Final = 4
+"""Rows ahead whose cache lines a pass asks for (`prefetch_read`, `prefetch_write`) before working on a row: each
+row of a band starts on new cache lines (and pages) of every plane, which the hardware prefetcher, following
+contiguous runs, does not fetch; a frame's band then waited ~50 us on memory."""
+_EMPTY_LO: Final = 2147483647
 
-@kernel(void(f4_2d, i4_1d, i4_1d, f4_2d, f4_2d, f4_2d))
-def sobel_rows(smooth, sob_lo, sob_hi, out_gx, out_gy, out_mag):
-    """Write the 3x3 Sobel gradients of `smooth` and their L2 norm inside the row spans `sob_lo`/`sob_hi` (clipped
-    to the image), replicating the image border."""
+
+@kernel(int64(int64, int64, int64))
+def padded_end(c0, c1, width):
+    """Return the last column of the span starting at `c0` that covers `c1` in whole `VEC`-column steps, or
+    ``width - 1`` when that would leave the image (then the last step is partial)."""
+    return min(c0 + ((c1 - c0) // VEC + 1) * VEC - 1, width - 1)
+
+
+@kernel(void(i4_1d_ro, i4_1d_ro, int64, int64, int64, i4_1d, i4_1d))
+def grow_spans_once(lo, hi, r_begin, r_end, width, out_lo, out_hi):
+    """Write into `out_lo`/`out_hi`, for the rows ``r_begin - 1 .. r_end + 1`` (clipped to the image), the union
+    of the spans `lo`/`hi` of the row and its two neighbours (only rows ``r_begin .. r_end`` are read, the others
+    count as empty), widened by one column and clipped to ``[0, width)``; an empty result is ``(1, 0)``."""
+    height = lo.shape[0]
+    prev_lo = _EMPTY_LO
+    prev_hi = -1
+    b = max(r_begin - 1, 0)
+    e = min(r_end + 1, height - 1)
+    cur_lo = np.int64(lo[b]) if b >= r_begin and hi[b] >= lo[b] else _EMPTY_LO
+    cur_hi = np.int64(hi[b]) if b >= r_begin and hi[b] >= lo[b] else -1
+    for r in range(b, e + 1):
+        nxt_lo = _EMPTY_LO
+        nxt_hi = -1
+        if r + 1 <= r_end and hi[r + 1] >= lo[r + 1]:
+            nxt_lo = np.int64(lo[r + 1])
+            nxt_hi = np.int64(hi[r + 1])
+        a = min(min(prev_lo, cur_lo), nxt_lo)
+        z = max(max(prev_hi, cur_hi), nxt_hi)
+        out_lo[r] = max(0, a - 1) if z >= 0 else 1
+        out_hi[r] = min(width - 1, z + 1) if z >= 0 else 0
+        prev_lo = cur_lo
+        prev_hi = cur_hi
+        cur_lo = nxt_lo
+        cur_hi = nxt_hi
+
+
+@kernel(void(int64, int64, int64, int64, i4_1d, i4_1d))
+def grow_spans_inplace(r_begin, r_end, cols_apart, width, spans_lo, spans_hi):
+    """`grow_spans_once` in place on `spans_lo`/`spans_hi` (valid for the rows ``r_begin .. r_end``), widening by
+    `cols_apart` columns instead of one: afterwards the rows ``r_begin - 1 .. r_end + 1`` (clipped) are valid."""
+    height = spans_lo.shape[0]
+    prev_lo = _EMPTY_LO
+    prev_hi = -1
+    b = max(r_begin - 1, 0)
+    e = min(r_end + 1, height - 1)
+    cur_lo = np.int64(spans_lo[b]) if b >= r_begin and spans_hi[b] >= spans_lo[b] else _EMPTY_LO
+    cur_hi = np.int64(spans_hi[b]) if b >= r_begin and spans_hi[b] >= spans_lo[b] else -1
+    for r in range(b, e + 1):
+        nxt_lo = _EMPTY_LO
+        nxt_hi = -1
+        if r + 1 <= r_end and spans_hi[r + 1] >= spans_lo[r + 1]:
+            nxt_lo = np.int64(spans_lo[r + 1])
+            nxt_hi = np.int64(spans_hi[r + 1])
+        a = min(min(prev_lo, cur_lo), nxt_lo)
+        z = max(max(prev_hi, cur_hi), nxt_hi)
+        spans_lo[r] = max(0, a - cols_apart) if z >= 0 else 1
+        spans_hi[r] = min(width - 1, z + cols_apart) if z >= 0 else 0
+        prev_lo = cur_lo
+        prev_hi = cur_hi
+        cur_lo = nxt_lo
+        cur_hi = nxt_hi
+
+
+@kernel(float32(u1_2d_ro, f4_1d_ro, int64, int64))
+def smooth_replicated(frame, weights, r, c):
+    """Return the horizontal smoothing of `frame` at (r, c) with the image border replicated."""
+    width = frame.shape[1]
+    radius = weights.shape[0] // 2
+    acc = ZERO
+    for k in range(-radius, radius + 1):
+        acc += weights[k + radius] * frame[r, min(max(c + k, 0), width - 1)]
+    return acc
+
+
+@kernel(void(u1_2d_ro, f4_1d_ro, i4_1d, i4_1d, int64, int64, f4_2d))
+def smooth_rows(frame, weights, hor_lo, hor_hi, r_begin, r_end, out_tmp):
+    """Write the horizontal pass of the separable smoothing of `frame` into `out_tmp` (border replicated) over
+    the spans `hor_lo`/`hor_hi` of the rows ``r_begin .. r_end``, padded to whole vectors."""
+    height = frame.shape[0]
+    width = frame.shape[1]
+    radius = weights.shape[0] // 2
+    size = height * width
+    f = frame.reshape(size)
+    tmp = out_tmp.reshape(size)
+    u1 = np.uint64(1)
+    u2 = np.uint64(2)
+    w0 = weights[0]
+    w1 = weights[min(1, 2 * radius)]
+    w2 = weights[min(2, 2 * radius)]
+    for r in range(r_begin, r_end + 1):
+        ahead = r + AHEAD
+        if ahead <= r_end and hor_hi[ahead] >= hor_lo[ahead]:
+            first = ahead * width + max(np.int64(hor_lo[ahead]) - radius, 0)
+            last = ahead * width + min(np.int64(hor_hi[ahead]) + radius, width - 1)
+            for k in range(first, last + 1, 64):
+                prefetch_read(f, np.uint64(k))
+            prefetch_read(f, np.uint64(last))
+            for k in range(first, last + 1, 16):
+                prefetch_write(tmp, np.uint64(k))
+            prefetch_write(tmp, np.uint64(last))
+        c0 = np.int64(hor_lo[r])
+        c1 = np.int64(hor_hi[r])
+        if c1 < c0:
+            continue
+        c0 -= c0 % VEC
+        c1 = padded_end(c0, c1, width)
+        row = r * width
+        inner0 = max(c0, radius)
+        inner1 = min(c1, width - 1 - radius)
+        if inner1 >= inner0:
+            base = np.uint64(row + inner0)
+            if radius == 2:
+                # The default smoothing (sigma 1 px): one fused loop.
+                for i in range(inner1 - inner0 + 1):
+                    k = base + np.uint64(i)
+                    t = w0 * (np.float32(f[k - u2]) + np.float32(f[k + u2])) + w1 * (
+                        np.float32(f[k - u1]) + np.float32(f[k + u1])
+                    )
+                    t += w2 * np.float32(f[k])
+                    tmp[k] = t
+            else:
+                for i in range(inner1 - inner0 + 1):
+                    k = base + np.uint64(i)
+                    t = ZERO
+                    for j in range(2 * radius + 1):
+                        t += weights[j] * np.float32(f[k + np.uint64(j) - np.uint64(radius)])
+                    tmp[k] = t
+        else:  # every column is within `radius` of the image border
+            inner0 = c1 + 1
+            inner1 = c1
+        for c in range(c0, inner0):
+            out_tmp[r, c] = smooth_replicated(frame, weights, r, c)
+        for c in range(inner1 + 1, c1 + 1):
+            out_tmp[r, c] = smooth_replicated(frame, weights, r, c)
+
+
+@kernel(void(f4_2d, f4_1d_ro, i4_1d, i4_1d, int64, int64, f4_2d))
+def smooth_columns(tmp, weights, gau_lo, gau_hi, r_begin, r_end, out_smooth):
+    """Write the vertical pass of the separable smoothing of `tmp` into `out_smooth` (border replicated) over the
+    spans `gau_lo`/`gau_hi` of the rows ``r_begin .. r_end``, padded to whole vectors."""
+    height = tmp.shape[0]
+    width = tmp.shape[1]
+    radius = weights.shape[0] // 2
+    size = height * width
+    t = tmp.reshape(size)
+    smo = out_smooth.reshape(size)
+    w0 = weights[0]
+    w1 = weights[min(1, 2 * radius)]
+    w2 = weights[min(2, 2 * radius)]
+    for r in range(r_begin, r_end + 1):
+        ahead = r + AHEAD
+        if ahead <= r_end and gau_hi[ahead] >= gau_lo[ahead]:
+            first = ahead * width + np.int64(gau_lo[ahead])
+            last = ahead * width + np.int64(gau_hi[ahead])
+            for k in range(first, last + 1, 16):
+                prefetch_write(smo, np.uint64(k))
+            prefetch_write(smo, np.uint64(last))
+        c0 = np.int64(gau_lo[r])
+        c1 = np.int64(gau_hi[r])
+        if c1 < c0:
+            continue
+        c0 -= c0 % VEC
+        c1 = padded_end(c0, c1, width)
+        n = c1 - c0 + 1
+        out = np.uint64(r * width + c0)
+        if radius == 2:
+            ka = np.uint64(max(r - 2, 0) * width + c0)
+            kb = np.uint64(max(r - 1, 0) * width + c0)
+            kd = np.uint64(min(r + 1, height - 1) * width + c0)
+            ke = np.uint64(min(r + 2, height - 1) * width + c0)
+            for i in range(n):
+                ui = np.uint64(i)
+                smo[out + ui] = w0 * (t[ka + ui] + t[ke + ui]) + w1 * (t[kb + ui] + t[kd + ui]) + w2 * t[out + ui]
+            continue
+        for i in range(n):
+            smo[out + np.uint64(i)] = ZERO
+        for k in range(-radius, radius + 1):
+            wk = weights[k + radius]
+            src = np.uint64(min(max(r + k, 0), height - 1) * width + c0)
+            for i in range(n):
+                ui = np.uint64(i)
+                smo[out + ui] += wk * t[src + ui]
+
+
+@kernel(void(f4_2d, i4_1d, i4_1d, int64, int64, f4_2d, f4_2d, f4_2d))
+def sobel_rows(smooth, sob_lo, sob_hi, r_begin, r_end, out_gx, out_gy, out_mag):
+    """Write the 3x3 Sobel gradients of `smooth` and their L2 norm over the spans `sob_lo`/`sob_hi` (within the
+    image) of the rows ``r_begin .. r_end``, padded to whole vectors, replicating the image border."""
     height = smooth.shape[0]
     width = smooth.shape[1]
     size = height * width
@@ -41,11 +244,24 @@ def sobel_rows(smooth, sob_lo, sob_hi, out_gx, out_gy, out_mag):
     ogy = out_gy.reshape(size)
     omag = out_mag.reshape(size)
     u1 = np.uint64(1)
-    for r in range(height):
+    for r in range(r_begin, r_end + 1):
+        ahead = r + AHEAD
+        if ahead <= r_end and sob_hi[ahead] >= sob_lo[ahead]:
+            first = ahead * width + np.int64(sob_lo[ahead])
+            last = ahead * width + np.int64(sob_hi[ahead])
+            for k in range(first, last + 1, 16):
+                prefetch_write(ogx, np.uint64(k))
+                prefetch_write(ogy, np.uint64(k))
+                prefetch_write(omag, np.uint64(k))
+            prefetch_write(ogx, np.uint64(last))
+            prefetch_write(ogy, np.uint64(last))
+            prefetch_write(omag, np.uint64(last))
         c0 = np.int64(sob_lo[r])
-        c1 = min(np.int64(sob_hi[r]), width - 1)
+        c1 = np.int64(sob_hi[r])
         if c1 < c0:
             continue
+        c0 -= c0 % VEC
+        c1 = padded_end(c0, c1, width)
         rm = max(r - 1, 0) * width
         r0 = r * width
         rp = min(r + 1, height - 1) * width
@@ -76,6 +292,202 @@ def sobel_rows(smooth, sob_lo, sob_hi, out_gx, out_gy, out_mag):
             omag[b] = np.sqrt(gx * gx + gy * gy)
 
 
+@kernel(uint8(f4_2d, f4_2d, f4_2d, int64, int64, float32, float32))
+def nms_pixel(mag, gx, gy, r, c, low, high):
+    """Return the non-maximum suppression label of pixel (r, c) (EDGE_NONE, EDGE_WEAK, EDGE_STRONG) with
+    OpenCV's sector rule and tie-breaking; neighbours outside the image count as 0."""
+    height = mag.shape[0]
+    width = mag.shape[1]
+    m = mag[r, c]
+    if not m > low:
+        return EDGE_NONE
+    ax = abs(gx[r, c])
+    ay = abs(gy[r, c])
+    if ay < ax * TAN_22_5:
+        ml = mag[r, c - 1] if c > 0 else ZERO
+        mr = mag[r, c + 1] if c < width - 1 else ZERO
+        keep = m > ml and m >= mr
+    elif ay > ax * (TAN_22_5 + TWO):
+        mu = mag[r - 1, c] if r > 0 else ZERO
+        md = mag[r + 1, c] if r < height - 1 else ZERO
+        keep = m > mu and m >= md
+    else:
+        s = -1 if gx[r, c] * gy[r, c] < 0 else 1
+        mu = mag[r - 1, c - s] if (r > 0 and 0 <= c - s < width) else ZERO
+        md = mag[r + 1, c + s] if (r < height - 1 and 0 <= c + s < width) else ZERO
+        keep = m > mu and m > md
+    if not keep:
+        return EDGE_NONE
+    return EDGE_STRONG if m > high else EDGE_WEAK
+
+
+@kernel(int64(f4_2d, f4_2d, f4_2d, i4_1d_ro, i4_1d_ro, i4_1d, i4_1d, int64, int64, float32, float32, u1_2d, i4_1d))
+def suppress_rows(mag, gx, gy, lo, hi, sob_lo, sob_hi, r_begin, r_end, low, high, out_edges, stack):
+    """Non-maximum suppression over the spans `lo`/`hi` of the rows ``r_begin .. r_end``: write the labels
+    (EDGE_NONE, EDGE_WEAK, EDGE_STRONG) into `out_edges`, EDGE_NONE on the rest of the Sobel spans
+    `sob_lo`/`sob_hi` (the ring around the spans, so that the hysteresis never leaves them), and push the strong
+    pixels' flat indices onto `stack`, in raster order. Returns the number pushed."""
+    height = mag.shape[0]
+    width = mag.shape[1]
+    size = height * width
+    omag = mag.reshape(size)
+    ogx = gx.reshape(size)
+    ogy = gy.reshape(size)
+    oedge = out_edges.reshape(size)
+    uw = np.uint64(width)
+    u1 = np.uint64(1)
+    top = 0
+    for r in range(max(r_begin - 1, 0), min(r_end + 1, height - 1) + 1):
+        ahead = min(r + AHEAD, height - 1)
+        if sob_hi[ahead] >= sob_lo[ahead]:
+            first = ahead * width + np.int64(sob_lo[ahead])
+            last = ahead * width + np.int64(sob_hi[ahead])
+            for k in range(first, last + 1, 64):
+                prefetch_write(oedge, np.uint64(k))
+            prefetch_write(oedge, np.uint64(last))
+        c0 = max(np.int64(lo[r]), 0)
+        c1 = min(np.int64(hi[r]), width - 1)
+        row = r * width
+        s0 = np.int64(sob_lo[r])
+        s1 = np.int64(sob_hi[r])
+        if c1 < c0:
+            for c in range(s0, s1 + 1):
+                oedge[row + c] = EDGE_NONE
+            continue
+        for c in range(s0, c0):
+            oedge[row + c] = EDGE_NONE
+        for c in range(c1 + 1, s1 + 1):
+            oedge[row + c] = EDGE_NONE
+        i0 = c0
+        i1 = c1
+        if 0 < r < height - 1:
+            i0 = max(c0, 1)
+            i1 = min(c1, width - 2)
+            if i1 >= i0:
+                p0 = i0 - i0 % VEC
+                p1 = padded_end(p0, i1, width)
+                if p0 < 1 or p1 > width - 2:  # near the image border: no padding
+                    p0 = i0
+                    p1 = i1
+                # Branch-free (all eight neighbours loaded, the pair of the gradient's sector selected): the
+                # labels of `nms_pixel`, written only in ``i0 .. i1`` (the loop runs over whole vectors).
+                base = np.uint64(row + p0)
+                k_first = np.uint64(row + i0)
+                k_last = np.uint64(row + i1)
+                for i in range(p1 - p0 + 1):
+                    k = base + np.uint64(i)
+                    m = omag[k]
+                    gxv = ogx[k]
+                    gyv = ogy[k]
+                    ax = abs(gxv)
+                    ay = abs(gyv)
+                    horizontal = ay < ax * TAN_22_5
+                    vertical = ay > ax * (TAN_22_5 + TWO)
+                    falling = gxv * gyv < 0  # the diagonal pair is up-right/down-left, else up-left/down-right
+                    up_left = omag[k - uw - u1]
+                    up = omag[k - uw]
+                    up_right = omag[k - uw + u1]
+                    left = omag[k - u1]
+                    right = omag[k + u1]
+                    down_left = omag[k + uw - u1]
+                    down = omag[k + uw]
+                    down_right = omag[k + uw + u1]
+                    diag_a = up_right if falling else up_left
+                    diag_b = down_left if falling else down_right
+                    a = left if horizontal else (up if vertical else diag_a)
+                    b = right if horizontal else (down if vertical else diag_b)
+                    diagonal = not (horizontal or vertical)
+                    keep = (m > low) & (m > a) & ((m > b) | ((m == b) & (not diagonal)))
+                    label = np.uint8(keep) * (np.uint8(1) + np.uint8(m > high))
+                    oedge[k] = label if (k >= k_first) & (k <= k_last) else oedge[k]
+            for c in range(c0, i0):  # column 0
+                oedge[row + c] = nms_pixel(mag, gx, gy, r, c, low, high)
+            for c in range(i1 + 1, c1 + 1):  # column width - 1
+                oedge[row + c] = nms_pixel(mag, gx, gy, r, c, low, high)
+        else:
+            for c in range(c0, c1 + 1):  # rows 0 and height - 1
+                oedge[row + c] = nms_pixel(mag, gx, gy, r, c, low, high)
+        # The strong pixels seed the hysteresis: looked for 8 at a time (few chunks hold one), then one by one.
+        base = np.uint64(row + c0)
+        n = c1 - c0 + 1
+        j = 0
+        while j + 8 <= n:
+            chunk = base + np.uint64(j)
+            labels = np.uint8(0)
+            for i in range(8):
+                labels |= oedge[chunk + np.uint64(i)]
+            if labels & EDGE_STRONG:
+                for i in range(8):
+                    k = chunk + np.uint64(i)
+                    stack[top] = np.int32(k)
+                    top += np.int64(oedge[k] >> 1)
+            j += 8
+        for i in range(j, n):
+            k = base + np.uint64(i)
+            stack[top] = np.int32(k)
+            top += np.int64(oedge[k] >> 1)
+    return top
+
+
+@kernel(int64(i4_1d_ro, i4_1d_ro, int64, u1_2d, i4_1d))
+def grow_edges(lo, hi, top, out_edges, stack):
+    """Hysteresis: mark EDGE_STRONG every EDGE_WEAK pixel of `out_edges` 8-connected to the strong pixels whose
+    flat indices are ``stack[:top]``, never leaving the spans `lo`/`hi`; the pixels marked are appended to
+    `stack` (breadth first), which then lists every edge pixel. Returns their number."""
+    height = out_edges.shape[0]
+    width = out_edges.shape[1]
+    oedge = out_edges.reshape(height * width)
+    head = 0
+    # Inside the spans and off the image border every neighbour is in the image, and the ring around the spans
+    # holds EDGE_NONE (`suppress_rows`): then a weak neighbour is always inside the spans, no test needed.
+    inner = True
+    for r in range(height):
+        if hi[r] >= lo[r] and (r == 0 or r == height - 1 or lo[r] < 1 or hi[r] > width - 2):
+            inner = False
+    if inner:
+        offsets = (-width - 1, -width, -width + 1, -1, 1, width - 1, width, width + 1)
+        while head < top:
+            k = np.int64(stack[head])
+            head += 1
+            for o in offsets:
+                kk = np.uint64(k + o)
+                if oedge[kk] == EDGE_WEAK:
+                    oedge[kk] = EDGE_STRONG
+                    stack[top] = np.int32(kk)
+                    top += 1
+        return top
+    while head < top:
+        r = stack[head] // width
+        c = stack[head] - r * width
+        head += 1
+        for k in range(8):
+            rr = r + DIR_ROW[k]
+            cc = c + DIR_COL[k]
+            if 0 <= rr < height and lo[rr] <= cc <= hi[rr] and cc < width and out_edges[rr, cc] == EDGE_WEAK:
+                out_edges[rr, cc] = EDGE_STRONG
+                stack[top] = rr * width + cc
+                top += 1
+    return top
+
+
+@kernel(void(i4_1d_ro, i4_1d_ro, int64, int64, u1_2d))
+def finish_edges(lo, hi, r_begin, r_end, out_edges):
+    """Turn the labels in the spans `lo`/`hi` of rows ``r_begin .. r_end`` into 1 (EDGE_STRONG) and 0 (the
+    rest)."""
+    height = out_edges.shape[0]
+    width = out_edges.shape[1]
+    oedge = out_edges.reshape(height * width)
+    for r in range(r_begin, r_end + 1):
+        c0 = max(np.int64(lo[r]), 0)
+        c1 = min(np.int64(hi[r]), width - 1)
+        if c1 < c0:
+            continue
+        base = np.uint64(r * width + c0)
+        for i in range(c1 - c0 + 1):
+            k = base + np.uint64(i)
+            oedge[k] = oedge[k] >> 1  # EDGE_STRONG -> 1, weak and none -> 0
+
+
 @kernel(
     int32(
         u1_2d_ro, f4_1d_ro, i4_1d_ro, i4_1d_ro, float32, float32, i4_2d, f4_2d, f4_2d, f4_2d, f4_2d, f4_2d, u1_2d, i4_1d
@@ -88,193 +500,56 @@ def detect_edges(
 
     `weights` is a normalised odd-length 1-D smoothing kernel (``[1.0]`` disables smoothing, which makes the
     result comparable with ``cv2.Canny(frame, low, high, L2gradient=True)``). Gradients use the 3x3 Sobel with a
-    replicated border, the magnitude is the L2 norm. Writes `work_spans` (rows 0-1: Sobel spans, rows 2-3:
-    smoothing spans), `out_tmp`, `out_smooth`, `out_gx`, `out_gy`, `out_mag` (valid inside the Sobel spans) and
-    `out_edges` (1 on edge pixels, 0 elsewhere, valid inside the spans `lo`/`hi`); `stack` needs one slot per
-    pixel of the image and holds on return the edge pixels' flat indices ``row * width + col`` in raster order
-    (the first `count`). Returns the number of edge pixels or INVALID (bad shapes).
+    replicated border, the magnitude is the L2 norm. Writes `work_spans` (rows 0-1: Sobel spans, the spans
+    grown by one row and column; rows 2-3: smoothing spans, grown by two), `out_tmp`, `out_smooth` (valid inside
+    the smoothing spans), `out_gx`, `out_gy`, `out_mag` (valid inside the Sobel spans) and `out_edges` (1 on edge
+    pixels, 0 elsewhere inside the Sobel spans; valid inside the spans `lo`/`hi`); `stack` needs one slot per
+    pixel of the image and holds on return the edge pixels' flat indices ``row * width + col`` (the first
+    `count`: the strong pixels in raster order, then the weak ones joined to them). Returns the number of edge
+    pixels or INVALID (bad shapes).
     """
     height = frame.shape[0]
     width = frame.shape[1]
-    radius = weights.shape[0] // 2
     if lo.shape[0] != height or hi.shape[0] != height or work_spans.shape[0] < 4 or work_spans.shape[1] != height:
         return INVALID
-    if stack.shape[0] < height * width:
+    if stack.shape[0] < height * width or weights.shape[0] % 2 != 1:
         return INVALID
-    # Hot loops index flat views with unsigned offsets: Numba then emits no negative-index wraparound and no
-    # per-row slice objects (each slice costs reference counting), so short row spans stay cheap and the loops
-    # vectorise. The arithmetic (and its order) is the same as the obvious per-pixel formulas.
-    size = height * width
-    f = frame.reshape(size)
-    tmp = out_tmp.reshape(size)
-    smo = out_smooth.reshape(size)
-    ogx = out_gx.reshape(size)
-    ogy = out_gy.reshape(size)
-    omag = out_mag.reshape(size)
-    oedge = out_edges.reshape(size)
-    u1 = np.uint64(1)
-    u2 = np.uint64(2)
-    uw = np.uint64(width)
+    r_first = height
+    r_last = -1
+    for r in range(height):
+        if min(hi[r], width - 1) >= max(lo[r], 0):
+            r_first = min(r_first, r)
+            r_last = r
+    if r_last < 0:
+        return 0
     sob_lo = work_spans[0]
     sob_hi = work_spans[1]
     gau_lo = work_spans[2]
     gau_hi = work_spans[3]
-    grow_spans(lo, hi, 1, 1, sob_lo, sob_hi)
-    grow_spans(sob_lo, sob_hi, 1, 1, gau_lo, gau_hi)
-    for r in range(height):
-        gau_hi[r] = min(gau_hi[r], width - 1)
-    # Separable smoothing, horizontal pass first: over the union of the smoothing spans of the rows it feeds
-    # (rows 0-1 of work_spans are free until the Sobel spans are needed, so they hold that union for a moment).
-    hor_lo = work_spans[0]
-    hor_hi = work_spans[1]
-    grow_spans(gau_lo, gau_hi, radius, 0, hor_lo, hor_hi)
-    w0 = weights[0]
-    w1 = weights[min(1, 2 * radius)]
-    w2 = weights[min(2, 2 * radius)]
-    for r in range(height):
-        c0 = np.int64(hor_lo[r])
-        c1 = min(np.int64(hor_hi[r]), width - 1)
-        if c1 < c0:
-            continue
-        row = r * width
-        inner0 = max(c0, radius)
-        inner1 = min(c1, width - 1 - radius)
-        if inner1 >= inner0:
-            base = np.uint64(row + inner0)
-            if radius == 2:
-                # The default smoothing (sigma 1 px): one fused loop.
-                for i in range(inner1 - inner0 + 1):
-                    k = base + np.uint64(i)
-                    t = w0 * (np.float32(f[k - u2]) + np.float32(f[k + u2])) + w1 * (
-                        np.float32(f[k - u1]) + np.float32(f[k + u1])
-                    )
-                    t += w2 * np.float32(f[k])
-                    tmp[k] = t
-            else:
-                for i in range(inner1 - inner0 + 1):
-                    k = base + np.uint64(i)
-                    t = ZERO
-                    for j in range(2 * radius + 1):
-                        t += weights[j] * np.float32(f[k + np.uint64(j) - np.uint64(radius)])
-                    tmp[k] = t
-        # Columns within `radius` of the image border: replicate the edge pixel.
-        for c in range(c0, min(c1 + 1, max(inner0, c0))):
-            acc = ZERO
-            for k in range(-radius, radius + 1):
-                acc += weights[k + radius] * frame[r, min(max(c + k, 0), width - 1)]
-            out_tmp[r, c] = acc
-        for c in range(max(inner1 + 1, c0), c1 + 1):
-            acc = ZERO
-            for k in range(-radius, radius + 1):
-                acc += weights[k + radius] * frame[r, min(max(c + k, 0), width - 1)]
-            out_tmp[r, c] = acc
-    for r in range(height):
-        c0 = np.int64(gau_lo[r])
-        c1 = np.int64(gau_hi[r])
-        if c1 < c0:
-            continue
-        n = c1 - c0 + 1
-        out = np.uint64(r * width + c0)
-        if radius == 2:
-            ka = np.uint64(max(r - 2, 0) * width + c0)
-            kb = np.uint64(max(r - 1, 0) * width + c0)
-            kd = np.uint64(min(r + 1, height - 1) * width + c0)
-            ke = np.uint64(min(r + 2, height - 1) * width + c0)
-            for i in range(n):
-                ui = np.uint64(i)
-                smo[out + ui] = (
-                    w0 * (tmp[ka + ui] + tmp[ke + ui]) + w1 * (tmp[kb + ui] + tmp[kd + ui]) + w2 * tmp[out + ui]
-                )
-            continue
-        for i in range(n):
-            smo[out + np.uint64(i)] = ZERO
-        for k in range(-radius, radius + 1):
-            wk = weights[k + radius]
-            src = np.uint64(min(max(r + k, 0), height - 1) * width + c0)
-            for i in range(n):
-                ui = np.uint64(i)
-                smo[out + ui] += wk * tmp[src + ui]
-    grow_spans(lo, hi, 1, 1, sob_lo, sob_hi)
-    for r in range(height):
-        sob_hi[r] = min(sob_hi[r], width - 1)
-    sobel_rows(out_smooth, sob_lo, sob_hi, out_gx, out_gy, out_mag)
-    # Non-maximum suppression with OpenCV's sector rule and tie-breaking; pixels outside the image count as 0.
-    top = 0
-    for r in range(height):
-        c0 = np.int64(lo[r])
-        c1 = min(np.int64(hi[r]), width - 1)
-        if c1 < c0:
-            continue
-        base = np.uint64(r * width + c0)
-        n = c1 - c0 + 1
-        # Most pixels are below `low`: find those 16 at a time with a loop that vectorises, and run the
-        # branchy sector test only on chunks that hold a candidate.
-        chunk = np.int64(0)
-        while chunk < n:
-            stop = min(chunk + 16, n)
-            kc = base + np.uint64(chunk)
-            above = 0
-            for j in range(stop - chunk):
-                above += 1 if omag[kc + np.uint64(j)] > low else 0
-            if above == 0:
-                for j in range(stop - chunk):
-                    oedge[kc + np.uint64(j)] = EDGE_NONE
-                chunk = stop
-                continue
-            for i in range(chunk, stop):
-                k = base + np.uint64(i)
-                m = omag[k]
-                if not m > low:
-                    oedge[k] = EDGE_NONE
-                    continue
-                c = c0 + i
-                ax = abs(ogx[k])
-                ay = abs(ogy[k])
-                if ay < ax * TAN_22_5:
-                    ml = omag[k - u1] if c > 0 else ZERO
-                    mr = omag[k + u1] if c < width - 1 else ZERO
-                    keep = m > ml and m >= mr
-                elif ay > ax * (TAN_22_5 + TWO):
-                    mu = omag[k - uw] if r > 0 else ZERO
-                    md = omag[k + uw] if r < height - 1 else ZERO
-                    keep = m > mu and m >= md
-                else:
-                    s = -1 if ogx[k] * ogy[k] < 0 else 1
-                    mu = out_mag[r - 1, c - s] if (r > 0 and 0 <= c - s < width) else ZERO
-                    md = out_mag[r + 1, c + s] if (r < height - 1 and 0 <= c + s < width) else ZERO
-                    keep = m > mu and m > md
-                if not keep:
-                    oedge[k] = EDGE_NONE
-                elif m > high:
-                    oedge[k] = EDGE_STRONG
-                    stack[top] = r * width + c
-                    top += 1
-                else:
-                    oedge[k] = EDGE_WEAK
-            chunk = stop
-    # Hysteresis: grow strong edges through weak ones (8-connected), never leaving the spans.
-    while top > 0:
-        top -= 1
-        r = stack[top] // width
-        c = stack[top] - r * width
-        for k in range(8):
-            rr = r + DIR_ROW[k]
-            cc = c + DIR_COL[k]
-            if 0 <= rr < height and lo[rr] <= cc <= hi[rr] and cc < width and out_edges[rr, cc] == EDGE_WEAK:
-                out_edges[rr, cc] = EDGE_STRONG
-                stack[top] = rr * width + cc
-                top += 1
-    count = 0
-    for r in range(height):
-        c0 = np.int64(lo[r])
-        c1 = min(np.int64(hi[r]), width - 1)
-        if c1 < c0:
-            continue
-        base = np.uint64(r * width + c0)
-        for i in range(c1 - c0 + 1):
-            k = base + np.uint64(i)
-            v = oedge[k] >> 1  # EDGE_STRONG -> 1, weak and none -> 0
-            oedge[k] = v
-            stack[count] = np.int32(k)  # the edge list: kept only where v == 1 (count advances)
-            count += np.int64(v)  # a uint8 sum would wrap at 256 (plain Python promotes to the narrower type)
+    # Spans grown row by row (a window of three rows each time): Sobel spans (one row and column around the
+    # spans), smoothing spans (two), and the union of the smoothing spans of the rows each horizontal smoothing
+    # row feeds (rows 0-1 of `work_spans` hold it until the Sobel spans are needed).
+    radius = weights.shape[0] // 2
+    sob_begin = max(r_first - 1, 0)
+    sob_end = min(r_last + 1, height - 1)
+    gau_begin = max(r_first - 2, 0)
+    gau_end = min(r_last + 2, height - 1)
+    grow_spans_once(lo, hi, r_first, r_last, width, gau_lo, gau_hi)
+    grow_spans_inplace(sob_begin, sob_end, 1, width, gau_lo, gau_hi)
+    hor_begin = gau_begin
+    hor_end = gau_end
+    for r in range(hor_begin, hor_end + 1):
+        sob_lo[r] = gau_lo[r]
+        sob_hi[r] = gau_hi[r]
+    for _ in range(radius):
+        grow_spans_inplace(hor_begin, hor_end, 0, width, sob_lo, sob_hi)
+        hor_begin = max(hor_begin - 1, 0)
+        hor_end = min(hor_end + 1, height - 1)
+    smooth_rows(frame, weights, sob_lo, sob_hi, hor_begin, hor_end, out_tmp)
+    smooth_columns(out_tmp, weights, gau_lo, gau_hi, gau_begin, gau_end, out_smooth)
+    grow_spans_once(lo, hi, r_first, r_last, width, sob_lo, sob_hi)
+    sobel_rows(out_smooth, sob_lo, sob_hi, sob_begin, sob_end, out_gx, out_gy, out_mag)
+    top = suppress_rows(out_mag, out_gx, out_gy, lo, hi, sob_lo, sob_hi, r_first, r_last, low, high, out_edges, stack)
+    count = grow_edges(lo, hi, top, out_edges, stack)
+    finish_edges(lo, hi, r_first, r_last, out_edges)
     return count

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import float32, int32
+from numba import boolean, float32, int32, int64
 
 from ropecam.device.pipeline._kernels._common import DIR_COL, DIR_ROW, FULL, NOT_FOUND
 from ropecam.device.pipeline._kernels.spans import in_spans
@@ -16,6 +16,7 @@ from ropecam.shared.jit import (
     i4_2d,
     i4_2d_ro,
     kernel,
+    u1_1d,
     u1_2d,
     u1_2d_ro,
 )
@@ -91,23 +92,86 @@ def keep_largest_component(edges, lo, hi, min_pixels, out_labels, stack, out_sta
     return best_size if found else NOT_FOUND
 
 
-@kernel(int32(u1_2d, i4_1d_ro, i4_1d_ro, i4_1d_ro, int32, int32, i4_2d, i4_1d, i4_1d))
-def keep_largest_listed(edges, lo, hi, edge_list, n_edges, min_pixels, out_labels, stack, out_start):
-    """`keep_largest_component` for an edge map whose edge pixels are listed: the first `n_edges` flat indices
-    ``row * width + col`` of `edge_list`, in raster order (as `detect_edges` leaves them). Same result, in time
-    proportional to the edges rather than to the pixels of the spans.
+@kernel(int32(u1_1d, i4_1d_ro, int32, int32, int64, i4_1d, i4_1d))
+def keep_largest_closed(edges, edge_list, n_edges, min_pixels, width, stack, out_start):
+    """`keep_largest_listed` for a flat map `edges` (rows of `width`) holding 1 on the `n_edges` listed pixels
+    and 0 on every other pixel next to them, none of them on the image border (as `detect_edges` leaves it).
 
-    Writes `out_labels` at the listed pixels, rewrites `edges` there (1 = kept component, 2 = others) and
-    `out_start`; returns the component's pixel count or NOT_FOUND.
+    The components are flooded breadth first through the map itself (3 = visited), each one's pixels one after
+    the other in `stack` (one slot per listed pixel); no label plane is needed. Rewrites the listed pixels (1 =
+    the largest component, ties to the one first in raster order; 2 = the others), writes its first pixel in
+    raster order into `out_start` (row, col) and returns its size, or NOT_FOUND when below `min_pixels`.
+    """
+    offsets = (-width - 1, -width, -width + 1, -1, 1, width - 1, width, width + 1)
+    tail = 0
+    best_size = 0
+    best_first = 0
+    best_begin = 0
+    for t in range(n_edges):
+        seed = edge_list[t]
+        if edges[seed] != 1:
+            continue
+        edges[seed] = 3
+        begin = tail
+        stack[tail] = seed
+        tail += 1
+        head = begin
+        first = np.int64(seed)
+        while head < tail:
+            here = np.int64(stack[head])
+            head += 1
+            first = min(first, here)
+            for o in offsets:
+                k = np.uint64(here + o)
+                if edges[k] == 1:
+                    edges[k] = 3
+                    stack[tail] = np.int32(k)
+                    tail += 1
+        size = tail - begin
+        if size > best_size or (size == best_size and first < best_first):
+            best_size = size
+            best_first = first
+            best_begin = begin
+    for t in range(n_edges):
+        edges[edge_list[t]] = 2
+    if best_size < min_pixels or best_size == 0:
+        return NOT_FOUND
+    for i in range(best_begin, best_begin + best_size):
+        edges[stack[i]] = 1
+    out_start[0] = best_first // width
+    out_start[1] = best_first - (best_first // width) * width
+    return best_size
+
+
+@kernel(int32(u1_2d, i4_1d_ro, i4_1d_ro, i4_1d_ro, int32, int32, boolean, i4_2d, i4_1d, i4_1d))
+def keep_largest_listed(edges, lo, hi, edge_list, n_edges, min_pixels, ring_clear, out_labels, stack, out_start):
+    """`keep_largest_component` for an edge map whose edge pixels are listed: the first `n_edges` flat indices
+    ``row * width + col`` of `edge_list`, in any order (as `detect_edges` leaves them). Same result (of equal
+    components the one first in raster order wins, the start is the component's first pixel in raster order),
+    in time proportional to the edges rather than to the pixels of the spans. `ring_clear`: the caller
+    guarantees that the map is as `detect_edges` leaves it (1 on the listed pixels, 0 at every other pixel of
+    the spans and next to them); then, when the spans keep off the image border, `keep_largest_closed` runs
+    (no span or border tests, no labels).
+
+    Writes `out_labels` at the listed pixels (not with `ring_clear`), rewrites `edges` there (1 = kept
+    component, 2 = others) and `out_start`; returns the component's pixel count or NOT_FOUND.
     """
     height = edges.shape[0]
     width = edges.shape[1]
     labels = out_labels.reshape(height * width)
+    flat_edges = edges.reshape(height * width)
+    inner = ring_clear
+    for r in range(height):
+        if hi[r] >= lo[r] and (r == 0 or r == height - 1 or lo[r] < 1 or hi[r] > width - 2):
+            inner = False
+    if inner:
+        return keep_largest_closed(flat_edges, edge_list, n_edges, min_pixels, width, stack, out_start)
     for t in range(n_edges):
         labels[edge_list[t]] = 0
     label = 0
     best_label = 0
     best_size = 0
+    best_first = 0
     for t in range(n_edges):
         first = edge_list[t]
         if labels[first] != 0:
@@ -119,9 +183,11 @@ def keep_largest_listed(edges, lo, hi, edge_list, n_edges, min_pixels, out_label
         size = 0
         while top > 0:
             top -= 1
-            pr = stack[top] // width
-            pc = stack[top] - pr * width
+            here = np.int64(stack[top])
+            first = min(first, here)  # the component's first pixel in raster order
             size += 1
+            pr = here // width
+            pc = here - pr * width
             for k in range(8):
                 rr = pr + DIR_ROW[k]
                 cc = pc + DIR_COL[k]
@@ -131,14 +197,14 @@ def keep_largest_listed(edges, lo, hi, edge_list, n_edges, min_pixels, out_label
                     out_labels[rr, cc] = label
                     stack[top] = rr * width + cc
                     top += 1
-        if size > best_size:
+        if size > best_size or (size == best_size and first < best_first):
             best_size = size
             best_label = label
+            best_first = first
             out_start[0] = first // width
             out_start[1] = first - (first // width) * width
     found = best_size >= min_pixels and best_size > 0
     keep = best_label if found else -1
-    flat_edges = edges.reshape(height * width)
     for t in range(n_edges):
         k = edge_list[t]
         flat_edges[k] = 1 if labels[k] == keep else 2
@@ -159,22 +225,14 @@ def trace_contour(edges, lo, hi, start_r, start_c, out_chain, out_codes):
     width = edges.shape[1]
     pr = start_r
     pc = start_c
-    br = start_r
-    bc = start_c - 1
+    b_idx = 4  # direction of the backtrack pixel seen from the current one: west of the start
     first_r = -1
     first_c = -1
     n = 0
     while True:
-        # Direction index of the backtrack pixel seen from the current one.
-        dr = br - pr
-        dc = bc - pc
-        b_idx = 0
-        for k in range(8):
-            if DIR_ROW[k] == dr and DIR_COL[k] == dc:
-                b_idx = k
         found = -1
         for step in range(1, 9):
-            k = (b_idx + step) % 8
+            k = (b_idx + step) & 7
             rr = pr + DIR_ROW[k]
             cc = pc + DIR_COL[k]
             if in_spans(rr, cc, lo, hi) and 0 <= cc < width and edges[rr, cc] == 1:
@@ -196,11 +254,11 @@ def trace_contour(edges, lo, hi, start_r, start_c, out_chain, out_codes):
             return FULL
         out_chain[n, 0] = pr
         out_chain[n, 1] = pc
-        out_codes[n] = (8 - found) % 8
+        out_codes[n] = (8 - found) & 7
         n += 1
-        prev = (found + 7) % 8
-        br = pr + DIR_ROW[prev]
-        bc = pc + DIR_COL[prev]
+        # The backtrack pixel is the neighbour checked before `found`, (found + 7) mod 8 from the old pixel;
+        # seen from the new one it lies in direction N, N, E, E, S, S, W, W for found = E, SE, ..., NE.
+        b_idx = ((found + 6) // 2 * 2) & 7
         pr = nr
         pc = nc
 

@@ -188,11 +188,29 @@ def test_listed_component_equals_the_span_scan(seed) -> None:
     sa, sb = np.zeros(height * width, np.int32), np.zeros(height * width, np.int32)
     start_a, start_b = np.zeros(2, np.int32), np.zeros(2, np.int32)
     size_a = K.keep_largest_component(a, lo, hi, 3, la, sa, start_a)
-    size_b = K.keep_largest_listed(b, lo, hi, listed, len(listed), 3, lb, sb, start_b)
+    size_b = K.keep_largest_listed(b, lo, hi, listed, len(listed), 3, False, lb, sb, start_b)
     assert size_a == size_b > 0
     np.testing.assert_array_equal(a[inside], b[inside])
     np.testing.assert_array_equal(start_a, start_b)
-    assert K.keep_largest_listed(b.copy(), lo, hi, listed, len(listed), 10_000, lb, sb, start_b) == K.NOT_FOUND
+    assert K.keep_largest_listed(b.copy(), lo, hi, listed, len(listed), 10_000, False, lb, sb, start_b) == K.NOT_FOUND
+    # The list in any order gives the same component and start (detect_edges lists strong pixels first).
+    shuffled = rng.permutation(listed).astype(np.int32)
+    c = edges.copy()
+    start_c = np.zeros(2, np.int32)
+    assert K.keep_largest_listed(c, lo, hi, shuffled, len(shuffled), 3, False, lb, sb, start_c) == size_a
+    np.testing.assert_array_equal(a[inside], c[inside])
+    np.testing.assert_array_equal(start_a, start_c)
+
+
+def test_listed_component_ties_go_to_the_first_in_raster_order() -> None:
+    edges = np.zeros((12, 12), np.uint8)
+    edges[2, 6:9] = 1  # three pixels, first in raster order
+    edges[8, 1:4] = 1  # three pixels too
+    lo, hi, labels, stack, start = _label_buffers(edges.shape)
+    listed = np.flatnonzero(edges.ravel())[::-1].astype(np.int32)  # the later component listed first
+    assert K.keep_largest_listed(edges, lo, hi, listed, len(listed), 2, True, labels, stack, start) == 3
+    assert tuple(start) == (2, 6)
+    assert (edges[2, 6:9] == 1).all() and (edges[8, 1:4] == 2).all()
 
 
 def test_border_contacts_match_reference() -> None:
@@ -221,3 +239,35 @@ def test_roi_contacts_match_reference(seed) -> None:
         if any(0 <= rr < height and 0 <= cc < width and not inside(rr, cc) for rr, cc in neighbours):
             want += 1
     assert K.count_roi_contacts(chain, len(chain), lo, hi, width) == want
+
+
+def test_listed_component_on_a_detected_band_equals_the_span_scan(blurred_frames) -> None:
+    # detect_edges leaves 0 around the band: keep_largest_listed may flood without span tests (ring_clear).
+    image = blurred_frames[2].image
+    height, width = image.shape
+    lo, hi = np.zeros(height, np.int32), np.full(height, width - 1, np.int32)
+    planes = [np.zeros((height, width), np.float32) for _ in range(5)]
+    edges = np.full((height, width), 7, np.uint8)  # stale values outside the band must not matter
+    stack = np.zeros(height * width, np.int32)
+    work = np.zeros((4, height), np.int32)
+    weights = np.array([0.25, 0.5, 0.25], np.float32)
+    K.detect_edges(image, weights, lo, hi, 20.0, 50.0, work, *planes, edges, stack)
+    points = np.ascontiguousarray(np.argwhere(edges == 1)[::7].astype(np.float32))
+    K.spans_around_points(points, len(points), 5, 0.0, 1.0, 0.0, 0.0, 0.0, height, width, lo, hi)
+    rows = np.flatnonzero(hi >= lo)
+    assert rows.min() > 0 and rows.max() < height - 1 and lo[rows].min() > 0 and hi[rows].max() < width - 1
+    edges[:] = 7
+    count = K.detect_edges(image, weights, lo, hi, 20.0, 50.0, work, *planes, edges, stack)
+    inside = np.zeros((height, width), bool)
+    for r in range(height):
+        inside[r, lo[r] : hi[r] + 1] = hi[r] >= lo[r]
+    a, b = edges.copy(), edges.copy()
+    a[~inside] = 0  # the span scan sees only the band
+    labels = np.zeros((height, width), np.int32)
+    work_stack = np.zeros(height * width, np.int32)
+    start_a, start_b = np.zeros(2, np.int32), np.zeros(2, np.int32)
+    size_a = K.keep_largest_component(a, lo, hi, 3, labels, work_stack, start_a)
+    size_b = K.keep_largest_listed(b, lo, hi, stack, count, 3, True, labels, work_stack, start_b)
+    assert size_a == size_b > 100
+    np.testing.assert_array_equal(a[inside], b[inside])
+    np.testing.assert_array_equal(start_a, start_b)

@@ -103,10 +103,14 @@ def test_canny_inside_spans_equals_full_frame(blurred_frames, spans_full) -> Non
         inside[r, lo[r] : hi[r] + 1] = hi[r] >= lo[r]
     np.testing.assert_array_equal(roi["edges"][inside], full["edges"][inside])
     assert inside.mean() < 0.25
-    # The edge list left in the stack: every edge pixel of the spans, flat indices in raster order.
+    # The edge list left in the stack: every edge pixel of the spans once (flat indices), the strong ones first
+    # in raster order.
     count = int(np.count_nonzero(roi["edges"][inside]))
     listed = np.flatnonzero((roi["edges"] > 0) & inside)
-    np.testing.assert_array_equal(roi["stack"][:count], listed)
+    np.testing.assert_array_equal(np.sort(roi["stack"][:count]), listed)
+    strong = roi["mag"].ravel()[roi["stack"][:count]] > 50
+    assert strong[: np.count_nonzero(strong)].all()
+    assert np.all(np.diff(roi["stack"][: np.count_nonzero(strong)]) > 0)
 
 
 @pytest.mark.parametrize("rotation", [(1.0, 0.0), (0.9, 0.2)])
@@ -196,3 +200,57 @@ def test_coarse_spans_cover_the_rope_and_drop_noise(blurred_frames) -> None:
     blank = np.full((height, width), 30, np.uint8)
     assert K.coarse_spans(blank, block, 40, 3, 2, sums, labels, stack, lo, hi) == 0
     assert (hi < lo).all()
+
+
+def _union_reference(lo, hi, rows_apart, cols_apart, width):
+    """Slow obvious spans: the union of the rows within `rows_apart`, widened and clipped (None = empty)."""
+    out = []
+    for r in range(len(lo)):
+        cols = [c for rr in range(max(0, r - rows_apart), min(len(lo), r + rows_apart + 1)) for c in (lo[rr], hi[rr])
+                if hi[rr] >= lo[rr]]  # fmt: skip
+        out.append(None if not cols else (max(0, min(cols) - cols_apart), min(width - 1, max(cols) + cols_apart)))
+    return out
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_grow_spans_once_and_in_place_match_reference(seed) -> None:
+    rng = np.random.default_rng(seed)
+    height, width = 30, 40
+    lo = rng.integers(-1, 38, height).astype(np.int32)
+    hi = (lo + rng.integers(-6, 12, height)).astype(np.int32)
+    lo[:3], hi[:3] = 1, 0  # empty rows at the top and a gap
+    lo[12:15], hi[12:15] = 5, 2
+    rows = np.flatnonzero(hi >= lo)
+    first, last = int(rows[0]), int(rows[-1])
+    out_lo = np.full(height, -7, np.int32)
+    out_hi = np.full(height, -7, np.int32)
+    K.grow_spans_once(lo, hi, first, last, width, out_lo, out_hi)
+    for r, want in enumerate(_union_reference(lo, hi, 1, 1, width)):
+        if max(first - 1, 0) <= r <= min(last + 1, height - 1):
+            assert (out_lo[r], out_hi[r]) == (want if want else (1, 0)), r
+    K.grow_spans_inplace(max(first - 1, 0), min(last + 1, height - 1), 3, width, out_lo, out_hi)
+    for r, want in enumerate(_union_reference(lo, hi, 2, 4, width)):
+        if max(first - 2, 0) <= r <= min(last + 2, height - 1):
+            assert (out_lo[r], out_hi[r]) == (want if want else (1, 0)), r
+
+
+def test_edges_are_zero_around_the_spans(blurred_frames) -> None:
+    # keep_largest_closed relies on it: 0 on the Sobel spans outside the spans, whatever the map held before.
+    image = blurred_frames[3].image
+    height, width = image.shape
+    lo_full, hi_full = np.zeros(height, np.int32), np.full(height, width - 1, np.int32)
+    _, full = _canny(image, lo_full, hi_full, 20, 50, (0.25, 0.5, 0.25))
+    points = np.ascontiguousarray(np.argwhere(full["edges"] > 0)[::5].astype(np.float32))
+    lo, hi = np.zeros(height, np.int32), np.zeros(height, np.int32)
+    K.spans_around_points(points, len(points), 4, 0.0, 1.0, 0.0, 0.0, 0.0, height, width, lo, hi)
+    b = _buffers(height, width)
+    b["edges"][:] = 7
+    count = K.detect_edges(image, np.array([0.25, 0.5, 0.25], np.float32), lo, hi, 20, 50, b["work"], b["tmp"],
+                           b["smooth"], b["gx"], b["gy"], b["mag"], b["edges"], b["stack"])  # fmt: skip
+    inside = np.zeros((height, width), bool)
+    for r in range(height):
+        inside[r, lo[r] : hi[r] + 1] = hi[r] >= lo[r]
+    ring = ndimage.binary_dilation(inside, np.ones((3, 3), bool)) & ~inside
+    assert ring.any() and (b["edges"][ring] == 0).all()
+    assert set(np.unique(b["edges"][inside])) <= {0, 1}
+    assert count == np.count_nonzero(b["edges"][inside]) > 0

@@ -1,0 +1,169 @@
+"""Micro-benchmark the kernels of the edge and contour stages on the real regions of interest of a frame set.
+
+A pipeline runs over the frames once and records, for every call of the edge stage, the frame and the row spans
+it got, and for every band built, the arguments of `spans_around_points`. Each kernel is then re-run on exactly
+those inputs (one thread) and its median time per call is printed, with the size of the spans (rows, pixels), so
+that a change to one pass can be measured on its own:
+
+    taskset -c 1 python tools/bench_roi_kernels.py [--frameset /work/eval/rig] [--frames 40] [--repeat 5]
+
+Kernels timed: ``detect_edges`` (the whole edge stage), ``keep_largest_listed``, ``trace_contour``,
+``refine_subpixel``, ``count_roi_contacts`` and ``spans_around_points``; "contour stage" is the sum of the three
+that `ContourTracer.trace` calls.
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+
+import argparse
+import sys
+import time
+from typing import Any
+
+import numpy as np
+
+from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._views import ro
+from ropecam.device.pipeline.config import PipelineConfig
+from ropecam.device.pipeline.pipeline import Pipeline
+
+
+def record(frames: list[tuple[np.ndarray, int, float]], config: PipelineConfig) -> tuple[list[Any], list[Any]]:
+    """Run a pipeline over `frames`; return the (frame, lo, hi) of each edge-stage call after the first three
+    frames and the argument tuples of each `spans_around_points` call."""
+    height, width = frames[0][0].shape
+    pipeline = Pipeline(config, (width, height))
+    calls: list[Any] = []
+    bands: list[Any] = []
+    detect = pipeline.edges.detect
+    spans = K.spans_around_points
+    recording = [False]
+
+    def recorded_detect(frame: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> int:
+        if recording[0]:
+            calls.append((frame, lo.copy(), hi.copy()))
+        return detect(frame, lo, hi)
+
+    def recorded_spans(*args: Any) -> Any:
+        if recording[0]:
+            copied = tuple(a.copy() if isinstance(a, np.ndarray) else a for a in args)
+            bands.append((ro(copied[0]), *copied[1:]))
+        return spans(*args)
+
+    pipeline.edges.detect = recorded_detect  # type: ignore[method-assign]
+    K.spans_around_points = recorded_spans
+    try:
+        for index, (image, t_ns, exposure_us) in enumerate(frames):
+            recording[0] = index >= 3
+            pipeline.process(image, index, t_ns, exposure_us)
+    finally:
+        K.spans_around_points = spans
+    return calls, bands
+
+
+_EVICT = np.zeros(8 << 20, np.uint8)
+"""Written before each timed call with ``--cold`` (8 MiB: more than L2, as the rest of a frame's work)."""
+
+
+def median_us(fn: Any, inputs: list[Any], repeat: int, cold: bool = False) -> float:
+    """Median over `inputs` of the best of `repeat` timed calls ``fn(item)`` (us); with `cold`, the caches are
+    filled with other data before each call."""
+    per_item = []
+    for item in inputs:
+        best = float("inf")
+        for _ in range(repeat):
+            if cold:
+                np.add(_EVICT, 1, out=_EVICT)
+            t0 = time.perf_counter_ns()
+            fn(item)
+            best = min(best, (time.perf_counter_ns() - t0) / 1000)
+        per_item.append(best)
+    return float(np.median(per_item))
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--frameset", help="frame set (default: the synthetic rig frames of bench_device)")
+    parser.add_argument("--frames", type=int, default=40)
+    parser.add_argument("--repeat", type=int, default=5, help="calls per input, the fastest is kept (default 5)")
+    parser.add_argument("--cold", action="store_true", help="evict the caches before each timed call")
+    args = parser.parse_args(argv)
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    from bench_device import frameset_frames, rig_frames
+
+    frames = frameset_frames(args.frameset, args.frames + 3) if args.frameset else rig_frames(args.frames + 3)
+    config = PipelineConfig()
+    calls, bands = record(frames, config)
+    height, width = frames[0][0].shape
+    pipeline = Pipeline(config, (width, height))
+    e = pipeline.edges
+    t = pipeline.tracer
+    rows = [int(np.count_nonzero(hi >= lo)) for _, lo, hi in calls]
+    pixels = [int(np.sum(np.maximum(hi - lo + 1, 0))) for _, lo, hi in calls]
+    inputs = [(ro(frame), ro(lo), ro(hi)) for frame, lo, hi in calls]
+
+    def edges(item: Any) -> int:
+        frame, lo, hi = item
+        args = (e.work_spans, e.tmp, e.smooth, e.gx, e.gy, e.mag, e.edges, e.stack)
+        return int(K.detect_edges(frame, e.weights_ro, lo, hi, e.low, e.high, *args))
+
+    results: dict[str, float] = {"edges (detect_edges)": median_us(edges, inputs, args.repeat, args.cold)}
+    # The contour kernels need the edge map of their own call: detect once per input, then time each kernel.
+    component, trace, refine, contacts = [], [], [], []
+    for item in inputs:
+        _, lo, hi = item
+        count = edges(item)
+        edge_map = e.edges.copy()
+        stack = e.stack_ro
+        best = [float("inf")] * 4
+        for _ in range(args.repeat):
+            e.edges[:] = edge_map
+            if args.cold:
+                np.add(_EVICT, 1, out=_EVICT)
+            t0 = time.perf_counter_ns()
+            K.keep_largest_listed(
+                e.edges,
+                lo,
+                hi,
+                stack,
+                np.int32(count),
+                np.int32(config.min_contour_px),
+                True,
+                t.labels,
+                t.stack,
+                t.start,
+            )
+            t1 = time.perf_counter_ns()
+            n = K.trace_contour(e.edges_ro, lo, hi, t.start[0], t.start[1], t.chain, t.codes)
+            t2 = time.perf_counter_ns()
+            K.refine_subpixel(e.mag_ro, e.gx_ro, e.gy_ro, t.chain_ro, n, t.points)
+            t3 = time.perf_counter_ns()
+            K.count_roi_contacts(t.chain_ro, np.int32(n), lo, hi, np.int32(width))
+            t4 = time.perf_counter_ns()
+            for k, (a, b) in enumerate(((t0, t1), (t1, t2), (t2, t3), (t3, t4))):
+                best[k] = min(best[k], (b - a) / 1000)
+        for k, bucket in enumerate((component, trace, refine, contacts)):
+            bucket.append(best[k])
+    results["component (keep_largest_listed)"] = float(np.median(component))
+    results["trace (trace_contour)"] = float(np.median(trace))
+    results["subpixel (refine_subpixel)"] = float(np.median(refine))
+    results["contour stage (sum of the three)"] = float(np.median(np.add(np.add(component, trace), refine)))
+    results["roi contacts (count_roi_contacts)"] = float(np.median(contacts))
+    results["band (spans_around_points)"] = median_us(
+        lambda a: K.spans_around_points(*a), bands, args.repeat, args.cold
+    )
+    print(
+        f"{len(calls)} edge-stage calls on {width}x{height}: rows median {np.median(rows):.0f}, "
+        f"pixels median {np.median(pixels):.0f}; {len(bands)} bands built"
+    )
+    for name, value in results.items():
+        extra = f"  ({1000 * value / np.median(pixels):.1f} ns/px)" if name.startswith("edges") else ""
+        print(f"{name:36s} {value:8.1f} us{extra}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
