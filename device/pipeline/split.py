@@ -150,12 +150,12 @@ class BlurSplitter:
         fixed_r, fixed_c = np.float32(fixed_rc[0]), np.float32(fixed_rc[1])
         width = self.width
         scale = max(self.corner_scale, round(0.5 * width))
-        K.turning_angles(points, n, i32(scale), self.turn)
         # The band's corners lie at the free end, but an end that also moves along the rope (a whipping tip)
         # slants the band's end: the corners can then differ in distance from the fixed end by up to about the
         # sweep. The last frame's sweep widens the zone searched (a rope does not change its speed much between
         # frames); the sharpest turn in the zone is still a corner, the sides turn little.
         search = np.float32(max(3.0 * width, 8.0, 1.2 * self.sweep_px))
+        K.turning_angles_far(points, n, i32(scale), fixed_r, fixed_c, search, self.turn)
         corner = f32(self.corner_rad)
         found = K.split_contour(
             points, ro(self.turn), n, fixed_r, fixed_c, search, i32(scale + 1), corner, self.work, self.idx
@@ -244,7 +244,6 @@ class BlurSplitter:
         self._points, self._chain, self._n = ro(points), ro(chain), i32(n)
         self._mag = mag
         self._gx, self._gy = ro(gx), ro(gy)
-        self.sign = np.float32(1.0 if K.signed_area(self._points, self._n) >= 0 else -1.0)
         pol = float(polarity)
         edges_ro = ro(edges)
         mag = ro(mag)

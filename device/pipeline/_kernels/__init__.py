@@ -41,6 +41,7 @@ from ropecam.device.pipeline._kernels.geometry import (
     signed_area,
     split_contour,
     turning_angles,
+    turning_angles_far,
 )
 from ropecam.device.pipeline._kernels.offsets import (
     find_caps,
@@ -119,5 +120,6 @@ __all__ = [
     "track_material_points",
     "trim_polyline_end",
     "turning_angles",
+    "turning_angles_far",
     "union_spans",
 ]

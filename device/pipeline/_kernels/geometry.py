@@ -92,26 +92,61 @@ def signed_area(points, n):
     return 0.5 * acc
 
 
+@kernel(float64(f4_2d_ro, int64, int64, int64))
+def _turn_at(points, n, scale, i):
+    """Return the unsigned turning angle (radians) at point `i` between the chords to the points `scale` places
+    before and after (cyclic); 0 where a chord has no length."""
+    a = (i - scale + n * ((scale // n) + 1)) % n
+    b = (i + scale) % n
+    v1r = points[i, 0] - points[a, 0]
+    v1c = points[i, 1] - points[a, 1]
+    v2r = points[b, 0] - points[i, 0]
+    v2c = points[b, 1] - points[i, 1]
+    n1 = math.sqrt(v1r * v1r + v1c * v1c)
+    n2 = math.sqrt(v2r * v2r + v2c * v2c)
+    if n1 <= 0.0 or n2 <= 0.0:
+        return 0.0
+    cos_t = (v1r * v2r + v1c * v2c) / (n1 * n2)
+    cos_t = min(max(cos_t, -1.0), 1.0)
+    return math.acos(cos_t)
+
+
 @kernel(int32(f4_2d_ro, int32, int32, f4_1d))
 def turning_angles(points, n, scale, out_turn):
     """Write the unsigned turning angle (radians, 0 to pi) of the closed polyline at each point, measured between
     the chords to the points `scale` places before and after. Returns `n`."""
     for i in range(n):
-        a = (i - scale + n * ((scale // n) + 1)) % n
-        b = (i + scale) % n
-        v1r = points[i, 0] - points[a, 0]
-        v1c = points[i, 1] - points[a, 1]
-        v2r = points[b, 0] - points[i, 0]
-        v2c = points[b, 1] - points[i, 1]
-        n1 = math.sqrt(v1r * v1r + v1c * v1c)
-        n2 = math.sqrt(v2r * v2r + v2c * v2c)
-        if n1 <= 0.0 or n2 <= 0.0:
-            out_turn[i] = 0.0
-            continue
-        cos_t = (v1r * v2r + v1c * v2c) / (n1 * n2)
-        cos_t = min(max(cos_t, -1.0), 1.0)
-        out_turn[i] = math.acos(cos_t)
+        out_turn[i] = _turn_at(points, n, scale, i)
     return n
+
+
+@kernel(int32(f4_2d_ro, int32, int32, float32, float32, float32, f4_1d))
+def turning_angles_far(points, n, scale, fixed_r, fixed_c, search_px, out_turn):
+    """Write the turning angle (as `turning_angles`) only where `split_contour` reads it: at the points at least
+    ``R_far - search_px`` from (fixed_r, fixed_c) (R_far the largest distance) and at their two neighbours; 0
+    elsewhere. The angle costs an ``acos`` per point, and the tip zone is a small part of the contour.
+    Returns the number of angles computed."""
+    r_far = -1.0
+    for i in range(n):
+        d = math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c)
+        if d > r_far:
+            r_far = d
+    threshold = r_far - search_px
+    for i in range(n):
+        out_turn[i] = 0.0
+    computed = 0
+    done = -1  # last index written (the zone is visited in order; its neighbours may repeat)
+    for i in range(n):
+        if math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c) < threshold:
+            continue
+        for j in range(i - 1, i + 2):
+            k = (j + n) % n
+            if j <= done and j >= 0:
+                continue
+            out_turn[k] = _turn_at(points, n, scale, k)
+            computed += 1
+            done = max(done, j)
+    return computed
 
 
 @kernel(boolean(f4_2d_ro, f4_1d_ro, int32, int32, float32, float32, float32, float32))

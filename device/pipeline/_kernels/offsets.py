@@ -175,9 +175,32 @@ def side_sweeps(chain, n, i_start, i_stop, direction, mag, inv_contrast, ratios,
     count = ((i_stop - i_start) * direction % n + n) % n + 1
     if count > out_sweeps.shape[0] or count > work.shape[0]:
         return FULL
+    # The table lookup walks from the last point's interval (neighbours' ratios are close): the same interval as
+    # `interp_sorted`'s bisection (the last `lo` with ratios[lo] <= x), without its unpredictable branches.
+    m = ratios.shape[0]
+    lo = 0
+    i = (i_start + 4 * n) % n
     for k in range(count):
-        i = (i_start + k * direction + 4 * n) % n
-        work[k] = interp_sorted(ratios, sweeps, mag[chain[i, 0], chain[i, 1]] * inv_contrast)
+        x = mag[chain[i, 0], chain[i, 1]] * inv_contrast
+        if m == 0:
+            work[k] = np.nan
+        elif x <= ratios[0]:
+            work[k] = sweeps[0]
+        elif x >= ratios[m - 1]:
+            work[k] = sweeps[m - 1]
+        else:
+            while lo > 0 and ratios[lo] > x:
+                lo -= 1
+            while lo < m - 2 and ratios[lo + 1] <= x:
+                lo += 1
+            span = ratios[lo + 1] - ratios[lo]
+            t = (x - ratios[lo]) / span if span > 0.0 else 0.0
+            work[k] = np.float32(sweeps[lo] + t * (sweeps[lo + 1] - sweeps[lo]))
+        i += direction
+        if i == n:
+            i = 0
+        elif i < 0:
+            i = n - 1
     acc = 0.0
     for j in range(-half, half + 1):
         acc += work[min(max(j, 0), count - 1)]
@@ -205,17 +228,19 @@ def offset_by_table(
     count = (count % n + n) % n + 1
     if count > out_poly.shape[0] or (local == 1 and count > sweeps.shape[0]):
         return FULL
-    total = chain_length(points, n, i_start, count, direction)
+    # The arc length is needed only for the proportional sweep (`local` 0).
+    total = chain_length(points, n, i_start, count, direction) if local != 1 else 0.0
     last = table.shape[0] - 1
     s = 0.0
+    i = (i_start + n * 4) % n
+    ip = i
     for k in range(count):
-        i = (i_start + k * direction + n * 4) % n
-        if k > 0:
-            ip = (i_start + (k - 1) * direction + n * 4) % n
-            s += math.hypot(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
-        d = sweep_tip_px * s / total if total > 0.0 else 0.0
         if local == 1:
             d = sweeps[k]
+        else:
+            if k > 0:
+                s += math.hypot(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
+            d = sweep_tip_px * s / total if total > 0.0 else 0.0
         x = max(d, 0.0) / step_px
         j = min(int(x), last)
         shift = table[last]
@@ -231,4 +256,10 @@ def offset_by_table(
         if norm > 0.0:
             out_poly[k, 0] += shift * g_r / norm
             out_poly[k, 1] += shift * g_c / norm
+        ip = i
+        i += direction
+        if i == n:
+            i = 0
+        elif i < 0:
+            i = n - 1
     return count

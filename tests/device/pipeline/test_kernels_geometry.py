@@ -276,3 +276,18 @@ def test_split_takes_the_corners_whose_sides_are_equally_long() -> None:
     at = [int(np.argmin(np.hypot(*(pts - p).T))) for p in ([0, 100], [2, 102.5])]
     assert turn[at[1]] > turn[at[0]]
     assert K.split_contour(pts, turn, n, 5.0, 0.0, 20.0, 4, 0.5, np.zeros(n - 1, np.float32), idx) == K.FULL
+
+
+def test_turning_angles_far_equals_turning_angles_in_the_tip_zone() -> None:
+    pts = _outline([(5, 0), (0, 0), (0, 100), (2, 102.5), (10, 100), (10, 0)])
+    n = len(pts)
+    full = np.zeros(n, np.float32)
+    far = np.full(n, -1.0, np.float32)
+    K.turning_angles(pts, n, 3, full)
+    computed = K.turning_angles_far(pts, np.int32(n), np.int32(3), np.float32(5.0), np.float32(0.0), 20.0, far)
+    d = np.hypot(pts[:, 0] - 5.0, pts[:, 1])
+    zone = d >= d.max() - 20.0
+    needed = zone | np.roll(zone, 1) | np.roll(zone, -1)
+    assert computed >= np.count_nonzero(needed)
+    np.testing.assert_array_equal(far[needed], full[needed])
+    assert np.all(far[~needed] == 0.0)
