@@ -163,6 +163,23 @@ class Pipeline:
         result.pipeline_us = (time.perf_counter_ns() - start_ns) / 1000.0
         return result
 
+    def warm_up(self) -> None:
+        """Prepare everything a stream's first frames would otherwise pay for, before the stream starts.
+
+        Runs a blank frame (every buffer touched, the kernels' dispatch ready; it finds no rope and leaves no
+        state) and, when the config gives `rope_width_px`, builds the edge model's tables for that width (10-20 ms,
+        once per process: `edge_model.shared_model`). A measured width is known only from the first frames; its
+        tables are then built on the frame that first needs them.
+        """
+        height, width = self.shape
+        counters = (self.frames_full, self.frames_coarse, self.frames_roi, self.roi_retries)
+        self.process(np.zeros((height, width), np.uint8), 0, 0, 0.0)
+        self.frames_full, self.frames_coarse, self.frames_roi, self.roi_retries = counters
+        self._last_frame_t_ns = None  # the blank frame's time is not the stream's
+        width_px = self._width()
+        if width_px is not None:
+            self.splitter.model.tables(width_px)
+
     def reset_tracking(self) -> None:
         """Forget the region of interest and the motion: the next frame is searched whole, as the first one.
         What does not change between frames (fixed end, width, polarity, Lc0) is kept; the time order starts

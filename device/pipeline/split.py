@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import f32, i32, ro
-from ropecam.device.pipeline.edge_model import BandEdgeModel
+from ropecam.device.pipeline.edge_model import shared_model
 from ropecam.device.pipeline.edges import gaussian_weights
 from ropecam.device.pipeline.paper_method import PaperSegmenter
 from ropecam.device.pipeline.result import Method
@@ -84,7 +84,7 @@ class BlurSplitter:
         self.tip_cap_ratio = 0.5 if tip_cap == "round" else 0.0
         self.weights = gaussian_weights(smooth_sigma_px).astype(np.float64)
         self.smooth_sigma = float(smooth_sigma_px)
-        self.model = BandEdgeModel(self.weights, lens_blur_px)
+        self.model = shared_model(self.weights, lens_blur_px)  # its tables are built once per process
         self.model.rope_width(3.0)  # its width table (~20 ms) now, not on the first frames
         self.sweep_window = 3
         self.corner_rad = 0.5
