@@ -112,6 +112,8 @@ class BlurSplitter:
         self.seg = np.zeros((2, 2), np.float32)
         # Read-only views of the own buffers and int32 constants, made once (a view costs 1-2 us of Python).
         self._turn_ro = ro(self.turn)
+        self.fixed_dist = np.zeros(capacity, np.float64)
+        self._fixed_dist_ro = ro(self.fixed_dist)
         self._side_a_ro, self._side_b_ro = ro(self.side_a), ro(self.side_b)
         self._out_a_ro, self._out_b_ro = ro(self.out_a), ro(self.out_b)
         self._sweeps_a_ro, self._sweeps_b_ro = ro(self.sweeps_a), ro(self.sweeps_b)
@@ -183,10 +185,11 @@ class BlurSplitter:
         # sweep. The last frame's sweep widens the zone searched (a rope does not change its speed much between
         # frames); the sharpest turn in the zone is still a corner, the sides turn little.
         search = np.float32(max(consts.search_px, 1.2 * self.sweep_px))
-        K.turning_angles_far(points, n, consts.scale, fixed_r, fixed_c, search, self.turn)
+        K.turning_angles_far(points, n, consts.scale, fixed_r, fixed_c, search, self.fixed_dist, self.turn)
         found = K.split_contour(
-            points, self._turn_ro, n, fixed_r, fixed_c, search, consts.min_gap, consts.corner, self.work, self.idx
-        )
+            points, self._turn_ro, self._fixed_dist_ro, n, fixed_r, fixed_c, search, consts.min_gap, consts.corner,
+            self.work, self.idx,
+        )  # fmt: skip
         if found < 0 or self.method == "static":
             return self.static(fixed_rc)
         i_fix_, seg_a_, _, seg_b_ = self.idx.tolist()
