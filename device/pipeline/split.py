@@ -234,14 +234,16 @@ class BlurSplitter:
             nb = self._fit_tip(self.side_b, nb, consts)
             # The fitted tips are sharper than the band's rounded corners: their distance across the rope is the
             # sideways sweep at the tip. Where it differs, the offsets of the proportional model are redone with it.
+            if local:
+                break
             lateral = self._tip_lateral(na, nb)
-            if local or not (np.isfinite(lateral) and abs(lateral - sweep) > 0.25):
+            if not (math.isfinite(lateral) and abs(lateral - sweep) > 0.25):
                 break
             if lateral < self.static_ratio * width:
                 break
             sweep = lateral
         self.sweep_px = sweep
-        self._correct_slant(int(na), int(nb), tables.slant_px)
+        self._correct_slant(na, nb, tables.slant_px)
         # A rope keeps its length within an exposure: two shapes of clearly different lengths mean the contour
         # was not cut at the band's corners (a faint, broken band end traced the wrong way round).
         len_a = K.polyline_length(self._side_a_ro, np.int32(na))
