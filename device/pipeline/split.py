@@ -251,8 +251,8 @@ class BlurSplitter:
         if abs(len_a - len_b) > max(3.0 * width, 0.1 * max(len_a, len_b)):
             self.failure = f"the two shapes differ in length ({len_a:.0f} and {len_b:.0f} px): split rejected"
             return None
-        shape_a = self._resample(self.side_a, na, self.out_a)
-        shape_b = self._resample(self.side_b, nb, self.out_b)
+        shape_a = self._resample(self.side_a, na, self.out_a, len_a)
+        shape_b = self._resample(self.side_b, nb, self.out_b, len_b)
         return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, seg, tables.width_px, sweep)
 
     def _prepare(
@@ -491,13 +491,18 @@ class BlurSplitter:
             poly, np.int32(n), self._points, self._n, smooth, c.width, c.cap, c.skip, c.span, c.blur
         )
 
-    def _resample(self, poly: NDArray[np.float32], n: int, out: NDArray[np.float32]) -> NDArray[np.float32]:
+    def _resample(
+        self, poly: NDArray[np.float32], n: int, out: NDArray[np.float32], length_px: float | None = None
+    ) -> NDArray[np.float32]:
         """Resample the first `n` points of `poly` at the output step into `out`, then smooth them across the rope
         (`smooth_polyline`, with `poly` as scratch: it is overwritten); return the view of `out` holding the result."""
         poly_ro, out_ro = (
             (self._side_a_ro, self._out_a_ro) if poly is self.side_a else (self._side_b_ro, self._out_b_ro)
         )
-        count = K.resample_polyline(poly_ro, np.int32(n), self.step, out)
+        if length_px is None:
+            count = K.resample_polyline(poly_ro, np.int32(n), self.step, out)
+        else:  # its length is known already (`polyline_length` of the same points)
+            count = K.resample_polyline_of_length(poly_ro, np.int32(n), length_px, self.step, out)
         if count < 0:
             raise RuntimeError(f"resample_polyline returned status {count}")
         if self.output_smoothing > 0.0 and count >= 3:

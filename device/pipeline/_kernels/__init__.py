@@ -58,8 +58,10 @@ from ropecam.device.pipeline._kernels.polylines import (
     half_level_crossing,
     polyline_length,
     resample_polyline,
+    resample_polyline_of_length,
     smooth_polyline,
     track_material_points,
+    track_material_points_of_length,
     trim_polyline_end,
 )
 from ropecam.device.pipeline._kernels.spans import (
@@ -107,6 +109,7 @@ __all__ = [
     "polyline_length",
     "refine_subpixel",
     "resample_polyline",
+    "resample_polyline_of_length",
     "sample_bilinear",
     "score_knots",
     "side_slope_samples",
@@ -118,6 +121,7 @@ __all__ = [
     "thin_chain",
     "trace_contour",
     "track_material_points",
+    "track_material_points_of_length",
     "trim_polyline_end",
     "turning_angles",
     "turning_angles_far",

@@ -296,3 +296,20 @@ def test_turning_angles_far_equals_turning_angles_in_the_tip_zone() -> None:
     assert computed >= np.count_nonzero(needed)
     np.testing.assert_array_equal(far[needed], full[needed])
     assert np.all(far[~needed] == 0.0)
+
+
+@pytest.mark.parametrize("arcs", [[0.0, 3.0, 7.5, 12.0, 40.0], [12.0, 3.0, 7.5, -1.0]])
+def test_known_length_variants_equal_the_plain_kernels(arcs) -> None:
+    rng = np.random.default_rng(7)
+    poly = np.cumsum(rng.normal(size=(30, 2)), axis=0).astype(np.float32)
+    poly[5] = poly[4]  # a zero-length segment
+    n = len(poly)
+    total = K.polyline_length(poly, n)
+    plain, known = np.zeros((40, 2), np.float32), np.zeros((40, 2), np.float32)
+    assert K.resample_polyline(poly, n, 1.5, plain) == K.resample_polyline_of_length(poly, n, total, 1.5, known)
+    np.testing.assert_array_equal(plain, known)
+    arc = np.array(arcs, np.float64)
+    plain, known = np.zeros((len(arcs), 2), np.float32), np.zeros((len(arcs), 2), np.float32)
+    assert K.track_material_points(poly, n, arc, 20.0, plain) == len(arcs)
+    assert K.track_material_points_of_length(poly, n, total, arc, 20.0, known) == len(arcs)
+    np.testing.assert_array_equal(plain, known)
