@@ -114,10 +114,13 @@ class BandEdgeModel:
         slope = np.minimum(1.0, width / d) / ramp
         knots = ((0.0, slope), (ramp, -slope), (width + d - ramp, -slope), (width + d, slope))
         pix = np.zeros(np.broadcast_shapes(d.shape, centres.shape))
+        # Pixel borders: a pixel's left border is its left neighbour's right one (the centres step by 1 px, and
+        # these sums are exact), so each knot's antiderivative is evaluated once per border, not twice per pixel;
+        # the knot at 0 is the same for every sweep.
+        borders = np.concatenate([centres[..., :1] - 0.5, centres + 0.5], axis=-1)
         for x_k, change in knots:
-            right = (centres + 0.5 - x_k) / sigma
-            left = (centres - 0.5 - x_k) / sigma
-            pix += change * sigma**2 * (_second_antiderivative(right) - _second_antiderivative(left))
+            g = _second_antiderivative((borders - x_k) / sigma)
+            pix += change * sigma**2 * (g[..., 1:] - g[..., :-1])
         smooth = np.zeros_like(pix)
         count = pix.shape[-1]
         for k, weight in enumerate(self.weights):
