@@ -110,6 +110,7 @@ class BlurSplitter:
         self.out_a = np.zeros((capacity, 2), np.float32)
         self.out_b = np.zeros((capacity, 2), np.float32)
         self.seg = np.zeros((2, 2), np.float32)
+        self.info = np.zeros(6, np.float64)
         # Read-only views of the own buffers and int32 constants, made once (a view costs 1-2 us of Python).
         self._turn_ro = ro(self.turn)
         self.fixed_dist = np.zeros(capacity, np.float64)
@@ -217,6 +218,23 @@ class BlurSplitter:
         contrast = self._contrast(fixed_rc)
         local = np.int32(1 if contrast >= 5.0 else 0)
         if local:
+            # The usual case, in one kernel call; its rare failures (a full buffer) are redone step by step below.
+            status = K.split_shapes_local(
+                points, chain, n, i_fix, seg_a, seg_b, self._mag_ro, np.float32(1.0 / contrast), consts.ratios_ro,
+                consts.sweeps_ro, consts.sweep_window, gx, gy, pol, step, table, self._ro(self._smooth), consts.width,
+                consts.cap, consts.skip, consts.span, consts.blur, tables.slant_px, width, self.step,
+                self.output_smoothing, self.work, self.sweeps_a, self.sweeps_b, self.side_a, self.side_b, self.out_a,
+                self.out_b, self.arc, self.info,
+            )  # fmt: skip
+            if status >= 0 or status == K.NOT_FOUND:
+                self.sweep_px = sweep
+                count_a, count_b, len_a, len_b, smoothed_a, smoothed_b = self.info.tolist()
+                if status == K.NOT_FOUND:
+                    self.failure = f"the two shapes differ in length ({len_a:.0f} and {len_b:.0f} px): split rejected"
+                    return None
+                shape_a = (self.side_a if smoothed_a else self.out_a)[: int(count_a)]
+                shape_b = (self.side_b if smoothed_b else self.out_b)[: int(count_b)]
+                return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, seg, tables.width_px, sweep)
             inv, half, mag = np.float32(1.0 / contrast), consts.sweep_window, self._mag_ro
             ratios, sweeps = tables.peak_ratio, tables.sweeps_px
             K.side_sweeps(chain, n, i_fix, seg_a, plus, mag, inv, ratios, sweeps, half, self.work, self.sweeps_a)
@@ -546,8 +564,8 @@ class _WidthConstants:
     width."""
 
     __slots__ = (
-        "blur", "cap", "corner", "min_gap", "scale", "search_px", "skip", "span", "sweep_window", "table_ro",
-        "table_step", "tables", "width",
+        "blur", "cap", "corner", "min_gap", "ratios_ro", "scale", "search_px", "skip", "span", "sweep_window",
+        "sweeps_ro", "table_ro", "table_step", "tables", "width",
     )  # fmt: skip
 
     def __init__(self, splitter: BlurSplitter, width: float) -> None:
@@ -558,6 +576,7 @@ class _WidthConstants:
         self.corner = f32(splitter.corner_rad)
         self.sweep_window = i32(splitter.sweep_window)
         self.tables = splitter.model.tables(width)
+        self.ratios_ro, self.sweeps_ro = ro(self.tables.peak_ratio), ro(self.tables.sweeps_px)
         self.table_ro = ro(self.tables.offset_px)
         self.table_step = f32(self.tables.sweep_step_px)
         self.width = f32(width)

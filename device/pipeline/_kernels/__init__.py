@@ -51,6 +51,7 @@ from ropecam.device.pipeline._kernels.offsets import (
     offset_by_table,
     side_slope_samples,
     side_sweeps,
+    split_shapes_local,
 )
 from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots, thin_chain
 from ropecam.device.pipeline._kernels.polylines import (
@@ -118,6 +119,7 @@ __all__ = [
     "smooth_polyline",
     "spans_around_points",
     "split_contour",
+    "split_shapes_local",
     "thin_chain",
     "trace_contour",
     "track_material_points",
