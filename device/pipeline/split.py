@@ -111,6 +111,7 @@ class BlurSplitter:
         self.out_b = np.zeros((capacity, 2), np.float32)
         self.seg = np.zeros((2, 2), np.float32)
         self.info = np.zeros(6, np.float64)
+        self.slope_work = np.zeros(capacity, np.float64)
         # Read-only views of the own buffers and int32 constants, made once (a view costs 1-2 us of Python).
         self._turn_ro = ro(self.turn)
         self.fixed_dist = np.zeros(capacity, np.float64)
@@ -336,17 +337,17 @@ class BlurSplitter:
         tables = self.model.tables(self.width)
         sweeps, ratios = tables.sweeps_px, tables.peak_ratio
         estimates = []
+        contrast32 = np.float32(contrast)  # NumPy divided the float32 samples by the Python float in float32
         for seg, direction in ((seg_a, 1), (seg_b, -1)):
-            m = K.side_slope_samples(
-                self._chain, self._n, i32(i_fix), i32(seg), i32(direction), ro(self._mag), f32(0.5), f32(0.85),
-                self.samples,
+            median = K.slope_sweep_median(
+                self._chain, self._n, i32(i_fix), i32(seg), i32(direction), self._mag_ro, f32(0.5), f32(0.85),
+                contrast32, self._ro(ratios), self._ro(sweeps), self.slope_work,
             )  # fmt: skip
-            if m < 6:
-                continue
-            pairs = self.samples[: 2 * m].reshape(m, 2)
-            d = np.interp(pairs[:, 0] / contrast, ratios, sweeps)  # ratios increasing (sweeps decreasing)
-            estimates.append(float(np.median(d / pairs[:, 1])))
-        return float(np.mean(estimates)) if estimates else float("nan")
+            if math.isfinite(median):
+                estimates.append(median)
+        if not estimates:
+            return float("nan")
+        return estimates[0] if len(estimates) == 1 else (estimates[0] + estimates[1]) / 2.0
 
     def _contrast(self, fixed_rc: tuple[float, float]) -> float:
         """Rope contrast (rope minus background, grey levels) near the fixed end; the median of the first 10

@@ -51,6 +51,7 @@ from ropecam.device.pipeline._kernels.offsets import (
     offset_by_table,
     side_slope_samples,
     side_sweeps,
+    slope_sweep_median,
     split_shapes_local,
 )
 from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots, thin_chain
@@ -116,6 +117,7 @@ __all__ = [
     "side_slope_samples",
     "side_sweeps",
     "signed_area",
+    "slope_sweep_median",
     "smooth_polyline",
     "spans_around_points",
     "split_contour",
