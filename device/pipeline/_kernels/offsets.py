@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import float32, float64, int32
+from numba import float32, float64, int32, int64, void
 
 from ropecam.device.pipeline._kernels._common import FULL, INVALID, NOT_FOUND, f4_1d_ro
 from ropecam.device.pipeline._kernels.geometry import axis_offset, chain_length
@@ -359,6 +359,31 @@ def split_shapes_local(
     return 2
 
 
+@kernel(void(f8_1d, int64, int64))
+def _sift_down(values, root, size):
+    """Restore the max-heap property of ``values[:size]`` below `root`."""
+    while True:
+        child = 2 * root + 1
+        if child >= size:
+            return
+        if child + 1 < size and values[child + 1] > values[child]:
+            child += 1
+        if values[root] >= values[child]:
+            return
+        values[root], values[child] = values[child], values[root]
+        root = child
+
+
+@kernel(void(f8_1d, int64))
+def _heap_sort(values, m):
+    """Sort ``values[:m]`` in place, ascending (heapsort: no recursion, no allocation, unlike ``ndarray.sort``)."""
+    for start in range(m // 2 - 1, -1, -1):
+        _sift_down(values, start, m)
+    for end in range(m - 1, 0, -1):
+        values[0], values[end] = values[end], values[0]
+        _sift_down(values, 0, end)
+
+
 @kernel(float64(i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, float32, float32, f8_1d_ro, f8_1d_ro, f8_1d))
 def slope_sweep_median(chain, n, i_fix, i_seg, direction, mag, lo_frac, hi_frac, contrast, ratios, sweeps, work):
     """Return one side's tip sweep read from the edge slope: over the chain pixels from `i_fix` stepping
@@ -401,8 +426,7 @@ def slope_sweep_median(chain, n, i_fix, i_seg, direction, mag, lo_frac, hi_frac,
         m += 1
     if m < 6:
         return np.nan
-    values = work[:m]
-    values.sort()
+    _heap_sort(work, m)
     if m % 2 == 1:
-        return values[m // 2]
-    return (values[m // 2 - 1] + values[m // 2]) / 2.0
+        return work[m // 2]
+    return (work[m // 2 - 1] + work[m // 2]) / 2.0
