@@ -14,8 +14,6 @@ import time
 from collections import Counter
 from collections.abc import Callable
 
-import numpy as np
-
 from ropecam.device.capture.driver import DriverFactory
 from ropecam.device.capture.source import CameraSource, CaptureCounters, CapturedFrame, ControlUnsupportedError
 from ropecam.device.daemon.config import DeviceConfig
@@ -240,7 +238,7 @@ class Daemon:
         if self._pipeline is not None and self._pipeline.shape == (height, width):
             return False
         self._pipeline = Pipeline(self._pipeline_config, (width, height))
-        self._pipeline.process(np.zeros((height, width), np.uint8), 0, 0, 0.0)  # no rope: leaves no tracking state
+        self._pipeline.warm_up()  # a blank frame (no rope: no tracking state) and the edge model's tables
         return True
 
     # -- commands --------------------------------------------------------------------------------------------------

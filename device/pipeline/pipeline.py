@@ -96,11 +96,9 @@ class Pipeline:
         self._polarity = {"auto": 0.0, "bright": 1.0, "dark": -1.0}[config.polarity]
         self._polarity_votes: list[float] = []
         self._width_cache: float | None = None
-        self._prev_tips: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self._tip_history: list[tuple[int, tuple[float, float]]] = []
         self._order_rejects = 0
         self._history_ordered = False
-        self._prev_t_ns: tuple[int, int] | None = None
         self._period_ns: int | None = None  # the shortest time between frame starts seen: the frame period
         self._last_frame_t_ns: int | None = None
         self._motion = _MotionState()
@@ -163,6 +161,23 @@ class Pipeline:
         result.pipeline_us = (time.perf_counter_ns() - start_ns) / 1000.0
         return result
 
+    def warm_up(self) -> None:
+        """Prepare everything a stream's first frames would otherwise pay for, before the stream starts.
+
+        Runs a blank frame (every buffer touched, the kernels' dispatch ready; it finds no rope and leaves no
+        state) and, when the config gives `rope_width_px`, builds the edge model's tables for that width (10-20 ms,
+        once per process: `edge_model.shared_model`). A measured width is known only from the first frames; its
+        tables are then built on the frame that first needs them.
+        """
+        height, width = self.shape
+        counters = (self.frames_full, self.frames_coarse, self.frames_roi, self.roi_retries)
+        self.process(np.zeros((height, width), np.uint8), 0, 0, 0.0)
+        self.frames_full, self.frames_coarse, self.frames_roi, self.roi_retries = counters
+        self._last_frame_t_ns = None  # the blank frame's time is not the stream's
+        width_px = self._width()
+        if width_px is not None:
+            self.splitter.model.tables(width_px)
+
     def reset_tracking(self) -> None:
         """Forget the region of interest and the motion: the next frame is searched whole, as the first one.
         What does not change between frames (fixed end, width, polarity, Lc0) is kept; the time order starts
@@ -177,8 +192,6 @@ class Pipeline:
         of extrapolating stale motion. What does not change between frames (fixed end, width, polarity, Lc0)
         is kept, and so is the time-order history, which `_order` drops itself when it is over four frame
         periods old."""
-        self._prev_tips = None
-        self._prev_t_ns = None
         self._motion.clear()
         self.splitter.sweep_px = 0.0
         if roi:
@@ -238,7 +251,6 @@ class Pipeline:
         if clipped:
             # The free end is out of view: no tip, no split; give the visible centreline for what it is worth.
             outcome = self.splitter.static(fixed_rc)
-            self._prev_tips = None
             result.status = FrameStatus.ROPE_CLIPPED
             result.message = "the rope touches the image border: it is leaving the field of view"
             if outcome is not None:
@@ -250,7 +262,6 @@ class Pipeline:
         if outcome is None:
             result.status = FrameStatus.LOST_TRACK
             result.message = self.splitter.failure
-            self._prev_tips = None
             return
         result.method = outcome.method
         result.rope_width_px = outcome.width_px
@@ -268,12 +279,9 @@ class Pipeline:
         result.material_begin, result.stretch_begin = self.tracker.track(begin_ro, 0, length_begin)
         result.material_end, result.stretch_end = self.tracker.track(end_ro, 1, length_end)
         result.status = FrameStatus.OK
-        tip_begin = begin[-1].astype(np.float64)
-        tip_end = end[-1].astype(np.float64)
-        self._prev_tips = (tip_begin, tip_end)
-        self._prev_t_ns = (result.t_ns, result.t_end_ns) if exposure_ns > 0 else None
-        sweep_px = max(self.splitter.sweep_px, float(np.hypot(*(tip_end - tip_begin))))
-        tip_mid = 0.5 * (tip_begin + tip_end)
+        (begin_r, begin_c), (end_r, end_c) = begin[-1].tolist(), end[-1].tolist()
+        sweep_px = max(self.splitter.sweep_px, math.hypot(end_r - begin_r, end_c - begin_c))
+        tip_mid = (0.5 * (begin_r + end_r), 0.5 * (begin_c + end_c))
         self._motion.observe(result.t_ns + exposure_ns // 2, tip_mid, self.fixed, sweep_px, exposure_ns)
 
     def _locate(self, image: NDArray[np.uint8], t_ns: int, exposure_ns: int) -> tuple[int, bool]:
@@ -398,7 +406,6 @@ class Pipeline:
                     self._fixed_frames = 0
                     self._widths.clear()
                     self._width_cache = None
-                    self._prev_tips = None
                     self._tip_history.clear()
                     self._history_ordered = False
         d = [float(np.hypot(*(end - self.fixed))) for end in ends]
@@ -522,50 +529,69 @@ class Pipeline:
 
     def _predict_tips(self, t_ns: int, t_end_ns: int) -> tuple[tuple[float, float], tuple[float, float]]:
         """Predict the tip (row, col) at `t_ns` and `t_end_ns` from the remembered tips: a least-squares quadratic
-        in time through four to six samples, a line through two or three, no motion from one. Plain floats (a
-        3x3 normal system costs less by hand than through NumPy's per-call overhead)."""
+        in time through four to six samples, a line through two or three, no motion from one. Plain floats and
+        the normal equations by hand: NumPy's per-call overhead would cost more than the arithmetic."""
         history = self._tip_history
         t0 = history[-1][0]
         span = max(1, t0 - history[0][0])
         size = 3 if len(history) >= 4 else min(len(history), 2)
-        m = [0.0] * 5  # sums of x^k
-        r = [[0.0, 0.0] for _ in range(3)]  # sums of x^k * tip
+        m0 = m1 = m2 = m3 = m4 = 0.0  # sums of x^k
+        r0 = r1 = r2 = c0 = c1 = c2 = 0.0  # sums of x^k * tip (row, col)
         for t, (row, col) in history:
             x = (t - t0) / span
-            xk = 1.0
-            for k in range(2 * size - 1):
-                m[k] += xk
-                if k < size:
-                    r[k][0] += xk * row
-                    r[k][1] += xk * col
-                xk *= x
-        coef = _solve_normal(m, r, size)
-        out = []
-        for t in (t_ns, t_end_ns):
-            q = (t - t0) / span
-            out.append((coef[0][0] + coef[1][0] * q + coef[2][0] * q * q,
-                        coef[0][1] + coef[1][1] * q + coef[2][1] * q * q))  # fmt: skip
-        return out[0], out[1]
+            x2 = x * x
+            m0 += 1.0
+            m1 += x
+            m2 += x2
+            m3 += x2 * x
+            m4 += x2 * x2
+            r0 += row
+            r1 += x * row
+            r2 += x2 * row
+            c0 += col
+            c1 += x * col
+            c2 += x2 * col
+        if size == 3:
+            a0, a1, a2 = _solve3(m0, m1, m2, m3, m4, r0, r1, r2)
+            b0, b1, b2 = _solve3(m0, m1, m2, m3, m4, c0, c1, c2)
+        elif size == 2:
+            a0, a1, a2 = _solve2(m0, m1, m2, r0, r1)
+            b0, b1, b2 = _solve2(m0, m1, m2, c0, c1)
+        else:
+            a0, a1, a2 = r0 / m0, 0.0, 0.0
+            b0, b1, b2 = c0 / m0, 0.0, 0.0
+        q = (t_ns - t0) / span
+        e = (t_end_ns - t0) / span
+        return (a0 + a1 * q + a2 * q * q, b0 + b1 * q + b2 * q * q), (
+            a0 + a1 * e + a2 * e * e,
+            b0 + b1 * e + b2 * e * e,
+        )
 
 
-def _solve_normal(m: list[float], r: list[list[float]], size: int) -> list[list[float]]:
-    """Solve the polynomial normal equations ``sum_j m[i + j] c_j = r_i`` (size 1 to 3, two right-hand sides) by
-    Gaussian elimination with partial pivoting; unused higher coefficients are 0."""
-    a = [[m[i + j] for j in range(size)] + r[i][:] for i in range(size)]
-    for col in range(size):
-        pivot = max(range(col, size), key=lambda row: abs(a[row][col]))
-        a[col], a[pivot] = a[pivot], a[col]
-        if abs(a[col][col]) < 1e-12:
-            a[col][col] = 1e-12
-        for row in range(size):
-            if row != col:
-                f = a[row][col] / a[col][col]
-                for k in range(col, size + 2):
-                    a[row][k] -= f * a[col][k]
-    coef = [[0.0, 0.0] for _ in range(3)]
-    for i in range(size):
-        coef[i] = [a[i][size] / a[i][i], a[i][size + 1] / a[i][i]]
-    return coef
+def _solve2(m0: float, m1: float, m2: float, y0: float, y1: float) -> tuple[float, float, float]:
+    """Solve a line's normal equations [[m0, m1], [m1, m2]] c = (y0, y1); a singular system (all samples at one
+    time) gives the mean and no slope."""
+    det = m0 * m2 - m1 * m1
+    if abs(det) < 1e-12:
+        return y0 / m0, 0.0, 0.0
+    return (y0 * m2 - y1 * m1) / det, (m0 * y1 - m1 * y0) / det, 0.0
+
+
+def _solve3(
+    m0: float, m1: float, m2: float, m3: float, m4: float, y0: float, y1: float, y2: float
+) -> tuple[float, float, float]:
+    """Solve a quadratic's normal equations [[m0, m1, m2], [m1, m2, m3], [m2, m3, m4]] c = y by Cramer's rule
+    (the times are scaled to [-1, 0]: well conditioned); a singular system falls back to the line."""
+    a = m2 * m4 - m3 * m3
+    b = m1 * m4 - m2 * m3
+    c = m1 * m3 - m2 * m2
+    det = m0 * a - m1 * b + m2 * c
+    if abs(det) < 1e-12:
+        return _solve2(m0, m1, m2, y0, y1)
+    k0 = (y0 * a - y1 * b + y2 * c) / det
+    k1 = (m0 * (y1 * m4 - m3 * y2) - y0 * b + m2 * (m1 * y2 - y1 * m2)) / det
+    k2 = (m0 * (m2 * y2 - y1 * m3) - m1 * (m1 * y2 - y1 * m2) + y0 * c) / det
+    return k0, k1, k2
 
 
 def _exposure_ns(exposure_us: object) -> tuple[int, str]:
@@ -605,11 +631,12 @@ class _MotionState:
         self.exposure_ns = 0
 
     def observe(
-        self, t_mid_ns: int, tip_mid: NDArray[np.float64], fixed: NDArray[np.float32], sweep_px: float, exposure_ns: int
+        self, t_mid_ns: int, tip_mid: tuple[float, float], fixed: NDArray[np.float32], sweep_px: float, exposure_ns: int
     ) -> None:
         """Add a measured frame: mid-exposure time, midpoint of the two tips and fixed end (row, col), tip sweep
         (px) and exposure (ns, 0 = unknown)."""
-        z = complex(float(tip_mid[0] - fixed[0]), float(tip_mid[1] - fixed[1]))
+        fixed_r, fixed_c = fixed.tolist()
+        z = complex(tip_mid[0] - fixed_r, tip_mid[1] - fixed_c)
         if abs(z) < 1.0 or (self.times_ns and t_mid_ns <= self.times_ns[-1]):
             self.clear()  # tip on the fixed end, or time went backwards or stood still: a new sequence
             if abs(z) < 1.0:

@@ -72,8 +72,8 @@ class PointTracker:
         if length0 is None or length0 <= 0:
             length0 = lc
         np.multiply(self.fraction, length0, out=self.arc_px)
-        status = K.track_material_points(
-            as_ro(poly), np.int32(len(poly)), self._arc_px_ro, float(length0), self.out[slot]
+        status = K.track_material_points_of_length(
+            as_ro(poly), np.int32(len(poly)), lc, self._arc_px_ro, float(length0), self.out[slot]
         )
         if status < 0:
             raise ValueError(f"cannot track material points on a polyline of {len(poly)} points")

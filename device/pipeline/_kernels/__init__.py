@@ -55,6 +55,7 @@ from ropecam.device.pipeline._kernels.geometry import (
     signed_area,
     split_contour,
     turning_angles,
+    turning_angles_far,
 )
 from ropecam.device.pipeline._kernels.offsets import (
     find_caps,
@@ -64,6 +65,8 @@ from ropecam.device.pipeline._kernels.offsets import (
     offset_by_table,
     side_slope_samples,
     side_sweeps,
+    slope_sweep_median,
+    split_shapes_local,
 )
 from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots, thin_chain
 from ropecam.device.pipeline._kernels.polylines import (
@@ -72,8 +75,10 @@ from ropecam.device.pipeline._kernels.polylines import (
     half_level_crossing,
     polyline_length,
     resample_polyline,
+    resample_polyline_of_length,
     smooth_polyline,
     track_material_points,
+    track_material_points_of_length,
     trim_polyline_end,
 )
 from ropecam.device.pipeline._kernels.spans import (
@@ -129,11 +134,13 @@ __all__ = [
     "polyline_length",
     "refine_subpixel",
     "resample_polyline",
+    "resample_polyline_of_length",
     "sample_bilinear",
     "score_knots",
     "side_slope_samples",
     "side_sweeps",
     "signed_area",
+    "slope_sweep_median",
     "smooth_columns",
     "smooth_polyline",
     "smooth_replicated",
@@ -141,11 +148,14 @@ __all__ = [
     "sobel_rows",
     "spans_around_points",
     "split_contour",
+    "split_shapes_local",
     "suppress_rows",
     "thin_chain",
     "trace_contour",
     "track_material_points",
+    "track_material_points_of_length",
     "trim_polyline_end",
     "turning_angles",
+    "turning_angles_far",
     "union_spans",
 ]

@@ -12,6 +12,8 @@ from ropecam.shared.jit import (
     f4_1d,
     f4_2d,
     f4_2d_ro,
+    f8_1d,
+    f8_1d_ro,
     i4_1d,
     i4_2d_ro,
     kernel,
@@ -92,39 +94,77 @@ def signed_area(points, n):
     return 0.5 * acc
 
 
+@kernel(float64(f4_2d_ro, int64, int64, int64))
+def _turn_at(points, n, scale, i):
+    """Return the unsigned turning angle (radians) at point `i` between the chords to the points `scale` places
+    before and after (cyclic); 0 where a chord has no length."""
+    a = (i - scale + n * ((scale // n) + 1)) % n
+    b = (i + scale) % n
+    v1r = points[i, 0] - points[a, 0]
+    v1c = points[i, 1] - points[a, 1]
+    v2r = points[b, 0] - points[i, 0]
+    v2c = points[b, 1] - points[i, 1]
+    n1 = math.sqrt(v1r * v1r + v1c * v1c)
+    n2 = math.sqrt(v2r * v2r + v2c * v2c)
+    if n1 <= 0.0 or n2 <= 0.0:
+        return 0.0
+    cos_t = (v1r * v2r + v1c * v2c) / (n1 * n2)
+    cos_t = min(max(cos_t, -1.0), 1.0)
+    return math.acos(cos_t)
+
+
 @kernel(int32(f4_2d_ro, int32, int32, f4_1d))
 def turning_angles(points, n, scale, out_turn):
     """Write the unsigned turning angle (radians, 0 to pi) of the closed polyline at each point, measured between
     the chords to the points `scale` places before and after. Returns `n`."""
     for i in range(n):
-        a = (i - scale + n * ((scale // n) + 1)) % n
-        b = (i + scale) % n
-        v1r = points[i, 0] - points[a, 0]
-        v1c = points[i, 1] - points[a, 1]
-        v2r = points[b, 0] - points[i, 0]
-        v2c = points[b, 1] - points[i, 1]
-        n1 = math.sqrt(v1r * v1r + v1c * v1c)
-        n2 = math.sqrt(v2r * v2r + v2c * v2c)
-        if n1 <= 0.0 or n2 <= 0.0:
-            out_turn[i] = 0.0
-            continue
-        cos_t = (v1r * v2r + v1c * v2c) / (n1 * n2)
-        cos_t = min(max(cos_t, -1.0), 1.0)
-        out_turn[i] = math.acos(cos_t)
+        out_turn[i] = _turn_at(points, n, scale, i)
     return n
 
 
-@kernel(boolean(f4_2d_ro, f4_1d_ro, int32, int32, float32, float32, float32, float32))
-def _is_corner(points, turn, n, i, fixed_r, fixed_c, threshold, level):
+@kernel(int32(f4_2d_ro, int32, int32, float32, float32, float32, f8_1d, f4_1d))
+def turning_angles_far(points, n, scale, fixed_r, fixed_c, search_px, out_dist, out_turn):
+    """Write the distance of every point from (fixed_r, fixed_c) into `out_dist` (for `split_contour`) and the
+    turning angle (as `turning_angles`) only where `split_contour` reads it: at the points at least
+    ``R_far - search_px`` from the fixed end (R_far the largest distance) and at their two neighbours; 0
+    elsewhere. The angle costs an ``acos`` per point, and the tip zone is a small part of the contour.
+    Returns the number of angles computed, or FULL when `out_dist` is shorter than `n`."""
+    if out_dist.shape[0] < n or out_turn.shape[0] < n:
+        return FULL
+    r_far = -1.0
+    for i in range(n):
+        d = math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c)
+        out_dist[i] = d
+        out_turn[i] = 0.0
+        if d > r_far:
+            r_far = d
+    threshold = r_far - search_px
+    computed = 0
+    done = -1  # last index written (the zone is visited in order; its neighbours may repeat)
+    for i in range(n):
+        if out_dist[i] < threshold:
+            continue
+        for j in range(i - 1, i + 2):
+            k = (j + n) % n
+            if j <= done and j >= 0:
+                continue
+            out_turn[k] = _turn_at(points, n, scale, k)
+            computed += 1
+            done = max(done, j)
+    return computed
+
+
+@kernel(boolean(f8_1d_ro, f4_1d_ro, int32, int32, float32, float32))
+def _is_corner(dist, turn, n, i, threshold, level):
     """Whether contour point `i` is a local maximum of `turn` above `level` at least `threshold` from the fixed
-    end."""
+    end (`dist`: distances from it)."""
     if turn[i] <= level or turn[i] < turn[(i - 1 + n) % n] or turn[i] < turn[(i + 1) % n]:
         return False
-    return math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c) >= threshold
+    return dist[i] >= threshold
 
 
-@kernel(int32(f4_2d_ro, f4_1d_ro, int32, float32, float32, float32, int32, float32, f4_1d, i4_1d))
-def split_contour(points, turn, n, fixed_r, fixed_c, search_px, min_gap, corner_rad, work_arc, out_idx):
+@kernel(int32(f4_2d_ro, f4_1d_ro, f8_1d_ro, int32, float32, float32, float32, int32, float32, f4_1d, i4_1d))
+def split_contour(points, turn, dist, n, fixed_r, fixed_c, search_px, min_gap, corner_rad, work_arc, out_idx):
     """Find the fixed end, the far point and the two segmentation points on the closed subpixel contour.
 
     The fixed-end index is the contour point nearest to (fixed_r, fixed_c); the far index the point farthest
@@ -133,22 +173,23 @@ def split_contour(points, turn, n, fixed_r, fixed_c, search_px, min_gap, corner_
     maxima of the turning angle above `corner_rad` and above half the side's sharpest; of the pairs at least
     `min_gap` chain steps apart, those whose arc lengths from the fixed end differ by at most 2 px more than the
     best-matching pair's compete, and the sharpest (largest sum) wins. Without candidates, the points of largest
-    turning angle on each side (at least `min_gap` apart) are used. `work_arc` (n) is scratch.
-    Writes ``out_idx = [fixed, seg_a, far, seg_b]``; returns 4, NOT_FOUND or FULL (`work_arc` too short).
+    turning angle on each side (at least `min_gap` apart) are used. `dist` holds each point's distance from the
+    fixed end (`turning_angles_far` writes it); `work_arc` (n) is scratch.
+    Writes ``out_idx = [fixed, seg_a, far, seg_b]``; returns 4, NOT_FOUND or FULL (`work_arc` or `dist` too short).
     """
     if n < 8:
         return NOT_FOUND
+    if dist.shape[0] < n:
+        return FULL
     i_fix = 0
     best = 1e30
-    for i in range(n):
-        d = math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c)
-        if d < best:
-            best = d
-            i_fix = i
     i_far = 0
     r_far = -1.0
     for i in range(n):
-        d = math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c)
+        d = dist[i]
+        if d < best:
+            best = d
+            i_fix = i
         if d > r_far:
             r_far = d
             i_far = i
@@ -163,12 +204,13 @@ def split_contour(points, turn, n, fixed_r, fixed_c, search_px, min_gap, corner_
     arc = work_arc
     arc[i_fix] = 0.0
     total = 0.0
+    ip = i_fix
     for step in range(1, n + 1):
-        i = (i_fix + step) % n
-        ip = (i_fix + step - 1) % n
+        i = ip + 1 if ip + 1 < n else 0
         total += math.hypot(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
         if step < n:
             arc[i] = total
+        ip = i
     # Corner candidates: local maxima of the turning angle in the tip zone, at least half as sharp as the side's
     # sharpest there (and above `corner_rad`). The rope keeps its length within the exposure, so the pair whose
     # arc lengths from the fixed end agree best is the band's two corners (a slanted band end adds a second,
@@ -181,7 +223,7 @@ def split_contour(points, turn, n, fixed_r, fixed_c, search_px, min_gap, corner_
         length = len_a if side == 0 else len_b
         for step in range(1, length + 1):
             i = (i_fix + step) % n if side == 0 else (i_fix - step + n) % n
-            if math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c) >= threshold:
+            if dist[i] >= threshold:
                 if side == 0:
                     level_a = max(level_a, 0.5 * turn[i])
                     zone_a = min(zone_a, step)
@@ -193,11 +235,11 @@ def split_contour(points, turn, n, fixed_r, fixed_c, search_px, min_gap, corner_
         pick_sum = -1.0
         for step_a in range(zone_a, len_a):
             ia = (i_fix + step_a) % n
-            if not _is_corner(points, turn, n, ia, fixed_r, fixed_c, threshold, level_a):
+            if not _is_corner(dist, turn, n, ia, threshold, level_a):
                 continue
             for step_b in range(zone_b, len_b):
                 ib = (i_fix - step_b + n) % n
-                if not _is_corner(points, turn, n, ib, fixed_r, fixed_c, threshold, level_b):
+                if not _is_corner(dist, turn, n, ib, threshold, level_b):
                     continue
                 gap = abs(ia - ib)
                 if min(gap, n - gap) < min_gap:
@@ -231,7 +273,7 @@ def split_contour(points, turn, n, fixed_r, fixed_c, search_px, min_gap, corner_
             length = len_a if pick_a else len_b
             for step in range(1, length + 1):
                 i = (i_fix + step) % n if pick_a else (i_fix - step + n) % n
-                if math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c) < threshold:
+                if dist[i] < threshold:
                     continue
                 other = b if pick_a else a
                 if other >= 0:

@@ -5,14 +5,22 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import float32, float64, int32
+from numba import float32, float64, int32, int64, void
 
-from ropecam.device.pipeline._kernels._common import FULL, NOT_FOUND, f4_1d_ro
+from ropecam.device.pipeline._kernels._common import FULL, INVALID, NOT_FOUND, f4_1d_ro
 from ropecam.device.pipeline._kernels.geometry import axis_offset, chain_length
+from ropecam.device.pipeline._kernels.polylines import (
+    anchor_start,
+    extend_to_band_end,
+    polyline_length,
+    resample_polyline_of_length,
+    smooth_polyline,
+)
 from ropecam.shared.jit import (
     f4_1d,
     f4_2d,
     f4_2d_ro,
+    f8_1d,
     f8_1d_ro,
     i4_1d,
     i4_2d_ro,
@@ -175,9 +183,32 @@ def side_sweeps(chain, n, i_start, i_stop, direction, mag, inv_contrast, ratios,
     count = ((i_stop - i_start) * direction % n + n) % n + 1
     if count > out_sweeps.shape[0] or count > work.shape[0]:
         return FULL
+    # The table lookup walks from the last point's interval (neighbours' ratios are close): the same interval as
+    # `interp_sorted`'s bisection (the last `lo` with ratios[lo] <= x), without its unpredictable branches.
+    m = ratios.shape[0]
+    lo = 0
+    i = (i_start + 4 * n) % n
     for k in range(count):
-        i = (i_start + k * direction + 4 * n) % n
-        work[k] = interp_sorted(ratios, sweeps, mag[chain[i, 0], chain[i, 1]] * inv_contrast)
+        x = mag[chain[i, 0], chain[i, 1]] * inv_contrast
+        if m == 0:
+            work[k] = np.nan
+        elif x <= ratios[0]:
+            work[k] = sweeps[0]
+        elif x >= ratios[m - 1]:
+            work[k] = sweeps[m - 1]
+        else:
+            while lo > 0 and ratios[lo] > x:
+                lo -= 1
+            while lo < m - 2 and ratios[lo + 1] <= x:
+                lo += 1
+            span = ratios[lo + 1] - ratios[lo]
+            t = (x - ratios[lo]) / span if span > 0.0 else 0.0
+            work[k] = np.float32(sweeps[lo] + t * (sweeps[lo + 1] - sweeps[lo]))
+        i += direction
+        if i == n:
+            i = 0
+        elif i < 0:
+            i = n - 1
     acc = 0.0
     for j in range(-half, half + 1):
         acc += work[min(max(j, 0), count - 1)]
@@ -205,17 +236,19 @@ def offset_by_table(
     count = (count % n + n) % n + 1
     if count > out_poly.shape[0] or (local == 1 and count > sweeps.shape[0]):
         return FULL
-    total = chain_length(points, n, i_start, count, direction)
+    # The arc length is needed only for the proportional sweep (`local` 0).
+    total = chain_length(points, n, i_start, count, direction) if local != 1 else 0.0
     last = table.shape[0] - 1
     s = 0.0
+    i = (i_start + n * 4) % n
+    ip = i
     for k in range(count):
-        i = (i_start + k * direction + n * 4) % n
-        if k > 0:
-            ip = (i_start + (k - 1) * direction + n * 4) % n
-            s += math.hypot(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
-        d = sweep_tip_px * s / total if total > 0.0 else 0.0
         if local == 1:
             d = sweeps[k]
+        else:
+            if k > 0:
+                s += math.hypot(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
+            d = sweep_tip_px * s / total if total > 0.0 else 0.0
         x = max(d, 0.0) / step_px
         j = min(int(x), last)
         shift = table[last]
@@ -231,4 +264,178 @@ def offset_by_table(
         if norm > 0.0:
             out_poly[k, 0] += shift * g_r / norm
             out_poly[k, 1] += shift * g_c / norm
+        ip = i
+        i += direction
+        if i == n:
+            i = 0
+        elif i < 0:
+            i = n - 1
     return count
+
+
+@kernel(
+    int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f8_1d_ro, f8_1d_ro, int32, f4_2d_ro,
+          f4_2d_ro, float32, float32, f4_1d_ro, f4_2d_ro, float32, float32, float32, float32, float32, float64,
+          float64, float32, float32, float32, float32, f4_1d, f4_1d, f4_1d, f4_2d, f4_2d, f4_2d, f4_2d, f8_1d,
+          f8_1d)
+)  # fmt: skip
+def split_shapes_local(
+    points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, ratios, sweeps, half, gx, gy, polarity, step_px, table,
+    smooth, width_px, cap_px, skip_px, span_px, blur_px, slant_gain_px, width_check_px, out_step_px, smoothing_px,
+    fixed_r, fixed_c, work, out_sweeps_a, out_sweeps_b, out_side_a, out_side_b, out_a, out_b, work_arc, out_info,
+):  # fmt: skip
+    """The blur split's shapes from its segmentation points, with local sweeps, in one call (the stage's
+    sequence of kernels, without a Python step between them): per side (A forward from `i_fix` to `seg_a`, B
+    backward to `seg_b`) `side_sweeps`, `offset_by_table`, `extend_to_band_end`; then the slant correction of
+    the two tips (`BlurSplitter._correct_slant`: float32 updates as NumPy makes them), the two lengths, the
+    length check (``|La - Lb| > max(3 width_check_px, 0.1 max(La, Lb))`` rejects the split), and per side
+    `anchor_start` at the fixed end (`fixed_r`, `fixed_c`; axis from `skip_px` over `span_px`),
+    `resample_polyline_of_length` into `out_a`/`out_b`, then `smooth_polyline` into `out_side_a`/`out_side_b`
+    when `smoothing_px` > 0 and the shape has 3 points or more.
+
+    Writes ``out_info = [count_a, count_b, length_a, length_b, smoothed_a, smoothed_b]`` (a smoothed shape is in
+    ``out_side_*[:count]``, else in ``out_*[:count]``). Returns 2, NOT_FOUND when the lengths differ (the lengths
+    written), or FULL / INVALID when a step did (the caller redoes the steps one by one for its message).
+    """
+    if out_info.shape[0] < 6:
+        return INVALID
+    plus = np.int32(1)
+    minus = np.int32(-1)
+    if side_sweeps(chain, n, i_fix, seg_a, plus, mag, inv_contrast, ratios, sweeps, half, work, out_sweeps_a) < 0:
+        return FULL
+    if side_sweeps(chain, n, i_fix, seg_b, minus, mag, inv_contrast, ratios, sweeps, half, work, out_sweeps_b) < 0:
+        return FULL
+    local = np.int32(1)
+    none = np.float32(0.0)
+    na = offset_by_table(points, chain, n, i_fix, seg_a, plus, gx, gy, polarity, out_sweeps_a, local, none, step_px,
+                         table, out_side_a)  # fmt: skip
+    nb = offset_by_table(points, chain, n, i_fix, seg_b, minus, gx, gy, polarity, out_sweeps_b, local, none,
+                         step_px, table, out_side_b)  # fmt: skip
+    if na < 0 or nb < 0:
+        return FULL
+    na = extend_to_band_end(out_side_a, na, points, n, smooth, width_px, cap_px, skip_px, span_px, blur_px)
+    nb = extend_to_band_end(out_side_b, nb, points, n, smooth, width_px, cap_px, skip_px, span_px, blur_px)
+    if na >= 3 and nb >= 3:
+        a1r = float(out_side_a[na - 1, 0])
+        a1c = float(out_side_a[na - 1, 1])
+        a3r = float(out_side_a[na - 3, 0])
+        a3c = float(out_side_a[na - 3, 1])
+        b1r = float(out_side_b[nb - 1, 0])
+        b1c = float(out_side_b[nb - 1, 1])
+        b3r = float(out_side_b[nb - 3, 0])
+        b3c = float(out_side_b[nb - 3, 1])
+        u_r = a1r - a3r + b1r - b3r
+        u_c = a1c - a3c + b1c - b3c
+        norm = math.hypot(u_r, u_c)
+        if norm > 0.0 and slant_gain_px > 0:
+            u_r = u_r / norm
+            u_c = u_c / norm
+            d_r = b1r - a1r
+            d_c = b1c - a1c
+            along = d_r * u_r + d_c * u_c
+            across = abs(d_r * u_c - d_c * u_r)
+            if not across - 2.0 * slant_gain_px < 1.0:
+                shift = min(max(along / (across - 2.0 * slant_gain_px), -1.5), 1.5) * slant_gain_px
+                out_side_a[na - 1, 0] = out_side_a[na - 1, 0] - np.float32(shift * u_r)
+                out_side_a[na - 1, 1] = out_side_a[na - 1, 1] - np.float32(shift * u_c)
+                out_side_b[nb - 1, 0] = out_side_b[nb - 1, 0] + np.float32(shift * u_r)
+                out_side_b[nb - 1, 1] = out_side_b[nb - 1, 1] + np.float32(shift * u_c)
+    len_a = polyline_length(out_side_a, na)
+    len_b = polyline_length(out_side_b, nb)
+    out_info[2] = len_a
+    out_info[3] = len_b
+    if abs(len_a - len_b) > max(3.0 * width_check_px, 0.1 * max(len_a, len_b)):
+        return NOT_FOUND
+    na = anchor_start(out_side_a, na, fixed_r, fixed_c, skip_px, span_px)
+    nb = anchor_start(out_side_b, nb, fixed_r, fixed_c, skip_px, span_px)
+    len_a = polyline_length(out_side_a, na)
+    len_b = polyline_length(out_side_b, nb)
+    out_info[2] = len_a
+    out_info[3] = len_b
+    for side in range(2):
+        poly = out_side_a if side == 0 else out_side_b
+        out = out_a if side == 0 else out_b
+        count = resample_polyline_of_length(poly, na if side == 0 else nb, len_a if side == 0 else len_b,
+                                            out_step_px, out)  # fmt: skip
+        if count < 0:
+            return FULL
+        out_info[side] = count
+        out_info[4 + side] = 0.0
+        if smoothing_px > 0.0 and count >= 3:
+            if smooth_polyline(out, count, smoothing_px, work_arc, poly) < 0:
+                return INVALID
+            out_info[4 + side] = 1.0
+    return 2
+
+
+@kernel(void(f8_1d, int64, int64))
+def _sift_down(values, root, size):
+    """Restore the max-heap property of ``values[:size]`` below `root`."""
+    while True:
+        child = 2 * root + 1
+        if child >= size:
+            return
+        if child + 1 < size and values[child + 1] > values[child]:
+            child += 1
+        if values[root] >= values[child]:
+            return
+        values[root], values[child] = values[child], values[root]
+        root = child
+
+
+@kernel(void(f8_1d, int64))
+def _heap_sort(values, m):
+    """Sort ``values[:m]`` in place, ascending (heapsort: no recursion, no allocation, unlike ``ndarray.sort``)."""
+    for start in range(m // 2 - 1, -1, -1):
+        _sift_down(values, start, m)
+    for end in range(m - 1, 0, -1):
+        values[0], values[end] = values[end], values[0]
+        _sift_down(values, 0, end)
+
+
+@kernel(float64(i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, float32, float32, f8_1d_ro, f8_1d_ro, f8_1d))
+def slope_sweep_median(chain, n, i_fix, i_seg, direction, mag, lo_frac, hi_frac, contrast, ratios, sweeps, work):
+    """Return one side's tip sweep read from the edge slope: over the chain pixels from `i_fix` stepping
+    `direction` to `i_seg` whose arc fraction f (by index) lies in [lo_frac, hi_frac), the local sweep d of the
+    gradient height ``mag / contrast`` (float32, as NumPy divides a float32 array by a Python float; then
+    `np.interp` on (`ratios`, `sweeps`)), extrapolated to the tip as d / f; the median of those (as
+    `np.median`). `work` holds the values (sorted in place). nan with fewer than 6 samples or a full `work`.
+    The same as `side_slope_samples` followed by the stage's NumPy, without its ~150 us of NumPy calls."""
+    count = ((i_seg - i_fix) * direction % n + n) % n + 1
+    if count < 2:
+        return np.nan
+    m_table = ratios.shape[0]
+    m = 0
+    lo = 0
+    for k in range(count):
+        frac = k / (count - 1)
+        if frac < lo_frac or frac >= hi_frac:
+            continue
+        if 2 * m + 1 >= 2 * work.shape[0]:
+            return np.nan
+        i = (i_fix + k * direction + 4 * n) % n
+        x = float(mag[chain[i, 0], chain[i, 1]] / contrast)
+        if m_table == 0:
+            return np.nan
+        if x >= ratios[m_table - 1]:
+            d = sweeps[m_table - 1]
+        elif x < ratios[0]:
+            d = sweeps[0]
+        else:
+            while lo > 0 and ratios[lo] > x:
+                lo -= 1
+            while lo < m_table - 2 and ratios[lo + 1] <= x:
+                lo += 1
+            if ratios[lo] == x:
+                d = sweeps[lo]
+            else:
+                slope = (sweeps[lo + 1] - sweeps[lo]) / (ratios[lo + 1] - ratios[lo])
+                d = slope * (x - ratios[lo]) + sweeps[lo]
+        work[m] = d / float(np.float32(frac))
+        m += 1
+    if m < 6:
+        return np.nan
+    _heap_sort(work, m)
+    if m % 2 == 1:
+        return work[m // 2]
+    return (work[m // 2 - 1] + work[m // 2]) / 2.0

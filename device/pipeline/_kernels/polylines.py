@@ -28,13 +28,11 @@ def polyline_length(poly, n):
     return total
 
 
-@kernel(int32(f4_2d_ro, int32, float32, f4_2d))
-def resample_polyline(poly, n, step_px, out_poly):
-    """Resample the polyline at equal arc-length steps of at most `step_px`, keeping both ends; returns the count
-    or FULL."""
+@kernel(int32(f4_2d_ro, int32, float64, float32, f4_2d))
+def resample_polyline_of_length(poly, n, total, step_px, out_poly):
+    """`resample_polyline` for a polyline whose length `total` (`polyline_length`) the caller has already."""
     if n < 1:
         return 0
-    total = polyline_length(poly, n)
     segments = max(1, math.ceil(total / step_px)) if total > 0.0 else 0
     if segments + 1 > out_poly.shape[0]:
         return FULL
@@ -61,6 +59,55 @@ def resample_polyline(poly, n, step_px, out_poly):
     return segments + 1
 
 
+@kernel(int32(f4_2d_ro, int32, float32, f4_2d))
+def resample_polyline(poly, n, step_px, out_poly):
+    """Resample the polyline at equal arc-length steps of at most `step_px`, keeping both ends; returns the count
+    or FULL."""
+    if n < 1:
+        return 0
+    return resample_polyline_of_length(poly, n, polyline_length(poly, n), step_px, out_poly)
+
+
+@kernel(int32(f4_2d_ro, int32, float64, f8_1d_ro, float64, f4_2d))
+def track_material_points_of_length(poly, n, total, arc_px, length0_px, out_points):
+    """`track_material_points` for a polyline whose length `total` (`polyline_length`) the caller has already.
+    Arc lengths in increasing order are located in one walk along the polyline (each search resumes where the
+    last one stopped: every earlier segment ends before the previous target), others each from the start."""
+    m = arc_px.shape[0]
+    if n < 1 or not length0_px > 0.0 or out_points.shape[0] < m:
+        return INVALID
+    ratio = total / length0_px
+    increasing = True
+    for k in range(1, m):
+        if arc_px[k] < arc_px[k - 1]:
+            increasing = False
+    j0 = 0
+    acc0 = 0.0
+    for k in range(m):
+        target = arc_px[k] * ratio
+        if n == 1 or target <= 0.0:
+            out_points[k, 0] = poly[0, 0]
+            out_points[k, 1] = poly[0, 1]
+            continue
+        acc = acc0 if increasing else 0.0
+        done = False
+        for j in range(j0 if increasing else 0, n - 1):
+            seg = math.hypot(float(poly[j + 1, 0]) - float(poly[j, 0]), float(poly[j + 1, 1]) - float(poly[j, 1]))
+            if acc + seg > target and seg > 0.0:
+                t = (target - acc) / seg
+                out_points[k, 0] = poly[j, 0] + t * (poly[j + 1, 0] - poly[j, 0])
+                out_points[k, 1] = poly[j, 1] + t * (poly[j + 1, 1] - poly[j, 1])
+                done = True
+                j0 = j
+                acc0 = acc
+                break
+            acc += seg
+        if not done:
+            out_points[k, 0] = poly[n - 1, 0]
+            out_points[k, 1] = poly[n - 1, 1]
+    return m
+
+
 @kernel(int32(f4_2d_ro, int32, f8_1d_ro, float64, f4_2d))
 def track_material_points(poly, n, arc_px, length0_px, out_points):
     """Locate material points on the polyline (fixed end first) by arc length with uniform stretch, eqs. (9)-(12).
@@ -73,29 +120,7 @@ def track_material_points(poly, n, arc_px, length0_px, out_points):
     m = arc_px.shape[0]
     if n < 1 or not length0_px > 0.0 or out_points.shape[0] < m:
         return INVALID
-    total = polyline_length(poly, n)
-    ratio = total / length0_px
-    for k in range(m):
-        target = arc_px[k] * ratio
-        if n == 1 or target <= 0.0:
-            out_points[k, 0] = poly[0, 0]
-            out_points[k, 1] = poly[0, 1]
-            continue
-        acc = 0.0
-        done = False
-        for j in range(n - 1):
-            seg = math.hypot(float(poly[j + 1, 0]) - float(poly[j, 0]), float(poly[j + 1, 1]) - float(poly[j, 1]))
-            if acc + seg > target and seg > 0.0:
-                t = (target - acc) / seg
-                out_points[k, 0] = poly[j, 0] + t * (poly[j + 1, 0] - poly[j, 0])
-                out_points[k, 1] = poly[j, 1] + t * (poly[j + 1, 1] - poly[j, 1])
-                done = True
-                break
-            acc += seg
-        if not done:
-            out_points[k, 0] = poly[n - 1, 0]
-            out_points[k, 1] = poly[n - 1, 1]
-    return m
+    return track_material_points_of_length(poly, n, polyline_length(poly, n), arc_px, length0_px, out_points)
 
 
 @kernel(int32(f4_2d, int32, float32, float32, float32, float32))

@@ -96,13 +96,14 @@ def test_split_finds_the_corners_of_a_swept_band() -> None:
     turn = np.zeros(len(pts), np.float32)
     K.turning_angles(pts, len(pts), 3, turn)
     idx = np.zeros(4, np.int32)
-    assert K.split_contour(pts, turn, len(pts), 0.0, 0.0, 6.0, 6, 0.5, np.zeros(len(pts), np.float32), idx) == 4
+    dist = np.hypot(pts[:, 0], pts[:, 1]).astype(np.float64)
+    assert K.split_contour(pts, turn, dist, len(pts), 0.0, 0.0, 6.0, 6, 0.5, np.zeros(len(pts), np.float32), idx) == 4
     fixed, seg_a, far, seg_b = idx
     assert np.hypot(*pts[fixed]) <= 1.01
     assert np.allclose(pts[seg_a], (40, -1), atol=0.6)
     assert np.allclose(pts[seg_b], (40, 13), atol=0.6)
     assert np.allclose(pts[far], (40, 13), atol=0.6)
-    assert K.split_contour(pts[:6], turn, 6, 0.0, 0.0, 6.0, 6, 0.5, np.zeros(6, np.float32), idx) == K.NOT_FOUND
+    assert K.split_contour(pts[:6], turn, dist, 6, 0.0, 0.0, 6.0, 6, 0.5, np.zeros(6, np.float32), idx) == K.NOT_FOUND
 
 
 def test_offset_side_moves_inward_by_the_modelled_half_width() -> None:
@@ -269,10 +270,46 @@ def test_split_takes_the_corners_whose_sides_are_equally_long() -> None:
     turn = np.zeros(n, np.float32)
     K.turning_angles(pts, n, 3, turn)
     idx = np.zeros(4, np.int32)
-    assert K.split_contour(pts, turn, n, 5.0, 0.0, 20.0, 4, 0.5, np.zeros(n, np.float32), idx) == 4
+    dist = np.hypot(pts[:, 0] - 5.0, pts[:, 1]).astype(np.float64)
+    assert K.split_contour(pts, turn, dist, n, 5.0, 0.0, 20.0, 4, 0.5, np.zeros(n, np.float32), idx) == 4
     np.testing.assert_allclose(pts[idx[1]], [0, 100], atol=0.6)
     np.testing.assert_allclose(pts[idx[3]], [10, 100], atol=0.6)
     # "Largest turning per side" would take the kink: it turns more than the corner of its side.
     at = [int(np.argmin(np.hypot(*(pts - p).T))) for p in ([0, 100], [2, 102.5])]
     assert turn[at[1]] > turn[at[0]]
-    assert K.split_contour(pts, turn, n, 5.0, 0.0, 20.0, 4, 0.5, np.zeros(n - 1, np.float32), idx) == K.FULL
+    assert K.split_contour(pts, turn, dist, n, 5.0, 0.0, 20.0, 4, 0.5, np.zeros(n - 1, np.float32), idx) == K.FULL
+    assert K.split_contour(pts, turn, dist[:-1], n, 5.0, 0.0, 20.0, 4, 0.5, np.zeros(n, np.float32), idx) == K.FULL
+
+
+def test_turning_angles_far_equals_turning_angles_in_the_tip_zone() -> None:
+    pts = _outline([(5, 0), (0, 0), (0, 100), (2, 102.5), (10, 100), (10, 0)])
+    n = len(pts)
+    full = np.zeros(n, np.float32)
+    far = np.full(n, -1.0, np.float32)
+    K.turning_angles(pts, n, 3, full)
+    dist = np.zeros(n)
+    computed = K.turning_angles_far(pts, np.int32(n), np.int32(3), np.float32(5.0), np.float32(0.0), 20.0, dist, far)
+    d = np.hypot(pts[:, 0] - 5.0, pts[:, 1])
+    np.testing.assert_allclose(dist, d, rtol=1e-6)
+    zone = d >= d.max() - 20.0
+    needed = zone | np.roll(zone, 1) | np.roll(zone, -1)
+    assert computed >= np.count_nonzero(needed)
+    np.testing.assert_array_equal(far[needed], full[needed])
+    assert np.all(far[~needed] == 0.0)
+
+
+@pytest.mark.parametrize("arcs", [[0.0, 3.0, 7.5, 12.0, 40.0], [12.0, 3.0, 7.5, -1.0]])
+def test_known_length_variants_equal_the_plain_kernels(arcs) -> None:
+    rng = np.random.default_rng(7)
+    poly = np.cumsum(rng.normal(size=(30, 2)), axis=0).astype(np.float32)
+    poly[5] = poly[4]  # a zero-length segment
+    n = len(poly)
+    total = K.polyline_length(poly, n)
+    plain, known = np.zeros((40, 2), np.float32), np.zeros((40, 2), np.float32)
+    assert K.resample_polyline(poly, n, 1.5, plain) == K.resample_polyline_of_length(poly, n, total, 1.5, known)
+    np.testing.assert_array_equal(plain, known)
+    arc = np.array(arcs, np.float64)
+    plain, known = np.zeros((len(arcs), 2), np.float32), np.zeros((len(arcs), 2), np.float32)
+    assert K.track_material_points(poly, n, arc, 20.0, plain) == len(arcs)
+    assert K.track_material_points_of_length(poly, n, total, arc, 20.0, known) == len(arcs)
+    np.testing.assert_array_equal(plain, known)

@@ -134,3 +134,25 @@ def test_slant_gain_closed_form_without_blur() -> None:
     model = BandEdgeModel(np.ones(1), 0.0)
     for width in (4.0, 8.0):
         assert model.slant_gain(width) == pytest.approx(width / 4 + 1 / 12 / width, abs=0.005)
+
+
+@pytest.mark.parametrize(("start", "stop", "direction"), [(2, 57, 1), (50, 1, -1)])
+def test_slope_sweep_median_matches_numpy(start, stop, direction) -> None:
+    rng = np.random.default_rng(5)
+    n = 60
+    chain = np.stack([np.arange(n) % 6, np.arange(n) // 6], axis=1).astype(np.int32)
+    mag = rng.uniform(10, 200, (6, 10)).astype(np.float32)
+    ratios = np.concatenate([np.linspace(0.1, 1.0, 20), [1.0], np.linspace(1.1, 2.0, 19)])  # a tie, as tables have
+    sweeps = np.linspace(8.0, 0.0, 40)
+    samples = np.zeros(2 * n, np.float32)
+    m = K.side_slope_samples(chain, n, start, stop, direction, mag, np.float32(0.5), np.float32(0.85), samples)
+    pairs = samples[: 2 * m].reshape(m, 2)
+    contrast = 97.3
+    expected = float(np.median(np.interp(pairs[:, 0] / contrast, ratios, sweeps) / pairs[:, 1]))
+    got = K.slope_sweep_median(chain, n, start, stop, direction, mag, np.float32(0.5), np.float32(0.85),
+                               np.float32(contrast), ratios, sweeps, np.zeros(n))  # fmt: skip
+    assert m >= 6
+    assert got == pytest.approx(expected, rel=1e-12)
+    few = K.slope_sweep_median(chain, n, 0, 8, 1, mag, np.float32(0.5), np.float32(0.85), np.float32(contrast),
+                               ratios, sweeps, np.zeros(n))  # fmt: skip
+    assert math.isnan(few)  # fewer than 6 samples

@@ -114,3 +114,21 @@ def test_reset_tracking_searches_the_next_frame_afresh(swing, swing_frames) -> N
     assert r.status is FrameStatus.OK and r.full_frame and r.order_confidence == 0.5
     np.testing.assert_allclose(pipeline.fixed, fixed, atol=1.0)  # what does not change is kept
     assert pipeline.frames_coarse + pipeline.frames_full == 2  # the first frame and this one
+
+
+def test_warm_up_builds_the_edge_tables_and_leaves_no_state(swing, swing_frames) -> None:
+    config = PipelineConfig(rope_width_px=3.0)
+    pipeline = Pipeline(config, (swing.width, swing.height))
+    pipeline.warm_up()
+    model = pipeline.splitter.model
+    assert max(1, round(pipeline._width() * 10)) in model._cache  # the configured width's tables are built
+    assert (pipeline.prev_count, pipeline.frames_full, pipeline.frames_coarse, pipeline._last_frame_t_ns) == (
+        0,
+        0,
+        0,
+        None,
+    )
+    # Tables are per process: another pipeline with the same smoothing and lens blur shares them.
+    assert Pipeline(config, (swing.width, swing.height)).splitter.model is model
+    results = _run(pipeline, swing_frames, (0, 1, 2))
+    assert all(r.status is FrameStatus.OK for r in results), [r.message for r in results]
