@@ -43,7 +43,7 @@ def main(argv: list[str] | None = None) -> int:
     from ropecam.device.daemon.config import DeviceConfig, SenderConfig
     from ropecam.device.daemon.runner import Daemon
     from ropecam.device.pipeline.config import PipelineConfig
-    from ropecam.shared.protocol import FrameResult, decode_message
+    from ropecam.shared.protocol import FrameResult, Status, decode_message
     from ropecam.shared.transport import open_transport
 
     frameset = args.frameset
@@ -58,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
         sender=SenderConfig(sink="loop://soak", status_period_s=1.0),
     )
     host = open_transport("loop://soak")
-    received = {"frames": 0, "gaps": 0, "last": None}
+    received = {"frames": 0, "gaps": 0, "last": None, "camera_skipped": 0}
 
     def receive() -> None:
         while not host.closed:
@@ -72,6 +72,8 @@ def main(argv: list[str] | None = None) -> int:
             received["last"] = message.header.sequence
             if isinstance(message.record, FrameResult):
                 received["frames"] += 1
+            elif isinstance(message.record, Status):  # the newest-frame policy's count (the pipeline fell behind)
+                received["camera_skipped"] = int(dict(message.record.counters).get("capture_skipped", 0))
 
     receiver = threading.Thread(target=receive, daemon=True)
     receiver.start()
@@ -106,6 +108,7 @@ def main(argv: list[str] | None = None) -> int:
         "frames_received": received["frames"],
         "expected_frames": round(args.fps * args.duration_s),
         "sequence_gaps": received["gaps"],
+        "camera_skipped": received["camera_skipped"],
         "queue_dropped": sender.dropped_queue_full if sender else None,
         "link_dropped": sender.dropped_by_link if sender else None,
         "statuses": dict(daemon.statuses),

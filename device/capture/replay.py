@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import itertools
 import logging
+import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -106,6 +107,9 @@ class FrameSetSource(CameraSource):
         self._loop_frames = records[-1].frame - records[0].frame + 1
         self._exposures = [r.exposure_us for r in records]
         self._preloaded: NDArray[np.uint8] | None = None
+        self._decoded = 0  # preloaded frames decoded so far (the preload thread decodes them in order)
+        self._preload_error: CaptureError | None = None
+        self._preload_ready = threading.Condition()
         self._next = 0  # frames (counting across loops) handed over or skipped so far
         self._last_position = 0  # index position of the frame delivered last
         self._start_ns = 0
@@ -142,24 +146,56 @@ class FrameSetSource(CameraSource):
         width, height = self.frameset.image_size
         needed = len(self.frameset) * width * height
         if needed <= self.max_preload_bytes and self._preloaded is None:
-            started = time.perf_counter()
+            # The first frame now, the others in the background (a camera's first frame does not wait for the
+            # whole recording to be decoded: 0.5 s for 60 rig frames); a read of a frame not yet decoded waits.
+            missing = next((r for r in self.frameset.records if not Path(r.path).is_file()), None)
+            if missing is not None:  # refused at start, as a whole-set preload would be; a corrupt file is found
+                raise CaptureError(  # when its frame is read
+                    f"{self.name}: {Path(missing.path).name}: missing or unreadable image (frame {missing.frame})"
+                )
             frames = np.empty((len(self.frameset), height, width), dtype=np.uint8)
-            for position in range(len(self.frameset)):
-                frames[position] = self._decode(position)
-            frames.flags.writeable = False
-            self._preloaded = frames
-            log.info(
-                "%s: preloaded %d frames (%.1f MB) in %.2f s",
-                self.name,
-                len(frames),
-                needed / 1e6,
-                time.perf_counter() - started,
-            )
+            frames[0] = self._decode(0)
+            view = frames.view()
+            view.flags.writeable = False
+            self._preloaded = view
+            self._decoded = 1
+            self._preload_error = None
+            if len(frames) > 1:
+                thread = threading.Thread(target=self._preload, args=(frames,), name="frameset-preload", daemon=True)
+                thread.start()
         elif self._preloaded is None:
             log.info("%s: %.1f MB exceed the preload limit; decoding frames on read", self.name, needed / 1e6)
         self._next = 0
         self._last_position = 0
         self._start_ns = self._clock()
+
+    def _preload(self, frames: NDArray[np.uint8]) -> None:
+        """Decode frames 1.. into `frames` (the preload thread), announcing each one."""
+        started = time.perf_counter()
+        for position in range(1, len(frames)):
+            try:
+                frames[position] = self._decode(position)
+            except CaptureError as exc:
+                with self._preload_ready:
+                    self._preload_error = exc
+                    self._preload_ready.notify_all()
+                return
+            with self._preload_ready:
+                self._decoded = position + 1
+                self._preload_ready.notify_all()
+        log.info("%s: preloaded %d frames (%.1f MB) in %.2f s", self.name, len(frames), frames.nbytes / 1e6,
+                 time.perf_counter() - started)  # fmt: skip
+
+    def _preloaded_frame(self, position: int) -> NDArray[np.uint8]:
+        """The preloaded frame at `position`, once the preload thread has decoded it."""
+        assert self._preloaded is not None
+        if self._decoded <= position:
+            with self._preload_ready:
+                while self._decoded <= position and self._preload_error is None:
+                    self._preload_ready.wait(1.0)
+            if self._decoded <= position and self._preload_error is not None:
+                raise self._preload_error
+        return self._preloaded[position]
 
     def _close(self) -> None:
         """Keep the preloaded frames: a restarted replay does not decode again."""
@@ -222,7 +258,7 @@ class FrameSetSource(CameraSource):
         recorded_ns = int(self._index_t_ns[position] - self._index_t_ns[0]) + loops * self._loop_index_ns
         t_ns = self._start_ns + recorded_ns if self.paced else int(self._index_t_ns[0]) + recorded_ns
         if self._preloaded is not None:
-            image = self._preloaded[position]
+            image = self._preloaded_frame(position)
         else:
             image = self._decode(position)
             image.flags.writeable = False

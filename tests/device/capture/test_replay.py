@@ -122,6 +122,13 @@ def test_bad_sets_are_refused(tmp_path: Path) -> None:
     (tmp_path / "set" / "frames" / "000003.png").unlink()
     with pytest.raises(CaptureError, match=r"000003.png: missing or unreadable image \(frame 3\)"):
         FrameSetSource(tmp_path / "set").start()
+    _write(tmp_path / "corrupt")
+    (tmp_path / "corrupt" / "frames" / "000003.png").write_bytes(b"not a png")
+    with FrameSetSource(tmp_path / "corrupt", paced=False) as preloading:  # decoded in the background
+        for _ in range(3):
+            assert preloading.read(0) is not None
+        with pytest.raises(CaptureError, match=r"000003\.png"):
+            preloading.read(0)
     streaming = FrameSetSource(tmp_path / "set", paced=False, max_preload_bytes=0)
     with streaming:
         for _ in range(3):
