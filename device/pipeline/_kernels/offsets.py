@@ -92,6 +92,22 @@ def find_caps(turn, n, min_gap, out_idx):
     return 2
 
 
+@kernel(void(f4_2d_ro, i4_2d_ro, int64, f4_2d_ro, f4_2d_ro, float32, float64, f4_2d, int64))
+def place_along_gradient(points, chain, i, gx, gy, polarity, shift, out_poly, k):
+    """Write contour point `i` moved by `shift` px along ``polarity`` times the gradient at its chain pixel (into
+    the rope) to ``out_poly[k]``; unmoved where the gradient is zero. The one placement rule of the offset kernels."""
+    r = chain[i, 0]
+    c = chain[i, 1]
+    g_r = gy[r, c] * polarity
+    g_c = gx[r, c] * polarity
+    norm = math.sqrt(g_r * g_r + g_c * g_c)
+    out_poly[k, 0] = points[i, 0]
+    out_poly[k, 1] = points[i, 1]
+    if norm > 0.0:
+        out_poly[k, 0] += shift * g_r / norm
+        out_poly[k, 1] += shift * g_c / norm
+
+
 @kernel(int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, f4_2d_ro, float32, float32, float32, f4_2d))
 def offset_by_gradient(
     points, chain, n, i_start, i_stop, direction, gx, gy, polarity, width_px, sweep_tip_px, out_poly
@@ -115,16 +131,7 @@ def offset_by_gradient(
         shift = 0.5 * width_px
         if total > 0.0:
             shift = max(0.0, 0.5 * (width_px - sweep_tip_px * s / total))
-        r = chain[i, 0]
-        c = chain[i, 1]
-        g_r = gy[r, c] * polarity
-        g_c = gx[r, c] * polarity
-        norm = math.sqrt(g_r * g_r + g_c * g_c)
-        out_poly[k, 0] = points[i, 0]
-        out_poly[k, 1] = points[i, 1]
-        if norm > 0.0:
-            out_poly[k, 0] += shift * g_r / norm
-            out_poly[k, 1] += shift * g_c / norm
+        place_along_gradient(points, chain, i, gx, gy, polarity, shift, out_poly, k)
     return count
 
 
@@ -254,16 +261,7 @@ def offset_by_table(
         shift = table[last]
         if j < last:
             shift = table[j] + (x - j) * (table[j + 1] - table[j])
-        r = chain[i, 0]
-        c = chain[i, 1]
-        g_r = gy[r, c] * polarity
-        g_c = gx[r, c] * polarity
-        norm = math.sqrt(g_r * g_r + g_c * g_c)
-        out_poly[k, 0] = points[i, 0]
-        out_poly[k, 1] = points[i, 1]
-        if norm > 0.0:
-            out_poly[k, 0] += shift * g_r / norm
-            out_poly[k, 1] += shift * g_c / norm
+        place_along_gradient(points, chain, i, gx, gy, polarity, shift, out_poly, k)
         ip = i
         i += direction
         if i == n:
