@@ -146,7 +146,7 @@ def _plots(c: Comparison, out: Path) -> list[tuple[str, str]]:
             ax.set_title(f"{time_s - c.release_time_s:.3f} s after release", fontsize=9)
             ax.set_xlabel("x (m)")
             ax.invert_yaxis()
-            ax.set_aspect("equal")
+            ax.set_aspect("equal", adjustable="datalim")  # equal panels, limits widened
         axes[0].set_ylabel("y (m, down)")
         axes[0].legend(fontsize=7)
         fig.suptitle("Measured and model rope shapes")
