@@ -131,6 +131,24 @@ def evaluate(sequence: list, method: str, fixed_uv: tuple[float, float] | None =
     }
 
 
+def build_sequences(
+    framesets: list[str] | None, exposures_ms: list[float], frames: int, fixed_end: str
+) -> list[tuple[str, float, list, tuple[float, float] | None]]:
+    """The inputs of an evaluation: (label, exposure ms, frames with truth, fixed end or None) per simulator frame set,
+    or per exposure of the synthetic renderer when no frame set is given; ``fixed_end="truth"`` gives the true one."""
+    sequences = []
+    if framesets:
+        for path in framesets:
+            seq = frameset_sequence(path, frames)
+            fixed = truth_fixed_end(path) if fixed_end == "truth" else None
+            sequences.append((input_label(path), seq[0][2] / 1000.0, seq, fixed))
+    else:
+        fixed = (float(RIG.fixed_uv[0]), float(RIG.fixed_uv[1])) if fixed_end == "truth" else None
+        for exposure in exposures_ms:
+            sequences.append(("synthetic", exposure, synthetic_sequence(exposure, frames), fixed))
+    return sequences
+
+
 def input_label(path: str) -> str:
     """A short, readable name of a frame set: its folder, with the parent when that says more (paper/exposure_1ms)."""
     parts = Path(path).resolve().parts
@@ -213,16 +231,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.frames < 1:
         parser.error(f"--frames must be >= 1, got {args.frames}")
-    sequences = []
-    if args.frameset:
-        for path in args.frameset:
-            seq = frameset_sequence(path, args.frames)
-            fixed = truth_fixed_end(path) if args.fixed_end == "truth" else None
-            sequences.append((input_label(path), seq[0][2] / 1000.0, seq, fixed))
-    else:
-        fixed = (float(RIG.fixed_uv[0]), float(RIG.fixed_uv[1])) if args.fixed_end == "truth" else None
-        for exposure in args.exposures_ms:
-            sequences.append(("synthetic", exposure, synthetic_sequence(exposure, args.frames), fixed))
+    sequences = build_sequences(args.frameset, args.exposures_ms, args.frames, args.fixed_end)
     rows = []
     for number, (name, exposure, seq, fixed) in enumerate(sequences, 1):
         print(f"[{number}/{len(sequences)}] {name}: {exposure:g} ms, {len(seq)} frames", file=sys.stderr, flush=True)

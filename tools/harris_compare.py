@@ -35,7 +35,7 @@ from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from eval_accuracy import RIG, frameset_sequence, input_label, synthetic_sequence, truth_fixed_end
+from eval_accuracy import build_sequences
 
 DETECTORS = ("harris", "paper", "blur_split")
 
@@ -172,16 +172,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.frames < 1:
         parser.error(f"--frames must be >= 1, got {args.frames}")
-    sequences = []
-    if args.frameset:
-        for path in args.frameset:
-            seq = frameset_sequence(path, args.frames)
-            fixed = truth_fixed_end(path) if args.fixed_end == "truth" else None
-            sequences.append((input_label(path), seq[0][2] / 1000.0, seq, fixed))
-    else:
-        for exposure in args.exposures_ms:
-            fixed = tuple(float(v) for v in RIG.fixed_uv) if args.fixed_end == "truth" else None
-            sequences.append(("synthetic", exposure, synthetic_sequence(exposure, args.frames), fixed))
+    sequences = build_sequences(args.frameset, args.exposures_ms, args.frames, args.fixed_end)
     rows: list[dict[str, Any]] = []
     example = None
     for number, (name, exposure, seq, fixed) in enumerate(sequences, 1):
