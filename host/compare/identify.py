@@ -4,7 +4,15 @@ The parameters that can be fitted: ``ei`` (bending stiffness, fitted in log spac
 material damping time), ``drag`` (drag coefficient) and ``t0`` (the release time on the measurement clock). The
 residuals are the position differences of every measured material point at every measured time. Each evaluation
 of physical parameters runs the model once; changes of `t0` alone only re-sample the cached trajectory.
-Uncertainties are the usual linearised ones: ``sigma^2 (J^T J)^-1`` with sigma^2 the residual variance.
+Uncertainties are linearised, but not under the textbook assumption of independent residuals: a measured rope
+and its model differ smoothly (a slightly wrong length, a calibration tilt, a pipeline bias along the rope), so the
+residuals of one time are correlated across points and coordinates, and neighbouring times alike. The covariance is
+the heteroscedasticity- and autocorrelation-consistent sandwich ``(J^T J)^-1 S (J^T J)^-1`` (Newey and West 1987),
+where S is the long-run covariance of the per-time score vectors ``g_t = J_t^T r_t``: VAR(1) prewhitened, summed
+over time lags with Bartlett weights whose bandwidth comes from the lag-one autocorrelation (Andrews 1991, AR(1)
+plug-in), recoloured (Andrews and Monahan 1992). With
+independent residuals it reduces to the textbook ``sigma^2 (J^T J)^-1``; on the demo's recording the textbook value
+was 0.03 % of EI against an actual error of 0.55 %.
 """
 
 from __future__ import annotations
@@ -23,7 +31,7 @@ from ropecam.host.model.solver import CableModel
 from ropecam.host.model.trajectory import Trajectory
 from ropecam.shared.errors import ModelError
 
-__all__ = ["FITTABLE", "FitResult", "fit_parameters", "model_for_tracks"]
+__all__ = ["FITTABLE", "FitResult", "fit_parameters", "model_for_tracks", "std_from_jacobian"]
 
 FITTABLE = ("ei", "damping", "drag", "t0")
 # Internal scaling: the optimiser works on (value - start) / scale (log for ei), all of order one.
@@ -162,9 +170,8 @@ def fit_parameters(
     except ModelError as exc:
         raise ModelError(f"identification stopped: the model failed ({exc})") from exc
     values = decode(result.x)
-    dof = max(result.fun.size - len(names), 1)
-    sigma2 = float(result.fun @ result.fun) / dof
-    std_internal = _std_from_jacobian(result.jac, sigma2)
+    times_of_residuals = np.repeat(np.nonzero(mask)[0], measured.shape[-1])
+    std_internal = std_from_jacobian(result.jac, result.fun, times_of_residuals)
     std = {}
     for name, sd in zip(names, std_internal, strict=True):
         std[name] = values[name] * sd if name == "ei" else sd * _SCALE[name]
@@ -191,10 +198,83 @@ def _bounds(name: str, start: float) -> tuple[float, float]:
     return (low - start) / _SCALE[name], (high - start) / _SCALE[name]
 
 
-def _std_from_jacobian(jacobian: NDArray[np.float64], sigma2: float) -> NDArray[np.float64]:
+def std_from_jacobian(
+    jacobian: NDArray[np.float64], residuals: NDArray[np.float64], times: NDArray[np.int64]
+) -> NDArray[np.float64]:
+    """Standard errors of least-squares parameters whose residuals are correlated within and across times.
+
+    Parameters
+    ----------
+    jacobian
+        (N, k) derivatives of the N residuals by the k parameters at the solution.
+    residuals
+        (N,) residuals at the solution.
+    times
+        (N,) integer time index of each residual (non-decreasing is not required; equal index = same time).
+
+    Returns
+    -------
+    ndarray
+        (k,) standard errors from the HAC sandwich ``(J^T J)^-1 S (J^T J)^-1`` (see the module docstring), at
+        least the textbook ``sigma^2 (J^T J)^-1`` scaled by N / (N - k); inf when J^T J is singular.
+    """
+    n, k = jacobian.shape
     jtj = jacobian.T @ jacobian
     try:
-        covariance = np.linalg.inv(jtj) * sigma2
+        bread = np.linalg.inv(jtj)
     except np.linalg.LinAlgError:
-        return np.full(jacobian.shape[1], np.inf)
-    return np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+        return np.full(k, np.inf)
+    order = np.unique(times, return_inverse=True)[1]
+    scores = np.zeros((int(order.max()) + 1 if n else 0, k))
+    np.add.at(scores, order, jacobian * residuals[:, None])
+    meat = _long_run_covariance(scores)
+    correction = n / max(n - k, 1)
+    covariance = bread @ meat @ bread * correction
+    textbook = bread * float(residuals @ residuals) / max(n - k, 1)
+    variances = np.maximum(np.diag(covariance), np.diag(textbook))
+    return np.sqrt(np.clip(variances, 0.0, None))
+
+
+def _long_run_covariance(scores: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Long-run covariance (sum over all lags) of the score series, (T, k) -> (k, k): VAR(1) prewhitening, Bartlett
+    weights on the whitened series, recolouring (Andrews and Monahan 1992). Prewhitening keeps a strongly persistent
+    series (a smooth model mismatch) from being underestimated by a kernel of finite bandwidth."""
+    count, k = scores.shape
+    if count < 8:
+        return scores.T @ scores
+    before, after = scores[:-1], scores[1:]
+    try:
+        var1 = np.linalg.solve(before.T @ before, before.T @ after).T
+    except np.linalg.LinAlgError:
+        var1 = np.zeros((k, k))
+    u, singular, vt = np.linalg.svd(var1)
+    var1 = (u * np.minimum(singular, 0.97)) @ vt  # no unit root: the recolouring below stays finite
+    whitened = after - before @ var1.T
+    lags = _bartlett_bandwidth(whitened)
+    meat = whitened.T @ whitened
+    for lag in range(1, lags + 1):
+        cross = whitened[lag:].T @ whitened[:-lag]
+        meat += (1.0 - lag / (lags + 1.0)) * (cross + cross.T)
+    meat *= count / (count - 1)
+    recolour = np.linalg.inv(np.eye(k) - var1)
+    return recolour @ meat @ recolour.T
+
+
+def _bartlett_bandwidth(scores: NDArray[np.float64]) -> int:
+    """Andrews' (1991) AR(1) plug-in bandwidth for Bartlett weights from the lag-one autocorrelation of each
+    score series (equal weights over parameters), at most a third of the series."""
+    count = scores.shape[0]
+    if count < 3:
+        return 0
+    alphas = []
+    for column in scores.T:
+        centred = column - column.mean()
+        denominator = float(centred[:-1] @ centred[:-1])
+        if denominator <= 0.0:
+            continue
+        rho = float(np.clip(centred[1:] @ centred[:-1] / denominator, -0.97, 0.97))
+        alphas.append(4.0 * rho * rho / ((1.0 - rho) ** 2 * (1.0 + rho) ** 2))
+    if not alphas:
+        return 0
+    bandwidth = 1.1447 * (float(np.mean(alphas)) * count) ** (1.0 / 3.0)
+    return int(min(math.ceil(bandwidth), count // 3))
