@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from ropecam.device.capture.synthetic import SyntheticFrame, SyntheticRope
+from ropecam.device.capture.synthetic import SyntheticFrame
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline.centerline import CenterlineExtractor
 from ropecam.device.pipeline.config import PipelineConfig
