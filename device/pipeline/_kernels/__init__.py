@@ -1,5 +1,6 @@
 """Numba kernels of the rope pipeline: Canny on row spans, component selection, contour tracing, the paper's
-segmentation operator and scoring, subpixel refinement, the blur split and material point tracking.
+segmentation operator and scoring, subpixel refinement, the blur split, the band's centreline and material point
+tracking.
 
 Conventions: images are (row, col); image points are float32 (row, col) with (0, 0) the centre of the top-left
 pixel; a region of interest is one column span ``[lo[r], hi[r]]`` per row (empty when ``hi[r] < lo[r]``).
@@ -37,6 +38,7 @@ from ropecam.device.pipeline._kernels.canny import (
     sobel_rows,
     suppress_rows,
 )
+from ropecam.device.pipeline._kernels.centerline import band_sides
 from ropecam.device.pipeline._kernels.contour import (
     count_border_contacts,
     count_roi_contacts,
@@ -106,6 +108,7 @@ __all__ = [
     "anchor_start",
     "apply_operator",
     "axis_offset",
+    "band_sides",
     "chain_length",
     "coarse_spans",
     "count_border_contacts",

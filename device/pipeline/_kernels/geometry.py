@@ -351,54 +351,52 @@ def offset_side(points, n, i_start, i_stop, direction, interior_sign, width_px, 
 
 @kernel(int32(f4_2d_ro, int32, f4_2d_ro, int32, f4_2d, f4_1d))
 def midline(side_a, n_a, side_b, n_b, out_poly, out_dist):
-    """Write the midline of two polylines running the same way (fixed end first): each point of `side_a` is
-    paired with its nearest point on `side_b`, the midpoint goes to `out_poly` and the pair's distance to
-    `out_dist`; returns `n_a` or FULL.
+    """Write the midline of two polylines that run between the same two ends (fixed end first, free end last):
+    each vertex of `side_a` is paired with the point of `side_b` at the same fraction of its length, the midpoint
+    goes to `out_poly` and the pair's distance to `out_dist`; returns `n_a`, 0 when a side is empty, or FULL.
 
-    The pairing never goes back along `side_b` (both sides run from the fixed end to the far end). For each point
-    of `side_a` the vertices of `side_b` are scanned forward from the previous pairing, past local minima, until
-    they are farther than ``3 d + 4`` px (d the nearest distance so far): a greedy descent stalls at the first
-    local minimum (a kink of the far side) and then pairs the rest of `side_a` with one point. The pair is then
-    refined to the foot of the perpendicular on the two segments around the nearest vertex.
+    The two sides of a blurred band are the rope's edges at the two instants (plus half of the tip's track each),
+    so equal fractions of their lengths are the same material point of the rope. Pairing by nearest point instead
+    is ill-posed where the sides run apart (a flat end's cap, the tip's track): both ends of the pairing then
+    collapse onto one point or one side's vertex, and the midline's end wanders along the track. A side of zero
+    length pairs every point with the other side's first point.
     """
     if n_a > out_poly.shape[0] or n_a > out_dist.shape[0]:
         return FULL
     if n_a < 1 or n_b < 1:
         return 0
-    j0 = 0
+    len_a = 0.0
+    for i in range(1, n_a):
+        len_a += math.hypot(side_a[i, 0] - side_a[i - 1, 0], side_a[i, 1] - side_a[i - 1, 1])
+    len_b = 0.0
+    for j in range(1, n_b):
+        len_b += math.hypot(side_b[j, 0] - side_b[j - 1, 0], side_b[j, 1] - side_b[j - 1, 1])
+    ratio = len_b / len_a if len_a > 0.0 else 0.0
+    arc_a = 0.0
+    j = 0  # side B's segment [j, j + 1] holds the target; arc_b is the arc length at vertex j
+    arc_b = 0.0
+    seg_b = math.hypot(side_b[1, 0] - side_b[0, 0], side_b[1, 1] - side_b[0, 1]) if n_b > 1 else 0.0
     for i in range(n_a):
         ar = side_a[i, 0]
         ac = side_a[i, 1]
-        best = math.hypot(ar - side_b[j0, 0], ac - side_b[j0, 1])
-        j = j0
-        for jj in range(j0 + 1, n_b):
-            d = math.hypot(ar - side_b[jj, 0], ac - side_b[jj, 1])
-            if d < best:
-                best = d
-                j = jj
-            elif d > 3.0 * best + 4.0:
-                break
-        j0 = j
-        br = side_b[j, 0]
-        bc = side_b[j, 1]
-        for jj in (j - 1, j):
-            if jj < 0 or jj + 1 >= n_b:
-                continue
-            sr = side_b[jj + 1, 0] - side_b[jj, 0]
-            sc = side_b[jj + 1, 1] - side_b[jj, 1]
-            ss = sr * sr + sc * sc
-            if ss <= 0.0:
-                continue
-            t = ((ar - side_b[jj, 0]) * sr + (ac - side_b[jj, 1]) * sc) / ss
-            t = min(max(t, 0.0), 1.0)
-            fr = side_b[jj, 0] + t * sr
-            fc = side_b[jj, 1] + t * sc
-            d = math.hypot(ar - fr, ac - fc)
-            if d <= best:
-                best = d
-                br = fr
-                bc = fc
+        if i > 0:
+            arc_a += math.hypot(ar - side_a[i - 1, 0], ac - side_a[i - 1, 1])
+        target = min(arc_a * ratio, len_b)
+        while j + 2 < n_b and arc_b + seg_b < target:
+            arc_b += seg_b
+            j += 1
+            seg_b = math.hypot(side_b[j + 1, 0] - side_b[j, 0], side_b[j + 1, 1] - side_b[j, 1])
+        if n_b == 1:
+            br = side_b[0, 0]
+            bc = side_b[0, 1]
+        else:
+            t = min(max((target - arc_b) / seg_b, 0.0), 1.0) if seg_b > 0.0 else 0.0
+            br = side_b[j, 0] + t * (side_b[j + 1, 0] - side_b[j, 0])
+            bc = side_b[j, 1] + t * (side_b[j + 1, 1] - side_b[j, 1])
+        if i == n_a - 1 and len_a > 0.0:  # the shared free end, exactly (no rounding of the two lengths)
+            br = side_b[n_b - 1, 0]
+            bc = side_b[n_b - 1, 1]
         out_poly[i, 0] = 0.5 * (ar + br)
         out_poly[i, 1] = 0.5 * (ac + bc)
-        out_dist[i] = best
+        out_dist[i] = math.hypot(ar - br, ac - bc)
     return n_a
