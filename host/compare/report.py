@@ -186,7 +186,8 @@ def write_report(comparison: Comparison, out: str | Path) -> Path:
             "<h2>Identification</h2><table><tr><th>parameter</th><th>start</th><th>fitted</th><th>std. error</th>"
             f"</tr>{fit_rows}</table><p>RMS error {fit['rms_before_mm']} mm before, {fit['rms_after_mm']} mm after "
             f"({fit['model_evaluations']} model runs; {html.escape(fit['message'])}). Units: ei N m², damping s, "
-            "drag coefficient –, t0 s.</p>"
+            "drag coefficient –, t0 s. Standard errors allow for residuals correlated in time (HAC sandwich); "
+            "systematic errors of the calibration are not in them.</p>"
         )
     figures = "".join(
         f'<figure><img src="{name}" alt="{html.escape(text)}"><figcaption>{html.escape(text)}</figcaption></figure>'
