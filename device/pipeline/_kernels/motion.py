@@ -1,0 +1,375 @@
+"""Motion between frames: the time order of a frame's two shapes (constant-acceleration prediction of the tip) and
+the motion model of the free end that places the next frame's region of interest.
+
+Both keep their state in caller-owned arrays, so the steady state of a stream costs one call per frame each.
+
+Time-order state: ``hist_t`` (int64, 6) and ``hist_rc`` (float64, (6, 2)) hold the last tip samples (time in ns,
+(row, col)) oldest first; ``order_state`` (int64, 3) holds [samples held, history ordered (0/1), rejects in a row].
+
+Motion state: ``motion_t`` (int64, 3) mid-exposure times of up to three measured frames, ``motion_log`` (float64,
+(3, 2)) the log-polar position (log radius, unwrapped angle) of the tips' midpoint about the fixed end,
+``motion_state`` (int64, 2) [frames held, exposure in ns], ``motion_sweep`` (float64, 1) the last tip sweep (px).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from typing import Final
+
+import numpy as np
+from numba import float64, int32, int64, types
+
+from ropecam.device.pipeline._kernels._common import INVALID
+from ropecam.shared.jit import f4_1d, f4_2d, f8_1d, f8_2d, kernel
+
+i8_1d: Final = types.Array(types.int64, 1, "C")
+
+HISTORY: Final = 6
+"""Tip samples kept for the time order (two per split frame: three frames)."""
+MOTION_FRAMES: Final = 3
+"""Measured frames kept by the motion model."""
+_TWO_PI: Final = 2.0 * math.pi
+_LOG_LARGE: Final = math.log(sys.float_info.max / 4.0)
+"""Above this real part, exp(z) is computed as exp(z - 1) * e (as CPython's `cmath.exp`)."""
+
+
+# --------------------------------------------------------------------------------------------- time order
+@kernel(int32(f4_2d, int32, int64, int64, i8_1d, f8_2d, i8_1d))
+def remember_tips(shape, single, t_ns, t_end_ns, hist_t, hist_rc, order_state):
+    """Append the tip (last point) of `shape` to the history: at mid-exposure when `single` (one shape, no blur to
+    split), else at `t_ns` (the begin shape's tip) -- call it twice, begin then end (`t_ns` = the end's time).
+    Keeps the last `HISTORY` samples. Writes `hist_t`, `hist_rc`, `order_state[0]`; returns the count held or
+    INVALID (empty shape)."""
+    n = shape.shape[0]
+    if n < 1:
+        return INVALID
+    t = (t_ns + t_end_ns) // 2 if single else t_ns
+    count = order_state[0]
+    cap = hist_t.shape[0]
+    if count >= cap:
+        for i in range(1, cap):
+            hist_t[i - 1] = hist_t[i]
+            hist_rc[i - 1, 0] = hist_rc[i, 0]
+            hist_rc[i - 1, 1] = hist_rc[i, 1]
+        count = cap - 1
+    hist_t[count] = t
+    hist_rc[count, 0] = np.float64(shape[n - 1, 0])
+    hist_rc[count, 1] = np.float64(shape[n - 1, 1])
+    order_state[0] = count + 1
+    return count + 1
+
+
+@kernel(types.UniTuple(float64, 4)(int64, int64, i8_1d, f8_2d, int64))
+def _predict(t_ns, t_end_ns, hist_t, hist_rc, count):
+    """`predict_tips` on the first `count` (>= 1) samples, returned as (begin row, begin col, end row, end col)."""
+    t0 = hist_t[count - 1]
+    span = max(1, t0 - hist_t[0])
+    size = 3 if count >= 4 else min(count, 2)
+    m0 = m1 = m2 = m3 = m4 = 0.0
+    r0 = r1 = r2 = c0 = c1 = c2 = 0.0
+    for i in range(count):
+        x = (hist_t[i] - t0) / span
+        row = hist_rc[i, 0]
+        col = hist_rc[i, 1]
+        x2 = x * x
+        m0 += 1.0
+        m1 += x
+        m2 += x2
+        m3 += x2 * x
+        m4 += x2 * x2
+        r0 += row
+        r1 += x * row
+        r2 += x2 * row
+        c0 += col
+        c1 += x * col
+        c2 += x2 * col
+    a0 = a1 = a2 = b0 = b1 = b2 = 0.0
+    if size == 1:
+        a0 = r0 / m0
+        b0 = c0 / m0
+    else:
+        linear = size == 2
+        if size == 3:
+            a = m2 * m4 - m3 * m3
+            b = m1 * m4 - m2 * m3
+            c = m1 * m3 - m2 * m2
+            det = m0 * a - m1 * b + m2 * c
+            if abs(det) < 1e-12:
+                linear = True
+            else:
+                a0 = (r0 * a - r1 * b + r2 * c) / det
+                a1 = (m0 * (r1 * m4 - m3 * r2) - r0 * b + m2 * (m1 * r2 - r1 * m2)) / det
+                a2 = (m0 * (m2 * r2 - r1 * m3) - m1 * (m1 * r2 - r1 * m2) + r0 * c) / det
+                b0 = (c0 * a - c1 * b + c2 * c) / det
+                b1 = (m0 * (c1 * m4 - m3 * c2) - c0 * b + m2 * (m1 * c2 - c1 * m2)) / det
+                b2 = (m0 * (m2 * c2 - c1 * m3) - m1 * (m1 * c2 - c1 * m2) + c0 * c) / det
+        if linear:
+            det = m0 * m2 - m1 * m1
+            if abs(det) < 1e-12:
+                a0, a1 = r0 / m0, 0.0
+                b0, b1 = c0 / m0, 0.0
+            else:
+                a0, a1 = (r0 * m2 - r1 * m1) / det, (m0 * r1 - m1 * r0) / det
+                b0, b1 = (c0 * m2 - c1 * m1) / det, (m0 * c1 - m1 * c0) / det
+            a2 = b2 = 0.0
+    q = (t_ns - t0) / span
+    e = (t_end_ns - t0) / span
+    return (
+        a0 + a1 * q + a2 * q * q,
+        b0 + b1 * q + b2 * q * q,
+        a0 + a1 * e + a2 * e * e,
+        b0 + b1 * e + b2 * e * e,
+    )
+
+
+@kernel(int32(int64, int64, i8_1d, f8_2d, i8_1d, f8_1d))
+def predict_tips(t_ns, t_end_ns, hist_t, hist_rc, order_state, out_tips):
+    """Predict the tip (row, col) at `t_ns` and `t_end_ns` from the history: a least-squares quadratic in time
+    through four to six samples, a line through two or three, no motion from one (times scaled to [-1, 0]; the
+    normal equations solved by Cramer's rule, a singular system falls back to the line, then to the mean).
+
+    Writes `out_tips` = (begin row, begin col, end row, end col); returns 0, or INVALID without history.
+    """
+    count = order_state[0]
+    if count < 1:
+        return INVALID
+    out_tips[0], out_tips[1], out_tips[2], out_tips[3] = _predict(t_ns, t_end_ns, hist_t, hist_rc, count)
+    return 0
+
+
+@kernel(int32(f4_2d, f4_2d, int32, int64, int64, int64, i8_1d, f8_2d, i8_1d, f8_1d))
+def order_shapes(shape_a, shape_b, single, t_ns, t_end_ns, max_age_ns, hist_t, hist_rc, order_state, out):
+    """Put a frame's two shapes (fixed end first, tip last) in time order by continuity with the tip history.
+
+    `single` says the two are one shape (no split). A history whose last sample is more than `max_age_ns` before
+    `t_ns` is dropped first (frames lost: too old to extrapolate). Without history, or for a single shape, the
+    shapes keep their order. While the history's own order is a guess (one split frame before), the nearest pair
+    of (last tips, these tips) orders both frames (the tip moves on from where the last exposure ended; the
+    remembered samples are swapped when they were the wrong way round). Otherwise the tips predicted at `t_ns`
+    and `t_end_ns` (`predict_tips`) decide by squared distances; a frame whose tips lie far from the predicted path
+    (middle of the band, sweep) is left out of the history once (confidence halved towards 0.5), and on a second
+    such frame in a row the history starts again from it.
+
+    Writes `out[0]` = confidence (0.5-1), updates the history arrays and `order_state`. Returns 1 when `shape_b`
+    is the start of the exposure (swapped), 0 when `shape_a` is, INVALID on an empty shape or `t_end_ns <= t_ns`.
+    """
+    na = shape_a.shape[0]
+    nb = shape_b.shape[0]
+    if na < 1 or nb < 1 or t_end_ns <= t_ns:
+        return INVALID
+    count = order_state[0]
+    if count > 0 and t_ns - hist_t[count - 1] > max_age_ns:
+        count = 0
+        order_state[0] = 0
+        order_state[1] = 0
+    if single or count == 0:
+        order_state[1] = 1 if single else 0
+        if single:
+            remember_tips(shape_a, 1, t_ns, t_end_ns, hist_t, hist_rc, order_state)
+            out[0] = 1.0
+        else:
+            remember_tips(shape_a, 0, t_ns, t_end_ns, hist_t, hist_rc, order_state)
+            remember_tips(shape_b, 0, t_end_ns, t_end_ns, hist_t, hist_rc, order_state)
+            out[0] = 0.5
+        return 0
+    ar = np.float64(shape_a[na - 1, 0])
+    ac = np.float64(shape_a[na - 1, 1])
+    br = np.float64(shape_b[nb - 1, 0])
+    bc = np.float64(shape_b[nb - 1, 1])
+    if order_state[1] == 0:
+        # The nearest pair of (last frame's tips, this frame's tips); ties keep the earlier sample, then shape a.
+        first = count - 2 if count >= 2 and hist_t[count - 2] < hist_t[count - 1] else count - 1
+        best = math.inf
+        best_j = 0
+        best_mine = 0
+        d_low = math.inf
+        d_next = math.inf
+        for j in range(first, count):
+            r = hist_rc[j, 0]
+            c = hist_rc[j, 1]
+            for mine in range(2):
+                d = math.hypot(ar - r, ac - c) if mine == 0 else math.hypot(br - r, bc - c)
+                if d < best:
+                    best, best_j, best_mine = d, j - first, mine
+                if d < d_low:
+                    d_low, d_next = d, d_low
+                elif d < d_next:
+                    d_next = d
+        if count - first == 2 and best_j == 0:
+            # The remembered begin is nearer: it was the end; swap the two samples' positions.
+            for k in range(2):
+                hist_rc[count - 2, k], hist_rc[count - 1, k] = hist_rc[count - 1, k], hist_rc[count - 2, k]
+        out[0] = 0.5 + 0.5 * (d_next - d_low) / (d_next + d_low + 1e-6)
+        order_state[1] = 1
+        if best_mine == 0:
+            remember_tips(shape_a, 0, t_ns, t_end_ns, hist_t, hist_rc, order_state)
+            remember_tips(shape_b, 0, t_end_ns, t_end_ns, hist_t, hist_rc, order_state)
+            return 0
+        remember_tips(shape_b, 0, t_ns, t_end_ns, hist_t, hist_rc, order_state)
+        remember_tips(shape_a, 0, t_end_ns, t_end_ns, hist_t, hist_rc, order_state)
+        return 1
+    pbr, pbc, per, pec = _predict(t_ns, t_end_ns, hist_t, hist_rc, count)
+    # Squared distances: their difference is 2 (b - a) . (pred_end - pred_begin), so the predicted direction of
+    # motion decides, not where the prediction lies (a path bias moves both predictions alike).
+    straight = (ar - pbr) ** 2 + (ac - pbc) ** 2 + (br - per) ** 2 + (bc - pec) ** 2
+    swapped = (br - pbr) ** 2 + (bc - pbc) ** 2 + (ar - per) ** 2 + (ac - pec) ** 2
+    confidence = 0.5 + 0.5 * abs(straight - swapped) / (straight + swapped + 1e-6)
+    swap = 0 if straight <= swapped else 1
+    # Judged on what does not depend on the order: where the band's middle is and how far the tip swept.
+    pred_sweep = math.hypot(per - pbr, pec - pbc)
+    mid_miss = 0.5 * math.hypot(ar + br - pbr - per, ac + bc - pbc - pec)
+    sweep_miss = abs(math.hypot(br - ar, bc - ac) - pred_sweep)
+    last_r = hist_rc[count - 1, 0]
+    last_c = hist_rc[count - 1, 1]
+    reach = math.hypot(0.5 * (pbr + per) - last_r, 0.5 * (pbc + pec) - last_c)  # how far it extrapolates
+    tolerance = 3.0
+    if 0.5 * pred_sweep > tolerance:
+        tolerance = 0.5 * pred_sweep
+    if 0.25 * reach > tolerance:
+        tolerance = 0.25 * reach
+    odd = mid_miss > tolerance or sweep_miss > tolerance
+    if odd and order_state[2] < 1:
+        order_state[2] += 1
+        out[0] = 0.5 + 0.5 * (confidence - 0.5) * 0.5
+        return swap
+    if odd:
+        order_state[0] = 0
+        order_state[1] = 0
+    order_state[2] = 0
+    out[0] = confidence
+    if swap == 0:
+        remember_tips(shape_a, 0, t_ns, t_end_ns, hist_t, hist_rc, order_state)
+        remember_tips(shape_b, 0, t_end_ns, t_end_ns, hist_t, hist_rc, order_state)
+    else:
+        remember_tips(shape_b, 0, t_ns, t_end_ns, hist_t, hist_rc, order_state)
+        remember_tips(shape_a, 0, t_end_ns, t_end_ns, hist_t, hist_rc, order_state)
+    return swap
+
+
+# --------------------------------------------------------------------------------------------- motion model
+@kernel(types.UniTuple(float64, 2)(float64, float64))
+def _exp_complex(re, im):
+    """exp(re + i im) as (real, imaginary), computed as CPython's `cmath.exp` does for finite input."""
+    if re > _LOG_LARGE:
+        scale = math.exp(re - 1.0)
+        return scale * math.cos(im) * math.e, scale * math.sin(im) * math.e
+    scale = math.exp(re)
+    return scale * math.cos(im), scale * math.sin(im)
+
+
+@kernel(int32(f4_2d, f4_2d, f4_1d, int64, float64, int64, i8_1d, f8_2d, i8_1d, f8_1d))
+def observe_motion(
+    begin, end, fixed, t_mid_ns, sweep_px, exposure_ns, motion_t, motion_log, motion_state, motion_sweep
+):
+    """Add a measured frame to the motion model: the midpoint of the two shapes' tips (independent of their time
+    order) about the fixed end `fixed` (row, col), at mid-exposure `t_mid_ns`, in log-polar form (the angle
+    unwrapped against the last frame's); the tip sweep is the larger of `sweep_px` (the split's) and the distance
+    between the tips (non-finite: 0). A tip on the fixed end (within 1 px), or a time not after the last one,
+    starts a new sequence (and the former adds nothing). Keeps `MOTION_FRAMES` frames.
+
+    Writes the motion state arrays; returns the frames held, or INVALID on an empty shape.
+    """
+    nb = begin.shape[0]
+    ne = end.shape[0]
+    if nb < 1 or ne < 1:
+        return INVALID
+    begin_r = np.float64(begin[nb - 1, 0])
+    begin_c = np.float64(begin[nb - 1, 1])
+    end_r = np.float64(end[ne - 1, 0])
+    end_c = np.float64(end[ne - 1, 1])
+    sweep = math.hypot(end_r - begin_r, end_c - begin_c)
+    if not sweep > sweep_px:
+        sweep = sweep_px
+    z_re = 0.5 * (begin_r + end_r) - np.float64(fixed[0])
+    z_im = 0.5 * (begin_c + end_c) - np.float64(fixed[1])
+    h = math.hypot(z_re, z_im)
+    count = motion_state[0]
+    if h < 1.0 or (count > 0 and t_mid_ns <= motion_t[count - 1]):
+        count = 0
+        motion_state[0] = 0
+        motion_state[1] = 0
+        motion_sweep[0] = 0.0
+        if h < 1.0:
+            return 0
+    # log(z) as CPython's `cmath.log` computes it: near |z| = 1 through log1p, for accuracy.
+    if 0.71 <= h <= 1.73:
+        am = max(abs(z_re), abs(z_im))
+        an = min(abs(z_re), abs(z_im))
+        log_re = math.log1p((am - 1.0) * (am + 1.0) + an * an) / 2.0
+    else:
+        log_re = math.log(h)
+    log_im = math.atan2(z_im, z_re)
+    if count > 0:  # unwrap the angle
+        turns = round((log_im - motion_log[count - 1, 1]) / _TWO_PI)
+        log_im -= _TWO_PI * turns
+    if count >= motion_t.shape[0]:
+        for i in range(1, count):
+            motion_t[i - 1] = motion_t[i]
+            motion_log[i - 1, 0] = motion_log[i, 0]
+            motion_log[i - 1, 1] = motion_log[i, 1]
+        count -= 1
+    motion_t[count] = t_mid_ns
+    motion_log[count, 0] = log_re
+    motion_log[count, 1] = log_im
+    motion_state[0] = count + 1
+    motion_state[1] = exposure_ns
+    motion_sweep[0] = sweep if math.isfinite(sweep) else 0.0
+    return count + 1
+
+
+@kernel(int32(int64, int64, i8_1d, f8_2d, i8_1d, f8_1d, f8_1d))
+def predict_motion(t_ns, exposure_ns, motion_t, motion_log, motion_state, motion_sweep, out):
+    """Predict the rope's motion from the last measured frame to the frame exposed from `t_ns` for `exposure_ns`:
+    the complex factor (real, imaginary) that rotates and scales points about the fixed end, and the uncertainty
+    of the free end's position (px).
+
+    With no frame: no motion, no uncertainty. With one (or a time not after the last): no motion, an
+    uncertainty of 1.3 x the last sweep scaled from the exposure to the time gap, plus a pixel. With two, a
+    constant angular and radial velocity (uncertainty half the predicted step); with three, a constant
+    acceleration (uncertainty 0.3 x the step plus the acceleration term); both plus a quarter of the sweep and
+    2 px. An implausible step (the radius changing by a factor e or more, a non-finite factor): no direction,
+    1.3 x twice the sweep plus a pixel.
+
+    Writes `out[0:3]` = (factor real, factor imaginary, uncertainty px); returns the frames used.
+    """
+    count = motion_state[0]
+    if count == 0:
+        out[0], out[1], out[2] = 1.0, 0.0, 0.0
+        return 0
+    gap = float(t_ns + exposure_ns // 2 - motion_t[count - 1])
+    sweep = motion_sweep[0]
+    last_exposure = motion_state[1]
+    if count == 1 or gap <= 0:
+        scale = gap / last_exposure if last_exposure > 0 and gap > 0 else 1.0
+        out[0], out[1], out[2] = 1.0, 0.0, 1.3 * sweep * max(1.0, scale) + 1.0
+        return 1
+    l0_re = motion_log[count - 2, 0]
+    l0_im = motion_log[count - 2, 1]
+    l1_re = motion_log[count - 1, 0]
+    l1_im = motion_log[count - 1, 1]
+    dt1 = float(motion_t[count - 1] - motion_t[count - 2])
+    rate_re = (l1_re - l0_re) / dt1
+    rate_im = (l1_im - l0_im) / dt1
+    radius = math.exp(l1_re)
+    if count == 2:
+        step_re = rate_re * gap
+        step_im = rate_im * gap
+        f_re, f_im = _exp_complex(step_re, step_im)
+        uncertainty = 0.5 * math.hypot(f_re - 1.0, f_im) * radius
+    else:
+        dt0 = float(motion_t[count - 2] - motion_t[count - 3])
+        mean_dt = 0.5 * (dt0 + dt1)
+        accel_re = (rate_re - (l0_re - motion_log[count - 3, 0]) / dt0) / mean_dt
+        accel_im = (rate_im - (l0_im - motion_log[count - 3, 1]) / dt0) / mean_dt
+        half_dt1 = 0.5 * dt1
+        step_re = (rate_re + half_dt1 * accel_re) * gap + 0.5 * accel_re * gap * gap
+        step_im = (rate_im + half_dt1 * accel_im) * gap + 0.5 * accel_im * gap * gap
+        f_re, f_im = _exp_complex(rate_re * gap, rate_im * gap)
+        uncertainty = 0.3 * math.hypot(f_re - 1.0, f_im) * radius + math.hypot(accel_re, accel_im) * gap * gap * radius
+    f_re, f_im = _exp_complex(step_re, step_im)
+    if not (abs(step_re) < 1.0 and math.isfinite(f_re) and math.isfinite(f_im)):
+        out[0], out[1], out[2] = 1.0, 0.0, 1.3 * sweep * 2.0 + 1.0
+        return count
+    out[0], out[1], out[2] = f_re, f_im, uncertainty + 0.25 * sweep + 2.0
+    return count
