@@ -175,7 +175,7 @@ _STAGES = (
     ("split", "splitter", "split"),
     ("order", None, "_order"),
     ("fixed_end", None, "_fixed_end"),
-    ("material_points", "tracker", "track"),
+    ("material_points", "tracker", "track_shapes"),
     ("lengths", "tracker", "length"),
 )
 

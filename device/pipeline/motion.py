@@ -15,29 +15,33 @@ class MotionModel:
 
     Holds the midpoint of the two tips (independent of the time order) at mid-exposure of up to three
     consecutive measured frames, as log-polar coordinates about the fixed end (log radius, unwrapped angle), the
-    last tip sweep and exposure, in arrays for the kernels `observe_motion` and `predict_motion`. Cleared after a
-    frame without shapes.
+    last tip sweep and exposure, in the arrays of the kernels `observe_motion` and `predict_motion`. Cleared after
+    a frame without shapes.
     """
 
-    __slots__ = ("_out", "log", "state", "sweep", "times_ns")
+    __slots__ = ("log", "state")
 
     def __init__(self) -> None:
-        self.times_ns = np.zeros(K.MOTION_FRAMES, np.int64)
-        self.log = np.zeros((K.MOTION_FRAMES, 2), np.float64)
-        self.state = np.zeros(2, np.int64)  # frames held, exposure (ns)
-        self.sweep = np.zeros(1, np.float64)
-        self._out = np.zeros(3, np.float64)
+        self.state = np.zeros(K.MOTION_FRAMES + 2, np.int64)
+        """Mid-exposure times (ns), then [frames held, last exposure ns] (`K.MOTION_COUNT`, `K.MOTION_EXPOSURE`)."""
+        self.log = np.zeros((K.MOTION_FRAMES + 1, 2), np.float64)
+        """Log-polar tip midpoints (log radius, angle) per frame, then (last tip sweep px, unused)."""
 
     def clear(self) -> None:
         """Forget everything (a gap in the measurements)."""
-        self.state[0] = 0
-        self.state[1] = 0
-        self.sweep[0] = 0.0
+        self.state[K.MOTION_COUNT] = 0
+        self.state[K.MOTION_EXPOSURE] = 0
+        self.log[K.MOTION_FRAMES, 0] = 0.0
 
     @property
     def frames(self) -> int:
         """Measured frames held (0-3)."""
-        return int(self.state[0])
+        return int(self.state[K.MOTION_COUNT])
+
+    @property
+    def sweep_px(self) -> float:
+        """The last frame's tip sweep (px)."""
+        return float(self.log[K.MOTION_FRAMES, 0])
 
     def observe(
         self,
@@ -48,22 +52,23 @@ class MotionModel:
         sweep_px: float,
         exposure_ns: int,
     ) -> None:
-        """Add a measured frame: its two shapes (tip last; float32 (n, 2)), the fixed
-        end (row, col) float32 (2,), the mid-exposure time (ns), the split's tip sweep (px; the distance between
-        the tips when larger) and the exposure (ns, 0 = unknown).
+        """Add a measured frame: its two shapes (float32 (n, 2), tip last), the fixed end (row, col) float32
+        (2,), the mid-exposure time (ns), the split's tip sweep (px; the distance between the tips when larger)
+        and the exposure (ns, 0 = unknown).
 
         Raises
         ------
         ValueError
             When a shape has no point.
         """
-        if not begin.flags.writeable:  # the kernel takes the splitter's writable buffers; never per frame
-            begin = begin.copy()
-        if not end.flags.writeable:
-            end = end.copy()
-        if K.observe_motion(
-            begin, end, fixed, t_mid_ns, sweep_px, exposure_ns, self.times_ns, self.log, self.state, self.sweep
-        ) < 0:  # fmt: skip
+        try:
+            held = K.observe_motion(begin, end, fixed, t_mid_ns, sweep_px, exposure_ns, self.state, self.log)
+        except TypeError:  # not the splitter's writable float32 buffers: copies
+            held = K.observe_motion(
+                np.array(begin, np.float32), np.array(end, np.float32), np.array(fixed, np.float32), int(t_mid_ns),
+                float(sweep_px), int(exposure_ns), self.state, self.log,
+            )  # fmt: skip
+        if held < 0:
             raise ValueError(f"cannot observe the motion of shapes of {len(begin)} and {len(end)} points")
 
     def predict(self, t_ns: int, exposure_ns: int) -> tuple[float, float, float]:
@@ -77,7 +82,4 @@ class MotionModel:
         plus the acceleration term); both plus a quarter of the sweep and 2 px. (The tip itself is predicted to
         1-5 px on the simulated rigs; the margin is for the rest of a bending rope.)
         """
-        out = self._out
-        K.predict_motion(t_ns, exposure_ns, self.times_ns, self.log, self.state, self.sweep, out)
-        rot_a, rot_b, motion = out.tolist()
-        return rot_a, rot_b, motion
+        return K.predict_motion(t_ns, exposure_ns, self.state, self.log)

@@ -24,34 +24,33 @@ class TimeOrder:
     `order_shapes`; this class holds its state arrays.
     """
 
-    __slots__ = ("_out", "hist_rc", "hist_t", "state")
+    __slots__ = ("hist_rc", "state")
 
     def __init__(self) -> None:
-        self.hist_t = np.zeros(K.HISTORY, np.int64)
+        self.state = np.zeros(K.HISTORY + 3, np.int64)
+        """Sample times (ns), then [samples held, history ordered (0/1), rejects in a row] (`K.ORDER_*`)."""
         self.hist_rc = np.zeros((K.HISTORY, 2), np.float64)
-        self.state = np.zeros(3, np.int64)  # samples held, history ordered, rejects in a row
-        self._out = np.zeros(1, np.float64)
+        """Sample tips (row, col)."""
 
     def clear(self) -> None:
         """Forget the history (the next split frame starts it again, with confidence 0.5)."""
-        self.state[0] = 0
-        self.state[1] = 0
+        self.state[K.ORDER_COUNT] = 0
+        self.state[K.ORDER_ORDERED] = 0
 
     @property
     def samples(self) -> list[tuple[int, tuple[float, float]]]:
         """The remembered tip samples (t_ns, (row, col)), oldest first (for inspection and tests)."""
-        count = int(self.state[0])
-        return [
-            (int(t), (float(r), float(c))) for t, (r, c) in zip(self.hist_t[:count], self.hist_rc[:count], strict=True)
-        ]
+        count = int(self.state[K.ORDER_COUNT])
+        times, tips = self.state[:count].tolist(), self.hist_rc[:count].tolist()
+        return [(t, (r, c)) for t, (r, c) in zip(times, tips, strict=True)]
 
     def order(
         self, a: NDArray[np.float32], b: NDArray[np.float32], t_ns: int, t_end_ns: int | None, period_ns: int | None
     ) -> tuple[NDArray[np.float32], NDArray[np.float32], float]:
-        """Return (begin, end, confidence) for the shapes `a` and `b` (the same array for a single shape) of the
-        frame exposed from `t_ns` to `t_end_ns` (ns; None or not later: exposure unknown, no order, confidence
-        0.5, nothing remembered). A history older than four frame periods (`period_ns`, None: unknown) is
-        dropped first.
+        """Return (begin, end, confidence) for the shapes `a` and `b` (float32 (n, 2), fixed end first; the same
+        array for a single shape) of the frame exposed from `t_ns` to `t_end_ns` (ns; None or not later: exposure
+        unknown, no order, confidence 0.5, nothing remembered). A history older than four frame periods
+        (`period_ns`, None: unknown) is dropped first.
 
         Raises
         ------
@@ -62,15 +61,14 @@ class TimeOrder:
             # Exposure unknown: the two shapes carry the same time, nothing can say which came first, and their
             # tips would put two different positions at one time into the history.
             return a, b, (1.0 if a is b else 0.5)
-        single = a is b
-        # The kernel takes writable arrays (the splitter's buffers); a read-only shape is copied (never per frame).
-        ka = a if a.flags.writeable else a.copy()
-        kb = ka if single else (b if b.flags.writeable else b.copy())
-        swap = K.order_shapes(
-            ka, kb, np.int32(single), t_ns, t_end_ns, 4 * (period_ns or _DEFAULT_PERIOD_NS),
-            self.hist_t, self.hist_rc, self.state, self._out,
-        )  # fmt: skip
+        max_age_ns = 4 * (period_ns or _DEFAULT_PERIOD_NS)
+        try:
+            swap, confidence = K.order_shapes(a, b, a is b, t_ns, t_end_ns, max_age_ns, self.state, self.hist_rc)
+        except TypeError:
+            # Not the splitter's writable float32 buffers (a read-only or other array): order copies of them.
+            ka = np.array(a, np.float32)
+            kb = ka if a is b else np.array(b, np.float32)
+            swap, confidence = K.order_shapes(ka, kb, a is b, t_ns, t_end_ns, max_age_ns, self.state, self.hist_rc)
         if swap < 0:
             raise ValueError(f"cannot order shapes of {len(a)} and {len(b)} points")
-        confidence = float(self._out[0])
         return (b, a, confidence) if swap else (a, b, confidence)

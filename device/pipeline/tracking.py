@@ -42,8 +42,9 @@ class PointTracker:
         self._arc_px_ro = ro(self.arc_px)
         self._fraction_ro = ro(self.fraction)
         self._out_slots = (self.out[0], self.out[1])
-        self.info = np.zeros(4, np.float64)
-        """Lengths (px) of the last `track_shapes` call's shapes and their stretch: (Lc begin, Lc end, begin, end)."""
+        self.lengths_px = np.zeros(2, np.float64)
+        """Lengths Lc (px) of the last `track_shapes` call's shapes (begin, end)."""
+        self._work = np.zeros(1024, np.float64)
         self._length0 = -1.0 if length0_px is None else float(length0_px)
         """Lc0 for `track_shapes` once it no longer changes (configured, or all its shapes seen); -1 before."""
 
@@ -69,12 +70,10 @@ class PointTracker:
     def track_shapes(
         self, begin: NDArray[np.float32], end: NDArray[np.float32]
     ) -> tuple[NDArray[np.float32], float, NDArray[np.float32], float]:
-        """Measure both shapes of a frame (fixed end first; `end` may be `begin` itself): feed their lengths to
-        the Lc0 estimate (`observe`) and return (material points on `begin`, its stretch Lc/Lc0, the points on
-        `end`, its stretch), as `track` on each (slots 0 and 1), in one kernel call once Lc0 is settled. The
-        lengths are then in `info`.
-
-        The shapes are float32 (n, 2) arrays (the splitter's buffers); a read-only one is copied first.
+        """Measure both shapes of a frame (float32 (n, 2), fixed end first; `end` may be `begin` itself): feed
+        their lengths to the Lc0 estimate (`observe`) and return (material points on `begin`, its stretch
+        Lc/Lc0, the points on `end`, its stretch), as `track` on each (slots 0 and 1), in one kernel call
+        (`track_shapes`) once Lc0 is settled. Their lengths are then in `lengths_px`.
 
         Raises
         ------
@@ -82,24 +81,27 @@ class PointTracker:
             When a shape has no point.
         """
         single = begin is end
-        if not begin.flags.writeable:
-            begin = begin.copy()
-        if single:
-            end = begin
-        elif not end.flags.writeable:
-            end = end.copy()
         length0 = self._length0
         if length0 < 0.0:  # Lc0 still being estimated: the lengths first (a few frames at the start)
-            length_begin = float(K.shape_length(begin))
-            self.observe(length_begin)
+            self.observe(self.length(begin))
             if not single:
-                self.observe(float(K.shape_length(end)))
+                self.observe(self.length(end))
             reference = self.reference_length_px
             length0 = float(reference) if reference is not None else 0.0
-        status = K.track_shapes(begin, end, np.int32(single), self._fraction_ro, length0, self.out, self.info)
+        if len(begin) > len(self._work) or len(end) > len(self._work):
+            self._work = np.zeros(max(len(begin), len(end), 2 * len(self._work)), np.float64)
+        try:
+            status, stretch_begin, stretch_end = K.track_shapes(
+                begin, end, single, self._fraction_ro, length0, self.out, self.lengths_px, self._work
+            )
+        except TypeError:  # not the splitter's writable float32 buffers: copies
+            begin = np.array(begin, np.float32)
+            end = begin if single else np.array(end, np.float32)
+            status, stretch_begin, stretch_end = K.track_shapes(
+                begin, end, single, self._fraction_ro, length0, self.out, self.lengths_px, self._work
+            )
         if status < 0:
             raise ValueError(f"cannot track material points on polylines of {len(begin)} and {len(end)} points")
-        _, _, stretch_begin, stretch_end = self.info.tolist()
         return self._out_slots[0], stretch_begin, self._out_slots[1], stretch_end
 
     def track(

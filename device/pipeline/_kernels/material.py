@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from typing import Final
 
-from numba import float64, int32, types
+from numba import boolean, float64, int32, types
 
 from ropecam.device.pipeline._kernels._common import INVALID
 from ropecam.shared.jit import f4_2d, f8_1d, f8_1d_ro, kernel
@@ -23,11 +23,23 @@ def shape_length(poly):
     return total
 
 
-@kernel(int32(f4_2d, float64, f8_1d_ro, float64, f4_2d))
-def _points_at(poly, total, fraction, length0_px, out_points):
-    """Write the points of `poly` (length `total`) at arc lengths ``fraction * length0_px * total / length0_px``
-    into `out_points`: the arc lengths in increasing order in one walk (each search resumes where the last one
-    stopped), others each from the start; beyond the end, the last point."""
+@kernel(float64(f4_2d, f8_1d))
+def _segment_lengths(poly, out_seg):
+    """Write the length of each segment of `poly` into `out_seg` and return their sum (as `shape_length`)."""
+    total = 0.0
+    for i in range(1, poly.shape[0]):
+        seg = math.hypot(float(poly[i, 0]) - float(poly[i - 1, 0]), float(poly[i, 1]) - float(poly[i - 1, 1]))
+        out_seg[i - 1] = seg
+        total += seg
+    return total
+
+
+@kernel(int32(f4_2d, f8_1d, float64, f8_1d_ro, float64, f4_2d))
+def _points_at(poly, seg_px, total, fraction, length0_px, out_points):
+    """Write the points of `poly` (segment lengths `seg_px`, length `total`) at arc lengths
+    ``fraction * length0_px * total / length0_px`` into `out_points`: arc lengths in increasing order in one walk
+    (each search resumes where the last one stopped), others each from the start; beyond the end, the last
+    point."""
     n = poly.shape[0]
     m = fraction.shape[0]
     ratio = total / length0_px
@@ -46,7 +58,7 @@ def _points_at(poly, total, fraction, length0_px, out_points):
         acc = acc0 if increasing else 0.0
         done = False
         for j in range(j0 if increasing else 0, n - 1):
-            seg = math.hypot(float(poly[j + 1, 0]) - float(poly[j, 0]), float(poly[j + 1, 1]) - float(poly[j, 1]))
+            seg = seg_px[j]
             if acc + seg > target and seg > 0.0:
                 t = (target - acc) / seg
                 out_points[k, 0] = poly[j, 0] + t * (poly[j + 1, 0] - poly[j, 0])
@@ -62,36 +74,44 @@ def _points_at(poly, total, fraction, length0_px, out_points):
     return m
 
 
-@kernel(int32(f4_2d, f4_2d, int32, f8_1d_ro, float64, f4_3d, f8_1d))
-def track_shapes(begin, end, single, fraction, length0_px, out_points, out_info):
+@kernel(types.Tuple((int32, float64, float64))(f4_2d, f4_2d, boolean, f8_1d_ro, float64, f4_3d, f8_1d, f8_1d))
+def track_shapes(begin, end, single, fraction, length0_px, out_points, out_lengths, work_seg):
     """Locate the material points on both shapes of a frame (fixed end first) and their stretch.
 
     `fraction` holds the points' unstretched arc lengths as fractions of the rope; `length0_px` is the
     unstretched length Lc0 in pixels (<= 0 or not finite: unknown, each shape is taken unstretched). `single`
-    says `begin` and `end` are one shape (its length is measured once). A shape of length Lc has its point k at
-    arc length ``fraction[k] * Lc0 * Lc / Lc0``.
+    says `begin` and `end` are one shape (measured once). A shape of length Lc has its point k at arc length
+    ``fraction[k] * Lc0 * Lc / Lc0`` (eqs. 9-12). `work_seg` (at least as long as a shape) holds the segment
+    lengths.
 
-    Writes `out_points[0]` (begin) and `out_points[1]` (end), (k, 2) (row, col) each, and `out_info` = (Lc begin,
-    Lc end, stretch Lc/Lc0 begin, stretch end). Returns k, or INVALID (an empty shape, buffers too small).
+    Writes `out_points[0]` (begin) and `out_points[1]` (end), (k, 2) (row, col) each, and `out_lengths` = (Lc
+    begin, Lc end). Returns (k or INVALID (an empty shape, buffers too small), stretch Lc/Lc0 of begin, of end).
     """
     m = fraction.shape[0]
-    if begin.shape[0] < 1 or end.shape[0] < 1 or out_points.shape[0] < 2 or out_points.shape[1] < m:
-        return INVALID
-    if out_info.shape[0] < 4:
-        return INVALID
-    length_begin = shape_length(begin)
-    length_end = length_begin if single else shape_length(end)
+    nb = begin.shape[0]
+    ne = end.shape[0]
+    if nb < 1 or ne < 1 or out_points.shape[0] < 2 or out_points.shape[1] < m or out_lengths.shape[0] < 2:
+        return INVALID, math.nan, math.nan
+    if work_seg.shape[0] < max(nb, ne):
+        return INVALID, math.nan, math.nan
+    stretch_begin = math.nan
+    stretch_end = math.nan
     for slot in range(2):
         poly = begin if slot == 0 else end
-        lc = length_begin if slot == 0 else length_end
+        if slot == 0 or not single:
+            lc = _segment_lengths(poly, work_seg)
         length0 = length0_px if length0_px > 0.0 else lc
-        out_info[slot] = lc
+        out_lengths[slot] = lc
         if length0 > 0.0:
-            _points_at(poly, lc, fraction, length0, out_points[slot])
-            out_info[2 + slot] = lc / length0
+            _points_at(poly, work_seg, lc, fraction, length0, out_points[slot])
+            stretch = lc / length0
         else:  # a shape of zero length without a reference: its points all at its start
             for k in range(m):
                 out_points[slot, k, 0] = poly[0, 0]
                 out_points[slot, k, 1] = poly[0, 1]
-            out_info[2 + slot] = math.nan
-    return m
+            stretch = math.nan
+        if slot == 0:
+            stretch_begin = stretch
+        else:
+            stretch_end = stretch
+    return m, stretch_begin, stretch_end

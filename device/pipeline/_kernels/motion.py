@@ -3,12 +3,15 @@ the motion model of the free end that places the next frame's region of interest
 
 Both keep their state in caller-owned arrays, so the steady state of a stream costs one call per frame each.
 
-Time-order state: ``hist_t`` (int64, 6) and ``hist_rc`` (float64, (6, 2)) hold the last tip samples (time in ns,
-(row, col)) oldest first; ``order_state`` (int64, 3) holds [samples held, history ordered (0/1), rejects in a row].
+Time-order state (fewer arrays: each array argument costs a dispatch): ``order_state`` (int64, HISTORY + 3) holds
+the times (ns) of the last tip samples oldest first, then [samples held, history ordered (0/1), rejects in a row]
+(indices ``ORDER_COUNT``, ``ORDER_ORDERED``, ``ORDER_REJECTS``); ``hist_rc`` (float64, (HISTORY, 2)) their
+(row, col).
 
-Motion state: ``motion_t`` (int64, 3) mid-exposure times of up to three measured frames, ``motion_log`` (float64,
-(3, 2)) the log-polar position (log radius, unwrapped angle) of the tips' midpoint about the fixed end,
-``motion_state`` (int64, 2) [frames held, exposure in ns], ``motion_sweep`` (float64, 1) the last tip sweep (px).
+Motion state: ``motion_state`` (int64, MOTION_FRAMES + 2) holds the mid-exposure times (ns) of up to three
+measured frames, then [frames held, last exposure in ns] (``MOTION_COUNT``, ``MOTION_EXPOSURE``);
+``motion_log`` (float64, (MOTION_FRAMES + 1, 2)) the log-polar position (log radius, unwrapped angle) of the
+tips' midpoint about the fixed end per frame, then (last tip sweep px, unused).
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ import sys
 from typing import Final
 
 import numpy as np
-from numba import float64, int32, int64, types
+from numba import boolean, float64, int32, int64, types
 
 from ropecam.device.pipeline._kernels._common import INVALID
 from ropecam.shared.jit import f4_1d, f4_2d, f8_1d, f8_2d, kernel
@@ -27,36 +30,40 @@ i8_1d: Final = types.Array(types.int64, 1, "C")
 
 HISTORY: Final = 6
 """Tip samples kept for the time order (two per split frame: three frames)."""
+ORDER_COUNT: Final = HISTORY
+ORDER_ORDERED: Final = HISTORY + 1
+ORDER_REJECTS: Final = HISTORY + 2
 MOTION_FRAMES: Final = 3
 """Measured frames kept by the motion model."""
+MOTION_COUNT: Final = MOTION_FRAMES
+MOTION_EXPOSURE: Final = MOTION_FRAMES + 1
 _TWO_PI: Final = 2.0 * math.pi
 _LOG_LARGE: Final = math.log(sys.float_info.max / 4.0)
 """Above this real part, exp(z) is computed as exp(z - 1) * e (as CPython's `cmath.exp`)."""
 
 
 # --------------------------------------------------------------------------------------------- time order
-@kernel(int32(f4_2d, int32, int64, int64, i8_1d, f8_2d, i8_1d))
-def remember_tips(shape, single, t_ns, t_end_ns, hist_t, hist_rc, order_state):
+@kernel(int32(f4_2d, boolean, int64, int64, i8_1d, f8_2d))
+def remember_tips(shape, single, t_ns, t_end_ns, order_state, hist_rc):
     """Append the tip (last point) of `shape` to the history: at mid-exposure when `single` (one shape, no blur to
     split), else at `t_ns` (the begin shape's tip) -- call it twice, begin then end (`t_ns` = the end's time).
-    Keeps the last `HISTORY` samples. Writes `hist_t`, `hist_rc`, `order_state[0]`; returns the count held or
+    Keeps the last `HISTORY` samples. Writes `order_state` (times, count) and `hist_rc`; returns the count held or
     INVALID (empty shape)."""
     n = shape.shape[0]
     if n < 1:
         return INVALID
     t = (t_ns + t_end_ns) // 2 if single else t_ns
-    count = order_state[0]
-    cap = hist_t.shape[0]
-    if count >= cap:
-        for i in range(1, cap):
-            hist_t[i - 1] = hist_t[i]
+    count = order_state[ORDER_COUNT]
+    if count >= HISTORY:
+        for i in range(1, HISTORY):
+            order_state[i - 1] = order_state[i]
             hist_rc[i - 1, 0] = hist_rc[i, 0]
             hist_rc[i - 1, 1] = hist_rc[i, 1]
-        count = cap - 1
-    hist_t[count] = t
+        count = HISTORY - 1
+    order_state[count] = t
     hist_rc[count, 0] = np.float64(shape[n - 1, 0])
     hist_rc[count, 1] = np.float64(shape[n - 1, 1])
-    order_state[0] = count + 1
+    order_state[ORDER_COUNT] = count + 1
     return count + 1
 
 
@@ -123,23 +130,23 @@ def _predict(t_ns, t_end_ns, hist_t, hist_rc, count):
     )
 
 
-@kernel(int32(int64, int64, i8_1d, f8_2d, i8_1d, f8_1d))
-def predict_tips(t_ns, t_end_ns, hist_t, hist_rc, order_state, out_tips):
+@kernel(int32(int64, int64, i8_1d, f8_2d, f8_1d))
+def predict_tips(t_ns, t_end_ns, order_state, hist_rc, out_tips):
     """Predict the tip (row, col) at `t_ns` and `t_end_ns` from the history: a least-squares quadratic in time
     through four to six samples, a line through two or three, no motion from one (times scaled to [-1, 0]; the
     normal equations solved by Cramer's rule, a singular system falls back to the line, then to the mean).
 
     Writes `out_tips` = (begin row, begin col, end row, end col); returns 0, or INVALID without history.
     """
-    count = order_state[0]
+    count = order_state[ORDER_COUNT]
     if count < 1:
         return INVALID
-    out_tips[0], out_tips[1], out_tips[2], out_tips[3] = _predict(t_ns, t_end_ns, hist_t, hist_rc, count)
+    out_tips[0], out_tips[1], out_tips[2], out_tips[3] = _predict(t_ns, t_end_ns, order_state, hist_rc, count)
     return 0
 
 
-@kernel(int32(f4_2d, f4_2d, int32, int64, int64, int64, i8_1d, f8_2d, i8_1d, f8_1d))
-def order_shapes(shape_a, shape_b, single, t_ns, t_end_ns, max_age_ns, hist_t, hist_rc, order_state, out):
+@kernel(types.Tuple((int32, float64))(f4_2d, f4_2d, boolean, int64, int64, int64, i8_1d, f8_2d))
+def order_shapes(shape_a, shape_b, single, t_ns, t_end_ns, max_age_ns, order_state, hist_rc):
     """Put a frame's two shapes (fixed end first, tip last) in time order by continuity with the tip history.
 
     `single` says the two are one shape (no split). A history whose last sample is more than `max_age_ns` before
@@ -151,35 +158,34 @@ def order_shapes(shape_a, shape_b, single, t_ns, t_end_ns, max_age_ns, hist_t, h
     (middle of the band, sweep) is left out of the history once (confidence halved towards 0.5), and on a second
     such frame in a row the history starts again from it.
 
-    Writes `out[0]` = confidence (0.5-1), updates the history arrays and `order_state`. Returns 1 when `shape_b`
-    is the start of the exposure (swapped), 0 when `shape_a` is, INVALID on an empty shape or `t_end_ns <= t_ns`.
+    Updates `order_state` and `hist_rc`. Returns (1 when `shape_b` is the start of the exposure (swapped), 0 when
+    `shape_a` is, or INVALID on an empty shape or `t_end_ns <= t_ns`; the confidence, 0.5-1).
     """
     na = shape_a.shape[0]
     nb = shape_b.shape[0]
     if na < 1 or nb < 1 or t_end_ns <= t_ns:
-        return INVALID
-    count = order_state[0]
-    if count > 0 and t_ns - hist_t[count - 1] > max_age_ns:
+        return INVALID, 0.0
+    count = order_state[ORDER_COUNT]
+    if count > 0 and t_ns - order_state[count - 1] > max_age_ns:
         count = 0
-        order_state[0] = 0
-        order_state[1] = 0
+        order_state[ORDER_COUNT] = 0
+        order_state[ORDER_ORDERED] = 0
     if single or count == 0:
-        order_state[1] = 1 if single else 0
+        order_state[ORDER_ORDERED] = 1 if single else 0
         if single:
-            remember_tips(shape_a, 1, t_ns, t_end_ns, hist_t, hist_rc, order_state)
-            out[0] = 1.0
+            remember_tips(shape_a, True, t_ns, t_end_ns, order_state, hist_rc)
+            return 0, 1.0
         else:
-            remember_tips(shape_a, 0, t_ns, t_end_ns, hist_t, hist_rc, order_state)
-            remember_tips(shape_b, 0, t_end_ns, t_end_ns, hist_t, hist_rc, order_state)
-            out[0] = 0.5
-        return 0
+            remember_tips(shape_a, False, t_ns, t_end_ns, order_state, hist_rc)
+            remember_tips(shape_b, False, t_end_ns, t_end_ns, order_state, hist_rc)
+            return 0, 0.5
     ar = np.float64(shape_a[na - 1, 0])
     ac = np.float64(shape_a[na - 1, 1])
     br = np.float64(shape_b[nb - 1, 0])
     bc = np.float64(shape_b[nb - 1, 1])
-    if order_state[1] == 0:
+    if order_state[ORDER_ORDERED] == 0:
         # The nearest pair of (last frame's tips, this frame's tips); ties keep the earlier sample, then shape a.
-        first = count - 2 if count >= 2 and hist_t[count - 2] < hist_t[count - 1] else count - 1
+        first = count - 2 if count >= 2 and order_state[count - 2] < order_state[count - 1] else count - 1
         best = math.inf
         best_j = 0
         best_mine = 0
@@ -200,16 +206,16 @@ def order_shapes(shape_a, shape_b, single, t_ns, t_end_ns, max_age_ns, hist_t, h
             # The remembered begin is nearer: it was the end; swap the two samples' positions.
             for k in range(2):
                 hist_rc[count - 2, k], hist_rc[count - 1, k] = hist_rc[count - 1, k], hist_rc[count - 2, k]
-        out[0] = 0.5 + 0.5 * (d_next - d_low) / (d_next + d_low + 1e-6)
-        order_state[1] = 1
+        confidence = 0.5 + 0.5 * (d_next - d_low) / (d_next + d_low + 1e-6)
+        order_state[ORDER_ORDERED] = 1
         if best_mine == 0:
-            remember_tips(shape_a, 0, t_ns, t_end_ns, hist_t, hist_rc, order_state)
-            remember_tips(shape_b, 0, t_end_ns, t_end_ns, hist_t, hist_rc, order_state)
-            return 0
-        remember_tips(shape_b, 0, t_ns, t_end_ns, hist_t, hist_rc, order_state)
-        remember_tips(shape_a, 0, t_end_ns, t_end_ns, hist_t, hist_rc, order_state)
-        return 1
-    pbr, pbc, per, pec = _predict(t_ns, t_end_ns, hist_t, hist_rc, count)
+            remember_tips(shape_a, False, t_ns, t_end_ns, order_state, hist_rc)
+            remember_tips(shape_b, False, t_end_ns, t_end_ns, order_state, hist_rc)
+            return 0, confidence
+        remember_tips(shape_b, False, t_ns, t_end_ns, order_state, hist_rc)
+        remember_tips(shape_a, False, t_end_ns, t_end_ns, order_state, hist_rc)
+        return 1, confidence
+    pbr, pbc, per, pec = _predict(t_ns, t_end_ns, order_state, hist_rc, count)
     # Squared distances: their difference is 2 (b - a) . (pred_end - pred_begin), so the predicted direction of
     # motion decides, not where the prediction lies (a path bias moves both predictions alike).
     straight = (ar - pbr) ** 2 + (ac - pbc) ** 2 + (br - per) ** 2 + (bc - pec) ** 2
@@ -229,22 +235,20 @@ def order_shapes(shape_a, shape_b, single, t_ns, t_end_ns, max_age_ns, hist_t, h
     if 0.25 * reach > tolerance:
         tolerance = 0.25 * reach
     odd = mid_miss > tolerance or sweep_miss > tolerance
-    if odd and order_state[2] < 1:
-        order_state[2] += 1
-        out[0] = 0.5 + 0.5 * (confidence - 0.5) * 0.5
-        return swap
+    if odd and order_state[ORDER_REJECTS] < 1:
+        order_state[ORDER_REJECTS] += 1
+        return swap, 0.5 + 0.5 * (confidence - 0.5) * 0.5
     if odd:
-        order_state[0] = 0
-        order_state[1] = 0
-    order_state[2] = 0
-    out[0] = confidence
+        order_state[ORDER_COUNT] = 0
+        order_state[ORDER_ORDERED] = 0
+    order_state[ORDER_REJECTS] = 0
     if swap == 0:
-        remember_tips(shape_a, 0, t_ns, t_end_ns, hist_t, hist_rc, order_state)
-        remember_tips(shape_b, 0, t_end_ns, t_end_ns, hist_t, hist_rc, order_state)
+        remember_tips(shape_a, False, t_ns, t_end_ns, order_state, hist_rc)
+        remember_tips(shape_b, False, t_end_ns, t_end_ns, order_state, hist_rc)
     else:
-        remember_tips(shape_b, 0, t_ns, t_end_ns, hist_t, hist_rc, order_state)
-        remember_tips(shape_a, 0, t_end_ns, t_end_ns, hist_t, hist_rc, order_state)
-    return swap
+        remember_tips(shape_b, False, t_ns, t_end_ns, order_state, hist_rc)
+        remember_tips(shape_a, False, t_end_ns, t_end_ns, order_state, hist_rc)
+    return swap, confidence
 
 
 # --------------------------------------------------------------------------------------------- motion model
@@ -258,17 +262,15 @@ def _exp_complex(re, im):
     return scale * math.cos(im), scale * math.sin(im)
 
 
-@kernel(int32(f4_2d, f4_2d, f4_1d, int64, float64, int64, i8_1d, f8_2d, i8_1d, f8_1d))
-def observe_motion(
-    begin, end, fixed, t_mid_ns, sweep_px, exposure_ns, motion_t, motion_log, motion_state, motion_sweep
-):
+@kernel(int32(f4_2d, f4_2d, f4_1d, int64, float64, int64, i8_1d, f8_2d))
+def observe_motion(begin, end, fixed, t_mid_ns, sweep_px, exposure_ns, motion_state, motion_log):
     """Add a measured frame to the motion model: the midpoint of the two shapes' tips (independent of their time
     order) about the fixed end `fixed` (row, col), at mid-exposure `t_mid_ns`, in log-polar form (the angle
     unwrapped against the last frame's); the tip sweep is the larger of `sweep_px` (the split's) and the distance
     between the tips (non-finite: 0). A tip on the fixed end (within 1 px), or a time not after the last one,
     starts a new sequence (and the former adds nothing). Keeps `MOTION_FRAMES` frames.
 
-    Writes the motion state arrays; returns the frames held, or INVALID on an empty shape.
+    Writes `motion_state` and `motion_log`; returns the frames held, or INVALID on an empty shape.
     """
     nb = begin.shape[0]
     ne = end.shape[0]
@@ -284,12 +286,12 @@ def observe_motion(
     z_re = 0.5 * (begin_r + end_r) - np.float64(fixed[0])
     z_im = 0.5 * (begin_c + end_c) - np.float64(fixed[1])
     h = math.hypot(z_re, z_im)
-    count = motion_state[0]
-    if h < 1.0 or (count > 0 and t_mid_ns <= motion_t[count - 1]):
+    count = motion_state[MOTION_COUNT]
+    if h < 1.0 or (count > 0 and t_mid_ns <= motion_state[count - 1]):
         count = 0
-        motion_state[0] = 0
-        motion_state[1] = 0
-        motion_sweep[0] = 0.0
+        motion_state[MOTION_COUNT] = 0
+        motion_state[MOTION_EXPOSURE] = 0
+        motion_log[MOTION_FRAMES, 0] = 0.0
         if h < 1.0:
             return 0
     # log(z) as CPython's `cmath.log` computes it: near |z| = 1 through log1p, for accuracy.
@@ -303,23 +305,23 @@ def observe_motion(
     if count > 0:  # unwrap the angle
         turns = round((log_im - motion_log[count - 1, 1]) / _TWO_PI)
         log_im -= _TWO_PI * turns
-    if count >= motion_t.shape[0]:
+    if count >= MOTION_FRAMES:
         for i in range(1, count):
-            motion_t[i - 1] = motion_t[i]
+            motion_state[i - 1] = motion_state[i]
             motion_log[i - 1, 0] = motion_log[i, 0]
             motion_log[i - 1, 1] = motion_log[i, 1]
         count -= 1
-    motion_t[count] = t_mid_ns
+    motion_state[count] = t_mid_ns
     motion_log[count, 0] = log_re
     motion_log[count, 1] = log_im
-    motion_state[0] = count + 1
-    motion_state[1] = exposure_ns
-    motion_sweep[0] = sweep if math.isfinite(sweep) else 0.0
+    motion_state[MOTION_COUNT] = count + 1
+    motion_state[MOTION_EXPOSURE] = exposure_ns
+    motion_log[MOTION_FRAMES, 0] = sweep if math.isfinite(sweep) else 0.0
     return count + 1
 
 
-@kernel(int32(int64, int64, i8_1d, f8_2d, i8_1d, f8_1d, f8_1d))
-def predict_motion(t_ns, exposure_ns, motion_t, motion_log, motion_state, motion_sweep, out):
+@kernel(types.UniTuple(float64, 3)(int64, int64, i8_1d, f8_2d))
+def predict_motion(t_ns, exposure_ns, motion_state, motion_log):
     """Predict the rope's motion from the last measured frame to the frame exposed from `t_ns` for `exposure_ns`:
     the complex factor (real, imaginary) that rotates and scales points about the fixed end, and the uncertainty
     of the free end's position (px).
@@ -331,24 +333,22 @@ def predict_motion(t_ns, exposure_ns, motion_t, motion_log, motion_state, motion
     2 px. An implausible step (the radius changing by a factor e or more, a non-finite factor): no direction,
     1.3 x twice the sweep plus a pixel.
 
-    Writes `out[0:3]` = (factor real, factor imaginary, uncertainty px); returns the frames used.
+    Returns (factor real, factor imaginary, uncertainty px).
     """
-    count = motion_state[0]
+    count = motion_state[MOTION_COUNT]
     if count == 0:
-        out[0], out[1], out[2] = 1.0, 0.0, 0.0
-        return 0
-    gap = float(t_ns + exposure_ns // 2 - motion_t[count - 1])
-    sweep = motion_sweep[0]
-    last_exposure = motion_state[1]
+        return 1.0, 0.0, 0.0
+    gap = float(t_ns + exposure_ns // 2 - motion_state[count - 1])
+    sweep = motion_log[MOTION_FRAMES, 0]
+    last_exposure = motion_state[MOTION_EXPOSURE]
     if count == 1 or gap <= 0:
         scale = gap / last_exposure if last_exposure > 0 and gap > 0 else 1.0
-        out[0], out[1], out[2] = 1.0, 0.0, 1.3 * sweep * max(1.0, scale) + 1.0
-        return 1
+        return 1.0, 0.0, 1.3 * sweep * max(1.0, scale) + 1.0
     l0_re = motion_log[count - 2, 0]
     l0_im = motion_log[count - 2, 1]
     l1_re = motion_log[count - 1, 0]
     l1_im = motion_log[count - 1, 1]
-    dt1 = float(motion_t[count - 1] - motion_t[count - 2])
+    dt1 = float(motion_state[count - 1] - motion_state[count - 2])
     rate_re = (l1_re - l0_re) / dt1
     rate_im = (l1_im - l0_im) / dt1
     radius = math.exp(l1_re)
@@ -358,7 +358,7 @@ def predict_motion(t_ns, exposure_ns, motion_t, motion_log, motion_state, motion
         f_re, f_im = _exp_complex(step_re, step_im)
         uncertainty = 0.5 * math.hypot(f_re - 1.0, f_im) * radius
     else:
-        dt0 = float(motion_t[count - 2] - motion_t[count - 3])
+        dt0 = float(motion_state[count - 2] - motion_state[count - 3])
         mean_dt = 0.5 * (dt0 + dt1)
         accel_re = (rate_re - (l0_re - motion_log[count - 3, 0]) / dt0) / mean_dt
         accel_im = (rate_im - (l0_im - motion_log[count - 3, 1]) / dt0) / mean_dt
@@ -369,7 +369,5 @@ def predict_motion(t_ns, exposure_ns, motion_t, motion_log, motion_state, motion
         uncertainty = 0.3 * math.hypot(f_re - 1.0, f_im) * radius + math.hypot(accel_re, accel_im) * gap * gap * radius
     f_re, f_im = _exp_complex(step_re, step_im)
     if not (abs(step_re) < 1.0 and math.isfinite(f_re) and math.isfinite(f_im)):
-        out[0], out[1], out[2] = 1.0, 0.0, 1.3 * sweep * 2.0 + 1.0
-        return count
-    out[0], out[1], out[2] = f_re, f_im, uncertainty + 0.25 * sweep + 2.0
-    return count
+        return 1.0, 0.0, 1.3 * sweep * 2.0 + 1.0
+    return f_re, f_im, uncertainty + 0.25 * sweep + 2.0
