@@ -97,6 +97,12 @@ class Pipeline:
         self._polarity = {"auto": 0.0, "bright": 1.0, "dark": -1.0}[config.polarity]
         self._polarity_votes: list[float] = []
         self._width_cache: float | None = None
+        self._steady: tuple[float | None, tuple[float, float], float, float] | None = None
+        """(width, fixed end (row, col), border exclusion radius, polarity) once none of them changes any more."""
+        self._exposure_key: float | None = None  # the last float exposure_us and what `_exposure_ns` made of it
+        self._exposure_value: tuple[int, str] = (0, "")
+        self._u8 = np.dtype(np.uint8)
+        self._strides = (width, 1)
         self._time_order = TimeOrder()
         self._period_ns: int | None = None  # the shortest time between frame starts seen: the frame period
         self._last_frame_t_ns: int | None = None
@@ -137,21 +143,30 @@ class Pipeline:
             Arrays in it are views into the pipeline's buffers, valid until the next call.
         """
         start_ns = time.perf_counter_ns()
-        if self._last_frame_t_ns is not None and t_ns > self._last_frame_t_ns:
-            gap_ns = int(t_ns - self._last_frame_t_ns)
-            self._period_ns = gap_ns if self._period_ns is None else min(self._period_ns, gap_ns)
-        self._last_frame_t_ns = int(t_ns)
-        exposure_ns, exposure_problem = _exposure_ns(exposure_us)
-        result = FrameResult(
-            frame=int(index), t_ns=int(t_ns), t_end_ns=int(t_ns) + exposure_ns, status=FrameStatus.BAD_FRAME
-        )
-        problem = self._check_frame(frame) or exposure_problem
+        t = int(t_ns)
+        last = self._last_frame_t_ns
+        if last is not None and t > last:
+            gap_ns = t - last
+            period = self._period_ns
+            self._period_ns = gap_ns if period is None or gap_ns < period else period
+        self._last_frame_t_ns = t
+        if type(exposure_us) is float and exposure_us == self._exposure_key:
+            exposure_ns, exposure_problem = self._exposure_value  # the usual case: the same exposure every frame
+        else:
+            exposure_ns, exposure_problem = _exposure_ns(exposure_us)
+            if type(exposure_us) is float:
+                self._exposure_key, self._exposure_value = exposure_us, (exposure_ns, exposure_problem)
+        result = FrameResult(int(index), t, t + exposure_ns, FrameStatus.BAD_FRAME)
+        if type(frame) is np.ndarray and frame.dtype is self._u8 and frame.shape == self.shape:
+            problem = exposure_problem  # the usual case, without building the messages of `_check_frame`
+        else:
+            problem = self._check_frame(frame) or exposure_problem
         if problem:
             result.message = problem
             self._forget(roi=True)
         else:
             assert isinstance(frame, np.ndarray)
-            image = frame if frame.flags.c_contiguous else np.ascontiguousarray(frame)
+            image = frame if frame.strides == self._strides else np.ascontiguousarray(frame)
             self._measure(image, result, exposure_ns)
             if result.status is not FrameStatus.OK:
                 self._forget(roi=result.status is FrameStatus.NO_ROPE)
@@ -220,12 +235,18 @@ class Pipeline:
         self.prev_points[:n] = points[:n]
         self.prev_count = n
         self._roi_t_ns = result.t_ns
-        width_px = self._width()
-        fixed = self._fixed_end(points, n, width_px)
-        measure = self.config.rope_width_px is None and len(self._widths) < _WIDTH_FRAMES
         result.fixed_end = self.fixed
-        exclude = 3.0 * (width_px or 4.0) + 10.0
-        fixed_rc = (float(fixed[0]), float(fixed[1]))
+        steady = self._steady
+        if steady is not None:
+            width_px, fixed_rc, exclude, polarity = steady
+            measure = False
+        else:
+            width_px = self._width()
+            fixed = self._fixed_end(points, n, width_px)
+            measure = self.config.rope_width_px is None and len(self._widths) < _WIDTH_FRAMES
+            exclude = 3.0 * (width_px or 4.0) + 10.0
+            fixed_rc = (float(fixed[0]), float(fixed[1]))
+            polarity = self._polarity_now()
         clipped = self.tracer.border_contacts(fixed_rc, exclude) > 0
         e = self.edges
         outcome = self.splitter.split(
@@ -239,13 +260,10 @@ class Pipeline:
             e.edges,
             e.mag,
             e.smooth,
-            self._polarity_now(),
+            polarity,
         )
-        if measure and math.isfinite(self.splitter.width_measured) and self.splitter.width_measured > 0:
-            self._widths.append(self.splitter.width_measured)
-            self._width_cache = None
-        if self._polarity == 0.0 and len(self._polarity_votes) < _POLARITY_FRAMES:
-            self._polarity_votes.append(float(self.splitter.polarity_used))
+        if steady is None:
+            self._learn(measure)
         if clipped:
             # The free end is out of view: no tip, no split; give the visible centreline for what it is worth.
             outcome = self.splitter.static(fixed_rc)
@@ -335,6 +353,25 @@ class Pipeline:
     def _trace(self, lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
         e = self.edges
         return self.tracer.trace(e.edges, lo, hi, e.mag_ro, e.gx_ro, e.gy_ro, e.stack_ro, e.count)
+
+    def _learn(self, measure: bool) -> None:
+        """Keep the first frames' width and polarity readings; once the width, the fixed end and the polarity are
+        all settled (they do not change afterwards), keep them for the next frames (`_steady`)."""
+        if measure and math.isfinite(self.splitter.width_measured) and self.splitter.width_measured > 0:
+            self._widths.append(self.splitter.width_measured)
+            self._width_cache = None
+        if self._polarity == 0.0 and len(self._polarity_votes) < _POLARITY_FRAMES:
+            self._polarity_votes.append(float(self.splitter.polarity_used))
+        config = self.config
+        fixed_settled = self._fixed_known and (
+            config.fixed_end_uv is not None or self._fixed_frames >= _FIXED_END_FRAMES
+        )
+        width_settled = config.rope_width_px is not None or len(self._widths) >= _WIDTH_FRAMES
+        polarity_settled = self._polarity != 0.0 or len(self._polarity_votes) >= _POLARITY_FRAMES
+        if fixed_settled and width_settled and polarity_settled:
+            width_px = self._width()
+            fixed_rc = (float(self.fixed[0]), float(self.fixed[1]))
+            self._steady = (width_px, fixed_rc, 3.0 * (width_px or 4.0) + 10.0, self._polarity_now())
 
     def _polarity_now(self) -> float:
         """The configured polarity, or the majority of the first frames' once they are in (0 = decide now)."""
