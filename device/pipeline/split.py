@@ -130,6 +130,8 @@ class BlurSplitter:
         self._width_key = math.nan
         self._width_consts: _WidthConstants | None = None
         self._contrast_key = math.nan
+        self._polarity_key = 0.0
+        self._polarity32 = np.float32(0.0)
         self._contrast32 = np.float32(0.0)
         self._views: dict[int, tuple[NDArray, NDArray]] = {}
         self._per_width: dict[float, _WidthConstants] = {}
@@ -210,12 +212,16 @@ class BlurSplitter:
         )  # fmt: skip
         if found < 0 or self.method == "static":
             return self.static(fixed_rc)
-        i_fix, seg_a, _, seg_b = self.idx  # int32 scalars, as the kernels take them
+        idx = self.idx
+        i_fix, seg_a, seg_b = idx[0], idx[1], idx[3]  # int32 scalars, as the kernels take them
         plus, minus = self._plus, self._minus
         seg = self.seg
         ar, ac = points[seg_a].tolist()
         br, bc = points[seg_b].tolist()
-        seg[0, 0], seg[0, 1], seg[1, 0], seg[1, 1] = ar, ac, br, bc
+        seg[0, 0] = ar
+        seg[0, 1] = ac
+        seg[1, 0] = br
+        seg[1, 1] = bc
         sweep = math.hypot(ar - br, ac - bc)
         if sweep < 1.5 * width:
             # The corners of the band are a rope width apart whatever the sweep below that: read the sweep from
@@ -320,8 +326,10 @@ class BlurSplitter:
         mag = self._mag_ro
         pol = float(polarity)
         if pol != 0.0 and width_px is not None:
-            self.polarity_used = np.float32(pol)
-            self.width_measured = float("nan")
+            if pol != self._polarity_key:
+                self._polarity_key, self._polarity32 = pol, np.float32(pol)
+            self.polarity_used = self._polarity32
+            self.width_measured = math.nan
             self.width = float(width_px)
             return
         edges_ro = self._ro(edges)
