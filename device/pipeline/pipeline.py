@@ -81,8 +81,11 @@ class Pipeline:
         )
         self._height32, self._width32 = np.int32(height), np.int32(width)
         self._margin32 = i32(config.roi_margin_px)
-        self.prev_points = np.zeros((cap, 2), np.float32)
-        self._prev_points_ro = ro(self.prev_points)
+        # The last frame's contour, which the next frame's band is built around: the tracer's own buffer (no copy
+        # per frame). Valid because nothing traces between the end of a frame and the band building at the start
+        # of the next one (`_locate` builds the band first); `prev_count` = 0 marks it stale.
+        self.prev_points = self.tracer.points
+        self._prev_points_ro = self.tracer.points_ro
         self.prev_count = 0
         self.turn_cap = np.zeros(cap, np.float32)
         self.begin_buf = np.zeros((cap, 2), np.float32)
@@ -232,8 +235,7 @@ class Pipeline:
             result.message = "no edge component large enough to be the rope"
             return
         points = self.tracer.points
-        self.prev_points[:n] = points[:n]
-        self.prev_count = n
+        self.prev_count = n  # `prev_points` is the tracer's buffer: these n points
         self._roi_t_ns = result.t_ns
         result.fixed_end = self.fixed
         steady = self._steady
