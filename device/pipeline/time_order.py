@@ -7,9 +7,9 @@ from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
 
-__all__ = ["TimeOrder"]
+__all__ = ["DEFAULT_PERIOD_NS", "TimeOrder"]
 
-_DEFAULT_PERIOD_NS = 25_000_000
+DEFAULT_PERIOD_NS = 25_000_000
 """Frame period assumed before two frames have been seen (40 FPS)."""
 
 
@@ -61,7 +61,7 @@ class TimeOrder:
             # Exposure unknown: the two shapes carry the same time, nothing can say which came first, and their
             # tips would put two different positions at one time into the history.
             return a, b, (1.0 if a is b else 0.5)
-        max_age_ns = 4 * (period_ns or _DEFAULT_PERIOD_NS)
+        max_age_ns = 4 * (period_ns or DEFAULT_PERIOD_NS)
         try:
             swap, confidence = K.order_shapes(a, b, a is b, t_ns, t_end_ns, max_age_ns, self.state, self.hist_rc)
         except TypeError:

@@ -57,21 +57,6 @@ from ropecam.device.pipeline._kernels.geometry import (
     turning_angles,
     turning_angles_far,
 )
-from ropecam.device.pipeline._kernels.material import shape_length, track_shapes
-from ropecam.device.pipeline._kernels.motion import (
-    HISTORY,
-    MOTION_COUNT,
-    MOTION_EXPOSURE,
-    MOTION_FRAMES,
-    ORDER_COUNT,
-    ORDER_ORDERED,
-    ORDER_REJECTS,
-    observe_motion,
-    order_shapes,
-    predict_motion,
-    predict_tips,
-    remember_tips,
-)
 from ropecam.device.pipeline._kernels.offsets import (
     find_caps,
     interp_sorted,
@@ -103,6 +88,23 @@ from ropecam.device.pipeline._kernels.spans import (
     in_spans,
     spans_around_points,
     union_spans,
+)
+from ropecam.device.pipeline._kernels.tracking import (
+    HISTORY,
+    MOTION_COUNT,
+    MOTION_EXPOSURE,
+    MOTION_FRAMES,
+    ORDER_COUNT,
+    ORDER_ORDERED,
+    ORDER_REJECTS,
+    observe_motion,
+    order_shapes,
+    predict_motion,
+    predict_tips,
+    remember_tips,
+    shape_length,
+    track_frame,
+    track_shapes,
 )
 
 __all__ = [
@@ -182,6 +184,7 @@ __all__ = [
     "suppress_rows",
     "thin_chain",
     "trace_contour",
+    "track_frame",
     "track_material_points",
     "track_material_points_of_length",
     "track_shapes",

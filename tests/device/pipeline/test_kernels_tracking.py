@@ -294,3 +294,55 @@ def test_track_shapes_refuses_empty_shapes_and_copes_with_read_only_ones() -> No
     assert points.tolist() == [[0.0, 1.0]] and stretch == 1.0
     long_poly = np.stack([np.zeros(3000), np.arange(3000)], axis=1).astype(np.float32)  # beyond the work buffer
     assert tracker.track_shapes(long_poly, poly)[1] == pytest.approx(299.9)
+
+
+# ------------------------------------------------------------------------------------------- all three at once
+def test_track_frame_is_order_then_material_points_then_motion() -> None:
+    """`track_frame` gives what `order_shapes`, `track_shapes` and `observe_motion` give called in turn (the
+    reference here), states included, through swaps, single shapes, unknown exposures; it writes nothing when a
+    size is wrong."""
+    rng = np.random.default_rng(21)
+    fraction = np.array([0.0, 0.25, 0.5, 1.0])
+    fixed = np.array([20.0, 300.0], np.float32)
+    states = [
+        (np.zeros(K.HISTORY + 3, np.int64), np.zeros((K.HISTORY, 2)), np.zeros(K.MOTION_FRAMES + 2, np.int64),
+         np.zeros((K.MOTION_FRAMES + 1, 2)), np.zeros((2, 4, 2), np.float32), np.zeros(2), np.zeros(512))
+        for _ in range(2)
+    ]  # fmt: skip
+    period, exposure = 8_403_361, 4_000_000
+    for k in range(80):
+        t0 = k * period
+        t1 = t0 + (exposure if k % 17 else 0)
+        angle = 0.6 * math.sin(k * 0.15)
+        tip = np.array([20 + 300 * math.cos(angle), 300 + 300 * math.sin(angle)])
+        shapes = []
+        for shift in (0.0, 4.0 * math.cos(k * 0.15)):
+            line = np.linspace(fixed, tip + shift, int(rng.integers(30, 90)))
+            shapes.append((line + rng.normal(0, 0.1, line.shape)).astype(np.float32))
+        if rng.random() < 0.5:
+            shapes.reverse()
+        a = shapes[0]
+        b = a if k % 11 == 0 else shapes[1]
+        order_state, hist_rc, motion_state, motion_log, out, lengths, work = states[0]
+        got = K.track_frame(a, b, a is b, t0, t1, 4 * period, order_state, hist_rc, fixed, 2.5, t1 - t0,
+                            motion_state, motion_log, fraction, 120.0, out, lengths, work)  # fmt: skip
+        order_state, hist_rc, motion_state, motion_log, out_ref, lengths_ref, work_ref = states[1]
+        if t1 > t0:
+            swap, confidence = K.order_shapes(a, b, a is b, t0, t1, 4 * period, order_state, hist_rc)
+        else:  # exposure unknown: no order
+            swap, confidence = 0, (1.0 if a is b else 0.5)
+        begin, end = (b, a) if swap else (a, b)
+        _, stretch_begin, stretch_end = K.track_shapes(
+            begin, end, a is b, fraction, 120.0, out_ref, lengths_ref, work_ref
+        )
+        K.observe_motion(begin, end, fixed, t0 + (t1 - t0) // 2, 2.5, t1 - t0, motion_state, motion_log)
+        assert got == (swap, confidence, stretch_begin, stretch_end), k
+        for mine, ref in zip(states[0], states[1], strict=True):
+            np.testing.assert_array_equal(mine, ref)
+    before = [s.copy() for s in states[0]]
+    order_state, hist_rc, motion_state, motion_log, out, lengths, work = states[0]
+    long_shape = np.zeros((600, 2), np.float32)  # longer than the scratch
+    assert K.track_frame(long_shape, a, False, 10**9, 10**9 + 1, 4 * period, order_state, hist_rc, fixed, 2.5, 1,
+                         motion_state, motion_log, fraction, 120.0, out, lengths, work)[0] == K.INVALID  # fmt: skip
+    for now, then in zip(states[0], before, strict=True):
+        np.testing.assert_array_equal(now, then)
