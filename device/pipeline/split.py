@@ -321,7 +321,7 @@ class BlurSplitter:
             self._mag_ro = self._ro(mag)
             self._gx, self._gy = self._ro(gx), self._ro(gy)
             self._bound = (points, chain, gx, gy, mag)
-        self._n = i32(n)
+        self._n = np.int32(n)  # NumPy 2 refuses a value out of the int32 range
         self._mag = mag
         mag = self._mag_ro
         pol = float(polarity)
