@@ -173,9 +173,9 @@ _STAGES = (
     ("roi_contacts", "tracer", "roi_contacts"),
     ("border_contacts", "tracer", "border_contacts"),
     ("split", "splitter", "split"),
-    ("order", None, "_order"),
+    ("order+material", None, "_track_frame"),
     ("fixed_end", None, "_fixed_end"),
-    ("material_points", "tracker", "track"),
+    ("material_points", "tracker", "track_shapes"),
     ("lengths", "tracker", "length"),
 )
 

@@ -7,7 +7,6 @@ shapes of a frame in time order.
 
 from __future__ import annotations
 
-import cmath
 import math
 import time
 
@@ -19,8 +18,10 @@ from ropecam.device.pipeline._views import f32, i32, resident_zeros, ro
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.contour import ContourTracer
 from ropecam.device.pipeline.edges import EdgeDetector
+from ropecam.device.pipeline.motion import MotionModel
 from ropecam.device.pipeline.result import FrameResult, FrameStatus
 from ropecam.device.pipeline.split import BlurSplitter
+from ropecam.device.pipeline.time_order import DEFAULT_PERIOD_NS, TimeOrder
 from ropecam.device.pipeline.tracking import PointTracker
 
 __all__ = ["Pipeline"]
@@ -80,8 +81,11 @@ class Pipeline:
         )
         self._height32, self._width32 = np.int32(height), np.int32(width)
         self._margin32 = i32(config.roi_margin_px)
-        self.prev_points = np.zeros((cap, 2), np.float32)
-        self._prev_points_ro = ro(self.prev_points)
+        # The last frame's contour, which the next frame's band is built around: the tracer's own buffer (no copy
+        # per frame). Valid because nothing traces between the end of a frame and the band building at the start
+        # of the next one (`_locate` builds the band first); `prev_count` = 0 marks it stale.
+        self.prev_points = self.tracer.points
+        self._prev_points_ro = self.tracer.points_ro
         self.prev_count = 0
         self.turn_cap = np.zeros(cap, np.float32)
         self.begin_buf = np.zeros((cap, 2), np.float32)
@@ -96,12 +100,16 @@ class Pipeline:
         self._polarity = {"auto": 0.0, "bright": 1.0, "dark": -1.0}[config.polarity]
         self._polarity_votes: list[float] = []
         self._width_cache: float | None = None
-        self._tip_history: list[tuple[int, tuple[float, float]]] = []
-        self._order_rejects = 0
-        self._history_ordered = False
+        self._steady: tuple[float | None, tuple[float, float], float, float] | None = None
+        """(width, fixed end (row, col), border exclusion radius, polarity) once none of them changes any more."""
+        self._exposure_key: float | None = None  # the last float exposure_us and what `_exposure_ns` made of it
+        self._exposure_value: tuple[int, str] = (0, "")
+        self._u8 = np.dtype(np.uint8)
+        self._strides = (width, 1)
+        self._time_order = TimeOrder()
         self._period_ns: int | None = None  # the shortest time between frame starts seen: the frame period
         self._last_frame_t_ns: int | None = None
-        self._motion = _MotionState()
+        self._motion = MotionModel()
         self._roi_t_ns: int | None = None
         self.frames_full = 0
         self.frames_coarse = 0
@@ -138,21 +146,30 @@ class Pipeline:
             Arrays in it are views into the pipeline's buffers, valid until the next call.
         """
         start_ns = time.perf_counter_ns()
-        if self._last_frame_t_ns is not None and t_ns > self._last_frame_t_ns:
-            gap_ns = int(t_ns - self._last_frame_t_ns)
-            self._period_ns = gap_ns if self._period_ns is None else min(self._period_ns, gap_ns)
-        self._last_frame_t_ns = int(t_ns)
-        exposure_ns, exposure_problem = _exposure_ns(exposure_us)
-        result = FrameResult(
-            frame=int(index), t_ns=int(t_ns), t_end_ns=int(t_ns) + exposure_ns, status=FrameStatus.BAD_FRAME
-        )
-        problem = self._check_frame(frame) or exposure_problem
+        t = int(t_ns)
+        last = self._last_frame_t_ns
+        if last is not None and t > last:
+            gap_ns = t - last
+            period = self._period_ns
+            self._period_ns = gap_ns if period is None or gap_ns < period else period
+        self._last_frame_t_ns = t
+        if type(exposure_us) is float and exposure_us == self._exposure_key:
+            exposure_ns, exposure_problem = self._exposure_value  # the usual case: the same exposure every frame
+        else:
+            exposure_ns, exposure_problem = _exposure_ns(exposure_us)
+            if type(exposure_us) is float:
+                self._exposure_key, self._exposure_value = exposure_us, (exposure_ns, exposure_problem)
+        result = FrameResult(int(index), t, t + exposure_ns, FrameStatus.BAD_FRAME)
+        if type(frame) is np.ndarray and frame.dtype is self._u8 and frame.shape == self.shape:
+            problem = exposure_problem  # the usual case, without building the messages of `_check_frame`
+        else:
+            problem = self._check_frame(frame) or exposure_problem
         if problem:
             result.message = problem
             self._forget(roi=True)
         else:
             assert isinstance(frame, np.ndarray)
-            image = frame if frame.flags.c_contiguous else np.ascontiguousarray(frame)
+            image = frame if frame.strides == self._strides else np.ascontiguousarray(frame)
             self._measure(image, result, exposure_ns)
             if result.status is not FrameStatus.OK:
                 self._forget(roi=result.status is FrameStatus.NO_ROPE)
@@ -183,8 +200,7 @@ class Pipeline:
         What does not change between frames (fixed end, width, polarity, Lc0) is kept; the time order starts
         again too (after a gap in the frames, `_forget`, it goes on from the recent tips)."""
         self._forget(roi=True)
-        self._tip_history.clear()
-        self._history_ordered = False
+        self._time_order.clear()
 
     def _forget(self, roi: bool) -> None:
         """Drop the state that predicts this frame from the last one after a frame without shapes (a gap): the
@@ -219,15 +235,20 @@ class Pipeline:
             result.message = "no edge component large enough to be the rope"
             return
         points = self.tracer.points
-        self.prev_points[:n] = points[:n]
-        self.prev_count = n
+        self.prev_count = n  # `prev_points` is the tracer's buffer: these n points
         self._roi_t_ns = result.t_ns
-        width_px = self._width()
-        fixed = self._fixed_end(points, n, width_px)
-        measure = self.config.rope_width_px is None and len(self._widths) < _WIDTH_FRAMES
         result.fixed_end = self.fixed
-        exclude = 3.0 * (width_px or 4.0) + 10.0
-        fixed_rc = (float(fixed[0]), float(fixed[1]))
+        steady = self._steady
+        if steady is not None:
+            width_px, fixed_rc, exclude, polarity = steady
+            measure = False
+        else:
+            width_px = self._width()
+            fixed = self._fixed_end(points, n, width_px)
+            measure = self.config.rope_width_px is None and len(self._widths) < _WIDTH_FRAMES
+            exclude = 3.0 * (width_px or 4.0) + 10.0
+            fixed_rc = (float(fixed[0]), float(fixed[1]))
+            polarity = self._polarity_now()
         clipped = self.tracer.border_contacts(fixed_rc, exclude) > 0
         e = self.edges
         outcome = self.splitter.split(
@@ -241,13 +262,10 @@ class Pipeline:
             e.edges,
             e.mag,
             e.smooth,
-            self._polarity_now(),
+            polarity,
         )
-        if measure and math.isfinite(self.splitter.width_measured) and self.splitter.width_measured > 0:
-            self._widths.append(self.splitter.width_measured)
-            self._width_cache = None
-        if self._polarity == 0.0 and len(self._polarity_votes) < _POLARITY_FRAMES:
-            self._polarity_votes.append(float(self.splitter.polarity_used))
+        if steady is None:
+            self._learn(measure)
         if clipped:
             # The free end is out of view: no tip, no split; give the visible centreline for what it is worth.
             outcome = self.splitter.static(fixed_rc)
@@ -266,23 +284,39 @@ class Pipeline:
         result.method = outcome.method
         result.rope_width_px = outcome.width_px
         result.segmentation_points = outcome.segmentation_points
-        begin, end, confidence = self._order(outcome, result.t_ns, result.t_end_ns)
-        result.begin, result.end, result.order_confidence = begin, end, confidence
-        begin_ro = ro(begin)
-        end_ro = begin_ro if end is begin else ro(end)
-        length_begin = self.tracker.length(begin_ro)
-        length_end = length_begin if end is begin else self.tracker.length(end_ro)
-        self.tracker.observe(length_begin)
-        if end is not begin:
-            self.tracker.observe(length_end)
         result.material_arc_m = self.tracker.arc_m
-        result.material_begin, result.stretch_begin = self.tracker.track(begin_ro, 0, length_begin)
-        result.material_end, result.stretch_end = self.tracker.track(end_ro, 1, length_end)
+        if not (self.tracker.length0_settled_px >= 0.0 and self._track_frame(outcome, result, exposure_ns)):
+            # The first frames (Lc0 still being measured) or shapes `track_frame` does not take: step by step.
+            begin, end, confidence = self._order(outcome, result.t_ns, result.t_end_ns)
+            result.begin, result.end, result.order_confidence = begin, end, confidence
+            (result.material_begin, result.stretch_begin, result.material_end, result.stretch_end) = (
+                self.tracker.track_shapes(begin, end)
+            )
+            t_mid_ns = result.t_ns + exposure_ns // 2
+            self._motion.observe(begin, end, self.fixed, t_mid_ns, float(self.splitter.sweep_px), exposure_ns)
         result.status = FrameStatus.OK
-        (begin_r, begin_c), (end_r, end_c) = begin[-1].tolist(), end[-1].tolist()
-        sweep_px = max(self.splitter.sweep_px, math.hypot(end_r - begin_r, end_c - begin_c))
-        tip_mid = (0.5 * (begin_r + end_r), 0.5 * (begin_c + end_c))
-        self._motion.observe(result.t_ns + exposure_ns // 2, tip_mid, self.fixed, sweep_px, exposure_ns)
+
+    def _track_frame(self, outcome, result: FrameResult, exposure_ns: int) -> bool:
+        """Time order, material points and the motion model's update of a split frame in one kernel call
+        (`track_frame`: the same as `_order`, `PointTracker.track_shapes` and `MotionModel.observe` in turn),
+        written into `result`; False (nothing changed) when the kernel does not take the shapes."""
+        a, b = outcome.shape_a, outcome.shape_b
+        tracker, order, motion = self.tracker, self._time_order, self._motion
+        try:
+            swap, confidence, stretch_begin, stretch_end = K.track_frame(
+                a, b, a is b, result.t_ns, result.t_end_ns, 4 * (self._period_ns or DEFAULT_PERIOD_NS), order.state,
+                order.hist_rc, self.fixed, float(self.splitter.sweep_px), exposure_ns, motion.state, motion.log,
+                tracker.fraction_ro, tracker.length0_settled_px, tracker.out, tracker.lengths_px, tracker.work,
+            )  # fmt: skip
+        except TypeError:  # not the splitter's writable float32 buffers
+            return False
+        if swap < 0:  # an empty shape, a shape longer than the tracker's scratch: nothing was written
+            return False
+        result.begin, result.end = (b, a) if swap else (a, b)
+        result.order_confidence = confidence
+        result.material_begin, result.material_end = tracker.out_slots
+        result.stretch_begin, result.stretch_end = stretch_begin, stretch_end
+        return True
 
     def _locate(self, image: NDArray[np.uint8], t_ns: int, exposure_ns: int) -> tuple[int, bool]:
         """Find the rope's contour: in the band predicted from the last contour, else around the cells where a
@@ -346,6 +380,25 @@ class Pipeline:
         e = self.edges
         return self.tracer.trace(e.edges, lo, hi, e.mag_ro, e.gx_ro, e.gy_ro, e.stack_ro, e.count)
 
+    def _learn(self, measure: bool) -> None:
+        """Keep the first frames' width and polarity readings; once the width, the fixed end and the polarity are
+        all settled (they do not change afterwards), keep them for the next frames (`_steady`)."""
+        if measure and math.isfinite(self.splitter.width_measured) and self.splitter.width_measured > 0:
+            self._widths.append(self.splitter.width_measured)
+            self._width_cache = None
+        if self._polarity == 0.0 and len(self._polarity_votes) < _POLARITY_FRAMES:
+            self._polarity_votes.append(float(self.splitter.polarity_used))
+        config = self.config
+        fixed_settled = self._fixed_known and (
+            config.fixed_end_uv is not None or self._fixed_frames >= _FIXED_END_FRAMES
+        )
+        width_settled = config.rope_width_px is not None or len(self._widths) >= _WIDTH_FRAMES
+        polarity_settled = self._polarity != 0.0 or len(self._polarity_votes) >= _POLARITY_FRAMES
+        if fixed_settled and width_settled and polarity_settled:
+            width_px = self._width()
+            fixed_rc = (float(self.fixed[0]), float(self.fixed[1]))
+            self._steady = (width_px, fixed_rc, 3.0 * (width_px or 4.0) + 10.0, self._polarity_now())
+
     def _polarity_now(self) -> float:
         """The configured polarity, or the majority of the first frames' once they are in (0 = decide now)."""
         if self._polarity != 0.0 or len(self._polarity_votes) < _POLARITY_FRAMES:
@@ -406,8 +459,7 @@ class Pipeline:
                     self._fixed_frames = 0
                     self._widths.clear()
                     self._width_cache = None
-                    self._tip_history.clear()
-                    self._history_ordered = False
+                    self._time_order.clear()
         d = [float(np.hypot(*(end - self.fixed))) for end in ends]
         chosen = ends[0] if d[0] <= d[1] else ends[1]
         if min(d) > 3.0 * w + 5.0:
@@ -433,165 +485,9 @@ class Pipeline:
     def _order(
         self, outcome, t_ns: int, t_end_ns: int | None = None
     ) -> tuple[NDArray[np.float32], NDArray[np.float32], float]:
-        """Put the two shapes in time order by continuity with the previous frames; returns (begin, end, conf).
-
-        The tips of the last three frames (two time samples each: start and end of the exposure) give a
-        least-squares constant-acceleration fit of the tip's path (constant velocity from one frame); it predicts
-        the tip at this frame's start and end, and the pairing of the two shapes with those predictions that fits
-        better wins. A swinging rope reverses every half period: across the gap between frames (several exposures long
-        at low frame rates) a constant velocity overshoots there, a constant acceleration does not.
-        """
-        a, b = outcome.shape_a, outcome.shape_b
-        if t_end_ns is None or t_end_ns <= t_ns:
-            # Exposure unknown: the two shapes carry the same time, nothing can say which came first, and their
-            # tips would put two different positions at one time into the history.
-            return a, b, (1.0 if a is b else 0.5)
-        history = self._tip_history
-        if history and t_ns - history[-1][0] > 4 * (self._period_ns or 25_000_000):
-            history.clear()  # too old to extrapolate (frames lost): start again
-            self._history_ordered = False
-        if a is b or not history:
-            self._history_ordered = a is b
-            self._remember_tips(a, b, t_ns, t_end_ns)
-            return a, b, (1.0 if a is b else 0.5)
-        if not self._history_ordered:
-            return self._order_by_nearness(a, b, t_ns, t_end_ns)
-        (pbr, pbc), (per, pec) = self._predict_tips(t_ns, t_end_ns)
-        ar, ac = a[-1].tolist()
-        br, bc = b[-1].tolist()
-        # Squared distances: their difference is 2 (b - a) . (pred_end - pred_begin), so the predicted direction
-        # of motion decides, not where the prediction lies (a path bias moves both predictions alike).
-        straight = (ar - pbr) ** 2 + (ac - pbc) ** 2 + (br - per) ** 2 + (bc - pec) ** 2
-        swapped = (br - pbr) ** 2 + (bc - pbc) ** 2 + (ar - per) ** 2 + (ac - pec) ** 2
-        confidence = 0.5 + 0.5 * abs(straight - swapped) / (straight + swapped + 1e-6)
-        begin, end = (a, b) if straight <= swapped else (b, a)
-        # A frame whose tips lie far from the predicted path (a bad split, something crossing the rope) must not
-        # steer the next predictions: it is left out, unless the next frame disagrees too (the motion changed).
-        # Judged on what does not depend on the order: where the band's middle is and how far the tip swept.
-        pred_sweep = math.hypot(per - pbr, pec - pbc)
-        mid_miss = 0.5 * math.hypot(ar + br - pbr - per, ac + bc - pbc - pec)
-        sweep_miss = abs(math.hypot(br - ar, bc - ac) - pred_sweep)
-        last_r, last_c = history[-1][1]
-        reach = math.hypot(0.5 * (pbr + per) - last_r, 0.5 * (pbc + pec) - last_c)  # how far it extrapolates
-        tolerance = max(3.0, 0.5 * pred_sweep, 0.25 * reach)
-        odd = mid_miss > tolerance or sweep_miss > tolerance
-        if odd and self._order_rejects < 1:
-            self._order_rejects += 1
-            return begin, end, 0.5 + 0.5 * (confidence - 0.5) * 0.5
-        if odd:
-            history.clear()
-            self._history_ordered = False
-        self._order_rejects = 0
-        self._remember_tips(begin, end, t_ns, t_end_ns)
-        return begin, end, confidence
-
-    def _order_by_nearness(
-        self, a: NDArray[np.float32], b: NDArray[np.float32], t_ns: int, t_end_ns: int
-    ) -> tuple[NDArray[np.float32], NDArray[np.float32], float]:
-        """Order this frame's shapes when the history's own order is a guess (one split frame, no earlier one).
-
-        Between two exposures the tip moves on from where the last one ended: of the last frame's two tips and
-        this frame's two, the nearest pair is (last end, this begin) for any motion that does not reverse in the
-        gap. That orders both frames; the remembered one is corrected, so the prediction starts from a consistent
-        history.
-        """
-        history = self._tip_history
-        ar, ac = a[-1].tolist()
-        br, bc = b[-1].tolist()
-        last = history[-2:] if len(history) >= 2 and history[-2][0] < history[-1][0] else history[-1:]
-        best = (math.inf, 0, 0)
-        for j, (_, (r, c)) in enumerate(last):
-            for mine, (qr, qc) in enumerate(((ar, ac), (br, bc))):
-                best = min(best, (math.hypot(qr - r, qc - c), j, mine))
-        _, j, mine = best
-        if len(last) == 2 and j == 0:
-            # The remembered begin is nearer: it was the end; swap the two samples' positions.
-            (t_first, p_first), (t_second, p_second) = history[-2], history[-1]
-            history[-2], history[-1] = (t_first, p_second), (t_second, p_first)
-        begin, end = (a, b) if mine == 0 else (b, a)
-        distances = sorted(math.hypot(qr - r, qc - c) for _, (r, c) in last for qr, qc in ((ar, ac), (br, bc)))
-        confidence = 0.5 + 0.5 * (distances[1] - distances[0]) / (distances[1] + distances[0] + 1e-6)
-        self._history_ordered = True
-        self._remember_tips(begin, end, t_ns, t_end_ns)
-        return begin, end, confidence
-
-    def _remember_tips(self, begin: NDArray[np.float32], end: NDArray[np.float32], t_ns: int, t_end_ns: int) -> None:
-        """Keep the last six tip samples (time, (row, col)) oldest first: two per split frame, one per single
-        shape."""
-        history = self._tip_history
-        if begin is end:
-            # One shape (no blur to split): the band's centre, a sample at mid-exposure.
-            history.append(((t_ns + t_end_ns) // 2, tuple(begin[-1].tolist())))
-        else:
-            history.append((t_ns, tuple(begin[-1].tolist())))
-            history.append((t_end_ns, tuple(end[-1].tolist())))
-        del history[:-6]
-
-    def _predict_tips(self, t_ns: int, t_end_ns: int) -> tuple[tuple[float, float], tuple[float, float]]:
-        """Predict the tip (row, col) at `t_ns` and `t_end_ns` from the remembered tips: a least-squares quadratic
-        in time through four to six samples, a line through two or three, no motion from one. Plain floats and
-        the normal equations by hand: NumPy's per-call overhead would cost more than the arithmetic."""
-        history = self._tip_history
-        t0 = history[-1][0]
-        span = max(1, t0 - history[0][0])
-        size = 3 if len(history) >= 4 else min(len(history), 2)
-        m0 = m1 = m2 = m3 = m4 = 0.0  # sums of x^k
-        r0 = r1 = r2 = c0 = c1 = c2 = 0.0  # sums of x^k * tip (row, col)
-        for t, (row, col) in history:
-            x = (t - t0) / span
-            x2 = x * x
-            m0 += 1.0
-            m1 += x
-            m2 += x2
-            m3 += x2 * x
-            m4 += x2 * x2
-            r0 += row
-            r1 += x * row
-            r2 += x2 * row
-            c0 += col
-            c1 += x * col
-            c2 += x2 * col
-        if size == 3:
-            a0, a1, a2 = _solve3(m0, m1, m2, m3, m4, r0, r1, r2)
-            b0, b1, b2 = _solve3(m0, m1, m2, m3, m4, c0, c1, c2)
-        elif size == 2:
-            a0, a1, a2 = _solve2(m0, m1, m2, r0, r1)
-            b0, b1, b2 = _solve2(m0, m1, m2, c0, c1)
-        else:
-            a0, a1, a2 = r0 / m0, 0.0, 0.0
-            b0, b1, b2 = c0 / m0, 0.0, 0.0
-        q = (t_ns - t0) / span
-        e = (t_end_ns - t0) / span
-        return (a0 + a1 * q + a2 * q * q, b0 + b1 * q + b2 * q * q), (
-            a0 + a1 * e + a2 * e * e,
-            b0 + b1 * e + b2 * e * e,
-        )
-
-
-def _solve2(m0: float, m1: float, m2: float, y0: float, y1: float) -> tuple[float, float, float]:
-    """Solve a line's normal equations [[m0, m1], [m1, m2]] c = (y0, y1); a singular system (all samples at one
-    time) gives the mean and no slope."""
-    det = m0 * m2 - m1 * m1
-    if abs(det) < 1e-12:
-        return y0 / m0, 0.0, 0.0
-    return (y0 * m2 - y1 * m1) / det, (m0 * y1 - m1 * y0) / det, 0.0
-
-
-def _solve3(
-    m0: float, m1: float, m2: float, m3: float, m4: float, y0: float, y1: float, y2: float
-) -> tuple[float, float, float]:
-    """Solve a quadratic's normal equations [[m0, m1, m2], [m1, m2, m3], [m2, m3, m4]] c = y by Cramer's rule
-    (the times are scaled to [-1, 0]: well conditioned); a singular system falls back to the line."""
-    a = m2 * m4 - m3 * m3
-    b = m1 * m4 - m2 * m3
-    c = m1 * m3 - m2 * m2
-    det = m0 * a - m1 * b + m2 * c
-    if abs(det) < 1e-12:
-        return _solve2(m0, m1, m2, y0, y1)
-    k0 = (y0 * a - y1 * b + y2 * c) / det
-    k1 = (m0 * (y1 * m4 - m3 * y2) - y0 * b + m2 * (m1 * y2 - y1 * m2)) / det
-    k2 = (m0 * (m2 * y2 - y1 * m3) - m1 * (m1 * y2 - y1 * m2) + y0 * c) / det
-    return k0, k1, k2
+        """Put the two shapes in time order by continuity with the previous frames (`TimeOrder`); returns
+        (begin, end, confidence)."""
+        return self._time_order.order(outcome.shape_a, outcome.shape_b, t_ns, t_end_ns, self._period_ns)
 
 
 def _exposure_ns(exposure_us: object) -> tuple[int, str]:
@@ -605,84 +501,3 @@ def _exposure_ns(exposure_us: object) -> tuple[int, str]:
     if not math.isfinite(value) or value < 0:
         return 0, f"exposure_us is {value}, expected a finite number of microseconds >= 0 (0 = unknown)"
     return round(value * 1000.0), ""
-
-
-class _MotionState:
-    """The free end's recent positions, which predict where the rope is in the next frame (the ROI).
-
-    Holds the midpoint of the two tips (independent of the time order) at mid-exposure of up to three
-    consecutive measured frames, as log-polar coordinates about the fixed end (log radius, unwrapped angle), the
-    last tip sweep and exposure. Cleared after a frame without shapes.
-    """
-
-    __slots__ = ("exposure_ns", "logs", "sweep_px", "times_ns")
-
-    def __init__(self) -> None:
-        self.times_ns: list[int] = []
-        self.logs: list[complex] = []
-        self.sweep_px = 0.0
-        self.exposure_ns = 0
-
-    def clear(self) -> None:
-        """Forget everything (a gap in the measurements)."""
-        self.times_ns.clear()
-        self.logs.clear()
-        self.sweep_px = 0.0
-        self.exposure_ns = 0
-
-    def observe(
-        self, t_mid_ns: int, tip_mid: tuple[float, float], fixed: NDArray[np.float32], sweep_px: float, exposure_ns: int
-    ) -> None:
-        """Add a measured frame: mid-exposure time, midpoint of the two tips and fixed end (row, col), tip sweep
-        (px) and exposure (ns, 0 = unknown)."""
-        fixed_r, fixed_c = fixed.tolist()
-        z = complex(tip_mid[0] - fixed_r, tip_mid[1] - fixed_c)
-        if abs(z) < 1.0 or (self.times_ns and t_mid_ns <= self.times_ns[-1]):
-            self.clear()  # tip on the fixed end, or time went backwards or stood still: a new sequence
-            if abs(z) < 1.0:
-                return
-        log = cmath.log(z)
-        if self.logs:  # unwrap the angle
-            turns = round((log.imag - self.logs[-1].imag) / (2.0 * math.pi))
-            log -= 2j * math.pi * turns
-        self.times_ns.append(int(t_mid_ns))
-        self.logs.append(log)
-        if len(self.times_ns) > 3:
-            del self.times_ns[0], self.logs[0]
-        self.sweep_px = float(sweep_px) if math.isfinite(sweep_px) else 0.0
-        self.exposure_ns = int(exposure_ns)
-
-    def predict(self, t_ns: int, exposure_ns: int) -> tuple[float, float, float]:
-        """Return the predicted motion of the rope from the last measured frame to the frame starting at `t_ns`
-        as the complex factor (real, imaginary) that rotates and scales points about the fixed end, and the
-        uncertainty of the free end's position (px).
-
-        With one measured frame the direction is unknown: no motion, an uncertainty of 1.3 x the last sweep
-        scaled from the exposure to the time gap, plus a pixel. With two, a constant angular and radial velocity
-        (uncertainty half the predicted step); with three, a constant acceleration (uncertainty 0.3 x the step
-        plus the acceleration term); both plus a quarter of the sweep and 2 px. (The tip itself is predicted to
-        1-5 px on the simulated rigs; the margin is for the rest of a bending rope.)
-        """
-        if not self.times_ns:
-            return 1.0, 0.0, 0.0
-        gap_ns = float(t_ns + exposure_ns // 2 - self.times_ns[-1])
-        sweep = self.sweep_px
-        if len(self.times_ns) == 1 or gap_ns <= 0:
-            scale = gap_ns / self.exposure_ns if self.exposure_ns > 0 and gap_ns > 0 else 1.0
-            return 1.0, 0.0, 1.3 * sweep * max(1.0, scale) + 1.0
-        l0, l1 = self.logs[-2], self.logs[-1]
-        dt1 = float(self.times_ns[-1] - self.times_ns[-2])
-        rate = (l1 - l0) / dt1
-        radius = math.exp(l1.real)
-        if len(self.times_ns) == 2:
-            step = rate * gap_ns
-            uncertainty = 0.5 * abs(cmath.exp(step) - 1.0) * radius
-        else:
-            dt0 = float(self.times_ns[-2] - self.times_ns[-3])
-            accel = (rate - (l0 - self.logs[-3]) / dt0) / (0.5 * (dt0 + dt1))
-            step = (rate + 0.5 * dt1 * accel) * gap_ns + 0.5 * accel * gap_ns * gap_ns
-            uncertainty = 0.3 * abs(cmath.exp(rate * gap_ns) - 1.0) * radius + abs(accel) * gap_ns * gap_ns * radius
-        factor = cmath.exp(step)
-        if not (abs(step.real) < 1.0 and math.isfinite(factor.real) and math.isfinite(factor.imag)):
-            return 1.0, 0.0, 1.3 * sweep * 2.0 + 1.0  # implausible (a jump): no direction
-        return factor.real, factor.imag, uncertainty + 0.25 * sweep + 2.0

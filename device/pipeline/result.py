@@ -73,17 +73,18 @@ class FrameResult:
         return record
 
 
-def _wire_uv(points: NDArray[np.float32] | None) -> NDArray[np.float64] | None:
-    """(row, col) float32 -> (u, v) float64, a copy."""
+def _wire_uv(points: NDArray[np.float32] | None) -> NDArray[np.float32] | None:
+    """(row, col) -> (u, v): a reversed view (the wire record copies it to float64 when it checks it)."""
     if points is None:
         return None
-    return np.ascontiguousarray(np.asarray(points, dtype=np.float64)[:, ::-1])
+    return points[:, ::-1]
 
 
 def _tip(points: NDArray[np.float32] | None) -> tuple[float, float] | None:
     if points is None or len(points) == 0:
         return None
-    return float(points[-1][1]), float(points[-1][0])
+    row, col = points[-1].tolist()
+    return col, row
 
 
 def to_wire(result: FrameResult) -> WireFrameResult:
@@ -99,7 +100,7 @@ def to_wire(result: FrameResult) -> WireFrameResult:
         exposure_end_t_ns=int(result.t_end_ns),
         status=FrameStatus(result.status),
         method=Method.BLUR_SPLIT if result.method is None else Method(result.method),
-        order_confidence=float(np.clip(result.order_confidence, 0.0, 1.0)),
+        order_confidence=min(max(float(result.order_confidence), 0.0), 1.0),
         begin_px=begin,
         end_px=end,
         begin_tip_px=_tip(result.begin),

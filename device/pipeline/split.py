@@ -120,6 +120,19 @@ class BlurSplitter:
         self._out_a_ro, self._out_b_ro = ro(self.out_a), ro(self.out_b)
         self._sweeps_a_ro, self._sweeps_b_ro = ro(self.sweeps_a), ro(self.sweeps_b)
         self._plus, self._minus = np.int32(1), np.int32(-1)
+        self._zero = np.int32(0)
+        self._slope_low, self._slope_high = np.float32(0.5), np.float32(0.85)
+        self._bound: tuple[NDArray, ...] = ()
+        """The arrays of the last `_prepare` (points, chain, gx, gy, mag): the same buffers every frame, so their
+        read-only views are made once."""
+        self._fixed_key: tuple[float, float] | None = None
+        self._fixed32 = (np.float32(0.0), np.float32(0.0))
+        self._width_key = math.nan
+        self._width_consts: _WidthConstants | None = None
+        self._contrast_key = math.nan
+        self._polarity_key = 0.0
+        self._polarity32 = np.float32(0.0)
+        self._contrast32 = np.float32(0.0)
         self._views: dict[int, tuple[NDArray, NDArray]] = {}
         self._per_width: dict[float, _WidthConstants] = {}
 
@@ -179,9 +192,14 @@ class BlurSplitter:
         points, chain, n = self._points, self._chain, self._n
         if self.method in ("paper", "centerline"):
             return self._comparison(fixed_rc)
-        fixed_r, fixed_c = np.float32(fixed_rc[0]), np.float32(fixed_rc[1])
+        if fixed_rc != self._fixed_key:  # the fixed end settles after a few frames: its float32 pair made once
+            self._fixed_key, self._fixed32 = fixed_rc, (np.float32(fixed_rc[0]), np.float32(fixed_rc[1]))
+        fixed_r, fixed_c = self._fixed32
         width = self.width
-        consts = self._constants(width)
+        if width != self._width_key:
+            self._width_key, self._width_consts = width, self._constants(width)
+        consts = self._width_consts
+        assert consts is not None
         # The band's corners lie at the free end, but an end that also moves along the rope (a whipping tip)
         # slants the band's end: the corners can then differ in distance from the fixed end by up to about the
         # sweep. The last frame's sweep widens the zone searched (a rope does not change its speed much between
@@ -194,19 +212,22 @@ class BlurSplitter:
         )  # fmt: skip
         if found < 0 or self.method == "static":
             return self.static(fixed_rc)
-        i_fix_, seg_a_, _, seg_b_ = self.idx.tolist()
-        i_fix, seg_a, seg_b = np.int32(i_fix_), np.int32(seg_a_), np.int32(seg_b_)
+        idx = self.idx
+        i_fix, seg_a, seg_b = idx[0], idx[1], idx[3]  # int32 scalars, as the kernels take them
         plus, minus = self._plus, self._minus
         seg = self.seg
-        seg[0] = points[seg_a_]
-        seg[1] = points[seg_b_]
-        (ar, ac), (br, bc) = seg.tolist()
+        ar, ac = points[seg_a].tolist()
+        br, bc = points[seg_b].tolist()
+        seg[0, 0] = ar
+        seg[0, 1] = ac
+        seg[1, 0] = br
+        seg[1, 1] = bc
         sweep = math.hypot(ar - br, ac - bc)
         if sweep < 1.5 * width:
             # The corners of the band are a rope width apart whatever the sweep below that: read the sweep from
             # the edge slope instead (contrast / sweep, see `_sweep_from_gradient`).
-            from_slope = self._sweep_from_gradient(int(i_fix), int(seg_a), int(seg_b), fixed_rc)
-            if np.isfinite(from_slope):
+            from_slope = self._sweep_from_gradient(i_fix, seg_a, seg_b, fixed_rc)
+            if math.isfinite(from_slope):
                 sweep = min(from_slope, 1.5 * width)
         self.sweep_px = sweep
         if sweep < self.static_ratio * width:
@@ -217,7 +238,7 @@ class BlurSplitter:
         # The local sweep along each side, from the edge's slope (contrast / sweep): a whipping rope does not
         # sweep in proportion to the distance from the fixed end. Without a contrast reading, that proportion.
         contrast = self._contrast(fixed_rc)
-        local = np.int32(1 if contrast >= 5.0 else 0)
+        local = plus if contrast >= 5.0 else self._zero
         if local:
             # The usual case, in one kernel call; its rare failures (a full buffer) are redone step by step below.
             status = K.split_shapes_local(
@@ -292,14 +313,23 @@ class BlurSplitter:
         fixed_rc: tuple[float, float] | None,
     ) -> None:
         """Store read-only views, the contour orientation, the polarity and the rope width of this contour."""
-        self._points, self._chain, self._n = self._ro(points), self._ro(chain), i32(n)
+        bound = self._bound
+        if not (
+            bound and points is bound[0] and chain is bound[1] and gx is bound[2] and gy is bound[3] and mag is bound[4]
+        ):
+            self._points, self._chain = self._ro(points), self._ro(chain)
+            self._mag_ro = self._ro(mag)
+            self._gx, self._gy = self._ro(gx), self._ro(gy)
+            self._bound = (points, chain, gx, gy, mag)
+        self._n = np.int32(n)  # NumPy 2 refuses a value out of the int32 range
         self._mag = mag
-        self._mag_ro = mag = self._ro(mag)
-        self._gx, self._gy = self._ro(gx), self._ro(gy)
+        mag = self._mag_ro
         pol = float(polarity)
         if pol != 0.0 and width_px is not None:
-            self.polarity_used = np.float32(pol)
-            self.width_measured = float("nan")
+            if pol != self._polarity_key:
+                self._polarity_key, self._polarity32 = pol, np.float32(pol)
+            self.polarity_used = self._polarity32
+            self.width_measured = math.nan
             self.width = float(width_px)
             return
         edges_ro = self._ro(edges)
@@ -325,7 +355,9 @@ class BlurSplitter:
         else:
             self.width = 4.0
 
-    def _sweep_from_gradient(self, i_fix: int, seg_a: int, seg_b: int, fixed_rc: tuple[float, float]) -> float:
+    def _sweep_from_gradient(
+        self, i_fix: np.int32, seg_a: np.int32, seg_b: np.int32, fixed_rc: tuple[float, float]
+    ) -> float:
         """Estimate the tip sweep from the gradient magnitude along the sides.
 
         Across the band the intensity rises with slope contrast / d (each pixel is covered for a time in proportion
@@ -338,14 +370,17 @@ class BlurSplitter:
         contrast = self._contrast(fixed_rc)
         if not contrast >= 5.0:
             return float("nan")
-        tables = self.model.tables(self.width)
-        sweeps, ratios = tables.sweeps_px, tables.peak_ratio
+        consts = self._constants(self.width)
+        ratios, sweeps = consts.ratios_ro, consts.sweeps_ro
         estimates = []
-        contrast32 = np.float32(contrast)  # NumPy divided the float32 samples by the Python float in float32
-        for seg, direction in ((seg_a, 1), (seg_b, -1)):
+        if contrast != self._contrast_key:  # it settles after ten frames
+            # NumPy divided the float32 samples by the Python float in float32
+            self._contrast_key, self._contrast32 = contrast, np.float32(contrast)
+        contrast32 = self._contrast32
+        for seg, direction in ((seg_a, self._plus), (seg_b, self._minus)):
             median = K.slope_sweep_median(
-                self._chain, self._n, i32(i_fix), i32(seg), i32(direction), self._mag_ro, f32(0.5), f32(0.85),
-                contrast32, self._ro(ratios), self._ro(sweeps), self.slope_work,
+                self._chain, self._n, i_fix, seg, direction, self._mag_ro, self._slope_low, self._slope_high,
+                contrast32, ratios, sweeps, self.slope_work,
             )  # fmt: skip
             if math.isfinite(median):
                 estimates.append(median)

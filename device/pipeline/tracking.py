@@ -40,6 +40,14 @@ class PointTracker:
         self._median: float | None = None
         self.out = np.zeros((2, len(self.arc_m), 2), np.float32)
         self._arc_px_ro = ro(self.arc_px)
+        self.fraction_ro = ro(self.fraction)
+        self.out_slots = (self.out[0], self.out[1])
+        self.lengths_px = np.zeros(2, np.float64)
+        """Lengths Lc (px) of the last `track_shapes` call's shapes (begin, end)."""
+        self.work = np.zeros(1024, np.float64)
+        """Segment lengths of a shape (scratch of the kernels; grown for longer shapes)."""
+        self.length0_settled_px = -1.0 if length0_px is None else float(length0_px)
+        """Lc0 once it no longer changes (configured, or all its shapes seen); -1 before."""
 
     def length(self, poly: NDArray[np.float32]) -> float:
         """Return the polyline length Lc in pixels, eq. (9)."""
@@ -50,6 +58,8 @@ class PointTracker:
         if self.length0_px is None and len(self._lengths) < self.length0_frames:
             self._lengths.append(length_px)
             self._median = float(np.median(self._lengths))
+            if len(self._lengths) == self.length0_frames:
+                self.length0_settled_px = self._median
 
     @property
     def reference_length_px(self) -> float | None:
@@ -57,6 +67,43 @@ class PointTracker:
         if self.length0_px is not None:
             return self.length0_px
         return self._median
+
+    def track_shapes(
+        self, begin: NDArray[np.float32], end: NDArray[np.float32]
+    ) -> tuple[NDArray[np.float32], float, NDArray[np.float32], float]:
+        """Measure both shapes of a frame (float32 (n, 2), fixed end first; `end` may be `begin` itself): feed
+        their lengths to the Lc0 estimate (`observe`) and return (material points on `begin`, its stretch
+        Lc/Lc0, the points on `end`, its stretch), as `track` on each (slots 0 and 1), in one kernel call
+        (`track_shapes`) once Lc0 is settled. Their lengths are then in `lengths_px`.
+
+        Raises
+        ------
+        ValueError
+            When a shape has no point.
+        """
+        single = begin is end
+        length0 = self.length0_settled_px
+        if length0 < 0.0:  # Lc0 still being estimated: the lengths first (a few frames at the start)
+            self.observe(self.length(begin))
+            if not single:
+                self.observe(self.length(end))
+            reference = self.reference_length_px
+            length0 = float(reference) if reference is not None else 0.0
+        if len(begin) > len(self.work) or len(end) > len(self.work):
+            self.work = np.zeros(max(len(begin), len(end), 2 * len(self.work)), np.float64)
+        try:
+            status, stretch_begin, stretch_end = K.track_shapes(
+                begin, end, single, self.fraction_ro, length0, self.out, self.lengths_px, self.work
+            )
+        except TypeError:  # not the splitter's writable float32 buffers: copies
+            begin = np.array(begin, np.float32)
+            end = begin if single else np.array(end, np.float32)
+            status, stretch_begin, stretch_end = K.track_shapes(
+                begin, end, single, self.fraction_ro, length0, self.out, self.lengths_px, self.work
+            )
+        if status < 0:
+            raise ValueError(f"cannot track material points on polylines of {len(begin)} and {len(end)} points")
+        return self.out_slots[0], stretch_begin, self.out_slots[1], stretch_end
 
     def track(
         self, poly: NDArray[np.float32], slot: int, length_px: float | None = None
