@@ -327,7 +327,9 @@ class Pipeline:
             n = self._trace(self._lo_ro, self._hi_ro)
             if n == 0:
                 return 0
-            contacts = self.tracer.roi_contacts(self._lo_ro, self._hi_ro)
+            contacts = self.tracer.contacts  # counted by the trace on these spans
+            if contacts < 0:
+                contacts = self.tracer.roi_contacts(self._lo_ro, self._hi_ro)
             if contacts == 0:
                 self.roi_retries += attempt
                 return n

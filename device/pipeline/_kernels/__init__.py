@@ -43,7 +43,9 @@ from ropecam.device.pipeline._kernels.contour import (
     keep_largest_closed,
     keep_largest_component,
     keep_largest_listed,
+    trace_closed,
     trace_contour,
+    trace_rope,
 )
 from ropecam.device.pipeline._kernels.geometry import (
     axis_offset,
@@ -153,7 +155,9 @@ __all__ = [
     "split_shapes_local",
     "suppress_rows",
     "thin_chain",
+    "trace_closed",
     "trace_contour",
+    "trace_rope",
     "track_material_points",
     "track_material_points_of_length",
     "trim_polyline_end",
