@@ -358,7 +358,7 @@ def trace_closed(edges, width, start_r, start_c, out_chain, out_codes):
         i4_1d_ro,
         i4_1d_ro,
         i4_1d_ro,
-        int32,
+        int64,
         int32,
         boolean,
         f4_2d_ro,
@@ -396,9 +396,10 @@ def trace_rope(
     `refine_subpixel` of the chain and `count_roi_contacts`; same outputs as those calls in that order. When
     `ring_clear` and the spans keep off the image border, the trace is `trace_closed` (no span tests).
 
-    Arguments as for those kernels (`edges` is rewritten, `out_labels`, `stack`, `out_start`, `out_chain`,
-    `out_codes` and `out_points` written). `out_counts` (3 slots) gets the component's pixel count, the chain's
-    ROI contacts and how many chain pixels lie on the image border (0 means `count_border_contacts` is 0 too).
+    Arguments as for those kernels (`n_edges` is an int64: a Python int passes as it is; `edges` is
+    rewritten, `out_labels`, `stack`, `out_start`, `out_chain`, `out_codes` and `out_points` written).
+    `out_counts` (3 slots) gets the component's pixel count, the chain's ROI contacts and how many chain pixels
+    lie on the image border (0 means `count_border_contacts` is 0 too).
     Returns the chain length, NOT_FOUND (no component of `min_pixels`; counts 0) or FULL (chain longer than the
     buffers; `out_counts[0]` set).
     """

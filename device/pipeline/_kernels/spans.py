@@ -6,7 +6,7 @@ import math
 from typing import Final
 
 import numpy as np
-from numba import boolean, float32, float64, int32, int64, types
+from numba import boolean, float64, int32, int64, types
 
 from ropecam.shared.jit import (
     f4_2d_ro,
@@ -61,16 +61,16 @@ _SMOOTH_COS: Final = 0.8
 drawing the disc."""
 
 
-@kernel(int64(f4_2d_ro, int64, int32, float32, float64, float32, float32))
+@kernel(int64(f4_2d_ro, int64, int64, float64, float64, float64, float64))
 def _disc_radius(points, i, margin_px, motion_px, d_max, fixed_r, fixed_c):
-    """Return the disc radius of point `i`, ``margin_px + ceil(motion_px * d / d_max)``, computed as the band of
-    discs alone always did (float32 offsets), so that a piece's radius is never a rounding smaller."""
+    """Return the disc radius of point `i`, ``margin_px + ceil(motion_px * d / d_max)`` (one expression for every
+    use, so that a piece's radius is never a rounding smaller than a disc's)."""
     zr = points[i, 0] - fixed_r
     zc = points[i, 1] - fixed_c
     return margin_px + math.ceil(motion_px * (math.sqrt(zr * zr + zc * zc) / d_max))
 
 
-@kernel(types.void(float64, float64, float64, int32, int32, i4_1d, i4_1d))
+@kernel(types.void(float64, float64, float64, int64, int64, i4_1d, i4_1d))
 def _draw_disc(centre_r, centre_c, radius, height, width, out_lo, out_hi):
     """Widen the row spans `out_lo`/`out_hi` to cover the disc: rows ``ceil(r - R) .. floor(r + R)``, columns
     ``floor(c - h) .. ceil(c + h)`` with ``h = sqrt(R**2 - dy**2)``, clipped to the image."""
@@ -86,7 +86,7 @@ def _draw_disc(centre_r, centre_c, radius, height, width, out_lo, out_hi):
             out_hi[r] = max(out_hi[r], c1)
 
 
-@kernel(types.void(float64, float64, float64, float64, int32, int32, i4_1d, i4_1d))
+@kernel(types.void(float64, float64, float64, float64, int64, int64, i4_1d, i4_1d))
 def _draw_box(top, bottom, left, right, height, width, out_lo, out_hi):
     """Widen the row spans `out_lo`/`out_hi` to cover the box: rows ``ceil(top) .. floor(bottom)``, columns
     ``floor(left) .. ceil(right)``, clipped to the image."""
@@ -100,7 +100,7 @@ def _draw_box(top, bottom, left, right, height, width, out_lo, out_hi):
             out_hi[r] = max(out_hi[r], c1)
 
 
-@kernel(types.void(float64, float64, float64, float64, float64, float64, float64, int32, int32, i4_1d, i4_1d))
+@kernel(types.void(float64, float64, float64, float64, float64, float64, float64, int64, int64, i4_1d, i4_1d))
 def _draw_rectangle(p_r, p_c, u_r, u_c, length, radius, reach, height, width, out_lo, out_hi):
     """Widen the row spans `out_lo`/`out_hi` to cover the rectangle ``0 <= (X - P).u <= length``,
     ``|(X - P).n| <= radius`` (P = (p_r, p_c), u a unit vector, n = (u_c, -u_r)), clipped to the image; `reach` is
@@ -135,7 +135,7 @@ def _draw_rectangle(p_r, p_c, u_r, u_c, length, radius, reach, height, width, ou
                 out_hi[r] = max(out_hi[r], c1)
 
 
-@kernel(int32(f4_2d_ro, int32, int32, float32, float32, float32, float32, float32, int32, int32, i4_1d, i4_1d))
+@kernel(int32(f4_2d_ro, int64, int64, float64, float64, float64, float64, float64, int64, int64, i4_1d, i4_1d))
 def spans_around_points(
     points, n_points, margin_px, motion_px, rot_a, rot_b, fixed_r, fixed_c, height, width, out_lo, out_hi
 ):
@@ -146,7 +146,8 @@ def spans_around_points(
     ``(rot_a + 1j * rot_b) * z`` (1, 0: no motion): the predicted swing of the rope about its fixed end
     (fixed_r, fixed_c). With d the point's distance from the fixed end and d_max the largest such distance, the
     disc's radius is ``m = margin_px + ceil(motion_px * d / d_max)``: `motion_px` is the uncertainty of the
-    prediction at the farthest point. Row r gets the columns ``floor(x0) .. ceil(x1)`` where [x0, x1] is what
+    prediction at the farthest point. (The scalars are int64 and float64: Python ints and floats pass as they are,
+    without a NumPy scalar made per call.) Row r gets the columns ``floor(x0) .. ceil(x1)`` where [x0, x1] is what
     the covered region holds of the line ``row = r`` (one span per row: its outermost columns).
 
     The points are taken as a chain: runs of consecutive points at most ``sqrt(_CHAIN_STEP2)`` px apart are cut
