@@ -8,8 +8,8 @@ that a change to one pass can be measured on its own:
     taskset -c 1 python tools/bench_roi_kernels.py [--frameset /work/eval/rig] [--frames 40] [--repeat 5]
 
 Kernels timed: ``detect_edges`` (the whole edge stage), ``keep_largest_listed``, ``trace_contour``,
-``refine_subpixel``, ``count_roi_contacts`` and ``spans_around_points``; "contour stage" is the sum of the three
-that `ContourTracer.trace` calls.
+``refine_subpixel``, ``count_roi_contacts``, ``trace_closed``, ``trace_rope`` (what `ContourTracer.trace` calls:
+all of them in one kernel) and ``spans_around_points``; "contour stage" is the sum of the first three.
 """
 
 from __future__ import annotations
@@ -112,7 +112,7 @@ def main(argv: list[str] | None = None) -> int:
 
     results: dict[str, float] = {"edges (detect_edges)": median_us(edges, inputs, args.repeat, args.cold)}
     # The contour kernels need the edge map of their own call: detect once per input, then time each kernel.
-    component, trace, refine, contacts = [], [], [], []
+    component, trace, refine, contacts, closed, fused = [], [], [], [], [], []
     for item in inputs:
         _, lo, hi = item
         count = edges(item)
@@ -147,11 +147,49 @@ def main(argv: list[str] | None = None) -> int:
                 best[k] = min(best[k], (b - a) / 1000)
         for k, bucket in enumerate((component, trace, refine, contacts)):
             bucket.append(best[k])
+        best_closed = best_fused = float("inf")
+        for _ in range(args.repeat):
+            e.edges[:] = edge_map
+            K.keep_largest_listed(e.edges, lo, hi, stack, np.int32(count), np.int32(config.min_contour_px), True,
+                                  t.labels, t.stack, t.start)  # fmt: skip
+            if args.cold:
+                np.add(_EVICT, 1, out=_EVICT)
+            t0 = time.perf_counter_ns()
+            K.trace_closed(e.edges.reshape(-1), width, t.start[0], t.start[1], t.chain, t.codes)
+            best_closed = min(best_closed, (time.perf_counter_ns() - t0) / 1000)
+            e.edges[:] = edge_map
+            if args.cold:
+                np.add(_EVICT, 1, out=_EVICT)
+            t0 = time.perf_counter_ns()
+            K.trace_rope(
+                e.edges,
+                lo,
+                hi,
+                stack,
+                np.int32(count),
+                np.int32(config.min_contour_px),
+                True,
+                e.mag_ro,
+                e.gx_ro,
+                e.gy_ro,
+                t.labels,
+                t.stack,
+                t.start,
+                t.chain,
+                t.codes,
+                t.points,
+                t.counts,
+            )
+            best_fused = min(best_fused, (time.perf_counter_ns() - t0) / 1000)
+        closed.append(best_closed)
+        fused.append(best_fused)
     results["component (keep_largest_listed)"] = float(np.median(component))
     results["trace (trace_contour)"] = float(np.median(trace))
     results["subpixel (refine_subpixel)"] = float(np.median(refine))
     results["contour stage (sum of the three)"] = float(np.median(np.add(np.add(component, trace), refine)))
     results["roi contacts (count_roi_contacts)"] = float(np.median(contacts))
+    results["trace without span tests (trace_closed)"] = float(np.median(closed))
+    results["all of them (trace_rope)"] = float(np.median(fused))
     results["band (spans_around_points)"] = median_us(
         lambda a: K.spans_around_points(*a), bands, args.repeat, args.cold
     )

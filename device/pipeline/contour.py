@@ -33,8 +33,13 @@ class ContourTracer:
         self.chain = np.zeros((capacity, 2), np.int32)
         self.codes = np.zeros(capacity, np.int32)
         self.points = np.zeros((capacity, 2), np.float32)
+        self.counts = np.zeros(3, np.int32)
         self.count = 0
         self.component_px = 0
+        self.contacts = -1
+        """ROI contacts of the last traced contour (-1: not counted, see `roi_contacts`)."""
+        self.on_border = -1
+        """Chain pixels on the image border of the last traced contour (-1: not counted)."""
         self.chain_ro = ro(self.chain)
         self.points_ro = ro(self.points)
         self._width32 = np.int32(width)
@@ -63,18 +68,25 @@ class ContourTracer:
         -------
         int
             The number of contour points (0 when no component has `min_pixels` pixels). `chain` (int32 row, col),
-            `codes` (Freeman) and `points` (float32 subpixel row, col) hold them until the next call.
+            `codes` (Freeman) and `points` (float32 subpixel row, col) hold them until the next call; with
+            `edge_list`, `contacts` holds their ROI contacts (as `roi_contacts` with these spans) and `on_border`
+            how many lie on the image border.
         """
         if edge_list is not None:
-            size = K.keep_largest_listed(
-                edges, as_ro(lo), as_ro(hi), as_ro(edge_list), np.int32(n_edges), self._min32, True, self.labels,
-                self.stack, self.start,
+            # One kernel: component, trace, subpixel positions, ROI contacts and border pixels. The arrays go as
+            # they are (an `as_ro` or a NumPy scalar costs 0.5-1.5 us here): read-only views, as the pipeline and
+            # `EdgeDetector` keep them, match the kernel's signature; writable ones work, through the slow path.
+            n = K.trace_rope(
+                edges, lo, hi, edge_list, int(n_edges), self._min32, True, mag, gx, gy, self.labels, self.stack,
+                self.start, self.chain, self.codes, self.points, self.counts,
             )  # fmt: skip
-        else:
-            size = K.keep_largest_component(
-                edges, as_ro(lo), as_ro(hi), self._min32, self.labels, self.stack, self.start
-            )
+            self.component_px, self.contacts, self.on_border = self.counts.tolist()
+            self.count = n if n > 0 else 0  # FULL: a contour longer than the buffers is not a rope
+            return self.count
+        size = K.keep_largest_component(edges, as_ro(lo), as_ro(hi), self._min32, self.labels, self.stack, self.start)
         self.component_px = max(int(size), 0)
+        self.contacts = -1
+        self.on_border = -1
         if size < 0:
             self.count = 0
             return 0
@@ -88,11 +100,14 @@ class ContourTracer:
         return self.count
 
     def roi_contacts(self, lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
-        """Return how many contour pixels touch the border of the region of interest."""
+        """Return how many contour pixels touch the border of the region of interest `lo`/`hi` (the `contacts`
+        counted by `trace` are the same for the spans it got)."""
         return int(K.count_roi_contacts(self.chain_ro, np.int32(self.count), as_ro(lo), as_ro(hi), self._width32))
 
     def border_contacts(self, fixed_rc: tuple[float, float] | None, exclude_px: float) -> int:
         """Return how many contour pixels lie on the image border farther than `exclude_px` from the fixed end."""
+        if self.on_border == 0 or self.count == 0:
+            return 0
         fr, fc = (np.float32(-1e9), np.float32(-1e9)) if fixed_rc is None else (f32(fixed_rc[0]), f32(fixed_rc[1]))
         return int(
             K.count_border_contacts(

@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import f32, i32, resident_zeros, ro
+from ropecam.device.pipeline._views import i32, resident_zeros, ro
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.contour import ContourTracer
 from ropecam.device.pipeline.edges import EdgeDetector
@@ -326,17 +326,16 @@ class Pipeline:
         Returns (contour points, found in the band predicted from the last frame).
         """
         margin = self.config.roi_margin_px
-        if self._fixed_known:
-            fr, fc = self.fixed
-        else:
-            fr = fc = np.float32(0.0)
+        # Python ints and floats for the band kernel's int64/float64 scalars (a NumPy scalar costs 1.5-2 us here).
+        fr, fc = self.fixed.tolist() if self._fixed_known else (0.0, 0.0)
+        height, width = self.shape
         if self.prev_count > 0:
             rot_a, rot_b, motion = self._motion.predict(t_ns, exposure_ns) if self._fixed_known else (1.0, 0.0, 0.0)
             K.spans_around_points(
-                self._prev_points_ro, np.int32(self.prev_count), self._margin32, f32(motion), f32(rot_a), f32(rot_b),
-                fr, fc, self._height32, self._width32, self.lo, self.hi,
+                self._prev_points_ro, self.prev_count, margin, motion, rot_a, rot_b, fr, fc, height, width, self.lo,
+                self.hi,
             )  # fmt: skip
-            n = self._search(image, i32(margin + max(8, math.ceil(2.0 * motion))), fr, fc)
+            n = self._search(image, margin + max(8, math.ceil(2.0 * motion)), fr, fc)
             if n > 0:
                 self.frames_roi += 1
                 return n, True
@@ -345,7 +344,7 @@ class Pipeline:
             self.coarse_sums, self.coarse_labels, self.coarse_stack, self.lo, self.hi,
         )  # fmt: skip
         if kept > 0:
-            n = self._search(image, i32(margin + 8), fr, fc)
+            n = self._search(image, margin + 8, fr, fc)
             if n > 0:
                 self.frames_coarse += 1
                 return n, False
@@ -353,7 +352,7 @@ class Pipeline:
         self.edges.detect(image, self.edges.full_lo_ro, self.edges.full_hi_ro)
         return self._trace(self.edges.full_lo_ro, self.edges.full_hi_ro), False
 
-    def _search(self, image: NDArray[np.uint8], grow: np.int32, fr: np.float32, fc: np.float32) -> int:
+    def _search(self, image: NDArray[np.uint8], grow: int, fr: float, fc: float) -> int:
         """Detect and trace inside the spans `lo`/`hi`, widening them by `grow` px around a contour that reaches
         their border; returns the contour's points, 0 when it is not found whole inside them."""
         for attempt in range(_ROI_RETRIES + 1):
@@ -361,7 +360,9 @@ class Pipeline:
             n = self._trace(self._lo_ro, self._hi_ro)
             if n == 0:
                 return 0
-            contacts = self.tracer.roi_contacts(self._lo_ro, self._hi_ro)
+            contacts = self.tracer.contacts  # counted by the trace on these spans
+            if contacts < 0:
+                contacts = self.tracer.roi_contacts(self._lo_ro, self._hi_ro)
             if contacts == 0:
                 self.roi_retries += attempt
                 return n
@@ -369,8 +370,8 @@ class Pipeline:
                 break
             if attempt < _ROI_RETRIES:  # the rope runs out of the band: widen it around what was found
                 K.spans_around_points(
-                    self.tracer.points_ro, np.int32(n), grow, f32(0.0), f32(1.0), f32(0.0), fr, fc,
-                    self._height32, self._width32, self.grow_lo, self.grow_hi,
+                    self.tracer.points_ro, n, grow, 0.0, 1.0, 0.0, fr, fc, self.shape[0], self.shape[1], self.grow_lo,
+                    self.grow_hi,
                 )  # fmt: skip
                 K.union_spans(self._grow_lo_ro, self._grow_hi_ro, self.lo, self.hi)
         self.roi_retries += attempt

@@ -45,7 +45,9 @@ from ropecam.device.pipeline._kernels.contour import (
     keep_largest_closed,
     keep_largest_component,
     keep_largest_listed,
+    trace_closed,
     trace_contour,
+    trace_rope,
 )
 from ropecam.device.pipeline._kernels.geometry import (
     axis_offset,
@@ -186,7 +188,9 @@ __all__ = [
     "split_shapes_local",
     "suppress_rows",
     "thin_chain",
+    "trace_closed",
     "trace_contour",
+    "trace_rope",
     "track_frame",
     "track_material_points",
     "track_material_points_of_length",

@@ -9,8 +9,11 @@ import numpy as np
 from numba import boolean, float32, int32, int64
 
 from ropecam.device.pipeline._kernels._common import DIR_COL, DIR_ROW, FULL, NOT_FOUND
+from ropecam.device.pipeline._kernels.geometry import axis_offset
 from ropecam.device.pipeline._kernels.spans import in_spans
 from ropecam.shared.jit import (
+    f4_2d,
+    f4_2d_ro,
     i4_1d,
     i4_1d_ro,
     i4_2d,
@@ -302,3 +305,144 @@ def count_border_contacts(chain, n, height, width, fixed_r, fixed_c, exclude_px)
         if on_border and math.hypot(r - fixed_r, c - fixed_c) > exclude_px:
             count += 1
     return count
+
+
+@kernel(int32(u1_1d, int64, int32, int32, i4_2d, i4_1d))
+def trace_closed(edges, width, start_r, start_c, out_chain, out_codes):
+    """`trace_contour` on a flat map `edges` (rows of `width`) whose traced component (value 1) has only
+    pixels of the spans or 0 around it, none on the image border (as `keep_largest_closed` leaves it): no span
+    or border test per neighbour. Same outputs and return value."""
+    capacity = out_chain.shape[0]
+    if capacity < 1 or out_codes.shape[0] < capacity:
+        return FULL
+    offsets = (1, width + 1, width, width - 1, -1, -width - 1, -width, -width + 1)  # E, SE, ..., NE
+    start = np.int64(start_r) * width + start_c
+    here = start
+    pr = start_r
+    pc = start_c
+    b_idx = 4
+    first = np.int64(-1)
+    n = 0
+    while True:
+        found = -1
+        for step in range(1, 9):
+            k = (b_idx + step) & 7
+            if edges[np.uint64(here + offsets[k])] == 1:
+                found = k
+                break
+        if found < 0:
+            out_chain[0, 0] = pr
+            out_chain[0, 1] = pc
+            out_codes[0] = 0
+            return 1
+        nxt = here + offsets[found]
+        if n == 0:
+            first = nxt
+        elif here == start and nxt == first:
+            return n
+        if n >= capacity:
+            return FULL
+        out_chain[n, 0] = pr
+        out_chain[n, 1] = pc
+        out_codes[n] = (8 - found) & 7
+        n += 1
+        b_idx = ((found + 6) // 2 * 2) & 7
+        here = nxt
+        pr += DIR_ROW[found]
+        pc += DIR_COL[found]
+
+
+@kernel(
+    int32(
+        u1_2d,
+        i4_1d_ro,
+        i4_1d_ro,
+        i4_1d_ro,
+        int64,
+        int32,
+        boolean,
+        f4_2d_ro,
+        f4_2d_ro,
+        f4_2d_ro,
+        i4_2d,
+        i4_1d,
+        i4_1d,
+        i4_2d,
+        i4_1d,
+        f4_2d,
+        i4_1d,
+    )
+)
+def trace_rope(
+    edges,
+    lo,
+    hi,
+    edge_list,
+    n_edges,
+    min_pixels,
+    ring_clear,
+    mag,
+    gx,
+    gy,
+    out_labels,
+    stack,
+    out_start,
+    out_chain,
+    out_codes,
+    out_points,
+    out_counts,
+):
+    """The contour stage in one call: `keep_largest_listed`, `trace_contour` from the component's start,
+    `refine_subpixel` of the chain and `count_roi_contacts`; same outputs as those calls in that order. When
+    `ring_clear` and the spans keep off the image border, the trace is `trace_closed` (no span tests).
+
+    Arguments as for those kernels (`n_edges` is an int64: a Python int passes as it is; `edges` is
+    rewritten, `out_labels`, `stack`, `out_start`, `out_chain`, `out_codes` and `out_points` written).
+    `out_counts` (3 slots) gets the component's pixel count, the chain's ROI contacts and how many chain pixels
+    lie on the image border (0 means `count_border_contacts` is 0 too).
+    Returns the chain length, NOT_FOUND (no component of `min_pixels`; counts 0) or FULL (chain longer than the
+    buffers; `out_counts[0]` set).
+    """
+    out_counts[0] = 0
+    out_counts[1] = 0
+    out_counts[2] = 0
+    size = keep_largest_listed(edges, lo, hi, edge_list, n_edges, min_pixels, ring_clear, out_labels, stack, out_start)
+    if size < 0:
+        return size
+    out_counts[0] = size
+    height = edges.shape[0]
+    width = edges.shape[1]
+    inner = ring_clear
+    for r in range(height):
+        if hi[r] >= lo[r] and (r == 0 or r == height - 1 or lo[r] < 1 or hi[r] > width - 2):
+            inner = False
+    if inner:
+        n = trace_closed(edges.reshape(height * width), width, out_start[0], out_start[1], out_chain, out_codes)
+    else:
+        n = trace_contour(edges, lo, hi, out_start[0], out_start[1], out_chain, out_codes)
+    if n < 0:
+        return n
+    contacts = 0
+    on_border = 0
+    for i in range(n):
+        r = out_chain[i, 0]
+        c = out_chain[i, 1]
+        d_r, d_c = axis_offset(mag, gx, gy, r, c)
+        out_points[i, 0] = r + d_r
+        out_points[i, 1] = c + d_c
+        left = c - 1
+        right = c + 1
+        cm = max(left, 0)
+        cp = min(right, width - 1)
+        a = lo[r]
+        b = hi[r]
+        touches = (left >= 0 and (left < a or left > b)) or (right < width and (right < a or right > b))
+        if r > 0 and (cm < lo[r - 1] or cp > hi[r - 1]):
+            touches = True
+        if r < height - 1 and (cm < lo[r + 1] or cp > hi[r + 1]):
+            touches = True
+        contacts += touches
+        on_border += r == 0 or r == height - 1 or c == 0 or c == width - 1
+    out_counts[1] = contacts
+    out_counts[2] = on_border
+    return n

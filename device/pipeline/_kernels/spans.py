@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import math
+from typing import Final
 
 import numpy as np
-from numba import boolean, float32, int32
+from numba import boolean, float64, int32, int64, types
 
 from ropecam.shared.jit import (
     f4_2d_ro,
@@ -47,21 +48,119 @@ def grow_spans(lo, hi, rows_apart, cols_apart, out_lo, out_hi):
     return count
 
 
-@kernel(int32(f4_2d_ro, int32, int32, float32, float32, float32, float32, float32, int32, int32, i4_1d, i4_1d))
+_SEGMENT_POINTS: Final = 48
+"""Most chain steps one straight piece of a band spans (`spans_around_points`)."""
+_SEGMENT_DEV_PX: Final = 0.5
+"""Largest distance (px) of a chain point from the straight piece that stands for it (a piece's radius is the
+disc radius plus its points' largest distance)."""
+_CHAIN_STEP2: Final = 4.5
+"""Largest squared step (px^2) between consecutive points for them to be joined by a piece (an 8-connected chain
+steps at most sqrt(2) px, a refined one a little more); farther points get discs of their own."""
+_SMOOTH_COS: Final = 0.8
+"""Two pieces meeting at less than ~37 degrees share their end disc's uncovered wedge (a small box) instead of
+drawing the disc."""
+
+
+@kernel(int64(f4_2d_ro, int64, int64, float64, float64, float64, float64))
+def _disc_radius(points, i, margin_px, motion_px, d_max, fixed_r, fixed_c):
+    """Return the disc radius of point `i`, ``margin_px + ceil(motion_px * d / d_max)`` (one expression for every
+    use, so that a piece's radius is never a rounding smaller than a disc's)."""
+    zr = points[i, 0] - fixed_r
+    zc = points[i, 1] - fixed_c
+    return margin_px + math.ceil(motion_px * (math.sqrt(zr * zr + zc * zc) / d_max))
+
+
+@kernel(types.void(float64, float64, float64, int64, int64, i4_1d, i4_1d))
+def _draw_disc(centre_r, centre_c, radius, height, width, out_lo, out_hi):
+    """Widen the row spans `out_lo`/`out_hi` to cover the disc: rows ``ceil(r - R) .. floor(r + R)``, columns
+    ``floor(c - h) .. ceil(c + h)`` with ``h = sqrt(R**2 - dy**2)``, clipped to the image."""
+    r0 = max(0, math.ceil(centre_r - radius))
+    r1 = min(height - 1, math.floor(centre_r + radius))
+    for r in range(r0, r1 + 1):
+        dy = r - centre_r
+        half = math.sqrt(max(0.0, radius * radius - dy * dy))
+        c0 = max(0, math.floor(centre_c - half))
+        c1 = min(width - 1, math.ceil(centre_c + half))
+        if c0 <= c1:
+            out_lo[r] = min(out_lo[r], c0)
+            out_hi[r] = max(out_hi[r], c1)
+
+
+@kernel(types.void(float64, float64, float64, float64, int64, int64, i4_1d, i4_1d))
+def _draw_box(top, bottom, left, right, height, width, out_lo, out_hi):
+    """Widen the row spans `out_lo`/`out_hi` to cover the box: rows ``ceil(top) .. floor(bottom)``, columns
+    ``floor(left) .. ceil(right)``, clipped to the image."""
+    r0 = max(0, math.ceil(top))
+    r1 = min(height - 1, math.floor(bottom))
+    c0 = max(0, math.floor(left))
+    c1 = min(width - 1, math.ceil(right))
+    if c0 <= c1:
+        for r in range(r0, r1 + 1):
+            out_lo[r] = min(out_lo[r], c0)
+            out_hi[r] = max(out_hi[r], c1)
+
+
+@kernel(types.void(float64, float64, float64, float64, float64, float64, float64, int64, int64, i4_1d, i4_1d))
+def _draw_rectangle(p_r, p_c, u_r, u_c, length, radius, reach, height, width, out_lo, out_hi):
+    """Widen the row spans `out_lo`/`out_hi` to cover the rectangle ``0 <= (X - P).u <= length``,
+    ``|(X - P).n| <= radius`` (P = (p_r, p_c), u a unit vector, n = (u_c, -u_r)), clipped to the image; `reach` is
+    ``radius * |u_c|``. Per row the column bounds are linear in ``y = r - p_r``; a constraint whose column
+    coefficient is tiny bounds the rows only, which the row range already does: leaving it out only widens."""
+    r0 = max(0, math.ceil(min(p_r, p_r + length * u_r) - reach))
+    r1 = min(height - 1, math.floor(max(p_r, p_r + length * u_r) + reach))
+    use_a = abs(u_c) > 1e-6
+    use_b = abs(u_r) > 1e-6
+    a_slope = -u_r / u_c if use_a else 0.0
+    a_width = length / u_c if use_a else 0.0
+    b_slope = u_c / u_r if use_b else 0.0
+    b_half = abs(radius / u_r) if use_b else 0.0
+    for r in range(r0, r1 + 1):
+        y = r - p_r
+        x0 = -1e18
+        x1 = 1e18
+        if use_a:
+            t0 = a_slope * y
+            t1 = t0 + a_width
+            x0 = max(x0, min(t0, t1))
+            x1 = min(x1, max(t0, t1))
+        if use_b:
+            s = b_slope * y
+            x0 = max(x0, s - b_half)
+            x1 = min(x1, s + b_half)
+        if x0 <= x1:
+            c0 = max(0, math.floor(p_c + x0))
+            c1 = min(width - 1, math.ceil(p_c + x1))
+            if c0 <= c1:
+                out_lo[r] = min(out_lo[r], c0)
+                out_hi[r] = max(out_hi[r], c1)
+
+
+@kernel(int32(f4_2d_ro, int64, int64, float64, float64, float64, float64, float64, int64, int64, i4_1d, i4_1d))
 def spans_around_points(
     points, n_points, margin_px, motion_px, rot_a, rot_b, fixed_r, fixed_c, height, width, out_lo, out_hi
 ):
-    """Write the row spans covering a disc around each of the first `n_points` (row, col) `points`, each moved
-    by a rotation and scaling about the fixed end, clipped to the image; returns the number of non-empty rows.
+    """Write row spans covering a disc around each of the first `n_points` (row, col) `points`, each moved by a
+    rotation and scaling about the fixed end, clipped to the image; returns the number of non-empty rows.
 
     Seen as complex numbers ``z = (row - fixed_r) + 1j * (col - fixed_c)``, each point moves to
     ``(rot_a + 1j * rot_b) * z`` (1, 0: no motion): the predicted swing of the rope about its fixed end
     (fixed_r, fixed_c). With d the point's distance from the fixed end and d_max the largest such distance, the
     disc's radius is ``m = margin_px + ceil(motion_px * d / d_max)``: `motion_px` is the uncertainty of the
-    prediction at the farthest point. Row r gets the columns ``floor(c - h) .. ceil(c + h)`` with
-    ``h = sqrt(m**2 - (r - row)**2)`` (discs, not squares: a band along a diagonal rope is 30 % narrower).
-    Points closer than half the radius (L1) to the last one used are skipped (the chain is 8-connected, so
-    every point keeps at least half its radius).
+    prediction at the farthest point. (The scalars are int64 and float64: Python ints and floats pass as they are,
+    without a NumPy scalar made per call.) Row r gets the columns ``floor(x0) .. ceil(x1)`` where [x0, x1] is what
+    the covered region holds of the line ``row = r`` (one span per row: its outermost columns).
+
+    The points are taken as a chain: runs of consecutive points at most ``sqrt(_CHAIN_STEP2)`` px apart are cut
+    into straight pieces (up to `_SEGMENT_POINTS` steps of one disc radius m, every point within
+    `_SEGMENT_DEV_PX` of the segment and projecting onto it). A piece P-Q covers its capsule of radius R = m + the
+    points' largest distance from it, which holds every disc of its points: drawn as the rectangle along the
+    segment (rows of the segment only, no square root) and the discs at its ends. Where two pieces, each at
+    least R long, meet at a small angle, the rectangles hold all of the end disc but a thin wedge (whose bounding
+    box is drawn) and, when their radii differ, two slivers beside the narrower one (a short rectangle of the
+    larger radius). The last point of a run, a lone point and unordered points (steps too long) get their disc.
+    The band is never smaller than the union of the discs of all the points (a band of discs around every other
+    few points, as before, is inside it) and at most the points' distance from their pieces wider. Non-finite
+    points are skipped.
     """
     for r in range(height):
         out_lo[r] = width
@@ -74,38 +173,129 @@ def spans_around_points(
         if d2 > d2_max:
             d2_max = d2
     d_max = math.sqrt(d2_max)
-    last_r = -1e9
-    last_c = -1e9
-    for i in range(n_points):
-        pr = points[i, 0]
-        pc = points[i, 1]
-        if not (pr == pr and pc == pc):
+    scale = math.sqrt(float(rot_a) * rot_a + float(rot_b) * rot_b)
+    dev_orig = _SEGMENT_DEV_PX / max(scale, 1e-9)  # the deviation allowed before the motion's scaling
+    prev_radius = 0.0  # 0: no steep piece ends at point i
+    prev_ur = 0.0
+    prev_uc = 0.0
+    prev_length = 0.0
+    i = 0
+    while i < n_points:
+        pr = float(points[i, 0])
+        pc = float(points[i, 1])
+        if not (abs(pr) < 1e9 and abs(pc) < 1e9):
+            prev_radius = 0.0
+            i += 1
             continue
+        # The piece from i: as far as the chain goes on in short steps with the disc radius of point i + 1
+        # (point i may have another: its own disc is drawn at the joint); a run of up to 2 * _SEGMENT_POINTS
+        # steps is cut in two equal pieces.
         zr = pr - fixed_r
         zc = pc - fixed_c
-        share = math.sqrt(zr * zr + zc * zc) / d_max
-        m = margin_px + math.ceil(motion_px * share)
-        if i != n_points - 1 and abs(pr - last_r) + abs(pc - last_c) < 0.5 * m:
+        own = _disc_radius(points, i, margin_px, motion_px, d_max, fixed_r, fixed_c)
+        mr = fixed_r + rot_a * zr - rot_b * zc
+        mc = fixed_c + rot_b * zr + rot_a * zc
+        m_piece = -1
+        last = i
+        lim = min(n_points - 1, i + 2 * _SEGMENT_POINTS)
+        while last < lim:
+            sr = float(points[last + 1, 0]) - float(points[last, 0])
+            sc = float(points[last + 1, 1]) - float(points[last, 1])
+            if not sr * sr + sc * sc <= _CHAIN_STEP2:  # also for a non-finite point
+                break
+            m = _disc_radius(points, last + 1, margin_px, motion_px, d_max, fixed_r, fixed_c)
+            if m_piece < 0:
+                m_piece = m
+            elif m != m_piece:
+                break
+            last += 1
+        if last - i > _SEGMENT_POINTS:
+            last = i + (last - i + 1) // 2
+        if last == i:  # the run ends here: the disc of point i (and the end disc of the piece before)
+            _draw_disc(mr, mc, max(own, prev_radius), height, width, out_lo, out_hi)
+            prev_radius = 0.0
+            i += 1
             continue
-        last_r = pr
-        last_c = pc
-        qr = fixed_r + rot_a * zr - rot_b * zc
-        qc = fixed_c + rot_b * zr + rot_a * zc
-        if not (abs(qr) < 1e9 and abs(qc) < 1e9):
+        # Halved while a point strays from the segment (or does not project onto it).
+        b = last
+        dev = 0.0
+        while b > i + 1:
+            vr = float(points[b, 0]) - pr
+            vc = float(points[b, 1]) - pc
+            len2 = vr * vr + vc * vc
+            cross_max = 0.0
+            dot_min = 0.0
+            dot_max = 0.0
+            for j in range(i + 1, b):
+                wr = float(points[j, 0]) - pr
+                wc = float(points[j, 1]) - pc
+                cross_max = max(cross_max, abs(wr * vc - wc * vr))
+                dot = wr * vr + wc * vc
+                dot_min = min(dot_min, dot)
+                dot_max = max(dot_max, dot)
+            if cross_max * cross_max <= dev_orig * dev_orig * len2 and dot_min >= 0.0 and dot_max <= len2:
+                dev = cross_max / math.sqrt(len2) * scale
+                break
+            b = i + (b - i) // 2
+        radius = m_piece + dev + 1e-4  # (centres moved in float64: a rounding must not lose a column)
+        zr = float(points[b, 0]) - fixed_r
+        zc = float(points[b, 1]) - fixed_c
+        nr = fixed_r + rot_a * zr - rot_b * zc
+        nc = fixed_c + rot_b * zr + rot_a * zc
+        length = math.sqrt((nr - mr) ** 2 + (nc - mc) ** 2)
+        if not length > 1e-9:  # two points in one place: a disc
+            _draw_disc(mr, mc, max(own, prev_radius, radius), height, width, out_lo, out_hi)
+            prev_radius = radius
+            prev_length = 0.0
+            i = b
             continue
-        r0 = max(0, math.ceil(qr - m))
-        r1 = min(height - 1, math.floor(qr + m))
-        for r in range(r0, r1 + 1):
-            dy = r - qr
-            half = math.sqrt(max(0.0, m * m - dy * dy))
-            c0 = max(0, math.floor(qc - half))
-            c1 = min(width - 1, math.ceil(qc + half))
-            if c1 < c0:
-                continue
-            if c0 < out_lo[r]:
-                out_lo[r] = c0
-            if c1 > out_hi[r]:
-                out_hi[r] = c1
+        ur = (nr - mr) / length
+        uc = (nc - mc) / length
+        big = max(radius, prev_radius, own)
+        if prev_radius > 0.0 and min(length, prev_length) >= big and prev_ur * ur + prev_uc * uc >= _SMOOTH_COS:
+            # Of the end disc (radius the larger R), the two rectangles leave out the wedge ahead of the
+            # first piece's end and behind the second's start, {v : v.u1 >= 0, v.u2 <= 0, |v| <= R}, and
+            # beside the rectangle of smaller radius r, the slivers r < |v.n| <= R within the disc. The wedge's
+            # bounding box: the apex, the rays' ends, the disc's extreme points along an axis inside it.
+            w1r, w1c = prev_uc, -prev_ur
+            if w1r * ur + w1c * uc > 0.0:
+                w1r, w1c = -w1r, -w1c
+            w2r, w2c = uc, -ur
+            if w2r * prev_ur + w2c * prev_uc < 0.0:
+                w2r, w2c = -w2r, -w2c
+            top = min(0.0, w1r, w2r)
+            bottom = max(0.0, w1r, w2r)
+            left = min(0.0, w1c, w2c)
+            right = max(0.0, w1c, w2c)
+            if prev_ur >= 0.0 >= ur:
+                bottom = 1.0
+            if prev_ur <= 0.0 <= ur:
+                top = -1.0
+            if prev_uc >= 0.0 >= uc:
+                right = 1.0
+            if prev_uc <= 0.0 <= uc:
+                left = -1.0
+            _draw_box(
+                mr + big * top, mr + big * bottom, mc + big * left, mc + big * right, height, width, out_lo, out_hi
+            )
+            if radius != prev_radius:
+                # The slivers: P + a u + s n (n = (u_c, -u_r)) with a in [0, along] behind the end of piece 1
+                # or ahead of the start of piece 2, r < |s| <= R: inside that rectangle with |s| <= R.
+                small = min(radius, prev_radius)
+                along = math.sqrt(big * big - small * small)
+                if prev_radius < radius:
+                    _draw_rectangle(mr - along * prev_ur, mc - along * prev_uc, prev_ur, prev_uc, along, big,
+                                    big * abs(prev_uc), height, width, out_lo, out_hi)  # fmt: skip
+                else:
+                    _draw_rectangle(mr, mc, ur, uc, along, big, big * abs(uc), height, width, out_lo, out_hi)
+        else:
+            _draw_disc(mr, mc, big, height, width, out_lo, out_hi)
+        _draw_rectangle(mr, mc, ur, uc, length, radius, radius * abs(uc), height, width, out_lo, out_hi)
+        prev_radius = radius
+        prev_ur = ur
+        prev_uc = uc
+        prev_length = length
+        i = b
     count = 0
     for r in range(height):
         if out_hi[r] >= out_lo[r]:

@@ -271,3 +271,111 @@ def test_listed_component_on_a_detected_band_equals_the_span_scan(blurred_frames
     assert size_a == size_b > 100
     np.testing.assert_array_equal(a[inside], b[inside])
     np.testing.assert_array_equal(start_a, start_b)
+
+
+@pytest.mark.parametrize("shape", ["ring", "disk", "band", "spur", "dot"])
+def test_trace_closed_equals_trace_contour(shape) -> None:
+    mask = np.zeros((40, 50), np.uint8)
+    if shape == "ring":
+        cv2.circle(mask, (25, 20), 12, 1, 1)
+    elif shape == "disk":
+        cv2.circle(mask, (25, 20), 9, 1, -1)
+    elif shape == "band":
+        cv2.ellipse(mask, (25, 20), (18, 5), 30, 0, 360, 1, 1)
+    elif shape == "spur":
+        cv2.rectangle(mask, (10, 10), (35, 25), 1, 1)
+        mask[25:33, 20] = 1
+    else:
+        mask[7, 9] = 1
+    _, edges, chain, codes = _trace(mask)
+    start = np.argwhere(edges == 1)[0].astype(np.int32)
+    out_chain = np.zeros((4 * mask.size, 2), np.int32)
+    out_codes = np.zeros(4 * mask.size, np.int32)
+    n = K.trace_closed(edges.reshape(-1), mask.shape[1], start[0], start[1], out_chain, out_codes)
+    np.testing.assert_array_equal(out_chain[:n], chain)
+    np.testing.assert_array_equal(out_codes[:n], codes)
+    if n > 1:  # a buffer one short of the chain
+        assert K.trace_closed(edges.reshape(-1), mask.shape[1], start[0], start[1], out_chain[: n - 1],
+                              out_codes[: n - 1]) == K.FULL  # fmt: skip
+
+
+def _band_of(image, margin_px):
+    """Detect the edges of `image` whole, then a band of discs around every 3rd edge pixel."""
+    height, width = image.shape
+    lo, hi = np.zeros(height, np.int32), np.full(height, width - 1, np.int32)
+    planes = [np.zeros((height, width), np.float32) for _ in range(5)]
+    edges = np.zeros((height, width), np.uint8)
+    stack = np.zeros(height * width, np.int32)
+    work = np.zeros((4, height), np.int32)
+    weights = np.array([0.25, 0.5, 0.25], np.float32)
+    K.detect_edges(image, weights, lo, hi, 20.0, 50.0, work, *planes, edges, stack)
+    points = np.ascontiguousarray(np.argwhere(edges == 1)[::3].astype(np.float32))
+    K.spans_around_points(points, len(points), margin_px, 0.0, 1.0, 0.0, 0.0, 0.0, height, width, lo, hi)
+    edges[:] = 7  # stale values outside the band must not matter
+    count = K.detect_edges(image, weights, lo, hi, 20.0, 50.0, work, *planes, edges, stack)
+    return lo, hi, planes, edges, stack, count
+
+
+@pytest.mark.parametrize(("frame", "ring_clear", "whole"), [(2, True, False), (4, True, False), (2, False, False),
+                                                             (5, True, True)])  # fmt: skip
+def test_trace_rope_equals_the_kernels_one_by_one(blurred_frames, frame, ring_clear, whole) -> None:
+    image = blurred_frames[frame].image
+    height, width = image.shape
+    lo, hi, planes, edges, stack, count = _band_of(image, 5)
+    if whole:  # spans reaching the image border: the checked trace
+        lo[:], hi[:] = 0, width - 1
+        edges[:] = 0
+        count = K.detect_edges(image, np.array([0.25, 0.5, 0.25], np.float32), lo, hi, 20.0, 50.0,
+                               np.zeros((4, height), np.int32), *planes, edges, stack)  # fmt: skip
+    gx, gy, mag = planes[2], planes[3], planes[4]
+    capacity = 4000
+    ref_edges = edges.copy()
+    labels, work_stack = np.zeros((height, width), np.int32), np.zeros(height * width, np.int32)
+    start = np.zeros(2, np.int32)
+    size = K.keep_largest_listed(ref_edges, lo, hi, stack, count, 20, ring_clear, labels, work_stack, start)
+    chain, codes = np.zeros((capacity, 2), np.int32), np.zeros(capacity, np.int32)
+    n = K.trace_contour(ref_edges, lo, hi, start[0], start[1], chain, codes)
+    points = np.zeros((capacity, 2), np.float32)
+    K.refine_subpixel(mag, gx, gy, chain, n, points)
+    contacts = K.count_roi_contacts(chain, n, lo, hi, width)
+    on_border = int(np.count_nonzero((chain[:n, 0] % (height - 1) == 0) | (chain[:n, 1] % (width - 1) == 0)))
+    assert size > 100 and n > 100
+    out = [np.zeros((height, width), np.int32), np.zeros(height * width, np.int32), np.zeros(2, np.int32),
+           np.zeros((capacity, 2), np.int32), np.zeros(capacity, np.int32), np.zeros((capacity, 2), np.float32),
+           np.full(3, -5, np.int32)]  # fmt: skip
+    got = K.trace_rope(edges, lo, hi, stack, count, 20, ring_clear, mag, gx, gy, *out)
+    assert got == n
+    np.testing.assert_array_equal(edges, ref_edges)
+    np.testing.assert_array_equal(out[2], start)
+    np.testing.assert_array_equal(out[3][:n], chain[:n])
+    np.testing.assert_array_equal(out[4][:n], codes[:n])
+    np.testing.assert_array_equal(out[5][:n], points[:n])
+    assert out[6].tolist() == [size, contacts, on_border]
+    # A band cut through the rope: contacts counted as count_roi_contacts does.
+    lo2, hi2 = lo.copy(), hi.copy()
+    rows = np.flatnonzero(hi >= lo)
+    cut = rows[len(rows) // 2 :]
+    hi2[cut] = np.maximum(lo2[cut], (lo2[cut] + hi2[cut]) // 2)
+    edges[:] = 0
+    count = K.detect_edges(image, np.array([0.25, 0.5, 0.25], np.float32), lo2, hi2, 20.0, 50.0,
+                           np.zeros((4, height), np.int32), *planes, edges, stack)  # fmt: skip
+    ref_edges = edges.copy()
+    K.keep_largest_listed(ref_edges, lo2, hi2, stack, count, 20, ring_clear, labels, work_stack, start)
+    n = K.trace_contour(ref_edges, lo2, hi2, start[0], start[1], chain, codes)
+    got = K.trace_rope(edges, lo2, hi2, stack, count, 20, ring_clear, mag, gx, gy, *out)
+    assert got == n > 0
+    assert out[6][1] == K.count_roi_contacts(chain, n, lo2, hi2, width) > 0
+
+
+def test_trace_rope_without_a_component(blurred_frames) -> None:
+    image = blurred_frames[2].image
+    height, width = image.shape
+    lo, hi, planes, edges, stack, count = _band_of(image, 5)
+    out = [np.zeros((height, width), np.int32), np.zeros(height * width, np.int32), np.zeros(2, np.int32),
+           np.zeros((10, 2), np.int32), np.zeros(10, np.int32), np.zeros((10, 2), np.float32),
+           np.full(3, -5, np.int32)]  # fmt: skip
+    keep = edges.copy()
+    assert K.trace_rope(edges, lo, hi, stack, count, 10**6, True, planes[4], planes[2], planes[3], *out) == K.NOT_FOUND
+    assert out[6].tolist() == [0, 0, 0]
+    assert K.trace_rope(keep, lo, hi, stack, count, 20, True, planes[4], planes[2], planes[3], *out) == K.FULL
+    assert out[6][0] > 100

@@ -1,0 +1,96 @@
+"""The band of row spans around a chain of points (`spans_around_points`) against a slow, obvious union of discs."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ropecam.device.pipeline import _kernels as K
+
+pytestmark = pytest.mark.kernel
+
+
+def _disc_spans(points, margin, motion, rot, fixed, height, width):
+    """Row spans of the union of the discs of every point (moved, radius margin + ceil(motion * d / d_max))."""
+    lo = np.full(height, width, np.int64)
+    hi = np.full(height, -1, np.int64)
+    finite = np.isfinite(points).all(axis=1)
+    z = (points[:, 0].astype(np.float64) - fixed[0]) + 1j * (points[:, 1].astype(np.float64) - fixed[1])
+    d_max = np.abs(z[finite]).max()
+    for k in np.flatnonzero(finite):
+        m = margin + math.ceil(motion * abs(z[k]) / d_max)
+        q = complex(*rot) * z[k]
+        qr, qc = fixed[0] + q.real, fixed[1] + q.imag
+        for r in range(max(0, math.ceil(qr - m)), min(height - 1, math.floor(qr + m)) + 1):
+            half = math.sqrt(max(0.0, m * m - (r - qr) ** 2))
+            c0, c1 = max(0, math.floor(qc - half)), min(width - 1, math.ceil(qc + half))
+            if c0 <= c1:
+                lo[r], hi[r] = min(lo[r], c0), max(hi[r], c1)
+    return lo, hi
+
+
+def _chain(kind, rng):
+    """A closed, 8-connected-like chain of subpixel points (steps about 1 px), as the contour tracer gives."""
+    if kind == "rope":  # the outline of a bent rope hanging from (20, 60): down one side, round the tip, up
+        s = np.linspace(0.0, 1.0, 160)
+        centre = np.column_stack([20 + 150 * s, 60 + 40 * s**2])
+        normal = np.column_stack([-80 * s, np.full_like(s, 150.0)])
+        normal /= np.hypot(*normal.T)[:, None]
+        tip = [centre[-1] + 4 * np.array([math.sin(a), math.cos(a)]) for a in np.linspace(0, math.pi, 12)]
+        path = np.vstack([centre + 4 * normal, tip, (centre - 4 * normal)[::-1]])
+    elif kind == "flat":  # nearly horizontal
+        x = np.linspace(10, 190, 200)
+        path = np.column_stack([40 + 0.08 * x + 3 * np.sin(x / 30), x])
+    else:  # a wiggly loop
+        a = np.linspace(0, 2 * math.pi, 400, endpoint=False)
+        path = np.column_stack([90 + (50 + 6 * np.sin(5 * a)) * np.sin(a), 100 + (70 + 6 * np.cos(3 * a)) * np.cos(a)])
+    # resample at ~1 px steps, add subpixel jitter
+    steps = np.hypot(*np.diff(path, axis=0).T)
+    t = np.concatenate([[0], np.cumsum(steps)])
+    u = np.arange(0, t[-1], 1.0)
+    chain = np.column_stack([np.interp(u, t, path[:, 0]), np.interp(u, t, path[:, 1])])
+    return (chain + rng.normal(0, 0.15, chain.shape)).astype(np.float32)
+
+
+@pytest.mark.parametrize("kind", ["rope", "flat", "loop"])
+@pytest.mark.parametrize(("margin", "motion", "rot"), [(4, 0.0, (1.0, 0.0)), (4, 9.0, (0.995, 0.08)),
+                                                       (6, 3.0, (1.02, -0.05))])  # fmt: skip
+def test_band_holds_every_disc_and_is_hardly_wider(kind, margin, motion, rot) -> None:
+    rng = np.random.default_rng(7)
+    points = _chain(kind, rng)
+    height, width = 200, 220
+    fixed = (20.0, 60.0)
+    lo = np.zeros(height, np.int32)
+    hi = np.zeros(height, np.int32)
+    rows = K.spans_around_points(points, len(points), margin, motion, *rot, *fixed, height, width, lo, hi)
+    ref_lo, ref_hi = _disc_spans(points, margin, motion, rot, fixed, height, width)
+    ref_rows = ref_hi >= ref_lo
+    assert rows == np.count_nonzero(hi >= lo)
+    assert np.all(hi[ref_rows] >= lo[ref_rows])
+    assert np.all(lo[ref_rows] <= ref_lo[ref_rows]) and np.all(hi[ref_rows] >= ref_hi[ref_rows])  # never smaller
+    extra_rows = (hi >= lo) & ~ref_rows
+    assert np.count_nonzero(extra_rows) <= 6  # the pieces' widening, at the band's ends
+    assert np.all(lo[~(hi >= lo)] == 1) and np.all(hi[~(hi >= lo)] == 0)  # empty rows as (1, 0)
+    # Hardly wider: inside the discs grown by the largest distance a piece keeps from its points (0.5 px), but
+    # for the few pixels of the wedges' bounding boxes.
+    wide_lo, wide_hi = _disc_spans(points, margin + 0.5, motion, rot, fixed, height, width)
+    band = hi >= lo
+    beyond = np.maximum(wide_lo[band] - lo[band], 0).sum() + np.maximum(hi[band] - wide_hi[band], 0).sum()
+    assert beyond <= 0.01 * np.sum(np.maximum(ref_hi - ref_lo + 1, 0)) + 5
+
+
+def test_band_of_a_chain_with_gaps_and_unordered_points() -> None:
+    rng = np.random.default_rng(11)
+    points = _chain("rope", rng)
+    points[50:53] = np.nan  # a gap: two runs
+    points = np.vstack([points, rng.uniform([0, 0], [200, 220], (5, 2)).astype(np.float32)])  # stray points
+    height, width = 200, 220
+    lo = np.zeros(height, np.int32)
+    hi = np.zeros(height, np.int32)
+    K.spans_around_points(points, len(points), 4, 5.0, 1.0, 0.0, 20.0, 60.0, height, width, lo, hi)
+    ref_lo, ref_hi = _disc_spans(points, 4, 5.0, (1.0, 0.0), (20.0, 60.0), height, width)
+    ref_rows = ref_hi >= ref_lo
+    assert np.all(lo[ref_rows] <= ref_lo[ref_rows]) and np.all(hi[ref_rows] >= ref_hi[ref_rows])
+    assert np.count_nonzero((hi >= lo) & ~ref_rows) <= 8
