@@ -94,6 +94,13 @@ def signed_area(points, n):
     return 0.5 * acc
 
 
+@kernel(float64(float64, float64))
+def _length(d_r, d_c):
+    """Return the length of the vector (d_r, d_c): an inline square root (``math.hypot`` is a libm call guarding
+    against overflow that coordinates in pixels never reach, ~3x the time)."""
+    return math.sqrt(d_r * d_r + d_c * d_c)
+
+
 @kernel(float64(f4_2d_ro, int64, int64, int64))
 def _turn_at(points, n, scale, i):
     """Return the unsigned turning angle (radians) at point `i` between the chords to the points `scale` places
@@ -133,7 +140,7 @@ def turning_angles_far(points, n, scale, fixed_r, fixed_c, search_px, out_dist, 
         return FULL
     r_far = -1.0
     for i in range(n):
-        d = math.hypot(points[i, 0] - fixed_r, points[i, 1] - fixed_c)
+        d = _length(points[i, 0] - fixed_r, points[i, 1] - fixed_c)
         out_dist[i] = d
         out_turn[i] = 0.0
         if d > r_far:
@@ -207,7 +214,7 @@ def split_contour(points, turn, dist, n, fixed_r, fixed_c, search_px, min_gap, c
     ip = i_fix
     for step in range(1, n + 1):
         i = ip + 1 if ip + 1 < n else 0
-        total += math.hypot(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
+        total += _length(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
         if step < n:
             arc[i] = total
         ip = i
@@ -306,7 +313,7 @@ def chain_length(points, n, i_start, count, direction):
     for k in range(1, count):
         i0 = (i_start + (k - 1) * direction + n * 4) % n
         i1 = (i_start + k * direction + n * 4) % n
-        total += math.hypot(points[i1, 0] - points[i0, 0], points[i1, 1] - points[i0, 1])
+        total += _length(points[i1, 0] - points[i0, 0], points[i1, 1] - points[i0, 1])
     return total
 
 
@@ -331,7 +338,7 @@ def offset_side(points, n, i_start, i_stop, direction, interior_sign, width_px, 
         i = (i_start + k * direction + n * 4) % n
         if k > 0:
             ip = (i_start + (k - 1) * direction + n * 4) % n
-            s += math.hypot(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
+            s += _length(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
         a = (i - tangent_span + n * 4) % n
         b = (i + tangent_span) % n
         t_r = points[b, 0] - points[a, 0]

@@ -29,6 +29,13 @@ from ropecam.shared.jit import (
 )
 
 
+@kernel(float64(float64, float64))
+def _length(d_r, d_c):
+    """Return the length of the vector (d_r, d_c): an inline square root (``math.hypot`` is a libm call guarding
+    against overflow that coordinates in pixels never reach, ~3x the time)."""
+    return math.sqrt(d_r * d_r + d_c * d_c)
+
+
 @kernel(int32(u1_2d_ro, f4_2d_ro, f4_2d_ro, f4_2d_ro, i4_2d_ro, int32, float32, float32, f4_1d))
 def measure_widths(edges, mag, gx, gy, chain, n, polarity, max_px, out_width):
     """Write for each contour pixel the distance to the opposite edge of the rope, found by stepping (0.5 px)
@@ -127,7 +134,7 @@ def offset_by_gradient(
         i = (i_start + k * direction + n * 4) % n
         if k > 0:
             ip = (i_start + (k - 1) * direction + n * 4) % n
-            s += math.hypot(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
+            s += _length(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
         shift = 0.5 * width_px
         if total > 0.0:
             shift = max(0.0, 0.5 * (width_px - sweep_tip_px * s / total))
@@ -254,7 +261,7 @@ def offset_by_table(
             d = sweeps[k]
         else:
             if k > 0:
-                s += math.hypot(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
+                s += _length(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
             d = sweep_tip_px * s / total if total > 0.0 else 0.0
         x = max(d, 0.0) / step_px
         j = min(int(x), last)
@@ -324,7 +331,7 @@ def split_shapes_local(
         b3c = float(out_side_b[nb - 3, 1])
         u_r = a1r - a3r + b1r - b3r
         u_c = a1c - a3c + b1c - b3c
-        norm = math.hypot(u_r, u_c)
+        norm = _length(u_r, u_c)
         if norm > 0.0 and slant_gain_px > 0:
             u_r = u_r / norm
             u_c = u_c / norm

@@ -19,12 +19,19 @@ from ropecam.shared.jit import (
 )
 
 
+@kernel(float64(float64, float64))
+def _length(d_r, d_c):
+    """Return the length of the vector (d_r, d_c): an inline square root (``math.hypot`` is a libm call guarding
+    against overflow that coordinates in pixels never reach, ~3x the time)."""
+    return math.sqrt(d_r * d_r + d_c * d_c)
+
+
 @kernel(float64(f4_2d_ro, int32))
 def polyline_length(poly, n):
     """Return the length of the polyline of the first `n` points, eq. (9)."""
     total = 0.0
     for i in range(1, n):
-        total += math.hypot(float(poly[i, 0]) - float(poly[i - 1, 0]), float(poly[i, 1]) - float(poly[i - 1, 1]))
+        total += _length(float(poly[i, 0]) - float(poly[i - 1, 0]), float(poly[i, 1]) - float(poly[i - 1, 1]))
     return total
 
 
@@ -43,13 +50,13 @@ def resample_polyline_of_length(poly, n, total, step_px, out_poly):
     step = total / segments
     j = 0
     acc = 0.0
-    seg_len = math.hypot(poly[1, 0] - poly[0, 0], poly[1, 1] - poly[0, 1]) if n > 1 else 0.0
+    seg_len = _length(poly[1, 0] - poly[0, 0], poly[1, 1] - poly[0, 1]) if n > 1 else 0.0
     for k in range(1, segments):
         target = k * step
         while acc + seg_len < target and j + 2 < n:
             acc += seg_len
             j += 1
-            seg_len = math.hypot(poly[j + 1, 0] - poly[j, 0], poly[j + 1, 1] - poly[j, 1])
+            seg_len = _length(poly[j + 1, 0] - poly[j, 0], poly[j + 1, 1] - poly[j, 1])
         t = (target - acc) / seg_len if seg_len > 0.0 else 0.0
         t = min(max(t, 0.0), 1.0)
         out_poly[k, 0] = poly[j, 0] + t * (poly[j + 1, 0] - poly[j, 0])
@@ -92,7 +99,7 @@ def track_material_points_of_length(poly, n, total, arc_px, length0_px, out_poin
         acc = acc0 if increasing else 0.0
         done = False
         for j in range(j0 if increasing else 0, n - 1):
-            seg = math.hypot(float(poly[j + 1, 0]) - float(poly[j, 0]), float(poly[j + 1, 1]) - float(poly[j, 1]))
+            seg = _length(float(poly[j + 1, 0]) - float(poly[j, 0]), float(poly[j + 1, 1]) - float(poly[j, 1]))
             if acc + seg > target and seg > 0.0:
                 t = (target - acc) / seg
                 out_points[k, 0] = poly[j, 0] + t * (poly[j + 1, 0] - poly[j, 0])
@@ -144,7 +151,7 @@ def anchor_start(poly, n, point_r, point_c, skip_px, span_px):
     b_r = 0.0
     b_c = 0.0
     while k < n:
-        seg = math.hypot(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
+        seg = _length(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
         if seg > 0.0:
             if not found_a and s + seg >= skip_px:
                 f = (skip_px - s) / seg
@@ -180,7 +187,7 @@ def anchor_start(poly, n, point_r, point_c, skip_px, span_px):
     out = 1
     first_r = poly[k_a, 0]
     first_c = poly[k_a, 1]
-    if math.hypot(first_r - a_r, first_c - a_c) > 1e-6:
+    if _length(first_r - a_r, first_c - a_c) > 1e-6:
         out = 2
     count = out + (n - k_a)
     if count > poly.shape[0]:
@@ -210,7 +217,7 @@ def trim_polyline_end(poly, n, cut_px):
     remaining = cut_px
     k = n - 1
     while k > 0:
-        seg = math.hypot(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
+        seg = _length(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
         if seg >= remaining and seg > 0.0:
             t = remaining / seg
             poly[k, 0] = poly[k, 0] + t * (poly[k - 1, 0] - poly[k, 0])
@@ -315,7 +322,7 @@ def extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip
             srr += r * r
             scc += c * c
             src += r * c
-        back += math.hypot(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
+        back += _length(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
         k -= 1
     if m < 3 or base_k < 1:
         return n
