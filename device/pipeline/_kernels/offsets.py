@@ -373,29 +373,45 @@ def split_shapes_local(
     return 2
 
 
-@kernel(void(f8_1d, int64, int64))
-def _sift_down(values, root, size):
-    """Restore the max-heap property of ``values[:size]`` below `root`."""
-    while True:
-        child = 2 * root + 1
-        if child >= size:
-            return
-        if child + 1 < size and values[child + 1] > values[child]:
-            child += 1
-        if values[root] >= values[child]:
-            return
-        values[root], values[child] = values[child], values[root]
-        root = child
-
-
-@kernel(void(f8_1d, int64))
-def _heap_sort(values, m):
-    """Sort ``values[:m]`` in place, ascending (heapsort: no recursion, no allocation, unlike ``ndarray.sort``)."""
-    for start in range(m // 2 - 1, -1, -1):
-        _sift_down(values, start, m)
-    for end in range(m - 1, 0, -1):
-        values[0], values[end] = values[end], values[0]
-        _sift_down(values, 0, end)
+@kernel(float64(f8_1d, int64, int64))
+def _select(values, m, rank):
+    """Return the value of rank `rank` (0-based) of ``values[:m]``, partially reordering them in place so that
+    ``values[:rank]`` holds values not above it (quickselect, median-of-three pivots; no recursion, no
+    allocation). The same value as ``np.sort(values[:m])[rank]``."""
+    lo = 0
+    hi = m - 1
+    while hi > lo:
+        mid = (lo + hi) // 2
+        # Median of three as the pivot, moved to values[lo].
+        if values[mid] < values[lo]:
+            values[mid], values[lo] = values[lo], values[mid]
+        if values[hi] < values[lo]:
+            values[hi], values[lo] = values[lo], values[hi]
+        if values[hi] < values[mid]:
+            values[hi], values[mid] = values[mid], values[hi]
+        values[lo], values[mid] = values[mid], values[lo]
+        pivot = values[lo]
+        # Hoare partition of values[lo + 1 .. hi] around the pivot.
+        i = lo + 1
+        j = hi
+        while True:
+            while i <= j and values[i] < pivot:
+                i += 1
+            while i <= j and values[j] > pivot:
+                j -= 1
+            if i >= j:
+                break
+            values[i], values[j] = values[j], values[i]
+            i += 1
+            j -= 1
+        values[lo], values[j] = values[j], values[lo]
+        if j == rank:
+            return values[j]
+        if j < rank:
+            lo = j + 1
+        else:
+            hi = j - 1
+    return values[rank]
 
 
 @kernel(float64(i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, float32, float32, f8_1d_ro, f8_1d_ro, f8_1d))
@@ -404,8 +420,8 @@ def slope_sweep_median(chain, n, i_fix, i_seg, direction, mag, lo_frac, hi_frac,
     `direction` to `i_seg` whose arc fraction f (by index) lies in [lo_frac, hi_frac), the local sweep d of the
     gradient height ``mag / contrast`` (float32, as NumPy divides a float32 array by a Python float; then
     `np.interp` on (`ratios`, `sweeps`)), extrapolated to the tip as d / f; the median of those (as
-    `np.median`). `work` holds the values (sorted in place). nan with fewer than 6 samples or a full `work`.
-    The same as `side_slope_samples` followed by the stage's NumPy, without its ~150 us of NumPy calls."""
+    `np.median`). `work` holds the values (reordered in place: `_select`). nan with fewer than 6 samples or a
+    full `work`. The same as `side_slope_samples` followed by the stage's NumPy, without its ~150 us of NumPy calls."""
     count = ((i_seg - i_fix) * direction % n + n) % n + 1
     if count < 2:
         return np.nan
@@ -440,7 +456,10 @@ def slope_sweep_median(chain, n, i_fix, i_seg, direction, mag, lo_frac, hi_frac,
         m += 1
     if m < 6:
         return np.nan
-    _heap_sort(work, m)
+    upper = _select(work, m, m // 2)
     if m % 2 == 1:
-        return work[m // 2]
-    return (work[m // 2 - 1] + work[m // 2]) / 2.0
+        return upper
+    lower = work[0]  # the largest of the values below rank m // 2
+    for k in range(1, m // 2):
+        lower = max(lower, work[k])
+    return (lower + upper) / 2.0
