@@ -1,6 +1,6 @@
 """Micro-benchmark the blur split's kernels, step by step, on the contours of a frame set.
 
-A pipeline runs over the frames once and records the arguments of every `turning_angles_far`, `split_contour`,
+A pipeline runs over the frames once and records the arguments of every `find_segmentation_points`,
 `split_shapes_local` and `slope_sweep_median` call (copies: the gradient planes, the smoothed image, the contour).
 Each kernel is then re-run on exactly those inputs (one thread) and the median over calls of the best of
 ``--repeat`` is printed. ``split_shapes_local`` is also re-run as its sequence of step kernels (`side_sweeps`,
@@ -31,7 +31,7 @@ from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
 
-RECORDED = ("turning_angles_far", "split_contour", "split_shapes_local", "slope_sweep_median")
+RECORDED = ("find_segmentation_points", "split_shapes_local", "slope_sweep_median")
 """The kernels whose calls are recorded (the names `split.py` calls them by)."""
 
 

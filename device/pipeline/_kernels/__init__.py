@@ -48,6 +48,7 @@ from ropecam.device.pipeline._kernels.contour import (
 from ropecam.device.pipeline._kernels.geometry import (
     axis_offset,
     chain_length,
+    find_segmentation_points,
     midline,
     offset_side,
     refine_subpixel,
@@ -114,6 +115,7 @@ __all__ = [
     "extend_to_band_end",
     "f4_1d_ro",
     "find_caps",
+    "find_segmentation_points",
     "finish_edges",
     "grow_edges",
     "grow_spans",

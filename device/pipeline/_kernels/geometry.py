@@ -170,36 +170,11 @@ def _is_corner(dist, turn, n, i, threshold, level):
     return dist[i] >= threshold
 
 
-@kernel(int32(f4_2d_ro, f4_1d_ro, f8_1d_ro, int32, float32, float32, float32, int32, float32, f4_1d, i4_1d))
-def split_contour(points, turn, dist, n, fixed_r, fixed_c, search_px, min_gap, corner_rad, work_arc, out_idx):
-    """Find the fixed end, the far point and the two segmentation points on the closed subpixel contour.
-
-    The fixed-end index is the contour point nearest to (fixed_r, fixed_c); the far index the point farthest
-    from it. Side A runs forward along the chain from the fixed end to the far point, side B backward. Among the
-    points at least ``R_far - search_px`` from the fixed end, the corner candidates of each side are the local
-    maxima of the turning angle above `corner_rad` and above half the side's sharpest; of the pairs at least
-    `min_gap` chain steps apart, those whose arc lengths from the fixed end differ by at most 2 px more than the
-    best-matching pair's compete, and the sharpest (largest sum) wins. Without candidates, the points of largest
-    turning angle on each side (at least `min_gap` apart) are used. `dist` holds each point's distance from the
-    fixed end (`turning_angles_far` writes it); `work_arc` (n) is scratch.
-    Writes ``out_idx = [fixed, seg_a, far, seg_b]``; returns 4, NOT_FOUND or FULL (`work_arc` or `dist` too short).
-    """
-    if n < 8:
-        return NOT_FOUND
-    if dist.shape[0] < n:
-        return FULL
-    i_fix = 0
-    best = 1e30
-    i_far = 0
-    r_far = -1.0
-    for i in range(n):
-        d = dist[i]
-        if d < best:
-            best = d
-            i_fix = i
-        if d > r_far:
-            r_far = d
-            i_far = i
+@kernel(
+    int32(f4_2d_ro, f4_1d_ro, f8_1d_ro, int64, int64, int64, float64, float32, int32, float32, f4_1d, i4_1d)
+)  # fmt: skip
+def _split_from(points, turn, dist, n, i_fix, i_far, r_far, search_px, min_gap, corner_rad, work_arc, out_idx):
+    """`split_contour` once the fixed end `i_fix`, the far point `i_far` and its distance `r_far` are known."""
     threshold = r_far - search_px
     len_a = (i_far - i_fix + n) % n
     len_b = (i_fix - i_far + n) % n
@@ -304,6 +279,82 @@ def split_contour(points, turn, dist, n, fixed_r, fixed_c, search_px, min_gap, c
     out_idx[2] = i_far
     out_idx[3] = seg_b
     return 4
+
+
+@kernel(int32(f4_2d_ro, f4_1d_ro, f8_1d_ro, int32, float32, float32, float32, int32, float32, f4_1d, i4_1d))
+def split_contour(points, turn, dist, n, fixed_r, fixed_c, search_px, min_gap, corner_rad, work_arc, out_idx):
+    """Find the fixed end, the far point and the two segmentation points on the closed subpixel contour.
+
+    The fixed-end index is the contour point nearest to (fixed_r, fixed_c); the far index the point farthest
+    from it. Side A runs forward along the chain from the fixed end to the far point, side B backward. Among the
+    points at least ``R_far - search_px`` from the fixed end, the corner candidates of each side are the local
+    maxima of the turning angle above `corner_rad` and above half the side's sharpest; of the pairs at least
+    `min_gap` chain steps apart, those whose arc lengths from the fixed end differ by at most 2 px more than the
+    best-matching pair's compete, and the sharpest (largest sum) wins. Without candidates, the points of largest
+    turning angle on each side (at least `min_gap` apart) are used. `dist` holds each point's distance from the
+    fixed end (`turning_angles_far` writes it); `work_arc` (n) is scratch.
+    Writes ``out_idx = [fixed, seg_a, far, seg_b]``; returns 4, NOT_FOUND or FULL (`work_arc` or `dist` too short).
+    """
+    if n < 8:
+        return NOT_FOUND
+    if dist.shape[0] < n:
+        return FULL
+    i_fix = 0
+    best = 1e30
+    i_far = 0
+    r_far = -1.0
+    for i in range(n):
+        d = dist[i]
+        if d < best:
+            best = d
+            i_fix = i
+        if d > r_far:
+            r_far = d
+            i_far = i
+    return _split_from(points, turn, dist, n, i_fix, i_far, r_far, search_px, min_gap, corner_rad, work_arc, out_idx)
+
+
+@kernel(int32(f4_2d_ro, int32, int32, float32, float32, float32, int32, float32, f8_1d, f4_1d, f4_1d, i4_1d))
+def find_segmentation_points(
+    points, n, scale, fixed_r, fixed_c, search_px, min_gap, corner_rad, out_dist, out_turn, work_arc, out_idx
+):
+    """`turning_angles_far` then `split_contour` in one call, with the same `out_dist`, `work_arc`, `out_idx` and
+    return value (`split_contour`'s; FULL also when `out_dist` or `out_turn` is shorter than `n`).
+
+    One pass gives the distances, the fixed end and the far point; `out_turn` is written only where
+    `split_contour` reads it (the tip zone and its neighbours), not cleared elsewhere.
+    """
+    if n < 8:
+        return NOT_FOUND
+    if out_dist.shape[0] < n or out_turn.shape[0] < n:
+        return FULL
+    i_fix = 0
+    best = 1e30
+    i_far = 0
+    r_far = -1.0
+    for i in range(n):
+        d = _length(points[i, 0] - fixed_r, points[i, 1] - fixed_c)
+        out_dist[i] = d
+        if d < best:
+            best = d
+            i_fix = i
+        if d > r_far:
+            r_far = d
+            i_far = i
+    threshold = r_far - search_px
+    done = -1  # last index written (the zone is visited in order; its neighbours may repeat)
+    for i in range(n):
+        if out_dist[i] < threshold:
+            continue
+        for j in range(i - 1, i + 2):
+            if j <= done and j >= 0:
+                continue
+            k = (j + n) % n
+            out_turn[k] = _turn_at(points, n, scale, k)
+            done = max(done, j)
+    return _split_from(
+        points, out_turn, out_dist, n, i_fix, i_far, r_far, search_px, min_gap, corner_rad, work_arc, out_idx
+    )
 
 
 @kernel(float64(f4_2d_ro, int64, int64, int64, int64))
