@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import math
+from typing import Final
 
 import numpy as np
 from numba import float32, float64, int32, int64, void
 
-from ropecam.device.pipeline._kernels._common import FULL, INVALID, NOT_FOUND, f4_1d_ro
+from ropecam.device.pipeline._kernels._common import FULL, INVALID, NOT_FOUND, f4_1d_ro, prefetch_read
 from ropecam.device.pipeline._kernels.geometry import axis_offset, chain_length
 from ropecam.device.pipeline._kernels.polylines import (
     anchor_start,
@@ -34,6 +35,10 @@ def _length(d_r, d_c):
     """Return the length of the vector (d_r, d_c): an inline square root (``math.hypot`` is a libm call guarding
     against overflow that coordinates in pixels never reach, ~3x the time)."""
     return math.sqrt(d_r * d_r + d_c * d_c)
+
+
+_AHEAD: Final = 16
+"""Chain points ahead whose plane values `side_sweeps` and `offset_by_table` ask the caches for."""
 
 
 @kernel(int32(u1_2d_ro, f4_2d_ro, f4_2d_ro, f4_2d_ro, i4_2d_ro, int32, float32, float32, f4_1d))
@@ -202,7 +207,18 @@ def side_sweeps(chain, n, i_start, i_stop, direction, mag, inv_contrast, ratios,
     m = ratios.shape[0]
     lo = 0
     i = (i_start + 4 * n) % n
+    # The chain pixels' cache lines are scattered (a new row every step or two): ask for them `_AHEAD` points early.
+    flat_mag = mag.reshape(mag.size)
+    cols = mag.shape[1]
+    ahead = (i_start + _AHEAD * direction + 4 * n) % n
     for k in range(count):
+        if k + _AHEAD < count:
+            prefetch_read(flat_mag, chain[ahead, 0] * cols + chain[ahead, 1])
+            ahead += direction
+            if ahead == n:
+                ahead = 0
+            elif ahead < 0:
+                ahead = n - 1
         x = mag[chain[i, 0], chain[i, 1]] * inv_contrast
         if m == 0:
             work[k] = np.nan
@@ -256,7 +272,20 @@ def offset_by_table(
     s = 0.0
     i = (i_start + n * 4) % n
     ip = i
+    flat_gx = gx.reshape(gx.size)
+    flat_gy = gy.reshape(gy.size)
+    cols = gx.shape[1]
+    ahead = (i_start + _AHEAD * direction + 4 * n) % n
     for k in range(count):
+        if k + _AHEAD < count:  # as in `side_sweeps`
+            at = chain[ahead, 0] * cols + chain[ahead, 1]
+            prefetch_read(flat_gx, at)
+            prefetch_read(flat_gy, at)
+            ahead += direction
+            if ahead == n:
+                ahead = 0
+            elif ahead < 0:
+                ahead = n - 1
         if local == 1:
             d = sweeps[k]
         else:
