@@ -78,11 +78,11 @@ from ropecam.device.pipeline._kernels.polylines import (
     polyline_length,
     resample_polyline,
     resample_polyline_of_length,
-    smooth_polyline,
     track_material_points,
     track_material_points_of_length,
     trim_polyline_end,
 )
+from ropecam.device.pipeline._kernels.smoothing import smooth_polyline
 from ropecam.device.pipeline._kernels.spans import (
     coarse_spans,
     grow_spans,

@@ -15,8 +15,8 @@ from ropecam.device.pipeline._kernels.polylines import (
     extend_to_band_end,
     polyline_length,
     resample_polyline_of_length,
-    smooth_polyline,
 )
+from ropecam.device.pipeline._kernels.smoothing import smooth_polyline
 from ropecam.shared.jit import (
     f4_1d,
     f4_2d,

@@ -257,3 +257,14 @@ def test_smooth_output_is_compact_on_the_wire(rope, blurred_frames) -> None:
     smooth, raw = stream(24.0), stream(0.0)
     assert np.mean(smooth) < 0.6 * np.mean(raw)
     assert np.mean(smooth) <= 170
+
+
+def test_sliding_sums_over_a_long_even_polyline() -> None:
+    # 500 evenly spaced points from near the image corner to ~1000 px away (the sums are taken about the first
+    # point: differences of float32 coordinates that must not round): ~170 runs, the power sums slide from run to
+    # run and are recomputed every `_SLIDES` runs; every point stays on the reference's fit.
+    rng = np.random.default_rng(11)
+    s = np.arange(500) * 2.0
+    poly = np.stack([5.3 + 0.6 * s + 1e-5 * (s - 500.0) ** 2, 7.1 + 0.8 * s], axis=1)  # a gentle bend
+    poly = (poly + rng.normal(0, 0.02, poly.shape)).astype(np.float32)
+    np.testing.assert_allclose(_smooth(poly, 24.0), smooth_reference(poly, 24.0), atol=2e-4)
