@@ -457,13 +457,18 @@ def slope_sweep_median(chain, n, i_fix, i_seg, direction, mag, lo_frac, hi_frac,
     m_table = ratios.shape[0]
     m = 0
     lo = 0
+    i = (i_fix - direction + 4 * n) % n
     for k in range(count):
+        i += direction  # (i_fix + k direction) mod n, without a modulo per point
+        if i == n:
+            i = 0
+        elif i < 0:
+            i = n - 1
         frac = k / (count - 1)
         if frac < lo_frac or frac >= hi_frac:
             continue
         if 2 * m + 1 >= 2 * work.shape[0]:
             return np.nan
-        i = (i_fix + k * direction + 4 * n) % n
         x = float(mag[chain[i, 0], chain[i, 1]] / contrast)
         if m_table == 0:
             return np.nan
