@@ -205,10 +205,9 @@ class BlurSplitter:
         # sweep. The last frame's sweep widens the zone searched (a rope does not change its speed much between
         # frames); the sharpest turn in the zone is still a corner, the sides turn little.
         search = np.float32(max(consts.search_px, 1.2 * self.sweep_px))
-        K.turning_angles_far(points, n, consts.scale, fixed_r, fixed_c, search, self.fixed_dist, self.turn)
-        found = K.split_contour(
-            points, self._turn_ro, self._fixed_dist_ro, n, fixed_r, fixed_c, search, consts.min_gap, consts.corner,
-            self.work, self.idx,
+        found = K.find_segmentation_points(
+            points, n, consts.scale, fixed_r, fixed_c, search, consts.min_gap, consts.corner, self.fixed_dist,
+            self.turn, self.work, self.idx,
         )  # fmt: skip
         if found < 0 or self.method == "static":
             return self.static(fixed_rc)

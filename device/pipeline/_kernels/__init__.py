@@ -52,6 +52,7 @@ from ropecam.device.pipeline._kernels.contour import (
 from ropecam.device.pipeline._kernels.geometry import (
     axis_offset,
     chain_length,
+    find_segmentation_points,
     midline,
     offset_side,
     refine_subpixel,
@@ -81,11 +82,11 @@ from ropecam.device.pipeline._kernels.polylines import (
     polyline_length,
     resample_polyline,
     resample_polyline_of_length,
-    smooth_polyline,
     track_material_points,
     track_material_points_of_length,
     trim_polyline_end,
 )
+from ropecam.device.pipeline._kernels.smoothing import smooth_polyline
 from ropecam.device.pipeline._kernels.spans import (
     coarse_spans,
     grow_spans,
@@ -143,6 +144,7 @@ __all__ = [
     "extend_to_band_end",
     "f4_1d_ro",
     "find_caps",
+    "find_segmentation_points",
     "finish_edges",
     "grow_edges",
     "grow_spans",

@@ -3,19 +3,20 @@
 from __future__ import annotations
 
 import math
+from typing import Final
 
 import numpy as np
 from numba import float32, float64, int32, int64, void
 
-from ropecam.device.pipeline._kernels._common import FULL, INVALID, NOT_FOUND, f4_1d_ro
+from ropecam.device.pipeline._kernels._common import FULL, INVALID, NOT_FOUND, f4_1d_ro, prefetch_read
 from ropecam.device.pipeline._kernels.geometry import axis_offset, chain_length
 from ropecam.device.pipeline._kernels.polylines import (
     anchor_start,
     extend_to_band_end,
     polyline_length,
     resample_polyline_of_length,
-    smooth_polyline,
 )
+from ropecam.device.pipeline._kernels.smoothing import smooth_polyline
 from ropecam.shared.jit import (
     f4_1d,
     f4_2d,
@@ -27,6 +28,17 @@ from ropecam.shared.jit import (
     kernel,
     u1_2d_ro,
 )
+
+
+@kernel(float64(float64, float64))
+def _length(d_r, d_c):
+    """Return the length of the vector (d_r, d_c): an inline square root (``math.hypot`` is a libm call guarding
+    against overflow that coordinates in pixels never reach, ~3x the time)."""
+    return math.sqrt(d_r * d_r + d_c * d_c)
+
+
+_AHEAD: Final = 16
+"""Chain points ahead whose plane values `side_sweeps` and `offset_by_table` ask the caches for."""
 
 
 @kernel(int32(u1_2d_ro, f4_2d_ro, f4_2d_ro, f4_2d_ro, i4_2d_ro, int32, float32, float32, f4_1d))
@@ -127,7 +139,7 @@ def offset_by_gradient(
         i = (i_start + k * direction + n * 4) % n
         if k > 0:
             ip = (i_start + (k - 1) * direction + n * 4) % n
-            s += math.hypot(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
+            s += _length(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
         shift = 0.5 * width_px
         if total > 0.0:
             shift = max(0.0, 0.5 * (width_px - sweep_tip_px * s / total))
@@ -195,7 +207,18 @@ def side_sweeps(chain, n, i_start, i_stop, direction, mag, inv_contrast, ratios,
     m = ratios.shape[0]
     lo = 0
     i = (i_start + 4 * n) % n
+    # The chain pixels' cache lines are scattered (a new row every step or two): ask for them `_AHEAD` points early.
+    flat_mag = mag.reshape(mag.size)
+    cols = mag.shape[1]
+    ahead = (i_start + _AHEAD * direction + 4 * n) % n
     for k in range(count):
+        if k + _AHEAD < count:
+            prefetch_read(flat_mag, chain[ahead, 0] * cols + chain[ahead, 1])
+            ahead += direction
+            if ahead == n:
+                ahead = 0
+            elif ahead < 0:
+                ahead = n - 1
         x = mag[chain[i, 0], chain[i, 1]] * inv_contrast
         if m == 0:
             work[k] = np.nan
@@ -249,12 +272,25 @@ def offset_by_table(
     s = 0.0
     i = (i_start + n * 4) % n
     ip = i
+    flat_gx = gx.reshape(gx.size)
+    flat_gy = gy.reshape(gy.size)
+    cols = gx.shape[1]
+    ahead = (i_start + _AHEAD * direction + 4 * n) % n
     for k in range(count):
+        if k + _AHEAD < count:  # as in `side_sweeps`
+            at = chain[ahead, 0] * cols + chain[ahead, 1]
+            prefetch_read(flat_gx, at)
+            prefetch_read(flat_gy, at)
+            ahead += direction
+            if ahead == n:
+                ahead = 0
+            elif ahead < 0:
+                ahead = n - 1
         if local == 1:
             d = sweeps[k]
         else:
             if k > 0:
-                s += math.hypot(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
+                s += _length(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
             d = sweep_tip_px * s / total if total > 0.0 else 0.0
         x = max(d, 0.0) / step_px
         j = min(int(x), last)
@@ -324,7 +360,7 @@ def split_shapes_local(
         b3c = float(out_side_b[nb - 3, 1])
         u_r = a1r - a3r + b1r - b3r
         u_c = a1c - a3c + b1c - b3c
-        norm = math.hypot(u_r, u_c)
+        norm = _length(u_r, u_c)
         if norm > 0.0 and slant_gain_px > 0:
             u_r = u_r / norm
             u_c = u_c / norm
@@ -366,29 +402,45 @@ def split_shapes_local(
     return 2
 
 
-@kernel(void(f8_1d, int64, int64))
-def _sift_down(values, root, size):
-    """Restore the max-heap property of ``values[:size]`` below `root`."""
-    while True:
-        child = 2 * root + 1
-        if child >= size:
-            return
-        if child + 1 < size and values[child + 1] > values[child]:
-            child += 1
-        if values[root] >= values[child]:
-            return
-        values[root], values[child] = values[child], values[root]
-        root = child
-
-
-@kernel(void(f8_1d, int64))
-def _heap_sort(values, m):
-    """Sort ``values[:m]`` in place, ascending (heapsort: no recursion, no allocation, unlike ``ndarray.sort``)."""
-    for start in range(m // 2 - 1, -1, -1):
-        _sift_down(values, start, m)
-    for end in range(m - 1, 0, -1):
-        values[0], values[end] = values[end], values[0]
-        _sift_down(values, 0, end)
+@kernel(float64(f8_1d, int64, int64))
+def _select(values, m, rank):
+    """Return the value of rank `rank` (0-based) of ``values[:m]``, partially reordering them in place so that
+    ``values[:rank]`` holds values not above it (quickselect, median-of-three pivots; no recursion, no
+    allocation). The same value as ``np.sort(values[:m])[rank]``."""
+    lo = 0
+    hi = m - 1
+    while hi > lo:
+        mid = (lo + hi) // 2
+        # Median of three as the pivot, moved to values[lo].
+        if values[mid] < values[lo]:
+            values[mid], values[lo] = values[lo], values[mid]
+        if values[hi] < values[lo]:
+            values[hi], values[lo] = values[lo], values[hi]
+        if values[hi] < values[mid]:
+            values[hi], values[mid] = values[mid], values[hi]
+        values[lo], values[mid] = values[mid], values[lo]
+        pivot = values[lo]
+        # Hoare partition of values[lo + 1 .. hi] around the pivot.
+        i = lo + 1
+        j = hi
+        while True:
+            while i <= j and values[i] < pivot:
+                i += 1
+            while i <= j and values[j] > pivot:
+                j -= 1
+            if i >= j:
+                break
+            values[i], values[j] = values[j], values[i]
+            i += 1
+            j -= 1
+        values[lo], values[j] = values[j], values[lo]
+        if j == rank:
+            return values[j]
+        if j < rank:
+            lo = j + 1
+        else:
+            hi = j - 1
+    return values[rank]
 
 
 @kernel(float64(i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, float32, float32, f8_1d_ro, f8_1d_ro, f8_1d))
@@ -397,21 +449,26 @@ def slope_sweep_median(chain, n, i_fix, i_seg, direction, mag, lo_frac, hi_frac,
     `direction` to `i_seg` whose arc fraction f (by index) lies in [lo_frac, hi_frac), the local sweep d of the
     gradient height ``mag / contrast`` (float32, as NumPy divides a float32 array by a Python float; then
     `np.interp` on (`ratios`, `sweeps`)), extrapolated to the tip as d / f; the median of those (as
-    `np.median`). `work` holds the values (sorted in place). nan with fewer than 6 samples or a full `work`.
-    The same as `side_slope_samples` followed by the stage's NumPy, without its ~150 us of NumPy calls."""
+    `np.median`). `work` holds the values (reordered in place: `_select`). nan with fewer than 6 samples or a
+    full `work`. The same as `side_slope_samples` followed by the stage's NumPy, without its ~150 us of NumPy calls."""
     count = ((i_seg - i_fix) * direction % n + n) % n + 1
     if count < 2:
         return np.nan
     m_table = ratios.shape[0]
     m = 0
     lo = 0
+    i = (i_fix - direction + 4 * n) % n
     for k in range(count):
+        i += direction  # (i_fix + k direction) mod n, without a modulo per point
+        if i == n:
+            i = 0
+        elif i < 0:
+            i = n - 1
         frac = k / (count - 1)
         if frac < lo_frac or frac >= hi_frac:
             continue
         if 2 * m + 1 >= 2 * work.shape[0]:
             return np.nan
-        i = (i_fix + k * direction + 4 * n) % n
         x = float(mag[chain[i, 0], chain[i, 1]] / contrast)
         if m_table == 0:
             return np.nan
@@ -433,7 +490,10 @@ def slope_sweep_median(chain, n, i_fix, i_seg, direction, mag, lo_frac, hi_frac,
         m += 1
     if m < 6:
         return np.nan
-    _heap_sort(work, m)
+    upper = _select(work, m, m // 2)
     if m % 2 == 1:
-        return work[m // 2]
-    return (work[m // 2 - 1] + work[m // 2]) / 2.0
+        return upper
+    lower = work[0]  # the largest of the values below rank m // 2
+    for k in range(1, m // 2):
+        lower = max(lower, work[k])
+    return (lower + upper) / 2.0

@@ -3,20 +3,25 @@
 from __future__ import annotations
 
 import math
-from typing import Final
 
 import numpy as np
-from numba import float32, float64, int32, int64, types
+from numba import float32, float64, int32
 
 from ropecam.device.pipeline._kernels._common import FULL, INVALID
 from ropecam.device.pipeline._kernels.geometry import sample_bilinear
 from ropecam.shared.jit import (
     f4_2d,
     f4_2d_ro,
-    f8_1d,
     f8_1d_ro,
     kernel,
 )
+
+
+@kernel(float64(float64, float64))
+def _length(d_r, d_c):
+    """Return the length of the vector (d_r, d_c): an inline square root (``math.hypot`` is a libm call guarding
+    against overflow that coordinates in pixels never reach, ~3x the time)."""
+    return math.sqrt(d_r * d_r + d_c * d_c)
 
 
 @kernel(float64(f4_2d_ro, int32))
@@ -24,7 +29,7 @@ def polyline_length(poly, n):
     """Return the length of the polyline of the first `n` points, eq. (9)."""
     total = 0.0
     for i in range(1, n):
-        total += math.hypot(float(poly[i, 0]) - float(poly[i - 1, 0]), float(poly[i, 1]) - float(poly[i - 1, 1]))
+        total += _length(float(poly[i, 0]) - float(poly[i - 1, 0]), float(poly[i, 1]) - float(poly[i - 1, 1]))
     return total
 
 
@@ -43,13 +48,13 @@ def resample_polyline_of_length(poly, n, total, step_px, out_poly):
     step = total / segments
     j = 0
     acc = 0.0
-    seg_len = math.hypot(poly[1, 0] - poly[0, 0], poly[1, 1] - poly[0, 1]) if n > 1 else 0.0
+    seg_len = _length(poly[1, 0] - poly[0, 0], poly[1, 1] - poly[0, 1]) if n > 1 else 0.0
     for k in range(1, segments):
         target = k * step
         while acc + seg_len < target and j + 2 < n:
             acc += seg_len
             j += 1
-            seg_len = math.hypot(poly[j + 1, 0] - poly[j, 0], poly[j + 1, 1] - poly[j, 1])
+            seg_len = _length(poly[j + 1, 0] - poly[j, 0], poly[j + 1, 1] - poly[j, 1])
         t = (target - acc) / seg_len if seg_len > 0.0 else 0.0
         t = min(max(t, 0.0), 1.0)
         out_poly[k, 0] = poly[j, 0] + t * (poly[j + 1, 0] - poly[j, 0])
@@ -92,7 +97,7 @@ def track_material_points_of_length(poly, n, total, arc_px, length0_px, out_poin
         acc = acc0 if increasing else 0.0
         done = False
         for j in range(j0 if increasing else 0, n - 1):
-            seg = math.hypot(float(poly[j + 1, 0]) - float(poly[j, 0]), float(poly[j + 1, 1]) - float(poly[j, 1]))
+            seg = _length(float(poly[j + 1, 0]) - float(poly[j, 0]), float(poly[j + 1, 1]) - float(poly[j, 1]))
             if acc + seg > target and seg > 0.0:
                 t = (target - acc) / seg
                 out_points[k, 0] = poly[j, 0] + t * (poly[j + 1, 0] - poly[j, 0])
@@ -144,7 +149,7 @@ def anchor_start(poly, n, point_r, point_c, skip_px, span_px):
     b_r = 0.0
     b_c = 0.0
     while k < n:
-        seg = math.hypot(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
+        seg = _length(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
         if seg > 0.0:
             if not found_a and s + seg >= skip_px:
                 f = (skip_px - s) / seg
@@ -180,7 +185,7 @@ def anchor_start(poly, n, point_r, point_c, skip_px, span_px):
     out = 1
     first_r = poly[k_a, 0]
     first_c = poly[k_a, 1]
-    if math.hypot(first_r - a_r, first_c - a_c) > 1e-6:
+    if _length(first_r - a_r, first_c - a_c) > 1e-6:
         out = 2
     count = out + (n - k_a)
     if count > poly.shape[0]:
@@ -210,7 +215,7 @@ def trim_polyline_end(poly, n, cut_px):
     remaining = cut_px
     k = n - 1
     while k > 0:
-        seg = math.hypot(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
+        seg = _length(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
         if seg >= remaining and seg > 0.0:
             t = remaining / seg
             poly[k, 0] = poly[k, 0] + t * (poly[k - 1, 0] - poly[k, 0])
@@ -315,7 +320,7 @@ def extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip
             srr += r * r
             scc += c * c
             src += r * c
-        back += math.hypot(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
+        back += _length(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
         k -= 1
     if m < 3 or base_k < 1:
         return n
@@ -363,138 +368,3 @@ def extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip
     poly[count, 0] = base_r + extent * dir_r
     poly[count, 1] = base_c + extent * dir_c
     return count + 1
-
-
-_SMOOTH_BLOCK: Final = 3
-"""Points per fit of `smooth_polyline`."""
-
-
-@kernel(types.UniTuple(float64, 6)(f4_2d_ro, f8_1d, int64, int64, int64, float64, float64))
-def _fit_across(poly, arc, lo, hi, i, centre, inv_half):
-    """Fit the offset across the chord of points lo..hi as a weighted quadratic of the position along it, both
-    relative to point i and scaled by `inv_half`; weights 1 - 0.9 d**2 with d the arc distance to `centre` (scaled).
-
-    Returns (ok, along_r, along_c, c0, c1, c2): ok = 1.0 when fitted (a line when the quadratic is degenerate),
-    0.0 when the window has fewer than 3 points or is a hairpin (chord shorter than half its arc).
-    """
-    chord_r = float(poly[hi, 0]) - float(poly[lo, 0])
-    chord_c = float(poly[hi, 1]) - float(poly[lo, 1])
-    chord = math.sqrt(chord_r * chord_r + chord_c * chord_c)
-    if hi - lo < 2 or not chord > 0.5 * (arc[hi] - arc[lo]):
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    along_r = chord_r / chord
-    along_c = chord_c / chord
-    base_r = float(poly[i, 0])
-    base_c = float(poly[i, 1])
-    m0 = m1 = m2 = m3 = m4 = 0.0
-    r0 = r1 = r2 = 0.0
-    for j in range(lo, hi + 1):
-        d = min(abs(arc[j] - centre) * inv_half, 1.0)
-        w = 1.0 - 0.9 * d * d
-        dr = float(poly[j, 0]) - base_r
-        dc = float(poly[j, 1]) - base_c
-        x = (dr * along_r + dc * along_c) * inv_half
-        y = dc * along_r - dr * along_c
-        wx = w * x
-        wx2 = wx * x
-        m0 += w
-        m1 += wx
-        m2 += wx2
-        m3 += wx2 * x
-        m4 += wx2 * x * x
-        r0 += w * y
-        r1 += wx * y
-        r2 += wx2 * y
-    # y = c0 + c1 x + c2 x^2 by Cramer's rule on the normal equations; a line when they are degenerate.
-    a = m2 * m4 - m3 * m3
-    b = m1 * m4 - m2 * m3
-    c = m1 * m3 - m2 * m2
-    det = m0 * a - m1 * b + m2 * c
-    if det > 1e-9 * m0 * m0 * m0:
-        c0 = (r0 * a - r1 * b + r2 * c) / det
-        c1 = (m0 * (r1 * m4 - m3 * r2) - r0 * b + m2 * (m1 * r2 - r1 * m2)) / det
-        c2 = (m0 * (m2 * r2 - r1 * m3) - m1 * (m1 * r2 - r1 * m2) + r0 * c) / det
-        return 1.0, along_r, along_c, c0, c1, c2
-    det = m0 * m2 - m1 * m1
-    if not det > 1e-9 * m0 * m0:
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    return 1.0, along_r, along_c, (r0 * m2 - r1 * m1) / det, (m0 * r1 - m1 * r0) / det, 0.0
-
-
-@kernel(int32(f4_2d_ro, int32, float32, f8_1d, f4_2d))
-def smooth_polyline(poly, n, half_width_px, work_arc_px, out_poly):
-    """Smooth the polyline of `n` points across its direction by local quadratic regression (LOESS), into `out_poly`.
-
-    A rope centreline has no pixel-scale wiggles: those are measurement noise. The points are taken in runs of
-    `_SMOOTH_BLOCK`; for the middle point of a run, the window is the points within h = `half_width_px` of arc
-    length from a centre: the point's own arc length, clamped to ``[h, L - h]`` (L the polyline's length), so near
-    an end the window stays 2h long and one-sided and the end is not averaged inward. In the frame of the window's
-    chord (first to last point), the offset across the chord is fitted by weighted least squares as a quadratic of
-    the position along it (weights fall from 1 at the centre to 0.1 at the window's edge), and every point of the
-    run is moved across the chord onto the fit, at its own position along it (LOESS evaluated at every third
-    point: a third of the work); a point of the run outside that window (a gap longer than the window) gets a fit
-    of its own. Points only move sideways: the tip keeps its measured extent along the rope, a
-    quadratic is reproduced exactly, an arc of radius R is flattened by ~h**4 / R**3 at most. A window with fewer
-    than three distinct positions falls back to a line (two) or leaves the run (one), and a window whose chord is
-    shorter than half its arc length (a hairpin tighter than the window) leaves its run as it is.
-    `half_width_px` <= 0 or n < 3 copies the points; a polyline shorter than 2h is one window.
-
-    Writes the arc length of every point into ``work_arc_px[:n]`` and the result into ``out_poly[:n]`` (row, col);
-    returns n, or INVALID when n < 0 or a buffer holds fewer than n rows.
-    """
-    if n < 0 or out_poly.shape[0] < n or poly.shape[0] < n or work_arc_px.shape[0] < n:
-        return INVALID
-    total = 0.0
-    for i in range(n):
-        out_poly[i, 0] = poly[i, 0]
-        out_poly[i, 1] = poly[i, 1]
-        if i > 0:
-            dr = float(poly[i, 0]) - float(poly[i - 1, 0])
-            dc = float(poly[i, 1]) - float(poly[i - 1, 1])
-            total += math.sqrt(dr * dr + dc * dc)
-        work_arc_px[i] = total
-    if n < 3 or not half_width_px > 0.0 or not total > 0.0:
-        return n
-    arc = work_arc_px
-    half = float(half_width_px)
-    short = total <= 2.0 * half
-    if short:
-        half = 0.5 * total * (1.0 + 1e-6)  # one window over the whole polyline, its ends inside it
-    inv_half = 1.0 / half
-    limit = 1.0 + 1e-9  # the end points sit at the window's edge up to rounding: keep them
-    lo = 0
-    hi = 0
-    for first in range(0, n, _SMOOTH_BLOCK):
-        last = min(first + _SMOOTH_BLOCK, n) - 1
-        i = (first + last) // 2
-        centre = 0.5 * total if short else min(max(arc[i], half), total - half)
-        while arc[lo] < centre - half and lo < i:
-            lo += 1
-        hi = max(hi, i)
-        while hi + 1 < n and (arc[hi + 1] - centre) * inv_half <= limit:
-            hi += 1
-        ok, along_r, along_c, c0, c1, c2 = _fit_across(poly, arc, lo, hi, i, centre, inv_half)
-        for k in range(first, last + 1):
-            fit_i = i
-            if k < lo or k > hi:
-                # A gap longer than the window lies between k and the run's middle: k gets its own window and fit.
-                fit_i = k
-                own = 0.5 * total if short else min(max(arc[k], half), total - half)
-                k_lo = k
-                while k_lo > 0 and arc[k_lo - 1] >= own - half:
-                    k_lo -= 1
-                k_hi = k
-                while k_hi + 1 < n and (arc[k_hi + 1] - own) * inv_half <= limit:
-                    k_hi += 1
-                ok, along_r, along_c, c0, c1, c2 = _fit_across(poly, arc, k_lo, k_hi, k, own, inv_half)
-            if ok > 0.0:
-                dr = float(poly[k, 0]) - float(poly[fit_i, 0])
-                dc = float(poly[k, 1]) - float(poly[fit_i, 1])
-                x = (dr * along_r + dc * along_c) * inv_half
-                # Move the point along the normal (-along_c, along_r) from its own offset onto the fit.
-                offset = c0 + (c1 + c2 * x) * x - (dc * along_r - dr * along_c)
-                out_poly[k, 0] = float(poly[k, 0]) - offset * along_c
-                out_poly[k, 1] = float(poly[k, 1]) + offset * along_r
-            if fit_i != i:
-                ok, along_r, along_c, c0, c1, c2 = _fit_across(poly, arc, lo, hi, i, centre, inv_half)
-    return n

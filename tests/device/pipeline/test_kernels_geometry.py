@@ -298,6 +298,48 @@ def test_turning_angles_far_equals_turning_angles_in_the_tip_zone() -> None:
     assert np.all(far[~needed] == 0.0)
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_find_segmentation_points_equals_the_two_kernels(seed) -> None:
+    # Bands with a noisy outline, a kink or not, fixed ends anywhere along the near end: the fused kernel gives
+    # what `turning_angles_far` then `split_contour` give, distances and status included.
+    rng = np.random.default_rng(seed)
+    corners = [(5, 0), (0, 0), (0, 100), (2, 102.5), (10, 100), (10, 0)]
+    if seed % 2:
+        del corners[3]
+    pts = _outline(corners) + rng.normal(0, 0.15, (len(_outline(corners)), 2)).astype(np.float32)
+    pts = np.roll(pts, int(rng.integers(0, len(pts))), axis=0)
+    n = len(pts)
+    fixed = (np.float32(rng.uniform(3, 7)), np.float32(0.0))
+    args = (np.int32(3), *fixed, np.float32(20.0))
+    dist, turn, idx = np.zeros(n), np.zeros(n, np.float32), np.zeros(4, np.int32)
+    K.turning_angles_far(pts, np.int32(n), *args, dist, turn)
+    work = np.zeros(n, np.float32)
+    expected = K.split_contour(pts, turn, dist, n, *fixed, np.float32(20.0), 4, 0.5, work, idx)
+    dist2, turn2, idx2, work2 = (
+        np.zeros(n),
+        np.full(n, np.nan, np.float32),
+        np.zeros(4, np.int32),
+        np.zeros(n, np.float32),
+    )
+    got = K.find_segmentation_points(pts, np.int32(n), *args, np.int32(4), np.float32(0.5), dist2, turn2, work2, idx2)
+    assert got == expected == 4
+    np.testing.assert_array_equal(idx2, idx)
+    np.testing.assert_array_equal(dist2, dist)
+    np.testing.assert_array_equal(work2, work)
+    written = ~np.isnan(turn2)
+    np.testing.assert_array_equal(turn2[written], turn[written])
+    assert np.all(turn[~written] == 0.0)  # only the angles nobody reads were left out
+    short = np.zeros(n - 1)
+    assert (
+        K.find_segmentation_points(pts, np.int32(n), *args, np.int32(4), np.float32(0.5), short, turn2, work2, idx2)
+        == K.FULL
+    )
+    assert (
+        K.find_segmentation_points(pts, np.int32(6), *args, np.int32(4), np.float32(0.5), dist2, turn2, work2, idx2)
+        == K.NOT_FOUND
+    )
+
+
 @pytest.mark.parametrize("arcs", [[0.0, 3.0, 7.5, 12.0, 40.0], [12.0, 3.0, 7.5, -1.0]])
 def test_known_length_variants_equal_the_plain_kernels(arcs) -> None:
     rng = np.random.default_rng(7)

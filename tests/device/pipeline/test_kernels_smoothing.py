@@ -15,9 +15,13 @@ from ropecam.shared.errors import ConfigError
 pytestmark = pytest.mark.kernel
 
 
-def smooth_reference(poly: np.ndarray, half_width_px: float, block: int = 3) -> np.ndarray:
+def smooth_reference(poly: np.ndarray, half_width_px: float, block: int = 3, even_tolerance: float = 0.1) -> np.ndarray:
     """Per run of `block` points: the window of the middle one, its chord frame, a weighted quadratic fit by
-    `np.linalg.lstsq`, every point of the run (or, outside that window, its own fit) moved across onto it."""
+    `np.linalg.lstsq`, every point of the run (or, outside that window, its own fit) moved across onto it.
+
+    An evenly spaced window (centred on its point, as many points on each side, its ends within `even_tolerance`
+    mean spacings of the offsets of evenly spaced points) is fitted at the positions ``o * spacing`` (o = -K..K)
+    instead of the chord projections (`smooth_polyline`'s shortcut); a negative tolerance turns that off."""
     points = np.asarray(poly, dtype=np.float64)
     n = len(points)
     if n < 3 or half_width_px <= 0:
@@ -28,6 +32,8 @@ def smooth_reference(poly: np.ndarray, half_width_px: float, block: int = 3) -> 
     short = total <= 2 * half
     if short:
         half = 0.5 * total * (1 + 1e-6)
+
+    spacing = total / (n - 1)
 
     def fit(i: int):
         """(window indices, along, normal, coefficients) of the fit for point i, or None."""
@@ -43,6 +49,16 @@ def smooth_reference(poly: np.ndarray, half_width_px: float, block: int = 3) -> 
         rel = points[lo : hi + 1] - points[i]
         x, y = rel @ along / half, rel @ normal
         w = np.sqrt(1.0 - 0.9 * np.minimum(d[lo : hi + 1] ** 2, 1.0))
+        k = i - lo
+        if (
+            not short
+            and centre == s[i]
+            and hi - i == k >= 2
+            and abs(s[hi] - s[i] - k * spacing) <= even_tolerance * spacing
+            and abs(s[i] - s[lo] - k * spacing) <= even_tolerance * spacing
+        ):
+            x = np.arange(-k, k + 1) * spacing / half
+            w = np.sqrt(1.0 - 0.9 * x**2)
         distinct = len(np.unique(np.round(x, 9)))
         if distinct < 2:
             return inside, None
@@ -100,6 +116,41 @@ def test_matches_the_reference(length_px, half_width_px, noise) -> None:
     rng = np.random.default_rng(int(length_px + half_width_px))
     poly = _arc(150.0, length_px, 1.0, rng, noise).astype(np.float32)
     np.testing.assert_allclose(_smooth(poly, half_width_px), smooth_reference(poly, half_width_px), atol=2e-4)
+
+
+def _even_arc(radius_px: float, length_px: float, step_px: float, rng: np.random.Generator, noise: float):
+    """Points (row, col) `step_px` apart along a circular arc (as `resample_polyline` leaves them), with noise."""
+    angle = np.arange(0.0, length_px, step_px) / radius_px
+    poly = np.stack([100 + radius_px * np.sin(angle), 50 + radius_px * (1 - np.cos(angle))], axis=1)
+    return poly + rng.normal(0, noise, poly.shape)
+
+
+@pytest.mark.parametrize(("radius_px", "noise"), [(150.0, 0.1), (60.0, 0.1), (400.0, 0.0)])
+def test_evenly_spaced_windows_take_the_shortcut(radius_px, noise) -> None:
+    # Resampled centrelines are evenly spaced: their inner windows are fitted at the even positions (the moments
+    # are the same for all of them), which is the reference with the shortcut, close to the fit at the chord
+    # projections (the two differ in how the noise and the bend project).
+    poly = _even_arc(radius_px, 240.0, 2.0, np.random.default_rng(3), noise).astype(np.float32)
+    ours = _smooth(poly, 24.0)
+    np.testing.assert_allclose(ours, smooth_reference(poly, 24.0), atol=2e-4)
+    exact = smooth_reference(poly, 24.0, even_tolerance=-1.0)
+    assert 1e-6 < np.max(np.abs(ours - exact)) < 0.03  # the shortcut was taken, and it changes little
+
+
+@pytest.mark.parametrize("radius_px", [40.0, 60.0, 100.0])
+def test_the_shortcut_flattens_a_bend_less(radius_px) -> None:
+    # On a circle the offset is a quadratic plus x**4 / (24 R**3) in the arc offset, plus x**4 / (8 R**3) in the
+    # chord projection: the even positions leave a third of the flattening (inner points; the ends share a path).
+    poly = _even_arc(radius_px, 240.0, 2.0, np.random.default_rng(3), 0.0).astype(np.float32)
+
+    def flattening(points: np.ndarray) -> float:
+        return float(
+            np.max(np.abs(np.hypot(points[:, 0] - 100.0, points[:, 1] - 50.0 - radius_px) - radius_px)[15:-15])
+        )
+
+    ours = flattening(_smooth(poly, 24.0))
+    assert ours < 0.5 * flattening(smooth_reference(poly, 24.0, even_tolerance=-1.0))
+    assert ours < 24.0**4 / (24.0 * radius_px**3)
 
 
 def test_degenerate_windows_keep_long_segments_and_duplicates() -> None:
@@ -206,3 +257,14 @@ def test_smooth_output_is_compact_on_the_wire(rope, blurred_frames) -> None:
     smooth, raw = stream(24.0), stream(0.0)
     assert np.mean(smooth) < 0.6 * np.mean(raw)
     assert np.mean(smooth) <= 170
+
+
+def test_sliding_sums_over_a_long_even_polyline() -> None:
+    # 500 evenly spaced points from near the image corner to ~1000 px away (the sums are taken about the first
+    # point: differences of float32 coordinates that must not round): ~170 runs, the power sums slide from run to
+    # run and are recomputed every `_SLIDES` runs; every point stays on the reference's fit.
+    rng = np.random.default_rng(11)
+    s = np.arange(500) * 2.0
+    poly = np.stack([5.3 + 0.6 * s + 1e-5 * (s - 500.0) ** 2, 7.1 + 0.8 * s], axis=1)  # a gentle bend
+    poly = (poly + rng.normal(0, 0.02, poly.shape)).astype(np.float32)
+    np.testing.assert_allclose(_smooth(poly, 24.0), smooth_reference(poly, 24.0), atol=2e-4)

@@ -156,3 +156,19 @@ def test_slope_sweep_median_matches_numpy(start, stop, direction) -> None:
     few = K.slope_sweep_median(chain, n, 0, 8, 1, mag, np.float32(0.5), np.float32(0.85), np.float32(contrast),
                                ratios, sweeps, np.zeros(n))  # fmt: skip
     assert math.isnan(few)  # fewer than 6 samples
+
+
+def test_select_finds_the_rank_as_sorting_does() -> None:
+    from ropecam.device.pipeline._kernels.offsets import _select
+
+    rng = np.random.default_rng(9)
+    for trial in range(300):
+        m = int(rng.integers(1, 40))
+        values = rng.integers(0, 5, m).astype(np.float64) if trial % 2 else rng.normal(size=m)  # ties, or none
+        rank = int(rng.integers(0, m))
+        work = np.concatenate([values, [np.inf]])  # beyond m: never read or moved
+        got = _select(work, m, rank)
+        assert got == np.sort(values)[rank]
+        assert np.all(work[:rank] <= got) and np.all(work[rank + 1 : m] >= got)
+        np.testing.assert_array_equal(np.sort(work[:m]), np.sort(values))
+        assert work[m] == np.inf
