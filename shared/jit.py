@@ -6,8 +6,10 @@ uses NumPy's error model (division by zero gives inf/nan, never an exception ins
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Callable
 from enum import IntEnum
+from pathlib import Path
 from typing import Any, Final
 
 import numba
@@ -16,6 +18,7 @@ from numba import types
 __all__ = [
     "KernelStatus",
     "b1_1d",
+    "drop_stale_caches",
     "f4_1d",
     "f4_2d",
     "f4_2d_ro",
@@ -48,6 +51,46 @@ class KernelStatus(IntEnum):
     """An iterative solve did not converge within its iteration limit."""
     SINGULAR = -5
     """A linear system was singular."""
+
+
+def drop_stale_caches(package_dir: str | Path) -> bool:
+    """Delete the cached kernels of a package of kernel modules when any of its sources (or this module) changed.
+
+    Numba keys a cached kernel on its own file only: a kernel that calls a kernel of another module keeps the
+    callee's old code after the callee's file is edited (seen in development: a split kernel ran an old smoothing
+    for hours). Call this at the top of the package's ``__init__``, before importing its modules. A stamp of all
+    the sources is kept next to the caches (``__pycache__/kernel-sources.sha1``); when it differs, the Numba
+    cache files (``*.nbi``, ``*.nbc``) there are deleted and compiled again on import. Unwritable folders (an
+    installed copy with Numba's user-wide cache) are left as they are: an installation copies every file anew, and
+    Numba then sees new stamps on all of them.
+
+    Returns
+    -------
+    bool
+        True when caches were dropped.
+    """
+    folder = Path(package_dir)
+    digest = hashlib.sha1()
+    for source in [*sorted(folder.glob("*.py")), Path(__file__)]:
+        try:
+            digest.update(source.name.encode() + b"\0" + source.read_bytes())
+        except OSError:
+            return False
+    cache = folder / "__pycache__"
+    stamp = cache / "kernel-sources.sha1"
+    try:
+        if stamp.read_text() == digest.hexdigest():
+            return False
+    except OSError:
+        pass
+    try:
+        cache.mkdir(exist_ok=True)
+        for stale in [*cache.glob("*.nbi"), *cache.glob("*.nbc")]:
+            stale.unlink(missing_ok=True)
+        stamp.write_text(digest.hexdigest())
+    except OSError:
+        return False
+    return True
 
 
 def kernel(signature: Any) -> Callable[[Callable[..., Any]], Any]:

@@ -8,7 +8,17 @@ Kernels never allocate: every output is passed in (``out_*``, last) and the retu
 `KernelStatus`.
 
 One module per job; this package re-exports every kernel and constant so that stages use ``_kernels.NAME``.
+Kernels call kernels of other modules here, which Numba's per-file cache does not track: the package's caches are
+dropped whenever any of its sources changed (`ropecam.shared.jit.drop_stale_caches`).
 """
+
+from pathlib import Path
+
+from ropecam.shared.jit import drop_stale_caches
+
+drop_stale_caches(Path(__file__).parent)
+
+# ruff: noqa: E402 (the stale caches go before the kernel modules are imported)
 
 from ropecam.device.pipeline._kernels._common import (
     DIR_COL,
