@@ -30,6 +30,7 @@ from ropecam.device.pipeline._kernels._common import (
     prefetch_read,
     prefetch_write,
 )
+from ropecam.device.pipeline._kernels.canny_simd import LANES, hsmooth8, nms8, sobel8, vsmooth8
 from ropecam.shared.jit import (
     f4_2d,
     i4_1d,
@@ -157,10 +158,15 @@ def smooth_rows(frame, weights, hor_lo, hor_hi, r_begin, r_end, out_tmp):
         row = r * width
         inner0 = max(c0, radius)
         inner1 = min(c1, width - 1 - radius)
+        if radius == 2 and inner0 == c0 and inner1 == c1:
+            # The default smoothing (sigma 1 px) in whole 8-column steps, all inside the image.
+            base = np.uint64(row + c0)
+            for step in range((c1 - c0 + 1) // LANES):
+                hsmooth8(f, base + np.uint64(step * LANES), w0, w1, w2, tmp)
+            continue
         if inner1 >= inner0:
             base = np.uint64(row + inner0)
             if radius == 2:
-                # The default smoothing (sigma 1 px): one fused loop.
                 for i in range(inner1 - inner0 + 1):
                     k = base + np.uint64(i)
                     t = w0 * (np.float32(f[k - u2]) + np.float32(f[k + u2])) + w1 * (
@@ -218,6 +224,11 @@ def smooth_columns(tmp, weights, gau_lo, gau_hi, r_begin, r_end, out_smooth):
             kb = np.uint64(max(r - 1, 0) * width + c0)
             kd = np.uint64(min(r + 1, height - 1) * width + c0)
             ke = np.uint64(min(r + 2, height - 1) * width + c0)
+            if n % LANES == 0:  # whole 8-column steps
+                for step in range(n // LANES):
+                    us = np.uint64(step * LANES)
+                    vsmooth8(t, ka + us, kb + us, out + us, kd + us, ke + us, w0, w1, w2, smo)
+                continue
             for i in range(n):
                 ui = np.uint64(i)
                 smo[out + ui] = w0 * (t[ka + ui] + t[ke + ui]) + w1 * (t[kb + ui] + t[kd + ui]) + w2 * t[out + ui]
@@ -280,6 +291,11 @@ def sobel_rows(smooth, sob_lo, sob_hi, r_begin, r_end, out_gx, out_gy, out_mag):
         km = np.uint64(rm + i0)
         k0 = np.uint64(r0 + i0)
         kp = np.uint64(rp + i0)
+        if i0 == c0 and i1 == c1:  # whole 8-column steps, all inside the image
+            for step in range((i1 - i0 + 1) // LANES):
+                us = np.uint64(step * LANES)
+                sobel8(smo, km + us, k0 + us, kp + us, ogx, ogy, omag)
+            continue
         for i in range(i1 - i0 + 1):
             ui = np.uint64(i)
             a = km + ui
@@ -366,9 +382,19 @@ def suppress_rows(mag, gx, gy, lo, hi, sob_lo, sob_hi, r_begin, r_end, low, high
             if i1 >= i0:
                 p0 = i0 - i0 % VEC
                 p1 = padded_end(p0, i1, width)
-                if p0 < 1 or p1 > width - 2:  # near the image border: no padding
-                    p0 = i0
-                    p1 = i1
+                if p0 >= 1 and p1 <= width - 2 and i0 == c0 and i1 == c1:
+                    # Whole 8-column steps, off the image border: labels and strong seeds at once.
+                    for step in range((p1 - p0 + 1) // LANES):
+                        k = np.uint64(row + p0 + step * LANES)
+                        offset = p0 + step * LANES
+                        bits = nms8(omag, ogx, ogy, k, width, i0 - offset, i1 - offset, low, high, oedge)
+                        if bits:
+                            for lane in range(LANES):
+                                stack[top] = np.int32(k + np.uint64(lane))
+                                top += (bits >> lane) & 1
+                    continue
+                p0 = i0  # near the image border: no padding
+                p1 = i1
                 # Branch-free (all eight neighbours loaded, the pair of the gradient's sector selected): the
                 # labels of `nms_pixel`, written only in ``i0 .. i1`` (the loop runs over whole vectors).
                 base = np.uint64(row + p0)
