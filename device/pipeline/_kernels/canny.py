@@ -47,6 +47,8 @@ AHEAD: Final = 4
 """Rows ahead whose cache lines a pass asks for (`prefetch_read`, `prefetch_write`) before working on a row: each
 row of a band starts on new cache lines (and pages) of every plane, which the hardware prefetcher, following
 contiguous runs, does not fetch; a frame's band then waited ~50 us on memory."""
+RING: Final = 8
+"""Rows of the horizontal smoothing `smooth_ring` keeps (the first rows of `out_tmp`; 5 are read at a time)."""
 _EMPTY_LO: Final = 2147483647
 
 
@@ -162,7 +164,8 @@ def smooth_rows(frame, weights, hor_lo, hor_hi, r_begin, r_end, out_tmp):
             # The default smoothing (sigma 1 px) in whole 8-column steps, all inside the image.
             base = np.uint64(row + c0)
             for step in range((c1 - c0 + 1) // LANES):
-                hsmooth8(f, base + np.uint64(step * LANES), w0, w1, w2, tmp)
+                k = base + np.uint64(step * LANES)
+                hsmooth8(f, k, w0, w1, w2, tmp, k)
             continue
         if inner1 >= inner0:
             base = np.uint64(row + inner0)
@@ -188,6 +191,77 @@ def smooth_rows(frame, weights, hor_lo, hor_hi, r_begin, r_end, out_tmp):
             out_tmp[r, c] = smooth_replicated(frame, weights, r, c)
         for c in range(inner1 + 1, c1 + 1):
             out_tmp[r, c] = smooth_replicated(frame, weights, r, c)
+
+
+@kernel(int64(u1_2d_ro, f4_1d_ro, i4_1d, i4_1d, i4_1d, i4_1d, int64, int64, f4_2d, f4_2d))
+def smooth_ring(frame, weights, hor_lo, hor_hi, gau_lo, gau_hi, r_begin, r_end, out_tmp, out_smooth):
+    """`smooth_rows` then `smooth_columns` for the 5-tap smoothing in one sweep, when every row is off the image
+    border: the horizontal pass of row ``r + 2`` goes into a ring of 8 rows (the first rows of `out_tmp`) just
+    before the vertical pass of row ``r`` reads it, so that it stays in L1. Writes `out_smooth` over the spans
+    `gau_lo`/`gau_hi` of the rows ``r_begin .. r_end`` (padded to whole vectors; the horizontal spans
+    `hor_lo`/`hor_hi` are valid for rows ``r_begin - 2 .. r_end + 2``), bit-identical to the two passes. Returns 1,
+    or 0 without writing anything when a row or padded span comes within 2 of the image border or `weights` has
+    not 5 taps (then the two passes do it)."""
+    height = frame.shape[0]
+    width = frame.shape[1]
+    if weights.shape[0] != 5 or height < RING or r_begin < 2 or r_end > height - 3:
+        return 0
+    for r in range(r_begin - 2, r_end + 3):
+        if hor_hi[r] >= hor_lo[r]:
+            c0 = np.int64(hor_lo[r])
+            c0 -= c0 % VEC
+            if c0 < 2 or padded_end(c0, np.int64(hor_hi[r]), width) > width - 3:
+                return 0
+    size = height * width
+    f = frame.reshape(size)
+    tmp = out_tmp.reshape(size)
+    smo = out_smooth.reshape(size)
+    w0 = weights[0]
+    w1 = weights[1]
+    w2 = weights[2]
+    mask = np.int64(RING - 1)
+    for j in range(r_begin - 2, r_end + 3):
+        ahead = j + AHEAD
+        if ahead <= r_end + 2 and hor_hi[ahead] >= hor_lo[ahead]:
+            first = ahead * width + np.int64(hor_lo[ahead]) - 2
+            last = ahead * width + np.int64(hor_hi[ahead]) + 2
+            for k in range(first, last + 1, 64):
+                prefetch_read(f, np.uint64(k))
+            prefetch_read(f, np.uint64(last))
+        if hor_hi[j] >= hor_lo[j]:  # horizontal pass of row j into its ring row
+            c0 = np.int64(hor_lo[j])
+            c0 -= c0 % VEC
+            c1 = padded_end(c0, np.int64(hor_hi[j]), width)
+            src = np.uint64(j * width + c0)
+            dst = np.uint64((j & mask) * width + c0)
+            for step in range((c1 - c0 + 1) // LANES):
+                us = np.uint64(step * LANES)
+                hsmooth8(f, src + us, w0, w1, w2, tmp, dst + us)
+        r = j - 2  # vertical pass of row r from the ring rows r - 2 .. r + 2
+        if r < r_begin:
+            continue
+        ahead = r + AHEAD
+        if ahead <= r_end and gau_hi[ahead] >= gau_lo[ahead]:
+            first = ahead * width + np.int64(gau_lo[ahead])
+            last = ahead * width + np.int64(gau_hi[ahead])
+            for k in range(first, last + 1, 16):
+                prefetch_write(smo, np.uint64(k))
+            prefetch_write(smo, np.uint64(last))
+        if gau_hi[r] < gau_lo[r]:
+            continue
+        c0 = np.int64(gau_lo[r])
+        c0 -= c0 % VEC
+        c1 = padded_end(c0, np.int64(gau_hi[r]), width)
+        ka = np.uint64(((r - 2) & mask) * width + c0)
+        kb = np.uint64(((r - 1) & mask) * width + c0)
+        kc = np.uint64((r & mask) * width + c0)
+        kd = np.uint64(((r + 1) & mask) * width + c0)
+        ke = np.uint64(((r + 2) & mask) * width + c0)
+        out = np.uint64(r * width + c0)
+        for step in range((c1 - c0 + 1) // LANES):
+            us = np.uint64(step * LANES)
+            vsmooth8(tmp, ka + us, kb + us, kc + us, kd + us, ke + us, w0, w1, w2, smo, out + us)
+    return 1
 
 
 @kernel(void(f4_2d, f4_1d_ro, i4_1d, i4_1d, int64, int64, f4_2d))
@@ -227,7 +301,7 @@ def smooth_columns(tmp, weights, gau_lo, gau_hi, r_begin, r_end, out_smooth):
             if n % LANES == 0:  # whole 8-column steps
                 for step in range(n // LANES):
                     us = np.uint64(step * LANES)
-                    vsmooth8(t, ka + us, kb + us, out + us, kd + us, ke + us, w0, w1, w2, smo)
+                    vsmooth8(t, ka + us, kb + us, out + us, kd + us, ke + us, w0, w1, w2, smo, out + us)
                 continue
             for i in range(n):
                 ui = np.uint64(i)
@@ -571,8 +645,9 @@ def detect_edges(
         grow_spans_inplace(hor_begin, hor_end, 0, width, sob_lo, sob_hi)
         hor_begin = max(hor_begin - 1, 0)
         hor_end = min(hor_end + 1, height - 1)
-    smooth_rows(frame, weights, sob_lo, sob_hi, hor_begin, hor_end, out_tmp)
-    smooth_columns(out_tmp, weights, gau_lo, gau_hi, gau_begin, gau_end, out_smooth)
+    if not smooth_ring(frame, weights, sob_lo, sob_hi, gau_lo, gau_hi, gau_begin, gau_end, out_tmp, out_smooth):
+        smooth_rows(frame, weights, sob_lo, sob_hi, hor_begin, hor_end, out_tmp)
+        smooth_columns(out_tmp, weights, gau_lo, gau_hi, gau_begin, gau_end, out_smooth)
     grow_spans_once(lo, hi, r_first, r_last, width, sob_lo, sob_hi)
     sobel_rows(out_smooth, sob_lo, sob_hi, sob_begin, sob_end, out_gx, out_gy, out_mag)
     top = suppress_rows(out_mag, out_gx, out_gy, lo, hi, sob_lo, sob_hi, r_first, r_last, low, high, out_edges, stack)

@@ -134,12 +134,12 @@ def _is_u1_1d(array: Any) -> bool:
     return isinstance(array, types.Array) and array.ndim == 1 and array.dtype == types.uint8
 
 
-def _hsmooth8_python(f: Any, k: Any, w0: Any, w1: Any, w2: Any, tmp: Any) -> None:
+def _hsmooth8_python(f: Any, k: Any, w0: Any, w1: Any, w2: Any, tmp: Any, out: Any) -> None:
     for i in range(LANES):
         j = int(k) + i
         t = w0 * (np.float32(f[j - 2]) + np.float32(f[j + 2])) + w1 * (np.float32(f[j - 1]) + np.float32(f[j + 1]))
         t += w2 * np.float32(f[j])
-        tmp[j] = t
+        tmp[int(out) + i] = t
 
 
 def _hsmooth8_intrinsic() -> Any:
@@ -147,14 +147,14 @@ def _hsmooth8_intrinsic() -> Any:
         return _hsmooth8_python
 
     @intrinsic
-    def hsmooth8(typingctx: Any, f: Any, k: Any, w0: Any, w1: Any, w2: Any, tmp: Any) -> Any:
-        if not (_is_u1_1d(f) and _is_f4_1d(tmp) and isinstance(k, types.Integer)):
+    def hsmooth8(typingctx: Any, f: Any, k: Any, w0: Any, w1: Any, w2: Any, tmp: Any, out: Any) -> Any:
+        if not (_is_u1_1d(f) and _is_f4_1d(tmp) and isinstance(k, types.Integer) and isinstance(out, types.Integer)):
             return None
         if not all(w == types.float32 for w in (w0, w1, w2)):
             return None
 
         def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
-            f_t, k_t, _, _, _, tmp_t = signature.args
+            f_t, k_t, _, _, _, tmp_t, out_t = signature.args
             data = context.make_array(f_t)(context, builder, args[0]).data
             index = context.cast(builder, args[1], k_t, types.intp)
             v8i8 = ir.VectorType(ir.IntType(8), LANES)
@@ -165,23 +165,25 @@ def _hsmooth8_intrinsic() -> Any:
                 taps.append(builder.uitofp(builder.load(pointer, align=1), _V8))
             w0v, w1v, w2v = (_splat_value(builder, w) for w in args[2:5])
             value = _weighted5(builder, w0v, w1v, w2v, *taps)
-            builder.store(value, _vec_ptr(context, builder, tmp_t, args[5], args[1], k_t), align=4)
+            builder.store(value, _vec_ptr(context, builder, tmp_t, args[5], args[6], out_t), align=4)
             return context.get_dummy_value()
 
-        return types.void(f, k, w0, w1, w2, tmp), codegen
+        return types.void(f, k, w0, w1, w2, tmp, out), codegen
 
     return hsmooth8
 
 
 hsmooth8: Final = _hsmooth8_intrinsic()
-"""``hsmooth8(f, k, w0, w1, w2, tmp)``: the 5-tap horizontal smoothing (weights ``w0 w1 w2 w1 w0``) of the flat
-uint8 image `f` at the flat indices ``k .. k + 7`` into `tmp` at the same indices; ``f[k - 2 .. k + 9]`` are
-read (all in the row)."""
+"""``hsmooth8(f, k, w0, w1, w2, tmp, out)``: the 5-tap horizontal smoothing (weights ``w0 w1 w2 w1 w0``) of the
+flat uint8 image `f` at the flat indices ``k .. k + 7``, written to ``tmp[out .. out + 7]``; ``f[k - 2 .. k + 9]``
+are read (all in the row)."""
 
 
-def _vsmooth8_python(t: Any, ka: Any, kb: Any, kc: Any, kd: Any, ke: Any, w0: Any, w1: Any, w2: Any, smo: Any) -> None:
+def _vsmooth8_python(
+    t: Any, ka: Any, kb: Any, kc: Any, kd: Any, ke: Any, w0: Any, w1: Any, w2: Any, smo: Any, out: Any
+) -> None:
     for i in range(LANES):
-        smo[int(kc) + i] = (
+        smo[int(out) + i] = (
             w0 * (t[int(ka) + i] + t[int(ke) + i]) + w1 * (t[int(kb) + i] + t[int(kd) + i]) + w2 * t[int(kc) + i]
         )
 
@@ -192,9 +194,21 @@ def _vsmooth8_intrinsic() -> Any:
 
     @intrinsic
     def vsmooth8(
-        typingctx: Any, t: Any, ka: Any, kb: Any, kc: Any, kd: Any, ke: Any, w0: Any, w1: Any, w2: Any, smo: Any
+        typingctx: Any,
+        t: Any,
+        ka: Any,
+        kb: Any,
+        kc: Any,
+        kd: Any,
+        ke: Any,
+        w0: Any,
+        w1: Any,
+        w2: Any,
+        smo: Any,
+        out: Any,
     ) -> Any:
-        if not (_is_f4_1d(t) and _is_f4_1d(smo)) or not all(isinstance(x, types.Integer) for x in (ka, kb, kc, kd, ke)):
+        indices = (ka, kb, kc, kd, ke, out)
+        if not (_is_f4_1d(t) and _is_f4_1d(smo)) or not all(isinstance(x, types.Integer) for x in indices):
             return None
         if not all(w == types.float32 for w in (w0, w1, w2)):
             return None
@@ -208,18 +222,18 @@ def _vsmooth8_intrinsic() -> Any:
             w0v, w1v, w2v = (_splat_value(builder, w) for w in args[6:9])
             value = _weighted5(builder, w0v, w1v, w2v, rows[0], rows[1], rows[2], rows[3], rows[4])
             smo_t = signature.args[9]
-            builder.store(value, _vec_ptr(context, builder, smo_t, args[9], args[3], signature.args[3]), align=4)
+            builder.store(value, _vec_ptr(context, builder, smo_t, args[9], args[10], signature.args[10]), align=4)
             return context.get_dummy_value()
 
-        return types.void(t, ka, kb, kc, kd, ke, w0, w1, w2, smo), codegen
+        return types.void(t, ka, kb, kc, kd, ke, w0, w1, w2, smo, out), codegen
 
     return vsmooth8
 
 
 vsmooth8: Final = _vsmooth8_intrinsic()
-"""``vsmooth8(t, ka, kb, kc, kd, ke, w0, w1, w2, smo)``: the 5-tap vertical smoothing (weights ``w0 w1 w2 w1 w0``)
-of the flat plane `t` from the 8 columns at ``ka``, ``kb``, ``kc``, ``kd``, ``ke`` (rows r - 2 .. r + 2), written
-to `smo` at ``kc .. kc + 7``."""
+"""``vsmooth8(t, ka, kb, kc, kd, ke, w0, w1, w2, smo, out)``: the 5-tap vertical smoothing (weights
+``w0 w1 w2 w1 w0``) of the flat plane `t` from the 8 columns at ``ka``, ``kb``, ``kc``, ``kd``, ``ke`` (rows
+r - 2 .. r + 2), written to ``smo[out .. out + 7]``."""
 
 
 TAN_22_5_F32: Final = np.float32(0.41421356237309503)
