@@ -411,6 +411,90 @@ def nms_pixel(mag, gx, gy, r, c, low, high):
     return EDGE_STRONG if m > high else EDGE_WEAK
 
 
+@kernel(
+    int64(f4_2d, i4_1d_ro, i4_1d_ro, i4_1d, i4_1d, int64, int64, float32, float32, f4_2d, f4_2d, f4_2d, u1_2d, i4_1d)
+)
+def sobel_suppress(
+    smooth, lo, hi, sob_lo, sob_hi, r_begin, r_end, low, high, out_gx, out_gy, out_mag, out_edges, stack
+):
+    """`sobel_rows` then `suppress_rows` in one sweep, when every Sobel row and padded span is off the image
+    border: the Sobel row ``r + 1`` is computed just before the suppression of row ``r`` reads it (from L1).
+    Arguments and outputs are those of the two passes (`r_begin .. r_end`: the rows of the spans `lo`/`hi`; the
+    Sobel spans `sob_lo`/`sob_hi` valid for ``r_begin - 1 .. r_end + 1``), bit-identical. Returns the number of
+    strong pixels pushed onto `stack`, or -1 without writing anything when a row comes to the image border."""
+    height = smooth.shape[0]
+    width = smooth.shape[1]
+    sob_begin = r_begin - 1
+    sob_end = r_end + 1
+    if sob_begin < 1 or sob_end > height - 2:
+        return -1
+    for r in range(sob_begin, sob_end + 1):
+        if sob_hi[r] >= sob_lo[r]:
+            c0 = np.int64(sob_lo[r])
+            c0 -= c0 % VEC
+            if c0 < 1 or padded_end(c0, np.int64(sob_hi[r]), width) > width - 2:
+                return -1
+    size = height * width
+    smo = smooth.reshape(size)
+    ogx = out_gx.reshape(size)
+    ogy = out_gy.reshape(size)
+    omag = out_mag.reshape(size)
+    oedge = out_edges.reshape(size)
+    top = 0
+    for j in range(sob_begin, sob_end + 2):
+        ahead = j + AHEAD
+        if ahead <= sob_end and sob_hi[ahead] >= sob_lo[ahead]:
+            first = ahead * width + np.int64(sob_lo[ahead])
+            last = ahead * width + np.int64(sob_hi[ahead])
+            for k in range(first, last + 1, 16):
+                prefetch_write(ogx, np.uint64(k))
+                prefetch_write(ogy, np.uint64(k))
+                prefetch_write(omag, np.uint64(k))
+            for k in range(first, last + 1, 64):
+                prefetch_write(oedge, np.uint64(k))
+            prefetch_write(ogx, np.uint64(last))
+            prefetch_write(ogy, np.uint64(last))
+            prefetch_write(omag, np.uint64(last))
+            prefetch_write(oedge, np.uint64(last))
+        if j <= sob_end and sob_hi[j] >= sob_lo[j]:  # Sobel of row j
+            c0 = np.int64(sob_lo[j])
+            c0 -= c0 % VEC
+            c1 = padded_end(c0, np.int64(sob_hi[j]), width)
+            k0 = np.uint64(j * width + c0)
+            km = k0 - np.uint64(width)
+            kp = k0 + np.uint64(width)
+            for step in range((c1 - c0 + 1) // LANES):
+                us = np.uint64(step * LANES)
+                sobel8(smo, km + us, k0 + us, kp + us, ogx, ogy, omag)
+        r = j - 1  # suppression of row r
+        if r < sob_begin:
+            continue
+        row = r * width
+        s0 = np.int64(sob_lo[r])
+        s1 = np.int64(sob_hi[r])
+        c0 = np.int64(lo[r])
+        c1 = np.int64(hi[r])
+        if c1 < c0 or r < r_begin or r > r_end:
+            for c in range(s0, s1 + 1):
+                oedge[row + c] = EDGE_NONE
+            continue
+        for c in range(s0, c0):
+            oedge[row + c] = EDGE_NONE
+        for c in range(c1 + 1, s1 + 1):
+            oedge[row + c] = EDGE_NONE
+        p0 = c0 - c0 % VEC
+        p1 = padded_end(p0, c1, width)
+        for step in range((p1 - p0 + 1) // LANES):
+            offset = p0 + step * LANES
+            k = np.uint64(row + offset)
+            bits = nms8(omag, ogx, ogy, k, width, c0 - offset, c1 - offset, low, high, oedge)
+            if bits:
+                for lane in range(LANES):
+                    stack[top] = np.int32(k + np.uint64(lane))
+                    top += (bits >> lane) & 1
+    return top
+
+
 @kernel(int64(f4_2d, f4_2d, f4_2d, i4_1d_ro, i4_1d_ro, i4_1d, i4_1d, int64, int64, float32, float32, u1_2d, i4_1d))
 def suppress_rows(mag, gx, gy, lo, hi, sob_lo, sob_hi, r_begin, r_end, low, high, out_edges, stack):
     """Non-maximum suppression over the spans `lo`/`hi` of the rows ``r_begin .. r_end``: write the labels
@@ -649,8 +733,14 @@ def detect_edges(
         smooth_rows(frame, weights, sob_lo, sob_hi, hor_begin, hor_end, out_tmp)
         smooth_columns(out_tmp, weights, gau_lo, gau_hi, gau_begin, gau_end, out_smooth)
     grow_spans_once(lo, hi, r_first, r_last, width, sob_lo, sob_hi)
-    sobel_rows(out_smooth, sob_lo, sob_hi, sob_begin, sob_end, out_gx, out_gy, out_mag)
-    top = suppress_rows(out_mag, out_gx, out_gy, lo, hi, sob_lo, sob_hi, r_first, r_last, low, high, out_edges, stack)
+    top = sobel_suppress(
+        out_smooth, lo, hi, sob_lo, sob_hi, r_first, r_last, low, high, out_gx, out_gy, out_mag, out_edges, stack
+    )
+    if top < 0:
+        sobel_rows(out_smooth, sob_lo, sob_hi, sob_begin, sob_end, out_gx, out_gy, out_mag)
+        top = suppress_rows(
+            out_mag, out_gx, out_gy, lo, hi, sob_lo, sob_hi, r_first, r_last, low, high, out_edges, stack
+        )
     count = grow_edges(lo, hi, top, out_edges, stack)
     finish_edges(lo, hi, r_first, r_last, out_edges)
     return count

@@ -85,3 +85,5 @@ def test_vector_steps_equal_float32_reference(seed) -> None:
     assert (edges[sob & ~inside] == 0).all()
     assert count == want_edges.sum()
     np.testing.assert_array_equal(np.sort(stack[:count]), np.flatnonzero(want_edges))
+    strong = np.flatnonzero((labels == 2) & inside)  # the hysteresis seeds come first, in raster order
+    np.testing.assert_array_equal(stack[: strong.size], strong)
