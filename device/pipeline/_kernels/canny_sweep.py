@@ -68,8 +68,8 @@ def smooth_ring(frame, weights, hor_lo, hor_hi, gau_lo, gau_hi, r_begin, r_end, 
         if ahead <= r_end + 2 and hor_hi[ahead] >= hor_lo[ahead]:
             first = ahead * width + np.int64(hor_lo[ahead]) - 2
             last = ahead * width + np.int64(hor_hi[ahead]) + 2
-            for k in range(first, last + 1, 64):
-                prefetch_read(f, np.uint64(k))
+            prefetch_read(f, np.uint64(first))  # a fixed number of lines: no loop exit to mispredict per row
+            prefetch_read(f, np.uint64(min(first + 64, last)))
             prefetch_read(f, np.uint64(last))
         if hor_hi[j] >= hor_lo[j]:  # horizontal pass of row j into its ring row
             c0 = np.int64(hor_lo[j])
@@ -87,8 +87,8 @@ def smooth_ring(frame, weights, hor_lo, hor_hi, gau_lo, gau_hi, r_begin, r_end, 
         if ahead <= r_end and gau_hi[ahead] >= gau_lo[ahead]:
             first = ahead * width + np.int64(gau_lo[ahead])
             last = ahead * width + np.int64(gau_hi[ahead])
-            for k in range(first, last + 1, 16):
-                prefetch_write(smo, np.uint64(k))
+            for k in range(4):  # the first 64 columns and the last
+                prefetch_write(smo, np.uint64(min(first + 16 * k, last)))
             prefetch_write(smo, np.uint64(last))
         if gau_hi[r] < gau_lo[r]:
             continue
@@ -142,12 +142,12 @@ def sobel_suppress(
         if ahead <= sob_end and sob_hi[ahead] >= sob_lo[ahead]:
             first = ahead * width + np.int64(sob_lo[ahead])
             last = ahead * width + np.int64(sob_hi[ahead])
-            for k in range(first, last + 1, 16):
-                prefetch_write(ogx, np.uint64(k))
-                prefetch_write(ogy, np.uint64(k))
-                prefetch_write(omag, np.uint64(k))
-            for k in range(first, last + 1, 64):
-                prefetch_write(oedge, np.uint64(k))
+            for k in range(4):  # the first 64 columns and the last
+                at = np.uint64(min(first + 16 * k, last))
+                prefetch_write(ogx, at)
+                prefetch_write(ogy, at)
+                prefetch_write(omag, at)
+            prefetch_write(oedge, np.uint64(first))
             prefetch_write(ogx, np.uint64(last))
             prefetch_write(ogy, np.uint64(last))
             prefetch_write(omag, np.uint64(last))
