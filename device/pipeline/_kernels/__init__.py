@@ -24,6 +24,7 @@ from ropecam.device.pipeline._kernels._common import (
     f4_1d_ro,
 )
 from ropecam.device.pipeline._kernels.canny import (
+    detect_edges,
     finish_edges,
     grow_edges,
     grow_spans_inplace,
@@ -32,11 +33,12 @@ from ropecam.device.pipeline._kernels.canny import (
     padded_end,
     smooth_columns,
     smooth_replicated,
+    smooth_ring,
     smooth_rows,
     sobel_rows,
+    sobel_suppress,
     suppress_rows,
 )
-from ropecam.device.pipeline._kernels.canny_sweep import detect_edges, smooth_ring, sobel_suppress
 from ropecam.device.pipeline._kernels.contour import (
     count_border_contacts,
     count_roi_contacts,
