@@ -36,7 +36,7 @@ from ropecam.device.pipeline._kernels._common import (
     prefetch_read,
     prefetch_write,
 )
-from ropecam.device.pipeline._kernels.canny_simd import LANES, hsmooth8, nms8, sobel8, vsmooth8
+from ropecam.device.pipeline._kernels.canny_simd import LANES, hsmooth8, nms8, push_lanes8, sobel8, vsmooth8
 from ropecam.shared.jit import (
     f4_2d,
     i4_1d,
@@ -494,10 +494,7 @@ def sobel_suppress(
             offset = p0 + step * LANES
             k = np.uint64(row + offset)
             bits = nms8(omag, ogx, ogy, k, width, c0 - offset, c1 - offset, low, high, oedge)
-            if bits:
-                for lane in range(LANES):
-                    stack[top] = np.int32(k + np.uint64(lane))
-                    top += (bits >> lane) & 1
+            top = push_lanes8(stack, top, k, bits)
     return top
 
 
@@ -552,10 +549,7 @@ def suppress_rows(mag, gx, gy, lo, hi, sob_lo, sob_hi, r_begin, r_end, low, high
                         k = np.uint64(row + p0 + step * LANES)
                         offset = p0 + step * LANES
                         bits = nms8(omag, ogx, ogy, k, width, i0 - offset, i1 - offset, low, high, oedge)
-                        if bits:
-                            for lane in range(LANES):
-                                stack[top] = np.int32(k + np.uint64(lane))
-                                top += (bits >> lane) & 1
+                        top = push_lanes8(stack, top, k, bits)
                     continue
                 p0 = i0  # near the image border: no padding
                 p1 = i1

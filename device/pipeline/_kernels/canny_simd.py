@@ -363,3 +363,61 @@ nms8: Final = _nms8_intrinsic()
 rule and tie-breaking of `canny.nms_pixel`) of the flat planes at the 8 flat indices ``k .. k + 7`` of an image
 `width` wide, none on the image border; lanes ``first .. last`` (0-7) get their label (EDGE_NONE, EDGE_WEAK,
 EDGE_STRONG) in `edges`, the others keep theirs. Returns the bit mask of the written lanes labelled EDGE_STRONG."""
+
+
+def _push_lanes8_python(stack: Any, top: Any, k: Any, bits: Any) -> int:
+    top = int(top)
+    for lane in range(LANES):
+        if (int(bits) >> lane) & 1:
+            stack[top] = int(k) + lane
+            top += 1
+    return top
+
+
+def _push_lanes8_intrinsic() -> Any:
+    if numba.config.DISABLE_JIT:
+        return _push_lanes8_python
+
+    @intrinsic
+    def push_lanes8(typingctx: Any, stack: Any, top: Any, k: Any, bits: Any) -> Any:
+        is_stack = isinstance(stack, types.Array) and stack.ndim == 1 and stack.dtype == types.int32
+        if not is_stack or not all(isinstance(x, types.Integer) for x in (top, k, bits)):
+            return None
+
+        def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
+            stack_t, top_t, k_t, bits_t = signature.args
+            i32 = ir.IntType(32)
+            v8i32 = ir.VectorType(i32, LANES)
+            top_i = context.cast(builder, args[1], top_t, types.intp)
+            k32 = builder.trunc(context.cast(builder, args[2], k_t, types.intp), i32)
+            mask = builder.bitcast(
+                builder.trunc(context.cast(builder, args[3], bits_t, types.intp), ir.IntType(LANES)),
+                ir.VectorType(ir.IntType(1), LANES),
+            )
+            undef = ir.Constant(v8i32, ir.Undefined)
+            splat = builder.shuffle_vector(
+                builder.insert_element(undef, k32, ir.Constant(i32, 0)), undef, ir.Constant(v8i32, [0] * LANES)
+            )
+            indices = builder.add(splat, ir.Constant(v8i32, list(range(LANES))))
+            data = context.make_array(stack_t)(context, builder, args[0]).data
+            pointer = builder.gep(data, [top_i])
+            compress = cgutils.get_or_insert_function(
+                builder.module,
+                ir.FunctionType(ir.VoidType(), [v8i32, pointer.type, mask.type]),
+                "llvm.masked.compressstore.v8i32",
+            )
+            builder.call(compress, [indices, pointer, mask])
+            popcount = cgutils.get_or_insert_function(
+                builder.module, ir.FunctionType(ir.IntType(LANES), [ir.IntType(LANES)]), "llvm.ctpop.i8"
+            )
+            count = builder.zext(builder.call(popcount, [builder.bitcast(mask, ir.IntType(LANES))]), ir.IntType(64))
+            return builder.add(top_i, count)
+
+        return types.int64(stack, top, k, bits), codegen
+
+    return push_lanes8
+
+
+push_lanes8: Final = _push_lanes8_intrinsic()
+"""``push_lanes8(stack, top, k, bits) -> top``: append to ``stack[top:]`` the flat indices ``k + lane`` (int32) of
+the lanes set in the 8-bit mask `bits`, in lane order (one compressing store); returns the new top."""
