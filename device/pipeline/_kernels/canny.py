@@ -481,19 +481,16 @@ def sobel_suppress(
         c0 = np.int64(lo[r])
         c1 = np.int64(hi[r])
         if c1 < c0 or r < r_begin or r > r_end:
-            for c in range(s0, s1 + 1):
-                oedge[row + c] = EDGE_NONE
-            continue
-        for c in range(s0, c0):
-            oedge[row + c] = EDGE_NONE
-        for c in range(c1 + 1, s1 + 1):
-            oedge[row + c] = EDGE_NONE
-        p0 = c0 - c0 % VEC
-        p1 = padded_end(p0, c1, width)
+            c0 = s1 + 1  # no pixel to label: only the ring around the spans is cleared
+            c1 = s1
+        # Steps over the Sobel span (all inside the image): the spans' pixels labelled, the ring around them set
+        # to EDGE_NONE in the same store (no scalar loops of 1-3 columns whose exits mispredict).
+        p0 = s0 - s0 % VEC
+        p1 = padded_end(p0, s1, width)
         for step in range((p1 - p0 + 1) // LANES):
             offset = p0 + step * LANES
             k = np.uint64(row + offset)
-            bits = nms8(omag, ogx, ogy, k, width, c0 - offset, c1 - offset, low, high, oedge)
+            bits = nms8(omag, ogx, ogy, k, width, c0 - offset, c1 - offset, s0 - offset, s1 - offset, low, high, oedge)
             top = push_lanes8(stack, top, k, bits)
     return top
 
@@ -548,7 +545,7 @@ def suppress_rows(mag, gx, gy, lo, hi, sob_lo, sob_hi, r_begin, r_end, low, high
                     for step in range((p1 - p0 + 1) // LANES):
                         k = np.uint64(row + p0 + step * LANES)
                         offset = p0 + step * LANES
-                        bits = nms8(omag, ogx, ogy, k, width, i0 - offset, i1 - offset, low, high, oedge)
+                        bits = nms8(omag, ogx, ogy, k, width, i0 - offset, i1 - offset, 1, 0, low, high, oedge)
                         top = push_lanes8(stack, top, k, bits)
                     continue
                 p0 = i0  # near the image border: no padding

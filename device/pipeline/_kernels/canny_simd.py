@@ -242,8 +242,9 @@ TAN_67_5_F32: Final = np.float32(TAN_22_5_F32 + np.float32(2.0))
 
 
 def _nms8_python(
-    mag: Any, gx: Any, gy: Any, k: Any, width: Any, first: Any, last: Any, low: Any, high: Any, edges: Any
-) -> int:
+    mag: Any, gx: Any, gy: Any, k: Any, width: Any, first: Any, last: Any, zfirst: Any, zlast: Any, low: Any,
+    high: Any, edges: Any,
+) -> int:  # fmt: skip
     strong = 0
     w = int(width)
     for i in range(LANES):
@@ -264,6 +265,8 @@ def _nms8_python(
         if first <= i <= last:
             edges[j] = label
             strong |= (label == 2) << i
+        elif zfirst <= i <= zlast:
+            edges[j] = 0
     return strong
 
 
@@ -273,18 +276,18 @@ def _nms8_intrinsic() -> Any:
 
     @intrinsic
     def nms8(
-        typingctx: Any, mag: Any, gx: Any, gy: Any, k: Any, width: Any, first: Any, last: Any, low: Any, high: Any,
-        edges: Any,
+        typingctx: Any, mag: Any, gx: Any, gy: Any, k: Any, width: Any, first: Any, last: Any, zfirst: Any,
+        zlast: Any, low: Any, high: Any, edges: Any,
     ) -> Any:  # fmt: skip
         if not all(_is_f4_1d(x) for x in (mag, gx, gy)) or not _is_u1_1d(edges):
             return None
-        if not all(isinstance(x, types.Integer) for x in (k, width, first, last)):
+        if not all(isinstance(x, types.Integer) for x in (k, width, first, last, zfirst, zlast)):
             return None
         if low != types.float32 or high != types.float32:
             return None
 
         def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
-            mag_t, gx_t, gy_t, k_t, width_t, first_t, last_t, _, _, edges_t = signature.args
+            mag_t, gx_t, gy_t, k_t, width_t, first_t, last_t, zfirst_t, zlast_t, _, _, edges_t = signature.args
             i64 = ir.IntType(64)
             index = context.cast(builder, args[3], k_t, types.intp)
             w = context.cast(builder, args[4], width_t, types.intp)
@@ -319,8 +322,8 @@ def _nms8_intrinsic() -> Any:
             a = builder.select(horizontal, left, builder.select(vertical, up, diag_a))
             b = builder.select(horizontal, right, builder.select(vertical, down, diag_b))
             straight = builder.or_(horizontal, vertical)
-            low_v = _splat_value(builder, args[7])
-            high_v = _splat_value(builder, args[8])
+            low_v = _splat_value(builder, args[9])
+            high_v = _splat_value(builder, args[10])
             above_b = builder.or_(
                 builder.fcmp_ordered(">", m, b), builder.and_(builder.fcmp_ordered("==", m, b), straight)
             )
@@ -346,23 +349,36 @@ def _nms8_intrinsic() -> Any:
                 builder.insert_element(undef, last, ir.Constant(ir.IntType(32), 0)), undef, zeros
             )
             inside = builder.and_(builder.icmp_signed(">=", lanes, first_v), builder.icmp_signed("<=", lanes, last_v))
-            edges_data = context.make_array(edges_t)(context, builder, args[9]).data
+            zfirst = builder.trunc(context.cast(builder, args[7], zfirst_t, types.intp), ir.IntType(32))
+            zlast = builder.trunc(context.cast(builder, args[8], zlast_t, types.intp), ir.IntType(32))
+            zfirst_v = builder.shuffle_vector(
+                builder.insert_element(undef, zfirst, ir.Constant(ir.IntType(32), 0)), undef, zeros
+            )
+            zlast_v = builder.shuffle_vector(
+                builder.insert_element(undef, zlast, ir.Constant(ir.IntType(32), 0)), undef, zeros
+            )
+            cleared = builder.and_(
+                builder.icmp_signed(">=", lanes, zfirst_v), builder.icmp_signed("<=", lanes, zlast_v)
+            )
+            edges_data = context.make_array(edges_t)(context, builder, args[11]).data
             edge_pointer = builder.bitcast(builder.gep(edges_data, [index]), v8i8.as_pointer())
             old = builder.load(edge_pointer, align=1)
-            builder.store(builder.select(inside, label, old), edge_pointer, align=1)
+            kept = builder.select(cleared, ir.Constant(v8i8, [0] * LANES), old)
+            builder.store(builder.select(inside, label, kept), edge_pointer, align=1)
             bits = builder.bitcast(builder.and_(strong, inside), ir.IntType(LANES))
             return builder.zext(bits, i64)
 
-        return types.int64(mag, gx, gy, k, width, first, last, low, high, edges), codegen
+        return types.int64(mag, gx, gy, k, width, first, last, zfirst, zlast, low, high, edges), codegen
 
     return nms8
 
 
 nms8: Final = _nms8_intrinsic()
-"""``nms8(mag, gx, gy, k, width, first, last, low, high, edges) -> strong``: non-maximum suppression (the sector
-rule and tie-breaking of `canny.nms_pixel`) of the flat planes at the 8 flat indices ``k .. k + 7`` of an image
-`width` wide, none on the image border; lanes ``first .. last`` (0-7) get their label (EDGE_NONE, EDGE_WEAK,
-EDGE_STRONG) in `edges`, the others keep theirs. Returns the bit mask of the written lanes labelled EDGE_STRONG."""
+"""``nms8(mag, gx, gy, k, width, first, last, zfirst, zlast, low, high, edges) -> strong``: non-maximum
+suppression (the sector rule and tie-breaking of `canny.nms_pixel`) of the flat planes at the 8 flat indices
+``k .. k + 7`` of an image `width` wide, none on the image border; lanes ``first .. last`` (0-7) get their label
+(EDGE_NONE, EDGE_WEAK, EDGE_STRONG) in `edges`, the other lanes of ``zfirst .. zlast`` get EDGE_NONE, the rest
+keep theirs. Returns the bit mask of the labelled lanes that are EDGE_STRONG."""
 
 
 def _push_lanes8_python(stack: Any, top: Any, k: Any, bits: Any) -> int:
