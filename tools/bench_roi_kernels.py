@@ -5,11 +5,15 @@ it got, and for every band built, the arguments of `spans_around_points`. Each k
 those inputs (one thread) and its median time per call is printed, with the size of the spans (rows, pixels), so
 that a change to one pass can be measured on its own:
 
-    taskset -c 1 python tools/bench_roi_kernels.py [--frameset /work/eval/rig] [--frames 40] [--repeat 5]
+    taskset -c 1 python tools/bench_roi_kernels.py [--frameset /work/eval/rig] [--frames 40] [--repeat 5] \\
+        [--cold] [--passes]
 
 Kernels timed: ``detect_edges`` (the whole edge stage), ``keep_largest_listed``, ``trace_contour``,
 ``refine_subpixel``, ``count_roi_contacts``, ``trace_closed``, ``trace_rope`` (what `ContourTracer.trace` calls:
-all of them in one kernel) and ``spans_around_points``; "contour stage" is the sum of the first three.
+all of them in one kernel) and ``spans_around_points``; "contour stage" is the sum of the first three. With
+``--passes``, each pass of `detect_edges` is also timed on its own (the same kernel calls in the same order, from
+Python: each includes its ~1 us dispatch; with ``--cold`` the caches are evicted once before the first pass, as in
+the pipeline, where the passes warm each other's data).
 """
 
 from __future__ import annotations
@@ -84,12 +88,78 @@ def median_us(fn: Any, inputs: list[Any], repeat: int, cold: bool = False) -> fl
     return float(np.median(per_item))
 
 
+def edge_passes(e: Any, frame: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> list[tuple[str, float]]:
+    """Run the passes of `detect_edges` one kernel call at a time (the same calls, in the same order) and return
+    each pass's time (us), including its dispatch (~1 us)."""
+    height, width = frame.shape
+    rows = np.flatnonzero(np.minimum(hi, width - 1) >= np.maximum(lo, 0))
+    r_first, r_last = int(rows[0]), int(rows[-1])
+    radius = e.weights.shape[0] // 2
+    sob_lo, sob_hi, gau_lo, gau_hi = e.work_spans
+    sob_begin, sob_end = max(r_first - 1, 0), min(r_last + 1, height - 1)
+    gau_begin, gau_end = max(r_first - 2, 0), min(r_last + 2, height - 1)
+    times: list[tuple[str, float]] = []
+    t0 = time.perf_counter_ns()
+    K.grow_spans_once(lo, hi, r_first, r_last, width, gau_lo, gau_hi)
+    K.grow_spans_inplace(sob_begin, sob_end, 1, width, gau_lo, gau_hi)
+    hor_begin, hor_end = gau_begin, gau_end
+    sob_lo[hor_begin : hor_end + 1] = gau_lo[hor_begin : hor_end + 1]
+    sob_hi[hor_begin : hor_end + 1] = gau_hi[hor_begin : hor_end + 1]
+    for _ in range(radius):
+        K.grow_spans_inplace(hor_begin, hor_end, 0, width, sob_lo, sob_hi)
+        hor_begin, hor_end = max(hor_begin - 1, 0), min(hor_end + 1, height - 1)
+    t1 = time.perf_counter_ns()
+    times.append(("  spans (grow_spans_*)", (t1 - t0) / 1000))
+    args = (frame, e.weights_ro, sob_lo, sob_hi, gau_lo, gau_hi, gau_begin, gau_end, e.tmp, e.smooth)
+    if not K.smooth_ring(*args):
+        K.smooth_rows(frame, e.weights_ro, sob_lo, sob_hi, hor_begin, hor_end, e.tmp)
+        K.smooth_columns(e.tmp, e.weights_ro, gau_lo, gau_hi, gau_begin, gau_end, e.smooth)
+    t2 = time.perf_counter_ns()
+    times.append(("  smoothing (smooth_ring)", (t2 - t1) / 1000))
+    K.grow_spans_once(lo, hi, r_first, r_last, width, sob_lo, sob_hi)
+    t3 = time.perf_counter_ns()
+    planes = (e.gx, e.gy, e.mag, e.edges, e.stack)
+    top = K.sobel_suppress(e.smooth, lo, hi, sob_lo, sob_hi, r_first, r_last, e.low, e.high, *planes)
+    if top < 0:
+        K.sobel_rows(e.smooth, sob_lo, sob_hi, sob_begin, sob_end, e.gx, e.gy, e.mag)
+        top = K.suppress_rows(
+            e.mag, e.gx, e.gy, lo, hi, sob_lo, sob_hi, r_first, r_last, e.low, e.high, e.edges, e.stack
+        )
+    t4 = time.perf_counter_ns()
+    times.append(("  Sobel, NMS, seeds (sobel_suppress)", (t4 - t3) / 1000))
+    K.grow_edges(lo, hi, top, e.edges, e.stack)
+    t5 = time.perf_counter_ns()
+    times.append(("  hysteresis (grow_edges)", (t5 - t4) / 1000))
+    K.finish_edges(lo, hi, r_first, r_last, e.edges)
+    t6 = time.perf_counter_ns()
+    times.append(("  relabelling (finish_edges)", (t6 - t5) / 1000))
+    return times
+
+
+def pass_times(e: Any, inputs: list[Any], repeat: int, cold: bool) -> dict[str, float]:
+    """Median over `inputs` of the best of `repeat` runs of each pass of `edge_passes` (us)."""
+    per_pass: dict[str, list[float]] = {}
+    for frame, lo, hi in inputs:
+        best: dict[str, float] = {}
+        for _ in range(repeat):
+            if cold:
+                np.add(_EVICT, 1, out=_EVICT)
+            for name, value in edge_passes(e, frame, lo, hi):
+                best[name] = min(best.get(name, float("inf")), value)
+        for name, value in best.items():
+            per_pass.setdefault(name, []).append(value)
+    return {name: float(np.median(values)) for name, values in per_pass.items()}
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frameset", help="frame set (default: the synthetic rig frames of bench_device)")
     parser.add_argument("--frames", type=int, default=40)
     parser.add_argument("--repeat", type=int, default=5, help="calls per input, the fastest is kept (default 5)")
     parser.add_argument("--cold", action="store_true", help="evict the caches before each timed call")
+    parser.add_argument(
+        "--passes", action="store_true", help="also time each pass of detect_edges on its own (in order, one eviction)"
+    )
     args = parser.parse_args(argv)
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     from bench_device import frameset_frames, rig_frames
@@ -111,6 +181,8 @@ def main(argv: list[str] | None = None) -> int:
         return int(K.detect_edges(frame, e.weights_ro, lo, hi, e.low, e.high, *args))
 
     results: dict[str, float] = {"edges (detect_edges)": median_us(edges, inputs, args.repeat, args.cold)}
+    if args.passes:
+        results.update(pass_times(e, inputs, args.repeat, args.cold))
     # The contour kernels need the edge map of their own call: detect once per input, then time each kernel.
     component, trace, refine, contacts, closed, fused = [], [], [], [], [], []
     for item in inputs:

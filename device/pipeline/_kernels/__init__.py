@@ -44,8 +44,10 @@ from ropecam.device.pipeline._kernels.canny import (
     padded_end,
     smooth_columns,
     smooth_replicated,
+    smooth_ring,
     smooth_rows,
     sobel_rows,
+    sobel_suppress,
     suppress_rows,
 )
 from ropecam.device.pipeline._kernels.centerline import band_sides
@@ -193,8 +195,10 @@ __all__ = [
     "smooth_columns",
     "smooth_polyline",
     "smooth_replicated",
+    "smooth_ring",
     "smooth_rows",
     "sobel_rows",
+    "sobel_suppress",
     "spans_around_points",
     "split_contour",
     "split_shapes_local",

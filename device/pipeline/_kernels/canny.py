@@ -1,6 +1,12 @@
 """Canny edge detection on row spans: smoothing, Sobel, non-maximum suppression, hysteresis.
 
-One kernel per pass, each a loop over the rows of the region of interest; `detect_edges` runs them in order.
+One kernel per pass, each a loop over the rows of the region of interest; `detect_edges` runs them in order where
+a band reaches the image border. Off the border (the usual band), two sweeps do the work instead: `smooth_ring`
+(horizontal smoothing of row r + 2 into a ring of 8 rows, then vertical smoothing of row r) and `sobel_suppress`
+(Sobel of row r + 1, then non-maximum suppression of row r), each row read from L1 just after it is written
+(pass after pass, each read a band of ~60 KB per plane that the previous one had left in L2). Both ways give
+bit-identical outputs: the same float32 expressions in the same order, in the 8-column steps of `canny_simd`.
+Everything `detect_edges` calls stays in this file: a kernel's on-disk cache does not notice edits to other files.
 A band around a rope is a few hundred short rows (~40 px each on the rig), so what a pass costs per row matters
 as much as what it costs per pixel: the loops index flat views with unsigned offsets (no wraparound test, no
 slice objects), run branch-free over contiguous columns so that LLVM vectorises them, and the arithmetic passes
@@ -30,6 +36,7 @@ from ropecam.device.pipeline._kernels._common import (
     prefetch_read,
     prefetch_write,
 )
+from ropecam.device.pipeline._kernels.canny_simd import LANES, hsmooth8, nms8, push_lanes8, sobel8, vsmooth8
 from ropecam.shared.jit import (
     f4_2d,
     i4_1d,
@@ -46,6 +53,8 @@ AHEAD: Final = 4
 """Rows ahead whose cache lines a pass asks for (`prefetch_read`, `prefetch_write`) before working on a row: each
 row of a band starts on new cache lines (and pages) of every plane, which the hardware prefetcher, following
 contiguous runs, does not fetch; a frame's band then waited ~50 us on memory."""
+RING: Final = 8
+"""Rows of the horizontal smoothing `smooth_ring` keeps (the first rows of `out_tmp`; 5 are read at a time)."""
 _EMPTY_LO: Final = 2147483647
 
 
@@ -157,10 +166,16 @@ def smooth_rows(frame, weights, hor_lo, hor_hi, r_begin, r_end, out_tmp):
         row = r * width
         inner0 = max(c0, radius)
         inner1 = min(c1, width - 1 - radius)
+        if radius == 2 and inner0 == c0 and inner1 == c1:
+            # The default smoothing (sigma 1 px) in whole 8-column steps, all inside the image.
+            base = np.uint64(row + c0)
+            for step in range((c1 - c0 + 1) // LANES):
+                k = base + np.uint64(step * LANES)
+                hsmooth8(f, k, w0, w1, w2, tmp, k)
+            continue
         if inner1 >= inner0:
             base = np.uint64(row + inner0)
             if radius == 2:
-                # The default smoothing (sigma 1 px): one fused loop.
                 for i in range(inner1 - inner0 + 1):
                     k = base + np.uint64(i)
                     t = w0 * (np.float32(f[k - u2]) + np.float32(f[k + u2])) + w1 * (
@@ -182,6 +197,77 @@ def smooth_rows(frame, weights, hor_lo, hor_hi, r_begin, r_end, out_tmp):
             out_tmp[r, c] = smooth_replicated(frame, weights, r, c)
         for c in range(inner1 + 1, c1 + 1):
             out_tmp[r, c] = smooth_replicated(frame, weights, r, c)
+
+
+@kernel(int64(u1_2d_ro, f4_1d_ro, i4_1d, i4_1d, i4_1d, i4_1d, int64, int64, f4_2d, f4_2d))
+def smooth_ring(frame, weights, hor_lo, hor_hi, gau_lo, gau_hi, r_begin, r_end, out_tmp, out_smooth):
+    """`smooth_rows` then `smooth_columns` for the 5-tap smoothing in one sweep, when every row is off the image
+    border: the horizontal pass of row ``r + 2`` goes into a ring of 8 rows (the first rows of `out_tmp`) just
+    before the vertical pass of row ``r`` reads it, so that it stays in L1. Writes `out_smooth` over the spans
+    `gau_lo`/`gau_hi` of the rows ``r_begin .. r_end`` (padded to whole vectors; the horizontal spans
+    `hor_lo`/`hor_hi` are valid for rows ``r_begin - 2 .. r_end + 2``), bit-identical to the two passes. Returns 1,
+    or 0 without writing anything when a row or padded span comes within 2 of the image border or `weights` has
+    not 5 taps (then the two passes do it)."""
+    height = frame.shape[0]
+    width = frame.shape[1]
+    if weights.shape[0] != 5 or height < RING or r_begin < 2 or r_end > height - 3:
+        return 0
+    for r in range(r_begin - 2, r_end + 3):
+        if hor_hi[r] >= hor_lo[r]:
+            c0 = np.int64(hor_lo[r])
+            c0 -= c0 % VEC
+            if c0 < 2 or padded_end(c0, np.int64(hor_hi[r]), width) > width - 3:
+                return 0
+    size = height * width
+    f = frame.reshape(size)
+    tmp = out_tmp.reshape(size)
+    smo = out_smooth.reshape(size)
+    w0 = weights[0]
+    w1 = weights[1]
+    w2 = weights[2]
+    mask = np.int64(RING - 1)
+    for j in range(r_begin - 2, r_end + 3):
+        ahead = j + AHEAD
+        if ahead <= r_end + 2 and hor_hi[ahead] >= hor_lo[ahead]:
+            first = ahead * width + np.int64(hor_lo[ahead]) - 2
+            last = ahead * width + np.int64(hor_hi[ahead]) + 2
+            prefetch_read(f, np.uint64(first))  # a fixed number of lines: no loop exit to mispredict per row
+            prefetch_read(f, np.uint64(min(first + 64, last)))
+            prefetch_read(f, np.uint64(last))
+        if hor_hi[j] >= hor_lo[j]:  # horizontal pass of row j into its ring row
+            c0 = np.int64(hor_lo[j])
+            c0 -= c0 % VEC
+            c1 = padded_end(c0, np.int64(hor_hi[j]), width)
+            src = np.uint64(j * width + c0)
+            dst = np.uint64((j & mask) * width + c0)
+            for step in range((c1 - c0 + 1) // LANES):
+                us = np.uint64(step * LANES)
+                hsmooth8(f, src + us, w0, w1, w2, tmp, dst + us)
+        r = j - 2  # vertical pass of row r from the ring rows r - 2 .. r + 2
+        if r < r_begin:
+            continue
+        ahead = r + AHEAD
+        if ahead <= r_end and gau_hi[ahead] >= gau_lo[ahead]:
+            first = ahead * width + np.int64(gau_lo[ahead])
+            last = ahead * width + np.int64(gau_hi[ahead])
+            for k in range(4):  # the first 64 columns and the last
+                prefetch_write(smo, np.uint64(min(first + 16 * k, last)))
+            prefetch_write(smo, np.uint64(last))
+        if gau_hi[r] < gau_lo[r]:
+            continue
+        c0 = np.int64(gau_lo[r])
+        c0 -= c0 % VEC
+        c1 = padded_end(c0, np.int64(gau_hi[r]), width)
+        ka = np.uint64(((r - 2) & mask) * width + c0)
+        kb = np.uint64(((r - 1) & mask) * width + c0)
+        kc = np.uint64((r & mask) * width + c0)
+        kd = np.uint64(((r + 1) & mask) * width + c0)
+        ke = np.uint64(((r + 2) & mask) * width + c0)
+        out = np.uint64(r * width + c0)
+        for step in range((c1 - c0 + 1) // LANES):
+            us = np.uint64(step * LANES)
+            vsmooth8(tmp, ka + us, kb + us, kc + us, kd + us, ke + us, w0, w1, w2, smo, out + us)
+    return 1
 
 
 @kernel(void(f4_2d, f4_1d_ro, i4_1d, i4_1d, int64, int64, f4_2d))
@@ -218,6 +304,11 @@ def smooth_columns(tmp, weights, gau_lo, gau_hi, r_begin, r_end, out_smooth):
             kb = np.uint64(max(r - 1, 0) * width + c0)
             kd = np.uint64(min(r + 1, height - 1) * width + c0)
             ke = np.uint64(min(r + 2, height - 1) * width + c0)
+            if n % LANES == 0:  # whole 8-column steps
+                for step in range(n // LANES):
+                    us = np.uint64(step * LANES)
+                    vsmooth8(t, ka + us, kb + us, out + us, kd + us, ke + us, w0, w1, w2, smo, out + us)
+                continue
             for i in range(n):
                 ui = np.uint64(i)
                 smo[out + ui] = w0 * (t[ka + ui] + t[ke + ui]) + w1 * (t[kb + ui] + t[kd + ui]) + w2 * t[out + ui]
@@ -280,6 +371,11 @@ def sobel_rows(smooth, sob_lo, sob_hi, r_begin, r_end, out_gx, out_gy, out_mag):
         km = np.uint64(rm + i0)
         k0 = np.uint64(r0 + i0)
         kp = np.uint64(rp + i0)
+        if i0 == c0 and i1 == c1:  # whole 8-column steps, all inside the image
+            for step in range((i1 - i0 + 1) // LANES):
+                us = np.uint64(step * LANES)
+                sobel8(smo, km + us, k0 + us, kp + us, ogx, ogy, omag)
+            continue
         for i in range(i1 - i0 + 1):
             ui = np.uint64(i)
             a = km + ui
@@ -319,6 +415,84 @@ def nms_pixel(mag, gx, gy, r, c, low, high):
     if not keep:
         return EDGE_NONE
     return EDGE_STRONG if m > high else EDGE_WEAK
+
+
+@kernel(
+    int64(f4_2d, i4_1d_ro, i4_1d_ro, i4_1d, i4_1d, int64, int64, float32, float32, f4_2d, f4_2d, f4_2d, u1_2d, i4_1d)
+)
+def sobel_suppress(
+    smooth, lo, hi, sob_lo, sob_hi, r_begin, r_end, low, high, out_gx, out_gy, out_mag, out_edges, stack
+):
+    """`sobel_rows` then `suppress_rows` in one sweep, when every Sobel row and padded span is off the image
+    border: the Sobel row ``r + 1`` is computed just before the suppression of row ``r`` reads it (from L1).
+    Arguments and outputs are those of the two passes (`r_begin .. r_end`: the rows of the spans `lo`/`hi`; the
+    Sobel spans `sob_lo`/`sob_hi` valid for ``r_begin - 1 .. r_end + 1``), bit-identical. Returns the number of
+    strong pixels pushed onto `stack`, or -1 without writing anything when a row comes to the image border."""
+    height = smooth.shape[0]
+    width = smooth.shape[1]
+    sob_begin = r_begin - 1
+    sob_end = r_end + 1
+    if sob_begin < 1 or sob_end > height - 2:
+        return -1
+    for r in range(sob_begin, sob_end + 1):
+        if sob_hi[r] >= sob_lo[r]:
+            c0 = np.int64(sob_lo[r])
+            c0 -= c0 % VEC
+            if c0 < 1 or padded_end(c0, np.int64(sob_hi[r]), width) > width - 2:
+                return -1
+    size = height * width
+    smo = smooth.reshape(size)
+    ogx = out_gx.reshape(size)
+    ogy = out_gy.reshape(size)
+    omag = out_mag.reshape(size)
+    oedge = out_edges.reshape(size)
+    top = 0
+    for j in range(sob_begin, sob_end + 2):
+        ahead = j + AHEAD
+        if ahead <= sob_end and sob_hi[ahead] >= sob_lo[ahead]:
+            first = ahead * width + np.int64(sob_lo[ahead])
+            last = ahead * width + np.int64(sob_hi[ahead])
+            for k in range(4):  # the first 64 columns and the last
+                at = np.uint64(min(first + 16 * k, last))
+                prefetch_write(ogx, at)
+                prefetch_write(ogy, at)
+                prefetch_write(omag, at)
+            prefetch_write(oedge, np.uint64(first))
+            prefetch_write(ogx, np.uint64(last))
+            prefetch_write(ogy, np.uint64(last))
+            prefetch_write(omag, np.uint64(last))
+            prefetch_write(oedge, np.uint64(last))
+        if j <= sob_end and sob_hi[j] >= sob_lo[j]:  # Sobel of row j
+            c0 = np.int64(sob_lo[j])
+            c0 -= c0 % VEC
+            c1 = padded_end(c0, np.int64(sob_hi[j]), width)
+            k0 = np.uint64(j * width + c0)
+            km = k0 - np.uint64(width)
+            kp = k0 + np.uint64(width)
+            for step in range((c1 - c0 + 1) // LANES):
+                us = np.uint64(step * LANES)
+                sobel8(smo, km + us, k0 + us, kp + us, ogx, ogy, omag)
+        r = j - 1  # suppression of row r
+        if r < sob_begin:
+            continue
+        row = r * width
+        s0 = np.int64(sob_lo[r])
+        s1 = np.int64(sob_hi[r])
+        c0 = np.int64(lo[r])
+        c1 = np.int64(hi[r])
+        if c1 < c0 or r < r_begin or r > r_end:
+            c0 = s1 + 1  # no pixel to label: only the ring around the spans is cleared
+            c1 = s1
+        # Steps over the Sobel span (all inside the image): the spans' pixels labelled, the ring around them set
+        # to EDGE_NONE in the same store (no scalar loops of 1-3 columns whose exits mispredict).
+        p0 = s0 - s0 % VEC
+        p1 = padded_end(p0, s1, width)
+        for step in range((p1 - p0 + 1) // LANES):
+            offset = p0 + step * LANES
+            k = np.uint64(row + offset)
+            bits = nms8(omag, ogx, ogy, k, width, c0 - offset, c1 - offset, s0 - offset, s1 - offset, low, high, oedge)
+            top = push_lanes8(stack, top, k, bits)
+    return top
 
 
 @kernel(int64(f4_2d, f4_2d, f4_2d, i4_1d_ro, i4_1d_ro, i4_1d, i4_1d, int64, int64, float32, float32, u1_2d, i4_1d))
@@ -366,9 +540,16 @@ def suppress_rows(mag, gx, gy, lo, hi, sob_lo, sob_hi, r_begin, r_end, low, high
             if i1 >= i0:
                 p0 = i0 - i0 % VEC
                 p1 = padded_end(p0, i1, width)
-                if p0 < 1 or p1 > width - 2:  # near the image border: no padding
-                    p0 = i0
-                    p1 = i1
+                if p0 >= 1 and p1 <= width - 2 and i0 == c0 and i1 == c1:
+                    # Whole 8-column steps, off the image border: labels and strong seeds at once.
+                    for step in range((p1 - p0 + 1) // LANES):
+                        k = np.uint64(row + p0 + step * LANES)
+                        offset = p0 + step * LANES
+                        bits = nms8(omag, ogx, ogy, k, width, i0 - offset, i1 - offset, 1, 0, low, high, oedge)
+                        top = push_lanes8(stack, top, k, bits)
+                    continue
+                p0 = i0  # near the image border: no padding
+                p1 = i1
                 # Branch-free (all eight neighbours loaded, the pair of the gradient's sector selected): the
                 # labels of `nms_pixel`, written only in ``i0 .. i1`` (the loop runs over whole vectors).
                 base = np.uint64(row + p0)
@@ -545,11 +726,18 @@ def detect_edges(
         grow_spans_inplace(hor_begin, hor_end, 0, width, sob_lo, sob_hi)
         hor_begin = max(hor_begin - 1, 0)
         hor_end = min(hor_end + 1, height - 1)
-    smooth_rows(frame, weights, sob_lo, sob_hi, hor_begin, hor_end, out_tmp)
-    smooth_columns(out_tmp, weights, gau_lo, gau_hi, gau_begin, gau_end, out_smooth)
+    if not smooth_ring(frame, weights, sob_lo, sob_hi, gau_lo, gau_hi, gau_begin, gau_end, out_tmp, out_smooth):
+        smooth_rows(frame, weights, sob_lo, sob_hi, hor_begin, hor_end, out_tmp)
+        smooth_columns(out_tmp, weights, gau_lo, gau_hi, gau_begin, gau_end, out_smooth)
     grow_spans_once(lo, hi, r_first, r_last, width, sob_lo, sob_hi)
-    sobel_rows(out_smooth, sob_lo, sob_hi, sob_begin, sob_end, out_gx, out_gy, out_mag)
-    top = suppress_rows(out_mag, out_gx, out_gy, lo, hi, sob_lo, sob_hi, r_first, r_last, low, high, out_edges, stack)
+    top = sobel_suppress(
+        out_smooth, lo, hi, sob_lo, sob_hi, r_first, r_last, low, high, out_gx, out_gy, out_mag, out_edges, stack
+    )
+    if top < 0:
+        sobel_rows(out_smooth, sob_lo, sob_hi, sob_begin, sob_end, out_gx, out_gy, out_mag)
+        top = suppress_rows(
+            out_mag, out_gx, out_gy, lo, hi, sob_lo, sob_hi, r_first, r_last, low, high, out_edges, stack
+        )
     count = grow_edges(lo, hi, top, out_edges, stack)
     finish_edges(lo, hi, r_first, r_last, out_edges)
     return count
