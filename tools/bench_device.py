@@ -283,7 +283,8 @@ def stage_report(
 def print_stages(report: dict[str, Any]) -> None:
     """Print the `stage_report` part of `report`."""
     stages = report["stages_median_us"]
-    print("stages (median us/frame): " + ", ".join(f"{k} {v:.0f}" for k, v in stages.items()))
+    shown = {k: v for k, v in stages.items() if v >= 0.5}  # a stage of the first frames only has a median of 0
+    print("stages (median us/frame): " + ", ".join(f"{k} {v:.0f}" for k, v in shown.items()))
     print(
         f"frame searched without ROI: median {report['searched_frame_median_us']:.0f} us, "
         f"max {report['searched_frame_max_us']:.0f} us ({report['searched_paths']})"
