@@ -7,7 +7,7 @@ import math
 from typing import Final
 
 import numpy as np
-from numba import float64, int64, types
+from numba import boolean, float64, int64, types
 
 from ropecam.shared.jit import KernelStatus, f8_1d, f8_1d_ro, f8_2d, f8_2d_ro, kernel, u1_1d
 
@@ -538,3 +538,33 @@ def apply_corrections(data, position, count, limit, shift, out_points):
         out_points[index, 0] += du / scale
         out_points[index, 1] += dv / scale
     return position
+
+
+@kernel(boolean(f8_2d_ro, float64))
+def points_within(points, limit):
+    """Return True when every coordinate of `points` (n, 2) is finite and strictly within +-`limit` (one pass: the
+    record's check of a polyline costs one call instead of several NumPy reductions)."""
+    for i in range(points.shape[0]):
+        for axis in range(2):
+            value = points[i, axis]
+            if not abs(value) < limit:  # also False for nan
+                return False
+    return True
+
+
+@kernel(boolean(f8_2d_ro, float64, float64))
+def rows_on_wire(points, scale, limit_q):
+    """Return True when every row of `points` (n, 2) is either (nan, nan) or a finite (u, v) whose quantisation
+    ``rint(x * scale)`` lies strictly within +-`limit_q` (the record's material-point rule, in one pass)."""
+    for i in range(points.shape[0]):
+        u = points[i, 0]
+        v = points[i, 1]
+        u_nan = math.isnan(u)
+        v_nan = math.isnan(v)
+        if u_nan and v_nan:
+            continue
+        if u_nan or v_nan or math.isinf(u) or math.isinf(v):
+            return False
+        if not (abs(np.rint(u * scale)) < limit_q and abs(np.rint(v * scale)) < limit_q):
+            return False
+    return True

@@ -17,8 +17,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ropecam.shared.errors import ProtocolError
+from ropecam.shared.protocol._kernels import points_within, rows_on_wire
 from ropecam.shared.protocol.bytecodec import ByteReader, ByteWriter, check_int
 from ropecam.shared.protocol.shapes import (
+    MAX_SHAPE_POINTS,
+    POLYLINE_LIMIT_PX,
     EncodedShape,
     ShapeCodecConfig,
     _encode_checked,
@@ -34,6 +37,8 @@ POINT_SHIFT: Final = 6
 """Pixel points are coded in units of 1/64 px."""
 _POINT_SCALE: Final = float(1 << POINT_SHIFT)
 _POINT_LIMIT: Final = 65536 * (1 << POINT_SHIFT)
+_PX_LIMIT: Final = 65537.0
+"""Beyond this a pixel is refused before it is scaled (a huge finite value would overflow `round`)."""
 _S_SCALE: Final = 1e4  # material arc lengths in units of 0.1 mm
 _S_LIMIT: Final = 4_000_000  # 400 m in units of 0.1 mm
 _STRETCH_SCALE: Final = 1e5
@@ -100,10 +105,12 @@ class ShapeHint:
 def _polyline(value: ArrayLike | None, name: str) -> NDArray[np.float64] | None:
     if value is None:
         return None
-    array = np.array(value, dtype=np.float64)
+    array = np.array(value, dtype=np.float64, order="C")  # the record's own copy
     if array.ndim != 2 or array.shape[1:] != (2,) or len(array) < 2:
         raise ValueError(f"{name} must be None or an (n >= 2, 2) array of (u, v) pixels, got shape {array.shape}")
-    array = check_polyline(array, name).copy()  # the shape codec's limits: what is accepted here can be packed
+    # One kernel pass on the per-frame path; `check_polyline` names what is wrong when it is not accepted.
+    if len(array) > MAX_SHAPE_POINTS or not points_within(array, POLYLINE_LIMIT_PX):
+        check_polyline(array, name)  # the shape codec's limits: what is accepted here can be packed
     array.flags.writeable = False
     return array
 
@@ -113,9 +120,24 @@ def _on_wire(array: NDArray[np.float64]) -> bool:
     return bool(np.all(np.abs(np.rint(array * _POINT_SCALE)) < _POINT_LIMIT))
 
 
+def _on_wire_px(value: float) -> bool:
+    """`_on_wire` of one plain coordinate (False for nan and infinities too)."""
+    return abs(value) < _PX_LIMIT and abs(round(value * _POINT_SCALE)) < _POINT_LIMIT
+
+
 def _point(value: ArrayLike | None, name: str) -> tuple[float, float] | None:
     if value is None:
         return None
+    if (
+        type(value) is tuple
+        and len(value) == 2
+        and isinstance(value[0], float | int)
+        and isinstance(value[1], float | int)
+    ):
+        # The per-frame case (plain numbers): the same rule without NumPy calls (round() rounds half to even).
+        u, v = float(value[0]), float(value[1])
+        if _on_wire_px(u) and _on_wire_px(v):
+            return u, v
     array = np.asarray(value, dtype=np.float64).ravel()
     if array.shape != (2,) or not np.all(np.isfinite(array)) or not _on_wire(array):
         raise ValueError(f"{name} must be None or a finite (u, v) pixel within +-65536 (at 1/64 px), got {value!r}")
@@ -123,6 +145,12 @@ def _point(value: ArrayLike | None, name: str) -> tuple[float, float] | None:
 
 
 def _material(value: ArrayLike | None, count: int, name: str) -> NDArray[np.float64]:
+    if isinstance(value, np.ndarray) and value.shape == (count, 2):
+        # The per-frame case: one copy and one kernel pass; anything it does not accept takes the path below.
+        array = np.array(value, dtype=np.float64, order="C")
+        if rows_on_wire(array, _POINT_SCALE, float(_POINT_LIMIT)):
+            array.flags.writeable = False
+            return array
     if value is None:
         array = np.full((count, 2), np.nan)
     else:
