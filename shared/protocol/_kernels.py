@@ -23,6 +23,38 @@ _SINGULAR = int(KernelStatus.SINGULAR)
 _NO_CONVERGENCE = int(KernelStatus.NO_CONVERGENCE)
 
 
+@kernel(types.UniTuple(int64, 2)(float64, int64, int64))
+def _window(t, m, half_window):
+    """First and last segment index compared with a point at relative position `t` on a curve of m points."""
+    centre = int(min(1.0, max(0.0, t)) * (m - 1) + 0.5)
+    return max(0, centre - half_window), min(m - 2, centre + half_window)
+
+
+@kernel(float64(f8_2d_ro, f8_1d_ro, f8_2d_ro, int64, int64))
+def _distance_in_window(points, t, curve, half_window, i):
+    """Distance from point `i` to the segments of `curve` within `half_window` of its relative position."""
+    m = curve.shape[0]
+    lo, hi = _window(t[i], m, half_window)
+    px = points[i, 0]
+    py = points[i, 1]
+    best = math.inf
+    for j in range(lo, hi + 1):
+        ax = curve[j, 0]
+        ay = curve[j, 1]
+        dx = curve[j + 1, 0] - ax
+        dy = curve[j + 1, 1] - ay
+        qx = px - ax
+        qy = py - ay
+        length2 = dx * dx + dy * dy
+        s = 0.0
+        if length2 > 0.0:
+            s = min(1.0, max(0.0, (qx * dx + qy * dy) / length2))
+        gx = qx - s * dx
+        gy = qy - s * dy
+        best = min(best, gx * gx + gy * gy)
+    return math.sqrt(best)
+
+
 @kernel(int64(f8_2d_ro, f8_1d_ro, f8_2d_ro, int64, f8_1d))
 def distances_to_polyline(points, t, curve, half_window, out_distance_px):
     """Write into `out_distance_px` the distance from each of `points` (n, 2) to the polyline `curve` (m, 2).
@@ -36,27 +68,7 @@ def distances_to_polyline(points, t, curve, half_window, out_distance_px):
     if m < 2 or t.shape[0] != n or out_distance_px.shape[0] < n or half_window < 0:
         return _INVALID
     for i in range(n):
-        centre = int(min(1.0, max(0.0, t[i])) * (m - 1) + 0.5)
-        lo = max(0, centre - half_window)
-        hi = min(m - 2, centre + half_window)
-        px = points[i, 0]
-        py = points[i, 1]
-        best = math.inf
-        for j in range(lo, hi + 1):
-            ax = curve[j, 0]
-            ay = curve[j, 1]
-            dx = curve[j + 1, 0] - ax
-            dy = curve[j + 1, 1] - ay
-            qx = px - ax
-            qy = py - ay
-            length2 = dx * dx + dy * dy
-            s = 0.0
-            if length2 > 0.0:
-                s = min(1.0, max(0.0, (qx * dx + qy * dy) / length2))
-            gx = qx - s * dx
-            gy = qy - s * dy
-            best = min(best, gx * gx + gy * gy)
-        out_distance_px[i] = math.sqrt(best)
+        out_distance_px[i] = _distance_in_window(points, t, curve, half_window, i)
     return n
 
 
@@ -191,6 +203,49 @@ def sample_bspline(control, work_basis, out_points):
     return n
 
 
+@kernel(int64(int64, i8_1d, f8_2d))
+def bspline_sample_table(control_count, out_first, out_basis):
+    """Write the basis of a clamped uniform B-spline of `control_count` control points at n = len(`out_first`)
+    equally spaced parameters: per sample the first control index (`out_first`) and the degree + 1 non-zero basis
+    values (``out_basis[i, :degree + 1]``). The table depends only on (n, m): `sample_with_table` then evaluates
+    any spline of that size with the very arithmetic of `sample_bspline`. Returns n, or INVALID (m < 2, n < 2,
+    `out_basis` too small)."""
+    n = out_first.shape[0]
+    m = control_count
+    if m < 2 or n < 2 or out_basis.shape[0] != n or out_basis.shape[1] < 4:
+        return _INVALID
+    degree = min(3, m - 1)
+    for i in range(n):
+        out_first[i] = _basis_at(i / (n - 1), m, degree, out_basis[i])
+    return n
+
+
+@kernel(int64(f8_2d_ro, i8_1d_ro, f8_2d_ro, f8_2d))
+def sample_with_table(control, first, basis, out_points):
+    """`sample_bspline` with the basis from `bspline_sample_table` (same results, bit for bit).
+
+    Returns n = len(`out_points`), or INVALID when the table's size differs from n or it indexes beyond `control`
+    (the caller pairs each table with its m: a smaller m can pass unnoticed only while its indices stay in range).
+    """
+    m = control.shape[0]
+    n = out_points.shape[0]
+    if m < 2 or n < 2 or first.shape[0] != n or basis.shape[0] != n or basis.shape[1] < 4:
+        return _INVALID
+    degree = min(3, m - 1)
+    for i in range(n):
+        f = first[i]
+        if f < 0 or f + degree >= m:
+            return _INVALID
+        u = 0.0
+        v = 0.0
+        for a in range(degree + 1):
+            u += basis[i, a] * control[f + a, 0]
+            v += basis[i, a] * control[f + a, 1]
+        out_points[i, 0] = u
+        out_points[i, 1] = v
+    return n
+
+
 @kernel(int64(int64))
 def uvarint_bytes(value):
     """Return the length in bytes of `value` (>= 0) written as a LEB128 varint."""
@@ -224,8 +279,8 @@ def chain_bytes(items):
 
 @kernel(
     int64(
-        f8_2d_ro, f8_1d_ro, int64, int64, float64, int64, i8_1d_ro,
-        f8_1d, f8_2d, f8_2d, f8_2d, f8_2d, f8_1d, i8_2d, i8_1d, i8_2d, f8_1d,
+        f8_2d_ro, f8_1d_ro, int64, int64, float64, int64, i8_1d_ro, i8_1d_ro, f8_2d_ro,
+        f8_1d, f8_2d, f8_2d, f8_2d, i8_1d, f8_2d, f8_1d, i8_2d, i8_1d, i8_2d, f8_1d,
     )
 )  # fmt: skip
 def fit_spline_with_corrections(
@@ -236,10 +291,13 @@ def fit_spline_with_corrections(
     tolerance_px,
     half_window,
     origin_q,
+    sample_first,
+    sample_basis,
     work_basis,
     work_normal,
     work_samples,
     work_decoded,
+    work_changed,
     out_control,
     out_distance_px,
     out_control_q,
@@ -274,6 +332,7 @@ def fit_spline_with_corrections(
         or out_offset_q.shape[0] < n
         or out_stats.shape[0] < 2
         or origin_q.shape[0] != 2
+        or work_changed.shape[0] != n + 1
     ):
         return _INVALID
     status = fit_bspline(points, t, m, work_basis, work_normal, out_control)
@@ -284,7 +343,8 @@ def fit_spline_with_corrections(
         for axis in range(2):
             out_control_q[a, axis] = int(np.rint(out_control[a, axis] * scale))
             out_control[a, axis] = out_control_q[a, axis] / scale
-    sample_bspline(out_control, work_basis, work_samples)
+    if sample_with_table(out_control, sample_first, sample_basis, work_samples) != n:
+        return _INVALID
     for i in range(n):
         work_decoded[i, 0] = work_samples[i, 0]
         work_decoded[i, 1] = work_samples[i, 1]
@@ -292,8 +352,20 @@ def fit_spline_with_corrections(
         out_offset_q[i, 1] = 0
         out_index[i] = -1  # until the corrections are listed: the point each sample was moved onto
     converged = False
-    for _ in range(max_rounds):
-        distances_to_polyline(points, t, work_decoded, half_window, out_distance_px)
+    for round_number in range(max_rounds):
+        if round_number == 0:
+            distances_to_polyline(points, t, work_decoded, half_window, out_distance_px)
+        else:
+            # work_changed[j + 1] = 1 for each sample j moved last round; as prefix sums it tells in O(1) per point
+            # whether its window [lo, hi + 1] holds one.
+            for j in range(n):
+                work_changed[j + 1] += work_changed[j]
+            for i in range(n):
+                lo, hi = _window(t[i], n, half_window)
+                if work_changed[hi + 2] - work_changed[lo] > 0:
+                    out_distance_px[i] = _distance_in_window(points, t, work_decoded, half_window, i)
+        for j in range(n + 1):
+            work_changed[j] = 0
         out_distance_px[0] = max(
             out_distance_px[0], math.hypot(points[0, 0] - work_decoded[0, 0], points[0, 1] - work_decoded[0, 1])
         )
@@ -327,6 +399,7 @@ def fit_spline_with_corrections(
                 dv = int(np.rint((points[i, 1] - work_samples[target, 1]) * scale))
                 out_offset_q[target, 0] = du
                 out_offset_q[target, 1] = dv
+                work_changed[target + 1] = 1
                 work_decoded[target, 0] = work_samples[target, 0] + du / scale
                 work_decoded[target, 1] = work_samples[target, 1] + dv / scale
     if not converged:

@@ -41,12 +41,13 @@ from ropecam.shared.errors import ConfigError, ProtocolError
 from ropecam.shared.jit import KernelStatus
 from ropecam.shared.protocol._kernels import (
     apply_corrections,
+    bspline_sample_table,
     chain_bytes,
     distances_to_polyline,
     fit_spline_with_corrections,
     read_chain,
     relative_positions,
-    sample_bspline,
+    sample_with_table,
     write_spline_body,
 )
 from ropecam.shared.protocol.bytecodec import ByteReader, ByteWriter
@@ -133,10 +134,38 @@ class EncodedShape:
     max_error_px: float
 
 
+_SampleTable = tuple[NDArray[np.int64], NDArray[np.float64]]
+_SAMPLE_TABLES: dict[tuple[int, int], _SampleTable] = {}
+_CACHED_TABLES: Final = 64
+_CACHED_TABLE_POINTS: Final = 2048
+
+
+def _sample_table(point_count: int, control_count: int) -> _SampleTable:
+    """The B-spline basis at `point_count` equally spaced parameters for `control_count` control points.
+
+    It depends only on the two counts, which repeat from frame to frame: cached (a few dozen tables of a few kB),
+    it saves most of the sampling on both sides. Tables are never written after they are built (shared by threads).
+    """
+    key = (point_count, control_count)
+    table = _SAMPLE_TABLES.get(key)
+    if table is None:
+        first = np.empty(point_count, dtype=np.int64)
+        basis = np.empty((point_count, 4))
+        if bspline_sample_table(control_count, first, basis) != point_count:
+            raise AssertionError(f"bspline_sample_table refused ({point_count}, {control_count})")
+        table = (first, basis)
+        if point_count <= _CACHED_TABLE_POINTS:
+            if len(_SAMPLE_TABLES) >= _CACHED_TABLES:
+                _SAMPLE_TABLES.clear()
+            _SAMPLE_TABLES[key] = table
+    return table
+
+
 def _spline_samples(control_q: NDArray[np.int64], point_count: int, shift: int) -> NDArray[np.float64]:
     """The decoder's polyline before corrections; the encoder's check runs the very same arithmetic."""
     out = np.empty((point_count, 2))
-    sample_bspline(np.ascontiguousarray(control_q / float(1 << shift)), np.empty(4), out)
+    first, basis = _sample_table(point_count, len(control_q))
+    sample_with_table(np.ascontiguousarray(control_q / float(1 << shift)), first, basis, out)
     return out
 
 
@@ -249,6 +278,7 @@ class _Fitter:
         self.distance = np.empty(n)
         self.index = np.empty(n, dtype=np.int64)
         self.offset_q = np.empty((n, 2), dtype=np.int64)
+        self.changed = np.zeros(n + 1, dtype=np.int64)
         self.stats = np.empty(2)
         self.tried: dict[int, _Candidate | None] = {}
 
@@ -256,10 +286,12 @@ class _Fitter:
         """The candidate with `m` control points (None: singular fit or no convergence), computed once."""
         if m not in self.tried:
             control_q = np.empty((m, 2), dtype=np.int64)
+            first, basis = _sample_table(len(self.points), m)
             count = fit_spline_with_corrections(
                 self.points, self.t, self.config.quantum_shift, _MAX_CORRECTION_ROUNDS, self.config.tolerance_px,
-                _ENCODER_HALF_WINDOW, self.origin_q, self.basis, self.normal, self.samples, self.decoded,
-                np.empty((m, 2)), self.distance, control_q, self.index, self.offset_q, self.stats,
+                _ENCODER_HALF_WINDOW, self.origin_q, first, basis, self.basis, self.normal, self.samples,
+                self.decoded, self.changed, np.empty((m, 2)), self.distance, control_q, self.index, self.offset_q,
+                self.stats,
             )  # fmt: skip
             self.tried[m] = (
                 None

@@ -8,12 +8,14 @@ import pytest
 from ropecam.shared.jit import KernelStatus
 from ropecam.shared.protocol._kernels import (
     apply_corrections,
+    bspline_sample_table,
     chain_bytes,
     fit_bspline,
     fit_spline_with_corrections,
     read_chain,
     relative_positions,
     sample_bspline,
+    sample_with_table,
     svarint_bytes,
     uvarint_bytes,
     write_spline_body,
@@ -84,10 +86,13 @@ def _call(points, m, shift=6, tolerance=0.05, half_window=3, origin_q=(0, 0)):
     index = np.empty(n, dtype=np.int64)
     offset_q = np.empty((n, 2), dtype=np.int64)
     stats = np.empty(2)
+    first = np.empty(n, dtype=np.int64)
+    table = np.empty((n, 4))
+    bspline_sample_table(m, first, table)  # a status (negative) for m < 2: the fit below refuses such an m itself
     count = fit_spline_with_corrections(
-        points, t, shift, 8, tolerance, half_window, np.array(origin_q, dtype=np.int64), np.empty(4),
-        np.empty((m, m)), np.empty((n, 2)), np.empty((n, 2)), np.empty((m, 2)), np.empty(n), control_q, index,
-        offset_q, stats,
+        points, t, shift, 8, tolerance, half_window, np.array(origin_q, dtype=np.int64), first, table, np.empty(4),
+        np.empty((m, m)), np.empty((n, 2)), np.empty((n, 2)), np.zeros(n + 1, dtype=np.int64), np.empty((m, 2)),
+        np.empty(n), control_q, index, offset_q, stats,
     )  # fmt: skip
     return t, count, control_q, index[: max(count, 0)], offset_q[: max(count, 0)], stats
 
@@ -233,3 +238,19 @@ def test_chain_and_correction_readers_match_the_reference() -> None:
     assert read_chain(np.full(20, 0xFF, dtype=np.uint8), 0, limit, items) == KernelStatus.INVALID  # over-long
     assert apply_corrections(data, position + 1, len(index), limit, 6, np.zeros((150, 2))) == KernelStatus.INVALID
     assert apply_corrections(data[:-1], position + 1, len(index), limit, 6, np.zeros((200, 2))) == KernelStatus.FULL
+
+
+@pytest.mark.parametrize(("n", "m"), [(2, 2), (3, 3), (7, 4), (50, 6), (203, 10), (400, 17), (64, 64)])
+def test_sampling_table_is_bit_identical(n, m) -> None:
+    # The encoder's bound rests on sampling exactly as the decoder does: the table must not change a single bit.
+    control = np.random.default_rng(n + m).uniform(-300.0, 900.0, (m, 2))
+    first = np.empty(n, dtype=np.int64)
+    table = np.empty((n, 4))
+    assert bspline_sample_table(m, first, table) == n
+    direct, tabled = np.empty((n, 2)), np.empty((n, 2))
+    assert sample_bspline(control, np.empty(4), direct) == n
+    assert sample_with_table(control, first, table, tabled) == n
+    assert direct.tobytes() == tabled.tobytes()
+    if m >= 6:  # a table of a larger m reaches past the control points: refused, not read out of bounds
+        assert sample_with_table(control[: m // 2], first, table, tabled) == KernelStatus.INVALID
+    assert bspline_sample_table(1, first, table) == KernelStatus.INVALID
