@@ -65,6 +65,9 @@ class ByteWriter:
 
     def uvarint(self, value: int) -> None:
         """Write an unsigned LEB128 varint (0 <= value < 2**64)."""
+        if 0 <= value < 0x80:
+            self._buffer.append(value)
+            return
         if not 0 <= value <= _U64_MAX:
             raise ValueError(f"uvarint value must be in [0, 2**64), got {value}")
         while value >= 0x80:
@@ -74,7 +77,12 @@ class ByteWriter:
 
     def svarint(self, value: int) -> None:
         """Write a signed integer as a zigzag varint."""
-        self.uvarint(zigzag(value))
+        # Most values on the per-frame path are small deltas: one byte, no further calls.
+        unsigned = (value << 1) if value >= 0 else ((-value) << 1) - 1
+        if unsigned < 0x80:
+            self._buffer.append(unsigned)
+        else:
+            self.uvarint(unsigned)
 
     def raw(self, data: bytes | bytearray | memoryview) -> None:
         """Write bytes as they are."""
@@ -134,10 +142,30 @@ class ByteReader:
 
     def svarint(self, what: str, limit: int = 1 << 62) -> int:
         """Read a zigzag varint and check ``abs(value) <= limit``."""
-        value = unzigzag(self.uvarint(what))
+        position = self._pos
+        if position < len(self._data) and self._data[position] < 0x80:  # one byte: the usual small delta
+            unsigned = self._data[position]
+            self._pos = position + 1
+        else:
+            unsigned = self.uvarint(what)
+        value = (unsigned >> 1) if not unsigned & 1 else -((unsigned + 1) >> 1)
         if abs(value) > limit:
             raise ProtocolError(f"{what} = {value} exceeds its limit {limit}")
         return value
+
+    def svarint_pair(self, what: str, limit: int) -> tuple[int, int]:
+        """Read two zigzag varints (the u and v of a point: errors name ``what u`` or ``what v``), each checked as
+        `svarint` checks it."""
+        data = self._data
+        position = self._pos
+        if position + 1 < len(data) and data[position] < 0x80 and data[position + 1] < 0x80:
+            a, b = data[position], data[position + 1]
+            u = (a >> 1) if not a & 1 else -((a + 1) >> 1)
+            v = (b >> 1) if not b & 1 else -((b + 1) >> 1)
+            if abs(u) <= limit and abs(v) <= limit:
+                self._pos = position + 2
+                return u, v
+        return self.svarint(f"{what} u", limit), self.svarint(f"{what} v", limit)
 
     def buffer(self) -> tuple[NDArray[np.uint8], int]:
         """Return the whole input as a uint8 array (no copy) and the read position, for kernels that parse in

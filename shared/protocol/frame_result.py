@@ -386,16 +386,19 @@ class FrameResult:
             s_q = round(s * _S_SCALE)
             w.svarint(s_q - previous_s)
             previous_s = s_q
-        begin_ok = ~np.isnan(self.material_begin_px[:, 0])
-        end_ok = ~np.isnan(self.material_end_px[:, 0])
+        # Plain lists: indexing them per point costs far less than NumPy scalars (a row is all nan or none).
+        begin_rows = self.material_begin_px.tolist()
+        end_rows = self.material_end_px.tolist()
+        begin_ok = [row[0] == row[0] for row in begin_rows]
+        end_ok = [row[0] == row[0] for row in end_rows]
         w.raw(_pack_mask(begin_ok, end_ok))
         previous = origin
         for k in range(len(self.material_s_m)):
             begin_q = None
             if begin_ok[k]:
-                begin_q = previous = _write_point(w, self.material_begin_px[k], previous)
+                begin_q = previous = _write_point(w, begin_rows[k], previous)
             if end_ok[k]:
-                end_q = _write_point(w, self.material_end_px[k], begin_q if begin_q is not None else previous)
+                end_q = _write_point(w, end_rows[k], begin_q if begin_q is not None else previous)
                 if begin_q is None:
                     previous = end_q
 
@@ -480,8 +483,9 @@ def _write_point(w: ByteWriter, point: ArrayLike, reference_q: _PointQ) -> _Poin
 
 
 def _read_point(r: ByteReader, reference_q: _PointQ, what: str) -> _PointQ:
-    u = reference_q[0] + r.svarint(f"{what} u", 2 * _POINT_LIMIT)
-    v = reference_q[1] + r.svarint(f"{what} v", 2 * _POINT_LIMIT)
+    du, dv = r.svarint_pair(what, 2 * _POINT_LIMIT)
+    u = reference_q[0] + du
+    v = reference_q[1] + dv
     if abs(u) >= _POINT_LIMIT or abs(v) >= _POINT_LIMIT:
         raise ProtocolError(f"{what} beyond +-65536 px")
     return u, v
@@ -496,13 +500,13 @@ def _mask_bytes(count: int) -> int:
     return (2 * count + 7) // 8
 
 
-def _pack_mask(begin_ok: NDArray[np.bool_], end_ok: NDArray[np.bool_]) -> bytes:
+def _pack_mask(begin_ok: list[bool], end_ok: list[bool]) -> bytes:
     """Return the material mask: bit 2k = point k measured on the begin shape, bit 2k+1 = on the end shape.
 
     Little-endian bit order (bit 0 is the lowest bit of the first byte); unused high bits are 0.
     """
     mask = 0
-    for k, (begin, end) in enumerate(zip(begin_ok.tolist(), end_ok.tolist(), strict=True)):
+    for k, (begin, end) in enumerate(zip(begin_ok, end_ok, strict=True)):
         mask |= (int(begin) << (2 * k)) | (int(end) << (2 * k + 1))
     return mask.to_bytes(_mask_bytes(len(begin_ok)), "little")
 
