@@ -112,6 +112,36 @@ def _basis_at(t, control_count, degree, out_values):
     return span - degree
 
 
+@kernel(types.UniTuple(float64, 4)(float64, float64, float64, float64, float64, float64, float64))
+def _cubic_basis(t, k0, k1, k2, k3, k4, k5):
+    """The four non-zero cubic basis values at `t` in the span [k2, k3) (knots k0..k5 around it): `_basis_at`
+    for degree 3 unrolled, the same operations in the same order (bit-identical; tested)."""
+    left1 = t - k2
+    right1 = k3 - t
+    temp = 1.0 / (right1 + left1)
+    n0 = 0.0 + right1 * temp
+    n1 = left1 * temp
+    left2 = t - k1
+    right2 = k4 - t
+    temp = n0 / (right1 + left2)
+    n0 = 0.0 + right1 * temp
+    saved = left2 * temp
+    temp = n1 / (right2 + left1)
+    n1 = saved + right2 * temp
+    n2 = left1 * temp
+    left3 = t - k0
+    right3 = k5 - t
+    temp = n0 / (right1 + left3)
+    n0 = 0.0 + right1 * temp
+    saved = left3 * temp
+    temp = n1 / (right2 + left2)
+    n1 = saved + right2 * temp
+    saved = left2 * temp
+    temp = n2 / (right3 + left1)
+    n2 = saved + right3 * temp
+    return n0, n1, n2, left1 * temp
+
+
 @kernel(int64(f8_2d_ro, f8_1d_ro, int64, f8_1d, f8_2d, f8_2d))
 def fit_bspline(points, t, control_count, work_basis, work_normal, out_control):
     """Least-squares fit of a clamped uniform B-spline (degree min(3, m - 1)) through `points` at parameters `t`.
@@ -139,8 +169,31 @@ def fit_bspline(points, t, control_count, work_basis, work_normal, out_control):
         for b in range(m):
             work_normal[a, b] = 0.0
     values = work_basis
+    knots_span = -1
+    k0 = k1 = k2 = k3 = k4 = k5 = 0.0
     for i in range(n):
-        first = _basis_at(min(1.0, max(0.0, t[i])), m, degree, values)
+        ti = min(1.0, max(0.0, t[i]))
+        if degree == 3:
+            # The cubic case (every spline the encoder fits) unrolled, with the six knots around the span kept
+            # while consecutive points stay in it: the operations of `_basis_at`, in its order (bit-identical).
+            segments = m - 3
+            span = 3 + min(int(ti * segments), segments - 1)
+            if span != knots_span:
+                knots_span = span
+                k0 = _knot(span - 2, m, 3)
+                k1 = _knot(span - 1, m, 3)
+                k2 = _knot(span, m, 3)
+                k3 = _knot(span + 1, m, 3)
+                k4 = _knot(span + 2, m, 3)
+                k5 = _knot(span + 3, m, 3)
+            n0, n1, n2, n3 = _cubic_basis(ti, k0, k1, k2, k3, k4, k5)
+            values[0] = n0
+            values[1] = n1
+            values[2] = n2
+            values[3] = n3
+            first = span - 3
+        else:
+            first = _basis_at(ti, m, degree, values)
         for a in range(degree + 1):
             va = values[a]
             out_control[first + a, 0] += va * points[i, 0]

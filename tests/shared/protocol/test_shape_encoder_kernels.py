@@ -7,6 +7,9 @@ import pytest
 
 from ropecam.shared.jit import KernelStatus
 from ropecam.shared.protocol._kernels import (
+    _basis_at,
+    _cubic_basis,
+    _knot,
     apply_corrections,
     bspline_sample_table,
     chain_bytes,
@@ -254,3 +257,16 @@ def test_sampling_table_is_bit_identical(n, m) -> None:
     if m >= 6:  # a table of a larger m reaches past the control points: refused, not read out of bounds
         assert sample_with_table(control[: m // 2], first, table, tabled) == KernelStatus.INVALID
     assert bspline_sample_table(1, first, table) == KernelStatus.INVALID
+
+
+@pytest.mark.parametrize("m", [4, 5, 9, 17, 64])
+def test_unrolled_cubic_basis_is_bit_identical(m) -> None:
+    # fit_bspline's cubic path must fit exactly what the generic recurrence gives (the bytes depend on it).
+    generic = np.empty(4)
+    segments = m - 3
+    for t in np.concatenate([np.linspace(0.0, 1.0, 1001), np.random.default_rng(m).random(500), [1e-17, 1 - 1e-16]]):
+        first = _basis_at(t, m, 3, generic)
+        span = 3 + min(int(t * segments), segments - 1)
+        assert first == span - 3
+        knots = [_knot(span + k, m, 3) for k in range(-2, 4)]
+        assert np.array(_cubic_basis(t, *knots)).tobytes() == generic.tobytes(), t
