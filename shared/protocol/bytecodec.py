@@ -79,10 +79,13 @@ class ByteWriter:
         """Write a signed integer as a zigzag varint."""
         # Most values on the per-frame path are small deltas: one byte, no further calls.
         unsigned = (value << 1) if value >= 0 else ((-value) << 1) - 1
-        if unsigned < 0x80:
-            self._buffer.append(unsigned)
-        else:
-            self.uvarint(unsigned)
+        if unsigned > _U64_MAX:
+            self.uvarint(unsigned)  # raises, naming the value
+        buffer = self._buffer
+        while unsigned >= 0x80:
+            buffer.append((unsigned & 0x7F) | 0x80)
+            unsigned >>= 7
+        buffer.append(unsigned)
 
     def raw(self, data: bytes | bytearray | memoryview) -> None:
         """Write bytes as they are."""

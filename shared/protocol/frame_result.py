@@ -82,6 +82,13 @@ class _Flags(IntFlag):
     STRETCH_END = 16
 
 
+_FIXED_END: Final = int(_Flags.FIXED_END)
+_BEGIN_TIP: Final = int(_Flags.BEGIN_TIP)
+_END_TIP: Final = int(_Flags.END_TIP)
+_STRETCH_BEGIN: Final = int(_Flags.STRETCH_BEGIN)
+_STRETCH_END: Final = int(_Flags.STRETCH_END)
+
+
 @dataclass(slots=True)
 class ShapeHint:
     """Mutable per-stream memory of the shape encoder, to speed up the next frame.
@@ -335,16 +342,14 @@ class FrameResult:
         w.raw(bytes([self.status, self.method]))
         w.fixed("H", round(self.order_confidence * _CONFIDENCE_SCALE))
         w.uvarint(self.pipeline_us)
-        flags = 0  # plain int: IntFlag arithmetic is slow on this per-frame path
-        for bit, present in (
-            (_Flags.FIXED_END, self.fixed_end_px is not None),
-            (_Flags.BEGIN_TIP, self.begin_tip_px is not None),
-            (_Flags.END_TIP, self.end_tip_px is not None),
-            (_Flags.STRETCH_BEGIN, not math.isnan(self.stretch_begin)),
-            (_Flags.STRETCH_END, not math.isnan(self.stretch_end)),
-        ):
-            if present:
-                flags |= int(bit)
+        # Plain ints: IntFlag arithmetic is slow on this per-frame path.
+        flags = (
+            (_FIXED_END if self.fixed_end_px is not None else 0)
+            | (_BEGIN_TIP if self.begin_tip_px is not None else 0)
+            | (_END_TIP if self.end_tip_px is not None else 0)
+            | (0 if math.isnan(self.stretch_begin) else _STRETCH_BEGIN)
+            | (0 if math.isnan(self.stretch_end) else _STRETCH_END)
+        )
         w.raw(bytes([flags]))
         origin: _PointQ = (0, 0)
         if self.fixed_end_px is not None:
@@ -373,7 +378,7 @@ class FrameResult:
             tip = _write_point(w, self.begin_tip_px, tip)
         if self.end_tip_px is not None:
             _write_point(w, self.end_tip_px, tip)
-        for present, value in ((_Flags.STRETCH_BEGIN, self.stretch_begin), (_Flags.STRETCH_END, self.stretch_end)):
+        for present, value in ((_STRETCH_BEGIN, self.stretch_begin), (_STRETCH_END, self.stretch_end)):
             if flags & present:
                 w.svarint(round((value - 1.0) * _STRETCH_SCALE))
         self._pack_material(w, origin)
@@ -416,10 +421,10 @@ class FrameResult:
         flags_byte = r.raw(1, "flags")[0]
         if flags_byte & ~0x1F:
             raise ProtocolError(f"FrameResult: unknown flag bits 0x{flags_byte:02x}")
-        flags = _Flags(flags_byte)
+        flags = flags_byte
         origin: _PointQ = (0, 0)
         fixed_end = None
-        if flags & _Flags.FIXED_END:
+        if flags & _FIXED_END:
             origin = _read_point(r, origin, "fixed end")
             fixed_end = _as_px(origin)
         origin_px = (origin[0] / _POINT_SCALE, origin[1] / _POINT_SCALE)
@@ -427,13 +432,13 @@ class FrameResult:
         end_px, _ = decode_shape(r, origin_px, begin_q, what="end shape")
         tip = origin
         begin_tip = end_tip = None
-        if flags & _Flags.BEGIN_TIP:
+        if flags & _BEGIN_TIP:
             tip = _read_point(r, tip, "begin tip")
             begin_tip = _as_px(tip)
-        if flags & _Flags.END_TIP:
+        if flags & _END_TIP:
             end_tip = _as_px(_read_point(r, tip, "end tip"))
         stretch = [math.nan, math.nan]
-        for i, bit in enumerate((_Flags.STRETCH_BEGIN, _Flags.STRETCH_END)):
+        for i, bit in enumerate((_STRETCH_BEGIN, _STRETCH_END)):
             if flags & bit:
                 stretch[i] = 1.0 + r.svarint("stretch ratio", 4_900_000) / _STRETCH_SCALE
         s_m, material_begin, material_end = _unpack_material(r, origin)
@@ -526,8 +531,9 @@ def _unpack_material(
     mask = int.from_bytes(mask_bytes, "little")
     if mask >> (2 * count):
         raise ProtocolError(f"material mask {mask_bytes.hex()} has bits set beyond its {count} points")
-    begin = np.full((count, 2), np.nan)
-    end = np.full((count, 2), np.nan)
+    absent = (math.nan, math.nan)
+    begin = [absent] * count  # rows collected as tuples, made arrays once (cheaper than row assignments)
+    end = [absent] * count
     previous = origin
     for k in range(count):
         begin_q = None
@@ -539,4 +545,8 @@ def _unpack_material(
             end[k] = _as_px(end_q)
             if begin_q is None:
                 previous = end_q
-    return tuple(s_values), begin, end
+    return (
+        tuple(s_values),
+        np.array(begin, dtype=np.float64).reshape(count, 2),
+        np.array(end, dtype=np.float64).reshape(count, 2),
+    )

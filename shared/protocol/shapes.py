@@ -29,6 +29,7 @@ Wire format of one shape (integers are varints, coordinates in units of ``2**-sh
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
 from enum import IntEnum
 from typing import Final
@@ -260,26 +261,51 @@ class _Candidate:
     """Bytes of the control chain (relative to the origin) and the corrections: the rank of candidates."""
 
 
+_LOCAL = threading.local()
+
+
+def _workspace(n: int) -> tuple[NDArray, ...]:
+    """Work buffers of the encoder for a polyline of `n` points, reused by the calls of one thread (a shape's
+    buffers are free again once it is encoded; allocating ten arrays per shape costs more than its fits' setup).
+
+    Leading slices of C-contiguous buffers: C-contiguous, as the kernels require.
+    """
+    buffers = getattr(_LOCAL, "buffers", None)
+    if buffers is None or buffers[0] < n:
+        capacity = max(n, 512)
+        buffers = (
+            capacity,
+            np.empty(capacity), np.empty(4), np.empty((MAX_CONTROL_POINTS, MAX_CONTROL_POINTS)),
+            np.empty((capacity, 2)), np.empty((capacity, 2)), np.empty(capacity), np.empty(capacity, dtype=np.int64),
+            np.empty((capacity, 2), dtype=np.int64), np.zeros(capacity + 1, dtype=np.int64), np.empty(2),
+        )  # fmt: skip
+        _LOCAL.buffers = buffers
+    _, t, basis, normal, samples, decoded, distance, index, offset_q, changed, stats = buffers
+    return (
+        t[:n],
+        basis,
+        normal,
+        samples[:n],
+        decoded[:n],
+        distance[:n],
+        index[:n],
+        offset_q[:n],
+        changed[: n + 1],
+        stats,
+    )
+
+
 class _Fitter:
     """Work buffers of one `encode_shape` call and the candidates tried (one per control-point count)."""
 
     def __init__(self, points: NDArray[np.float64], config: ShapeCodecConfig, origin_q: NDArray[np.int64]) -> None:
         n = len(points)
-        # Plain (writable) arrays: Numba dispatches them to the read-only signatures faster than read-only views.
         self.points = points
-        self.t = np.empty(n)
-        relative_positions(points, self.t)
         self.config = config
         self.origin_q = origin_q
-        self.basis = np.empty(4)
-        self.normal = np.empty((MAX_CONTROL_POINTS, MAX_CONTROL_POINTS))
-        self.samples = np.empty((n, 2))
-        self.decoded = np.empty((n, 2))
-        self.distance = np.empty(n)
-        self.index = np.empty(n, dtype=np.int64)
-        self.offset_q = np.empty((n, 2), dtype=np.int64)
-        self.changed = np.zeros(n + 1, dtype=np.int64)
-        self.stats = np.empty(2)
+        (self.t, self.basis, self.normal, self.samples, self.decoded, self.distance, self.index, self.offset_q,
+         self.changed, self.stats) = _workspace(n)  # fmt: skip
+        relative_positions(points, self.t)
         self.tried: dict[int, _Candidate | None] = {}
 
     def attempt(self, m: int) -> _Candidate | None:
