@@ -694,3 +694,40 @@ def rows_on_wire(points, scale, limit_q):
         if not (abs(np.rint(u * scale)) < limit_q and abs(np.rint(v * scale)) < limit_q):
             return False
     return True
+
+
+@kernel(int64(u1_1d_ro, u1_1d))
+def cobs_encode_into(data, out_bytes):
+    """Write the COBS encoding of `data` into `out_bytes` (it needs len(data) + len(data) // 254 + 1 bytes) and
+    return its length, or FULL when `out_bytes` is too small. The byte-for-byte algorithm of `framing`: blocks of a
+    code byte (distance to the next zero, at most 255) and up to 254 non-zero bytes; a block of 254 ends the
+    coding when the data ends with it."""
+    length = data.shape[0]
+    if out_bytes.shape[0] < length + length // 254 + 1:
+        return _FULL
+    position = 0
+    start = 0
+    while True:
+        limit = min(start + 254, length)
+        zero = -1
+        for i in range(start, limit):
+            if data[i] == 0:
+                zero = i
+                break
+        if zero >= 0:
+            out_bytes[position] = zero - start + 1
+            position += 1
+            for i in range(start, zero):
+                out_bytes[position] = data[i]
+                position += 1
+            start = zero + 1
+            continue
+        out_bytes[position] = limit - start + 1
+        position += 1
+        for i in range(start, limit):
+            out_bytes[position] = data[i]
+            position += 1
+        if limit == length:
+            break
+        start = limit
+    return position
