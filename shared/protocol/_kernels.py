@@ -731,3 +731,14 @@ def cobs_encode_into(data, out_bytes):
             break
         start = limit
     return position
+
+
+@kernel(boolean(i8_2d_ro, int64))
+def ints_within(values, limit):
+    """Return True when every entry of `values` (n, 2) lies within +-`limit` (inclusive)."""
+    for i in range(values.shape[0]):
+        for axis in range(2):
+            value = values[i, axis]
+            if value > limit or value < -limit:  # not abs(): it wraps at the most negative int64
+                return False
+    return True

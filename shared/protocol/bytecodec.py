@@ -97,6 +97,20 @@ class ByteWriter:
         self._buffer += data
 
 
+def _short_varint(data: memoryview, position: int, end: int) -> tuple[int, int]:
+    """(value, next position) of a varint of one or two bytes at `position`, else (0, 0): the common case of the
+    decoders' hot path (pixel deltas at 1/64 px take two bytes), read without a loop."""
+    if position < end:
+        first = data[position]
+        if first < 0x80:
+            return first, position + 1
+        if position + 1 < end:
+            second = data[position + 1]
+            if second < 0x80:
+                return (first & 0x7F) | (second << 7), position + 2
+    return 0, 0
+
+
 class ByteReader:
     """Read what `ByteWriter` wrote; any inconsistency raises `ProtocolError` naming `what` was being read."""
 
@@ -129,6 +143,12 @@ class ByteReader:
         data = self._data
         position = self._pos
         end = len(data)
+        value, after = _short_varint(data, position, end)
+        if after:
+            self._pos = after
+            if value > maximum:
+                raise ProtocolError(f"{what} = {value} exceeds its maximum {maximum}")
+            return value
         value = 0
         for shift in range(0, 7 * _MAX_VARINT_BYTES, 7):
             if position >= end:
@@ -145,10 +165,9 @@ class ByteReader:
 
     def svarint(self, what: str, limit: int = 1 << 62) -> int:
         """Read a zigzag varint and check ``abs(value) <= limit``."""
-        position = self._pos
-        if position < len(self._data) and self._data[position] < 0x80:  # one byte: the usual small delta
-            unsigned = self._data[position]
-            self._pos = position + 1
+        unsigned, after = _short_varint(self._data, self._pos, len(self._data))
+        if after:
+            self._pos = after
         else:
             unsigned = self.uvarint(what)
         value = (unsigned >> 1) if not unsigned & 1 else -((unsigned + 1) >> 1)
@@ -160,14 +179,17 @@ class ByteReader:
         """Read two zigzag varints (the u and v of a point: errors name ``what u`` or ``what v``), each checked as
         `svarint` checks it."""
         data = self._data
-        position = self._pos
-        if position + 1 < len(data) and data[position] < 0x80 and data[position + 1] < 0x80:
-            a, b = data[position], data[position + 1]
-            u = (a >> 1) if not a & 1 else -((a + 1) >> 1)
-            v = (b >> 1) if not b & 1 else -((b + 1) >> 1)
-            if abs(u) <= limit and abs(v) <= limit:
-                self._pos = position + 2
-                return u, v
+        end = len(data)
+        a, middle = _short_varint(data, self._pos, end)
+        if middle:
+            b, after = _short_varint(data, middle, end)
+            if after:
+                u = (a >> 1) if not a & 1 else -((a + 1) >> 1)
+                v = (b >> 1) if not b & 1 else -((b + 1) >> 1)
+                if abs(u) <= limit and abs(v) <= limit:
+                    self._pos = after
+                    return u, v
+        # Longer varints or an error: the general path (and its messages); names are built only here.
         return self.svarint(f"{what} u", limit), self.svarint(f"{what} v", limit)
 
     def buffer(self) -> tuple[NDArray[np.uint8], int]:

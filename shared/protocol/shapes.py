@@ -46,6 +46,7 @@ from ropecam.shared.protocol._kernels import (
     chain_bytes,
     distances_to_polyline,
     fit_spline_with_corrections,
+    ints_within,
     read_chain,
     relative_positions,
     sample_with_table,
@@ -166,7 +167,7 @@ def _spline_samples(control_q: NDArray[np.int64], point_count: int, shift: int) 
     """The decoder's polyline before corrections; the encoder's check runs the very same arithmetic."""
     out = np.empty((point_count, 2))
     first, basis = _sample_table(point_count, len(control_q))
-    sample_with_table(np.ascontiguousarray(control_q / float(1 << shift)), first, basis, out)
+    sample_with_table(control_q / float(1 << shift), first, basis, out)  # a new C-contiguous array
     return out
 
 
@@ -573,7 +574,7 @@ def decode_shape(
         control_q = chain + reference_control_q
     else:
         control_q = chain + _origin_q(origin_px, shift)
-    if np.any(np.abs(control_q) > limit):
+    if not ints_within(control_q, limit):
         raise ProtocolError(f"{what}: control point beyond +-{_COORD_LIMIT_PX:g} px")
     corrections = reader.uvarint(f"{what} correction count", n)
     points = _spline_samples(control_q, n, shift)
