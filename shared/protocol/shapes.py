@@ -263,6 +263,11 @@ class _Candidate:
 
 
 _LOCAL = threading.local()
+_UNTRIED: Final = object()
+_NO_INDEX: Final = np.zeros(0, dtype=np.int64)
+_NO_OFFSETS: Final = np.zeros((0, 2), dtype=np.int64)
+_NO_INDEX.flags.writeable = False  # shared by candidates without corrections
+_NO_OFFSETS.flags.writeable = False
 
 
 def _workspace(n: int) -> tuple[NDArray, ...]:
@@ -279,10 +284,12 @@ def _workspace(n: int) -> tuple[NDArray, ...]:
             np.empty(capacity), np.empty(4), np.empty((MAX_CONTROL_POINTS, MAX_CONTROL_POINTS)),
             np.empty((capacity, 2)), np.empty((capacity, 2)), np.empty(capacity), np.empty(capacity, dtype=np.int64),
             np.empty((capacity, 2), dtype=np.int64), np.zeros(capacity + 1, dtype=np.int64), np.empty(2),
+            np.empty((MAX_CONTROL_POINTS, 2)),
         )  # fmt: skip
         _LOCAL.buffers = buffers
-    _, t, basis, normal, samples, decoded, distance, index, offset_q, changed, stats = buffers
+    _, t, basis, normal, samples, decoded, distance, index, offset_q, changed, stats, control = buffers
     return (
+        control,
         t[:n],
         basis,
         normal,
@@ -301,37 +308,40 @@ class _Fitter:
 
     def __init__(self, points: NDArray[np.float64], config: ShapeCodecConfig, origin_q: NDArray[np.int64]) -> None:
         n = len(points)
+        self.n = n
         self.points = points
         self.config = config
+        self.shift = config.quantum_shift
+        self.tolerance_px = config.tolerance_px
         self.origin_q = origin_q
-        (self.t, self.basis, self.normal, self.samples, self.decoded, self.distance, self.index, self.offset_q,
-         self.changed, self.stats) = _workspace(n)  # fmt: skip
+        (self.control, self.t, self.basis, self.normal, self.samples, self.decoded, self.distance, self.index,
+         self.offset_q, self.changed, self.stats) = _workspace(n)  # fmt: skip
         relative_positions(points, self.t)
         self.tried: dict[int, _Candidate | None] = {}
 
     def attempt(self, m: int) -> _Candidate | None:
         """The candidate with `m` control points (None: singular fit or no convergence), computed once."""
-        if m not in self.tried:
-            control_q = np.empty((m, 2), dtype=np.int64)
-            first, basis = _sample_table(len(self.points), m)
-            count = fit_spline_with_corrections(
-                self.points, self.t, self.config.quantum_shift, _MAX_CORRECTION_ROUNDS, self.config.tolerance_px,
-                _ENCODER_HALF_WINDOW, self.origin_q, first, basis, self.basis, self.normal, self.samples,
-                self.decoded, self.changed, np.empty((m, 2)), self.distance, control_q, self.index, self.offset_q,
-                self.stats,
-            )  # fmt: skip
-            self.tried[m] = (
-                None
-                if count < 0
-                else _Candidate(
-                    control_q,
-                    self.index[:count].copy(),
-                    self.offset_q[:count].copy(),
-                    float(self.stats[0]),
-                    int(self.stats[1]),
-                )
-            )
-        return self.tried[m]
+        candidate = self.tried.get(m, _UNTRIED)
+        if candidate is not _UNTRIED:
+            return candidate  # type: ignore[return-value]
+        control_q = np.empty((m, 2), dtype=np.int64)
+        first, basis = _sample_table(self.n, m)
+        count = fit_spline_with_corrections(
+            self.points, self.t, self.shift, _MAX_CORRECTION_ROUNDS, self.tolerance_px, _ENCODER_HALF_WINDOW,
+            self.origin_q, first, basis, self.basis, self.normal, self.samples, self.decoded, self.changed,
+            self.control[:m], self.distance, control_q, self.index, self.offset_q, self.stats,
+        )  # fmt: skip
+        if count < 0:
+            candidate = None
+        else:
+            max_error_px, size = self.stats.tolist()
+            if count == 0:  # the usual end shape: no corrections to copy out
+                candidate = _Candidate(control_q, _NO_INDEX, _NO_OFFSETS, max_error_px, int(size))
+            else:
+                index, offset_q = self.index[:count].copy(), self.offset_q[:count].copy()
+                candidate = _Candidate(control_q, index, offset_q, max_error_px, int(size))
+        self.tried[m] = candidate
+        return candidate
 
     def size(self, m: int) -> float:
         candidate = self.attempt(m)
