@@ -87,6 +87,18 @@ class ByteWriter:
             unsigned >>= 7
         buffer.append(unsigned)
 
+    def svarint_pair(self, u: int, v: int) -> None:
+        """Write two signed integers as zigzag varints (a point's deltas: one call instead of two)."""
+        buffer = self._buffer
+        for value in (u, v):
+            unsigned = (value << 1) if value >= 0 else ((-value) << 1) - 1
+            if unsigned > _U64_MAX:
+                self.uvarint(unsigned)  # raises, naming the value
+            while unsigned >= 0x80:
+                buffer.append((unsigned & 0x7F) | 0x80)
+                unsigned >>= 7
+            buffer.append(unsigned)
+
     def raw(self, data: bytes | bytearray | memoryview) -> None:
         """Write bytes as they are."""
         self._buffer += data

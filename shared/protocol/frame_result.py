@@ -482,8 +482,7 @@ def _write_point(w: ByteWriter, point: ArrayLike, reference_q: _PointQ) -> _Poin
     # Python's round() rounds half to even like np.rint; plain ints keep this per-point path free of NumPy calls.
     u = round(float(point[0]) * _POINT_SCALE)  # type: ignore[index]
     v = round(float(point[1]) * _POINT_SCALE)  # type: ignore[index]
-    w.svarint(u - reference_q[0])
-    w.svarint(v - reference_q[1])
+    w.svarint_pair(u - reference_q[0], v - reference_q[1])
     return u, v
 
 

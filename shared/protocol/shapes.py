@@ -418,7 +418,7 @@ def _encode_checked(
         if relative_candidate is not None and len(relative_candidate.index) == 0:
             # The usual case for the end shape: the begin shape's count fits without corrections, and offsets from
             # the begin shape are the cheapest code there is.
-            return _write_spline(relative_candidate, n, config, origin_px, reference)
+            return _write_spline(relative_candidate, n, config, fitter.origin_q, reference)
     start = int(min(max(control_hint or ref_count or _FIRST_GUESS, _MIN_CONTROL_POINTS), most))
     accept = _ACCEPT_MORE_CORRECTIONS + max(0, int(hint_corrections)) if control_hint is not None else 0
     best = _search(fitter, start, most, explore or control_hint is None, accept)
@@ -435,7 +435,7 @@ def _encode_checked(
             )
             if candidate.size - gain < chosen.size:
                 chosen, relative = candidate, True
-    return _write_spline(chosen, n, config, origin_px, reference if relative else None)
+    return _write_spline(chosen, n, config, fitter.origin_q, reference if relative else None)
 
 
 def _chain_size(items: NDArray[np.int64]) -> int:
@@ -484,27 +484,20 @@ def _write_spline(
     candidate: _Candidate,
     n: int,
     config: ShapeCodecConfig,
-    origin_px: tuple[float, float] | NDArray[np.float64] | None,
+    origin_q: NDArray[np.int64],
     reference: EncodedShape | None,
 ) -> EncodedShape:
     kind = ShapeKind.SPLINE if reference is None else ShapeKind.SPLINE_RELATIVE
+    m = len(candidate.control_q)
     writer = ByteWriter()
-    writer.raw(bytes([kind | (config.quantum_shift << 4)]))
+    writer.raw(bytes((int(kind) | (config.quantum_shift << 4),)))
     writer.uvarint(n)
-    writer.uvarint(len(candidate.control_q))
-    if reference is not None and reference.control_q is not None:
-        base = reference.control_q
-    else:
-        base = _origin_q(origin_px, config.quantum_shift).reshape(1, 2)
+    writer.uvarint(m)
+    base = reference.control_q if reference is not None and reference.control_q is not None else origin_q.reshape(1, 2)
     # Each value takes at most 10 bytes: a buffer that cannot overflow.
-    body = np.empty(10 * (2 * len(candidate.control_q) + 3 * len(candidate.index) + 1), dtype=np.uint8)
-    count = write_spline_body(
-        candidate.control_q,
-        np.ascontiguousarray(base, dtype=np.int64),
-        candidate.index,
-        candidate.offset_q,
-        body,
-    )
+    body = np.empty(10 * (2 * m + 3 * len(candidate.index) + 1), dtype=np.uint8)
+    base = np.ascontiguousarray(base, dtype=np.int64)  # a no-op for the encoder's own arrays
+    count = write_spline_body(candidate.control_q, base, candidate.index, candidate.offset_q, body)
     if count < 0:
         raise AssertionError(f"write_spline_body returned status {count}")
     writer.raw(body[:count].tobytes())
