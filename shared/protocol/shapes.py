@@ -44,6 +44,7 @@ from ropecam.shared.protocol._kernels import (
     apply_corrections,
     bspline_sample_table,
     chain_bytes,
+    decode_spline,
     distances_to_polyline,
     fit_spline_with_corrections,
     ints_within,
@@ -570,6 +571,25 @@ def decode_shape(
     m = reader.uvarint(f"{what} control count", MAX_CONTROL_POINTS)
     if not 2 <= m <= n:
         raise ProtocolError(f"{what}: control count {m} not in [2, point count {n}]")
+    if kind is ShapeKind.SPLINE:
+        base: NDArray[np.int64] | None = _origin_q(origin_px, shift).reshape(1, 2)
+    elif isinstance(reference_control_q, np.ndarray) and reference_control_q.shape == (m, 2):
+        base = reference_control_q if reference_control_q.dtype == np.int64 else None
+    else:
+        base = None  # no usable reference: the step-by-step path below says so, after the chain as always
+    if base is not None:
+        # The whole body in one kernel call; anything it does not accept is parsed again step by step below, which
+        # names the fault (or decodes what the kernel's stricter limits refused: a 10-byte varint).
+        data, start = reader.buffer()
+        control_q = np.empty((m, 2), dtype=np.int64)
+        points = np.empty((n, 2))
+        first, basis = _sample_table(n, m)
+        end = decode_spline(
+            data, start, limit, shift, np.ascontiguousarray(base), first, basis, control_q, np.empty((m, 2)), points
+        )
+        if end >= 0:
+            reader.seek(end, what)
+            return points, control_q
     chain = _read_chain(reader, m, limit, what)
     if kind is ShapeKind.SPLINE_RELATIVE:
         if reference_control_q is None or len(reference_control_q) != m:

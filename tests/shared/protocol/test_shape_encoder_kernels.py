@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from ropecam.shared.errors import ProtocolError
 from ropecam.shared.jit import KernelStatus
 from ropecam.shared.protocol._kernels import (
     _basis_at,
@@ -270,3 +271,34 @@ def test_unrolled_cubic_basis_is_bit_identical(m) -> None:
         assert first == span - 3
         knots = [_knot(span + k, m, 3) for k in range(-2, 4)]
         assert np.array(_cubic_basis(t, *knots)).tobytes() == generic.tobytes(), t
+
+
+def test_one_call_decoder_matches_the_step_by_step_parser(monkeypatch) -> None:
+    # decode_shape parses a spline body in one kernel (decode_spline) and falls back to the step-by-step parser on
+    # any fault: both must give the same points, and every fault the same message.
+    import ropecam.shared.protocol.shapes as shapes_module
+
+    rng = np.random.default_rng(7)
+    cases = []
+    for k, noise in enumerate((0.0, 0.02, 0.1, 1.0)):
+        n = 50 + 97 * k
+        t = np.linspace(0.0, 1.0, n)
+        points = np.stack([100 + 300 * t, 40 + 80 * np.sin(3 * t + k)], 1) + rng.normal(0, noise, (n, 2))
+        begin = encode_shape(points, ShapeCodecConfig(), (100.0, 40.0))
+        end = encode_shape(points + rng.normal(0, 0.3, (n, 2)) + 2.0, ShapeCodecConfig(), (100.0, 40.0), begin)
+        cases.append(begin.data + end.data)
+
+    def parse(data: bytes) -> list[object]:
+        reader = ByteReader(data)
+        try:
+            begin_px, begin_q = decode_shape(reader, (100.0, 40.0))
+            end_px, end_q = decode_shape(reader, (100.0, 40.0), begin_q)
+        except ProtocolError as exc:
+            return [str(exc)]
+        return [None if a is None else a.tobytes() for a in (begin_px, begin_q, end_px, end_q)]
+
+    inputs = cases + [c[:cut] for c in cases for cut in range(1, len(c), 3)]  # every kind of truncation
+    inputs += [bytes(b ^ 0x55 if i == j else b for i, b in enumerate(c)) for c in cases for j in range(2, len(c), 5)]
+    fast = [parse(data) for data in inputs]
+    monkeypatch.setattr(shapes_module, "decode_spline", lambda *args: KernelStatus.INVALID)
+    assert fast == [parse(data) for data in inputs]
