@@ -271,41 +271,43 @@ class FrameResult:
     pipeline_us: int = 0
 
     def __post_init__(self) -> None:
-        def put(name: str, value: object) -> None:
-            object.__setattr__(self, name, value)
-
+        # `frozen` guards setattr, not the instance dict: the checked values are stored there directly (this runs
+        # once per frame on the device and once per message on the host).
+        values = self.__dict__
         for name in ("frame_index", "pipeline_us"):
-            put(name, check_int(name, getattr(self, name), high=_U32))
+            values[name] = check_int(name, values[name], high=_U32)
         for name in ("exposure_start_t_ns", "exposure_end_t_ns"):
-            put(name, check_int(name, getattr(self, name), low=-(2**63), high=2**63 - 1))
+            values[name] = check_int(name, values[name], low=-(2**63), high=2**63 - 1)
         if not 0 <= self.exposure_end_t_ns - self.exposure_start_t_ns < 2**40:
             raise ValueError(
                 f"exposure_end_t_ns ({self.exposure_end_t_ns}) must be >= exposure_start_t_ns "
                 f"({self.exposure_start_t_ns}) and less than 2**40 ns later"
             )
-        put("status", FrameStatus(self.status))
-        put("method", Method(self.method))
-        if not 0.0 <= float(self.order_confidence) <= 1.0:
+        status, method = values["status"], values["method"]
+        values["status"] = status if type(status) is FrameStatus else FrameStatus(status)
+        values["method"] = method if type(method) is Method else Method(method)
+        confidence = float(values["order_confidence"])
+        if not 0.0 <= confidence <= 1.0:
             raise ValueError(f"order_confidence must be in [0, 1], got {self.order_confidence!r}")
-        put("order_confidence", float(self.order_confidence))
-        put("begin_px", _polyline(self.begin_px, "begin_px"))
-        put("end_px", _polyline(self.end_px, "end_px"))
+        values["order_confidence"] = confidence
+        values["begin_px"] = _polyline(values["begin_px"], "begin_px")
+        values["end_px"] = _polyline(values["end_px"], "end_px")
         for name in ("begin_tip_px", "end_tip_px", "fixed_end_px"):
-            put(name, _point(getattr(self, name), name))
+            values[name] = _point(values[name], name)
         s_m = tuple(float(s) for s in self.material_s_m)
         # Checked after quantisation to 0.1 mm: 399.99996 m would be sent as 400.0 m, which the decoder refuses.
         if len(s_m) > MAX_MATERIAL_POINTS or not all(s >= 0.0 and round(s * _S_SCALE) < _S_LIMIT for s in s_m):
             raise ValueError(
                 f"material_s_m must hold <= {MAX_MATERIAL_POINTS} arc lengths in [0, 400) m (at 0.1 mm), got {s_m}"
             )
-        put("material_s_m", s_m)
-        put("material_begin_px", _material(self.material_begin_px, len(s_m), "material_begin_px"))
-        put("material_end_px", _material(self.material_end_px, len(s_m), "material_end_px"))
+        values["material_s_m"] = s_m
+        values["material_begin_px"] = _material(values["material_begin_px"], len(s_m), "material_begin_px")
+        values["material_end_px"] = _material(values["material_end_px"], len(s_m), "material_end_px")
         for name in ("stretch_begin", "stretch_end"):
-            value = float(getattr(self, name))
+            value = float(values[name])
             if not (math.isnan(value) or 0.0 <= value < 50.0):
                 raise ValueError(f"{name} must be nan or in [0, 50), got {value!r}")
-            put(name, value)
+            values[name] = value
 
     def __repr__(self) -> str:
         def shape(value: NDArray[np.float64] | None) -> str:
