@@ -47,6 +47,7 @@ from ropecam.shared.protocol._kernels import (
     decode_spline,
     distances_to_polyline,
     fit_spline_with_corrections,
+    fit_work_size,
     ints_within,
     read_chain,
     relative_positions,
@@ -273,7 +274,7 @@ _NO_OFFSETS.flags.writeable = False
 
 def _workspace(n: int) -> tuple[NDArray, ...]:
     """Work buffers of the encoder for a polyline of `n` points, reused by the calls of one thread (a shape's
-    buffers are free again once it is encoded; allocating ten arrays per shape costs more than its fits' setup).
+    buffers are free again once it is encoded; allocating them per shape costs more than its fits' setup).
 
     Leading slices of C-contiguous buffers: C-contiguous, as the kernels require.
     """
@@ -282,26 +283,16 @@ def _workspace(n: int) -> tuple[NDArray, ...]:
         capacity = max(n, 512)
         buffers = (
             capacity,
-            np.empty(capacity), np.empty(4), np.empty((MAX_CONTROL_POINTS, MAX_CONTROL_POINTS)),
-            np.empty((capacity, 2)), np.empty((capacity, 2)), np.empty(capacity), np.empty(capacity, dtype=np.int64),
-            np.empty((capacity, 2), dtype=np.int64), np.zeros(capacity + 1, dtype=np.int64), np.empty(2),
-            np.empty((MAX_CONTROL_POINTS, 2)),
-        )  # fmt: skip
+            np.empty(capacity),  # t
+            np.empty(fit_work_size(capacity, MAX_CONTROL_POINTS)),  # the fit's float work
+            np.empty(capacity, dtype=np.int64),  # index
+            np.empty((capacity, 2), dtype=np.int64),  # offsets
+            np.zeros(capacity + 1, dtype=np.int64),  # moved samples per round
+            np.empty(2),  # stats
+        )
         _LOCAL.buffers = buffers
-    _, t, basis, normal, samples, decoded, distance, index, offset_q, changed, stats, control = buffers
-    return (
-        control,
-        t[:n],
-        basis,
-        normal,
-        samples[:n],
-        decoded[:n],
-        distance[:n],
-        index[:n],
-        offset_q[:n],
-        changed[: n + 1],
-        stats,
-    )
+    _, t, work, index, offset_q, changed, stats = buffers
+    return t[:n], work, index[:n], offset_q[:n], changed[: n + 1], stats
 
 
 class _Fitter:
@@ -315,8 +306,7 @@ class _Fitter:
         self.shift = config.quantum_shift
         self.tolerance_px = config.tolerance_px
         self.origin_q = origin_q
-        (self.control, self.t, self.basis, self.normal, self.samples, self.decoded, self.distance, self.index,
-         self.offset_q, self.changed, self.stats) = _workspace(n)  # fmt: skip
+        self.t, self.work, self.index, self.offset_q, self.changed, self.stats = _workspace(n)
         relative_positions(points, self.t)
         self.tried: dict[int, _Candidate | None] = {}
 
@@ -329,8 +319,7 @@ class _Fitter:
         first, basis = _sample_table(self.n, m)
         count = fit_spline_with_corrections(
             self.points, self.t, self.shift, _MAX_CORRECTION_ROUNDS, self.tolerance_px, _ENCODER_HALF_WINDOW,
-            self.origin_q, first, basis, self.basis, self.normal, self.samples, self.decoded, self.changed,
-            self.control[:m], self.distance, control_q, self.index, self.offset_q, self.stats,
+            self.origin_q, first, basis, self.work, self.changed, control_q, self.index, self.offset_q, self.stats,
         )  # fmt: skip
         if count < 0:
             candidate = None

@@ -16,6 +16,7 @@ from ropecam.shared.protocol._kernels import (
     chain_bytes,
     fit_bspline,
     fit_spline_with_corrections,
+    fit_work_size,
     read_chain,
     relative_positions,
     sample_bspline,
@@ -94,9 +95,8 @@ def _call(points, m, shift=6, tolerance=0.05, half_window=3, origin_q=(0, 0)):
     table = np.empty((n, 4))
     bspline_sample_table(m, first, table)  # a status (negative) for m < 2: the fit below refuses such an m itself
     count = fit_spline_with_corrections(
-        points, t, shift, 8, tolerance, half_window, np.array(origin_q, dtype=np.int64), first, table, np.empty(4),
-        np.empty((m, m)), np.empty((n, 2)), np.empty((n, 2)), np.zeros(n + 1, dtype=np.int64), np.empty((m, 2)),
-        np.empty(n), control_q, index, offset_q, stats,
+        points, t, shift, 8, tolerance, half_window, np.array(origin_q, dtype=np.int64), first, table,
+        np.empty(fit_work_size(n, m)), np.zeros(n + 1, dtype=np.int64), control_q, index, offset_q, stats,
     )  # fmt: skip
     return t, count, control_q, index[: max(count, 0)], offset_q[: max(count, 0)], stats
 
