@@ -13,7 +13,9 @@ time slices, ~4 ms, land on a few messages whatever they cost).
     python tools/bench_protocol.py --frameset sim/rig --output-smoothing-px 0   # ... without output smoothing
 
 With --frameset, the FrameResults are what the device pipeline measures on a recorded frame set (e.g. from
-`ropecam simulate rig`), converted exactly as the daemon converts them.
+`ropecam simulate rig`), converted exactly as the daemon converts them; then each message is timed as the daemon
+spends it after the pipeline: `to_wire`, `encode_message` (shape coder, header, CRC) and the serial link's COBS
+`frame` ("daemon per frame"; the "encode" figure is `encode_message` alone, as without --frameset).
 
 Besides sizes and times it reports the shapes' roughness: the distance of every device point to a least-squares
 cubic spline with a knot every ~20 px (p95 and max). A rope has no wiggles at that scale, so this is measurement
@@ -23,16 +25,19 @@ noise; every point the spline coder cannot reach within 0.05 px costs a correcti
 from __future__ import annotations
 
 import argparse
+import copy
 import json
 import statistics
 import sys
 import time
+from typing import Any
 
 import numpy as np
 
 from ropecam.host.sim.stream import rig_frame_results
 from ropecam.shared.protocol import FrameResult, ShapeHint, decode_message, encode_message
 from ropecam.shared.protocol._kernels import fit_bspline, sample_bspline
+from ropecam.shared.protocol.framing import frame
 from ropecam.shared.protocol.shapes import MAX_CONTROL_POINTS, polyline_distances_px
 from ropecam.shared.protocol.wire import CRC_BYTES, HEADER_BYTES
 
@@ -44,12 +49,12 @@ def build_records(count: int, noise: str, seed: int) -> list[FrameResult]:
     return rig_frame_results(count, seed=seed, noise=noise, stretch_wobble=0.002)
 
 
-def pipeline_records(frameset: str, rope_length_m: float, output_smoothing_px: float | None) -> list[FrameResult]:
-    """FrameResults of the device pipeline over a recorded frame set (the daemon's conversion)."""
+def pipeline_results(frameset: str, rope_length_m: float, output_smoothing_px: float | None) -> list[Any]:
+    """The device pipeline's results over a recorded frame set (copied out of its buffers), frames with both
+    shapes only."""
     from ropecam.device.capture.frameset import FrameSet
     from ropecam.device.pipeline.config import PipelineConfig
     from ropecam.device.pipeline.pipeline import Pipeline
-    from ropecam.device.pipeline.result import to_wire
     from ropecam.host.compare.measurement import default_points
 
     frames = FrameSet(frameset)
@@ -57,8 +62,36 @@ def pipeline_records(frameset: str, rope_length_m: float, output_smoothing_px: f
     options = {} if output_smoothing_px is None else {"output_smoothing_px": output_smoothing_px}
     config = PipelineConfig(rope_length_m=rope_length_m, material_points_m=points, **options)
     pipeline = Pipeline(config, frames.image_size)
-    records = [to_wire(pipeline.process(image, r.frame, r.t_ns, r.exposure_us)) for r, image in frames]
-    return [r for r in records if r.begin_px is not None and r.end_px is not None]
+    # The result's arrays are views into the pipeline's buffers, valid until its next call: copied at once.
+    results = [copy.deepcopy(pipeline.process(image, r.frame, r.t_ns, r.exposure_us)) for r, image in frames]
+    return [r for r in results if r.begin is not None and r.end is not None]
+
+
+def daemon_stream(results: list[Any], hint: ShapeHint) -> tuple[list[bytes], dict[str, list[float]]]:
+    """Do per result what the daemon does after the pipeline (`to_wire`, `encode_message` with the stream's hint,
+    the serial link's COBS `frame`) and return the messages and the seconds of each step per message."""
+    from ropecam.device.pipeline.result import to_wire
+
+    out: list[bytes] = []
+    seconds: dict[str, list[float]] = {"to_wire": [], "encode": [], "frame": [], "total": []}
+    for sequence, result in enumerate(results):
+        start = time.perf_counter()
+        record = to_wire(result)
+        converted = time.perf_counter()
+        t_ns = record.exposure_end_t_ns + 2_000_000
+        message = encode_message(record, device_id=1, sequence=sequence, t_ns=t_ns, pack_options={"hint": hint})
+        encoded = time.perf_counter()
+        frame(message)
+        framed = time.perf_counter()
+        out.append(message)
+        for key, value in (
+            ("to_wire", converted - start),
+            ("encode", encoded - converted),
+            ("frame", framed - encoded),
+            ("total", framed - start),
+        ):
+            seconds[key].append(value)
+    return out, seconds
 
 
 def roughness_px(points: np.ndarray, knot_spacing_px: float = 20.0) -> np.ndarray:
@@ -130,19 +163,30 @@ def main() -> int:
     )
     args = parser.parse_args()  # fmt: skip
 
+    results: list[Any] = []
     if args.frameset:
-        records = pipeline_records(args.frameset, args.rope_length_m, args.output_smoothing_px)
+        from ropecam.device.pipeline.result import to_wire
+
+        results = pipeline_results(args.frameset, args.rope_length_m, args.output_smoothing_px)
+        records = [to_wire(r) for r in results]
         args.frames, args.noise = len(records), f"pipeline output on {args.frameset}"
     else:
         records = build_records(args.frames, args.noise, args.seed)
     encode_s: list[float] = []
     decode_s: list[float] = []
+    daemon_s: dict[str, list[float]] = {}
     messages: list[bytes] = []
     hint = ShapeHint()
     for _ in range(args.repeats):
         hint = ShapeHint()
-        messages, seconds = encode_stream(records, hint)
-        encode_s += seconds
+        if results:
+            messages, steps = daemon_stream(results, hint)
+            encode_s += steps["encode"]
+            for key, values in steps.items():
+                daemon_s.setdefault(key, []).extend(values)
+        else:
+            messages, seconds = encode_stream(records, hint)
+            encode_s += seconds
         decoded, seconds = decode_stream(messages)
         decode_s += seconds
     sizes = np.array([len(m) for m in messages])
@@ -165,6 +209,10 @@ def main() -> int:
         "decode_us_per_message": round(statistics.median(decode_s) * 1e6, 1),
         "repeats": args.repeats,
     }
+    if daemon_s:
+        # The device's whole per-frame cost after the pipeline, and its steps (medians per message).
+        for key, values in daemon_s.items():
+            result[f"daemon_{key}_us_per_message"] = round(statistics.median(values) * 1e6, 1)
     if args.json:
         print(json.dumps(result))
     else:
@@ -178,6 +226,10 @@ def main() -> int:
               f"max {result['roughness_max_px']} px; {result['corrections_per_shape']} corrections/shape")  # fmt: skip
         print(f"  encode {result['encode_us_per_message']} us/message, "
               f"decode {result['decode_us_per_message']} us/message (medians over {args.repeats} runs)")  # fmt: skip
+        if daemon_s:
+            steps = {key: result[f"daemon_{key}_us_per_message"] for key in daemon_s}
+            print(f"  daemon per frame: to_wire + encode + COBS frame {steps['total']} us (to_wire "
+                  f"{steps['to_wire']}, encode {steps['encode']}, frame {steps['frame']} us; medians)")  # fmt: skip
     return 0
 
 

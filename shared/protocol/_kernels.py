@@ -7,7 +7,7 @@ import math
 from typing import Final
 
 import numpy as np
-from numba import float64, int64, types
+from numba import boolean, float64, int64, types
 
 from ropecam.shared.jit import KernelStatus, f8_1d, f8_1d_ro, f8_2d, f8_2d_ro, kernel, u1_1d
 
@@ -23,6 +23,38 @@ _SINGULAR = int(KernelStatus.SINGULAR)
 _NO_CONVERGENCE = int(KernelStatus.NO_CONVERGENCE)
 
 
+@kernel(types.UniTuple(int64, 2)(float64, int64, int64))
+def _window(t, m, half_window):
+    """First and last segment index compared with a point at relative position `t` on a curve of m points."""
+    centre = int(min(1.0, max(0.0, t)) * (m - 1) + 0.5)
+    return max(0, centre - half_window), min(m - 2, centre + half_window)
+
+
+@kernel(float64(f8_2d_ro, f8_1d_ro, f8_2d_ro, int64, int64))
+def _distance_in_window(points, t, curve, half_window, i):
+    """Distance from point `i` to the segments of `curve` within `half_window` of its relative position."""
+    m = curve.shape[0]
+    lo, hi = _window(t[i], m, half_window)
+    px = points[i, 0]
+    py = points[i, 1]
+    best = math.inf
+    for j in range(lo, hi + 1):
+        ax = curve[j, 0]
+        ay = curve[j, 1]
+        dx = curve[j + 1, 0] - ax
+        dy = curve[j + 1, 1] - ay
+        qx = px - ax
+        qy = py - ay
+        length2 = dx * dx + dy * dy
+        s = 0.0
+        if length2 > 0.0:
+            s = min(1.0, max(0.0, (qx * dx + qy * dy) / length2))
+        gx = qx - s * dx
+        gy = qy - s * dy
+        best = min(best, gx * gx + gy * gy)
+    return math.sqrt(best)
+
+
 @kernel(int64(f8_2d_ro, f8_1d_ro, f8_2d_ro, int64, f8_1d))
 def distances_to_polyline(points, t, curve, half_window, out_distance_px):
     """Write into `out_distance_px` the distance from each of `points` (n, 2) to the polyline `curve` (m, 2).
@@ -36,27 +68,7 @@ def distances_to_polyline(points, t, curve, half_window, out_distance_px):
     if m < 2 or t.shape[0] != n or out_distance_px.shape[0] < n or half_window < 0:
         return _INVALID
     for i in range(n):
-        centre = int(min(1.0, max(0.0, t[i])) * (m - 1) + 0.5)
-        lo = max(0, centre - half_window)
-        hi = min(m - 2, centre + half_window)
-        px = points[i, 0]
-        py = points[i, 1]
-        best = math.inf
-        for j in range(lo, hi + 1):
-            ax = curve[j, 0]
-            ay = curve[j, 1]
-            dx = curve[j + 1, 0] - ax
-            dy = curve[j + 1, 1] - ay
-            qx = px - ax
-            qy = py - ay
-            length2 = dx * dx + dy * dy
-            s = 0.0
-            if length2 > 0.0:
-                s = min(1.0, max(0.0, (qx * dx + qy * dy) / length2))
-            gx = qx - s * dx
-            gy = qy - s * dy
-            best = min(best, gx * gx + gy * gy)
-        out_distance_px[i] = math.sqrt(best)
+        out_distance_px[i] = _distance_in_window(points, t, curve, half_window, i)
     return n
 
 
@@ -100,6 +112,36 @@ def _basis_at(t, control_count, degree, out_values):
     return span - degree
 
 
+@kernel(types.UniTuple(float64, 4)(float64, float64, float64, float64, float64, float64, float64))
+def _cubic_basis(t, k0, k1, k2, k3, k4, k5):
+    """The four non-zero cubic basis values at `t` in the span [k2, k3) (knots k0..k5 around it): `_basis_at`
+    for degree 3 unrolled, the same operations in the same order (bit-identical; tested)."""
+    left1 = t - k2
+    right1 = k3 - t
+    temp = 1.0 / (right1 + left1)
+    n0 = 0.0 + right1 * temp
+    n1 = left1 * temp
+    left2 = t - k1
+    right2 = k4 - t
+    temp = n0 / (right1 + left2)
+    n0 = 0.0 + right1 * temp
+    saved = left2 * temp
+    temp = n1 / (right2 + left1)
+    n1 = saved + right2 * temp
+    n2 = left1 * temp
+    left3 = t - k0
+    right3 = k5 - t
+    temp = n0 / (right1 + left3)
+    n0 = 0.0 + right1 * temp
+    saved = left3 * temp
+    temp = n1 / (right2 + left2)
+    n1 = saved + right2 * temp
+    saved = left2 * temp
+    temp = n2 / (right3 + left1)
+    n2 = saved + right3 * temp
+    return n0, n1, n2, left1 * temp
+
+
 @kernel(int64(f8_2d_ro, f8_1d_ro, int64, f8_1d, f8_2d, f8_2d))
 def fit_bspline(points, t, control_count, work_basis, work_normal, out_control):
     """Least-squares fit of a clamped uniform B-spline (degree min(3, m - 1)) through `points` at parameters `t`.
@@ -127,8 +169,31 @@ def fit_bspline(points, t, control_count, work_basis, work_normal, out_control):
         for b in range(m):
             work_normal[a, b] = 0.0
     values = work_basis
+    knots_span = -1
+    k0 = k1 = k2 = k3 = k4 = k5 = 0.0
     for i in range(n):
-        first = _basis_at(min(1.0, max(0.0, t[i])), m, degree, values)
+        ti = min(1.0, max(0.0, t[i]))
+        if degree == 3:
+            # The cubic case (every spline the encoder fits) unrolled, with the six knots around the span kept
+            # while consecutive points stay in it: the operations of `_basis_at`, in its order (bit-identical).
+            segments = m - 3
+            span = 3 + min(int(ti * segments), segments - 1)
+            if span != knots_span:
+                knots_span = span
+                k0 = _knot(span - 2, m, 3)
+                k1 = _knot(span - 1, m, 3)
+                k2 = _knot(span, m, 3)
+                k3 = _knot(span + 1, m, 3)
+                k4 = _knot(span + 2, m, 3)
+                k5 = _knot(span + 3, m, 3)
+            n0, n1, n2, n3 = _cubic_basis(ti, k0, k1, k2, k3, k4, k5)
+            values[0] = n0
+            values[1] = n1
+            values[2] = n2
+            values[3] = n3
+            first = span - 3
+        else:
+            first = _basis_at(ti, m, degree, values)
         for a in range(degree + 1):
             va = values[a]
             out_control[first + a, 0] += va * points[i, 0]
@@ -191,6 +256,49 @@ def sample_bspline(control, work_basis, out_points):
     return n
 
 
+@kernel(int64(int64, i8_1d, f8_2d))
+def bspline_sample_table(control_count, out_first, out_basis):
+    """Write the basis of a clamped uniform B-spline of `control_count` control points at n = len(`out_first`)
+    equally spaced parameters: per sample the first control index (`out_first`) and the degree + 1 non-zero basis
+    values (``out_basis[i, :degree + 1]``). The table depends only on (n, m): `sample_with_table` then evaluates
+    any spline of that size with the very arithmetic of `sample_bspline`. Returns n, or INVALID (m < 2, n < 2,
+    `out_basis` too small)."""
+    n = out_first.shape[0]
+    m = control_count
+    if m < 2 or n < 2 or out_basis.shape[0] != n or out_basis.shape[1] < 4:
+        return _INVALID
+    degree = min(3, m - 1)
+    for i in range(n):
+        out_first[i] = _basis_at(i / (n - 1), m, degree, out_basis[i])
+    return n
+
+
+@kernel(int64(f8_2d_ro, i8_1d_ro, f8_2d_ro, f8_2d))
+def sample_with_table(control, first, basis, out_points):
+    """`sample_bspline` with the basis from `bspline_sample_table` (same results, bit for bit).
+
+    Returns n = len(`out_points`), or INVALID when the table's size differs from n or it indexes beyond `control`
+    (the caller pairs each table with its m: a smaller m can pass unnoticed only while its indices stay in range).
+    """
+    m = control.shape[0]
+    n = out_points.shape[0]
+    if m < 2 or n < 2 or first.shape[0] != n or basis.shape[0] != n or basis.shape[1] < 4:
+        return _INVALID
+    degree = min(3, m - 1)
+    for i in range(n):
+        f = first[i]
+        if f < 0 or f + degree >= m:
+            return _INVALID
+        u = 0.0
+        v = 0.0
+        for a in range(degree + 1):
+            u += basis[i, a] * control[f + a, 0]
+            v += basis[i, a] * control[f + a, 1]
+        out_points[i, 0] = u
+        out_points[i, 1] = v
+    return n
+
+
 @kernel(int64(int64))
 def uvarint_bytes(value):
     """Return the length in bytes of `value` (>= 0) written as a LEB128 varint."""
@@ -222,10 +330,16 @@ def chain_bytes(items):
     return total
 
 
+@kernel(int64(int64, int64))
+def fit_work_size(point_count, control_count):
+    """Values of float64 work `fit_spline_with_corrections` needs for n = `point_count` points and m control points."""
+    return 4 + control_count * control_count + 5 * point_count + 2 * control_count
+
+
 @kernel(
     int64(
-        f8_2d_ro, f8_1d_ro, int64, int64, float64, int64, i8_1d_ro,
-        f8_1d, f8_2d, f8_2d, f8_2d, f8_2d, f8_1d, i8_2d, i8_1d, i8_2d, f8_1d,
+        f8_2d_ro, f8_1d_ro, int64, int64, float64, int64, i8_1d_ro, i8_1d_ro, f8_2d_ro,
+        f8_1d, i8_1d, i8_2d, i8_1d, i8_2d, f8_1d,
     )
 )  # fmt: skip
 def fit_spline_with_corrections(
@@ -236,12 +350,10 @@ def fit_spline_with_corrections(
     tolerance_px,
     half_window,
     origin_q,
-    work_basis,
-    work_normal,
-    work_samples,
-    work_decoded,
-    out_control,
-    out_distance_px,
+    sample_first,
+    sample_basis,
+    work,
+    work_changed,
     out_control_q,
     out_index,
     out_offset_q,
@@ -250,11 +362,16 @@ def fit_spline_with_corrections(
     """Fit a spline of m = len(`out_control_q`) control points to `points` and find the corrections that bring every
     point within `tolerance_px` of the decoded polyline (the encoder's inner loop, one call per candidate m).
 
+    `work` (float64, at least ``fit_work_size(n, m)`` values) holds, in this order, the fit's basis values (4) and
+    normal matrix (m * m), the samples and the decoded polyline (n * 2 each), the distances (n) and the control
+    points in pixels (m * 2): one argument instead of six (each array argument costs the call ~0.4 us).
     The control points are fitted (`fit_bspline`), quantised to ``2**-shift`` px into `out_control_q`, turned back
-    into pixels exactly as the decoder does (`out_control`) and sampled at len(`points`) equally spaced parameters
-    (`sample_bspline`, into `work_samples`). Then, for up to `max_rounds` rounds: the distance of every point to
-    the decoded polyline (`work_decoded`; the end points also to the decoded end points) goes into
-    `out_distance_px`; the decoded sample nearest each point farther than `tolerance_px` is moved onto it (an
+    into pixels exactly as the decoder does and sampled at len(`points`) equally spaced parameters
+    (`sample_with_table` with the table of (n, m) from `bspline_sample_table`: `sample_first`, `sample_basis`).
+    Then, for up to `max_rounds` rounds: the distance of every point to the decoded polyline (the end points also
+    to the decoded end points; after the first round only for the points whose window holds a sample moved in the
+    round before: the others' distances cannot have changed; `work_changed`, n + 1 values, counts the moved
+    samples); the decoded sample nearest each point farther than `tolerance_px` is moved onto it (an
     offset at the quantum), or, when that sample already carries another point, a free neighbour. Writes the k
     corrections in sample order to ``out_index[:k]`` and ``out_offset_q[:k]``, and to `out_stats`: [0] the largest
     distance, [1] the bytes of the shape's control chain relative to `origin_q` plus its correction list.
@@ -265,17 +382,26 @@ def fit_spline_with_corrections(
     m = out_control_q.shape[0]
     if (
         n < 2
+        or m < 2
         or t.shape[0] != n
-        or out_control.shape[0] != m
-        or work_samples.shape[0] != n
-        or work_decoded.shape[0] != n
-        or out_distance_px.shape[0] != n
+        or work.shape[0] < fit_work_size(n, m)
         or out_index.shape[0] < n
         or out_offset_q.shape[0] < n
         or out_stats.shape[0] < 2
         or origin_q.shape[0] != 2
+        or work_changed.shape[0] != n + 1
     ):
         return _INVALID
+    work_basis = work[0:4]
+    work_normal = work[4 : 4 + m * m].reshape((m, m))
+    offset = 4 + m * m
+    work_samples = work[offset : offset + 2 * n].reshape((n, 2))
+    offset += 2 * n
+    work_decoded = work[offset : offset + 2 * n].reshape((n, 2))
+    offset += 2 * n
+    out_distance_px = work[offset : offset + n]
+    offset += n
+    out_control = work[offset : offset + 2 * m].reshape((m, 2))
     status = fit_bspline(points, t, m, work_basis, work_normal, out_control)
     if status != m:
         return status
@@ -284,7 +410,8 @@ def fit_spline_with_corrections(
         for axis in range(2):
             out_control_q[a, axis] = int(np.rint(out_control[a, axis] * scale))
             out_control[a, axis] = out_control_q[a, axis] / scale
-    sample_bspline(out_control, work_basis, work_samples)
+    if sample_with_table(out_control, sample_first, sample_basis, work_samples) != n:
+        return _INVALID
     for i in range(n):
         work_decoded[i, 0] = work_samples[i, 0]
         work_decoded[i, 1] = work_samples[i, 1]
@@ -292,8 +419,20 @@ def fit_spline_with_corrections(
         out_offset_q[i, 1] = 0
         out_index[i] = -1  # until the corrections are listed: the point each sample was moved onto
     converged = False
-    for _ in range(max_rounds):
-        distances_to_polyline(points, t, work_decoded, half_window, out_distance_px)
+    for round_number in range(max_rounds):
+        if round_number == 0:
+            distances_to_polyline(points, t, work_decoded, half_window, out_distance_px)
+        else:
+            # work_changed[j + 1] = 1 for each sample j moved last round; as prefix sums it tells in O(1) per point
+            # whether its window [lo, hi + 1] holds one.
+            for j in range(n):
+                work_changed[j + 1] += work_changed[j]
+            for i in range(n):
+                lo, hi = _window(t[i], n, half_window)
+                if work_changed[hi + 2] - work_changed[lo] > 0:
+                    out_distance_px[i] = _distance_in_window(points, t, work_decoded, half_window, i)
+        for j in range(n + 1):
+            work_changed[j] = 0
         out_distance_px[0] = max(
             out_distance_px[0], math.hypot(points[0, 0] - work_decoded[0, 0], points[0, 1] - work_decoded[0, 1])
         )
@@ -327,6 +466,7 @@ def fit_spline_with_corrections(
                 dv = int(np.rint((points[i, 1] - work_samples[target, 1]) * scale))
                 out_offset_q[target, 0] = du
                 out_offset_q[target, 1] = dv
+                work_changed[target + 1] = 1
                 work_decoded[target, 0] = work_samples[target, 0] + du / scale
                 work_decoded[target, 1] = work_samples[target, 1] + dv / scale
     if not converged:
@@ -538,3 +678,121 @@ def apply_corrections(data, position, count, limit, shift, out_points):
         out_points[index, 0] += du / scale
         out_points[index, 1] += dv / scale
     return position
+
+
+@kernel(boolean(f8_2d_ro, float64))
+def points_within(points, limit):
+    """Return True when every coordinate of `points` (n, 2) is finite and strictly within +-`limit` (one pass: the
+    record's check of a polyline costs one call instead of several NumPy reductions)."""
+    for i in range(points.shape[0]):
+        for axis in range(2):
+            value = points[i, axis]
+            if not abs(value) < limit:  # also False for nan
+                return False
+    return True
+
+
+@kernel(boolean(f8_2d_ro, float64, float64))
+def rows_on_wire(points, scale, limit_q):
+    """Return True when every row of `points` (n, 2) is either (nan, nan) or a finite (u, v) whose quantisation
+    ``rint(x * scale)`` lies strictly within +-`limit_q` (the record's material-point rule, in one pass)."""
+    for i in range(points.shape[0]):
+        u = points[i, 0]
+        v = points[i, 1]
+        u_nan = math.isnan(u)
+        v_nan = math.isnan(v)
+        if u_nan and v_nan:
+            continue
+        if u_nan or v_nan or math.isinf(u) or math.isinf(v):
+            return False
+        if not (abs(np.rint(u * scale)) < limit_q and abs(np.rint(v * scale)) < limit_q):
+            return False
+    return True
+
+
+@kernel(int64(u1_1d_ro, u1_1d))
+def cobs_encode_into(data, out_bytes):
+    """Write the COBS encoding of `data` into `out_bytes` (it needs len(data) + len(data) // 254 + 1 bytes) and
+    return its length, or FULL when `out_bytes` is too small. The byte-for-byte algorithm of `framing`: blocks of a
+    code byte (distance to the next zero, at most 255) and up to 254 non-zero bytes; a block of 254 ends the
+    coding when the data ends with it."""
+    length = data.shape[0]
+    if out_bytes.shape[0] < length + length // 254 + 1:
+        return _FULL
+    position = 0
+    start = 0
+    while True:
+        limit = min(start + 254, length)
+        zero = -1
+        for i in range(start, limit):
+            if data[i] == 0:
+                zero = i
+                break
+        if zero >= 0:
+            out_bytes[position] = zero - start + 1
+            position += 1
+            for i in range(start, zero):
+                out_bytes[position] = data[i]
+                position += 1
+            start = zero + 1
+            continue
+        out_bytes[position] = limit - start + 1
+        position += 1
+        for i in range(start, limit):
+            out_bytes[position] = data[i]
+            position += 1
+        if limit == length:
+            break
+        start = limit
+    return position
+
+
+@kernel(boolean(i8_2d_ro, int64))
+def ints_within(values, limit):
+    """Return True when every entry of `values` (n, 2) lies within +-`limit` (inclusive)."""
+    for i in range(values.shape[0]):
+        for axis in range(2):
+            value = values[i, axis]
+            if value > limit or value < -limit:  # not abs(): it wraps at the most negative int64
+                return False
+    return True
+
+
+@kernel(int64(u1_1d_ro, int64, int64, int64, i8_2d_ro, i8_1d_ro, f8_2d_ro, i8_2d, f8_2d, f8_2d))
+def decode_spline(
+    data, position, limit, shift, base_q, sample_first, sample_basis, out_control_q, work_control, out_points
+):
+    """Decode the body of a spline shape after its control count (see `shapes`) in one call: the chain of
+    m = len(`out_control_q`) items (`read_chain`), plus `base_q` (one row: the origin; m rows: the reference
+    shape's control points) into `out_control_q`, each within +-`limit`; the correction count (<= n); the spline
+    sampled at n = len(`out_points`) parameters (`sample_with_table`, its table for (n, m); `work_control` (m, 2)
+    receives the control points in pixels) and the corrections added (`apply_corrections`).
+
+    Returns the position after the shape, or a negative KernelStatus for any fault (the caller's step-by-step
+    parser then names it).
+    """
+    m = out_control_q.shape[0]
+    n = out_points.shape[0]
+    per_row = base_q.shape[0] == m
+    if (not per_row and base_q.shape[0] != 1) or work_control.shape[0] != m or m < 2:
+        return _INVALID
+    position = read_chain(data, position, limit, out_control_q)
+    if position < 0:
+        return position
+    scale = float(1 << shift)
+    for a in range(m):
+        r = a if per_row else 0
+        for axis in range(2):
+            value = out_control_q[a, axis] + base_q[r, axis]
+            if value > limit or value < -limit:
+                return _INVALID
+            out_control_q[a, axis] = value
+            work_control[a, axis] = value / scale
+    count, position = _get_uvarint(data, position)
+    if position < 0:
+        return position
+    if count > n:
+        return _INVALID
+    if sample_with_table(work_control, sample_first, sample_basis, out_points) != n:
+        return _INVALID
+    return apply_corrections(data, position, count, limit, shift, out_points)

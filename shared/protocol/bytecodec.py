@@ -65,6 +65,9 @@ class ByteWriter:
 
     def uvarint(self, value: int) -> None:
         """Write an unsigned LEB128 varint (0 <= value < 2**64)."""
+        if 0 <= value < 0x80:
+            self._buffer.append(value)
+            return
         if not 0 <= value <= _U64_MAX:
             raise ValueError(f"uvarint value must be in [0, 2**64), got {value}")
         while value >= 0x80:
@@ -74,7 +77,27 @@ class ByteWriter:
 
     def svarint(self, value: int) -> None:
         """Write a signed integer as a zigzag varint."""
-        self.uvarint(zigzag(value))
+        # Most values on the per-frame path are small deltas: one byte, no further calls.
+        unsigned = (value << 1) if value >= 0 else ((-value) << 1) - 1
+        if unsigned > _U64_MAX:
+            self.uvarint(unsigned)  # raises, naming the value
+        buffer = self._buffer
+        while unsigned >= 0x80:
+            buffer.append((unsigned & 0x7F) | 0x80)
+            unsigned >>= 7
+        buffer.append(unsigned)
+
+    def svarint_pair(self, u: int, v: int) -> None:
+        """Write two signed integers as zigzag varints (a point's deltas: one call instead of two)."""
+        buffer = self._buffer
+        for value in (u, v):
+            unsigned = (value << 1) if value >= 0 else ((-value) << 1) - 1
+            if unsigned > _U64_MAX:
+                self.uvarint(unsigned)  # raises, naming the value
+            while unsigned >= 0x80:
+                buffer.append((unsigned & 0x7F) | 0x80)
+                unsigned >>= 7
+            buffer.append(unsigned)
 
     def raw(self, data: bytes | bytearray | memoryview) -> None:
         """Write bytes as they are."""
@@ -84,6 +107,20 @@ class ByteWriter:
         """Write a varint length followed by the bytes."""
         self.uvarint(len(data))
         self._buffer += data
+
+
+def _short_varint(data: memoryview, position: int, end: int) -> tuple[int, int]:
+    """(value, next position) of a varint of one or two bytes at `position`, else (0, 0): the common case of the
+    decoders' hot path (pixel deltas at 1/64 px take two bytes), read without a loop."""
+    if position < end:
+        first = data[position]
+        if first < 0x80:
+            return first, position + 1
+        if position + 1 < end:
+            second = data[position + 1]
+            if second < 0x80:
+                return (first & 0x7F) | (second << 7), position + 2
+    return 0, 0
 
 
 class ByteReader:
@@ -118,6 +155,12 @@ class ByteReader:
         data = self._data
         position = self._pos
         end = len(data)
+        value, after = _short_varint(data, position, end)
+        if after:
+            self._pos = after
+            if value > maximum:
+                raise ProtocolError(f"{what} = {value} exceeds its maximum {maximum}")
+            return value
         value = 0
         for shift in range(0, 7 * _MAX_VARINT_BYTES, 7):
             if position >= end:
@@ -134,10 +177,32 @@ class ByteReader:
 
     def svarint(self, what: str, limit: int = 1 << 62) -> int:
         """Read a zigzag varint and check ``abs(value) <= limit``."""
-        value = unzigzag(self.uvarint(what))
+        unsigned, after = _short_varint(self._data, self._pos, len(self._data))
+        if after:
+            self._pos = after
+        else:
+            unsigned = self.uvarint(what)
+        value = (unsigned >> 1) if not unsigned & 1 else -((unsigned + 1) >> 1)
         if abs(value) > limit:
             raise ProtocolError(f"{what} = {value} exceeds its limit {limit}")
         return value
+
+    def svarint_pair(self, what: str, limit: int) -> tuple[int, int]:
+        """Read two zigzag varints (the u and v of a point: errors name ``what u`` or ``what v``), each checked as
+        `svarint` checks it."""
+        data = self._data
+        end = len(data)
+        a, middle = _short_varint(data, self._pos, end)
+        if middle:
+            b, after = _short_varint(data, middle, end)
+            if after:
+                u = (a >> 1) if not a & 1 else -((a + 1) >> 1)
+                v = (b >> 1) if not b & 1 else -((b + 1) >> 1)
+                if abs(u) <= limit and abs(v) <= limit:
+                    self._pos = after
+                    return u, v
+        # Longer varints or an error: the general path (and its messages); names are built only here.
+        return self.svarint(f"{what} u", limit), self.svarint(f"{what} v", limit)
 
     def buffer(self) -> tuple[NDArray[np.uint8], int]:
         """Return the whole input as a uint8 array (no copy) and the read position, for kernels that parse in

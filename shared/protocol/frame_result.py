@@ -17,8 +17,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ropecam.shared.errors import ProtocolError
+from ropecam.shared.protocol._kernels import points_within, rows_on_wire
 from ropecam.shared.protocol.bytecodec import ByteReader, ByteWriter, check_int
 from ropecam.shared.protocol.shapes import (
+    MAX_SHAPE_POINTS,
+    POLYLINE_LIMIT_PX,
     EncodedShape,
     ShapeCodecConfig,
     _encode_checked,
@@ -34,6 +37,8 @@ POINT_SHIFT: Final = 6
 """Pixel points are coded in units of 1/64 px."""
 _POINT_SCALE: Final = float(1 << POINT_SHIFT)
 _POINT_LIMIT: Final = 65536 * (1 << POINT_SHIFT)
+_PX_LIMIT: Final = 65537.0
+"""Beyond this a pixel is refused before it is scaled (a huge finite value would overflow `round`)."""
 _S_SCALE: Final = 1e4  # material arc lengths in units of 0.1 mm
 _S_LIMIT: Final = 4_000_000  # 400 m in units of 0.1 mm
 _STRETCH_SCALE: Final = 1e5
@@ -77,6 +82,13 @@ class _Flags(IntFlag):
     STRETCH_END = 16
 
 
+_FIXED_END: Final = int(_Flags.FIXED_END)
+_BEGIN_TIP: Final = int(_Flags.BEGIN_TIP)
+_END_TIP: Final = int(_Flags.END_TIP)
+_STRETCH_BEGIN: Final = int(_Flags.STRETCH_BEGIN)
+_STRETCH_END: Final = int(_Flags.STRETCH_END)
+
+
 @dataclass(slots=True)
 class ShapeHint:
     """Mutable per-stream memory of the shape encoder, to speed up the next frame.
@@ -100,10 +112,12 @@ class ShapeHint:
 def _polyline(value: ArrayLike | None, name: str) -> NDArray[np.float64] | None:
     if value is None:
         return None
-    array = np.array(value, dtype=np.float64)
+    array = np.array(value, dtype=np.float64, order="C")  # the record's own copy
     if array.ndim != 2 or array.shape[1:] != (2,) or len(array) < 2:
         raise ValueError(f"{name} must be None or an (n >= 2, 2) array of (u, v) pixels, got shape {array.shape}")
-    array = check_polyline(array, name).copy()  # the shape codec's limits: what is accepted here can be packed
+    # One kernel pass on the per-frame path; `check_polyline` names what is wrong when it is not accepted.
+    if len(array) > MAX_SHAPE_POINTS or not points_within(array, POLYLINE_LIMIT_PX):
+        check_polyline(array, name)  # the shape codec's limits: what is accepted here can be packed
     array.flags.writeable = False
     return array
 
@@ -113,9 +127,24 @@ def _on_wire(array: NDArray[np.float64]) -> bool:
     return bool(np.all(np.abs(np.rint(array * _POINT_SCALE)) < _POINT_LIMIT))
 
 
+def _on_wire_px(value: float) -> bool:
+    """`_on_wire` of one plain coordinate (False for nan and infinities too)."""
+    return abs(value) < _PX_LIMIT and abs(round(value * _POINT_SCALE)) < _POINT_LIMIT
+
+
 def _point(value: ArrayLike | None, name: str) -> tuple[float, float] | None:
     if value is None:
         return None
+    if (
+        type(value) is tuple
+        and len(value) == 2
+        and isinstance(value[0], float | int)
+        and isinstance(value[1], float | int)
+    ):
+        # The per-frame case (plain numbers): the same rule without NumPy calls (round() rounds half to even).
+        u, v = float(value[0]), float(value[1])
+        if _on_wire_px(u) and _on_wire_px(v):
+            return u, v
     array = np.asarray(value, dtype=np.float64).ravel()
     if array.shape != (2,) or not np.all(np.isfinite(array)) or not _on_wire(array):
         raise ValueError(f"{name} must be None or a finite (u, v) pixel within +-65536 (at 1/64 px), got {value!r}")
@@ -123,6 +152,12 @@ def _point(value: ArrayLike | None, name: str) -> tuple[float, float] | None:
 
 
 def _material(value: ArrayLike | None, count: int, name: str) -> NDArray[np.float64]:
+    if isinstance(value, np.ndarray) and value.shape == (count, 2):
+        # The per-frame case: one copy and one kernel pass; anything it does not accept takes the path below.
+        array = np.array(value, dtype=np.float64, order="C")
+        if rows_on_wire(array, _POINT_SCALE, float(_POINT_LIMIT)):
+            array.flags.writeable = False
+            return array
     if value is None:
         array = np.full((count, 2), np.nan)
     else:
@@ -236,41 +271,43 @@ class FrameResult:
     pipeline_us: int = 0
 
     def __post_init__(self) -> None:
-        def put(name: str, value: object) -> None:
-            object.__setattr__(self, name, value)
-
+        # `frozen` guards setattr, not the instance dict: the checked values are stored there directly (this runs
+        # once per frame on the device and once per message on the host).
+        values = self.__dict__
         for name in ("frame_index", "pipeline_us"):
-            put(name, check_int(name, getattr(self, name), high=_U32))
+            values[name] = check_int(name, values[name], high=_U32)
         for name in ("exposure_start_t_ns", "exposure_end_t_ns"):
-            put(name, check_int(name, getattr(self, name), low=-(2**63), high=2**63 - 1))
+            values[name] = check_int(name, values[name], low=-(2**63), high=2**63 - 1)
         if not 0 <= self.exposure_end_t_ns - self.exposure_start_t_ns < 2**40:
             raise ValueError(
                 f"exposure_end_t_ns ({self.exposure_end_t_ns}) must be >= exposure_start_t_ns "
                 f"({self.exposure_start_t_ns}) and less than 2**40 ns later"
             )
-        put("status", FrameStatus(self.status))
-        put("method", Method(self.method))
-        if not 0.0 <= float(self.order_confidence) <= 1.0:
+        status, method = values["status"], values["method"]
+        values["status"] = status if type(status) is FrameStatus else FrameStatus(status)
+        values["method"] = method if type(method) is Method else Method(method)
+        confidence = float(values["order_confidence"])
+        if not 0.0 <= confidence <= 1.0:
             raise ValueError(f"order_confidence must be in [0, 1], got {self.order_confidence!r}")
-        put("order_confidence", float(self.order_confidence))
-        put("begin_px", _polyline(self.begin_px, "begin_px"))
-        put("end_px", _polyline(self.end_px, "end_px"))
+        values["order_confidence"] = confidence
+        values["begin_px"] = _polyline(values["begin_px"], "begin_px")
+        values["end_px"] = _polyline(values["end_px"], "end_px")
         for name in ("begin_tip_px", "end_tip_px", "fixed_end_px"):
-            put(name, _point(getattr(self, name), name))
+            values[name] = _point(values[name], name)
         s_m = tuple(float(s) for s in self.material_s_m)
         # Checked after quantisation to 0.1 mm: 399.99996 m would be sent as 400.0 m, which the decoder refuses.
         if len(s_m) > MAX_MATERIAL_POINTS or not all(s >= 0.0 and round(s * _S_SCALE) < _S_LIMIT for s in s_m):
             raise ValueError(
                 f"material_s_m must hold <= {MAX_MATERIAL_POINTS} arc lengths in [0, 400) m (at 0.1 mm), got {s_m}"
             )
-        put("material_s_m", s_m)
-        put("material_begin_px", _material(self.material_begin_px, len(s_m), "material_begin_px"))
-        put("material_end_px", _material(self.material_end_px, len(s_m), "material_end_px"))
+        values["material_s_m"] = s_m
+        values["material_begin_px"] = _material(values["material_begin_px"], len(s_m), "material_begin_px")
+        values["material_end_px"] = _material(values["material_end_px"], len(s_m), "material_end_px")
         for name in ("stretch_begin", "stretch_end"):
-            value = float(getattr(self, name))
+            value = float(values[name])
             if not (math.isnan(value) or 0.0 <= value < 50.0):
                 raise ValueError(f"{name} must be nan or in [0, 50), got {value!r}")
-            put(name, value)
+            values[name] = value
 
     def __repr__(self) -> str:
         def shape(value: NDArray[np.float64] | None) -> str:
@@ -307,16 +344,14 @@ class FrameResult:
         w.raw(bytes([self.status, self.method]))
         w.fixed("H", round(self.order_confidence * _CONFIDENCE_SCALE))
         w.uvarint(self.pipeline_us)
-        flags = 0  # plain int: IntFlag arithmetic is slow on this per-frame path
-        for bit, present in (
-            (_Flags.FIXED_END, self.fixed_end_px is not None),
-            (_Flags.BEGIN_TIP, self.begin_tip_px is not None),
-            (_Flags.END_TIP, self.end_tip_px is not None),
-            (_Flags.STRETCH_BEGIN, not math.isnan(self.stretch_begin)),
-            (_Flags.STRETCH_END, not math.isnan(self.stretch_end)),
-        ):
-            if present:
-                flags |= int(bit)
+        # Plain ints: IntFlag arithmetic is slow on this per-frame path.
+        flags = (
+            (_FIXED_END if self.fixed_end_px is not None else 0)
+            | (_BEGIN_TIP if self.begin_tip_px is not None else 0)
+            | (_END_TIP if self.end_tip_px is not None else 0)
+            | (0 if math.isnan(self.stretch_begin) else _STRETCH_BEGIN)
+            | (0 if math.isnan(self.stretch_end) else _STRETCH_END)
+        )
         w.raw(bytes([flags]))
         origin: _PointQ = (0, 0)
         if self.fixed_end_px is not None:
@@ -345,7 +380,7 @@ class FrameResult:
             tip = _write_point(w, self.begin_tip_px, tip)
         if self.end_tip_px is not None:
             _write_point(w, self.end_tip_px, tip)
-        for present, value in ((_Flags.STRETCH_BEGIN, self.stretch_begin), (_Flags.STRETCH_END, self.stretch_end)):
+        for present, value in ((_STRETCH_BEGIN, self.stretch_begin), (_STRETCH_END, self.stretch_end)):
             if flags & present:
                 w.svarint(round((value - 1.0) * _STRETCH_SCALE))
         self._pack_material(w, origin)
@@ -358,16 +393,19 @@ class FrameResult:
             s_q = round(s * _S_SCALE)
             w.svarint(s_q - previous_s)
             previous_s = s_q
-        begin_ok = ~np.isnan(self.material_begin_px[:, 0])
-        end_ok = ~np.isnan(self.material_end_px[:, 0])
+        # Plain lists: indexing them per point costs far less than NumPy scalars (a row is all nan or none).
+        begin_rows = self.material_begin_px.tolist()
+        end_rows = self.material_end_px.tolist()
+        begin_ok = [row[0] == row[0] for row in begin_rows]
+        end_ok = [row[0] == row[0] for row in end_rows]
         w.raw(_pack_mask(begin_ok, end_ok))
         previous = origin
         for k in range(len(self.material_s_m)):
             begin_q = None
             if begin_ok[k]:
-                begin_q = previous = _write_point(w, self.material_begin_px[k], previous)
+                begin_q = previous = _write_point(w, begin_rows[k], previous)
             if end_ok[k]:
-                end_q = _write_point(w, self.material_end_px[k], begin_q if begin_q is not None else previous)
+                end_q = _write_point(w, end_rows[k], begin_q if begin_q is not None else previous)
                 if begin_q is None:
                     previous = end_q
 
@@ -385,10 +423,10 @@ class FrameResult:
         flags_byte = r.raw(1, "flags")[0]
         if flags_byte & ~0x1F:
             raise ProtocolError(f"FrameResult: unknown flag bits 0x{flags_byte:02x}")
-        flags = _Flags(flags_byte)
+        flags = flags_byte
         origin: _PointQ = (0, 0)
         fixed_end = None
-        if flags & _Flags.FIXED_END:
+        if flags & _FIXED_END:
             origin = _read_point(r, origin, "fixed end")
             fixed_end = _as_px(origin)
         origin_px = (origin[0] / _POINT_SCALE, origin[1] / _POINT_SCALE)
@@ -396,13 +434,13 @@ class FrameResult:
         end_px, _ = decode_shape(r, origin_px, begin_q, what="end shape")
         tip = origin
         begin_tip = end_tip = None
-        if flags & _Flags.BEGIN_TIP:
+        if flags & _BEGIN_TIP:
             tip = _read_point(r, tip, "begin tip")
             begin_tip = _as_px(tip)
-        if flags & _Flags.END_TIP:
+        if flags & _END_TIP:
             end_tip = _as_px(_read_point(r, tip, "end tip"))
         stretch = [math.nan, math.nan]
-        for i, bit in enumerate((_Flags.STRETCH_BEGIN, _Flags.STRETCH_END)):
+        for i, bit in enumerate((_STRETCH_BEGIN, _STRETCH_END)):
             if flags & bit:
                 stretch[i] = 1.0 + r.svarint("stretch ratio", 4_900_000) / _STRETCH_SCALE
         s_m, material_begin, material_end = _unpack_material(r, origin)
@@ -446,14 +484,14 @@ def _write_point(w: ByteWriter, point: ArrayLike, reference_q: _PointQ) -> _Poin
     # Python's round() rounds half to even like np.rint; plain ints keep this per-point path free of NumPy calls.
     u = round(float(point[0]) * _POINT_SCALE)  # type: ignore[index]
     v = round(float(point[1]) * _POINT_SCALE)  # type: ignore[index]
-    w.svarint(u - reference_q[0])
-    w.svarint(v - reference_q[1])
+    w.svarint_pair(u - reference_q[0], v - reference_q[1])
     return u, v
 
 
 def _read_point(r: ByteReader, reference_q: _PointQ, what: str) -> _PointQ:
-    u = reference_q[0] + r.svarint(f"{what} u", 2 * _POINT_LIMIT)
-    v = reference_q[1] + r.svarint(f"{what} v", 2 * _POINT_LIMIT)
+    du, dv = r.svarint_pair(what, 2 * _POINT_LIMIT)
+    u = reference_q[0] + du
+    v = reference_q[1] + dv
     if abs(u) >= _POINT_LIMIT or abs(v) >= _POINT_LIMIT:
         raise ProtocolError(f"{what} beyond +-65536 px")
     return u, v
@@ -468,13 +506,13 @@ def _mask_bytes(count: int) -> int:
     return (2 * count + 7) // 8
 
 
-def _pack_mask(begin_ok: NDArray[np.bool_], end_ok: NDArray[np.bool_]) -> bytes:
+def _pack_mask(begin_ok: list[bool], end_ok: list[bool]) -> bytes:
     """Return the material mask: bit 2k = point k measured on the begin shape, bit 2k+1 = on the end shape.
 
     Little-endian bit order (bit 0 is the lowest bit of the first byte); unused high bits are 0.
     """
     mask = 0
-    for k, (begin, end) in enumerate(zip(begin_ok.tolist(), end_ok.tolist(), strict=True)):
+    for k, (begin, end) in enumerate(zip(begin_ok, end_ok, strict=True)):
         mask |= (int(begin) << (2 * k)) | (int(end) << (2 * k + 1))
     return mask.to_bytes(_mask_bytes(len(begin_ok)), "little")
 
@@ -494,8 +532,9 @@ def _unpack_material(
     mask = int.from_bytes(mask_bytes, "little")
     if mask >> (2 * count):
         raise ProtocolError(f"material mask {mask_bytes.hex()} has bits set beyond its {count} points")
-    begin = np.full((count, 2), np.nan)
-    end = np.full((count, 2), np.nan)
+    absent = (math.nan, math.nan)
+    begin = [absent] * count  # rows collected as tuples, made arrays once (cheaper than row assignments)
+    end = [absent] * count
     previous = origin
     for k in range(count):
         begin_q = None
@@ -507,4 +546,8 @@ def _unpack_material(
             end[k] = _as_px(end_q)
             if begin_q is None:
                 previous = end_q
-    return tuple(s_values), begin, end
+    return (
+        tuple(s_values),
+        np.array(begin, dtype=np.float64).reshape(count, 2),
+        np.array(end, dtype=np.float64).reshape(count, 2),
+    )

@@ -29,6 +29,7 @@ Wire format of one shape (integers are varints, coordinates in units of ``2**-sh
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
 from enum import IntEnum
 from typing import Final
@@ -41,12 +42,16 @@ from ropecam.shared.errors import ConfigError, ProtocolError
 from ropecam.shared.jit import KernelStatus
 from ropecam.shared.protocol._kernels import (
     apply_corrections,
+    bspline_sample_table,
     chain_bytes,
+    decode_spline,
     distances_to_polyline,
     fit_spline_with_corrections,
+    fit_work_size,
+    ints_within,
     read_chain,
     relative_positions,
-    sample_bspline,
+    sample_with_table,
     write_spline_body,
 )
 from ropecam.shared.protocol.bytecodec import ByteReader, ByteWriter
@@ -133,10 +138,38 @@ class EncodedShape:
     max_error_px: float
 
 
+_SampleTable = tuple[NDArray[np.int64], NDArray[np.float64]]
+_SAMPLE_TABLES: dict[tuple[int, int], _SampleTable] = {}
+_CACHED_TABLES: Final = 64
+_CACHED_TABLE_POINTS: Final = 2048
+
+
+def _sample_table(point_count: int, control_count: int) -> _SampleTable:
+    """The B-spline basis at `point_count` equally spaced parameters for `control_count` control points.
+
+    It depends only on the two counts, which repeat from frame to frame: cached (a few dozen tables of a few kB),
+    it saves most of the sampling on both sides. Tables are never written after they are built (shared by threads).
+    """
+    key = (point_count, control_count)
+    table = _SAMPLE_TABLES.get(key)
+    if table is None:
+        first = np.empty(point_count, dtype=np.int64)
+        basis = np.empty((point_count, 4))
+        if bspline_sample_table(control_count, first, basis) != point_count:
+            raise AssertionError(f"bspline_sample_table refused ({point_count}, {control_count})")
+        table = (first, basis)
+        if point_count <= _CACHED_TABLE_POINTS:
+            if len(_SAMPLE_TABLES) >= _CACHED_TABLES:
+                _SAMPLE_TABLES.clear()
+            _SAMPLE_TABLES[key] = table
+    return table
+
+
 def _spline_samples(control_q: NDArray[np.int64], point_count: int, shift: int) -> NDArray[np.float64]:
     """The decoder's polyline before corrections; the encoder's check runs the very same arithmetic."""
     out = np.empty((point_count, 2))
-    sample_bspline(np.ascontiguousarray(control_q / float(1 << shift)), np.empty(4), out)
+    first, basis = _sample_table(point_count, len(control_q))
+    sample_with_table(control_q / float(1 << shift), first, basis, out)  # a new C-contiguous array
     return out
 
 
@@ -231,48 +264,74 @@ class _Candidate:
     """Bytes of the control chain (relative to the origin) and the corrections: the rank of candidates."""
 
 
+_LOCAL = threading.local()
+_UNTRIED: Final = object()
+_NO_INDEX: Final = np.zeros(0, dtype=np.int64)
+_NO_OFFSETS: Final = np.zeros((0, 2), dtype=np.int64)
+_NO_INDEX.flags.writeable = False  # shared by candidates without corrections
+_NO_OFFSETS.flags.writeable = False
+
+
+def _workspace(n: int) -> tuple[NDArray, ...]:
+    """Work buffers of the encoder for a polyline of `n` points, reused by the calls of one thread (a shape's
+    buffers are free again once it is encoded; allocating them per shape costs more than its fits' setup).
+
+    Leading slices of C-contiguous buffers: C-contiguous, as the kernels require.
+    """
+    buffers = getattr(_LOCAL, "buffers", None)
+    if buffers is None or buffers[0] < n:
+        capacity = max(n, 512)
+        buffers = (
+            capacity,
+            np.empty(capacity),  # t
+            np.empty(fit_work_size(capacity, MAX_CONTROL_POINTS)),  # the fit's float work
+            np.empty(capacity, dtype=np.int64),  # index
+            np.empty((capacity, 2), dtype=np.int64),  # offsets
+            np.zeros(capacity + 1, dtype=np.int64),  # moved samples per round
+            np.empty(2),  # stats
+        )
+        _LOCAL.buffers = buffers
+    _, t, work, index, offset_q, changed, stats = buffers
+    return t[:n], work, index[:n], offset_q[:n], changed[: n + 1], stats
+
+
 class _Fitter:
     """Work buffers of one `encode_shape` call and the candidates tried (one per control-point count)."""
 
     def __init__(self, points: NDArray[np.float64], config: ShapeCodecConfig, origin_q: NDArray[np.int64]) -> None:
         n = len(points)
-        # Plain (writable) arrays: Numba dispatches them to the read-only signatures faster than read-only views.
+        self.n = n
         self.points = points
-        self.t = np.empty(n)
-        relative_positions(points, self.t)
         self.config = config
+        self.shift = config.quantum_shift
+        self.tolerance_px = config.tolerance_px
         self.origin_q = origin_q
-        self.basis = np.empty(4)
-        self.normal = np.empty((MAX_CONTROL_POINTS, MAX_CONTROL_POINTS))
-        self.samples = np.empty((n, 2))
-        self.decoded = np.empty((n, 2))
-        self.distance = np.empty(n)
-        self.index = np.empty(n, dtype=np.int64)
-        self.offset_q = np.empty((n, 2), dtype=np.int64)
-        self.stats = np.empty(2)
+        self.t, self.work, self.index, self.offset_q, self.changed, self.stats = _workspace(n)
+        relative_positions(points, self.t)
         self.tried: dict[int, _Candidate | None] = {}
 
     def attempt(self, m: int) -> _Candidate | None:
         """The candidate with `m` control points (None: singular fit or no convergence), computed once."""
-        if m not in self.tried:
-            control_q = np.empty((m, 2), dtype=np.int64)
-            count = fit_spline_with_corrections(
-                self.points, self.t, self.config.quantum_shift, _MAX_CORRECTION_ROUNDS, self.config.tolerance_px,
-                _ENCODER_HALF_WINDOW, self.origin_q, self.basis, self.normal, self.samples, self.decoded,
-                np.empty((m, 2)), self.distance, control_q, self.index, self.offset_q, self.stats,
-            )  # fmt: skip
-            self.tried[m] = (
-                None
-                if count < 0
-                else _Candidate(
-                    control_q,
-                    self.index[:count].copy(),
-                    self.offset_q[:count].copy(),
-                    float(self.stats[0]),
-                    int(self.stats[1]),
-                )
-            )
-        return self.tried[m]
+        candidate = self.tried.get(m, _UNTRIED)
+        if candidate is not _UNTRIED:
+            return candidate  # type: ignore[return-value]
+        control_q = np.empty((m, 2), dtype=np.int64)
+        first, basis = _sample_table(self.n, m)
+        count = fit_spline_with_corrections(
+            self.points, self.t, self.shift, _MAX_CORRECTION_ROUNDS, self.tolerance_px, _ENCODER_HALF_WINDOW,
+            self.origin_q, first, basis, self.work, self.changed, control_q, self.index, self.offset_q, self.stats,
+        )  # fmt: skip
+        if count < 0:
+            candidate = None
+        else:
+            max_error_px, size = self.stats.tolist()
+            if count == 0:  # the usual end shape: no corrections to copy out
+                candidate = _Candidate(control_q, _NO_INDEX, _NO_OFFSETS, max_error_px, int(size))
+            else:
+                index, offset_q = self.index[:count].copy(), self.offset_q[:count].copy()
+                candidate = _Candidate(control_q, index, offset_q, max_error_px, int(size))
+        self.tried[m] = candidate
+        return candidate
 
     def size(self, m: int) -> float:
         candidate = self.attempt(m)
@@ -349,7 +408,7 @@ def _encode_checked(
         if relative_candidate is not None and len(relative_candidate.index) == 0:
             # The usual case for the end shape: the begin shape's count fits without corrections, and offsets from
             # the begin shape are the cheapest code there is.
-            return _write_spline(relative_candidate, n, config, origin_px, reference)
+            return _write_spline(relative_candidate, n, config, fitter.origin_q, reference)
     start = int(min(max(control_hint or ref_count or _FIRST_GUESS, _MIN_CONTROL_POINTS), most))
     accept = _ACCEPT_MORE_CORRECTIONS + max(0, int(hint_corrections)) if control_hint is not None else 0
     best = _search(fitter, start, most, explore or control_hint is None, accept)
@@ -366,7 +425,7 @@ def _encode_checked(
             )
             if candidate.size - gain < chosen.size:
                 chosen, relative = candidate, True
-    return _write_spline(chosen, n, config, origin_px, reference if relative else None)
+    return _write_spline(chosen, n, config, fitter.origin_q, reference if relative else None)
 
 
 def _chain_size(items: NDArray[np.int64]) -> int:
@@ -415,27 +474,20 @@ def _write_spline(
     candidate: _Candidate,
     n: int,
     config: ShapeCodecConfig,
-    origin_px: tuple[float, float] | NDArray[np.float64] | None,
+    origin_q: NDArray[np.int64],
     reference: EncodedShape | None,
 ) -> EncodedShape:
     kind = ShapeKind.SPLINE if reference is None else ShapeKind.SPLINE_RELATIVE
+    m = len(candidate.control_q)
     writer = ByteWriter()
-    writer.raw(bytes([kind | (config.quantum_shift << 4)]))
+    writer.raw(bytes((int(kind) | (config.quantum_shift << 4),)))
     writer.uvarint(n)
-    writer.uvarint(len(candidate.control_q))
-    if reference is not None and reference.control_q is not None:
-        base = reference.control_q
-    else:
-        base = _origin_q(origin_px, config.quantum_shift).reshape(1, 2)
+    writer.uvarint(m)
+    base = reference.control_q if reference is not None and reference.control_q is not None else origin_q.reshape(1, 2)
     # Each value takes at most 10 bytes: a buffer that cannot overflow.
-    body = np.empty(10 * (2 * len(candidate.control_q) + 3 * len(candidate.index) + 1), dtype=np.uint8)
-    count = write_spline_body(
-        candidate.control_q,
-        np.ascontiguousarray(base, dtype=np.int64),
-        candidate.index,
-        candidate.offset_q,
-        body,
-    )
+    body = np.empty(10 * (2 * m + 3 * len(candidate.index) + 1), dtype=np.uint8)
+    base = np.ascontiguousarray(base, dtype=np.int64)  # a no-op for the encoder's own arrays
+    count = write_spline_body(candidate.control_q, base, candidate.index, candidate.offset_q, body)
     if count < 0:
         raise AssertionError(f"write_spline_body returned status {count}")
     writer.raw(body[:count].tobytes())
@@ -508,6 +560,25 @@ def decode_shape(
     m = reader.uvarint(f"{what} control count", MAX_CONTROL_POINTS)
     if not 2 <= m <= n:
         raise ProtocolError(f"{what}: control count {m} not in [2, point count {n}]")
+    if kind is ShapeKind.SPLINE:
+        base: NDArray[np.int64] | None = _origin_q(origin_px, shift).reshape(1, 2)
+    elif isinstance(reference_control_q, np.ndarray) and reference_control_q.shape == (m, 2):
+        base = reference_control_q if reference_control_q.dtype == np.int64 else None
+    else:
+        base = None  # no usable reference: the step-by-step path below says so, after the chain as always
+    if base is not None:
+        # The whole body in one kernel call; anything it does not accept is parsed again step by step below, which
+        # names the fault (or decodes what the kernel's stricter limits refused: a 10-byte varint).
+        data, start = reader.buffer()
+        control_q = np.empty((m, 2), dtype=np.int64)
+        points = np.empty((n, 2))
+        first, basis = _sample_table(n, m)
+        end = decode_spline(
+            data, start, limit, shift, np.ascontiguousarray(base), first, basis, control_q, np.empty((m, 2)), points
+        )
+        if end >= 0:
+            reader.seek(end, what)
+            return points, control_q
     chain = _read_chain(reader, m, limit, what)
     if kind is ShapeKind.SPLINE_RELATIVE:
         if reference_control_q is None or len(reference_control_q) != m:
@@ -515,7 +586,7 @@ def decode_shape(
         control_q = chain + reference_control_q
     else:
         control_q = chain + _origin_q(origin_px, shift)
-    if np.any(np.abs(control_q) > limit):
+    if not ints_within(control_q, limit):
         raise ProtocolError(f"{what}: control point beyond +-{_COORD_LIMIT_PX:g} px")
     corrections = reader.uvarint(f"{what} correction count", n)
     points = _spline_samples(control_q, n, shift)

@@ -110,6 +110,11 @@ class Header:
         )
 
 
+_MESSAGE_TYPES: Final = {int(member): member for member in MessageType}
+_HEADER_FLAGS: Final = {int(flags): flags for flags in (HeaderFlags.NONE, HeaderFlags.AUTHENTICATED)}
+"""The valid flags bytes (checked before): an IntFlag lookup instead of its slow constructor per message."""
+
+
 class Record(Protocol):
     """What every message body is: a frozen dataclass with a type tag, `pack` and `unpack`."""
 
@@ -139,9 +144,12 @@ def register_record(cls: type) -> type:
 
 def record_class(message_type: MessageType) -> type:
     """Return the record type registered for `message_type`."""
-    import ropecam.shared.protocol.records  # noqa: F401  (registers the record types)
+    record = _RECORDS.get(message_type)
+    if record is None or len(_RECORDS) < len(MessageType):
+        import ropecam.shared.protocol.records  # noqa: F401  (registers the record types)
 
-    return _RECORDS[message_type]
+        record = _RECORDS[message_type]
+    return record
 
 
 @dataclass(frozen=True, slots=True)
@@ -225,10 +233,9 @@ def peek_header(data: bytes | bytearray | memoryview) -> Header:
         raise ProtocolError(f"bad magic {bytes(magic)!r}, expected {MAGIC!r}")
     if version not in SUPPORTED_VERSIONS:
         raise ProtocolError(f"unsupported protocol version {version} (supported: {sorted(SUPPORTED_VERSIONS)})")
-    try:
-        message_type = MessageType(type_code)
-    except ValueError as exc:
-        raise ProtocolError(f"unknown message type {type_code}") from exc
+    message_type = _MESSAGE_TYPES.get(type_code)
+    if message_type is None:
+        raise ProtocolError(f"unknown message type {type_code}")
     if flags & ~int(HeaderFlags.AUTHENTICATED):
         raise ProtocolError(f"unknown header flags 0x{flags:02x}")
     if length > MAX_PAYLOAD_BYTES:
@@ -237,7 +244,7 @@ def peek_header(data: bytes | bytearray | memoryview) -> Header:
     expected = HEADER_BYTES + length + trailer + CRC_BYTES
     if len(data) != expected:
         raise ProtocolError(f"message is {len(data)} bytes, header says {expected} (payload {length})")
-    return Header(message_type, device_id, sequence, t_ns, length, HeaderFlags(flags), version)
+    return Header(message_type, device_id, sequence, t_ns, length, _HEADER_FLAGS[flags], version)
 
 
 def decode_message(data: bytes | bytearray | memoryview) -> Message:

@@ -5,15 +5,22 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from ropecam.shared.errors import ProtocolError
 from ropecam.shared.jit import KernelStatus
 from ropecam.shared.protocol._kernels import (
+    _basis_at,
+    _cubic_basis,
+    _knot,
     apply_corrections,
+    bspline_sample_table,
     chain_bytes,
     fit_bspline,
     fit_spline_with_corrections,
+    fit_work_size,
     read_chain,
     relative_positions,
     sample_bspline,
+    sample_with_table,
     svarint_bytes,
     uvarint_bytes,
     write_spline_body,
@@ -84,10 +91,12 @@ def _call(points, m, shift=6, tolerance=0.05, half_window=3, origin_q=(0, 0)):
     index = np.empty(n, dtype=np.int64)
     offset_q = np.empty((n, 2), dtype=np.int64)
     stats = np.empty(2)
+    first = np.empty(n, dtype=np.int64)
+    table = np.empty((n, 4))
+    bspline_sample_table(m, first, table)  # a status (negative) for m < 2: the fit below refuses such an m itself
     count = fit_spline_with_corrections(
-        points, t, shift, 8, tolerance, half_window, np.array(origin_q, dtype=np.int64), np.empty(4),
-        np.empty((m, m)), np.empty((n, 2)), np.empty((n, 2)), np.empty((m, 2)), np.empty(n), control_q, index,
-        offset_q, stats,
+        points, t, shift, 8, tolerance, half_window, np.array(origin_q, dtype=np.int64), first, table,
+        np.empty(fit_work_size(n, m)), np.zeros(n + 1, dtype=np.int64), control_q, index, offset_q, stats,
     )  # fmt: skip
     return t, count, control_q, index[: max(count, 0)], offset_q[: max(count, 0)], stats
 
@@ -233,3 +242,63 @@ def test_chain_and_correction_readers_match_the_reference() -> None:
     assert read_chain(np.full(20, 0xFF, dtype=np.uint8), 0, limit, items) == KernelStatus.INVALID  # over-long
     assert apply_corrections(data, position + 1, len(index), limit, 6, np.zeros((150, 2))) == KernelStatus.INVALID
     assert apply_corrections(data[:-1], position + 1, len(index), limit, 6, np.zeros((200, 2))) == KernelStatus.FULL
+
+
+@pytest.mark.parametrize(("n", "m"), [(2, 2), (3, 3), (7, 4), (50, 6), (203, 10), (400, 17), (64, 64)])
+def test_sampling_table_is_bit_identical(n, m) -> None:
+    # The encoder's bound rests on sampling exactly as the decoder does: the table must not change a single bit.
+    control = np.random.default_rng(n + m).uniform(-300.0, 900.0, (m, 2))
+    first = np.empty(n, dtype=np.int64)
+    table = np.empty((n, 4))
+    assert bspline_sample_table(m, first, table) == n
+    direct, tabled = np.empty((n, 2)), np.empty((n, 2))
+    assert sample_bspline(control, np.empty(4), direct) == n
+    assert sample_with_table(control, first, table, tabled) == n
+    assert direct.tobytes() == tabled.tobytes()
+    if m >= 6:  # a table of a larger m reaches past the control points: refused, not read out of bounds
+        assert sample_with_table(control[: m // 2], first, table, tabled) == KernelStatus.INVALID
+    assert bspline_sample_table(1, first, table) == KernelStatus.INVALID
+
+
+@pytest.mark.parametrize("m", [4, 5, 9, 17, 64])
+def test_unrolled_cubic_basis_is_bit_identical(m) -> None:
+    # fit_bspline's cubic path must fit exactly what the generic recurrence gives (the bytes depend on it).
+    generic = np.empty(4)
+    segments = m - 3
+    for t in np.concatenate([np.linspace(0.0, 1.0, 1001), np.random.default_rng(m).random(500), [1e-17, 1 - 1e-16]]):
+        first = _basis_at(t, m, 3, generic)
+        span = 3 + min(int(t * segments), segments - 1)
+        assert first == span - 3
+        knots = [_knot(span + k, m, 3) for k in range(-2, 4)]
+        assert np.array(_cubic_basis(t, *knots)).tobytes() == generic.tobytes(), t
+
+
+def test_one_call_decoder_matches_the_step_by_step_parser(monkeypatch) -> None:
+    # decode_shape parses a spline body in one kernel (decode_spline) and falls back to the step-by-step parser on
+    # any fault: both must give the same points, and every fault the same message.
+    import ropecam.shared.protocol.shapes as shapes_module
+
+    rng = np.random.default_rng(7)
+    cases = []
+    for k, noise in enumerate((0.0, 0.02, 0.1, 1.0)):
+        n = 50 + 97 * k
+        t = np.linspace(0.0, 1.0, n)
+        points = np.stack([100 + 300 * t, 40 + 80 * np.sin(3 * t + k)], 1) + rng.normal(0, noise, (n, 2))
+        begin = encode_shape(points, ShapeCodecConfig(), (100.0, 40.0))
+        end = encode_shape(points + rng.normal(0, 0.3, (n, 2)) + 2.0, ShapeCodecConfig(), (100.0, 40.0), begin)
+        cases.append(begin.data + end.data)
+
+    def parse(data: bytes) -> list[object]:
+        reader = ByteReader(data)
+        try:
+            begin_px, begin_q = decode_shape(reader, (100.0, 40.0))
+            end_px, end_q = decode_shape(reader, (100.0, 40.0), begin_q)
+        except ProtocolError as exc:
+            return [str(exc)]
+        return [None if a is None else a.tobytes() for a in (begin_px, begin_q, end_px, end_q)]
+
+    inputs = cases + [c[:cut] for c in cases for cut in range(1, len(c), 3)]  # every kind of truncation
+    inputs += [bytes(b ^ 0x55 if i == j else b for i, b in enumerate(c)) for c in cases for j in range(2, len(c), 5)]
+    fast = [parse(data) for data in inputs]
+    monkeypatch.setattr(shapes_module, "decode_spline", lambda *args: KernelStatus.INVALID)
+    assert fast == [parse(data) for data in inputs]
