@@ -4,7 +4,7 @@ A pipeline runs over the frames once and records the arguments of every `find_se
 `split_shapes_local` and `slope_sweep_median` call (copies: the gradient planes, the smoothed image, the contour).
 Each kernel is then re-run on exactly those inputs (one thread) and the median over calls of the best of
 ``--repeat`` is printed. ``split_shapes_local`` is also re-run as its sequence of step kernels (`side_sweeps`,
-`offset_by_table`, `extend_to_band_end`, the lengths, `anchor_start`, `resample_polyline_of_length`,
+`offset_by_table_thinned`, `extend_to_band_end`, the lengths, `anchor_start`, `resample_polyline_of_length`,
 `smooth_polyline`), each step timed on its own, so that a change to one step can be measured alone:
 
     taskset -c 1 python tools/bench_split_kernels.py [--frameset /work/eval/rig] [--frames 40] [--repeat 5] [--cold]
@@ -104,7 +104,7 @@ def local_steps(args: tuple, times: dict[str, float]) -> int:
     (points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, ratios, sweeps, half, gx, gy, polarity, step_px,
      table, smooth, width_px, cap_px, skip_px, span_px, blur_px, _slant, _check, out_step_px, smoothing_px,
      fixed_r, fixed_c, work, sweeps_a, sweeps_b, side_a, side_b, out_a, out_b, work_arc, _info) = args  # fmt: skip
-    plus, minus, local, none = np.int32(1), np.int32(-1), np.int32(1), np.float32(0.0)
+    plus, minus = np.int32(1), np.int32(-1)
     clock = time.perf_counter_ns
 
     def lap(name: str, t0: int) -> int:
@@ -119,11 +119,12 @@ def local_steps(args: tuple, times: dict[str, float]) -> int:
     sa, sb = sweeps_a.view(), sweeps_b.view()
     sa.flags.writeable = sb.flags.writeable = False
     t = clock()
-    na = K.offset_by_table(points, chain, n, i_fix, seg_a, plus, gx, gy, polarity, sa, local, none, step_px, table,
-                           side_a)  # fmt: skip
-    nb = K.offset_by_table(points, chain, n, i_fix, seg_b, minus, gx, gy, polarity, sb, local, none, step_px,
-                           table, side_b)  # fmt: skip
-    t = lap("offset_by_table x2", t)
+    keep = K.dense_end_points(skip_px, span_px)
+    na = K.offset_by_table_thinned(points, chain, n, i_fix, seg_a, plus, gx, gy, polarity, sa, step_px, table, keep,
+                                   keep, side_a)  # fmt: skip
+    nb = K.offset_by_table_thinned(points, chain, n, i_fix, seg_b, minus, gx, gy, polarity, sb, step_px, table, keep,
+                                   keep, side_b)  # fmt: skip
+    t = lap("offset_by_table_thinned x2", t)
     na = K.extend_to_band_end(side_a, na, points, n, smooth, width_px, cap_px, skip_px, span_px, blur_px)
     nb = K.extend_to_band_end(side_b, nb, points, n, smooth, width_px, cap_px, skip_px, span_px, blur_px)
     t = lap("extend_to_band_end x2", t)

@@ -263,12 +263,21 @@ class BlurSplitter:
         sweeps_a, sweeps_b = self._sweeps_a_ro, self._sweeps_b_ro
         for _ in range(2):
             sw = np.float32(sweep)
-            na = K.offset_by_table(
-                points, chain, n, i_fix, seg_a, plus, gx, gy, pol, sweeps_a, local, sw, step, table, self.side_a
-            )
-            nb = K.offset_by_table(
-                points, chain, n, i_fix, seg_b, minus, gx, gy, pol, sweeps_b, local, sw, step, table, self.side_b
-            )
+            if local:  # as `split_shapes_local` does
+                keep = consts.keep
+                na = K.offset_by_table_thinned(
+                    points, chain, n, i_fix, seg_a, plus, gx, gy, pol, sweeps_a, step, table, keep, keep, self.side_a
+                )
+                nb = K.offset_by_table_thinned(
+                    points, chain, n, i_fix, seg_b, minus, gx, gy, pol, sweeps_b, step, table, keep, keep, self.side_b
+                )
+            else:
+                na = K.offset_by_table(
+                    points, chain, n, i_fix, seg_a, plus, gx, gy, pol, sweeps_a, local, sw, step, table, self.side_a
+                )
+                nb = K.offset_by_table(
+                    points, chain, n, i_fix, seg_b, minus, gx, gy, pol, sweeps_b, local, sw, step, table, self.side_b
+                )
             na = self._fit_tip(self.side_a, na, consts)
             nb = self._fit_tip(self.side_b, nb, consts)
             # The fitted tips are sharper than the band's rounded corners: their distance across the rope is the
@@ -613,7 +622,7 @@ class _WidthConstants:
     width."""
 
     __slots__ = (
-        "blur", "cap", "corner", "min_gap", "ratios_ro", "scale", "search_px", "skip", "span", "sweep_window",
+        "blur", "cap", "corner", "keep", "min_gap", "ratios_ro", "scale", "search_px", "skip", "span", "sweep_window",
         "sweeps_ro", "table_ro", "table_step", "tables", "width",
     )  # fmt: skip
 
@@ -638,3 +647,4 @@ class _WidthConstants:
         # pixel (measured: 3 widths gave 0.17-0.34 px mean tips on rig / dark rig, 8 widths 0.12-0.25, 20 widths
         # let rig-soft's curl in, 0.27).
         self.span = f32(max(8.0 * width, 16.0))
+        self.keep = i32(K.dense_end_points(self.skip, self.span))
