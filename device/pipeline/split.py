@@ -78,9 +78,9 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         corner turns about 45 degrees, smeared over the chord."""
         self.failure = ""
         """Why the last `split` returned None."""
-        self.sweeps_a = np.zeros(capacity, np.float32)
-        self.sweeps_b = np.zeros(capacity, np.float32)
-        self.work = np.zeros(capacity, np.float32)
+        self.lines = np.zeros((3, capacity), np.float32)
+        """`work`, `sweeps_a`, `sweeps_b` in one array (`split_shapes_packed`)."""
+        self.work, self.sweeps_a, self.sweeps_b = self.lines[0], self.lines[1], self.lines[2]
         self.sweep_px = 0.0
         self.samples = np.zeros(2 * capacity, np.float32)
         self._contrasts: list[float] = []
@@ -90,11 +90,10 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         self.step = np.float32(output_step_px)
         self.turn = np.zeros(capacity, np.float32)
         self.idx = np.zeros(4, np.int32)
-        self.side_a = np.zeros((capacity, 2), np.float32)
-        self.side_b = np.zeros((capacity, 2), np.float32)
+        self.sides = np.zeros((4, capacity, 2), np.float32)
+        """`side_a`, `side_b`, `out_a`, `out_b` in one array (`split_shapes_packed`)."""
+        self.side_a, self.side_b, self.out_a, self.out_b = self.sides[0], self.sides[1], self.sides[2], self.sides[3]
         self.dist = np.zeros(capacity, np.float32)
-        self.out_a = np.zeros((capacity, 2), np.float32)
-        self.out_b = np.zeros((capacity, 2), np.float32)
         self.seg = np.zeros((2, 2), np.float32)
         self.info = np.zeros(6, np.float64)
         self.slope_work = np.zeros(capacity, np.float64)
@@ -226,12 +225,10 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         local = plus if contrast >= 5.0 else self._zero
         if local:
             # The usual case, in one kernel call; its rare failures (a full buffer) are redone step by step below.
-            status = K.split_shapes_local(
-                points, chain, n, i_fix, seg_a, seg_b, self._mag_ro, np.float32(1.0 / contrast), consts.ratios_ro,
-                consts.sweeps_ro, consts.sweep_window, gx, gy, pol, step, table, self._ro(self._smooth), consts.width,
-                consts.cap, consts.skip, consts.span, consts.blur, tables.slant_px, width, self.step,
-                self.output_smoothing, fixed_r, fixed_c, self.work, self.sweeps_a, self.sweeps_b, self.side_a,
-                self.side_b, self.out_a, self.out_b, self.arc, self.info,
+            status = K.split_shapes_packed(
+                points, chain, n, i_fix, seg_a, seg_b, self._mag_ro, np.float32(1.0 / contrast), gx, gy, pol,
+                self._ro(self._smooth), fixed_r, fixed_c, consts.params, consts.curves, table, self.lines, self.sides,
+                self.arc, self.info,
             )  # fmt: skip
             if status >= 0 or status == K.NOT_FOUND:
                 self.sweep_px = sweep
@@ -421,8 +418,8 @@ class _WidthConstants:
     width."""
 
     __slots__ = (
-        "blur", "cap", "corner", "keep", "min_gap", "ratios_ro", "scale", "search_px", "skip", "span", "sweep_window",
-        "sweeps_ro", "table_ro", "table_step", "tables", "width",
+        "blur", "cap", "corner", "curves", "keep", "min_gap", "params", "ratios_ro", "scale", "search_px", "skip",
+        "span", "sweep_window", "sweeps_ro", "table_ro", "table_step", "tables", "width",
     )  # fmt: skip
 
     def __init__(self, splitter: BlurSplitter, width: float) -> None:
@@ -447,3 +444,11 @@ class _WidthConstants:
         # let rig-soft's curl in, 0.27).
         self.span = f32(max(8.0 * width, 16.0))
         self.keep = i32(K.dense_end_points(self.skip, self.span))
+        # `split_shapes_local`'s width-bound arguments for `split_shapes_packed` (float32 values are exact in float64)
+        params = (
+            self.sweep_window, self.table_step, self.width, self.cap, self.skip, self.span, self.blur,
+            self.tables.slant_px, width, splitter.step, splitter.output_smoothing,
+        )  # fmt: skip
+        assert len(params) == K.SPLIT_PARAMS
+        self.params = ro(np.array([float(v) for v in params], np.float64))
+        self.curves = ro(np.stack([self.ratios_ro, self.sweeps_ro]).astype(np.float64))

@@ -73,6 +73,7 @@ from ropecam.device.pipeline._kernels.geometry import (
     turning_angles_far,
 )
 from ropecam.device.pipeline._kernels.offsets import (
+    SPLIT_PARAMS,
     dense_end_points,
     find_caps,
     interp_sorted,
@@ -85,6 +86,7 @@ from ropecam.device.pipeline._kernels.offsets import (
     side_sweeps,
     slope_sweep_median,
     split_shapes_local,
+    split_shapes_packed,
 )
 from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots, thin_chain
 from ropecam.device.pipeline._kernels.polylines import (
@@ -141,6 +143,7 @@ __all__ = [
     "ORDER_COUNT",
     "ORDER_ORDERED",
     "ORDER_REJECTS",
+    "SPLIT_PARAMS",
     "TAN_22_5",
     "TWO",
     "ZERO",
@@ -202,6 +205,7 @@ __all__ = [
     "spans_around_points",
     "split_contour",
     "split_shapes_local",
+    "split_shapes_packed",
     "suppress_rows",
     "thin_chain",
     "trace_closed",

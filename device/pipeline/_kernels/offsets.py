@@ -6,7 +6,7 @@ import math
 from typing import Final
 
 import numpy as np
-from numba import float32, float64, int32, int64, void
+from numba import float32, float64, int32, int64, types, void
 
 from ropecam.device.pipeline._kernels._common import FULL, INVALID, NOT_FOUND, f4_1d_ro, prefetch_read
 from ropecam.device.pipeline._kernels.geometry import axis_offset, chain_length
@@ -23,6 +23,7 @@ from ropecam.shared.jit import (
     f4_2d_ro,
     f8_1d,
     f8_1d_ro,
+    f8_2d_ro,
     i4_1d,
     i4_2d_ro,
     kernel,
@@ -36,6 +37,13 @@ def _length(d_r, d_c):
     against overflow that coordinates in pixels never reach, ~3x the time)."""
     return math.sqrt(d_r * d_r + d_c * d_c)
 
+
+f4_3d: Final = types.Array(types.float32, 3, "C")
+
+SPLIT_PARAMS: Final = 11
+"""Length of `split_shapes_packed`'s `params`: `split_shapes_local`'s scalars that depend only on the rope width,
+in its order (`half`, `step_px`, `width_px`, `cap_px`, `skip_px`, `span_px`, `blur_px`, `slant_gain_px`,
+`width_check_px`, `out_step_px`, `smoothing_px`), each exactly representable in float64."""
 
 _AHEAD: Final = 16
 """Chain points ahead whose plane values `side_sweeps` and `offset_by_table` ask the caches for."""
@@ -462,6 +470,29 @@ def split_shapes_local(
                 return INVALID
             out_info[4 + side] = 1.0
     return 2
+
+
+@kernel(
+    int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f4_2d_ro, f4_2d_ro, float32, f4_2d_ro,
+          float32, float32, f8_1d_ro, f8_2d_ro, f4_1d_ro, f4_2d, f4_3d, f8_1d, f8_1d)
+)  # fmt: skip
+def split_shapes_packed(
+    points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, gx, gy, polarity, smooth, fixed_r, fixed_c, params,
+    curves, table, lines, sides, work_arc, out_info,
+):  # fmt: skip
+    """`split_shapes_local` with its arguments bound in fewer arrays (a dispatch costs ~0.1 us per argument): the
+    width's scalars in `params` (`SPLIT_PARAMS` values, converted back to the types `split_shapes_local` takes),
+    ``curves = [ratios, sweeps]``, ``lines = [work, out_sweeps_a, out_sweeps_b]`` and ``sides = [out_side_a,
+    out_side_b, out_a, out_b]``. Same results and returns; INVALID when an array is too small to hold them."""
+    if params.shape[0] < SPLIT_PARAMS or curves.shape[0] < 2 or lines.shape[0] < 3 or sides.shape[0] < 4:
+        return INVALID
+    return split_shapes_local(
+        points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, curves[0], curves[1], np.int32(params[0]), gx, gy,
+        polarity, np.float32(params[1]), table, smooth, np.float32(params[2]), np.float32(params[3]),
+        np.float32(params[4]), np.float32(params[5]), np.float32(params[6]), params[7], params[8],
+        np.float32(params[9]), np.float32(params[10]), fixed_r, fixed_c, lines[0], lines[1], lines[2], sides[0],
+        sides[1], sides[2], sides[3], work_arc, out_info,
+    )  # fmt: skip
 
 
 @kernel(float64(f8_1d, int64, int64))
