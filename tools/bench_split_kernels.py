@@ -1,11 +1,12 @@
 """Micro-benchmark the blur split's kernels, step by step, on the contours of a frame set.
 
 A pipeline runs over the frames once and records the arguments of every `find_segmentation_points`,
-`split_shapes_local` and `slope_sweep_median` call (copies: the gradient planes, the smoothed image, the contour).
+`split_shapes_packed` and `slope_sweep_median` call (copies: the gradient planes, the smoothed image, the contour).
 Each kernel is then re-run on exactly those inputs (one thread) and the median over calls of the best of
-``--repeat`` is printed. ``split_shapes_local`` is also re-run as its sequence of step kernels (`side_sweeps`,
-`offset_by_table`, `extend_to_band_end`, the lengths, `anchor_start`, `resample_polyline_of_length`,
-`smooth_polyline`), each step timed on its own, so that a change to one step can be measured alone:
+``--repeat`` is printed (also `split_shapes_local` on the unpacked arguments: the dispatch saving of the packed
+entry). ``split_shapes_local`` is re-run as its sequence of step kernels (`side_sweeps`, `offset_by_table_thinned`,
+`extend_to_band_end`, the lengths, `anchor_start`, `resample_polyline_of_length`, `smooth_polyline`),
+each step timed on its own, so that a change to one step can be measured alone:
 
     taskset -c 1 python tools/bench_split_kernels.py [--frameset /work/eval/rig] [--frames 40] [--repeat 5] [--cold]
 
@@ -31,7 +32,7 @@ from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
 
-RECORDED = ("find_segmentation_points", "split_shapes_local", "slope_sweep_median")
+RECORDED = ("find_segmentation_points", "split_shapes_packed", "slope_sweep_median")
 """The kernels whose calls are recorded (the names `split.py` calls them by)."""
 
 
@@ -98,13 +99,25 @@ def median_us(fn: Any, inputs: list[Any], repeat: int, cold: bool) -> float:
     return float(np.median(per_item)) if per_item else float("nan")
 
 
+def unpacked(args: tuple) -> tuple:
+    """`split_shapes_local`'s argument tuple for a recorded `split_shapes_packed` call (same arrays, as views)."""
+    (points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, gx, gy, polarity, smooth, fixed_r, fixed_c, params,
+     curves, table, lines, sides, work_arc, info) = args  # fmt: skip
+    p = params.tolist()
+    f4 = np.float32
+    return (points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, curves[0], curves[1], np.int32(p[0]), gx, gy,
+            polarity, f4(p[1]), table, smooth, f4(p[2]), f4(p[3]), f4(p[4]), f4(p[5]), f4(p[6]), p[7], p[8], f4(p[9]),
+            f4(p[10]), fixed_r, fixed_c, lines[0], lines[1], lines[2], sides[0], sides[1], sides[2], sides[3],
+            work_arc, info)  # fmt: skip
+
+
 def local_steps(args: tuple, times: dict[str, float]) -> int:
     """Run `split_shapes_local`'s steps one kernel at a time on its argument tuple `args`, adding each step's
     time (us) to `times`; the slant correction (a few float operations) is left out. Returns the status."""
     (points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, ratios, sweeps, half, gx, gy, polarity, step_px,
      table, smooth, width_px, cap_px, skip_px, span_px, blur_px, _slant, _check, out_step_px, smoothing_px,
      fixed_r, fixed_c, work, sweeps_a, sweeps_b, side_a, side_b, out_a, out_b, work_arc, _info) = args  # fmt: skip
-    plus, minus, local, none = np.int32(1), np.int32(-1), np.int32(1), np.float32(0.0)
+    plus, minus = np.int32(1), np.int32(-1)
     clock = time.perf_counter_ns
 
     def lap(name: str, t0: int) -> int:
@@ -119,11 +132,12 @@ def local_steps(args: tuple, times: dict[str, float]) -> int:
     sa, sb = sweeps_a.view(), sweeps_b.view()
     sa.flags.writeable = sb.flags.writeable = False
     t = clock()
-    na = K.offset_by_table(points, chain, n, i_fix, seg_a, plus, gx, gy, polarity, sa, local, none, step_px, table,
-                           side_a)  # fmt: skip
-    nb = K.offset_by_table(points, chain, n, i_fix, seg_b, minus, gx, gy, polarity, sb, local, none, step_px,
-                           table, side_b)  # fmt: skip
-    t = lap("offset_by_table x2", t)
+    keep = K.dense_end_points(skip_px, span_px)
+    na = K.offset_by_table_thinned(points, chain, n, i_fix, seg_a, plus, gx, gy, polarity, sa, step_px, table, keep,
+                                   keep, side_a)  # fmt: skip
+    nb = K.offset_by_table_thinned(points, chain, n, i_fix, seg_b, minus, gx, gy, polarity, sb, step_px, table, keep,
+                                   keep, side_b)  # fmt: skip
+    t = lap("offset_by_table_thinned x2", t)
     na = K.extend_to_band_end(side_a, na, points, n, smooth, width_px, cap_px, skip_px, span_px, blur_px)
     nb = K.extend_to_band_end(side_b, nb, points, n, smooth, width_px, cap_px, skip_px, span_px, blur_px)
     t = lap("extend_to_band_end x2", t)
@@ -162,8 +176,9 @@ def main(argv: list[str] | None = None) -> int:
 
     frames = frameset_frames(args.frameset, args.frames + 3) if args.frameset else rig_frames(args.frames + 3)
     calls = record(frames, PipelineConfig())
+    calls["split_shapes_local"] = [unpacked(c) for c in calls["split_shapes_packed"]]
     results: dict[str, float] = {}
-    for name in RECORDED:
+    for name in (*RECORDED, "split_shapes_local"):
         kernel = getattr(K, name)
         results[name] = median_us(lambda a, k=kernel: k(*a), calls[name], args.repeat, args.cold)
     # The steps: per call, the best of `repeat` sequences for each step (each sequence on fresh copies of the

@@ -4,7 +4,6 @@ exposure (and the tip track), or into one centreline when the blur cannot be spl
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -15,27 +14,14 @@ from ropecam.device.pipeline.edge_model import shared_model
 from ropecam.device.pipeline.edges import gaussian_weights
 from ropecam.device.pipeline.paper_method import PaperSegmenter
 from ropecam.device.pipeline.result import Method
+from ropecam.device.pipeline.split_fallback import SplitFallbacks
+from ropecam.device.pipeline.split_measure import SplitMeasuring
+from ropecam.device.pipeline.split_outcome import SplitOutcome
 
 __all__ = ["BlurSplitter", "SplitOutcome"]
 
 
-@dataclass(slots=True)
-class SplitOutcome:
-    """The shapes found in one contour (views into the splitter's buffers, valid until its next call).
-
-    `shape_a` and `shape_b` run from the fixed end to the tip; for single-shape methods they are the same array.
-    They are not yet in time order: the pipeline decides which one is the start of the exposure.
-    """
-
-    method: Method
-    shape_a: NDArray[np.float32]
-    shape_b: NDArray[np.float32]
-    segmentation_points: NDArray[np.float32] | None
-    width_px: float
-    sweep_px: float
-
-
-class BlurSplitter:
+class BlurSplitter(SplitMeasuring, SplitFallbacks):
     """Split a rope contour by one of the methods (``blur_split``, ``paper``, ``centerline``).
 
     Parameters
@@ -92,9 +78,9 @@ class BlurSplitter:
         corner turns about 45 degrees, smeared over the chord."""
         self.failure = ""
         """Why the last `split` returned None."""
-        self.sweeps_a = np.zeros(capacity, np.float32)
-        self.sweeps_b = np.zeros(capacity, np.float32)
-        self.work = np.zeros(capacity, np.float32)
+        self.lines = np.zeros((3, capacity), np.float32)
+        """`work`, `sweeps_a`, `sweeps_b` in one array (`split_shapes_packed`)."""
+        self.work, self.sweeps_a, self.sweeps_b = self.lines[0], self.lines[1], self.lines[2]
         self.sweep_px = 0.0
         self.samples = np.zeros(2 * capacity, np.float32)
         self._contrasts: list[float] = []
@@ -104,11 +90,10 @@ class BlurSplitter:
         self.step = np.float32(output_step_px)
         self.turn = np.zeros(capacity, np.float32)
         self.idx = np.zeros(4, np.int32)
-        self.side_a = np.zeros((capacity, 2), np.float32)
-        self.side_b = np.zeros((capacity, 2), np.float32)
+        self.sides = np.zeros((4, capacity, 2), np.float32)
+        """`side_a`, `side_b`, `out_a`, `out_b` in one array (`split_shapes_packed`)."""
+        self.side_a, self.side_b, self.out_a, self.out_b = self.sides[0], self.sides[1], self.sides[2], self.sides[3]
         self.dist = np.zeros(capacity, np.float32)
-        self.out_a = np.zeros((capacity, 2), np.float32)
-        self.out_b = np.zeros((capacity, 2), np.float32)
         self.seg = np.zeros((2, 2), np.float32)
         self.info = np.zeros(6, np.float64)
         self.slope_work = np.zeros(capacity, np.float64)
@@ -240,12 +225,10 @@ class BlurSplitter:
         local = plus if contrast >= 5.0 else self._zero
         if local:
             # The usual case, in one kernel call; its rare failures (a full buffer) are redone step by step below.
-            status = K.split_shapes_local(
-                points, chain, n, i_fix, seg_a, seg_b, self._mag_ro, np.float32(1.0 / contrast), consts.ratios_ro,
-                consts.sweeps_ro, consts.sweep_window, gx, gy, pol, step, table, self._ro(self._smooth), consts.width,
-                consts.cap, consts.skip, consts.span, consts.blur, tables.slant_px, width, self.step,
-                self.output_smoothing, fixed_r, fixed_c, self.work, self.sweeps_a, self.sweeps_b, self.side_a,
-                self.side_b, self.out_a, self.out_b, self.arc, self.info,
+            status = K.split_shapes_packed(
+                points, chain, n, i_fix, seg_a, seg_b, self._mag_ro, np.float32(1.0 / contrast), gx, gy, pol,
+                self._ro(self._smooth), fixed_r, fixed_c, consts.params, consts.curves, table, self.lines, self.sides,
+                self.arc, self.info,
             )  # fmt: skip
             if status >= 0 or status == K.NOT_FOUND:
                 self.sweep_px = sweep
@@ -263,12 +246,21 @@ class BlurSplitter:
         sweeps_a, sweeps_b = self._sweeps_a_ro, self._sweeps_b_ro
         for _ in range(2):
             sw = np.float32(sweep)
-            na = K.offset_by_table(
-                points, chain, n, i_fix, seg_a, plus, gx, gy, pol, sweeps_a, local, sw, step, table, self.side_a
-            )
-            nb = K.offset_by_table(
-                points, chain, n, i_fix, seg_b, minus, gx, gy, pol, sweeps_b, local, sw, step, table, self.side_b
-            )
+            if local:  # as `split_shapes_local` does
+                keep = consts.keep
+                na = K.offset_by_table_thinned(
+                    points, chain, n, i_fix, seg_a, plus, gx, gy, pol, sweeps_a, step, table, keep, keep, self.side_a
+                )
+                nb = K.offset_by_table_thinned(
+                    points, chain, n, i_fix, seg_b, minus, gx, gy, pol, sweeps_b, step, table, keep, keep, self.side_b
+                )
+            else:
+                na = K.offset_by_table(
+                    points, chain, n, i_fix, seg_a, plus, gx, gy, pol, sweeps_a, local, sw, step, table, self.side_a
+                )
+                nb = K.offset_by_table(
+                    points, chain, n, i_fix, seg_b, minus, gx, gy, pol, sweeps_b, local, sw, step, table, self.side_b
+                )
             na = self._fit_tip(self.side_a, na, consts)
             nb = self._fit_tip(self.side_b, nb, consts)
             # The fitted tips are sharper than the band's rounded corners: their distance across the rope is the
@@ -331,166 +323,7 @@ class BlurSplitter:
             self.width_measured = math.nan
             self.width = float(width_px)
             return
-        edges_ro = self._ro(edges)
-        if pol == 0.0:
-            # The rope is on the side where the opposite edge is near: compare the typical distance to the
-            # opposite edge looking along +gradient (bright rope) and along -gradient (dark rope).
-            medians = []
-            for sign in (1.0, -1.0):
-                K.measure_widths(
-                    edges_ro, mag, self._gx, self._gy, self._chain, self._n, f32(sign), f32(64.0), self.dist
-                )
-                found = self.dist[: self._n][np.isfinite(self.dist[: self._n])]
-                medians.append(float(np.median(found)) if found.size > self._n // 4 else np.inf)
-            pol = 1.0 if medians[0] <= medians[1] else -1.0
-        self.polarity_used = np.float32(pol)
-        self.width_measured = float("nan")
-        if width_px is None:
-            self._measure_width(edges_ro, mag, fixed_rc)
-        if width_px is not None:
-            self.width = float(width_px)
-        elif np.isfinite(self.width_measured):
-            self.width = self.width_measured
-        else:
-            self.width = 4.0
-
-    def _sweep_from_gradient(
-        self, i_fix: np.int32, seg_a: np.int32, seg_b: np.int32, fixed_rc: tuple[float, float]
-    ) -> float:
-        """Estimate the tip sweep from the gradient magnitude along the sides.
-
-        Across the band the intensity rises with slope contrast / d (each pixel is covered for a time in proportion
-        to 1/d), whatever the rope width; the smoothed Sobel magnitude at the edge, divided by the contrast, is
-        therefore a decreasing function of the local sweep d, tabulated for this rope width and smoothing by
-        `BandEdgeModel`. The contrast is read from the image near the fixed end, where the rope hardly moved; d(s) is
-        taken as proportional to the arc length s (rotation about the fixed end) and extrapolated to the tip.
-        Returns nan when it cannot be measured.
-        """
-        contrast = self._contrast(fixed_rc)
-        if not contrast >= 5.0:
-            return float("nan")
-        consts = self._constants(self.width)
-        ratios, sweeps = consts.ratios_ro, consts.sweeps_ro
-        estimates = []
-        if contrast != self._contrast_key:  # it settles after ten frames
-            # NumPy divided the float32 samples by the Python float in float32
-            self._contrast_key, self._contrast32 = contrast, np.float32(contrast)
-        contrast32 = self._contrast32
-        for seg, direction in ((seg_a, self._plus), (seg_b, self._minus)):
-            median = K.slope_sweep_median(
-                self._chain, self._n, i_fix, seg, direction, self._mag_ro, self._slope_low, self._slope_high,
-                contrast32, ratios, sweeps, self.slope_work,
-            )  # fmt: skip
-            if math.isfinite(median):
-                estimates.append(median)
-        if not estimates:
-            return float("nan")
-        return estimates[0] if len(estimates) == 1 else (estimates[0] + estimates[1]) / 2.0
-
-    def _contrast(self, fixed_rc: tuple[float, float]) -> float:
-        """Rope contrast (rope minus background, grey levels) near the fixed end; the median of the first 10
-        frames' values is kept (the lighting does not change).
-
-        Across the band the time-averaged coverage integrates to the rope's width whatever the sweep and the blur,
-        so the contrast is the integral of the smoothed image across the band (background removed: a line through
-        the levels on both sides) divided by the unbiased width (`BandEdgeModel`). Read near the fixed end, where
-        the band is narrow and nothing else is likely to lie within it.
-        """
-        if len(self._contrasts) >= 10:
-            return self._contrast_cache
-        n = int(self._n)
-        chain = self._chain
-        smooth = self._smooth
-        pol = float(self.polarity_used)
-        width = self.width
-        pts = self._points
-        dist = np.hypot(pts[:n, 0] - fixed_rc[0], pts[:n, 1] - fixed_rc[1])
-        r_far = float(dist.max())
-        near = np.flatnonzero((dist > 2.0 * width + 2.0) & (dist < 2.0 * width + 2.0 + 0.1 * r_far))
-        if near.size < 4:
-            return float("nan")
-        rc = chain[near]
-        g = np.stack([self._gy[rc[:, 0], rc[:, 1]], self._gx[rc[:, 0], rc[:, 1]]], axis=1) * pol
-        g /= np.maximum(np.hypot(*g.T), 1e-6)[:, None]
-        step = 0.5
-        t = np.arange(-(width + 3.0), 3.0 * width + 8.0, step)
-        where = pts[near][:, None, :].astype(np.float64) + t[None, :, None] * g[:, None, :]
-        height, width_img = smooth.shape
-        ok = np.all((where[..., 0] >= 0) & (where[..., 0] <= height - 1), axis=1)
-        ok &= np.all((where[..., 1] >= 0) & (where[..., 1] <= width_img - 1), axis=1)
-        if np.count_nonzero(ok) < 4:
-            return float("nan")
-        where = where[ok]
-        r0 = np.minimum(np.floor(where[..., 0]).astype(int), height - 2)
-        c0 = np.minimum(np.floor(where[..., 1]).astype(int), width_img - 2)
-        fr, fc = where[..., 0] - r0, where[..., 1] - c0
-        values = (smooth[r0, c0] * (1 - fr) * (1 - fc) + smooth[r0, c0 + 1] * (1 - fr) * fc
-                  + smooth[r0 + 1, c0] * fr * (1 - fc) + smooth[r0 + 1, c0 + 1] * fr * fc)  # fmt: skip
-        first = np.median(values[:, :4], axis=1)
-        last = np.median(values[:, -4:], axis=1)
-        frac = (t - t[0]) / (t[-1] - t[0])
-        background = first[:, None] + (last - first)[:, None] * frac[None, :]
-        area = pol * (values - background).sum(axis=1) * step
-        value = float(np.median(area)) / self.model.tables(width).width_px
-        if not value > 0:
-            return float("nan")
-        self._contrasts.append(value)
-        self._contrast_cache = float(np.median(self._contrasts))
-        return self._contrast_cache
-
-    def _measure_width(
-        self, edges: NDArray[np.uint8], mag: NDArray[np.float32], fixed_rc: tuple[float, float] | None
-    ) -> None:
-        """Measure the rope's edge spacing: the distance to the opposite edge, near the fixed end if known.
-
-        Motion only widens the band (for a sweep beyond the rope's width the spacing is the sweep), so the
-        spacing is read where the rope moved least: first the lower quartile over the whole contour, then the
-        median just beyond the fixed end's cap (within a tenth of the rope's extent).
-        """
-        K.measure_widths(edges, mag, self._gx, self._gy, self._chain, self._n, self.polarity_used, f32(64.0), self.dist)
-        widths = self.dist[: self._n]
-        finite = np.isfinite(widths)
-        valid = widths[finite]
-        self.width_measured = float(np.percentile(valid, 25)) if valid.size else float("nan")
-        if fixed_rc is not None and valid.size:
-            pts = self._points[: self._n]
-            dist = np.hypot(pts[:, 0] - fixed_rc[0], pts[:, 1] - fixed_rc[1])
-            start = 2.0 * self.width_measured + 2.0
-            near = finite & (dist > start) & (dist < start + 0.1 * dist.max())
-            if np.count_nonzero(near) >= 4:
-                self.width_measured = float(np.median(widths[near]))
-
-    def static(self, fixed_rc: tuple[float, float] | None = None) -> SplitOutcome | None:
-        """Return the centreline of a rope that did not move (or cannot be split): one side of the contour, from
-        rope end to rope end, moved half a rope width into the rope along the gradient. The end nearer
-        `fixed_rc` comes first. Call after `split` (or `_prepare`) on the same contour."""
-        points, chain, n = self._points, self._chain, self._n
-        if n < 8:
-            return None
-        K.turning_angles(points, n, i32(max(3, round(self.width))), self.turn)
-        if K.find_caps(ro(self.turn), n, i32(max(4, n // 8)), self.idx) < 0:
-            return None
-        e1, e2 = np.int32(self.idx[0]), np.int32(self.idx[1])
-        if fixed_rc is not None:
-            d1 = np.hypot(points[e1, 0] - fixed_rc[0], points[e1, 1] - fixed_rc[1])
-            d2 = np.hypot(points[e2, 0] - fixed_rc[0], points[e2, 1] - fixed_rc[1])
-            if d2 < d1:
-                e1, e2 = e2, e1
-        w = np.float32(self.width)
-        count = K.offset_by_gradient(
-            points, chain, n, e1, e2, i32(1), self._gx, self._gy, self.polarity_used, w, f32(0.0), self.side_a
-        )
-        if count < 2:
-            return None
-        # The cap's edge was moved half a width back along the axis with the gradient: carry the axis on to the
-        # band's end instead, as for the split shapes.
-        count = self._fit_tip(self.side_a, i32(count))
-        if fixed_rc is not None:
-            count = self._anchor_fixed_end(self.side_a, count, fixed_rc)
-        shape = self._resample(self.side_a, i32(count), self.out_a)
-        self.seg[0] = points[e2]
-        self.seg[1] = points[e2]
-        return SplitOutcome(Method.STATIC_FALLBACK, shape, shape, None, self.width, 0.0)
+        self._measure_polarity_and_width(width_px, edges, polarity, mag, fixed_rc)
 
     def _correct_slant(self, na: int, nb: int, gain_px: float) -> None:
         """Undo the bias of the half-level tips when the rope's end also moved along the rope (a whipping tip).
@@ -579,42 +412,14 @@ class BlurSplitter:
             return poly[:count]  # the smoothed points (valid until the next split, as `out`)
         return out[:count]
 
-    def _comparison(self, fixed_rc: tuple[float, float]) -> SplitOutcome | None:
-        """The comparison methods (`centerline.py`, `paper_method.py`) on the contour stored by `_prepare`.
-
-        ``paper`` scores the knots against the centreline's ends (Feature 3); where it finds no two segmentation
-        points (slow motion: the blur is too narrow to split) it reports the centreline, as the paper does.
-        """
-        n = int(self._n)
-        points = self._points
-        dist = np.hypot(points[:n, 0] - fixed_rc[0], points[:n, 1] - fixed_rc[1])
-        i_fix, i_far = int(np.argmin(dist)), int(np.argmax(dist))
-        line = self.centerline.extract(points, n, i_fix, i_far)
-        if line is None:
-            return None
-        # The band is a rope width plus the sweep wide at its widest: the sweep sizes the next frame's ROI.
-        self.sweep_px = max(0.0, self.centerline.band_width_px - self.width)
-        centre = SplitOutcome(Method.CENTERLINE, line, line, None, self.width, self.sweep_px)
-        if self.method == "centerline":
-            return centre
-        e1 = (float(line[0, 0]), float(line[0, 1]))
-        e2 = (float(line[-1, 0]), float(line[-1, 1]))
-        found = self.paper.segment(self._chain, n, fixed_rc, e1, e2, self.centerline.band_width_px, self.width)
-        if found is None:
-            return centre
-        self.sweep_px = found.sweep_px
-        return SplitOutcome(
-            Method.PAPER, found.shape_a, found.shape_b, found.segmentation_points, self.width, found.sweep_px
-        )
-
 
 class _WidthConstants:
     """Scalars (of the kernels' argument types) and tables of `BlurSplitter.split` that depend only on the rope
     width."""
 
     __slots__ = (
-        "blur", "cap", "corner", "min_gap", "ratios_ro", "scale", "search_px", "skip", "span", "sweep_window",
-        "sweeps_ro", "table_ro", "table_step", "tables", "width",
+        "blur", "cap", "corner", "curves", "keep", "min_gap", "params", "ratios_ro", "scale", "search_px", "skip",
+        "span", "sweep_window", "sweeps_ro", "table_ro", "table_step", "tables", "width",
     )  # fmt: skip
 
     def __init__(self, splitter: BlurSplitter, width: float) -> None:
@@ -638,3 +443,12 @@ class _WidthConstants:
         # pixel (measured: 3 widths gave 0.17-0.34 px mean tips on rig / dark rig, 8 widths 0.12-0.25, 20 widths
         # let rig-soft's curl in, 0.27).
         self.span = f32(max(8.0 * width, 16.0))
+        self.keep = i32(K.dense_end_points(self.skip, self.span))
+        # `split_shapes_local`'s width-bound arguments for `split_shapes_packed` (float32 values are exact in float64)
+        params = (
+            self.sweep_window, self.table_step, self.width, self.cap, self.skip, self.span, self.blur,
+            self.tables.slant_px, width, splitter.step, splitter.output_smoothing,
+        )  # fmt: skip
+        assert len(params) == K.SPLIT_PARAMS
+        self.params = ro(np.array([float(v) for v in params], np.float64))
+        self.curves = ro(np.stack([self.ratios_ro, self.sweeps_ro]).astype(np.float64))

@@ -75,16 +75,20 @@ from ropecam.device.pipeline._kernels.geometry import (
     turning_angles_far,
 )
 from ropecam.device.pipeline._kernels.offsets import (
+    SPLIT_PARAMS,
+    dense_end_points,
     find_caps,
     interp_sorted,
     measure_widths,
     offset_by_gradient,
     offset_by_table,
+    offset_by_table_thinned,
     place_along_gradient,
     side_slope_samples,
     side_sweeps,
     slope_sweep_median,
     split_shapes_local,
+    split_shapes_packed,
 )
 from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots, thin_chain
 from ropecam.device.pipeline._kernels.polylines import (
@@ -141,6 +145,7 @@ __all__ = [
     "ORDER_COUNT",
     "ORDER_ORDERED",
     "ORDER_REJECTS",
+    "SPLIT_PARAMS",
     "TAN_22_5",
     "TWO",
     "ZERO",
@@ -152,6 +157,7 @@ __all__ = [
     "coarse_spans",
     "count_border_contacts",
     "count_roi_contacts",
+    "dense_end_points",
     "detect_edges",
     "extend_to_band_end",
     "f4_1d_ro",
@@ -174,6 +180,7 @@ __all__ = [
     "observe_motion",
     "offset_by_gradient",
     "offset_by_table",
+    "offset_by_table_thinned",
     "offset_side",
     "order_shapes",
     "padded_end",
@@ -202,6 +209,7 @@ __all__ = [
     "spans_around_points",
     "split_contour",
     "split_shapes_local",
+    "split_shapes_packed",
     "suppress_rows",
     "thin_chain",
     "trace_closed",

@@ -6,7 +6,7 @@ import math
 from typing import Final
 
 import numpy as np
-from numba import float32, float64, int32, int64, void
+from numba import float32, float64, int32, int64, types, void
 
 from ropecam.device.pipeline._kernels._common import FULL, INVALID, NOT_FOUND, f4_1d_ro, prefetch_read
 from ropecam.device.pipeline._kernels.geometry import axis_offset, chain_length
@@ -23,6 +23,7 @@ from ropecam.shared.jit import (
     f4_2d_ro,
     f8_1d,
     f8_1d_ro,
+    f8_2d_ro,
     i4_1d,
     i4_2d_ro,
     kernel,
@@ -37,8 +38,18 @@ def _length(d_r, d_c):
     return math.sqrt(d_r * d_r + d_c * d_c)
 
 
+f4_3d: Final = types.Array(types.float32, 3, "C")
+
+SPLIT_PARAMS: Final = 11
+"""Length of `split_shapes_packed`'s `params`: `split_shapes_local`'s scalars that depend only on the rope width,
+in its order (`half`, `step_px`, `width_px`, `cap_px`, `skip_px`, `span_px`, `blur_px`, `slant_gain_px`,
+`width_check_px`, `out_step_px`, `smoothing_px`), each exactly representable in float64."""
+
 _AHEAD: Final = 16
 """Chain points ahead whose plane values `side_sweeps` and `offset_by_table` ask the caches for."""
+_DENSE_ENDS: Final = 1.2
+"""Arc lengths (in units of the tip fit's skip + span) at both ends of a side offset at every contour point by
+`split_shapes_local`; between them every other point (the output is resampled at 2 px)."""
 
 
 @kernel(int32(u1_2d_ro, f4_2d_ro, f4_2d_ro, f4_2d_ro, i4_2d_ro, int32, float32, float32, f4_1d))
@@ -307,6 +318,66 @@ def offset_by_table(
     return count
 
 
+@kernel(int32(float32, float32))
+def dense_end_points(skip_px, span_px):
+    """The points at each end of a side that `split_shapes_local` offsets one by one (`offset_by_table_thinned`):
+    ``_DENSE_ENDS`` times the tip fit's `skip_px` + `span_px` (contour points are at least ~1 px apart), plus one,
+    so that the tip fit (`extend_to_band_end`) and the anchoring at the fixed end (`anchor_start`) read the same
+    points as on the dense side."""
+    return np.int32(int(_DENSE_ENDS * (skip_px + span_px)) + 1)
+
+
+@kernel(
+    int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, f4_2d_ro, float32, f4_1d_ro, float32, f4_1d_ro,
+          int32, int32, f4_2d)
+)  # fmt: skip
+def offset_by_table_thinned(
+    points, chain, n, i_start, i_stop, direction, gx, gy, polarity, sweeps, step_px, table, keep_head, keep_tail,
+    out_poly,
+):  # fmt: skip
+    """`offset_by_table` with local sweeps (``sweeps[k]`` at the k-th point of the side) on fewer points: the
+    first `keep_head` and the last `keep_tail` points of the side (from `i_start` to `i_stop`, stepping
+    `direction`, cyclic) are all placed, between them every other point (the first and the last point of the
+    side always). Each placed point is the same as `offset_by_table`'s. Returns the number of points written or
+    FULL."""
+    count = (i_stop - i_start) * direction
+    count = (count % n + n) % n + 1
+    if count > out_poly.shape[0] or count > sweeps.shape[0]:
+        return FULL
+    last = table.shape[0] - 1
+    i = (i_start + n * 4) % n
+    flat_gx = gx.reshape(gx.size)
+    flat_gy = gy.reshape(gy.size)
+    cols = gx.shape[1]
+    ahead = (i_start + _AHEAD * direction + 4 * n) % n
+    tail = count - keep_tail
+    out = 0
+    for k in range(count):
+        if k + _AHEAD < count:  # as in `side_sweeps`
+            at = chain[ahead, 0] * cols + chain[ahead, 1]
+            prefetch_read(flat_gx, at)
+            prefetch_read(flat_gy, at)
+            ahead += direction
+            if ahead == n:
+                ahead = 0
+            elif ahead < 0:
+                ahead = n - 1
+        if k < keep_head or k >= tail or ((k - keep_head) & 1) == 0:
+            x = max(sweeps[k], 0.0) / step_px
+            j = min(int(x), last)
+            shift = table[last]
+            if j < last:
+                shift = table[j] + (x - j) * (table[j + 1] - table[j])
+            place_along_gradient(points, chain, i, gx, gy, polarity, shift, out_poly, out)
+            out += 1
+        i += direction
+        if i == n:
+            i = 0
+        elif i < 0:
+            i = n - 1
+    return out
+
+
 @kernel(
     int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f8_1d_ro, f8_1d_ro, int32, f4_2d_ro,
           f4_2d_ro, float32, float32, f4_1d_ro, f4_2d_ro, float32, float32, float32, float32, float32, float64,
@@ -339,12 +410,11 @@ def split_shapes_local(
         return FULL
     if side_sweeps(chain, n, i_fix, seg_b, minus, mag, inv_contrast, ratios, sweeps, half, work, out_sweeps_b) < 0:
         return FULL
-    local = np.int32(1)
-    none = np.float32(0.0)
-    na = offset_by_table(points, chain, n, i_fix, seg_a, plus, gx, gy, polarity, out_sweeps_a, local, none, step_px,
-                         table, out_side_a)  # fmt: skip
-    nb = offset_by_table(points, chain, n, i_fix, seg_b, minus, gx, gy, polarity, out_sweeps_b, local, none,
-                         step_px, table, out_side_b)  # fmt: skip
+    keep = dense_end_points(skip_px, span_px)
+    na = offset_by_table_thinned(points, chain, n, i_fix, seg_a, plus, gx, gy, polarity, out_sweeps_a, step_px,
+                                 table, keep, keep, out_side_a)  # fmt: skip
+    nb = offset_by_table_thinned(points, chain, n, i_fix, seg_b, minus, gx, gy, polarity, out_sweeps_b, step_px,
+                                 table, keep, keep, out_side_b)  # fmt: skip
     if na < 0 or nb < 0:
         return FULL
     na = extend_to_band_end(out_side_a, na, points, n, smooth, width_px, cap_px, skip_px, span_px, blur_px)
@@ -400,6 +470,29 @@ def split_shapes_local(
                 return INVALID
             out_info[4 + side] = 1.0
     return 2
+
+
+@kernel(
+    int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f4_2d_ro, f4_2d_ro, float32, f4_2d_ro,
+          float32, float32, f8_1d_ro, f8_2d_ro, f4_1d_ro, f4_2d, f4_3d, f8_1d, f8_1d)
+)  # fmt: skip
+def split_shapes_packed(
+    points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, gx, gy, polarity, smooth, fixed_r, fixed_c, params,
+    curves, table, lines, sides, work_arc, out_info,
+):  # fmt: skip
+    """`split_shapes_local` with its arguments bound in fewer arrays (a dispatch costs ~0.1 us per argument): the
+    width's scalars in `params` (`SPLIT_PARAMS` values, converted back to the types `split_shapes_local` takes),
+    ``curves = [ratios, sweeps]``, ``lines = [work, out_sweeps_a, out_sweeps_b]`` and ``sides = [out_side_a,
+    out_side_b, out_a, out_b]``. Same results and returns; INVALID when an array is too small to hold them."""
+    if params.shape[0] < SPLIT_PARAMS or curves.shape[0] < 2 or lines.shape[0] < 3 or sides.shape[0] < 4:
+        return INVALID
+    return split_shapes_local(
+        points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, curves[0], curves[1], np.int32(params[0]), gx, gy,
+        polarity, np.float32(params[1]), table, smooth, np.float32(params[2]), np.float32(params[3]),
+        np.float32(params[4]), np.float32(params[5]), np.float32(params[6]), params[7], params[8],
+        np.float32(params[9]), np.float32(params[10]), fixed_r, fixed_c, lines[0], lines[1], lines[2], sides[0],
+        sides[1], sides[2], sides[3], work_arc, out_info,
+    )  # fmt: skip
 
 
 @kernel(float64(f8_1d, int64, int64))

@@ -67,6 +67,50 @@ def test_offset_by_table_matches_reference(local) -> None:
     np.testing.assert_allclose(out[:count], expected, atol=1e-4)
 
 
+@pytest.mark.parametrize(("start", "stop", "direction", "head", "tail"),
+                         [(3, 22, 1, 4, 3), (20, 2, -1, 1, 1), (18, 6, 1, 2, 5), (3, 8, 1, 9, 9)])  # fmt: skip
+def test_offset_by_table_thinned_keeps_the_dense_points(start, stop, direction, head, tail) -> None:
+    rng = np.random.default_rng(4)
+    n = 24
+    angle = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    points = np.stack([20 + 8 * np.sin(angle), 20 + 8 * np.cos(angle)], axis=1).astype(np.float32)
+    chain = np.rint(points).astype(np.int32)
+    gx = rng.normal(size=(40, 40)).astype(np.float32)
+    gy = rng.normal(size=(40, 40)).astype(np.float32)
+    table = np.array([1.5, 1.2, 0.8, 0.3, 0.0], np.float32)
+    sweeps = rng.uniform(0, 3, n).astype(np.float32)
+    dense = np.zeros((n, 2), np.float32)
+    count = K.offset_by_table(points, chain, n, start, stop, direction, gx, gy, np.float32(1.0), sweeps, 1,
+                              np.float32(0.0), np.float32(0.5), table, dense)  # fmt: skip
+    thin = np.zeros((n, 2), np.float32)
+    got = K.offset_by_table_thinned(points, chain, n, start, stop, direction, gx, gy, np.float32(1.0), sweeps,
+                                    np.float32(0.5), table, head, tail, thin)  # fmt: skip
+    keep = [k for k in range(count) if k < head or k >= count - tail or (k - head) % 2 == 0]
+    assert keep[0] == 0 and keep[-1] == count - 1
+    assert got == len(keep)
+    np.testing.assert_array_equal(thin[:got], dense[keep])
+    assert (
+        K.offset_by_table_thinned(
+            points,
+            chain,
+            n,
+            start,
+            stop,
+            direction,
+            gx,
+            gy,
+            np.float32(1.0),
+            sweeps,
+            np.float32(0.5),
+            table,
+            head,
+            tail,
+            np.zeros((3, 2), np.float32),
+        )
+        == K.FULL
+    )
+
+
 def _band_image(tip_col: float, row: float = 20.0, width_px: float = 3.0, blur: float = 1.1) -> np.ndarray:
     """A horizontal rope from column 5 to `tip_col` (flat end), Gaussian-blurred (closed form), as float32."""
     rows, cols = np.mgrid[0:40, 0:70].astype(float)

@@ -1,4 +1,5 @@
-"""`split_shapes_local` (the blur split's usual path in one kernel call) against the same kernels called one by one."""
+"""`split_shapes_packed` (`split_shapes_local`, the blur split's usual path in one kernel call) against the same
+kernels called one by one."""
 
 from __future__ import annotations
 
@@ -18,13 +19,13 @@ def _shapes(monkeypatch: pytest.MonkeyPatch, fused: bool) -> list[tuple[np.ndarr
     """Begin/end of 14 frames of a swinging rope (the contrast, hence the local sweeps, known from frame 10)."""
     rope = SyntheticRope(exposure_us=4000, amplitude_rad=0.6, period_s=0.9, diameter_px=3.0, phase_rad=1.5, fps=119.0)
     calls = []
-    real = K.split_shapes_local
+    real = K.split_shapes_packed
 
     def counted(*args):
         calls.append(1)
         return real(*args) if fused else K.FULL  # FULL: the stage redoes the steps one by one
 
-    monkeypatch.setattr(K, "split_shapes_local", counted)
+    monkeypatch.setattr(K, "split_shapes_packed", counted)
     pipeline = Pipeline(PipelineConfig(), (rope.width, rope.height))
     out = []
     for frame in rope.frames(14):
