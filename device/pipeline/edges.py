@@ -58,6 +58,8 @@ class EdgeDetector:
         self.edges_ro, self.mag_ro, self.gx_ro, self.gy_ro = (ro(a) for a in (self.edges, self.mag, self.gx, self.gy))
         self.stack_ro = ro(self.stack)
         self.full_lo_ro, self.full_hi_ro = ro(self.full_lo), ro(self.full_hi)
+        self._box_lo, self._box_hi = np.zeros(height, np.int32), np.zeros(height, np.int32)  # `smooth_box` spans
+        self._spans_lo, self._spans_hi = ro(np.ones(height, np.int32)), ro(np.zeros(height, np.int32))  # none yet
         """Edge pixels found by the last `detect`; their flat indices are ``stack[:count]`` (the strong pixels in
         raster order, then the weak pixels joined to them)."""
 
@@ -86,6 +88,7 @@ class EdgeDetector:
             raise ValueError(f"frame must be C-contiguous uint8 of shape {self.shape}, got {frame.dtype} {frame.shape}")
         if lo.shape != (self.shape[0],) or hi.shape != (self.shape[0],) or lo.dtype != np.int32:
             raise ValueError(f"lo/hi must be int32 of shape ({self.shape[0]},)")
+        self._spans_lo, self._spans_hi = as_ro(lo), as_ro(hi)
         count = K.detect_edges(
             as_ro(frame), self.weights_ro, as_ro(lo), as_ro(hi), self.low, self.high, self.work_spans, self.tmp,
             self.smooth, self.gx, self.gy, self.mag, self.edges, self.stack,
@@ -94,3 +97,17 @@ class EdgeDetector:
             raise RuntimeError(f"detect_edges returned status {count}")
         self.count = int(count)
         return self.count
+
+    def smooth_box(self, frame: NDArray[np.uint8], r0: int, r1: int, c0: int, c1: int) -> int:
+        """Make `smooth` hold this frame's smoothed image over rows `r0`..`r1` and columns `c0`..`c1` (inclusive,
+        inside the image); returns the pixels smoothed (0 when the last `detect`'s spans covered the box).
+
+        `detect` writes its planes inside its spans only; outside, `smooth` holds what earlier bands left there.
+        Readers of the smoothed image just beyond the band (the contrast across it, the background past the tip)
+        call this first: rows the spans cover keep their values, the box is smoothed again otherwise (the same
+        kernels and arithmetic as `detect`). `frame` must be the one `detect` last saw.
+        """
+        return K.smooth_box(
+            as_ro(frame), self.weights_ro, self._spans_lo, self._spans_hi, r0, r1, c0, c1, self._box_lo,
+            self._box_hi, self.tmp, self.smooth,
+        )  # fmt: skip

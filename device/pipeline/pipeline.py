@@ -7,6 +7,7 @@ shapes of a frame in time order.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 
@@ -263,6 +264,7 @@ class Pipeline:
             e.mag,
             e.smooth,
             polarity,
+            refresh=functools.partial(e.smooth_box, image),
         )
         if steady is None:
             self._learn(measure)

@@ -4,6 +4,7 @@ exposure (and the tip track), or into one centreline when the blur cannot be spl
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import NDArray
@@ -90,6 +91,7 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         self.step = np.float32(output_step_px)
         self.turn = np.zeros(capacity, np.float32)
         self.idx = np.zeros(4, np.int32)
+        self._refresh: Callable[[int, int, int, int], None] | None = None
         self.sides = np.zeros((4, capacity, 2), np.float32)
         """`side_a`, `side_b`, `out_a`, `out_b` in one array (`split_shapes_packed`)."""
         self.side_a, self.side_b, self.out_a, self.out_b = self.sides[0], self.sides[1], self.sides[2], self.sides[3]
@@ -154,6 +156,7 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         mag: NDArray[np.float32],
         smooth: NDArray[np.float32],
         polarity: float = 0.0,
+        refresh: Callable[[int, int, int, int], None] | None = None,
     ) -> SplitOutcome | None:
         """Split the closed contour (`n` subpixel `points`, integer `chain`) of a rope fixed at `fixed_rc`.
 
@@ -165,6 +168,10 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
             The gradients, edge map and gradient magnitude the contour came from (read only).
         polarity
             +1 bright rope, -1 dark rope, 0 to decide from the gradients.
+        refresh
+            Called with (r0, r1, c0, c1) before `smooth` is read in that box (inclusive): the edge stage fills
+            `smooth` inside its band only, and the contrast and the tip fit read it a few pixels beyond (the
+            pipeline passes `EdgeDetector.smooth_box` for this frame). None: `smooth` is valid everywhere.
 
         Returns
         -------
@@ -172,6 +179,7 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
             None when the contour cannot be split (too short, no segmentation points).
         """
         self._smooth = smooth
+        self._refresh = refresh
         self.failure = "contour found but no segmentation points"
         self._prepare(points, chain, n, width_px, gx, gy, edges, polarity, mag, fixed_rc)
         points, chain, n = self._points, self._chain, self._n
@@ -202,6 +210,16 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         seg = self.seg
         ar, ac = points[seg_a].tolist()
         br, bc = points[seg_b].tolist()
+        if refresh is not None:
+            # The tip fit (`extend_to_band_end`) reads the smoothed image up to 3 blur + 1 (reach) + 2 (flank) px
+            # past the band's end next to each corner, on lines 0.5 px apart, bilinearly: this frame's values must
+            # be there, and the band need not reach so far.
+            grow = 3.0 * float(consts.blur) + 6.0 + width
+            height, width_img = self._smooth.shape
+            refresh(
+                max(0, math.floor(min(ar, br) - grow)), min(height - 1, math.ceil(max(ar, br) + grow)),
+                max(0, math.floor(min(ac, bc) - grow)), min(width_img - 1, math.ceil(max(ac, bc) + grow)),
+            )  # fmt: skip
         seg[0, 0] = ar
         seg[0, 1] = ac
         seg[1, 0] = br

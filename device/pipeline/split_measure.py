@@ -118,6 +118,11 @@ class SplitMeasuring:
         if np.count_nonzero(ok) < 4:
             return float("nan")
         where = where[ok]
+        if self._refresh is not None:  # the samples reach past the band: smooth them from this frame
+            low, high = np.floor(where.min(axis=(0, 1))), np.ceil(where.max(axis=(0, 1)))
+            self._refresh(
+                int(low[0]), int(min(high[0] + 1, height - 1)), int(low[1]), int(min(high[1] + 1, width_img - 1))
+            )
         r0 = np.minimum(np.floor(where[..., 0]).astype(int), height - 2)
         c0 = np.minimum(np.floor(where[..., 1]).astype(int), width_img - 2)
         fr, fc = where[..., 0] - r0, where[..., 1] - c0

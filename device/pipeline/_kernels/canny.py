@@ -323,6 +323,34 @@ def smooth_columns(tmp, weights, gau_lo, gau_hi, r_begin, r_end, out_smooth):
                 smo[out + ui] += wk * t[src + ui]
 
 
+@kernel(int64(u1_2d_ro, f4_1d_ro, i4_1d_ro, i4_1d_ro, int64, int64, int64, int64, i4_1d, i4_1d, f4_2d, f4_2d))
+def smooth_box(frame, weights, lo, hi, r0, r1, c0, c1, work_lo, work_hi, out_tmp, out_smooth):
+    """Make `out_smooth` hold the smoothing of `frame` over rows `r0`..`r1`, columns `c0`..`c1` (inclusive, inside
+    the image): rows whose box part lies inside the spans `lo`/`hi` of the last `detect_edges` already do (it
+    smooths at least its spans); the rows from the first to the last that they do not cover are smoothed again
+    over the box's columns with `smooth_rows` and `smooth_columns` (the values `detect_edges` gives; `out_tmp` is
+    scratch). Returns the number of pixels smoothed (0 when the spans covered the box). `work_lo`/`work_hi`
+    (image height) are scratch spans."""
+    first = -1
+    last = -1
+    for r in range(r0, r1 + 1):
+        if lo[r] > c0 or hi[r] < c1:
+            if first < 0:
+                first = r
+            last = r
+    if first < 0:
+        return 0
+    radius = weights.shape[0] // 2
+    t0 = max(0, first - radius)
+    t1 = min(frame.shape[0] - 1, last + radius)
+    for r in range(t0, t1 + 1):
+        work_lo[r] = c0
+        work_hi[r] = c1
+    smooth_rows(frame, weights, work_lo, work_hi, t0, t1, out_tmp)
+    smooth_columns(out_tmp, weights, work_lo, work_hi, first, last, out_smooth)
+    return (last - first + 1) * (c1 - c0 + 1)
+
+
 @kernel(void(f4_2d, i4_1d, i4_1d, int64, int64, f4_2d, f4_2d, f4_2d))
 def sobel_rows(smooth, sob_lo, sob_hi, r_begin, r_end, out_gx, out_gy, out_mag):
     """Write the 3x3 Sobel gradients of `smooth` and their L2 norm over the spans `sob_lo`/`sob_hi` (within the

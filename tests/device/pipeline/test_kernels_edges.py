@@ -254,3 +254,19 @@ def test_edges_are_zero_around_the_spans(blurred_frames) -> None:
     assert ring.any() and (b["edges"][ring] == 0).all()
     assert set(np.unique(b["edges"][inside])) <= {0, 1}
     assert count == np.count_nonzero(b["edges"][inside]) > 0
+
+
+def test_smooth_box_gives_the_values_detect_gives() -> None:
+    # `EdgeDetector.smooth_box` fills the smoothed image outside the band with the values a band there would get.
+    from ropecam.device.pipeline.edges import EdgeDetector
+
+    rng = np.random.default_rng(3)
+    frame = rng.integers(0, 256, (40, 50), dtype=np.uint8)
+    whole = EdgeDetector(40, 50, 1.0, 20.0, 50.0)
+    whole.detect(frame, whole.full_lo, whole.full_hi)
+    assert whole.smooth_box(frame, 0, 39, 0, 49) == 0  # the spans of its last detect cover it: nothing to do
+    boxed = EdgeDetector(40, 50, 1.0, 20.0, 50.0)
+    boxed.smooth[:] = -1.0
+    for r0, r1, c0, c1 in ((0, 5, 0, 7), (10, 30, 20, 49), (35, 39, 3, 3)):
+        boxed.smooth_box(frame, r0, r1, c0, c1)
+        np.testing.assert_array_equal(boxed.smooth[r0 : r1 + 1, c0 : c1 + 1], whole.smooth[r0 : r1 + 1, c0 : c1 + 1])

@@ -132,3 +132,26 @@ def test_warm_up_builds_the_edge_tables_and_leaves_no_state(swing, swing_frames)
     assert Pipeline(config, (swing.width, swing.height)).splitter.model is model
     results = _run(pipeline, swing_frames, (0, 1, 2))
     assert all(r.status is FrameStatus.OK for r in results), [r.message for r in results]
+
+
+def _shapes(results) -> list:
+    return [(r.status, r.begin, r.end) for r in results]
+
+
+def test_results_do_not_depend_on_what_earlier_frames_left_in_the_planes(swing, swing_frames) -> None:
+    # The edge stage fills its planes inside the band only; the split reads the smoothed image a little beyond it
+    # (the contrast across the band, the background past the tip). Those reads must see this frame: garbage
+    # written over the planes before every frame must not change a single output.
+    clean = Pipeline(PipelineConfig(), (swing.width, swing.height))
+    expected = _run(clean, swing_frames, (0, 1, 2, 3, 6))
+    dirty = Pipeline(PipelineConfig(), (swing.width, swing.height))
+    got = []
+    for i in (0, 1, 2, 3, 6):
+        for plane in (dirty.edges.smooth, dirty.edges.tmp):
+            plane[:] = 1000.0
+        got += _run(dirty, swing_frames, (i,))
+    assert all(r.status is FrameStatus.OK for r in expected), [r.message for r in expected]
+    for want, have in zip(_shapes(expected), _shapes(got), strict=True):
+        assert want[0] is have[0]
+        np.testing.assert_array_equal(want[1], have[1])
+        np.testing.assert_array_equal(want[2], have[2])
