@@ -92,15 +92,15 @@ def frame_stats(frames: list[tuple[np.ndarray, int, float]], config: PipelineCon
 
 def scale_motion(factor: float) -> None:
     """Make every pipeline's motion prediction report `factor` x its uncertainty (an experiment: the margins)."""
-    from ropecam.device.pipeline import pipeline as module
+    from ropecam.device.pipeline.motion import MotionModel
 
-    predict = module._MotionState.predict
+    predict = MotionModel.predict
 
     def scaled(self: Any, t_ns: int, exposure_ns: int) -> tuple[float, float, float]:
         rot_a, rot_b, motion = predict(self, t_ns, exposure_ns)
         return rot_a, rot_b, motion * factor
 
-    module._MotionState.predict = scaled  # type: ignore[method-assign]
+    MotionModel.predict = scaled  # type: ignore[method-assign]
 
 
 def main(argv: list[str] | None = None) -> int:
