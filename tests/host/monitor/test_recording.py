@@ -94,6 +94,7 @@ def test_ctrl_c_still_records_every_packet_already_received(tmp_path: Path, read
     session = Session(Recorder(RecordingConfig(tmp_path / "int.mcap")))
     receiver = Receiver(host)
     checks = []
+    before = signal.getsignal(signal.SIGINT)  # default_int_handler, or SIG_IGN under a background job
     with StopSignals() as stop:
 
         def should_stop() -> bool:
@@ -105,7 +106,7 @@ def test_ctrl_c_still_records_every_packet_already_received(tmp_path: Path, read
         monitor_loop(receiver, session, None, None, should_stop)
     session.close()
     assert stop.signal_name == "SIGINT" and len(checks) == 10
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    assert signal.getsignal(signal.SIGINT) is before  # the previous handler is back
     raw = [data for topic, _, _, data in read_mcap(tmp_path / "int.mcap") if topic == RAW_TOPIC]
     assert raw == messages
 
