@@ -33,13 +33,11 @@ class PointTracker:
             raise ValueError(f"rope_length_m must be > 0, got {rope_length_m}")
         self.arc_m = tuple(float(a) for a in arc_m)
         self.fraction = np.array(self.arc_m, np.float64) / rope_length_m
-        self.arc_px = np.zeros(len(self.arc_m), np.float64)
         self.length0_px = length0_px
         self.length0_frames = int(length0_frames)
         self._lengths: list[float] = []
         self._median: float | None = None
         self.out = np.zeros((2, len(self.arc_m), 2), np.float32)
-        self._arc_px_ro = ro(self.arc_px)
         self.fraction_ro = ro(self.fraction)
         self.out_slots = (self.out[0], self.out[1])
         self.lengths_px = np.zeros(2, np.float64)
@@ -104,24 +102,3 @@ class PointTracker:
         if status < 0:
             raise ValueError(f"cannot track material points on polylines of {len(begin)} and {len(end)} points")
         return self.out_slots[0], stretch_begin, self.out_slots[1], stretch_end
-
-    def track(
-        self, poly: NDArray[np.float32], slot: int, length_px: float | None = None
-    ) -> tuple[NDArray[np.float32], float]:
-        """Return the material points (k, 2) (row, col) on `poly` (fixed end first) and the stretch Lc/Lc0.
-
-        `slot` (0 or 1) selects the output buffer, so the two shapes of a frame do not overwrite each other; the
-        points are valid until the next call with the same slot. `length_px` is `poly`'s length when the caller
-        has it already (`length`), else it is computed.
-        """
-        length0 = self.reference_length_px
-        lc = self.length(poly) if length_px is None else float(length_px)
-        if length0 is None or length0 <= 0:
-            length0 = lc
-        np.multiply(self.fraction, length0, out=self.arc_px)
-        status = K.track_material_points_of_length(
-            as_ro(poly), np.int32(len(poly)), lc, self._arc_px_ro, float(length0), self.out[slot]
-        )
-        if status < 0:
-            raise ValueError(f"cannot track material points on a polyline of {len(poly)} points")
-        return self.out[slot], lc / length0 if length0 > 0 else float("nan")
