@@ -174,7 +174,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 _STAGES = (
-    ("edges", "edges", "detect"),
+    ("edges+contour", "tracer", "detect_and_trace"),  # one kernel call (the pipeline's; bench_roi_kernels splits it)
+    ("edges", "edges", "detect"),  # called on their own by other paths only
     ("contour", "tracer", "trace"),
     ("roi_contacts", "tracer", "roi_contacts"),
     ("border_contacts", "tracer", "border_contacts"),

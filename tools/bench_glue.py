@@ -71,7 +71,7 @@ class KernelTimer:
 
     def __init__(self, kernels: Any) -> None:
         self.ns = 0
-        for name in dir(kernels):
+        for name in dir(kernels) if kernels is not None else ():
             function = getattr(kernels, name)
             if hasattr(function, "py_func"):
                 setattr(kernels, name, self._wrap(function))
@@ -87,6 +87,40 @@ class KernelTimer:
         return timed
 
 
+_FIELDS = (
+    "frame", "t_ns", "t_end_ns", "status", "method", "order_confidence", "begin", "end", "fixed_end",
+    "segmentation_points", "material_arc_m", "material_begin", "material_end", "stretch_begin", "stretch_end",
+    "rope_width_px", "full_frame", "message", "extra",
+)  # fmt: skip
+"""The `FrameResult` fields compared (all but `pipeline_us`)."""
+
+
+def _same(x: Any, y: Any) -> bool:
+    """Equal values, bit for bit: arrays by dtype, shape and content (NaN equal to NaN), enums by name."""
+    if isinstance(x, np.ndarray) or isinstance(y, np.ndarray):
+        if not (isinstance(x, np.ndarray) and isinstance(y, np.ndarray)):
+            return False
+        return x.dtype == y.dtype and x.shape == y.shape and x.tobytes() == y.tobytes()
+    if hasattr(x, "name") and hasattr(y, "name") and hasattr(x, "value"):
+        return bool(x.name == y.name and x.value == y.value)
+    if isinstance(x, float) and isinstance(y, float) and x != x and y != y:
+        return True
+    return type(x) is type(y) and bool(x == y)
+
+
+def compare(a: Any, b: Any, pipeline_a: Any, pipeline_b: Any) -> list[str]:
+    """The fields of two `FrameResult`s that differ, and the pipelines' ROI spans (`lo`, `hi`) if they differ."""
+    out = [
+        f"{name}: {getattr(a, name)!r} != {getattr(b, name)!r}"
+        for name in _FIELDS
+        if not _same(getattr(a, name), getattr(b, name))
+    ]
+    for name in ("lo", "hi"):
+        if not _same(getattr(pipeline_a, name), getattr(pipeline_b, name)):
+            out.append(f"ROI span {name} differs")
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--frameset", default="/work/eval/rig", help="frame set folder (default: %(default)s)")
@@ -94,6 +128,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--passes", type=int, default=3, help="passes over the frames (default: %(default)s)")
     parser.add_argument("--settle", type=int, default=16, help="frames left out at the start of each pass")
     parser.add_argument("--against", metavar="REF", help="also measure this git commit, alternately (same frames)")
+    parser.add_argument(
+        "--plain", action="store_true", help="no kernel timers: whole-pipeline times only (no ~0.3 us per kernel call)"
+    )
     args = parser.parse_args(argv)
     cv2.setNumThreads(1)
     frames = load_frames(args.frameset, args.frames)
@@ -108,22 +145,29 @@ def main(argv: list[str] | None = None) -> int:
         kernels = importlib.import_module(f"{prefix}.device.pipeline._kernels")
         config = importlib.import_module(f"{prefix}.device.pipeline.config").PipelineConfig
         pipeline = importlib.import_module(f"{prefix}.device.pipeline.pipeline").Pipeline
-        variants[label] = (pipeline, config, KernelTimer(kernels))
+        variants[label] = (pipeline, config, KernelTimer(kernels) if not args.plain else KernelTimer(None))
     rows: dict[str, list[tuple[float, float]]] = {label: [] for label in variants}
+    differences: list[str] = []
     canny: list[float] = []
     for pass_index in range(args.passes + 1):  # the first pass warms up (compilation, tables, caches)
         pipelines = {label: make(config(), (width, height)) for label, (make, config, _) in variants.items()}
         labels = list(pipelines)
         for index, (image, t_ns, exposure_us) in enumerate(frames):
             order = labels if (index + pass_index) % 2 == 0 else labels[::-1]
+            results = {}
             for label in order:
                 timer = variants[label][2]
                 timer.ns = 0
                 start = time.perf_counter_ns()
-                pipelines[label].process(image, index, t_ns, exposure_us)
+                results[label] = pipelines[label].process(image, index, t_ns, exposure_us)
                 total = time.perf_counter_ns() - start
                 if pass_index > 0 and index >= args.settle:
                     rows[label].append((total / 1000.0, (total - timer.ns) / 1000.0))
+            if pass_index == 0 and len(labels) == 2:
+                a, b = labels
+                differences.extend(
+                    f"frame {index}: {d}" for d in compare(results[a], results[b], pipelines[a], pipelines[b])
+                )
             start = time.perf_counter_ns()
             cv2.Canny(image, 20, 50, L2gradient=True)
             canny.append((time.perf_counter_ns() - start) / 1000.0)
@@ -137,6 +181,12 @@ def main(argv: list[str] | None = None) -> int:
             f"{float(np.median(data[:, 0] - data[:, 1])):.0f} us, Python outside kernel calls {python:.1f} us"
         )
     if args.against:
+        print(
+            f"  outputs (every FrameResult field but pipeline_us, the ROI spans after each frame; first pass, "
+            f"{len(frames)} frames): {'identical' if not differences else f'{len(differences)} DIFFERENCES'}"
+        )
+        for line in differences[:20]:
+            print(f"    {line}")
         mine, theirs = np.array(rows[labels[0]]), np.array(rows[labels[1]])
         saved = np.median(theirs - mine, axis=0)
         print(

@@ -42,14 +42,14 @@ def record(frames: list[tuple[np.ndarray, int, float]], config: PipelineConfig) 
     pipeline = Pipeline(config, (width, height))
     calls: list[Any] = []
     bands: list[Any] = []
-    detect = pipeline.edges.detect
+    detect = pipeline.tracer.detect_and_trace  # the edge and contour stages in one call
     spans = K.spans_around_points
     recording = [False]
 
-    def recorded_detect(frame: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> int:
+    def recorded_detect(detector: Any, frame: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> int:
         if recording[0]:
             calls.append((frame, lo.copy(), hi.copy()))
-        return detect(frame, lo, hi)
+        return detect(detector, frame, lo, hi)
 
     def recorded_spans(*args: Any) -> Any:
         if recording[0]:
@@ -57,7 +57,7 @@ def record(frames: list[tuple[np.ndarray, int, float]], config: PipelineConfig) 
             bands.append((ro(copied[0]), *copied[1:]))
         return spans(*args)
 
-    pipeline.edges.detect = recorded_detect  # type: ignore[method-assign]
+    pipeline.tracer.detect_and_trace = recorded_detect  # type: ignore[method-assign]
     K.spans_around_points = recorded_spans
     try:
         for index, (image, t_ns, exposure_us) in enumerate(frames):

@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import as_ro, f32, i32, resident_zeros, ro
+
+if TYPE_CHECKING:
+    from ropecam.device.pipeline.edges import EdgeDetector
 
 __all__ = ["ContourTracer"]
 
@@ -33,7 +38,9 @@ class ContourTracer:
         self.chain = np.zeros((capacity, 2), np.int32)
         self.codes = np.zeros(capacity, np.int32)
         self.points = np.zeros((capacity, 2), np.float32)
-        self.counts = np.zeros(3, np.int32)
+        self.counts = np.zeros(4, np.int32)
+        """Of the last trace: component pixels, ROI contacts, chain pixels on the image border (and, after
+        `detect_and_trace`, the edge pixels found)."""
         self.count = 0
         self.component_px = 0
         self.contacts = -1
@@ -45,6 +52,9 @@ class ContourTracer:
         self._width32 = np.int32(width)
         self._height32 = np.int32(height)
         self._min32 = i32(self.min_pixels)
+        self._detector: EdgeDetector | None = None
+        self._detect_args: tuple[Any, ...] = ()
+        """The arguments of `detect_and_trace` after the frame and the spans (the detector's buffers, then ours)."""
 
     def trace(
         self,
@@ -80,7 +90,7 @@ class ContourTracer:
                 edges, lo, hi, edge_list, int(n_edges), self._min32, True, mag, gx, gy, self.labels, self.stack,
                 self.start, self.chain, self.codes, self.points, self.counts,
             )  # fmt: skip
-            self.component_px, self.contacts, self.on_border = self.counts.tolist()
+            self.component_px, self.contacts, self.on_border = self.counts[:3].tolist()
             self.count = n if n > 0 else 0  # FULL: a contour longer than the buffers is not a rope
             return self.count
         size = K.keep_largest_component(edges, as_ro(lo), as_ro(hi), self._min32, self.labels, self.stack, self.start)
@@ -97,6 +107,47 @@ class ContourTracer:
             return 0
         K.refine_subpixel(as_ro(mag), as_ro(gx), as_ro(gy), self.chain_ro, n, self.points)
         self.count = int(n)
+        return self.count
+
+    def detect_and_trace(
+        self, detector: EdgeDetector, frame: NDArray[np.uint8], lo: NDArray[np.int32], hi: NDArray[np.int32]
+    ) -> int:
+        """Detect the edges of `frame` inside the spans (``detector.detect(frame, lo, hi)``) and trace the rope
+        contour in them (`trace` with the detector's planes and edge list), in one kernel call (`detect_and_trace`):
+        the same results in the detector (`edges`, `gx`, `gy`, `mag`, `smooth`, `count`, ...) and here.
+
+        `frame`, `lo` and `hi` are passed as they are: read-only C-contiguous arrays (uint8 of the detector's shape,
+        int32 spans) take the kernel's fast path, others its slow type conversion (or a TypeError).
+
+        Returns
+        -------
+        int
+            The number of contour points, as `trace` (0: no component of `min_pixels` pixels, or a contour longer
+            than the buffers).
+
+        Raises
+        ------
+        ValueError
+            A frame of another shape than the detector's, spans of another length.
+        RuntimeError
+            The edge kernel refused its arguments.
+        """
+        if frame.shape != detector.shape:
+            raise ValueError(f"frame shape is {frame.shape}, expected {detector.shape}")
+        if detector is not self._detector:
+            d = detector
+            self._detect_args = (
+                d.weights_ro, d.low, d.high, self._min32, d.work_spans, d.tmp, d.smooth, d.gx, d.gy, d.mag, d.edges,
+                d.stack, self.labels, self.stack, self.start, self.chain, self.codes, self.points, self.counts,
+            )  # fmt: skip
+            self._detector = detector
+        n = K.detect_and_trace(frame, lo, hi, *self._detect_args)
+        self.component_px, self.contacts, self.on_border, count = self.counts.tolist()
+        if count < 0:
+            raise RuntimeError(f"detect_edges returned status {count} (frame {frame.shape}, spans {lo.shape})")
+        detector.count = count
+        detector.spans = (lo, hi)
+        self.count = n if n > 0 else 0  # FULL: a contour longer than the buffers is not a rope
         return self.count
 
     def roi_contacts(self, lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:

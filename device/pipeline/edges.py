@@ -53,15 +53,18 @@ class EdgeDetector:
         self.full_lo = np.zeros(height, np.int32)
         self.full_hi = np.full(height, width - 1, np.int32)
         self.count = 0
+        """Edge pixels found by the last `detect`; their flat indices are ``stack[:count]`` (the strong pixels in
+        raster order, then the weak pixels joined to them)."""
         # Read-only views made once: a view per kernel call costs microseconds of Python.
         self.weights_ro = ro(self.weights)
         self.edges_ro, self.mag_ro, self.gx_ro, self.gy_ro = (ro(a) for a in (self.edges, self.mag, self.gx, self.gy))
         self.stack_ro = ro(self.stack)
         self.full_lo_ro, self.full_hi_ro = ro(self.full_lo), ro(self.full_hi)
         self._box_lo, self._box_hi = np.zeros(height, np.int32), np.zeros(height, np.int32)  # `smooth_box` spans
-        self._spans_lo, self._spans_hi = ro(np.ones(height, np.int32)), ro(np.zeros(height, np.int32))  # none yet
-        """Edge pixels found by the last `detect`; their flat indices are ``stack[:count]`` (the strong pixels in
-        raster order, then the weak pixels joined to them)."""
+        self.spans: tuple[NDArray[np.int32], NDArray[np.int32]] = (
+            ro(np.ones(height, np.int32)), ro(np.zeros(height, np.int32))
+        )  # fmt: skip
+        """The row spans (lo, hi) of the last `detect` (read-only views; none before the first)."""
 
     def detect(self, frame: NDArray[np.uint8], lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
         """Detect edges of `frame` inside the row spans `lo`/`hi`; returns the number of edge pixels.
@@ -88,9 +91,10 @@ class EdgeDetector:
             raise ValueError(f"frame must be C-contiguous uint8 of shape {self.shape}, got {frame.dtype} {frame.shape}")
         if lo.shape != (self.shape[0],) or hi.shape != (self.shape[0],) or lo.dtype != np.int32:
             raise ValueError(f"lo/hi must be int32 of shape ({self.shape[0]},)")
-        self._spans_lo, self._spans_hi = as_ro(lo), as_ro(hi)
+        lo, hi = as_ro(lo), as_ro(hi)
+        self.spans = (lo, hi)
         count = K.detect_edges(
-            as_ro(frame), self.weights_ro, as_ro(lo), as_ro(hi), self.low, self.high, self.work_spans, self.tmp,
+            as_ro(frame), self.weights_ro, lo, hi, self.low, self.high, self.work_spans, self.tmp,
             self.smooth, self.gx, self.gy, self.mag, self.edges, self.stack,
         )  # fmt: skip
         if count < 0:
@@ -107,7 +111,8 @@ class EdgeDetector:
         call this first: rows the spans cover keep their values, the box is smoothed again otherwise (the same
         kernels and arithmetic as `detect`). `frame` must be the one `detect` last saw.
         """
+        lo, hi = self.spans
         return K.smooth_box(
-            as_ro(frame), self.weights_ro, self._spans_lo, self._spans_hi, r0, r1, c0, c1, self._box_lo,
+            as_ro(frame), self.weights_ro, lo, hi, r0, r1, c0, c1, self._box_lo,
             self._box_hi, self.tmp, self.smooth,
         )  # fmt: skip

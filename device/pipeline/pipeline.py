@@ -170,7 +170,11 @@ class Pipeline:
             self._forget(roi=True)
         else:
             assert isinstance(frame, np.ndarray)
+            # One read-only view of the frame for every kernel that reads it (the kernels' signature; a view per
+            # call costs ~0.7 us).
             image = frame if frame.strides == self._strides else np.ascontiguousarray(frame)
+            if image.flags.writeable:
+                image = ro(image)
             self._measure(image, result, exposure_ns)
             if result.status is not FrameStatus.OK:
                 self._forget(roi=result.status is FrameStatus.NO_ROPE)
@@ -351,15 +355,13 @@ class Pipeline:
                 self.frames_coarse += 1
                 return n, False
         self.frames_full += 1
-        self.edges.detect(image, self.edges.full_lo_ro, self.edges.full_hi_ro)
-        return self._trace(self.edges.full_lo_ro, self.edges.full_hi_ro), False
+        return self.tracer.detect_and_trace(self.edges, image, self.edges.full_lo_ro, self.edges.full_hi_ro), False
 
     def _search(self, image: NDArray[np.uint8], grow: int, fr: float, fc: float) -> int:
         """Detect and trace inside the spans `lo`/`hi`, widening them by `grow` px around a contour that reaches
         their border; returns the contour's points, 0 when it is not found whole inside them."""
         for attempt in range(_ROI_RETRIES + 1):
-            self.edges.detect(image, self._lo_ro, self._hi_ro)
-            n = self._trace(self._lo_ro, self._hi_ro)
+            n = self.tracer.detect_and_trace(self.edges, image, self._lo_ro, self._hi_ro)
             if n == 0:
                 return 0
             contacts = self.tracer.contacts  # counted by the trace on these spans
@@ -378,10 +380,6 @@ class Pipeline:
                 K.union_spans(self._grow_lo_ro, self._grow_hi_ro, self.lo, self.hi)
         self.roi_retries += attempt
         return 0
-
-    def _trace(self, lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
-        e = self.edges
-        return self.tracer.trace(e.edges, lo, hi, e.mag_ro, e.gx_ro, e.gy_ro, e.stack_ro, e.count)
 
     def _learn(self, measure: bool) -> None:
         """Keep the first frames' width and polarity readings; once the width, the fixed end and the polarity are

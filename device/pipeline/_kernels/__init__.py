@@ -111,6 +111,7 @@ from ropecam.device.pipeline._kernels.spans import (
     spans_around_points,
     union_spans,
 )
+from ropecam.device.pipeline._kernels.stages import detect_and_trace
 from ropecam.device.pipeline._kernels.tracking import (
     HISTORY,
     MOTION_COUNT,
@@ -159,6 +160,7 @@ __all__ = [
     "count_border_contacts",
     "count_roi_contacts",
     "dense_end_points",
+    "detect_and_trace",
     "detect_edges",
     "extend_to_band_end",
     "f4_1d_ro",

@@ -1,0 +1,50 @@
+"""Several stages' kernels in one call: each call from Python costs a dispatch (type matching of every argument,
+~0.1 us per array) and a return to the interpreter with caches the kernels have filled with image data; the steady
+state of a stream calls these instead of the stages' kernels one by one."""
+
+from __future__ import annotations
+
+from numba import float32, int32
+
+from ropecam.device.pipeline._kernels._common import INVALID, f4_1d_ro
+from ropecam.device.pipeline._kernels.canny import detect_edges
+from ropecam.device.pipeline._kernels.contour import trace_rope
+from ropecam.shared.jit import f4_2d, i4_1d, i4_1d_ro, i4_2d, kernel, u1_2d, u1_2d_ro
+
+
+@kernel(
+    int32(
+        u1_2d_ro, i4_1d_ro, i4_1d_ro, f4_1d_ro, float32, float32, int32, i4_2d, f4_2d, f4_2d, f4_2d, f4_2d, f4_2d,
+        u1_2d, i4_1d, i4_2d, i4_1d, i4_1d, i4_2d, i4_1d, f4_2d, i4_1d,
+    )
+)  # fmt: skip
+def detect_and_trace(
+    frame, lo, hi, weights, low, high, min_pixels, work_spans, out_tmp, out_smooth, out_gx, out_gy, out_mag,
+    out_edges, edge_stack, out_labels, stack, out_start, out_chain, out_codes, out_points, out_counts,
+):  # fmt: skip
+    """`detect_edges` inside the spans `lo`/`hi`, then `trace_rope` on its edges (the edge pixels it lists in
+    `edge_stack`, `ring_clear` true: `detect_edges` leaves the edge map 0 next to its spans): the edge and contour
+    stages in one call, with the same outputs as those two calls.
+
+    Arguments as for those kernels (`work_spans` .. `edge_stack` are `detect_edges`' outputs, `out_labels` ..
+    `out_counts` `trace_rope`'s). `out_counts` needs 4 slots: `trace_rope`'s three (component pixels, ROI contacts,
+    chain pixels on the image border), then the number of edge pixels `detect_edges` returned (or its status).
+    Returns `trace_rope`'s result (chain length, NOT_FOUND or FULL), or INVALID when `out_counts` is too short or
+    `detect_edges` refused its arguments (its status is then in ``out_counts[3]``, the other slots 0).
+    """
+    if out_counts.shape[0] < 4:
+        return INVALID
+    count = detect_edges(
+        frame, weights, lo, hi, low, high, work_spans, out_tmp, out_smooth, out_gx, out_gy, out_mag, out_edges,
+        edge_stack,
+    )  # fmt: skip
+    out_counts[3] = count
+    if count < 0:
+        out_counts[0] = 0
+        out_counts[1] = 0
+        out_counts[2] = 0
+        return INVALID
+    return trace_rope(
+        out_edges, lo, hi, edge_stack, count, min_pixels, True, out_mag, out_gx, out_gy, out_labels, stack, out_start,
+        out_chain, out_codes, out_points, out_counts,
+    )  # fmt: skip
