@@ -180,7 +180,6 @@ _STAGES = (
     ("roi_contacts", "tracer", "roi_contacts"),
     ("border_contacts", "tracer", "border_contacts"),
     ("split", "splitter", "split"),
-    ("order+material", None, "_track_frame"),
     ("fixed_end", None, "_fixed_end"),
     ("material_points", "tracker", "track_shapes"),
     ("lengths", "tracker", "length"),
@@ -201,16 +200,21 @@ def _timed_stages(pipeline: Pipeline, totals: dict[str, float]) -> None:
                 totals[_label] = totals.get(_label, 0.0) + (time.perf_counter_ns() - t0) / 1000
 
         setattr(target, name, timed)
-    spans = K.spans_around_points
+    for label, name in _KERNEL_STAGES:
+        kernel = getattr(K, name)
 
-    def timed_spans(*a: Any) -> Any:
-        t0 = time.perf_counter_ns()
-        try:
-            return spans(*a)
-        finally:
-            totals["roi_spans"] = totals.get("roi_spans", 0.0) + (time.perf_counter_ns() - t0) / 1000
+        def timed_kernel(*a: Any, _kernel: Any = kernel, _label: str = label) -> Any:
+            t0 = time.perf_counter_ns()
+            try:
+                return _kernel(*a)
+            finally:
+                totals[_label] = totals.get(_label, 0.0) + (time.perf_counter_ns() - t0) / 1000
 
-    K.spans_around_points = timed_spans
+        setattr(K, name, timed_kernel)
+
+
+_KERNEL_STAGES = (("roi_spans", "spans_around_points"), ("order+material", "track_frame"))
+"""Stages that are one kernel call made by the pipeline itself (timed by wrapping the kernel, dispatch included)."""
 
 
 _SETTLE_FRAMES = 16
@@ -227,7 +231,7 @@ def stage_report(
         pipeline.process(image, index, t_ns, exposure_us)
     per_frame: list[dict[str, float]] = []
     totals: dict[str, float] = {}
-    original = K.spans_around_points
+    originals = {name: getattr(K, name) for _, name in _KERNEL_STAGES}
     _timed_stages(pipeline, totals)
     try:
         for index, (image, t_ns, exposure_us) in enumerate(frames[3:], start=3):
@@ -240,8 +244,9 @@ def stage_report(
             row["total"] = total
             per_frame.append(row)
     finally:
-        K.spans_around_points = original
-    labels = [label for label, _, _ in _STAGES] + ["roi_spans", "other", "total"]
+        for name, kernel in originals.items():
+            setattr(K, name, kernel)
+    labels = [label for label, _, _ in _STAGES] + [label for label, _ in _KERNEL_STAGES] + ["other", "total"]
     stages = {label: float(np.median([row.get(label, 0.0) for row in per_frame])) for label in labels}
     # A frame searched without an ROI: the pipeline knows the rope (width, fixed end) but not where it is.
     searched, searched_paths = [], []

@@ -254,7 +254,8 @@ class Pipeline:
             exclude = 3.0 * (width_px or 4.0) + 10.0
             fixed_rc = (float(fixed[0]), float(fixed[1]))
             polarity = self._polarity_now()
-        clipped = self.tracer.border_contacts(fixed_rc, exclude) > 0
+        tracer = self.tracer
+        clipped = tracer.on_border != 0 and tracer.border_contacts(fixed_rc, exclude) > 0  # the trace counts them
         e = self.edges
         outcome = self.splitter.split(
             points,
@@ -290,39 +291,39 @@ class Pipeline:
         result.method = outcome.method
         result.rope_width_px = outcome.width_px
         result.segmentation_points = outcome.segmentation_points
-        result.material_arc_m = self.tracker.arc_m
-        if not (self.tracker.length0_settled_px >= 0.0 and self._track_frame(outcome, result, exposure_ns)):
+        tracker = self.tracker
+        result.material_arc_m = tracker.arc_m
+        a, b = outcome.shape_a, outcome.shape_b
+        swap = -1
+        if tracker.length0_settled_px >= 0.0:
+            # Time order, material points and the motion model's update in one kernel call (`track_frame`: the
+            # same as `_order`, `PointTracker.track_shapes` and `MotionModel.observe` in turn); a negative `swap`
+            # (an empty shape, a shape longer than the tracker's scratch) has written nothing.
+            order, motion = self._time_order, self._motion
+            try:
+                swap, confidence, stretch_begin, stretch_end = K.track_frame(
+                    a, b, a is b, result.t_ns, result.t_end_ns, 4 * (self._period_ns or DEFAULT_PERIOD_NS),
+                    order.state, order.hist_rc, self.fixed, float(self.splitter.sweep_px), exposure_ns, motion.state,
+                    motion.log, tracker.fraction_ro, tracker.length0_settled_px, tracker.out, tracker.lengths_px,
+                    tracker.work,
+                )  # fmt: skip
+            except TypeError:  # not the splitter's writable float32 buffers
+                swap = -1
+        if swap >= 0:
+            result.begin, result.end = (b, a) if swap else (a, b)
+            result.order_confidence = confidence
+            result.material_begin, result.material_end = tracker.out_slots
+            result.stretch_begin, result.stretch_end = stretch_begin, stretch_end
+        else:
             # The first frames (Lc0 still being measured) or shapes `track_frame` does not take: step by step.
             begin, end, confidence = self._order(outcome, result.t_ns, result.t_end_ns)
             result.begin, result.end, result.order_confidence = begin, end, confidence
             (result.material_begin, result.stretch_begin, result.material_end, result.stretch_end) = (
-                self.tracker.track_shapes(begin, end)
+                tracker.track_shapes(begin, end)
             )
             t_mid_ns = result.t_ns + exposure_ns // 2
             self._motion.observe(begin, end, self.fixed, t_mid_ns, float(self.splitter.sweep_px), exposure_ns)
         result.status = FrameStatus.OK
-
-    def _track_frame(self, outcome, result: FrameResult, exposure_ns: int) -> bool:
-        """Time order, material points and the motion model's update of a split frame in one kernel call
-        (`track_frame`: the same as `_order`, `PointTracker.track_shapes` and `MotionModel.observe` in turn),
-        written into `result`; False (nothing changed) when the kernel does not take the shapes."""
-        a, b = outcome.shape_a, outcome.shape_b
-        tracker, order, motion = self.tracker, self._time_order, self._motion
-        try:
-            swap, confidence, stretch_begin, stretch_end = K.track_frame(
-                a, b, a is b, result.t_ns, result.t_end_ns, 4 * (self._period_ns or DEFAULT_PERIOD_NS), order.state,
-                order.hist_rc, self.fixed, float(self.splitter.sweep_px), exposure_ns, motion.state, motion.log,
-                tracker.fraction_ro, tracker.length0_settled_px, tracker.out, tracker.lengths_px, tracker.work,
-            )  # fmt: skip
-        except TypeError:  # not the splitter's writable float32 buffers
-            return False
-        if swap < 0:  # an empty shape, a shape longer than the tracker's scratch: nothing was written
-            return False
-        result.begin, result.end = (b, a) if swap else (a, b)
-        result.order_confidence = confidence
-        result.material_begin, result.material_end = tracker.out_slots
-        result.stretch_begin, result.stretch_end = stretch_begin, stretch_end
-        return True
 
     def _locate(self, image: NDArray[np.uint8], t_ns: int, exposure_ns: int) -> tuple[int, bool]:
         """Find the rope's contour: in the band predicted from the last contour, else around the cells where a
