@@ -116,8 +116,9 @@ class ContourTracer:
         contour in them (`trace` with the detector's planes and edge list), in one kernel call (`detect_and_trace`):
         the same results in the detector (`edges`, `gx`, `gy`, `mag`, `smooth`, `count`, ...) and here.
 
-        `frame`, `lo` and `hi` are passed as they are: read-only C-contiguous arrays (uint8 of the detector's shape,
-        int32 spans) take the kernel's fast path, others its slow type conversion (or a TypeError).
+        `frame` (uint8 of the detector's shape, read-only or writable), `lo` and `hi` (read-only int32) are passed
+        as they are: C-contiguous arrays of these types take the kernel's fast path, others its slow type
+        conversion (or a TypeError).
 
         Returns
         -------
@@ -147,6 +148,7 @@ class ContourTracer:
             raise RuntimeError(f"detect_edges returned status {count} (frame {frame.shape}, spans {lo.shape})")
         detector.count = count
         detector.spans = (lo, hi)
+        detector.frame = frame
         self.count = n if n > 0 else 0  # FULL: a contour longer than the buffers is not a rope
         return self.count
 

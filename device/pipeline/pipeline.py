@@ -7,7 +7,6 @@ shapes of a frame in time order.
 
 from __future__ import annotations
 
-import functools
 import math
 import time
 
@@ -72,6 +71,7 @@ class Pipeline:
             config.material_points_m, config.rope_length_m, config.length0_px, config.length0_frames
         )
         self.splitter.paper.radius_scaled = config.paper_endpoint_radius_scaled
+        self._refresh = self.edges.refresh  # the split's `refresh`: this frame's smoothed image (bound once)
         self.lo = np.zeros(height, np.int32)
         self.hi = np.zeros(height, np.int32)
         self.grow_lo = np.zeros(height, np.int32)
@@ -170,11 +170,7 @@ class Pipeline:
             self._forget(roi=True)
         else:
             assert isinstance(frame, np.ndarray)
-            # One read-only view of the frame for every kernel that reads it (the kernels' signature; a view per
-            # call costs ~0.7 us).
             image = frame if frame.strides == self._strides else np.ascontiguousarray(frame)
-            if image.flags.writeable:
-                image = ro(image)
             self._measure(image, result, exposure_ns)
             if result.status is not FrameStatus.OK:
                 self._forget(roi=result.status is FrameStatus.NO_ROPE)
@@ -269,7 +265,7 @@ class Pipeline:
             e.mag,
             e.smooth,
             polarity,
-            refresh=functools.partial(e.smooth_box, image),
+            refresh=self._refresh,
         )
         if steady is None:
             self._learn(measure)

@@ -111,7 +111,7 @@ from ropecam.device.pipeline._kernels.spans import (
     spans_around_points,
     union_spans,
 )
-from ropecam.device.pipeline._kernels.stages import detect_and_trace
+from ropecam.device.pipeline._kernels.stages import detect_and_trace, smooth_frame_box
 from ropecam.device.pipeline._kernels.tracking import (
     HISTORY,
     MOTION_COUNT,
@@ -204,6 +204,7 @@ __all__ = [
     "slope_sweep_median",
     "smooth_box",
     "smooth_columns",
+    "smooth_frame_box",
     "smooth_polyline",
     "smooth_replicated",
     "smooth_ring",

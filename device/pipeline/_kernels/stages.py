@@ -4,20 +4,24 @@ state of a stream calls these instead of the stages' kernels one by one."""
 
 from __future__ import annotations
 
-from numba import float32, int32
+from typing import Final
+
+from numba import float32, int32, int64
 
 from ropecam.device.pipeline._kernels._common import INVALID, f4_1d_ro
-from ropecam.device.pipeline._kernels.canny import detect_edges
+from ropecam.device.pipeline._kernels.canny import detect_edges, smooth_box
 from ropecam.device.pipeline._kernels.contour import trace_rope
 from ropecam.shared.jit import f4_2d, i4_1d, i4_1d_ro, i4_2d, kernel, u1_2d, u1_2d_ro
 
-
-@kernel(
-    int32(
-        u1_2d_ro, i4_1d_ro, i4_1d_ro, f4_1d_ro, float32, float32, int32, i4_2d, f4_2d, f4_2d, f4_2d, f4_2d, f4_2d,
-        u1_2d, i4_1d, i4_2d, i4_1d, i4_1d, i4_2d, i4_1d, f4_2d, i4_1d,
-    )
+# The frame is taken read-only (a mapped capture buffer) or writable (a frame a reader made): a read-only view per
+# frame costs 1-3 us of Python, the second signature a few seconds of compilation once.
+_DETECT_AND_TRACE_ARGS: Final = (  # after the frame
+    i4_1d_ro, i4_1d_ro, f4_1d_ro, float32, float32, int32, i4_2d, f4_2d, f4_2d, f4_2d, f4_2d, f4_2d, u1_2d, i4_1d,
+    i4_2d, i4_1d, i4_1d, i4_2d, i4_1d, f4_2d, i4_1d,
 )  # fmt: skip
+
+
+@kernel([int32(frame, *_DETECT_AND_TRACE_ARGS) for frame in (u1_2d_ro, u1_2d)])
 def detect_and_trace(
     frame, lo, hi, weights, low, high, min_pixels, work_spans, out_tmp, out_smooth, out_gx, out_gy, out_mag,
     out_edges, edge_stack, out_labels, stack, out_start, out_chain, out_codes, out_points, out_counts,
@@ -48,3 +52,14 @@ def detect_and_trace(
         out_edges, lo, hi, edge_stack, count, min_pixels, True, out_mag, out_gx, out_gy, out_labels, stack, out_start,
         out_chain, out_codes, out_points, out_counts,
     )  # fmt: skip
+
+
+@kernel(
+    [
+        int64(frame, f4_1d_ro, i4_1d_ro, i4_1d_ro, int64, int64, int64, int64, i4_1d, i4_1d, f4_2d, f4_2d)
+        for frame in (u1_2d_ro, u1_2d)
+    ]
+)
+def smooth_frame_box(frame, weights, lo, hi, r0, r1, c0, c1, work_lo, work_hi, out_tmp, out_smooth):
+    """`smooth_box` for a read-only or a writable frame (see `detect_and_trace`): the same arguments and result."""
+    return smooth_box(frame, weights, lo, hi, r0, r1, c0, c1, work_lo, work_hi, out_tmp, out_smooth)

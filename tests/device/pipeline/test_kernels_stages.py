@@ -68,7 +68,7 @@ def test_detect_and_trace_is_detect_edges_then_trace_rope(seed: int, full: bool,
     lo, hi = (_ro(a) for a in _spans(seed, full))
     weights = _ro(gaussian_weights(1.0))
     low, high = np.float32(20.0), np.float32(50.0)
-    ref, got = _buffers(), _buffers()
+    ref = _buffers()
     count = K.detect_edges(
         frame, weights, lo, hi, low, high, ref["work_spans"], ref["tmp"], ref["smooth"], ref["gx"], ref["gy"],
         ref["mag"], ref["edges"], ref["edge_stack"],
@@ -79,12 +79,31 @@ def test_detect_and_trace_is_detect_edges_then_trace_rope(seed: int, full: bool,
         ref["points"], ref["counts"],
     )  # fmt: skip
     ref["counts"][3] = count
-    n = K.detect_and_trace(frame, lo, hi, weights, low, high, np.int32(min_pixels), *got.values())
     assert count > 0
-    assert n == n_ref
-    assert (n > 0) == (min_pixels < 1000)
-    for name, expected in ref.items():
-        np.testing.assert_array_equal(got[name], expected, err_msg=name)
+    assert (n_ref > 0) == (min_pixels < 1000)
+    writable = frame.copy()  # the second signature: a frame a reader made, not a read-only buffer
+    for image in (frame, writable):
+        got = _buffers()
+        n = K.detect_and_trace(image, lo, hi, weights, low, high, np.int32(min_pixels), *got.values())
+        assert n == n_ref
+        for name, expected in ref.items():
+            np.testing.assert_array_equal(got[name], expected, err_msg=name)
+
+
+def test_smooth_frame_box_is_smooth_box_for_both_kinds_of_frame() -> None:
+    frame = _ro(_rope_frame(7))
+    weights = _ro(gaussian_weights(1.0))
+    lo, hi = (_ro(a) for a in _spans(7, False))
+    outputs = []
+    for fn, image in ((K.smooth_box, frame), (K.smooth_frame_box, frame), (K.smooth_frame_box, frame.copy())):
+        work = (np.zeros(HEIGHT, np.int32), np.zeros(HEIGHT, np.int32))
+        tmp, smooth = np.zeros((HEIGHT, WIDTH), np.float32), np.full((HEIGHT, WIDTH), -1.0, np.float32)
+        count = fn(image, weights, lo, hi, 0, HEIGHT - 1, 0, 20, *work, tmp, smooth)
+        outputs.append((count, smooth))
+    assert outputs[0][0] > 0
+    for count, smooth in outputs[1:]:
+        assert count == outputs[0][0]
+        np.testing.assert_array_equal(smooth, outputs[0][1])
 
 
 def test_detect_and_trace_refuses_short_counts_and_bad_spans() -> None:
@@ -112,6 +131,7 @@ def test_tracer_detect_and_trace_equals_detect_then_trace() -> None:
         n = tracer.trace(edges.edges, lo, hi, edges.mag_ro, edges.gx_ro, edges.gy_ro, edges.stack_ro, edges.count)
         assert n > 0
         assert fused[1].detect_and_trace(fused[0], frame, lo, hi) == n
+        assert fused[0].frame is frame
         for name in ("edges", "gx", "gy", "mag", "smooth", "count"):
             np.testing.assert_array_equal(getattr(fused[0], name), getattr(edges, name), err_msg=name)
         assert fused[0].spans[0] is lo and fused[0].spans[1] is hi
