@@ -7,7 +7,6 @@ shapes of a frame in time order.
 
 from __future__ import annotations
 
-import functools
 import math
 import time
 
@@ -264,7 +263,8 @@ class Pipeline:
             e.mag,
             e.smooth,
             polarity,
-            refresh=functools.partial(e.smooth_box, image),
+            edge_stage=e,
+            frame=image,
         )
         if steady is None:
             self._learn(measure)

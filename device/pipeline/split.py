@@ -3,6 +3,7 @@ exposure (and the tip track), or into one centreline when the blur cannot be spl
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 
@@ -10,9 +11,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import f32, i32, ro
+from ropecam.device.pipeline._views import as_ro, f32, i32, ro
 from ropecam.device.pipeline.edge_model import shared_model
-from ropecam.device.pipeline.edges import gaussian_weights
+from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
 from ropecam.device.pipeline.paper_method import PaperSegmenter
 from ropecam.device.pipeline.result import Method
 from ropecam.device.pipeline.split_fallback import SplitFallbacks
@@ -64,7 +65,9 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         output_smoothing_px: float = 0.0,
     ) -> None:
         self.output_smoothing = np.float32(output_smoothing_px)
-        self.arc = np.zeros(capacity, np.float64)
+        self.scratch = np.zeros((3, capacity), np.float64)
+        """`arc`, `fixed_dist`, `slope_work` in one array (`split_frame`)."""
+        self.arc, self.fixed_dist, self.slope_work = self.scratch[0], self.scratch[1], self.scratch[2]
         self.method = method
         self.paper = PaperSegmenter(capacity, paper_radius_px, output_step_px=output_step_px)
         self.centerline = self.paper.centerline
@@ -97,11 +100,12 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         self.side_a, self.side_b, self.out_a, self.out_b = self.sides[0], self.sides[1], self.sides[2], self.sides[3]
         self.dist = np.zeros(capacity, np.float32)
         self.seg = np.zeros((2, 2), np.float32)
-        self.info = np.zeros(6, np.float64)
-        self.slope_work = np.zeros(capacity, np.float64)
+        self.info = np.zeros(K.FRAME_INFO, np.float64)
+        self.state = np.zeros(K.FRAME_STATE, np.float64)
+        """`split_frame`'s per-frame inputs (fixed end, polarity, contrast, last sweep)."""
+        self._state_key: tuple[float, float, float, float] | None = None
         # Read-only views of the own buffers and int32 constants, made once (a view costs 1-2 us of Python).
         self._turn_ro = ro(self.turn)
-        self.fixed_dist = np.zeros(capacity, np.float64)
         self._fixed_dist_ro = ro(self.fixed_dist)
         self._side_a_ro, self._side_b_ro = ro(self.side_a), ro(self.side_b)
         self._out_a_ro, self._out_b_ro = ro(self.out_a), ro(self.out_b)
@@ -157,6 +161,8 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         smooth: NDArray[np.float32],
         polarity: float = 0.0,
         refresh: Callable[[int, int, int, int], None] | None = None,
+        edge_stage: EdgeDetector | None = None,
+        frame: NDArray[np.uint8] | None = None,
     ) -> SplitOutcome | None:
         """Split the closed contour (`n` subpixel `points`, integer `chain`) of a rope fixed at `fixed_rc`.
 
@@ -172,6 +178,10 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
             Called with (r0, r1, c0, c1) before `smooth` is read in that box (inclusive): the edge stage fills
             `smooth` inside its band only, and the contrast and the tip fit read it a few pixels beyond (the
             pipeline passes `EdgeDetector.smooth_box` for this frame). None: `smooth` is valid everywhere.
+        edge_stage, frame
+            The edge stage whose last `detect` on `frame` made the planes (`smooth` is its `smooth`), instead of
+            `refresh`: once the rope's width, polarity and contrast are known, the split then runs in one kernel
+            call (`split_frame`), which refreshes the smoothed image itself.
 
         Returns
         -------
@@ -179,6 +189,8 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
             None when the contour cannot be split (too short, no segmentation points).
         """
         self._smooth = smooth
+        if refresh is None and edge_stage is not None and frame is not None:
+            refresh = functools.partial(edge_stage.smooth_box, frame)
         self._refresh = refresh
         self.failure = "contour found but no segmentation points"
         self._prepare(points, chain, n, width_px, gx, gy, edges, polarity, mag, fixed_rc)
@@ -193,6 +205,17 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
             self._width_key, self._width_consts = width, self._constants(width)
         consts = self._width_consts
         assert consts is not None
+        if (
+            edge_stage is not None
+            and frame is not None
+            and self.method == "blur_split"
+            and len(self._contrasts) >= 10
+            and self._contrast_cache >= 5.0
+            and smooth is edge_stage.smooth
+        ):
+            outcome = self._split_frame(edge_stage, frame, consts, fixed_rc)
+            if outcome is not False:
+                return outcome
         # The band's corners lie at the free end, but an end that also moves along the rope (a whipping tip)
         # slants the band's end: the corners can then differ in distance from the fixed end by up to about the
         # sweep. The last frame's sweep widens the zone searched (a rope does not change its speed much between
@@ -250,7 +273,7 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
             )  # fmt: skip
             if status >= 0 or status == K.NOT_FOUND:
                 self.sweep_px = sweep
-                count_a, count_b, len_a, len_b, smoothed_a, smoothed_b = self.info.tolist()
+                count_a, count_b, len_a, len_b, smoothed_a, smoothed_b, _ = self.info.tolist()
                 if status == K.NOT_FOUND:
                     self.failure = f"the two shapes differ in length ({len_a:.0f} and {len_b:.0f} px): split rejected"
                     return None
@@ -307,6 +330,38 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         shape_a = self._resample(self.side_a, na, self.out_a, len_a)
         shape_b = self._resample(self.side_b, nb, self.out_b, len_b)
         return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, seg, tables.width_px, sweep)
+
+    def _split_frame(
+        self, edge_stage: EdgeDetector, frame: NDArray[np.uint8], consts: _WidthConstants, fixed_rc: tuple[float, float]
+    ) -> SplitOutcome | bool | None:
+        """The steady-state split in one kernel call (`split_frame`): the same steps and results as `split`'s
+        sequence once the width, polarity and contrast are known. Returns False when the kernel reports a full
+        buffer (`split` then redoes the steps one by one)."""
+        key = (*self._fixed32, float(self.polarity_used), self._contrast_cache)
+        state = self.state
+        if key != self._state_key:
+            self._state_key = key
+            state[0], state[1], state[2], state[3] = key
+        state[4] = self.sweep_px
+        status = K.split_frame(
+            self._points, self._chain, self._n, self._mag_ro, self._gx, self._gy, as_ro(frame), edge_stage.weights_ro,
+            edge_stage._spans_lo, edge_stage._spans_hi, edge_stage._box_lo, edge_stage._box_hi, edge_stage.tmp,
+            edge_stage.smooth, consts.frame_params, state, consts.curves, consts.table_ro, self.lines, self.sides,
+            self.scratch, self.turn, self.idx, self.seg, self.info,
+        )  # fmt: skip
+        if status < 0 and status != K.NOT_FOUND:
+            return False
+        count_a, count_b, len_a, len_b, smoothed_a, smoothed_b, sweep = self.info.tolist()
+        if sweep >= 0.0:
+            self.sweep_px = sweep
+        if status == K.SPLIT_STATIC:
+            return self.static(fixed_rc)
+        if status == K.NOT_FOUND:
+            self.failure = f"the two shapes differ in length ({len_a:.0f} and {len_b:.0f} px): split rejected"
+            return None
+        shape_a = (self.side_a if smoothed_a else self.out_a)[: int(count_a)]
+        shape_b = (self.side_b if smoothed_b else self.out_b)[: int(count_b)]
+        return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, consts.tables.width_px, sweep)
 
     def _prepare(
         self,
@@ -436,8 +491,8 @@ class _WidthConstants:
     width."""
 
     __slots__ = (
-        "blur", "cap", "corner", "curves", "keep", "min_gap", "params", "ratios_ro", "scale", "search_px", "skip",
-        "span", "sweep_window", "sweeps_ro", "table_ro", "table_step", "tables", "width",
+        "blur", "cap", "corner", "curves", "frame_params", "keep", "min_gap", "params", "ratios_ro", "scale",
+        "search_px", "skip", "span", "sweep_window", "sweeps_ro", "table_ro", "table_step", "tables", "width",
     )  # fmt: skip
 
     def __init__(self, splitter: BlurSplitter, width: float) -> None:
@@ -469,4 +524,9 @@ class _WidthConstants:
         )  # fmt: skip
         assert len(params) == K.SPLIT_PARAMS
         self.params = ro(np.array([float(v) for v in params], np.float64))
+        # `split_frame`'s: the same, then the segmentation points' and the corner box's (as `split` computes them)
+        grow = 3.0 * float(self.blur) + 6.0 + width
+        frame_params = (*params, self.scale, self.min_gap, self.search_px, self.corner, grow, splitter.static_ratio)
+        assert len(frame_params) == K.FRAME_PARAMS
+        self.frame_params = ro(np.array([float(v) for v in frame_params], np.float64))
         self.curves = ro(np.stack([self.ratios_ro, self.sweeps_ro]).astype(np.float64))

@@ -111,6 +111,13 @@ from ropecam.device.pipeline._kernels.spans import (
     spans_around_points,
     union_spans,
 )
+from ropecam.device.pipeline._kernels.split_frame import (
+    FRAME_INFO,
+    FRAME_PARAMS,
+    FRAME_STATE,
+    SPLIT_STATIC,
+    split_frame,
+)
 from ropecam.device.pipeline._kernels.tracking import (
     HISTORY,
     MOTION_COUNT,
@@ -135,6 +142,9 @@ __all__ = [
     "EDGE_NONE",
     "EDGE_STRONG",
     "EDGE_WEAK",
+    "FRAME_INFO",
+    "FRAME_PARAMS",
+    "FRAME_STATE",
     "FULL",
     "HISTORY",
     "INVALID",
@@ -147,6 +157,7 @@ __all__ = [
     "ORDER_ORDERED",
     "ORDER_REJECTS",
     "SPLIT_PARAMS",
+    "SPLIT_STATIC",
     "TAN_22_5",
     "TWO",
     "ZERO",
@@ -210,6 +221,7 @@ __all__ = [
     "sobel_suppress",
     "spans_around_points",
     "split_contour",
+    "split_frame",
     "split_shapes_local",
     "split_shapes_packed",
     "suppress_rows",
