@@ -3,7 +3,6 @@ exposure (and the tip track), or into one centreline when the blur cannot be spl
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Callable
 
@@ -11,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import as_ro, f32, i32, ro
+from ropecam.device.pipeline._views import f32, i32, ro
 from ropecam.device.pipeline.edge_model import shared_model
 from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
 from ropecam.device.pipeline.paper_method import PaperSegmenter
@@ -103,7 +102,9 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         self.info = np.zeros(K.FRAME_INFO, np.float64)
         self.state = np.zeros(K.FRAME_STATE, np.float64)
         """`split_frame`'s per-frame inputs (fixed end, polarity, contrast, last sweep)."""
-        self._state_key: tuple[float, float, float, float] | None = None
+        self._state_key: tuple[tuple[float, float], np.float32, float] | None = None
+        self._frame_args: list | None = None
+        """`split_frame`'s arguments (after three keys: the width's constants, the edge stage, the bound arrays)."""
         # Read-only views of the own buffers and int32 constants, made once (a view costs 1-2 us of Python).
         self._turn_ro = ro(self.turn)
         self._fixed_dist_ro = ro(self.fixed_dist)
@@ -190,7 +191,8 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         """
         self._smooth = smooth
         if refresh is None and edge_stage is not None and frame is not None:
-            refresh = functools.partial(edge_stage.smooth_box, frame)
+            # Made only when a step of the sequence reads the smoothed image (not on the steady path).
+            refresh = _LazyRefresh(edge_stage, frame)
         self._refresh = refresh
         self.failure = "contour found but no segmentation points"
         self._prepare(points, chain, n, width_px, gx, gy, edges, polarity, mag, fixed_rc)
@@ -337,18 +339,31 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         """The steady-state split in one kernel call (`split_frame`): the same steps and results as `split`'s
         sequence once the width, polarity and contrast are known. Returns False when the kernel reports a full
         buffer (`split` then redoes the steps one by one)."""
-        key = (*self._fixed32, float(self.polarity_used), self._contrast_cache)
         state = self.state
-        if key != self._state_key:
-            self._state_key = key
-            state[0], state[1], state[2], state[3] = key
+        # The fixed end, polarity and contrast are the same objects from frame to frame once settled.
+        key = self._state_key
+        if key is None or key[0] is not fixed_rc or key[1] is not self.polarity_used or key[2] != self._contrast_cache:
+            self._state_key = (fixed_rc, self.polarity_used, self._contrast_cache)
+            state[0], state[1] = self._fixed32
+            state[2] = self.polarity_used
+            state[3] = self._contrast_cache
         state[4] = self.sweep_px
-        status = K.split_frame(
-            self._points, self._chain, self._n, self._mag_ro, self._gx, self._gy, as_ro(frame), edge_stage.weights_ro,
-            edge_stage._spans_lo, edge_stage._spans_hi, edge_stage._box_lo, edge_stage._box_hi, edge_stage.tmp,
-            edge_stage.smooth, consts.frame_params, state, consts.curves, consts.table_ro, self.lines, self.sides,
-            self.scratch, self.turn, self.idx, self.seg, self.info,
-        )  # fmt: skip
+        args = self._frame_args
+        if args is None or args[0] is not consts or args[1] is not edge_stage or args[2] is not self._bound:
+            # The same buffers every frame: the argument list is made once (the contour's count, the frame and
+            # the edge stage's spans are set below).
+            args = self._frame_args = [
+                consts, edge_stage, self._bound, self._points, self._chain, self._n, self._mag_ro, self._gx,
+                self._gy, frame, edge_stage.weights_ro, edge_stage._spans_lo, edge_stage._spans_hi,
+                edge_stage._box_lo, edge_stage._box_hi, edge_stage.tmp, edge_stage.smooth, consts.frame_params,
+                state, consts.curves, consts.table_ro, self.lines, self.sides, self.scratch, self.turn, self.idx,
+                self.seg, self.info,
+            ]  # fmt: skip
+        args[5] = self._n
+        args[9] = frame if not frame.flags.writeable else ro(frame)
+        args[11] = edge_stage._spans_lo
+        args[12] = edge_stage._spans_hi
+        status = K.split_frame(*args[3:])
         if status < 0 and status != K.NOT_FOUND:
             return False
         count_a, count_b, len_a, len_b, smoothed_a, smoothed_b, sweep = self.info.tolist()
@@ -484,6 +499,18 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
             K.smooth_polyline(out_ro, np.int32(count), self.output_smoothing, self.arc, poly)
             return poly[:count]  # the smoothed points (valid until the next split, as `out`)
         return out[:count]
+
+
+class _LazyRefresh:
+    """`EdgeDetector.smooth_box` on one frame, as `split`'s `refresh` (a plain object: no partial per frame)."""
+
+    __slots__ = ("frame", "stage")
+
+    def __init__(self, stage: EdgeDetector, frame: NDArray[np.uint8]) -> None:
+        self.stage, self.frame = stage, frame
+
+    def __call__(self, r0: int, r1: int, c0: int, c1: int) -> int:
+        return self.stage.smooth_box(self.frame, r0, r1, c0, c1)
 
 
 class _WidthConstants:
