@@ -103,6 +103,11 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         self.state = np.zeros(K.FRAME_STATE, np.float64)
         """`split_frame`'s per-frame inputs (fixed end, polarity, contrast, last sweep)."""
         self._state_key: tuple[tuple[float, float], np.float32, float] | None = None
+        self._steady_key: tuple | None = None
+        """The arguments of the last `split` that took the steady path (`_split_frame`) from a given width and
+        polarity: the next call with the same ones goes straight to it."""
+        self._given = False
+        """Whether the last `_prepare` was given the width and polarity (nothing measured)."""
         self._frame_args: list | None = None
         """`split_frame`'s arguments (after three keys: the width's constants, the edge stage, the bound arrays)."""
         # Read-only views of the own buffers and int32 constants, made once (a view costs 1-2 us of Python).
@@ -189,13 +194,40 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         SplitOutcome or None
             None when the contour cannot be split (too short, no segmentation points).
         """
+        key = self._steady_key
+        if (
+            key is not None
+            and points is key[0]
+            and chain is key[1]
+            and gx is key[2]
+            and gy is key[3]
+            and mag is key[4]
+            and smooth is key[5]
+            and edge_stage is key[6]
+            and fixed_rc is key[7]
+            and width_px == key[8]
+            and polarity == key[9]
+            and frame is not None
+            and refresh is None
+        ):
+            # The same contour buffers, edge stage, fixed end, width and polarity as the last frame, which took
+            # the steady path: everything `_prepare` and the checks below would set is set already.
+            self._smooth = smooth
+            self.failure = "contour found but no segmentation points"
+            self._n = np.int32(n)
+            outcome = self._run_frame(edge_stage, frame, fixed_rc)
+            if outcome is not False:
+                return outcome
+        self._steady_key = None
         self._smooth = smooth
+        given_refresh = refresh
         if refresh is None and edge_stage is not None and frame is not None:
             # Made only when a step of the sequence reads the smoothed image (not on the steady path).
             refresh = _LazyRefresh(edge_stage, frame)
         self._refresh = refresh
         self.failure = "contour found but no segmentation points"
         self._prepare(points, chain, n, width_px, gx, gy, edges, polarity, mag, fixed_rc)
+        points_in, chain_in = points, chain
         points, chain, n = self._points, self._chain, self._n
         if self.method in ("paper", "centerline"):
             return self._comparison(fixed_rc)
@@ -217,6 +249,19 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         ):
             outcome = self._split_frame(edge_stage, frame, consts, fixed_rc)
             if outcome is not False:
+                if self._given and given_refresh is None:
+                    self._steady_key = (
+                        points_in,
+                        chain_in,
+                        gx,
+                        gy,
+                        mag,
+                        smooth,
+                        edge_stage,
+                        fixed_rc,
+                        width_px,
+                        polarity,
+                    )
                 return outcome
         # The band's corners lie at the free end, but an end that also moves along the rope (a whipping tip)
         # slants the band's end: the corners can then differ in distance from the fixed end by up to about the
@@ -347,7 +392,6 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
             state[0], state[1] = self._fixed32
             state[2] = self.polarity_used
             state[3] = self._contrast_cache
-        state[4] = self.sweep_px
         args = self._frame_args
         if args is None or args[0] is not consts or args[1] is not edge_stage or args[2] is not self._bound:
             # The same buffers every frame: the argument list is made once (the contour's count, the frame and
@@ -359,6 +403,15 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
                 state, consts.curves, consts.table_ro, self.lines, self.sides, self.scratch, self.turn, self.idx,
                 self.seg, self.info,
             ]  # fmt: skip
+        return self._run_frame(edge_stage, frame, fixed_rc)
+
+    def _run_frame(
+        self, edge_stage: EdgeDetector, frame: NDArray[np.uint8], fixed_rc: tuple[float, float]
+    ) -> SplitOutcome | bool | None:
+        """`_split_frame` once its state and argument list are made: the call and its outcome."""
+        self.state[4] = self.sweep_px
+        args = self._frame_args
+        assert args is not None
         args[5] = self._n
         args[9] = frame if not frame.flags.writeable else ro(frame)
         args[11] = edge_stage._spans_lo
@@ -376,7 +429,7 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
             return None
         shape_a = (self.side_a if smoothed_a else self.out_a)[: int(count_a)]
         shape_b = (self.side_b if smoothed_b else self.out_b)[: int(count_b)]
-        return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, consts.tables.width_px, sweep)
+        return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, args[0].tables.width_px, sweep)
 
     def _prepare(
         self,
@@ -410,7 +463,9 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
             self.polarity_used = self._polarity32
             self.width_measured = math.nan
             self.width = float(width_px)
+            self._given = True
             return
+        self._given = False
         self._measure_polarity_and_width(width_px, edges, polarity, mag, fixed_rc)
 
     def _correct_slant(self, na: int, nb: int, gain_px: float) -> None:
