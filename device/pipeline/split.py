@@ -103,6 +103,8 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         self.state = np.zeros(K.FRAME_STATE, np.float64)
         """`split_frame`'s per-frame inputs (fixed end, polarity, contrast, last sweep)."""
         self._state_key: tuple[tuple[float, float], np.float32, float] | None = None
+        self._count = 0
+        """The stored contour's point count (`_n`)."""
         self._steady_key: tuple | None = None
         """The arguments of the last `split` that took the steady path (`_split_frame`) from a given width and
         polarity: the next call with the same ones goes straight to it."""
@@ -132,6 +134,15 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         self._contrast32 = np.float32(0.0)
         self._views: dict[int, tuple[NDArray, NDArray]] = {}
         self._per_width: dict[float, _WidthConstants] = {}
+
+    @property
+    def _n(self) -> np.int32:
+        """The stored contour's point count as the kernels take it (made on use: the steady path does not)."""
+        return np.int32(self._count)  # NumPy 2 refuses a value out of the int32 range
+
+    @_n.setter
+    def _n(self, n: int) -> None:
+        self._count = int(n)
 
     def _ro(self, array: NDArray) -> NDArray:
         """A read-only view of `array`, made once per array (the pipeline passes the same buffers every frame)."""
@@ -214,8 +225,8 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
             # the steady path: everything `_prepare` and the checks below would set is set already.
             self._smooth = smooth
             self.failure = "contour found but no segmentation points"
-            self._n = np.int32(n)
-            outcome = self._run_frame(edge_stage, frame, fixed_rc)
+            self._count = n
+            outcome = self._run_frame(edge_stage, frame, fixed_rc, n)
             if outcome is not False:
                 return outcome
         self._steady_key = None
@@ -397,25 +408,26 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
             # The same buffers every frame: the argument list is made once (the contour's count, the frame and
             # the edge stage's spans are set below).
             args = self._frame_args = [
-                consts, edge_stage, self._bound, self._points, self._chain, self._n, self._mag_ro, self._gx,
-                self._gy, frame, edge_stage.weights_ro, edge_stage._spans_lo, edge_stage._spans_hi,
+                consts, edge_stage, self._bound, self._points, self._chain, self._mag_ro, self._gx, self._gy,
+                frame, edge_stage.weights_ro, edge_stage._spans_lo, edge_stage._spans_hi,
                 edge_stage._box_lo, edge_stage._box_hi, edge_stage.tmp, edge_stage.smooth, consts.frame_params,
                 state, consts.curves, consts.table_ro, self.lines, self.sides, self.scratch, self.turn, self.idx,
                 self.seg, self.info,
             ]  # fmt: skip
-        return self._run_frame(edge_stage, frame, fixed_rc)
+        return self._run_frame(edge_stage, frame, fixed_rc, self._count)
 
     def _run_frame(
-        self, edge_stage: EdgeDetector, frame: NDArray[np.uint8], fixed_rc: tuple[float, float]
+        self, edge_stage: EdgeDetector, frame: NDArray[np.uint8], fixed_rc: tuple[float, float], n: int
     ) -> SplitOutcome | bool | None:
         """`_split_frame` once its state and argument list are made: the call and its outcome."""
-        self.state[4] = self.sweep_px
+        state = self.state
+        state[4] = self.sweep_px
+        state[5] = n
         args = self._frame_args
         assert args is not None
-        args[5] = self._n
-        args[9] = frame if not frame.flags.writeable else ro(frame)
-        args[11] = edge_stage._spans_lo
-        args[12] = edge_stage._spans_hi
+        args[8] = frame if not frame.flags.writeable else ro(frame)
+        args[10] = edge_stage._spans_lo
+        args[11] = edge_stage._spans_hi
         status = K.split_frame(*args[3:])
         if status < 0 and status != K.NOT_FOUND:
             return False

@@ -32,9 +32,10 @@ FRAME_PARAMS: Final = SPLIT_PARAMS + 6
 """Length of `split_frame`'s `params`: `split_shapes_packed`'s `SPLIT_PARAMS`, then `scale`, `min_gap`,
 `search_px`, `corner_rad` of `find_segmentation_points`, the corner box's growth `grow_px` (beyond the two corners,
 each way) and the `static_ratio` (sweep / width below which the rope is taken as not moving)."""
-FRAME_STATE: Final = 5
-"""Length of `split_frame`'s `state`: ``[fixed_r, fixed_c, polarity, contrast, last_sweep_px]`` (the float32
-values of the first three exactly, the contrast as measured, the last frame's sweep)."""
+FRAME_STATE: Final = 6
+"""Length of `split_frame`'s `state`: ``[fixed_r, fixed_c, polarity, contrast, last_sweep_px, n]`` (the float32
+values of the first three exactly, the contrast as measured, the last frame's sweep, the contour's point count:
+a Python int in a float64 array costs less than an int32 scalar made per frame)."""
 FRAME_INFO: Final = 7
 """Length of `split_frame`'s `out_info`: `split_shapes_packed`'s six values, then the sweep (px) of this frame
 (-1 when no segmentation points were found)."""
@@ -47,14 +48,15 @@ _SLOPE_HIGH: Final = np.float32(0.85)
 
 
 @kernel(
-    int32(f4_2d_ro, i4_2d_ro, int32, f4_2d_ro, f4_2d_ro, f4_2d_ro, u1_2d_ro, f4_1d_ro, i4_1d_ro, i4_1d_ro, i4_1d,
+    int32(f4_2d_ro, i4_2d_ro, f4_2d_ro, f4_2d_ro, f4_2d_ro, u1_2d_ro, f4_1d_ro, i4_1d_ro, i4_1d_ro, i4_1d,
           i4_1d, f4_2d, f4_2d, f8_1d_ro, f8_1d_ro, f8_2d_ro, f4_1d_ro, f4_2d, f4_3d, f8_2d, f4_1d, i4_1d, f4_2d, f8_1d)
 )  # fmt: skip
 def split_frame(
-    points, chain, n, mag, gx, gy, frame, weights, spans_lo, spans_hi, box_lo, box_hi, tmp, smooth, params, state,
+    points, chain, mag, gx, gy, frame, weights, spans_lo, spans_hi, box_lo, box_hi, tmp, smooth, params, state,
     curves, table, lines, sides, scratch, turn, idx, out_seg, out_info,
 ):  # fmt: skip
-    """The steady-state blur split of one closed contour (`n` subpixel `points`, chain pixels `chain`), as the
+    """The steady-state blur split of one closed contour (``n = state[5]`` subpixel `points`, chain pixels
+    `chain`), as the
     stage's sequence (`BlurSplitter.split`) makes it once the rope's width, polarity and contrast are known:
 
     1. `find_segmentation_points` (fixed end ``state[0:2]``, search zone ``max(search_px, 1.2 last_sweep_px)``;
@@ -70,7 +72,7 @@ def split_frame(
     `lines`, `sides`, ``scratch[0]`` are `split_shapes_packed`'s buffers. Writes the corners to `out_seg` (2, 2)
     and ``out_info`` (`FRAME_INFO`): `split_shapes_packed`'s values and the sweep. Returns
     `split_shapes_packed`'s value (2, NOT_FOUND when the lengths differ, FULL, INVALID), SPLIT_STATIC, or
-    INVALID when an array is too small.
+    INVALID when an array is too small or n out of their range.
     """
     if (
         params.shape[0] < FRAME_PARAMS
@@ -81,8 +83,10 @@ def split_frame(
         or out_seg.shape[0] < 2
         or out_seg.shape[1] < 2
         or curves.shape[0] < 2
+        or not 0.0 <= state[5] <= min(points.shape[0], chain.shape[0])
     ):
         return INVALID
+    n = np.int32(state[5])
     width = params[8]
     fixed_r = np.float32(state[0])
     fixed_c = np.float32(state[1])

@@ -91,7 +91,11 @@ def test_split_frame_makes_the_smoothed_image_it_reads(monkeypatch) -> None:
 def test_split_frame_refuses_short_arrays(monkeypatch) -> None:
     _shapes(monkeypatch, "frame")
     recorded = _LAST_ARGS[0]
-    for index, size in ((14, K.FRAME_PARAMS - 1), (15, K.FRAME_STATE - 1), (24, K.FRAME_INFO - 1)):
+    for index, size in ((13, K.FRAME_PARAMS - 1), (14, K.FRAME_STATE - 1), (23, K.FRAME_INFO - 1)):
         args = list(recorded)
         args[index] = np.zeros(size)
         assert K.split_frame(*args) == K.INVALID
+    state = recorded[14].copy()
+    for n in (-1, recorded[0].shape[0] + 1):  # the count out of the contour's buffers
+        state[5] = n
+        assert K.split_frame(*recorded[:14], state, *recorded[15:]) == K.INVALID
