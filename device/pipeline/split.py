@@ -21,6 +21,10 @@ from ropecam.device.pipeline.split_outcome import SplitOutcome
 
 __all__ = ["BlurSplitter", "SplitOutcome"]
 
+_SHAPES = 2
+"""`split_frame`'s (and `split_shapes_packed`'s) return value when it made the two shapes."""
+_BLUR_SPLIT = Method.BLUR_SPLIT
+
 
 class BlurSplitter(SplitMeasuring, SplitFallbacks):
     """Split a rope contour by one of the methods (``blur_split``, ``paper``, ``centerline``).
@@ -429,6 +433,13 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         args[10] = edge_stage._spans_lo
         args[11] = edge_stage._spans_hi
         status = K.split_frame(*args[3:])
+        if status == _SHAPES:  # the usual outcome first
+            count_a, count_b, _, _, smoothed_a, smoothed_b, sweep = self.info.tolist()
+            self.sweep_px = sweep
+            return SplitOutcome(
+                _BLUR_SPLIT, (self.side_a if smoothed_a else self.out_a)[: int(count_a)],
+                (self.side_b if smoothed_b else self.out_b)[: int(count_b)], self.seg, args[0].tables.width_px, sweep,
+            )  # fmt: skip
         if status < 0 and status != K.NOT_FOUND:
             return False
         count_a, count_b, len_a, len_b, smoothed_a, smoothed_b, sweep = self.info.tolist()
