@@ -429,7 +429,7 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         state[5] = n
         args = self._frame_args
         assert args is not None
-        args[8] = frame if not frame.flags.writeable else ro(frame)
+        args[8] = frame  # `split_frame` takes a writable or a read-only frame
         args[10] = edge_stage._spans_lo
         args[11] = edge_stage._spans_hi
         status = K.split_frame(*args[3:])

@@ -23,26 +23,27 @@ def _rope() -> SyntheticRope:
     return SyntheticRope(exposure_us=4000, amplitude_rad=0.6, period_s=0.9, diameter_px=3.0, phase_rad=1.5, fps=119.0)
 
 
-_RUNS: dict[tuple[str, bool], list[tuple]] = {}
+_RUNS: dict[tuple[str, bool, bool], list[tuple]] = {}
 """`_shapes`'s results (each run is a pipeline over `_FRAMES` frames: slow without JIT)."""
 _LAST_ARGS: list[tuple] = []
 """Copies of the arguments of the last `split_frame` call of the ``frame`` run."""
 
 
-def _shapes(monkeypatch: pytest.MonkeyPatch, path: str, garbage: bool = False) -> list[tuple]:
+def _shapes(monkeypatch: pytest.MonkeyPatch, path: str, garbage: bool = False, read_only: bool = False) -> list[tuple]:
     """(sweep, begin, end) of each frame, the split made by `path`: ``frame`` (`split_frame`), ``packed`` (its
     steps before the shapes one by one, then `split_shapes_packed`) or ``steps`` (every step one by one: both
     one-call kernels report a full buffer). With `garbage`, the edge stage's planes are overwritten before every
-    frame (the split must make the smoothed image it reads beyond the band itself)."""
-    if (path, garbage) in _RUNS:
-        return _RUNS[(path, garbage)]
+    frame (the split must make the smoothed image it reads beyond the band itself). With `read_only`, the frames
+    are read-only arrays (a mapped capture buffer; `split_frame` is compiled for both)."""
+    if (path, garbage, read_only) in _RUNS:
+        return _RUNS[(path, garbage, read_only)]
     calls = {"split_frame": 0, "split_shapes_packed": 0}
     for name in calls:
         real = getattr(K, name)
 
         def counted(*args, _real=real, _name=name):
             calls[_name] += 1
-            if path == "frame" and _name == "split_frame" and not garbage:
+            if path == "frame" and _name == "split_frame" and not garbage and not read_only:
                 _LAST_ARGS[:] = [tuple(a.copy() if isinstance(a, np.ndarray) else a for a in args)]
             if path == "steps" or (path == "packed" and _name == "split_frame"):
                 return K.FULL  # the stage then redoes the steps one by one
@@ -56,13 +57,17 @@ def _shapes(monkeypatch: pytest.MonkeyPatch, path: str, garbage: bool = False) -
         if garbage:
             for plane in (pipeline.edges.smooth, pipeline.edges.tmp):
                 plane[:] = 1000.0
-        result = pipeline.process(frame.image, frame.index, frame.t_ns, frame.exposure_us)
+        image = frame.image
+        if read_only:
+            image = image.copy()
+            image.flags.writeable = False
+        result = pipeline.process(image, frame.index, frame.t_ns, frame.exposure_us)
         assert result.status is FrameStatus.OK, result.message
         out.append((pipeline.splitter.sweep_px, np.array(result.begin), np.array(result.end)))
     assert calls["split_frame"] >= 3  # the steady path ran
     if path != "frame":
         assert calls["split_shapes_packed"] >= 4  # and its fallback
-    _RUNS[(path, garbage)] = out
+    _RUNS[(path, garbage, read_only)] = out
     return out
 
 
@@ -86,6 +91,10 @@ def test_split_shapes_local_equals_the_kernels_one_by_one(monkeypatch) -> None:
 def test_split_frame_makes_the_smoothed_image_it_reads(monkeypatch) -> None:
     # As test_pipeline_state's garbage test, over the frames where the steady path runs.
     _assert_same(_shapes(monkeypatch, "frame", garbage=True), _shapes(monkeypatch, "frame"), atol=0.0)
+
+
+def test_split_frame_takes_read_only_frames(monkeypatch) -> None:
+    _assert_same(_shapes(monkeypatch, "frame", read_only=True), _shapes(monkeypatch, "frame"), atol=0.0)
 
 
 def test_split_frame_refuses_short_arrays(monkeypatch) -> None:
