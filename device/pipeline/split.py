@@ -18,15 +18,12 @@ from ropecam.device.pipeline.result import Method
 from ropecam.device.pipeline.split_fallback import SplitFallbacks
 from ropecam.device.pipeline.split_measure import SplitMeasuring
 from ropecam.device.pipeline.split_outcome import SplitOutcome
+from ropecam.device.pipeline.split_steady import LazyRefresh, SplitSteady
 
 __all__ = ["BlurSplitter", "SplitOutcome"]
 
-_SHAPES = 2
-"""`split_frame`'s (and `split_shapes_packed`'s) return value when it made the two shapes."""
-_BLUR_SPLIT = Method.BLUR_SPLIT
 
-
-class BlurSplitter(SplitMeasuring, SplitFallbacks):
+class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
     """Split a rope contour by one of the methods (``blur_split``, ``paper``, ``centerline``).
 
     Parameters
@@ -238,7 +235,7 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         given_refresh = refresh
         if refresh is None and edge_stage is not None and frame is not None:
             # Made only when a step of the sequence reads the smoothed image (not on the steady path).
-            refresh = _LazyRefresh(edge_stage, frame)
+            refresh = LazyRefresh(edge_stage, frame)
         self._refresh = refresh
         self.failure = "contour found but no segmentation points"
         self._prepare(points, chain, n, width_px, gx, gy, edges, polarity, mag, fixed_rc)
@@ -393,67 +390,6 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         shape_b = self._resample(self.side_b, nb, self.out_b, len_b)
         return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, seg, tables.width_px, sweep)
 
-    def _split_frame(
-        self, edge_stage: EdgeDetector, frame: NDArray[np.uint8], consts: _WidthConstants, fixed_rc: tuple[float, float]
-    ) -> SplitOutcome | bool | None:
-        """The steady-state split in one kernel call (`split_frame`): the same steps and results as `split`'s
-        sequence once the width, polarity and contrast are known. Returns False when the kernel reports a full
-        buffer (`split` then redoes the steps one by one)."""
-        state = self.state
-        # The fixed end, polarity and contrast are the same objects from frame to frame once settled.
-        key = self._state_key
-        if key is None or key[0] is not fixed_rc or key[1] is not self.polarity_used or key[2] != self._contrast_cache:
-            self._state_key = (fixed_rc, self.polarity_used, self._contrast_cache)
-            state[0], state[1] = self._fixed32
-            state[2] = self.polarity_used
-            state[3] = self._contrast_cache
-        args = self._frame_args
-        if args is None or args[0] is not consts or args[1] is not edge_stage or args[2] is not self._bound:
-            # The same buffers every frame: the argument list is made once (the contour's count, the frame and
-            # the edge stage's spans are set below).
-            args = self._frame_args = [
-                consts, edge_stage, self._bound, self._points, self._chain, self._mag_ro, self._gx, self._gy,
-                frame, edge_stage.weights_ro, edge_stage._spans_lo, edge_stage._spans_hi,
-                edge_stage._box_lo, edge_stage._box_hi, edge_stage.tmp, edge_stage.smooth, consts.frame_params,
-                state, consts.curves, consts.table_ro, self.lines, self.sides, self.scratch, self.turn, self.idx,
-                self.seg, self.info,
-            ]  # fmt: skip
-        return self._run_frame(edge_stage, frame, fixed_rc, self._count)
-
-    def _run_frame(
-        self, edge_stage: EdgeDetector, frame: NDArray[np.uint8], fixed_rc: tuple[float, float], n: int
-    ) -> SplitOutcome | bool | None:
-        """`_split_frame` once its state and argument list are made: the call and its outcome."""
-        state = self.state
-        state[4] = self.sweep_px
-        state[5] = n
-        args = self._frame_args
-        assert args is not None
-        args[8] = frame  # `split_frame` takes a writable or a read-only frame
-        args[10] = edge_stage._spans_lo
-        args[11] = edge_stage._spans_hi
-        status = K.split_frame(*args[3:])
-        if status == _SHAPES:  # the usual outcome first
-            count_a, count_b, _, _, smoothed_a, smoothed_b, sweep = self.info.tolist()
-            self.sweep_px = sweep
-            return SplitOutcome(
-                _BLUR_SPLIT, (self.side_a if smoothed_a else self.out_a)[: int(count_a)],
-                (self.side_b if smoothed_b else self.out_b)[: int(count_b)], self.seg, args[0].tables.width_px, sweep,
-            )  # fmt: skip
-        if status < 0 and status != K.NOT_FOUND:
-            return False
-        count_a, count_b, len_a, len_b, smoothed_a, smoothed_b, sweep = self.info.tolist()
-        if sweep >= 0.0:
-            self.sweep_px = sweep
-        if status == K.SPLIT_STATIC:
-            return self.static(fixed_rc)
-        if status == K.NOT_FOUND:
-            self.failure = f"the two shapes differ in length ({len_a:.0f} and {len_b:.0f} px): split rejected"
-            return None
-        shape_a = (self.side_a if smoothed_a else self.out_a)[: int(count_a)]
-        shape_b = (self.side_b if smoothed_b else self.out_b)[: int(count_b)]
-        return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, args[0].tables.width_px, sweep)
-
     def _prepare(
         self,
         points: NDArray[np.float32],
@@ -577,18 +513,6 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
             K.smooth_polyline(out_ro, np.int32(count), self.output_smoothing, self.arc, poly)
             return poly[:count]  # the smoothed points (valid until the next split, as `out`)
         return out[:count]
-
-
-class _LazyRefresh:
-    """`EdgeDetector.smooth_box` on one frame, as `split`'s `refresh` (a plain object: no partial per frame)."""
-
-    __slots__ = ("frame", "stage")
-
-    def __init__(self, stage: EdgeDetector, frame: NDArray[np.uint8]) -> None:
-        self.stage, self.frame = stage, frame
-
-    def __call__(self, r0: int, r1: int, c0: int, c1: int) -> int:
-        return self.stage.smooth_box(self.frame, r0, r1, c0, c1)
 
 
 class _WidthConstants:
