@@ -1,12 +1,14 @@
 """Micro-benchmark the blur split's kernels, step by step, on the contours of a frame set.
 
-A pipeline runs over the frames once and records the arguments of every `find_segmentation_points`,
-`split_shapes_packed` and `slope_sweep_median` call (copies: the gradient planes, the smoothed image, the contour).
-Each kernel is then re-run on exactly those inputs (one thread) and the median over calls of the best of
-``--repeat`` is printed (also `split_shapes_local` on the unpacked arguments: the dispatch saving of the packed
-entry). ``split_shapes_local`` is re-run as its sequence of step kernels (`side_sweeps`, `offset_by_table_thinned`,
-`extend_to_band_end`, the lengths, `anchor_start`, `resample_polyline_of_length`, `smooth_polyline`),
-each step timed on its own, so that a change to one step can be measured alone:
+A pipeline runs over the frames once and records the arguments of every `split_frame` (the steady frame's
+split in one call), `find_segmentation_points`, `split_shapes_packed` and `slope_sweep_median` call (copies:
+the gradient planes, the smoothed image, the contour; a recorded `split_frame` reports a full buffer, so the stage
+makes the same split with the other three). Each kernel is then re-run on exactly those inputs (one thread) and
+the median over calls of the best of ``--repeat`` is printed (also `split_shapes_local` on the unpacked
+arguments: the dispatch saving of the packed entry). ``split_shapes_local`` is re-run as its sequence of step
+kernels (`side_sweeps`, `offset_by_table_thinned`, `extend_to_band_end`, the lengths, `anchor_start`,
+`resample_polyline_of_length`, `smooth_polyline`), each step timed on its own, so that a change to one step can
+be measured alone:
 
     taskset -c 1 python tools/bench_split_kernels.py [--frameset /work/eval/rig] [--frames 40] [--repeat 5] [--cold]
 
@@ -32,8 +34,9 @@ from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
 
-RECORDED = ("find_segmentation_points", "split_shapes_packed", "slope_sweep_median")
-"""The kernels whose calls are recorded (the names `split.py` calls them by)."""
+RECORDED = ("split_frame", "find_segmentation_points", "split_shapes_packed", "slope_sweep_median")
+"""The kernels whose calls are recorded (the names `split.py` calls them by). A recorded `split_frame` call then
+reports a full buffer, so that the stage makes the same frame's split with the other three (same results)."""
 
 
 def _copy(value: Any) -> Any:
@@ -60,6 +63,8 @@ def record(frames: list[tuple[np.ndarray, int, float]], config: PipelineConfig) 
         def recorded(*args: Any) -> Any:
             if recording[0]:
                 calls[name].append(tuple(_copy(a) for a in args))
+                if name == "split_frame":
+                    return K.FULL
             return kernel(*args)
 
         return recorded

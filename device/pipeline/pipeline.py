@@ -265,7 +265,8 @@ class Pipeline:
             e.mag,
             e.smooth,
             polarity,
-            refresh=self._refresh,
+            edge_stage=e,
+            frame=image,
         )
         if steady is None:
             self._learn(measure)

@@ -12,17 +12,18 @@ from numpy.typing import NDArray
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import f32, i32, ro
 from ropecam.device.pipeline.edge_model import shared_model
-from ropecam.device.pipeline.edges import gaussian_weights
+from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
 from ropecam.device.pipeline.paper_method import PaperSegmenter
 from ropecam.device.pipeline.result import Method
 from ropecam.device.pipeline.split_fallback import SplitFallbacks
 from ropecam.device.pipeline.split_measure import SplitMeasuring
 from ropecam.device.pipeline.split_outcome import SplitOutcome
+from ropecam.device.pipeline.split_steady import LazyRefresh, SplitSteady
 
 __all__ = ["BlurSplitter", "SplitOutcome"]
 
 
-class BlurSplitter(SplitMeasuring, SplitFallbacks):
+class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
     """Split a rope contour by one of the methods (``blur_split``, ``paper``, ``centerline``).
 
     Parameters
@@ -64,7 +65,9 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         output_smoothing_px: float = 0.0,
     ) -> None:
         self.output_smoothing = np.float32(output_smoothing_px)
-        self.arc = np.zeros(capacity, np.float64)
+        self.scratch = np.zeros((3, capacity), np.float64)
+        """`arc`, `fixed_dist`, `slope_work` in one array (`split_frame`)."""
+        self.arc, self.fixed_dist, self.slope_work = self.scratch[0], self.scratch[1], self.scratch[2]
         self.method = method
         self.paper = PaperSegmenter(capacity, paper_radius_px, output_step_px=output_step_px)
         self.centerline = self.paper.centerline
@@ -97,11 +100,21 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         self.side_a, self.side_b, self.out_a, self.out_b = self.sides[0], self.sides[1], self.sides[2], self.sides[3]
         self.dist = np.zeros(capacity, np.float32)
         self.seg = np.zeros((2, 2), np.float32)
-        self.info = np.zeros(6, np.float64)
-        self.slope_work = np.zeros(capacity, np.float64)
+        self.info = np.zeros(K.FRAME_INFO, np.float64)
+        self.state = np.zeros(K.FRAME_STATE, np.float64)
+        """`split_frame`'s per-frame inputs (fixed end, polarity, contrast, last sweep)."""
+        self._state_key: tuple[tuple[float, float], np.float32, float] | None = None
+        self._count = 0
+        """The stored contour's point count (`_n`)."""
+        self._steady_key: tuple | None = None
+        """The arguments of the last `split` that took the steady path (`_split_frame`) from a given width and
+        polarity: the next call with the same ones goes straight to it."""
+        self._given = False
+        """Whether the last `_prepare` was given the width and polarity (nothing measured)."""
+        self._frame_args: list | None = None
+        """`split_frame`'s arguments (after three keys: the width's constants, the edge stage, the bound arrays)."""
         # Read-only views of the own buffers and int32 constants, made once (a view costs 1-2 us of Python).
         self._turn_ro = ro(self.turn)
-        self.fixed_dist = np.zeros(capacity, np.float64)
         self._fixed_dist_ro = ro(self.fixed_dist)
         self._side_a_ro, self._side_b_ro = ro(self.side_a), ro(self.side_b)
         self._out_a_ro, self._out_b_ro = ro(self.out_a), ro(self.out_b)
@@ -122,6 +135,15 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         self._contrast32 = np.float32(0.0)
         self._views: dict[int, tuple[NDArray, NDArray]] = {}
         self._per_width: dict[float, _WidthConstants] = {}
+
+    @property
+    def _n(self) -> np.int32:
+        """The stored contour's point count as the kernels take it (made on use: the steady path does not)."""
+        return np.int32(self._count)  # NumPy 2 refuses a value out of the int32 range
+
+    @_n.setter
+    def _n(self, n: int) -> None:
+        self._count = int(n)
 
     def _ro(self, array: NDArray) -> NDArray:
         """A read-only view of `array`, made once per array (the pipeline passes the same buffers every frame)."""
@@ -157,6 +179,8 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
         smooth: NDArray[np.float32],
         polarity: float = 0.0,
         refresh: Callable[[int, int, int, int], None] | None = None,
+        edge_stage: EdgeDetector | None = None,
+        frame: NDArray[np.uint8] | None = None,
     ) -> SplitOutcome | None:
         """Split the closed contour (`n` subpixel `points`, integer `chain`) of a rope fixed at `fixed_rc`.
 
@@ -172,16 +196,50 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
             Called with (r0, r1, c0, c1) before `smooth` is read in that box (inclusive): the edge stage fills
             `smooth` inside its band only, and the contrast and the tip fit read it a few pixels beyond (the
             pipeline passes `EdgeDetector.smooth_box` for this frame). None: `smooth` is valid everywhere.
+        edge_stage, frame
+            The edge stage whose last `detect` on `frame` made the planes (`smooth` is its `smooth`), instead of
+            `refresh`: once the rope's width, polarity and contrast are known, the split then runs in one kernel
+            call (`split_frame`), which refreshes the smoothed image itself.
 
         Returns
         -------
         SplitOutcome or None
             None when the contour cannot be split (too short, no segmentation points).
         """
+        key = self._steady_key
+        if (
+            key is not None
+            and points is key[0]
+            and chain is key[1]
+            and gx is key[2]
+            and gy is key[3]
+            and mag is key[4]
+            and smooth is key[5]
+            and edge_stage is key[6]
+            and fixed_rc is key[7]
+            and width_px == key[8]
+            and polarity == key[9]
+            and frame is not None
+            and refresh is None
+        ):
+            # The same contour buffers, edge stage, fixed end, width and polarity as the last frame, which took
+            # the steady path: everything `_prepare` and the checks below would set is set already.
+            self._smooth = smooth
+            self.failure = "contour found but no segmentation points"
+            self._count = n
+            outcome = self._run_frame(edge_stage, frame, fixed_rc, n)
+            if outcome is not False:
+                return outcome
+        self._steady_key = None
         self._smooth = smooth
+        given_refresh = refresh
+        if refresh is None and edge_stage is not None and frame is not None:
+            # Made only when a step of the sequence reads the smoothed image (not on the steady path).
+            refresh = LazyRefresh(edge_stage, frame)
         self._refresh = refresh
         self.failure = "contour found but no segmentation points"
         self._prepare(points, chain, n, width_px, gx, gy, edges, polarity, mag, fixed_rc)
+        points_in, chain_in = points, chain
         points, chain, n = self._points, self._chain, self._n
         if self.method in ("paper", "centerline"):
             return self._comparison(fixed_rc)
@@ -193,6 +251,30 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
             self._width_key, self._width_consts = width, self._constants(width)
         consts = self._width_consts
         assert consts is not None
+        if (
+            edge_stage is not None
+            and frame is not None
+            and self.method == "blur_split"
+            and len(self._contrasts) >= 10
+            and self._contrast_cache >= 5.0
+            and smooth is edge_stage.smooth
+        ):
+            outcome = self._split_frame(edge_stage, frame, consts, fixed_rc)
+            if outcome is not False:
+                if self._given and given_refresh is None:
+                    self._steady_key = (
+                        points_in,
+                        chain_in,
+                        gx,
+                        gy,
+                        mag,
+                        smooth,
+                        edge_stage,
+                        fixed_rc,
+                        width_px,
+                        polarity,
+                    )
+                return outcome
         # The band's corners lie at the free end, but an end that also moves along the rope (a whipping tip)
         # slants the band's end: the corners can then differ in distance from the fixed end by up to about the
         # sweep. The last frame's sweep widens the zone searched (a rope does not change its speed much between
@@ -250,7 +332,7 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
             )  # fmt: skip
             if status >= 0 or status == K.NOT_FOUND:
                 self.sweep_px = sweep
-                count_a, count_b, len_a, len_b, smoothed_a, smoothed_b = self.info.tolist()
+                count_a, count_b, len_a, len_b, smoothed_a, smoothed_b, _ = self.info.tolist()
                 if status == K.NOT_FOUND:
                     self.failure = f"the two shapes differ in length ({len_a:.0f} and {len_b:.0f} px): split rejected"
                     return None
@@ -340,7 +422,9 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks):
             self.polarity_used = self._polarity32
             self.width_measured = math.nan
             self.width = float(width_px)
+            self._given = True
             return
+        self._given = False
         self._measure_polarity_and_width(width_px, edges, polarity, mag, fixed_rc)
 
     def _correct_slant(self, na: int, nb: int, gain_px: float) -> None:
@@ -436,8 +520,8 @@ class _WidthConstants:
     width."""
 
     __slots__ = (
-        "blur", "cap", "corner", "curves", "keep", "min_gap", "params", "ratios_ro", "scale", "search_px", "skip",
-        "span", "sweep_window", "sweeps_ro", "table_ro", "table_step", "tables", "width",
+        "blur", "cap", "corner", "curves", "frame_params", "keep", "min_gap", "params", "ratios_ro", "scale",
+        "search_px", "skip", "span", "sweep_window", "sweeps_ro", "table_ro", "table_step", "tables", "width",
     )  # fmt: skip
 
     def __init__(self, splitter: BlurSplitter, width: float) -> None:
@@ -469,4 +553,9 @@ class _WidthConstants:
         )  # fmt: skip
         assert len(params) == K.SPLIT_PARAMS
         self.params = ro(np.array([float(v) for v in params], np.float64))
+        # `split_frame`'s: the same, then the segmentation points' and the corner box's (as `split` computes them)
+        grow = 3.0 * float(self.blur) + 6.0 + width
+        frame_params = (*params, self.scale, self.min_gap, self.search_px, self.corner, grow, splitter.static_ratio)
+        assert len(frame_params) == K.FRAME_PARAMS
+        self.frame_params = ro(np.array([float(v) for v in frame_params], np.float64))
         self.curves = ro(np.stack([self.ratios_ro, self.sweeps_ro]).astype(np.float64))

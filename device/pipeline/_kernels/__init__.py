@@ -112,6 +112,13 @@ from ropecam.device.pipeline._kernels.spans import (
     union_spans,
 )
 from ropecam.device.pipeline._kernels.stages import detect_and_trace, smooth_frame_box
+from ropecam.device.pipeline._kernels.split_frame import (
+    FRAME_INFO,
+    FRAME_PARAMS,
+    FRAME_STATE,
+    SPLIT_STATIC,
+    split_frame,
+)
 from ropecam.device.pipeline._kernels.tracking import (
     HISTORY,
     MOTION_COUNT,
@@ -136,6 +143,9 @@ __all__ = [
     "EDGE_NONE",
     "EDGE_STRONG",
     "EDGE_WEAK",
+    "FRAME_INFO",
+    "FRAME_PARAMS",
+    "FRAME_STATE",
     "FULL",
     "HISTORY",
     "INVALID",
@@ -148,6 +158,7 @@ __all__ = [
     "ORDER_ORDERED",
     "ORDER_REJECTS",
     "SPLIT_PARAMS",
+    "SPLIT_STATIC",
     "TAN_22_5",
     "TWO",
     "ZERO",
@@ -213,6 +224,7 @@ __all__ = [
     "sobel_suppress",
     "spans_around_points",
     "split_contour",
+    "split_frame",
     "split_shapes_local",
     "split_shapes_packed",
     "suppress_rows",

@@ -1,5 +1,6 @@
-"""`split_shapes_packed` (`split_shapes_local`, the blur split's usual path in one kernel call) against the same
-kernels called one by one."""
+"""The blur split's one-call paths against the same kernels called one by one: `split_frame` (a steady frame:
+segmentation points, the corner box's smoothing, the sweep, the shapes) and `split_shapes_packed`
+(`split_shapes_local`, the shapes from the segmentation points)."""
 
 from __future__ import annotations
 
@@ -14,32 +15,96 @@ from ropecam.device.pipeline.result import FrameStatus
 
 pytestmark = pytest.mark.kernel
 
+_FRAMES = 14
+"""Frames of the swinging rope: the contrast (hence the local sweeps and `split_frame`) is known from frame 10."""
 
-def _shapes(monkeypatch: pytest.MonkeyPatch, fused: bool) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Begin/end of 14 frames of a swinging rope (the contrast, hence the local sweeps, known from frame 10)."""
-    rope = SyntheticRope(exposure_us=4000, amplitude_rad=0.6, period_s=0.9, diameter_px=3.0, phase_rad=1.5, fps=119.0)
-    calls = []
-    real = K.split_shapes_packed
 
-    def counted(*args):
-        calls.append(1)
-        return real(*args) if fused else K.FULL  # FULL: the stage redoes the steps one by one
+def _rope() -> SyntheticRope:
+    return SyntheticRope(exposure_us=4000, amplitude_rad=0.6, period_s=0.9, diameter_px=3.0, phase_rad=1.5, fps=119.0)
 
-    monkeypatch.setattr(K, "split_shapes_packed", counted)
+
+_RUNS: dict[tuple[str, bool, bool], list[tuple]] = {}
+"""`_shapes`'s results (each run is a pipeline over `_FRAMES` frames: slow without JIT)."""
+_LAST_ARGS: list[tuple] = []
+"""Copies of the arguments of the last `split_frame` call of the ``frame`` run."""
+
+
+def _shapes(monkeypatch: pytest.MonkeyPatch, path: str, garbage: bool = False, read_only: bool = False) -> list[tuple]:
+    """(sweep, begin, end) of each frame, the split made by `path`: ``frame`` (`split_frame`), ``packed`` (its
+    steps before the shapes one by one, then `split_shapes_packed`) or ``steps`` (every step one by one: both
+    one-call kernels report a full buffer). With `garbage`, the edge stage's planes are overwritten before every
+    frame (the split must make the smoothed image it reads beyond the band itself). With `read_only`, the frames
+    are read-only arrays (a mapped capture buffer; `split_frame` is compiled for both)."""
+    if (path, garbage, read_only) in _RUNS:
+        return _RUNS[(path, garbage, read_only)]
+    calls = {"split_frame": 0, "split_shapes_packed": 0}
+    for name in calls:
+        real = getattr(K, name)
+
+        def counted(*args, _real=real, _name=name):
+            calls[_name] += 1
+            if path == "frame" and _name == "split_frame" and not garbage and not read_only:
+                _LAST_ARGS[:] = [tuple(a.copy() if isinstance(a, np.ndarray) else a for a in args)]
+            if path == "steps" or (path == "packed" and _name == "split_frame"):
+                return K.FULL  # the stage then redoes the steps one by one
+            return _real(*args)
+
+        monkeypatch.setattr(K, name, counted)
+    rope = _rope()
     pipeline = Pipeline(PipelineConfig(), (rope.width, rope.height))
     out = []
-    for frame in rope.frames(14):
-        result = pipeline.process(frame.image, frame.index, frame.t_ns, frame.exposure_us)
+    for frame in rope.frames(_FRAMES):
+        if garbage:
+            for plane in (pipeline.edges.smooth, pipeline.edges.tmp):
+                plane[:] = 1000.0
+        image = frame.image
+        if read_only:
+            image = image.copy()
+            image.flags.writeable = False
+        result = pipeline.process(image, frame.index, frame.t_ns, frame.exposure_us)
         assert result.status is FrameStatus.OK, result.message
-        out.append((np.array(result.begin), np.array(result.end)))
-    assert len(calls) >= 4  # the local path ran
+        out.append((pipeline.splitter.sweep_px, np.array(result.begin), np.array(result.end)))
+    assert calls["split_frame"] >= 3  # the steady path ran
+    if path != "frame":
+        assert calls["split_shapes_packed"] >= 4  # and its fallback
+    _RUNS[(path, garbage, read_only)] = out
     return out
 
 
+def _assert_same(got: list[tuple], want: list[tuple], atol: float) -> None:
+    for (sweep_g, begin_g, end_g), (sweep_w, begin_w, end_w) in zip(got, want, strict=True):
+        assert sweep_g == pytest.approx(sweep_w, abs=1e-9)
+        assert begin_g.shape == begin_w.shape and end_g.shape == end_w.shape
+        np.testing.assert_allclose(begin_g, begin_w, atol=atol)
+        np.testing.assert_allclose(end_g, end_w, atol=atol)
+
+
+def test_split_frame_equals_its_steps(monkeypatch) -> None:
+    # The same kernels in the same order on the same values: equal up to the sweep's hypot (libm vs Python's).
+    _assert_same(_shapes(monkeypatch, "frame"), _shapes(monkeypatch, "packed"), atol=1e-5)
+
+
 def test_split_shapes_local_equals_the_kernels_one_by_one(monkeypatch) -> None:
-    fused = _shapes(monkeypatch, fused=True)
-    stepwise = _shapes(monkeypatch, fused=False)
-    for (begin_f, end_f), (begin_s, end_s) in zip(fused, stepwise, strict=True):
-        assert begin_f.shape == begin_s.shape and end_f.shape == end_s.shape
-        np.testing.assert_allclose(begin_f, begin_s, atol=1e-3)
-        np.testing.assert_allclose(end_f, end_s, atol=1e-3)
+    _assert_same(_shapes(monkeypatch, "packed"), _shapes(monkeypatch, "steps"), atol=1e-3)
+
+
+def test_split_frame_makes_the_smoothed_image_it_reads(monkeypatch) -> None:
+    # As test_pipeline_state's garbage test, over the frames where the steady path runs.
+    _assert_same(_shapes(monkeypatch, "frame", garbage=True), _shapes(monkeypatch, "frame"), atol=0.0)
+
+
+def test_split_frame_takes_read_only_frames(monkeypatch) -> None:
+    _assert_same(_shapes(monkeypatch, "frame", read_only=True), _shapes(monkeypatch, "frame"), atol=0.0)
+
+
+def test_split_frame_refuses_short_arrays(monkeypatch) -> None:
+    _shapes(monkeypatch, "frame")
+    recorded = _LAST_ARGS[0]
+    for index, size in ((13, K.FRAME_PARAMS - 1), (14, K.FRAME_STATE - 1), (23, K.FRAME_INFO - 1)):
+        args = list(recorded)
+        args[index] = np.zeros(size)
+        assert K.split_frame(*args) == K.INVALID
+    state = recorded[14].copy()
+    for n in (-1, recorded[0].shape[0] + 1):  # the count out of the contour's buffers
+        state[5] = n
+        assert K.split_frame(*recorded[:14], state, *recorded[15:]) == K.INVALID

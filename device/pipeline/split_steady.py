@@ -1,0 +1,98 @@
+"""The blur splitter's steady path: once the rope's width, polarity and contrast are known, a frame's split is one
+`split_frame` kernel call (`SplitSteady`, a part of `BlurSplitter`)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline.edges import EdgeDetector
+from ropecam.device.pipeline.result import Method
+from ropecam.device.pipeline.split_outcome import SplitOutcome
+
+__all__ = ["LazyRefresh", "SplitSteady"]
+
+_SHAPES = 2
+"""`split_frame`'s (and `split_shapes_packed`'s) return value when it made the two shapes."""
+_BLUR_SPLIT = Method.BLUR_SPLIT
+
+
+class SplitSteady:
+    """The steady path of `BlurSplitter` (it reads the contour, buffers and state it stores; `consts` are its
+    per-width constants)."""
+
+    def _split_frame(
+        self, edge_stage: EdgeDetector, frame: NDArray[np.uint8], consts: Any, fixed_rc: tuple[float, float]
+    ) -> SplitOutcome | bool | None:
+        """The steady-state split in one kernel call (`split_frame`): the same steps and results as `split`'s
+        sequence once the width, polarity and contrast are known. Returns False when the kernel reports a full
+        buffer (`split` then redoes the steps one by one)."""
+        state = self.state
+        # The fixed end, polarity and contrast are the same objects from frame to frame once settled.
+        key = self._state_key
+        if key is None or key[0] is not fixed_rc or key[1] is not self.polarity_used or key[2] != self._contrast_cache:
+            self._state_key = (fixed_rc, self.polarity_used, self._contrast_cache)
+            state[0], state[1] = self._fixed32
+            state[2] = self.polarity_used
+            state[3] = self._contrast_cache
+        args = self._frame_args
+        if args is None or args[0] is not consts or args[1] is not edge_stage or args[2] is not self._bound:
+            # The same buffers every frame: the argument list is made once (the contour's count, the frame and
+            # the edge stage's spans are set below).
+            args = self._frame_args = [
+                consts, edge_stage, self._bound, self._points, self._chain, self._mag_ro, self._gx, self._gy,
+                frame, edge_stage.weights_ro, edge_stage._spans_lo, edge_stage._spans_hi,
+                edge_stage._box_lo, edge_stage._box_hi, edge_stage.tmp, edge_stage.smooth, consts.frame_params,
+                state, consts.curves, consts.table_ro, self.lines, self.sides, self.scratch, self.turn, self.idx,
+                self.seg, self.info,
+            ]  # fmt: skip
+        return self._run_frame(edge_stage, frame, fixed_rc, self._count)
+
+    def _run_frame(
+        self, edge_stage: EdgeDetector, frame: NDArray[np.uint8], fixed_rc: tuple[float, float], n: int
+    ) -> SplitOutcome | bool | None:
+        """`_split_frame` once its state and argument list are made: the call and its outcome."""
+        state = self.state
+        state[4] = self.sweep_px
+        state[5] = n
+        args = self._frame_args
+        assert args is not None
+        args[8] = frame  # `split_frame` takes a writable or a read-only frame
+        args[10] = edge_stage._spans_lo
+        args[11] = edge_stage._spans_hi
+        status = K.split_frame(*args[3:])
+        if status == _SHAPES:  # the usual outcome first
+            count_a, count_b, _, _, smoothed_a, smoothed_b, sweep = self.info.tolist()
+            self.sweep_px = sweep
+            return SplitOutcome(
+                _BLUR_SPLIT, (self.side_a if smoothed_a else self.out_a)[: int(count_a)],
+                (self.side_b if smoothed_b else self.out_b)[: int(count_b)], self.seg, args[0].tables.width_px, sweep,
+            )  # fmt: skip
+        if status < 0 and status != K.NOT_FOUND:
+            return False
+        count_a, count_b, len_a, len_b, smoothed_a, smoothed_b, sweep = self.info.tolist()
+        if sweep >= 0.0:
+            self.sweep_px = sweep
+        if status == K.SPLIT_STATIC:
+            return self.static(fixed_rc)
+        if status == K.NOT_FOUND:
+            self.failure = f"the two shapes differ in length ({len_a:.0f} and {len_b:.0f} px): split rejected"
+            return None
+        shape_a = (self.side_a if smoothed_a else self.out_a)[: int(count_a)]
+        shape_b = (self.side_b if smoothed_b else self.out_b)[: int(count_b)]
+        return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, args[0].tables.width_px, sweep)
+
+
+class LazyRefresh:
+    """`EdgeDetector.smooth_box` on one frame, as `split`'s `refresh` (a plain object: no partial per frame)."""
+
+    __slots__ = ("frame", "stage")
+
+    def __init__(self, stage: EdgeDetector, frame: NDArray[np.uint8]) -> None:
+        self.stage, self.frame = stage, frame
+
+    def __call__(self, r0: int, r1: int, c0: int, c1: int) -> int:
+        return self.stage.smooth_box(self.frame, r0, r1, c0, c1)
