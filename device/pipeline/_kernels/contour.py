@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
-from numba import boolean, float32, int32, int64
+from numba import boolean, float32, float64, int32, int64
 
 from ropecam.device.pipeline._kernels._common import DIR_COL, DIR_ROW, FULL, NOT_FOUND
 from ropecam.device.pipeline._kernels.geometry import axis_offset
@@ -352,6 +353,144 @@ def trace_closed(edges, width, start_r, start_c, out_chain, out_codes):
         pc += DIR_COL[found]
 
 
+def _quotient(a, b):
+    """Return ``a / b`` (inf or nan when `b` is 0)."""
+    return a / b
+
+
+def _quiet_quotient(a, b):
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return a / b
+
+
+quotient = _quiet_quotient if numba.config.DISABLE_JIT else kernel(float64(float64, float64))(_quotient)
+"""``quotient(a, b)``: ``a / b`` for a result used only when `b` < 0: computed whatever `b` (a branch-free loop;
+choosing a safe divisor first cost 8 % of `trace_rope`), without NumPy's division warnings when run without JIT."""
+
+
+@kernel(int64(i4_1d_ro, int64))
+def first_listed(edge_list, n_edges):
+    """Return the smallest of the first `n_edges` (>= 1) flat indices of `edge_list`: the first edge pixel in
+    raster order, so the first pixel of the component that holds it."""
+    first = np.int64(edge_list[0])
+    for t in range(n_edges):
+        first = min(first, np.int64(edge_list[t]))
+    return first
+
+
+@kernel(int32(u1_1d, int64, i4_1d_ro, int64, int32, i4_2d, int32, i4_1d))
+def keep_traced(edges, width, edge_list, n_edges, min_pixels, chain, n, stack):
+    """`keep_largest_closed` after the trace: the `n` pixels of `chain` (row, col) are the outer boundary of the
+    component of the first listed pixel in raster order, traced on the flat map `edges` as `keep_largest_closed`
+    expects it (1 on the `n_edges` listed pixels, 0 around them, off the image border).
+
+    A thin component (the rope's edges) is mostly its boundary: only the listed pixels the chain misses are
+    flooded (one group of them at a time, through the map: 3 = seen), a group touching the chain belonging to
+    the traced component, any other being a component of its own. The traced component wins ties (its first
+    pixel comes first in raster order). Returns its size, with the listed pixels rewritten as
+    `keep_largest_closed` leaves them (1 = traced component, 2 = others); NOT_FOUND when it is the largest but
+    below `min_pixels` (every listed pixel 2); 0 when another component is larger (every listed pixel back to 1,
+    for `keep_largest_closed`). `stack` needs one slot per listed pixel.
+    """
+    for i in range(n):
+        edges[np.int64(chain[i, 0]) * width + chain[i, 1]] = 2
+    offsets = (-width - 1, -width, -width + 1, -1, 1, width - 1, width, width + 1)
+    tail = 0
+    others = 0
+    largest_other = 0
+    for t in range(n_edges):
+        seed = edge_list[t]
+        if edges[seed] != 1:
+            continue
+        edges[seed] = 3
+        begin = tail
+        stack[tail] = seed
+        tail += 1
+        head = begin
+        touches = False
+        while head < tail:
+            here = np.int64(stack[head])
+            head += 1
+            for o in offsets:
+                k = np.uint64(here + o)
+                v = edges[k]
+                if v == 1:
+                    edges[k] = 3
+                    stack[tail] = np.int32(k)
+                    tail += 1
+                touches |= v == 2
+        if touches:  # pixels of the traced component inside its boundary
+            for i in range(begin, tail):
+                edges[stack[i]] = 2
+        else:
+            others += tail - begin
+            largest_other = max(largest_other, tail - begin)
+    size = n_edges - others
+    if largest_other > size:
+        for t in range(n_edges):
+            edges[edge_list[t]] = 1
+        return 0
+    if size < min_pixels:
+        for t in range(n_edges):
+            edges[edge_list[t]] = 2
+        return NOT_FOUND
+    for t in range(n_edges):
+        edges[edge_list[t]] -= 1  # traced component 2 -> 1, the others 3 -> 2
+    return size
+
+
+@kernel(int32(f4_2d_ro, f4_2d_ro, f4_2d_ro, i4_1d_ro, i4_1d_ro, i4_2d, int32, i4_1d, f4_2d))
+def refine_inner(mag, gx, gy, lo, hi, chain, n, scratch, out_points):
+    """`refine_subpixel` and `count_roi_contacts` of the first `n` chain pixels, all of them inside the spans
+    `lo`/`hi` and off the image border (no border tests): the same float32 values, without branches (both
+    neighbours along the chosen axis are read through one offset; a parabola without a maximum gives 0).
+
+    Writes `out_points` and, per row of the chain, the columns a pixel must lie strictly between to have no
+    8-neighbour outside the spans into ``scratch[:height]`` and ``scratch[height : 2 * height]``; returns the
+    ROI contacts.
+    """
+    height = mag.shape[0]
+    width = mag.shape[1]
+    near_lo = scratch[:height]
+    near_hi = scratch[height : 2 * height]
+    r_min = height
+    r_max = -1
+    for i in range(n):
+        r_min = min(r_min, chain[i, 0])
+        r_max = max(r_max, chain[i, 0])
+    # A chain pixel (c inside its row's span) touches the border of the spans when c - 1 or c + 1 leaves the
+    # span of row r, r - 1 or r + 1 (an empty row: always). Clamped: an empty row's bounds may be extreme.
+    for r in range(r_min, r_max + 1):
+        near_lo[r] = min(np.int64(max(max(lo[r - 1], lo[r]), lo[r + 1])) + 1, width)
+        near_hi[r] = max(np.int64(min(min(hi[r - 1], hi[r]), hi[r + 1])) - 1, -1)
+    fmag = mag.reshape(height * width)
+    fgx = gx.reshape(height * width)
+    fgy = gy.reshape(height * width)
+    zero = np.float32(0.0)
+    contacts = 0
+    for i in range(n):
+        r = chain[i, 0]
+        c = chain[i, 1]
+        k = np.int64(r) * width + c
+        g_r = fgy[k]
+        g_c = fgx[k]
+        m0 = fmag[k]
+        horizontal = abs(g_c) >= abs(g_r)
+        step = 1 if horizontal else width
+        mm = fmag[np.uint64(k - step)]
+        mp = fmag[np.uint64(k + step)]
+        denom = mm - 2.0 * m0 + mp  # the expressions of `axis_offset`, in its order
+        keep = (denom < 0.0) & ((g_r != 0.0) | (g_c != 0.0))
+        delta = np.float32(min(max(quotient(0.5 * (mm - mp), denom), -1.0), 1.0))
+        d = delta if keep else zero
+        d_r = zero if horizontal else d
+        d_c = d if horizontal else zero
+        out_points[i, 0] = r + d_r
+        out_points[i, 1] = c + d_c
+        contacts += (c < near_lo[r]) | (c > near_hi[r])
+    return contacts
+
+
 @kernel(
     int32(
         u1_2d,
@@ -394,10 +533,15 @@ def trace_rope(
 ):
     """The contour stage in one call: `keep_largest_listed`, `trace_contour` from the component's start,
     `refine_subpixel` of the chain and `count_roi_contacts`; same outputs as those calls in that order. When
-    `ring_clear` and the spans keep off the image border, the trace is `trace_closed` (no span tests).
+    `ring_clear` and the spans keep off the image border, the trace is `trace_closed` (no span tests), run
+    first from the first listed pixel: `keep_traced` then floods only the pixels the chain missed (when another
+    component is larger, the component is chosen again by `keep_largest_closed` and traced from its start),
+    and `refine_inner` refines and counts without border tests.
 
     Arguments as for those kernels (`n_edges` is an int64: a Python int passes as it is; `edges` is
-    rewritten, `out_labels`, `stack`, `out_start`, `out_chain`, `out_codes` and `out_points` written).
+    rewritten, `out_labels` (with `ring_clear`: scratch), `stack`, `out_start`, `out_chain`, `out_codes` and
+    `out_points` written; past the returned count, and after NOT_FOUND or FULL, the chain buffers hold no
+    meaningful values).
     `out_counts` (3 slots) gets the component's pixel count, the chain's ROI contacts and how many chain pixels
     lie on the image border (0 means `count_border_contacts` is 0 too).
     Returns the chain length, NOT_FOUND (no component of `min_pixels`; counts 0) or FULL (chain longer than the
@@ -406,21 +550,49 @@ def trace_rope(
     out_counts[0] = 0
     out_counts[1] = 0
     out_counts[2] = 0
-    size = keep_largest_listed(edges, lo, hi, edge_list, n_edges, min_pixels, ring_clear, out_labels, stack, out_start)
-    if size < 0:
-        return size
-    out_counts[0] = size
     height = edges.shape[0]
     width = edges.shape[1]
     inner = ring_clear
     for r in range(height):
         if hi[r] >= lo[r] and (r == 0 or r == height - 1 or lo[r] < 1 or hi[r] > width - 2):
             inner = False
+    flat = edges.reshape(height * width)
+    scratch = out_labels.reshape(height * width)
+    if inner and n_edges >= min_pixels and n_edges > 0:
+        # Trace first, from the first edge pixel in raster order, then flood only what the chain missed: the
+        # rope's component is the only one in a band and mostly its own boundary (`keep_traced`).
+        first = first_listed(edge_list, n_edges)
+        start_r = first // width
+        start_c = first - start_r * width
+        n = trace_closed(flat, width, start_r, start_c, out_chain, out_codes)
+        if n >= 0:
+            size = keep_traced(flat, width, edge_list, n_edges, min_pixels, out_chain, n, stack)
+            if size < 0:
+                return size
+            if size > 0:
+                out_start[0] = start_r
+                out_start[1] = start_c
+                out_counts[0] = size
+                out_counts[1] = refine_inner(mag, gx, gy, lo, hi, out_chain, n, scratch, out_points)
+                return n
+        # Another component is larger, or the chain overflows (its size is then reported): the general way.
     if inner:
-        n = trace_closed(edges.reshape(height * width), width, out_start[0], out_start[1], out_chain, out_codes)
+        size = keep_largest_closed(flat, edge_list, n_edges, min_pixels, width, stack, out_start)
+    else:
+        size = keep_largest_listed(
+            edges, lo, hi, edge_list, n_edges, min_pixels, ring_clear, out_labels, stack, out_start
+        )
+    if size < 0:
+        return size
+    out_counts[0] = size
+    if inner:
+        n = trace_closed(flat, width, out_start[0], out_start[1], out_chain, out_codes)
     else:
         n = trace_contour(edges, lo, hi, out_start[0], out_start[1], out_chain, out_codes)
     if n < 0:
+        return n
+    if inner:
+        out_counts[1] = refine_inner(mag, gx, gy, lo, hi, out_chain, n, scratch, out_points)
         return n
     contacts = 0
     on_border = 0

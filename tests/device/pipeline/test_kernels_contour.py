@@ -379,3 +379,101 @@ def test_trace_rope_without_a_component(blurred_frames) -> None:
     assert out[6].tolist() == [0, 0, 0]
     assert K.trace_rope(keep, lo, hi, stack, count, 20, True, planes[4], planes[2], planes[3], *out) == K.FULL
     assert out[6][0] > 100
+
+
+def _shapes(case):
+    """An edge map (1 = edge) with components off the image border, and the minimum size to ask for."""
+    mask = np.zeros((48, 64), np.uint8)
+    min_px = 5
+    if case == "thick ring":  # pixels inside the outer boundary: groups the chain misses that touch it
+        cv2.circle(mask, (30, 22), 12, 1, 2)
+    elif case == "disk":
+        cv2.circle(mask, (30, 22), 9, 1, -1)
+    elif case == "larger below":  # the first component in raster order is not the largest
+        cv2.circle(mask, (15, 8), 4, 1, 1)
+        cv2.ellipse(mask, (35, 30), (20, 9), 20, 0, 360, 1, 1)
+    elif case == "tie":  # equal components: the first in raster order wins
+        cv2.rectangle(mask, (5, 5), (15, 15), 1, 1)
+        cv2.rectangle(mask, (30, 25), (40, 35), 1, 1)
+    elif case == "small others":
+        cv2.ellipse(mask, (30, 14), (20, 7), 10, 0, 360, 1, 1)
+        mask[30:32, 10:12] = 1
+        mask[40, 50] = 1
+        cv2.circle(mask, (45, 36), 3, 1, 1)
+    elif case == "first too small":  # the first component is below min_px, a later one is not
+        mask[4, 30] = 1
+        cv2.circle(mask, (30, 26), 10, 1, 1)
+        min_px = 3
+    elif case == "all too small":
+        mask[5:7, 5:7] = 1
+        mask[20, 20:23] = 1
+        min_px = 10
+    else:  # a component and a hole in it, with a spur into the hole
+        cv2.rectangle(mask, (10, 8), (50, 38), 1, 1)
+        cv2.rectangle(mask, (20, 16), (40, 30), 1, 1)
+        mask[30:39, 30] = 1
+    return mask, min_px
+
+
+@pytest.mark.parametrize(
+    "case",
+    ["thick ring", "disk", "larger below", "tie", "small others", "first too small", "all too small", "nested"],
+)
+@pytest.mark.parametrize("spans", ["wide", "tight"])
+def test_trace_rope_traced_first_equals_the_kernels_one_by_one(case, spans) -> None:
+    # trace_rope traces the first listed pixel's component before knowing it is the largest (`keep_traced`);
+    # the slow way: scan the spans for the largest component, trace it, refine and count contacts one by one.
+    mask, min_px = _shapes(case)
+    height, width = mask.shape
+    rng = np.random.default_rng(7)
+    lo, hi = np.full(height, 1, np.int32), np.full(height, width - 2, np.int32)
+    if spans == "tight":  # spans hugging the edges (contacts), and empty rows with extreme bounds
+        for r in range(height):
+            cols = np.flatnonzero(mask[r])
+            if cols.size:
+                lo[r], hi[r] = max(cols[0] - rng.integers(0, 2), 1), min(cols[-1] + rng.integers(0, 2), width - 2)
+            else:
+                lo[r], hi[r] = np.iinfo(np.int32).max, np.iinfo(np.int32).min
+    lo[0], hi[0], lo[-1], hi[-1] = 1, 0, 1, 0  # rows 0 and height - 1 empty: the spans keep off the border
+    mag = rng.uniform(0, 100, mask.shape).astype(np.float32)
+    gx = rng.normal(0, 50, mask.shape).astype(np.float32)
+    gy = rng.normal(0, 50, mask.shape).astype(np.float32)
+    gx[::5, ::3] = gy[::5, ::3] = 0.0  # no gradient: no offset
+    mag[::4, ::2] = mag[1::4, ::2]  # flat magnitude: no maximum
+    edge_list = rng.permutation(np.flatnonzero(mask)).astype(np.int32)
+    ref = mask.copy()
+    labels, work_stack = np.zeros(mask.shape, np.int32), np.zeros(mask.size, np.int32)
+    start = np.zeros(2, np.int32)
+    size = K.keep_largest_component(ref, lo, hi, min_px, labels, work_stack, start)
+    capacity = 4 * mask.size
+    chain, codes = np.zeros((capacity, 2), np.int32), np.zeros(capacity, np.int32)
+    points = np.zeros((capacity, 2), np.float32)
+    out = [np.zeros(mask.shape, np.int32), np.zeros(mask.size, np.int32), np.full(2, -3, np.int32),
+           np.zeros((capacity, 2), np.int32), np.zeros(capacity, np.int32), np.zeros((capacity, 2), np.float32),
+           np.full(3, -5, np.int32)]  # fmt: skip
+    edges = mask.copy()
+    got = K.trace_rope(edges, lo, hi, edge_list, len(edge_list), min_px, True, mag, gx, gy, *out)
+    np.testing.assert_array_equal(edges, ref)
+    if size < 0:
+        assert got == K.NOT_FOUND and case == "all too small"
+        assert out[6].tolist() == [0, 0, 0] and out[2].tolist() == [-3, -3]
+        return
+    n = K.trace_contour(ref, lo, hi, start[0], start[1], chain, codes)
+    K.refine_subpixel(mag, gx, gy, chain, n, points)
+    assert got == n > 0
+    np.testing.assert_array_equal(out[2], start)
+    np.testing.assert_array_equal(out[3][:n], chain[:n])
+    np.testing.assert_array_equal(out[4][:n], codes[:n])
+    np.testing.assert_array_equal(out[5][:n], points[:n])
+    assert out[6].tolist() == [size, K.count_roi_contacts(chain, n, lo, hi, width), 0]
+    if spans == "tight":
+        assert out[6][1] > 0
+    if case == "larger below":
+        assert start[0] > 15  # the second component was chosen
+    # A chain buffer too short: FULL, with the component's size, as the kernels one by one.
+    short = [*out[:3], out[3][: n - 1], out[4][: n - 1], *out[5:]]
+    edges = mask.copy()
+    if n > 1:
+        assert K.trace_rope(edges, lo, hi, edge_list, len(edge_list), min_px, True, mag, gx, gy, *short) == K.FULL
+        assert out[6][0] == size
+        np.testing.assert_array_equal(edges, ref)
