@@ -71,7 +71,6 @@ class Pipeline:
             config.material_points_m, config.rope_length_m, config.length0_px, config.length0_frames
         )
         self.splitter.paper.radius_scaled = config.paper_endpoint_radius_scaled
-        self._refresh = self.edges.refresh  # the split's `refresh`: this frame's smoothed image (bound once)
         self.lo = np.zeros(height, np.int32)
         self.hi = np.zeros(height, np.int32)
         self.grow_lo = np.zeros(height, np.int32)

@@ -3,6 +3,7 @@ exposure (and the tip track), or into one centreline when the blur cannot be spl
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 
@@ -18,7 +19,7 @@ from ropecam.device.pipeline.result import Method
 from ropecam.device.pipeline.split_fallback import SplitFallbacks
 from ropecam.device.pipeline.split_measure import SplitMeasuring
 from ropecam.device.pipeline.split_outcome import SplitOutcome
-from ropecam.device.pipeline.split_steady import LazyRefresh, SplitSteady
+from ropecam.device.pipeline.split_steady import SplitSteady
 
 __all__ = ["BlurSplitter", "SplitOutcome"]
 
@@ -235,7 +236,9 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
         given_refresh = refresh
         if refresh is None and edge_stage is not None and frame is not None:
             # Made only when a step of the sequence reads the smoothed image (not on the steady path).
-            refresh = LazyRefresh(edge_stage, frame)
+            refresh = (
+                edge_stage.refresh if frame is edge_stage.frame else functools.partial(edge_stage.smooth_box, frame)
+            )
         self._refresh = refresh
         self.failure = "contour found but no segmentation points"
         self._prepare(points, chain, n, width_px, gx, gy, edges, polarity, mag, fixed_rc)

@@ -13,7 +13,7 @@ from ropecam.device.pipeline.edges import EdgeDetector
 from ropecam.device.pipeline.result import Method
 from ropecam.device.pipeline.split_outcome import SplitOutcome
 
-__all__ = ["LazyRefresh", "SplitSteady"]
+__all__ = ["SplitSteady"]
 
 _SHAPES = 2
 """`split_frame`'s (and `split_shapes_packed`'s) return value when it made the two shapes."""
@@ -44,7 +44,7 @@ class SplitSteady:
             # the edge stage's spans are set below).
             args = self._frame_args = [
                 consts, edge_stage, self._bound, self._points, self._chain, self._mag_ro, self._gx, self._gy,
-                frame, edge_stage.weights_ro, edge_stage._spans_lo, edge_stage._spans_hi,
+                frame, edge_stage.weights_ro, edge_stage.spans[0], edge_stage.spans[1],
                 edge_stage._box_lo, edge_stage._box_hi, edge_stage.tmp, edge_stage.smooth, consts.frame_params,
                 state, consts.curves, consts.table_ro, self.lines, self.sides, self.scratch, self.turn, self.idx,
                 self.seg, self.info,
@@ -61,8 +61,7 @@ class SplitSteady:
         args = self._frame_args
         assert args is not None
         args[8] = frame  # `split_frame` takes a writable or a read-only frame
-        args[10] = edge_stage._spans_lo
-        args[11] = edge_stage._spans_hi
+        args[10], args[11] = edge_stage.spans
         status = K.split_frame(*args[3:])
         if status == _SHAPES:  # the usual outcome first
             count_a, count_b, _, _, smoothed_a, smoothed_b, sweep = self.info.tolist()
@@ -84,15 +83,3 @@ class SplitSteady:
         shape_a = (self.side_a if smoothed_a else self.out_a)[: int(count_a)]
         shape_b = (self.side_b if smoothed_b else self.out_b)[: int(count_b)]
         return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, args[0].tables.width_px, sweep)
-
-
-class LazyRefresh:
-    """`EdgeDetector.smooth_box` on one frame, as `split`'s `refresh` (a plain object: no partial per frame)."""
-
-    __slots__ = ("frame", "stage")
-
-    def __init__(self, stage: EdgeDetector, frame: NDArray[np.uint8]) -> None:
-        self.stage, self.frame = stage, frame
-
-    def __call__(self, r0: int, r1: int, c0: int, c1: int) -> int:
-        return self.stage.smooth_box(self.frame, r0, r1, c0, c1)

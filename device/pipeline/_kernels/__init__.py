@@ -115,7 +115,6 @@ from ropecam.device.pipeline._kernels.spans import (
     spans_around_points,
     union_spans,
 )
-from ropecam.device.pipeline._kernels.stages import detect_and_trace, smooth_frame_box
 from ropecam.device.pipeline._kernels.split_frame import (
     FRAME_INFO,
     FRAME_PARAMS,
@@ -123,6 +122,7 @@ from ropecam.device.pipeline._kernels.split_frame import (
     SPLIT_STATIC,
     split_frame,
 )
+from ropecam.device.pipeline._kernels.stages import detect_and_trace, smooth_frame_box
 from ropecam.device.pipeline._kernels.tracking import (
     HISTORY,
     MOTION_COUNT,
