@@ -200,7 +200,7 @@ def _timed_stages(pipeline: Pipeline, totals: dict[str, float]) -> None:
                 totals[_label] = totals.get(_label, 0.0) + (time.perf_counter_ns() - t0) / 1000
 
         setattr(target, name, timed)
-    spans = K.spans_around_points
+    spans = K.spans_around_chain
 
     def timed_spans(*a: Any) -> Any:
         t0 = time.perf_counter_ns()
@@ -209,7 +209,7 @@ def _timed_stages(pipeline: Pipeline, totals: dict[str, float]) -> None:
         finally:
             totals["roi_spans"] = totals.get("roi_spans", 0.0) + (time.perf_counter_ns() - t0) / 1000
 
-    K.spans_around_points = timed_spans
+    K.spans_around_chain = timed_spans
 
 
 _SETTLE_FRAMES = 16
@@ -226,7 +226,7 @@ def stage_report(
         pipeline.process(image, index, t_ns, exposure_us)
     per_frame: list[dict[str, float]] = []
     totals: dict[str, float] = {}
-    original = K.spans_around_points
+    original = K.spans_around_chain
     _timed_stages(pipeline, totals)
     try:
         for index, (image, t_ns, exposure_us) in enumerate(frames[3:], start=3):
@@ -239,7 +239,7 @@ def stage_report(
             row["total"] = total
             per_frame.append(row)
     finally:
-        K.spans_around_points = original
+        K.spans_around_chain = original
     labels = [label for label, _, _ in _STAGES] + ["roi_spans", "other", "total"]
     stages = {label: float(np.median([row.get(label, 0.0) for row in per_frame])) for label in labels}
     # A frame searched without an ROI: the pipeline knows the rope (width, fixed end) but not where it is.

@@ -104,10 +104,12 @@ from ropecam.device.pipeline._kernels.polylines import (
     trim_polyline_end,
 )
 from ropecam.device.pipeline._kernels.smoothing import smooth_polyline
+from ropecam.device.pipeline._kernels.prediction import band_need
 from ropecam.device.pipeline._kernels.spans import (
     coarse_spans,
     grow_spans,
     in_spans,
+    spans_around_chain,
     spans_around_points,
     union_spans,
 )
@@ -153,6 +155,7 @@ __all__ = [
     "anchor_start",
     "apply_operator",
     "axis_offset",
+    "band_need",
     "band_sides",
     "chain_length",
     "coarse_spans",
@@ -208,6 +211,7 @@ __all__ = [
     "smooth_rows",
     "sobel_rows",
     "sobel_suppress",
+    "spans_around_chain",
     "spans_around_points",
     "split_contour",
     "split_shapes_local",
