@@ -262,9 +262,7 @@ def main(argv: list[str] | None = None) -> int:
     results["roi contacts (count_roi_contacts)"] = float(np.median(contacts))
     results["trace without span tests (trace_closed)"] = float(np.median(closed))
     results["all of them (trace_rope)"] = float(np.median(fused))
-    results["band (spans_around_chain)"] = median_us(
-        lambda a: K.spans_around_chain(*a), bands, args.repeat, args.cold
-    )
+    results["band (spans_around_chain)"] = median_us(lambda a: K.spans_around_chain(*a), bands, args.repeat, args.cold)
     print(
         f"{len(calls)} edge-stage calls on {width}x{height}: rows median {np.median(rows):.0f}, "
         f"pixels median {np.median(pixels):.0f}; {len(bands)} bands built"

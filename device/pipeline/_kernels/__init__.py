@@ -103,8 +103,8 @@ from ropecam.device.pipeline._kernels.polylines import (
     track_material_points_of_length,
     trim_polyline_end,
 )
-from ropecam.device.pipeline._kernels.smoothing import smooth_polyline
 from ropecam.device.pipeline._kernels.prediction import band_need
+from ropecam.device.pipeline._kernels.smoothing import smooth_polyline
 from ropecam.device.pipeline._kernels.spans import (
     coarse_spans,
     grow_spans,

@@ -169,9 +169,10 @@ def spans_around_chain(
     disc's radius is ``m = margin_px + ceil(motion_px * d / d_max)``: `motion_px` is the uncertainty of the
     prediction at the farthest point. A non-empty `profile` (px, one value per equal bin of ``s = d / d_max`` in
     [0, 1]; inf: none) replaces that uncertainty: ``m = margin_px + ceil(min(profile[floor(s * bins)],
-    _PROFILE_REACH * motion_px * s))`` (the prediction's measured error, `band_need`). When `out_moved` has room for the points, the moved points are
-    written there (float32), for `band_need` to compare the next contour with. (The scalars are int64 and float64: Python ints and floats pass as they are,
-    without a NumPy scalar made per call.) Row r gets the columns ``floor(x0) .. ceil(x1)`` where [x0, x1] is what
+    _PROFILE_REACH * motion_px * s))`` (the prediction's measured error, `band_need`). When `out_moved` has room
+    for the points, the moved points are written there (float32), for `band_need` to compare the next contour
+    with. (The scalars are int64 and float64: Python ints and floats pass as they are, without a NumPy scalar
+    made per call.) Row r gets the columns ``floor(x0) .. ceil(x1)`` where [x0, x1] is what
     the covered region holds of the line ``row = r`` (one span per row: its outermost columns).
 
     The points are taken as a chain: runs of consecutive points at most ``sqrt(_CHAIN_STEP2)`` px apart are cut
