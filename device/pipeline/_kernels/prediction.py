@@ -17,8 +17,8 @@ i8_1d_ro: Final = types.Array(types.int64, 1, "C", readonly=True)
 @kernel(float64(f4_2d_ro, int64, float64, float64))
 def _dist2(points, j, r, c):
     """Squared distance (px^2) from (r, c) to point `j`."""
-    dr = points[j, 0] - r
-    dc = points[j, 1] - c
+    dr = float(points[j, 0]) - r
+    dc = float(points[j, 1]) - c
     return dr * dr + dc * dc
 
 
@@ -51,13 +51,13 @@ def band_need(
     if need_hist.shape[0] < 2 or bins < 1 or out_profile.shape[0] != bins:
         return INVALID
     d2_max = 1e-12
-    best = 1e300
+    best = math.inf
     j = 0
     r0 = float(found[0, 0])
     c0 = float(found[0, 1])
     for k in range(n_moved):
-        dr = moved[k, 0] - fixed_r
-        dc = moved[k, 1] - fixed_c
+        dr = float(moved[k, 0]) - fixed_r
+        dc = float(moved[k, 1]) - fixed_c
         d2 = dr * dr + dc * dc
         if d2 > d2_max:
             d2_max = d2
@@ -87,8 +87,8 @@ def band_need(
             if jj == j:
                 break
             j = jj
-        qr = moved[j, 0] - fixed_r
-        qc = moved[j, 1] - fixed_c
+        qr = float(moved[j, 0]) - fixed_r
+        qc = float(moved[j, 1]) - fixed_c
         b = min(bins - 1, int(math.sqrt(qr * qr + qc * qc) * inv_d_max * bins))
         need = math.sqrt(d) - margin_px
         if need > need_hist[0, b]:

@@ -208,6 +208,11 @@ def spans_around_chain(
     prev_ur = 0.0
     prev_uc = 0.0
     prev_length = 0.0
+    # Points scan_start + 1 .. scan_end were found in one run of radius scan_m (a piece cut short of its run
+    # starts the next piece inside it: the scan is not repeated).
+    scan_start = -1
+    scan_end = -1
+    scan_m = 0
     i = 0
     while i < n_points:
         pr = float(points[i, 0])
@@ -221,12 +226,18 @@ def spans_around_chain(
         # steps is cut in two equal pieces.
         zr = pr - fixed_r
         zc = pc - fixed_c
-        own = _disc_radius(points, i, margin_px, motion_px, profile, d_max, fixed_r, fixed_c)
+        if scan_start < i <= scan_end:  # scanned before: short steps, radius scan_m
+            own = scan_m
+        else:
+            own = _disc_radius(points, i, margin_px, motion_px, profile, d_max, fixed_r, fixed_c)
         mr = fixed_r + rot_a * zr - rot_b * zc
         mc = fixed_c + rot_b * zr + rot_a * zc
         m_piece = -1
         last = i
         lim = min(n_points - 1, i + 2 * _SEGMENT_POINTS)
+        if i < scan_end:  # the last scan went on past i: start where it stopped
+            last = min(scan_end, lim)
+            m_piece = scan_m
         while last < lim:
             sr = float(points[last + 1, 0]) - float(points[last, 0])
             sc = float(points[last + 1, 1]) - float(points[last, 1])
@@ -238,6 +249,10 @@ def spans_around_chain(
             elif m != m_piece:
                 break
             last += 1
+        if last > i:
+            scan_start = i
+            scan_end = last
+            scan_m = m_piece
         if last - i > _SEGMENT_POINTS:
             last = i + (last - i + 1) // 2
         if last == i:  # the run ends here: the disc of point i (and the end disc of the piece before)
