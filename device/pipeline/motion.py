@@ -14,8 +14,11 @@ NEED_BINS = 16
 """Bins of the normalised distance from the fixed end over which the band prediction's error is measured."""
 NEED_GAIN = 1.5
 """The next frame's uncertainty cap is NEED_GAIN x the largest error measured over the last two frames (in the
-bin and its neighbours) plus NEED_FLOOR_PX."""
-NEED_FLOOR_PX = 3.0
+bin and its neighbours) plus NEED_FLOOR_PX + NEED_MOTION_SHARE x the step-scaled uncertainty."""
+NEED_FLOOR_PX = 1.5
+NEED_MOTION_SHARE = 0.04
+"""The floor also grows by this share of the frame's step-scaled uncertainty (`predict`'s, px): a frame of a larger
+step is predicted less well (rig, 119 FPS: ~12 px, floor ~2; paper, 30 FPS: 20-29 px, floor ~2.5-2.7)."""
 
 
 class MotionModel:
@@ -56,14 +59,16 @@ class MotionModel:
 
     def measure_need(
         self, moved: NDArray[np.float32], n_moved: int, found: NDArray[np.float32], n_found: int, margin_px: int,
-        fixed_r: float, fixed_c: float,
+        fixed_r: float, fixed_c: float, motion_px: float,
     ) -> None:  # fmt: skip
         """Measure how far the contour found (`found`, `n_found` points) lay from the predicted one (`moved`, the
-        last contour moved by `predict`) beyond `margin_px`, per part of the rope, and cap the next band's
-        uncertainty by it (`band_need`: NEED_GAIN x the last two frames' error + NEED_FLOOR_PX)."""
+        last contour moved by `predict`, whose uncertainty was `motion_px`) beyond `margin_px`, per part of the
+        rope, and set the next band's uncertainty from it (`band_need`: NEED_GAIN x the last two frames' error +
+        NEED_FLOOR_PX + NEED_MOTION_SHARE x `motion_px`)."""
+        floor_px = NEED_FLOOR_PX + NEED_MOTION_SHARE * motion_px
         K.band_need(
-            moved, n_moved, found, n_found, margin_px, fixed_r, fixed_c, NEED_GAIN, NEED_FLOOR_PX, self.state_ro,
-            self.need, self.profile,
+            moved, n_moved, found, n_found, margin_px, fixed_r, fixed_c, NEED_GAIN, floor_px, self.state_ro, self.need,
+            self.profile,
         )  # fmt: skip
 
     @property

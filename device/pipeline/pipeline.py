@@ -346,7 +346,7 @@ class Pipeline:
             n = self._search(image, margin + max(8, math.ceil(2.0 * motion)), fr, fc)
             if n > 0:
                 self.frames_roi += 1
-                model.measure_need(self._moved_ro, self.prev_count, self.tracer.points_ro, n, margin, fr, fc)
+                model.measure_need(self._moved_ro, self.prev_count, self.tracer.points_ro, n, margin, fr, fc, motion)
                 return n, True
             self._motion.forget_need()
         kept = K.coarse_spans(
