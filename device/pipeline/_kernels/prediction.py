@@ -22,6 +22,16 @@ def _dist2(points, j, r, c):
     return dr * dr + dc * dc
 
 
+@kernel(int64(int64, int64))
+def _wrap(k, n):
+    """Index `k` (at most one round off) wrapped into ``[0, n)``."""
+    if k < 0:
+        return k + n
+    if k >= n:
+        return k - n
+    return k
+
+
 @kernel(int32(f4_2d_ro, int64, f4_2d_ro, int64, int64, float64, float64, float64, float64, i8_1d_ro, f8_2d, f8_1d))
 def band_need(
     moved, n_moved, found, n_found, margin_px, fixed_r, fixed_c, gain, floor_px, motion_state, need_hist, out_profile
@@ -31,11 +41,13 @@ def band_need(
 
     `moved` holds the predicted contour (the last contour moved by the predicted motion; a closed chain of
     `n_moved` (row, col) points), `found` the contour found in this frame (a closed chain of `n_found` points).
-    Each found point is matched to a near predicted point q by walking along the predicted chain from the last
-    match while that gets nearer (steps of 1 and 2 points; the first found point is matched to its nearest
-    predicted point): the distance to q is never smaller than to the nearest predicted point, so the need is
-    never underestimated. The need of q's bin (``s = |q - fixed| / max |moved - fixed|``, ``bins =
-    need_hist.shape[1]`` equal bins of [0, 1]) is the largest ``max(0, distance - margin_px)`` there.
+    Each found point is matched to a near predicted point q: the point one step on (in the direction the match
+    last moved) from the last match when it lies within `margin_px` (the point needs nothing, whichever predicted
+    point is its nearest), else by walking along the predicted chain from the last match while that gets nearer
+    (steps of 1 and 2 points; the first found point is matched to its nearest predicted point): the distance to
+    q is never smaller than to the nearest predicted point, so the need is never underestimated. The need of
+    q's bin (``s = |q - fixed| / max |moved - fixed|``, ``bins = need_hist.shape[1]`` equal bins of [0, 1]) is
+    the largest ``max(0, distance - margin_px)`` there.
 
     `need_hist` (2, bins) keeps this frame's needs in row 0 and the previous frame's in row 1; `out_profile`
     (bins,) gets ``gain * max(need of both frames over the bin and its two neighbours) + floor_px`` (px), or inf
@@ -56,8 +68,10 @@ def band_need(
     r0 = float(found[0, 0])
     c0 = float(found[0, 1])
     for k in range(n_moved):
-        dr = float(moved[k, 0]) - fixed_r
-        dc = float(moved[k, 1]) - fixed_c
+        mr = float(moved[k, 0])
+        mc = float(moved[k, 1])
+        dr = mr - fixed_r
+        dc = mc - fixed_c
         d2 = dr * dr + dc * dc
         if d2 > d2_max:
             d2_max = d2
@@ -69,31 +83,63 @@ def band_need(
     for b in range(bins):
         need_hist[1, b] = need_hist[0, b]
         need_hist[0, b] = 0.0
+    margin2 = float(margin_px) * float(margin_px)
+    last = n_moved - 1
+    step = 1  # the direction the match last moved along the predicted chain
     matched = 0
     for i in range(n_found):
         r = float(found[i, 0])
         c = float(found[i, 1])
         if not (abs(r) < 1e9 and abs(c) < 1e9):
             continue
+        matched += 1
+        # The usual case first: the point one step on from the last match lies within the margin. Then the
+        # point needs nothing, whichever predicted point is its nearest.
+        k = _wrap(j + step, n_moved)
+        d = _dist2(moved, k, r, c)
+        if d <= margin2:
+            j = k
+            continue
+        j0 = j
         d = _dist2(moved, j, r, c)
         for _ in range(n_moved):  # a walk downhill: at most once round the chain
             jj = j
-            for step in (-2, -1, 1, 2):
-                k = (j + step + n_moved) % n_moved
-                dk = _dist2(moved, k, r, c)
-                if dk < d:
-                    d = dk
-                    jj = k
+            k = _wrap(j - 2, n_moved)
+            dk = _dist2(moved, k, r, c)
+            if dk < d:
+                d = dk
+                jj = k
+            k = j - 1 if j > 0 else last
+            dk = _dist2(moved, k, r, c)
+            if dk < d:
+                d = dk
+                jj = k
+            k = j + 1 if j < last else 0
+            dk = _dist2(moved, k, r, c)
+            if dk < d:
+                d = dk
+                jj = k
+            k = _wrap(j + 2, n_moved)
+            dk = _dist2(moved, k, r, c)
+            if dk < d:
+                d = dk
+                jj = k
             if jj == j:
                 break
             j = jj
+        moved_by = j - j0  # the shorter way round
+        if moved_by > n_moved // 2:
+            moved_by -= n_moved
+        elif moved_by < -(n_moved // 2):
+            moved_by += n_moved
+        if moved_by != 0:
+            step = 1 if moved_by > 0 else -1
         qr = float(moved[j, 0]) - fixed_r
         qc = float(moved[j, 1]) - fixed_c
         b = min(bins - 1, int(math.sqrt(qr * qr + qc * qc) * inv_d_max * bins))
         need = math.sqrt(d) - margin_px
         if need > need_hist[0, b]:
             need_hist[0, b] = need
-        matched += 1
     steady = motion_state[MOTION_COUNT] >= MOTION_FRAMES - 1
     for b in range(bins):
         if not steady:
