@@ -44,7 +44,8 @@ def band_need(
     Each found point is matched to a near predicted point q: the point one step on (in the direction the match
     last moved) from the last match when it lies within `margin_px` (the point needs nothing, whichever predicted
     point is its nearest), else by walking along the predicted chain from the last match while that gets nearer
-    (steps of 1 and 2 points; the first found point is matched to its nearest predicted point): the distance to
+    (one point at a time, on in the direction of the last move or back; the first found point is matched to its
+    nearest predicted point): the distance to
     q is never smaller than to the nearest predicted point, so the need is never underestimated. The need of
     q's bin (``s = |q - fixed| / max |moved - fixed|``, ``bins = need_hist.shape[1]`` equal bins of [0, 1]) is
     the largest ``max(0, distance - margin_px)`` there.
@@ -84,7 +85,6 @@ def band_need(
         need_hist[1, b] = need_hist[0, b]
         need_hist[0, b] = 0.0
     margin2 = float(margin_px) * float(margin_px)
-    last = n_moved - 1
     step = 1  # the direction the match last moved along the predicted chain
     matched = 0
     for i in range(n_found):
@@ -100,40 +100,26 @@ def band_need(
         if d <= margin2:
             j = k
             continue
-        j0 = j
-        d = _dist2(moved, j, r, c)
-        for _ in range(n_moved):  # a walk downhill: at most once round the chain
-            jj = j
-            k = _wrap(j - 2, n_moved)
-            dk = _dist2(moved, k, r, c)
-            if dk < d:
-                d = dk
-                jj = k
-            k = j - 1 if j > 0 else last
-            dk = _dist2(moved, k, r, c)
-            if dk < d:
-                d = dk
-                jj = k
-            k = j + 1 if j < last else 0
-            dk = _dist2(moved, k, r, c)
-            if dk < d:
-                d = dk
-                jj = k
-            k = _wrap(j + 2, n_moved)
-            dk = _dist2(moved, k, r, c)
-            if dk < d:
-                d = dk
-                jj = k
-            if jj == j:
+        # Else walk along the chain one point at a time while that gets nearer: on from there in the same
+        # direction, or back the other way when the last match is nearer than the point one step on.
+        dj = _dist2(moved, j, r, c)
+        if dj < d:
+            k = j
+            d = dj
+            back = _wrap(j - step, n_moved)
+            db = _dist2(moved, back, r, c)
+            if db < d:
+                step = -step
+                k = back
+                d = db
+        for _ in range(n_moved):  # at most once round the chain
+            kk = _wrap(k + step, n_moved)
+            dk = _dist2(moved, kk, r, c)
+            if not dk < d:
                 break
-            j = jj
-        moved_by = j - j0  # the shorter way round
-        if moved_by > n_moved // 2:
-            moved_by -= n_moved
-        elif moved_by < -(n_moved // 2):
-            moved_by += n_moved
-        if moved_by != 0:
-            step = 1 if moved_by > 0 else -1
+            d = dk
+            k = kk
+        j = k
         qr = float(moved[j, 0]) - fixed_r
         qc = float(moved[j, 1]) - fixed_c
         b = min(bins - 1, int(math.sqrt(qr * qr + qc * qc) * inv_d_max * bins))
