@@ -65,23 +65,25 @@ _SMOOTH_COS: Final = 0.8
 drawing the disc."""
 
 
-@kernel(int64(f4_2d_ro, int64, int64, float64, f8_1d_ro, float64, float64, float64))
-def _disc_radius(points, i, margin_px, motion_px, profile, d_max, fixed_r, fixed_c):
-    """Return the disc radius of point `i`, ``margin_px + ceil(u)``, ``s = d / d_max``: ``u = motion_px * s``, or when
-    the profile is not empty and its bin ``floor(s * len(profile))`` is finite, that bin's value but at most
-    `_PROFILE_REACH` x ``motion_px * s`` (one expression for every use, so that a piece's radius is never a
-    rounding smaller than a disc's)."""
+@kernel(float64(f4_2d_ro, int64, float64, float64, float64))
+def _share(points, i, d_max, fixed_r, fixed_c):
+    """Return point `i`'s distance from the fixed end over `d_max`, ``s = d / d_max``."""
     zr = points[i, 0] - fixed_r
     zc = points[i, 1] - fixed_c
-    s = math.sqrt(zr * zr + zc * zc) / d_max
-    u = motion_px * s
-    bins = profile.shape[0]
-    if bins > 0:
-        cap = profile[min(bins - 1, int(s * bins))]
-        if cap < _PROFILE_REACH * u:
-            u = cap
-        elif cap < 1e300:
-            u = _PROFILE_REACH * u
+    return math.sqrt(zr * zr + zc * zc) / d_max
+
+
+@kernel(int64(float64, int64, float64, float64))
+def _disc_radius(share, margin_px, motion_px, cap):
+    """Return the disc radius of a point at ``s = share``: ``margin_px + ceil(u)``, ``u = motion_px * s``, or when
+    `cap` (the profile's bin of s; inf: none) is finite, `cap` but at most `_PROFILE_REACH` x ``motion_px * s``
+    (one expression for every use, so that a piece's radius is never a rounding smaller than a disc's). The
+    caller looks the profile up itself: an array passed in here made the band kernel a third slower."""
+    u = motion_px * share
+    if cap < _PROFILE_REACH * u:
+        u = cap
+    elif cap < 1e300:
+        u = _PROFILE_REACH * u
     return margin_px + math.ceil(u)
 
 
@@ -192,6 +194,7 @@ def spans_around_chain(
         out_hi[r] = -1
     d2_max = 1e-12
     keep = out_moved.shape[0] >= n_points
+    bins = profile.shape[0]
     for i in range(n_points):
         dr = points[i, 0] - fixed_r
         dc = points[i, 1] - fixed_c
@@ -229,7 +232,9 @@ def spans_around_chain(
         if scan_start < i <= scan_end:  # scanned before: short steps, radius scan_m
             own = scan_m
         else:
-            own = _disc_radius(points, i, margin_px, motion_px, profile, d_max, fixed_r, fixed_c)
+            share = _share(points, i, d_max, fixed_r, fixed_c)
+            cap = profile[min(bins - 1, int(share * bins))] if bins > 0 else math.inf
+            own = _disc_radius(share, margin_px, motion_px, cap)
         mr = fixed_r + rot_a * zr - rot_b * zc
         mc = fixed_c + rot_b * zr + rot_a * zc
         m_piece = -1
@@ -243,7 +248,9 @@ def spans_around_chain(
             sc = float(points[last + 1, 1]) - float(points[last, 1])
             if not sr * sr + sc * sc <= _CHAIN_STEP2:  # also for a non-finite point
                 break
-            m = _disc_radius(points, last + 1, margin_px, motion_px, profile, d_max, fixed_r, fixed_c)
+            share = _share(points, last + 1, d_max, fixed_r, fixed_c)
+            cap = profile[min(bins - 1, int(share * bins))] if bins > 0 else math.inf
+            m = _disc_radius(share, margin_px, motion_px, cap)
             if m_piece < 0:
                 m_piece = m
             elif m != m_piece:
