@@ -7,7 +7,8 @@ For every frame after the first three whose band was predicted from the previous
 - band rows and pixels (the spans the edge stage gets);
 - rope pixels: per band row, the columns between the found contour's leftmost and rightmost pixel (the part of
   the band a one-span-per-row region cannot leave out), and their share of the band;
-- the margin used (``margin_px`` and the motion uncertainty ``motion_px`` at the farthest point) and the margin
+- the margin used (``margin_px`` and the motion uncertainty ``motion_px`` at the farthest point; `given`: the
+  uncertainty the band really gave, mean over the predicted points, after the cap of the measured error) and the margin
   needed: for each contour point found, its distance to the nearest predicted point (the previous contour moved
   by the predicted rotation); `needed motion` is the smallest ``motion_px`` whose discs would still hold every
   found point, and `motion ratio` = needed / used (below 1: the margin could shrink by that factor).
@@ -37,14 +38,14 @@ def frame_stats(frames: list[tuple[np.ndarray, int, float]], config: PipelineCon
     """Run a pipeline over `frames`; return one dict of band figures per frame whose band was predicted."""
     height, width = frames[0][0].shape
     pipeline = Pipeline(config, (width, height))
-    spans = K.spans_around_points
+    spans = K.spans_around_chain
     calls: list[Any] = []
 
     def recorded(*args: Any) -> Any:
         calls.append(tuple(a.copy() if isinstance(a, np.ndarray) else a for a in args))
         return spans(*args)
 
-    K.spans_around_points = recorded
+    K.spans_around_chain = recorded
     rows_out = []
     try:
         for index, (image, t_ns, exposure_us) in enumerate(frames):
@@ -52,7 +53,7 @@ def frame_stats(frames: list[tuple[np.ndarray, int, float]], config: PipelineCon
             result = pipeline.process(image, index, t_ns, exposure_us)
             if index < 3 or not calls or result.full_frame:
                 continue
-            points, n_prev, margin, motion, rot_a, rot_b, fr, fc = calls[0][:8]
+            points, n_prev, margin, motion, profile, rot_a, rot_b, fr, fc = calls[0][:9]
             lo, hi = pipeline.lo, pipeline.hi
             band_rows = np.flatnonzero(hi >= lo)
             band_px = int(np.sum(hi[band_rows] - lo[band_rows] + 1))
@@ -71,6 +72,10 @@ def frame_stats(frames: list[tuple[np.ndarray, int, float]], config: PipelineCon
             distance, nearest = cKDTree(predicted).query(found)
             # A found point is held when distance <= margin + ceil(motion * share) of its nearest predicted point.
             needed = np.max(np.maximum(distance - margin, 0.0) / np.maximum(share[nearest], 1e-3))
+            # The uncertainty the band gave (the profile's cap on motion * share), mean over the predicted points.
+            given = motion * share
+            if len(profile):
+                given = np.minimum(given, profile[np.minimum(len(profile) - 1, (share * len(profile)).astype(int))])
             rows_out.append(
                 {
                     "band_rows": len(band_rows),
@@ -82,10 +87,11 @@ def frame_stats(frames: list[tuple[np.ndarray, int, float]], config: PipelineCon
                     "needed_motion_px": float(needed),
                     "motion_ratio": float(needed / motion) if motion > 0 else float("nan"),
                     "max_miss_px": float(distance.max()),
+                    "given_px": float(np.mean(given)),
                 }
             )
     finally:
-        K.spans_around_points = spans
+        K.spans_around_chain = spans
     frame_stats.searches = (pipeline.roi_retries, pipeline.frames_coarse, pipeline.frames_full)  # type: ignore[attr-defined]
     return rows_out
 
@@ -119,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
 
     print(f"{'frame set':28s} {'frames':>6s} {'rows':>5s} {'band px':>8s} {'rope px':>8s} {'rope %':>6s} "
           f"{'margin':>6s} {'motion':>6s} {'needed':>6s} {'ratio':>6s} {'max ratio':>9s} "
-          "widened/coarse/whole")  # fmt: skip
+          f"{'given':>6s} widened/coarse/whole")  # fmt: skip
     for folder in args.frameset:
         stats = frame_stats(frameset_frames(folder, args.frames), PipelineConfig())
         if not stats:
@@ -132,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
         worst = float(np.nanmax([s["motion_ratio"] for s in stats]))
         print(f"{folder[-28:]:28s} {len(stats):6d} {med('band_rows'):5.0f} {med('band_px'):8.0f} {med('rope_px'):8.0f} "
               f"{100 * med('rope_share'):6.1f} {med('margin_px'):6.1f} {med('motion_px'):6.1f} "
-              f"{med('needed_motion_px'):6.1f} {med('motion_ratio'):6.2f} {worst:9.2f} "
+              f"{med('needed_motion_px'):6.1f} {med('motion_ratio'):6.2f} {worst:9.2f} {med('given_px'):6.1f} "
               f"{'/'.join(map(str, frame_stats.searches))}")  # type: ignore[attr-defined]  # fmt: skip
     return 0
 

@@ -6,8 +6,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._views import ro
 
 __all__ = ["MotionModel"]
+
+NEED_BINS = 16
+"""Bins of the normalised distance from the fixed end over which the band prediction's error is measured."""
+NEED_GAIN = 1.5
+"""The next frame's uncertainty cap is NEED_GAIN x the largest error measured over the last two frames (in the
+bin and its neighbours) plus NEED_FLOOR_PX + NEED_MOTION_SHARE x the step-scaled uncertainty."""
+NEED_FLOOR_PX = 1.5
+NEED_MOTION_SHARE = 0.04
+"""The floor also grows by this share of the frame's step-scaled uncertainty (`predict`'s, px): a frame of a larger
+step is predicted less well (rig, 119 FPS: ~12 px, floor ~2; paper, 30 FPS: 20-29 px, floor ~2.5-2.7)."""
 
 
 class MotionModel:
@@ -19,19 +30,46 @@ class MotionModel:
     a frame without shapes.
     """
 
-    __slots__ = ("log", "state")
+    __slots__ = ("log", "need", "profile", "profile_ro", "state", "state_ro")
 
     def __init__(self) -> None:
         self.state = np.zeros(K.MOTION_FRAMES + 2, np.int64)
         """Mid-exposure times (ns), then [frames held, last exposure ns] (`K.MOTION_COUNT`, `K.MOTION_EXPOSURE`)."""
+        self.state_ro = ro(self.state)
         self.log = np.zeros((K.MOTION_FRAMES + 1, 2), np.float64)
         """Log-polar tip midpoints (log radius, angle) per frame, then (last tip sweep px, unused)."""
+        self.need = np.zeros((2, NEED_BINS), np.float64)
+        """The band prediction's error beyond the margin (px) per bin of the distance from the fixed end: this
+        frame's, the last one's (`band_need`)."""
+        self.profile = np.full(NEED_BINS, np.inf)
+        """Cap on the next band's uncertainty per bin (px; inf: none yet), `spans_around_chain`'s profile."""
+        self.profile_ro = ro(self.profile)
 
     def clear(self) -> None:
         """Forget everything (a gap in the measurements)."""
         self.state[K.MOTION_COUNT] = 0
         self.state[K.MOTION_EXPOSURE] = 0
         self.log[K.MOTION_FRAMES, 0] = 0.0
+        self.forget_need()
+
+    def forget_need(self) -> None:
+        """Forget the band prediction's measured error (a frame not found in its predicted band): no cap."""
+        self.need.fill(0.0)
+        self.profile.fill(np.inf)
+
+    def measure_need(
+        self, moved: NDArray[np.float32], n_moved: int, found: NDArray[np.float32], n_found: int, margin_px: int,
+        fixed_r: float, fixed_c: float, motion_px: float,
+    ) -> None:  # fmt: skip
+        """Measure how far the contour found (`found`, `n_found` points) lay from the predicted one (`moved`, the
+        last contour moved by `predict`, whose uncertainty was `motion_px`) beyond `margin_px`, per part of the
+        rope, and set the next band's uncertainty from it (`band_need`: NEED_GAIN x the last two frames' error +
+        NEED_FLOOR_PX + NEED_MOTION_SHARE x `motion_px`)."""
+        floor_px = NEED_FLOOR_PX + NEED_MOTION_SHARE * motion_px
+        K.band_need(
+            moved, n_moved, found, n_found, margin_px, fixed_r, fixed_c, NEED_GAIN, floor_px, self.state_ro, self.need,
+            self.profile,
+        )  # fmt: skip
 
     @property
     def frames(self) -> int:

@@ -87,6 +87,13 @@ class Pipeline:
         self.prev_points = self.tracer.points
         self._prev_points_ro = self.tracer.points_ro
         self.prev_count = 0
+        # The last contour moved by the prediction (`spans_around_chain` writes it; `_locate` measures the band's
+        # error on it) and an empty one for the widening's bands, whose moved points are not kept.
+        self._moved = np.zeros((cap, 2), np.float32)
+        self._moved_ro = ro(self._moved)
+        self._no_moved = np.zeros((0, 2), np.float32)
+        self._no_profile = ro(np.zeros(0, np.float64))  # the band's uncertainty from the step only
+        self._need_gap_ns = 0  # the time gap over which the motion model's band error (profile) was measured
         self.turn_cap = np.zeros(cap, np.float32)
         self.begin_buf = np.zeros((cap, 2), np.float32)
         self.end_buf = np.zeros((cap, 2), np.float32)
@@ -334,14 +341,22 @@ class Pipeline:
         height, width = self.shape
         if self.prev_count > 0:
             rot_a, rot_b, motion = self._motion.predict(t_ns, exposure_ns) if self._fixed_known else (1.0, 0.0, 0.0)
-            K.spans_around_points(
-                self._prev_points_ro, self.prev_count, margin, motion, rot_a, rot_b, fr, fc, height, width, self.lo,
-                self.hi,
+            model = self._motion
+            # The measured error holds for the time gap it was measured over: a longer one (a dropped frame) gets
+            # the step-scaled uncertainty, which grows with the gap.
+            gap_ns = t_ns - self._roi_t_ns  # type: ignore[operator]  # set whenever prev_count > 0
+            profile = model.profile_ro if 2 * gap_ns <= 3 * self._need_gap_ns else self._no_profile
+            K.spans_around_chain(
+                self._prev_points_ro, self.prev_count, margin, motion, profile, rot_a, rot_b, fr, fc, height, width,
+                self.lo, self.hi, self._moved,
             )  # fmt: skip
             n = self._search(image, margin + max(8, math.ceil(2.0 * motion)), fr, fc)
             if n > 0:
                 self.frames_roi += 1
+                model.measure_need(self._moved_ro, self.prev_count, self.tracer.points_ro, n, margin, fr, fc, motion)
+                self._need_gap_ns = gap_ns
                 return n, True
+            self._motion.forget_need()
         kept = K.coarse_spans(
             ro(image), i32(_COARSE_BLOCK), self._coarse_step, i32(_COARSE_MIN_CELLS), i32(_COARSE_DILATE),
             self.coarse_sums, self.coarse_labels, self.coarse_stack, self.lo, self.hi,
@@ -370,9 +385,9 @@ class Pipeline:
             if contacts * 4 > n:  # mostly cut off: the rope is elsewhere, widening would only creep after it
                 break
             if attempt < _ROI_RETRIES:  # the rope runs out of the band: widen it around what was found
-                K.spans_around_points(
-                    self.tracer.points_ro, n, grow, 0.0, 1.0, 0.0, fr, fc, self.shape[0], self.shape[1], self.grow_lo,
-                    self.grow_hi,
+                K.spans_around_chain(
+                    self.tracer.points_ro, n, grow, 0.0, self._motion.profile_ro, 1.0, 0.0, fr, fc, self.shape[0],
+                    self.shape[1], self.grow_lo, self.grow_hi, self._no_moved,
                 )  # fmt: skip
                 K.union_spans(self._grow_lo_ro, self._grow_hi_ro, self.lo, self.hi)
         self.roi_retries += attempt

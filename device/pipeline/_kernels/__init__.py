@@ -107,11 +107,13 @@ from ropecam.device.pipeline._kernels.polylines import (
     track_material_points_of_length,
     trim_polyline_end,
 )
+from ropecam.device.pipeline._kernels.prediction import band_need
 from ropecam.device.pipeline._kernels.smoothing import smooth_polyline
 from ropecam.device.pipeline._kernels.spans import (
     coarse_spans,
     grow_spans,
     in_spans,
+    spans_around_chain,
     spans_around_points,
     union_spans,
 )
@@ -169,6 +171,7 @@ __all__ = [
     "anchor_start",
     "apply_operator",
     "axis_offset",
+    "band_need",
     "band_sides",
     "chain_length",
     "coarse_spans",
@@ -230,6 +233,7 @@ __all__ = [
     "smooth_rows",
     "sobel_rows",
     "sobel_suppress",
+    "spans_around_chain",
     "spans_around_points",
     "split_contour",
     "split_frame",

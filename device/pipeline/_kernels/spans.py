@@ -9,7 +9,9 @@ import numpy as np
 from numba import boolean, float64, int32, int64, types
 
 from ropecam.shared.jit import (
+    f4_2d,
     f4_2d_ro,
+    f8_1d_ro,
     i4_1d,
     i4_1d_ro,
     i4_2d,
@@ -56,18 +58,33 @@ disc radius plus its points' largest distance)."""
 _CHAIN_STEP2: Final = 4.5
 """Largest squared step (px^2) between consecutive points for them to be joined by a piece (an 8-connected chain
 steps at most sqrt(2) px, a refined one a little more); farther points get discs of their own."""
+_PROFILE_REACH: Final = 2.0
+"""A measured uncertainty profile (`spans_around_chain`) gives at most this many times the step-scaled one."""
 _SMOOTH_COS: Final = 0.8
 """Two pieces meeting at less than ~37 degrees share their end disc's uncovered wedge (a small box) instead of
 drawing the disc."""
 
 
-@kernel(int64(f4_2d_ro, int64, int64, float64, float64, float64, float64))
-def _disc_radius(points, i, margin_px, motion_px, d_max, fixed_r, fixed_c):
-    """Return the disc radius of point `i`, ``margin_px + ceil(motion_px * d / d_max)`` (one expression for every
-    use, so that a piece's radius is never a rounding smaller than a disc's)."""
+@kernel(float64(f4_2d_ro, int64, float64, float64, float64))
+def _share(points, i, d_max, fixed_r, fixed_c):
+    """Return point `i`'s distance from the fixed end over `d_max`, ``s = d / d_max``."""
     zr = points[i, 0] - fixed_r
     zc = points[i, 1] - fixed_c
-    return margin_px + math.ceil(motion_px * (math.sqrt(zr * zr + zc * zc) / d_max))
+    return math.sqrt(zr * zr + zc * zc) / d_max
+
+
+@kernel(int64(float64, int64, float64, float64))
+def _disc_radius(share, margin_px, motion_px, cap):
+    """Return the disc radius of a point at ``s = share``: ``margin_px + ceil(u)``, ``u = motion_px * s``, or when
+    `cap` (the profile's bin of s; inf: none) is finite, `cap` but at most `_PROFILE_REACH` x ``motion_px * s``
+    (one expression for every use, so that a piece's radius is never a rounding smaller than a disc's). The
+    caller looks the profile up itself: an array passed in here made the band kernel a third slower."""
+    u = motion_px * share
+    if cap < _PROFILE_REACH * u:
+        u = cap
+    elif cap < 1e300:
+        u = _PROFILE_REACH * u
+    return margin_px + math.ceil(u)
 
 
 @kernel(types.void(float64, float64, float64, int64, int64, i4_1d, i4_1d))
@@ -135,10 +152,16 @@ def _draw_rectangle(p_r, p_c, u_r, u_c, length, radius, reach, height, width, ou
                 out_hi[r] = max(out_hi[r], c1)
 
 
-@kernel(int32(f4_2d_ro, int64, int64, float64, float64, float64, float64, float64, int64, int64, i4_1d, i4_1d))
-def spans_around_points(
-    points, n_points, margin_px, motion_px, rot_a, rot_b, fixed_r, fixed_c, height, width, out_lo, out_hi
-):
+@kernel(
+    int32(
+        f4_2d_ro, int64, int64, float64, f8_1d_ro, float64, float64, float64, float64, int64, int64, i4_1d, i4_1d,
+        f4_2d,
+    )
+)  # fmt: skip
+def spans_around_chain(
+    points, n_points, margin_px, motion_px, profile, rot_a, rot_b, fixed_r, fixed_c, height, width, out_lo, out_hi,
+    out_moved,
+):  # fmt: skip
     """Write row spans covering a disc around each of the first `n_points` (row, col) `points`, each moved by a
     rotation and scaling about the fixed end, clipped to the image; returns the number of non-empty rows.
 
@@ -146,8 +169,12 @@ def spans_around_points(
     ``(rot_a + 1j * rot_b) * z`` (1, 0: no motion): the predicted swing of the rope about its fixed end
     (fixed_r, fixed_c). With d the point's distance from the fixed end and d_max the largest such distance, the
     disc's radius is ``m = margin_px + ceil(motion_px * d / d_max)``: `motion_px` is the uncertainty of the
-    prediction at the farthest point. (The scalars are int64 and float64: Python ints and floats pass as they are,
-    without a NumPy scalar made per call.) Row r gets the columns ``floor(x0) .. ceil(x1)`` where [x0, x1] is what
+    prediction at the farthest point. A non-empty `profile` (px, one value per equal bin of ``s = d / d_max`` in
+    [0, 1]; inf: none) replaces that uncertainty: ``m = margin_px + ceil(min(profile[floor(s * bins)],
+    _PROFILE_REACH * motion_px * s))`` (the prediction's measured error, `band_need`). When `out_moved` has room
+    for the points, the moved points are written there (float32), for `band_need` to compare the next contour
+    with. (The scalars are int64 and float64: Python ints and floats pass as they are, without a NumPy scalar
+    made per call.) Row r gets the columns ``floor(x0) .. ceil(x1)`` where [x0, x1] is what
     the covered region holds of the line ``row = r`` (one span per row: its outermost columns).
 
     The points are taken as a chain: runs of consecutive points at most ``sqrt(_CHAIN_STEP2)`` px apart are cut
@@ -166,12 +193,17 @@ def spans_around_points(
         out_lo[r] = width
         out_hi[r] = -1
     d2_max = 1e-12
+    keep = out_moved.shape[0] >= n_points
+    bins = profile.shape[0]
     for i in range(n_points):
         dr = points[i, 0] - fixed_r
         dc = points[i, 1] - fixed_c
         d2 = dr * dr + dc * dc
         if d2 > d2_max:
             d2_max = d2
+        if keep:
+            out_moved[i, 0] = fixed_r + rot_a * dr - rot_b * dc
+            out_moved[i, 1] = fixed_c + rot_b * dr + rot_a * dc
     d_max = math.sqrt(d2_max)
     scale = math.sqrt(float(rot_a) * rot_a + float(rot_b) * rot_b)
     dev_orig = _SEGMENT_DEV_PX / max(scale, 1e-9)  # the deviation allowed before the motion's scaling
@@ -179,6 +211,11 @@ def spans_around_points(
     prev_ur = 0.0
     prev_uc = 0.0
     prev_length = 0.0
+    # Points scan_start + 1 .. scan_end were found in one run of radius scan_m (a piece cut short of its run
+    # starts the next piece inside it: the scan is not repeated).
+    scan_start = -1
+    scan_end = -1
+    scan_m = 0
     i = 0
     while i < n_points:
         pr = float(points[i, 0])
@@ -192,23 +229,37 @@ def spans_around_points(
         # steps is cut in two equal pieces.
         zr = pr - fixed_r
         zc = pc - fixed_c
-        own = _disc_radius(points, i, margin_px, motion_px, d_max, fixed_r, fixed_c)
+        if scan_start < i <= scan_end:  # scanned before: short steps, radius scan_m
+            own = scan_m
+        else:
+            share = _share(points, i, d_max, fixed_r, fixed_c)
+            cap = profile[min(bins - 1, int(share * bins))] if bins > 0 else math.inf
+            own = _disc_radius(share, margin_px, motion_px, cap)
         mr = fixed_r + rot_a * zr - rot_b * zc
         mc = fixed_c + rot_b * zr + rot_a * zc
         m_piece = -1
         last = i
         lim = min(n_points - 1, i + 2 * _SEGMENT_POINTS)
+        if i < scan_end:  # the last scan went on past i: start where it stopped
+            last = min(scan_end, lim)
+            m_piece = scan_m
         while last < lim:
             sr = float(points[last + 1, 0]) - float(points[last, 0])
             sc = float(points[last + 1, 1]) - float(points[last, 1])
             if not sr * sr + sc * sc <= _CHAIN_STEP2:  # also for a non-finite point
                 break
-            m = _disc_radius(points, last + 1, margin_px, motion_px, d_max, fixed_r, fixed_c)
+            share = _share(points, last + 1, d_max, fixed_r, fixed_c)
+            cap = profile[min(bins - 1, int(share * bins))] if bins > 0 else math.inf
+            m = _disc_radius(share, margin_px, motion_px, cap)
             if m_piece < 0:
                 m_piece = m
             elif m != m_piece:
                 break
             last += 1
+        if last > i:
+            scan_start = i
+            scan_end = last
+            scan_m = m_piece
         if last - i > _SEGMENT_POINTS:
             last = i + (last - i + 1) // 2
         if last == i:  # the run ends here: the disc of point i (and the end disc of the piece before)
@@ -304,6 +355,18 @@ def spans_around_points(
             out_lo[r] = 1
             out_hi[r] = 0
     return count
+
+
+@kernel(int32(f4_2d_ro, int64, int64, float64, float64, float64, float64, float64, int64, int64, i4_1d, i4_1d))
+def spans_around_points(
+    points, n_points, margin_px, motion_px, rot_a, rot_b, fixed_r, fixed_c, height, width, out_lo, out_hi
+):
+    """`spans_around_chain` without an uncertainty profile and without writing the moved points (allocates two
+    empty arrays: not for a per-frame path)."""
+    return spans_around_chain(
+        points, n_points, margin_px, motion_px, np.zeros(0, np.float64), rot_a, rot_b, fixed_r, fixed_c, height,
+        width, out_lo, out_hi, np.zeros((0, 2), np.float32),
+    )  # fmt: skip
 
 
 @kernel(boolean(int32, int32, i4_1d_ro, i4_1d_ro))

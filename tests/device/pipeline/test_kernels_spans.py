@@ -12,15 +12,22 @@ from ropecam.device.pipeline import _kernels as K
 pytestmark = pytest.mark.kernel
 
 
-def _disc_spans(points, margin, motion, rot, fixed, height, width):
-    """Row spans of the union of the discs of every point (moved, radius margin + ceil(motion * d / d_max))."""
+def _disc_spans(points, margin, motion, rot, fixed, height, width, profile=None):
+    """Row spans of the union of the discs of every point (moved, radius margin + ceil(motion * d / d_max); with a
+    profile, margin + ceil(min(profile[bin of d / d_max], 2 * motion * d / d_max)) where the bin is finite)."""
     lo = np.full(height, width, np.int64)
     hi = np.full(height, -1, np.int64)
     finite = np.isfinite(points).all(axis=1)
     z = (points[:, 0].astype(np.float64) - fixed[0]) + 1j * (points[:, 1].astype(np.float64) - fixed[1])
     d_max = np.abs(z[finite]).max()
     for k in np.flatnonzero(finite):
-        m = margin + math.ceil(motion * abs(z[k]) / d_max)
+        share = abs(z[k]) / d_max
+        u = motion * share
+        if profile is not None and len(profile):
+            cap = profile[min(len(profile) - 1, int(share * len(profile)))]
+            if math.isfinite(cap):
+                u = min(cap, 2.0 * u)
+        m = margin + math.ceil(u)
         q = complex(*rot) * z[k]
         qr, qc = fixed[0] + q.real, fixed[1] + q.imag
         for r in range(max(0, math.ceil(qr - m)), min(height - 1, math.floor(qr + m)) + 1):
@@ -94,3 +101,36 @@ def test_band_of_a_chain_with_gaps_and_unordered_points() -> None:
     ref_rows = ref_hi >= ref_lo
     assert np.all(lo[ref_rows] <= ref_lo[ref_rows]) and np.all(hi[ref_rows] >= ref_hi[ref_rows])
     assert np.count_nonzero((hi >= lo) & ~ref_rows) <= 8
+
+
+@pytest.mark.parametrize("kind", ["rope", "loop"])
+def test_band_with_a_measured_profile_holds_its_discs_and_writes_the_moved_points(kind) -> None:
+    rng = np.random.default_rng(5)
+    points = _chain(kind, rng)
+    height, width = 200, 220
+    fixed = (20.0, 60.0)
+    rot = (0.995, 0.08)
+    profile = np.array([0.0, 1.0, 2.5, np.inf, 3.0, 7.0, 4.0, 0.5])  # some bins below, some above 2 x motion * s
+    profile.flags.writeable = False
+    lo = np.zeros(height, np.int32)
+    hi = np.zeros(height, np.int32)
+    moved = np.zeros((len(points), 2), np.float32)
+    rows = K.spans_around_chain(points, len(points), 4, 6.0, profile, *rot, *fixed, height, width, lo, hi, moved)
+    ref_lo, ref_hi = _disc_spans(points, 4, 6.0, rot, fixed, height, width, profile)
+    ref_rows = ref_hi >= ref_lo
+    assert rows == np.count_nonzero(hi >= lo)
+    assert np.all(lo[ref_rows] <= ref_lo[ref_rows]) and np.all(hi[ref_rows] >= ref_hi[ref_rows])  # never smaller
+    wide_lo, wide_hi = _disc_spans(points, 5, 6.0, rot, fixed, height, width, profile)  # grown by 1 px
+    band = hi >= lo
+    beyond = np.maximum(wide_lo[band] - lo[band], 0).sum() + np.maximum(hi[band] - wide_hi[band], 0).sum()
+    assert beyond <= 0.01 * np.sum(np.maximum(ref_hi - ref_lo + 1, 0)) + 5
+    z = (points[:, 0].astype(np.float64) - fixed[0]) + 1j * (points[:, 1].astype(np.float64) - fixed[1])
+    q = complex(*rot) * z
+    np.testing.assert_allclose(moved, np.column_stack([fixed[0] + q.real, fixed[1] + q.imag]), atol=1e-3)
+    # A smaller band than without the profile where the profile is small, a larger one where it is large.
+    plain_lo = np.zeros(height, np.int32)
+    plain_hi = np.zeros(height, np.int32)
+    K.spans_around_points(points, len(points), 4, 6.0, *rot, *fixed, height, width, plain_lo, plain_hi)
+    width_with = np.maximum(hi - lo + 1, 0)
+    width_plain = np.maximum(plain_hi - plain_lo + 1, 0)
+    assert np.any(width_with < width_plain) and np.any(width_with > width_plain)
