@@ -78,3 +78,19 @@ def test_no_profile_while_the_motion_model_is_young_and_bad_input() -> None:
     empty = np.zeros((0, 2), np.float32)
     assert K.band_need(moved, len(moved), empty, 0, 4, *FIXED, 1.5, 3.0, _state(3), need, profile) == K.INVALID
     assert K.band_need(moved, len(moved), found, len(found), 4, *FIXED, 1.5, 3.0, _state(3), need, np.zeros(5)) < 0
+
+
+def test_invalid_found_points_are_skipped() -> None:
+    """A NaN or far-off found point (a gap in the contour) is neither matched nor moves the match along the chain."""
+    moved = _outline(0.0)
+    found = _outline(3.5, 470)
+    bad = np.insert(found, [100, 300], [[np.nan, 5.0], [1e10, 5.0]], axis=0).astype(np.float32)
+    results = []
+    for chain in (found, bad):
+        need = np.zeros((2, 8))
+        profile = np.zeros(8)
+        matched = K.band_need(moved, len(moved), chain, len(chain), 3, *FIXED, 1.5, 2.0, _state(3), need, profile)
+        results.append((matched, need[0].copy(), profile))
+    assert results[0][0] == len(found) and results[1][0] == len(found)
+    np.testing.assert_array_equal(results[1][1], results[0][1])
+    np.testing.assert_array_equal(results[1][2], results[0][2])
