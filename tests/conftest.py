@@ -3,22 +3,35 @@
 from __future__ import annotations
 
 import glob
+import os
 from pathlib import Path
 
 import pytest
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED_DIR = REPO_ROOT.parent / "shared"
+WITHOUT_JIT = os.environ.get("NUMBA_DISABLE_JIT") == "1"
+"""True in tests/test_nojit.py's rerun of the `kernel` tests in plain Python."""
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Skip tests marked `hardware` when no camera is attached."""
-    if glob.glob("/dev/video*"):
-        return
-    skip = pytest.mark.skip(reason="hardware test: no /dev/video* on this machine")
+    """Skip tests marked `hardware` when no camera is attached, and tests marked `jit_only` in the plain-Python
+    rerun."""
+    camera = bool(glob.glob("/dev/video*"))
+    no_camera = pytest.mark.skip(reason="hardware test: no /dev/video* on this machine")
+    compiled_only = pytest.mark.skip(reason="jit_only: a pipeline-level check, run with JIT only")
     for item in items:
-        if "hardware" in item.keywords:
-            item.add_marker(skip)
+        if "hardware" in item.keywords and not camera:
+            item.add_marker(no_camera)
+        if "jit_only" in item.keywords and WITHOUT_JIT:
+            item.add_marker(compiled_only)
+
+
+@pytest.fixture(scope="session")
+def jit_enabled() -> bool:
+    """False in the plain-Python rerun (tests/test_nojit.py): a test may then use a smaller input that still
+    reaches every branch of its kernels (plain Python is 100-1000x slower)."""
+    return not WITHOUT_JIT
 
 
 @pytest.fixture(scope="session")

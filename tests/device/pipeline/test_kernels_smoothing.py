@@ -214,6 +214,7 @@ def test_noise_is_removed_and_the_arc_kept() -> None:
     assert abs(length - 360.0) < 1.0
 
 
+@pytest.mark.jit_only  # pipeline-level (10 s without JIT); the kernel's own tests run in plain Python
 def test_config_key_and_its_effect_in_the_pipeline(rope, blurred_frames) -> None:
     frames = blurred_frames[:4]
     with pytest.raises(ConfigError, match="output_smoothing_px"):
@@ -232,6 +233,7 @@ def test_config_key_and_its_effect_in_the_pipeline(rope, blurred_frames) -> None
     assert math.isclose(PipelineConfig().output_smoothing_px, 24.0)
 
 
+@pytest.mark.jit_only  # pipeline-level (10 s without JIT); the kernel's own tests run in plain Python
 def test_smooth_output_is_compact_on_the_wire(rope, blurred_frames) -> None:
     """End to end: pipeline -> FrameResult -> wire. Smooth shapes need (almost) no spline corrections, which makes
     a FrameResult less than half the bytes, and the decoded shapes still lie within 0.05 px of the device's."""

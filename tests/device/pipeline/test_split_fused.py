@@ -4,8 +4,6 @@ segmentation points, the corner box's smoothing, the sweep, the shapes) and `spl
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 import pytest
 
@@ -86,23 +84,18 @@ def test_split_frame_equals_its_steps(monkeypatch) -> None:
     _assert_same(_shapes(monkeypatch, "frame"), _shapes(monkeypatch, "packed"), atol=1e-5)
 
 
+@pytest.mark.jit_only  # 13 s without JIT; the shape kernels one by one have their own reference tests
 def test_split_shapes_local_equals_the_kernels_one_by_one(monkeypatch) -> None:
     _assert_same(_shapes(monkeypatch, "packed"), _shapes(monkeypatch, "steps"), atol=1e-3)
 
 
-_WITH_JIT_ONLY = pytest.mark.skipif(
-    os.environ.get("NUMBA_DISABLE_JIT") == "1",
-    reason="a pipeline-level check (16 s more without JIT): the equality tests above run the kernels in plain Python",
-)
-
-
-@_WITH_JIT_ONLY
+@pytest.mark.jit_only  # 16 s more without JIT: the equality test above runs the kernels in plain Python
 def test_split_frame_makes_the_smoothed_image_it_reads(monkeypatch) -> None:
     # As test_pipeline_state's garbage test, over the frames where the steady path runs.
     _assert_same(_shapes(monkeypatch, "frame", garbage=True), _shapes(monkeypatch, "frame"), atol=0.0)
 
 
-@_WITH_JIT_ONLY
+@pytest.mark.jit_only
 def test_split_frame_takes_read_only_frames(monkeypatch) -> None:
     _assert_same(_shapes(monkeypatch, "frame", read_only=True), _shapes(monkeypatch, "frame"), atol=0.0)
 
