@@ -179,7 +179,6 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
         mag: NDArray[np.float32],
         smooth: NDArray[np.float32],
         polarity: float = 0.0,
-        refresh: Callable[[int, int, int, int], None] | None = None,
         edge_stage: EdgeDetector | None = None,
         frame: NDArray[np.uint8] | None = None,
     ) -> SplitOutcome | None:
@@ -193,14 +192,12 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
             The gradients, edge map and gradient magnitude the contour came from (read only).
         polarity
             +1 bright rope, -1 dark rope, 0 to decide from the gradients.
-        refresh
-            Called with (r0, r1, c0, c1) before `smooth` is read in that box (inclusive): the edge stage fills
-            `smooth` inside its band only, and the contrast and the tip fit read it a few pixels beyond (the
-            pipeline passes `EdgeDetector.smooth_box` for this frame). None: `smooth` is valid everywhere.
         edge_stage, frame
-            The edge stage whose last `detect` on `frame` made the planes (`smooth` is its `smooth`), instead of
-            `refresh`: once the rope's width, polarity and contrast are known, the split then runs in one kernel
-            call (`split_frame`), which refreshes the smoothed image itself.
+            The edge stage whose last `detect` on `frame` made the planes (`smooth` is its `smooth`). It fills
+            `smooth` inside its band only, and the contrast and the tip fit read it a few pixels beyond: the split
+            has the edge stage smooth those boxes of `frame` first (`EdgeDetector.refresh`). Once the rope's width,
+            polarity and contrast are known, the split runs in one kernel call (`split_frame`), which smooths them
+            itself. None (both): `smooth` is valid everywhere.
 
         Returns
         -------
@@ -221,7 +218,6 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
             and width_px == key[8]
             and polarity == key[9]
             and frame is not None
-            and refresh is None
         ):
             # The same contour buffers, edge stage, fixed end, width and polarity as the last frame, which took
             # the steady path: everything `_prepare` and the checks below would set is set already.
@@ -233,8 +229,8 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
                 return outcome
         self._steady_key = None
         self._smooth = smooth
-        given_refresh = refresh
-        if refresh is None and edge_stage is not None and frame is not None:
+        refresh = None
+        if edge_stage is not None and frame is not None:
             # Made only when a step of the sequence reads the smoothed image (not on the steady path).
             refresh = (
                 edge_stage.refresh if frame is edge_stage.frame else functools.partial(edge_stage.smooth_box, frame)
@@ -264,7 +260,7 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
         ):
             outcome = self._split_frame(edge_stage, frame, consts, fixed_rc)
             if outcome is not False:
-                if self._given and given_refresh is None:
+                if self._given:
                     self._steady_key = (
                         points_in,
                         chain_in,
