@@ -8,9 +8,6 @@ import pytest
 from ropecam.shared.errors import ProtocolError
 from ropecam.shared.jit import KernelStatus
 from ropecam.shared.protocol._kernels import (
-    _basis_at,
-    _cubic_basis,
-    _knot,
     apply_corrections,
     bspline_sample_table,
     chain_bytes,
@@ -25,6 +22,7 @@ from ropecam.shared.protocol._kernels import (
     uvarint_bytes,
     write_spline_body,
 )
+from ropecam.shared.protocol._kernels.spline import _basis_at, _cubic_basis, _knot
 from ropecam.shared.protocol.bytecodec import ByteReader, ByteWriter
 from ropecam.shared.protocol.examples import arc_polyline
 from ropecam.shared.protocol.shapes import ShapeCodecConfig, decode_shape, encode_shape
