@@ -51,7 +51,7 @@ def grow_spans(lo, hi, rows_apart, cols_apart, out_lo, out_hi):
 
 
 _SEGMENT_POINTS: Final = 48
-"""Most chain steps one straight piece of a band spans (`spans_around_points`)."""
+"""Most chain steps one straight piece of a band spans (`spans_around_chain`)."""
 _SEGMENT_DEV_PX: Final = 0.5
 """Largest distance (px) of a chain point from the straight piece that stands for it (a piece's radius is the
 disc radius plus its points' largest distance)."""
@@ -171,8 +171,8 @@ def spans_around_chain(
     disc's radius is ``m = margin_px + ceil(motion_px * d / d_max)``: `motion_px` is the uncertainty of the
     prediction at the farthest point. A non-empty `profile` (px, one value per equal bin of ``s = d / d_max`` in
     [0, 1]; inf: none) replaces that uncertainty: ``m = margin_px + ceil(min(profile[floor(s * bins)],
-    _PROFILE_REACH * motion_px * s))`` (the prediction's measured error, `band_need`). When `out_moved` has room
-    for the points, the moved points are written there (float32), for `band_need` to compare the next contour
+    _PROFILE_REACH * motion_px * s))`` (the prediction's measured error, `need_profile`). When `out_moved` has room
+    for the points, the moved points are written there (float32), for `need_profile` to compare the next contour
     with. (The scalars are int64 and float64: Python ints and floats pass as they are, without a NumPy scalar
     made per call.) Row r gets the columns ``floor(x0) .. ceil(x1)`` where [x0, x1] is what
     the covered region holds of the line ``row = r`` (one span per row: its outermost columns).
@@ -274,17 +274,20 @@ def spans_around_chain(
             vr = float(points[b, 0]) - pr
             vc = float(points[b, 1]) - pc
             len2 = vr * vr + vc * vc
+            limit = dev_orig * dev_orig * len2
             cross_max = 0.0
-            dot_min = 0.0
-            dot_max = 0.0
-            for j in range(i + 1, b):
+            fits = True
+            for j in range(i + 1, b):  # (the first point that does not fit ends the test: ~1.5 us per band)
                 wr = float(points[j, 0]) - pr
                 wc = float(points[j, 1]) - pc
-                cross_max = max(cross_max, abs(wr * vc - wc * vr))
+                cross = abs(wr * vc - wc * vr)
                 dot = wr * vr + wc * vc
-                dot_min = min(dot_min, dot)
-                dot_max = max(dot_max, dot)
-            if cross_max * cross_max <= dev_orig * dev_orig * len2 and dot_min >= 0.0 and dot_max <= len2:
+                if cross > cross_max:
+                    cross_max = cross
+                if not (cross_max * cross_max <= limit and dot >= 0.0 and dot <= len2):
+                    fits = False
+                    break
+            if fits:
                 dev = cross_max / math.sqrt(len2) * scale
                 break
             b = i + (b - i) // 2
@@ -355,18 +358,6 @@ def spans_around_chain(
             out_lo[r] = 1
             out_hi[r] = 0
     return count
-
-
-@kernel(int32(f4_2d_ro, int64, int64, float64, float64, float64, float64, float64, int64, int64, i4_1d, i4_1d))
-def spans_around_points(
-    points, n_points, margin_px, motion_px, rot_a, rot_b, fixed_r, fixed_c, height, width, out_lo, out_hi
-):
-    """`spans_around_chain` without an uncertainty profile and without writing the moved points (allocates two
-    empty arrays: not for a per-frame path)."""
-    return spans_around_chain(
-        points, n_points, margin_px, motion_px, np.zeros(0, np.float64), rot_a, rot_b, fixed_r, fixed_c, height,
-        width, out_lo, out_hi, np.zeros((0, 2), np.float32),
-    )  # fmt: skip
 
 
 @kernel(boolean(int32, int32, i4_1d_ro, i4_1d_ro))
