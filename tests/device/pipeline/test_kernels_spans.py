@@ -143,3 +143,39 @@ def test_band_with_a_measured_profile_holds_its_discs_and_writes_the_moved_point
     width_with = np.maximum(hi - lo + 1, 0)
     width_plain = np.maximum(plain_hi - plain_lo + 1, 0)
     assert np.any(width_with < width_plain) and np.any(width_with > width_plain)
+
+
+def _radius(d2: float, d_max: float, profile: np.ndarray, margin: int, motion: float) -> tuple[int, int]:
+    """(bin, disc radius) of a point at squared distance `d2` from the fixed end, written out plainly."""
+    share = math.sqrt(d2) / d_max
+    u = motion * share
+    k = min(len(profile) - 1, int(share * len(profile))) if len(profile) else 0
+    if len(profile) and math.isfinite(profile[k]):
+        u = min(profile[k], 2.0 * u)
+    return k, margin + math.ceil(u)
+
+
+@pytest.mark.parametrize("motion", [0.0, 3.0, 12.5])
+def test_radius_range_holds_the_radius_of_every_squared_distance_in_it(motion) -> None:
+    """`_radius_range` (the band kernel takes the radius of a point in it without computing it) against the radius
+    computed at the range's ends, next to them and inside."""
+    from ropecam.device.pipeline._kernels.spans import _radius_range
+
+    rng = np.random.default_rng(2)
+    d2_max = 157.3**2
+    d_max = math.sqrt(d2_max)
+    profiles = (np.zeros(0), np.array([2.0, 2.0, 2.0, 3.5, np.inf, np.inf, 1.2, 1.2]), np.full(16, 1.85))
+    for profile in profiles:
+        profile.flags.writeable = False
+        ranges = 0
+        for d2 in rng.uniform(0.0, d2_max, 40):
+            k, m = _radius(d2, d_max, profile, 4, motion)
+            cap = profile[k] if len(profile) else math.inf
+            lo, hi = _radius_range(profile, k, cap, m, d_max, d2_max, 4, motion)
+            if lo > hi:
+                continue
+            ranges += 1
+            assert lo >= 0.0 and hi <= d2_max
+            inside = [lo, hi, np.nextafter(lo, np.inf), np.nextafter(hi, -np.inf), *rng.uniform(lo, hi, 20)]
+            assert all(_radius(float(x), d_max, profile, 4, motion)[1] == m for x in inside if lo <= x <= hi)
+        assert ranges >= 30  # the range is found for nearly every point (else the kernel computes every radius)
