@@ -2,7 +2,7 @@
 occupies, and how much of the prediction's margin each frame really needed.
 
 For every frame after the first three whose band was predicted from the previous contour (the first
-`spans_around_points` call of the frame), prints medians over the frames of:
+`band_stage` call of the frame), prints medians over the frames of:
 
 - band rows and pixels (the spans the edge stage gets);
 - rope pixels: per band row, the columns between the found contour's leftmost and rightmost pixel (the part of
@@ -38,14 +38,19 @@ def frame_stats(frames: list[tuple[np.ndarray, int, float]], config: PipelineCon
     """Run a pipeline over `frames`; return one dict of band figures per frame whose band was predicted."""
     height, width = frames[0][0].shape
     pipeline = Pipeline(config, (width, height))
-    spans = K.spans_around_chain
+    band_stage = K.band_stage
     calls: list[Any] = []
 
     def recorded(*args: Any) -> Any:
-        calls.append(tuple(a.copy() if isinstance(a, np.ndarray) else a for a in args))
-        return spans(*args)
+        points, n_prev, _, use_profile, predict, t_ns, exposure_ns, margin = args[:8]
+        state, log, profile, band = args[14], args[15], args[17], args[18]
+        rot_a, rot_b, _ = K.predict_motion(t_ns, exposure_ns, state, log) if predict else (1.0, 0.0, 0.0)
+        motion = band_stage(*args)  # (measures the last band's error first: the profile this band used)
+        used = profile.copy() if use_profile else np.zeros(0)
+        calls.append((points.copy(), n_prev, margin, motion, used, rot_a, rot_b, float(band[0]), float(band[1])))
+        return motion
 
-    K.spans_around_chain = recorded
+    K.band_stage = recorded
     rows_out = []
     try:
         for index, (image, t_ns, exposure_us) in enumerate(frames):
@@ -91,7 +96,7 @@ def frame_stats(frames: list[tuple[np.ndarray, int, float]], config: PipelineCon
                 }
             )
     finally:
-        K.spans_around_chain = spans
+        K.band_stage = band_stage
     frame_stats.searches = (pipeline.roi_retries, pipeline.frames_coarse, pipeline.frames_full)  # type: ignore[attr-defined]
     return rows_out
 

@@ -213,7 +213,7 @@ def _timed_stages(pipeline: Pipeline, totals: dict[str, float]) -> None:
         setattr(K, name, timed_kernel)
 
 
-_KERNEL_STAGES = (("roi_spans", "spans_around_chain"), ("order+material", "track_frame"))
+_KERNEL_STAGES = (("band", "band_stage"), ("order+material", "track_frame"))
 """Stages that are one kernel call made by the pipeline itself (timed by wrapping the kernel, dispatch included)."""
 
 

@@ -4,7 +4,8 @@ Both pipelines run in one process over the same frames (the other commit's ``dev
 ``ropecam_ref``, as in `bench_glue.py`), frame by frame in alternating order, with ``cv2.Canny`` on the whole
 frame between frames (as `bench_device.py`). Only the kernels named are wrapped with a timer (each adds ~0.1 us).
 Prints, after the first `--settle` frames of each pass, the medians per frame of each kernel and of the whole
-pipeline for both trees, the median of the per-frame paired differences (REF - this tree) and of the ratios:
+pipeline for both trees (and of the named kernels together, `<timed kernels>`), the median of the per-frame paired
+differences (REF - this tree) and of the ratios:
 
     taskset -c 1 python tools/bench_kernels_ab.py [--frameset /work/eval/rig] [--against main] \\
         [--kernels detect_and_trace split_frame | --kernels all] [--split] [--passes 3]
@@ -96,7 +97,10 @@ def main(argv: list[str] | None = None) -> int:
                     rows[label].append({**{name: ns / 1000 for name, ns in spent.items()}, "pipeline": total / 1000})
             cv2.Canny(image, 20, 50, L2gradient=True)
     names = sorted({name for values in rows.values() for row in values for name in row} - {"pipeline"})
-    names.append("pipeline")
+    for values in rows.values():  # the timed kernels together (e.g. one fused kernel against the ones it replaces)
+        for row in values:
+            row["<timed kernels>"] = sum(v for name, v in row.items() if name != "pipeline")
+    names += ["<timed kernels>", "pipeline"]
     mine = np.array([[row.get(name, 0.0) for name in names] for row in rows["this tree"]])
     theirs = np.array([[row.get(name, 0.0) for name in names] for row in rows[args.against]])
     print(f"{args.frameset}: {len(mine)} frames per tree (us per frame)")

@@ -26,11 +26,12 @@ class MotionModel:
 
     Holds the midpoint of the two tips (independent of the time order) at mid-exposure of up to three
     consecutive measured frames, as log-polar coordinates about the fixed end (log radius, unwrapped angle), the
-    last tip sweep and exposure, in the arrays of the kernels `observe_motion` and `predict_motion`. Cleared after
-    a frame without shapes.
+    last tip sweep and exposure, in the arrays of the kernels `observe_motion` and `predict_motion`, and the band
+    prediction's measured error (`need`, `profile`) with what it is measured against (`band`, `owed`), which the
+    pipeline's `band_stage` call updates. Cleared after a frame without shapes.
     """
 
-    __slots__ = ("log", "need", "profile", "profile_ro", "state", "state_ro")
+    __slots__ = ("band", "log", "need", "need_args", "owed", "profile", "profile_ro", "state", "state_ro")
 
     def __init__(self) -> None:
         self.state = np.zeros(K.MOTION_FRAMES + 2, np.int64)
@@ -40,10 +41,16 @@ class MotionModel:
         """Log-polar tip midpoints (log radius, angle) per frame, then (last tip sweep px, unused)."""
         self.need = np.zeros((2, NEED_BINS), np.float64)
         """The band prediction's error beyond the margin (px) per bin of the distance from the fixed end: this
-        frame's, the last one's (`band_need`)."""
+        frame's, the last one's (`need_profile`, in `band_stage`)."""
         self.profile = np.full(NEED_BINS, np.inf)
         """Cap on the next band's uncertainty per bin (px; inf: none yet), `spans_around_chain`'s profile."""
         self.profile_ro = ro(self.profile)
+        self.band = np.zeros(K.BAND_SLOTS, np.float64)
+        """What the last band was built with, for measuring its error on the next call (`band_stage`'s state)."""
+        self.owed = False
+        """The last frame was found in the band `band_stage` built last: the next call measures its error."""
+        self.need_args = (NEED_GAIN, NEED_FLOOR_PX, NEED_MOTION_SHARE)
+        """`band_stage`'s gain, floor (px) and floor share of the uncertainty (as the module's constants were)."""
 
     def clear(self) -> None:
         """Forget everything (a gap in the measurements)."""
@@ -56,20 +63,7 @@ class MotionModel:
         """Forget the band prediction's measured error (a frame not found in its predicted band): no cap."""
         self.need.fill(0.0)
         self.profile.fill(np.inf)
-
-    def measure_need(
-        self, moved: NDArray[np.float32], n_moved: int, found: NDArray[np.float32], n_found: int, margin_px: int,
-        fixed_r: float, fixed_c: float, motion_px: float,
-    ) -> None:  # fmt: skip
-        """Measure how far the contour found (`found`, `n_found` points) lay from the predicted one (`moved`, the
-        last contour moved by `predict`, whose uncertainty was `motion_px`) beyond `margin_px`, per part of the
-        rope, and set the next band's uncertainty from it (`band_need`: NEED_GAIN x the last two frames' error +
-        NEED_FLOOR_PX + NEED_MOTION_SHARE x `motion_px`)."""
-        floor_px = NEED_FLOOR_PX + NEED_MOTION_SHARE * motion_px
-        K.band_need(
-            moved, n_moved, found, n_found, margin_px, fixed_r, fixed_c, NEED_GAIN, floor_px, self.state_ro, self.need,
-            self.profile,
-        )  # fmt: skip
+        self.owed = False
 
     @property
     def frames(self) -> int:

@@ -80,19 +80,16 @@ class Pipeline:
             ro(a) for a in (self.lo, self.hi, self.grow_lo, self.grow_hi)
         )
         self._height32, self._width32 = np.int32(height), np.int32(width)
-        self._margin32 = i32(config.roi_margin_px)
         # The last frame's contour, which the next frame's band is built around: the tracer's own buffer (no copy
         # per frame). Valid because nothing traces between the end of a frame and the band building at the start
         # of the next one (`_locate` builds the band first); `prev_count` = 0 marks it stale.
         self.prev_points = self.tracer.points
         self._prev_points_ro = self.tracer.points_ro
         self.prev_count = 0
-        # The last contour moved by the prediction (`spans_around_chain` writes it; `_locate` measures the band's
-        # error on it) and an empty one for the widening's bands, whose moved points are not kept.
+        # The last contour moved by the prediction (`band_stage` writes it and measures the band's error on it
+        # in the next frame's call) and an empty one for the widening's bands, whose moved points are not kept.
         self._moved = np.zeros((cap, 2), np.float32)
-        self._moved_ro = ro(self._moved)
         self._no_moved = np.zeros((0, 2), np.float32)
-        self._no_profile = ro(np.zeros(0, np.float64))  # the band's uncertainty from the step only
         self._need_gap_ns = 0  # the time gap over which the motion model's band error (profile) was measured
         self.turn_cap = np.zeros(cap, np.float32)
         self.begin_buf = np.zeros((cap, 2), np.float32)
@@ -117,6 +114,12 @@ class Pipeline:
         self._period_ns: int | None = None  # the shortest time between frame starts seen: the frame period
         self._last_frame_t_ns: int | None = None
         self._motion = MotionModel()
+        motion = self._motion
+        self._band_args = (
+            config.roi_margin_px, height, width, *motion.need_args, self.fixed, motion.state, motion.log, motion.need,
+            motion.profile, motion.band, self.lo, self.hi, self._moved,
+        )  # fmt: skip
+        """`band_stage`'s arguments after the frame's (Python ints and floats for its int64/float64 scalars)."""
         self._roi_t_ns: int | None = None
         self.frames_full = 0
         self.frames_coarse = 0
@@ -336,40 +339,37 @@ class Pipeline:
         Returns (contour points, found in the band predicted from the last frame).
         """
         margin = self.config.roi_margin_px
-        # Python ints and floats for the band kernel's int64/float64 scalars (a NumPy scalar costs 1.5-2 us here).
-        fr, fc = self.fixed.tolist() if self._fixed_known else (0.0, 0.0)
-        height, width = self.shape
         if self.prev_count > 0:
-            rot_a, rot_b, motion = self._motion.predict(t_ns, exposure_ns) if self._fixed_known else (1.0, 0.0, 0.0)
             model = self._motion
             # The measured error holds for the time gap it was measured over: a longer one (a dropped frame) gets
             # the step-scaled uncertainty, which grows with the gap.
             gap_ns = t_ns - self._roi_t_ns  # type: ignore[operator]  # set whenever prev_count > 0
-            profile = model.profile_ro if 2 * gap_ns <= 3 * self._need_gap_ns else self._no_profile
-            K.spans_around_chain(
-                self._prev_points_ro, self.prev_count, margin, motion, profile, rot_a, rot_b, fr, fc, height, width,
-                self.lo, self.hi, self._moved,
+            # One kernel call (the arguments after the frame's made once): the last band's error measured on the
+            # last contour when it was found in that band (`owed`), the prediction, the band.
+            motion = K.band_stage(
+                self._prev_points_ro, self.prev_count, model.owed, 2 * gap_ns <= 3 * self._need_gap_ns,
+                self._fixed_known, t_ns, exposure_ns, *self._band_args,
             )  # fmt: skip
-            n = self._search(image, margin + max(8, math.ceil(2.0 * motion)), fr, fc)
+            n = self._search(image, margin + max(8, math.ceil(2.0 * motion)))
             if n > 0:
                 self.frames_roi += 1
-                model.measure_need(self._moved_ro, self.prev_count, self.tracer.points_ro, n, margin, fr, fc, motion)
+                model.owed = True
                 self._need_gap_ns = gap_ns
                 return n, True
-            self._motion.forget_need()
+            model.forget_need()
         kept = K.coarse_spans(
             ro(image), i32(_COARSE_BLOCK), self._coarse_step, i32(_COARSE_MIN_CELLS), i32(_COARSE_DILATE),
             self.coarse_sums, self.coarse_labels, self.coarse_stack, self.lo, self.hi,
         )  # fmt: skip
         if kept > 0:
-            n = self._search(image, margin + 8, fr, fc)
+            n = self._search(image, margin + 8)
             if n > 0:
                 self.frames_coarse += 1
                 return n, False
         self.frames_full += 1
         return self.tracer.detect_and_trace(self.edges, image, self.edges.full_lo_ro, self.edges.full_hi_ro), False
 
-    def _search(self, image: NDArray[np.uint8], grow: int, fr: float, fc: float) -> int:
+    def _search(self, image: NDArray[np.uint8], grow: int) -> int:
         """Detect and trace inside the spans `lo`/`hi`, widening them by `grow` px around a contour that reaches
         their border; returns the contour's points, 0 when it is not found whole inside them."""
         for attempt in range(_ROI_RETRIES + 1):
@@ -385,6 +385,7 @@ class Pipeline:
             if contacts * 4 > n:  # mostly cut off: the rope is elsewhere, widening would only creep after it
                 break
             if attempt < _ROI_RETRIES:  # the rope runs out of the band: widen it around what was found
+                fr, fc = self.fixed.tolist() if self._fixed_known else (0.0, 0.0)
                 K.spans_around_chain(
                     self.tracer.points_ro, n, grow, 0.0, self._motion.profile_ro, 1.0, 0.0, fr, fc, self.shape[0],
                     self.shape[1], self.grow_lo, self.grow_hi, self._no_moved,

@@ -34,6 +34,15 @@ from ropecam.device.pipeline._kernels._common import (
     ZERO,
     f4_1d_ro,
 )
+from ropecam.device.pipeline._kernels.band_stage import (
+    BAND_FIXED_C,
+    BAND_FIXED_R,
+    BAND_MOTION_PX,
+    BAND_MOVED,
+    BAND_SLOTS,
+    BAND_STEADY,
+    band_stage,
+)
 from ropecam.device.pipeline._kernels.canny import (
     detect_edges,
     finish_edges,
@@ -107,14 +116,13 @@ from ropecam.device.pipeline._kernels.polylines import (
     track_material_points_of_length,
     trim_polyline_end,
 )
-from ropecam.device.pipeline._kernels.prediction import band_need
+from ropecam.device.pipeline._kernels.prediction import need_profile
 from ropecam.device.pipeline._kernels.smoothing import smooth_polyline
 from ropecam.device.pipeline._kernels.spans import (
     coarse_spans,
     grow_spans,
     in_spans,
     spans_around_chain,
-    spans_around_points,
     union_spans,
 )
 from ropecam.device.pipeline._kernels.split_frame import (
@@ -144,6 +152,12 @@ from ropecam.device.pipeline._kernels.tracking import (
 )
 
 __all__ = [
+    "BAND_FIXED_C",
+    "BAND_FIXED_R",
+    "BAND_MOTION_PX",
+    "BAND_MOVED",
+    "BAND_SLOTS",
+    "BAND_STEADY",
     "DIR_COL",
     "DIR_ROW",
     "EDGE_NONE",
@@ -171,8 +185,8 @@ __all__ = [
     "anchor_start",
     "apply_operator",
     "axis_offset",
-    "band_need",
     "band_sides",
+    "band_stage",
     "chain_length",
     "coarse_spans",
     "count_border_contacts",
@@ -199,6 +213,7 @@ __all__ = [
     "keep_traced",
     "measure_widths",
     "midline",
+    "need_profile",
     "nms_pixel",
     "observe_motion",
     "offset_by_gradient",
@@ -234,7 +249,6 @@ __all__ = [
     "sobel_rows",
     "sobel_suppress",
     "spans_around_chain",
-    "spans_around_points",
     "split_contour",
     "split_frame",
     "split_shapes_local",

@@ -3,15 +3,11 @@
 from __future__ import annotations
 
 import math
-from typing import Final
 
-from numba import float64, int32, int64, types
+from numba import boolean, float64, int32, int64
 
 from ropecam.device.pipeline._kernels._common import INVALID
-from ropecam.device.pipeline._kernels.tracking import MOTION_COUNT, MOTION_FRAMES
 from ropecam.shared.jit import f4_2d_ro, f8_1d, f8_2d, kernel
-
-i8_1d_ro: Final = types.Array(types.int64, 1, "C", readonly=True)
 
 
 @kernel(float64(f4_2d_ro, int64, float64, float64))
@@ -32,9 +28,9 @@ def _wrap(k, n):
     return k
 
 
-@kernel(int32(f4_2d_ro, int64, f4_2d_ro, int64, int64, float64, float64, float64, float64, i8_1d_ro, f8_2d, f8_1d))
-def band_need(
-    moved, n_moved, found, n_found, margin_px, fixed_r, fixed_c, gain, floor_px, motion_state, need_hist, out_profile
+@kernel(int32(f4_2d_ro, int64, f4_2d_ro, int64, int64, float64, float64, float64, float64, boolean, f8_2d, f8_1d))
+def need_profile(
+    moved, n_moved, found, n_found, margin_px, fixed_r, fixed_c, gain, floor_px, steady, need_hist, out_profile
 ):
     """Measure how much of the band's uncertainty this frame needed, per part of the rope, and write the cap on the
     next frame's uncertainty (`spans_around_chain`'s profile).
@@ -52,9 +48,9 @@ def band_need(
 
     `need_hist` (2, bins) keeps this frame's needs in row 0 and the previous frame's in row 1; `out_profile`
     (bins,) gets ``gain * max(need of both frames over the bin and its two neighbours) + floor_px`` (px), or inf
-    (no profile) while the motion model (`motion_state`, `observe_motion`'s) holds fewer than ``MOTION_FRAMES - 1``
-    frames: the next frame's prediction, from fewer than `MOTION_FRAMES` frames, is of another kind than the one
-    measured (and the fixed end still a guess).
+    (no profile) unless `steady` (the motion model held at least ``MOTION_FRAMES - 1`` frames when `moved` was
+    predicted): the next frame's prediction, from fewer than `MOTION_FRAMES` frames, is of another kind than the
+    one measured (and the fixed end still a guess).
 
     Returns the found points matched, or INVALID (nothing written) when a chain is empty or the arrays do not fit.
     """
@@ -131,7 +127,6 @@ def band_need(
         need = math.sqrt(d) - margin_px
         if need > need_hist[0, b]:
             need_hist[0, b] = need
-    steady = motion_state[MOTION_COUNT] >= MOTION_FRAMES - 1
     for b in range(bins):
         if not steady:
             out_profile[b] = math.inf

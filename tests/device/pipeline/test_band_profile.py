@@ -1,4 +1,4 @@
-"""The band's uncertainty from the prediction's measured error (`band_need`, `MotionModel.measure_need`): a smaller
+"""The band's uncertainty from the prediction's measured error (`need_profile` in `band_stage`): a smaller
 band than the step-scaled one, the same measurements, and no use of it over a time gap it was not measured for."""
 
 from __future__ import annotations

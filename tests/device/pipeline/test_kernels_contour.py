@@ -11,6 +11,9 @@ from scipy import ndimage
 
 from ropecam.device.pipeline import _kernels as K
 
+_NO_PROFILE = np.zeros(0)  # `spans_around_chain` without a measured profile
+_NO_MOVED = np.zeros((0, 2), np.float32)  # nor the moved points
+
 pytestmark = pytest.mark.kernel
 
 FREEMAN = {(0, 1): 0, (-1, 1): 1, (-1, 0): 2, (-1, -1): 3, (0, -1): 4, (1, -1): 5, (1, 0): 6, (1, 1): 7}
@@ -253,7 +256,7 @@ def test_listed_component_on_a_detected_band_equals_the_span_scan(blurred_frames
     weights = np.array([0.25, 0.5, 0.25], np.float32)
     K.detect_edges(image, weights, lo, hi, 20.0, 50.0, work, *planes, edges, stack)
     points = np.ascontiguousarray(np.argwhere(edges == 1)[::7].astype(np.float32))
-    K.spans_around_points(points, len(points), 5, 0.0, 1.0, 0.0, 0.0, 0.0, height, width, lo, hi)
+    K.spans_around_chain(points, len(points), 5, 0.0, _NO_PROFILE, 1.0, 0.0, 0.0, 0.0, height, width, lo, hi, _NO_MOVED)
     rows = np.flatnonzero(hi >= lo)
     assert rows.min() > 0 and rows.max() < height - 1 and lo[rows].min() > 0 and hi[rows].max() < width - 1
     edges[:] = 7
@@ -310,7 +313,9 @@ def _band_of(image, margin_px):
     weights = np.array([0.25, 0.5, 0.25], np.float32)
     K.detect_edges(image, weights, lo, hi, 20.0, 50.0, work, *planes, edges, stack)
     points = np.ascontiguousarray(np.argwhere(edges == 1)[::3].astype(np.float32))
-    K.spans_around_points(points, len(points), margin_px, 0.0, 1.0, 0.0, 0.0, 0.0, height, width, lo, hi)
+    K.spans_around_chain(
+        points, len(points), margin_px, 0.0, _NO_PROFILE, 1.0, 0.0, 0.0, 0.0, height, width, lo, hi, _NO_MOVED
+    )
     edges[:] = 7  # stale values outside the band must not matter
     count = K.detect_edges(image, weights, lo, hi, 20.0, 50.0, work, *planes, edges, stack)
     return lo, hi, planes, edges, stack, count

@@ -9,6 +9,9 @@ from scipy import ndimage
 
 from ropecam.device.pipeline import _kernels as K
 
+_NO_PROFILE = np.zeros(0)  # `spans_around_chain` without a measured profile
+_NO_MOVED = np.zeros((0, 2), np.float32)  # nor the moved points
+
 pytestmark = pytest.mark.kernel
 
 
@@ -96,7 +99,7 @@ def test_canny_inside_spans_equals_full_frame(blurred_frames, spans_full) -> Non
     points = np.ascontiguousarray(np.argwhere(full["edges"] > 0).astype(np.float32))
     lo = np.zeros(height, np.int32)
     hi = np.zeros(height, np.int32)
-    K.spans_around_points(points, len(points), 6, 0.0, 1.0, 0.0, 0.0, 0.0, height, width, lo, hi)
+    K.spans_around_chain(points, len(points), 6, 0.0, _NO_PROFILE, 1.0, 0.0, 0.0, 0.0, height, width, lo, hi, _NO_MOVED)
     _, roi = _canny(image, lo, hi, 20, 50, (0.25, 0.5, 0.25))
     inside = np.zeros((height, width), bool)
     for r in range(height):
@@ -114,13 +117,15 @@ def test_canny_inside_spans_equals_full_frame(blurred_frames, spans_full) -> Non
 
 
 @pytest.mark.parametrize("rotation", [(1.0, 0.0), (0.9, 0.2)])
-def test_spans_around_points_matches_reference(rotation) -> None:
+def test_spans_around_chain_matches_reference(rotation) -> None:
     rng = np.random.default_rng(3)
     height, width = 50, 70
     points = rng.uniform([-3, -3], [height + 3, width + 3], (12, 2)).astype(np.float32)
     lo = np.zeros(height, np.int32)
     hi = np.zeros(height, np.int32)
-    rows = K.spans_around_points(points, len(points), 3, 4.0, *rotation, 10.0, 20.0, height, width, lo, hi)
+    rows = K.spans_around_chain(
+        points, len(points), 3, 4.0, _NO_PROFILE, *rotation, 10.0, 20.0, height, width, lo, hi, _NO_MOVED
+    )
     mask = np.zeros((height, width), bool)
     dist = np.hypot(points[:, 0] - 10.0, points[:, 1] - 20.0)
     rr, cc = np.mgrid[0:height, 0:width]
@@ -242,7 +247,7 @@ def test_edges_are_zero_around_the_spans(blurred_frames) -> None:
     _, full = _canny(image, lo_full, hi_full, 20, 50, (0.25, 0.5, 0.25))
     points = np.ascontiguousarray(np.argwhere(full["edges"] > 0)[::5].astype(np.float32))
     lo, hi = np.zeros(height, np.int32), np.zeros(height, np.int32)
-    K.spans_around_points(points, len(points), 4, 0.0, 1.0, 0.0, 0.0, 0.0, height, width, lo, hi)
+    K.spans_around_chain(points, len(points), 4, 0.0, _NO_PROFILE, 1.0, 0.0, 0.0, 0.0, height, width, lo, hi, _NO_MOVED)
     b = _buffers(height, width)
     b["edges"][:] = 7
     count = K.detect_edges(image, np.array([0.25, 0.5, 0.25], np.float32), lo, hi, 20, 50, b["work"], b["tmp"],

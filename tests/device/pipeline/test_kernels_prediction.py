@@ -1,4 +1,4 @@
-"""The band prediction's measured error (`band_need`) against a slow, obvious nearest-point search."""
+"""The band prediction's measured error (`need_profile`) against a slow, obvious nearest-point search."""
 
 from __future__ import annotations
 
@@ -43,11 +43,9 @@ def _reference_need(moved, found, margin, bins):
     return need
 
 
-def _state(frames: int) -> np.ndarray:
-    state = np.zeros(K.MOTION_FRAMES + 2, np.int64)
-    state[K.MOTION_COUNT] = frames
-    state.flags.writeable = False
-    return state
+def _steady(frames: int) -> bool:
+    """`need_profile`'s `steady` for a motion model of `frames` frames."""
+    return frames >= K.MOTION_FRAMES - 1
 
 
 @pytest.mark.parametrize("start", [0, 137])
@@ -57,7 +55,7 @@ def test_need_per_bin_matches_the_nearest_point_search(start) -> None:
     bins = 12
     need = np.full((2, bins), 0.25)
     profile = np.zeros(bins)
-    matched = K.band_need(moved, len(moved), found, len(found), 3, *FIXED, 1.5, 2.0, _state(3), need, profile)
+    matched = K.need_profile(moved, len(moved), found, len(found), 3, *FIXED, 1.5, 2.0, _steady(3), need, profile)
     assert matched == len(found)
     # The walk along the chain stops at a local nearest point: never nearer than the nearest, hardly farther.
     reference = _reference_need(moved, found, 3, bins)
@@ -73,11 +71,11 @@ def test_no_profile_while_the_motion_model_is_young_and_bad_input() -> None:
     found = _outline(2.0)
     need = np.zeros((2, 8))
     profile = np.zeros(8)
-    assert K.band_need(moved, len(moved), found, len(found), 4, *FIXED, 1.5, 3.0, _state(1), need, profile) > 0
+    assert K.need_profile(moved, len(moved), found, len(found), 4, *FIXED, 1.5, 3.0, _steady(1), need, profile) > 0
     assert np.all(np.isinf(profile))
     empty = np.zeros((0, 2), np.float32)
-    assert K.band_need(moved, len(moved), empty, 0, 4, *FIXED, 1.5, 3.0, _state(3), need, profile) == K.INVALID
-    assert K.band_need(moved, len(moved), found, len(found), 4, *FIXED, 1.5, 3.0, _state(3), need, np.zeros(5)) < 0
+    assert K.need_profile(moved, len(moved), empty, 0, 4, *FIXED, 1.5, 3.0, _steady(3), need, profile) == K.INVALID
+    assert K.need_profile(moved, len(moved), found, len(found), 4, *FIXED, 1.5, 3.0, _steady(3), need, np.zeros(5)) < 0
 
 
 def test_invalid_found_points_are_skipped() -> None:
@@ -89,7 +87,7 @@ def test_invalid_found_points_are_skipped() -> None:
     for chain in (found, bad):
         need = np.zeros((2, 8))
         profile = np.zeros(8)
-        matched = K.band_need(moved, len(moved), chain, len(chain), 3, *FIXED, 1.5, 2.0, _state(3), need, profile)
+        matched = K.need_profile(moved, len(moved), chain, len(chain), 3, *FIXED, 1.5, 2.0, _steady(3), need, profile)
         results.append((matched, need[0].copy(), profile))
     assert results[0][0] == len(found) and results[1][0] == len(found)
     np.testing.assert_array_equal(results[1][1], results[0][1])

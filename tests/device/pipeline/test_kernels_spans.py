@@ -1,4 +1,4 @@
-"""The band of row spans around a chain of points (`spans_around_points`) against a slow, obvious union of discs."""
+"""The band of row spans around a chain of points (`spans_around_chain`) against a slow, obvious union of discs."""
 
 from __future__ import annotations
 
@@ -8,6 +8,9 @@ import numpy as np
 import pytest
 
 from ropecam.device.pipeline import _kernels as K
+
+_NO_PROFILE = np.zeros(0)  # `spans_around_chain` without a measured profile
+_NO_MOVED = np.zeros((0, 2), np.float32)  # nor the moved points
 
 pytestmark = pytest.mark.kernel
 
@@ -71,7 +74,9 @@ def test_band_holds_every_disc_and_is_hardly_wider(kind, margin, motion, rot) ->
     fixed = (20.0, 60.0)
     lo = np.zeros(height, np.int32)
     hi = np.zeros(height, np.int32)
-    rows = K.spans_around_points(points, len(points), margin, motion, *rot, *fixed, height, width, lo, hi)
+    rows = K.spans_around_chain(
+        points, len(points), margin, motion, _NO_PROFILE, *rot, *fixed, height, width, lo, hi, _NO_MOVED
+    )
     ref_lo, ref_hi = _disc_spans(points, margin, motion, rot, fixed, height, width)
     ref_rows = ref_hi >= ref_lo
     assert rows == np.count_nonzero(hi >= lo)
@@ -96,7 +101,9 @@ def test_band_of_a_chain_with_gaps_and_unordered_points() -> None:
     height, width = 200, 220
     lo = np.zeros(height, np.int32)
     hi = np.zeros(height, np.int32)
-    K.spans_around_points(points, len(points), 4, 5.0, 1.0, 0.0, 20.0, 60.0, height, width, lo, hi)
+    K.spans_around_chain(
+        points, len(points), 4, 5.0, _NO_PROFILE, 1.0, 0.0, 20.0, 60.0, height, width, lo, hi, _NO_MOVED
+    )
     ref_lo, ref_hi = _disc_spans(points, 4, 5.0, (1.0, 0.0), (20.0, 60.0), height, width)
     ref_rows = ref_hi >= ref_lo
     assert np.all(lo[ref_rows] <= ref_lo[ref_rows]) and np.all(hi[ref_rows] >= ref_hi[ref_rows])
@@ -130,7 +137,45 @@ def test_band_with_a_measured_profile_holds_its_discs_and_writes_the_moved_point
     # A smaller band than without the profile where the profile is small, a larger one where it is large.
     plain_lo = np.zeros(height, np.int32)
     plain_hi = np.zeros(height, np.int32)
-    K.spans_around_points(points, len(points), 4, 6.0, *rot, *fixed, height, width, plain_lo, plain_hi)
+    K.spans_around_chain(
+        points, len(points), 4, 6.0, _NO_PROFILE, *rot, *fixed, height, width, plain_lo, plain_hi, _NO_MOVED
+    )
     width_with = np.maximum(hi - lo + 1, 0)
     width_plain = np.maximum(plain_hi - plain_lo + 1, 0)
     assert np.any(width_with < width_plain) and np.any(width_with > width_plain)
+
+
+def _radius(d2: float, d_max: float, profile: np.ndarray, margin: int, motion: float) -> tuple[int, int]:
+    """(bin, disc radius) of a point at squared distance `d2` from the fixed end, written out plainly."""
+    share = math.sqrt(d2) / d_max
+    u = motion * share
+    k = min(len(profile) - 1, int(share * len(profile))) if len(profile) else 0
+    if len(profile) and math.isfinite(profile[k]):
+        u = min(profile[k], 2.0 * u)
+    return k, margin + math.ceil(u)
+
+
+@pytest.mark.parametrize("motion", [0.0, 3.0, 12.5])
+def test_radius_range_holds_the_radius_of_every_squared_distance_in_it(motion) -> None:
+    """`_radius_range` (the band kernel takes the radius of a point in it without computing it) against the radius
+    computed at the range's ends, next to them and inside."""
+    from ropecam.device.pipeline._kernels.spans import _radius_range
+
+    rng = np.random.default_rng(2)
+    d2_max = 157.3**2
+    d_max = math.sqrt(d2_max)
+    profiles = (np.zeros(0), np.array([2.0, 2.0, 2.0, 3.5, np.inf, np.inf, 1.2, 1.2]), np.full(16, 1.85))
+    for profile in profiles:
+        profile.flags.writeable = False
+        ranges = 0
+        for d2 in rng.uniform(0.0, d2_max, 40):
+            k, m = _radius(d2, d_max, profile, 4, motion)
+            cap = profile[k] if len(profile) else math.inf
+            lo, hi = _radius_range(profile, k, cap, m, d_max, d2_max, 4, motion)
+            if lo > hi:
+                continue
+            ranges += 1
+            assert lo >= 0.0 and hi <= d2_max
+            inside = [lo, hi, np.nextafter(lo, np.inf), np.nextafter(hi, -np.inf), *rng.uniform(lo, hi, 20)]
+            assert all(_radius(float(x), d_max, profile, 4, motion)[1] == m for x in inside if lo <= x <= hi)
+        assert ranges >= 30  # the range is found for nearly every point (else the kernel computes every radius)
