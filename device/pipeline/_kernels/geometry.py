@@ -190,48 +190,17 @@ def _is_corner(dist, turn, n, i, threshold, level):
 
 
 @kernel(
-    int32(f4_2d_ro, f4_1d_ro, f8_1d_ro, int64, int64, int64, float64, float32, int32, float32, f4_1d, i4_1d)
+    int32(f4_1d_ro, f8_1d_ro, f4_1d_ro, int64, int64, int64, float64, float64, int32, float64, float64, int64, int64,
+          i4_1d)
 )  # fmt: skip
-def _split_from(points, turn, dist, n, i_fix, i_far, r_far, search_px, min_gap, corner_rad, work_arc, out_idx):
-    """`split_contour` once the fixed end `i_fix`, the far point `i_far` and its distance `r_far` are known."""
-    threshold = r_far - search_px
+def _pick_corners(
+    turn, dist, arc, n, i_fix, i_far, threshold, total, min_gap, level_a, level_b, zone_a, zone_b, out_idx
+):  # fmt: skip
+    """`_split_from` once the arc lengths `arc` from the fixed end (`total` the contour's length) and each side's
+    corner level and first tip-zone step (`level_a`, `zone_a`, `level_b`, `zone_b`) are known: the corner pair,
+    or the fallback of the largest turning angles."""
     len_a = (i_far - i_fix + n) % n
     len_b = (i_fix - i_far + n) % n
-    if len_a < 1 or len_b < 1:
-        return NOT_FOUND
-    if work_arc.shape[0] < n:
-        return FULL
-    # Arc length along the contour from the fixed end, forward (side A); side B's is the total minus it.
-    arc = work_arc
-    arc[i_fix] = 0.0
-    total = 0.0
-    ip = i_fix
-    for step in range(1, n + 1):
-        i = ip + 1 if ip + 1 < n else 0
-        total += _length(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
-        if step < n:
-            arc[i] = total
-        ip = i
-    # Corner candidates: local maxima of the turning angle in the tip zone, at least half as sharp as the side's
-    # sharpest there (and above `corner_rad`). The rope keeps its length within the exposure, so the pair whose
-    # arc lengths from the fixed end agree best is the band's two corners (a slanted band end adds a second,
-    # obtuse corner and a faint one kinks: both change one side's length); near-ties go to the sharper pair.
-    level_a = corner_rad
-    level_b = corner_rad
-    zone_a = len_a
-    zone_b = len_b
-    for side in range(2):
-        length = len_a if side == 0 else len_b
-        i = i_fix
-        for step in range(1, length + 1):
-            i = _step(i, n, side == 0)
-            if dist[i] >= threshold:
-                if side == 0:
-                    level_a = max(level_a, 0.5 * turn[i])
-                    zone_a = min(zone_a, step)
-                else:
-                    level_b = max(level_b, 0.5 * turn[i])
-                    zone_b = min(zone_b, step)
     best_delta = 1e30
     for rep in range(2):
         pick_sum = -1.0
@@ -304,6 +273,54 @@ def _split_from(points, turn, dist, n, i_fix, i_far, r_far, search_px, min_gap, 
     out_idx[2] = i_far
     out_idx[3] = seg_b
     return 4
+
+
+@kernel(
+    int32(f4_2d_ro, f4_1d_ro, f8_1d_ro, int64, int64, int64, float64, float32, int32, float32, f4_1d, i4_1d)
+)  # fmt: skip
+def _split_from(points, turn, dist, n, i_fix, i_far, r_far, search_px, min_gap, corner_rad, work_arc, out_idx):
+    """`split_contour` once the fixed end `i_fix`, the far point `i_far` and its distance `r_far` are known."""
+    threshold = r_far - search_px
+    len_a = (i_far - i_fix + n) % n
+    len_b = (i_fix - i_far + n) % n
+    if len_a < 1 or len_b < 1:
+        return NOT_FOUND
+    if work_arc.shape[0] < n:
+        return FULL
+    # Arc length along the contour from the fixed end, forward (side A); side B's is the total minus it.
+    arc = work_arc
+    arc[i_fix] = 0.0
+    total = 0.0
+    ip = i_fix
+    for step in range(1, n + 1):
+        i = ip + 1 if ip + 1 < n else 0
+        total += _length(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
+        if step < n:
+            arc[i] = total
+        ip = i
+    # Corner candidates: local maxima of the turning angle in the tip zone, at least half as sharp as the side's
+    # sharpest there (and above `corner_rad`). The rope keeps its length within the exposure, so the pair whose
+    # arc lengths from the fixed end agree best is the band's two corners (a slanted band end adds a second,
+    # obtuse corner and a faint one kinks: both change one side's length); near-ties go to the sharper pair.
+    level_a = corner_rad
+    level_b = corner_rad
+    zone_a = len_a
+    zone_b = len_b
+    for side in range(2):
+        length = len_a if side == 0 else len_b
+        i = i_fix
+        for step in range(1, length + 1):
+            i = _step(i, n, side == 0)
+            if dist[i] >= threshold:
+                if side == 0:
+                    level_a = max(level_a, 0.5 * turn[i])
+                    zone_a = min(zone_a, step)
+                else:
+                    level_b = max(level_b, 0.5 * turn[i])
+                    zone_b = min(zone_b, step)
+    return _pick_corners(
+        turn, dist, arc, n, i_fix, i_far, threshold, total, min_gap, level_a, level_b, zone_a, zone_b, out_idx
+    )
 
 
 @kernel(int32(f4_2d_ro, f4_1d_ro, f8_1d_ro, int32, float32, float32, float32, int32, float32, f4_1d, i4_1d))
@@ -379,6 +396,89 @@ def find_segmentation_points(
             done = max(done, j)
     return _split_from(
         points, out_turn, out_dist, n, i_fix, i_far, r_far, search_px, min_gap, corner_rad, work_arc, out_idx
+    )
+
+
+@kernel(
+    int32(f4_2d_ro, int32, int32, float32, float32, float32, int32, float32, f8_1d, f4_1d, f4_1d, f8_1d, i4_1d)
+)  # fmt: skip
+def find_segmentation_points_seg(
+    points, n, scale, fixed_r, fixed_c, search_px, min_gap, corner_rad, out_dist, out_turn, work_arc, work_seg,
+    out_idx,
+):  # fmt: skip
+    """`find_segmentation_points` (the same `out_dist`, `work_arc`, `out_idx` and return value) with a float64
+    scratch `work_seg` (n) for the contour's segment lengths: the distances and the segment lengths are taken in
+    one pass without a loop-carried value (their square roots vectorise), the arc lengths are then sums of the
+    stored lengths in `_split_from`'s order, and each side's tip zone (its first step and corner level) is noted
+    in the pass that computes the turning angles instead of a walk along both sides. FULL also when `work_seg` is
+    shorter than `n`."""
+    if n < 8:
+        return NOT_FOUND
+    if out_dist.shape[0] < n or out_turn.shape[0] < n or work_seg.shape[0] < n:
+        return FULL
+    for i in range(n):
+        out_dist[i] = _length(points[i, 0] - fixed_r, points[i, 1] - fixed_c)
+    for i in range(1, n):
+        work_seg[i] = _length(points[i, 0] - points[i - 1, 0], points[i, 1] - points[i - 1, 1])
+    work_seg[0] = _length(points[0, 0] - points[n - 1, 0], points[0, 1] - points[n - 1, 1])
+    i_fix = 0
+    best = 1e30
+    i_far = 0
+    r_far = -1.0
+    for i in range(n):
+        d = out_dist[i]
+        if d < best:
+            best = d
+            i_fix = i
+        if d > r_far:
+            r_far = d
+            i_far = i
+    threshold = r_far - search_px
+    len_a = (i_far - i_fix + n) % n
+    len_b = (i_fix - i_far + n) % n
+    # `_split_from`'s walk along both sides, by index: point i is step (i - i_fix) mod n of side A when that is
+    # in 1..len_a, step (i_fix - i) mod n of side B when that is in 1..len_b (the far point is on both).
+    level_a = np.float64(corner_rad)
+    level_b = np.float64(corner_rad)
+    zone_a = len_a
+    zone_b = len_b
+    done = -1  # last index written (the zone is visited in order; its neighbours may repeat)
+    for i in range(n):
+        if out_dist[i] < threshold:
+            continue
+        for j in range(i - 1, i + 2):
+            if j <= done and j >= 0:
+                continue
+            k = j + n if j < 0 else (j - n if j >= n else j)
+            out_turn[k] = _turn_at(points, n, scale, k)
+            done = max(done, j)
+        if not out_dist[i] >= threshold:  # nan: in the angle pass, not in a tip zone
+            continue
+        half_turn = 0.5 * out_turn[i]
+        step_a = i - i_fix if i >= i_fix else i - i_fix + n
+        if 1 <= step_a <= len_a:
+            level_a = max(level_a, half_turn)
+            zone_a = min(zone_a, step_a)
+        step_b = i_fix - i if i_fix >= i else i_fix - i + n
+        if 1 <= step_b <= len_b:
+            level_b = max(level_b, half_turn)
+            zone_b = min(zone_b, step_b)
+    if len_a < 1 or len_b < 1:
+        return NOT_FOUND
+    if work_arc.shape[0] < n:
+        return FULL
+    arc = work_arc
+    arc[i_fix] = 0.0
+    total = 0.0
+    for i in range(i_fix + 1, n):
+        total += work_seg[i]
+        arc[i] = total
+    for i in range(i_fix):
+        total += work_seg[i]
+        arc[i] = total
+    total += work_seg[i_fix]
+    return _pick_corners(
+        out_turn, out_dist, arc, n, i_fix, i_far, threshold, total, min_gap, level_a, level_b, zone_a, zone_b, out_idx
     )
 
 

@@ -12,7 +12,7 @@ from ropecam.device.pipeline._kernels._common import FULL, INVALID, NOT_FOUND, f
 from ropecam.device.pipeline._kernels.geometry import axis_offset, chain_length
 from ropecam.device.pipeline._kernels.polylines import (
     anchor_start,
-    extend_to_band_end,
+    extend_to_band_end_near,
     polyline_length,
     resample_polyline_of_length,
 )
@@ -382,12 +382,13 @@ def offset_by_table_thinned(
     int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f8_1d_ro, f8_1d_ro, int32, f4_2d_ro,
           f4_2d_ro, float32, float32, f4_1d_ro, f4_2d_ro, float32, float32, float32, float32, float32, float64,
           float64, float32, float32, float32, float32, f4_1d, f4_1d, f4_1d, f4_2d, f4_2d, f4_2d, f4_2d, f8_1d,
-          f8_1d)
+          f8_1d, f8_1d_ro)
 )  # fmt: skip
 def split_shapes_local(
     points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, ratios, sweeps, half, gx, gy, polarity, step_px, table,
     smooth, width_px, cap_px, skip_px, span_px, blur_px, slant_gain_px, width_check_px, out_step_px, smoothing_px,
     fixed_r, fixed_c, work, out_sweeps_a, out_sweeps_b, out_side_a, out_side_b, out_a, out_b, work_arc, out_info,
+    fixed_dist,
 ):  # fmt: skip
     """The blur split's shapes from its segmentation points, with local sweeps, in one call (the stage's
     sequence of kernels, without a Python step between them): per side (A forward from `i_fix` to `seg_a`, B
@@ -396,7 +397,10 @@ def split_shapes_local(
     length check (``|La - Lb| > max(3 width_check_px, 0.1 max(La, Lb))`` rejects the split), and per side
     `anchor_start` at the fixed end (`fixed_r`, `fixed_c`; axis from `skip_px` over `span_px`),
     `resample_polyline_of_length` into `out_a`/`out_b`, then `smooth_polyline` into `out_side_a`/`out_side_b`
-    when `smoothing_px` > 0 and the shape has 3 points or more.
+    when `smoothing_px` > 0 and the shape has 3 points or more. `fixed_dist` holds the distances of the `points`
+    from (`fixed_r`, `fixed_c`) (`find_segmentation_points`' `out_dist`) for the tip fit's search
+    (`extend_to_band_end_near`: the same results with fewer points checked), or is shorter than `n` (every
+    point checked).
 
     Writes ``out_info = [count_a, count_b, length_a, length_b, smoothed_a, smoothed_b]`` (a smoothed shape is in
     ``out_side_*[:count]``, else in ``out_*[:count]``). Returns 2, NOT_FOUND when the lengths differ (the lengths
@@ -417,8 +421,10 @@ def split_shapes_local(
                                  table, keep, keep, out_side_b)  # fmt: skip
     if na < 0 or nb < 0:
         return FULL
-    na = extend_to_band_end(out_side_a, na, points, n, smooth, width_px, cap_px, skip_px, span_px, blur_px)
-    nb = extend_to_band_end(out_side_b, nb, points, n, smooth, width_px, cap_px, skip_px, span_px, blur_px)
+    na = extend_to_band_end_near(out_side_a, na, points, n, smooth, width_px, cap_px, skip_px, span_px, blur_px,
+                                 fixed_dist, fixed_r, fixed_c)  # fmt: skip
+    nb = extend_to_band_end_near(out_side_b, nb, points, n, smooth, width_px, cap_px, skip_px, span_px, blur_px,
+                                 fixed_dist, fixed_r, fixed_c)  # fmt: skip
     if na >= 3 and nb >= 3:
         a1r = float(out_side_a[na - 1, 0])
         a1c = float(out_side_a[na - 1, 1])
@@ -474,6 +480,27 @@ def split_shapes_local(
 
 @kernel(
     int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f4_2d_ro, f4_2d_ro, float32, f4_2d_ro,
+          float32, float32, f8_1d_ro, f8_2d_ro, f4_1d_ro, f4_2d, f4_3d, f8_1d, f8_1d, f8_1d_ro)
+)  # fmt: skip
+def split_shapes_packed_near(
+    points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, gx, gy, polarity, smooth, fixed_r, fixed_c, params,
+    curves, table, lines, sides, work_arc, out_info, fixed_dist,
+):  # fmt: skip
+    """`split_shapes_packed` with the points' distances from the fixed end (`split_shapes_local`'s `fixed_dist`):
+    the same results, the tip fit's search over fewer points."""
+    if params.shape[0] < SPLIT_PARAMS or curves.shape[0] < 2 or lines.shape[0] < 3 or sides.shape[0] < 4:
+        return INVALID
+    return split_shapes_local(
+        points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, curves[0], curves[1], np.int32(params[0]), gx, gy,
+        polarity, np.float32(params[1]), table, smooth, np.float32(params[2]), np.float32(params[3]),
+        np.float32(params[4]), np.float32(params[5]), np.float32(params[6]), params[7], params[8],
+        np.float32(params[9]), np.float32(params[10]), fixed_r, fixed_c, lines[0], lines[1], lines[2], sides[0],
+        sides[1], sides[2], sides[3], work_arc, out_info, fixed_dist,
+    )  # fmt: skip
+
+
+@kernel(
+    int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f4_2d_ro, f4_2d_ro, float32, f4_2d_ro,
           float32, float32, f8_1d_ro, f8_2d_ro, f4_1d_ro, f4_2d, f4_3d, f8_1d, f8_1d)
 )  # fmt: skip
 def split_shapes_packed(
@@ -483,15 +510,11 @@ def split_shapes_packed(
     """`split_shapes_local` with its arguments bound in fewer arrays (a dispatch costs ~0.1 us per argument): the
     width's scalars in `params` (`SPLIT_PARAMS` values, converted back to the types `split_shapes_local` takes),
     ``curves = [ratios, sweeps]``, ``lines = [work, out_sweeps_a, out_sweeps_b]`` and ``sides = [out_side_a,
-    out_side_b, out_a, out_b]``. Same results and returns; INVALID when an array is too small to hold them."""
-    if params.shape[0] < SPLIT_PARAMS or curves.shape[0] < 2 or lines.shape[0] < 3 or sides.shape[0] < 4:
-        return INVALID
-    return split_shapes_local(
-        points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, curves[0], curves[1], np.int32(params[0]), gx, gy,
-        polarity, np.float32(params[1]), table, smooth, np.float32(params[2]), np.float32(params[3]),
-        np.float32(params[4]), np.float32(params[5]), np.float32(params[6]), params[7], params[8],
-        np.float32(params[9]), np.float32(params[10]), fixed_r, fixed_c, lines[0], lines[1], lines[2], sides[0],
-        sides[1], sides[2], sides[3], work_arc, out_info,
+    out_side_b, out_a, out_b]``; every contour point is checked by the tip fit (no `fixed_dist`). Same results
+    and returns; INVALID when an array is too small to hold them."""
+    return split_shapes_packed_near(
+        points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, gx, gy, polarity, smooth, fixed_r, fixed_c, params,
+        curves, table, lines, sides, work_arc, out_info, work_arc[:0],
     )  # fmt: skip
 
 

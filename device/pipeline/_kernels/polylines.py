@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import math
+from typing import Final
 
 import numpy as np
-from numba import float32, float64, int32
+from numba import float32, float64, int32, types
 
 from ropecam.device.pipeline._kernels._common import FULL, INVALID
 from ropecam.device.pipeline._kernels.geometry import sample_bilinear
@@ -279,23 +280,16 @@ def half_level_crossing(image, base_r, base_c, dir_r, dir_c, guess, reach_px, fl
     return best
 
 
-@kernel(int32(f4_2d, int32, f4_2d_ro, int32, f4_2d_ro, float32, float32, float32, float32, float32))
-def extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip_px, span_px, blur_px):
-    """Replace the free end of the axis polyline `poly` (n points) by the axis carried on to where the band ends.
+_AXIS: Final = types.UniTuple(float64, 5)
+"""`_band_axis`'s return: (ok, base_r, base_c, dir_r, dir_c)."""
 
-    The last `skip_px` of arc are the band's rounded corner (smoothing and the end's blur pull the edge inward
-    there), so the axis is the least-squares line through the polyline points between `skip_px` and
-    ``skip_px + span_px`` of arc from the end; its base is the foot of the point `skip_px` from the end.
-    The band's end along that line is the farthest of the contour `points` lying within half a width of it (and
-    within -2 to `skip_px` + 4 widths of the base); for a flat end (`cap_px` 0) it is refined to where the smoothed
-    image `smooth` falls halfway from the band to the background along the line (`half_level_crossing`, reach
-    ``3 blur_px + 1``); the tip goes `cap_px` short of it (half a width for a round end). The polyline is cut
-    `skip_px` from its end and the tip appended, in place. Returns the new point count, or `n` unchanged when the
-    polyline is too short or no band end is found.
-    """
-    if n < 3 or n >= poly.shape[0]:
-        return n
-    span = span_px
+
+@kernel(_AXIS(f4_2d_ro, int32, float32, float32))
+def _band_axis(poly, n, skip_px, span_px):
+    """The axis `extend_to_band_end` carries on: the least-squares line through the points of `poly` (n points)
+    between `skip_px` and ``skip_px + span_px`` of arc from its end, pointed towards the end, and its base (the
+    foot of the point `skip_px` from the end). Returns (1.0, base_r, base_c, dir_r, dir_c), or ok 0.0 when fewer
+    than 3 points lie in that window."""
     # Arc position of each point from the end, walked backwards; accumulate the fit window's moments.
     back = 0.0
     k = n - 1
@@ -310,7 +304,7 @@ def extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip
         if back >= skip_px and base_k < 0:
             base_k = k
         if back >= skip_px:
-            if back > skip_px + span:
+            if back > skip_px + span_px:
                 break
             r = float(poly[k, 0])
             c = float(poly[k, 1])
@@ -323,7 +317,7 @@ def extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip
         back += _length(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
         k -= 1
     if m < 3 or base_k < 1:
-        return n
+        return 0.0, 0.0, 0.0, 0.0, 0.0
     mr = sr / m
     mc = sc / m
     var_r = srr / m - mr * mr
@@ -339,18 +333,13 @@ def extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip
         dir_r = -dir_r
         dir_c = -dir_c
     t = (poly[base_k, 0] - mr) * dir_r + (poly[base_k, 1] - mc) * dir_c
-    base_r = mr + t * dir_r
-    base_c = mc + t * dir_c
-    best = -1e30
-    for i in range(n_points):
-        rel_r = points[i, 0] - base_r
-        rel_c = points[i, 1] - base_c
-        along = rel_r * dir_r + rel_c * dir_c
-        across = abs(rel_r * dir_c - rel_c * dir_r)
-        if across < 0.5 * width_px and -2.0 < along < skip_px + 4.0 * width_px and along > best:
-            best = along
-    if best < -1e29:
-        return n
+    return 1.0, mr + t * dir_r, mc + t * dir_c, dir_r, dir_c
+
+
+@kernel(int32(f4_2d, int32, f4_2d_ro, float64, float64, float64, float64, float64, float32, float32, float32, float32))
+def _band_tip(poly, n, smooth, base_r, base_c, dir_r, dir_c, best, width_px, cap_px, skip_px, blur_px):
+    """`extend_to_band_end` once the axis (`_band_axis`) and the contour's farthest point along it (`best`) are
+    known: the flat end's refinement on `smooth`, the cut and the new tip. Returns the new count or `n`."""
     if cap_px == 0.0:
         # A flat end moving sideways covers (lateral ramp) x (step at the end) near its corner; the smoothed image
         # is that product blurred, so along the axis it falls halfway to the background exactly at the end (the
@@ -368,3 +357,77 @@ def extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip
     poly[count, 0] = base_r + extent * dir_r
     poly[count, 1] = base_c + extent * dir_c
     return count + 1
+
+
+@kernel(int32(f4_2d, int32, f4_2d_ro, int32, f4_2d_ro, float32, float32, float32, float32, float32))
+def extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip_px, span_px, blur_px):
+    """Replace the free end of the axis polyline `poly` (n points) by the axis carried on to where the band ends.
+
+    The last `skip_px` of arc are the band's rounded corner (smoothing and the end's blur pull the edge inward
+    there), so the axis is the least-squares line through the polyline points between `skip_px` and
+    ``skip_px + span_px`` of arc from the end; its base is the foot of the point `skip_px` from the end.
+    The band's end along that line is the farthest of the contour `points` lying within half a width of it (and
+    within -2 to `skip_px` + 4 widths of the base); for a flat end (`cap_px` 0) it is refined to where the smoothed
+    image `smooth` falls halfway from the band to the background along the line (`half_level_crossing`, reach
+    ``3 blur_px + 1``); the tip goes `cap_px` short of it (half a width for a round end). The polyline is cut
+    `skip_px` from its end and the tip appended, in place. Returns the new point count, or `n` unchanged when the
+    polyline is too short or no band end is found.
+    """
+    if n < 3 or n >= poly.shape[0]:
+        return n
+    ok, base_r, base_c, dir_r, dir_c = _band_axis(poly, n, skip_px, span_px)
+    if ok == 0.0:
+        return n
+    best = -1e30
+    for i in range(n_points):
+        rel_r = points[i, 0] - base_r
+        rel_c = points[i, 1] - base_c
+        along = rel_r * dir_r + rel_c * dir_c
+        across = abs(rel_r * dir_c - rel_c * dir_r)
+        if across < 0.5 * width_px and -2.0 < along < skip_px + 4.0 * width_px and along > best:
+            best = along
+    if best < -1e29:
+        return n
+    return _band_tip(poly, n, smooth, base_r, base_c, dir_r, dir_c, best, width_px, cap_px, skip_px, blur_px)
+
+
+@kernel(
+    int32(f4_2d, int32, f4_2d_ro, int32, f4_2d_ro, float32, float32, float32, float32, float32, f8_1d_ro, float32,
+          float32)
+)  # fmt: skip
+def extend_to_band_end_near(
+    poly, n, points, n_points, smooth, width_px, cap_px, skip_px, span_px, blur_px, fixed_dist, fixed_r, fixed_c
+):  # fmt: skip
+    """`extend_to_band_end` (same results) looking for the band's end only among the contour points whose distance
+    from (`fixed_r`, `fixed_c`), given in ``fixed_dist[:n_points]`` (`find_segmentation_points`' distances from
+    that point), is within the reach of the search from the axis' base (plus 1 px for roundings): a point
+    farther cannot lie within half a width of the axis and `skip_px` + 4 widths of the base (triangle
+    inequality), so the full computation runs on the few points near the tip. A `fixed_dist` shorter than
+    `n_points` checks every point (as `extend_to_band_end`).
+    """
+    if n < 3 or n >= poly.shape[0]:
+        return n
+    if fixed_dist.shape[0] < n_points:
+        return extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip_px, span_px, blur_px)
+    ok, base_r, base_c, dir_r, dir_c = _band_axis(poly, n, skip_px, span_px)
+    if ok == 0.0:
+        return n
+    reach = max(2.0, skip_px + 4.0 * width_px)
+    radius = math.sqrt(reach * reach + 0.25 * width_px * width_px) + 1.0
+    d_base = _length(base_r - fixed_r, base_c - fixed_c)
+    near = d_base - radius
+    far = d_base + radius
+    best = -1e30
+    for i in range(n_points):
+        d = fixed_dist[i]
+        if d < near or d > far:  # false for nan: such a point is checked
+            continue
+        rel_r = points[i, 0] - base_r
+        rel_c = points[i, 1] - base_c
+        along = rel_r * dir_r + rel_c * dir_c
+        across = abs(rel_r * dir_c - rel_c * dir_r)
+        if across < 0.5 * width_px and -2.0 < along < skip_px + 4.0 * width_px and along > best:
+            best = along
+    if best < -1e29:
+        return n
+    return _band_tip(poly, n, smooth, base_r, base_c, dir_r, dir_c, best, width_px, cap_px, skip_px, blur_px)

@@ -11,8 +11,8 @@ from numba import int32
 
 from ropecam.device.pipeline._kernels._common import INVALID, f4_1d_ro
 from ropecam.device.pipeline._kernels.canny import smooth_box
-from ropecam.device.pipeline._kernels.geometry import find_segmentation_points
-from ropecam.device.pipeline._kernels.offsets import SPLIT_PARAMS, f4_3d, slope_sweep_median, split_shapes_packed
+from ropecam.device.pipeline._kernels.geometry import find_segmentation_points_seg
+from ropecam.device.pipeline._kernels.offsets import SPLIT_PARAMS, f4_3d, slope_sweep_median, split_shapes_packed_near
 from ropecam.shared.jit import (
     f4_1d,
     f4_2d,
@@ -68,13 +68,15 @@ def split_frame(
     stage's sequence (`BlurSplitter.split`) makes it once the rope's width, polarity and contrast are known:
 
     1. `find_segmentation_points` (fixed end ``state[0:2]``, search zone ``max(search_px, 1.2 last_sweep_px)``;
-       distances into ``scratch[1]``, angles into `turn`, indices into `idx`);
+       distances into ``scratch[1]``, angles into `turn`, indices into `idx`; as `find_segmentation_points_seg`
+       with the segment lengths in ``scratch[2]``);
     2. the smoothed image made this frame's (`smooth_box` on `frame` with the edge stage's `weights` and spans
        `spans_lo`/`spans_hi`, scratch `box_lo`, `box_hi`, `tmp`; writes `smooth`) over the box around the two
        corners grown by `grow_px`, which the tip fit reads;
     3. the sweep: the corners' distance, or below 1.5 widths the mean of the two sides' `slope_sweep_median`
        (contrast ``state[3]``; scratch ``scratch[2]``) when finite, capped at 1.5 widths;
-    4. below ``static_ratio`` widths SPLIT_STATIC, else `split_shapes_packed` with ``1 / contrast``.
+    4. below ``static_ratio`` widths SPLIT_STATIC, else `split_shapes_packed` with ``1 / contrast`` (as
+       `split_shapes_packed_near`: the tip fit's search takes the distances of step 1).
 
     `params` holds `FRAME_PARAMS` values, `curves` the edge model's ``[ratios, sweeps]``, `table` its offsets;
     `lines`, `sides`, ``scratch[0]`` are `split_shapes_packed`'s buffers. Writes the corners to `out_seg` (2, 2)
@@ -99,9 +101,9 @@ def split_frame(
     fixed_r = np.float32(state[0])
     fixed_c = np.float32(state[1])
     search = np.float32(max(params[SPLIT_PARAMS + 2], 1.2 * state[4]))
-    found = find_segmentation_points(
+    found = find_segmentation_points_seg(
         points, n, np.int32(params[SPLIT_PARAMS]), fixed_r, fixed_c, search, np.int32(params[SPLIT_PARAMS + 1]),
-        np.float32(params[SPLIT_PARAMS + 3]), scratch[1], turn, lines[0], idx,
+        np.float32(params[SPLIT_PARAMS + 3]), scratch[1], turn, lines[0], scratch[2], idx,
     )  # fmt: skip
     out_info[6] = -1.0
     if found < 0:
@@ -147,7 +149,8 @@ def split_frame(
     out_info[6] = sweep
     if sweep < params[SPLIT_PARAMS + 5] * width:
         return SPLIT_STATIC
-    return split_shapes_packed(
+    # The tip fit's search takes the distances from the fixed end that step 1 left in ``scratch[1]``.
+    return split_shapes_packed_near(
         points, chain, n, i_fix, seg_a, seg_b, mag, np.float32(1.0 / contrast), gx, gy, np.float32(state[2]), smooth,
-        fixed_r, fixed_c, params, curves, table, lines, sides, scratch[0], out_info,
+        fixed_r, fixed_c, params, curves, table, lines, sides, scratch[0], out_info, scratch[1],
     )  # fmt: skip

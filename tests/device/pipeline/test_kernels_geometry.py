@@ -329,6 +329,20 @@ def test_find_segmentation_points_equals_the_two_kernels(seed) -> None:
     written = ~np.isnan(turn2)
     np.testing.assert_array_equal(turn2[written], turn[written])
     assert np.all(turn[~written] == 0.0)  # only the angles nobody reads were left out
+    # With its segment-length scratch: the same, for search zones from the tip's corners only to the whole band.
+    for search in (np.float32(3.0), np.float32(20.0), np.float32(60.0), np.float32(200.0)):
+        zone_args = (np.int32(3), *fixed, search, np.int32(4), np.float32(0.5))
+        seg = np.full(n, np.nan)
+        idx3, dist3, work3, turn3 = np.zeros(4, np.int32), np.zeros(n), np.zeros(n, np.float32), np.zeros(n, np.float32)
+        want = K.find_segmentation_points(pts, np.int32(n), *zone_args, dist2, turn2, work2, idx2)
+        assert K.find_segmentation_points_seg(pts, np.int32(n), *zone_args, dist3, turn3, work3, seg, idx3) == want
+        np.testing.assert_array_equal(idx3, idx2)
+        np.testing.assert_array_equal(dist3, dist2)
+        np.testing.assert_array_equal(work3, work2)
+        np.testing.assert_array_equal(turn3[turn3 != 0.0], turn2[turn3 != 0.0])
+        assert (
+            K.find_segmentation_points_seg(pts, np.int32(n), *zone_args, dist3, turn3, work3, seg[:-1], idx3) == K.FULL
+        )
     short = np.zeros(n - 1)
     assert (
         K.find_segmentation_points(pts, np.int32(n), *args, np.int32(4), np.float32(0.5), short, turn2, work2, idx2)

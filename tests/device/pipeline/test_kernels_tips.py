@@ -216,3 +216,45 @@ def test_select_finds_the_rank_as_sorting_does() -> None:
         assert np.all(work[:rank] <= got) and np.all(work[rank + 1 : m] >= got)
         np.testing.assert_array_equal(np.sort(work[:m]), np.sort(values))
         assert work[m] == np.inf
+
+
+def test_extend_to_band_end_near_equals_the_full_search() -> None:
+    # The band of the test above, rotated and moved about a fixed end, the contour in random order (the search
+    # must not depend on where the near points sit in the list), plus far points: the same polyline as the
+    # full search, whatever the fixed end; a `fixed_dist` shorter than the contour checks every point.
+    rng = np.random.default_rng(7)
+    image = _band_image(50.3)
+    cols = np.arange(8.0, 49.0, 1.0)
+    rows = 20.0 + np.where(cols > 45.0, 0.4 * (cols - 45.0), 0.0)
+    top = np.stack([np.full(45, 18.5), np.arange(5.0, 50.0)], axis=1)
+    end = np.stack([np.arange(18.5, 21.6, 0.5), np.full(7, 49.8)], axis=1)
+    bottom = np.stack([np.full(45, 21.5), np.arange(49.0, 4.0, -1.0)], axis=1)
+    contour = np.concatenate([top, end, bottom, rng.uniform(0.0, 40.0, (30, 2))])
+    contour = contour[rng.permutation(len(contour))].astype(np.float32)
+    f = np.float32
+    for fixed in ((20.0, 5.0), (20.0, 80.0), (0.0, 0.0), (39.0, 50.0)):
+        fixed_r, fixed_c = f(fixed[0]), f(fixed[1])
+        dist = np.hypot(contour[:, 0] - fixed_r, contour[:, 1] - fixed_c).astype(np.float64)
+        for cap in (0.0, 1.5):
+            expected = np.zeros((100, 2), np.float32)
+            expected[: cols.size] = np.stack([rows, cols], axis=1)
+            got = expected.copy()
+            n_expected = K.extend_to_band_end(
+                expected, cols.size, contour, len(contour), image, 3.0, cap, 5.0, 9.0, 1.0
+            )
+            for fixed_dist in (dist, dist[:0]):
+                got[: cols.size] = np.stack([rows, cols], axis=1)
+                n_got = K.extend_to_band_end_near(
+                    got, cols.size, contour, len(contour), image, f(3.0), f(cap), f(5.0), f(9.0), f(1.0), fixed_dist,
+                    fixed_r, fixed_c,
+                )  # fmt: skip
+                assert n_got == n_expected
+                np.testing.assert_array_equal(got, expected)
+    # Nothing near the axis: unchanged, as the full search.
+    poly = np.zeros((100, 2), np.float32)
+    poly[: cols.size] = np.stack([rows, cols], axis=1)
+    far = contour[:1] + f(300.0)
+    dist = np.hypot(far[:, 0], far[:, 1]).astype(np.float64)
+    assert (
+        K.extend_to_band_end_near(poly, cols.size, far, 1, image, 3.0, 0.0, 5.0, 9.0, 1.0, dist, 0.0, 0.0) == cols.size
+    )
