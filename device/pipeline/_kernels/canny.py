@@ -120,49 +120,6 @@ def grow_spans_inplace(r_begin, r_end, cols_apart, width, spans_lo, spans_hi):
         cur_hi = nxt_hi
 
 
-@kernel(void(i4_1d_ro, i4_1d_ro, int64, int64, int64, i4_2d))
-def smoothing_spans(lo, hi, r_first, r_last, width, out_spans):
-    """Write what `detect_edges`' span growths leave for a 5-tap smoothing, when every non-empty span
-    ``lo[r] .. hi[r]`` lies inside ``[0, width)``, ``r_first .. r_last`` are the first and last rows holding one
-    and they keep 4 rows off the image border (``4 <= r_first``, ``r_last < height - 4``): into rows 2-3 of
-    `out_spans`, for the rows ``r_first - 2 .. r_last + 2``, the smoothing spans (the union of the spans of the 5
-    rows around, widened by 2 columns, clipped; ``(1, 0)`` when empty); into rows 0-1, for the rows
-    ``r_first - 4 .. r_last + 4``, the horizontal smoothing spans (the union of the smoothing spans 2 rows up and
-    down, i.e. of the spans of the 9 rows around, widened by 2). Bit-identical to `grow_spans_once` then three
-    `grow_spans_inplace` (for such spans the union of unions is the union of the window, and clipping commutes
-    with it), in two branch-free loops without wraparound tests: 2.7 against 7-8 us on the rig's bands."""
-    g0 = r_first - 2
-    g1 = r_last + 2
-    gau_lo = out_spans[2]
-    gau_hi = out_spans[3]
-    hor_lo = out_spans[0]
-    hor_hi = out_spans[1]
-    # No row outside r_first .. r_last holds a span (then hi < lo), so emptiness is the only test; the loops are
-    # branch-free with no state carried from row to row (LLVM vectorises them).
-    for r in range(g0, g1 + 1):
-        a = np.int64(_EMPTY_LO)
-        z = np.int64(-1)
-        for d in range(5):
-            q = np.uint64(r + d - 2)  # unsigned: no wraparound test on the loads
-            full = hi[q] >= lo[q]
-            a = min(a, np.int64(lo[q]) if full else np.int64(_EMPTY_LO))
-            z = max(z, np.int64(hi[q]) if full else np.int64(-1))
-        gau_lo[np.uint64(r)] = max(a - 2, 0) if z >= 0 else 1
-        gau_hi[np.uint64(r)] = min(z + 2, width - 1) if z >= 0 else 0
-    for r in range(g0 - 2, g1 + 3):  # the smoothing spans of rows r - 2 and r + 2 (those in g0 .. g1)
-        up = np.uint64(min(max(r - 2, g0), g1))
-        down = np.uint64(min(max(r + 2, g0), g1))
-        use_up = (up == r - 2) & (gau_hi[up] >= gau_lo[up])
-        use_down = (down == r + 2) & (gau_hi[down] >= gau_lo[down])
-        a = min(
-            np.int64(gau_lo[up]) if use_up else np.int64(_EMPTY_LO),
-            np.int64(gau_lo[down]) if use_down else np.int64(_EMPTY_LO),
-        )
-        z = max(np.int64(gau_hi[up]) if use_up else np.int64(-1), np.int64(gau_hi[down]) if use_down else np.int64(-1))
-        hor_lo[np.uint64(r)] = a if z >= 0 else 1
-        hor_hi[np.uint64(r)] = z if z >= 0 else 0
-
-
 @kernel(float32(u1_2d_ro, f4_1d_ro, int64, int64))
 def smooth_replicated(frame, weights, r, c):
     """Return the horizontal smoothing of `frame` at (r, c) with the image border replicated."""
@@ -768,12 +725,10 @@ def detect_edges(
         return INVALID
     r_first = height
     r_last = -1
-    clean = True  # every non-empty span inside the image (then `smoothing_spans` may grow them)
     for r in range(height):
         if min(hi[r], width - 1) >= max(lo[r], 0):
             r_first = min(r_first, r)
             r_last = r
-        clean &= (hi[r] < lo[r]) | ((lo[r] >= 0) & (hi[r] < width))
     if r_last < 0:
         return 0
     sob_lo = work_spans[0]
@@ -788,22 +743,17 @@ def detect_edges(
     sob_end = min(r_last + 1, height - 1)
     gau_begin = max(r_first - 2, 0)
     gau_end = min(r_last + 2, height - 1)
-    hor_begin = max(gau_begin - radius, 0)
-    hor_end = min(gau_end + radius, height - 1)
-    if radius == 2 and clean and r_first >= 4 and r_last < height - 4:  # off the image border
-        smoothing_spans(lo, hi, r_first, r_last, width, work_spans)
-    else:
-        grow_spans_once(lo, hi, r_first, r_last, width, gau_lo, gau_hi)
-        grow_spans_inplace(sob_begin, sob_end, 1, width, gau_lo, gau_hi)
-        begin = gau_begin
-        end = gau_end
-        for r in range(begin, end + 1):
-            sob_lo[r] = gau_lo[r]
-            sob_hi[r] = gau_hi[r]
-        for _ in range(radius):
-            grow_spans_inplace(begin, end, 0, width, sob_lo, sob_hi)
-            begin = max(begin - 1, 0)
-            end = min(end + 1, height - 1)
+    grow_spans_once(lo, hi, r_first, r_last, width, gau_lo, gau_hi)
+    grow_spans_inplace(sob_begin, sob_end, 1, width, gau_lo, gau_hi)
+    hor_begin = gau_begin
+    hor_end = gau_end
+    for r in range(hor_begin, hor_end + 1):
+        sob_lo[r] = gau_lo[r]
+        sob_hi[r] = gau_hi[r]
+    for _ in range(radius):
+        grow_spans_inplace(hor_begin, hor_end, 0, width, sob_lo, sob_hi)
+        hor_begin = max(hor_begin - 1, 0)
+        hor_end = min(hor_end + 1, height - 1)
     if not smooth_ring(frame, weights, sob_lo, sob_hi, gau_lo, gau_hi, gau_begin, gau_end, out_tmp, out_smooth):
         smooth_rows(frame, weights, sob_lo, sob_hi, hor_begin, hor_end, out_tmp)
         smooth_columns(out_tmp, weights, gau_lo, gau_hi, gau_begin, gau_end, out_smooth)

@@ -234,36 +234,6 @@ def test_grow_spans_once_and_in_place_match_reference(seed) -> None:
             assert (out_lo[r], out_hi[r]) == (want if want else (1, 0)), r
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2, 3])
-def test_smoothing_spans_match_the_growths(seed) -> None:
-    # The one-pass spans of a 5-tap smoothing against the reference unions (rows 2-3: 5 rows widened by 2, rows
-    # 0-1: 9 rows widened by 2) and against the growth passes they replace; rows outside their ranges untouched.
-    rng = np.random.default_rng(seed)
-    height, width = 40, 50
-    lo = rng.integers(0, 45, height).astype(np.int32)
-    hi = np.minimum(lo + rng.integers(-6, 12, height), width - 1).astype(np.int32)
-    lo[12:15], hi[12:15] = 5, 2  # a gap
-    lo[: 4 + seed], hi[: 4 + seed] = 1, 0  # 4 rows or more off the image border (the kernel's condition)
-    lo[-7 + seed :], hi[-7 + seed :] = 1, 0
-    rows = np.flatnonzero(hi >= lo)
-    first, last = int(rows[0]), int(rows[-1])
-    out = np.full((4, height), -7, np.int32)
-    K.smoothing_spans(lo, hi, first, last, width, out)
-    for rows_apart, (a, b), (r0, r1) in ((2, (2, 3), (first - 2, last + 2)), (4, (0, 1), (first - 4, last + 4))):
-        for r, want in enumerate(_union_reference(lo, hi, rows_apart, 2, width)):
-            got = (out[a, r], out[b, r])
-            assert got == ((want if want else (1, 0)) if r0 <= r <= r1 else (-7, -7)), r
-    ref = np.full((4, height), -7, np.int32)
-    K.grow_spans_once(lo, hi, first, last, width, ref[2], ref[3])
-    begin, end = max(first - 2, 0), min(last + 2, height - 1)
-    K.grow_spans_inplace(max(first - 1, 0), min(last + 1, height - 1), 1, width, ref[2], ref[3])
-    ref[0, begin : end + 1], ref[1, begin : end + 1] = ref[2, begin : end + 1], ref[3, begin : end + 1]
-    for _ in range(2):
-        K.grow_spans_inplace(begin, end, 0, width, ref[0], ref[1])
-        begin, end = max(begin - 1, 0), min(end + 1, height - 1)
-    np.testing.assert_array_equal(out, ref)
-
-
 def test_edges_are_zero_around_the_spans(blurred_frames) -> None:
     # keep_largest_closed relies on it: 0 on the Sobel spans outside the spans, whatever the map held before.
     image = blurred_frames[3].image
