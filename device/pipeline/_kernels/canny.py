@@ -465,8 +465,12 @@ def sobel_suppress(
     for r in range(sob_begin, sob_end + 1):
         if sob_hi[r] >= sob_lo[r]:
             c0 = np.int64(sob_lo[r])
-            c0 -= c0 % VEC
-            if c0 < 1 or padded_end(c0, np.int64(sob_hi[r]), width) > width - 2:
+            c1 = np.int64(sob_hi[r])
+            if (
+                c0 - c0 % VEC < 1
+                or padded_end(c0 - c0 % VEC, c1, width) > width - 2
+                or padded_end(c0, c1, width) > width - 2
+            ):
                 return -1
     size = height * width
     smo = smooth.reshape(size)
@@ -512,8 +516,12 @@ def sobel_suppress(
             c0 = s1 + 1  # no pixel to label: only the ring around the spans is cleared
             c1 = s1
         # Steps over the Sobel span (all inside the image): the spans' pixels labelled, the ring around them set
-        # to EDGE_NONE in the same store (no scalar loops of 1-3 columns whose exits mispredict).
-        p0 = s0 - s0 % VEC
+        # to EDGE_NONE in the same store (no scalar loops of 1-3 columns whose exits mispredict). The first step
+        # starts at the span's first column, not at the multiple of 8 before it as the Sobel steps do (0.4 steps
+        # fewer per row on the rig; `detect_edges` 3-4 % less on rig's bands, docs/pipeline-speed-edges7.md).
+        # The Sobel steps keep their start: the gradients they leave left of the Sobel spans are not valid there but
+        # are read downstream (without them `order_confidence` moved by 1e-7 on two frames of paper 15 ms).
+        p0 = s0
         p1 = padded_end(p0, s1, width)
         for step in range((p1 - p0 + 1) // LANES):
             offset = p0 + step * LANES
