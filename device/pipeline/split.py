@@ -123,6 +123,9 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
         self._plus, self._minus = np.int32(1), np.int32(-1)
         self._zero = np.int32(0)
         self._slope_low, self._slope_high = np.float32(0.5), np.float32(0.85)
+        self._spans: tuple[NDArray[np.int32], NDArray[np.int32]] = (np.zeros(0, np.int32), np.zeros(0, np.int32))
+        """The row spans (lo, hi) the planes of this `split` are valid in (`measure_widths` stays inside them)."""
+        self._whole: tuple[NDArray[np.int32], NDArray[np.int32]] | None = None
         self._bound: tuple[NDArray, ...] = ()
         """The arrays of the last `_prepare` (points, chain, gx, gy, mag): the same buffers every frame, so their
         read-only views are made once."""
@@ -237,6 +240,7 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
             )
         self._refresh = refresh
         self.failure = "contour found but no segmentation points"
+        self._spans = edge_stage.spans if edge_stage is not None else self._whole_spans(edges.shape)
         self._prepare(points, chain, n, width_px, gx, gy, edges, polarity, mag, fixed_rc)
         points_in, chain_in = points, chain
         points, chain, n = self._points, self._chain, self._n

@@ -17,6 +17,13 @@ __all__ = ["SplitMeasuring"]
 class SplitMeasuring:
     """The measuring methods of `BlurSplitter` (they read the contour, planes and buffers it stores)."""
 
+    def _whole_spans(self, shape: tuple[int, ...]) -> tuple[NDArray[np.int32], NDArray[np.int32]]:
+        """Row spans covering an image of `shape` (planes valid everywhere: a `split` without an edge stage)."""
+        whole = self._whole
+        if whole is None or whole[0].shape[0] != shape[0] or int(whole[1][0]) != shape[1] - 1:
+            whole = self._whole = (np.zeros(shape[0], np.int32), np.full(shape[0], shape[1] - 1, np.int32))
+        return whole
+
     def _measure_polarity_and_width(
         self,
         width_px: float | None,
@@ -35,8 +42,9 @@ class SplitMeasuring:
             medians = []
             for sign in (1.0, -1.0):
                 K.measure_widths(
-                    edges_ro, mag, self._gx, self._gy, self._chain, self._n, f32(sign), f32(64.0), self.dist
-                )
+                    edges_ro, *self._spans, mag, self._gx, self._gy, self._chain, self._n, f32(sign), f32(64.0),
+                    self.dist,
+                )  # fmt: skip
                 found = self.dist[: self._n][np.isfinite(self.dist[: self._n])]
                 medians.append(float(np.median(found)) if found.size > self._n // 4 else np.inf)
             pol = 1.0 if medians[0] <= medians[1] else -1.0
@@ -149,7 +157,9 @@ class SplitMeasuring:
         spacing is read where the rope moved least: first the lower quartile over the whole contour, then the
         median just beyond the fixed end's cap (within a tenth of the rope's extent).
         """
-        K.measure_widths(edges, mag, self._gx, self._gy, self._chain, self._n, self.polarity_used, f32(64.0), self.dist)
+        K.measure_widths(
+            edges, *self._spans, mag, self._gx, self._gy, self._chain, self._n, self.polarity_used, f32(64.0), self.dist
+        )
         widths = self.dist[: self._n]
         finite = np.isfinite(widths)
         valid = widths[finite]

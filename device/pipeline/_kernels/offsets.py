@@ -25,6 +25,7 @@ from ropecam.shared.jit import (
     f8_1d_ro,
     f8_2d_ro,
     i4_1d,
+    i4_1d_ro,
     i4_2d_ro,
     kernel,
     u1_2d_ro,
@@ -52,15 +53,18 @@ _DENSE_ENDS: Final = 1.2
 `split_shapes_local`; between them every other point (the output is resampled at 2 px)."""
 
 
-@kernel(int32(u1_2d_ro, f4_2d_ro, f4_2d_ro, f4_2d_ro, i4_2d_ro, int32, float32, float32, f4_1d))
-def measure_widths(edges, mag, gx, gy, chain, n, polarity, max_px, out_width):
+@kernel(int32(u1_2d_ro, i4_1d_ro, i4_1d_ro, f4_2d_ro, f4_2d_ro, f4_2d_ro, i4_2d_ro, int32, float32, float32, f4_1d))
+def measure_widths(edges, lo, hi, mag, gx, gy, chain, n, polarity, max_px, out_width):
     """Write for each contour pixel the distance to the opposite edge of the rope, found by stepping (0.5 px)
     from the pixel into the rope (along ``polarity`` times the gradient) until an edge pixel whose gradient points
     the other way; both ends are refined to subpixel (parabola of `mag` along the image axis nearest the
     gradient) and the distance is taken along the stepping direction. ``nan`` when no opposite edge lies within
-    `max_px`. Returns `n`."""
+    `max_px` or the step leaves the row spans `lo`/`hi` the edges were detected in (beyond them the planes hold
+    what earlier frames left). Returns `n`."""
     height = edges.shape[0]
     width = edges.shape[1]
+    if lo.shape[0] < height or hi.shape[0] < height:
+        return INVALID
     for i in range(n):
         r = chain[i, 0]
         c = chain[i, 1]
@@ -77,7 +81,7 @@ def measure_widths(edges, mag, gx, gy, chain, n, polarity, max_px, out_width):
             t = 0.5 * k
             rr = math.floor(r + t * u_r + 0.5)
             cc = math.floor(c + t * u_c + 0.5)
-            if rr < 0 or rr >= height or cc < 0 or cc >= width:
+            if rr < 0 or rr >= height or cc < lo[rr] or cc > hi[rr] or cc < 0 or cc >= width:
                 break
             if (rr != r or cc != c) and edges[rr, cc] != 0:
                 dot = (gy[rr, cc] * u_r + gx[rr, cc] * u_c) * polarity

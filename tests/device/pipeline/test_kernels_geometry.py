@@ -237,10 +237,18 @@ def test_widths_polarity_and_gradient_offset_on_a_straight_rope(bright) -> None:
     expected = 1.0 if bright else -1.0
     widths = np.zeros(n, np.float32)
     middle = (chain[:n, 0] > 10) & (chain[:n, 0] < height - 11)
-    K.measure_widths(edges, mag, gx, gy, chain[:n], n, np.float32(-expected), 30.0, widths)
+    K.measure_widths(edges, lo, hi, mag, gx, gy, chain[:n], n, np.float32(-expected), 30.0, widths)
     assert np.isnan(widths[middle]).all()  # looking away from the rope finds no opposite edge
-    K.measure_widths(edges, mag, gx, gy, chain[:n], n, np.float32(expected), 30.0, widths)
+    K.measure_widths(edges, lo, hi, mag, gx, gy, chain[:n], n, np.float32(expected), 30.0, widths)
     assert np.nanmedian(widths[middle]) == pytest.approx(width_px, abs=0.15)
+    # Spans ending between the two edges: the far edge lies where this frame detected nothing (its pixels would be
+    # an earlier frame's), so the walks from the near edge stop at the spans' end.
+    left = middle & (chain[:n, 1] < 22)
+    assert left.any()
+    K.measure_widths(edges, lo, np.full(height, 22, np.int32), mag, gx, gy, chain[:n], n, np.float32(expected), 30.0,
+                     widths)  # fmt: skip
+    assert np.isnan(widths[left]).all()
+    assert K.measure_widths(edges, lo[:-1], hi, mag, gx, gy, chain[:n], n, np.float32(expected), 30.0, widths) < 0
     out = np.zeros((n, 2), np.float32)
     count = K.offset_by_gradient(points, chain[:n], n, 0, n - 1, 1, gx, gy, np.float32(expected), 5.0, 0.0, out)
     assert count == n
