@@ -466,11 +466,7 @@ def sobel_suppress(
         if sob_hi[r] >= sob_lo[r]:
             c0 = np.int64(sob_lo[r])
             c1 = np.int64(sob_hi[r])
-            if (
-                c0 - c0 % VEC < 1
-                or padded_end(c0 - c0 % VEC, c1, width) > width - 2
-                or padded_end(c0, c1, width) > width - 2
-            ):
+            if c0 < 1 or padded_end(c0, c1, width) > width - 2:
                 return -1
     size = height * width
     smo = smooth.reshape(size)
@@ -496,7 +492,6 @@ def sobel_suppress(
             prefetch_write(oedge, np.uint64(last))
         if j <= sob_end and sob_hi[j] >= sob_lo[j]:  # Sobel of row j
             c0 = np.int64(sob_lo[j])
-            c0 -= c0 % VEC
             c1 = padded_end(c0, np.int64(sob_hi[j]), width)
             k0 = np.uint64(j * width + c0)
             km = k0 - np.uint64(width)
@@ -517,10 +512,9 @@ def sobel_suppress(
             c1 = s1
         # Steps over the Sobel span (all inside the image): the spans' pixels labelled, the ring around them set
         # to EDGE_NONE in the same store (no scalar loops of 1-3 columns whose exits mispredict). The first step
-        # starts at the span's first column, not at the multiple of 8 before it as the Sobel steps do (0.4 steps
-        # fewer per row on the rig; `detect_edges` 3-4 % less on rig's bands, docs/pipeline-speed-edges7.md).
-        # The Sobel steps keep their start: the gradients they leave left of the Sobel spans are not valid there but
-        # are read downstream (without them `order_confidence` moved by 1e-7 on two frames of paper 15 ms).
+        # starts at the span's first column, as the Sobel steps do, not at the multiple of 8 before it (0.4 steps
+        # fewer per row on the rig; docs/speed/edges7.md). Nothing reads the gradients outside the Sobel spans
+        # (`measure_widths` stops at the spans since edges7).
         p0 = s0
         p1 = padded_end(p0, s1, width)
         for step in range((p1 - p0 + 1) // LANES):
