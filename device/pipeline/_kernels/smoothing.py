@@ -13,17 +13,18 @@ from ropecam.shared.jit import f4_2d, f4_2d_ro, f8_1d, kernel
 
 _SUMS: Final = types.UniTuple(float64, 10)
 """The power sums of `_power_sums`: (U0, ..., U4) of the rows, then of the columns."""
+_NO_SUMS: Final = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
-@kernel(_SUMS(f4_2d_ro, int64, int64, float64, float64))
-def _power_sums(poly, i, half_count, org_r, org_c):
-    """Return ``U_e = sum(o**e * (P[i + o] - org))`` for e = 0..4 over o = -half_count..half_count, of the rows
-    and of the columns (a window's moments about its middle point, as sums over its points)."""
-    u0r = u1r = u2r = u3r = u4r = 0.0
-    u0c = u1c = u2c = u3c = u4c = 0.0
-    for o in range(-half_count, half_count + 1):
-        qr = float(poly[i + o, 0]) - org_r
-        qc = float(poly[i + o, 1]) - org_c
+@kernel(_SUMS(f4_2d_ro, int64, int64, int64, float64, float64, float64, _SUMS))
+def _power_sums(poly, i, o_first, o_last, sign, org_r, org_c, sums):
+    """Return `sums` + `sign` x ``U_e = sum(o**e * (P[i + o] - org))`` for e = 0..4 over o = `o_first`..`o_last`,
+    of the rows and of the columns (a window's moments about its middle point, as sums over its points; `sign`
+    -1.0 takes points out of the window, bit for bit as subtracting each term)."""
+    u0r, u1r, u2r, u3r, u4r, u0c, u1c, u2c, u3c, u4c = sums
+    for o in range(o_first, o_last + 1):
+        qr = sign * (float(poly[i + o, 0]) - org_r)
+        qc = sign * (float(poly[i + o, 1]) - org_c)
         f = float(o)
         f2 = f * f
         u0r += qr
@@ -197,38 +198,13 @@ def smooth_polyline(poly, n, half_width_px, work_arc_px, out_poly):
                     m4 += 2.0 * w * x * x * x * x
             if i - slide_i == 3 and half_count == slide_count and slides < _SLIDES:
                 # Drop the 3 points before the new window, add the 3 after the old one (offsets from the old
-                # middle), then move the offsets by 3: (o - 3)**e expanded. Written out: a call costs a third.
+                # middle), then move the offsets by 3: (o - 3)**e expanded. A third of the work of new sums.
                 slides += 1
-                for o in range(-half_count, -half_count + 3):
-                    qr = float(poly[slide_i + o, 0]) - org_r
-                    qc = float(poly[slide_i + o, 1]) - org_c
-                    f = float(o)
-                    f2 = f * f
-                    u0r -= qr
-                    u0c -= qc
-                    u1r -= f * qr
-                    u1c -= f * qc
-                    u2r -= f2 * qr
-                    u2c -= f2 * qc
-                    u3r -= f2 * f * qr
-                    u3c -= f2 * f * qc
-                    u4r -= f2 * f2 * qr
-                    u4c -= f2 * f2 * qc
-                for o in range(half_count + 1, half_count + 4):
-                    qr = float(poly[slide_i + o, 0]) - org_r
-                    qc = float(poly[slide_i + o, 1]) - org_c
-                    f = float(o)
-                    f2 = f * f
-                    u0r += qr
-                    u0c += qc
-                    u1r += f * qr
-                    u1c += f * qc
-                    u2r += f2 * qr
-                    u2c += f2 * qc
-                    u3r += f2 * f * qr
-                    u3c += f2 * f * qc
-                    u4r += f2 * f2 * qr
-                    u4c += f2 * f2 * qc
+                sums = (u0r, u1r, u2r, u3r, u4r, u0c, u1c, u2c, u3c, u4c)
+                sums = _power_sums(poly, slide_i, -half_count, -half_count + 2, -1.0, org_r, org_c, sums)
+                u0r, u1r, u2r, u3r, u4r, u0c, u1c, u2c, u3c, u4c = _power_sums(
+                    poly, slide_i, half_count + 1, half_count + 3, 1.0, org_r, org_c, sums
+                )
                 u4r = u4r - 12.0 * u3r + 54.0 * u2r - 108.0 * u1r + 81.0 * u0r
                 u4c = u4c - 12.0 * u3c + 54.0 * u2c - 108.0 * u1c + 81.0 * u0c
                 u3r = u3r - 9.0 * u2r + 27.0 * u1r - 27.0 * u0r
@@ -240,7 +216,9 @@ def smooth_polyline(poly, n, half_width_px, work_arc_px, out_poly):
             else:
                 slides = 0
                 slide_count = half_count
-                u0r, u1r, u2r, u3r, u4r, u0c, u1c, u2c, u3c, u4c = _power_sums(poly, i, half_count, org_r, org_c)
+                u0r, u1r, u2r, u3r, u4r, u0c, u1c, u2c, u3c, u4c = _power_sums(
+                    poly, i, -half_count, half_count, 1.0, org_r, org_c, _NO_SUMS
+                )
             slide_i = i
             # The fit at the even positions x = o step, w = 1 - a o**2: the offsets across the chord are linear in
             # the points, so sum(w x**k y) = normal . (sum(w x**k P) - M_k P_i) (M_1 = 0), from the power sums.
