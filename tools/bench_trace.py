@@ -2,9 +2,9 @@
 
 A pipeline runs over the frames once and records every edge-stage call (frame, row spans; as
 `bench_roi_kernels.py`). Each recorded band is then replayed through the stages as the pipeline calls them,
-`EdgeDetector.detect` followed at once by `Pipeline._trace` (`ContourTracer.trace`: component, chain, subpixel
-points, contacts), with the caches evicted before the detection (the pipeline runs ``cv2.Canny`` on the whole
-frame between frames in `bench_device.py`, and the split between a frame's trace and the next detection):
+`EdgeDetector.detect` followed at once by `ContourTracer.trace` (component, chain, subpixel points, contacts),
+with the caches evicted before the detection (the pipeline runs ``cv2.Canny`` on the whole frame between frames
+in `bench_device.py`, and the split between a frame's trace and the next detection):
 
     taskset -c 1 python tools/bench_trace.py [--frameset /work/eval/rig] [--frames 40] [--repeat 5] \\
         [--against REF] [--sizes] [--parts]
@@ -59,7 +59,8 @@ def replay(pipeline: Any, frame: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> 
     t0 = time.perf_counter_ns()
     pipeline.edges.detect(frame, lo, hi)
     t1 = time.perf_counter_ns()
-    n = pipeline._trace(lo, hi)
+    e = pipeline.edges
+    n = pipeline.tracer.trace(e.edges, lo, hi, e.mag, e.gx, e.gy, e.stack, e.count)
     t2 = time.perf_counter_ns()
     return (t1 - t0) / 1000, (t2 - t1) / 1000, n
 
