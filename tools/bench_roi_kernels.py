@@ -1,7 +1,7 @@
 """Micro-benchmark the kernels of the edge and contour stages on the real regions of interest of a frame set.
 
 A pipeline runs over the frames once and records, for every call of the edge stage, the frame and the row spans
-it got, and for every band built, the arguments of `spans_around_chain`. Each kernel is then re-run on exactly
+it got, and for every band built, the arguments of `band_stage`. Each kernel is then re-run on exactly
 those inputs (one thread) and its median time per call is printed, with the size of the spans (rows, pixels), so
 that a change to one pass can be measured on its own:
 
@@ -10,7 +10,7 @@ that a change to one pass can be measured on its own:
 
 Kernels timed: ``detect_edges`` (the whole edge stage), ``keep_largest_listed``, ``trace_contour``,
 ``refine_subpixel``, ``count_roi_contacts``, ``trace_closed``, ``trace_rope`` (what `ContourTracer.trace` calls:
-all of them in one kernel) and ``spans_around_chain``; "contour stage" is the sum of the first three. With
+all of them in one kernel) and ``band_stage`` (the band); "contour stage" is the sum of the first three. With
 ``--passes``, each pass of `detect_edges` is also timed on its own (the same kernel calls in the same order, from
 Python: each includes its ~1 us dispatch; with ``--cold`` the caches are evicted once before the first pass, as in
 the pipeline, where the passes warm each other's data).
@@ -37,13 +37,14 @@ from ropecam.device.pipeline.pipeline import Pipeline
 
 def record(frames: list[tuple[np.ndarray, int, float]], config: PipelineConfig) -> tuple[list[Any], list[Any]]:
     """Run a pipeline over `frames`; return the (frame, lo, hi) of each edge-stage call after the first three
-    frames and the argument tuples of each `spans_around_chain` call."""
+    frames and the argument tuples of each `band_stage` call (the band: its measured error, the prediction and
+    `spans_around_chain`)."""
     height, width = frames[0][0].shape
     pipeline = Pipeline(config, (width, height))
     calls: list[Any] = []
     bands: list[Any] = []
     detect = pipeline.tracer.detect_and_trace  # the edge and contour stages in one call
-    spans = K.spans_around_chain
+    band = K.band_stage
     recording = [False]
 
     def recorded_detect(detector: Any, frame: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> int:
@@ -51,20 +52,20 @@ def record(frames: list[tuple[np.ndarray, int, float]], config: PipelineConfig) 
             calls.append((frame, lo.copy(), hi.copy()))
         return detect(detector, frame, lo, hi)
 
-    def recorded_spans(*args: Any) -> Any:
+    def recorded_band(*args: Any) -> Any:
         if recording[0]:
             copied = tuple(a.copy() if isinstance(a, np.ndarray) else a for a in args)
-            bands.append(tuple(ro(a) if k in (0, 4) else a for k, a in enumerate(copied)))
-        return spans(*args)
+            bands.append(tuple(ro(a) if k == 0 else a for k, a in enumerate(copied)))  # the contour: read-only
+        return band(*args)
 
     pipeline.tracer.detect_and_trace = recorded_detect  # type: ignore[method-assign]
-    K.spans_around_chain = recorded_spans
+    K.band_stage = recorded_band
     try:
         for index, (image, t_ns, exposure_us) in enumerate(frames):
             recording[0] = index >= 3
             pipeline.process(image, index, t_ns, exposure_us)
     finally:
-        K.spans_around_chain = spans
+        K.band_stage = band
     return calls, bands
 
 
@@ -262,7 +263,8 @@ def main(argv: list[str] | None = None) -> int:
     results["roi contacts (count_roi_contacts)"] = float(np.median(contacts))
     results["trace without span tests (trace_closed)"] = float(np.median(closed))
     results["all of them (trace_rope)"] = float(np.median(fused))
-    results["band (spans_around_chain)"] = median_us(lambda a: K.spans_around_chain(*a), bands, args.repeat, args.cold)
+    # Each replay updates its copies of the measured error's state as the pipeline's call did (the same work).
+    results["band (band_stage)"] = median_us(lambda a: K.band_stage(*a), bands, args.repeat, args.cold)
     print(
         f"{len(calls)} edge-stage calls on {width}x{height}: rows median {np.median(rows):.0f}, "
         f"pixels median {np.median(pixels):.0f}; {len(bands)} bands built"

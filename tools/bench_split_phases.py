@@ -296,6 +296,13 @@ def main(argv: list[str] | None = None) -> int:
         K.split_frame = kernel
     rate = _cycles_per_us()
     full = [k for k, row in enumerate(cold) if row[len(PHASES)] > 0]
+    if not full:
+        print(
+            f"{args.frameset}: no split_frame call made both shapes in {len(frames)} frames ({len(cold)} calls): the "
+            "steady split starts once the contrast is known (about frame 10); give more --frames",
+            file=sys.stderr,
+        )
+        return 2
     c = np.diff(np.array([cold[k] for k in full]), axis=1) / rate
     w = np.diff(np.array([warm[k] for k in full]), axis=1) / rate
     print(f"{args.frameset}: {len(cold)} split_frame calls, {len(full)} with both shapes, copy mismatches "
