@@ -113,7 +113,7 @@ def unpacked(args: tuple) -> tuple:
     return (points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, curves[0], curves[1], np.int32(p[0]), gx, gy,
             polarity, f4(p[1]), table, smooth, f4(p[2]), f4(p[3]), f4(p[4]), f4(p[5]), f4(p[6]), p[7], p[8], f4(p[9]),
             f4(p[10]), fixed_r, fixed_c, lines[0], lines[1], lines[2], sides[0], sides[1], sides[2], sides[3],
-            work_arc, info, work_arc[:0])  # fmt: skip
+            work_arc, info, work_arc[:0], np.zeros(0, np.int32))  # fmt: skip
 
 
 def local_steps(args: tuple, times: dict[str, float]) -> int:
@@ -122,7 +122,7 @@ def local_steps(args: tuple, times: dict[str, float]) -> int:
     (points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, ratios, sweeps, half, gx, gy, polarity, step_px,
      table, smooth, width_px, cap_px, skip_px, span_px, blur_px, _slant, _check, out_step_px, smoothing_px,
      fixed_r, fixed_c, work, sweeps_a, sweeps_b, side_a, side_b, out_a, out_b, work_arc, _info,
-     _dist) = args  # fmt: skip
+     _dist, _index) = args  # fmt: skip
     plus, minus = np.int32(1), np.int32(-1)
     clock = time.perf_counter_ns
 

@@ -41,6 +41,7 @@ from ropecam.device.pipeline._kernels.offsets import (
     dense_end_points,
     offset_by_table_thinned,
     side_sweeps,
+    side_sweeps_indexed,
     slope_sweep_median,
 )
 from ropecam.device.pipeline._kernels.polylines import (
@@ -89,7 +90,7 @@ def _rdtsc(typingctx: Any) -> Any:
 @njit(nogil=True, error_model="numpy")
 def _phases(
     points, chain, mag, gx, gy, frame, weights, spans_lo, spans_hi, box_lo, box_hi, tmp, smooth, params, state,
-    curves, table, lines, sides, scratch, turn, idx, out_seg, out_info, stamps,
+    curves, table, sweep_index, lines, sides, scratch, turn, idx, out_seg, out_info, stamps,
 ):  # fmt: skip
     """`split_frame` with `stamps[k]` taken before phase k (0 where a phase did not run); same returns."""
     stamps[:] = 0
@@ -162,8 +163,14 @@ def _phases(
     side_a, side_b, out_a, out_b = sides[0], sides[1], sides[2], sides[3]
     plus = np.int32(1)
     minus = np.int32(-1)
-    side_sweeps(chain, n, i_fix, seg_a, plus, mag, inv_contrast, curves[0], curves[1], half, lines[0], lines[1])
-    side_sweeps(chain, n, i_fix, seg_b, minus, mag, inv_contrast, curves[0], curves[1], half, lines[0], lines[2])
+    if sweep_index.shape[0] >= 2:
+        side_sweeps_indexed(chain, n, i_fix, seg_a, plus, mag, inv_contrast, curves[0], curves[1], sweep_index, half,
+                            lines[0], lines[1])  # fmt: skip
+        side_sweeps_indexed(chain, n, i_fix, seg_b, minus, mag, inv_contrast, curves[0], curves[1], sweep_index, half,
+                            lines[0], lines[2])  # fmt: skip
+    else:
+        side_sweeps(chain, n, i_fix, seg_a, plus, mag, inv_contrast, curves[0], curves[1], half, lines[0], lines[1])
+        side_sweeps(chain, n, i_fix, seg_b, minus, mag, inv_contrast, curves[0], curves[1], half, lines[0], lines[2])
     stamps[4] = _rdtsc()
     keep = dense_end_points(skip_px, span_px)
     na = offset_by_table_thinned(
@@ -270,14 +277,14 @@ def main(argv: list[str] | None = None) -> int:
         cold.append(stamps.copy())
         _phases(*call, stamps)
         warm.append(stamps.copy())
-        info, sides = call[-1].copy(), call[18].copy()
+        info, sides = call[-1].copy(), call[19].copy()
         t0 = time.perf_counter_ns()
         result = kernel(*call)
         t1 = time.perf_counter_ns()
         kernel(*call)
         whole.append(((t1 - t0) / 1000, (time.perf_counter_ns() - t1) / 1000))
         mismatches[0] += 1
-        if result != status or not np.array_equal(info, call[-1]) or not np.array_equal(sides, call[18]):
+        if result != status or not np.array_equal(info, call[-1]) or not np.array_equal(sides, call[19]):
             mismatches[1] += 1
         return result
 

@@ -524,7 +524,8 @@ class _WidthConstants:
 
     __slots__ = (
         "blur", "cap", "corner", "curves", "frame_params", "keep", "min_gap", "params", "ratios_ro", "scale",
-        "search_px", "skip", "span", "sweep_window", "sweeps_ro", "table_ro", "table_step", "tables", "width",
+        "search_px", "skip", "span", "sweep_index", "sweep_window", "sweeps_ro", "table_ro", "table_step", "tables",
+        "width",
     )  # fmt: skip
 
     def __init__(self, splitter: BlurSplitter, width: float) -> None:
@@ -562,3 +563,47 @@ class _WidthConstants:
         assert len(frame_params) == K.FRAME_PARAMS
         self.frame_params = ro(np.array([float(v) for v in frame_params], np.float64))
         self.curves = ro(np.stack([self.ratios_ro, self.sweeps_ro]).astype(np.float64))
+        self.sweep_index = ro(sweep_index(self.curves[0]))
+
+
+_MAX_BUCKETS = 1 << 13
+"""The largest `sweep_index` (64 KB): past it the table's close ratios are walked (`side_sweeps`)."""
+
+
+def sweep_index(ratios: NDArray[np.float64]) -> NDArray[np.int32]:
+    """Index the sweep table's `ratios` (non-decreasing) for `side_sweeps_indexed`.
+
+    The range of `ratios` is cut into ``nb`` equal buckets (the fewest power of two, 64 or more, for which no
+    bucket holds two distinct ratios), a value's bucket computed as the kernel computes it, ``int(clip((x -
+    ratios[0]) * scale, 0, nb - 1))`` with ``scale = nb / (ratios[-1] - ratios[0])`` (the same float64
+    operations, so the same buckets). For bucket b, ``index[2 b]`` is the number of ratios in lower buckets less
+    one (at least 0), ``index[2 b + 1]`` the index of the last ratio in it or below (at most ``len(ratios) - 2``).
+
+    Parameters
+    ----------
+    ratios
+        (m,) float64: the edge model's ratios (`EdgeTables.peak_ratio`).
+
+    Returns
+    -------
+    NDArray[np.int32]
+        (2 nb,) the index, or (0,) when none fits `_MAX_BUCKETS` (fewer than two ratios, a flat or non-finite
+        table, ratios too close): the kernels then walk the table.
+    """
+    r = np.ascontiguousarray(ratios, np.float64)
+    m = r.shape[0]
+    if m < 2 or not np.all(np.isfinite(r)) or not r[m - 1] > r[0] or np.any(np.diff(r) < 0.0):
+        return np.zeros(0, np.int32)
+    buckets = 64
+    while buckets <= _MAX_BUCKETS:
+        scale = buckets / (r[m - 1] - r[0])
+        where = (r - r[0]) * scale
+        keys = np.where(where < buckets - 1.0, np.where(where > 0.0, where, 0.0), buckets - 1.0).astype(np.int64)
+        if not np.any((keys[1:] == keys[:-1]) & (r[1:] != r[:-1])):
+            grid = np.arange(buckets)
+            index = np.empty(2 * buckets, np.int32)
+            index[0::2] = np.maximum(np.searchsorted(keys, grid, side="left") - 1, 0)
+            index[1::2] = np.minimum(np.searchsorted(keys, grid, side="right") - 1, m - 2)
+            return index
+        buckets *= 2
+    return np.zeros(0, np.int32)

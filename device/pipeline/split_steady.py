@@ -46,8 +46,8 @@ class SplitSteady:
                 consts, edge_stage, self._bound, self._points, self._chain, self._mag_ro, self._gx, self._gy,
                 frame, edge_stage.weights_ro, edge_stage.spans[0], edge_stage.spans[1],
                 edge_stage._box_lo, edge_stage._box_hi, edge_stage.tmp, edge_stage.smooth, consts.frame_params,
-                state, consts.curves, consts.table_ro, self.lines, self.sides, self.scratch, self.turn, self.idx,
-                self.seg, self.info,
+                state, consts.curves, consts.table_ro, consts.sweep_index, self.lines, self.sides, self.scratch,
+                self.turn, self.idx, self.seg, self.info,
             ]  # fmt: skip
         return self._run_frame(edge_stage, frame, fixed_rc, self._count)
 

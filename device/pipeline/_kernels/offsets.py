@@ -265,6 +265,74 @@ def side_sweeps(chain, n, i_start, i_stop, direction, mag, inv_contrast, ratios,
 
 
 @kernel(
+    int32(i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f8_1d_ro, f8_1d_ro, i4_1d_ro, int32, f4_1d, f4_1d)
+)  # fmt: skip
+def side_sweeps_indexed(
+    chain, n, i_start, i_stop, direction, mag, inv_contrast, ratios, sweeps, index, half, work, out_sweeps
+):  # fmt: skip
+    """`side_sweeps` with the table's interval found by an `index` of `ratios` (``2 nb`` values, made once per
+    table by `BlurSplitter`'s per-width constants, see `split.py`'s `_sweep_index`): the same values bit for bit.
+
+    A point's ratio x falls in bucket ``b = int(clip((x - ratios[0]) * scale, 0, nb - 1))``, ``scale = nb /
+    (ratios[-1] - ratios[0])``; ``index[2 b]`` is the last ratio below the bucket's (the count of ratios in
+    lower buckets, less one), ``index[2 b + 1]`` the last ratio in it, and a bucket holds one distinct ratio value
+    at most: the interval is one of the two, chosen by one compare. The rounded bucket is a non-decreasing
+    function of x, the index was made with the same operations, so no interval is missed. The clamps at the
+    table's ends are selects on the interpolated value (computed anyway): neighbouring points alternate between
+    the clamp and the interior, a walk from the last interval mispredicted its branches. `ratios` needs two
+    values or more, its last above its first. Returns the number of points or FULL.
+    """
+    count = ((i_stop - i_start) * direction % n + n) % n + 1
+    if count > out_sweeps.shape[0] or count > work.shape[0]:
+        return FULL
+    m = ratios.shape[0]
+    buckets = index.shape[0] // 2
+    r_first = ratios[0]
+    r_last = ratios[m - 1]
+    s_first = sweeps[0]
+    s_last = sweeps[m - 1]
+    scale = buckets / (r_last - r_first)
+    top = buckets - 1.0
+    i = (i_start + 4 * n) % n
+    flat_mag = mag.reshape(mag.size)
+    cols = mag.shape[1]
+    ahead = (i_start + _AHEAD * direction + 4 * n) % n
+    for k in range(count):
+        if k + _AHEAD < count:  # as in `side_sweeps`
+            prefetch_read(flat_mag, chain[ahead, 0] * cols + chain[ahead, 1])
+            ahead += direction
+            if ahead == n:
+                ahead = 0
+            elif ahead < 0:
+                ahead = n - 1
+        x = mag[chain[i, 0], chain[i, 1]] * inv_contrast
+        where = (x - r_first) * scale
+        where = where if where > 0.0 else 0.0  # (a nan x: bucket 0)
+        b = np.int64(where if where < top else top)
+        lo = index[2 * b]
+        last = index[2 * b + 1]
+        lo = last if ratios[last] <= x else lo
+        span = ratios[lo + 1] - ratios[lo]  # > 0 inside the table; the clamped values are dropped below
+        t = (x - ratios[lo]) / span if span > 0.0 else 0.0
+        value = sweeps[lo] + t * (sweeps[lo + 1] - sweeps[lo])
+        value = s_last if x >= r_last else value
+        work[k] = np.float32(s_first if x <= r_first else value)
+        i += direction
+        if i == n:
+            i = 0
+        elif i < 0:
+            i = n - 1
+    acc = 0.0
+    for j in range(-half, half + 1):
+        acc += work[min(max(j, 0), count - 1)]
+    width = 2 * half + 1
+    for k in range(count):
+        out_sweeps[k] = acc / width
+        acc += work[min(k + half + 1, count - 1)] - work[max(k - half, 0)]
+    return count
+
+
+@kernel(
     int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, f4_2d_ro, float32, f4_1d_ro, int32, float32,
           float32, f4_1d_ro, f4_2d)
 )  # fmt: skip
@@ -386,13 +454,13 @@ def offset_by_table_thinned(
     int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f8_1d_ro, f8_1d_ro, int32, f4_2d_ro,
           f4_2d_ro, float32, float32, f4_1d_ro, f4_2d_ro, float32, float32, float32, float32, float32, float64,
           float64, float32, float32, float32, float32, f4_1d, f4_1d, f4_1d, f4_2d, f4_2d, f4_2d, f4_2d, f8_1d,
-          f8_1d, f8_1d_ro)
+          f8_1d, f8_1d_ro, i4_1d_ro)
 )  # fmt: skip
 def split_shapes_local(
     points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, ratios, sweeps, half, gx, gy, polarity, step_px, table,
     smooth, width_px, cap_px, skip_px, span_px, blur_px, slant_gain_px, width_check_px, out_step_px, smoothing_px,
     fixed_r, fixed_c, work, out_sweeps_a, out_sweeps_b, out_side_a, out_side_b, out_a, out_b, work_arc, out_info,
-    fixed_dist,
+    fixed_dist, sweep_index,
 ):  # fmt: skip
     """The blur split's shapes from its segmentation points, with local sweeps, in one call (the stage's
     sequence of kernels, without a Python step between them): per side (A forward from `i_fix` to `seg_a`, B
@@ -404,7 +472,8 @@ def split_shapes_local(
     when `smoothing_px` > 0 and the shape has 3 points or more. `fixed_dist` holds the distances of the `points`
     from (`fixed_r`, `fixed_c`) (`find_segmentation_points`' `out_dist`) for the tip fit's search
     (`extend_to_band_end_near`: the same results with fewer points checked), or is shorter than `n` (every
-    point checked).
+    point checked). `sweep_index` is the `ratios`' index for `side_sweeps_indexed` (the same sweeps, found
+    faster), or empty (`side_sweeps`).
 
     Writes ``out_info = [count_a, count_b, length_a, length_b, smoothed_a, smoothed_b]`` (a smoothed shape is in
     ``out_side_*[:count]``, else in ``out_*[:count]``). Returns 2, NOT_FOUND when the lengths differ (the lengths
@@ -414,10 +483,19 @@ def split_shapes_local(
         return INVALID
     plus = np.int32(1)
     minus = np.int32(-1)
-    if side_sweeps(chain, n, i_fix, seg_a, plus, mag, inv_contrast, ratios, sweeps, half, work, out_sweeps_a) < 0:
-        return FULL
-    if side_sweeps(chain, n, i_fix, seg_b, minus, mag, inv_contrast, ratios, sweeps, half, work, out_sweeps_b) < 0:
-        return FULL
+    if sweep_index.shape[0] >= 2:
+        if (
+            side_sweeps_indexed(chain, n, i_fix, seg_a, plus, mag, inv_contrast, ratios, sweeps, sweep_index, half,
+                                work, out_sweeps_a) < 0
+            or side_sweeps_indexed(chain, n, i_fix, seg_b, minus, mag, inv_contrast, ratios, sweeps, sweep_index,
+                                   half, work, out_sweeps_b) < 0
+        ):  # fmt: skip
+            return FULL
+    else:
+        if side_sweeps(chain, n, i_fix, seg_a, plus, mag, inv_contrast, ratios, sweeps, half, work, out_sweeps_a) < 0:
+            return FULL
+        if side_sweeps(chain, n, i_fix, seg_b, minus, mag, inv_contrast, ratios, sweeps, half, work, out_sweeps_b) < 0:
+            return FULL
     keep = dense_end_points(skip_px, span_px)
     na = offset_by_table_thinned(points, chain, n, i_fix, seg_a, plus, gx, gy, polarity, out_sweeps_a, step_px,
                                  table, keep, keep, out_side_a)  # fmt: skip
@@ -484,14 +562,15 @@ def split_shapes_local(
 
 @kernel(
     int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f4_2d_ro, f4_2d_ro, float32, f4_2d_ro,
-          float32, float32, f8_1d_ro, f8_2d_ro, f4_1d_ro, f4_2d, f4_3d, f8_1d, f8_1d, f8_1d_ro)
+          float32, float32, f8_1d_ro, f8_2d_ro, f4_1d_ro, f4_2d, f4_3d, f8_1d, f8_1d, f8_1d_ro, i4_1d_ro)
 )  # fmt: skip
 def split_shapes_packed_near(
     points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, gx, gy, polarity, smooth, fixed_r, fixed_c, params,
-    curves, table, lines, sides, work_arc, out_info, fixed_dist,
+    curves, table, lines, sides, work_arc, out_info, fixed_dist, sweep_index,
 ):  # fmt: skip
-    """`split_shapes_packed` with the points' distances from the fixed end (`split_shapes_local`'s `fixed_dist`):
-    the same results, the tip fit's search over fewer points."""
+    """`split_shapes_packed` with the points' distances from the fixed end (`split_shapes_local`'s `fixed_dist`)
+    and the ratios' index (its `sweep_index`): the same results, the tip fit's search over fewer points and the
+    sweep table's intervals found without a walk."""
     if params.shape[0] < SPLIT_PARAMS or curves.shape[0] < 2 or lines.shape[0] < 3 or sides.shape[0] < 4:
         return INVALID
     return split_shapes_local(
@@ -499,7 +578,7 @@ def split_shapes_packed_near(
         polarity, np.float32(params[1]), table, smooth, np.float32(params[2]), np.float32(params[3]),
         np.float32(params[4]), np.float32(params[5]), np.float32(params[6]), params[7], params[8],
         np.float32(params[9]), np.float32(params[10]), fixed_r, fixed_c, lines[0], lines[1], lines[2], sides[0],
-        sides[1], sides[2], sides[3], work_arc, out_info, fixed_dist,
+        sides[1], sides[2], sides[3], work_arc, out_info, fixed_dist, sweep_index,
     )  # fmt: skip
 
 
@@ -514,11 +593,12 @@ def split_shapes_packed(
     """`split_shapes_local` with its arguments bound in fewer arrays (a dispatch costs ~0.1 us per argument): the
     width's scalars in `params` (`SPLIT_PARAMS` values, converted back to the types `split_shapes_local` takes),
     ``curves = [ratios, sweeps]``, ``lines = [work, out_sweeps_a, out_sweeps_b]`` and ``sides = [out_side_a,
-    out_side_b, out_a, out_b]``; every contour point is checked by the tip fit (no `fixed_dist`). Same results
+    out_side_b, out_a, out_b]``; every contour point is checked by the tip fit (no `fixed_dist`), the sweep table
+    walked (no `sweep_index`). Same results
     and returns; INVALID when an array is too small to hold them."""
     return split_shapes_packed_near(
         points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, gx, gy, polarity, smooth, fixed_r, fixed_c, params,
-        curves, table, lines, sides, work_arc, out_info, work_arc[:0],
+        curves, table, lines, sides, work_arc, out_info, work_arc[:0], chain.reshape(chain.size)[:0],
     )  # fmt: skip
 
 

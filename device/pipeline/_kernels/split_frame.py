@@ -52,7 +52,7 @@ def _signature(frame_type: Any) -> Any:
     """`split_frame`'s signature with the frame of `frame_type`."""
     return int32(
         f4_2d_ro, i4_2d_ro, f4_2d_ro, f4_2d_ro, f4_2d_ro, frame_type, f4_1d_ro, i4_1d_ro, i4_1d_ro, i4_1d, i4_1d,
-        f4_2d, f4_2d, f8_1d_ro, f8_1d_ro, f8_2d_ro, f4_1d_ro, f4_2d, f4_3d, f8_2d, f4_1d, i4_1d, f4_2d, f8_1d,
+        f4_2d, f4_2d, f8_1d_ro, f8_1d_ro, f8_2d_ro, f4_1d_ro, i4_1d_ro, f4_2d, f4_3d, f8_2d, f4_1d, i4_1d, f4_2d, f8_1d,
     )  # fmt: skip
 
 
@@ -61,7 +61,7 @@ def _signature(frame_type: Any) -> Any:
 @kernel([_signature(u1_2d_ro), _signature(u1_2d)])
 def split_frame(
     points, chain, mag, gx, gy, frame, weights, spans_lo, spans_hi, box_lo, box_hi, tmp, smooth, params, state,
-    curves, table, lines, sides, scratch, turn, idx, out_seg, out_info,
+    curves, table, sweep_index, lines, sides, scratch, turn, idx, out_seg, out_info,
 ):  # fmt: skip
     """The steady-state blur split of one closed contour (``n = state[5]`` subpixel `points`, chain pixels
     `chain`), as the
@@ -78,7 +78,8 @@ def split_frame(
     4. below ``static_ratio`` widths SPLIT_STATIC, else `split_shapes_packed` with ``1 / contrast`` (as
        `split_shapes_packed_near`: the tip fit's search takes the distances of step 1).
 
-    `params` holds `FRAME_PARAMS` values, `curves` the edge model's ``[ratios, sweeps]``, `table` its offsets;
+    `params` holds `FRAME_PARAMS` values, `curves` the edge model's ``[ratios, sweeps]``, `table` its offsets,
+    `sweep_index` the ratios' index (`split_shapes_local`'s: the same sweeps, found faster; or empty);
     `lines`, `sides`, ``scratch[0]`` are `split_shapes_packed`'s buffers. Writes the corners to `out_seg` (2, 2)
     and ``out_info`` (`FRAME_INFO`): `split_shapes_packed`'s values and the sweep. Returns
     `split_shapes_packed`'s value (2, NOT_FOUND when the lengths differ, FULL, INVALID), SPLIT_STATIC, or
@@ -152,5 +153,5 @@ def split_frame(
     # The tip fit's search takes the distances from the fixed end that step 1 left in ``scratch[1]``.
     return split_shapes_packed_near(
         points, chain, n, i_fix, seg_a, seg_b, mag, np.float32(1.0 / contrast), gx, gy, np.float32(state[2]), smooth,
-        fixed_r, fixed_c, params, curves, table, lines, sides, scratch[0], out_info, scratch[1],
+        fixed_r, fixed_c, params, curves, table, lines, sides, scratch[0], out_info, scratch[1], sweep_index,
     )  # fmt: skip

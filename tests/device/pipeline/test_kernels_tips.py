@@ -11,6 +11,7 @@ from scipy.special import erf
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline.edge_model import BandEdgeModel
 from ropecam.device.pipeline.edges import gaussian_weights
+from ropecam.device.pipeline.split import sweep_index
 
 pytestmark = pytest.mark.kernel
 
@@ -41,6 +42,65 @@ def test_side_sweeps_matches_reference(start, stop, direction) -> None:
     np.testing.assert_allclose(out[:count], np.convolve(padded, np.ones(5) / 5, mode="valid"), atol=1e-4)
     assert K.side_sweeps(chain, n, 0, n - 1, 1, mag, np.float32(0.01), ratios, sweeps, 2, np.zeros(n, np.float32),
                          np.zeros(5, np.float32)) == K.FULL  # fmt: skip
+
+
+def _walked_sweep(ratios, sweeps, x) -> np.float32:
+    """`side_sweeps`' raw sweep at ratio `x`, the slow obvious way: the last interval whose start is <= x."""
+    m = len(ratios)
+    if x <= ratios[0]:
+        return np.float32(sweeps[0])
+    if x >= ratios[m - 1]:
+        return np.float32(sweeps[m - 1])
+    lo = max(j for j in range(m - 1) if ratios[j] <= x)
+    span = ratios[lo + 1] - ratios[lo]
+    return np.float32(sweeps[lo] + (x - ratios[lo]) / span * (sweeps[lo + 1] - sweeps[lo]))
+
+
+@pytest.mark.parametrize("kind", ["model", "repeats", "close"])
+def test_side_sweeps_indexed_equals_the_walk_bit_for_bit(kind) -> None:
+    rng = np.random.default_rng(4)
+    if kind == "model":  # the pipeline's table (ratios repeated near its top end)
+        tables = BandEdgeModel(gaussian_weights(1.0), 0.6).tables(6.0)
+        ratios, sweeps = tables.peak_ratio.copy(), tables.sweeps_px.copy()
+    else:  # float32 values (hit exactly below), repeated ratios, some ratios closer than the others
+        ratios = np.sort(rng.uniform(0.2, 2.0, 60).astype(np.float32)).astype(np.float64)
+        ratios[10:13] = ratios[10]
+        ratios[-3:] = ratios[-3]
+        if kind == "close":
+            ratios[30:33] = ratios[30] + np.array([0.0, 3e-4, 7e-4])
+        sweeps = rng.uniform(0.0, 16.0, 60)
+    index = sweep_index(ratios)
+    assert index.shape[0] >= 128
+    values = [
+        *ratios.astype(np.float32), *np.nextafter(ratios.astype(np.float32), np.float32(0)),
+        *np.nextafter(ratios.astype(np.float32), np.float32(9)), *rng.uniform(-0.5, 2.5, 400).astype(np.float32),
+        0.0, ratios[0] - 1, ratios[-1] + 1,
+    ]  # fmt: skip
+    n = len(values)
+    mag = np.array(values, np.float32).reshape(1, n)
+    chain = np.stack([np.zeros(n), np.arange(n)], axis=1).astype(np.int32)
+    expected = np.array([_walked_sweep(ratios, sweeps, np.float32(x)) for x in values], np.float32)
+    for start, stop, direction in ((0, n - 1, 1), (n - 1, 0, -1), (7, 3, 1)):
+        args = (chain, n, start, stop, direction, mag, np.float32(1.0), ratios, sweeps)
+        for half in (0, 3):
+            raw_walk, out_walk = np.zeros(n, np.float32), np.zeros(n, np.float32)
+            raw_index, out_index = np.zeros(n, np.float32), np.zeros(n, np.float32)
+            count = K.side_sweeps(*args, half, raw_walk, out_walk)
+            assert K.side_sweeps_indexed(*args, index, half, raw_index, out_index) == count
+            assert out_index.tobytes() == out_walk.tobytes()
+            # `work` keeps the raw sweeps (before the running average, whose sums round)
+            order = [(start + k * direction) % n for k in range(count)]
+            assert raw_index[:count].tobytes() == expected[order].tobytes()
+    assert K.side_sweeps_indexed(chain, n, 0, n - 1, 1, mag, np.float32(1.0), ratios, sweeps, index, 2,
+                                 np.zeros(n, np.float32), np.zeros(5, np.float32)) == K.FULL  # fmt: skip
+
+
+def test_sweep_index_refuses_tables_it_cannot_index() -> None:
+    assert sweep_index(np.array([1.0])).shape == (0,)
+    assert sweep_index(np.array([1.0, 1.0, 1.0])).shape == (0,)
+    assert sweep_index(np.array([1.0, 0.5, 2.0])).shape == (0,)
+    assert sweep_index(np.array([0.0, 1e-9, 1.0])).shape == (0,)  # would need 2**30 buckets
+    assert sweep_index(np.array([0.0, np.nan, 1.0])).shape == (0,)
 
 
 @pytest.mark.parametrize("local", [0, 1])

@@ -103,7 +103,7 @@ def test_split_frame_takes_read_only_frames(monkeypatch) -> None:
 def test_split_frame_refuses_short_arrays(monkeypatch) -> None:
     _shapes(monkeypatch, "frame")
     recorded = _LAST_ARGS[0]
-    for index, size in ((13, K.FRAME_PARAMS - 1), (14, K.FRAME_STATE - 1), (23, K.FRAME_INFO - 1)):
+    for index, size in ((13, K.FRAME_PARAMS - 1), (14, K.FRAME_STATE - 1), (24, K.FRAME_INFO - 1)):
         args = list(recorded)
         args[index] = np.zeros(size)
         assert K.split_frame(*args) == K.INVALID
