@@ -7,7 +7,7 @@ it, after the frame's edges and contour and, between frames, ``cv2.Canny`` on th
 `bench_device.py`), then again at once (warm), then the real kernel (whose result the pipeline gets). The real
 kernel is also timed as called (cold) and at once again (warm), dispatch included. Medians per frame (us):
 
-    taskset -c 1 python tools/bench_split_phases.py [--frameset /work/eval/rig] [--passes 2]
+    taskset -c 1 python tools/bench_split_phases.py [--frameset DIR] [--frames 60] [--passes 2]
 
 The copy mirrors `_kernels/split_frame.py` and `split_shapes_local` (`_kernels/offsets.py`); when either changes,
 change `_phases` too (a mismatch count above 0 says it differs). The time stamps are fenced (``rdtsc`` between
@@ -256,14 +256,14 @@ def _cycles_per_us() -> float:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--frameset", default="/work/eval/rig", help="frame set folder (default: %(default)s)")
+    parser.add_argument("--frameset", help="frame set folder (default: the synthetic rig frames of bench_device)")
     parser.add_argument("--frames", type=int, default=60, help="frames per pass (default: %(default)s)")
     parser.add_argument("--passes", type=int, default=2, help="timed passes (after one untimed; default 2)")
     args = parser.parse_args(argv)
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from bench_device import frameset_frames
+    from bench_device import frameset_frames, rig_frames
 
-    frames = frameset_frames(args.frameset, args.frames)
+    frames = frameset_frames(args.frameset, args.frames) if args.frameset else rig_frames(args.frames)
     height, width = frames[0][0].shape
     kernel = K.split_frame
     stamps = np.zeros(len(PHASES) + 1, np.int64)
@@ -303,16 +303,17 @@ def main(argv: list[str] | None = None) -> int:
         K.split_frame = kernel
     rate = _cycles_per_us()
     full = [k for k, row in enumerate(cold) if row[len(PHASES)] > 0]
+    source = args.frameset or "synthetic rig frames"
     if not full:
         print(
-            f"{args.frameset}: no split_frame call made both shapes in {len(frames)} frames ({len(cold)} calls): the "
+            f"{source}: no split_frame call made both shapes in {len(frames)} frames ({len(cold)} calls): the "
             "steady split starts once the contrast is known (about frame 10); give more --frames",
             file=sys.stderr,
         )
         return 2
     c = np.diff(np.array([cold[k] for k in full]), axis=1) / rate
     w = np.diff(np.array([warm[k] for k in full]), axis=1) / rate
-    print(f"{args.frameset}: {len(cold)} split_frame calls, {len(full)} with both shapes, copy mismatches "
+    print(f"{source}: {len(cold)} split_frame calls, {len(full)} with both shapes, copy mismatches "
           f"{mismatches[1]} of {mismatches[0]} calls checked; us per call, medians (cold / warm)")  # fmt: skip
     for k, name in enumerate(PHASES):
         print(f"  {name:22s} {np.median(c[:, k]):7.2f} {np.median(w[:, k]):7.2f}")
