@@ -133,6 +133,19 @@ def _radius_range(profile, k, cap, m, d_max, d2_max, margin_px, motion_px):
     return lo, hi
 
 
+@kernel(types.Tuple((int64, float64, float64))(float64, f8_1d_ro, float64, float64, int64, float64))
+def _radius_of(d2, profile, d_max, d2_max, margin_px, motion_px):
+    """The disc radius of a point at squared distance `d2` from the fixed end (its bin's cap of `profile`), and
+    the range of squared distances known to share it (`_radius_range`): (radius, range low, range high)."""
+    bins = profile.shape[0]
+    share = math.sqrt(d2) / d_max
+    k = min(bins - 1, int(share * bins)) if bins > 0 else 0
+    cap = profile[k] if bins > 0 else math.inf
+    m = _disc_radius(share, margin_px, motion_px, cap)
+    lo, hi = _radius_range(profile, k, cap, m, d_max, d2_max, margin_px, motion_px)
+    return m, lo, hi
+
+
 @kernel(types.void(float64, float64, float64, int64, int64, i4_1d, i4_1d))
 def _draw_disc(centre_r, centre_c, radius, height, width, out_lo, out_hi):
     """Widen the row spans `out_lo`/`out_hi` to cover the disc: rows ``ceil(r - R) .. floor(r + R)``, columns
@@ -240,7 +253,6 @@ def spans_around_chain(
         out_hi[r] = -1
     d2_max = 1e-12
     keep = out_moved.shape[0] >= n_points
-    bins = profile.shape[0]
     for i in range(n_points):
         dr = points[i, 0] - fixed_r
         dc = points[i, 1] - fixed_c
@@ -289,11 +301,7 @@ def spans_around_chain(
             if known_lo <= d2 <= known_hi:
                 own = known_m
             else:
-                share = math.sqrt(d2) / d_max
-                k = min(bins - 1, int(share * bins)) if bins > 0 else 0
-                cap = profile[k] if bins > 0 else math.inf
-                own = _disc_radius(share, margin_px, motion_px, cap)
-                known_lo, known_hi = _radius_range(profile, k, cap, own, d_max, d2_max, margin_px, motion_px)
+                own, known_lo, known_hi = _radius_of(d2, profile, d_max, d2_max, margin_px, motion_px)
                 known_m = own
         mr = fixed_r + rot_a * zr - rot_b * zc
         mc = fixed_c + rot_b * zr + rot_a * zc
@@ -314,11 +322,7 @@ def spans_around_chain(
             if known_lo <= d2 <= known_hi:
                 m = known_m
             else:
-                share = math.sqrt(d2) / d_max
-                k = min(bins - 1, int(share * bins)) if bins > 0 else 0
-                cap = profile[k] if bins > 0 else math.inf
-                m = _disc_radius(share, margin_px, motion_px, cap)
-                known_lo, known_hi = _radius_range(profile, k, cap, m, d_max, d2_max, margin_px, motion_px)
+                m, known_lo, known_hi = _radius_of(d2, profile, d_max, d2_max, margin_px, motion_px)
                 known_m = m
             if m_piece < 0:
                 m_piece = m
