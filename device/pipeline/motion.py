@@ -31,7 +31,7 @@ class MotionModel:
     pipeline's `band_stage` call updates. Cleared after a frame without shapes.
     """
 
-    __slots__ = ("band", "log", "need", "owed", "profile", "profile_ro", "state", "state_ro")
+    __slots__ = ("band", "log", "need", "need_args", "owed", "profile", "profile_ro", "state", "state_ro")
 
     def __init__(self) -> None:
         self.state = np.zeros(K.MOTION_FRAMES + 2, np.int64)
@@ -49,6 +49,9 @@ class MotionModel:
         """What the last band was built with, for measuring its error on the next call (`band_stage`'s state)."""
         self.owed = False
         """The last frame was found in the band `band_stage` built last: the next call measures its error."""
+        self.need_args = (NEED_GAIN, NEED_FLOOR_PX, NEED_MOTION_SHARE)
+        """`band_stage`'s gain, floor (px) and floor share of the uncertainty: the module's constants as they are
+        when the model is made (tests patch them)."""
 
     def clear(self) -> None:
         """Forget everything (a gap in the measurements)."""

@@ -18,7 +18,7 @@ from ropecam.device.pipeline._views import i32, resident_zeros, ro
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.contour import ContourTracer
 from ropecam.device.pipeline.edges import EdgeDetector
-from ropecam.device.pipeline.motion import NEED_FLOOR_PX, NEED_GAIN, NEED_MOTION_SHARE, MotionModel
+from ropecam.device.pipeline.motion import MotionModel
 from ropecam.device.pipeline.result import FrameResult, FrameStatus
 from ropecam.device.pipeline.split import BlurSplitter
 from ropecam.device.pipeline.time_order import DEFAULT_PERIOD_NS, TimeOrder
@@ -116,8 +116,8 @@ class Pipeline:
         self._motion = MotionModel()
         motion = self._motion
         self._band_args = (
-            config.roi_margin_px, height, width, NEED_GAIN, NEED_FLOOR_PX, NEED_MOTION_SHARE, self.fixed,
-            motion.state, motion.log, motion.need, motion.profile, motion.band, self.lo, self.hi, self._moved,
+            config.roi_margin_px, height, width, *motion.need_args, self.fixed, motion.state, motion.log, motion.need,
+            motion.profile, motion.band, self.lo, self.hi, self._moved,
         )  # fmt: skip
         """`band_stage`'s arguments after the frame's (Python ints and floats for its int64/float64 scalars)."""
         self._roi_t_ns: int | None = None
