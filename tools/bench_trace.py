@@ -6,7 +6,7 @@ A pipeline runs over the frames once and records every edge-stage call (frame, r
 with the caches evicted before the detection (the pipeline runs ``cv2.Canny`` on the whole frame between frames
 in `bench_device.py`, and the split between a frame's trace and the next detection):
 
-    taskset -c 1 python tools/bench_trace.py [--frameset /work/eval/rig] [--frames 40] [--repeat 5] \\
+    taskset -c 1 python tools/bench_trace.py [--frameset DIR] [--frames 40] [--repeat 5] \\
         [--against REF] [--sizes] [--parts]
 
 - ``--sizes``: per band, the rows and pixels of the spans, the edge pixels, their components, the kept
@@ -172,7 +172,7 @@ def compare(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--frameset", default="/work/eval/rig")
+    parser.add_argument("--frameset", help="frame set (default: the synthetic rig frames of bench_device)")
     parser.add_argument("--frames", type=int, default=40)
     parser.add_argument("--repeat", type=int, default=5, help="replays per band and tree, the fastest is kept")
     parser.add_argument("--against", metavar="REF", help="also replay with this commit's stages, alternately")
@@ -181,13 +181,13 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     here = os.path.dirname(os.path.abspath(__file__))
     sys.path.insert(0, here)
-    from bench_device import frameset_frames
+    from bench_device import frameset_frames, rig_frames
     from bench_glue import export_ref
     from bench_roi_kernels import record
 
     from ropecam.device.pipeline._views import ro
 
-    frames = frameset_frames(args.frameset, args.frames + 3)
+    frames = frameset_frames(args.frameset, args.frames + 3) if args.frameset else rig_frames(args.frames + 3)
     kernels = importlib.import_module("ropecam.device.pipeline._kernels")
     config_cls = importlib.import_module("ropecam.device.pipeline.config").PipelineConfig
     pipeline_cls = importlib.import_module("ropecam.device.pipeline.pipeline").Pipeline
@@ -201,7 +201,7 @@ def main(argv: list[str] | None = None) -> int:
         ref_config = importlib.import_module("ropecam_ref.device.pipeline.config").PipelineConfig
         ref_pipeline = importlib.import_module("ropecam_ref.device.pipeline.pipeline").Pipeline
         trees[args.against] = ref_pipeline(ref_config(), (width, height))
-    print(f"{args.frameset}: {len(inputs)} bands of {width}x{height}")
+    print(f"{args.frameset or 'synthetic rig frames'}: {len(inputs)} bands of {width}x{height}")
     if args.sizes:
         sizes(trees["this tree"], inputs)
     if args.parts:
