@@ -60,7 +60,7 @@ def replay(pipeline: Any, frame: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> 
     pipeline.edges.detect(frame, lo, hi)
     t1 = time.perf_counter_ns()
     e = pipeline.edges
-    n = pipeline.tracer.trace(e.edges, lo, hi, e.mag, e.gx, e.gy, e.stack, e.count)
+    n = pipeline.tracer.trace(e.edges, lo, hi, e.mag_ro, e.gx_ro, e.gy_ro, e.stack_ro, e.count)  # as the pipeline
     t2 = time.perf_counter_ns()
     return (t1 - t0) / 1000, (t2 - t1) / 1000, n
 
