@@ -34,7 +34,7 @@ from numba import njit, types
 from numba.extending import intrinsic
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._kernels.canny import smooth_box
+from ropecam.device.pipeline._kernels.canny import smooth_box, smooth_small_box
 from ropecam.device.pipeline._kernels.geometry import find_segmentation_points_seg
 from ropecam.device.pipeline._kernels.offsets import (
     SPLIT_PARAMS,
@@ -198,8 +198,8 @@ def _phases(
         for found, base_r, base_c, dir_r, dir_c, best in (a, b):
             if found != 0.0:
                 t0, t1, u0, u1 = tip_sample_box(base_r, base_c, dir_r, dir_c, best, blur_px, height, cols)
-                stamps[len(PHASES) + 2] += smooth_box(
-                    frame, weights, spans_lo, spans_hi, t0, t1, u0, u1, box_lo, box_hi, tmp, smooth
+                stamps[len(PHASES) + 2] += smooth_small_box(
+                    frame, weights, spans_lo, spans_hi, t0, t1, u0, u1, tmp, smooth
                 )
     stamps[7] = _rdtsc()
     if a[0] != 0.0:

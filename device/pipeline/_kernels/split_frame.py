@@ -10,7 +10,7 @@ import numpy as np
 from numba import int32
 
 from ropecam.device.pipeline._kernels._common import FULL, INVALID, f4_1d_ro
-from ropecam.device.pipeline._kernels.canny import smooth_box
+from ropecam.device.pipeline._kernels.canny import smooth_box, smooth_small_box
 from ropecam.device.pipeline._kernels.geometry import find_segmentation_points_seg
 from ropecam.device.pipeline._kernels.offsets import (
     SPLIT_PARAMS,
@@ -186,7 +186,8 @@ def split_frame(
             continue
         if fresh:  # the flat end's refinement reads `smooth` there
             t0, t1, u0, u1 = tip_sample_box(base_r, base_c, dir_r, dir_c, best, np.float32(params[6]), height, cols)
-            smooth_box(frame, weights, spans_lo, spans_hi, t0, t1, u0, u1, box_lo, box_hi, tmp, smooth)
+            if smooth_small_box(frame, weights, spans_lo, spans_hi, t0, t1, u0, u1, tmp, smooth) < 0:
+                smooth_box(frame, weights, spans_lo, spans_hi, t0, t1, u0, u1, box_lo, box_hi, tmp, smooth)
         count = band_tip(
             poly, count, smooth, base_r, base_c, dir_r, dir_c, best, np.float32(params[2]), np.float32(params[3]),
             skip_px, np.float32(params[6]),
