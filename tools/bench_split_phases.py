@@ -34,7 +34,7 @@ from numba import njit, types
 from numba.extending import intrinsic
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._kernels.canny import smooth_box, smooth_small_box
+from ropecam.device.pipeline._kernels.canny import smooth_box
 from ropecam.device.pipeline._kernels.geometry import find_segmentation_points_seg
 from ropecam.device.pipeline._kernels.offsets import (
     SPLIT_PARAMS,
@@ -46,11 +46,9 @@ from ropecam.device.pipeline._kernels.offsets import (
 )
 from ropecam.device.pipeline._kernels.polylines import (
     anchor_start,
-    band_end_near,
-    band_tip,
+    extend_to_band_end_near,
     polyline_length,
     resample_polyline_of_length,
-    tip_sample_box,
 )
 from ropecam.device.pipeline._kernels.smoothing import smooth_polyline
 from ropecam.device.pipeline._kernels.split_frame import _SLOPE_HIGH, _SLOPE_LOW
@@ -59,13 +57,11 @@ from ropecam.device.pipeline.pipeline import Pipeline
 
 PHASES = (
     "segmentation points",
+    "corner box smoothed",
     "sweep from the slope",
-    "corner box (static, border)",
     "side sweeps x2",
     "offsets x2",
-    "tip searches x2",
-    "tip boxes smoothed x2",
-    "tip refinements x2",
+    "tip fits x2",
     "slant, lengths",
     "anchoring x2",
     "lengths x2",
@@ -74,8 +70,7 @@ PHASES = (
     "resample B",
     "smooth B",
 )
-"""The phases of `_phases`, in order (stamps 0..15; then the pixels smoothed for the corner box and for the tip
-boxes)."""
+"""The phases of `_phases`, in order (stamps 0..13)."""
 
 
 @intrinsic
@@ -123,10 +118,12 @@ def _phases(
     grow = params[SPLIT_PARAMS + 4]
     height = smooth.shape[0]
     cols = smooth.shape[1]
-    r0 = max(0, math.floor(min(ar, br) - grow))
-    r1 = min(height - 1, math.ceil(max(ar, br) + grow))
-    c0 = max(0, math.floor(min(ac, bc) - grow))
-    c1 = min(cols - 1, math.ceil(max(ac, bc) + grow))
+    smooth_box(
+        frame, weights, spans_lo, spans_hi, max(0, math.floor(min(ar, br) - grow)),
+        min(height - 1, math.ceil(max(ar, br) + grow)), max(0, math.floor(min(ac, bc) - grow)),
+        min(cols - 1, math.ceil(max(ac, bc) + grow)), box_lo, box_hi, tmp, smooth,
+    )  # fmt: skip
+    stamps[2] = _rdtsc()
     out_seg[0, 0] = points[seg_a, 0]
     out_seg[0, 1] = points[seg_a, 1]
     out_seg[1, 0] = points[seg_b, 0]
@@ -147,12 +144,6 @@ def _phases(
         if count > 0:
             sweep = min(total if count == 1 else total / 2.0, 1.5 * width)
     out_info[6] = sweep
-    stamps[2] = _rdtsc()
-    whole_box = sweep < params[SPLIT_PARAMS + 5] * width or r0 == 0 or c0 == 0 or r1 == height - 1 or c1 == cols - 1
-    if whole_box:
-        stamps[len(PHASES) + 1] = smooth_box(
-            frame, weights, spans_lo, spans_hi, r0, r1, c0, c1, box_lo, box_hi, tmp, smooth
-        )
     stamps[3] = _rdtsc()
     if sweep < params[SPLIT_PARAMS + 5] * width:
         return K.SPLIT_STATIC
@@ -189,24 +180,13 @@ def _phases(
         points, chain, n, i_fix, seg_b, minus, gx, gy, polarity, lines[2], step_px, table, keep, keep, side_b
     )
     stamps[5] = _rdtsc()
-    # The tip fits as `split_frame` makes them: both searches, both boxes smoothed, both refinements (the same
-    # values as one side after the other: the boxes' smoothed values do not depend on the box).
-    a = band_end_near(side_a, na, points, n, width_px, skip_px, span_px, scratch[1], fixed_r, fixed_c)
-    b = band_end_near(side_b, nb, points, n, width_px, skip_px, span_px, scratch[1], fixed_r, fixed_c)
+    na = extend_to_band_end_near(
+        side_a, na, points, n, smooth, width_px, cap_px, skip_px, span_px, blur_px, scratch[1], fixed_r, fixed_c
+    )
+    nb = extend_to_band_end_near(
+        side_b, nb, points, n, smooth, width_px, cap_px, skip_px, span_px, blur_px, scratch[1], fixed_r, fixed_c
+    )
     stamps[6] = _rdtsc()
-    if not whole_box and cap_px == 0.0:
-        for found, base_r, base_c, dir_r, dir_c, best in (a, b):
-            if found != 0.0:
-                t0, t1, u0, u1 = tip_sample_box(base_r, base_c, dir_r, dir_c, best, blur_px, height, cols)
-                stamps[len(PHASES) + 2] += smooth_small_box(
-                    frame, weights, spans_lo, spans_hi, t0, t1, u0, u1, tmp, smooth
-                )
-    stamps[7] = _rdtsc()
-    if a[0] != 0.0:
-        na = band_tip(side_a, na, smooth, a[1], a[2], a[3], a[4], a[5], width_px, cap_px, skip_px, blur_px)
-    if b[0] != 0.0:
-        nb = band_tip(side_b, nb, smooth, b[1], b[2], b[3], b[4], b[5], width_px, cap_px, skip_px, blur_px)
-    stamps[8] = _rdtsc()
     if na >= 3 and nb >= 3:
         a1r = float(side_a[na - 1, 0])
         a1c = float(side_a[na - 1, 1])
@@ -232,18 +212,18 @@ def _phases(
     len_b = polyline_length(side_b, nb)
     out_info[2] = len_a
     out_info[3] = len_b
-    stamps[9] = _rdtsc()
+    stamps[7] = _rdtsc()
     if abs(len_a - len_b) > max(3.0 * params[8], 0.1 * max(len_a, len_b)):
         return K.NOT_FOUND
     na = anchor_start(side_a, na, fixed_r, fixed_c, skip_px, span_px)
     nb = anchor_start(side_b, nb, fixed_r, fixed_c, skip_px, span_px)
-    stamps[10] = _rdtsc()
+    stamps[8] = _rdtsc()
     len_a = polyline_length(side_a, na)
     len_b = polyline_length(side_b, nb)
     out_info[2] = len_a
     out_info[3] = len_b
-    stamps[11] = _rdtsc()
-    k = 12
+    stamps[9] = _rdtsc()
+    k = 10
     for side in range(2):
         poly = side_a if side == 0 else side_b
         out = out_a if side == 0 else out_b
@@ -286,7 +266,7 @@ def main(argv: list[str] | None = None) -> int:
     frames = frameset_frames(args.frameset, args.frames) if args.frameset else rig_frames(args.frames)
     height, width = frames[0][0].shape
     kernel = K.split_frame
-    stamps = np.zeros(len(PHASES) + 3, np.int64)
+    stamps = np.zeros(len(PHASES) + 1, np.int64)
     cold: list[np.ndarray] = []
     warm: list[np.ndarray] = []
     whole: list[tuple[float, float]] = []
@@ -331,17 +311,13 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 2
-    c = np.diff(np.array([cold[k][: len(PHASES) + 1] for k in full]), axis=1) / rate
-    w = np.diff(np.array([warm[k][: len(PHASES) + 1] for k in full]), axis=1) / rate
-    pixels = np.array([cold[k][len(PHASES) + 1 :] for k in full])
+    c = np.diff(np.array([cold[k] for k in full]), axis=1) / rate
+    w = np.diff(np.array([warm[k] for k in full]), axis=1) / rate
     print(f"{source}: {len(cold)} split_frame calls, {len(full)} with both shapes, copy mismatches "
           f"{mismatches[1]} of {mismatches[0]} calls checked; us per call, medians (cold / warm)")  # fmt: skip
     for k, name in enumerate(PHASES):
         print(f"  {name:22s} {np.median(c[:, k]):7.2f} {np.median(w[:, k]):7.2f}")
     print(f"  {'phases in all':22s} {np.median(c.sum(axis=1)):7.2f} {np.median(w.sum(axis=1)):7.2f}")
-    print(
-        f"  pixels smoothed per call, mean: corner box {pixels[:, 0].mean():.0f}, tip boxes {pixels[:, 1].mean():.0f}"
-    )
     times = np.array(whole)
     print(f"  {'split_frame itself':22s} {np.median(times[:, 0]):7.2f} {np.median(times[:, 1]):7.2f}")
     return 0 if mismatches[1] == 0 else 1

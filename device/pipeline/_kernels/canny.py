@@ -351,51 +351,6 @@ def smooth_box(frame, weights, lo, hi, r0, r1, c0, c1, work_lo, work_hi, out_tmp
     return (last - first + 1) * (c1 - c0 + 1)
 
 
-@kernel(int64(u1_2d_ro, f4_1d_ro, i4_1d_ro, i4_1d_ro, int64, int64, int64, int64, f4_2d, f4_2d))
-def smooth_small_box(frame, weights, lo, hi, r0, r1, c0, c1, out_tmp, out_smooth):
-    """`smooth_box` for a box of a few hundred pixels and the 5-tap smoothing: the same values (the two passes'
-    operations in their order, `smooth_replicated` within 2 columns of the image border, rows clamped), pixel by
-    pixel over the box's columns only, without vectors, padding or prefetches (their code costs more than such a
-    box when it is not in the instruction cache). Returns the number of pixels smoothed, or -1 without writing
-    anything when `weights` has not 5 taps (then `smooth_box`)."""
-    if weights.shape[0] != 5:
-        return -1
-    first = -1
-    last = -1
-    for r in range(r0, r1 + 1):
-        if lo[r] > c0 or hi[r] < c1:
-            if first < 0:
-                first = r
-            last = r
-    if first < 0:
-        return 0
-    height = frame.shape[0]
-    width = frame.shape[1]
-    w0 = weights[0]
-    w1 = weights[1]
-    w2 = weights[2]
-    for r in range(max(0, first - 2), min(height - 1, last + 2) + 1):
-        for c in range(c0, c1 + 1):
-            if 2 <= c <= width - 3:
-                t = w0 * (np.float32(frame[r, c - 2]) + np.float32(frame[r, c + 2])) + w1 * (
-                    np.float32(frame[r, c - 1]) + np.float32(frame[r, c + 1])
-                )
-                t += w2 * np.float32(frame[r, c])
-                out_tmp[r, c] = t
-            else:
-                out_tmp[r, c] = smooth_replicated(frame, weights, r, c)
-    for r in range(first, last + 1):
-        ra = max(r - 2, 0)
-        rb = max(r - 1, 0)
-        rd = min(r + 1, height - 1)
-        re = min(r + 2, height - 1)
-        for c in range(c0, c1 + 1):
-            out_smooth[r, c] = (
-                w0 * (out_tmp[ra, c] + out_tmp[re, c]) + w1 * (out_tmp[rb, c] + out_tmp[rd, c]) + w2 * out_tmp[r, c]
-            )
-    return (last - first + 1) * (c1 - c0 + 1)
-
-
 @kernel(void(f4_2d, i4_1d, i4_1d, int64, int64, f4_2d, f4_2d, f4_2d))
 def sobel_rows(smooth, sob_lo, sob_hi, r_begin, r_end, out_gx, out_gy, out_mag):
     """Write the 3x3 Sobel gradients of `smooth` and their L2 norm over the spans `sob_lo`/`sob_hi` (within the

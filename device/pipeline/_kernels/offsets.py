@@ -451,18 +451,36 @@ def offset_by_table_thinned(
 
 
 @kernel(
-    types.UniTuple(int32, 2)(
-        f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f8_1d_ro, f8_1d_ro, int32, f4_2d_ro,
-        f4_2d_ro, float32, float32, f4_1d_ro, float32, float32, f4_1d, f4_1d, f4_1d, f4_2d, f4_2d, i4_1d_ro,
-    )
+    int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f8_1d_ro, f8_1d_ro, int32, f4_2d_ro,
+          f4_2d_ro, float32, float32, f4_1d_ro, f4_2d_ro, float32, float32, float32, float32, float32, float64,
+          float64, float32, float32, float32, float32, f4_1d, f4_1d, f4_1d, f4_2d, f4_2d, f4_2d, f4_2d, f8_1d,
+          f8_1d, f8_1d_ro, i4_1d_ro)
 )  # fmt: skip
-def side_polylines(
+def split_shapes_local(
     points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, ratios, sweeps, half, gx, gy, polarity, step_px, table,
-    skip_px, span_px, work, out_sweeps_a, out_sweeps_b, out_side_a, out_side_b, sweep_index,
+    smooth, width_px, cap_px, skip_px, span_px, blur_px, slant_gain_px, width_check_px, out_step_px, smoothing_px,
+    fixed_r, fixed_c, work, out_sweeps_a, out_sweeps_b, out_side_a, out_side_b, out_a, out_b, work_arc, out_info,
+    fixed_dist, sweep_index,
 ):  # fmt: skip
-    """`split_shapes_local`'s first steps: per side (A forward from `i_fix` to `seg_a`, B backward to `seg_b`)
-    `side_sweeps` (`side_sweeps_indexed` with a `sweep_index`) into `out_sweeps_a`/`out_sweeps_b`, then
-    `offset_by_table_thinned` into `out_side_a`/`out_side_b`. Returns their counts (na, nb), or (FULL, FULL)."""
+    """The blur split's shapes from its segmentation points, with local sweeps, in one call (the stage's
+    sequence of kernels, without a Python step between them): per side (A forward from `i_fix` to `seg_a`, B
+    backward to `seg_b`) `side_sweeps`, `offset_by_table`, `extend_to_band_end`; then the slant correction of
+    the two tips (`BlurSplitter._correct_slant`: float32 updates as NumPy makes them), the two lengths, the
+    length check (``|La - Lb| > max(3 width_check_px, 0.1 max(La, Lb))`` rejects the split), and per side
+    `anchor_start` at the fixed end (`fixed_r`, `fixed_c`; axis from `skip_px` over `span_px`),
+    `resample_polyline_of_length` into `out_a`/`out_b`, then `smooth_polyline` into `out_side_a`/`out_side_b`
+    when `smoothing_px` > 0 and the shape has 3 points or more. `fixed_dist` holds the distances of the `points`
+    from (`fixed_r`, `fixed_c`) (`find_segmentation_points`' `out_dist`) for the tip fit's search
+    (`extend_to_band_end_near`: the same results with fewer points checked), or is shorter than `n` (every
+    point checked). `sweep_index` is the `ratios`' index for `side_sweeps_indexed` (the same sweeps, found
+    faster), or empty (`side_sweeps`).
+
+    Writes ``out_info = [count_a, count_b, length_a, length_b, smoothed_a, smoothed_b]`` (a smoothed shape is in
+    ``out_side_*[:count]``, else in ``out_*[:count]``). Returns 2, NOT_FOUND when the lengths differ (the lengths
+    written), or FULL / INVALID when a step did (the caller redoes the steps one by one for its message).
+    """
+    if out_info.shape[0] < 6:
+        return INVALID
     plus = np.int32(1)
     minus = np.int32(-1)
     if sweep_index.shape[0] >= 2:
@@ -472,33 +490,23 @@ def side_polylines(
             or side_sweeps_indexed(chain, n, i_fix, seg_b, minus, mag, inv_contrast, ratios, sweeps, sweep_index,
                                    half, work, out_sweeps_b) < 0
         ):  # fmt: skip
-            return FULL, FULL
+            return FULL
     else:
         if side_sweeps(chain, n, i_fix, seg_a, plus, mag, inv_contrast, ratios, sweeps, half, work, out_sweeps_a) < 0:
-            return FULL, FULL
+            return FULL
         if side_sweeps(chain, n, i_fix, seg_b, minus, mag, inv_contrast, ratios, sweeps, half, work, out_sweeps_b) < 0:
-            return FULL, FULL
+            return FULL
     keep = dense_end_points(skip_px, span_px)
     na = offset_by_table_thinned(points, chain, n, i_fix, seg_a, plus, gx, gy, polarity, out_sweeps_a, step_px,
                                  table, keep, keep, out_side_a)  # fmt: skip
     nb = offset_by_table_thinned(points, chain, n, i_fix, seg_b, minus, gx, gy, polarity, out_sweeps_b, step_px,
                                  table, keep, keep, out_side_b)  # fmt: skip
     if na < 0 or nb < 0:
-        return FULL, FULL
-    return na, nb
-
-
-@kernel(
-    int32(int32, int32, float64, float64, float32, float32, float32, float32, float32, float32, f4_2d, f4_2d, f4_2d,
-          f4_2d, f8_1d, f8_1d)
-)  # fmt: skip
-def finish_shapes(
-    na, nb, slant_gain_px, width_check_px, fixed_r, fixed_c, skip_px, span_px, out_step_px, smoothing_px, out_side_a,
-    out_side_b, out_a, out_b, work_arc, out_info,
-):  # fmt: skip
-    """`split_shapes_local`'s steps after the tip fits on the sides `out_side_a[:na]`/`out_side_b[:nb]`: the
-    slant correction, the length check, the anchoring, the resampling and the smoothing; the same writes and
-    returns (``out_info`` holds 6 values or more)."""
+        return FULL
+    na = extend_to_band_end_near(out_side_a, na, points, n, smooth, width_px, cap_px, skip_px, span_px, blur_px,
+                                 fixed_dist, fixed_r, fixed_c)  # fmt: skip
+    nb = extend_to_band_end_near(out_side_b, nb, points, n, smooth, width_px, cap_px, skip_px, span_px, blur_px,
+                                 fixed_dist, fixed_r, fixed_c)  # fmt: skip
     if na >= 3 and nb >= 3:
         a1r = float(out_side_a[na - 1, 0])
         a1c = float(out_side_a[na - 1, 1])
@@ -550,53 +558,6 @@ def finish_shapes(
                 return INVALID
             out_info[4 + side] = 1.0
     return 2
-
-
-@kernel(
-    int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f8_1d_ro, f8_1d_ro, int32, f4_2d_ro,
-          f4_2d_ro, float32, float32, f4_1d_ro, f4_2d_ro, float32, float32, float32, float32, float32, float64,
-          float64, float32, float32, float32, float32, f4_1d, f4_1d, f4_1d, f4_2d, f4_2d, f4_2d, f4_2d, f8_1d,
-          f8_1d, f8_1d_ro, i4_1d_ro)
-)  # fmt: skip
-def split_shapes_local(
-    points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, ratios, sweeps, half, gx, gy, polarity, step_px, table,
-    smooth, width_px, cap_px, skip_px, span_px, blur_px, slant_gain_px, width_check_px, out_step_px, smoothing_px,
-    fixed_r, fixed_c, work, out_sweeps_a, out_sweeps_b, out_side_a, out_side_b, out_a, out_b, work_arc, out_info,
-    fixed_dist, sweep_index,
-):  # fmt: skip
-    """The blur split's shapes from its segmentation points, with local sweeps, in one call (the stage's
-    sequence of kernels, without a Python step between them): per side (A forward from `i_fix` to `seg_a`, B
-    backward to `seg_b`) `side_sweeps`, `offset_by_table`, `extend_to_band_end`; then the slant correction of
-    the two tips (`BlurSplitter._correct_slant`: float32 updates as NumPy makes them), the two lengths, the
-    length check (``|La - Lb| > max(3 width_check_px, 0.1 max(La, Lb))`` rejects the split), and per side
-    `anchor_start` at the fixed end (`fixed_r`, `fixed_c`; axis from `skip_px` over `span_px`),
-    `resample_polyline_of_length` into `out_a`/`out_b`, then `smooth_polyline` into `out_side_a`/`out_side_b`
-    when `smoothing_px` > 0 and the shape has 3 points or more. `fixed_dist` holds the distances of the `points`
-    from (`fixed_r`, `fixed_c`) (`find_segmentation_points`' `out_dist`) for the tip fit's search
-    (`extend_to_band_end_near`: the same results with fewer points checked), or is shorter than `n` (every
-    point checked). `sweep_index` is the `ratios`' index for `side_sweeps_indexed` (the same sweeps, found
-    faster), or empty (`side_sweeps`).
-
-    Writes ``out_info = [count_a, count_b, length_a, length_b, smoothed_a, smoothed_b]`` (a smoothed shape is in
-    ``out_side_*[:count]``, else in ``out_*[:count]``). Returns 2, NOT_FOUND when the lengths differ (the lengths
-    written), or FULL / INVALID when a step did (the caller redoes the steps one by one for its message).
-    """
-    if out_info.shape[0] < 6:
-        return INVALID
-    na, nb = side_polylines(
-        points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, ratios, sweeps, half, gx, gy, polarity, step_px,
-        table, skip_px, span_px, work, out_sweeps_a, out_sweeps_b, out_side_a, out_side_b, sweep_index,
-    )  # fmt: skip
-    if na < 0 or nb < 0:
-        return FULL
-    na = extend_to_band_end_near(out_side_a, na, points, n, smooth, width_px, cap_px, skip_px, span_px, blur_px,
-                                 fixed_dist, fixed_r, fixed_c)  # fmt: skip
-    nb = extend_to_band_end_near(out_side_b, nb, points, n, smooth, width_px, cap_px, skip_px, span_px, blur_px,
-                                 fixed_dist, fixed_r, fixed_c)  # fmt: skip
-    return finish_shapes(
-        na, nb, slant_gain_px, width_check_px, fixed_r, fixed_c, skip_px, span_px, out_step_px, smoothing_px,
-        out_side_a, out_side_b, out_a, out_b, work_arc, out_info,
-    )  # fmt: skip
 
 
 @kernel(

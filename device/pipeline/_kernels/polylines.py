@@ -6,7 +6,7 @@ import math
 from typing import Final
 
 import numpy as np
-from numba import float32, float64, int32, int64, types
+from numba import float32, float64, int32, types
 
 from ropecam.device.pipeline._kernels._common import FULL, INVALID
 from ropecam.device.pipeline._kernels.geometry import sample_bilinear
@@ -336,18 +336,8 @@ def _band_axis(poly, n, skip_px, span_px):
     return 1.0, mr + t * dir_r, mc + t * dir_c, dir_r, dir_c
 
 
-_FLANK_PX: Final = 2.0
-"""Length of `half_level_crossing`'s level windows in the tip fit."""
-
-
-@kernel(float32(float32))
-def _tip_reach(blur_px):
-    """The tip fit's `half_level_crossing` reach for the smoothing and lens blur `blur_px`."""
-    return np.float32(3.0 * blur_px + 1.0)
-
-
 @kernel(int32(f4_2d, int32, f4_2d_ro, float64, float64, float64, float64, float64, float32, float32, float32, float32))
-def band_tip(poly, n, smooth, base_r, base_c, dir_r, dir_c, best, width_px, cap_px, skip_px, blur_px):
+def _band_tip(poly, n, smooth, base_r, base_c, dir_r, dir_c, best, width_px, cap_px, skip_px, blur_px):
     """`extend_to_band_end` once the axis (`_band_axis`) and the contour's farthest point along it (`best`) are
     known: the flat end's refinement on `smooth`, the cut and the new tip. Returns the new count or `n`."""
     if cap_px == 0.0:
@@ -355,9 +345,9 @@ def band_tip(poly, n, smooth, base_r, base_c, dir_r, dir_c, best, width_px, cap_
         # is that product blurred, so along the axis it falls halfway to the background exactly at the end (the
         # contour's corner itself is rounded inward by the smoothing). An end that also moves along the rope
         # shifts this crossing; the splitter corrects that from both tips (`BlurSplitter._correct_slant`).
+        reach = np.float32(3.0 * blur_px + 1.0)
         end = half_level_crossing(smooth, np.float32(base_r), np.float32(base_c), np.float32(dir_r),
-                                  np.float32(dir_c), np.float32(best), _tip_reach(blur_px),
-                                  np.float32(_FLANK_PX))  # fmt: skip
+                                  np.float32(dir_c), np.float32(best), reach, np.float32(2.0))  # fmt: skip
         if not math.isnan(end):
             best = end
     extent = max(best - cap_px, 0.0)
@@ -367,32 +357,6 @@ def band_tip(poly, n, smooth, base_r, base_c, dir_r, dir_c, best, width_px, cap_
     poly[count, 0] = base_r + extent * dir_r
     poly[count, 1] = base_c + extent * dir_c
     return count + 1
-
-
-@kernel(types.UniTuple(int64, 4)(float64, float64, float64, float64, float64, float32, int64, int64))
-def tip_sample_box(base_r, base_c, dir_r, dir_c, best, blur_px, height, width):
-    """Return the pixels (r0, r1, c0, c1: inclusive, inside a `height` x `width` image) that `band_tip`'s
-    refinement of a flat end reads from the smoothed image (`half_level_crossing` from the base along the unit
-    axis `dir` around `best`: samples up to reach + flank px either way, on lines 0.5 px to each side, bilinear,
-    so the next row and column too), with a pixel to spare for roundings."""
-    extent = float(_tip_reach(blur_px)) + _FLANK_PX
-    lo_r = 1e30
-    hi_r = -1e30
-    lo_c = 1e30
-    hi_c = -1e30
-    for along in (best - extent, best + extent):
-        for lateral in (-0.5, 0.5):
-            r = base_r + along * dir_r + lateral * dir_c
-            c = base_c + along * dir_c - lateral * dir_r
-            lo_r = min(lo_r, r)
-            hi_r = max(hi_r, r)
-            lo_c = min(lo_c, c)
-            hi_c = max(hi_c, c)
-    r0 = min(max(math.floor(lo_r) - 1, 0), height - 1)
-    r1 = min(max(math.floor(hi_r) + 2, 0), height - 1)
-    c0 = min(max(math.floor(lo_c) - 1, 0), width - 1)
-    c1 = min(max(math.floor(hi_c) + 2, 0), width - 1)
-    return r0, r1, c0, c1
 
 
 @kernel(int32(f4_2d, int32, f4_2d_ro, int32, f4_2d_ro, float32, float32, float32, float32, float32))
@@ -424,48 +388,7 @@ def extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip
             best = along
     if best < -1e29:
         return n
-    return band_tip(poly, n, smooth, base_r, base_c, dir_r, dir_c, best, width_px, cap_px, skip_px, blur_px)
-
-
-_BAND_END: Final = types.UniTuple(float64, 6)
-"""`band_end_near`'s return: (found, base_r, base_c, dir_r, dir_c, best)."""
-_NO_BAND_END: Final = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-
-
-@kernel(_BAND_END(f4_2d_ro, int32, f4_2d_ro, int32, float32, float32, float32, f8_1d_ro, float32, float32))
-def band_end_near(poly, n, points, n_points, width_px, skip_px, span_px, fixed_dist, fixed_r, fixed_c):
-    """The search of `extend_to_band_end_near` before its refinement: the axis (`_band_axis`) and the farthest of
-    the contour points along it. Returns (1.0, base_r, base_c, dir_r, dir_c, best) for `band_tip`, or found 0.0
-    when `extend_to_band_end_near` would return `n` unchanged before reading the smoothed image."""
-    if n < 3 or n >= poly.shape[0]:
-        return _NO_BAND_END
-    ok, base_r, base_c, dir_r, dir_c = _band_axis(poly, n, skip_px, span_px)
-    if ok == 0.0:
-        return _NO_BAND_END
-    full = fixed_dist.shape[0] < n_points
-    near = -1.0
-    far = -1.0
-    if not full:
-        reach = max(2.0, skip_px + 4.0 * width_px)
-        radius = math.sqrt(reach * reach + 0.25 * width_px * width_px) + 1.0
-        d_base = _length(base_r - fixed_r, base_c - fixed_c)
-        near = d_base - radius
-        far = d_base + radius
-    best = -1e30
-    for i in range(n_points):
-        if not full:
-            d = fixed_dist[i]
-            if d < near or d > far:  # false for nan: such a point is checked
-                continue
-        rel_r = points[i, 0] - base_r
-        rel_c = points[i, 1] - base_c
-        along = rel_r * dir_r + rel_c * dir_c
-        across = abs(rel_r * dir_c - rel_c * dir_r)
-        if across < 0.5 * width_px and -2.0 < along < skip_px + 4.0 * width_px and along > best:
-            best = along
-    if best < -1e29:
-        return _NO_BAND_END
-    return 1.0, base_r, base_c, dir_r, dir_c, best
+    return _band_tip(poly, n, smooth, base_r, base_c, dir_r, dir_c, best, width_px, cap_px, skip_px, blur_px)
 
 
 @kernel(
@@ -480,11 +403,31 @@ def extend_to_band_end_near(
     that point), is within the reach of the search from the axis' base (plus 1 px for roundings): a point
     farther cannot lie within half a width of the axis and `skip_px` + 4 widths of the base (triangle
     inequality), so the full computation runs on the few points near the tip. A `fixed_dist` shorter than
-    `n_points` checks every point (as `extend_to_band_end`). `band_end_near` then `band_tip`.
+    `n_points` checks every point (as `extend_to_band_end`).
     """
-    found, base_r, base_c, dir_r, dir_c, best = band_end_near(
-        poly, n, points, n_points, width_px, skip_px, span_px, fixed_dist, fixed_r, fixed_c
-    )
-    if found == 0.0:
+    if n < 3 or n >= poly.shape[0]:
         return n
-    return band_tip(poly, n, smooth, base_r, base_c, dir_r, dir_c, best, width_px, cap_px, skip_px, blur_px)
+    if fixed_dist.shape[0] < n_points:
+        return extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip_px, span_px, blur_px)
+    ok, base_r, base_c, dir_r, dir_c = _band_axis(poly, n, skip_px, span_px)
+    if ok == 0.0:
+        return n
+    reach = max(2.0, skip_px + 4.0 * width_px)
+    radius = math.sqrt(reach * reach + 0.25 * width_px * width_px) + 1.0
+    d_base = _length(base_r - fixed_r, base_c - fixed_c)
+    near = d_base - radius
+    far = d_base + radius
+    best = -1e30
+    for i in range(n_points):
+        d = fixed_dist[i]
+        if d < near or d > far:  # false for nan: such a point is checked
+            continue
+        rel_r = points[i, 0] - base_r
+        rel_c = points[i, 1] - base_c
+        along = rel_r * dir_r + rel_c * dir_c
+        across = abs(rel_r * dir_c - rel_c * dir_r)
+        if across < 0.5 * width_px and -2.0 < along < skip_px + 4.0 * width_px and along > best:
+            best = along
+    if best < -1e29:
+        return n
+    return _band_tip(poly, n, smooth, base_r, base_c, dir_r, dir_c, best, width_px, cap_px, skip_px, blur_px)

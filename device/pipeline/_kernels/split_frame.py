@@ -9,17 +9,10 @@ from typing import Any, Final
 import numpy as np
 from numba import int32
 
-from ropecam.device.pipeline._kernels._common import FULL, INVALID, f4_1d_ro
-from ropecam.device.pipeline._kernels.canny import smooth_box, smooth_small_box
+from ropecam.device.pipeline._kernels._common import INVALID, f4_1d_ro
+from ropecam.device.pipeline._kernels.canny import smooth_box
 from ropecam.device.pipeline._kernels.geometry import find_segmentation_points_seg
-from ropecam.device.pipeline._kernels.offsets import (
-    SPLIT_PARAMS,
-    f4_3d,
-    finish_shapes,
-    side_polylines,
-    slope_sweep_median,
-)
-from ropecam.device.pipeline._kernels.polylines import band_end_near, band_tip, tip_sample_box
+from ropecam.device.pipeline._kernels.offsets import SPLIT_PARAMS, f4_3d, slope_sweep_median, split_shapes_packed_near
 from ropecam.shared.jit import (
     f4_1d,
     f4_2d,
@@ -124,16 +117,15 @@ def split_frame(
     br = np.float64(points[seg_b, 0])
     bc = np.float64(points[seg_b, 1])
     # The tip fit reads the smoothed image a few pixels past the band's end next to each corner (see
-    # `BlurSplitter.split`): this frame's values must be there. It smooths what it samples (`_fit_tip` below),
-    # but the static fallback reads around the band's end too (on SPLIT_STATIC, and after the shapes when the rope
-    # is clipped by the image border): for those, the box around both corners grown by `grow_px`.
+    # `BlurSplitter.split`): this frame's values must be there.
     grow = params[SPLIT_PARAMS + 4]
     height = smooth.shape[0]
     cols = smooth.shape[1]
-    r0 = max(0, math.floor(min(ar, br) - grow))
-    r1 = min(height - 1, math.ceil(max(ar, br) + grow))
-    c0 = max(0, math.floor(min(ac, bc) - grow))
-    c1 = min(cols - 1, math.ceil(max(ac, bc) + grow))
+    smooth_box(
+        frame, weights, spans_lo, spans_hi, max(0, math.floor(min(ar, br) - grow)),
+        min(height - 1, math.ceil(max(ar, br) + grow)), max(0, math.floor(min(ac, bc) - grow)),
+        min(cols - 1, math.ceil(max(ac, bc) + grow)), box_lo, box_hi, tmp, smooth,
+    )  # fmt: skip
     out_seg[0, 0] = points[seg_a, 0]
     out_seg[0, 1] = points[seg_a, 1]
     out_seg[1, 0] = points[seg_b, 0]
@@ -156,47 +148,10 @@ def split_frame(
         if count > 0:
             sweep = min(total if count == 1 else total / 2.0, 1.5 * width)
     out_info[6] = sweep
-    # A clipped rope's corners lie on the border (the band's edges meet it there): its box reaches the border.
-    whole_box = sweep < params[SPLIT_PARAMS + 5] * width or r0 == 0 or c0 == 0 or r1 == height - 1 or c1 == cols - 1
-    if whole_box:
-        smooth_box(frame, weights, spans_lo, spans_hi, r0, r1, c0, c1, box_lo, box_hi, tmp, smooth)
     if sweep < params[SPLIT_PARAMS + 5] * width:
         return SPLIT_STATIC
-    # `split_shapes_packed_near` with the tip fit's samples smoothed first (the same shapes).
-    if sides.shape[0] < 4 or lines.shape[0] < 3:
-        return INVALID
-    polarity = np.float32(state[2])
-    skip_px = np.float32(params[4])
-    span_px = np.float32(params[5])
-    na, nb = side_polylines(
-        points, chain, n, i_fix, seg_a, seg_b, mag, np.float32(1.0 / contrast), curves[0], curves[1],
-        np.int32(params[0]), gx, gy, polarity, np.float32(params[1]), table, skip_px, span_px, lines[0], lines[1],
-        lines[2], sides[0], sides[1], sweep_index,
-    )  # fmt: skip
-    if na < 0 or nb < 0:
-        return FULL
-    fresh = not whole_box and np.float32(params[3]) == 0.0
-    for side in range(2):
-        poly = sides[0] if side == 0 else sides[1]
-        count = na if side == 0 else nb
-        found, base_r, base_c, dir_r, dir_c, best = band_end_near(
-            poly, count, points, n, np.float32(params[2]), skip_px, span_px, scratch[1], fixed_r, fixed_c
-        )
-        if found == 0.0:
-            continue
-        if fresh:  # the flat end's refinement reads `smooth` there
-            t0, t1, u0, u1 = tip_sample_box(base_r, base_c, dir_r, dir_c, best, np.float32(params[6]), height, cols)
-            if smooth_small_box(frame, weights, spans_lo, spans_hi, t0, t1, u0, u1, tmp, smooth) < 0:
-                smooth_box(frame, weights, spans_lo, spans_hi, t0, t1, u0, u1, box_lo, box_hi, tmp, smooth)
-        count = band_tip(
-            poly, count, smooth, base_r, base_c, dir_r, dir_c, best, np.float32(params[2]), np.float32(params[3]),
-            skip_px, np.float32(params[6]),
-        )  # fmt: skip
-        if side == 0:
-            na = count
-        else:
-            nb = count
-    return finish_shapes(
-        na, nb, params[7], params[8], fixed_r, fixed_c, skip_px, span_px, np.float32(params[9]),
-        np.float32(params[10]), sides[0], sides[1], sides[2], sides[3], scratch[0], out_info,
+    # The tip fit's search takes the distances from the fixed end that step 1 left in ``scratch[1]``.
+    return split_shapes_packed_near(
+        points, chain, n, i_fix, seg_a, seg_b, mag, np.float32(1.0 / contrast), gx, gy, np.float32(state[2]), smooth,
+        fixed_r, fixed_c, params, curves, table, lines, sides, scratch[0], out_info, scratch[1], sweep_index,
     )  # fmt: skip

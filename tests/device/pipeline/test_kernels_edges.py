@@ -275,37 +275,3 @@ def test_smooth_box_gives_the_values_detect_gives() -> None:
     for r0, r1, c0, c1 in ((0, 5, 0, 7), (10, 30, 20, 49), (35, 39, 3, 3)):
         boxed.smooth_box(frame, r0, r1, c0, c1)
         np.testing.assert_array_equal(boxed.smooth[r0 : r1 + 1, c0 : c1 + 1], whole.smooth[r0 : r1 + 1, c0 : c1 + 1])
-
-
-def test_smooth_small_box_is_smooth_box() -> None:
-    # The pixel-by-pixel version gives `smooth_box`'s values and count over the box (rows covered by the spans
-    # left to the band, the image border replicated), and declines a smoothing of other than 5 taps.
-    from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
-
-    rng = np.random.default_rng(5)
-    frame = rng.integers(0, 256, (40, 50), dtype=np.uint8)
-    whole = EdgeDetector(40, 50, 1.0, 20.0, 50.0)
-    whole.detect(frame, whole.full_lo, whole.full_hi)
-    weights = whole.weights_ro
-    lo = np.full(40, 50, np.int32)
-    hi = np.full(40, -1, np.int32)
-    covered = rng.random(40) < 0.3
-    lo[covered], hi[covered] = 0, 49
-    work_lo, work_hi = np.zeros(40, np.int32), np.zeros(40, np.int32)
-    for r0, r1, c0, c1 in ((0, 5, 0, 7), (10, 30, 20, 49), (35, 39, 3, 3), (12, 18, 30, 44), (0, 39, 0, 49)):
-        planes = []
-        for small in (True, False):
-            tmp, smooth = np.full((40, 50), -1.0, np.float32), np.full((40, 50), -1.0, np.float32)
-            if small:
-                count = K.smooth_small_box(frame, weights, lo, hi, r0, r1, c0, c1, tmp, smooth)
-            else:
-                count = K.smooth_box(frame, weights, lo, hi, r0, r1, c0, c1, work_lo, work_hi, tmp, smooth)
-            planes.append((count, smooth[r0 : r1 + 1, c0 : c1 + 1]))
-        assert planes[0][0] == planes[1][0]
-        np.testing.assert_array_equal(planes[0][1], planes[1][1])
-        done = ~covered[r0 : r1 + 1]
-        np.testing.assert_array_equal(planes[0][1][done], whole.smooth[r0 : r1 + 1, c0 : c1 + 1][done])
-    wide = gaussian_weights(2.0).astype(np.float32)
-    assert wide.shape[0] != 5
-    plane = np.zeros((40, 50), np.float32)
-    assert K.smooth_small_box(frame, wide, lo, hi, 0, 5, 0, 5, plane, plane) == -1

@@ -318,30 +318,3 @@ def test_extend_to_band_end_near_equals_the_full_search() -> None:
     assert (
         K.extend_to_band_end_near(poly, cols.size, far, 1, image, 3.0, 0.0, 5.0, 9.0, 1.0, dist, 0.0, 0.0) == cols.size
     )
-
-
-def test_tip_sample_box_holds_every_pixel_the_refinement_reads() -> None:
-    # The flat end's refinement (`band_tip`, cap 0) on an image whose pixels outside `tip_sample_box` are garbage
-    # gives the tip it gives on the whole image: the split smooths only that box. Axes in every direction, near
-    # the image border too (the box is clipped to the image, as the samples are).
-    rng = np.random.default_rng(11)
-    f = np.float32
-    image = _band_image(50.3)
-    height, width = image.shape
-    cols = np.arange(8.0, 49.0, 1.0)
-    for _ in range(24):
-        base_r, base_c = rng.uniform(-2.0, height + 1.0), rng.uniform(-2.0, width + 1.0)
-        angle = rng.uniform(0.0, 2.0 * math.pi)
-        dir_r, dir_c = math.sin(angle), math.cos(angle)
-        best, blur = rng.uniform(-2.0, 12.0), f(rng.choice([0.5, 1.0, 1.7]))
-        r0, r1, c0, c1 = K.tip_sample_box(base_r, base_c, dir_r, dir_c, best, blur, height, width)
-        assert 0 <= r0 <= r1 < height and 0 <= c0 <= c1 < width
-        garbage = np.full_like(image, 1e6)
-        garbage[r0 : r1 + 1, c0 : c1 + 1] = image[r0 : r1 + 1, c0 : c1 + 1]
-        tips = []
-        for plane in (image, garbage):
-            poly = np.zeros((100, 2), np.float32)
-            poly[: cols.size] = np.stack([np.full(cols.size, 20.0), cols], axis=1)
-            count = K.band_tip(poly, cols.size, plane, base_r, base_c, dir_r, dir_c, best, f(3.0), f(0.0), f(5.0), blur)
-            tips.append(poly[:count].copy())
-        np.testing.assert_array_equal(tips[1], tips[0])
