@@ -179,3 +179,50 @@ def test_radius_range_holds_the_radius_of_every_squared_distance_in_it(motion) -
             inside = [lo, hi, np.nextafter(lo, np.inf), np.nextafter(hi, -np.inf), *rng.uniform(lo, hi, 20)]
             assert all(_radius(float(x), d_max, profile, 4, motion)[1] == m for x in inside if lo <= x <= hi)
         assert ranges >= 30  # the range is found for nearly every point (else the kernel computes every radius)
+
+
+def _rectangle_spans(p_r, p_c, u_r, u_c, length, radius, reach, height, width, lo, hi):
+    """`_draw_rectangle` written plainly: per row, the columns of the rectangle's two strips, clipped."""
+    r0 = max(0, math.ceil(min(p_r, p_r + length * u_r) - reach))
+    r1 = min(height - 1, math.floor(max(p_r, p_r + length * u_r) + reach))
+    for r in range(r0, r1 + 1):
+        y = r - p_r
+        x0, x1 = -1e18, 1e18
+        if abs(u_c) > 1e-6:  # 0 <= (X - P).u <= length
+            t0 = -u_r / u_c * y
+            t1 = t0 + length / u_c
+            x0, x1 = max(x0, min(t0, t1)), min(x1, max(t0, t1))
+        if abs(u_r) > 1e-6:  # |(X - P).n| <= radius
+            s = u_c / u_r * y
+            x0, x1 = max(x0, s - abs(radius / u_r)), min(x1, s + abs(radius / u_r))
+        if x0 <= x1:
+            c0, c1 = max(0, math.floor(p_c + x0)), min(width - 1, math.ceil(p_c + x1))
+            if c0 <= c1:
+                lo[r], hi[r] = min(lo[r], c0), max(hi[r], c1)
+
+
+def test_draw_rectangle_matches_the_plain_row_loop() -> None:
+    """`_draw_rectangle` against the row loop written plainly (a guard for rewrites of its loop; band9 replaced
+    its per-row min/max and tests by one loop): the same spans, for rectangles at every angle (on and near the
+    axes too), of zero length too, inside, across and outside the image, over spans partly drawn."""
+    from ropecam.device.pipeline._kernels.spans import _draw_rectangle
+
+    rng = np.random.default_rng(5)
+    height, width = 60, 80
+    angles = np.concatenate(
+        [rng.uniform(-math.pi, math.pi, 150), np.arange(-4, 5) * (math.pi / 4), [1e-7, -1e-7, math.pi / 2 + 1e-7]]
+    )
+    for angle in angles:
+        u_r, u_c = math.cos(angle), math.sin(angle)
+        p_r, p_c = rng.uniform(-20, height + 20), rng.uniform(-20, width + 20)
+        length, radius = rng.choice([0.0, rng.uniform(0.0, 40.0)], p=[0.1, 0.9]), rng.uniform(0.5, 9.0)
+        lo = np.full(height, width, np.int32)
+        hi = np.full(height, -1, np.int32)
+        drawn = rng.random(height) < 0.5
+        lo[drawn] = rng.integers(0, width, drawn.sum())
+        hi[drawn] = lo[drawn] + rng.integers(0, 10, drawn.sum())
+        want_lo, want_hi = lo.copy(), hi.copy()
+        args = (p_r, p_c, u_r, u_c, length, radius, radius * abs(u_c), height, width)
+        _rectangle_spans(*args, want_lo, want_hi)
+        _draw_rectangle(*args, lo, hi)
+        assert np.array_equal(lo, want_lo) and np.array_equal(hi, want_hi), angle
