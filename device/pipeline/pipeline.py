@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import i32, resident_zeros, ro
+from ropecam.device.pipeline._views import buffer_table, i32, resident_zeros, ro
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.contour import ContourTracer
 from ropecam.device.pipeline.edges import EdgeDetector
@@ -41,9 +41,6 @@ _COARSE_MIN_CELLS = 8
 smallest accepted contour, 40 px, about 20)."""
 _COARSE_DILATE = 2
 """Cells added around the kept cells."""
-_STEADY_T_END = 8 + 15 + 19 + 14
-"""Index of `t_end_ns` in `steady_frame`'s arguments: after the frame's eight, the band's, detect_and_trace's and
-the split's bound ones."""
 
 
 class Pipeline:
@@ -128,7 +125,7 @@ class Pipeline:
         self._steady_out = np.zeros(K.STEADY_SLOTS, np.float64)
         self._steady_bound: tuple | None = None
         """(the split's steady key and argument list, the tracker's scratch and Lc0 they were made with,
-        `steady_frame`'s argument list)."""
+        `steady_frame`'s argument list, the buffers of its table: kept alive with it)."""
         self.frames_full = 0
         self.frames_coarse = 0
         self.frames_roi = 0
@@ -289,14 +286,20 @@ class Pipeline:
             and split_args[15] is e.smooth
         ):
             return None
-        order = self._time_order
-        args = [
-            None, self._prev_points_ro, 0, False, False, False, 0, 0, *self._band_args, *tracer.detect_args(e),
-            split_args[12], split_args[13], *split_args[16:28], 0, 0, order.state, order.hist_rc,
-            tracker.fraction_ro, tracker.length0_settled_px, tracker.out, tracker.lengths_px, tracker.work,
-            self._steady_out,
-        ]  # fmt: skip
-        self._steady_bound = (key, split_args, tracker.work, tracker.length0_settled_px, args)
+        order, motion, config = self._time_order, self._motion, self.config
+        d = tracer.detect_args(e)
+        # `STEADY_BUFFERS`' order: band_stage's, detect_and_trace's, split_frame's, track_frame's, then the results.
+        buffers = (
+            tracer.points, self.fixed, motion.state, motion.log, motion.need, motion.profile, motion.band, self.lo,
+            self.hi, self._moved, *d[:1], *d[4:], split_args[12], split_args[13], *split_args[16:28], order.state,
+            order.hist_rc, tracker.fraction, tracker.out, tracker.lengths_px, tracker.work, self._steady_out,
+        )  # fmt: skip
+        constants = np.array(
+            [config.roi_margin_px, *self.shape, *motion.need_args, d[1], d[2], d[3], tracker.length0_settled_px],
+            np.float64,
+        )
+        args = [None, 0, False, False, False, 0, 0, 0, 0, 0.0, buffer_table(buffers, K.STEADY_BUFFERS), constants]
+        self._steady_bound = (key, split_args, tracker.work, tracker.length0_settled_px, args, buffers)
         return args
 
     def _measure_steady(self, image: NDArray[np.uint8], result: FrameResult, exposure_ns: int, args: list) -> None:
@@ -306,16 +309,16 @@ class Pipeline:
         t_ns = result.t_ns
         gap_ns = t_ns - self._roi_t_ns  # type: ignore[operator]  # set whenever prev_count > 0
         model, splitter = self._motion, self.splitter
-        splitter.state[4] = splitter.sweep_px  # `split_frame`'s last sweep (`SplitSteady._run_frame`)
         args[0] = image
-        args[2] = self.prev_count
-        args[3] = model.owed
-        args[4] = 2 * gap_ns <= 3 * self._need_gap_ns
-        args[5] = self._fixed_known
-        args[6] = t_ns
-        args[7] = exposure_ns
-        args[_STEADY_T_END] = result.t_end_ns
-        args[_STEADY_T_END + 1] = 4 * (self._period_ns or DEFAULT_PERIOD_NS)
+        args[1] = self.prev_count
+        args[2] = model.owed
+        args[3] = 2 * gap_ns <= 3 * self._need_gap_ns
+        args[4] = self._fixed_known
+        args[5] = t_ns
+        args[6] = exposure_ns
+        args[7] = result.t_end_ns
+        args[8] = 4 * (self._period_ns or DEFAULT_PERIOD_NS)
+        args[9] = splitter.sweep_px  # `split_frame`'s last sweep (`SplitSteady._run_frame`)
         stop = K.steady_frame(*args)
         if stop < 0:
             raise RuntimeError(f"steady_frame refused its arguments (status {stop})")
