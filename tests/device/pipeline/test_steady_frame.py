@@ -4,6 +4,7 @@ and the table of buffers it reads (`buffer_table`)."""
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 import pytest
@@ -23,13 +24,14 @@ def _rope(phase_rad: float) -> SyntheticRope:
     )
 
 
-def _frames(count: int) -> list[tuple[np.ndarray, int, int, float]]:
+@functools.cache
+def _frames(count: int) -> tuple[tuple[np.ndarray, int, int, float], ...]:
     """A swinging rope; at frame 24 the rope of another phase at the same time (a jump the band misses)."""
-    rope, other = _rope(0.0), _rope(1.0)
+    rope = _rope(0.0)
     frames = [(f.image, f.index, f.t_ns, f.exposure_us) for f in rope.frames(count)]
-    jump = next(f for f in other.frames(25) if f.index == 24)
+    jump = next(iter(_rope(1.0).frames(1, start=24)))
     frames[24] = (jump.image, 24, frames[24][2], jump.exposure_us)
-    return frames
+    return tuple(frames)
 
 
 _RUNS: dict[tuple[bool, bool], tuple[list[dict], list[int]]] = {}
