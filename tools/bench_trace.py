@@ -6,14 +6,14 @@ A pipeline runs over the frames once and records every edge-stage call (frame, r
 with the caches evicted before the detection (the pipeline runs ``cv2.Canny`` on the whole frame between frames
 in `bench_device.py`, and the split between a frame's trace and the next detection):
 
-    taskset -c 1 python tools/bench_trace.py [--frameset /work/eval/rig] [--frames 40] [--repeat 5] \\
+    taskset -c 1 python tools/bench_trace.py [--frameset DIR] [--frames 40] [--repeat 5] \\
         [--against REF] [--sizes] [--parts]
 
 - ``--sizes``: per band, the rows and pixels of the spans, the edge pixels, their components, the kept
   component's pixels and the chain's length (medians and ranges).
-- ``--parts``: the kernels `trace_rope` runs, one call each on the same state (warm, right after a detection):
-  ``keep_largest_listed``, ``trace_closed``, ``refine_subpixel``, ``count_roi_contacts`` (each with its ~1 us
-  dispatch).
+- ``--parts``: the kernels `trace_rope` runs on a band, one call each right after a detection (caches evicted
+  before it): ``first_listed`` + ``trace_closed``, ``keep_traced``, ``refine_inner``, and ``trace_rope`` whole
+  (each with its ~1-2 us dispatch).
 - ``--against REF``: the same replay with REF's ``device/`` (exported as ``ropecam_ref``, see `bench_glue.py`),
   the two trees alternately band by band; prints both medians, the median of the per-band paired ratios
   (this tree / REF) and checks that the outputs are bit-identical (edge pixels as a set, edge map, contour
@@ -60,7 +60,7 @@ def replay(pipeline: Any, frame: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> 
     pipeline.edges.detect(frame, lo, hi)
     t1 = time.perf_counter_ns()
     e = pipeline.edges
-    n = pipeline.tracer.trace(e.edges, lo, hi, e.mag, e.gx, e.gy, e.stack, e.count)
+    n = pipeline.tracer.trace(e.edges, lo, hi, e.mag_ro, e.gx_ro, e.gy_ro, e.stack_ro, e.count)  # as the pipeline
     t2 = time.perf_counter_ns()
     return (t1 - t0) / 1000, (t2 - t1) / 1000, n
 
@@ -115,38 +115,44 @@ def _count_components(mask: np.ndarray) -> int:
 
 
 def parts(pipeline: Any, kernels: Any, inputs: list[Any], repeat: int, min_px: int) -> None:
-    """Time each kernel of `trace_rope` on its own, right after a detection (warm), best of `repeat` per band."""
+    """Time the kernels `trace_rope` runs on a band (its inner path: the trace first from the first listed pixel,
+    then `keep_traced`, then `refine_inner`), each called on its own right after a detection with the caches
+    evicted before it, and `trace_rope` whole after another detection; best of `repeat` per band, each with its
+    ~1-2 us dispatch. A band whose component is not the traced one (`keep_traced` 0) is left out."""
     e, t = pipeline.edges, pipeline.tracer
     width = e.shape[1]
-    names = ["keep_largest_listed", "trace_closed", "refine_subpixel", "count_roi_contacts", "trace_rope"]
+    scratch = t.labels.reshape(-1)
+    names = ["first_listed + trace_closed", "keep_traced", "refine_inner", "trace_rope"]
     per: dict[str, list[float]] = {name: [] for name in names}
     for frame, lo, hi in inputs:
         best = dict.fromkeys(names, float("inf"))
         for _ in range(repeat):
-            replay(pipeline, frame, lo, hi)  # leaves the map rewritten: detect again
             np.add(_EVICT, 1, out=_EVICT)
             e.detect(frame, lo, hi)
+            flat = e.edges.reshape(-1)
             t0 = time.perf_counter_ns()
-            kernels.keep_largest_listed(e.edges, lo, hi, e.stack_ro, np.int32(e.count), np.int32(min_px), True,
-                                        t.labels, t.stack, t.start)  # fmt: skip
+            first = kernels.first_listed(e.stack_ro, e.count)
+            n = kernels.trace_closed(flat, width, first // width, first % width, t.chain, t.codes)
             t1 = time.perf_counter_ns()
-            n = kernels.trace_closed(e.edges.reshape(-1), width, t.start[0], t.start[1], t.chain, t.codes)
+            size = kernels.keep_traced(flat, width, e.stack_ro, e.count, min_px, t.chain, n, t.stack)
             t2 = time.perf_counter_ns()
-            kernels.refine_subpixel(e.mag_ro, e.gx_ro, e.gy_ro, t.chain_ro, n, t.points)
+            kernels.refine_inner(e.mag_ro, e.gx_ro, e.gy_ro, lo, hi, t.chain, n, scratch, t.points)
             t3 = time.perf_counter_ns()
-            kernels.count_roi_contacts(t.chain_ro, np.int32(n), lo, hi, np.int32(width))
-            t4 = time.perf_counter_ns()
             np.add(_EVICT, 1, out=_EVICT)
             e.detect(frame, lo, hi)
+            t4 = time.perf_counter_ns()
+            t.trace(e.edges, lo, hi, e.mag_ro, e.gx_ro, e.gy_ro, e.stack_ro, e.count)
             t5 = time.perf_counter_ns()
-            pipeline._trace(lo, hi)
-            t6 = time.perf_counter_ns()
-            for name, (a, b) in zip(names, ((t0, t1), (t1, t2), (t2, t3), (t3, t4), (t5, t6)), strict=True):
+            if n <= 0 or size <= 0:
+                break
+            for name, (a, b) in zip(names, ((t0, t1), (t1, t2), (t2, t3), (t4, t5)), strict=True):
                 best[name] = min(best[name], (b - a) / 1000)
-        for name in names:
-            per[name].append(best[name])
+        if all(np.isfinite(v) for v in best.values()):
+            for name in names:
+                per[name].append(best[name])
+    print(f"  parts on {len(per[names[0]])} bands (medians over bands of the best of {repeat}):")
     for name in names:
-        print(f"  {name:22s} {np.median(per[name]):7.1f} us")
+        print(f"  {name:28s} {np.median(per[name]):7.1f} us")
 
 
 def compare(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
@@ -166,7 +172,7 @@ def compare(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--frameset", default="/work/eval/rig")
+    parser.add_argument("--frameset", help="frame set (default: the synthetic rig frames of bench_device)")
     parser.add_argument("--frames", type=int, default=40)
     parser.add_argument("--repeat", type=int, default=5, help="replays per band and tree, the fastest is kept")
     parser.add_argument("--against", metavar="REF", help="also replay with this commit's stages, alternately")
@@ -175,13 +181,13 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     here = os.path.dirname(os.path.abspath(__file__))
     sys.path.insert(0, here)
-    from bench_device import frameset_frames
+    from bench_device import frameset_frames, rig_frames
     from bench_glue import export_ref
     from bench_roi_kernels import record
 
     from ropecam.device.pipeline._views import ro
 
-    frames = frameset_frames(args.frameset, args.frames + 3)
+    frames = frameset_frames(args.frameset, args.frames + 3) if args.frameset else rig_frames(args.frames + 3)
     kernels = importlib.import_module("ropecam.device.pipeline._kernels")
     config_cls = importlib.import_module("ropecam.device.pipeline.config").PipelineConfig
     pipeline_cls = importlib.import_module("ropecam.device.pipeline.pipeline").Pipeline
@@ -195,7 +201,7 @@ def main(argv: list[str] | None = None) -> int:
         ref_config = importlib.import_module("ropecam_ref.device.pipeline.config").PipelineConfig
         ref_pipeline = importlib.import_module("ropecam_ref.device.pipeline.pipeline").Pipeline
         trees[args.against] = ref_pipeline(ref_config(), (width, height))
-    print(f"{args.frameset}: {len(inputs)} bands of {width}x{height}")
+    print(f"{args.frameset or 'synthetic rig frames'}: {len(inputs)} bands of {width}x{height}")
     if args.sizes:
         sizes(trees["this tree"], inputs)
     if args.parts:

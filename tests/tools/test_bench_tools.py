@@ -43,3 +43,13 @@ def test_bench_roi_kernels_records_the_bands_and_replays_every_kernel() -> None:
     times = dict(re.findall(r"^(.+?)\s+(\S+) us", done.stdout, re.MULTILINE))
     assert "band (band_stage)" in times and "edges (detect_edges)" in times, done.stdout
     assert all(math.isfinite(float(value)) and float(value) > 0 for value in times.values()), times
+
+
+@pytest.mark.slow
+def test_bench_trace_replays_the_bands_and_times_the_trace_parts() -> None:
+    done = _run("bench_trace.py", "--frames", "4", "--repeat", "1", "--parts")
+    assert done.returncode == 0, done.stderr
+    times = dict(re.findall(r"^  (\S.*?)\s+(\S+) us$", done.stdout, re.MULTILINE))
+    parts = ("first_listed + trace_closed", "keep_traced", "refine_inner", "trace_rope")
+    assert all(name in times for name in parts), done.stdout
+    assert all(math.isfinite(float(times[name])) and float(times[name]) > 0 for name in parts), times
