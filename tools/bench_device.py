@@ -6,11 +6,12 @@ pipeline processed in its region of interest, and the Numba (NRT) allocations pe
 array argument that passing a NumPy array to a compiled function costs.
 
 With ``--stages`` it also reports (in further passes over the same frames, so the main figures are not disturbed):
-the median time per frame of each stage (edges, contour, split, ordering, material points, ROI building; "other"
-is the rest: Python glue, result records), the time of a frame searched without a region of interest (the first
-frame of a fresh pipeline, or after ``reset_tracking``: coarse search, then the band around the rope) and of a
-frame whose predicted region of interest misses (the rope jumped: the band is widened, then the coarse search
-runs), each as a median over several frames.
+the median time per frame of each stage (edges, contour, split, ordering, material points, ROI building, or on a
+steady frame all of them in one `steady_frame` call; "other" is the rest: Python glue, result records), the time
+of a frame searched without a region of interest (the first frame of a fresh pipeline, or after
+``reset_tracking``: coarse search, then the band around the rope) and of a frame whose predicted region of
+interest misses (the rope jumped: the band is widened, then the coarse search runs), each as a median over several
+frames.
 
     python tools/bench_device.py [--frames N] [--frameset PATH] [--method M] [--stages] [--json]
 """
@@ -213,8 +214,10 @@ def _timed_stages(pipeline: Pipeline, totals: dict[str, float]) -> None:
         setattr(K, name, timed_kernel)
 
 
-_KERNEL_STAGES = (("band", "band_stage"), ("order+material", "track_frame"))
-"""Stages that are one kernel call made by the pipeline itself (timed by wrapping the kernel, dispatch included)."""
+_KERNEL_STAGES = (("steady frame", "steady_frame"), ("band", "band_stage"), ("order+material", "track_frame"))
+"""Stages that are one kernel call made by the pipeline itself (timed by wrapping the kernel, dispatch included).
+A steady frame (the rope's width, polarity, fixed end and Lc0 settled) is one `steady_frame` call: its band, edges,
+contour, split, order and material points are all in "steady frame"; the other stages show the frames before."""
 
 
 _SETTLE_FRAMES = 16

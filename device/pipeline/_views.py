@@ -8,12 +8,13 @@ scalars of the declared width.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["as_ro", "f32", "i32", "resident_zeros", "ro", "staggered_planes"]
+__all__ = ["as_ro", "buffer_table", "f32", "i32", "resident_zeros", "ro", "staggered_planes"]
 
 
 def ro(array: NDArray[Any]) -> NDArray[Any]:
@@ -66,3 +67,42 @@ def resident_zeros(shape: int | tuple[int, ...], dtype: Any) -> NDArray[Any]:
     array = np.empty(shape, dtype)
     array.fill(0)
     return array
+
+
+def buffer_table(arrays: Sequence[NDArray[Any]], spec: Sequence[tuple[str, Any, int]]) -> NDArray[np.int64]:
+    """Return the table of `arrays`' addresses and shapes that a kernel taking its buffers as one argument reads
+    (`ropecam.device.pipeline._kernels.steady_frame`): row k = (address, size of each dimension, 0 for the
+    dimensions it has not) of ``arrays[k]``.
+
+    The table holds raw addresses: the caller keeps `arrays` alive and in place while it uses the table.
+
+    Parameters
+    ----------
+    arrays
+        The buffers, in the order of `spec`.
+    spec
+        (name, dtype, dimensions) per buffer (e.g. `STEADY_BUFFERS`).
+
+    Raises
+    ------
+    TypeError
+        A buffer that is not a C-contiguous NumPy array of its dtype and dimensions, or whose memory is not
+        writable (a read-only view of writable memory is taken: the kernel only reads those).
+    ValueError
+        Another number of arrays than `spec` lists.
+    """
+    if len(arrays) != len(spec):
+        raise ValueError(f"{len(arrays)} buffers given, expected {len(spec)} ({', '.join(n for n, _, _ in spec)})")
+    table = np.zeros((len(spec), 4), np.int64)
+    for row, (array, (name, dtype, ndim)) in enumerate(zip(arrays, spec, strict=True)):
+        if not isinstance(array, np.ndarray) or array.dtype != np.dtype(dtype) or array.ndim != ndim:
+            got = f"{array.dtype} array of {array.ndim} dimensions" if isinstance(array, np.ndarray) else type(array)
+            raise TypeError(f"buffer {name!r} is a {got}, expected a {np.dtype(dtype)} array of {ndim} dimensions")
+        owner = array
+        while isinstance(owner.base, np.ndarray):
+            owner = owner.base
+        if not array.flags.c_contiguous or not owner.flags.writeable:
+            raise TypeError(f"buffer {name!r} must be C-contiguous in writable memory")
+        table[row, 0] = array.ctypes.data
+        table[row, 1 : 1 + ndim] = array.shape
+    return table

@@ -135,6 +135,12 @@ class ContourTracer:
         """
         if frame.shape != detector.shape:
             raise ValueError(f"frame shape is {frame.shape}, expected {detector.shape}")
+        args = self._detect_args if detector is self._detector else self.detect_args(detector)
+        return self.adopt(detector, frame, lo, hi, K.detect_and_trace(frame, lo, hi, *args))
+
+    def detect_args(self, detector: EdgeDetector) -> tuple[Any, ...]:
+        """The arguments of the `detect_and_trace` kernel after the frame and the spans, for `detector`: its
+        buffers, then this tracer's (made once per detector)."""
         if detector is not self._detector:
             d = detector
             self._detect_args = (
@@ -142,7 +148,14 @@ class ContourTracer:
                 d.stack, self.labels, self.stack, self.start, self.chain, self.codes, self.points, self.counts,
             )  # fmt: skip
             self._detector = detector
-        n = K.detect_and_trace(frame, lo, hi, *self._detect_args)
+        return self._detect_args
+
+    def adopt(
+        self, detector: EdgeDetector, frame: NDArray[np.uint8], lo: NDArray[np.int32], hi: NDArray[np.int32], n: int
+    ) -> int:
+        """Take the results of a `detect_and_trace` kernel call (made here, or inside `steady_frame`) of `frame` in
+        the spans `lo`/`hi` into this tracer and `detector`, as `detect_and_trace` does; returns the number of
+        contour points (0 when none). Raises RuntimeError as `detect_and_trace`."""
         self.component_px, self.contacts, self.on_border, count = self.counts.tolist()
         if count < 0:
             raise RuntimeError(f"detect_edges returned status {count} (frame {frame.shape}, spans {lo.shape})")

@@ -14,13 +14,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import i32, resident_zeros, ro
+from ropecam.device.pipeline._views import buffer_table, i32, resident_zeros, ro
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.contour import ContourTracer
 from ropecam.device.pipeline.edges import EdgeDetector
 from ropecam.device.pipeline.motion import MotionModel
 from ropecam.device.pipeline.result import FrameResult, FrameStatus
 from ropecam.device.pipeline.split import BlurSplitter
+from ropecam.device.pipeline.split_outcome import SplitOutcome
 from ropecam.device.pipeline.time_order import DEFAULT_PERIOD_NS, TimeOrder
 from ropecam.device.pipeline.tracking import PointTracker
 
@@ -30,6 +31,7 @@ _FIXED_END_FRAMES = 10
 _WIDTH_FRAMES = 15
 """Frames whose measured rope width (median) is used afterwards, when the config gives none."""
 _POLARITY_FRAMES = 5
+"""Frames whose polarity votes decide the polarity afterwards, when the config says auto."""
 _ROI_RETRIES = 2
 """Times a band is widened around a contour that runs out of it before the next way of searching is tried."""
 _COARSE_BLOCK = 4
@@ -39,7 +41,6 @@ _COARSE_MIN_CELLS = 8
 smallest accepted contour, 40 px, about 20)."""
 _COARSE_DILATE = 2
 """Cells added around the kept cells."""
-"""Frames whose polarity votes decide the polarity afterwards, when the config says auto."""
 
 
 class Pipeline:
@@ -121,6 +122,10 @@ class Pipeline:
         )  # fmt: skip
         """`band_stage`'s arguments after the frame's (Python ints and floats for its int64/float64 scalars)."""
         self._roi_t_ns: int | None = None
+        self._steady_out = np.zeros(K.STEADY_SLOTS, np.float64)
+        self._steady_bound: tuple | None = None
+        """(the split's steady key and argument list, the tracker's scratch and Lc0 they were made with,
+        `steady_frame`'s argument list, the buffers of its table: kept alive with it)."""
         self.frames_full = 0
         self.frames_coarse = 0
         self.frames_roi = 0
@@ -237,7 +242,117 @@ class Pipeline:
 
     # ----------------------------------------------------------------------------------------------------------
     def _measure(self, image: NDArray[np.uint8], result: FrameResult, exposure_ns: int) -> None:
+        if self.prev_count > 0 and self._steady is not None:
+            args = self._steady_frame_args()
+            if args is not None:
+                self._measure_steady(image, result, exposure_ns, args)
+                return
         n, used_roi = self._locate(image, result.t_ns, exposure_ns)
+        self._measure_contour(image, result, exposure_ns, n, used_roi)
+
+    def _steady_frame_args(self) -> list | None:
+        """`steady_frame`'s argument list when this frame can be one kernel call: the split took its steady path
+        on the last frame with this pipeline's buffers, and Lc0 is settled (so `track_frame` runs). Made once per
+        steady state (the same buffers every frame); `_measure_steady` sets the per-frame slots. None otherwise."""
+        call = self.splitter.steady_call()
+        tracker = self.tracker
+        if call is None or tracker.length0_settled_px < 0.0:
+            return None
+        key, split_args = call
+        bound = self._steady_bound
+        if (
+            bound is not None
+            and bound[0] is key
+            and bound[1] is split_args
+            and bound[2] is tracker.work
+            and bound[3] == tracker.length0_settled_px
+        ):
+            return bound[4]
+        self._steady_bound = None
+        e, tracer = self.edges, self.tracer
+        width_px, fixed_rc, _, polarity = self._steady  # type: ignore[misc]  # `_measure` checked it
+        # The split's steady path was taken with what this pipeline passes it (`_measure_contour`), and its bound
+        # arrays are views of this pipeline's buffers: `steady_frame` passes the split those buffers themselves.
+        ours = (tracer.points, tracer.chain, e.gx, e.gy, e.mag, e.smooth, e, fixed_rc)
+        views = (tracer.points, tracer.chain, e.mag, e.gx, e.gy)
+        if not (
+            all(k is o for k, o in zip(key[:8], ours, strict=True))
+            and key[8] == width_px
+            and key[9] == polarity
+            and split_args[1] is e
+            and all(_same_memory(v, o) for v, o in zip(split_args[3:8], views, strict=True))
+            and split_args[9] is e.weights_ro
+            and split_args[14] is e.tmp
+            and split_args[15] is e.smooth
+        ):
+            return None
+        order, motion, config = self._time_order, self._motion, self.config
+        d = tracer.detect_args(e)
+        # `STEADY_BUFFERS`' order: band_stage's, detect_and_trace's, split_frame's, track_frame's, then the results.
+        buffers = (
+            tracer.points, self.fixed, motion.state, motion.log, motion.need, motion.profile, motion.band, self.lo,
+            self.hi, self._moved, *d[:1], *d[4:], split_args[12], split_args[13], *split_args[16:28], order.state,
+            order.hist_rc, tracker.fraction, tracker.out, tracker.lengths_px, tracker.work, self._steady_out,
+        )  # fmt: skip
+        constants = np.array(
+            [config.roi_margin_px, *self.shape, *motion.need_args, d[1], d[2], d[3], tracker.length0_settled_px],
+            np.float64,
+        )
+        args = [None, 0, False, False, False, 0, 0, 0, 0, 0.0, buffer_table(buffers, K.STEADY_BUFFERS), constants]
+        self._steady_bound = (key, split_args, tracker.work, tracker.length0_settled_px, args, buffers)
+        return args
+
+    def _measure_steady(self, image: NDArray[np.uint8], result: FrameResult, exposure_ns: int, args: list) -> None:
+        """Measure a steady frame in one kernel call (`steady_frame`: `band_stage`, `detect_and_trace`,
+        `split_frame`, `track_frame`), then go on from where the call stopped as `_locate` and `_measure_contour`
+        go on after those calls: the same state and result as the calls one by one."""
+        t_ns = result.t_ns
+        gap_ns = t_ns - self._roi_t_ns  # type: ignore[operator]  # set whenever prev_count > 0
+        model, splitter = self._motion, self.splitter
+        args[0] = image
+        args[1] = self.prev_count
+        args[2] = model.owed
+        args[3] = 2 * gap_ns <= 3 * self._need_gap_ns
+        args[4] = self._fixed_known
+        args[5] = t_ns
+        args[6] = exposure_ns
+        args[7] = result.t_end_ns
+        args[8] = 4 * (self._period_ns or DEFAULT_PERIOD_NS)
+        args[9] = splitter.sweep_px  # `split_frame`'s last sweep (`SplitSteady._run_frame`)
+        stop = K.steady_frame(*args)
+        if stop < 0:
+            raise RuntimeError(f"steady_frame refused its arguments (status {stop})")
+        motion_px, points, status, swap, confidence, stretch_begin, stretch_end = self._steady_out.tolist()
+        n = self.tracer.adopt(self.edges, image, self._lo_ro, self._hi_ro, int(points))
+        if stop == K.STEADY_AFTER_CONTOUR:
+            n, used_roi = self._locate_in_band(image, motion_px, gap_ns, n)
+            self._measure_contour(image, result, exposure_ns, n, used_roi)
+            return
+        # The contour lies whole in the band and off the image border: `_locate_in_band` and `_measure_contour`
+        # up to the split.
+        self.frames_roi += 1
+        model.owed = True
+        self._need_gap_ns = gap_ns
+        result.full_frame = False
+        self.prev_count = n
+        self._roi_t_ns = t_ns
+        result.fixed_end = self.fixed
+        width_px, fixed_rc, _, polarity = self._steady  # type: ignore[misc]  # `_steady_frame_args` checked it
+        outcome = splitter.adopt_frame(int(status), n, fixed_rc)
+        if outcome is False:  # a buffer too small for the steady path: the split step by step
+            e = self.edges
+            outcome = splitter.split(
+                self.tracer.points, self.tracer.chain, n, fixed_rc, width_px, e.gx, e.gy, e.edges, e.mag, e.smooth,
+                polarity, edge_stage=e, frame=image,
+            )  # fmt: skip
+        tracked = (int(swap), confidence, stretch_begin, stretch_end) if stop == K.STEADY_DONE else None
+        self._finish(result, outcome, exposure_ns, tracked)
+
+    def _measure_contour(
+        self, image: NDArray[np.uint8], result: FrameResult, exposure_ns: int, n: int, used_roi: bool
+    ) -> None:
+        """Measure the frame from its contour (`n` points in the tracer, found in the band predicted from the last
+        frame when `used_roi`)."""
         result.full_frame = not used_roi
         if n == 0:
             self.prev_count = 0
@@ -290,6 +405,17 @@ class Pipeline:
                 result.rope_width_px = outcome.width_px
                 result.order_confidence = 1.0
             return
+        self._finish(result, outcome, exposure_ns)
+
+    def _finish(
+        self,
+        result: FrameResult,
+        outcome: SplitOutcome | None,
+        exposure_ns: int,
+        tracked: tuple[int, float, float, float] | None = None,
+    ) -> None:
+        """Fill `result` from the split's `outcome`: the shapes in time order and the material points (with
+        `tracked`, the results of a `track_frame` call made on them already), or why there are none."""
         if outcome is None:
             result.status = FrameStatus.LOST_TRACK
             result.message = self.splitter.failure
@@ -300,8 +426,9 @@ class Pipeline:
         tracker = self.tracker
         result.material_arc_m = tracker.arc_m
         a, b = outcome.shape_a, outcome.shape_b
-        swap = -1
-        if tracker.length0_settled_px >= 0.0:
+        if tracked is not None:
+            swap, confidence, stretch_begin, stretch_end = tracked
+        elif tracker.length0_settled_px >= 0.0:
             # Time order, material points and the motion model's update in one kernel call (`track_frame`: the
             # same as `_order`, `PointTracker.track_shapes` and `MotionModel.observe` in turn); a negative `swap`
             # (an empty shape, a shape longer than the tracker's scratch) has written nothing.
@@ -315,6 +442,8 @@ class Pipeline:
                 )  # fmt: skip
             except TypeError:  # not the splitter's writable float32 buffers
                 swap = -1
+        else:
+            swap = -1
         if swap >= 0:
             result.begin, result.end = (b, a) if swap else (a, b)
             result.order_confidence = confidence
@@ -338,7 +467,6 @@ class Pipeline:
 
         Returns (contour points, found in the band predicted from the last frame).
         """
-        margin = self.config.roi_margin_px
         if self.prev_count > 0:
             model = self._motion
             # The measured error holds for the time gap it was measured over: a longer one (a dropped frame) gets
@@ -350,30 +478,45 @@ class Pipeline:
                 self._prev_points_ro, self.prev_count, model.owed, 2 * gap_ns <= 3 * self._need_gap_ns,
                 self._fixed_known, t_ns, exposure_ns, *self._band_args,
             )  # fmt: skip
-            n = self._search(image, margin + max(8, math.ceil(2.0 * motion)))
-            if n > 0:
-                self.frames_roi += 1
-                model.owed = True
-                self._need_gap_ns = gap_ns
-                return n, True
-            model.forget_need()
+            n = self.tracer.detect_and_trace(self.edges, image, self._lo_ro, self._hi_ro)
+            return self._locate_in_band(image, motion, gap_ns, n)
+        return self._locate_elsewhere(image)
+
+    def _locate_in_band(self, image: NDArray[np.uint8], motion_px: float, gap_ns: int, n: int) -> tuple[int, bool]:
+        """`_locate` after the first search of the band predicted with uncertainty `motion_px` over `gap_ns` from
+        the last frame, which found `n` contour points."""
+        n = self._search(image, self.config.roi_margin_px + max(8, math.ceil(2.0 * motion_px)), n)
+        model = self._motion
+        if n > 0:
+            self.frames_roi += 1
+            model.owed = True
+            self._need_gap_ns = gap_ns
+            return n, True
+        model.forget_need()
+        return self._locate_elsewhere(image)
+
+    def _locate_elsewhere(self, image: NDArray[np.uint8]) -> tuple[int, bool]:
+        """`_locate` without a band: around the coarse look's cells, else in the whole frame."""
         kept = K.coarse_spans(
             ro(image), i32(_COARSE_BLOCK), self._coarse_step, i32(_COARSE_MIN_CELLS), i32(_COARSE_DILATE),
             self.coarse_sums, self.coarse_labels, self.coarse_stack, self.lo, self.hi,
         )  # fmt: skip
         if kept > 0:
-            n = self._search(image, margin + 8)
+            first = self.tracer.detect_and_trace(self.edges, image, self._lo_ro, self._hi_ro)
+            n = self._search(image, self.config.roi_margin_px + 8, first)
             if n > 0:
                 self.frames_coarse += 1
                 return n, False
         self.frames_full += 1
         return self.tracer.detect_and_trace(self.edges, image, self.edges.full_lo_ro, self.edges.full_hi_ro), False
 
-    def _search(self, image: NDArray[np.uint8], grow: int) -> int:
-        """Detect and trace inside the spans `lo`/`hi`, widening them by `grow` px around a contour that reaches
-        their border; returns the contour's points, 0 when it is not found whole inside them."""
+    def _search(self, image: NDArray[np.uint8], grow: int, n: int) -> int:
+        """Go on with the search in the spans `lo`/`hi` whose first detection and trace found `n` contour points:
+        widen them by `grow` px around a contour that reaches their border and search again; returns the
+        contour's points, 0 when it is not found whole inside them."""
         for attempt in range(_ROI_RETRIES + 1):
-            n = self.tracer.detect_and_trace(self.edges, image, self._lo_ro, self._hi_ro)
+            if attempt > 0:
+                n = self.tracer.detect_and_trace(self.edges, image, self._lo_ro, self._hi_ro)
             if n == 0:
                 return 0
             contacts = self.tracer.contacts  # counted by the trace on these spans
@@ -515,3 +658,13 @@ def _exposure_ns(exposure_us: object) -> tuple[int, str]:
     if not math.isfinite(value) or value < 0:
         return 0, f"exposure_us is {value}, expected a finite number of microseconds >= 0 (0 = unknown)"
     return round(value * 1000.0), ""
+
+
+def _same_memory(view: NDArray, array: NDArray) -> bool:
+    """Whether `view` shows exactly the elements of `array` (the same address, shape, strides and type)."""
+    return (
+        view.__array_interface__["data"][0] == array.__array_interface__["data"][0]
+        and view.shape == array.shape
+        and view.strides == array.strides
+        and view.dtype == array.dtype
+    )

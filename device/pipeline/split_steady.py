@@ -62,13 +62,36 @@ class SplitSteady:
         assert args is not None
         args[8] = frame  # `split_frame` takes a writable or a read-only frame
         args[10], args[11] = edge_stage.spans
-        status = K.split_frame(*args[3:])
+        return self.frame_outcome(K.split_frame(*args[3:]), fixed_rc)
+
+    def steady_call(self) -> tuple[tuple, list] | None:
+        """The steady path's key and `split_frame`'s argument list when the last `split` took that path: the next
+        `split` with the arguments of the key (points, chain, gx, gy, mag, smooth, edge stage, fixed end, width,
+        polarity) takes it again. None when it would not. `steady_frame` makes that call from compiled code, then
+        `adopt_frame` takes its results."""
+        key, args = self._steady_key, self._frame_args
+        if key is None or args is None:
+            return None
+        return key, args
+
+    def adopt_frame(self, status: int, n: int, fixed_rc: tuple[float, float]) -> SplitOutcome | bool | None:
+        """Take the results of a `split_frame` call made inside `steady_frame` (with ``state[4]`` = `sweep_px`,
+        ``state[5]`` = `n`, on the contour, frame and spans of the key of `steady_call`), as `split` would have
+        after making it. Returns as `split`, or False when the kernel reported a full buffer: `split` then redoes
+        the frame's split step by step (it makes the same `split_frame` call first, with the same result)."""
+        self.failure = "contour found but no segmentation points"
+        self._count = n
+        return self.frame_outcome(status, fixed_rc)
+
+    def frame_outcome(self, status: int, fixed_rc: tuple[float, float]) -> SplitOutcome | bool | None:
+        """The outcome of the `split_frame` call that returned `status` (its `info`, `seg` and shapes are here)."""
+        width_px = self._frame_args[0].tables.width_px  # type: ignore[index]  # made before any call
         if status == _SHAPES:  # the usual outcome first
             count_a, count_b, _, _, smoothed_a, smoothed_b, sweep = self.info.tolist()
             self.sweep_px = sweep
             return SplitOutcome(
                 _BLUR_SPLIT, (self.side_a if smoothed_a else self.out_a)[: int(count_a)],
-                (self.side_b if smoothed_b else self.out_b)[: int(count_b)], self.seg, args[0].tables.width_px, sweep,
+                (self.side_b if smoothed_b else self.out_b)[: int(count_b)], self.seg, width_px, sweep,
             )  # fmt: skip
         if status < 0 and status != K.NOT_FOUND:
             return False
@@ -82,4 +105,4 @@ class SplitSteady:
             return None
         shape_a = (self.side_a if smoothed_a else self.out_a)[: int(count_a)]
         shape_b = (self.side_b if smoothed_b else self.out_b)[: int(count_b)]
-        return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, args[0].tables.width_px, sweep)
+        return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, width_px, sweep)

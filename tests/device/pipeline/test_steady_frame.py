@@ -1,0 +1,186 @@
+"""`steady_frame` (a steady frame in one kernel call) against the same kernels called one by one from the stages,
+and the table of buffers it reads (`buffer_table`)."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import numpy as np
+import pytest
+
+from ropecam.device.capture.synthetic import SyntheticRope
+from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._views import buffer_table
+from ropecam.device.pipeline.config import PipelineConfig
+from ropecam.device.pipeline.pipeline import Pipeline
+
+pytestmark = pytest.mark.kernel
+
+
+def _rope(phase_rad: float) -> SyntheticRope:
+    return SyntheticRope(
+        exposure_us=4000, amplitude_rad=0.6, period_s=0.9, diameter_px=3.0, phase_rad=phase_rad, fps=119.0
+    )
+
+
+@functools.cache
+def _frames(count: int) -> tuple[tuple[np.ndarray, int, int, float], ...]:
+    """A swinging rope; at frame 24 the rope of another phase at the same time (a jump the band misses)."""
+    rope = _rope(0.0)
+    frames = [(f.image, f.index, f.t_ns, f.exposure_us) for f in rope.frames(count)]
+    jump = next(iter(_rope(1.0).frames(1, start=24)))
+    frames[24] = (jump.image, 24, frames[24][2], jump.exposure_us)
+    return tuple(frames)
+
+
+_RUNS: dict[tuple[bool, bool], tuple[list[dict], list[int]]] = {}
+
+
+def _run(monkeypatch: pytest.MonkeyPatch, fused: bool, read_only: bool = False) -> tuple[list[dict], list[int]]:
+    """Every FrameResult field (but the time) and the state that links frames, after each frame; and the
+    `steady_frame` returns. Without `fused`, the pipeline never takes the one-call path."""
+    if (fused, read_only) in _RUNS:
+        return _RUNS[(fused, read_only)]
+    stops: list[int] = []
+    real = K.steady_frame
+
+    def counted(*args):
+        stops.append(int(real(*args)))
+        return stops[-1]
+
+    with monkeypatch.context() as patch:
+        patch.setattr(K, "steady_frame", counted)
+        if not fused:
+            patch.setattr(Pipeline, "_steady_frame_args", lambda self: None)
+        frames = _frames(46)
+        pipeline = Pipeline(PipelineConfig(), (frames[0][0].shape[1], frames[0][0].shape[0]))
+        rows = []
+        for image, index, t_ns, exposure_us in frames:
+            if read_only:
+                image = image.copy()
+                image.flags.writeable = False
+            result = pipeline.process(image, index, t_ns, exposure_us)
+            row = {
+                f.name: _copy(getattr(result, f.name)) for f in dataclasses.fields(result) if f.name != "pipeline_us"
+            }
+            motion, order = pipeline._motion, pipeline._time_order
+            row.update(
+                lo=pipeline.lo.copy(), hi=pipeline.hi.copy(), motion_state=motion.state.copy(),
+                motion_log=motion.log.copy(), need=motion.need.copy(), profile=motion.profile.copy(),
+                band=motion.band.copy(), owed=motion.owed, order_state=order.state.copy(),
+                order_hist=order.hist_rc.copy(), sweep=pipeline.splitter.sweep_px, count=pipeline.tracer.count,
+                counters=(pipeline.frames_roi, pipeline.frames_coarse, pipeline.frames_full, pipeline.roi_retries),
+            )  # fmt: skip
+            rows.append(row)
+    _RUNS[(fused, read_only)] = (rows, stops)
+    return rows, stops
+
+
+def _copy(value):
+    if isinstance(value, np.ndarray):
+        return value.copy()
+    if isinstance(value, tuple):
+        return tuple(_copy(v) for v in value)
+    return value
+
+
+def _assert_identical(got: list[dict], want: list[dict]) -> None:
+    for index, (row_got, row_want) in enumerate(zip(got, want, strict=True)):
+        assert row_got.keys() == row_want.keys()
+        for key, value in row_want.items():
+            other = row_got[key]
+            if isinstance(value, np.ndarray) or isinstance(other, np.ndarray):
+                assert isinstance(other, np.ndarray) and isinstance(value, np.ndarray), f"frame {index} {key}"
+                np.testing.assert_array_equal(other, value, err_msg=f"frame {index} {key}")
+                assert other.dtype == value.dtype, f"frame {index} {key}"
+            elif isinstance(value, tuple) and any(isinstance(v, np.ndarray) for v in value):
+                for a, b in zip(other, value, strict=True):
+                    np.testing.assert_array_equal(a, b, err_msg=f"frame {index} {key}")
+            elif isinstance(value, float) and np.isnan(value):
+                assert isinstance(other, float) and np.isnan(other), f"frame {index} {key}: {other} != nan"
+            else:
+                assert other == value, f"frame {index} {key}: {other!r} != {value!r}"
+
+
+@pytest.mark.jit_only  # 46 frames of a pipeline: minutes in plain Python; the parts below run there
+def test_steady_frames_are_the_calls_one_by_one(monkeypatch: pytest.MonkeyPatch) -> None:
+    fused, stops = _run(monkeypatch, fused=True)
+    steps, no_stops = _run(monkeypatch, fused=False)
+    assert not no_stops
+    # Every way out of the kernel was taken: the whole frame, a split that is not two shapes (the rope at a
+    # turning point: static), the jumped rope the band misses (and the frame after it, searched anew).
+    assert stops.count(K.STEADY_DONE) >= 5
+    assert K.STEADY_AFTER_SPLIT in stops
+    assert K.STEADY_AFTER_CONTOUR in stops
+    assert fused[24]["counters"][1] > fused[23]["counters"][1]  # the jump: the band missed, the coarse search ran
+    _assert_identical(fused, steps)
+
+
+@pytest.mark.jit_only
+def test_steady_frames_of_read_only_frames(monkeypatch: pytest.MonkeyPatch) -> None:
+    read_only, stops = _run(monkeypatch, fused=True, read_only=True)
+    assert stops.count(K.STEADY_DONE) >= 5
+    _assert_identical(read_only, _run(monkeypatch, fused=True)[0])
+
+
+def _table_buffers() -> list[np.ndarray]:
+    return [np.zeros((3,) * ndim, dtype) for _, dtype, ndim in K.STEADY_BUFFERS]
+
+
+def test_steady_frame_refuses_short_tables_before_any_call() -> None:
+    buffers = _table_buffers()
+    buffers[-1] = np.zeros(K.STEADY_SLOTS, np.float64)  # `out`
+    table = buffer_table(buffers, K.STEADY_BUFFERS)
+    frame = np.zeros((3, 3), np.uint8)
+    constants = np.zeros(len(K.STEADY_CONSTANTS), np.float64)
+    band_state = buffers[6].copy()
+    for short_table, short_constants in ((table[:-1], constants), (table, constants[:-1])):
+        status = K.steady_frame(
+            frame, 0, False, False, False, 0, 0, 0, 0, 0.0, short_table.copy(), short_constants.copy()
+        )
+        assert status == K.INVALID
+    # `out`, the split's state and info shorter than the kernels need: refused too (the split's state is 3 long).
+    assert K.steady_frame(frame, 0, False, False, False, 0, 0, 0, 0, 0.0, table, constants) == K.INVALID
+    np.testing.assert_array_equal(buffers[6], band_state)  # nothing written: band_stage did not run
+    assert not buffers[-1].any()
+
+
+def test_buffer_table_holds_addresses_and_shapes() -> None:
+    buffers = _table_buffers()
+    buffers[0] = np.zeros((5, 2), np.float32)
+    table = buffer_table(buffers, K.STEADY_BUFFERS)
+    assert table.shape == (len(K.STEADY_BUFFERS), 4) and table.dtype == np.int64
+    assert table[0].tolist() == [buffers[0].ctypes.data, 5, 2, 0]
+    sides = [name for name, _, _ in K.STEADY_BUFFERS].index("sides")
+    assert table[sides, 1:].tolist() == [3, 3, 3]
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (lambda b: b.__setitem__(0, np.zeros((5, 2), np.float64)), "buffer 'prev_points' is a float64 array of 2"),
+        (lambda b: b.__setitem__(1, np.zeros((2, 2), np.float32)), "buffer 'fixed' is a float32 array of 2 dim"),
+        (lambda b: b.__setitem__(0, np.zeros((5, 4), np.float32)[:, ::2]), "'prev_points' must be C-contiguous"),
+        (lambda b: b.__setitem__(1, [0.0, 0.0]), "buffer 'fixed' is a <class 'list'>"),
+        (lambda b: b.pop(), "46 buffers given, expected 47"),
+    ],
+)
+def test_buffer_table_refuses_wrong_buffers(change, message: str) -> None:
+    buffers = _table_buffers()
+    change(buffers)
+    with pytest.raises((TypeError, ValueError), match=message.replace("(", r"\(").replace("[", r"\[")):
+        buffer_table(buffers, K.STEADY_BUFFERS)
+
+
+def test_buffer_table_refuses_read_only_memory() -> None:
+    buffers = _table_buffers()
+    frozen = np.zeros(3, np.float32)
+    frozen.flags.writeable = False  # memory of its own, read-only (a mapped file): a kernel write would crash
+    buffers[1] = frozen
+    with pytest.raises(TypeError, match="'fixed' must be C-contiguous in writable memory"):
+        buffer_table(buffers, K.STEADY_BUFFERS)
+    view = np.zeros(3, np.float32).view()
+    view.flags.writeable = False  # a read-only view of writable memory is taken
+    buffers[1] = view
+    assert buffer_table(buffers, K.STEADY_BUFFERS)[1, 0] == view.ctypes.data
