@@ -120,10 +120,20 @@ class SyntheticRope:
             return out
         vv, uu = np.mgrid[v0 : v1 + 1, u0 : u1 + 1].astype(np.float64)
         dist = np.full(uu.shape, np.inf)
+        reach = radius + 2.0
         for a, b in itertools.pairwise(line_uv):
+            # Only the pixels near the segment: farther ones get no cover from it whatever their distance (the
+            # same numbers where it matters, at a fraction of the work for a long rope).
+            c0 = max(math.floor(min(a[0], b[0]) - reach) - u0, 0)
+            c1 = min(math.ceil(max(a[0], b[0]) + reach) - u0, u1 - u0) + 1
+            r0 = max(math.floor(min(a[1], b[1]) - reach) - v0, 0)
+            r1 = min(math.ceil(max(a[1], b[1]) + reach) - v0, v1 - v0) + 1
+            if c1 <= c0 or r1 <= r0:
+                continue
+            uu_s, vv_s, dist_s = uu[r0:r1, c0:c1], vv[r0:r1, c0:c1], dist[r0:r1, c0:c1]
             d = b - a
-            t = np.clip(((uu - a[0]) * d[0] + (vv - a[1]) * d[1]) / max(float(d @ d), 1e-12), 0.0, 1.0)
-            np.minimum(dist, np.hypot(uu - a[0] - t * d[0], vv - a[1] - t * d[1]), out=dist)
+            t = np.clip(((uu_s - a[0]) * d[0] + (vv_s - a[1]) * d[1]) / max(float(d @ d), 1e-12), 0.0, 1.0)
+            np.minimum(dist_s, np.hypot(uu_s - a[0] - t * d[0], vv_s - a[1] - t * d[1]), out=dist_s)
         cover = np.clip(radius + 0.5 - dist, 0.0, 1.0)
         if self.rope_end == "flat" and len(line_uv) >= 2:
             # A flat end: beyond the end's plane the rope stops (anti-aliased over one pixel), whatever the
