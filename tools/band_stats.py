@@ -38,6 +38,7 @@ def frame_stats(frames: list[tuple[np.ndarray, int, float]], config: PipelineCon
     """Run a pipeline over `frames`; return one dict of band figures per frame whose band was predicted."""
     height, width = frames[0][0].shape
     pipeline = Pipeline(config, (width, height))
+    pipeline.one_call = False  # the kernels one by one: a steady frame's one call (`steady_frame`) would hide them
     band_stage = K.band_stage
     calls: list[Any] = []
 

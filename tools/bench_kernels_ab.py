@@ -82,6 +82,8 @@ def main(argv: list[str] | None = None) -> int:
     rows: dict[str, list[dict[str, float]]] = {label: [] for label in trees}
     for pass_index in range(args.passes + 1):  # the first pass warms up
         pipelines = {label: make(config(), (width, height)) for label, (make, config, _) in trees.items()}
+        for pipeline in pipelines.values():  # the kernels one by one in both trees: a steady frame's one call
+            pipeline.one_call = False  # (`steady_frame`) would hide them (an older tree ignores the attribute)
         if args.split:
             for label, pipeline in pipelines.items():  # `split` timed through an instance attribute
                 _time_split(pipeline.splitter, trees[label][2])

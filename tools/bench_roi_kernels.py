@@ -41,6 +41,7 @@ def record(frames: list[tuple[np.ndarray, int, float]], config: PipelineConfig) 
     `spans_around_chain`)."""
     height, width = frames[0][0].shape
     pipeline = Pipeline(config, (width, height))
+    pipeline.one_call = False  # the kernels one by one: a steady frame's one call (`steady_frame`) would hide them
     calls: list[Any] = []
     bands: list[Any] = []
     detect = pipeline.tracer.detect_and_trace  # the edge and contour stages in one call

@@ -53,6 +53,7 @@ def record(frames: list[tuple[np.ndarray, int, float]], config: PipelineConfig) 
     first three frames."""
     height, width = frames[0][0].shape
     pipeline = Pipeline(config, (width, height))
+    pipeline.one_call = False  # the kernels one by one: a steady frame's one call (`steady_frame`) would hide them
     calls: dict[str, list[tuple]] = {name: [] for name in RECORDED}
     originals = {name: getattr(K, name) for name in RECORDED}
     recording = [False]

@@ -296,6 +296,9 @@ def main(argv: list[str] | None = None) -> int:
                 warm.clear()
                 whole.clear()
             pipeline = Pipeline(PipelineConfig(), (width, height))
+            pipeline.one_call = (
+                False  # the kernels one by one: a steady frame's one call (`steady_frame`) would hide them
+            )
             for i, (image, t_ns, exposure_us) in enumerate(frames):
                 pipeline.process(image, i, t_ns, exposure_us)
                 cv2.Canny(image, 20, 50, L2gradient=True)

@@ -123,6 +123,9 @@ class Pipeline:
         """`band_stage`'s arguments after the frame's (Python ints and floats for its int64/float64 scalars)."""
         self._roi_t_ns: int | None = None
         self._steady_out = np.zeros(K.STEADY_SLOTS, np.float64)
+        self.one_call = True
+        """Make a steady frame in one kernel call (`steady_frame`); False: with the calls one by one (the same
+        results; the tools that time or record single kernels set it)."""
         self._steady_bound: tuple | None = None
         """(the split's steady key and argument list, the tracker's scratch and Lc0 they were made with,
         `steady_frame`'s argument list, the buffers of its table: kept alive with it)."""
@@ -242,7 +245,7 @@ class Pipeline:
 
     # ----------------------------------------------------------------------------------------------------------
     def _measure(self, image: NDArray[np.uint8], result: FrameResult, exposure_ns: int) -> None:
-        if self.prev_count > 0 and self._steady is not None:
+        if self.prev_count > 0 and self._steady is not None and self.one_call:
             args = self._steady_frame_args()
             if args is not None:
                 self._measure_steady(image, result, exposure_ns, args)

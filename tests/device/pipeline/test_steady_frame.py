@@ -51,10 +51,9 @@ def _run(monkeypatch: pytest.MonkeyPatch, fused: bool, read_only: bool = False) 
 
     with monkeypatch.context() as patch:
         patch.setattr(K, "steady_frame", counted)
-        if not fused:
-            patch.setattr(Pipeline, "_steady_frame_args", lambda self: None)
         frames = _frames(46)
         pipeline = Pipeline(PipelineConfig(), (frames[0][0].shape[1], frames[0][0].shape[0]))
+        pipeline.one_call = fused
         rows = []
         for image, index, t_ns, exposure_us in frames:
             if read_only:
