@@ -333,13 +333,9 @@ class Pipeline:
             return
         # The contour lies whole in the band and off the image border: `_locate_in_band` and `_measure_contour`
         # up to the split.
-        self.frames_roi += 1
-        model.owed = True
-        self._need_gap_ns = gap_ns
+        self._found_in_band(gap_ns)
         result.full_frame = False
-        self.prev_count = n
-        self._roi_t_ns = t_ns
-        result.fixed_end = self.fixed
+        self._keep_contour(result, n)
         width_px, fixed_rc, _, polarity = self._steady  # type: ignore[misc]  # `_steady_frame_args` checked it
         outcome = splitter.adopt_frame(int(status), n, fixed_rc)
         if outcome is False:  # a buffer too small for the steady path: the split step by step
@@ -362,10 +358,8 @@ class Pipeline:
             result.status = FrameStatus.NO_ROPE
             result.message = "no edge component large enough to be the rope"
             return
+        self._keep_contour(result, n)
         points = self.tracer.points
-        self.prev_count = n  # `prev_points` is the tracer's buffer: these n points
-        self._roi_t_ns = result.t_ns
-        result.fixed_end = self.fixed
         steady = self._steady
         if steady is not None:
             width_px, fixed_rc, exclude, polarity = steady
@@ -489,14 +483,23 @@ class Pipeline:
         """`_locate` after the first search of the band predicted with uncertainty `motion_px` over `gap_ns` from
         the last frame, which found `n` contour points."""
         n = self._search(image, self.config.roi_margin_px + max(8, math.ceil(2.0 * motion_px)), n)
-        model = self._motion
         if n > 0:
-            self.frames_roi += 1
-            model.owed = True
-            self._need_gap_ns = gap_ns
+            self._found_in_band(gap_ns)
             return n, True
-        model.forget_need()
+        self._motion.forget_need()
         return self._locate_elsewhere(image)
+
+    def _found_in_band(self, gap_ns: int) -> None:
+        """The contour was found in the band predicted over `gap_ns`: the next band measures its error on it."""
+        self.frames_roi += 1
+        self._motion.owed = True
+        self._need_gap_ns = gap_ns
+
+    def _keep_contour(self, result: FrameResult, n: int) -> None:
+        """The frame's contour (`n` points) is the one the next frame's band is built around."""
+        self.prev_count = n  # `prev_points` is the tracer's buffer: these n points
+        self._roi_t_ns = result.t_ns
+        result.fixed_end = self.fixed
 
     def _locate_elsewhere(self, image: NDArray[np.uint8]) -> tuple[int, bool]:
         """`_locate` without a band: around the coarse look's cells, else in the whole frame."""
