@@ -1,12 +1,11 @@
-#!/usr/bin/env python3
 """Time ropecam's ANCF solver against Exudyn's ANCFCable2D on the paper's rope, alternating runs in one process.
 
 For each element count N and step h: median solve time of ours and (when `exudyn` is importable, ``pip install
 ".[bench]"``) of Exudyn with the same model and generalized-alpha settings, their ratio, and the largest tip error
 of each over the run against the best reference (Exudyn, N = 64, h = 1e-4, in ../shared/reference/ancf).
 
-    python tools/bench_ancf.py                  # N = 8, 16, 32; h = 1e-3 and 1e-4; 5 repeats
-    python tools/bench_ancf.py --elements 16 --steps 1e-3 --repeats 3 --json
+    python tools/bench.py ancf                  # N = 8, 16, 32; h = 1e-3 and 1e-4; 5 repeats
+    python tools/bench.py ancf --elements 16 --steps 1e-3 --repeats 3 --json
 """
 
 from __future__ import annotations
@@ -99,15 +98,18 @@ def tip_error_m(samples: np.ndarray, reference: np.ndarray) -> float:
     return float(np.max(np.hypot(x - reference[:, 1], y + reference[:, 2])))
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add this subcommand's options to `parser`."""
     parser.add_argument("--elements", type=int, nargs="+", default=[8, 16, 32], help="element counts N")
     parser.add_argument("--steps", type=float, nargs="+", default=[1e-3, 1e-4], help="time steps h in s")
     parser.add_argument("--duration-s", type=float, default=2.0, help="simulated time (reference covers 2 s)")
     parser.add_argument("--repeats", type=int, default=5, help="alternating runs per case (median reported)")
     parser.add_argument("--no-exudyn", action="store_true", help="time ours only")
     parser.add_argument("--json", action="store_true", help="print one JSON document instead of a table")
-    args = parser.parse_args(argv)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the subcommand with the parsed `args`; return the exit code."""
     try:
         import exudyn  # noqa: F401
 
@@ -151,7 +153,3 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         print(json.dumps({"duration_s": args.duration_s, "repeats": args.repeats, "cases": rows}, indent=2))
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

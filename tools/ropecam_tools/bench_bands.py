@@ -1,23 +1,19 @@
-"""The edge and contour stages on the recorded bands of a frame set: sizes, times, and an A/B against another commit.
+"""The edge and contour stages replayed on the bands a pipeline run asked for: sizes, times, an A/B against a commit.
 
-A pipeline runs over the frames once and records every edge-stage call (frame, row spans; as
-`bench_roi_kernels.py`). Each recorded band is then replayed through the stages as the pipeline calls them,
-`EdgeDetector.detect` followed at once by `ContourTracer.trace` (component, chain, subpixel points, contacts),
-with the caches evicted before the detection (the pipeline runs ``cv2.Canny`` on the whole frame between frames
-in `bench_device.py`, and the split between a frame's trace and the next detection):
+A pipeline runs over the frames once (its kernels one by one) and records every edge-stage call after the first
+three frames: the frame and the row spans of its band (region of interest). Each recorded band is then replayed
+through the stages as the pipeline calls them, ``EdgeDetector.detect`` followed at once by ``ContourTracer.trace``
+(component, chain, subpixel points, contacts), with the caches evicted before the detection (as the rest of a
+frame's work does); the fastest of ``--repeat`` replays per band is kept:
 
-    taskset -c 1 python tools/bench_trace.py [--frameset DIR] [--frames 40] [--repeat 5] \\
-        [--against REF] [--sizes] [--parts]
+    taskset -c 1 python tools/bench.py bands [--frameset DIR] [--frames 40] [--repeat 5] [--against REF] [--sizes]
 
 - ``--sizes``: per band, the rows and pixels of the spans, the edge pixels, their components, the kept
   component's pixels and the chain's length (medians and ranges).
-- ``--parts``: the kernels `trace_rope` runs on a band, one call each right after a detection (caches evicted
-  before it): ``first_listed`` + ``trace_closed``, ``keep_traced``, ``refine_inner``, and ``trace_rope`` whole
-  (each with its ~1-2 us dispatch).
-- ``--against REF``: the same replay with REF's ``device/`` (exported as ``ropecam_ref``, see `bench_glue.py`),
-  the two trees alternately band by band; prints both medians, the median of the per-band paired ratios
-  (this tree / REF) and checks that the outputs are bit-identical (edge pixels as a set, edge map, contour
-  chain, codes, subpixel points, component size, contacts, border pixels).
+- ``--against REF``: the same replay with REF's stages (exported as ``ropecam_ref``, see ``bench.py glue``), the
+  two trees alternately band by band; prints both medians, the median of the per-band paired ratios (this tree /
+  REF) and checks that the outputs are bit-identical (edge pixels as a set, edge map, contour chain, codes,
+  subpixel points, component size, contacts, border pixels); exit code 1 if they differ.
 """
 
 from __future__ import annotations
@@ -27,14 +23,41 @@ import os
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import argparse
-import importlib
-import sys
 import time
 from typing import Any
 
 import numpy as np
 
-_EVICT = np.zeros(8 << 20, np.uint8)
+from ropecam_tools.cli import UsageError, positive_int
+from ropecam_tools.frames import Frame, add_frame_arguments, frames_from, source_name
+from ropecam_tools.reference import pipeline_modules
+from ropecam_tools.timing import evict, paired
+
+
+def record_bands(frames: list[Frame], pipeline: Any) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Run `pipeline` over `frames` with its kernels one by one; return the (frame, lo, hi) of each edge-stage
+    call after the first three frames (read-only copies of the spans)."""
+    pipeline.one_call = False  # a steady frame's one call (`steady_frame`) would hide the edge stage's calls
+    calls: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+    detect = pipeline.tracer.detect_and_trace  # the edge and contour stages in one call
+    recording = [False]
+
+    def recorded(detector: Any, frame: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> int:
+        if recording[0]:
+            spans = [lo.copy(), hi.copy()]
+            for span in spans:
+                span.flags.writeable = False
+            calls.append((frame, *spans))
+        return detect(detector, frame, lo, hi)
+
+    pipeline.tracer.detect_and_trace = recorded
+    try:
+        for index, (image, t_ns, exposure_us) in enumerate(frames):
+            recording[0] = index >= 3
+            pipeline.process(image, index, t_ns, exposure_us)
+    finally:
+        del pipeline.tracer.detect_and_trace  # the class's method again
+    return calls
 
 
 def outputs(pipeline: Any, lo: np.ndarray, hi: np.ndarray, n: int) -> dict[str, Any]:
@@ -55,7 +78,7 @@ def outputs(pipeline: Any, lo: np.ndarray, hi: np.ndarray, n: int) -> dict[str, 
 
 def replay(pipeline: Any, frame: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[float, float, int]:
     """Evict the caches, detect and trace one band; return (detect us, trace us, contour points)."""
-    np.add(_EVICT, 1, out=_EVICT)
+    evict()
     t0 = time.perf_counter_ns()
     pipeline.edges.detect(frame, lo, hi)
     t1 = time.perf_counter_ns()
@@ -114,47 +137,6 @@ def _count_components(mask: np.ndarray) -> int:
     return count
 
 
-def parts(pipeline: Any, kernels: Any, inputs: list[Any], repeat: int, min_px: int) -> None:
-    """Time the kernels `trace_rope` runs on a band (its inner path: the trace first from the first listed pixel,
-    then `keep_traced`, then `refine_inner`), each called on its own right after a detection with the caches
-    evicted before it, and `trace_rope` whole after another detection; best of `repeat` per band, each with its
-    ~1-2 us dispatch. A band whose component is not the traced one (`keep_traced` 0) is left out."""
-    e, t = pipeline.edges, pipeline.tracer
-    width = e.shape[1]
-    scratch = t.labels.reshape(-1)
-    names = ["first_listed + trace_closed", "keep_traced", "refine_inner", "trace_rope"]
-    per: dict[str, list[float]] = {name: [] for name in names}
-    for frame, lo, hi in inputs:
-        best = dict.fromkeys(names, float("inf"))
-        for _ in range(repeat):
-            np.add(_EVICT, 1, out=_EVICT)
-            e.detect(frame, lo, hi)
-            flat = e.edges.reshape(-1)
-            t0 = time.perf_counter_ns()
-            first = kernels.first_listed(e.stack_ro, e.count)
-            n = kernels.trace_closed(flat, width, first // width, first % width, t.chain, t.codes)
-            t1 = time.perf_counter_ns()
-            size = kernels.keep_traced(flat, width, e.stack_ro, e.count, min_px, t.chain, n, t.stack)
-            t2 = time.perf_counter_ns()
-            kernels.refine_inner(e.mag_ro, e.gx_ro, e.gy_ro, lo, hi, t.chain, n, scratch, t.points)
-            t3 = time.perf_counter_ns()
-            np.add(_EVICT, 1, out=_EVICT)
-            e.detect(frame, lo, hi)
-            t4 = time.perf_counter_ns()
-            t.trace(e.edges, lo, hi, e.mag_ro, e.gx_ro, e.gy_ro, e.stack_ro, e.count)
-            t5 = time.perf_counter_ns()
-            if n <= 0 or size <= 0:
-                break
-            for name, (a, b) in zip(names, ((t0, t1), (t1, t2), (t2, t3), (t4, t5)), strict=True):
-                best[name] = min(best[name], (b - a) / 1000)
-        if all(np.isfinite(v) for v in best.values()):
-            for name in names:
-                per[name].append(best[name])
-    print(f"  parts on {len(per[names[0]])} bands (medians over bands of the best of {repeat}):")
-    for name in names:
-        print(f"  {name:28s} {np.median(per[name]):7.1f} us")
-
-
 def compare(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
     """Names of the outputs that differ."""
     bad = []
@@ -170,42 +152,32 @@ def compare(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
     return bad
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--frameset", help="frame set (default: the synthetic rig frames of bench_device)")
-    parser.add_argument("--frames", type=int, default=40)
-    parser.add_argument("--repeat", type=int, default=5, help="replays per band and tree, the fastest is kept")
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add this subcommand's options to `parser`."""
+    add_frame_arguments(parser, frames=40)
+    parser.add_argument("--repeat", type=positive_int, default=5, help="replays per band and tree, the fastest is kept")
     parser.add_argument("--against", metavar="REF", help="also replay with this commit's stages, alternately")
     parser.add_argument("--sizes", action="store_true", help="print the band, edge and contour sizes")
-    parser.add_argument("--parts", action="store_true", help="time the kernels trace_rope runs, one by one")
-    args = parser.parse_args(argv)
-    here = os.path.dirname(os.path.abspath(__file__))
-    sys.path.insert(0, here)
-    from bench_device import frameset_frames, rig_frames
-    from bench_glue import export_ref
-    from bench_roi_kernels import record
 
-    from ropecam.device.pipeline._views import ro
 
-    frames = frameset_frames(args.frameset, args.frames + 3) if args.frameset else rig_frames(args.frames + 3)
-    kernels = importlib.import_module("ropecam.device.pipeline._kernels")
-    config_cls = importlib.import_module("ropecam.device.pipeline.config").PipelineConfig
-    pipeline_cls = importlib.import_module("ropecam.device.pipeline.pipeline").Pipeline
-    calls, _ = record(frames, config_cls())
-    inputs = [(ro(frame), ro(lo), ro(hi)) for frame, lo, hi in calls]
+def run(args: argparse.Namespace) -> int:
+    """Record the bands, replay them, print the times (and the comparison with REF)."""
+    frames = frames_from(args, args.frames + 3)
+    _, config_cls, pipeline_cls = pipeline_modules(None)
     height, width = frames[0][0].shape
+    inputs = record_bands(frames, pipeline_cls(config_cls(), (width, height)))
+    if not inputs:
+        raise UsageError(f"{source_name(args)}: no edge-stage call recorded in {len(frames)} frames")
     trees = {"this tree": pipeline_cls(config_cls(), (width, height))}
     if args.against:
-        sys.path.insert(0, str(export_ref(args.against)))
-        print(f"importing {args.against} as ropecam_ref (its kernels compile once)...", flush=True)
-        ref_config = importlib.import_module("ropecam_ref.device.pipeline.config").PipelineConfig
-        ref_pipeline = importlib.import_module("ropecam_ref.device.pipeline.pipeline").Pipeline
+        try:
+            _, ref_config, ref_pipeline = pipeline_modules(args.against)
+        except ValueError as exc:
+            raise UsageError(str(exc)) from exc
         trees[args.against] = ref_pipeline(ref_config(), (width, height))
-    print(f"{args.frameset or 'synthetic rig frames'}: {len(inputs)} bands of {width}x{height}")
+    print(f"{source_name(args)}: {len(inputs)} bands of {width}x{height}")
     if args.sizes:
         sizes(trees["this tree"], inputs)
-    if args.parts:
-        parts(trees["this tree"], kernels, inputs, args.repeat, config_cls().min_contour_px)
     best: dict[str, list[tuple[float, float, float]]] = {name: [] for name in trees}
     mismatches: dict[str, int] = {}
     for index, (frame, lo, hi) in enumerate(inputs):
@@ -232,18 +204,14 @@ def main(argv: list[str] | None = None) -> int:
         )
     if args.against:
         mine, theirs = np.array(best["this tree"]), np.array(best[args.against])
-        ratio = np.median(mine / theirs, axis=0)
-        diff = np.median(theirs - mine, axis=0)
+        figures = [paired(mine[:, k], theirs[:, k]) for k in range(3)]
         print(
-            f"  paired, this tree / {args.against}: detect {ratio[0]:.3f}, trace {ratio[1]:.3f}, both {ratio[2]:.3f}"
-            f"; saved (median of differences) {diff[0]:.1f} / {diff[1]:.1f} / {diff[2]:.1f} us"
+            f"  paired, this tree / {args.against}: detect {figures[0][0]:.3f}, trace {figures[1][0]:.3f}, both "
+            f"{figures[2][0]:.3f}; saved (median of differences) {figures[0][1]:.1f} / {figures[1][1]:.1f} / "
+            f"{figures[2][1]:.1f} us"
         )
         if mismatches:
             print(f"  OUTPUTS DIFFER (bands per output): {mismatches}")
         else:
             print(f"  outputs bit-identical on all {len(inputs)} bands")
     return 1 if mismatches else 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

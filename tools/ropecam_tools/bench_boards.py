@@ -1,6 +1,6 @@
 """Speed of the chessboard renderer (host/sim/boards.py): one 1024x544 view of the paper camera, median of runs.
 
-    python tools/bench_board_render.py [--repeats 7] [--supersample 1]
+    python tools/bench.py boards [--repeats 7] [--supersample 1]
 
 Prints the one-off cost of the per-camera ray table (shared by a whole set) and the median per-view time; the
 reference is the ray-table cost measured in the same run (a view should cost a fraction of it).
@@ -24,12 +24,14 @@ from ropecam.host.sim.boards import (
 )
 
 
-def main() -> None:
-    """Time the ray table and the views and print the medians."""
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add this subcommand's options to `parser`."""
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--supersample", type=int, default=1)
-    args = parser.parse_args()
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the subcommand with the parsed `args`; return the exit code."""
     camera, art = paper_camera(), BoardArt()
     settings = RenderSettings(supersample=args.supersample)
     start = time.perf_counter()
@@ -45,7 +47,4 @@ def main() -> None:
     view_s = statistics.median(times)
     print(f"ray table ({camera.image_size[0]}x{camera.image_size[1]}, supersample {args.supersample}): {rays_s:.3f} s")
     print(f"one view: median {view_s:.3f} s over {len(times)} views ({view_s / rays_s:.2f} x the ray table)")
-
-
-if __name__ == "__main__":
-    main()
+    return 0

@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """Measure the frame sources' per-frame overhead and the pacing of a recorded frame set at the rig's rate.
 
 Writes a temporary frame set (default 119 frames of 1024x544, the rig camera's size) and reports, all in this
@@ -12,8 +11,8 @@ process:
 4. the V4L2 source over the fake camera: median time of `read` for GREY (mapped buffer, no copy) and YUYV (Y copied
    out), excluding the fake's own frame generation.
 
-    python tools/bench_capture.py
-    python tools/bench_capture.py --frames 60 --paced-s 2 --json
+    python tools/bench.py capture
+    python tools/bench.py capture --frames 60 --paced-s 2 --json
 """
 
 from __future__ import annotations
@@ -21,7 +20,6 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -119,8 +117,8 @@ def bench_v4l2(fourcc: str, reads: int) -> dict[str, float]:
     return quantiles_us(times)
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add this subcommand's options to `parser`."""
     parser.add_argument("--frames", type=int, default=119, help="frames in the temporary set (default 119)")
     parser.add_argument("--width", type=int, default=1024)
     parser.add_argument("--height", type=int, default=544)
@@ -128,7 +126,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--reads", type=int, default=5000, help="reads timed for the unpaced replay (default 5000)")
     parser.add_argument("--paced-s", type=float, default=5.0, help="seconds of paced replay (default 5)")
     parser.add_argument("--json", action="store_true", help="print JSON")
-    args = parser.parse_args(argv)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the subcommand with the parsed `args`; return the exit code."""
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp) / "set"
         write_set(root, args.frames, args.width, args.height, args.fps)
@@ -158,7 +159,3 @@ def main(argv: list[str] | None = None) -> int:
         q = result[key]
         print(f"{key}: read median {q['median_us']:.2f} us, p99 {q['p99_us']:.2f} us")  # type: ignore[index]
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -10,7 +10,7 @@ settled): total per frame, time inside kernel calls (every ``_kernels`` function
 adds ~0.2 us per call to the kernel side), the Python outside them (total minus kernels, frame by frame), and
 ``cv2.Canny`` on the same frames for the ratio.
 
-    python tools/bench_glue.py [--frameset DIR] [--frames N] [--passes P] [--settle S] [--against REF]
+    python tools/bench.py glue [--frameset DIR] [--frames N] [--passes P] [--settle S] [--against REF]
 """
 
 from __future__ import annotations
@@ -20,72 +20,16 @@ import os
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import argparse
-import importlib
-import re
-import subprocess
-import sys
-import tarfile
-import tempfile
 import time
-from io import BytesIO
-from pathlib import Path
 from typing import Any
 
 import cv2
 import numpy as np
 
-from ropecam.device.capture.frameset import FrameSet
-
-REPO = Path(__file__).resolve().parents[1]
-
-
-def load_frames(path: str, count: int) -> list[tuple[np.ndarray, int, float]]:
-    """The first `count` frames of a frame set (image, t_ns, exposure_us)."""
-    frameset = FrameSet(path)
-    return [
-        (frameset.read(i), frameset.records[i].t_ns, float(frameset.records[i].exposure_us))
-        for i in range(min(count, len(frameset)))
-    ]
-
-
-def export_ref(ref: str) -> Path:
-    """Export `ref`'s device/ and shared/ as the package ``ropecam_ref`` into a cache folder; return the folder."""
-    sha = subprocess.run(["git", "rev-parse", ref], cwd=REPO, check=True, capture_output=True, text=True).stdout
-    root = Path(tempfile.gettempdir()) / f"ropecam-bench-ref-{sha.strip()[:12]}"
-    package = root / "ropecam_ref"
-    if not (package / "__init__.py").exists():
-        data = subprocess.run(["git", "archive", ref, "device", "shared"], cwd=REPO, check=True, capture_output=True)
-        package.mkdir(parents=True, exist_ok=True)
-        with tarfile.open(fileobj=BytesIO(data.stdout)) as archive:
-            archive.extractall(package, filter="data")
-        pattern = re.compile(r"ropecam\.(device|shared|host)\b")
-        for source in package.rglob("*.py"):
-            text = source.read_text()
-            source.write_text(pattern.sub(r"ropecam_ref.\1", text))
-        (package / "__init__.py").write_text("")
-    return root
-
-
-class KernelTimer:
-    """Wrap every kernel of a `_kernels` package so that the time spent in them accumulates in `ns`."""
-
-    def __init__(self, kernels: Any) -> None:
-        self.ns = 0
-        for name in dir(kernels) if kernels is not None else ():
-            function = getattr(kernels, name)
-            if hasattr(function, "py_func"):
-                setattr(kernels, name, self._wrap(function))
-
-    def _wrap(self, function: Any) -> Any:
-        def timed(*args: Any) -> Any:
-            start = time.perf_counter_ns()
-            try:
-                return function(*args)
-            finally:
-                self.ns += time.perf_counter_ns() - start
-
-        return timed
-
+from ropecam_tools.cli import UsageError, positive_int
+from ropecam_tools.frames import add_frame_arguments, frames_from, source_name
+from ropecam_tools.reference import pipeline_modules
+from ropecam_tools.timing import KernelTimer
 
 _FIELDS = (
     "frame", "t_ns", "t_end_ns", "status", "method", "order_confidence", "begin", "end", "fixed_end",
@@ -121,31 +65,31 @@ def compare(a: Any, b: Any, pipeline_a: Any, pipeline_b: Any) -> list[str]:
     return out
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--frameset", default="/work/eval/rig", help="frame set folder (default: %(default)s)")
-    parser.add_argument("--frames", type=int, default=60, help="frames per pass (default: %(default)s)")
-    parser.add_argument("--passes", type=int, default=3, help="passes over the frames (default: %(default)s)")
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add this subcommand's options to `parser`."""
+    add_frame_arguments(parser, frames=60)
+    parser.add_argument("--passes", type=positive_int, default=3, help="passes over the frames (default: %(default)s)")
     parser.add_argument("--settle", type=int, default=16, help="frames left out at the start of each pass")
     parser.add_argument("--against", metavar="REF", help="also measure this git commit, alternately (same frames)")
     parser.add_argument(
         "--plain", action="store_true", help="no kernel timers: whole-pipeline times only (no ~0.3 us per kernel call)"
     )
-    args = parser.parse_args(argv)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Time the pipeline(s) frame by frame; print the medians, the paired differences and the output check."""
     cv2.setNumThreads(1)
-    frames = load_frames(args.frameset, args.frames)
+    frames = frames_from(args)
     if len(frames) <= args.settle:
-        parser.error(f"{args.frameset} has {len(frames)} frames, need more than --settle {args.settle}")
+        raise UsageError(f"{source_name(args)} gives {len(frames)} frames, need more than --settle {args.settle}")
     height, width = frames[0][0].shape
-    variants: dict[str, tuple[Any, Any, KernelTimer]] = {}
-    for label, prefix in [("this tree", "ropecam")] + ([(f"{args.against}", "ropecam_ref")] if args.against else []):
-        if prefix == "ropecam_ref":
-            sys.path.insert(0, str(export_ref(args.against)))
-            print(f"importing {args.against} as ropecam_ref (its kernels compile once)...", flush=True)
-        kernels = importlib.import_module(f"{prefix}.device.pipeline._kernels")
-        config = importlib.import_module(f"{prefix}.device.pipeline.config").PipelineConfig
-        pipeline = importlib.import_module(f"{prefix}.device.pipeline.pipeline").Pipeline
-        variants[label] = (pipeline, config, KernelTimer(kernels) if not args.plain else KernelTimer(None))
+    variants: dict[str, tuple[Any, Any, KernelTimer | None]] = {}
+    for label, ref in [("this tree", None)] + ([(args.against, args.against)] if args.against else []):
+        try:
+            kernels, config, pipeline = pipeline_modules(ref)
+        except ValueError as exc:
+            raise UsageError(str(exc)) from exc
+        variants[label] = (pipeline, config, None if args.plain else KernelTimer(kernels))
     rows: dict[str, list[tuple[float, float]]] = {label: [] for label in variants}
     differences: list[str] = []
     canny: list[float] = []
@@ -157,12 +101,14 @@ def main(argv: list[str] | None = None) -> int:
             results = {}
             for label in order:
                 timer = variants[label][2]
-                timer.ns = 0
+                if timer is not None:
+                    timer.clear()
                 start = time.perf_counter_ns()
                 results[label] = pipelines[label].process(image, index, t_ns, exposure_us)
                 total = time.perf_counter_ns() - start
                 if pass_index > 0 and index >= args.settle:
-                    rows[label].append((total / 1000.0, (total - timer.ns) / 1000.0))
+                    in_kernels = timer.total_ns if timer is not None else 0
+                    rows[label].append((total / 1000.0, (total - in_kernels) / 1000.0))
             if pass_index == 0 and len(labels) == 2:
                 a, b = labels
                 differences.extend(
@@ -172,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
             cv2.Canny(image, 20, 50, L2gradient=True)
             canny.append((time.perf_counter_ns() - start) / 1000.0)
     canny_us = float(np.median(canny))
-    print(f"{args.frameset}: {len(rows[labels[0]])} frames per variant, cv2.Canny median {canny_us:.0f} us")
+    print(f"{source_name(args)}: {len(rows[labels[0]])} frames per variant, cv2.Canny median {canny_us:.0f} us")
     for label, values in rows.items():
         data = np.array(values)
         total, python = float(np.median(data[:, 0])), float(np.median(data[:, 1]))
@@ -202,8 +148,4 @@ def main(argv: list[str] | None = None) -> int:
             f"  median paired difference ({args.against} - this tree): pipeline {saved[0]:.1f} us, "
             f"Python {saved[1]:.1f} us"
         )
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+    return 1 if differences else 0

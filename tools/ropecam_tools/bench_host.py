@@ -1,7 +1,9 @@
-"""Host load benchmark: N simulated devices (separate processes) stream real encoded FrameResults over UDP loopback
-into one `ropecam monitor --record` process; report the loss and the host's CPU time.
+"""Host load: N simulated devices stream FrameResults into one `ropecam monitor --record`; loss and host CPU time.
 
-    python tools/bench_host.py [--devices 8] [--fps 119] [--duration-s 10] [--json]
+N simulated devices (separate processes) stream real encoded FrameResults over UDP loopback into one
+`ropecam monitor --record` process; report the loss and the host's CPU time.
+
+    python tools/bench.py host [--devices 8] [--fps 119] [--duration-s 10] [--json]
 
 Loss = messages the senders handed to the socket minus raw messages in the recording (every received packet is
 recorded, so this is end-to-end loss). Host CPU = user + system time of the monitor process (os.wait4) over its
@@ -20,7 +22,6 @@ import re
 import signal
 import socket
 import statistics
-import sys
 import tempfile
 import time
 from collections import Counter
@@ -54,7 +55,7 @@ def _free_port() -> int:
         return probe.getsockname()[1]
 
 
-def run(devices: int, fps: float, duration_s: float, workdir: Path, decode: str = "auto") -> dict:
+def run_once(devices: int, fps: float, duration_s: float, workdir: Path, decode: str = "auto") -> dict:
     """Run the benchmark once and return its figures."""
     from mcap.reader import make_reader
 
@@ -147,16 +148,19 @@ def run(devices: int, fps: float, duration_s: float, workdir: Path, decode: str 
     }
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add this subcommand's options to `parser`."""
     parser.add_argument("--devices", type=int, default=8)
     parser.add_argument("--fps", type=float, default=119.0)
     parser.add_argument("--duration-s", type=float, default=10.0)
     parser.add_argument("--decode", choices=("auto", "all", "none"), default="auto", help="monitor --decode mode")
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
-    args = parser.parse_args()
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the subcommand with the parsed `args`; return the exit code."""
     with tempfile.TemporaryDirectory() as workdir:
-        figures = run(args.devices, args.fps, args.duration_s, Path(workdir), args.decode)
+        figures = run_once(args.devices, args.fps, args.duration_s, Path(workdir), args.decode)
     if args.json:
         print(json.dumps(figures, indent=2))
         return 0
@@ -172,7 +176,3 @@ def main() -> int:
     for device_id, figures_device in figures["per_device"].items():
         print(f"  device {device_id}: {figures_device}")
     return 0 if figures["messages_lost"] == 0 else 1
-
-
-if __name__ == "__main__":
-    sys.exit(main())

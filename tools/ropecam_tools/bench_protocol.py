@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """Bytes per FrameResult on the rig scenario, and encode / decode time per message.
 
 The rig scenario (`ropecam.host.sim.rig_polylines`): the paper's 0.411 m rope swinging down from horizontal, 119 FPS,
@@ -8,9 +7,9 @@ noise), both tips, the fixed end, 4 material points on both shapes, stretch rati
 medians over all messages of --repeats runs: robust to other processes on a shared machine (whose scheduler
 time slices, ~4 ms, land on a few messages whatever they cost).
 
-    python tools/bench_protocol.py [--frames 119] [--noise uniform|gaussian|none] [--repeats 5] [--json]
-    python tools/bench_protocol.py --frameset sim/rig      # the device pipeline's real output on recorded frames
-    python tools/bench_protocol.py --frameset sim/rig --output-smoothing-px 0   # ... without output smoothing
+    python tools/bench.py protocol [--frames 119] [--noise uniform|gaussian|none] [--repeats 5] [--json]
+    python tools/bench.py protocol --frameset sim/rig      # the device pipeline's real output on recorded frames
+    python tools/bench.py protocol --frameset sim/rig --output-smoothing-px 0   # ... without output smoothing
 
 With --frameset, the FrameResults are what the device pipeline measures on a recorded frame set (e.g. from
 `ropecam simulate rig`), converted exactly as the daemon converts them; then each message is timed as the daemon
@@ -28,7 +27,6 @@ import argparse
 import copy
 import json
 import statistics
-import sys
 import time
 from typing import Any
 
@@ -142,8 +140,8 @@ def decode_stream(messages: list[bytes]) -> tuple[list[FrameResult], list[float]
     return out, seconds
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add this subcommand's options to `parser`."""
     parser.add_argument("--frames", type=int, default=119, help="frames of the swing (default 119 = 1 s)")
     parser.add_argument(
         "--noise",
@@ -161,7 +159,10 @@ def main() -> int:
         type=float,
         help="with --frameset: the pipeline's output_smoothing_px (default: the PipelineConfig default; 0 = off)",
     )
-    args = parser.parse_args()  # fmt: skip
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the subcommand with the parsed `args`; return the exit code."""
 
     results: list[Any] = []
     if args.frameset:
@@ -231,7 +232,3 @@ def main() -> int:
             print(f"  daemon per frame: to_wire + encode + COBS frame {steps['total']} us (to_wire "
                   f"{steps['to_wire']}, encode {steps['encode']}, frame {steps['frame']} us; medians)")  # fmt: skip
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -2,9 +2,9 @@
 
 Usage::
 
-    python tools/bench_simulate.py                  # rig preset, model solved, 3 repeats
-    python tools/bench_simulate.py --preset rig-soft --repeats 1
-    python tools/bench_simulate.py --trajectory sets/rig/trajectory.npz   # skip the model
+    python tools/bench.py simulate                  # rig preset, model solved, 3 repeats
+    python tools/bench.py simulate --preset rig-soft --repeats 1
+    python tools/bench.py simulate --trajectory sets/rig/trajectory.npz   # skip the model
 
 Reports medians over the repeats: the ANCF solve, rendering (projection, sub-frames, rasteriser), the sensor model,
 and the whole frame-set write (render + sensor + PNG + truth), plus the total. Everything runs in this process on
@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -37,13 +36,16 @@ from ropecam.host.sim.render import RopeRenderer
 from ropecam.host.sim.scene import Sensor, build_scene, rope_levels
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add this subcommand's options to `parser`."""
     parser.add_argument("--preset", default="rig")
     parser.add_argument("--frames", type=int, default=60)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--trajectory", type=Path, help="use this trajectory instead of solving the model")
-    args = parser.parse_args()
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the subcommand with the parsed `args`; return the exit code."""
     cv2.setNumThreads(1)
     config = merge_overrides(preset(args.preset), {"frames": args.frames})
     exposure_ms = config.exposure_ms[0]
@@ -102,7 +104,3 @@ def main() -> int:
     total = med(solve_s) + med(write_s)
     print(f"  {'total (solve + write_frameset)':<40} {total:7.2f} s   (acceptance: <= 30 s)")
     return 0 if total <= 30.0 else 1
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,10 +1,9 @@
-#!/usr/bin/env python3
 """Time from starting `ropecam-device run` to the first FrameResult at a UDP receiver (issue 6, acceptance 4).
 
 Runs the daemon as a subprocess on a recorded rig frame set, `--repeats` times, and prints the median. `--cold`
 empties the Numba cache first (one run), which measures compilation on a fresh install.
 
-    python tools/bench_startup.py [--frameset DIR] [--repeats 5] [--cold]
+    python tools/bench.py startup [--frameset DIR] [--repeats 5] [--cold]
 """
 
 from __future__ import annotations
@@ -42,12 +41,15 @@ def first_result_s(frameset: Path, env: dict[str, str]) -> float:
         host.close()
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add this subcommand's options to `parser`."""
     parser.add_argument("--frameset", type=Path, help="recorded frame set (default: simulate 5 rig frames)")
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--cold", action="store_true", help="empty a private Numba cache first (one cold run)")
-    args = parser.parse_args(argv)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the subcommand with the parsed `args`; return the exit code."""
     frameset = args.frameset
     if frameset is None:
         from ropecam.host.cli import main as host_main
@@ -66,7 +68,3 @@ def main(argv: list[str] | None = None) -> int:
     print(f"start to first result: median {statistics.median(times):.2f} s over {len(times)} runs "
           f"(min {min(times):.2f}, max {max(times):.2f})")  # fmt: skip
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -8,7 +8,7 @@ moves >= 2 px during the exposure) and the share of frames with a result.
 Ground truth comes from the synthetic renderer (default; `ropecam.device.capture.synthetic`) or from simulator
 frame sets (``--frameset DIR``, repeatable; uses ``truth.npz``: ``begin_px``/``end_px`` (F, S, 2) in (u, v)).
 
-    python tools/eval_accuracy.py [--exposures-ms 1 5 9 15] [--methods blur_split paper centerline]
+    python tools/evaluate.py accuracy [--exposures-ms 1 5 9 15] [--methods blur_split paper centerline]
                                   [--frames 24] [--frameset DIR ...] [--fixed-end auto|truth]
                                   [--plot fig.png] [--json]
 
@@ -31,6 +31,7 @@ import numpy as np
 from ropecam.device.capture.synthetic import SyntheticRope
 from ropecam.device.pipeline.config import METHODS, PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
+from ropecam_tools.cli import UsageError
 
 RIG = SyntheticRope(
     width=640, height=400, fixed_uv=(320.4, 30.7), length_px=300.0, diameter_px=3.0, amplitude_rad=0.6,
@@ -215,8 +216,8 @@ def plot(path: str, rows: list[dict[str, Any]], methods: list[str]) -> None:
     fig.savefig(path, dpi=120)
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add this subcommand's options to `parser`."""
     parser.add_argument("--exposures-ms", type=float, nargs="+", default=[1.0, 5.0, 9.0, 15.0],
                         help="synthetic exposures when no --frameset is given (default 1 5 9 15)")  # fmt: skip
     parser.add_argument("--methods", nargs="+", choices=METHODS, default=["blur_split", "paper", "centerline"])
@@ -228,9 +229,12 @@ def main(argv: list[str] | None = None) -> int:
                         help="find the fixed end (default, as the device does) or take it from the truth")  # fmt: skip
     parser.add_argument("--plot", help="write the tip-error-vs-exposure plot (PNG) here")
     parser.add_argument("--json", action="store_true", help="print JSON rows")
-    args = parser.parse_args(argv)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the subcommand with the parsed `args`; return the exit code."""
     if args.frames < 1:
-        parser.error(f"--frames must be >= 1, got {args.frames}")
+        raise UsageError(f"--frames must be >= 1, got {args.frames}")
     sequences = build_sequences(args.frameset, args.exposures_ms, args.frames, args.fixed_end)
     rows = []
     for number, (name, exposure, seq, fixed) in enumerate(sequences, 1):
@@ -246,7 +250,3 @@ def main(argv: list[str] | None = None) -> int:
         plot(args.plot, rows, args.methods)
         print(f"plot written to {args.plot}", file=sys.stderr)
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -4,7 +4,7 @@ For each seed: render a calibration set (paper camera, 8x7 board, 20 mm), calibr
 and the plane from the plane view (origin given as the true fixed-end pixel), and compare with the truth: fx, fy,
 principal point, plane rotation and translation, and ground-truth pixels converted to metres over the whole image.
 
-    python tools/calib_accuracy.py --seeds 0 1 2 3 4 [--views 30] [--extra-planes 2]
+    python tools/evaluate.py calibration --seeds 0 1 2 3 4 [--views 30] [--extra-planes 2]
 """
 
 from __future__ import annotations
@@ -32,13 +32,15 @@ def _grid_errors_mm(true_camera, true_plane, camera, plane) -> np.ndarray:
     return np.linalg.norm(pixels_to_plane(pixels[seen], camera, plane) - points[seen], axis=1) * 1000
 
 
-def main() -> None:
-    """Run the evaluation and print one line per seed."""
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add this subcommand's options to `parser`."""
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
     parser.add_argument("--views", type=int, default=50, help="intrinsic calibration views per set (default 50)")
     parser.add_argument("--extra-planes", type=int, default=2, help="extra plane views to use (0-2)")
-    args = parser.parse_args()
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the subcommand with the parsed `args`; return the exit code."""
     board = parse_board("8x7", 20)
     print("seed  rms_px  fx_err%  fy_err%  cx_err  cy_err  rot_deg  dt_mm  dt_inplane_mm  m_err_max_mm  "
           "m_err_mean_mm  | true-K: rot_deg dt_mm m_err_max_mm  | s")  # fmt: skip
@@ -69,7 +71,4 @@ def main() -> None:
             f"  {k[0, 2] - k0[0, 2]:+.3f}  {k[1, 2] - k0[1, 2]:+.3f}  {rot:.4f}  {dt:.3f}  {inplane:.3f}  {emax:.4f}"
             f"  {emean:.4f}  | {rot0:.4f} {dt0:.3f} {emax0:.4f}  | {time.perf_counter() - start:.1f}"
         )
-
-
-if __name__ == "__main__":
-    main()
+    return 0

@@ -1,13 +1,14 @@
-#!/usr/bin/env python3
-"""The rig daemon at the camera rate, end to end (issue 6, acceptance 1): `ropecam-device run` in its own process
-replays a recorded frame set paced at --fps into UDP loopback and, separately, into a pty serial pair; a receiver
-here collects every FrameResult and compares them with the offline pipeline over the same frames.
+"""The rig daemon at the camera rate, end to end: every result received over UDP and serial, equal to offline.
+
+`ropecam-device run` in its own process replays a recorded frame set paced at --fps into UDP loopback and,
+separately, into a pty serial pair; a receiver here collects every FrameResult and compares them with the offline
+pipeline over the same frames.
 
 Prints per transport: FrameResults received of those in the set, frames the daemon skipped (newest-frame policy:
 the pipeline fell behind the camera), sequence gaps, and whether every received result equals the offline one
 (status, method, both shapes within the wire's 0.05 px). Repeat with --runs: a shared machine's load spikes show.
 
-    python tools/e2e_rate.py --frameset sim/rig --fps 119 [--runs 3] [--transports udp serial] [--json]
+    python tools/evaluate.py e2e --frameset sim/rig --fps 119 [--runs 3] [--transports udp serial] [--json]
 """
 
 from __future__ import annotations
@@ -127,14 +128,17 @@ def run_once(frameset: Path, fps: float, transport: str, expected: list[Any]) ->
             "equal_to_offline": equal, "skipped_by_daemon": skipped, "sequence_gaps": gaps}  # fmt: skip
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add this subcommand's options to `parser`."""
     parser.add_argument("--frameset", type=Path, required=True, help="recorded frame set (e.g. ropecam simulate rig)")
     parser.add_argument("--fps", type=float, default=119.0, help="replay rate (default 119)")
     parser.add_argument("--runs", type=int, default=1, help="runs per transport (default 1)")
     parser.add_argument("--transports", nargs="+", choices=("udp", "serial"), default=["udp", "serial"])
     parser.add_argument("--json", action="store_true", help="print JSON rows")
-    args = parser.parse_args(argv)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the subcommand with the parsed `args`; return the exit code."""
     expected = _offline(args.frameset)
     rows = []
     for transport in args.transports:
@@ -149,7 +153,3 @@ def main(argv: list[str] | None = None) -> int:
                       f"{row['skipped_by_daemon']} skipped by the daemon, {row['sequence_gaps']} sequence gaps, "
                       f"exit {row['exit_code']}", flush=True)  # fmt: skip
     return 0 if all(r["received"] == r["frames"] == r["equal_to_offline"] for r in rows) else 1
-
-
-if __name__ == "__main__":
-    sys.exit(main())

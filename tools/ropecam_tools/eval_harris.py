@@ -13,11 +13,11 @@ Per exposure and detector it prints: points per frame, the share of true tips wi
 ``--radius-px`` (detected), the mean and p95 distance from each true tip to the nearest point, and the share of
 points that are within ``--radius-px`` of a true tip (precision).
 
-    python tools/harris_compare.py [--frameset DIR ...] [--exposures-ms 1 5 9 15] [--frames 24]
+    python tools/evaluate.py harris [--frameset DIR ...] [--exposures-ms 1 5 9 15] [--frames 24]
                                    [--radius-px 3] [--on edges|frame] [--fixed-end auto|truth]
                                    [--plot fig.png] [--json]
 
-Without ``--frameset`` the synthetic renderer of `tools/eval_accuracy.py` provides the frames and truth.
+Without ``--frameset`` the synthetic renderer of `tools/evaluate.py accuracy` provides the frames and truth.
 """
 
 from __future__ import annotations
@@ -25,7 +25,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
 from typing import Any
 
 import cv2
@@ -33,9 +32,8 @@ import numpy as np
 
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from eval_accuracy import build_sequences
+from ropecam_tools.cli import UsageError
+from ropecam_tools.eval_accuracy import build_sequences
 
 DETECTORS = ("harris", "paper", "blur_split")
 
@@ -75,7 +73,7 @@ def score(points_per_frame: list[np.ndarray], tips_per_frame: list[np.ndarray], 
     }
 
 
-def run(
+def score_sequence(
     sequence: list, args: argparse.Namespace, fixed_uv: tuple[float, float] | None = None
 ) -> tuple[list[dict[str, Any]], dict[str, list[np.ndarray]]]:
     """Score every detector on one sequence; also return the points per detector and frame (u, v)."""
@@ -153,8 +151,8 @@ def plot(
     fig.savefig(path, dpi=110)
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add this subcommand's options to `parser`."""
     parser.add_argument("--frameset", action="extend", nargs="+", help="simulator frame set(s) (with truth.npz)")
     parser.add_argument("--exposures-ms", type=float, nargs="+", default=[1.0, 5.0, 9.0, 15.0],
                         help="synthetic exposures when no --frameset is given (default 1 5 9 15)")  # fmt: skip
@@ -169,15 +167,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--block-size", type=int, default=3, help="Harris window (default 3)")
     parser.add_argument("--plot", help="write the figure (PNG) here")
     parser.add_argument("--json", action="store_true", help="print one JSON object per row")
-    args = parser.parse_args(argv)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the subcommand with the parsed `args`; return the exit code."""
     if args.frames < 1:
-        parser.error(f"--frames must be >= 1, got {args.frames}")
+        raise UsageError(f"--frames must be >= 1, got {args.frames}")
     sequences = build_sequences(args.frameset, args.exposures_ms, args.frames, args.fixed_end)
     rows: list[dict[str, Any]] = []
     example = None
     for number, (name, exposure, seq, fixed) in enumerate(sequences, 1):
         print(f"[{number}/{len(sequences)}] {name} ({exposure:g} ms, {len(seq)} frames)", file=sys.stderr, flush=True)
-        found, points = run(seq, args, fixed)
+        found, points = score_sequence(seq, args, fixed)
         for row in found:
             row = {"input": name, "exposure_ms": exposure, **row}
             rows.append(row)
@@ -199,7 +200,3 @@ def main(argv: list[str] | None = None) -> int:
         plot(args.plot, rows, example, args.radius_px)
         print(f"figure written to {args.plot}", file=sys.stderr)
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

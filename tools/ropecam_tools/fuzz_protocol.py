@@ -1,4 +1,3 @@
-#!/usr/bin/env python3
 """Fuzz the message decoder and the serial deframer with random and mutated inputs.
 
 Every input goes into `decode_message` (only `ProtocolError` may come out) and, as a byte stream, into a `Deframer`
@@ -6,7 +5,7 @@ Every input goes into `decode_message` (only `ProtocolError` may come out) and, 
 CRC (and length field) repaired, so the record parsers behind the CRC are exercised too, not only the CRC check.
 A hang is caught by a per-input watchdog (SIGALRM).
 
-    python tools/fuzz_protocol.py --count 1000000 --seed 1 [--json]
+    python tools/fuzz.py protocol --count 1000000 --seed 1 [--json]
 """
 
 from __future__ import annotations
@@ -85,7 +84,7 @@ def _alarm(signum: int, frame_: object) -> None:
     raise Hang
 
 
-def run(count: int, seed: int, timeout_s: float = 2.0, progress: bool = True) -> dict[str, object]:
+def fuzz(count: int, seed: int, timeout_s: float = 2.0, progress: bool = True) -> dict[str, object]:
     """Fuzz `count` inputs; return counts, time and the worst per-input time. Raises on any finding."""
     rng = random.Random(seed)
     corpus = seeds()
@@ -135,14 +134,17 @@ def run(count: int, seed: int, timeout_s: float = 2.0, progress: bool = True) ->
     }
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add this subcommand's options to `parser`."""
     parser.add_argument("--count", type=int, default=1_000_000, help="number of inputs (default 1e6)")
     parser.add_argument("--seed", type=int, default=1, help="random seed (default 1)")
     parser.add_argument("--timeout-s", type=float, default=2.0, help="per-input hang limit (default 2 s)")
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
-    args = parser.parse_args()
-    result = run(args.count, args.seed, args.timeout_s, progress=not args.json)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the subcommand with the parsed `args`; return the exit code."""
+    result = fuzz(args.count, args.seed, args.timeout_s, progress=not args.json)
     if args.json:
         print(json.dumps(result))
     else:
@@ -153,7 +155,3 @@ def main() -> int:
             "no other exception, no hang"
         )
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,12 +1,11 @@
-#!/usr/bin/env python3
 """Soak the rig daemon: replay a recorded frame set in a loop at the camera rate for a long time, in this process.
 
 Reports, every --report-s and at the end: frames captured and measured, frames dropped (camera side: skipped by the
 newest-frame policy; link side: queue and transport), sequence gaps seen by the receiver, RSS and its growth after
 the warm-up, and CPU time per frame. Acceptance of issue 6 (3): 10 minutes at 119 FPS, RSS growth <= 1 MB, 0 drops.
 
-    python tools/soak_device.py --frameset sim/rig --fps 119 --duration-s 600
-    python tools/soak_device.py --duration-s 60 --json          # makes a small rig set itself
+    python tools/soak.py device --frameset sim/rig --fps 119 --duration-s 600
+    python tools/soak.py device --duration-s 60 --json          # makes a small rig set itself
 """
 
 from __future__ import annotations
@@ -29,15 +28,18 @@ def rss_kib() -> int:
     return 0
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add this subcommand's options to `parser`."""
     parser.add_argument("--frameset", type=Path, help="recorded frame set (default: simulate 60 rig frames)")
     parser.add_argument("--fps", type=float, default=119.0, help="replay rate (default 119)")
     parser.add_argument("--duration-s", type=float, default=600.0, help="how long (default 600)")
     parser.add_argument("--warmup-s", type=float, default=20.0, help="RSS growth is measured after this")
     parser.add_argument("--report-s", type=float, default=30.0, help="progress line period")
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
-    args = parser.parse_args(argv)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the subcommand with the parsed `args`; return the exit code."""
 
     from ropecam.device.capture.config import CaptureConfig
     from ropecam.device.daemon.config import DeviceConfig, SenderConfig
@@ -121,7 +123,3 @@ def main(argv: list[str] | None = None) -> int:
     }
     print(json.dumps(result, indent=2) if args.json else "\n".join(f"{k}: {v}" for k, v in result.items()))
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
