@@ -40,18 +40,3 @@ def test_no_root_ropecam_folder_and_no_bare_imports() -> None:
 def test_each_mapped_folder_ships_py_typed() -> None:
     for top in MAPPING:
         assert (REPO_ROOT / top / "py.typed").is_file()
-
-
-def test_layering_rules() -> None:
-    """shared imports neither side; device never imports host or mcap."""
-    rules = {
-        "shared": re.compile(r"^\s*(from|import)\s+(ropecam\.(device|host)|cv2|mcap)\b", re.MULTILINE),
-        "device": re.compile(r"^\s*(from|import)\s+(ropecam\.host|mcap)\b", re.MULTILINE),
-    }
-    offenders = [
-        str(path.relative_to(REPO_ROOT))
-        for top, pattern in rules.items()
-        for path in (REPO_ROOT / top).rglob("*.py")
-        if pattern.search(path.read_text())
-    ]
-    assert offenders == []

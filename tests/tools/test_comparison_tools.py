@@ -1,27 +1,22 @@
-"""tools/harris_compare.py and tools/eval_accuracy.py end to end on a few synthetic frames (subprocesses)."""
+"""tools/evaluate.py harris and accuracy end to end on a few synthetic frames (subprocesses)."""
 
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
+from collections.abc import Callable
 from pathlib import Path
+from subprocess import CompletedProcess
 
 import pytest
 
-TOOLS = Path(__file__).resolve().parents[2] / "tools"
-
-
-def _run(script: str, *args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, str(TOOLS / script), *args], capture_output=True, text=True, timeout=300, check=False
-    )
+RunTool = Callable[..., CompletedProcess[str]]
+"""The `run_tool` fixture (tests/tools/conftest.py)."""
 
 
 @pytest.mark.slow
-def test_harris_compare_scores_harris_and_the_segmentation_points(tmp_path: Path) -> None:
+def test_harris_scores_harris_and_the_segmentation_points(run_tool: RunTool, tmp_path: Path) -> None:
     figure = tmp_path / "fig7.png"
-    done = _run("harris_compare.py", "--exposures-ms", "12", "--frames", "3", "--json", "--plot", str(figure))
+    done = run_tool("evaluate.py", "harris", "--exposures-ms", "12", "--frames", "3", "--json", "--plot", str(figure))
     assert done.returncode == 0, done.stderr
     rows = {row["detector"]: row for row in map(json.loads, done.stdout.splitlines())}
     assert set(rows) == {"harris", "paper", "blur_split"}
@@ -37,9 +32,9 @@ def test_harris_compare_scores_harris_and_the_segmentation_points(tmp_path: Path
 
 
 @pytest.mark.slow
-def test_eval_accuracy_prints_every_method_and_exposure_and_plots(tmp_path: Path) -> None:
+def test_accuracy_prints_every_method_and_exposure_and_plots(run_tool: RunTool, tmp_path: Path) -> None:
     figure = tmp_path / "fig11.png"
-    done = _run("eval_accuracy.py", "--exposures-ms", "2", "12", "--frames", "3", "--plot", str(figure))
+    done = run_tool("evaluate.py", "accuracy", "--exposures-ms", "2", "12", "--frames", "3", "--plot", str(figure))
     assert done.returncode == 0, done.stderr
     lines = [line.split() for line in done.stdout.splitlines()[2:]]
     assert {(line[1], line[2]) for line in lines} == {
@@ -48,8 +43,8 @@ def test_eval_accuracy_prints_every_method_and_exposure_and_plots(tmp_path: Path
     assert figure.stat().st_size > 10_000
 
 
-def test_tools_refuse_bad_arguments() -> None:
-    done = _run("harris_compare.py", "--frames", "0")
-    assert done.returncode == 2 and "--frames must be >= 1" in done.stderr
-    done = _run("eval_accuracy.py", "--methods", "nonsense")
+def test_tools_refuse_bad_arguments(run_tool: RunTool) -> None:
+    done = run_tool("evaluate.py", "harris", "--frames", "0")
+    assert done.returncode == 2 and "harris: error: --frames must be >= 1, got 0" in done.stderr, done.stderr
+    done = run_tool("evaluate.py", "accuracy", "--methods", "nonsense")
     assert done.returncode == 2 and "invalid choice" in done.stderr

@@ -2,7 +2,7 @@
 
 Issue 4, acceptance 1, in small: the rope at the start and at the end of the exposure from one blurred frame,
 its tips within a few tenths of a pixel, its centreline within 0.2 px, in the right time order. The full
-evaluation (60 frames, every preset and exposure) is `tools/eval_accuracy.py`; here 14 frames from mid-swing,
+evaluation (60 frames, every preset and exposure) is `tools/evaluate.py accuracy`; here 14 frames from mid-swing,
 where the rope moves fastest (and the soft rope whips), rendered in-process by `ropecam.host.sim`.
 """
 

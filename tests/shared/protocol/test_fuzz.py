@@ -1,4 +1,4 @@
-"""A short, bounded fuzz run (the long one is tools/fuzz_protocol.py): only ProtocolError may escape the decoder,
+"""A short, bounded fuzz run (the long one is tools/fuzz.py protocol): only ProtocolError may escape the decoder,
 nothing may escape the deframer."""
 
 from __future__ import annotations

@@ -1,0 +1,155 @@
+"""The rig daemon at the camera rate, end to end: every result received over UDP and serial, equal to offline.
+
+`ropecam-device run` in its own process replays a recorded frame set paced at --fps into UDP loopback and,
+separately, into a pty serial pair; a receiver here collects every FrameResult and compares them with the offline
+pipeline over the same frames.
+
+Prints per transport: FrameResults received of those in the set, frames the daemon skipped (newest-frame policy:
+the pipeline fell behind the camera), sequence gaps, and whether every received result equals the offline one
+(status, method, both shapes within the wire's 0.05 px). Repeat with --runs: a shared machine's load spikes show.
+
+    python tools/evaluate.py e2e --frameset sim/rig --fps 119 [--runs 3] [--transports udp serial] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import itertools
+import json
+import os
+import pty
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+
+def _offline(frameset: Path) -> list[Any]:
+    from ropecam.device.capture.frameset import FrameSet
+    from ropecam.device.pipeline.config import PipelineConfig
+    from ropecam.device.pipeline.pipeline import Pipeline
+    from ropecam.device.pipeline.result import to_wire
+
+    frames = FrameSet(frameset)
+    pipeline = Pipeline(PipelineConfig(), frames.image_size)
+    return [to_wire(pipeline.process(image, r.frame, r.t_ns, r.exposure_us)) for r, image in frames]
+
+
+def _same(got: Any, want: Any) -> bool:
+    from ropecam.shared.protocol.shapes import polyline_distances_px
+
+    if got.status != want.status or got.method != want.method:
+        return False
+    for name in ("begin_px", "end_px"):
+        a, b = getattr(got, name), getattr(want, name)
+        if (a is None) != (b is None):
+            return False
+        if a is not None and polyline_distances_px(b, a).max() > 0.05 + 1e-6:
+            return False
+    return True
+
+
+def _daemon(frameset: Path, fps: float, sink: str) -> subprocess.Popen[bytes]:
+    command = [sys.executable, "-m", "ropecam.device.cli", "run", "--source", f"frames:{frameset}?fps={fps:g}",
+               "--sink", sink]  # fmt: skip
+    return subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+
+
+def _receive_udp(frameset: Path, fps: float) -> tuple[list[bytes], int]:
+    from ropecam.shared.transport import open_transport
+
+    host = open_transport("udp://127.0.0.1:0?listen=1")
+    process = _daemon(frameset, fps, f"udp://127.0.0.1:{host.local_address[1]}")
+    packets = []
+    try:
+        while process.poll() is None:
+            data = host.receive(0.05)
+            if data is not None:
+                packets.append(data)
+        end = time.monotonic() + 0.5
+        while time.monotonic() < end:
+            data = host.receive(0.05)
+            if data is not None:
+                packets.append(data)
+    finally:
+        host.close()
+    return packets, process.returncode
+
+
+def _receive_serial(frameset: Path, fps: float) -> tuple[list[bytes], int]:
+    from ropecam.shared.protocol.framing import Deframer
+
+    master, slave = pty.openpty()
+    name = os.ttyname(slave)
+    os.close(slave)
+    os.set_blocking(master, False)
+    deframer = Deframer()
+    packets: list[bytes] = []
+    process = _daemon(frameset, fps, f"serial://{name}?baud=921600")
+    try:
+        end = None
+        while end is None or time.monotonic() < end:
+            if end is None and process.poll() is not None:
+                end = time.monotonic() + 0.5
+            try:
+                packets.extend(deframer.feed(os.read(master, 65536)))
+            except (BlockingIOError, OSError):
+                time.sleep(0.002)
+    finally:
+        with contextlib.suppress(OSError):
+            os.close(master)
+    return packets, process.returncode
+
+
+def run_once(frameset: Path, fps: float, transport: str, expected: list[Any]) -> dict[str, Any]:
+    """One daemon run over one transport; the counts and the comparison."""
+    from ropecam.shared.errors import ProtocolError
+    from ropecam.shared.protocol import FrameResult, Status, decode_message
+
+    receive = _receive_udp if transport == "udp" else _receive_serial
+    packets, code = receive(frameset, fps)
+    results, skipped, sequences = [], 0, []
+    for data in packets:
+        try:
+            message = decode_message(data)
+        except ProtocolError:
+            continue
+        sequences.append(message.header.sequence)
+        if isinstance(message.record, FrameResult):
+            results.append(message.record)
+        elif isinstance(message.record, Status):
+            skipped = max(skipped, int(dict(message.record.counters).get("capture_skipped", 0)))
+    by_index = {e.frame_index: e for e in expected}
+    equal = sum(1 for r in results if r.frame_index in by_index and _same(r, by_index[r.frame_index]))
+    gaps = sum(max(0, b - a - 1) for a, b in itertools.pairwise(sequences))
+    return {"transport": transport, "exit_code": code, "frames": len(expected), "received": len(results),
+            "equal_to_offline": equal, "skipped_by_daemon": skipped, "sequence_gaps": gaps}  # fmt: skip
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add this subcommand's options to `parser`."""
+    parser.add_argument("--frameset", type=Path, required=True, help="recorded frame set (e.g. ropecam simulate rig)")
+    parser.add_argument("--fps", type=float, default=119.0, help="replay rate (default 119)")
+    parser.add_argument("--runs", type=int, default=1, help="runs per transport (default 1)")
+    parser.add_argument("--transports", nargs="+", choices=("udp", "serial"), default=["udp", "serial"])
+    parser.add_argument("--json", action="store_true", help="print JSON rows")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the subcommand with the parsed `args`; return the exit code."""
+    expected = _offline(args.frameset)
+    rows = []
+    for transport in args.transports:
+        for _ in range(args.runs):
+            row = run_once(args.frameset, args.fps, transport, expected)
+            rows.append(row)
+            if args.json:
+                print(json.dumps(row), flush=True)
+            else:
+                print(f"{transport:6s} at {args.fps:g} FPS: received {row['received']} of {row['frames']} "
+                      f"FrameResults, {row['equal_to_offline']} equal to the offline pipeline, "
+                      f"{row['skipped_by_daemon']} skipped by the daemon, {row['sequence_gaps']} sequence gaps, "
+                      f"exit {row['exit_code']}", flush=True)  # fmt: skip
+    return 0 if all(r["received"] == r["frames"] == r["equal_to_offline"] for r in rows) else 1
