@@ -75,6 +75,16 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--uneven", type=float, metavar="A", help="uneven rope brightness, relative (e.g. 0.3)")
     parser.add_argument("--scratch", action="store_true", help="add a static bright scratch on the background")
     parser.add_argument("--clamp", action="store_true", help="add a clamp block over the fixed end")
+    camera = parser.add_argument_group("camera processing (after noise, on the 8-bit output; all off in rig/paper)")
+    camera.add_argument(
+        "--gamma", type=float, metavar="G", help="sensor.gamma: output code = 255 (light/255)^(1/G), G in [1, 3]"
+    )
+    camera.add_argument(
+        "--sharpen", type=float, metavar="A", help="sensor.sharpen: unsharp-mask amount in [0, 3] (sigma 1 px)"
+    )
+    camera.add_argument(
+        "--jpeg-quality", type=int, metavar="Q", help="sensor.jpeg_quality: JPEG/MJPEG round trip at quality 1-100"
+    )
     parser.add_argument("--config", type=Path, metavar="FILE", help="TOML file overriding any preset value")
     parser.add_argument(
         "--trajectory", type=Path, metavar="FILE", help="use a saved trajectory (.npz) instead of solving the model"
@@ -116,6 +126,12 @@ def _overrides(args: argparse.Namespace) -> dict[str, Any]:
         scene["scratch"] = True
     if args.clamp:
         scene["clamp"] = True
+    sensor = overrides.setdefault("sensor", {})
+    for key in ("gamma", "sharpen", "jpeg_quality"):
+        if getattr(args, key) is not None:
+            sensor[key] = getattr(args, key)
+    if not sensor:
+        del overrides["sensor"]
     if scene:
         overrides["scene"] = scene
     return overrides

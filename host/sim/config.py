@@ -178,22 +178,41 @@ class SceneSpec:
 
 @dataclass(frozen=True, slots=True)
 class SensorSpec:
-    """Sensor noise: Gaussian read noise and photon shot noise, then rounding and clipping to 8 bits.
+    """The sensor and the camera's own processing: noise in linear light, gamma, sharpening, 8 bits, JPEG.
+
+    The order is that of a camera: read and shot noise on the linear light, the gamma curve, unsharp-mask
+    sharpening, rounding and clipping to 8 bits, then the JPEG/MJPEG round trip.
 
     Parameters
     ----------
     read_noise_dn
-        Standard deviation of the signal-independent noise, DN.
+        Standard deviation of the signal-independent noise, DN (linear).
     gain_dn_per_electron
         Conversion gain; shot noise has variance ``gain * signal`` (DN^2). 0 switches shot noise off.
+    gamma
+        Exponent of the output curve: code = 255 (light / 255)^(1 / gamma), in [1, 3]; 1 = linear.
+    sharpen
+        Unsharp-mask amount in [0, 3]: code + sharpen * (code - GaussianBlur(code, sharpen_sigma_px)); 0 = none.
+    sharpen_sigma_px
+        Standard deviation of the unsharp mask's Gaussian, pixels, in [0.3, 5].
+    jpeg_quality
+        JPEG quality (1-100) of a JPEG/MJPEG round trip of every frame (OpenCV's encoder); 0 = none.
     """
 
     read_noise_dn: float = 1.5
     gain_dn_per_electron: float = 0.05
+    gamma: float = 1.0
+    sharpen: float = 0.0
+    sharpen_sigma_px: float = 1.0
+    jpeg_quality: int = 0
 
     def __post_init__(self) -> None:
         check_range("sensor.read_noise_dn", self.read_noise_dn, 0.0, 50.0)
         check_range("sensor.gain_dn_per_electron", self.gain_dn_per_electron, 0.0, 10.0)
+        check_range("sensor.gamma", self.gamma, 1.0, 3.0)
+        check_range("sensor.sharpen", self.sharpen, 0.0, 3.0)
+        check_range("sensor.sharpen_sigma_px", self.sharpen_sigma_px, 0.3, 5.0)
+        check_range("sensor.jpeg_quality", self.jpeg_quality, 0, 100)
 
 
 @dataclass(frozen=True, slots=True)

@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 from scipy.special import ndtr
 
 from ropecam.host.sim.config import SceneSpec, SensorSpec
+from ropecam.host.sim.processing import encode_gamma, jpeg_round_trip, unsharp_mask
 
 __all__ = ["SceneLayers", "Sensor", "build_scene", "rope_levels"]
 
@@ -208,7 +209,11 @@ class Sensor:
         return light
 
     def expose(self, cover: NDArray[np.float32], signal: NDArray[np.float32], frame: int) -> NDArray[np.uint8]:
-        """Return the 8-bit frame number `frame` for a rendered exposure (noise, rounding, clipping)."""
+        """Return the 8-bit frame number `frame` for a rendered exposure.
+
+        Noise on the linear light, then the camera's processing (`ropecam.host.sim.processing`): gamma curve,
+        sharpening, rounding and clipping to 8 bits, JPEG round trip.
+        """
         light = self.light(cover, signal)
         if self.spec.read_noise_dn > 0 or self.spec.gain_dn_per_electron > 0:
             rng = np.random.default_rng([self.seed, 1, frame])
@@ -217,4 +222,12 @@ class Sensor:
             noise = rng.standard_normal(light.shape, dtype=np.float32)
             noise *= np.sqrt(variance)
             light = light + noise
-        return np.clip(np.rint(light), 0, 255).astype(np.uint8)
+        spec = self.spec
+        if spec.gamma != 1.0 or spec.sharpen > 0:
+            light = encode_gamma(light, spec.gamma)
+            if spec.sharpen > 0:
+                light = unsharp_mask(light, spec.sharpen, spec.sharpen_sigma_px)
+        image = np.clip(np.rint(light), 0, 255).astype(np.uint8)
+        if spec.jpeg_quality:
+            image = jpeg_round_trip(image, spec.jpeg_quality)
+        return image
