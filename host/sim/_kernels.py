@@ -160,9 +160,9 @@ def stamp_centreline(points_px, radius_px, level, sigma_px, out_dist, out_radius
     return n - 1
 
 
-@kernel(int32(f4_2d, f4_2d, f4_2d, f4_2d, i4_1d, float64, float64, f4_2d, f4_2d))
-def accumulate_cover(dist, radius, level, cut, box, sigma_px, weight, out_cover_sum, out_signal_sum):
-    """Add one sub-frame's coverage (times `weight`) to the exposure sums and clear the scratch buffers.
+@kernel(int32(f4_2d, f4_2d, f4_2d, f4_2d, i4_1d, float64, f8_1d_ro, f4_2d, f4_2d))
+def accumulate_cover(dist, radius, level, cut, box, sigma_px, row_weight, out_cover_sum, out_signal_sum):
+    """Add one sub-frame's coverage (times its row's weight) to the exposure sums and clear the scratch buffers.
 
     Parameters
     ----------
@@ -173,12 +173,14 @@ def accumulate_cover(dist, radius, level, cut, box, sigma_px, weight, out_cover_
         (4,) int32 (u_min, v_min, u_max, v_max) inclusive, as left by `stamp_centreline`; reset to empty here.
     sigma_px
         Edge blur standard deviation, pixels (> 0).
-    weight
-        Quadrature weight of this sub-frame (the weights of one exposure sum to 1).
+    row_weight
+        (H,) quadrature weight of this sub-frame for each image row (one row's weights over an exposure sum to 1).
+        A global shutter gives every row the same weight; a rolling shutter exposes each row over its own
+        interval, so a sub-frame counts for the rows whose exposure it falls in (weight 0 elsewhere).
     out_cover_sum
-        (H, W): += weight * coverage.
+        (H, W): += row_weight[row] * coverage.
     out_signal_sum
-        (H, W): += weight * coverage * level.
+        (H, W): += row_weight[row] * coverage * level.
 
     Returns
     -------
@@ -188,7 +190,7 @@ def accumulate_cover(dist, radius, level, cut, box, sigma_px, weight, out_cover_
     height, width = dist.shape
     if radius.shape != dist.shape or level.shape != dist.shape or cut.shape != dist.shape or not sigma_px > 0:
         return INVALID
-    if out_cover_sum.shape != dist.shape or out_signal_sum.shape != dist.shape:
+    if out_cover_sum.shape != dist.shape or out_signal_sum.shape != dist.shape or row_weight.shape[0] != height:
         return INVALID
     u0 = max(box[0], 0)
     v0 = max(box[1], 0)
@@ -197,6 +199,7 @@ def accumulate_cover(dist, radius, level, cut, box, sigma_px, weight, out_cover_
     count = 0
     scale = 1.0 / (sigma_px * math.sqrt(2.0))
     for row in range(v0, v1 + 1):
+        weight = row_weight[row]
         for col in range(u0, u1 + 1):
             d = dist[row, col]
             if d < FAR:

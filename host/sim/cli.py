@@ -75,7 +75,7 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--uneven", type=float, metavar="A", help="uneven rope brightness, relative (e.g. 0.3)")
     parser.add_argument("--scratch", action="store_true", help="add a static bright scratch on the background")
     parser.add_argument("--clamp", action="store_true", help="add a clamp block over the fixed end")
-    camera = parser.add_argument_group("camera processing (after noise, on the 8-bit output; all off in rig/paper)")
+    camera = parser.add_argument_group("camera and lamps (all off in the rig and paper presets)")
     camera.add_argument(
         "--gamma", type=float, metavar="G", help="sensor.gamma: output code = 255 (light/255)^(1/G), G in [1, 3]"
     )
@@ -84,6 +84,18 @@ def register(subparsers: Any) -> None:
     )
     camera.add_argument(
         "--jpeg-quality", type=int, metavar="Q", help="sensor.jpeg_quality: JPEG/MJPEG round trip at quality 1-100"
+    )
+    camera.add_argument(
+        "--readout-ms",
+        type=float,
+        metavar="T",
+        help="camera.readout_ms: rolling shutter, the last row starts T ms after the first (0: global shutter)",
+    )
+    camera.add_argument(
+        "--flicker", type=float, metavar="A", help="scene.flicker: lamp brightness 1 + A sin(2 pi f t), A in [0, 0.9]"
+    )
+    camera.add_argument(
+        "--flicker-hz", type=float, metavar="F", help="scene.flicker_hz: lamp flicker frequency f (100 on 50 Hz mains)"
     )
     parser.add_argument("--config", type=Path, metavar="FILE", help="TOML file overriding any preset value")
     parser.add_argument(
@@ -132,6 +144,12 @@ def _overrides(args: argparse.Namespace) -> dict[str, Any]:
             sensor[key] = getattr(args, key)
     if not sensor:
         del overrides["sensor"]
+    if args.flicker is not None:
+        scene["flicker"] = args.flicker
+    if args.flicker_hz is not None:
+        scene["flicker_hz"] = args.flicker_hz
+    if args.readout_ms is not None:
+        overrides["camera"] = {"readout_ms": args.readout_ms}
     if scene:
         overrides["scene"] = scene
     return overrides

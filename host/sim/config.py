@@ -50,6 +50,9 @@ class CameraSpec:
     psf_sigma_px
         Standard deviation of the lens blur (Gaussian point-spread function), pixels; the pixel's own area is
         added to it as a box of variance 1/12.
+    readout_ms
+        Rolling shutter: row r's exposure starts ``readout_ms * r / (height_px - 1)`` after row 0's, milliseconds,
+        at most the frame period (checked by `SimConfig`); 0 = global shutter.
     """
 
     fx_px: float
@@ -63,6 +66,7 @@ class CameraSpec:
     plane_rvec: tuple[float, float, float] = (0.0, 0.0, 0.0)
     distortion: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)
     psf_sigma_px: float = 0.4
+    readout_ms: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("fx_px", "fy_px", "fps"):
@@ -72,6 +76,7 @@ class CameraSpec:
         check_range("camera.width_px", self.width_px, 8, 16384)
         check_range("camera.height_px", self.height_px, 8, 16384)
         check_range("camera.psf_sigma_px", self.psf_sigma_px, 0.0, 5.0)
+        check_range("camera.readout_ms", self.readout_ms, 0.0, 1000.0 / self.fps)
         if len(self.distortion) not in (4, 5, 8):
             raise ConfigError(f"camera.distortion must hold 4, 5 or 8 coefficients, got {list(self.distortion)}")
         for value in (*self.distortion, *self.plane_rvec, *self.plane_tvec_m):
@@ -132,6 +137,11 @@ class SceneSpec:
         Draw a static bright scratch across the swing region of the background.
     clamp
         Draw a clamp block over the fixed end (it hides the first few millimetres of rope).
+    flicker
+        Relative amplitude a of the lamps' modulation, light x (1 + a sin(2 pi flicker_hz t)) with t on the
+        model's clock, averaged over each row's exposure; in [0, 0.9], 0 = steady light.
+    flicker_hz
+        Frequency of that modulation, Hz, in [1, 1000] (100 for lamps on 50 Hz mains, 120 on 60 Hz).
     """
 
     render_diameter_m: float | None = None
@@ -144,6 +154,8 @@ class SceneSpec:
     rope_unevenness: float = 0.0
     scratch: bool = False
     clamp: bool = False
+    flicker: float = 0.0
+    flicker_hz: float = 100.0
 
     def __post_init__(self) -> None:
         if self.render_diameter_m is not None:
@@ -155,6 +167,8 @@ class SceneSpec:
                 check_range(f"scene.{name}", value, 0.0, 255.0)
         for name in ("background_variation", "vignetting", "texture", "rope_unevenness"):
             check_range(f"scene.{name}", getattr(self, name), 0.0, 0.9)
+        check_range("scene.flicker", self.flicker, 0.0, 0.9)
+        check_range("scene.flicker_hz", self.flicker_hz, 1.0, 1000.0)
         if abs(self.rope_level - self.background_level) < 10:
             raise ConfigError(
                 f"scene: rope level {self.rope_level} and background level {self.background_level} must differ "
@@ -272,8 +286,9 @@ class SimConfig:
 
     @property
     def duration_s(self) -> float:
-        """Model time needed: up to the end of the last frame's longest exposure."""
-        return self.first_exposure_s + (self.frames - 1) / self.camera.fps + max(self.exposure_ms) / 1000.0
+        """Model time needed: up to the end of the last frame's longest exposure (of its last row)."""
+        last_begin_s = self.first_exposure_s + (self.frames - 1) / self.camera.fps
+        return last_begin_s + max(self.exposure_ms) / 1000.0 + self.camera.readout_ms / 1000.0
 
     @property
     def render_diameter_m(self) -> float:

@@ -195,8 +195,13 @@ class Sensor:
         self.seed = int(seed)
         self._light = np.empty_like(layers.background)
 
-    def light(self, cover: NDArray[np.float32], signal: NDArray[np.float32]) -> NDArray[np.float32]:
-        """Return the noise-free light (DN, float32) for a rendered exposure; a view into this sensor's buffer."""
+    def light(
+        self, cover: NDArray[np.float32], signal: NDArray[np.float32], illumination: NDArray[np.float32] | None = None
+    ) -> NDArray[np.float32]:
+        """Return the noise-free light (DN, float32) for a rendered exposure; a view into this sensor's buffer.
+
+        `illumination`, (H, 1) or (H, W), multiplies the whole scene (the lamps' flicker, `shutter.flicker_gain`).
+        """
         layers = self.layers
         light = self._light
         np.subtract(1.0, cover, out=light)
@@ -205,16 +210,24 @@ class Sensor:
         if layers.clamp_box_px is not None:
             light *= 1.0 - layers.clamp
             light += CLAMP_LEVEL_DN * layers.clamp
+        if illumination is not None:
+            light *= illumination
         light *= layers.vignette
         return light
 
-    def expose(self, cover: NDArray[np.float32], signal: NDArray[np.float32], frame: int) -> NDArray[np.uint8]:
+    def expose(
+        self,
+        cover: NDArray[np.float32],
+        signal: NDArray[np.float32],
+        frame: int,
+        illumination: NDArray[np.float32] | None = None,
+    ) -> NDArray[np.uint8]:
         """Return the 8-bit frame number `frame` for a rendered exposure.
 
         Noise on the linear light, then the camera's processing (`ropecam.host.sim.processing`): gamma curve,
         sharpening, rounding and clipping to 8 bits, JPEG round trip.
         """
-        light = self.light(cover, signal)
+        light = self.light(cover, signal, illumination)
         if self.spec.read_noise_dn > 0 or self.spec.gain_dn_per_electron > 0:
             rng = np.random.default_rng([self.seed, 1, frame])
             variance = np.maximum(light, 0.0) * np.float32(self.spec.gain_dn_per_electron)
