@@ -73,6 +73,16 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument("--texture", type=float, metavar="A", help="background texture amplitude, relative (0.1)")
     parser.add_argument("--uneven", type=float, metavar="A", help="uneven rope brightness, relative (e.g. 0.3)")
+    parser.add_argument(
+        "--rope-photo",
+        metavar="FILE",
+        help="scene.rope_photo: paint the rope with the braid/texture of a real rope photo (relative to --photo-dir)",
+    )
+    parser.add_argument(
+        "--photo-dir",
+        metavar="DIR",
+        help="scene.photo_dir: folder of the rope photos (default ../shared/realdata, from the current directory)",
+    )
     parser.add_argument("--scratch", action="store_true", help="add a static bright scratch on the background")
     parser.add_argument("--clamp", action="store_true", help="add a clamp block over the fixed end")
     camera = parser.add_argument_group("camera and lamps (all off in the rig and paper presets)")
@@ -144,6 +154,10 @@ def _overrides(args: argparse.Namespace) -> dict[str, Any]:
             sensor[key] = getattr(args, key)
     if not sensor:
         del overrides["sensor"]
+    if args.rope_photo is not None:
+        scene["rope_photo"] = args.rope_photo
+    if args.photo_dir is not None:
+        scene["photo_dir"] = args.photo_dir
     if args.flicker is not None:
         scene["flicker"] = args.flicker
     if args.flicker_hz is not None:
@@ -163,7 +177,7 @@ def run(args: argparse.Namespace) -> int:
     from ropecam.host.model.trajectory import Trajectory
     from ropecam.host.sim.config import merge_overrides
     from ropecam.host.sim.dynamics import solve_trajectory
-    from ropecam.host.sim.generate import frameset_paths, write_framesets
+    from ropecam.host.sim.generate import check_inputs, frameset_paths, write_framesets
     from ropecam.host.sim.presets import preset
     from ropecam.shared.config import read_toml
 
@@ -173,6 +187,7 @@ def run(args: argparse.Namespace) -> int:
     if args.config is not None:
         config = merge_overrides(config, read_toml(args.config), where=str(args.config))
     config = merge_overrides(config, _overrides(args), where="command line")
+    check_inputs(config)  # a missing photo fails before the model is solved and before anything is written
 
     if args.trajectory is not None:
         trajectory = Trajectory.load(args.trajectory)

@@ -13,6 +13,7 @@ import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
@@ -137,6 +138,14 @@ class SceneSpec:
         Draw a static bright scratch across the swing region of the background.
     clamp
         Draw a clamp block over the fixed end (it hides the first few millimetres of rope).
+    photo_dir
+        Folder that a relative `rope_photo` is read from (relative paths: from the current directory).
+    rope_photo
+        Photograph of a real rope (path, relative to `photo_dir` unless absolute) whose brightness across and along
+        its own centreline is painted along the simulated rope (`ropecam.host.sim.rope_photo`); "" = plain rope.
+        Read when the frames are rendered; a missing file is a `ConfigError` naming this key and the path.
+    rope_photo_contrast
+        Scale of the photographed brightness variation, in [0, 2] (0: flat, 1: as photographed).
     flicker
         Relative amplitude a of the lamps' modulation, light x (1 + a sin(2 pi flicker_hz t)) with t on the
         model's clock, averaged over each row's exposure; in [0, 0.9], 0 = steady light.
@@ -154,6 +163,9 @@ class SceneSpec:
     rope_unevenness: float = 0.0
     scratch: bool = False
     clamp: bool = False
+    photo_dir: str = "../shared/realdata"
+    rope_photo: str = ""
+    rope_photo_contrast: float = 1.0
     flicker: float = 0.0
     flicker_hz: float = 100.0
 
@@ -167,6 +179,7 @@ class SceneSpec:
                 check_range(f"scene.{name}", value, 0.0, 255.0)
         for name in ("background_variation", "vignetting", "texture", "rope_unevenness"):
             check_range(f"scene.{name}", getattr(self, name), 0.0, 0.9)
+        check_range("scene.rope_photo_contrast", self.rope_photo_contrast, 0.0, 2.0)
         check_range("scene.flicker", self.flicker, 0.0, 0.9)
         check_range("scene.flicker_hz", self.flicker_hz, 1.0, 1000.0)
         if abs(self.rope_level - self.background_level) < 10:
@@ -174,6 +187,13 @@ class SceneSpec:
                 f"scene: rope level {self.rope_level} and background level {self.background_level} must differ "
                 "by at least 10 DN (the rope would be invisible)"
             )
+
+    @property
+    def rope_photo_path(self) -> Path | None:
+        """The rope photo's path (`rope_photo` joined to `photo_dir` when relative), or None for a plain rope."""
+        if not self.rope_photo:
+            return None
+        return Path(self.photo_dir) / self.rope_photo
 
     @property
     def rope_level(self) -> float:

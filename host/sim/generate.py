@@ -8,6 +8,7 @@ complete and also when the run stops early (error or Ctrl-C), covering the frame
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
 import math
 import time
@@ -24,12 +25,21 @@ from ropecam.host.calibration.geometry import plane_to_pixels
 from ropecam.host.model.trajectory import Trajectory
 from ropecam.host.sim.config import SimConfig
 from ropecam.host.sim.render import RopeRenderer, max_pixels_per_metre
+from ropecam.host.sim.rope_photo import PhotoStrip, load_rope_strip, rope_texture
 from ropecam.host.sim.scene import Sensor, build_scene, rope_levels
 from ropecam.host.sim.shutter import flicker_gain
 from ropecam.shared.cli import ropecam_version
 from ropecam.shared.errors import ConfigError, DataError
 
-__all__ = ["TRAJECTORY_FILE", "SetSummary", "arc_length_samples", "frameset_paths", "write_frameset", "write_framesets"]
+__all__ = [
+    "TRAJECTORY_FILE",
+    "SetSummary",
+    "arc_length_samples",
+    "check_inputs",
+    "frameset_paths",
+    "write_frameset",
+    "write_framesets",
+]
 
 log = logging.getLogger(__name__)
 
@@ -71,6 +81,25 @@ class SetSummary:
     width_px: float
     frames_out_of_view: int
     seconds: float
+
+
+@functools.lru_cache(maxsize=4)
+def cached_rope_strip(path: str) -> PhotoStrip:
+    """Return `load_rope_strip(path)`, read once per process (a preset's exposures share it)."""
+    return load_rope_strip(path)
+
+
+def check_inputs(config: SimConfig) -> None:
+    """Read the files the configuration names (the rope photo) so that a missing one fails before any work.
+
+    Raises
+    ------
+    ConfigError
+        A file is missing or unusable (naming the key and the path).
+    """
+    photo = config.scene.rope_photo_path
+    if photo is not None:
+        cached_rope_strip(str(photo))
 
 
 def frameset_paths(out: str | Path, exposure_ms: tuple[float, ...]) -> list[tuple[float, Path]]:
@@ -226,6 +255,12 @@ def write_frameset(
     first_px = renderer.project(first_m)
     rope_length_px = float(np.linalg.norm(np.diff(first_px, axis=0), axis=-1).sum())
     width_px = 2.0 * float(np.median(renderer.half_width_px(first_m, first_px)))
+    photo = config.scene.rope_photo_path
+    if photo is not None:
+        strip = cached_rope_strip(str(photo))
+        renderer.texture = rope_texture(
+            strip, config.scene.rope_photo_contrast, config.render_diameter_m, float(s_m[1] - s_m[0]), width_px
+        )
     layers = build_scene(
         config.scene, config.camera.image_size, tuple(fixed_end_px), rope_length_px, width_px, sigma, config.seed
     )
@@ -235,6 +270,8 @@ def write_frameset(
         metadata["rig"]["clamp_box_px"] = list(layers.clamp_box_px)
     if layers.scratch_px is not None:
         metadata["rig"]["scratch_px"] = list(layers.scratch_px)
+    if photo is not None:
+        metadata["rig"]["rope_photo"] = str(photo)
     rolling = readout_s > 0
     if rolling:
         metadata["rig"]["readout_ms"] = config.camera.readout_ms
@@ -335,6 +372,7 @@ def write_framesets(
         As `write_frameset`; checked for every exposure before anything is written.
     """
     paths = frameset_paths(out, config.exposure_ms)
+    check_inputs(config)
     for exposure_ms, _ in paths:
         _check_trajectory(config, trajectory, round(exposure_ms * 1000.0))
     if not overwrite:

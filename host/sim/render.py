@@ -26,6 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 from ropecam.host.calibration.geometry import CameraModel, PlanePose, plane_to_pixels
 from ropecam.host.model.trajectory import Trajectory
 from ropecam.host.sim import _kernels
+from ropecam.host.sim.rope_photo import RopeTexture, flat_texture
 from ropecam.host.sim.shutter import rolling_centreline, row_offsets_s, row_weights
 from ropecam.shared.jit import KernelStatus
 
@@ -115,6 +116,9 @@ class RopeRenderer:
         Largest allowed motion of any centreline point between two sub-frames, pixels.
     readout_s
         Rolling shutter: delay of the last row's exposure start after the first row's, seconds (0: global).
+    texture
+        The rope's surface brightness (`ropecam.host.sim.rope_photo.RopeTexture`), multiplied into `level` per
+        pixel from the material coordinate and the position across the rope; None: a plain rope.
     """
 
     def __init__(
@@ -127,6 +131,7 @@ class RopeRenderer:
         edge_sigma_px: float,
         max_step_px: float = 0.5,
         readout_s: float = 0.0,
+        texture: RopeTexture | None = None,
     ) -> None:
         s = np.ascontiguousarray(s_m, dtype=np.float64)
         levels = np.ascontiguousarray(level, dtype=np.float64)
@@ -150,6 +155,7 @@ class RopeRenderer:
         self.edge_sigma_px = float(edge_sigma_px)
         self.max_step_px = float(max_step_px)
         self.readout_s = float(readout_s)
+        self.texture = texture if texture is not None else flat_texture()
         width, height = camera.image_size
         self.row_offsets_s = row_offsets_s(height, self.readout_s)
         self._row_weight = np.empty(height, dtype=np.float64)
@@ -245,8 +251,8 @@ class RopeRenderer:
             else:
                 self._row_weight.fill(weights[k])
             status = _kernels.stamp_centreline(
-                np.ascontiguousarray(points_px[k]), half_mid, self.level, self.edge_sigma_px,
-                self._dist, self._radius, self._level, self._cut, self._box,
+                np.ascontiguousarray(points_px[k]), half_mid, self.level, self.edge_sigma_px, self.texture.table,
+                self.texture.rows_per_sample, self._dist, self._radius, self._level, self._cut, self._box,
             )  # fmt: skip
             if status < 0:
                 raise RuntimeError(f"stamp_centreline failed with {KernelStatus(status).name}")
