@@ -23,7 +23,7 @@ import numpy as np
 from ropecam.device.capture.frameset import FrameSet
 
 PRESETS = ("lab", "lab-dark", "lab-mjpeg", "lab-rolling", "lab-hard")
-CROP = 112
+CROP = 136
 
 
 def _crop(image: np.ndarray, centre: np.ndarray) -> np.ndarray:

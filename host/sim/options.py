@@ -14,6 +14,13 @@ REALISM_OPTIONS: Final[tuple[tuple[str, str, str, str], ...]] = (
     ("scene.photo_dir", "path", "folder", "where relative rope_photo paths are read from (../shared/realdata)"),
     ("scene.rope_photo", "path", 'file or ""', "photo of a real rope painted along the rope (its braid, its shading)"),
     ("scene.rope_photo_contrast", "relative", "0-2", "scale of the photographed brightness variation (1: as shot)"),
+    (
+        "scene.plate_photo",
+        "path",
+        'file or ""',
+        "photo of a plain surface: its rope-free grain and smudges on the plate",
+    ),
+    ("scene.plate_photo_contrast", "relative", "0-20", "scale of that texture (1: as shot, about 0.8 % std)"),
     ("scene.rope_unevenness", "relative", "0-0.9", "brightness variation along the rope, moving with it"),
     ("scene.clamp", "bool", "true/false", "a clamp over the fixed end, hiding the rope's first pixels"),
     ("scene.clamp_width_px", "px", "0 or 4-200", "width of a shaded metal clamp with a bolt (0: plain block)"),

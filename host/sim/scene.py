@@ -23,6 +23,7 @@ from scipy.special import ndtr
 from ropecam.host.sim.config import SceneSpec, SensorSpec
 from ropecam.host.sim.processing import encode_gamma, jpeg_round_trip, unsharp_mask
 from ropecam.host.sim.rig_parts import add_plate_details, clamp_with_rod
+from ropecam.host.sim.rope_photo import load_plate_texture
 
 __all__ = ["SceneLayers", "Sensor", "build_scene", "rope_levels"]
 
@@ -116,6 +117,10 @@ def build_scene(
         grain = cv2.GaussianBlur(texture_noise, (0, 0), sigmaX=1.0)
         grain /= max(float(grain.std()), 1e-12)
         background = background * (1.0 + scene.texture * grain)
+
+    plate = scene.plate_photo_path
+    if plate is not None:
+        background = background * (1.0 + scene.plate_photo_contrast * load_plate_texture(plate, (width, height)))
 
     scratch_params = rng.uniform(size=5)
     scratch_px = None
