@@ -106,6 +106,16 @@ def _longest_path(skeleton: NDArray[np.bool_]) -> NDArray[np.float64]:
     return np.stack([cols[path], rows[path]], axis=-1).astype(np.float64)
 
 
+def _read_grey(path: Path, key: str, what: str, expected: str) -> NDArray[np.uint8]:
+    """Read `path` as grey, or raise `ConfigError` naming `key`, the path and what was expected."""
+    if not path.is_file():
+        raise ConfigError(f"{key}: {what} {str(path)!r} not found (give a path to {expected})")
+    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    if image is None:
+        raise ConfigError(f"{key}: {str(path)!r} is not an image OpenCV can read")
+    return image
+
+
 def _rope_mask(image: NDArray[np.uint8], photo: Path) -> NDArray[np.bool_]:
     mask_file = photo.parent.parent / "gt_labels" / f"{photo.stem}.npy"
     if mask_file.is_file():
@@ -141,11 +151,7 @@ def load_rope_strip(photo: str | Path, key: str = "scene.rope_photo") -> PhotoSt
         The file is missing or unreadable, or holds no rope long enough (errors name `key` and the path).
     """
     path = Path(photo)
-    if not path.is_file():
-        raise ConfigError(f"{key}: rope photo {str(path)!r} not found (give a path to an image of a rope)")
-    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
-    if image is None:
-        raise ConfigError(f"{key}: {str(path)!r} is not an image OpenCV can read")
+    image = _read_grey(path, key, "rope photo", "an image of a rope")
     mask = _rope_mask(image, path)
     distance = cv2.distanceTransform(mask.astype(np.uint8), cv2.DIST_L2, 5)
     path_px = _longest_path(_thin(mask))
@@ -240,11 +246,7 @@ def load_plate_texture(photo: str | Path, size: tuple[int, int], key: str = "sce
         The file is missing or unreadable, or has no rope-free band at least 32 rows high.
     """
     path = Path(photo)
-    if not path.is_file():
-        raise ConfigError(f"{key}: plate photo {str(path)!r} not found (give a path to an image of a plain surface)")
-    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
-    if image is None:
-        raise ConfigError(f"{key}: {str(path)!r} is not an image OpenCV can read")
+    image = _read_grey(path, key, "plate photo", "an image of a plain surface")
     rope = cv2.dilate(_rope_mask(image, path).astype(np.uint8), np.ones((41, 41), np.uint8)) > 0
     free_rows = ~rope.any(axis=1)
     best, run_start = (0, 0), None
