@@ -23,7 +23,7 @@ REALISM_OPTIONS: Final[tuple[tuple[str, str, str, str], ...]] = (
     ("scene.plate_photo_contrast", "relative", "0-20", "scale of that texture (1: as shot, about 0.8 % std)"),
     ("scene.rope_unevenness", "relative", "0-0.9", "brightness variation along the rope, moving with it"),
     ("scene.clamp", "bool", "true/false", "a clamp over the fixed end, hiding the rope's first pixels"),
-    ("scene.clamp_width_px", "px", "0 or 4-200", "width of a shaded metal clamp with a bolt (0: plain block)"),
+    ("scene.clamp_width_px", "px", "0 or 4-200", "width of a shaded metal clamp with two bolts (0: plain block)"),
     ("scene.rod_width_px", "px", "0-60", "rod holding the clamp, up to the image's top border (0: none)"),
     ("scene.plate_edge", "fraction of width", "0 or 0.5-0.99", "the plate's right edge in view, a wall beyond it"),
     ("scene.scratches", "count", "0-50", "faint thin scratches on the plate"),
