@@ -109,7 +109,10 @@ def _longest_path(skeleton: NDArray[np.bool_]) -> NDArray[np.float64]:
 def _read_grey(path: Path, key: str, what: str, expected: str) -> NDArray[np.uint8]:
     """Read `path` as grey, or raise `ConfigError` naming `key`, the path and what was expected."""
     if not path.is_file():
-        raise ConfigError(f"{key}: {what} {str(path)!r} not found (give a path to {expected})")
+        raise ConfigError(
+            f"{key}: {what} {str(path)!r} not found (give a path to {expected}; a relative path is read from "
+            "scene.photo_dir, which --photo-dir sets)"
+        )
     image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
     if image is None:
         raise ConfigError(f"{key}: {str(path)!r} is not an image OpenCV can read")
