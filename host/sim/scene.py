@@ -13,7 +13,7 @@ with C and A the rope's time-averaged coverage and coverage x brightness (`ropec
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
@@ -21,6 +21,9 @@ from numpy.typing import NDArray
 from scipy.special import ndtr
 
 from ropecam.host.sim.config import SceneSpec, SensorSpec
+from ropecam.host.sim.processing import encode_gamma, jpeg_round_trip, unsharp_mask
+from ropecam.host.sim.rig_parts import add_plate_details, clamp_with_rod
+from ropecam.host.sim.rope_photo import load_plate_texture
 
 __all__ = ["SceneLayers", "Sensor", "build_scene", "rope_levels"]
 
@@ -46,6 +49,11 @@ class SceneLayers:
         (u_min, v_min, u_max, v_max) of the clamp in pixels, or None.
     scratch_px
         (u0, v0, u1, v1) end points of the scratch in pixels, or None.
+    clamp_level
+        (H, W) brightness of the clamp and its rod where they cover (DN), or None for the plain block
+        (`CLAMP_LEVEL_DN`).
+    parts
+        Where the rig's parts are, for the metadata (``rod_px``, ``plate_edge_px``, ``distractor_px``).
     """
 
     background: NDArray[np.float32]
@@ -53,6 +61,8 @@ class SceneLayers:
     clamp: NDArray[np.float32]
     clamp_box_px: tuple[float, float, float, float] | None
     scratch_px: tuple[float, float, float, float] | None
+    clamp_level: NDArray[np.float32] | None = None
+    parts: dict[str, object] = field(default_factory=dict)
 
 
 def _scene_rng(seed: int) -> np.random.Generator:
@@ -108,6 +118,12 @@ def build_scene(
         grain /= max(float(grain.std()), 1e-12)
         background = background * (1.0 + scene.texture * grain)
 
+    plate = scene.plate_photo_path
+    surface = None
+    if plate is not None:
+        surface = scene.plate_photo_contrast * load_plate_texture(plate, (width, height))
+        background = background * (1.0 + surface)
+
     scratch_params = rng.uniform(size=5)
     scratch_px = None
     if scene.scratch:
@@ -123,13 +139,33 @@ def build_scene(
         mask = _segment_cover(u, v, scratch_px, half_width_px=0.4, sigma_px=edge_sigma_px)
         background = background + SCRATCH_CONTRAST_DN * mask
 
+    background, parts = add_plate_details(
+        np.broadcast_to(background, (height, width)), u, v, rope_level=scene.rope_level,
+        background_level=scene.background_level, rope_width_px=rope_width_px, sigma_px=edge_sigma_px,
+        plate_edge=scene.plate_edge, scratches=scene.scratches, dust=scene.dust, distractor=scene.distractor,
+        seed=seed,
+    ) if _has_plate_details(scene) else (background, {})  # fmt: skip
+
     corner2 = ((width - 1) / 2) ** 2 + ((height - 1) / 2) ** 2
     radius2 = ((u - (width - 1) / 2) ** 2 + (v - (height - 1) / 2) ** 2) / corner2
     vignette = 1.0 - scene.vignetting * radius2
 
     clamp = np.zeros((height, width))
     clamp_box = None
-    if scene.clamp:
+    clamp_level = None
+    if scene.clamp and (scene.clamp_width_px > 0 or scene.rod_width_px > 0):
+        width_px = scene.clamp_width_px or max(12.0, 8.0 * rope_width_px)
+        metal = clamp_with_rod(u, v, fixed_end_px, width_px, scene.rod_width_px, CLAMP_LEVEL_DN, edge_sigma_px)
+        clamp, clamp_box = metal.cover, metal.box_px
+        background = background * metal.shadow
+        if surface is not None:  # the metal's own grain: the surface texture, shifted and fainter
+            metal_level = metal.level * (1.0 + 0.5 * np.roll(surface, (97, 211), axis=(0, 1)))
+        else:
+            metal_level = metal.level
+        clamp_level = np.ascontiguousarray(metal_level, dtype=np.float32)
+        if metal.rod_px is not None:
+            parts["rod_px"] = list(metal.rod_px)
+    elif scene.clamp:
         half_u = max(6.0, 4.0 * rope_width_px)
         half_v = 0.6 * half_u
         fu, fv = fixed_end_px
@@ -144,7 +180,13 @@ def build_scene(
         clamp=np.ascontiguousarray(clamp, dtype=np.float32),
         clamp_box_px=clamp_box,
         scratch_px=scratch_px,
+        clamp_level=clamp_level,
+        parts=parts,
     )
+
+
+def _has_plate_details(scene: SceneSpec) -> bool:
+    return bool(scene.plate_edge or scene.scratches or scene.dust or scene.distractor)
 
 
 def _segment_cover(
@@ -194,8 +236,13 @@ class Sensor:
         self.seed = int(seed)
         self._light = np.empty_like(layers.background)
 
-    def light(self, cover: NDArray[np.float32], signal: NDArray[np.float32]) -> NDArray[np.float32]:
-        """Return the noise-free light (DN, float32) for a rendered exposure; a view into this sensor's buffer."""
+    def light(
+        self, cover: NDArray[np.float32], signal: NDArray[np.float32], illumination: NDArray[np.float32] | None = None
+    ) -> NDArray[np.float32]:
+        """Return the noise-free light (DN, float32) for a rendered exposure; a view into this sensor's buffer.
+
+        `illumination`, (H, 1) or (H, W), multiplies the whole scene (the lamps' flicker, `shutter.flicker_gain`).
+        """
         layers = self.layers
         light = self._light
         np.subtract(1.0, cover, out=light)
@@ -203,13 +250,28 @@ class Sensor:
         light += signal
         if layers.clamp_box_px is not None:
             light *= 1.0 - layers.clamp
-            light += CLAMP_LEVEL_DN * layers.clamp
+            if layers.clamp_level is None:
+                light += CLAMP_LEVEL_DN * layers.clamp
+            else:
+                light += layers.clamp_level * layers.clamp
+        if illumination is not None:
+            light *= illumination
         light *= layers.vignette
         return light
 
-    def expose(self, cover: NDArray[np.float32], signal: NDArray[np.float32], frame: int) -> NDArray[np.uint8]:
-        """Return the 8-bit frame number `frame` for a rendered exposure (noise, rounding, clipping)."""
-        light = self.light(cover, signal)
+    def expose(
+        self,
+        cover: NDArray[np.float32],
+        signal: NDArray[np.float32],
+        frame: int,
+        illumination: NDArray[np.float32] | None = None,
+    ) -> NDArray[np.uint8]:
+        """Return the 8-bit frame number `frame` for a rendered exposure.
+
+        Noise on the linear light, then the camera's processing (`ropecam.host.sim.processing`): gamma curve,
+        sharpening, rounding and clipping to 8 bits, JPEG round trip.
+        """
+        light = self.light(cover, signal, illumination)
         if self.spec.read_noise_dn > 0 or self.spec.gain_dn_per_electron > 0:
             rng = np.random.default_rng([self.seed, 1, frame])
             variance = np.maximum(light, 0.0) * np.float32(self.spec.gain_dn_per_electron)
@@ -217,4 +279,12 @@ class Sensor:
             noise = rng.standard_normal(light.shape, dtype=np.float32)
             noise *= np.sqrt(variance)
             light = light + noise
-        return np.clip(np.rint(light), 0, 255).astype(np.uint8)
+        spec = self.spec
+        if spec.gamma != 1.0 or spec.sharpen > 0:
+            light = encode_gamma(light, spec.gamma)
+            if spec.sharpen > 0:
+                light = unsharp_mask(light, spec.sharpen, spec.sharpen_sigma_px)
+        image = np.clip(np.rint(light), 0, 255).astype(np.uint8)
+        if spec.jpeg_quality:
+            image = jpeg_round_trip(image, spec.jpeg_quality)
+        return image
