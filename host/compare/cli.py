@@ -8,6 +8,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from ropecam.shared.cli import EXIT_OK, EXIT_RUNTIME, declare_outputs
+
 __all__ = ["register"]
 
 EPILOG = """\
@@ -61,6 +63,7 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--out", type=Path, required=True, help="report folder (created)")
     parser.add_argument("--scheduler", help="batch mode: address of an existing Dask scheduler (default: local)")
     parser.add_argument("--workers", type=int, default=2, help="batch mode: local Dask worker processes (default 2)")
+    declare_outputs(parser, "out")
     parser.set_defaults(func=run_compare)
 
 
@@ -96,11 +99,12 @@ def run_compare(args: argparse.Namespace) -> int:
         "release_time_s": args.release_time_s,
         "device_id": args.device,
         "pipeline_config": args.config,
+        "command_line": getattr(args, "command_line", None),
     }
     if is_single_measurement(args.input):
         numbers = compare_recording(args.input, out=args.out, **options)
         _print_summary(numbers)
-        return 0 if numbers["finite"] else 2
+        return EXIT_OK if numbers["finite"] else EXIT_RUNTIME
     recordings = find_measurements(args.input)
     from ropecam.host.compare.batch import compare_batch
 
@@ -111,7 +115,7 @@ def run_compare(args: argparse.Namespace) -> int:
         status = entry.get("error") or f"RMS {entry['overall_rms_error_mm']} mm, report {entry['report']}"
         print(f"{name}: {status}")
     print(f"batch summary: {args.out / 'summary.json'}")
-    return 2 if failed else 0
+    return EXIT_RUNTIME if failed else EXIT_OK
 
 
 def _print_summary(numbers: dict[str, Any]) -> None:
