@@ -154,6 +154,7 @@ def _export_csv(
     messages: Callable[[], Iterable[tuple[bytes, int]]], label: str, args: argparse.Namespace, calibration: tuple
 ) -> str:
     """Write one device's measured material points in metres (`ropecam.host.compare.table`); return a summary."""
+    from ropecam.host.compare.cli import parse_points
     from ropecam.host.compare.measurement import default_points, measured_frame, tracks_from_frames
     from ropecam.host.compare.table import sample_table, write_table
     from ropecam.host.model.cli import load_model_config
@@ -166,10 +167,7 @@ def _export_csv(
         raise ConfigError("--export-csv needs the rope's length: --rope-length-m (or --model rope.toml)")
     if not length_m > 0:
         raise ConfigError(f"--rope-length-m must be > 0 m, got {length_m}")
-    try:
-        points = [float(v) for v in args.points.split(",")] if args.points else default_points(length_m)
-    except ValueError as exc:
-        raise ConfigError(f"--points: expected comma-separated numbers in m, got {args.points!r}") from exc
+    points = parse_points(args.points) or default_points(length_m)
     ordered, device_id = device_frames(messages(), args.device)
     if device_id is None:
         raise DataError(f"{label} holds no FrameResult: no material points to export")

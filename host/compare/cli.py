@@ -10,7 +10,7 @@ from typing import Any
 
 from ropecam.shared.cli import EXIT_OK, EXIT_RUNTIME, declare_outputs
 
-__all__ = ["register"]
+__all__ = ["parse_points", "register"]
 
 EPILOG = """\
 examples:
@@ -67,7 +67,14 @@ def register(subparsers: Any) -> None:
     parser.set_defaults(func=run_compare)
 
 
-def _parse_points(text: str | None) -> list[float] | None:
+def parse_points(text: str | None) -> list[float] | None:
+    """Parse ``--points``: comma-separated arc lengths in m (None when not given).
+
+    Raises
+    ------
+    ConfigError
+        A value is not a number.
+    """
     from ropecam.shared.errors import ConfigError
 
     if not text:
@@ -86,7 +93,7 @@ def run_compare(args: argparse.Namespace) -> int:
     from ropecam.shared.errors import ConfigError
 
     fit = tuple(name.strip() for name in args.fit.split(",") if name.strip())
-    points = _parse_points(args.points)
+    points = parse_points(args.points)
     rope, _ = load_model_config(args.model)
     if points is not None and (not points or any(not 0 <= p <= rope.length_m for p in points)):
         raise ConfigError(f"--points must lie in [0, {rope.length_m}] m (the rope length), got {args.points!r}")
