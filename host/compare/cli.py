@@ -31,8 +31,11 @@ The shapes are converted to metres on the motion plane with the calibration (pla
 plane`, which also holds the camera; --camera overrides it), material points are tracked by arc length with
 uniform stretch, and the model (rope.toml as for `ropecam model simulate`) is simulated from the release, whose
 time on the device clock is always estimated by least squares. --fit adds model parameters to the fit:
-ei (bending stiffness), damping (Kelvin-Voigt time), drag (drag coefficient). The report folder gets PNG plots,
-summary.json and index.html (per recording in batch mode, plus an overall summary).
+ei (bending stiffness), damping (Kelvin-Voigt time), drag (drag coefficient). The report folder gets PNG plots
+(among them x(t) and y(t) of each material point), samples.csv (and samples.parquet with pyarrow: per sample and
+material point the measured and model positions in metres, the error, and the velocity measured within the frame
+beside the model's), summary.json (also: ropecam version, date, command line, input files with SHA-256) and
+index.html (per recording in batch mode, plus an overall summary). An existing non-empty --out needs --force.
 """
 
 
