@@ -11,6 +11,8 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
+from ropecam.shared.cli import declare_outputs
+
 __all__ = ["register", "run_extract"]
 
 log = logging.getLogger(__name__)
@@ -62,6 +64,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     )
     parser.add_argument("--limit", type=int, metavar="N", help="stop after N frames")
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    declare_outputs(parser, "out")
     parser.set_defaults(func=_main)
 
 

@@ -23,6 +23,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from ropecam.shared.cli import declare_outputs
+
 __all__ = ["register"]
 
 TRUE_EI_NM2 = 1e-5  # the rig-soft preset's rope
@@ -49,6 +51,7 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--frames", type=int, default=60, help="frames to simulate (default 60: 0.5 s at 119 FPS)")
     parser.add_argument("--calibration-views", type=int, default=20, help="checkerboard views (default 20)")
     parser.add_argument("--quiet", action="store_true", help="less output")
+    declare_outputs(parser, "out")  # with --force every step replaces its outputs in the folder
     parser.set_defaults(func=run_demo)
 
 
@@ -102,32 +105,33 @@ def run_demo(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise DataError(f"{out}: cannot create the demo folder: {exc}") from exc
     quiet = ["-q"] if args.quiet else []
+    force = ["--force"] if args.force else []
     started = time.perf_counter()
     timings: dict[str, float] = {}
 
     rig = out / "rig"
     command = ["simulate", "rig-soft", "--out", str(rig), "--frames", str(args.frames), "--first-exposure-ms", "50",
-               "--calibration-views", str(args.calibration_views), "--overwrite", *quiet]  # fmt: skip
+               "--calibration-views", str(args.calibration_views), *force, *quiet]  # fmt: skip
     t = _step("1. simulate the rig (frames, ground truth, calibration set)", "ropecam " + " ".join(command))
-    if host_main(command) != 0:
-        return 2
+    if (code := host_main(command)) != 0:
+        return code
     timings["simulate_s"] = time.perf_counter() - t
 
     calib = rig / "calibration"
     truth = json.loads((calib / "truth.json").read_text())
     board = ["--board", "8x7", "--square-mm", "20"]
     views = sorted(str(p) for p in calib.glob("view_*.png"))
-    command = ["calibrate", "intrinsics", *views, *board, "--out", str(out / "camera.yaml")]
+    command = ["calibrate", "intrinsics", *views, *board, "--out", str(out / "camera.yaml"), *force]
     t = _step("2. calibrate the camera and the motion plane", f"ropecam calibrate intrinsics {calib}/view_*.png ...")
-    if host_main(command) != 0:
-        return 2
+    if (code := host_main(command)) != 0:
+        return code
     origin = "{:g},{:g}".format(*truth["origin_mm"])
     planes = [str(calib / "plane.png"), *sorted(str(p) for p in calib.glob("plane_0*.png"))]
     command = ["calibrate", "plane", *planes, "--camera", str(out / "camera.yaml"), *board, f"--origin-mm={origin}",
-               "--out", str(out / "plane.yaml")]  # fmt: skip
+               "--out", str(out / "plane.yaml"), *force]  # fmt: skip
     print(f"   $ ropecam calibrate plane {' '.join(planes[:1])} ... --origin-mm={origin}", flush=True)
-    if host_main(command) != 0:
-        return 2
+    if (code := host_main(command)) != 0:
+        return code
     timings["calibrate_s"] = time.perf_counter() - t
 
     recording = out / "run.mcap"
@@ -144,7 +148,7 @@ def run_demo(args: argparse.Namespace) -> int:
     model.write_text(MODEL_TOML.format(ei=3 * TRUE_EI_NM2))
     report = out / "report"
     command = ["compare", str(recording), "--plane", str(out / "plane.yaml"), "--model", str(model), "--fit", "ei",
-               "--out", str(report)]  # fmt: skip
+               "--out", str(report), *force]  # fmt: skip
     t = _step("4. compare with the ANCF model, identify EI from 3x the truth", "ropecam " + " ".join(command))
     code = host_main(command)
     timings["compare_s"] = time.perf_counter() - t

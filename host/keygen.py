@@ -7,7 +7,8 @@ import os
 import secrets
 from pathlib import Path
 
-from ropecam.shared.errors import ConfigError
+from ropecam.shared.cli import declare_outputs
+from ropecam.shared.errors import ConfigError, UsageError
 
 __all__ = ["register", "write_key"]
 
@@ -23,8 +24,10 @@ def write_key(path: Path, key_bytes: int = 32, force: bool = False) -> Path:
 
     Raises
     ------
+    UsageError
+        `path` exists and `force` is False.
     ConfigError
-        `path` exists and `force` is False, the size is below 16 bytes, or the file cannot be written.
+        The size is below 16 bytes, or the file cannot be written.
     """
     if key_bytes < 16:
         raise ConfigError(f"--bytes must be at least 16, got {key_bytes}")
@@ -32,7 +35,7 @@ def write_key(path: Path, key_bytes: int = 32, force: bool = False) -> Path:
     try:
         descriptor = os.open(path, flags, 0o600)
     except FileExistsError as exc:
-        raise ConfigError(f"{path} exists; use --force to replace the key (both ends then need the new one)") from exc
+        raise UsageError(f"{path} exists; use --force to replace the key (both ends then need the new one)") from exc
     except OSError as exc:
         raise ConfigError(f"{path}: cannot write key file: {exc.strerror}") from exc
     with os.fdopen(descriptor, "w", encoding="ascii") as handle:
@@ -54,5 +57,5 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("path", help="key file to create, e.g. ~/.config/ropecam/control.key")
     parser.add_argument("--bytes", type=int, default=32, help="key length in bytes (default 32, at least 16)")
-    parser.add_argument("--force", action="store_true", help="replace an existing key file")
+    declare_outputs(parser, "path")
     parser.set_defaults(func=_run)

@@ -12,9 +12,11 @@ from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from ropecam.host.monitor.cli import recording_parts_to_replace
 from ropecam.host.offline import frames_messages
 from ropecam.host.recording.reader import count_raw, device_frames, iter_raw, recording_parts
-from ropecam.shared.errors import ConfigError, DataError
+from ropecam.shared.cli import declare_outputs
+from ropecam.shared.errors import ConfigError, DataError, UsageError
 
 if TYPE_CHECKING:
     from ropecam.host.model_overlay import ModelOverlay
@@ -85,7 +87,7 @@ class _JsonlExport:
         try:
             self._handle = open(path, "w" if overwrite else "x", encoding="utf-8")  # noqa: SIM115  (closed in close)
         except FileExistsError as exc:
-            raise ConfigError(f"{path} exists; choose another --export-jsonl or pass --overwrite") from exc
+            raise UsageError(f"{path} exists; choose another --export-jsonl or pass --force") from exc
         except OSError as exc:
             raise ConfigError(f"cannot write {path}: {exc.strerror or exc}") from exc
         self.path = path
@@ -128,6 +130,7 @@ def _fit_model(
 
     from ropecam.host.model.cli import load_model_config
     from ropecam.host.model_overlay import ModelOverlay
+    from ropecam.host.progress import fit_progress
 
     rope, solver = load_model_config(Path(args.model))
     ordered, device_id = device_frames(messages(), args.device)
@@ -135,15 +138,48 @@ def _fit_model(
         raise DataError(f"{label} holds no FrameResult: nothing to compare with the model")
     print(f"device {device_id}: {len(ordered)} frames; fitting the release time of the model", file=sys.stderr)
 
-    def report(evaluations: int, rms_m: float) -> None:
-        print(f"  model runs {evaluations}: RMS {rms_m * 1e3:.3f} mm", file=sys.stderr, end="\r")
-
-    overlay = ModelOverlay.fit(ordered, calibration, rope, solver, release_time_s=args.release_time_s, progress=report)
+    overlay = ModelOverlay.fit(
+        ordered, calibration, rope, solver, release_time_s=args.release_time_s, progress=fit_progress()
+    )
+    newline = "\n" if sys.stderr.isatty() else ""  # ends the progress line rewritten in place
     print(
-        f"\nrelease at {overlay.release_time_s:.6f} s (device clock); RMS error {overlay.rms_error_m * 1e3:.3f} mm",
+        f"{newline}release at {overlay.release_time_s:.6f} s (device clock); "
+        f"RMS error {overlay.rms_error_m * 1e3:.3f} mm",
         file=sys.stderr,
     )
     return overlay, device_id
+
+
+def _export_csv(
+    messages: Callable[[], Iterable[tuple[bytes, int]]], label: str, args: argparse.Namespace, calibration: tuple
+) -> str:
+    """Write one device's measured material points in metres (`ropecam.host.compare.table`); return a summary."""
+    from ropecam.host.compare.cli import parse_points
+    from ropecam.host.compare.measurement import default_points, measured_frame, tracks_from_frames
+    from ropecam.host.compare.table import sample_table, write_table
+    from ropecam.host.model.cli import load_model_config
+
+    if args.rope_length_m is not None:
+        length_m = args.rope_length_m
+    elif args.model is not None:
+        length_m = load_model_config(Path(args.model))[0].length_m
+    else:
+        raise ConfigError("--export-csv needs the rope's length: --rope-length-m (or --model rope.toml)")
+    if not length_m > 0:
+        raise ConfigError(f"--rope-length-m must be > 0 m, got {length_m}")
+    points = parse_points(args.points) or default_points(length_m)
+    ordered, device_id = device_frames(messages(), args.device)
+    if device_id is None:
+        raise DataError(f"{label} holds no FrameResult: no material points to export")
+    skipped: list[str] = []
+    tracks, _ = tracks_from_frames([measured_frame(f) for f in ordered], *calibration, points, length_m, skipped)
+    written = write_table(sample_table(tracks), Path(args.export_csv))
+    measured = int(tracks.measured.sum())
+    return (
+        f"exported {measured} measured material-point samples of device {device_id} ({len(ordered)} frames, "
+        f"{len(points)} points) to {', '.join(str(p) for p in written)}"
+        + (f"; {len(skipped)} shapes off the plane left empty" if skipped else "")
+    )
 
 
 def _speed(text: str) -> float | None:
@@ -162,11 +198,13 @@ def _run(args: argparse.Namespace) -> int:
     from ropecam.host.monitor.cli import load_calibration, rig_metadata
     from ropecam.host.monitor.display import format_row
     from ropecam.host.progress import progress_bar
-    from ropecam.host.recording.writer import Recorder, RecordingConfig, later_parts
+    from ropecam.host.recording.writer import Recorder, RecordingConfig
     from ropecam.host.session import Session
 
     if args.reprocess and args.plane is None:
         raise ConfigError("--reprocess needs --plane (and optionally --camera): the calibration to apply")
+    if args.export_csv and args.plane is None:
+        raise ConfigError("--export-csv needs --plane (and optionally --camera): the calibration to metres")
     if args.model is not None and (args.plane is None or not args.record):
         raise ConfigError("--model needs --plane (the model lives in metres) and --record (where its channels go)")
     if (args.recording is None) == (args.frames is None):
@@ -192,25 +230,24 @@ def _run(args: argparse.Namespace) -> int:
     # Everything that can fail comes before the output files are created: a refused option or a model that cannot
     # be fitted leaves no empty or broken file behind.
     record_path = Path(args.record) if args.record else None
-    for target in (record_path, Path(args.export_jsonl) if args.export_jsonl else None):
-        if target is None:
-            continue
-        if target.resolve() in {p.resolve() for p in parts}:
+    exports = (
+        Path(args.export_jsonl) if args.export_jsonl else None,
+        Path(args.export_csv) if args.export_csv else None,
+    )
+    for target in (record_path, *exports):
+        if target is not None and target.resolve() in {p.resolve() for p in parts}:
             raise ConfigError(f"{target} is the recording being replayed; choose another file")
-        if target.exists() and not args.overwrite:
-            raise ConfigError(f"{target} exists; choose another file or pass --overwrite")
-    if record_path is not None and later_parts(record_path) and not args.overwrite:
-        raise ConfigError(f"{later_parts(record_path)[0]} (a part of an earlier recording) exists; pass --overwrite")
+    csv_summary = _export_csv(messages, str(source), args, calibration) if args.export_csv else None
     model = None
     if args.model is not None:
         overlay, model_device = _fit_model(messages, str(source), args, calibration)
         model = lambda record, device_id: overlay if device_id == model_device else None  # noqa: E731
-    export = _JsonlExport(Path(args.export_jsonl), args.device, args.overwrite) if args.export_jsonl else None
+    export = _JsonlExport(Path(args.export_jsonl), args.device, args.force) if args.export_jsonl else None
     recorder = None
     if record_path is not None:
         metadata = rig_metadata(f"replay of {source}") | calibration_metadata
         try:
-            recorder = Recorder(RecordingConfig(record_path, overwrite=args.overwrite), metadata, attachments)
+            recorder = Recorder(RecordingConfig(record_path, overwrite=args.force), metadata, attachments)
         except ConfigError:
             if export is not None:
                 export.close()
@@ -233,6 +270,8 @@ def _run(args: argparse.Namespace) -> int:
         print(f"{session.stats.bad_packets} unreadable packets")
     if export is not None:
         print(export.summary())
+    if csv_summary is not None:
+        print(csv_summary)
     if recorder is not None:
         if recorder.error:
             print(f"error: {recorder.error}")
@@ -254,9 +293,16 @@ examples:
   ropecam replay run.mcap --record run-decoded.mcap
   ropecam replay run.mcap --reprocess --plane plane.yaml --record run-metres.mcap
   ropecam replay run.mcap --export-jsonl run.jsonl && ropecam compare run.jsonl --plane plane.yaml --out report/
+  ropecam replay run.mcap --plane plane.yaml --rope-length-m 0.411 --export-csv points.csv   # metres, per sample
   ropecam replay run.mcap --plane plane.yaml --model rope.toml --record run-model.mcap
   ropecam replay --frames sim/rig --config device.toml --record rig.mcap       # raw frames, measured now
 """
+
+
+def _csv_outputs(args: argparse.Namespace) -> list[Path]:
+    """The Parquet twin of --export-csv and the later parts of an earlier recording to --record."""
+    parquet = [Path(args.export_csv).with_suffix(".parquet")] if args.export_csv else []
+    return [*parquet, *recording_parts_to_replace(args)]
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -276,11 +322,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--speed", type=_speed, default=None, help="1 = real time, 2 = twice as fast, max (default)")
     parser.add_argument("--record", metavar="NEW.mcap", help="record the replayed stream to a new file")
     parser.add_argument(
-        "--overwrite",
-        action="store_true",
-        help="replace --record / --export-jsonl if they exist (and earlier parts of --record)",
-    )
-    parser.add_argument(
         "--reprocess", action="store_true", help="apply --camera/--plane (a new calibration) to the recorded stream"
     )
     parser.add_argument("--camera", metavar="camera.yaml", help="intrinsics; default: the plane file's camera")
@@ -289,6 +330,16 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--export-jsonl",
         metavar="FILE.jsonl",
         help="also write the FrameResults as `ropecam-device extract` JSON lines (input of `ropecam compare`)",
+    )
+    parser.add_argument(
+        "--export-csv",
+        metavar="FILE.csv",
+        help="also write the measured material points in metres, two samples per frame, with their in-frame "
+        "velocities (and FILE.parquet when pyarrow is installed); needs --plane and --rope-length-m",
+    )
+    parser.add_argument("--rope-length-m", type=float, help="--export-csv: the rope's unstretched length (m)")
+    parser.add_argument(
+        "--points", help="--export-csv: material points, unstretched arc lengths in m (default: L/4, L/2, 3L/4, L)"
     )
     parser.add_argument(
         "--device", type=int, help="device id for --export-jsonl and --model (default: the first one seen)"
@@ -300,4 +351,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "(/device<ID>/plane/model) and its error at the material points (/device<ID>/model_error); needs --plane",
     )
     parser.add_argument("--release-time-s", type=float, help="start value of the release time fit (device clock, s)")
+    # --force also replaces the later parts of an earlier rolled recording to --record.
+    declare_outputs(parser, "record", "export_jsonl", "export_csv", derived=_csv_outputs)
     parser.set_defaults(func=_run)

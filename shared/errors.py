@@ -31,3 +31,7 @@ class CalibrationError(RopecamError):
 
 class DataError(RopecamError):
     """A data file (frame set, recording, result file) is missing, malformed or inconsistent."""
+
+
+class UsageError(RopecamError):
+    """The command line asks for something that cannot be done as asked (e.g. an output exists, no --force)."""

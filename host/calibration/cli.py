@@ -6,7 +6,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from ropecam.shared.errors import CalibrationError
+from ropecam.shared.cli import EXIT_USAGE, declare_outputs
+from ropecam.shared.errors import CalibrationError, ConfigError
 
 __all__ = ["register"]
 
@@ -93,7 +94,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Calibrate the camera (intrinsics), then the motion plane (pose, origin at the rope's fixed end).",
     )
     commands = parser.add_subparsers(title="steps", metavar="STEP")
-    parser.set_defaults(func=lambda _args: parser.print_help(sys.stderr) or 2)
+    parser.set_defaults(func=lambda _args: parser.print_help(sys.stderr) or EXIT_USAGE)
 
     intrinsics = commands.add_parser(
         "intrinsics",
@@ -112,6 +113,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     intrinsics.add_argument("--out", type=Path, required=True, help="camera file to write (.yaml)")
     intrinsics.add_argument("--report", type=Path, help="PNG report (default: OUT with .png)")
+    declare_outputs(intrinsics, "out", derived=_default_report)
     intrinsics.set_defaults(func=run_intrinsics)
 
     plane = commands.add_parser(
@@ -139,7 +141,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     plane.add_argument("--out", type=Path, required=True, help="plane file to write (.yaml)")
     plane.add_argument("--report", type=Path, help="PNG report (default: OUT with .png)")
+    declare_outputs(plane, "out", derived=_default_report)
     plane.set_defaults(func=run_plane)
+
+
+def _default_report(args: argparse.Namespace) -> list[Path]:
+    """The PNG report written beside the calibration file."""
+    return [args.report or args.out.with_suffix(".png")]
 
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm")
@@ -166,7 +174,7 @@ def _board_and_subpix(args: argparse.Namespace):
         board = parse_board(args.board, args.square_mm)
         subpix = SubpixSettings(args.subpix_window, 30, args.subpix_eps, args.corner_refine == "saddle")
     except ValueError as exc:
-        raise CalibrationError(str(exc)) from exc
+        raise ConfigError(str(exc)) from exc
     return board, subpix
 
 
@@ -221,7 +229,7 @@ def run_plane(args: argparse.Namespace) -> int:
 
     board, subpix = _board_and_subpix(args)
     if not args.pixel_sigma > 0:
-        raise CalibrationError(f"--pixel-sigma must be > 0 px, got {args.pixel_sigma}")
+        raise ConfigError(f"--pixel-sigma must be > 0 px, got {args.pixel_sigma}")
     camera = read_camera(args.camera).camera
     image = read_gray(args.image)
     extra = [(str(path), read_gray(path)) for path in args.more_images]

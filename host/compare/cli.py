@@ -8,7 +8,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-__all__ = ["register"]
+from ropecam.shared.cli import EXIT_OK, EXIT_RUNTIME, declare_outputs
+
+__all__ = ["parse_points", "register"]
 
 EPILOG = """\
 examples:
@@ -29,8 +31,11 @@ The shapes are converted to metres on the motion plane with the calibration (pla
 plane`, which also holds the camera; --camera overrides it), material points are tracked by arc length with
 uniform stretch, and the model (rope.toml as for `ropecam model simulate`) is simulated from the release, whose
 time on the device clock is always estimated by least squares. --fit adds model parameters to the fit:
-ei (bending stiffness), damping (Kelvin-Voigt time), drag (drag coefficient). The report folder gets PNG plots,
-summary.json and index.html (per recording in batch mode, plus an overall summary).
+ei (bending stiffness), damping (Kelvin-Voigt time), drag (drag coefficient). The report folder gets PNG plots
+(among them x(t) and y(t) of each material point), samples.csv (and samples.parquet with pyarrow: per sample and
+material point the measured and model positions in metres, the error, and the velocity measured within the frame
+beside the model's), summary.json (also: ropecam version, date, command line, input files with SHA-256) and
+index.html (per recording in batch mode, plus an overall summary). An existing non-empty --out needs --force.
 """
 
 
@@ -61,10 +66,18 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--out", type=Path, required=True, help="report folder (created)")
     parser.add_argument("--scheduler", help="batch mode: address of an existing Dask scheduler (default: local)")
     parser.add_argument("--workers", type=int, default=2, help="batch mode: local Dask worker processes (default 2)")
+    declare_outputs(parser, "out")
     parser.set_defaults(func=run_compare)
 
 
-def _parse_points(text: str | None) -> list[float] | None:
+def parse_points(text: str | None) -> list[float] | None:
+    """Parse ``--points``: comma-separated arc lengths in m (None when not given).
+
+    Raises
+    ------
+    ConfigError
+        A value is not a number.
+    """
     from ropecam.shared.errors import ConfigError
 
     if not text:
@@ -83,7 +96,7 @@ def run_compare(args: argparse.Namespace) -> int:
     from ropecam.shared.errors import ConfigError
 
     fit = tuple(name.strip() for name in args.fit.split(",") if name.strip())
-    points = _parse_points(args.points)
+    points = parse_points(args.points)
     rope, _ = load_model_config(args.model)
     if points is not None and (not points or any(not 0 <= p <= rope.length_m for p in points)):
         raise ConfigError(f"--points must lie in [0, {rope.length_m}] m (the rope length), got {args.points!r}")
@@ -96,11 +109,12 @@ def run_compare(args: argparse.Namespace) -> int:
         "release_time_s": args.release_time_s,
         "device_id": args.device,
         "pipeline_config": args.config,
+        "command_line": getattr(args, "command_line", None),
     }
     if is_single_measurement(args.input):
         numbers = compare_recording(args.input, out=args.out, **options)
         _print_summary(numbers)
-        return 0 if numbers["finite"] else 2
+        return EXIT_OK if numbers["finite"] else EXIT_RUNTIME
     recordings = find_measurements(args.input)
     from ropecam.host.compare.batch import compare_batch
 
@@ -111,7 +125,7 @@ def run_compare(args: argparse.Namespace) -> int:
         status = entry.get("error") or f"RMS {entry['overall_rms_error_mm']} mm, report {entry['report']}"
         print(f"{name}: {status}")
     print(f"batch summary: {args.out / 'summary.json'}")
-    return 2 if failed else 0
+    return EXIT_RUNTIME if failed else EXIT_OK
 
 
 def _print_summary(numbers: dict[str, Any]) -> None:

@@ -182,7 +182,9 @@ def tracks_from_frames(
     length_m: float,
     skipped: list[str] | None = None,
 ) -> tuple[MaterialPointTracks, NDArray[np.float64]]:
-    """Convert measured frames into material-point tracks in metres (two samples per frame).
+    """Convert measured frames into material-point tracks in metres (two samples per frame), with each point's
+    in-frame velocity: its displacement from the rope at the start to the rope at the end of the exposure over the
+    exposure time (a velocity within one frame, which no frame-to-frame tracker gives).
 
     Returns the tracks and the stretch ratio of every sample (NaN where unmeasured). Frames whose status is not OK
     or whose shapes are missing contribute NaN samples, so nothing measured is dropped silently.
@@ -205,9 +207,13 @@ def tracks_from_frames(
     times: list[float] = []
     positions: list[NDArray[np.float64]] = []
     stretches: list[float] = []
+    numbers: list[int] = []
+    velocities: list[NDArray[np.float64]] = []
+    mid_exposure: list[float] = []
     off_plane: list[str] = []
     shapes = 0
     for frame in frames:
+        pair = []
         for t_ns, shape in ((frame.t_begin_ns, frame.begin_px), (frame.t_end_ns, frame.end_px)):
             times.append(t_ns * 1e-9)
             shapes += shape is not None and frame.status == "OK"
@@ -218,6 +224,12 @@ def tracks_from_frames(
                 points, stretch = np.full((s.size, 2), np.nan), math.nan
             positions.append(points)
             stretches.append(stretch)
+            pair.append(points)
+        exposure_s = (frame.t_end_ns - frame.t_begin_ns) * 1e-9
+        velocity = (pair[1] - pair[0]) / exposure_s if exposure_s > 0 else np.full((s.size, 2), np.nan)
+        velocities += [velocity, velocity]
+        numbers += [frame.frame, frame.frame]
+        mid_exposure += [(frame.t_begin_ns + frame.t_end_ns) * 0.5e-9] * 2
     if not times:
         raise DataError("no frames to convert")
     if off_plane and 2 * len(off_plane) > shapes:
@@ -227,6 +239,8 @@ def tracks_from_frames(
         )
     if skipped is not None:
         skipped.extend(f"{line}: skipped (off the plane)" for line in off_plane)
-    tracks = MaterialPointTracks(np.asarray(times), s, np.stack(positions))
+    tracks = MaterialPointTracks(
+        np.asarray(times), s, np.stack(positions), np.asarray(numbers), np.stack(velocities), np.asarray(mid_exposure)
+    )
     order = np.argsort(np.asarray(times), kind="stable")
     return tracks, np.asarray(stretches)[order]

@@ -1,4 +1,6 @@
-"""The comparison report: labelled plots (PNG), a summary JSON and an HTML page that links them."""
+"""The comparison report: labelled plots (PNG), the per-sample table (CSV, Parquet), a summary JSON recording where
+the numbers came from (ropecam version, date, command line, input files with their SHA-256), and an HTML page that
+links them."""
 
 from __future__ import annotations
 
@@ -12,7 +14,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.host.compare.identify import FitResult
-from ropecam.host.compare.tracks import MaterialPointTracks, PointErrors, model_positions
+from ropecam.host.compare.table import sample_table, write_table
+from ropecam.host.compare.tracks import MaterialPointTracks, PointErrors, model_positions, model_velocities
 from ropecam.host.model.trajectory import Trajectory
 from ropecam.shared.errors import DataError
 
@@ -32,6 +35,7 @@ class Comparison:
     fit: FitResult | None = None
     errors_before: PointErrors | None = None
     notes: list[str] = field(default_factory=list)
+    provenance: dict[str, Any] = field(default_factory=dict)
 
 
 def _mm(values: NDArray[np.float64]) -> list[float | None]:
@@ -53,9 +57,12 @@ def summary(comparison: Comparison) -> dict[str, Any]:
         "release_time_s": c.release_time_s,
         "material_points_s_m": [float(s) for s in c.tracks.s_m],
         "rms_error_mm": _mm(c.errors.rms_m),
+        "rms_error_m": [float(v) if np.isfinite(v) else None for v in c.errors.rms_m],  # unrounded: the table's
         "max_error_mm": _mm(c.errors.max_m),
         "overall_rms_error_mm": _mm(np.array([c.errors.overall_rms_m]))[0],
         "notes": c.notes,
+        "table": "samples.csv",
+        "provenance": c.provenance,
     }
     if c.fit is not None:
         result["fit"] = {
@@ -131,6 +138,28 @@ def _plots(c: Comparison, out: Path) -> list[tuple[str, str]]:
     plt.close(fig)
     written.append(("error_per_point.png", "RMS and maximum error per material point"))
 
+    fig, axes = plt.subplots(c.tracks.s_m.size, 2, figsize=(10, 2.2 * c.tracks.s_m.size + 0.8), sharex=True,
+                             squeeze=False, constrained_layout=True)  # fmt: skip
+    dense_t = np.linspace(t[0], t[-1], max(200, 4 * t.size))
+    model_t = np.clip(dense_t - c.release_time_s, c.trajectory.times_s[0], c.trajectory.times_s[-1])
+    dense = c.trajectory.positions(model_t, c.tracks.s_m)
+    for k, s in enumerate(c.tracks.s_m):
+        for axis, name in enumerate(("x (m, horizontal)", "y (m, down)")):
+            ax = axes[k, axis]
+            ax.plot(t - c.release_time_s, c.tracks.positions_m[:, k, axis], ".", ms=3, label="measured")
+            ax.plot(dense_t - c.release_time_s, dense[:, k, axis], "k-", lw=0.8, label="model")
+            ax.set_ylabel(f"{name[0]}, s = {s:.3f} m")
+            ax.grid(alpha=0.3)
+        axes[k, 1].invert_yaxis()
+    for axis, name in enumerate(("x (m, horizontal)", "y (m, down; axis downwards)")):
+        axes[0, axis].set_title(name)
+        axes[-1, axis].set_xlabel("time after the fitted release (s)")
+    axes[0, 0].legend(fontsize=7)
+    fig.suptitle("Material point coordinates against time: measured (dots) and model (line)")
+    fig.savefig(out / "xy_vs_time.png", dpi=110)
+    plt.close(fig)
+    written.append(("xy_vs_time.png", "x(t) and y(t) of each material point, measured and model"))
+
     picks = np.linspace(0, len(c.curves_m) - 1, min(6, len(c.curves_m))).astype(int) if c.curves_m else []
     if len(picks):
         fig, axes = plt.subplots(1, len(picks), figsize=(3.2 * len(picks), 3.6), constrained_layout=True)
@@ -160,12 +189,35 @@ def _num(value: float | None) -> str:
     return "–" if value is None else f"{value:.6g}"
 
 
+def _provenance_html(provenance: dict[str, Any]) -> str:
+    if not provenance:
+        return ""
+    files = "".join(
+        f"<tr><td>{html.escape(f['role'])}</td><td>{html.escape(f['path'])}</td><td><code>{f['sha256']}</code></td></tr>"
+        for f in provenance.get("files", [])
+    )
+    return (
+        f"<h2>Provenance</h2><p>ropecam {html.escape(str(provenance.get('ropecam_version')))}, "
+        f"{html.escape(str(provenance.get('date_utc')))}<br><code>{html.escape(str(provenance.get('command_line')))}"
+        f"</code></p><table><tr><th>file</th><th>path</th><th>SHA-256</th></tr>{files}</table>"
+    )
+
+
 def write_report(comparison: Comparison, out: str | Path) -> Path:
-    """Write plots, ``summary.json`` and ``index.html`` into `out` (created); return the HTML path."""
+    """Write plots, ``samples.csv`` (and ``.parquet``), ``summary.json`` and ``index.html`` into `out` (created);
+    return the HTML path."""
     out = Path(out)
     try:
         out.mkdir(parents=True, exist_ok=True)
         plots = _plots(comparison, out)
+        c = comparison
+        table = sample_table(
+            c.tracks,
+            model_positions(c.trajectory, c.tracks, c.release_time_s),
+            c.errors.error_m,
+            model_velocities(c.trajectory, c.tracks, c.release_time_s),
+        )
+        tables = write_table(table, out / "samples.csv")
         numbers = summary(comparison)
         (out / "summary.json").write_text(json.dumps(numbers, indent=2, allow_nan=False) + "\n")
     except OSError as exc:
@@ -194,6 +246,8 @@ def write_report(comparison: Comparison, out: str | Path) -> Path:
         for name, text in plots
     )
     notes = "".join(f"<li>{html.escape(n)}</li>" for n in comparison.notes)
+    provenance = _provenance_html(comparison.provenance)
+    links = " · ".join(f'<a href="{p.name}">{p.name}</a>' for p in [*tables, Path("summary.json")])
     page = f"""<!doctype html><html><head><meta charset="utf-8"><title>ropecam comparison</title>
 <style>body{{font-family:sans-serif;max-width:1100px;margin:2em auto}}table{{border-collapse:collapse}}
 td,th{{border:1px solid #ccc;padding:3px 8px;text-align:right}}img{{max-width:100%}}</style></head><body>
@@ -203,7 +257,8 @@ td,th{{border:1px solid #ccc;padding:3px 8px;text-align:right}}img{{max-width:10
 {comparison.release_time_s:.6f} s. Overall RMS error {numbers["overall_rms_error_mm"]} mm.</p>
 <h2>Error per material point</h2><table><tr><th>s (m)</th><th>RMS (mm)</th><th>max (mm)</th></tr>{rows}</table>
 {fit_html}<ul>{notes}</ul>{figures}
-<p><a href="summary.json">summary.json</a></p></body></html>
+<p>Per-sample table in metres (measured and model positions, errors, in-frame and model velocities): {links}</p>
+{provenance}</body></html>
 """
     index = out / "index.html"
     index.write_text(page)

@@ -21,9 +21,35 @@ from ropecam.host.compare.release import fit_release
 from ropecam.host.compare.report import Comparison, summary, write_report
 from ropecam.host.compare.tracks import model_positions, point_errors
 from ropecam.host.model.cli import load_model_config
-from ropecam.shared.errors import ConfigError
+from ropecam.host.progress import fit_progress
+from ropecam.shared.errors import ConfigError, DataError
 
-__all__ = ["compare_recording", "default_points"]
+__all__ = ["compare_recording", "default_points", "provenance"]
+
+
+def provenance(command_line: str | None, files: dict[str, Path | None]) -> dict[str, Any]:
+    """Where a report's numbers came from: ropecam version, date (UTC), command line, and each input file given
+    (role -> path; None: not given) with its SHA-256."""
+    import datetime
+    import hashlib
+
+    from ropecam.shared.cli import ropecam_version
+
+    entries = []
+    for role, path in files.items():
+        if path is None:
+            continue
+        try:
+            digest = hashlib.sha256(Path(path).read_bytes()).hexdigest()
+        except OSError as exc:
+            raise DataError(f"{path}: cannot read the {role} file: {exc.strerror or exc}") from exc
+        entries.append({"role": role, "path": str(Path(path).resolve()), "sha256": digest})
+    return {
+        "ropecam_version": ropecam_version(),
+        "date_utc": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "command_line": command_line,
+        "files": entries,
+    }
 
 
 def compare_recording(
@@ -38,9 +64,11 @@ def compare_recording(
     verbose: bool = True,
     device_id: int | None = None,
     pipeline_config: Path | None = None,
+    command_line: str | None = None,
 ) -> dict[str, Any]:
     """Compare one measurement (see `ropecam.host.compare.inputs`) with the model, write its report into `out`,
-    return the summary mapping.
+    return the summary mapping. The report records the ropecam version, the date, `command_line` and the
+    calibration and model files with their SHA-256.
 
     Raises
     ------
@@ -58,14 +86,7 @@ def compare_recording(
     if verbose and Path(measurement).is_dir():
         print(f"{measurement}: measuring the frames with the device pipeline", file=sys.stderr)
     frames = read_measurement(Path(measurement), device_id, pipeline_config)
-    last = [-1]
-
-    def report(evaluations: int, rms_m: float) -> None:
-        if verbose and evaluations != last[0] and (sys.stderr.isatty() or evaluations % 5 == 0):
-            end = "\r" if sys.stderr.isatty() else "\n"
-            print(f"  model runs {evaluations}: RMS {rms_m * 1e3:.3f} mm", file=sys.stderr, end=end)
-        last[0] = evaluations
-
+    report = fit_progress(verbose)
     if verbose:
         print(f"{measurement}: {len(frames)} frames", file=sys.stderr)
     release = fit_release(frames, (camera, plane), rope, solver, points, release_time_s, report, str(measurement))
@@ -77,7 +98,8 @@ def compare_recording(
         trajectory = model_for_tracks(result.rope, solver, tracks, result.release_time_s)
         errors, errors_before = point_errors(tracks, model_positions(trajectory, tracks, result.release_time_s)), errors
     if verbose:
-        print(f"\n{int(tracks.measured.any(axis=1).sum())} measured samples", file=sys.stderr)
+        newline = "\n" if sys.stderr.isatty() else ""  # ends the progress line rewritten in place
+        print(f"{newline}{int(tracks.measured.any(axis=1).sum())} measured samples", file=sys.stderr)
         for line in release.skipped[:5]:
             print(f"warning: {line}", file=sys.stderr)
         if len(release.skipped) > 5:
@@ -104,6 +126,8 @@ def compare_recording(
             *([f"{len(release.skipped)} shapes skipped: they miss the motion plane"] if release.skipped else []),
         ],
     )
+    files = {"plane": plane_path, "camera": camera_path, "model": model_path, "pipeline config": pipeline_config}
+    comparison.provenance = provenance(command_line, files)
     index = write_report(comparison, out)
     numbers = summary(comparison)
     numbers["report"] = str(index)

@@ -9,7 +9,7 @@ from numpy.typing import NDArray
 
 from ropecam.host.model.trajectory import Trajectory
 
-__all__ = ["MaterialPointTracks", "PointErrors", "model_positions", "point_errors"]
+__all__ = ["MaterialPointTracks", "PointErrors", "model_positions", "model_velocities", "point_errors"]
 
 
 @dataclass(frozen=True)
@@ -24,11 +24,23 @@ class MaterialPointTracks:
         Arc lengths of the tracked points along the unstretched rope, shape (K,).
     positions_m
         Shape (M, K, 2); NaN where a point was not measured.
+    frames
+        Optional, shape (M,): the frame number each sample belongs to (default -1: unknown).
+    in_frame_velocities_m_s
+        Optional, shape (M, K, 2): each point's velocity measured within the sample's frame, its displacement from
+        the rope at the start to the rope at the end of the exposure over the exposure time (both samples of a frame
+        carry it); NaN where either shape misses the point (default: all NaN).
+    mid_exposure_s
+        Optional, shape (M,): the middle of the sample's exposure, the time the in-frame velocity belongs to
+        (default: `times_s`).
     """
 
     times_s: NDArray[np.float64]
     s_m: NDArray[np.float64]
     positions_m: NDArray[np.float64]
+    frames: NDArray[np.int64] | None = None
+    in_frame_velocities_m_s: NDArray[np.float64] | None = None
+    mid_exposure_s: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         t = np.asarray(self.times_s, dtype=np.float64)
@@ -38,10 +50,22 @@ class MaterialPointTracks:
             raise ValueError(f"positions_m must have shape (M={t.size}, K={s.size}, 2), got {p.shape}")
         if not np.all(np.isfinite(t)) or not np.all(np.isfinite(s)) or np.any(s < 0):
             raise ValueError("times_s and s_m must be finite, and s_m >= 0")
+        frames = np.full(t.size, -1, np.int64) if self.frames is None else np.asarray(self.frames, dtype=np.int64)
+        velocities = np.full(p.shape, np.nan) if self.in_frame_velocities_m_s is None else self.in_frame_velocities_m_s
+        velocities = np.asarray(velocities, dtype=np.float64)
+        mid = t if self.mid_exposure_s is None else np.asarray(self.mid_exposure_s, dtype=np.float64)
+        if frames.shape != t.shape or velocities.shape != p.shape or mid.shape != t.shape:
+            raise ValueError(
+                f"frames and mid_exposure_s must have shape ({t.size},), in_frame_velocities_m_s {p.shape}; got "
+                f"{frames.shape}, {mid.shape}, {velocities.shape}"
+            )
         order = np.argsort(t, kind="stable")
         object.__setattr__(self, "times_s", t[order])
         object.__setattr__(self, "s_m", s)
         object.__setattr__(self, "positions_m", p[order])
+        object.__setattr__(self, "frames", frames[order])
+        object.__setattr__(self, "in_frame_velocities_m_s", velocities[order])
+        object.__setattr__(self, "mid_exposure_s", mid[order])
 
     @property
     def measured(self) -> NDArray[np.bool_]:
@@ -58,6 +82,18 @@ def model_positions(trajectory: Trajectory, tracks: MaterialPointTracks, release
     if np.any(tracks.times_s - release_time_s > trajectory.times_s[-1] + 1e-9):
         raise ValueError("the model trajectory ends before the last measurement")
     return trajectory.positions(model_t, tracks.s_m)
+
+
+def model_velocities(trajectory: Trajectory, tracks: MaterialPointTracks, release_time_s: float) -> NDArray[np.float64]:
+    """Evaluate the model's velocity (m/s) at the middle of each sample's exposure; shape (M, K, 2).
+
+    This is what an in-frame velocity (displacement over the exposure / exposure time) measures to second order in
+    the exposure time. Before the release the model rests (zero velocity).
+    """
+    model_t = np.clip(tracks.mid_exposure_s - release_time_s, trajectory.times_s[0], trajectory.times_s[-1])
+    velocities = trajectory.velocities(model_t, tracks.s_m)
+    velocities[tracks.mid_exposure_s - release_time_s < trajectory.times_s[0]] = 0.0
+    return velocities
 
 
 @dataclass(frozen=True)

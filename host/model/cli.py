@@ -8,6 +8,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from ropecam.shared.cli import EXIT_USAGE, declare_outputs
+
 __all__ = ["register"]
 
 EPILOG = """\
@@ -73,8 +75,9 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--plot", type=Path, help="also write a PNG plot of the tip trajectory and energies")
     parser.add_argument("--trajectory", type=Path, help="also write the full trajectory (.npz, all nodes)")
     parser.add_argument("--quiet", action="store_true", help="no progress display")
+    declare_outputs(parser, "out", "plot", "trajectory")
     parser.set_defaults(func=run_simulate)
-    model.set_defaults(func=lambda args: model.print_help() or 2)
+    model.set_defaults(func=lambda args: model.print_help() or EXIT_USAGE)
 
 
 def load_model_config(path: Path | None, args: argparse.Namespace | None = None) -> tuple[Any, Any]:
@@ -96,12 +99,12 @@ def run_simulate(args: argparse.Namespace) -> int:
 
     from ropecam.host.model.solver import CableModel
     from ropecam.host.progress import progress_bar
-    from ropecam.shared.errors import DataError
+    from ropecam.shared.errors import DataError, UsageError
 
     rope, solver = load_model_config(args.config, args)
     for target in (args.out, args.plot, args.trajectory):
         if target is not None and not target.parent.exists():
-            raise DataError(f"{target}: folder {target.parent} does not exist")
+            raise UsageError(f"{target}: folder {target.parent} does not exist")
     started = time.perf_counter()
     model = CableModel(rope, solver)
     with progress_bar("simulating", solver.duration_s, "s", enabled=not args.quiet) as report:

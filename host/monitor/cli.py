@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Final
 from urllib.parse import parse_qsl, urlsplit, urlunsplit
 
+from ropecam.shared.cli import declare_outputs
 from ropecam.shared.errors import ConfigError
 
 if TYPE_CHECKING:
@@ -21,7 +22,7 @@ if TYPE_CHECKING:
     from ropecam.host.receiver import Packet, Receiver
     from ropecam.host.session import Session
 
-__all__ = ["DECODE_BACKLOG", "StopSignals", "monitor_loop", "register", "rig_metadata"]
+__all__ = ["DECODE_BACKLOG", "StopSignals", "monitor_loop", "recording_parts_to_replace", "register", "rig_metadata"]
 
 DECODE_BACKLOG: Final = 64
 """Above this backlog no FrameResult is fully decoded (recorded raw and counted); between a quarter of it and it,
@@ -238,7 +239,7 @@ def _run(args: argparse.Namespace) -> int:
             Path(args.record),
             roll_bytes=int(args.roll_mb * 1e6),
             roll_s=args.roll_s,
-            overwrite=args.overwrite,
+            overwrite=args.force,
             fsync=args.fsync,
         )
     model = None
@@ -293,6 +294,13 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
+def recording_parts_to_replace(args: argparse.Namespace) -> list[Path]:
+    """The later parts of an earlier rolled recording to ``args.record`` (outputs that ``--force`` deletes)."""
+    from ropecam.host.recording.writer import later_parts
+
+    return later_parts(Path(args.record)) if args.record else []
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the `monitor` sub-command."""
     parser = subparsers.add_parser(
@@ -313,12 +321,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="ANCF model (as `ropecam model simulate`); needs --plane. Once a device's rope was seen at rest and "
         "then released, the model is aligned with the release and its rope and error are shown and recorded",
     )
-    parser.add_argument(
-        "--overwrite",
-        action="store_true",
-        help="replace an existing --record file and delete the later parts (NAME_001.mcap, ...) of an earlier "
-        "recording to it (without: refuse to start)",
-    )
+    # --force also deletes the later parts (NAME_001.mcap, ...) of an earlier recording to --record.
+    declare_outputs(parser, "record", derived=recording_parts_to_replace)
     parser.add_argument("--roll-mb", type=float, default=0.0, help="start a new file after this many MB (0: never)")
     parser.add_argument("--roll-s", type=float, default=0.0, help="start a new file after this many seconds (0: never)")
     parser.add_argument("--fsync", action="store_true", help="sync each flush to disk (survives power loss)")

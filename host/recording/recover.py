@@ -11,12 +11,14 @@ from __future__ import annotations
 import argparse
 import contextlib
 import struct
+import sys
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
 
-from ropecam.shared.errors import DataError
+from ropecam.shared.cli import EXIT_OK, EXIT_RUNTIME, declare_outputs
+from ropecam.shared.errors import DataError, UsageError
 
 __all__ = ["RecoveryReport", "recover_mcap", "register"]
 
@@ -45,7 +47,7 @@ def recover_mcap(source: Path, destination: Path, overwrite: bool = False) -> Re
     """
     source, destination = Path(source), Path(destination)
     if source.resolve() == destination.resolve():
-        raise DataError(f"--out must differ from the input file {source}")
+        raise UsageError(f"--out must differ from the input file {source}")
     try:
         handle = open(source, "rb")  # noqa: SIM115
     except OSError as exc:
@@ -54,7 +56,7 @@ def recover_mcap(source: Path, destination: Path, overwrite: bool = False) -> Re
         out = open(destination, "wb" if overwrite else "xb")  # noqa: SIM115
     except FileExistsError as exc:
         handle.close()
-        raise DataError(f"{destination} exists; choose another --out or pass --overwrite") from exc
+        raise UsageError(f"{destination} exists; choose another --out or pass --force") from exc
     except OSError as exc:
         handle.close()
         raise DataError(f"cannot write {destination}: {exc.strerror or exc}") from exc
@@ -162,20 +164,27 @@ def _copy(source: Path, handle: BinaryIO, out: BinaryIO) -> RecoveryReport:
 
 
 def _run(args: argparse.Namespace) -> int:
-    report = recover_mcap(Path(args.input), Path(args.out), args.overwrite)
+    report = recover_mcap(Path(args.input), Path(args.out), args.force)
+    if report.messages == 0:
+        Path(args.out).unlink(missing_ok=True)  # a valid file with nothing in it would only hide the failure
+        reason = report.stopped_at or "the file holds no message"
+        print(f"{args.input}: recovered nothing ({reason}); wrote no file", file=sys.stderr)
+        return EXIT_RUNTIME
     last = "none" if report.last_log_time_ns is None else f"{report.last_log_time_ns / 1e9:.3f} s since the epoch"
     state = "was already complete" if report.complete else f"was cut ({report.stopped_at or 'no footer'})"
     print(
         f"{args.input} {state}: wrote {report.messages} messages from {report.chunks} chunks to {args.out} "
         f"(last message logged at {last})"
     )
-    return 0
+    return EXIT_OK
 
 
 HELP = """\
 Rebuild a recording cut short by a crash (power loss, kill -9, full disk): every message up to the recorder's
 last flush (at most 1 s before the cut) is copied into a new, complete MCAP file that any MCAP reader and Foxglove
 open. The input file is not modified.
+
+When not a single message can be recovered, no file is written and the exit status is 1.
 
 example:
   ropecam recover run.mcap --out run-fixed.mcap
@@ -192,5 +201,5 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("input", help="the damaged .mcap file")
     parser.add_argument("--out", required=True, help="the complete .mcap file to write")
-    parser.add_argument("--overwrite", action="store_true", help="replace --out if it exists")
+    declare_outputs(parser, "out")
     parser.set_defaults(func=_run)

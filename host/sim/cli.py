@@ -9,6 +9,7 @@ from typing import Any
 
 from ropecam.host.sim.options import REALISM_OPTIONS
 from ropecam.host.sim.presets import PRESET_HELP, PRESETS
+from ropecam.shared.cli import declare_outputs
 
 __all__ = ["register"]
 
@@ -131,7 +132,7 @@ def register(subparsers: Any) -> None:
         help="also write a calibration set into DIR/calibration: N checkerboard views (50 recommended) through the "
         "same camera, plus boards lying in the motion plane, with the true camera and plane in truth.json",
     )
-    parser.add_argument("--overwrite", action="store_true", help="replace existing frame sets in DIR")
+    declare_outputs(parser, "out")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     parser.set_defaults(func=run)
 
@@ -226,7 +227,7 @@ def run(args: argparse.Namespace) -> int:
 
         source = None if args.trajectory is None else str(args.trajectory)
         summaries = write_framesets(
-            config, trajectory, args.out, overwrite=args.overwrite, progress=progress, trajectory_source=source
+            config, trajectory, args.out, overwrite=args.force, progress=progress, trajectory_source=source
         )
     for summary in summaries:
         note = f", rope leaves the image in {summary.frames_out_of_view} frames" if summary.frames_out_of_view else ""
@@ -241,16 +242,16 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _check_calibration_request(args: argparse.Namespace) -> None:
-    """Refuse a bad --calibration-views or an existing calibration set without --overwrite."""
-    from ropecam.shared.errors import ConfigError, DataError
+    """Refuse a bad --calibration-views or an existing calibration set without --force."""
+    from ropecam.shared.errors import ConfigError, UsageError
 
     if not args.calibration_views:
         return
     if args.calibration_views < 4:
         raise ConfigError(f"--calibration-views must be 0 (none) or >= 4, got {args.calibration_views}")
     folder = args.out / "calibration"
-    if (folder / "truth.json").exists() and not args.overwrite:
-        raise DataError(f"{folder}: a calibration set exists already (use --overwrite to replace it)")
+    if (folder / "truth.json").exists() and not args.force:
+        raise UsageError(f"{folder}: a calibration set exists already (use --force to replace it)")
 
 
 def _write_calibration(config: Any, args: argparse.Namespace, console: Any) -> None:

@@ -20,6 +20,11 @@ def test_unit_file_is_a_notify_service_with_watchdog_and_numba_cache() -> None:
     assert service["Environment"] == "NUMBA_CACHE_DIR=/var/cache/ropecam/numba"
     assert service["CacheDirectory"] == "ropecam"
     assert "ropecam-device run --config" in service["ExecStart"]
+    assert service["RestartPreventExitStatus"] == "2"  # a configuration error: a restart cannot fix it
+    assert service["ProtectSystem"] == "strict" and service["NoNewPrivileges"] == "yes"
+    assert "MemoryDenyWriteExecute" not in service  # Numba's JIT executes the code it writes
+    assert "/var/cache/" in service["Environment"] and "ProtectSystem" in service  # the cache stays writable
+    assert "://" not in unit["Unit"]["Documentation"]  # no web address that does not exist
 
 
 def test_example_device_config_loads(tmp_path: Path) -> None:
@@ -28,6 +33,8 @@ def test_example_device_config_loads(tmp_path: Path) -> None:
     config = load_device_config(tmp_path / "device.toml")
     assert config.capture.exposure_us == 4000 and config.sender.sink.startswith("serial://")
     assert config.pipeline.rope_length_m == 0.411
+    # Stable names: the camera by id, the Pi's UART by its alias (docs/daemon.md: the serial console).
+    assert "/dev/v4l/by-id/" in config.capture.source and config.sender.sink.startswith("serial:///dev/serial0")
 
 
 def test_watchdog_outlasts_every_step_that_does_not_ping(tmp_path: Path) -> None:

@@ -57,13 +57,13 @@ def test_folder_argument_and_empty_folder(good: list[Path], tmp_path: Path, caps
     empty = tmp_path / "empty"
     empty.mkdir()
     code, _, err = _run(["calibrate", "intrinsics", str(empty), *BOARD, "--out", str(tmp_path / "d.yaml")], capsys)
-    assert code == 2 and f"{empty}: folder holds no images" in err
+    assert code == 1 and f"{empty}: folder holds no images" in err
 
 
 def test_wrong_board_size(good: list[Path], tmp_path: Path, capsys) -> None:
     code, _, err = _run(["calibrate", "intrinsics", *map(str, good), "--board", "10x7", "--square-mm", "25",
                          "--out", str(tmp_path / "c.yaml")], capsys)  # fmt: skip
-    assert code == 2
+    assert code == 1
     assert "only 0 of 5 images show a 10x7 board" in err
     assert "check --board (inner corners, not squares)" in err
     assert str(good[0]) in err
@@ -75,7 +75,7 @@ def test_too_few_views(good: list[Path], tmp_path: Path, capsys) -> None:
     code, _, err = _run(
         ["calibrate", "intrinsics", *map(str, good[:3]), str(blank), *BOARD, "--out", str(tmp_path / "c.yaml")], capsys
     )
-    assert code == 2
+    assert code == 1
     assert "only 3 of 4 images" in err and "at least 4 are needed" in err
     assert f"{blank}: no 9x6 chessboard found" in err
 
@@ -96,7 +96,7 @@ def test_unreadable_and_missing_files_are_all_named(good: list[Path], tmp_path: 
     missing = tmp_path / "missing.jpg"
     code, _, err = _run(["calibrate", "intrinsics", *map(str, good), str(garbage), str(empty), str(missing), *BOARD,
                          "--out", str(tmp_path / "c.yaml")], capsys)  # fmt: skip
-    assert code == 2
+    assert code == 1
     assert "3 of 8 images cannot be read" in err
     assert f"{garbage}: not a readable image" in err
     assert f"{empty}: not a readable image" in err
@@ -107,7 +107,7 @@ def test_plane_image_size_does_not_match_camera_file(good: list[Path], tmp_path:
     camera_yaml = write_camera(tmp_path / "paper_camera.yaml", paper_camera(), 0.05)
     code, _, err = _run(["calibrate", "plane", str(good[0]), "--camera", str(camera_yaml), *BOARD,
                          "--out", str(tmp_path / "p.yaml")], capsys)  # fmt: skip
-    assert code == 2
+    assert code == 1
     assert f"{good[0]} is 640x480 px but {camera_yaml} was calibrated at 1024x544 px" in err
     assert not (tmp_path / "p.yaml").exists()
 
@@ -117,7 +117,7 @@ def test_plane_image_without_board(tmp_path: Path, capsys) -> None:
     blank = _blank(tmp_path / "plane.png", (1024, 544))
     code, _, err = _run(["calibrate", "plane", str(blank), "--camera", str(camera_yaml), "--board", "8x7",
                          "--square-mm", "20", "--out", str(tmp_path / "p.yaml")], capsys)  # fmt: skip
-    assert code == 2
+    assert code == 1
     assert f"{blank}: no 8x7 chessboard found" in err
 
 
@@ -136,7 +136,7 @@ def test_bad_camera_file(tmp_path: Path, capsys, content: str | None, expected: 
     blank = _blank(tmp_path / "plane.png")
     code, _, err = _run(["calibrate", "plane", str(blank), "--camera", str(camera_yaml), *BOARD,
                          "--out", str(tmp_path / "p.yaml")], capsys)  # fmt: skip
-    assert code == 2
+    assert code == 1
     assert str(camera_yaml) in err and expected in err
 
 
@@ -173,7 +173,7 @@ def test_diverged_calibration_is_a_calibration_error(
         calibrate_intrinsics(good[:4], parse_board("9x6", 25))
     code, _, err = _run(["calibrate", "intrinsics", *map(str, good[:4]), *BOARD, "--out", str(tmp_path / "c.yaml")],
                         capsys)  # fmt: skip
-    assert code == 2 and "calibration" in err and "Traceback" not in err
+    assert code == 1 and "calibration" in err and "Traceback" not in err
     assert not (tmp_path / "c.yaml").exists()
 
 

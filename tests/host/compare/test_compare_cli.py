@@ -103,7 +103,7 @@ def test_bad_measurement_line_is_named(recording: Path, tmp_path: Path, capsys: 
     broken = tmp_path / "broken.jsonl"
     broken.write_text((recording / "truth.jsonl").read_text().splitlines()[0] + "\n{not json\n")
     code = main(["compare", str(broken), "--plane", str(recording / "plane.yaml"), "--out", str(tmp_path / "r")])
-    assert code == 2
+    assert code == 1  # bad data: a runtime error
     assert f"{broken}:2" in capsys.readouterr().err
 
 
@@ -132,7 +132,7 @@ def test_no_measured_shape_is_a_clear_error_not_a_traceback(
     empty.write_text('{"frame": 0, "t_ns": 0, "t_end_ns": 4, "status": "NO_ROPE", "begin": null, "end": null}\n')
     code = main(["compare", str(empty), "--plane", str(recording / "plane.yaml"), "--out", str(tmp_path / "r")])
     err = capsys.readouterr().err
-    assert code == 2 and f"{empty}: no frame has a measured rope shape" in err and "Traceback" not in err
+    assert code == 1 and f"{empty}: no frame has a measured rope shape" in err and "Traceback" not in err
 
 
 def test_a_wild_shape_is_skipped_with_a_warning_and_the_rest_compared(

@@ -71,7 +71,7 @@ def test_calibration_options_need_the_plane(tmp_path) -> None:
 
 
 def test_bad_arguments_give_clear_errors(tmp_path, capsys) -> None:
-    assert main(["replay", str(tmp_path / "nothing.mcap")]) == 2
+    assert main(["replay", str(tmp_path / "nothing.mcap")]) == 1  # missing data: a runtime error
     assert "does not exist" in capsys.readouterr().err
     (tmp_path / "exists.mcap").write_bytes(b"x")
     code = main(["monitor", "--source", "loop://", "--record", str(tmp_path / "exists.mcap"), "--duration-s", "0.1"])

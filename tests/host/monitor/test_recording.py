@@ -18,7 +18,7 @@ from ropecam.host.recording.recover import recover_mcap
 from ropecam.host.recording.writer import Recorder, RecordingConfig, part_path
 from ropecam.host.replay import replay
 from ropecam.host.session import RAW_TOPIC, Session
-from ropecam.shared.errors import ConfigError, DataError
+from ropecam.shared.errors import ConfigError, DataError, UsageError
 from ropecam.shared.transport import open_transport
 
 
@@ -302,7 +302,7 @@ def test_recover_refuses_non_mcap_and_reports_complete_files(tmp_path: Path, sim
     assert report.complete and report.messages == recorder.messages
     assert main(["recover", str(tmp_path / "ok.mcap"), "--out", str(tmp_path / "cli.mcap")]) == 0
     assert f"wrote {recorder.messages} messages" in capsys.readouterr().out
-    with pytest.raises(DataError, match="exists"):
+    with pytest.raises(UsageError, match="exists"):
         recover_mcap(tmp_path / "ok.mcap", tmp_path / "copy.mcap")
 
 
@@ -434,8 +434,8 @@ def test_replay_that_fails_leaves_no_output_file(tmp_path: Path, capsys) -> None
     out, jsonl = tmp_path / "out.mcap", tmp_path / "out.jsonl"
     model = ["--plane", str(plane), "--model", str(rope)]
     assert (
-        main(["replay", str(tmp_path / "logs.mcap"), *model, "--record", str(out), "--export-jsonl", str(jsonl)]) == 2
-    )
+        main(["replay", str(tmp_path / "logs.mcap"), *model, "--record", str(out), "--export-jsonl", str(jsonl)]) == 1
+    )  # a runtime error: the data holds nothing to fit
     assert "holds no FrameResult" in capsys.readouterr().err
     assert not out.exists() and not jsonl.exists()
     unwritable = str(tmp_path / "missing" / "out.mcap")

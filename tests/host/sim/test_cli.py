@@ -95,11 +95,12 @@ def test_refuses_to_overwrite_and_explains_errors(
     assert main([*base, "--frames", "2"]) == 0
     before = (out / "frames" / "000000.png").read_bytes()
     assert main([*base, "--frames", "2", "--seed", "3"]) == 2
-    assert "exists already" in capsys.readouterr().err
+    assert "pass --force" in capsys.readouterr().err
     assert (out / "frames" / "000000.png").read_bytes() == before
-    assert main([*base, "--frames", "2", "--seed", "3", "--overwrite"]) == 0
+    assert main([*base, "--frames", "2", "--seed", "3", "--force"]) == 0
+    base.append("--force")  # past the refusal: the command's own checks
     # The 0.1 s trajectory holds 12 frames at 119 FPS with 4 ms exposures, not 50.
-    assert main([*base, "--frames", "50", "--overwrite"]) == 2
+    assert main([*base, "--frames", "50"]) == 2
     err = capsys.readouterr().err
     assert "holds 12 frames" in err and "fewer frames" in err
     bad = tmp_path / "bad.toml"
@@ -109,7 +110,7 @@ def test_refuses_to_overwrite_and_explains_errors(
     assert "polarty" in err and str(bad) in err
     assert main([*base, "--exposure-ms", "9"]) == 2  # longer than the frame period at 119 FPS
     assert "exposure_ms" in capsys.readouterr().err
-    assert main([*base, "--trajectory", str(tmp_path / "missing.npz")]) == 2
+    assert main([*base, "--trajectory", str(tmp_path / "missing.npz")]) == 1  # a data file, not a usage error
     assert "missing.npz" in capsys.readouterr().err
 
 
@@ -206,7 +207,7 @@ def test_existing_calibration_set_is_refused_before_any_work(
     (out / "calibration" / "truth.json").write_text("{}")
     argv = ["simulate", "rig", "--out", str(out), "--frames", "1", "--trajectory", str(rod_file)]
     assert main([*argv, "--config", str(small_toml), "--calibration-views", "4", "-q"]) == 2
-    assert "a calibration set exists already (use --overwrite to replace it)" in capsys.readouterr().err
+    assert f"{out}: the output folder is not empty; pass --force" in capsys.readouterr().err
     assert sorted(p.name for p in out.iterdir()) == ["calibration"]  # no frame set rendered
 
 
