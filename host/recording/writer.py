@@ -162,7 +162,7 @@ class Recorder:
         self._writer: Writer | None = None
         self._stream: IO[bytes] | None = None
         self._channels: dict[str, int] = {}
-        self._schemas: dict[str, int] = {}
+        self._schemas: dict[tuple[str, str], int] = {}
         self._good_offset = 0
         self._last_flush = time.monotonic()
         self._part_started = self._last_flush
@@ -245,10 +245,12 @@ class Recorder:
             assert self._writer is not None
             schema_id = 0
             if schema_name is not None:
-                schema_id = self._schemas.get(schema_name, 0)
+                schema_encoding = "protobuf" if message_encoding == "protobuf" else "jsonschema"
+                schema_id = self._schemas.get((schema_name, schema_encoding), 0)
                 if not schema_id:
-                    schema_id = self._writer.register_schema(schema_name, "jsonschema", schema_bytes(schema_name))
-                    self._schemas[schema_name] = schema_id
+                    data = schema_bytes(schema_name, schema_encoding)
+                    schema_id = self._writer.register_schema(schema_name, schema_encoding, data)
+                    self._schemas[schema_name, schema_encoding] = schema_id
             channel_id = self._writer.register_channel(topic, message_encoding, schema_id)
             self._channels[topic] = channel_id
         return channel_id
@@ -261,6 +263,7 @@ class Recorder:
         schema_name: str | None = None,
         message_encoding: str = "json",
         sequence: int = 0,
+        publish_time_ns: int | None = None,
     ) -> bool:
         """Add one message; False (counted in `unrecorded`) when the recording has stopped.
 
@@ -271,13 +274,15 @@ class Recorder:
         data
             Message bytes.
         log_time_ns
-            Host receive time (ns since the epoch).
+            Time of the message (ns since the epoch, host clock): for a frame, its exposure.
         schema_name
-            A name of `schemas.SCHEMAS`, or None for schemaless channels (the raw wire channel).
+            A name known to `ropecam.host.recording.schemas.schema_bytes`, or None for a schemaless channel.
         message_encoding
-            ``"json"`` for the schema channels; the raw channel uses its own encoding name.
+            ``"json"`` (schema stored as JSON Schema) or ``"protobuf"`` (schema stored as a FileDescriptorSet).
         sequence
             The wire sequence number (uint32), for tools that look at it.
+        publish_time_ns
+            Host receive time (default: `log_time_ns`).
         """
         if self._writer is None and self._next_part is not None:
             index, self._next_part = self._next_part, None
@@ -287,7 +292,8 @@ class Recorder:
             return False
         try:
             channel_id = self._channel(topic, schema_name, message_encoding)
-            self._writer.add_message(channel_id, log_time_ns, data, log_time_ns, sequence)
+            publish = log_time_ns if publish_time_ns is None else publish_time_ns
+            self._writer.add_message(channel_id, log_time_ns, data, publish, sequence)
         except OSError as exc:
             self._fail(f"writing {self.path} failed: {exc.strerror or exc}")
             self.unrecorded += 1
