@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ropecam.host.offline import frames_messages
+from ropecam.host.recording.proto import add_encoding_option
 from ropecam.host.recording.reader import count_raw, device_frames, iter_raw, recording_parts
 from ropecam.shared.errors import ConfigError, DataError
 
@@ -162,6 +163,7 @@ def _run(args: argparse.Namespace) -> int:
     from ropecam.host.monitor.cli import load_calibration, rig_metadata
     from ropecam.host.monitor.display import format_row
     from ropecam.host.progress import progress_bar
+    from ropecam.host.recording.proto import make_encoder
     from ropecam.host.recording.writer import Recorder, RecordingConfig, later_parts
     from ropecam.host.session import Session
 
@@ -172,6 +174,7 @@ def _run(args: argparse.Namespace) -> int:
     if (args.recording is None) == (args.frames is None):
         raise ConfigError("give either a recording (run.mcap) or --frames DIR, not both or neither")
     calibration, calibration_metadata, attachments = load_calibration(args.camera, args.plane)
+    encoder = make_encoder(args.encoding)
     if args.frames is not None:
         source = Path(args.frames)
         measured = frames_messages(source, Path(args.config) if args.config else None)
@@ -216,7 +219,7 @@ def _run(args: argparse.Namespace) -> int:
                 export.close()
                 export.path.unlink(missing_ok=True)  # created just now, holds nothing
             raise
-    session = Session(recorder, calibration, model)
+    session = Session(recorder, calibration, model, encoder)
     try:
         with progress_bar("replay", max(1, total), "messages") as progress:
             count = replay_messages(
@@ -280,6 +283,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="replace --record / --export-jsonl if they exist (and earlier parts of --record)",
     )
+    add_encoding_option(parser)
     parser.add_argument(
         "--reprocess", action="store_true", help="apply --camera/--plane (a new calibration) to the recorded stream"
     )

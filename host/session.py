@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Callable
+from pathlib import Path
 from typing import TYPE_CHECKING, Final, Protocol
 
 import numpy as np
@@ -102,6 +103,8 @@ class Session:
         self._sinks: list[Sink] = [sink for sink in (recorder, live) if sink is not None]
         self.clock = ClockMap()
         self._tf_due: dict[int, int] = {}  # device -> log time of its next transforms
+        self.layout: Path | None = None
+        """The Foxglove layout written beside the recording by `close`."""
         self.stats = StreamStats()
         self.skipped_decodes = 0
         self._undecoded_run: dict[int, int] = {}  # FrameResults skipped in a row, per device
@@ -267,6 +270,12 @@ class Session:
         return self.stats.snapshot(now_ns)
 
     def close(self) -> None:
-        """Finish the recording (summary, index) if there is one."""
-        if self.recorder is not None:
-            self.recorder.close()
+        """Finish the recording (summary, index) if there is one and write its Foxglove layout beside it."""
+        from ropecam.host.recording.layout import write_layout
+
+        recorder = self.recorder
+        if recorder is not None:
+            recorder.close()
+            if recorder.parts:
+                device_id = min(self.stats.devices(), default=0)
+                self.layout = write_layout(recorder.config.path, device_id, recorder.config.overwrite)

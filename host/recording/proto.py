@@ -10,6 +10,7 @@ appended as their protobuf encoding made with NumPy in one step (``LinePrimitive
 
 from __future__ import annotations
 
+import argparse
 from collections.abc import Sequence
 from typing import Any, Final
 
@@ -31,7 +32,7 @@ from ropecam.shared.protocol.records import Log
 __all__ = ["METRE_QUANTUM", "PIXEL_QUANTUM", "ProtobufEncoder", "available", "make_encoder"]
 
 PIXEL_QUANTUM: Final = 2.0**-10
-METRE_QUANTUM: Final = 2.0**-30
+METRE_QUANTUM: Final = 2.0**-24
 _POINT: Final = np.dtype(
     [("tag", "u1"), ("length", "u1"), ("x_tag", "u1"), ("x", "<f8"), ("y_tag", "u1"), ("y", "<f8")]
 )
@@ -160,3 +161,14 @@ def make_encoder(encoding: str | None = None) -> JsonEncoder | ProtobufEncoder:
             )
         return ProtobufEncoder()
     raise ConfigError(f"--encoding must be json or protobuf, got {encoding!r}")
+
+
+def add_encoding_option(parser: argparse.ArgumentParser) -> None:
+    """Add ``--encoding {protobuf,json}`` (the Foxglove channels of a recording) to a command's parser."""
+    default = "protobuf" if available() else "json (foxglove-schemas-protobuf is not installed)"
+    parser.add_argument(
+        "--encoding",
+        choices=("protobuf", "json"),
+        help="message encoding of the Foxglove channels (scenes, point clouds, transforms, log, images): protobuf "
+        f"(about half the file size) or json (readable with any tool). Default here: {default}",
+    )
