@@ -90,14 +90,12 @@ class FoxgloveLive:
         """Publish one message (same arguments as `ropecam.host.recording.writer.Recorder.write`); True."""
         channel = self._channels.get(topic)
         if channel is None:
-            from ropecam.host.recording.schemas import schema_bytes
+            from ropecam.host.recording.schemas import schema_record
 
             schema = None
             if schema_name is not None:
-                schema_encoding = "protobuf" if message_encoding == "protobuf" else "jsonschema"
-                schema = self._foxglove.Schema(
-                    name=schema_name, encoding=schema_encoding, data=schema_bytes(schema_name, schema_encoding)
-                )
+                schema_encoding, data = schema_record(schema_name, message_encoding)
+                schema = self._foxglove.Schema(name=schema_name, encoding=schema_encoding, data=data)
             channel = self._foxglove.Channel(
                 topic, schema=schema, message_encoding=message_encoding, context=self._context
             )

@@ -33,6 +33,7 @@ __all__ = [
     "descriptor_set",
     "json_schema",
     "schema_bytes",
+    "schema_record",
 ]
 
 FOXGLOVE_TYPES: Final = (
@@ -251,6 +252,18 @@ def schema_bytes(name: str, encoding: str = "jsonschema") -> bytes:
             raise KeyError(f"{name} has no protobuf schema (only the Foxglove types {FOXGLOVE_TYPES} do)")
         return descriptor_set(name)
     return json.dumps(json_schema(name), separators=(",", ":")).encode()
+
+
+def schema_record(name: str, message_encoding: str) -> tuple[str, bytes]:
+    """Return (schema encoding, schema data) of the MCAP schema record of `name` for messages in `message_encoding`.
+
+    Raises
+    ------
+    KeyError, ImportError
+        As `schema_bytes`.
+    """
+    encoding = "protobuf" if message_encoding == "protobuf" else "jsonschema"
+    return encoding, schema_bytes(name, encoding)
 
 
 def vendored_file_text() -> str:

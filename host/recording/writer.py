@@ -21,7 +21,7 @@ from typing import IO, Any, Final
 
 from mcap.writer import CompressionType, Writer
 
-from ropecam.host.recording.schemas import schema_bytes
+from ropecam.host.recording.schemas import schema_record
 from ropecam.shared.config import check_positive
 from ropecam.shared.errors import ConfigError
 
@@ -245,12 +245,11 @@ class Recorder:
             assert self._writer is not None
             schema_id = 0
             if schema_name is not None:
-                schema_encoding = "protobuf" if message_encoding == "protobuf" else "jsonschema"
-                schema_id = self._schemas.get((schema_name, schema_encoding), 0)
+                schema_id = self._schemas.get((schema_name, message_encoding), 0)
                 if not schema_id:
-                    data = schema_bytes(schema_name, schema_encoding)
+                    schema_encoding, data = schema_record(schema_name, message_encoding)
                     schema_id = self._writer.register_schema(schema_name, schema_encoding, data)
-                    self._schemas[schema_name, schema_encoding] = schema_id
+                    self._schemas[schema_name, message_encoding] = schema_id
             channel_id = self._writer.register_channel(topic, message_encoding, schema_id)
             self._channels[topic] = channel_id
         return channel_id
