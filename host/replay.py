@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ropecam.host.offline import frames_messages
-from ropecam.host.recording.proto import add_encoding_option
+from ropecam.host.recording.encoding import add_encoding_option
 from ropecam.host.recording.reader import count_raw, device_frames, iter_raw, recording_parts
 from ropecam.shared.errors import ConfigError, DataError
 
@@ -248,13 +248,15 @@ HELP = """\
 Replay a recording made by `ropecam monitor --record`: its raw wire messages go through the same receiving,
 statistics, decoding and recording code as live data, with their recorded receive times. With --record the
 decoded channels are written again (also the frames the live monitor had to skip under load).
-Rolled recordings (run.mcap, run_001.mcap, ...) are replayed in order. A recording cut by a crash needs
-`ropecam recover` first.
+Rolled recordings (run.mcap, run_001.mcap, ...) are replayed in order; recordings of either encoding (protobuf or
+JSON Foxglove channels) and of older versions replay alike, since only the raw wire channel is read. A recording cut
+by a crash needs `ropecam recover` first.
 
 examples:
   ropecam replay run.mcap
   ropecam replay run.mcap --speed 1
   ropecam replay run.mcap --record run-decoded.mcap
+  ropecam replay run.mcap --record run-json.mcap --encoding json              # JSON Foxglove channels
   ropecam replay run.mcap --reprocess --plane plane.yaml --record run-metres.mcap
   ropecam replay run.mcap --export-jsonl run.jsonl && ropecam compare run.jsonl --plane plane.yaml --out report/
   ropecam replay run.mcap --plane plane.yaml --model rope.toml --record run-model.mcap

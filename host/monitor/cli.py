@@ -64,7 +64,8 @@ def rig_metadata(source: str) -> dict[str, dict[str, str]]:
             "ropecam_version": software,
             "source": source,
             "start_time_ns": str(time.time_ns()),
-            "raw_channel": "/ropecam/wire: one message per wire message, bytes as received (docs/protocol.md)",
+            "raw_channel": "/ropecam/wire: one ropecam.WireMessage (protobuf) per wire message, its data field the "
+            "bytes as received (docs/protocol.md)",
         }
     }
 
@@ -313,7 +314,7 @@ def _run(args: argparse.Namespace) -> int:
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the `monitor` sub-command."""
     from ropecam.host.monitor.foxglove_live import DEFAULT_ADDRESS
-    from ropecam.host.recording.proto import add_encoding_option
+    from ropecam.host.recording.encoding import add_encoding_option
 
     parser = subparsers.add_parser(
         "monitor", help="live view and MCAP recording of device streams", description=HELP,

@@ -1,8 +1,9 @@
 """The Foxglove well-known messages in protobuf, built with the official ``foxglove-schemas-protobuf`` classes.
 
-Polyline points are quantized to a binary grid far below the measurement's resolution (2^-10 px, about 0.001 px;
-2^-30 m, about 1 nm): the low mantissa bytes of each double are then zero and zstd compresses them away, which
-makes a protobuf scene less than half the bytes of the same scene in JSON in the file. The points of a line are
+Polyline points are stored on a binary grid (2^-7 px = 1/128 px; 2^-17 m = 7.6 um, about 1/128 px on the rig's
+plane): a point moves by at most half a step, under a twelfth of the 0.05 px to which the wire's shape code keeps
+the device's shapes. The low mantissa bytes of each double are then zero and zstd compresses them away, which makes
+a protobuf scene less than half the bytes of the same scene in JSON in the file. The points of a line are
 appended as their protobuf encoding made with NumPy in one step (``LinePrimitive.points``, field 5: one
 ``Point3 {x = 1; y = 2}`` per point; z = 0 is the default and not written), then parsed into the official message:
 ~80x faster than one ``Point3`` object per point, and the bytes are the ones protobuf itself writes.
@@ -10,7 +11,6 @@ appended as their protobuf encoding made with NumPy in one step (``LinePrimitive
 
 from __future__ import annotations
 
-import argparse
 from collections.abc import Sequence
 from typing import Any, Final
 
@@ -31,8 +31,8 @@ from ropecam.shared.protocol.records import Log
 
 __all__ = ["METRE_QUANTUM", "PIXEL_QUANTUM", "ProtobufEncoder", "available", "make_encoder"]
 
-PIXEL_QUANTUM: Final = 2.0**-10
-METRE_QUANTUM: Final = 2.0**-24
+PIXEL_QUANTUM: Final = 2.0**-7
+METRE_QUANTUM: Final = 2.0**-17
 _POINT: Final = np.dtype(
     [("tag", "u1"), ("length", "u1"), ("x_tag", "u1"), ("x", "<f8"), ("y_tag", "u1"), ("y", "<f8")]
 )
@@ -161,14 +161,3 @@ def make_encoder(encoding: str | None = None) -> JsonEncoder | ProtobufEncoder:
             )
         return ProtobufEncoder()
     raise ConfigError(f"--encoding must be json or protobuf, got {encoding!r}")
-
-
-def add_encoding_option(parser: argparse.ArgumentParser) -> None:
-    """Add ``--encoding {protobuf,json}`` (the Foxglove channels of a recording) to a command's parser."""
-    default = "protobuf" if available() else "json (foxglove-schemas-protobuf is not installed)"
-    parser.add_argument(
-        "--encoding",
-        choices=("protobuf", "json"),
-        help="message encoding of the Foxglove channels (scenes, point clouds, transforms, log, images): protobuf "
-        f"(about half the file size) or json (readable with any tool). Default here: {default}",
-    )

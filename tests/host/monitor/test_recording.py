@@ -201,7 +201,7 @@ def test_rolled_recording_replays_across_parts(sim_device, tmp_path: Path, roll:
     session.close()
     parts = recording_parts(path)
     assert all(list(iter_raw([part])) for part in parts)
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in parts)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*(p.name for p in parts), "part.layout.json"])
     assert len(parts) >= 3 and parts[1] == part_path(path, 1)
     assert [data for data, _ in iter_raw(parts)] == messages
 
