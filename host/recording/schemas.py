@@ -31,6 +31,7 @@ __all__ = [
     "ROPECAM_SCHEMAS",
     "derive_json_schema",
     "descriptor_set",
+    "foxglove_class",
     "json_schema",
     "schema_bytes",
     "schema_record",
@@ -112,7 +113,7 @@ def derive_json_schema(descriptor: Any) -> dict[str, Any]:
     }
 
 
-def _foxglove_class(name: str) -> Any:
+def foxglove_class(name: str) -> Any:
     """Return the official protobuf class of ``foxglove.<Name>`` (ImportError when the package is missing)."""
     import importlib
 
@@ -145,7 +146,7 @@ def descriptor_set(name: str) -> bytes:
         file_descriptor.CopyToProto(proto)
         files.file.append(proto)
 
-    add(_foxglove_class(name).DESCRIPTOR.file)
+    add(foxglove_class(name).DESCRIPTOR.file)
     return files.SerializeToString()
 
 
@@ -270,7 +271,7 @@ def vendored_file_text() -> str:
     """Return the content of ``foxglove_jsonschema.json`` derived from the installed official package."""
     import importlib.metadata
 
-    schemas = {name: derive_json_schema(_foxglove_class(name).DESCRIPTOR) for name in FOXGLOVE_TYPES}
+    schemas = {name: derive_json_schema(foxglove_class(name).DESCRIPTOR) for name in FOXGLOVE_TYPES}
     document = {
         "$comment": "JSON Schemas derived by ropecam.host.recording.schemas.derive_json_schema from the protobuf "
         f"descriptors of foxglove-schemas-protobuf {importlib.metadata.version('foxglove-schemas-protobuf')} "

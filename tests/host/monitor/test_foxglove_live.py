@@ -30,6 +30,17 @@ def test_address_parsing() -> None:
         parse_address("127.0.0.1:70000")
 
 
+def test_a_busy_port_is_a_configuration_error() -> None:
+    from ropecam.host.monitor.foxglove_live import FoxgloveLive
+
+    first = FoxgloveLive("127.0.0.1", 0)
+    try:
+        with pytest.raises(ConfigError, match=f"--foxglove 127.0.0.1:{first.port}: cannot serve there"):
+            FoxgloveLive("127.0.0.1", first.port)
+    finally:
+        first.close()
+
+
 def test_a_foxglove_client_receives_the_live_scenes(
     monitor_process, sim_device, send_paced, udp_port: int, tmp_path: Path
 ) -> None:

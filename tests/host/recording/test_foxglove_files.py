@@ -7,6 +7,7 @@ from __future__ import annotations
 import base64
 import json
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -19,8 +20,8 @@ from ropecam.host.recording.schemas import (
     FOXGLOVE_TYPES,
     ROPECAM_SCHEMAS,
     VENDORED,
-    _foxglove_class,
     derive_json_schema,
+    foxglove_class,
     json_schema,
     vendored_file_text,
 )
@@ -30,7 +31,7 @@ from ropecam.shared.errors import DataError
 
 def official_schema(name: str) -> dict[str, Any]:
     """The current official JSON Schema of a Foxglove type, derived from the installed protobuf package."""
-    return derive_json_schema(_foxglove_class(name).DESCRIPTOR)
+    return derive_json_schema(foxglove_class(name).DESCRIPTOR)
 
 
 def _summary(path: Path) -> Any:
@@ -105,6 +106,21 @@ def test_every_schema_parses_and_every_message_is_valid(recording, foxglove_load
     assert counts["foxglove.Log"] == 1 and counts["ropecam.Status"] == 2
     frame_channels = [c for c in summary.channels.values() if c.topic != "/ropecam/wire"]
     assert {c.message_encoding for c in frame_channels if c.topic.endswith("scene")} == {encoding}
+
+
+def test_the_layout_beside_the_recording_names_its_topics_and_frames(recording) -> None:
+    from ropecam.host.recording.layout import layout_path
+
+    _, path = recording
+    layout = json.loads(layout_path(path).read_text())
+    text = json.dumps(layout)
+    topics = {c.topic for c in _summary(path).channels.values()}
+    named = set(re.findall(r'"(/device[^".\[]+)', text)) | {layout["configById"]["RosOut!ropecam-log"]["topicToRender"]}
+    model_topics = {"/device5/plane/model", "/device5/model_error"}  # recorded with --model only
+    assert named - model_topics <= topics and "@DEVICE@" not in text
+    frames = {t["child_frame_id"] for _, name, _, _, m in decoded_messages(path) if name == "foxglove.FrameTransforms"
+              for t in m["transforms"]} | {"device5/plane"}  # fmt: skip
+    assert layout["configById"]["3D!ropecam-scene"]["followTf"] in frames
 
 
 def test_the_wire_channel_is_a_valid_protobuf_message() -> None:
