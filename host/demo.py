@@ -5,9 +5,10 @@ Steps (each is a command you can run yourself; the demo prints them):
 1. `ropecam simulate rig-soft`: motion-blurred frames of a soft rope swinging in front of the paper's rig camera
    (1024x544, 119 FPS, 4 ms), with exact ground truth, plus a calibration set through the same camera.
 2. `ropecam calibrate intrinsics` and `ropecam calibrate plane`: camera and motion plane from the checkerboards.
-3. `ropecam monitor --record` listens on UDP; `ropecam-device run` (the rig daemon) replays the frames as if they
-   came from the camera, measures every frame (the rope at the start and at the end of each exposure) and streams
-   the results to it over UDP on this machine.
+3. `ropecam monitor --record --plane` listens on UDP; `ropecam-device run` (the rig daemon) replays the frames as if
+   they came from the camera, measures every frame (the rope at the start and at the end of each exposure) and
+   streams the results to it over UDP on this machine. The recording holds the shapes in pixels and in metres on the
+   plane, the transforms between them and a Foxglove layout beside it (run.layout.json).
 4. `ropecam compare run.mcap --fit ei`: the recorded material points in metres against the ANCF model, with the bending
    stiffness identified from a deliberately wrong start (3x the truth) and the release time estimated.
 """
@@ -61,14 +62,13 @@ def _free_udp_port() -> int:
         return int(sock.getsockname()[1])
 
 
-def _stream(frames: Path, recording: Path, port: int) -> None:
+def _stream(frames: Path, recording: Path, plane: Path, port: int) -> None:
     """Run the monitor (recording) and the daemon (replaying `frames`) as the two programs they are on a rig."""
     from ropecam.host.monitor.process import MonitorProcess
     from ropecam.shared.errors import RopecamError
 
-    recording.unlink(missing_ok=True)
-    monitor = MonitorProcess(["--source", f"udp://127.0.0.1:{port}", "--record", str(recording), "--no-ui",
-                              "--duration-s", "600"])  # fmt: skip
+    monitor = MonitorProcess(["--source", f"udp://127.0.0.1:{port}", "--record", str(recording), "--plane", str(plane),
+                              "--force", "--no-ui", "--duration-s", "600"])  # fmt: skip
     try:
         device = subprocess.run(
             [sys.executable, "-m", "ropecam.device.cli", "run", "--source", f"frames:{frames}?fps=30",
@@ -97,6 +97,7 @@ def _step(title: str, command: str) -> float:
 def run_demo(args: argparse.Namespace) -> int:
     """Run the demo; returns the exit code."""
     from ropecam.host.cli import main as host_main
+    from ropecam.host.recording.layout import layout_path
     from ropecam.shared.errors import DataError
 
     out: Path = args.out.resolve()
@@ -138,10 +139,11 @@ def run_demo(args: argparse.Namespace) -> int:
     port = _free_udp_port()
     t = _step(
         "3. stream: the rig daemon measures every frame and streams over UDP into the monitor's recording",
-        f"ropecam monitor --source udp://127.0.0.1:{port} --record {recording} --no-ui   (and, meanwhile:)\n"
+        f"ropecam monitor --source udp://127.0.0.1:{port} --record {recording} --plane {out / 'plane.yaml'} --no-ui"
+        "   (and, meanwhile:)\n"
         f"   $ ropecam-device run --source frames:{rig}?fps=30 --sink udp://127.0.0.1:{port}",
     )
-    _stream(rig, recording, port)
+    _stream(rig, recording, out / "plane.yaml", port)
     timings["stream_s"] = time.perf_counter() - t
 
     model = out / "rope.toml"
@@ -161,6 +163,7 @@ def run_demo(args: argparse.Namespace) -> int:
               f"(simulated truth {TRUE_EI_NM2:.3g}, {100 * (fitted / TRUE_EI_NM2 - 1):+.1f} %)")  # fmt: skip
     print(f"   report: {report / 'index.html'}  (plots, summary.json)")
     print(f"   frames and ground truth: {rig}; calibration: {out / 'camera.yaml'}, {out / 'plane.yaml'}")
-    print(f"   the live recording: {recording} (open it in Foxglove, or `ropecam replay {recording}`)")
+    print(f"   the live recording: {recording} (open it in Foxglove with the layout {layout_path(recording)}, or "
+          f"`ropecam replay {recording}`)")  # fmt: skip
     sys.stdout.flush()
     return code

@@ -10,7 +10,6 @@ model (``ropecam.ModelError``, mm).
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Final
@@ -25,13 +24,14 @@ from ropecam.shared.errors import DataError
 if TYPE_CHECKING:
     from ropecam.host.model.config import RopeConfig, SolverConfig
     from ropecam.host.model.trajectory import Trajectory
+    from ropecam.host.recording.convert import Encoder
     from ropecam.shared.protocol.records import FrameResult
 
 __all__ = ["ModelOverlay"]
 
 MODEL_POINTS: Final = 101
 """Samples of the model rope drawn per shape."""
-_MODEL_COLOR: Final = '{"r":0.2,"g":0.9,"b":0.3,"a":1.0}'
+_MODEL_COLOR: Final = (0.2, 0.9, 0.3, 1.0)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -122,34 +122,34 @@ class ModelOverlay:
         )
 
     def messages(
-        self, record: FrameResult, device_id: int, t_ns: int, errors_mm: tuple[list, list] | None = None
-    ) -> list[tuple[str, bytes, str]]:
-        """Return (topic, JSON bytes, schema name) of the model channels for one frame (`errors_mm` if computed)."""
-        from ropecam.host.recording.convert import model_scene
+        self,
+        record: FrameResult,
+        device_id: int,
+        t_ns: int,
+        errors_mm: tuple[list, list] | None = None,
+        encoder: Encoder | None = None,
+    ) -> list[tuple[str, bytes, str, str]]:
+        """Return (topic, bytes, schema name, message encoding) of the model channels for one frame.
+
+        Parameters
+        ----------
+        errors_mm
+            `frame_errors_mm` of the frame if already computed.
+        encoder
+            Encoding of the model scene (default JSON); the ``ropecam.ModelError`` is JSON.
+        """
+        from ropecam.host.recording.convert import JsonEncoder, model_content, model_error_message
         from ropecam.host.session import device_topic
 
+        encoder = encoder if encoder is not None else JsonEncoder()
         times = (self._model_time(record.exposure_start_t_ns), self._model_time(record.exposure_end_t_ns))
-        begin_mm, end_mm = errors_mm if errors_mm is not None else self.frame_errors_mm(record)
+        errors = errors_mm if errors_mm is not None else self.frame_errors_mm(record)
         grid = np.linspace(0.0, self.length_m, MODEL_POINTS)
         running = [t for t in times if t is not None]  # past the end of the model run nothing is drawn
         shapes = self.trajectory.positions(running, grid) if running else np.zeros((0, MODEL_POINTS, 2))
-        scene = model_scene(shapes, _MODEL_COLOR, device_id, t_ns, record.frame_index)
-        sec, nsec = divmod(max(0, t_ns), 1_000_000_000)
-        error = {
-            "timestamp": {"sec": sec, "nsec": nsec},
-            "device_id": device_id,
-            "frame_index": record.frame_index,
-            "release_time_s": self.release_time_s,
-            "model_time_s": list(times),
-            "s_m": list(self.s_m),
-            "error_begin_mm": begin_mm,
-            "error_end_mm": end_mm,
-        }
+        scene = encoder.scene(model_content(shapes, _MODEL_COLOR, device_id, record.frame_index), t_ns)
+        error = model_error_message(device_id, record.frame_index, t_ns, self.release_time_s, times, self.s_m, errors)
         return [
-            (device_topic(device_id, "plane/model"), scene, "foxglove.SceneUpdate"),
-            (
-                device_topic(device_id, "model_error"),
-                json.dumps(error, separators=(",", ":")).encode(),
-                "ropecam.ModelError",
-            ),
+            (device_topic(device_id, "plane/model"), scene, "foxglove.SceneUpdate", encoder.encoding),
+            (device_topic(device_id, "model_error"), error, "ropecam.ModelError", "json"),
         ]

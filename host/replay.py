@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 from ropecam.host.monitor.cli import recording_parts_to_replace
 from ropecam.host.offline import frames_messages
+from ropecam.host.recording.encoding import add_encoding_option
 from ropecam.host.recording.reader import count_raw, device_frames, iter_raw, recording_parts
 from ropecam.shared.cli import declare_outputs
 from ropecam.shared.errors import ConfigError, DataError, UsageError
@@ -198,6 +199,7 @@ def _run(args: argparse.Namespace) -> int:
     from ropecam.host.monitor.cli import load_calibration, rig_metadata
     from ropecam.host.monitor.display import format_row
     from ropecam.host.progress import progress_bar
+    from ropecam.host.recording.proto import make_encoder
     from ropecam.host.recording.writer import Recorder, RecordingConfig
     from ropecam.host.session import Session
 
@@ -210,6 +212,7 @@ def _run(args: argparse.Namespace) -> int:
     if (args.recording is None) == (args.frames is None):
         raise ConfigError("give either a recording (run.mcap) or --frames DIR, not both or neither")
     calibration, calibration_metadata, attachments = load_calibration(args.camera, args.plane)
+    encoder = make_encoder(args.encoding)
     if args.frames is not None:
         source = Path(args.frames)
         measured = frames_messages(source, Path(args.config) if args.config else None)
@@ -253,7 +256,7 @@ def _run(args: argparse.Namespace) -> int:
                 export.close()
                 export.path.unlink(missing_ok=True)  # created just now, holds nothing
             raise
-    session = Session(recorder, calibration, model)
+    session = Session(recorder, calibration, model, encoder)
     try:
         with progress_bar("replay", max(1, total), "messages") as progress:
             count = replay_messages(
@@ -284,13 +287,15 @@ HELP = """\
 Replay a recording made by `ropecam monitor --record`: its raw wire messages go through the same receiving,
 statistics, decoding and recording code as live data, with their recorded receive times. With --record the
 decoded channels are written again (also the frames the live monitor had to skip under load).
-Rolled recordings (run.mcap, run_001.mcap, ...) are replayed in order. A recording cut by a crash needs
-`ropecam recover` first.
+Rolled recordings (run.mcap, run_001.mcap, ...) are replayed in order; recordings of either encoding (protobuf or
+JSON Foxglove channels) and of older versions replay alike, since only the raw wire channel is read. A recording cut
+by a crash needs `ropecam recover` first.
 
 examples:
   ropecam replay run.mcap
   ropecam replay run.mcap --speed 1
   ropecam replay run.mcap --record run-decoded.mcap
+  ropecam replay run.mcap --record run-json.mcap --encoding json              # JSON Foxglove channels
   ropecam replay run.mcap --reprocess --plane plane.yaml --record run-metres.mcap
   ropecam replay run.mcap --export-jsonl run.jsonl && ropecam compare run.jsonl --plane plane.yaml --out report/
   ropecam replay run.mcap --plane plane.yaml --rope-length-m 0.411 --export-csv points.csv   # metres, per sample
@@ -321,6 +326,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--config", metavar="device.toml", help="with --frames: the device config ([pipeline])")
     parser.add_argument("--speed", type=_speed, default=None, help="1 = real time, 2 = twice as fast, max (default)")
     parser.add_argument("--record", metavar="NEW.mcap", help="record the replayed stream to a new file")
+    add_encoding_option(parser)
     parser.add_argument(
         "--reprocess", action="store_true", help="apply --camera/--plane (a new calibration) to the recorded stream"
     )

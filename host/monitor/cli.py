@@ -34,9 +34,13 @@ sequence losses/duplicates/reordering, bad packets, bytes/s, latency when the cl
 p50/p99, tip position, order confidence, warnings when loss appears) and optionally record everything to MCAP.
 
 The recording holds the raw wire messages (exact replay with `ropecam replay`), the decoded shapes as Foxglove
-scenes and point clouds, Status and Log messages. It is flushed every 0.5 s: after a crash `ropecam recover`
-rebuilds everything up to the last flush. A full disk or failing file stops the recording with a message; the
-monitor keeps running. Stop with Ctrl-C or SIGTERM (the recording is closed properly).
+scenes and point clouds (protobuf by default, --encoding json), the transforms between the plane, camera and image
+frames, Status and Log messages; a Foxglove layout is written beside it (run.layout.json). With --foxglove the
+same channels are served live to the Foxglove app (Open connection -> Foxglove WebSocket -> ws://127.0.0.1:8765).
+
+The recording is flushed every 0.5 s: after a crash `ropecam recover` rebuilds everything up to the last flush. A
+full disk or failing file stops the recording with a message; the monitor keeps running. Stop with Ctrl-C or
+SIGTERM (the recording is closed properly).
 
 A udp:// source binds that address and port (0.0.0.0: all interfaces); several devices may send to it.
 
@@ -45,6 +49,7 @@ examples:
   ropecam sim-device --to udp://127.0.0.1:5600 --device-id 3     (another terminal: a simulated device)
   ropecam monitor --source "serial:///dev/ttyUSB0?baud=921600" --no-ui --duration-s 60
   ropecam monitor --source udp://127.0.0.1:5600 --record run.mcap --roll-mb 1024
+  ropecam monitor --source udp://0.0.0.0:5600 --plane plane.yaml --foxglove     (live view in Foxglove)
 """
 
 
@@ -60,7 +65,8 @@ def rig_metadata(source: str) -> dict[str, dict[str, str]]:
             "ropecam_version": software,
             "source": source,
             "start_time_ns": str(time.time_ns()),
-            "raw_channel": "/ropecam/wire: one message per wire message, bytes as received (docs/protocol.md)",
+            "raw_channel": "/ropecam/wire: one ropecam.WireMessage (protobuf) per wire message, its data field the "
+            "bytes as received (docs/protocol.md)",
         }
     }
 
@@ -223,7 +229,9 @@ class StopSignals:
 
 def _run(args: argparse.Namespace) -> int:
     from ropecam.host.monitor.display import PlainDisplay, RichDisplay, format_row
+    from ropecam.host.monitor.foxglove_live import FoxgloveLive, parse_address
     from ropecam.host.receiver import Receiver
+    from ropecam.host.recording.proto import make_encoder
     from ropecam.host.recording.writer import Recorder, RecordingConfig
     from ropecam.host.session import Session
     from ropecam.shared.transport import open_transport
@@ -247,19 +255,27 @@ def _run(args: argparse.Namespace) -> int:
         model, model_metadata, model_attachment = load_live_model(args.model, calibration)
         calibration_metadata |= model_metadata
         attachments.append(model_attachment)
+    encoder = make_encoder(args.encoding)
     transport = open_transport(listening_url(args.source))  # first: a busy port must not leave a stray file
-    recorder = None
-    if config is not None:
-        metadata = rig_metadata(args.source) | calibration_metadata
-        metadata["rig"]["decode"] = args.decode
-        try:
+    live = recorder = None
+    try:
+        if args.foxglove is not None:
+            live = FoxgloveLive(*parse_address(args.foxglove))
+        if config is not None:
+            metadata = rig_metadata(args.source) | calibration_metadata
+            metadata["rig"]["decode"] = args.decode
             recorder = Recorder(config, metadata, attachments)
-        except ConfigError:
-            transport.close()
-            raise
-    session = Session(recorder, calibration, model)
+    except ConfigError:
+        transport.close()
+        if live is not None:
+            live.close()
+        raise
+    session = Session(recorder, calibration, model, encoder, live)
     receiver = Receiver(transport)
     where = f", recording to {recorder.path}" if recorder is not None else ""
+    if live is not None:
+        print(f"monitor: Foxglove live view at {live.url} (Foxglove: Open connection -> Foxglove WebSocket)",
+              file=sys.stderr, flush=True)  # fmt: skip
     print(f"monitor: receiving on {args.source}{where}; Ctrl-C stops", file=sys.stderr, flush=True)
     use_rich = not args.no_ui and sys.stdout.isatty()
     display = RichDisplay(args.source) if use_rich else PlainDisplay()
@@ -275,6 +291,8 @@ def _run(args: argparse.Namespace) -> int:
         display.close()
         session.close()
         transport.close()
+        if live is not None:
+            live.close()
     for row in session.snapshot(time.time_ns()):
         print("final: " + format_row(row))
     if receiver.overflow:
@@ -303,6 +321,9 @@ def recording_parts_to_replace(args: argparse.Namespace) -> list[Path]:
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add the `monitor` sub-command."""
+    from ropecam.host.monitor.foxglove_live import DEFAULT_ADDRESS
+    from ropecam.host.recording.encoding import add_encoding_option
+
     parser = subparsers.add_parser(
         "monitor", help="live view and MCAP recording of device streams", description=HELP,
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -323,6 +344,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     # --force also deletes the later parts (NAME_001.mcap, ...) of an earlier recording to --record.
     declare_outputs(parser, "record", derived=recording_parts_to_replace)
+    add_encoding_option(parser)
+    parser.add_argument(
+        "--foxglove",
+        nargs="?",
+        const=DEFAULT_ADDRESS,
+        metavar="HOST:PORT",
+        help=f"serve the decoded channels live to the Foxglove app over its WebSocket protocol (default "
+        f"{DEFAULT_ADDRESS}: this computer only; 0.0.0.0:8765 serves every network interface, see docs/monitor.md)",
+    )
     parser.add_argument("--roll-mb", type=float, default=0.0, help="start a new file after this many MB (0: never)")
     parser.add_argument("--roll-s", type=float, default=0.0, help="start a new file after this many seconds (0: never)")
     parser.add_argument("--fsync", action="store_true", help="sync each flush to disk (survives power loss)")

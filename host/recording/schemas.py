@@ -1,272 +1,286 @@
-"""JSON Schemas of the recorded channels: Foxglove's well-known message types (by their published names and field
-names, so Foxglove renders them) and ropecam's own Status record.
+"""Schemas of the recorded channels: Foxglove's well-known types and ropecam's own records.
 
-Only the fields ropecam writes are spelled out, each with the type Foxglove's published schema gives it; Foxglove
-identifies a well-known type by the schema name (``foxglove.SceneUpdate``, ...) and JSON encoding. Every schema is a
-valid JSON Schema (draft 2020-12) and tests validate the recorded messages against it.
+Foxglove types (``foxglove.SceneUpdate``, ``foxglove.PointCloud``, ``foxglove.FrameTransforms``, ``foxglove.Log``,
+``foxglove.RawImage``) exist in two encodings:
+
+- protobuf: the schema record is the ``FileDescriptorSet`` of the official ``foxglove-schemas-protobuf`` package.
+- JSON: the official JSON Schema, derived from those same descriptors by `derive_json_schema` with the rules of
+  Foxglove's own generator (``generateJsonSchema`` of foxglove-sdk): every field required, ``google.protobuf``
+  ``Timestamp``/``Duration`` as ``time``/``duration`` objects, ``bytes`` as base64 strings, enums as ``oneOf`` of
+  constants. The derived schemas are vendored in ``foxglove_jsonschema.json`` (package data, MIT licence of the
+  Foxglove schemas) so that JSON recording needs no protobuf; a test checks the file against the installed
+  package. Enum fields also carry ``"type": "integer"`` so that loaders without ``oneOf`` support read them too.
+
+ropecam's own types (``ropecam.Status``, ``ropecam.ModelError``) are JSON: only types and constructs the Foxglove
+app's JSON-schema loader reads (objects with ``properties``, no ``null`` or type unions): an unknown value is left
+out of the message, never written as null.
 """
 
 from __future__ import annotations
 
 import json
+from functools import cache
+from importlib import resources
 from typing import Any, Final
 
-__all__ = ["SCHEMAS", "schema_bytes"]
+from ropecam.host.recording.wire import WIRE_SCHEMA
+from ropecam.host.recording.wire import descriptor_set as wire_descriptor_set
 
-_DRAFT: Final = "https://json-schema.org/draft/2020-12/schema"
+__all__ = [
+    "FOXGLOVE_TYPES",
+    "ROPECAM_SCHEMAS",
+    "derive_json_schema",
+    "descriptor_set",
+    "foxglove_class",
+    "json_schema",
+    "schema_bytes",
+    "schema_record",
+]
+
+FOXGLOVE_TYPES: Final = (
+    "foxglove.SceneUpdate",
+    "foxglove.PointCloud",
+    "foxglove.FrameTransforms",
+    "foxglove.Log",
+    "foxglove.RawImage",
+)
+"""The Foxglove well-known types ropecam records."""
+VENDORED: Final = "foxglove_jsonschema.json"
+
+# FieldDescriptor.type values (google/protobuf/descriptor.proto)
+_DOUBLE, _FLOAT, _INT64, _UINT64, _INT32, _FIXED64, _FIXED32, _BOOL, _STRING = 1, 2, 3, 4, 5, 6, 7, 8, 9
+_MESSAGE, _BYTES, _UINT32, _ENUM, _SFIXED32, _SFIXED64, _SINT32, _SINT64 = 11, 12, 13, 14, 15, 16, 17, 18
 
 
-def _number(description: str) -> dict[str, Any]:
-    return {"type": "number", "description": description}
+def _scalar(field_type: int) -> dict[str, Any]:
+    if field_type in (_DOUBLE, _FLOAT):
+        return {"type": "number"}
+    if field_type in (_UINT32, _FIXED32, _UINT64, _FIXED64):
+        return {"type": "integer", "minimum": 0}
+    if field_type in (_INT32, _INT64, _SINT32, _SINT64, _SFIXED32, _SFIXED64):
+        return {"type": "integer"}
+    if field_type == _BOOL:
+        return {"type": "boolean"}
+    if field_type == _STRING:
+        return {"type": "string"}
+    if field_type == _BYTES:
+        return {"type": "string", "contentEncoding": "base64"}
+    raise ValueError(f"protobuf field type {field_type} has no JSON Schema mapping")
 
 
-def _object(title: str, description: str, properties: dict[str, Any]) -> dict[str, Any]:
-    return {"title": title, "description": description, "type": "object", "properties": properties}
-
-
-def _time(description: str) -> dict[str, Any]:
+def _time(title: str) -> dict[str, Any]:
+    sec = {"type": "integer", "minimum": 0} if title == "time" else {"type": "integer"}
     return {
         "type": "object",
-        "title": "time",
-        "description": description,
-        "properties": {
-            "sec": {"type": "integer", "minimum": 0},
-            "nsec": {"type": "integer", "minimum": 0, "maximum": 999_999_999},
-        },
-    }
-
-
-def _duration(description: str) -> dict[str, Any]:
-    schema = _time(description)
-    schema["title"] = "duration"
-    schema["properties"]["sec"] = {"type": "integer"}
-    return schema
-
-
-def _vector3(title: str, description: str) -> dict[str, Any]:
-    return _object(title, description, {axis: _number(f"{axis} coordinate") for axis in "xyz"})
-
-
-def _pose(description: str) -> dict[str, Any]:
-    quaternion = _object("foxglove.Quaternion", "Orientation", {axis: _number(f"{axis} value") for axis in "xyzw"})
-    return _object(
-        "foxglove.Pose",
-        description,
-        {"position": _vector3("foxglove.Vector3", "Position"), "orientation": quaternion},
-    )
-
-
-def _color(description: str) -> dict[str, Any]:
-    return _object("foxglove.Color", description, {c: _number(f"{c} in [0, 1]") for c in "rgba"})
-
-
-def _enum(title: str, description: str, members: dict[str, int]) -> dict[str, Any]:
-    return {
         "title": title,
-        "description": description,
-        "oneOf": [{"title": name, "const": value} for name, value in members.items()],
+        "properties": {"sec": sec, "nsec": {"type": "integer", "minimum": 0, "maximum": 999_999_999}},
     }
 
 
-def _line_primitive() -> dict[str, Any]:
-    point = _object("foxglove.Point3", "Point", {axis: _number(f"{axis} coordinate") for axis in "xyz"})
-    return _object(
-        "foxglove.LinePrimitive",
-        "A line strip, loop or list",
-        {
-            "type": _enum("foxglove.LineType", "Drawing mode", {"LINE_STRIP": 0, "LINE_LOOP": 1, "LINE_LIST": 2}),
-            "pose": _pose("Origin of the points"),
-            "thickness": _number("Line width"),
-            "scale_invariant": {"type": "boolean", "description": "Thickness in screen pixels instead of metres"},
-            "points": {"type": "array", "items": point, "description": "Points along the line"},
-            "color": _color("Colour of the whole line"),
-            "colors": {"type": "array", "items": _color("Per-point colour"), "description": "Per-point colours"},
-            "indices": {"type": "array", "items": {"type": "integer", "minimum": 0}, "description": "Point indices"},
-        },
-    )
+def derive_json_schema(descriptor: Any) -> dict[str, Any]:
+    """Return the JSON Schema of a Foxglove protobuf message type, as Foxglove's generator writes it.
 
-
-def _sphere_primitive() -> dict[str, Any]:
-    return _object(
-        "foxglove.SpherePrimitive",
-        "A sphere or ellipsoid",
-        {
-            "pose": _pose("Centre and orientation"),
-            "size": _vector3("foxglove.Vector3", "Diameter along each axis"),
-            "color": _color("Colour"),
-        },
-    )
-
-
-def _key_value() -> dict[str, Any]:
-    return _object(
-        "foxglove.KeyValuePair",
-        "A key with its value",
-        {"key": {"type": "string"}, "value": {"type": "string"}},
-    )
-
-
-def _scene_update() -> dict[str, Any]:
-    entity = _object(
-        "foxglove.SceneEntity",
-        "A visual element of a 3D scene",
-        {
-            "timestamp": _time("Time of the entity"),
-            "frame_id": {"type": "string", "description": "Frame of reference"},
-            "id": {"type": "string", "description": "Replaces any earlier entity with the same id on the topic"},
-            "lifetime": _duration("Removed after this long (zero: until replaced)"),
-            "frame_locked": {"type": "boolean", "description": "Follow frame_id as it moves"},
-            "metadata": {"type": "array", "items": _key_value(), "description": "Key-value metadata"},
-            "lines": {"type": "array", "items": _line_primitive(), "description": "Line primitives"},
-            "spheres": {"type": "array", "items": _sphere_primitive(), "description": "Sphere primitives"},
-        },
-    )
-    deletion = _object(
-        "foxglove.SceneEntityDeletion",
-        "Removal of earlier entities",
-        {
-            "timestamp": _time("Only entities earlier than this are removed"),
-            "type": _enum("foxglove.SceneEntityDeletionType", "What to remove", {"MATCHING_ID": 0, "ALL": 1}),
-            "id": {"type": "string", "description": "Entity id for MATCHING_ID"},
-        },
-    )
-    return _object(
-        "foxglove.SceneUpdate",
-        "An update to the entities of a 3D scene",
-        {
-            "deletions": {"type": "array", "items": deletion, "description": "Entities to delete"},
-            "entities": {"type": "array", "items": entity, "description": "Entities to add or replace"},
-        },
-    )
-
-
-def _point_cloud() -> dict[str, Any]:
-    numeric = {
-        "UNKNOWN": 0,
-        "UINT8": 1,
-        "INT8": 2,
-        "UINT16": 3,
-        "INT16": 4,
-        "UINT32": 5,
-        "INT32": 6,
-        "FLOAT32": 7,
-        "FLOAT64": 8,
+    Parameters
+    ----------
+    descriptor
+        ``google.protobuf.descriptor.Descriptor`` of a ``foxglove.*`` message (e.g. ``SceneUpdate.DESCRIPTOR``).
+    """
+    properties: dict[str, Any] = {}
+    for field in descriptor.fields:
+        if field.type == _MESSAGE:
+            name = field.message_type.full_name
+            if name == "google.protobuf.Timestamp":
+                schema = _time("time")
+            elif name == "google.protobuf.Duration":
+                schema = _time("duration")
+            else:
+                schema = derive_json_schema(field.message_type)
+        elif field.type == _ENUM:
+            values = field.enum_type.values
+            schema = {
+                "title": field.enum_type.full_name,
+                "type": "integer",
+                "oneOf": [{"title": value.name, "const": value.number} for value in values],
+            }
+        else:
+            schema = _scalar(field.type)
+        properties[field.name] = {"type": "array", "items": schema} if field.is_repeated else schema
+    return {
+        "title": descriptor.full_name,
+        "type": "object",
+        "properties": properties,
+        "required": list(properties),
     }
-    field_schema = _object(
-        "foxglove.PackedElementField",
-        "A field packed into each point",
-        {
-            "name": {"type": "string"},
-            "offset": {"type": "integer", "minimum": 0},
-            "type": _enum("foxglove.NumericType", "Numeric type of the field", numeric),
-        },
-    )
-    return _object(
-        "foxglove.PointCloud",
-        "Points with packed fields",
-        {
-            "timestamp": _time("Time of the points"),
-            "frame_id": {"type": "string", "description": "Frame of reference"},
-            "pose": _pose("Origin of the cloud"),
-            "point_stride": {"type": "integer", "minimum": 0, "description": "Bytes per point"},
-            "fields": {"type": "array", "items": field_schema, "description": "Fields of each point"},
-            "data": {"type": "string", "contentEncoding": "base64", "description": "Packed points, base64"},
-        },
-    )
 
 
-def _log() -> dict[str, Any]:
-    levels = {"UNKNOWN": 0, "DEBUG": 1, "INFO": 2, "WARNING": 3, "ERROR": 4, "FATAL": 5}
-    return _object(
-        "foxglove.Log",
-        "A log message",
-        {
-            "timestamp": _time("Time of the message"),
-            "level": _enum("foxglove.LogLevel", "Severity", levels),
-            "message": {"type": "string"},
-            "name": {"type": "string", "description": "Process or node name"},
-            "file": {"type": "string"},
-            "line": {"type": "integer", "minimum": 0},
-        },
-    )
+def foxglove_class(name: str) -> Any:
+    """Return the official protobuf class of ``foxglove.<Name>`` (ImportError when the package is missing)."""
+    import importlib
+
+    short = name.removeprefix("foxglove.")
+    module = importlib.import_module(f"foxglove_schemas_protobuf.{short}_pb2")
+    return getattr(module, short)
 
 
-def _raw_image() -> dict[str, Any]:
-    return _object(
-        "foxglove.RawImage",
-        "A raw image",
-        {
-            "timestamp": _time("Time of the image"),
-            "frame_id": {"type": "string", "description": "Frame of reference"},
-            "width": {"type": "integer", "minimum": 0},
-            "height": {"type": "integer", "minimum": 0},
-            "encoding": {"type": "string", "description": "Pixel encoding, e.g. mono8"},
-            "step": {"type": "integer", "minimum": 0, "description": "Bytes per row"},
-            "data": {"type": "string", "contentEncoding": "base64", "description": "Pixels, base64"},
-        },
-    )
+@cache
+def descriptor_set(name: str) -> bytes:
+    """Return the serialized ``FileDescriptorSet`` of a Foxglove type (its protobuf schema record in MCAP).
+
+    Raises
+    ------
+    ImportError
+        ``foxglove-schemas-protobuf`` is not installed.
+    """
+    from google.protobuf.descriptor_pb2 import FileDescriptorProto, FileDescriptorSet
+
+    files = FileDescriptorSet()
+    seen: set[str] = set()
+
+    def add(file_descriptor: Any) -> None:
+        if file_descriptor.name in seen:
+            return
+        seen.add(file_descriptor.name)
+        for dependency in file_descriptor.dependencies:
+            add(dependency)
+        proto = FileDescriptorProto()
+        file_descriptor.CopyToProto(proto)
+        files.file.append(proto)
+
+    add(foxglove_class(name).DESCRIPTOR.file)
+    return files.SerializeToString()
+
+
+@cache
+def _vendored() -> dict[str, dict[str, Any]]:
+    text = resources.files("ropecam.host.recording").joinpath(VENDORED).read_text(encoding="utf-8")
+    return json.loads(text)["schemas"]
 
 
 def _status() -> dict[str, Any]:
-    schema = _object(
-        "ropecam.Status",
-        "Device health, about once a second (see docs/protocol.md)",
-        {
-            "timestamp": _time("Device time of the status"),
-            "device_id": {"type": "integer", "minimum": 0, "maximum": 65535},
-            "frame_rate_hz": {"type": ["number", "null"]},
-            "frames_captured": {"type": "integer", "minimum": 0},
-            "frames_dropped": {"type": "integer", "minimum": 0},
-            "messages_dropped": {"type": "integer", "minimum": 0},
-            "exposure_us": {"type": "integer", "minimum": 0},
-            "gain_db": {"type": "number"},
-            "uptime_ns": {"type": "integer", "minimum": 0},
-            "cpu_load": {"type": ["number", "null"], "description": "null when unknown"},
-            "temperature_c": {"type": ["number", "null"], "description": "null when unknown"},
-            "counters": {"type": "object", "additionalProperties": {"type": "integer"}},
-        },
-    )
-    schema["required"] = ["device_id", "frames_captured", "frames_dropped"]
-    return schema
+    def integer(description: str) -> dict[str, Any]:
+        return {"type": "integer", "minimum": 0, "description": description}
+
+    counter = {
+        "title": "ropecam.Counter",
+        "type": "object",
+        "properties": {"name": {"type": "string"}, "value": {"type": "integer"}},
+        "required": ["name", "value"],
+    }
+    properties = {
+        "timestamp": _time("time") | {"description": "Device time of the status, on the host clock"},
+        "device_id": {"type": "integer", "minimum": 0, "maximum": 65535},
+        "frame_rate_hz": {"type": "number", "description": "Left out when unknown"},
+        "frames_captured": integer("Frames the camera delivered"),
+        "frames_dropped": integer("Frames the device lost"),
+        "messages_dropped": integer("Messages the sender dropped"),
+        "exposure_us": integer("Exposure time"),
+        "gain_db": {"type": "number"},
+        "uptime_ns": integer("Time since the daemon started"),
+        "cpu_load": {"type": "number", "description": "Left out when unknown"},
+        "temperature_c": {"type": "number", "description": "Left out when unknown"},
+        "counters": {"type": "array", "items": counter, "description": "Further named counters"},
+    }
+    return {
+        "title": "ropecam.Status",
+        "description": "Device health, about once a second (see docs/protocol.md)",
+        "type": "object",
+        "properties": properties,
+        "required": ["timestamp", "device_id", "frames_captured", "frames_dropped", "counters"],
+    }
 
 
 def _model_error() -> dict[str, Any]:
-    distances = {"type": "array", "items": {"type": ["number", "null"], "minimum": 0}}
-    schema = _object(
-        "ropecam.ModelError",
-        "Distance of measured material points from the ANCF model (ropecam replay --model)",
-        {
-            "timestamp": _time("Host receive time of the frame"),
-            "device_id": {"type": "integer", "minimum": 0, "maximum": 65535},
-            "frame_index": {"type": "integer", "minimum": 0},
-            "release_time_s": {"type": "number", "description": "Fitted release time on the device clock"},
-            "model_time_s": {
-                "type": "array",
-                "items": {"type": ["number", "null"]},
-                "description": "At exposure start, end (s since the release); null: past the end of the model run",
-            },
-            "s_m": {"type": "array", "items": {"type": "number", "minimum": 0}, "description": "Material points"},
-            "error_begin_mm": distances | {"description": "Per point at exposure start; null: not measured"},
-            "error_end_mm": distances | {"description": "Per point at exposure end; null: not measured"},
-            # null also for every point of a frame whose status is not OK and past the end of the model run
+    point = {
+        "title": "ropecam.ModelErrorPoint",
+        "type": "object",
+        "properties": {
+            "s_m": {"type": "number", "minimum": 0, "description": "Material point (arc length from the fixed end)"},
+            "error_begin_mm": {"type": "number", "minimum": 0, "description": "At exposure start; left out: not "
+                               "measured, frame not OK or past the end of the model run"},
+            "error_end_mm": {"type": "number", "minimum": 0, "description": "At exposure end; as error_begin_mm"},
         },
-    )
-    schema["required"] = ["device_id", "frame_index", "s_m", "error_begin_mm", "error_end_mm"]
-    return schema
+        "required": ["s_m"],
+    }  # fmt: skip
+    properties = {
+        "timestamp": _time("time") | {"description": "Time of the exposure on the host clock"},
+        "device_id": {"type": "integer", "minimum": 0, "maximum": 65535},
+        "frame_index": {"type": "integer", "minimum": 0},
+        "release_time_s": {"type": "number", "description": "Fitted release time on the device clock"},
+        "model_time_begin_s": {"type": "number", "description": "At exposure start, s since the release; left out "
+                               "past the end of the model run"},
+        "model_time_end_s": {"type": "number", "description": "At exposure end; as model_time_begin_s"},
+        "points": {"type": "array", "items": point, "description": "Distance from the model per material point"},
+    }  # fmt: skip
+    return {
+        "title": "ropecam.ModelError",
+        "description": "Distance of measured material points from the ANCF model (ropecam replay --model)",
+        "type": "object",
+        "properties": properties,
+        "required": ["timestamp", "device_id", "frame_index", "release_time_s", "points"],
+    }
 
 
-SCHEMAS: Final[dict[str, dict[str, Any]]] = {
-    "foxglove.SceneUpdate": _scene_update(),
-    "foxglove.PointCloud": _point_cloud(),
-    "foxglove.Log": _log(),
-    "foxglove.RawImage": _raw_image(),
-    "ropecam.Status": _status(),
-    "ropecam.ModelError": _model_error(),
-}
-for _schema in SCHEMAS.values():
-    _schema["$schema"] = _DRAFT
+ROPECAM_SCHEMAS: Final[dict[str, dict[str, Any]]] = {"ropecam.Status": _status(), "ropecam.ModelError": _model_error()}
 
 
-def schema_bytes(name: str) -> bytes:
-    """Return the JSON Schema named `name` as UTF-8 bytes (what the MCAP schema record holds)."""
-    return json.dumps(SCHEMAS[name], separators=(",", ":")).encode()
+def json_schema(name: str) -> dict[str, Any]:
+    """Return the JSON Schema of a recorded type (a `FOXGLOVE_TYPES` name or a `ROPECAM_SCHEMAS` name).
+
+    Raises
+    ------
+    KeyError
+        An unknown name.
+    """
+    if name in ROPECAM_SCHEMAS:
+        return ROPECAM_SCHEMAS[name]
+    return _vendored()[name]
+
+
+def schema_bytes(name: str, encoding: str = "jsonschema") -> bytes:
+    """Return the MCAP schema data of `name` in `encoding` (``jsonschema`` or ``protobuf``).
+
+    Raises
+    ------
+    KeyError
+        An unknown name or a ropecam type asked for in protobuf.
+    ImportError
+        ``protobuf`` asked for without ``foxglove-schemas-protobuf`` installed.
+    """
+    if name == WIRE_SCHEMA:
+        return wire_descriptor_set()
+    if encoding == "protobuf":
+        if name not in FOXGLOVE_TYPES:
+            raise KeyError(f"{name} has no protobuf schema (only the Foxglove types {FOXGLOVE_TYPES} do)")
+        return descriptor_set(name)
+    return json.dumps(json_schema(name), separators=(",", ":")).encode()
+
+
+def schema_record(name: str, message_encoding: str) -> tuple[str, bytes]:
+    """Return (schema encoding, schema data) of the MCAP schema record of `name` for messages in `message_encoding`.
+
+    Raises
+    ------
+    KeyError, ImportError
+        As `schema_bytes`.
+    """
+    encoding = "protobuf" if message_encoding == "protobuf" else "jsonschema"
+    return encoding, schema_bytes(name, encoding)
+
+
+def vendored_file_text() -> str:
+    """Return the content of ``foxglove_jsonschema.json`` derived from the installed official package."""
+    import importlib.metadata
+
+    schemas = {name: derive_json_schema(foxglove_class(name).DESCRIPTOR) for name in FOXGLOVE_TYPES}
+    document = {
+        "$comment": "JSON Schemas derived by ropecam.host.recording.schemas.derive_json_schema from the protobuf "
+        f"descriptors of foxglove-schemas-protobuf {importlib.metadata.version('foxglove-schemas-protobuf')} "
+        "(Foxglove schemas, MIT licence, https://github.com/foxglove/foxglove-sdk). Regenerate with "
+        "`python -m ropecam.host.recording.schemas > host/recording/foxglove_jsonschema.json`.",
+        "schemas": schemas,
+    }
+    return json.dumps(document, indent=1) + "\n"
+
+
+if __name__ == "__main__":
+    print(vendored_file_text(), end="")

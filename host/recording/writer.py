@@ -21,7 +21,7 @@ from typing import IO, Any, Final
 
 from mcap.writer import CompressionType, Writer
 
-from ropecam.host.recording.schemas import schema_bytes
+from ropecam.host.recording.schemas import schema_record
 from ropecam.shared.config import check_positive
 from ropecam.shared.errors import ConfigError
 
@@ -162,7 +162,7 @@ class Recorder:
         self._writer: Writer | None = None
         self._stream: IO[bytes] | None = None
         self._channels: dict[str, int] = {}
-        self._schemas: dict[str, int] = {}
+        self._schemas: dict[tuple[str, str], int] = {}
         self._good_offset = 0
         self._last_flush = time.monotonic()
         self._part_started = self._last_flush
@@ -180,14 +180,14 @@ class Recorder:
             more = f" (and {len(stale) - 1} more)" if len(stale) > 1 else ""
             raise ConfigError(
                 f"{stale[0]}{more} exists: a part of an earlier rolled recording to {self.config.path}; choose "
-                "another --record file, move those files away, or pass --overwrite to delete them"
+                "another --record file, move those files away, or pass --force to delete them"
             )
         for path in stale:
             try:
                 path.unlink()
             except OSError as exc:
                 raise ConfigError(f"cannot remove {path} of an earlier recording: {exc.strerror or exc}") from exc
-            log.info("removed %s of an earlier recording (--overwrite)", path)
+            log.info("removed %s of an earlier recording (--force)", path)
 
     @property
     def active(self) -> bool:
@@ -204,7 +204,7 @@ class Recorder:
         try:
             stream = self._opener(path, self.config.overwrite)
         except FileExistsError as exc:
-            message = f"{path} exists; choose another --record file or pass --overwrite"
+            message = f"{path} exists; choose another --record file or pass --force"
             if fatal:
                 raise ConfigError(message) from exc
             self._fail(message)
@@ -245,10 +245,11 @@ class Recorder:
             assert self._writer is not None
             schema_id = 0
             if schema_name is not None:
-                schema_id = self._schemas.get(schema_name, 0)
+                schema_id = self._schemas.get((schema_name, message_encoding), 0)
                 if not schema_id:
-                    schema_id = self._writer.register_schema(schema_name, "jsonschema", schema_bytes(schema_name))
-                    self._schemas[schema_name] = schema_id
+                    schema_encoding, data = schema_record(schema_name, message_encoding)
+                    schema_id = self._writer.register_schema(schema_name, schema_encoding, data)
+                    self._schemas[schema_name, message_encoding] = schema_id
             channel_id = self._writer.register_channel(topic, message_encoding, schema_id)
             self._channels[topic] = channel_id
         return channel_id
@@ -261,6 +262,7 @@ class Recorder:
         schema_name: str | None = None,
         message_encoding: str = "json",
         sequence: int = 0,
+        publish_time_ns: int | None = None,
     ) -> bool:
         """Add one message; False (counted in `unrecorded`) when the recording has stopped.
 
@@ -271,13 +273,15 @@ class Recorder:
         data
             Message bytes.
         log_time_ns
-            Host receive time (ns since the epoch).
+            Time of the message (ns since the epoch, host clock): for a frame, its exposure.
         schema_name
-            A name of `schemas.SCHEMAS`, or None for schemaless channels (the raw wire channel).
+            A name known to `ropecam.host.recording.schemas.schema_bytes`, or None for a schemaless channel.
         message_encoding
-            ``"json"`` for the schema channels; the raw channel uses its own encoding name.
+            ``"json"`` (schema stored as JSON Schema) or ``"protobuf"`` (schema stored as a FileDescriptorSet).
         sequence
             The wire sequence number (uint32), for tools that look at it.
+        publish_time_ns
+            Host receive time (default: `log_time_ns`).
         """
         if self._writer is None and self._next_part is not None:
             index, self._next_part = self._next_part, None
@@ -287,7 +291,8 @@ class Recorder:
             return False
         try:
             channel_id = self._channel(topic, schema_name, message_encoding)
-            self._writer.add_message(channel_id, log_time_ns, data, log_time_ns, sequence)
+            publish = log_time_ns if publish_time_ns is None else publish_time_ns
+            self._writer.add_message(channel_id, log_time_ns, data, publish, sequence)
         except OSError as exc:
             self._fail(f"writing {self.path} failed: {exc.strerror or exc}")
             self.unrecorded += 1

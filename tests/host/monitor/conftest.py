@@ -43,15 +43,32 @@ def monitor_process() -> Iterator[type[MonitorProcess]]:
 
 
 def read_mcap(path: Path) -> list[tuple[str, str | None, int, bytes]]:
-    """Return (topic, schema name, log time, data) of every message of a complete MCAP file, in file order."""
+    """Return (topic, schema name, log time, data) of every message of a complete MCAP file, in file order.
+
+    Raw wire messages come out as the wire bytes (unwrapped), others as stored.
+    """
     from mcap.reader import make_reader
+
+    from ropecam.host.recording.wire import RAW_TOPIC, unwrap
 
     with open(path, "rb") as handle:
         reader = make_reader(handle)
         return [
-            (channel.topic, schema.name if schema else None, message.log_time, message.data)
+            (
+                channel.topic,
+                schema.name if schema else None,
+                message.log_time,
+                unwrap(message.data, channel.message_encoding) if channel.topic == RAW_TOPIC else message.data,
+            )
             for schema, channel, message in reader.iter_messages(log_time_order=False)
         ]
+
+
+def read_messages(path: Path) -> list[tuple[str, str | None, int, dict]]:
+    """Return (topic, schema name, log time, message as dict) of every message, JSON or protobuf alike."""
+    from ropecam.host.recording.reader import decoded_messages
+
+    return [(topic, schema, log_time, data) for topic, schema, log_time, _, data in decoded_messages(path)]
 
 
 def send_paced(link: Transport, messages: list[bytes], fps: float = 119.0) -> list[float]:
@@ -77,6 +94,12 @@ def udp_port() -> int:
 def read_mcap_fixture():
     """`read_mcap(path)` -> [(topic, schema name, log time, data)]."""
     return read_mcap
+
+
+@pytest.fixture(name="read_messages")
+def read_messages_fixture():
+    """`read_messages(path)` -> [(topic, schema name, log time, message dict)]."""
+    return read_messages
 
 
 @pytest.fixture(name="send_paced")

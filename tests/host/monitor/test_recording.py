@@ -201,13 +201,13 @@ def test_rolled_recording_replays_across_parts(sim_device, tmp_path: Path, roll:
     session.close()
     parts = recording_parts(path)
     assert all(list(iter_raw([part])) for part in parts)
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in parts)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*(p.name for p in parts), "part.layout.json"])
     assert len(parts) >= 3 and parts[1] == part_path(path, 1)
     assert [data for data, _ in iter_raw(parts)] == messages
 
 
 def _record(path: Path, tag: bytes, count: int, roll_s: float, overwrite: bool = False) -> list[Path]:
-    from ropecam.host.session import RAW_ENCODING
+    from ropecam.host.recording.wire import LEGACY_ENCODING as RAW_ENCODING
 
     recorder = Recorder(RecordingConfig(path, roll_s=roll_s, overwrite=overwrite))
     for i in range(count):
@@ -226,7 +226,7 @@ def test_parts_of_an_earlier_recording_are_refused_or_deleted_never_mixed_in(tmp
     assert len(old) == 4 and [read_part_id(p)[1] for p in old] == [0, 1, 2, 3]
     assert len({read_part_id(p)[0] for p in old}) == 1  # one id for all parts
     path.unlink()
-    with pytest.raises(ConfigError, match=r"run_001\.mcap \(and 2 more\) exists.*--overwrite"):
+    with pytest.raises(ConfigError, match=r"run_001\.mcap \(and 2 more\) exists.*--force"):
         Recorder(RecordingConfig(path, roll_s=1.0))  # a leftover part would stop the recording at its first roll
     assert not path.exists()
     new = _record(path, b"NEW", 2, roll_s=0.0, overwrite=True)
@@ -369,15 +369,13 @@ def test_replay_exports_extract_json_lines_for_ropecam_compare(sim_device, tmp_p
 
 
 def test_replay_with_a_model_records_the_model_rope_and_its_error(
-    sim_device, tmp_path: Path, read_mcap, capsys
+    sim_device, tmp_path: Path, read_messages, capsys
 ) -> None:
-    import json
-
     import jsonschema
     import numpy as np
 
     from ropecam.host.calibration.files import write_plane
-    from ropecam.host.recording.schemas import SCHEMAS
+    from ropecam.host.recording.schemas import json_schema
     from ropecam.host.sim.rig_polylines import RIG_CAMERA, RIG_PLANE
 
     recorder = Recorder(RecordingConfig(tmp_path / "run.mcap"))
@@ -392,19 +390,19 @@ def test_replay_with_a_model_records_the_model_rope_and_its_error(
     args = ["replay", str(tmp_path / "run.mcap"), "--plane", str(plane), "--model", str(rope), "--record", str(out)]
     assert main(args) == 0
     assert "release at" in capsys.readouterr().err
-    records = read_mcap(out)
-    errors = [json.loads(d) for t, _, _, d in records if t == "/device7/model_error"]
-    scenes = [json.loads(d) for t, _, _, d in records if t == "/device7/plane/model"]
+    records = read_messages(out)
+    errors = [d for t, _, _, d in records if t == "/device7/model_error"]
+    scenes = [d for t, _, _, d in records if t == "/device7/plane/model"]
     assert len(errors) == len(scenes) == 12
     for error in errors:
-        jsonschema.validate(error, SCHEMAS["ropecam.ModelError"])
-        assert error["s_m"] == pytest.approx([0.411 * f for f in (0.25, 0.5, 0.75, 1.0)])
+        jsonschema.validate(error, json_schema("ropecam.ModelError"))
+        assert [p["s_m"] for p in error["points"]] == pytest.approx([0.411 * f for f in (0.25, 0.5, 0.75, 1.0)])
     model_rope = scenes[0]["entities"][0]["lines"][0]["points"]
     xy = np.array([[p["x"], p["y"]] for p in model_rope])
     assert np.hypot(*xy[0]) < 1e-6  # pinned at the plane origin, like the measured rope
     assert np.sum(np.hypot(*np.diff(xy, axis=0).T)) == pytest.approx(0.411, rel=0.01)
     # the model's swing is not the simulator's curve, but it follows it: errors of centimetres, not metres
-    finite = [e for error in errors for e in error["error_begin_mm"] + error["error_end_mm"] if e is not None]
+    finite = [p[k] for e in errors for p in e["points"] for k in ("error_begin_mm", "error_end_mm") if k in p]
     assert finite and max(finite) < 100  # 79 mm at the tip late in the swing
     assert main(["replay", str(tmp_path / "run.mcap"), "--model", str(rope)]) == 2  # needs --plane and --record
 
@@ -419,7 +417,7 @@ def test_replay_with_a_model_records_the_model_rope_and_its_error(
 
 def test_replay_that_fails_leaves_no_output_file(tmp_path: Path, capsys) -> None:
     from ropecam.host.calibration.files import write_plane
-    from ropecam.host.session import RAW_ENCODING
+    from ropecam.host.recording.wire import LEGACY_ENCODING as RAW_ENCODING
     from ropecam.host.sim.rig_polylines import RIG_CAMERA, RIG_PLANE
     from ropecam.shared.protocol.records import Log
     from ropecam.shared.protocol.wire import encode_message
