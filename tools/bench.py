@@ -23,6 +23,7 @@ COMMANDS = {
     "startup": "bench_startup",
     "simulate": "bench_simulate",
     "boards": "bench_boards",
+    "recording-size": "bench_recording_size",
 }
 """Subcommand -> module of `ropecam_tools` (with ``add_arguments(parser)`` and ``run(args) -> int``)."""
 

@@ -16,6 +16,7 @@ COMMANDS = {
     "calibration": "eval_calibration",
     "harris": "eval_harris",
     "e2e": "eval_e2e",
+    "montage": "sim_montage",
 }
 """Subcommand -> module of `ropecam_tools` (with ``add_arguments(parser)`` and ``run(args) -> int``)."""
 

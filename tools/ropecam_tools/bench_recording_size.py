@@ -4,12 +4,13 @@ Replays the raw wire channel of RECORDING (e.g. the demo's run.mcap) twice throu
 per encoding (with --plane: the plane channels and transforms too), and prints per encoding the file size, the
 compressed chunk bytes, both per frame, and per channel the zstd-compressed bytes per message.
 
-    python tools/foxglove_sizes.py demo-out/run.mcap --plane demo-out/plane.yaml
+    python tools/bench.py recording-size demo-out/run.mcap --plane demo-out/plane.yaml
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 from collections import defaultdict
 from pathlib import Path
@@ -18,6 +19,7 @@ import zstandard
 from mcap.reader import make_reader
 
 from ropecam.host.cli import main as ropecam
+from ropecam_tools.cli import UsageError
 
 
 def _sizes(path: Path) -> tuple[int, int, int, dict[str, tuple[int, int]]]:
@@ -35,11 +37,16 @@ def _sizes(path: Path) -> tuple[int, int, int, dict[str, tuple[int, int]]]:
     return path.stat().st_size, chunks, frames, channels
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("recording", type=Path)
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The recording and the optional plane calibration."""
+    parser.add_argument("recording", type=Path, help="an MCAP recording with the raw wire channel (e.g. demo run.mcap)")
     parser.add_argument("--plane", type=Path, help="plane.yaml: also the plane channels in metres")
-    args = parser.parse_args()
+
+
+def run(args: argparse.Namespace) -> int:
+    """Replay the recording in each encoding and print the bytes per frame."""
+    if not args.recording.is_file():
+        raise UsageError(f"{args.recording}: no such recording")
     results = {}
     with tempfile.TemporaryDirectory() as folder:
         for encoding in ("json", "protobuf"):
@@ -47,7 +54,8 @@ def main() -> None:
             command = ["replay", str(args.recording), "--record", str(out), "--encoding", encoding]
             command += ["--plane", str(args.plane)] if args.plane else []
             if ropecam(command) != 0:
-                raise SystemExit(f"ropecam {' '.join(command)} failed")
+                print(f"ropecam {' '.join(command)} failed", file=sys.stderr)
+                return 1
             results[encoding] = _sizes(out)
     for encoding, (file_bytes, chunk_bytes, frames, channels) in results.items():
         print(f"{encoding}: {frames} frames, file {file_bytes} B ({file_bytes / frames:.0f} B/frame), "
@@ -57,6 +65,4 @@ def main() -> None:
     (json_file, json_chunks, *_), (proto_file, proto_chunks, *_) = results["json"], results["protobuf"]
     print(f"protobuf / json per frame: file {proto_file / json_file:.3f}, chunks {proto_chunks / json_chunks:.3f}")
 
-
-if __name__ == "__main__":
-    main()
+    return 0
