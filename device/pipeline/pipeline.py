@@ -14,16 +14,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import buffer_table, i32, resident_zeros, ro
+from ropecam.device.pipeline._views import i32, ro
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.contour import ContourTracer
-from ropecam.device.pipeline.edges import EdgeDetector
+from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
 from ropecam.device.pipeline.motion import MotionModel
 from ropecam.device.pipeline.result import FrameResult, FrameStatus
 from ropecam.device.pipeline.split import BlurSplitter
 from ropecam.device.pipeline.split_outcome import SplitOutcome
 from ropecam.device.pipeline.time_order import DEFAULT_PERIOD_NS, TimeOrder
 from ropecam.device.pipeline.tracking import PointTracker
+from ropecam.device.pipeline.workspace import COARSE_BLOCK, RoiBuffers, Workspace, expose, steady_constants
 
 __all__ = ["Pipeline"]
 
@@ -34,8 +35,6 @@ _POLARITY_FRAMES = 5
 """Frames whose polarity votes decide the polarity afterwards, when the config says auto."""
 _ROI_RETRIES = 2
 """Times a band is widened around a contour that runs out of it before the next way of searching is tried."""
-_COARSE_BLOCK = 4
-"""Cell size (px) of the coarse search for the rope when there is no ROI."""
 _COARSE_MIN_CELLS = 8
 """Smallest group of active cells the coarse search keeps (a hot pixel makes a cross of 5; a rope of the
 smallest accepted contour, 40 px, about 20)."""
@@ -43,6 +42,13 @@ _COARSE_DILATE = 2
 """Cells added around the kept cells."""
 
 
+_NO_COPY = (
+    "a Pipeline cannot be copied or pickled: its steady frames read a table of the raw addresses of its buffers, "
+    "which a copy would share; make a new Pipeline(config, image_size) instead"
+)
+
+
+@expose("workspace.roi", RoiBuffers)
 class Pipeline:
     """Measure the rope in each frame.
 
@@ -61,21 +67,24 @@ class Pipeline:
         self.config = config
         self.shape = (height, width)
         cap = config.max_contour
-        self.edges = EdgeDetector(height, width, config.smooth_sigma_px, config.canny_low, config.canny_high)
-        self.tracer = ContourTracer(height, width, cap, config.min_contour_px)
+        weights = gaussian_weights(config.smooth_sigma_px)
+        fraction = np.array(config.material_points_m, np.float64) / config.rope_length_m
+        self.workspace = ws = Workspace.make(height, width, cap, weights, fraction)
+        """Every buffer of the per-frame path, by stage (its arrays cannot be replaced: `steady_frame`'s table
+        holds their addresses)."""
+        self.edges = EdgeDetector(
+            height, width, config.smooth_sigma_px, config.canny_low, config.canny_high, buffers=ws.edges
+        )
+        self.tracer = ContourTracer(height, width, cap, config.min_contour_px, buffers=ws.contour)
         self.splitter = BlurSplitter(
             cap, config.method, config.static_ratio, config.corner_scale_px,
             config.paper_endpoint_radius_px, config.output_step_px, config.tip_cap, config.smooth_sigma_px,
-            config.lens_blur_px, output_smoothing_px=config.output_smoothing_px,
+            config.lens_blur_px, output_smoothing_px=config.output_smoothing_px, buffers=ws.split,
         )  # fmt: skip
         self.tracker = PointTracker(
-            config.material_points_m, config.rope_length_m, config.length0_px, config.length0_frames
+            config.material_points_m, config.rope_length_m, config.length0_px, config.length0_frames, ws.track
         )
         self.splitter.paper.radius_scaled = config.paper_endpoint_radius_scaled
-        self.lo = np.zeros(height, np.int32)
-        self.hi = np.zeros(height, np.int32)
-        self.grow_lo = np.zeros(height, np.int32)
-        self.grow_hi = np.zeros(height, np.int32)
         # Read-only views made once (a view per kernel call costs microseconds of Python), int32 constants.
         self._lo_ro, self._hi_ro, self._grow_lo_ro, self._grow_hi_ro = (
             ro(a) for a in (self.lo, self.hi, self.grow_lo, self.grow_hi)
@@ -87,15 +96,9 @@ class Pipeline:
         self.prev_points = self.tracer.points
         self._prev_points_ro = self.tracer.points_ro
         self.prev_count = 0
-        # The last contour moved by the prediction (`band_stage` writes it and measures the band's error on it
-        # in the next frame's call) and an empty one for the widening's bands, whose moved points are not kept.
-        self._moved = np.zeros((cap, 2), np.float32)
-        self._no_moved = np.zeros((0, 2), np.float32)
         self._need_gap_ns = 0  # the time gap over which the motion model's band error (profile) was measured
-        self.turn_cap = np.zeros(cap, np.float32)
-        self.begin_buf = np.zeros((cap, 2), np.float32)
-        self.end_buf = np.zeros((cap, 2), np.float32)
-        self.fixed = np.zeros(2, np.float32)
+        self.fixed = ws.fixed_end.fixed
+        self.turn_cap = ws.fixed_end.turn
         self._fixed_known = config.fixed_end_uv is not None
         self._fixed_frames = 0
         self._first_ends: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None
@@ -111,35 +114,40 @@ class Pipeline:
         self._exposure_value: tuple[int, str] = (0, "")
         self._u8 = np.dtype(np.uint8)
         self._strides = (width, 1)
-        self._time_order = TimeOrder()
+        self._time_order = TimeOrder(ws.order)
         self._period_ns: int | None = None  # the shortest time between frame starts seen: the frame period
         self._last_frame_t_ns: int | None = None
-        self._motion = MotionModel()
+        self._motion = MotionModel(ws.motion)
         motion = self._motion
         self._band_args = (
             config.roi_margin_px, height, width, *motion.need_args, self.fixed, motion.state, motion.log, motion.need,
-            motion.profile, motion.band, self.lo, self.hi, self._moved,
+            motion.profile, motion.band, self.lo, self.hi, self.moved,
         )  # fmt: skip
         """`band_stage`'s arguments after the frame's (Python ints and floats for its int64/float64 scalars)."""
         self._roi_t_ns: int | None = None
-        self._steady_out = np.zeros(K.STEADY_SLOTS, np.float64)
+        self._steady_out = ws.steady_out
         self.one_call = True
         """Make a steady frame in one kernel call (`steady_frame`); False: with the calls one by one (the same
         results; the tools that time or record single kernels set it)."""
         self._steady_bound: tuple | None = None
-        """(the split's steady key and argument list, the tracker's scratch and Lc0 they were made with,
-        `steady_frame`'s argument list, the buffers of its table: kept alive with it)."""
+        """(the split's steady key and the rope width's tables, Lc0, `steady_frame`'s argument list) of the last
+        steady frame: its table holds the addresses of the workspace's buffers and of those tables."""
         self.frames_full = 0
         self.frames_coarse = 0
         self.frames_roi = 0
         self.roi_retries = 0
-        cells = (max(1, height // _COARSE_BLOCK), max(1, width // _COARSE_BLOCK))
-        self.coarse_sums = resident_zeros(cells, np.int32)
-        self.coarse_labels = resident_zeros(cells, np.int32)
-        self.coarse_stack = resident_zeros(max(cells[0] * cells[1], width), np.int32)
         # A cell is active when its mean differs from a neighbour's by canny_low / 8 grey levels: the step over
         # which the Sobel magnitude of a sharp edge reaches the low threshold.
-        self._coarse_step = i32(max(1, round(_COARSE_BLOCK * _COARSE_BLOCK * config.canny_low / 8.0)))
+        self._coarse_step = i32(max(1, round(COARSE_BLOCK * COARSE_BLOCK * config.canny_low / 8.0)))
+
+    def __copy__(self) -> Pipeline:
+        raise TypeError(_NO_COPY)
+
+    def __deepcopy__(self, memo: dict[int, object]) -> Pipeline:
+        raise TypeError(_NO_COPY)
+
+    def __reduce_ex__(self, protocol: object) -> tuple[object, ...]:
+        raise TypeError(_NO_COPY)
 
     # ----------------------------------------------------------------------------------------------------------
     def process(self, frame: object, index: int, t_ns: int, exposure_us: float | None) -> FrameResult:
@@ -256,53 +264,33 @@ class Pipeline:
     def _steady_frame_args(self) -> list | None:
         """`steady_frame`'s argument list when this frame can be one kernel call: the split took its steady path
         on the last frame with this pipeline's buffers, and Lc0 is settled (so `track_frame` runs). Made once per
-        steady state (the same buffers every frame); `_measure_steady` sets the per-frame slots. None otherwise."""
+        rope width and Lc0 (its table holds the addresses of the workspace's buffers, which cannot be replaced,
+        and of the width's tables); `_measure_steady` sets the per-frame slots. None otherwise."""
         call = self.splitter.steady_call()
-        tracker = self.tracker
-        if call is None or tracker.length0_settled_px < 0.0:
+        length0_px = self.tracker.length0_settled_px
+        if call is None or length0_px < 0.0:
             return None
-        key, split_args = call
+        key, width_tables = call
         bound = self._steady_bound
-        if (
-            bound is not None
-            and bound[0] is key
-            and bound[1] is split_args
-            and bound[2] is tracker.work
-            and bound[3] == tracker.length0_settled_px
-        ):
-            return bound[4]
+        if bound is not None and bound[0] is key and bound[1] is width_tables and bound[2] == length0_px:
+            return bound[3]
         self._steady_bound = None
         e, tracer = self.edges, self.tracer
         width_px, fixed_rc, _, polarity = self._steady  # type: ignore[misc]  # `_measure` checked it
-        # The split's steady path was taken with what this pipeline passes it (`_measure_contour`), and its bound
-        # arrays are views of this pipeline's buffers: `steady_frame` passes the split those buffers themselves.
+        # The split's steady path was taken with what this pipeline passes it (`_measure_contour`): the
+        # workspace's buffers, which `steady_frame` passes it too.
         ours = (tracer.points, tracer.chain, e.gx, e.gy, e.mag, e.smooth, e, fixed_rc)
-        views = (tracer.points, tracer.chain, e.mag, e.gx, e.gy)
-        if not (
-            all(k is o for k, o in zip(key[:8], ours, strict=True))
-            and key[8] == width_px
-            and key[9] == polarity
-            and split_args[1] is e
-            and all(_same_memory(v, o) for v, o in zip(split_args[3:8], views, strict=True))
-            and split_args[9] is e.weights_ro
-            and split_args[14] is e.tmp
-            and split_args[15] is e.smooth
-        ):
+        if not (all(k is o for k, o in zip(key[:8], ours, strict=True)) and key[8] == width_px and key[9] == polarity):
             return None
-        order, motion, config = self._time_order, self._motion, self.config
-        d = tracer.detect_args(e)
-        # `STEADY_BUFFERS`' order: band_stage's, detect_and_trace's, split_frame's, track_frame's, then the results.
-        buffers = (
-            tracer.points, self.fixed, motion.state, motion.log, motion.need, motion.profile, motion.band, self.lo,
-            self.hi, self._moved, *d[:1], *d[4:], split_args[12], split_args[13], *split_args[16:28], order.state,
-            order.hist_rc, tracker.fraction, tracker.out, tracker.lengths_px, tracker.work, self._steady_out,
+        motion, config = self._motion, self.config
+        gain, floor_px, floor_share = motion.need_args
+        constants = steady_constants(
+            margin_px=config.roi_margin_px, height=self.shape[0], width=self.shape[1], gain=gain, floor_px=floor_px,
+            floor_share=floor_share, low=e.low, high=e.high, min_pixels=tracer.min_pixels, length0_px=length0_px,
         )  # fmt: skip
-        constants = np.array(
-            [config.roi_margin_px, *self.shape, *motion.need_args, d[1], d[2], d[3], tracker.length0_settled_px],
-            np.float64,
-        )
-        args = [None, 0, False, False, False, 0, 0, 0, 0, 0.0, buffer_table(buffers, K.STEADY_BUFFERS), constants]
-        self._steady_bound = (key, split_args, tracker.work, tracker.length0_settled_px, args, buffers)
+        table = self.workspace.steady_table(width_tables)
+        args = [None, 0, False, False, False, 0, 0, 0, 0, 0.0, table, constants]
+        self._steady_bound = (key, width_tables, length0_px, args)
         return args
 
     def _measure_steady(self, image: NDArray[np.uint8], result: FrameResult, exposure_ns: int, args: list) -> None:
@@ -504,7 +492,7 @@ class Pipeline:
     def _locate_elsewhere(self, image: NDArray[np.uint8]) -> tuple[int, bool]:
         """`_locate` without a band: around the coarse look's cells, else in the whole frame."""
         kept = K.coarse_spans(
-            ro(image), i32(_COARSE_BLOCK), self._coarse_step, i32(_COARSE_MIN_CELLS), i32(_COARSE_DILATE),
+            ro(image), i32(COARSE_BLOCK), self._coarse_step, i32(_COARSE_MIN_CELLS), i32(_COARSE_DILATE),
             self.coarse_sums, self.coarse_labels, self.coarse_stack, self.lo, self.hi,
         )  # fmt: skip
         if kept > 0:
@@ -537,7 +525,7 @@ class Pipeline:
                 fr, fc = self.fixed.tolist() if self._fixed_known else (0.0, 0.0)
                 K.spans_around_chain(
                     self.tracer.points_ro, n, grow, 0.0, self._motion.profile_ro, 1.0, 0.0, fr, fc, self.shape[0],
-                    self.shape[1], self.grow_lo, self.grow_hi, self._no_moved,
+                    self.shape[1], self.grow_lo, self.grow_hi, self.no_moved,
                 )  # fmt: skip
                 K.union_spans(self._grow_lo_ro, self._grow_hi_ro, self.lo, self.hi)
         self.roi_retries += attempt
@@ -664,13 +652,3 @@ def _exposure_ns(exposure_us: object) -> tuple[int, str]:
     if not math.isfinite(value) or value < 0:
         return 0, f"exposure_us is {value}, expected a finite number of microseconds >= 0 (0 = unknown)"
     return round(value * 1000.0), ""
-
-
-def _same_memory(view: NDArray, array: NDArray) -> bool:
-    """Whether `view` shows exactly the elements of `array` (the same address, shape, strides and type)."""
-    return (
-        view.__array_interface__["data"][0] == array.__array_interface__["data"][0]
-        and view.shape == array.shape
-        and view.strides == array.strides
-        and view.dtype == array.dtype
-    )

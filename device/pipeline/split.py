@@ -20,10 +20,12 @@ from ropecam.device.pipeline.split_fallback import SplitFallbacks
 from ropecam.device.pipeline.split_measure import SplitMeasuring
 from ropecam.device.pipeline.split_outcome import SplitOutcome
 from ropecam.device.pipeline.split_steady import SplitSteady
+from ropecam.device.pipeline.workspace import SplitBuffers, expose
 
 __all__ = ["BlurSplitter", "SplitOutcome"]
 
 
+@expose("buffers", SplitBuffers)
 class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
     """Split a rope contour by one of the methods (``blur_split``, ``paper``, ``centerline``).
 
@@ -64,10 +66,15 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
         smooth_sigma_px: float = 1.0,
         lens_blur_px: float = 0.5,
         output_smoothing_px: float = 0.0,
+        buffers: SplitBuffers | None = None,
     ) -> None:
         self.output_smoothing = np.float32(output_smoothing_px)
-        self.scratch = np.zeros((3, capacity), np.float64)
-        """`arc`, `fixed_dist`, `slope_work` in one array (`split_frame`)."""
+        if buffers is None:
+            buffers = SplitBuffers.make(capacity)
+        elif buffers.turn.shape[0] != capacity:
+            raise ValueError(f"buffers are for {buffers.turn.shape[0]} contour points, expected {capacity}")
+        self.buffers = buffers
+        """The split's buffers (`SplitBuffers`; each also a read-only attribute: ``self.sides``)."""
         self.arc, self.fixed_dist, self.slope_work = self.scratch[0], self.scratch[1], self.scratch[2]
         self.method = method
         self.paper = PaperSegmenter(capacity, paper_radius_px, output_step_px=output_step_px)
@@ -83,27 +90,15 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
         corner turns about 45 degrees, smeared over the chord."""
         self.failure = ""
         """Why the last `split` returned None."""
-        self.lines = np.zeros((3, capacity), np.float32)
-        """`work`, `sweeps_a`, `sweeps_b` in one array (`split_shapes_packed`)."""
         self.work, self.sweeps_a, self.sweeps_b = self.lines[0], self.lines[1], self.lines[2]
         self.sweep_px = 0.0
-        self.samples = np.zeros(2 * capacity, np.float32)
         self._contrasts: list[float] = []
         self._contrast_cache = float("nan")
         self.static_ratio = float(static_ratio)
         self.corner_scale = int(corner_scale_px)
         self.step = np.float32(output_step_px)
-        self.turn = np.zeros(capacity, np.float32)
-        self.idx = np.zeros(4, np.int32)
         self._refresh: Callable[[int, int, int, int], None] | None = None
-        self.sides = np.zeros((4, capacity, 2), np.float32)
-        """`side_a`, `side_b`, `out_a`, `out_b` in one array (`split_shapes_packed`)."""
         self.side_a, self.side_b, self.out_a, self.out_b = self.sides[0], self.sides[1], self.sides[2], self.sides[3]
-        self.dist = np.zeros(capacity, np.float32)
-        self.seg = np.zeros((2, 2), np.float32)
-        self.info = np.zeros(K.FRAME_INFO, np.float64)
-        self.state = np.zeros(K.FRAME_STATE, np.float64)
-        """`split_frame`'s per-frame inputs (fixed end, polarity, contrast, last sweep)."""
         self._state_key: tuple[tuple[float, float], np.float32, float] | None = None
         self._count = 0
         """The stored contour's point count (`_n`)."""

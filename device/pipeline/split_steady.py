@@ -45,7 +45,7 @@ class SplitSteady:
             args = self._frame_args = [
                 consts, edge_stage, self._bound, self._points, self._chain, self._mag_ro, self._gx, self._gy,
                 frame, edge_stage.weights_ro, edge_stage.spans[0], edge_stage.spans[1],
-                edge_stage._box_lo, edge_stage._box_hi, edge_stage.tmp, edge_stage.smooth, consts.frame_params,
+                edge_stage.box_lo, edge_stage.box_hi, edge_stage.tmp, edge_stage.smooth, consts.frame_params,
                 state, consts.curves, consts.table_ro, consts.sweep_index, self.lines, self.sides, self.scratch,
                 self.turn, self.idx, self.seg, self.info,
             ]  # fmt: skip
@@ -64,15 +64,15 @@ class SplitSteady:
         args[10], args[11] = edge_stage.spans
         return self.frame_outcome(K.split_frame(*args[3:]), fixed_rc)
 
-    def steady_call(self) -> tuple[tuple, list] | None:
-        """The steady path's key and `split_frame`'s argument list when the last `split` took that path: the next
-        `split` with the arguments of the key (points, chain, gx, gy, mag, smooth, edge stage, fixed end, width,
-        polarity) takes it again. None when it would not. `steady_frame` makes that call from compiled code, then
-        `adopt_frame` takes its results."""
+    def steady_call(self) -> tuple[tuple, Any] | None:
+        """The steady path's key and the rope width's tables (`WidthConstants`) when the last `split` took that
+        path: the next `split` with the arguments of the key (points, chain, gx, gy, mag, smooth, edge stage,
+        fixed end, width, polarity) takes it again, with those tables. None when it would not. `steady_frame`
+        makes that `split_frame` call from compiled code, then `adopt_frame` takes its results."""
         key, args = self._steady_key, self._frame_args
         if key is None or args is None:
             return None
-        return key, args
+        return key, args[0]
 
     def adopt_frame(self, status: int, n: int, fixed_rc: tuple[float, float]) -> SplitOutcome | bool | None:
         """Take the results of a `split_frame` call made inside `steady_frame` (with ``state[4]`` = `sweep_px`,
