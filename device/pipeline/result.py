@@ -14,7 +14,7 @@ from ropecam.shared.protocol.frame_result import FrameStatus, Method
 from ropecam.shared.protocol.jsonl import frame_result_json
 
 # FrameStatus and Method are the wire protocol's: one definition of what happened to a frame, on both sides.
-__all__ = ["FrameResult", "FrameStatus", "Method", "exposure_in_ns", "frame_problem", "to_wire"]
+__all__ = ["FrameResult", "FrameStatus", "Method", "SplitOutcome", "exposure_in_ns", "frame_problem", "to_wire"]
 
 
 def _uv(points: NDArray[np.float32] | None, digits: int = 3) -> list[list[float]] | None:
@@ -72,6 +72,22 @@ class FrameResult:
             message=self.message,
         )
         return record
+
+
+@dataclass(slots=True)
+class SplitOutcome:
+    """The shapes the split found in one contour (views into the splitter's buffers, valid until its next call).
+
+    `shape_a` and `shape_b` run from the fixed end to the tip; for single-shape methods they are the same array.
+    They are not yet in time order: the pipeline decides which one is the start of the exposure.
+    """
+
+    method: Method
+    shape_a: NDArray[np.float32]
+    shape_b: NDArray[np.float32]
+    segmentation_points: NDArray[np.float32] | None
+    width_px: float
+    sweep_px: float
 
 
 def _wire_uv(points: NDArray[np.float32] | None) -> NDArray[np.float32] | None:
