@@ -215,25 +215,27 @@ class Pipeline:
         """Measure a steady frame in one kernel call (`SteadyFrame`), then go on from where the call stopped as
         `RopeLocator.locate` and `_measure_contour` go on after those calls: the same state and result as the
         calls one by one."""
-        done = self._steady.run(args, image, result.t_ns, result.t_end_ns, exposure_ns, self.max_age_ns())
-        if done.stop == K.STEADY_AFTER_CONTOUR:
-            n, used_roi = self.locator.locate_in_band(image, done.motion_px, done.gap_ns, done.points)
+        stop, n, gap_ns, motion_px, status, tracked = self._steady.run(
+            args, image, result.t_ns, result.t_end_ns, exposure_ns, self.max_age_ns()
+        )
+        if stop == K.STEADY_AFTER_CONTOUR:
+            n, used_roi = self.locator.locate_in_band(image, motion_px, gap_ns, n)
             self._measure_contour(image, result, exposure_ns, n, used_roi)
             return
         # The contour lies whole in the band and off the image border: `locate_in_band` and `_measure_contour`
         # up to the split.
-        self.locator.found_in_band(done.gap_ns)
+        self.locator.found_in_band(gap_ns)
         result.full_frame = False
-        self._keep_contour(result, done.points)
+        self._keep_contour(result, n)
         width_px, fixed_rc, _, polarity = self.traits.settled  # type: ignore[misc]  # `SteadyFrame.args` checked it
-        outcome = self.splitter.adopt_frame(done.split_status, done.points, fixed_rc)
+        outcome = self.splitter.adopt_frame(status, n, fixed_rc)
         if outcome is False:  # a buffer too small for the one-call split: the split step by step
             e = self.edges
             outcome = self.splitter.split(
-                self.tracer.points, self.tracer.chain, done.points, fixed_rc, width_px, e.gx, e.gy, e.edges, e.mag,
+                self.tracer.points, self.tracer.chain, n, fixed_rc, width_px, e.gx, e.gy, e.edges, e.mag,
                 e.smooth, polarity, edge_stage=e, frame=image,
             )  # fmt: skip
-        self._finish(result, outcome, exposure_ns, done.tracked)
+        self._finish(result, outcome, exposure_ns, tracked)
 
     def _measure_contour(
         self, image: NDArray[np.uint8], result: FrameResult, exposure_ns: int, n: int, used_roi: bool

@@ -144,7 +144,7 @@ class BlurSplitter:
 
     @property
     def _n(self) -> np.int32:
-        """The stored contour's point count as the kernels take it (made on use: the steady path does not)."""
+        """The stored contour's point count as the kernels take it (made on use: the one-call path does not)."""
         return np.int32(self._count)  # NumPy 2 refuses a value out of the int32 range
 
     @_n.setter
@@ -225,7 +225,7 @@ class BlurSplitter:
             and frame is not None
         ):
             # The same contour buffers, edge stage, fixed end, width and polarity as the last frame, which took
-            # the steady path: everything `_prepare` and the checks below would set is set already.
+            # the one-call path: everything `_prepare` and the checks below would set is set already.
             self._smooth = smooth
             self.failure = "contour found but no segmentation points"
             self._count = n
@@ -236,7 +236,7 @@ class BlurSplitter:
         self._smooth = smooth
         refresh = None
         if edge_stage is not None and frame is not None:
-            # Made only when a step of the sequence reads the smoothed image (not on the steady path).
+            # Made only when a step of the sequence reads the smoothed image (not on the one-call path).
             refresh = (
                 edge_stage.refresh if frame is edge_stage.frame else functools.partial(edge_stage.smooth_box, frame)
             )
@@ -485,17 +485,11 @@ class BlurSplitter:
         self.seg[1] = points[e2]
         return SplitOutcome(Method.STATIC_FALLBACK, shape, shape, None, self.width, 0.0)
 
-    def steady_call(self) -> tuple[tuple, WidthTables] | None:
-        """The one-call path's key and width tables when the last `split` took it (`SplitFrameCall.steady_call`):
-        the pipeline's `SteadyFrame` makes that `split_frame` call inside `steady_frame`, then `adopt_frame` takes
-        its results. None when the next `split` would not take it."""
-        return self.frame_call.steady_call()
-
     def adopt_frame(self, status: int, n: int, fixed_rc: tuple[float, float]) -> SplitOutcome | bool | None:
         """Take the results of a `split_frame` call made inside `steady_frame` (with the state `split` would have
-        set, on the contour, frame and spans of the key of `steady_call`), as `split` would have after making it.
-        Returns as `split`, or False when the kernel reported a full buffer: `split` then redoes the frame's split
-        step by step (it makes the same `split_frame` call first, with the same result)."""
+        set, on the contour, frame and spans of the key of `SplitFrameCall.one_call_key`), as `split` would have
+        after making it. Returns as `split`, or False when the kernel reported a full buffer: `split` then redoes
+        the frame's split step by step (it makes the same `split_frame` call first, with the same result)."""
         self.failure = "contour found but no segmentation points"
         self._count = n
         return self._frame_outcome(status, fixed_rc)

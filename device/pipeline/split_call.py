@@ -88,7 +88,7 @@ class SplitFrameCall:
         args[10], args[11] = edge_stage.spans
         return int(K.split_frame(*args[3:]))
 
-    def steady_call(self) -> tuple[tuple[Any, ...], WidthTables] | None:
+    def one_call_key(self) -> tuple[tuple[Any, ...], WidthTables] | None:
         """The key and the width tables when the last split took this path (the pipeline's `SteadyFrame` makes
         the same `split_frame` call inside `steady_frame`); None when the next split would not."""
         if self.key is None or self._args is None:

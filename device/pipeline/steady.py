@@ -10,7 +10,7 @@ goes on from there with the same state as after the same calls made one by one.
 
 from __future__ import annotations
 
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,24 +24,7 @@ from ropecam.device.pipeline.tracking import PointTracker
 from ropecam.device.pipeline.traits import RopeTraits
 from ropecam.device.pipeline.workspace import Workspace, steady_constants
 
-__all__ = ["SteadyFrame", "SteadyStop"]
-
-
-class SteadyStop(NamedTuple):
-    """Where a `steady_frame` call stopped, and what it measured up to there."""
-
-    stop: int
-    """STEADY_DONE, STEADY_AFTER_CONTOUR, STEADY_AFTER_SPLIT or STEADY_AFTER_SHAPES."""
-    points: int
-    """The contour's point count (in the tracer)."""
-    gap_ns: int
-    """The time since the last contour's frame (the band's prediction gap)."""
-    motion_px: float
-    """The band's uncertainty at the farthest point (px)."""
-    split_status: int
-    """`split_frame`'s return (when it ran)."""
-    tracked: tuple[int, float, float, float] | None
-    """`track_frame`'s swap, order confidence and stretches, when the whole frame was made (STEADY_DONE)."""
+__all__ = ["SteadyFrame"]
 
 
 class SteadyFrame:
@@ -71,6 +54,7 @@ class SteadyFrame:
         self.workspace, self.margin_px = workspace, margin_px
         self.edges, self.tracer, self.splitter, self.tracker = edges, tracer, splitter, tracker
         self.locator, self.traits = locator, traits
+        self._frame_call = splitter.frame_call
         self._bound: tuple[Any, ...] | None = None
         """(the split's steady key, the rope width's tables, Lc0, `steady_frame`'s argument list) of the last
         steady frame: its table holds the addresses of the workspace's buffers and of those tables."""
@@ -79,7 +63,7 @@ class SteadyFrame:
         """`steady_frame`'s argument list when this frame can be one kernel call (the split took its one-call
         path on the last frame with the workspace's buffers, and Lc0 is settled, so `track_frame` runs); `run`
         sets its per-frame slots. None otherwise."""
-        call = self.splitter.steady_call()
+        call = self._frame_call.one_call_key()
         length0_px = self.tracker.length0_settled_px
         if call is None or length0_px < 0.0:
             return None
@@ -113,9 +97,18 @@ class SteadyFrame:
 
     def run(
         self, args: list[Any], image: NDArray[np.uint8], t_ns: int, t_end_ns: int, exposure_ns: int, max_age_ns: int
-    ) -> SteadyStop:
+    ) -> tuple[int, int, int, float, int, tuple[int, float, float, float] | None]:
         """Make the frame exposed from `t_ns` to `t_end_ns` (`exposure_ns`) in one `steady_frame` call with the
-        argument list `args` (`args`); the edge stage and the tracer take its results (`ContourTracer.adopt`).
+        argument list `args` (from `args`); the edge stage and the tracer take its results (`ContourTracer.adopt`).
+
+        Returns
+        -------
+        tuple
+            Where the call stopped (STEADY_DONE, STEADY_AFTER_CONTOUR, STEADY_AFTER_SPLIT, STEADY_AFTER_SHAPES),
+            the contour's point count (in the tracer), the time since the last contour's frame (ns), the band's
+            uncertainty at the farthest point (px), `split_frame`'s status (when it ran) and, when the whole frame
+            was made, `track_frame`'s swap, order confidence and stretches (else None). A plain tuple: it is
+            made every frame.
 
         Raises
         ------
@@ -140,4 +133,4 @@ class SteadyFrame:
         motion_px, points, status, swap, confidence, stretch_begin, stretch_end = self.workspace.steady_out.tolist()
         n = self.tracer.adopt(self.edges, image, loc.lo_ro, loc.hi_ro, int(points))
         tracked = (int(swap), confidence, stretch_begin, stretch_end) if stop == K.STEADY_DONE else None
-        return SteadyStop(stop, n, gap_ns, motion_px, int(status), tracked)
+        return stop, n, gap_ns, motion_px, int(status), tracked

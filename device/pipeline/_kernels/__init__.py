@@ -37,10 +37,10 @@ from ropecam.device.pipeline._kernels._common import (
 from ropecam.device.pipeline._kernels.band_stage import (
     BAND_FIXED_C,
     BAND_FIXED_R,
+    BAND_MOTION_HELD,
     BAND_MOTION_PX,
     BAND_MOVED,
     BAND_SLOTS,
-    BAND_STEADY,
     band_stage,
 )
 from ropecam.device.pipeline._kernels.canny import (
@@ -75,6 +75,7 @@ from ropecam.device.pipeline._kernels.contour import (
     trace_contour,
     trace_rope,
 )
+from ropecam.device.pipeline._kernels.detect import detect_and_trace, smooth_frame_box
 from ropecam.device.pipeline._kernels.frame import (
     STEADY_AFTER_CONTOUR,
     STEADY_AFTER_SHAPES,
@@ -148,7 +149,6 @@ from ropecam.device.pipeline._kernels.split_frame import (
     SPLIT_STATIC,
     split_frame,
 )
-from ropecam.device.pipeline._kernels.stages import detect_and_trace, smooth_frame_box
 from ropecam.device.pipeline._kernels.tracking import (
     HISTORY,
     MOTION_COUNT,
@@ -168,10 +168,10 @@ from ropecam.device.pipeline._kernels.tracking import (
 __all__ = [
     "BAND_FIXED_C",
     "BAND_FIXED_R",
+    "BAND_MOTION_HELD",
     "BAND_MOTION_PX",
     "BAND_MOVED",
     "BAND_SLOTS",
-    "BAND_STEADY",
     "DIR_COL",
     "DIR_ROW",
     "EDGE_NONE",

@@ -28,8 +28,8 @@ from numba.extending import intrinsic
 
 from ropecam.device.pipeline._kernels._common import INVALID
 from ropecam.device.pipeline._kernels.band_stage import band_stage
+from ropecam.device.pipeline._kernels.detect import detect_and_trace
 from ropecam.device.pipeline._kernels.split_frame import FRAME_INFO, FRAME_STATE, split_frame
-from ropecam.device.pipeline._kernels.stages import detect_and_trace
 from ropecam.device.pipeline._kernels.tracking import track_frame
 from ropecam.shared.jit import f8_1d, kernel, u1_2d, u1_2d_ro
 

@@ -2,7 +2,7 @@
 the tip), the motion model of the free end that places the next frame's region of interest, and the material
 points on both shapes (uniform stretch, eqs. 9-12 of the paper); `track_frame` does all three in one call.
 
-They keep their state in caller-owned arrays, so the steady state of a stream costs one call per frame.
+They keep their state in caller-owned arrays, so a stream's frame costs one call.
 
 Time-order state (fewer arrays: each array argument costs a dispatch): ``order_state`` (int64, HISTORY + 3) holds
 the times (ns) of the last tip samples oldest first, then [samples held, history ordered (0/1), rejects in a row]
