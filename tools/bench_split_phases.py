@@ -37,7 +37,6 @@ from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._kernels.canny import smooth_box
 from ropecam.device.pipeline._kernels.geometry import find_segmentation_points_seg
 from ropecam.device.pipeline._kernels.offsets import (
-    SPLIT_PARAMS,
     dense_end_points,
     offset_by_table_thinned,
     side_sweeps,
@@ -52,6 +51,7 @@ from ropecam.device.pipeline._kernels.polylines import (
 )
 from ropecam.device.pipeline._kernels.smoothing import smooth_polyline
 from ropecam.device.pipeline._kernels.split_frame import _SLOPE_HIGH, _SLOPE_LOW
+from ropecam.device.pipeline._kernels.split_shapes import SPLIT_PARAMS
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
 

@@ -61,9 +61,8 @@ from ropecam.device.pipeline._kernels.canny import (
     suppress_rows,
 )
 from ropecam.device.pipeline._kernels.centerline import band_sides
+from ropecam.device.pipeline._kernels.contacts import count_border_contacts, count_roi_contacts
 from ropecam.device.pipeline._kernels.contour import (
-    count_border_contacts,
-    count_roi_contacts,
     first_listed,
     keep_largest_closed,
     keep_largest_component,
@@ -107,7 +106,6 @@ from ropecam.device.pipeline._kernels.geometry import (
     turning_angles,
 )
 from ropecam.device.pipeline._kernels.offsets import (
-    SPLIT_PARAMS,
     dense_end_points,
     find_caps,
     measure_widths,
@@ -118,9 +116,6 @@ from ropecam.device.pipeline._kernels.offsets import (
     side_sweeps,
     side_sweeps_indexed,
     slope_sweep_median,
-    split_shapes_local,
-    split_shapes_packed,
-    split_shapes_packed_near,
 )
 from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots, thin_chain
 from ropecam.device.pipeline._kernels.polylines import (
@@ -148,6 +143,12 @@ from ropecam.device.pipeline._kernels.split_frame import (
     FRAME_STATE,
     SPLIT_STATIC,
     split_frame,
+)
+from ropecam.device.pipeline._kernels.split_shapes import (
+    SPLIT_PARAMS,
+    split_shapes_local,
+    split_shapes_packed,
+    split_shapes_packed_near,
 )
 from ropecam.device.pipeline._kernels.tracking import (
     HISTORY,
