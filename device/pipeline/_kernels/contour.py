@@ -8,6 +8,7 @@ import numpy as np
 from numba import boolean, float64, int32, int64
 
 from ropecam.device.pipeline._kernels._common import DIR_COL, DIR_ROW, FULL, NOT_FOUND
+from ropecam.device.pipeline._kernels.contacts import on_image_border, touches_roi_border
 from ropecam.device.pipeline._kernels.geometry import axis_offset
 from ropecam.device.pipeline._kernels.spans import in_spans
 from ropecam.shared.jit import (
@@ -558,19 +559,8 @@ def trace_rope(
         d_r, d_c = axis_offset(mag, gx, gy, r, c)
         out_points[i, 0] = r + d_r
         out_points[i, 1] = c + d_c
-        left = c - 1
-        right = c + 1
-        cm = max(left, 0)
-        cp = min(right, width - 1)
-        a = lo[r]
-        b = hi[r]
-        touches = (left >= 0 and (left < a or left > b)) or (right < width and (right < a or right > b))
-        if r > 0 and (cm < lo[r - 1] or cp > hi[r - 1]):
-            touches = True
-        if r < height - 1 and (cm < lo[r + 1] or cp > hi[r + 1]):
-            touches = True
-        contacts += touches
-        on_border += r == 0 or r == height - 1 or c == 0 or c == width - 1
+        contacts += touches_roi_border(r, c, lo, hi, width, height)
+        on_border += on_image_border(r, c, height, width)
     out_counts[1] = contacts
     out_counts[2] = on_border
     return n
