@@ -50,6 +50,7 @@ class ContourTracer:
         """ROI contacts of the last traced contour (-1: not counted, see `roi_contacts`)."""
         self.on_border = -1
         """Chain pixels on the image border of the last traced contour (-1: not counted)."""
+        self._counts = buffers.counts  # the per-frame path reads it here (a plain attribute is the fastest)
         self.chain_ro = ro(self.chain)
         self.points_ro = ro(self.points)
         self._width32 = np.int32(width)
@@ -159,7 +160,7 @@ class ContourTracer:
         """Take the results of a `detect_and_trace` kernel call (made here, or inside `steady_frame`) of `frame` in
         the spans `lo`/`hi` into this tracer and `detector`, as `detect_and_trace` does; returns the number of
         contour points (0 when none). Raises RuntimeError as `detect_and_trace`."""
-        self.component_px, self.contacts, self.on_border, count = self.counts.tolist()
+        self.component_px, self.contacts, self.on_border, count = self._counts.tolist()
         if count < 0:
             raise RuntimeError(f"detect_edges returned status {count} (frame {frame.shape}, spans {lo.shape})")
         detector.count = count

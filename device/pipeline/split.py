@@ -126,6 +126,7 @@ class BlurSplitter:
         self._bound_views: tuple[NDArray, ...] = ()
         """Their read-only views (points, chain, gx, gy, mag), made with `_bound`."""
         self.measure = BandMeasure(self.model, self.dist, self.slope_work)
+        self._info, self._seg = buffers.info, buffers.seg  # read every frame (`_frame_outcome`): plain attributes
         self.frame_call = SplitFrameCall(buffers)
         self.polarity_used = np.float32(0.0)
         """The polarity of the last split (+1 bright rope, -1 dark)."""
@@ -497,17 +498,18 @@ class BlurSplitter:
     def _frame_outcome(self, status: int, fixed_rc: tuple[float, float]) -> SplitOutcome | bool | None:
         """The outcome of the `split_frame` call that returned `status` (its `info`, `seg` and shapes are here);
         False when it reported a full buffer."""
-        width_px = self.frame_call.tables.tables.width_px
+        width_px = self.frame_call.width_px
+        info, seg = self._info, self._seg
         if status == _SHAPES:  # the usual outcome first
-            count_a, count_b, _, _, smoothed_a, smoothed_b, sweep = self.info.tolist()
+            count_a, count_b, _, _, smoothed_a, smoothed_b, sweep = info.tolist()
             self.sweep_px = sweep
             return SplitOutcome(
                 _BLUR_SPLIT, (self.side_a if smoothed_a else self.out_a)[: int(count_a)],
-                (self.side_b if smoothed_b else self.out_b)[: int(count_b)], self.seg, width_px, sweep,
+                (self.side_b if smoothed_b else self.out_b)[: int(count_b)], seg, width_px, sweep,
             )  # fmt: skip
         if status < 0 and status != K.NOT_FOUND:
             return False
-        count_a, count_b, len_a, len_b, smoothed_a, smoothed_b, sweep = self.info.tolist()
+        count_a, count_b, len_a, len_b, smoothed_a, smoothed_b, sweep = info.tolist()
         if sweep >= 0.0:
             self.sweep_px = sweep
         if status == K.SPLIT_STATIC:
@@ -517,7 +519,7 @@ class BlurSplitter:
             return None
         shape_a = (self.side_a if smoothed_a else self.out_a)[: int(count_a)]
         shape_b = (self.side_b if smoothed_b else self.out_b)[: int(count_b)]
-        return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, width_px, sweep)
+        return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, seg, width_px, sweep)
 
     def _anchor_fixed_end(self, poly: NDArray[np.float32], n: np.int32, fixed_rc: tuple[float, float]) -> np.int32:
         """Start an axis polyline at the fixed end: the inward offset moved the end cap's contour points along

@@ -38,6 +38,8 @@ class SplitFrameCall:
         self._args: list[Any] | None = None
         """`split_frame`'s arguments after three keys: the width tables, the edge stage, the contour's views."""
         self._state_key: tuple[tuple[float, float], np.float32, float] | None = None
+        self.width_px = 0.0
+        """The rope width (px) of the width tables of the last `bind`."""
 
     @property
     def tables(self) -> WidthTables:
@@ -65,6 +67,7 @@ class SplitFrameCall:
             state[0], state[1] = fixed32
             state[2] = polarity
             state[3] = contrast
+        self.width_px = tables.tables.width_px
         args = self._args
         if args is None or args[0] is not tables or args[1] is not edge_stage or args[2] is not views:
             points, chain, gx, gy, mag = views

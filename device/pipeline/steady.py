@@ -55,6 +55,7 @@ class SteadyFrame:
         self.edges, self.tracer, self.splitter, self.tracker = edges, tracer, splitter, tracker
         self.locator, self.traits = locator, traits
         self._frame_call = splitter.frame_call
+        self._motion, self._fixed_end = locator.motion, locator.fixed_end  # read every frame (`run`)
         self._bound: tuple[Any, ...] | None = None
         """(the split's steady key, the rope width's tables, Lc0, `steady_frame`'s argument list) of the last
         steady frame: its table holds the addresses of the workspace's buffers and of those tables."""
@@ -119,9 +120,9 @@ class SteadyFrame:
         gap_ns = t_ns - loc.prev_t_ns
         args[0] = image
         args[1] = loc.prev_count
-        args[2] = loc.motion.owed
+        args[2] = self._motion.owed
         args[3] = 2 * gap_ns <= 3 * loc.need_gap_ns
-        args[4] = loc.fixed_end.known
+        args[4] = self._fixed_end.known
         args[5] = t_ns
         args[6] = exposure_ns
         args[7] = t_end_ns
