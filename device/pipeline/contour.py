@@ -8,7 +8,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import as_ro, f32, i32, resident_zeros, ro
+from ropecam.device.pipeline._views import as_ro, f32, i32, ro
+from ropecam.device.pipeline.workspace import ContourBuffers, expose
 
 if TYPE_CHECKING:
     from ropecam.device.pipeline.edges import EdgeDetector
@@ -16,6 +17,7 @@ if TYPE_CHECKING:
 __all__ = ["ContourTracer"]
 
 
+@expose("buffers", ContourBuffers)
 class ContourTracer:
     """Keep the largest edge component, trace its outer boundary clockwise and refine it to subpixel positions.
 
@@ -29,24 +31,26 @@ class ContourTracer:
         Smallest component accepted.
     """
 
-    def __init__(self, height: int, width: int, capacity: int, min_pixels: int) -> None:
+    def __init__(
+        self, height: int, width: int, capacity: int, min_pixels: int, buffers: ContourBuffers | None = None
+    ) -> None:
         self.shape = (height, width)
         self.min_pixels = int(min_pixels)
-        self.labels = resident_zeros((height, width), np.int32)
-        self.stack = resident_zeros(height * width, np.int32)
-        self.start = np.zeros(2, np.int32)
-        self.chain = np.zeros((capacity, 2), np.int32)
-        self.codes = np.zeros(capacity, np.int32)
-        self.points = np.zeros((capacity, 2), np.float32)
-        self.counts = np.zeros(4, np.int32)
-        """Of the last trace: component pixels, ROI contacts, chain pixels on the image border (and, after
-        `detect_and_trace`, the edge pixels found)."""
+        if buffers is None:
+            buffers = ContourBuffers.make(height, width, capacity)
+        elif buffers.labels.shape != self.shape or buffers.points.shape[0] != capacity:
+            raise ValueError(f"buffers are for {buffers.labels.shape} images and {buffers.points.shape[0]} points")
+        self.buffers = buffers
+        """The labels, chain, points and counts (`ContourBuffers`; each also a read-only attribute: ``self.points``).
+        ``counts`` holds, of the last trace: component pixels, ROI contacts, chain pixels on the image border (and,
+        after `detect_and_trace`, the edge pixels found)."""
         self.count = 0
         self.component_px = 0
         self.contacts = -1
         """ROI contacts of the last traced contour (-1: not counted, see `roi_contacts`)."""
         self.on_border = -1
         """Chain pixels on the image border of the last traced contour (-1: not counted)."""
+        self._counts = buffers.counts  # the per-frame path reads it here (a plain attribute is the fastest)
         self.chain_ro = ro(self.chain)
         self.points_ro = ro(self.points)
         self._width32 = np.int32(width)
@@ -156,7 +160,7 @@ class ContourTracer:
         """Take the results of a `detect_and_trace` kernel call (made here, or inside `steady_frame`) of `frame` in
         the spans `lo`/`hi` into this tracer and `detector`, as `detect_and_trace` does; returns the number of
         contour points (0 when none). Raises RuntimeError as `detect_and_trace`."""
-        self.component_px, self.contacts, self.on_border, count = self.counts.tolist()
+        self.component_px, self.contacts, self.on_border, count = self._counts.tolist()
         if count < 0:
             raise RuntimeError(f"detect_edges returned status {count} (frame {frame.shape}, spans {lo.shape})")
         detector.count = count

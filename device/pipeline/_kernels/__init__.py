@@ -37,10 +37,10 @@ from ropecam.device.pipeline._kernels._common import (
 from ropecam.device.pipeline._kernels.band_stage import (
     BAND_FIXED_C,
     BAND_FIXED_R,
+    BAND_MOTION_HELD,
     BAND_MOTION_PX,
     BAND_MOVED,
     BAND_SLOTS,
-    BAND_STEADY,
     band_stage,
 )
 from ropecam.device.pipeline._kernels.canny import (
@@ -61,9 +61,8 @@ from ropecam.device.pipeline._kernels.canny import (
     suppress_rows,
 )
 from ropecam.device.pipeline._kernels.centerline import band_sides
+from ropecam.device.pipeline._kernels.contacts import count_border_contacts, count_roi_contacts
 from ropecam.device.pipeline._kernels.contour import (
-    count_border_contacts,
-    count_roi_contacts,
     first_listed,
     keep_largest_closed,
     keep_largest_component,
@@ -75,16 +74,19 @@ from ropecam.device.pipeline._kernels.contour import (
     trace_contour,
     trace_rope,
 )
+from ropecam.device.pipeline._kernels.detect import detect_and_trace, smooth_frame_box
 from ropecam.device.pipeline._kernels.frame import (
     STEADY_AFTER_CONTOUR,
     STEADY_AFTER_SHAPES,
     STEADY_AFTER_SPLIT,
     STEADY_BUFFERS,
     STEADY_CONFIDENCE,
+    STEADY_CONSTANT,
     STEADY_CONSTANTS,
     STEADY_DONE,
     STEADY_MOTION,
     STEADY_POINTS,
+    STEADY_ROW,
     STEADY_SLOTS,
     STEADY_STATUS,
     STEADY_STRETCH_BEGIN,
@@ -101,28 +103,19 @@ from ropecam.device.pipeline._kernels.geometry import (
     offset_side,
     refine_subpixel,
     sample_bilinear,
-    signed_area,
-    split_contour,
     turning_angles,
-    turning_angles_far,
 )
 from ropecam.device.pipeline._kernels.offsets import (
-    SPLIT_PARAMS,
     dense_end_points,
     find_caps,
-    interp_sorted,
     measure_widths,
     offset_by_gradient,
     offset_by_table,
     offset_by_table_thinned,
     place_along_gradient,
-    side_slope_samples,
     side_sweeps,
     side_sweeps_indexed,
     slope_sweep_median,
-    split_shapes_local,
-    split_shapes_packed,
-    split_shapes_packed_near,
 )
 from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots, thin_chain
 from ropecam.device.pipeline._kernels.polylines import (
@@ -133,7 +126,6 @@ from ropecam.device.pipeline._kernels.polylines import (
     polyline_length,
     resample_polyline,
     resample_polyline_of_length,
-    track_material_points,
     track_material_points_of_length,
     trim_polyline_end,
 )
@@ -141,7 +133,6 @@ from ropecam.device.pipeline._kernels.prediction import need_profile
 from ropecam.device.pipeline._kernels.smoothing import smooth_polyline
 from ropecam.device.pipeline._kernels.spans import (
     coarse_spans,
-    grow_spans,
     in_spans,
     spans_around_chain,
     union_spans,
@@ -153,7 +144,12 @@ from ropecam.device.pipeline._kernels.split_frame import (
     SPLIT_STATIC,
     split_frame,
 )
-from ropecam.device.pipeline._kernels.stages import detect_and_trace, smooth_frame_box
+from ropecam.device.pipeline._kernels.split_shapes import (
+    SPLIT_PARAMS,
+    split_shapes_local,
+    split_shapes_packed,
+    split_shapes_packed_near,
+)
 from ropecam.device.pipeline._kernels.tracking import (
     HISTORY,
     MOTION_COUNT,
@@ -165,9 +161,7 @@ from ropecam.device.pipeline._kernels.tracking import (
     observe_motion,
     order_shapes,
     predict_motion,
-    predict_tips,
     remember_tips,
-    shape_length,
     track_frame,
     track_shapes,
 )
@@ -175,10 +169,10 @@ from ropecam.device.pipeline._kernels.tracking import (
 __all__ = [
     "BAND_FIXED_C",
     "BAND_FIXED_R",
+    "BAND_MOTION_HELD",
     "BAND_MOTION_PX",
     "BAND_MOVED",
     "BAND_SLOTS",
-    "BAND_STEADY",
     "DIR_COL",
     "DIR_ROW",
     "EDGE_NONE",
@@ -205,10 +199,12 @@ __all__ = [
     "STEADY_AFTER_SPLIT",
     "STEADY_BUFFERS",
     "STEADY_CONFIDENCE",
+    "STEADY_CONSTANT",
     "STEADY_CONSTANTS",
     "STEADY_DONE",
     "STEADY_MOTION",
     "STEADY_POINTS",
+    "STEADY_ROW",
     "STEADY_SLOTS",
     "STEADY_STATUS",
     "STEADY_STRETCH_BEGIN",
@@ -238,12 +234,10 @@ __all__ = [
     "finish_edges",
     "first_listed",
     "grow_edges",
-    "grow_spans",
     "grow_spans_inplace",
     "grow_spans_once",
     "half_level_crossing",
     "in_spans",
-    "interp_sorted",
     "keep_largest_closed",
     "keep_largest_component",
     "keep_largest_listed",
@@ -262,7 +256,6 @@ __all__ = [
     "place_along_gradient",
     "polyline_length",
     "predict_motion",
-    "predict_tips",
     "quotient",
     "refine_inner",
     "refine_subpixel",
@@ -271,11 +264,8 @@ __all__ = [
     "resample_polyline_of_length",
     "sample_bilinear",
     "score_knots",
-    "shape_length",
-    "side_slope_samples",
     "side_sweeps",
     "side_sweeps_indexed",
-    "signed_area",
     "slope_sweep_median",
     "smooth_box",
     "smooth_columns",
@@ -287,7 +277,6 @@ __all__ = [
     "sobel_rows",
     "sobel_suppress",
     "spans_around_chain",
-    "split_contour",
     "split_frame",
     "split_shapes_local",
     "split_shapes_packed",
@@ -299,11 +288,9 @@ __all__ = [
     "trace_contour",
     "trace_rope",
     "track_frame",
-    "track_material_points",
     "track_material_points_of_length",
     "track_shapes",
     "trim_polyline_end",
     "turning_angles",
-    "turning_angles_far",
     "union_spans",
 ]

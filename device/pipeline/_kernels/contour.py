@@ -3,13 +3,12 @@ contacts with the ROI border."""
 
 from __future__ import annotations
 
-import math
-
 import numba
 import numpy as np
-from numba import boolean, float32, float64, int32, int64
+from numba import boolean, float64, int32, int64
 
 from ropecam.device.pipeline._kernels._common import DIR_COL, DIR_ROW, FULL, NOT_FOUND
+from ropecam.device.pipeline._kernels.contacts import on_image_border, touches_roi_border
 from ropecam.device.pipeline._kernels.geometry import axis_offset
 from ropecam.device.pipeline._kernels.spans import in_spans
 from ropecam.shared.jit import (
@@ -18,7 +17,6 @@ from ropecam.shared.jit import (
     i4_1d,
     i4_1d_ro,
     i4_2d,
-    i4_2d_ro,
     kernel,
     u1_1d,
     u1_2d,
@@ -265,47 +263,6 @@ def trace_contour(edges, lo, hi, start_r, start_c, out_chain, out_codes):
         b_idx = ((found + 6) // 2 * 2) & 7
         pr = nr
         pc = nc
-
-
-@kernel(int32(i4_2d_ro, int32, i4_1d_ro, i4_1d_ro, int32))
-def count_roi_contacts(chain, n, lo, hi, width):
-    """Return how many of the first `n` chain pixels have an 8-neighbour inside the image but outside the row
-    spans `lo`/`hi` (the contour reaches the border of the region of interest)."""
-    height = lo.shape[0]
-    count = 0
-    for i in range(n):
-        r = chain[i, 0]
-        c = chain[i, 1]
-        left = c - 1
-        right = c + 1
-        cm = max(left, 0)
-        cp = min(right, width - 1)
-        # Row r: the two side neighbours; rows r - 1 and r + 1: the 1-3 neighbours form one interval.
-        a = lo[r]
-        b = hi[r]
-        touches = (left >= 0 and (left < a or left > b)) or (right < width and (right < a or right > b))
-        if r > 0 and (cm < lo[r - 1] or cp > hi[r - 1]):
-            touches = True
-        if r < height - 1 and (cm < lo[r + 1] or cp > hi[r + 1]):
-            touches = True
-        if touches:
-            count += 1
-    return count
-
-
-@kernel(int32(i4_2d_ro, int32, int32, int32, float32, float32, float32))
-def count_border_contacts(chain, n, height, width, fixed_r, fixed_c, exclude_px):
-    """Return how many of the first `n` chain pixels lie on the image border (row 0 or height - 1, column 0 or
-    width - 1) farther than `exclude_px` from (fixed_r, fixed_c) (a rope hanging from the border is not leaving
-    the image there)."""
-    count = 0
-    for i in range(n):
-        r = chain[i, 0]
-        c = chain[i, 1]
-        on_border = r == 0 or r == height - 1 or c == 0 or c == width - 1
-        if on_border and math.hypot(r - fixed_r, c - fixed_c) > exclude_px:
-            count += 1
-    return count
 
 
 @kernel(int32(u1_1d, int64, int32, int32, i4_2d, i4_1d))
@@ -602,19 +559,8 @@ def trace_rope(
         d_r, d_c = axis_offset(mag, gx, gy, r, c)
         out_points[i, 0] = r + d_r
         out_points[i, 1] = c + d_c
-        left = c - 1
-        right = c + 1
-        cm = max(left, 0)
-        cp = min(right, width - 1)
-        a = lo[r]
-        b = hi[r]
-        touches = (left >= 0 and (left < a or left > b)) or (right < width and (right < a or right > b))
-        if r > 0 and (cm < lo[r - 1] or cp > hi[r - 1]):
-            touches = True
-        if r < height - 1 and (cm < lo[r + 1] or cp > hi[r + 1]):
-            touches = True
-        contacts += touches
-        on_border += r == 0 or r == height - 1 or c == 0 or c == width - 1
+        contacts += touches_roi_border(r, c, lo, hi, width, height)
+        on_border += on_image_border(r, c, height, width)
     out_counts[1] = contacts
     out_counts[2] = on_border
     return n

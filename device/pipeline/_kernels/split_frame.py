@@ -1,5 +1,5 @@
-"""The blur split of a steady frame in one kernel call: segmentation points, the smoothed image around the band's
-corners, the tip sweep, the two shapes."""
+"""The blur split of a frame in one kernel call, once the rope's width, polarity and contrast are known:
+segmentation points, the smoothed image around the band's corners, the tip sweep, the two shapes."""
 
 from __future__ import annotations
 
@@ -12,7 +12,8 @@ from numba import int32
 from ropecam.device.pipeline._kernels._common import INVALID, f4_1d_ro
 from ropecam.device.pipeline._kernels.canny import smooth_box
 from ropecam.device.pipeline._kernels.geometry import find_segmentation_points_seg
-from ropecam.device.pipeline._kernels.offsets import SPLIT_PARAMS, f4_3d, slope_sweep_median, split_shapes_packed_near
+from ropecam.device.pipeline._kernels.offsets import slope_sweep_median
+from ropecam.device.pipeline._kernels.split_shapes import SPLIT_PARAMS, f4_3d, split_shapes_packed_near
 from ropecam.shared.jit import (
     f4_1d,
     f4_2d,
@@ -63,8 +64,7 @@ def split_frame(
     points, chain, mag, gx, gy, frame, weights, spans_lo, spans_hi, box_lo, box_hi, tmp, smooth, params, state,
     curves, table, sweep_index, lines, sides, scratch, turn, idx, out_seg, out_info,
 ):  # fmt: skip
-    """The steady-state blur split of one closed contour (``n = state[5]`` subpixel `points`, chain pixels
-    `chain`), as the
+    """The blur split of one closed contour (``n = state[5]`` subpixel `points`, chain pixels `chain`), as the
     stage's sequence (`BlurSplitter.split`) makes it once the rope's width, polarity and contrast are known:
 
     1. `find_segmentation_points` (fixed end ``state[0:2]``, search zone ``max(search_px, 1.2 last_sweep_px)``;
