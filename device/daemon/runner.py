@@ -341,7 +341,7 @@ class Daemon:
             frames_dropped=counters.dropped + counters.skipped + link["queue_dropped"],
             messages_dropped=link["messages_dropped"],
             exposure_us=int(source.exposure_us) if source is not None else 0,
-            gain_db=float(self.camera_settings.get("gain", 0)),  # camera units: see docs/daemon.md
+            gain=float(self.camera_settings.get("gain", 0)),  # camera units: see docs/daemon.md
             uptime_ns=time.monotonic_ns() - self._started,
             cpu_load=self._cpu.sample(),
             temperature_c=read_temperature_c(),

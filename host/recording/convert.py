@@ -305,7 +305,7 @@ def status_message(record: Status, device_id: int, t_ns: int) -> bytes:
         "frames_dropped": record.frames_dropped,
         "messages_dropped": record.messages_dropped,
         "exposure_us": record.exposure_us,
-        "gain_db": record.gain_db,
+        "gain": record.gain,
         "uptime_ns": record.uptime_ns,
         "counters": [{"name": name, "value": value} for name, value in record.counters],
     }

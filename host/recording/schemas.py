@@ -174,7 +174,7 @@ def _status() -> dict[str, Any]:
         "frames_dropped": integer("Frames the device lost"),
         "messages_dropped": integer("Messages the sender dropped"),
         "exposure_us": integer("Exposure time"),
-        "gain_db": {"type": "number"},
+        "gain": {"type": "number"},
         "uptime_ns": integer("Time since the daemon started"),
         "cpu_load": {"type": "number", "description": "Left out when unknown"},
         "temperature_c": {"type": "number", "description": "Left out when unknown"},

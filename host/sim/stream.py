@@ -156,7 +156,7 @@ class SimulatedDevice:
                     frames_dropped=0,
                     messages_dropped=0,
                     exposure_us=4000,
-                    gain_db=0.0,
+                    gain=0.0,
                     uptime_ns=k * period_ns,
                     cpu_load=0.4,
                     temperature_c=55.0,

@@ -73,7 +73,7 @@ def example_records() -> dict[MessageType, Record]:
             frames_dropped=12,
             messages_dropped=3,
             exposure_us=4000,
-            gain_db=6.0,
+            gain=6.0,
             uptime_ns=1_037_000_000_000,
             cpu_load=0.5,
             temperature_c=61.5,

@@ -62,8 +62,8 @@ class Status:
         Frames since start; frames the pipeline skipped or the camera lost.
     messages_dropped
         Messages the transport dropped because the line was full.
-    exposure_us, gain_db
-        Current camera settings. Despite its name, ``gain_db`` carries the analogue gain in the CAMERA'S OWN UNITS
+    exposure_us, gain
+        Current camera settings; ``gain`` is the analogue gain in the CAMERA'S OWN UNITS
         (the V4L2 ``gain`` control, as SET_GAIN sets it; 0 when never set): UVC cameras publish no dB scale.
     uptime_ns
         Time since the daemon started.
@@ -80,7 +80,7 @@ class Status:
     frames_dropped: int
     messages_dropped: int
     exposure_us: int
-    gain_db: float
+    gain: float
     uptime_ns: int
     cpu_load: float = math.nan
     temperature_c: float = math.nan
@@ -90,7 +90,7 @@ class Status:
         for name in ("frames_captured", "frames_dropped", "messages_dropped", "uptime_ns"):
             object.__setattr__(self, name, check_int(name, getattr(self, name), high=_U64))
         object.__setattr__(self, "exposure_us", check_int("exposure_us", self.exposure_us, high=_U32))
-        for name in ("frame_rate_hz", "gain_db", "cpu_load", "temperature_c"):
+        for name in ("frame_rate_hz", "gain", "cpu_load", "temperature_c"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating):
                 raise ValueError(f"{name} must be a number, got {value!r}")
@@ -101,8 +101,8 @@ class Status:
             object.__setattr__(self, name, value)
         if not self.frame_rate_hz >= 0:
             raise ValueError(f"frame_rate_hz must be a number >= 0 Hz, got {self.frame_rate_hz!r}")
-        if math.isnan(self.gain_db):
-            raise ValueError(f"gain_db must be a finite number (camera gain units), got {self.gain_db!r}")
+        if math.isnan(self.gain):
+            raise ValueError(f"gain must be a finite number (camera gain units), got {self.gain!r}")
         if not (math.isnan(self.cpu_load) or 0.0 <= self.cpu_load <= 1.0):
             raise ValueError(f"cpu_load must be in [0, 1] (or nan when unknown), got {self.cpu_load!r}")
         counters = tuple((str(name), value) for name, value in self.counters)
@@ -120,7 +120,7 @@ class Status:
         w.fixed("f", self.frame_rate_hz)
         for value in (self.frames_captured, self.frames_dropped, self.messages_dropped, self.exposure_us):
             w.uvarint(value)
-        w.fixed("f", self.gain_db)
+        w.fixed("f", self.gain)
         w.uvarint(self.uptime_ns)
         w.fixed("f", self.cpu_load)
         w.fixed("f", self.temperature_c)
@@ -139,7 +139,7 @@ class Status:
         dropped = r.uvarint("frames_dropped")
         messages_dropped = r.uvarint("messages_dropped")
         exposure = r.uvarint("exposure_us", _U32)
-        gain = r.fixed("f", "gain_db")
+        gain = r.fixed("f", "gain")
         uptime = r.uvarint("uptime_ns")
         load = r.fixed("f", "cpu_load")
         temperature = r.fixed("f", "temperature_c")

@@ -102,7 +102,7 @@ def test_acks_tell_what_the_camera_did_and_settings_survive_a_reopen() -> None:
     assert camera.values["exposure_time_absolute"] == 25 and camera.values["gain"] == 40
     statuses = _records(before + applied + lost + after, Status)
     last = statuses[-1]
-    assert last.exposure_us == 2500 and last.gain_db == 40.0  # gain in camera units (docs/daemon.md)
+    assert last.exposure_us == 2500 and last.gain == 40.0  # gain in camera units (docs/daemon.md)
     counters = dict(last.counters)
     assert counters["control_applied"] == 2 and counters["control_failed"] == 3
     # Totals since the daemon started: they never go backwards when the camera is reopened.

@@ -107,7 +107,7 @@ def test_values_just_inside_the_limits_round_trip(field: str, value: object) -> 
 
 def _status(**overrides: float) -> Status:
     values: dict[str, float] = dict(
-        frame_rate_hz=119.0, frames_captured=1, frames_dropped=0, messages_dropped=0, exposure_us=100, gain_db=0.0,
+        frame_rate_hz=119.0, frames_captured=1, frames_dropped=0, messages_dropped=0, exposure_us=100, gain=0.0,
         uptime_ns=1,
     )  # fmt: skip
     return Status(**(values | overrides))  # type: ignore[arg-type]
@@ -117,12 +117,12 @@ def _status(**overrides: float) -> Status:
     ("field", "value"),
     [
         ("frame_rate_hz", 3.5e38),  # beyond float32
-        ("gain_db", -1e39),
+        ("gain", -1e39),
         ("temperature_c", 1e300),
         ("cpu_load", 1.5),
         ("cpu_load", -0.1),
         ("frame_rate_hz", math.nan),
-        ("gain_db", math.inf),
+        ("gain", math.inf),
     ],
 )
 def test_status_refuses_values_the_wire_cannot_carry(field: str, value: float) -> None:
@@ -131,7 +131,7 @@ def test_status_refuses_values_the_wire_cannot_carry(field: str, value: float) -
 
 
 def test_status_float32_limits_round_trip() -> None:
-    record = _status(frame_rate_hz=3.4e38, gain_db=-3.4e38, cpu_load=1.0, temperature_c=-273.15)
+    record = _status(frame_rate_hz=3.4e38, gain=-3.4e38, cpu_load=1.0, temperature_c=-273.15)
     decoded = _trip(record)
     assert decoded.frame_rate_hz == pytest.approx(3.4e38, rel=1e-6)
     assert decoded.cpu_load == 1.0

@@ -110,7 +110,7 @@ def test_frame_result_round_trip(frames_match, record: FrameResult, t_ns: int) -
         frames_dropped=st.integers(0, 2**64 - 1),
         messages_dropped=st.integers(0, 2**64 - 1),
         exposure_us=st.integers(0, 2**32 - 1),
-        gain_db=FLOAT32,
+        gain=FLOAT32,
         uptime_ns=st.integers(0, 2**64 - 1),
         cpu_load=st.just(math.nan) | st.floats(0.0, 1.0, width=32),
         temperature_c=st.just(math.nan) | st.floats(-50.0, 150.0, width=32),
@@ -119,7 +119,7 @@ def test_frame_result_round_trip(frames_match, record: FrameResult, t_ns: int) -
 )
 def test_status_round_trip(record: Status) -> None:
     decoded = _trip(record)
-    for name in ("frame_rate_hz", "gain_db", "cpu_load", "temperature_c"):
+    for name in ("frame_rate_hz", "gain", "cpu_load", "temperature_c"):
         a, b = getattr(record, name), getattr(decoded, name)
         assert (math.isnan(a) and math.isnan(b)) or a == b, name
     assert decoded.counters == record.counters  # type: ignore[attr-defined]
