@@ -8,7 +8,7 @@ scalars of the declared width.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -69,19 +69,19 @@ def resident_zeros(shape: int | tuple[int, ...], dtype: Any) -> NDArray[Any]:
     return array
 
 
-def buffer_table(arrays: Sequence[NDArray[Any]], spec: Sequence[tuple[str, Any, int]]) -> NDArray[np.int64]:
+def buffer_table(arrays: Mapping[str, NDArray[Any]], spec: Sequence[tuple[str, Any, int]]) -> NDArray[np.int64]:
     """Return the table of `arrays`' addresses and shapes that a kernel taking its buffers as one argument reads
     (`ropecam.device.pipeline._kernels.steady_frame`): row k = (address, size of each dimension, 0 for the
-    dimensions it has not) of ``arrays[k]``.
+    dimensions it has not) of the buffer named ``spec[k][0]``.
 
     The table holds raw addresses: the caller keeps `arrays` alive and in place while it uses the table.
 
     Parameters
     ----------
     arrays
-        The buffers, in the order of `spec`.
+        The buffers by name: exactly the names of `spec`.
     spec
-        (name, dtype, dimensions) per buffer (e.g. `STEADY_BUFFERS`).
+        (name, dtype, dimensions) per row (e.g. `STEADY_BUFFERS`).
 
     Raises
     ------
@@ -89,12 +89,15 @@ def buffer_table(arrays: Sequence[NDArray[Any]], spec: Sequence[tuple[str, Any, 
         A buffer that is not a C-contiguous NumPy array of its dtype and dimensions, or whose memory is not
         writable (a read-only view of writable memory is taken: the kernel only reads those).
     ValueError
-        Another number of arrays than `spec` lists.
+        A name of `spec` missing from `arrays`, or a name of `arrays` that `spec` does not list.
     """
-    if len(arrays) != len(spec):
-        raise ValueError(f"{len(arrays)} buffers given, expected {len(spec)} ({', '.join(n for n, _, _ in spec)})")
+    names = [name for name, _, _ in spec]
+    missing, unknown = sorted(set(names) - set(arrays)), sorted(set(arrays) - set(names))
+    if missing or unknown:
+        raise ValueError(f"buffers missing: {missing or 'none'}; not in the table: {unknown or 'none'}")
     table = np.zeros((len(spec), 4), np.int64)
-    for row, (array, (name, dtype, ndim)) in enumerate(zip(arrays, spec, strict=True)):
+    for row, (name, dtype, ndim) in enumerate(spec):
+        array = arrays[name]
         if not isinstance(array, np.ndarray) or array.dtype != np.dtype(dtype) or array.ndim != ndim:
             got = f"{array.dtype} array of {array.ndim} dimensions" if isinstance(array, np.ndarray) else type(array)
             raise TypeError(f"buffer {name!r} is a {got}, expected a {np.dtype(dtype)} array of {ndim} dimensions")

@@ -8,7 +8,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import as_ro, f32, i32, resident_zeros, ro
+from ropecam.device.pipeline._views import as_ro, f32, i32, ro
+from ropecam.device.pipeline.workspace import ContourBuffers, expose
 
 if TYPE_CHECKING:
     from ropecam.device.pipeline.edges import EdgeDetector
@@ -16,6 +17,7 @@ if TYPE_CHECKING:
 __all__ = ["ContourTracer"]
 
 
+@expose("buffers", ContourBuffers)
 class ContourTracer:
     """Keep the largest edge component, trace its outer boundary clockwise and refine it to subpixel positions.
 
@@ -29,18 +31,19 @@ class ContourTracer:
         Smallest component accepted.
     """
 
-    def __init__(self, height: int, width: int, capacity: int, min_pixels: int) -> None:
+    def __init__(
+        self, height: int, width: int, capacity: int, min_pixels: int, buffers: ContourBuffers | None = None
+    ) -> None:
         self.shape = (height, width)
         self.min_pixels = int(min_pixels)
-        self.labels = resident_zeros((height, width), np.int32)
-        self.stack = resident_zeros(height * width, np.int32)
-        self.start = np.zeros(2, np.int32)
-        self.chain = np.zeros((capacity, 2), np.int32)
-        self.codes = np.zeros(capacity, np.int32)
-        self.points = np.zeros((capacity, 2), np.float32)
-        self.counts = np.zeros(4, np.int32)
-        """Of the last trace: component pixels, ROI contacts, chain pixels on the image border (and, after
-        `detect_and_trace`, the edge pixels found)."""
+        if buffers is None:
+            buffers = ContourBuffers.make(height, width, capacity)
+        elif buffers.labels.shape != self.shape or buffers.points.shape[0] != capacity:
+            raise ValueError(f"buffers are for {buffers.labels.shape} images and {buffers.points.shape[0]} points")
+        self.buffers = buffers
+        """The labels, chain, points and counts (`ContourBuffers`; each also a read-only attribute: ``self.points``).
+        ``counts`` holds, of the last trace: component pixels, ROI contacts, chain pixels on the image border (and,
+        after `detect_and_trace`, the edge pixels found)."""
         self.count = 0
         self.component_px = 0
         self.contacts = -1

@@ -8,7 +8,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import as_ro, resident_zeros, ro, staggered_planes
+from ropecam.device.pipeline._views import as_ro, ro
+from ropecam.device.pipeline.workspace import EdgeBuffers, expose
 
 __all__ = ["EdgeDetector", "gaussian_weights"]
 
@@ -23,6 +24,7 @@ def gaussian_weights(sigma_px: float) -> NDArray[np.float32]:
     return (w / w.sum()).astype(np.float32)
 
 
+@expose("buffers", EdgeBuffers)
 class EdgeDetector:
     """Canny edge detection (Gaussian, Sobel, non-maximum suppression, hysteresis) with buffers owned per image size.
 
@@ -36,7 +38,15 @@ class EdgeDetector:
         Hysteresis thresholds on the L2 Sobel magnitude.
     """
 
-    def __init__(self, height: int, width: int, smooth_sigma_px: float, low: float, high: float) -> None:
+    def __init__(
+        self,
+        height: int,
+        width: int,
+        smooth_sigma_px: float,
+        low: float,
+        high: float,
+        buffers: EdgeBuffers | None = None,
+    ) -> None:
         if height < 3 or width < 3:
             raise ValueError(f"image must be at least 3x3 pixels, got {width}x{height}")
         if not 0 < low <= high:
@@ -44,23 +54,20 @@ class EdgeDetector:
         self.shape = (height, width)
         self.low = np.float32(low)
         self.high = np.float32(high)
-        self.weights = gaussian_weights(smooth_sigma_px)
-        self.work_spans = np.zeros((4, height), np.int32)
-        # Planes at different offsets within a page (see `staggered_planes`: 4K aliasing halves the speed).
-        self.tmp, self.smooth, self.gx, self.gy, self.mag = staggered_planes(5, (height, width), np.float32)
-        self.edges = resident_zeros((height, width), np.uint8)
-        self.stack = resident_zeros(height * width, np.int32)
-        self.full_lo = np.zeros(height, np.int32)
-        self.full_hi = np.full(height, width - 1, np.int32)
+        if buffers is None:
+            buffers = EdgeBuffers.make(height, width, gaussian_weights(smooth_sigma_px))
+        elif buffers.edges.shape != self.shape:
+            raise ValueError(f"buffers are for {buffers.edges.shape} images, expected {self.shape}")
+        self.buffers = buffers
+        """The planes, edge map and list, spans (`EdgeBuffers`; each also a read-only attribute: ``self.gx``)."""
         self.count = 0
         """Edge pixels found by the last `detect`; their flat indices are ``stack[:count]`` (the strong pixels in
         raster order, then the weak pixels joined to them)."""
         # Read-only views made once: a view per kernel call costs microseconds of Python.
-        self.weights_ro = ro(self.weights)
+        self.weights_ro = self.weights
         self.edges_ro, self.mag_ro, self.gx_ro, self.gy_ro = (ro(a) for a in (self.edges, self.mag, self.gx, self.gy))
         self.stack_ro = ro(self.stack)
         self.full_lo_ro, self.full_hi_ro = ro(self.full_lo), ro(self.full_hi)
-        self._box_lo, self._box_hi = np.zeros(height, np.int32), np.zeros(height, np.int32)  # `smooth_box` spans
         self.spans: tuple[NDArray[np.int32], NDArray[np.int32]] = (
             ro(np.ones(height, np.int32)), ro(np.zeros(height, np.int32))
         )  # fmt: skip
@@ -116,7 +123,7 @@ class EdgeDetector:
         """
         lo, hi = self.spans
         return K.smooth_frame_box(
-            frame, self.weights_ro, lo, hi, r0, r1, c0, c1, self._box_lo, self._box_hi, self.tmp, self.smooth
+            frame, self.weights_ro, lo, hi, r0, r1, c0, c1, self.box_lo, self.box_hi, self.tmp, self.smooth
         )
 
     def refresh(self, r0: int, r1: int, c0: int, c1: int) -> int:
@@ -124,5 +131,5 @@ class EdgeDetector:
         (a `functools.partial` per frame costs ~1 us)."""
         lo, hi = self.spans
         return K.smooth_frame_box(
-            self.frame, self.weights_ro, lo, hi, r0, r1, c0, c1, self._box_lo, self._box_hi, self.tmp, self.smooth
+            self.frame, self.weights_ro, lo, hi, r0, r1, c0, c1, self.box_lo, self.box_hi, self.tmp, self.smooth
         )

@@ -7,11 +7,10 @@ from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import ro
+from ropecam.device.pipeline.workspace import NEED_BINS, MotionBuffers, expose
 
-__all__ = ["MotionModel"]
+__all__ = ["NEED_BINS", "MotionModel"]
 
-NEED_BINS = 16
-"""Bins of the normalised distance from the fixed end over which the band prediction's error is measured."""
 NEED_GAIN = 1.5
 """The next frame's uncertainty cap is NEED_GAIN x the largest error measured over the last two frames (in the
 bin and its neighbours) plus NEED_FLOOR_PX + NEED_MOTION_SHARE x the step-scaled uncertainty."""
@@ -21,6 +20,7 @@ NEED_MOTION_SHARE = 0.04
 step is predicted less well (rig, 119 FPS: ~12 px, floor ~2; paper, 30 FPS: 20-29 px, floor ~2.5-2.7)."""
 
 
+@expose("buffers", MotionBuffers)
 class MotionModel:
     """The free end's recent positions, which predict where the rope is in the next frame (the ROI).
 
@@ -31,22 +31,19 @@ class MotionModel:
     pipeline's `band_stage` call updates. Cleared after a frame without shapes.
     """
 
-    __slots__ = ("band", "log", "need", "need_args", "owed", "profile", "profile_ro", "state", "state_ro")
+    __slots__ = ("buffers", "need_args", "owed", "profile_ro", "state_ro")
 
-    def __init__(self) -> None:
-        self.state = np.zeros(K.MOTION_FRAMES + 2, np.int64)
-        """Mid-exposure times (ns), then [frames held, last exposure ns] (`K.MOTION_COUNT`, `K.MOTION_EXPOSURE`)."""
+    def __init__(self, buffers: MotionBuffers | None = None) -> None:
+        self.buffers = buffers if buffers is not None else MotionBuffers.make()
+        """(each also a read-only attribute) ``state``: mid-exposure times (ns), then [frames held, last exposure
+        ns] (`K.MOTION_COUNT`, `K.MOTION_EXPOSURE`); ``log``: log-polar tip midpoints (log radius, angle) per
+        frame, then (last tip sweep px, unused); ``need``: the band prediction's error beyond the margin (px) per
+        bin of the distance from the fixed end, this frame's and the last one's (`need_profile`, in `band_stage`);
+        ``profile``: cap on the next band's uncertainty per bin (px; inf: none yet), `spans_around_chain`'s
+        profile; ``band``: what the last band was built with, for measuring its error on the next call
+        (`band_stage`'s state)."""
         self.state_ro = ro(self.state)
-        self.log = np.zeros((K.MOTION_FRAMES + 1, 2), np.float64)
-        """Log-polar tip midpoints (log radius, angle) per frame, then (last tip sweep px, unused)."""
-        self.need = np.zeros((2, NEED_BINS), np.float64)
-        """The band prediction's error beyond the margin (px) per bin of the distance from the fixed end: this
-        frame's, the last one's (`need_profile`, in `band_stage`)."""
-        self.profile = np.full(NEED_BINS, np.inf)
-        """Cap on the next band's uncertainty per bin (px; inf: none yet), `spans_around_chain`'s profile."""
         self.profile_ro = ro(self.profile)
-        self.band = np.zeros(K.BAND_SLOTS, np.float64)
-        """What the last band was built with, for measuring its error on the next call (`band_stage`'s state)."""
         self.owed = False
         """The last frame was found in the band `band_stage` built last: the next call measures its error."""
         self.need_args = (NEED_GAIN, NEED_FLOOR_PX, NEED_MOTION_SHARE)

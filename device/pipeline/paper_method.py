@@ -16,8 +16,9 @@ from numpy.typing import NDArray
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import f32, i32, ro
 from ropecam.device.pipeline.centerline import CenterlineExtractor
+from ropecam.device.pipeline.result import Method, SplitOutcome
 
-__all__ = ["PaperSegmenter", "PaperSplit"]
+__all__ = ["PaperSegmenter", "PaperSplit", "split_by_comparison"]
 
 CANDIDATE_SCORE = 2.0
 """Table 1's first two grades (2.5 and 2) are the candidate segmentation points."""
@@ -216,3 +217,42 @@ class PaperSegmenter:
             total = sum(float(scores[c]) for c, _ in g)
             kept.append((c, (-top, -total, int(chain_to_far[j]))))
         return kept
+
+
+def split_by_comparison(
+    method: str,
+    paper: PaperSegmenter,
+    points: NDArray[np.float32],
+    chain: NDArray[np.int32],
+    n: int,
+    fixed_rc: tuple[float, float],
+    width_px: float,
+) -> tuple[SplitOutcome | None, float | None]:
+    """Split a contour (`n` subpixel `points`, chain pixels `chain`) by a comparison method: ``centerline``
+    (`CenterlineExtractor`, one shape) or ``paper`` (`PaperSegmenter`, which scores the knots against the
+    centreline's ends, Feature 3; where it finds no two segmentation points, slow motion whose blur is too
+    narrow to split, it reports the centreline, as the paper does).
+
+    Returns the outcome (None: no centreline) and the sweep (px) that sizes the next frame's ROI (None: none
+    measured).
+    """
+    dist = np.hypot(points[:n, 0] - fixed_rc[0], points[:n, 1] - fixed_rc[1])
+    i_fix, i_far = int(np.argmin(dist)), int(np.argmax(dist))
+    centerline = paper.centerline
+    line = centerline.extract(points, n, i_fix, i_far)
+    if line is None:
+        return None, None
+    # The band is a rope width plus the sweep wide at its widest: the sweep sizes the next frame's ROI.
+    sweep_px = max(0.0, centerline.band_width_px - width_px)
+    centre = SplitOutcome(Method.CENTERLINE, line, line, None, width_px, sweep_px)
+    if method == "centerline":
+        return centre, sweep_px
+    e1 = (float(line[0, 0]), float(line[0, 1]))
+    e2 = (float(line[-1, 0]), float(line[-1, 1]))
+    found = paper.segment(chain, n, fixed_rc, e1, e2, centerline.band_width_px, width_px)
+    if found is None:
+        return centre, sweep_px
+    outcome = SplitOutcome(
+        Method.PAPER, found.shape_a, found.shape_b, found.segmentation_points, width_px, found.sweep_px
+    )
+    return outcome, found.sweep_px

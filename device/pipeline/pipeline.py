@@ -1,46 +1,40 @@
 """Pipeline: one frame in, the rope at the start and the end of the exposure out (with material points).
 
-It owns every buffer (allocated once per image size) and keeps the little state that links frames: the region of
-interest around the last rope, the fixed end, the rope width, Lc0 and the previous shapes used to put the two
-shapes of a frame in time order.
+It keeps the frame's sequence: locate the rope's contour (`RopeLocator`), split it into the two shapes
+(`BlurSplitter`), put them in time order (`TimeOrder`) and track the material points (`PointTracker`); the rope's
+width, polarity and fixed end are learned over the first frames (`RopeTraits`). Once they have settled and the
+last frame was found in its band, a frame is one kernel call (`SteadyFrame`). Every buffer is the workspace's
+(`Workspace`), allocated once per image size.
 """
 
 from __future__ import annotations
 
-import math
 import time
+from operator import attrgetter
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import buffer_table, i32, resident_zeros, ro
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.contour import ContourTracer
-from ropecam.device.pipeline.edges import EdgeDetector
+from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
+from ropecam.device.pipeline.locate import RopeLocator
 from ropecam.device.pipeline.motion import MotionModel
-from ropecam.device.pipeline.result import FrameResult, FrameStatus
-from ropecam.device.pipeline.split import BlurSplitter
-from ropecam.device.pipeline.split_outcome import SplitOutcome
+from ropecam.device.pipeline.result import FrameResult, FrameStatus, exposure_in_ns, frame_problem
+from ropecam.device.pipeline.split import BlurSplitter, SplitOutcome
+from ropecam.device.pipeline.steady import SteadyFrame
 from ropecam.device.pipeline.time_order import DEFAULT_PERIOD_NS, TimeOrder
 from ropecam.device.pipeline.tracking import PointTracker
+from ropecam.device.pipeline.traits import RopeTraits
+from ropecam.device.pipeline.workspace import Workspace
 
 __all__ = ["Pipeline"]
 
-_FIXED_END_FRAMES = 10
-_WIDTH_FRAMES = 15
-"""Frames whose measured rope width (median) is used afterwards, when the config gives none."""
-_POLARITY_FRAMES = 5
-"""Frames whose polarity votes decide the polarity afterwards, when the config says auto."""
-_ROI_RETRIES = 2
-"""Times a band is widened around a contour that runs out of it before the next way of searching is tried."""
-_COARSE_BLOCK = 4
-"""Cell size (px) of the coarse search for the rope when there is no ROI."""
-_COARSE_MIN_CELLS = 8
-"""Smallest group of active cells the coarse search keeps (a hot pixel makes a cross of 5; a rope of the
-smallest accepted contour, 40 px, about 20)."""
-_COARSE_DILATE = 2
-"""Cells added around the kept cells."""
+_NO_COPY = (
+    "a Pipeline cannot be copied or pickled: its steady frames read a table of the raw addresses of its buffers, "
+    "which a copy would share; make a new Pipeline(config, image_size) instead"
+)
 
 
 class Pipeline:
@@ -61,85 +55,60 @@ class Pipeline:
         self.config = config
         self.shape = (height, width)
         cap = config.max_contour
-        self.edges = EdgeDetector(height, width, config.smooth_sigma_px, config.canny_low, config.canny_high)
-        self.tracer = ContourTracer(height, width, cap, config.min_contour_px)
+        weights = gaussian_weights(config.smooth_sigma_px)
+        fraction = np.array(config.material_points_m, np.float64) / config.rope_length_m
+        self.workspace = ws = Workspace.make(height, width, cap, weights, fraction)
+        """Every buffer of the per-frame path, by stage (its arrays cannot be replaced: `steady_frame`'s table
+        holds their addresses)."""
+        self.edges = EdgeDetector(height, width, config.smooth_sigma_px, config.canny_low, config.canny_high, ws.edges)
+        self.tracer = ContourTracer(height, width, cap, config.min_contour_px, buffers=ws.contour)
         self.splitter = BlurSplitter(
             cap, config.method, config.static_ratio, config.corner_scale_px,
             config.paper_endpoint_radius_px, config.output_step_px, config.tip_cap, config.smooth_sigma_px,
-            config.lens_blur_px, output_smoothing_px=config.output_smoothing_px,
+            config.lens_blur_px, output_smoothing_px=config.output_smoothing_px, buffers=ws.split,
         )  # fmt: skip
-        self.tracker = PointTracker(
-            config.material_points_m, config.rope_length_m, config.length0_px, config.length0_frames
-        )
         self.splitter.paper.radius_scaled = config.paper_endpoint_radius_scaled
-        self.lo = np.zeros(height, np.int32)
-        self.hi = np.zeros(height, np.int32)
-        self.grow_lo = np.zeros(height, np.int32)
-        self.grow_hi = np.zeros(height, np.int32)
-        # Read-only views made once (a view per kernel call costs microseconds of Python), int32 constants.
-        self._lo_ro, self._hi_ro, self._grow_lo_ro, self._grow_hi_ro = (
-            ro(a) for a in (self.lo, self.hi, self.grow_lo, self.grow_hi)
+        self.tracker = PointTracker(
+            config.material_points_m, config.rope_length_m, config.length0_px, config.length0_frames, ws.track
         )
-        self._height32, self._width32 = np.int32(height), np.int32(width)
-        # The last frame's contour, which the next frame's band is built around: the tracer's own buffer (no copy
-        # per frame). Valid because nothing traces between the end of a frame and the band building at the start
-        # of the next one (`_locate` builds the band first); `prev_count` = 0 marks it stale.
-        self.prev_points = self.tracer.points
-        self._prev_points_ro = self.tracer.points_ro
-        self.prev_count = 0
-        # The last contour moved by the prediction (`band_stage` writes it and measures the band's error on it
-        # in the next frame's call) and an empty one for the widening's bands, whose moved points are not kept.
-        self._moved = np.zeros((cap, 2), np.float32)
-        self._no_moved = np.zeros((0, 2), np.float32)
-        self._need_gap_ns = 0  # the time gap over which the motion model's band error (profile) was measured
-        self.turn_cap = np.zeros(cap, np.float32)
-        self.begin_buf = np.zeros((cap, 2), np.float32)
-        self.end_buf = np.zeros((cap, 2), np.float32)
-        self.fixed = np.zeros(2, np.float32)
-        self._fixed_known = config.fixed_end_uv is not None
-        self._fixed_frames = 0
-        self._first_ends: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None
-        if config.fixed_end_uv is not None:
-            self.fixed[:] = (config.fixed_end_uv[1], config.fixed_end_uv[0])
-        self._widths: list[float] = []
-        self._polarity = {"auto": 0.0, "bright": 1.0, "dark": -1.0}[config.polarity]
-        self._polarity_votes: list[float] = []
-        self._width_cache: float | None = None
-        self._steady: tuple[float | None, tuple[float, float], float, float] | None = None
-        """(width, fixed end (row, col), border exclusion radius, polarity) once none of them changes any more."""
-        self._exposure_key: float | None = None  # the last float exposure_us and what `_exposure_ns` made of it
-        self._exposure_value: tuple[int, str] = (0, "")
-        self._u8 = np.dtype(np.uint8)
-        self._strides = (width, 1)
-        self._time_order = TimeOrder()
-        self._period_ns: int | None = None  # the shortest time between frame starts seen: the frame period
-        self._last_frame_t_ns: int | None = None
-        self._motion = MotionModel()
-        motion = self._motion
-        self._band_args = (
-            config.roi_margin_px, height, width, *motion.need_args, self.fixed, motion.state, motion.log, motion.need,
-            motion.profile, motion.band, self.lo, self.hi, self._moved,
+        self.traits = RopeTraits(config, self.shape, ws.fixed_end, self.splitter.model.edge_spacing)
+        self.fixed = ws.fixed_end.fixed
+        """The fixed end (row, col) float32 (`RopeTraits.fixed_end`)."""
+        self._motion = MotionModel(ws.motion)
+        self._time_order = TimeOrder(ws.order)
+        self.locator = RopeLocator(
+            config.roi_margin_px, self.edges, self.tracer, self._motion, self.traits.fixed_end, config.canny_low,
+            ws.roi,
         )  # fmt: skip
-        """`band_stage`'s arguments after the frame's (Python ints and floats for its int64/float64 scalars)."""
-        self._roi_t_ns: int | None = None
-        self._steady_out = np.zeros(K.STEADY_SLOTS, np.float64)
         self.one_call = True
         """Make a steady frame in one kernel call (`steady_frame`); False: with the calls one by one (the same
         results; the tools that time or record single kernels set it)."""
-        self._steady_bound: tuple | None = None
-        """(the split's steady key and argument list, the tracker's scratch and Lc0 they were made with,
-        `steady_frame`'s argument list, the buffers of its table: kept alive with it)."""
-        self.frames_full = 0
-        self.frames_coarse = 0
-        self.frames_roi = 0
-        self.roi_retries = 0
-        cells = (max(1, height // _COARSE_BLOCK), max(1, width // _COARSE_BLOCK))
-        self.coarse_sums = resident_zeros(cells, np.int32)
-        self.coarse_labels = resident_zeros(cells, np.int32)
-        self.coarse_stack = resident_zeros(max(cells[0] * cells[1], width), np.int32)
-        # A cell is active when its mean differs from a neighbour's by canny_low / 8 grey levels: the step over
-        # which the Sobel magnitude of a sharp edge reaches the low threshold.
-        self._coarse_step = i32(max(1, round(_COARSE_BLOCK * _COARSE_BLOCK * config.canny_low / 8.0)))
+        self._steady = SteadyFrame(
+            ws, config.roi_margin_px, self.edges, self.tracer, self.splitter, self.tracker, self.locator, self.traits
+        )
+        self._exposure_key: float | None = None  # the last float exposure_us and what `exposure_in_ns` made of it
+        self._exposure_value: tuple[int, str] = (0, "")
+        self._u8 = np.dtype(np.uint8)
+        self._strides = (width, 1)
+        self._period_ns: int | None = None  # the shortest time between frame starts seen: the frame period
+        self._last_frame_t_ns: int | None = None
+
+    def __copy__(self) -> Pipeline:
+        raise TypeError(_NO_COPY)
+
+    def __deepcopy__(self, memo: dict[int, object]) -> Pipeline:
+        raise TypeError(_NO_COPY)
+
+    def __reduce_ex__(self, protocol: object) -> tuple[object, ...]:
+        raise TypeError(_NO_COPY)
+
+    # What the locator keeps and counts (tests and tools read them here).
+    lo = property(attrgetter("locator.lo"), doc="The first column of each row of the last band searched.")
+    hi = property(attrgetter("locator.hi"), doc="The last column of each row of the last band searched.")
+    frames_roi = property(attrgetter("locator.frames_roi"), doc="Frames found in the band predicted for them.")
+    frames_coarse = property(attrgetter("locator.frames_coarse"), doc="Frames found around the coarse search's cells.")
+    frames_full = property(attrgetter("locator.frames_full"), doc="Frames searched whole.")
+    roi_retries = property(attrgetter("locator.roi_retries"), doc="Widenings of a band the rope ran out of.")
 
     # ----------------------------------------------------------------------------------------------------------
     def process(self, frame: object, index: int, t_ns: int, exposure_us: float | None) -> FrameResult:
@@ -174,14 +143,14 @@ class Pipeline:
         if type(exposure_us) is float and exposure_us == self._exposure_key:
             exposure_ns, exposure_problem = self._exposure_value  # the usual case: the same exposure every frame
         else:
-            exposure_ns, exposure_problem = _exposure_ns(exposure_us)
+            exposure_ns, exposure_problem = exposure_in_ns(exposure_us)
             if type(exposure_us) is float:
                 self._exposure_key, self._exposure_value = exposure_us, (exposure_ns, exposure_problem)
         result = FrameResult(int(index), t, t + exposure_ns, FrameStatus.BAD_FRAME)
         if type(frame) is np.ndarray and frame.dtype is self._u8 and frame.shape == self.shape:
-            problem = exposure_problem  # the usual case, without building the messages of `_check_frame`
+            problem = exposure_problem  # the usual case, without building the messages of `frame_problem`
         else:
-            problem = self._check_frame(frame) or exposure_problem
+            problem = frame_problem(frame, self.shape) or exposure_problem
         if problem:
             result.message = problem
             self._forget(roi=True)
@@ -205,11 +174,12 @@ class Pipeline:
         tables are then built on the frame that first needs them.
         """
         height, width = self.shape
-        counters = (self.frames_full, self.frames_coarse, self.frames_roi, self.roi_retries)
+        loc = self.locator
+        counters = (loc.frames_full, loc.frames_coarse, loc.frames_roi, loc.roi_retries)
         self.process(np.zeros((height, width), np.uint8), 0, 0, 0.0)
-        self.frames_full, self.frames_coarse, self.frames_roi, self.roi_retries = counters
+        loc.frames_full, loc.frames_coarse, loc.frames_roi, loc.roi_retries = counters
         self._last_frame_t_ns = None  # the blank frame's time is not the stream's
-        width_px = self._width()
+        width_px = self.traits.width()
         if width_px is not None:
             self.splitter.model.tables(width_px)
 
@@ -224,127 +194,47 @@ class Pipeline:
         """Drop the state that predicts this frame from the last one after a frame without shapes (a gap): the
         tips, steps and sweeps (and with `roi`, the region of interest), so the next frame starts afresh instead
         of extrapolating stale motion. What does not change between frames (fixed end, width, polarity, Lc0)
-        is kept, and so is the time-order history, which `_order` drops itself when it is over four frame
+        is kept, and so is the time-order history, which `TimeOrder.order` drops itself when it is over four frame
         periods old."""
         self._motion.clear()
         self.splitter.sweep_px = 0.0
         if roi:
-            self.prev_count = 0
-            self._roi_t_ns = None
-
-    def _check_frame(self, frame: object) -> str:
-        if not isinstance(frame, np.ndarray):
-            return f"frame is a {type(frame).__name__}, expected a numpy array"
-        if frame.dtype != np.uint8:
-            return f"frame dtype is {frame.dtype}, expected uint8"
-        if frame.ndim != 2:
-            return f"frame has shape {frame.shape}, expected 2-D {self.shape}"
-        if frame.shape != self.shape:
-            return f"frame shape is {frame.shape}, expected {self.shape}"
-        return ""
+            self.locator.forget()
 
     # ----------------------------------------------------------------------------------------------------------
     def _measure(self, image: NDArray[np.uint8], result: FrameResult, exposure_ns: int) -> None:
-        if self.prev_count > 0 and self._steady is not None and self.one_call:
-            args = self._steady_frame_args()
+        if self.locator.prev_count > 0 and self.traits.settled is not None and self.one_call:
+            args = self._steady.args()
             if args is not None:
                 self._measure_steady(image, result, exposure_ns, args)
                 return
-        n, used_roi = self._locate(image, result.t_ns, exposure_ns)
+        n, used_roi = self.locator.locate(image, result.t_ns, exposure_ns)
         self._measure_contour(image, result, exposure_ns, n, used_roi)
 
-    def _steady_frame_args(self) -> list | None:
-        """`steady_frame`'s argument list when this frame can be one kernel call: the split took its steady path
-        on the last frame with this pipeline's buffers, and Lc0 is settled (so `track_frame` runs). Made once per
-        steady state (the same buffers every frame); `_measure_steady` sets the per-frame slots. None otherwise."""
-        call = self.splitter.steady_call()
-        tracker = self.tracker
-        if call is None or tracker.length0_settled_px < 0.0:
-            return None
-        key, split_args = call
-        bound = self._steady_bound
-        if (
-            bound is not None
-            and bound[0] is key
-            and bound[1] is split_args
-            and bound[2] is tracker.work
-            and bound[3] == tracker.length0_settled_px
-        ):
-            return bound[4]
-        self._steady_bound = None
-        e, tracer = self.edges, self.tracer
-        width_px, fixed_rc, _, polarity = self._steady  # type: ignore[misc]  # `_measure` checked it
-        # The split's steady path was taken with what this pipeline passes it (`_measure_contour`), and its bound
-        # arrays are views of this pipeline's buffers: `steady_frame` passes the split those buffers themselves.
-        ours = (tracer.points, tracer.chain, e.gx, e.gy, e.mag, e.smooth, e, fixed_rc)
-        views = (tracer.points, tracer.chain, e.mag, e.gx, e.gy)
-        if not (
-            all(k is o for k, o in zip(key[:8], ours, strict=True))
-            and key[8] == width_px
-            and key[9] == polarity
-            and split_args[1] is e
-            and all(_same_memory(v, o) for v, o in zip(split_args[3:8], views, strict=True))
-            and split_args[9] is e.weights_ro
-            and split_args[14] is e.tmp
-            and split_args[15] is e.smooth
-        ):
-            return None
-        order, motion, config = self._time_order, self._motion, self.config
-        d = tracer.detect_args(e)
-        # `STEADY_BUFFERS`' order: band_stage's, detect_and_trace's, split_frame's, track_frame's, then the results.
-        buffers = (
-            tracer.points, self.fixed, motion.state, motion.log, motion.need, motion.profile, motion.band, self.lo,
-            self.hi, self._moved, *d[:1], *d[4:], split_args[12], split_args[13], *split_args[16:28], order.state,
-            order.hist_rc, tracker.fraction, tracker.out, tracker.lengths_px, tracker.work, self._steady_out,
-        )  # fmt: skip
-        constants = np.array(
-            [config.roi_margin_px, *self.shape, *motion.need_args, d[1], d[2], d[3], tracker.length0_settled_px],
-            np.float64,
-        )
-        args = [None, 0, False, False, False, 0, 0, 0, 0, 0.0, buffer_table(buffers, K.STEADY_BUFFERS), constants]
-        self._steady_bound = (key, split_args, tracker.work, tracker.length0_settled_px, args, buffers)
-        return args
-
     def _measure_steady(self, image: NDArray[np.uint8], result: FrameResult, exposure_ns: int, args: list) -> None:
-        """Measure a steady frame in one kernel call (`steady_frame`: `band_stage`, `detect_and_trace`,
-        `split_frame`, `track_frame`), then go on from where the call stopped as `_locate` and `_measure_contour`
-        go on after those calls: the same state and result as the calls one by one."""
-        t_ns = result.t_ns
-        gap_ns = t_ns - self._roi_t_ns  # type: ignore[operator]  # set whenever prev_count > 0
-        model, splitter = self._motion, self.splitter
-        args[0] = image
-        args[1] = self.prev_count
-        args[2] = model.owed
-        args[3] = 2 * gap_ns <= 3 * self._need_gap_ns
-        args[4] = self._fixed_known
-        args[5] = t_ns
-        args[6] = exposure_ns
-        args[7] = result.t_end_ns
-        args[8] = 4 * (self._period_ns or DEFAULT_PERIOD_NS)
-        args[9] = splitter.sweep_px  # `split_frame`'s last sweep (`SplitSteady._run_frame`)
-        stop = K.steady_frame(*args)
-        if stop < 0:
-            raise RuntimeError(f"steady_frame refused its arguments (status {stop})")
-        motion_px, points, status, swap, confidence, stretch_begin, stretch_end = self._steady_out.tolist()
-        n = self.tracer.adopt(self.edges, image, self._lo_ro, self._hi_ro, int(points))
+        """Measure a steady frame in one kernel call (`SteadyFrame`), then go on from where the call stopped as
+        `RopeLocator.locate` and `_measure_contour` go on after those calls: the same state and result as the
+        calls one by one."""
+        stop, n, gap_ns, motion_px, status, tracked = self._steady.run(
+            args, image, result.t_ns, result.t_end_ns, exposure_ns, self.max_age_ns()
+        )
         if stop == K.STEADY_AFTER_CONTOUR:
-            n, used_roi = self._locate_in_band(image, motion_px, gap_ns, n)
+            n, used_roi = self.locator.locate_in_band(image, motion_px, gap_ns, n)
             self._measure_contour(image, result, exposure_ns, n, used_roi)
             return
-        # The contour lies whole in the band and off the image border: `_locate_in_band` and `_measure_contour`
+        # The contour lies whole in the band and off the image border: `locate_in_band` and `_measure_contour`
         # up to the split.
-        self._found_in_band(gap_ns)
+        self.locator.found_in_band(gap_ns)
         result.full_frame = False
         self._keep_contour(result, n)
-        width_px, fixed_rc, _, polarity = self._steady  # type: ignore[misc]  # `_steady_frame_args` checked it
-        outcome = splitter.adopt_frame(int(status), n, fixed_rc)
-        if outcome is False:  # a buffer too small for the steady path: the split step by step
+        width_px, fixed_rc, _, polarity = self.traits.settled  # type: ignore[misc]  # `SteadyFrame.args` checked it
+        outcome = self.splitter.adopt_frame(status, n, fixed_rc)
+        if outcome is False:  # a buffer too small for the one-call split: the split step by step
             e = self.edges
-            outcome = splitter.split(
-                self.tracer.points, self.tracer.chain, n, fixed_rc, width_px, e.gx, e.gy, e.edges, e.mag, e.smooth,
-                polarity, edge_stage=e, frame=image,
+            outcome = self.splitter.split(
+                self.tracer.points, self.tracer.chain, n, fixed_rc, width_px, e.gx, e.gy, e.edges, e.mag,
+                e.smooth, polarity, edge_stage=e, frame=image,
             )  # fmt: skip
-        tracked = (int(swap), confidence, stretch_begin, stretch_end) if stop == K.STEADY_DONE else None
         self._finish(result, outcome, exposure_ns, tracked)
 
     def _measure_contour(
@@ -354,43 +244,34 @@ class Pipeline:
         frame when `used_roi`)."""
         result.full_frame = not used_roi
         if n == 0:
-            self.prev_count = 0
+            self.locator.forget()
             result.status = FrameStatus.NO_ROPE
             result.message = "no edge component large enough to be the rope"
             return
         self._keep_contour(result, n)
         points = self.tracer.points
-        steady = self._steady
-        if steady is not None:
-            width_px, fixed_rc, exclude, polarity = steady
+        traits = self.traits
+        settled = traits.settled
+        if settled is not None:
+            width_px, fixed_rc, exclude, polarity = settled
             measure = False
         else:
-            width_px = self._width()
-            fixed = self._fixed_end(points, n, width_px)
-            measure = self.config.rope_width_px is None and len(self._widths) < _WIDTH_FRAMES
+            width_px = traits.width()
+            if traits.find_fixed_end(points, n, width_px):
+                self._time_order.clear()  # its history was measured relative to the wrong end
+            measure = traits.measuring_width
             exclude = 3.0 * (width_px or 4.0) + 10.0
-            fixed_rc = (float(fixed[0]), float(fixed[1]))
-            polarity = self._polarity_now()
+            fixed_rc = (float(self.fixed[0]), float(self.fixed[1]))
+            polarity = traits.polarity()
         tracer = self.tracer
         clipped = tracer.on_border != 0 and tracer.border_contacts(fixed_rc, exclude) > 0  # the trace counts them
         e = self.edges
         outcome = self.splitter.split(
-            points,
-            self.tracer.chain,
-            n,
-            fixed_rc,
-            None if measure else width_px,
-            e.gx,
-            e.gy,
-            e.edges,
-            e.mag,
-            e.smooth,
-            polarity,
-            edge_stage=e,
-            frame=image,
-        )
-        if steady is None:
-            self._learn(measure)
+            points, tracer.chain, n, fixed_rc, None if measure else width_px, e.gx, e.gy, e.edges, e.mag, e.smooth,
+            polarity, edge_stage=e, frame=image,
+        )  # fmt: skip
+        if settled is None:
+            traits.learn(measure, self.splitter.width_measured, self.splitter.polarity_used)
         if clipped:
             # The free end is out of view: no tip, no split; give the visible centreline for what it is worth.
             outcome = self.splitter.static(fixed_rc)
@@ -403,6 +284,11 @@ class Pipeline:
                 result.order_confidence = 1.0
             return
         self._finish(result, outcome, exposure_ns)
+
+    def _keep_contour(self, result: FrameResult, n: int) -> None:
+        """The frame's contour (`n` points) is the one the next frame's band is built around."""
+        self.locator.keep(n, result.t_ns)
+        result.fixed_end = self.fixed
 
     def _finish(
         self,
@@ -426,16 +312,15 @@ class Pipeline:
         if tracked is not None:
             swap, confidence, stretch_begin, stretch_end = tracked
         elif tracker.length0_settled_px >= 0.0:
-            # Time order, material points and the motion model's update in one kernel call (`track_frame`: the
-            # same as `_order`, `PointTracker.track_shapes` and `MotionModel.observe` in turn); a negative `swap`
+            # Time order, material points and the motion model's update in one kernel call (`track_frame`: as
+            # `TimeOrder.order`, `PointTracker.track_shapes` and `MotionModel.observe` in turn); a negative `swap`
             # (an empty shape, a shape longer than the tracker's scratch) has written nothing.
             order, motion = self._time_order, self._motion
             try:
                 swap, confidence, stretch_begin, stretch_end = K.track_frame(
-                    a, b, a is b, result.t_ns, result.t_end_ns, 4 * (self._period_ns or DEFAULT_PERIOD_NS),
-                    order.state, order.hist_rc, self.fixed, float(self.splitter.sweep_px), exposure_ns, motion.state,
-                    motion.log, tracker.fraction_ro, tracker.length0_settled_px, tracker.out, tracker.lengths_px,
-                    tracker.work,
+                    a, b, a is b, result.t_ns, result.t_end_ns, self.max_age_ns(), order.state, order.hist_rc,
+                    self.fixed, float(self.splitter.sweep_px), exposure_ns, motion.state, motion.log,
+                    tracker.fraction_ro, tracker.length0_settled_px, tracker.out, tracker.lengths_px, tracker.work,
                 )  # fmt: skip
             except TypeError:  # not the splitter's writable float32 buffers
                 swap = -1
@@ -448,7 +333,7 @@ class Pipeline:
             result.stretch_begin, result.stretch_end = stretch_begin, stretch_end
         else:
             # The first frames (Lc0 still being measured) or shapes `track_frame` does not take: step by step.
-            begin, end, confidence = self._order(outcome, result.t_ns, result.t_end_ns)
+            begin, end, confidence = self._time_order.order(a, b, result.t_ns, result.t_end_ns, self._period_ns)
             result.begin, result.end, result.order_confidence = begin, end, confidence
             (result.material_begin, result.stretch_begin, result.material_end, result.stretch_end) = (
                 tracker.track_shapes(begin, end)
@@ -457,220 +342,6 @@ class Pipeline:
             self._motion.observe(begin, end, self.fixed, t_mid_ns, float(self.splitter.sweep_px), exposure_ns)
         result.status = FrameStatus.OK
 
-    def _locate(self, image: NDArray[np.uint8], t_ns: int, exposure_ns: int) -> tuple[int, bool]:
-        """Find the rope's contour: in the band predicted from the last contour, else around the cells where a
-        coarse look (block sums) sees intensity steps, else in the whole frame; a band the contour runs out of
-        is widened around what was found (up to `_ROI_RETRIES` times) before the next way is tried.
-
-        Returns (contour points, found in the band predicted from the last frame).
-        """
-        if self.prev_count > 0:
-            model = self._motion
-            # The measured error holds for the time gap it was measured over: a longer one (a dropped frame) gets
-            # the step-scaled uncertainty, which grows with the gap.
-            gap_ns = t_ns - self._roi_t_ns  # type: ignore[operator]  # set whenever prev_count > 0
-            # One kernel call (the arguments after the frame's made once): the last band's error measured on the
-            # last contour when it was found in that band (`owed`), the prediction, the band.
-            motion = K.band_stage(
-                self._prev_points_ro, self.prev_count, model.owed, 2 * gap_ns <= 3 * self._need_gap_ns,
-                self._fixed_known, t_ns, exposure_ns, *self._band_args,
-            )  # fmt: skip
-            n = self.tracer.detect_and_trace(self.edges, image, self._lo_ro, self._hi_ro)
-            return self._locate_in_band(image, motion, gap_ns, n)
-        return self._locate_elsewhere(image)
-
-    def _locate_in_band(self, image: NDArray[np.uint8], motion_px: float, gap_ns: int, n: int) -> tuple[int, bool]:
-        """`_locate` after the first search of the band predicted with uncertainty `motion_px` over `gap_ns` from
-        the last frame, which found `n` contour points."""
-        n = self._search(image, self.config.roi_margin_px + max(8, math.ceil(2.0 * motion_px)), n)
-        if n > 0:
-            self._found_in_band(gap_ns)
-            return n, True
-        self._motion.forget_need()
-        return self._locate_elsewhere(image)
-
-    def _found_in_band(self, gap_ns: int) -> None:
-        """The contour was found in the band predicted over `gap_ns`: the next band measures its error on it."""
-        self.frames_roi += 1
-        self._motion.owed = True
-        self._need_gap_ns = gap_ns
-
-    def _keep_contour(self, result: FrameResult, n: int) -> None:
-        """The frame's contour (`n` points) is the one the next frame's band is built around."""
-        self.prev_count = n  # `prev_points` is the tracer's buffer: these n points
-        self._roi_t_ns = result.t_ns
-        result.fixed_end = self.fixed
-
-    def _locate_elsewhere(self, image: NDArray[np.uint8]) -> tuple[int, bool]:
-        """`_locate` without a band: around the coarse look's cells, else in the whole frame."""
-        kept = K.coarse_spans(
-            ro(image), i32(_COARSE_BLOCK), self._coarse_step, i32(_COARSE_MIN_CELLS), i32(_COARSE_DILATE),
-            self.coarse_sums, self.coarse_labels, self.coarse_stack, self.lo, self.hi,
-        )  # fmt: skip
-        if kept > 0:
-            first = self.tracer.detect_and_trace(self.edges, image, self._lo_ro, self._hi_ro)
-            n = self._search(image, self.config.roi_margin_px + 8, first)
-            if n > 0:
-                self.frames_coarse += 1
-                return n, False
-        self.frames_full += 1
-        return self.tracer.detect_and_trace(self.edges, image, self.edges.full_lo_ro, self.edges.full_hi_ro), False
-
-    def _search(self, image: NDArray[np.uint8], grow: int, n: int) -> int:
-        """Go on with the search in the spans `lo`/`hi` whose first detection and trace found `n` contour points:
-        widen them by `grow` px around a contour that reaches their border and search again; returns the
-        contour's points, 0 when it is not found whole inside them."""
-        for attempt in range(_ROI_RETRIES + 1):
-            if attempt > 0:
-                n = self.tracer.detect_and_trace(self.edges, image, self._lo_ro, self._hi_ro)
-            if n == 0:
-                return 0
-            contacts = self.tracer.contacts  # counted by the trace on these spans
-            if contacts < 0:
-                contacts = self.tracer.roi_contacts(self._lo_ro, self._hi_ro)
-            if contacts == 0:
-                self.roi_retries += attempt
-                return n
-            if contacts * 4 > n:  # mostly cut off: the rope is elsewhere, widening would only creep after it
-                break
-            if attempt < _ROI_RETRIES:  # the rope runs out of the band: widen it around what was found
-                fr, fc = self.fixed.tolist() if self._fixed_known else (0.0, 0.0)
-                K.spans_around_chain(
-                    self.tracer.points_ro, n, grow, 0.0, self._motion.profile_ro, 1.0, 0.0, fr, fc, self.shape[0],
-                    self.shape[1], self.grow_lo, self.grow_hi, self._no_moved,
-                )  # fmt: skip
-                K.union_spans(self._grow_lo_ro, self._grow_hi_ro, self.lo, self.hi)
-        self.roi_retries += attempt
-        return 0
-
-    def _learn(self, measure: bool) -> None:
-        """Keep the first frames' width and polarity readings; once the width, the fixed end and the polarity are
-        all settled (they do not change afterwards), keep them for the next frames (`_steady`)."""
-        if measure and math.isfinite(self.splitter.width_measured) and self.splitter.width_measured > 0:
-            self._widths.append(self.splitter.width_measured)
-            self._width_cache = None
-        if self._polarity == 0.0 and len(self._polarity_votes) < _POLARITY_FRAMES:
-            self._polarity_votes.append(float(self.splitter.polarity_used))
-        config = self.config
-        fixed_settled = self._fixed_known and (
-            config.fixed_end_uv is not None or self._fixed_frames >= _FIXED_END_FRAMES
-        )
-        width_settled = config.rope_width_px is not None or len(self._widths) >= _WIDTH_FRAMES
-        polarity_settled = self._polarity != 0.0 or len(self._polarity_votes) >= _POLARITY_FRAMES
-        if fixed_settled and width_settled and polarity_settled:
-            width_px = self._width()
-            fixed_rc = (float(self.fixed[0]), float(self.fixed[1]))
-            self._steady = (width_px, fixed_rc, 3.0 * (width_px or 4.0) + 10.0, self._polarity_now())
-
-    def _polarity_now(self) -> float:
-        """The configured polarity, or the majority of the first frames' once they are in (0 = decide now)."""
-        if self._polarity != 0.0 or len(self._polarity_votes) < _POLARITY_FRAMES:
-            return self._polarity
-        return 1.0 if sum(self._polarity_votes) >= 0 else -1.0
-
-    def _width(self) -> float | None:
-        if self.config.rope_width_px is not None:
-            # The configured width is the rope's; the splitter works with the spacing its blurred edges show.
-            if self._width_cache is None:
-                self._width_cache = self.splitter.model.edge_spacing(self.config.rope_width_px)
-            return self._width_cache
-        if self._widths and self._width_cache is None:
-            # Motion only widens the band: the lower quartile of the first frames' spacings is the still rope's.
-            self._width_cache = float(np.percentile(self._widths, 25))
-        return self._width_cache
-
-    def _fixed_end(self, points: NDArray[np.float32], n: int, width_px: float | None) -> NDArray[np.float32]:
-        """The fixed end (row, col): configured, or found over the first frames.
-
-        The first frame gives a guess: of the band's two ends the narrower one (the fixed end hardly moves, so
-        its end of the band stays one rope wide), or on a tie (a rope at rest) the one nearer the top centre of
-        the image (a pendulum hangs below its support, and a rig centres the support so the swing stays in view).
-        Over the next frames the end that stays where it was is the fixed end: the guess is corrected as soon as
-        one end has moved away and the other has not, and the position is averaged over those frames.
-        """
-        if self._fixed_known and (self.config.fixed_end_uv is not None or self._fixed_frames >= _FIXED_END_FRAMES):
-            return self.fixed
-        w = width_px or 4.0
-        K.turning_angles(ro(points), i32(n), i32(max(3, round(w))), self.turn_cap)
-        e1 = int(np.argmax(self.turn_cap[:n]))
-        e2 = int(np.argmax(np.hypot(points[:n, 0] - points[e1, 0], points[:n, 1] - points[e1, 1])))
-        ends = [self._cap_centre(points, n, e, w) for e in (e1, e2)]
-        if not self._fixed_known:
-            m = max(4, round(2 * w))
-            widths = [np.hypot(*(points[(e - m) % n] - points[(e + m) % n])) for e in (e1, e2)]
-            if abs(widths[0] - widths[1]) <= 0.25 * min(widths):
-                top_centre = np.array([0.0, 0.5 * (self.shape[1] - 1)])
-                far = [float(np.hypot(*(end - top_centre))) for end in ends]
-                k = 0 if far[0] <= far[1] else 1
-            else:
-                k = 0 if widths[0] < widths[1] else 1
-            self.fixed[:] = ends[k]
-            self._first_ends = (ends[k].copy(), ends[1 - k].copy())
-            self._fixed_known = True
-            self._fixed_frames = 1
-            return self.fixed
-        if self._first_ends is not None and self.config.fixed_end_uv is None:
-            guess, other = self._first_ends
-            moved_guess = min(float(np.hypot(*(end - guess))) for end in ends)
-            moved_other = min(float(np.hypot(*(end - other))) for end in ends)
-            if max(moved_guess, moved_other) > max(2.0 * w, 5.0) and min(moved_guess, moved_other) < w:
-                self._first_ends = None  # decided
-                if moved_guess > moved_other:
-                    # The guessed end moved: it is the free end. Start again from the other one, and forget what
-                    # was measured relative to the wrong end.
-                    self.fixed[:] = other
-                    self._fixed_frames = 0
-                    self._widths.clear()
-                    self._width_cache = None
-                    self._time_order.clear()
-        d = [float(np.hypot(*(end - self.fixed))) for end in ends]
-        chosen = ends[0] if d[0] <= d[1] else ends[1]
-        if min(d) > 3.0 * w + 5.0:
-            return self.fixed  # not the rope seen so far (another object, a clipped view): no update
-        k = self._fixed_frames
-        self.fixed[:] = (self.fixed * k + chosen) / (k + 1)
-        self._fixed_frames += 1
-        return self.fixed
-
-    def _cap_centre(self, points: NDArray[np.float32], n: int, e: int, w: float) -> NDArray[np.float32]:
-        """The contour point in the middle of the rope end around contour index `e`: the turning-weighted centroid
-        of the points within a width and a half of it, snapped to the contour (a flat end has two corners, its
-        largest turning angle is at one of them)."""
-        m = max(3, round(1.5 * w))
-        idx = np.arange(e - m, e + m + 1) % n
-        weights = self.turn_cap[idx].astype(np.float64) ** 2
-        if not weights.sum() > 0:
-            return points[e].copy()
-        centre = (points[idx].astype(np.float64) * weights[:, None]).sum(axis=0) / weights.sum()
-        k = idx[int(np.argmin(np.hypot(points[idx, 0] - centre[0], points[idx, 1] - centre[1])))]
-        return points[k].copy()
-
-    def _order(
-        self, outcome, t_ns: int, t_end_ns: int | None = None
-    ) -> tuple[NDArray[np.float32], NDArray[np.float32], float]:
-        """Put the two shapes in time order by continuity with the previous frames (`TimeOrder`); returns
-        (begin, end, confidence)."""
-        return self._time_order.order(outcome.shape_a, outcome.shape_b, t_ns, t_end_ns, self._period_ns)
-
-
-def _exposure_ns(exposure_us: object) -> tuple[int, str]:
-    """Return the exposure in integer ns (0 = unknown) and a problem message ('' when fine)."""
-    if exposure_us is None:
-        return 0, ""
-    try:
-        value = float(exposure_us)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        return 0, f"exposure_us is {exposure_us!r}, expected a number of microseconds (0 = unknown)"
-    if not math.isfinite(value) or value < 0:
-        return 0, f"exposure_us is {value}, expected a finite number of microseconds >= 0 (0 = unknown)"
-    return round(value * 1000.0), ""
-
-
-def _same_memory(view: NDArray, array: NDArray) -> bool:
-    """Whether `view` shows exactly the elements of `array` (the same address, shape, strides and type)."""
-    return (
-        view.__array_interface__["data"][0] == array.__array_interface__["data"][0]
-        and view.shape == array.shape
-        and view.strides == array.strides
-        and view.dtype == array.dtype
-    )
+    def max_age_ns(self) -> int:
+        """The age (ns) past which the time order's history is dropped: four frame periods."""
+        return 4 * (self._period_ns or DEFAULT_PERIOD_NS)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -13,7 +14,7 @@ from ropecam.shared.protocol.frame_result import FrameStatus, Method
 from ropecam.shared.protocol.jsonl import frame_result_json
 
 # FrameStatus and Method are the wire protocol's: one definition of what happened to a frame, on both sides.
-__all__ = ["FrameResult", "FrameStatus", "Method", "to_wire"]
+__all__ = ["FrameResult", "FrameStatus", "Method", "SplitOutcome", "exposure_in_ns", "frame_problem", "to_wire"]
 
 
 def _uv(points: NDArray[np.float32] | None, digits: int = 3) -> list[list[float]] | None:
@@ -73,6 +74,22 @@ class FrameResult:
         return record
 
 
+@dataclass(slots=True)
+class SplitOutcome:
+    """The shapes the split found in one contour (views into the splitter's buffers, valid until its next call).
+
+    `shape_a` and `shape_b` run from the fixed end to the tip; for single-shape methods they are the same array.
+    They are not yet in time order: the pipeline decides which one is the start of the exposure.
+    """
+
+    method: Method
+    shape_a: NDArray[np.float32]
+    shape_b: NDArray[np.float32]
+    segmentation_points: NDArray[np.float32] | None
+    width_px: float
+    sweep_px: float
+
+
 def _wire_uv(points: NDArray[np.float32] | None) -> NDArray[np.float32] | None:
     """(row, col) -> (u, v): a reversed view (the wire record copies it to float64 when it checks it)."""
     if points is None:
@@ -113,3 +130,30 @@ def to_wire(result: FrameResult) -> WireFrameResult:
         stretch_end=np.nan if result.stretch_end is None else float(result.stretch_end),
         pipeline_us=round(float(result.pipeline_us)),
     )
+
+
+def frame_problem(frame: object, shape: tuple[int, int]) -> str:
+    """Return why `frame` is not a (height, width) = `shape` uint8 image ('' when it is one)."""
+    if not isinstance(frame, np.ndarray):
+        return f"frame is a {type(frame).__name__}, expected a numpy array"
+    if frame.dtype != np.uint8:
+        return f"frame dtype is {frame.dtype}, expected uint8"
+    if frame.ndim != 2:
+        return f"frame has shape {frame.shape}, expected 2-D {shape}"
+    if frame.shape != shape:
+        return f"frame shape is {frame.shape}, expected {shape}"
+    return ""
+
+
+def exposure_in_ns(exposure_us: object) -> tuple[int, str]:
+    """Return a frame's exposure `exposure_us` (microseconds; None or 0: unknown) in integer ns (0 = unknown) and
+    a problem message ('' when fine)."""
+    if exposure_us is None:
+        return 0, ""
+    try:
+        value = float(exposure_us)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return 0, f"exposure_us is {exposure_us!r}, expected a number of microseconds (0 = unknown)"
+    if not math.isfinite(value) or value < 0:
+        return 0, f"exposure_us is {value}, expected a finite number of microseconds >= 0 (0 = unknown)"
+    return round(value * 1000.0), ""

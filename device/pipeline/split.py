@@ -14,18 +14,29 @@ from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import f32, i32, ro
 from ropecam.device.pipeline.edge_model import shared_model
 from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
-from ropecam.device.pipeline.paper_method import PaperSegmenter
-from ropecam.device.pipeline.result import Method
-from ropecam.device.pipeline.split_fallback import SplitFallbacks
-from ropecam.device.pipeline.split_measure import SplitMeasuring
-from ropecam.device.pipeline.split_outcome import SplitOutcome
-from ropecam.device.pipeline.split_steady import SplitSteady
+from ropecam.device.pipeline.paper_method import PaperSegmenter, split_by_comparison
+from ropecam.device.pipeline.result import Method, SplitOutcome
+from ropecam.device.pipeline.split_call import SplitFrameCall
+from ropecam.device.pipeline.split_measure import BandMeasure
+from ropecam.device.pipeline.tip_geometry import correct_slant, tip_lateral
+from ropecam.device.pipeline.width_tables import WidthTables
+from ropecam.device.pipeline.workspace import SplitBuffers, expose
 
 __all__ = ["BlurSplitter", "SplitOutcome"]
 
+_SHAPES = 2
+"""`split_frame`'s (and `split_shapes_packed`'s) return value when it made the two shapes."""
+_BLUR_SPLIT = Method.BLUR_SPLIT
 
-class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
+
+@expose("buffers", SplitBuffers)
+class BlurSplitter:
     """Split a rope contour by one of the methods (``blur_split``, ``paper``, ``centerline``).
+
+    The sequence of the blur split is `split`; its collaborators own their state: `measure` (`BandMeasure`:
+    polarity, width, contrast, sweep from the edge slope), `frame_call` (`SplitFrameCall`: the whole split in
+    one `split_frame` call once width, polarity and contrast are known), the tables of each rope width
+    (`WidthTables`) and the comparison methods (`split_by_comparison`).
 
     Parameters
     ----------
@@ -64,10 +75,15 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
         smooth_sigma_px: float = 1.0,
         lens_blur_px: float = 0.5,
         output_smoothing_px: float = 0.0,
+        buffers: SplitBuffers | None = None,
     ) -> None:
         self.output_smoothing = np.float32(output_smoothing_px)
-        self.scratch = np.zeros((3, capacity), np.float64)
-        """`arc`, `fixed_dist`, `slope_work` in one array (`split_frame`)."""
+        if buffers is None:
+            buffers = SplitBuffers.make(capacity)
+        elif buffers.turn.shape[0] != capacity:
+            raise ValueError(f"buffers are for {buffers.turn.shape[0]} contour points, expected {capacity}")
+        self.buffers = buffers
+        """The split's buffers (`SplitBuffers`; each also a read-only attribute: ``self.sides``)."""
         self.arc, self.fixed_dist, self.slope_work = self.scratch[0], self.scratch[1], self.scratch[2]
         self.method = method
         self.paper = PaperSegmenter(capacity, paper_radius_px, output_step_px=output_step_px)
@@ -83,37 +99,17 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
         corner turns about 45 degrees, smeared over the chord."""
         self.failure = ""
         """Why the last `split` returned None."""
-        self.lines = np.zeros((3, capacity), np.float32)
-        """`work`, `sweeps_a`, `sweeps_b` in one array (`split_shapes_packed`)."""
         self.work, self.sweeps_a, self.sweeps_b = self.lines[0], self.lines[1], self.lines[2]
         self.sweep_px = 0.0
-        self.samples = np.zeros(2 * capacity, np.float32)
-        self._contrasts: list[float] = []
-        self._contrast_cache = float("nan")
         self.static_ratio = float(static_ratio)
         self.corner_scale = int(corner_scale_px)
         self.step = np.float32(output_step_px)
-        self.turn = np.zeros(capacity, np.float32)
-        self.idx = np.zeros(4, np.int32)
         self._refresh: Callable[[int, int, int, int], None] | None = None
-        self.sides = np.zeros((4, capacity, 2), np.float32)
-        """`side_a`, `side_b`, `out_a`, `out_b` in one array (`split_shapes_packed`)."""
         self.side_a, self.side_b, self.out_a, self.out_b = self.sides[0], self.sides[1], self.sides[2], self.sides[3]
-        self.dist = np.zeros(capacity, np.float32)
-        self.seg = np.zeros((2, 2), np.float32)
-        self.info = np.zeros(K.FRAME_INFO, np.float64)
-        self.state = np.zeros(K.FRAME_STATE, np.float64)
-        """`split_frame`'s per-frame inputs (fixed end, polarity, contrast, last sweep)."""
-        self._state_key: tuple[tuple[float, float], np.float32, float] | None = None
         self._count = 0
         """The stored contour's point count (`_n`)."""
-        self._steady_key: tuple | None = None
-        """The arguments of the last `split` that took the steady path (`_split_frame`) from a given width and
-        polarity: the next call with the same ones goes straight to it."""
         self._given = False
         """Whether the last `_prepare` was given the width and polarity (nothing measured)."""
-        self._frame_args: list | None = None
-        """`split_frame`'s arguments (after three keys: the width's constants, the edge stage, the bound arrays)."""
         # Read-only views of the own buffers and int32 constants, made once (a view costs 1-2 us of Python).
         self._turn_ro = ro(self.turn)
         self._fixed_dist_ro = ro(self.fixed_dist)
@@ -122,27 +118,33 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
         self._sweeps_a_ro, self._sweeps_b_ro = ro(self.sweeps_a), ro(self.sweeps_b)
         self._plus, self._minus = np.int32(1), np.int32(-1)
         self._zero = np.int32(0)
-        self._slope_low, self._slope_high = np.float32(0.5), np.float32(0.85)
         self._spans: tuple[NDArray[np.int32], NDArray[np.int32]] = (np.zeros(0, np.int32), np.zeros(0, np.int32))
         """The row spans (lo, hi) the planes of this `split` are valid in (`measure_widths` stays inside them)."""
-        self._whole: tuple[NDArray[np.int32], NDArray[np.int32]] | None = None
         self._bound: tuple[NDArray, ...] = ()
         """The arrays of the last `_prepare` (points, chain, gx, gy, mag): the same buffers every frame, so their
         read-only views are made once."""
+        self._bound_views: tuple[NDArray, ...] = ()
+        """Their read-only views (points, chain, gx, gy, mag), made with `_bound`."""
+        self.measure = BandMeasure(self.model, self.dist, self.slope_work)
+        self.frame_call = SplitFrameCall(buffers)
+        self.polarity_used = np.float32(0.0)
+        """The polarity of the last split (+1 bright rope, -1 dark)."""
+        self.width = 4.0
+        """The edge spacing (px) the last split used."""
+        self.width_measured = math.nan
+        """The edge spacing (px) measured on the last contour (nan: given, or not measured)."""
         self._fixed_key: tuple[float, float] | None = None
         self._fixed32 = (np.float32(0.0), np.float32(0.0))
         self._width_key = math.nan
-        self._width_consts: _WidthConstants | None = None
-        self._contrast_key = math.nan
+        self._width_consts: WidthTables | None = None
         self._polarity_key = 0.0
         self._polarity32 = np.float32(0.0)
-        self._contrast32 = np.float32(0.0)
         self._views: dict[int, tuple[NDArray, NDArray]] = {}
-        self._per_width: dict[float, _WidthConstants] = {}
+        self._per_width: dict[float, WidthTables] = {}
 
     @property
     def _n(self) -> np.int32:
-        """The stored contour's point count as the kernels take it (made on use: the steady path does not)."""
+        """The stored contour's point count as the kernels take it (made on use: the one-call path does not)."""
         return np.int32(self._count)  # NumPy 2 refuses a value out of the int32 range
 
     @_n.setter
@@ -160,13 +162,13 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
         self._views[id(array)] = (array, view)
         return view
 
-    def _constants(self, width: float) -> _WidthConstants:
+    def _constants(self, width: float) -> WidthTables:
         """The scalars and tables that depend only on the rope width, made once per width."""
         found = self._per_width.get(width)
         if found is None:
             if len(self._per_width) > 64:
                 self._per_width.clear()
-            found = self._per_width[width] = _WidthConstants(self, width)
+            found = self._per_width[width] = WidthTables(self, width)
         return found
 
     def split(
@@ -207,7 +209,7 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
         SplitOutcome or None
             None when the contour cannot be split (too short, no segmentation points).
         """
-        key = self._steady_key
+        key = self.frame_call.key
         if (
             key is not None
             and points is key[0]
@@ -223,29 +225,33 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
             and frame is not None
         ):
             # The same contour buffers, edge stage, fixed end, width and polarity as the last frame, which took
-            # the steady path: everything `_prepare` and the checks below would set is set already.
+            # the one-call path: everything `_prepare` and the checks below would set is set already.
             self._smooth = smooth
             self.failure = "contour found but no segmentation points"
             self._count = n
-            outcome = self._run_frame(edge_stage, frame, fixed_rc, n)
+            outcome = self._frame_outcome(self.frame_call.call(edge_stage, frame, self.sweep_px, n), fixed_rc)
             if outcome is not False:
                 return outcome
-        self._steady_key = None
+        self.frame_call.key = None
         self._smooth = smooth
         refresh = None
         if edge_stage is not None and frame is not None:
-            # Made only when a step of the sequence reads the smoothed image (not on the steady path).
+            # Made only when a step of the sequence reads the smoothed image (not on the one-call path).
             refresh = (
                 edge_stage.refresh if frame is edge_stage.frame else functools.partial(edge_stage.smooth_box, frame)
             )
         self._refresh = refresh
         self.failure = "contour found but no segmentation points"
-        self._spans = edge_stage.spans if edge_stage is not None else self._whole_spans(edges.shape)
+        self._spans = edge_stage.spans if edge_stage is not None else self.measure.whole_spans(edges.shape)
         self._prepare(points, chain, n, width_px, gx, gy, edges, polarity, mag, fixed_rc)
         points_in, chain_in = points, chain
         points, chain, n = self._points, self._chain, self._n
         if self.method in ("paper", "centerline"):
-            return self._comparison(fixed_rc)
+            outcome, sweep_px = split_by_comparison(
+                self.method, self.paper, self._points, self._chain, int(self._n), fixed_rc, self.width
+            )
+            self.sweep_px = self.sweep_px if sweep_px is None else sweep_px
+            return outcome
         if fixed_rc != self._fixed_key:  # the fixed end settles after a few frames: its float32 pair made once
             self._fixed_key, self._fixed32 = fixed_rc, (np.float32(fixed_rc[0]), np.float32(fixed_rc[1]))
         fixed_r, fixed_c = self._fixed32
@@ -258,14 +264,18 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
             edge_stage is not None
             and frame is not None
             and self.method == "blur_split"
-            and len(self._contrasts) >= 10
-            and self._contrast_cache >= 5.0
+            and self.measure.contrast_settled
             and smooth is edge_stage.smooth
         ):
-            outcome = self._split_frame(edge_stage, frame, consts, fixed_rc)
+            call = self.frame_call
+            call.bind(
+                consts, edge_stage, self._bound_views, fixed_rc, self._fixed32, self.polarity_used,
+                self.measure.contrast_px,
+            )  # fmt: skip
+            outcome = self._frame_outcome(call.call(edge_stage, frame, self.sweep_px, self._count), fixed_rc)
             if outcome is not False:
                 if self._given:
-                    self._steady_key = (
+                    call.key = (
                         points_in,
                         chain_in,
                         gx,
@@ -312,8 +322,10 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
         sweep = math.hypot(ar - br, ac - bc)
         if sweep < 1.5 * width:
             # The corners of the band are a rope width apart whatever the sweep below that: read the sweep from
-            # the edge slope instead (contrast / sweep, see `_sweep_from_gradient`).
-            from_slope = self._sweep_from_gradient(i_fix, seg_a, seg_b, fixed_rc)
+            # the edge slope instead (contrast / sweep, see `BandMeasure.sweep_from_gradient`).
+            from_slope = self.measure.sweep_from_gradient(
+                self._chain, self._n, self._mag_ro, i_fix, seg_a, seg_b, self._contrast(fixed_rc), consts
+            )
             if math.isfinite(from_slope):
                 sweep = min(from_slope, 1.5 * width)
         self.sweep_px = sweep
@@ -370,14 +382,14 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
             # sideways sweep at the tip. Where it differs, the offsets of the proportional model are redone with it.
             if local:
                 break
-            lateral = self._tip_lateral(na, nb)
+            lateral = tip_lateral(self.side_a, na, self.side_b, nb)
             if not (math.isfinite(lateral) and abs(lateral - sweep) > 0.25):
                 break
             if lateral < self.static_ratio * width:
                 break
             sweep = lateral
         self.sweep_px = sweep
-        self._correct_slant(na, nb, tables.slant_px)
+        correct_slant(self.side_a, na, self.side_b, nb, tables.slant_px)
         # A rope keeps its length within an exposure: two shapes of clearly different lengths mean the contour
         # was not cut at the band's corners (a faint, broken band end traced the wrong way round).
         len_a = K.polyline_length(self._side_a_ro, np.int32(na))
@@ -415,6 +427,7 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
             self._mag_ro = self._ro(mag)
             self._gx, self._gy = self._ro(gx), self._ro(gy)
             self._bound = (points, chain, gx, gy, mag)
+            self._bound_views = (self._points, self._chain, self._gx, self._gy, self._mag_ro)
         self._n = np.int32(n)  # NumPy 2 refuses a value out of the int32 range
         self._mag = mag
         mag = self._mag_ro
@@ -428,52 +441,83 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
             self._given = True
             return
         self._given = False
-        self._measure_polarity_and_width(width_px, edges, polarity, mag, fixed_rc)
+        self.polarity_used, self.width_measured, self.width = self.measure.polarity_and_width(
+            self._points, self._chain, self._n, self._gx, self._gy, mag, self._ro(edges), self._spans, width_px,
+            polarity, fixed_rc,
+        )  # fmt: skip
 
-    def _correct_slant(self, na: int, nb: int, gain_px: float) -> None:
-        """Undo the bias of the half-level tips when the rope's end also moved along the rope (a whipping tip).
+    def _contrast(self, fixed_rc: tuple[float, float]) -> float:
+        """The rope's contrast (`BandMeasure.contrast`) read on the contour stored by `_prepare`."""
+        return self.measure.contrast(
+            self._points, self._chain, int(self._n), self._gx, self._gy, self._smooth, self._refresh,
+            float(self.polarity_used), self.width, fixed_rc,
+        )  # fmt: skip
 
-        Each tip read at its axis' half-level crossing lies ``gain_px * slope`` beyond its true end, the slope
-        being the end track's along-per-across displacement seen from that shape (`BandEdgeModel.slant_gain`);
-        seen from the other shape the slope has the other sign. The measured tips' along offset is therefore
-        slope * (across - 2 gain): solved for the slope, both tips are moved back. Skipped when the tips are too
-        close across (the slope would be ill-determined).
-        """
-        frame = self._tip_frame(na, nb)
-        if frame is None or not gain_px > 0:
-            return
-        u_r, u_c, d_r, d_c = frame
-        along = d_r * u_r + d_c * u_c
-        across = abs(d_r * u_c - d_c * u_r)
-        if across - 2.0 * gain_px < 1.0:
-            return
-        shift = min(max(along / (across - 2.0 * gain_px), -1.5), 1.5) * gain_px
-        self.side_a[na - 1, 0] -= shift * u_r
-        self.side_a[na - 1, 1] -= shift * u_c
-        self.side_b[nb - 1, 0] += shift * u_r
-        self.side_b[nb - 1, 1] += shift * u_c
-
-    def _tip_frame(self, na: int, nb: int) -> tuple[float, float, float, float] | None:
-        """The mean tip direction (unit, from the last three points of both shapes) and the vector from tip A to
-        tip B, as plain floats; None when a shape is too short or the direction undefined."""
-        if na < 3 or nb < 3:
+    def static(self, fixed_rc: tuple[float, float] | None = None) -> SplitOutcome | None:
+        """Return the centreline of a rope that did not move (or cannot be split): one side of the contour, from
+        rope end to rope end, moved half a rope width into the rope along the gradient. The end nearer
+        `fixed_rc` comes first. Call after `split` on the same contour."""
+        points, chain, n = self._points, self._chain, self._n
+        if n < 8:
             return None
-        (a3r, a3c), _, (a1r, a1c) = self.side_a[na - 3 : na].tolist()
-        (b3r, b3c), _, (b1r, b1c) = self.side_b[nb - 3 : nb].tolist()
-        u_r = a1r - a3r + b1r - b3r
-        u_c = a1c - a3c + b1c - b3c
-        norm = math.hypot(u_r, u_c)
-        if norm <= 0.0:
+        K.turning_angles(points, n, i32(max(3, round(self.width))), self.turn)
+        if K.find_caps(ro(self.turn), n, i32(max(4, n // 8)), self.idx) < 0:
             return None
-        return u_r / norm, u_c / norm, b1r - a1r, b1c - a1c
+        e1, e2 = np.int32(self.idx[0]), np.int32(self.idx[1])
+        if fixed_rc is not None:
+            d1 = np.hypot(points[e1, 0] - fixed_rc[0], points[e1, 1] - fixed_rc[1])
+            d2 = np.hypot(points[e2, 0] - fixed_rc[0], points[e2, 1] - fixed_rc[1])
+            if d2 < d1:
+                e1, e2 = e2, e1
+        w = np.float32(self.width)
+        count = K.offset_by_gradient(
+            points, chain, n, e1, e2, i32(1), self._gx, self._gy, self.polarity_used, w, f32(0.0), self.side_a
+        )
+        if count < 2:
+            return None
+        # The cap's edge was moved half a width back along the axis with the gradient: carry the axis on to the
+        # band's end instead, as for the split shapes.
+        count = self._fit_tip(self.side_a, i32(count))
+        if fixed_rc is not None:
+            count = self._anchor_fixed_end(self.side_a, count, fixed_rc)
+        shape = self._resample(self.side_a, i32(count), self.out_a)
+        self.seg[0] = points[e2]
+        self.seg[1] = points[e2]
+        return SplitOutcome(Method.STATIC_FALLBACK, shape, shape, None, self.width, 0.0)
 
-    def _tip_lateral(self, na: int, nb: int) -> float:
-        """Distance between the two fitted tips across the rope (perpendicular to the mean tip direction)."""
-        frame = self._tip_frame(na, nb)
-        if frame is None:
-            return float("nan")
-        u_r, u_c, d_r, d_c = frame
-        return abs(d_r * u_c - d_c * u_r)
+    def adopt_frame(self, status: int, n: int, fixed_rc: tuple[float, float]) -> SplitOutcome | bool | None:
+        """Take the results of a `split_frame` call made inside `steady_frame` (with the state `split` would have
+        set, on the contour, frame and spans of the key of `SplitFrameCall.one_call_key`), as `split` would have
+        after making it. Returns as `split`, or False when the kernel reported a full buffer: `split` then redoes
+        the frame's split step by step (it makes the same `split_frame` call first, with the same result)."""
+        self.failure = "contour found but no segmentation points"
+        self._count = n
+        return self._frame_outcome(status, fixed_rc)
+
+    def _frame_outcome(self, status: int, fixed_rc: tuple[float, float]) -> SplitOutcome | bool | None:
+        """The outcome of the `split_frame` call that returned `status` (its `info`, `seg` and shapes are here);
+        False when it reported a full buffer."""
+        width_px = self.frame_call.tables.tables.width_px
+        if status == _SHAPES:  # the usual outcome first
+            count_a, count_b, _, _, smoothed_a, smoothed_b, sweep = self.info.tolist()
+            self.sweep_px = sweep
+            return SplitOutcome(
+                _BLUR_SPLIT, (self.side_a if smoothed_a else self.out_a)[: int(count_a)],
+                (self.side_b if smoothed_b else self.out_b)[: int(count_b)], self.seg, width_px, sweep,
+            )  # fmt: skip
+        if status < 0 and status != K.NOT_FOUND:
+            return False
+        count_a, count_b, len_a, len_b, smoothed_a, smoothed_b, sweep = self.info.tolist()
+        if sweep >= 0.0:
+            self.sweep_px = sweep
+        if status == K.SPLIT_STATIC:
+            return self.static(fixed_rc)
+        if status == K.NOT_FOUND:
+            self.failure = f"the two shapes differ in length ({len_a:.0f} and {len_b:.0f} px): split rejected"
+            return None
+        shape_a = (self.side_a if smoothed_a else self.out_a)[: int(count_a)]
+        shape_b = (self.side_b if smoothed_b else self.out_b)[: int(count_b)]
+        return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self.seg, width_px, sweep)
 
     def _anchor_fixed_end(self, poly: NDArray[np.float32], n: np.int32, fixed_rc: tuple[float, float]) -> np.int32:
         """Start an axis polyline at the fixed end: the inward offset moved the end cap's contour points along
@@ -483,7 +527,7 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
         span = f32(max(8.0 * self.width, 16.0))
         return i32(K.anchor_start(poly, n, f32(fixed_rc[0]), f32(fixed_rc[1]), skip, span))
 
-    def _fit_tip(self, poly: NDArray[np.float32], n: int, consts: _WidthConstants | None = None) -> int:
+    def _fit_tip(self, poly: NDArray[np.float32], n: int, consts: WidthTables | None = None) -> int:
         """Put the free end of an axis polyline where the band ends along that axis, less the cap.
 
         The segmentation point is only as good as the corner of the band, which the smoothing rounds over a few
@@ -516,94 +560,3 @@ class BlurSplitter(SplitMeasuring, SplitFallbacks, SplitSteady):
             K.smooth_polyline(out_ro, np.int32(count), self.output_smoothing, self.arc, poly)
             return poly[:count]  # the smoothed points (valid until the next split, as `out`)
         return out[:count]
-
-
-class _WidthConstants:
-    """Scalars (of the kernels' argument types) and tables of `BlurSplitter.split` that depend only on the rope
-    width."""
-
-    __slots__ = (
-        "blur", "cap", "corner", "curves", "frame_params", "keep", "min_gap", "params", "ratios_ro", "scale",
-        "search_px", "skip", "span", "sweep_index", "sweep_window", "sweeps_ro", "table_ro", "table_step", "tables",
-        "width",
-    )  # fmt: skip
-
-    def __init__(self, splitter: BlurSplitter, width: float) -> None:
-        scale = max(splitter.corner_scale, round(0.5 * width))
-        self.scale = i32(scale)
-        self.min_gap = i32(scale + 1)
-        self.search_px = max(3.0 * width, 8.0)
-        self.corner = f32(splitter.corner_rad)
-        self.sweep_window = i32(splitter.sweep_window)
-        self.tables = splitter.model.tables(width)
-        self.ratios_ro, self.sweeps_ro = ro(self.tables.peak_ratio), ro(self.tables.sweeps_px)
-        self.table_ro = ro(self.tables.offset_px)
-        self.table_step = f32(self.tables.sweep_step_px)
-        self.width = f32(width)
-        self.cap = f32(splitter.tip_cap_ratio * width)
-        # The corner is rounded over the edge ramp (up to a rope width) plus the smoothing on each side.
-        self.skip = f32(width + 2.0 * splitter.smooth_sigma)
-        self.blur = f32(max(splitter.smooth_sigma, 0.5))
-        # The axis is fitted over about 20 edge points: enough to average the edge noise (the fitted line is
-        # carried on ~5 px), short enough that a curled rope's bend near the tip stays far below a tenth of a
-        # pixel (measured: 3 widths gave 0.17-0.34 px mean tips on rig / dark rig, 8 widths 0.12-0.25, 20 widths
-        # let rig-soft's curl in, 0.27).
-        self.span = f32(max(8.0 * width, 16.0))
-        self.keep = i32(K.dense_end_points(self.skip, self.span))
-        # `split_shapes_local`'s width-bound arguments for `split_shapes_packed` (float32 values are exact in float64)
-        params = (
-            self.sweep_window, self.table_step, self.width, self.cap, self.skip, self.span, self.blur,
-            self.tables.slant_px, width, splitter.step, splitter.output_smoothing,
-        )  # fmt: skip
-        assert len(params) == K.SPLIT_PARAMS
-        self.params = ro(np.array([float(v) for v in params], np.float64))
-        # `split_frame`'s: the same, then the segmentation points' and the corner box's (as `split` computes them)
-        grow = 3.0 * float(self.blur) + 6.0 + width
-        frame_params = (*params, self.scale, self.min_gap, self.search_px, self.corner, grow, splitter.static_ratio)
-        assert len(frame_params) == K.FRAME_PARAMS
-        self.frame_params = ro(np.array([float(v) for v in frame_params], np.float64))
-        self.curves = ro(np.stack([self.ratios_ro, self.sweeps_ro]).astype(np.float64))
-        self.sweep_index = ro(sweep_index(self.curves[0]))
-
-
-_MAX_BUCKETS = 1 << 13
-"""The largest `sweep_index` (64 KB): past it the table's close ratios are walked (`side_sweeps`)."""
-
-
-def sweep_index(ratios: NDArray[np.float64]) -> NDArray[np.int32]:
-    """Index the sweep table's `ratios` (non-decreasing) for `side_sweeps_indexed`.
-
-    The range of `ratios` is cut into ``nb`` equal buckets (the fewest power of two, 64 or more, for which no
-    bucket holds two distinct ratios), a value's bucket computed as the kernel computes it, ``int(clip((x -
-    ratios[0]) * scale, 0, nb - 1))`` with ``scale = nb / (ratios[-1] - ratios[0])`` (the same float64
-    operations, so the same buckets). For bucket b, ``index[2 b]`` is the number of ratios in lower buckets less
-    one (at least 0), ``index[2 b + 1]`` the index of the last ratio in it or below (at most ``len(ratios) - 2``).
-
-    Parameters
-    ----------
-    ratios
-        (m,) float64: the edge model's ratios (`EdgeTables.peak_ratio`).
-
-    Returns
-    -------
-    NDArray[np.int32]
-        (2 nb,) the index, or (0,) when none fits `_MAX_BUCKETS` (fewer than two ratios, a flat or non-finite
-        table, ratios too close): the kernels then walk the table.
-    """
-    r = np.ascontiguousarray(ratios, np.float64)
-    m = r.shape[0]
-    if m < 2 or not np.all(np.isfinite(r)) or not r[m - 1] > r[0] or np.any(np.diff(r) < 0.0):
-        return np.zeros(0, np.int32)
-    buckets = 64
-    while buckets <= _MAX_BUCKETS:
-        scale = buckets / (r[m - 1] - r[0])
-        where = (r - r[0]) * scale
-        keys = np.where(where < buckets - 1.0, np.where(where > 0.0, where, 0.0), buckets - 1.0).astype(np.int64)
-        if not np.any((keys[1:] == keys[:-1]) & (r[1:] != r[:-1])):
-            grid = np.arange(buckets)
-            index = np.empty(2 * buckets, np.int32)
-            index[0::2] = np.maximum(np.searchsorted(keys, grid, side="left") - 1, 0)
-            index[1::2] = np.minimum(np.searchsorted(keys, grid, side="right") - 1, m - 2)
-            return index
-        buckets *= 2
-    return np.zeros(0, np.int32)

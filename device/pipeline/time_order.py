@@ -6,6 +6,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline.workspace import OrderBuffers, expose
 
 __all__ = ["DEFAULT_PERIOD_NS", "TimeOrder"]
 
@@ -13,6 +14,7 @@ DEFAULT_PERIOD_NS = 25_000_000
 """Frame period assumed before two frames have been seen (40 FPS)."""
 
 
+@expose("buffers", OrderBuffers)
 class TimeOrder:
     """Put the two shapes of each frame in time order by continuity with the previous frames.
 
@@ -24,13 +26,12 @@ class TimeOrder:
     `order_shapes`; this class holds its state arrays.
     """
 
-    __slots__ = ("hist_rc", "state")
+    __slots__ = ("buffers",)
 
-    def __init__(self) -> None:
-        self.state = np.zeros(K.HISTORY + 3, np.int64)
-        """Sample times (ns), then [samples held, history ordered (0/1), rejects in a row] (`K.ORDER_*`)."""
-        self.hist_rc = np.zeros((K.HISTORY, 2), np.float64)
-        """Sample tips (row, col)."""
+    def __init__(self, buffers: OrderBuffers | None = None) -> None:
+        self.buffers = buffers if buffers is not None else OrderBuffers.make()
+        """(each also a read-only attribute) ``state``: sample times (ns), then [samples held, history ordered
+        (0/1), rejects in a row] (`K.ORDER_*`); ``hist_rc``: sample tips (row, col)."""
 
     def clear(self) -> None:
         """Forget the history (the next split frame starts it again, with confidence 0.5)."""

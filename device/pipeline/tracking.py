@@ -6,11 +6,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import as_ro, ro
+from ropecam.device.pipeline._views import as_ro
+from ropecam.device.pipeline.workspace import TRACK_WORK, TrackBuffers, expose
 
 __all__ = ["PointTracker"]
 
 
+@expose("buffers", TrackBuffers)
 class PointTracker:
     """Locate material points on rope shapes and report their stretch ratio Lc/Lc0.
 
@@ -24,26 +26,37 @@ class PointTracker:
         Unstretched length in pixels (Lc0); None to take the median of the first `length0_frames` shapes.
     length0_frames
         Number of shapes for the Lc0 estimate.
+    buffers
+        The material points' buffers (`TrackBuffers`, for these `arc_m`); None: made here for shapes of up to
+        `TRACK_WORK` points (a longer shape gets a scratch array of its own per call).
     """
 
     def __init__(
-        self, arc_m: tuple[float, ...], rope_length_m: float, length0_px: float | None, length0_frames: int = 5
+        self,
+        arc_m: tuple[float, ...],
+        rope_length_m: float,
+        length0_px: float | None,
+        length0_frames: int = 5,
+        buffers: TrackBuffers | None = None,
     ) -> None:
         if rope_length_m <= 0:
             raise ValueError(f"rope_length_m must be > 0, got {rope_length_m}")
         self.arc_m = tuple(float(a) for a in arc_m)
-        self.fraction = np.array(self.arc_m, np.float64) / rope_length_m
+        fraction = np.array(self.arc_m, np.float64) / rope_length_m
+        if buffers is None:
+            buffers = TrackBuffers.make(fraction, TRACK_WORK)
+        elif not np.array_equal(buffers.fraction, fraction):
+            raise ValueError(f"buffers are for arc fractions {buffers.fraction.tolist()}, expected {fraction.tolist()}")
+        self.buffers = buffers
+        """(each also a read-only attribute) ``fraction`` (read-only), ``out`` (the points on both shapes),
+        ``lengths_px`` (Lc (px) of the last `track_shapes` call's shapes, begin and end), ``work`` (segment
+        lengths of a shape, the kernels' scratch)."""
         self.length0_px = length0_px
         self.length0_frames = int(length0_frames)
         self._lengths: list[float] = []
         self._median: float | None = None
-        self.out = np.zeros((2, len(self.arc_m), 2), np.float32)
-        self.fraction_ro = ro(self.fraction)
+        self.fraction_ro = self.fraction
         self.out_slots = (self.out[0], self.out[1])
-        self.lengths_px = np.zeros(2, np.float64)
-        """Lengths Lc (px) of the last `track_shapes` call's shapes (begin, end)."""
-        self.work = np.zeros(1024, np.float64)
-        """Segment lengths of a shape (scratch of the kernels; grown for longer shapes)."""
         self.length0_settled_px = -1.0 if length0_px is None else float(length0_px)
         """Lc0 once it no longer changes (configured, or all its shapes seen); -1 before."""
 
@@ -87,17 +100,18 @@ class PointTracker:
                 self.observe(self.length(end))
             reference = self.reference_length_px
             length0 = float(reference) if reference is not None else 0.0
-        if len(begin) > len(self.work) or len(end) > len(self.work):
-            self.work = np.zeros(max(len(begin), len(end), 2 * len(self.work)), np.float64)
+        work = self.work
+        if len(begin) > len(work) or len(end) > len(work):  # longer than this pipeline's shapes can be
+            work = np.zeros(max(len(begin), len(end)), np.float64)
         try:
             status, stretch_begin, stretch_end = K.track_shapes(
-                begin, end, single, self.fraction_ro, length0, self.out, self.lengths_px, self.work
+                begin, end, single, self.fraction_ro, length0, self.out, self.lengths_px, work
             )
         except TypeError:  # not the splitter's writable float32 buffers: copies
             begin = np.array(begin, np.float32)
             end = begin if single else np.array(end, np.float32)
             status, stretch_begin, stretch_end = K.track_shapes(
-                begin, end, single, self.fraction_ro, length0, self.out, self.lengths_px, self.work
+                begin, end, single, self.fraction_ro, length0, self.out, self.lengths_px, work
             )
         if status < 0:
             raise ValueError(f"cannot track material points on polylines of {len(begin)} and {len(end)} points")

@@ -265,7 +265,7 @@ _STAGES = (
     ("roi_contacts", "tracer", "roi_contacts"),
     ("border_contacts", "tracer", "border_contacts"),
     ("split", "splitter", "split"),
-    ("fixed_end", None, "_fixed_end"),
+    ("fixed_end", "traits", "find_fixed_end"),
     ("material_points", "tracker", "track_shapes"),
     ("lengths", "tracker", "length"),
 )

@@ -3,16 +3,17 @@ cache prefetch hints."""
 
 from __future__ import annotations
 
+import math
 from typing import Any, Final
 
 import numba
 import numpy as np
 from llvmlite import ir
-from numba import types
+from numba import float64, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from ropecam.shared.jit import KernelStatus
+from ropecam.shared.jit import KernelStatus, kernel
 
 f4_1d_ro: Final = types.Array(types.float32, 1, "C", readonly=True)
 
@@ -67,3 +68,10 @@ prefetch_read: Final = _prefetch_intrinsic(0)
 """``prefetch_read(array, index)``: start loading the cache line of ``array[index]`` (1-D) into the caches."""
 prefetch_write: Final = _prefetch_intrinsic(1)
 """``prefetch_write(array, index)``: the same for a line about to be written."""
+
+
+@kernel(float64(float64, float64))
+def vector_length(d_r, d_c):
+    """Return the length of the vector (d_r, d_c): an inline square root (``math.hypot`` is a libm call guarding
+    against overflow that coordinates in pixels never reach, ~3x the time)."""
+    return math.sqrt(d_r * d_r + d_c * d_c)

@@ -1,7 +1,7 @@
-"""The band of a steady frame in one call: the last band's measured error, the motion prediction and the band.
+"""The band of a frame in one call: the last band's measured error, the motion prediction and the band.
 
 Each call from Python costs a dispatch (type matching of every argument) and a return to the interpreter with
-caches the frame's kernels have filled: the steady state of a stream builds its band with one call instead of
+caches the frame's kernels have filled: a stream builds its band with one call instead of
 `need_profile` (after the search), `predict_motion` and `spans_around_chain`.
 """
 
@@ -23,7 +23,7 @@ BAND_MOTION_PX: Final = 2
 """its uncertainty at the farthest point (px),"""
 BAND_MOVED: Final = 3
 """the number of points it moved (written to `out_moved`),"""
-BAND_STEADY: Final = 4
+BAND_MOTION_HELD: Final = 4
 """1.0 when the motion model held at least ``MOTION_FRAMES - 1`` frames when it was predicted, else 0.0."""
 BAND_SLOTS: Final = 5
 
@@ -44,7 +44,7 @@ def band_stage(
     1. With `measure` (the last frame was found in the band the last call built, and `points` is that contour):
        `need_profile` of `points` against the last call's moved points (`out_moved`, ``band_state[BAND_MOVED]``
        of them) with the last call's fixed end, margin `margin_px`, `gain` and ``floor_px + floor_share *
-       band_state[BAND_MOTION_PX]``, and its `steady`: updates `need_hist` (2, bins) and `profile` (bins,).
+       band_state[BAND_MOTION_PX]``, and its `motion_held`: updates `need_hist` (2, bins) and `profile` (bins,).
     2. With `predict` (the fixed end `fixed`, float32 (row, col), is known): `predict_motion(t_ns, exposure_ns,
        motion_state, motion_log)`; else no motion (1, 0, 0) about (0, 0).
     3. `spans_around_chain` of `points` with that motion, margin `margin_px` and, when `use_profile`, `profile`
@@ -58,7 +58,7 @@ def band_stage(
         need_profile(
             out_moved, int(band_state[BAND_MOVED]), points, n_points, margin_px, band_state[BAND_FIXED_R],
             band_state[BAND_FIXED_C], gain, floor_px + floor_share * band_state[BAND_MOTION_PX],
-            band_state[BAND_STEADY] != 0.0, need_hist, profile,
+            band_state[BAND_MOTION_HELD] != 0.0, need_hist, profile,
         )  # fmt: skip
     rot_a = 1.0
     rot_b = 0.0
@@ -77,5 +77,5 @@ def band_stage(
     band_state[BAND_FIXED_C] = fixed_c
     band_state[BAND_MOTION_PX] = motion_px
     band_state[BAND_MOVED] = n_points
-    band_state[BAND_STEADY] = 1.0 if motion_state[MOTION_COUNT] >= MOTION_FRAMES - 1 else 0.0
+    band_state[BAND_MOTION_HELD] = 1.0 if motion_state[MOTION_COUNT] >= MOTION_FRAMES - 1 else 0.0
     return motion_px

@@ -18,6 +18,7 @@ The table holds raw addresses: whoever makes it keeps its arrays alive and uncha
 from __future__ import annotations
 
 import ctypes
+from collections import namedtuple
 from typing import Any, Final
 
 import numba
@@ -27,8 +28,8 @@ from numba.extending import intrinsic
 
 from ropecam.device.pipeline._kernels._common import INVALID
 from ropecam.device.pipeline._kernels.band_stage import band_stage
+from ropecam.device.pipeline._kernels.detect import detect_and_trace
 from ropecam.device.pipeline._kernels.split_frame import FRAME_INFO, FRAME_STATE, split_frame
-from ropecam.device.pipeline._kernels.stages import detect_and_trace
 from ropecam.device.pipeline._kernels.tracking import track_frame
 from ropecam.shared.jit import f8_1d, kernel, u1_2d, u1_2d_ro
 
@@ -97,54 +98,12 @@ STEADY_CONSTANTS: Final = (
 )  # fmt: skip
 """`steady_frame`'s `constants` (float64), in order: the scalars of the four kernels that do not change between
 frames (the int and float32 ones exactly representable)."""
+STEADY_CONSTANT: Final = namedtuple("SteadyConstants", STEADY_CONSTANTS)(*range(len(STEADY_CONSTANTS)))
+"""The index of each of `steady_frame`'s `constants` (``STEADY_CONSTANT.low``), from `STEADY_CONSTANTS`."""
 
-_PREV_POINTS: Final = 0
-_FIXED: Final = 1
-_MOTION_STATE: Final = 2
-_MOTION_LOG: Final = 3
-_NEED_HIST: Final = 4
-_PROFILE: Final = 5
-_BAND_STATE: Final = 6
-_LO: Final = 7
-_HI: Final = 8
-_MOVED: Final = 9
-_WEIGHTS: Final = 10
-_WORK_SPANS: Final = 11
-_TMP: Final = 12
-_SMOOTH: Final = 13
-_GX: Final = 14
-_GY: Final = 15
-_MAG: Final = 16
-_EDGES: Final = 17
-_EDGE_STACK: Final = 18
-_LABELS: Final = 19
-_STACK: Final = 20
-_START: Final = 21
-_CHAIN: Final = 22
-_CODES: Final = 23
-_POINTS: Final = 24
-_COUNTS: Final = 25
-_BOX_LO: Final = 26
-_BOX_HI: Final = 27
-_PARAMS: Final = 28
-_SPLIT_STATE: Final = 29
-_CURVES: Final = 30
-_TABLE: Final = 31
-_SWEEP_INDEX: Final = 32
-_LINES: Final = 33
-_SIDES: Final = 34
-_SCRATCH: Final = 35
-_TURN: Final = 36
-_IDX: Final = 37
-_OUT_SEG: Final = 38
-_SPLIT_INFO: Final = 39
-_ORDER_STATE: Final = 40
-_HIST_RC: Final = 41
-_FRACTION: Final = 42
-_OUT_POINTS: Final = 43
-_OUT_LENGTHS: Final = 44
-_WORK_SEG: Final = 45
-_OUT: Final = 46
+STEADY_ROW: Final = namedtuple("SteadyRows", [name for name, _, _ in STEADY_BUFFERS])(*range(len(STEADY_BUFFERS)))
+"""The row of each buffer in `steady_frame`'s table (``STEADY_ROW.lo``), made from `STEADY_BUFFERS`: the one list
+of the table's buffers, kept in this file so that an edit of it recompiles the kernel (Numba freezes the rows)."""
 
 # ``_pointer(address, dtype)``: the int64 `address` as a pointer to `dtype` (a NumPy scalar type).
 if numba.config.DISABLE_JIT:
@@ -213,64 +172,133 @@ def steady_frame(
     or INVALID, before any call, when `table` or `constants` has too few rows, or ``out``, ``split_state`` or
     ``split_info`` is too short.
     """
-    if table.shape[0] < _OUT + 1 or table.shape[1] < 4 or constants.shape[0] < len(STEADY_CONSTANTS):
+    if table.shape[0] < STEADY_ROW.out + 1 or table.shape[1] < 4 or constants.shape[0] < len(STEADY_CONSTANTS):
         return INVALID
-    out = _buffer1(table, _OUT, np.float64)
-    split_state = _buffer1(table, _SPLIT_STATE, np.float64)
-    split_info = _buffer1(table, _SPLIT_INFO, np.float64)
+    out = _buffer1(table, STEADY_ROW.out, np.float64)
+    split_state = _buffer1(table, STEADY_ROW.split_state, np.float64)
+    split_info = _buffer1(table, STEADY_ROW.split_info, np.float64)
     if out.shape[0] < STEADY_SLOTS or split_state.shape[0] < FRAME_STATE or split_info.shape[0] < FRAME_INFO:
         return INVALID
-    lo = _buffer1(table, _LO, np.int32)
-    hi = _buffer1(table, _HI, np.int32)
-    fixed = _buffer1(table, _FIXED, np.float32)
-    motion_state = _buffer1(table, _MOTION_STATE, np.int64)
-    motion_log = _buffer2(table, _MOTION_LOG, np.float64)
+    lo = _buffer1(table, STEADY_ROW.lo, np.int32)
+    hi = _buffer1(table, STEADY_ROW.hi, np.int32)
+    fixed = _buffer1(table, STEADY_ROW.fixed, np.float32)
+    motion_state = _buffer1(table, STEADY_ROW.motion_state, np.int64)
+    motion_log = _buffer2(table, STEADY_ROW.motion_log, np.float64)
     out[STEADY_MOTION] = band_stage(
-        _buffer2(table, _PREV_POINTS, np.float32), prev_count, measure, use_profile, predict, t_ns, exposure_ns,
-        int64(constants[0]), int64(constants[1]), int64(constants[2]), constants[3], constants[4], constants[5],
-        fixed, motion_state, motion_log, _buffer2(table, _NEED_HIST, np.float64), _buffer1(table, _PROFILE, np.float64),
-        _buffer1(table, _BAND_STATE, np.float64), lo, hi, _buffer2(table, _MOVED, np.float32),
-    )  # fmt: skip
-    weights = _buffer1(table, _WEIGHTS, np.float32)
-    tmp = _buffer2(table, _TMP, np.float32)
-    smooth = _buffer2(table, _SMOOTH, np.float32)
-    gx = _buffer2(table, _GX, np.float32)
-    gy = _buffer2(table, _GY, np.float32)
-    mag = _buffer2(table, _MAG, np.float32)
-    chain = _buffer2(table, _CHAIN, np.int32)
-    points = _buffer2(table, _POINTS, np.float32)
-    counts = _buffer1(table, _COUNTS, np.int32)
+        _buffer2(table, STEADY_ROW.prev_points, np.float32),
+        prev_count,
+        measure,
+        use_profile,
+        predict,
+        t_ns,
+        exposure_ns,
+        int64(constants[STEADY_CONSTANT.margin_px]),
+        int64(constants[STEADY_CONSTANT.height]),
+        int64(constants[STEADY_CONSTANT.width]),
+        constants[STEADY_CONSTANT.gain],
+        constants[STEADY_CONSTANT.floor_px],
+        constants[STEADY_CONSTANT.floor_share],
+        fixed,
+        motion_state,
+        motion_log,
+        _buffer2(table, STEADY_ROW.need_hist, np.float64),
+        _buffer1(table, STEADY_ROW.profile, np.float64),
+        _buffer1(table, STEADY_ROW.band_state, np.float64),
+        lo,
+        hi,
+        _buffer2(table, STEADY_ROW.moved, np.float32),
+    )
+    weights = _buffer1(table, STEADY_ROW.weights, np.float32)
+    tmp = _buffer2(table, STEADY_ROW.tmp, np.float32)
+    smooth = _buffer2(table, STEADY_ROW.smooth, np.float32)
+    gx = _buffer2(table, STEADY_ROW.gx, np.float32)
+    gy = _buffer2(table, STEADY_ROW.gy, np.float32)
+    mag = _buffer2(table, STEADY_ROW.mag, np.float32)
+    chain = _buffer2(table, STEADY_ROW.chain, np.int32)
+    points = _buffer2(table, STEADY_ROW.points, np.float32)
+    counts = _buffer1(table, STEADY_ROW.counts, np.int32)
     n = detect_and_trace(
-        frame, lo, hi, weights, float32(constants[6]), float32(constants[7]), int32(constants[8]),
-        _buffer2(table, _WORK_SPANS, np.int32), tmp, smooth, gx, gy, mag, _buffer2(table, _EDGES, np.uint8),
-        _buffer1(table, _EDGE_STACK, np.int32), _buffer2(table, _LABELS, np.int32), _buffer1(table, _STACK, np.int32),
-        _buffer1(table, _START, np.int32), chain, _buffer1(table, _CODES, np.int32), points, counts,
-    )  # fmt: skip
+        frame,
+        lo,
+        hi,
+        weights,
+        float32(constants[STEADY_CONSTANT.low]),
+        float32(constants[STEADY_CONSTANT.high]),
+        int32(constants[STEADY_CONSTANT.min_pixels]),
+        _buffer2(table, STEADY_ROW.work_spans, np.int32),
+        tmp,
+        smooth,
+        gx,
+        gy,
+        mag,
+        _buffer2(table, STEADY_ROW.edges, np.uint8),
+        _buffer1(table, STEADY_ROW.edge_stack, np.int32),
+        _buffer2(table, STEADY_ROW.labels, np.int32),
+        _buffer1(table, STEADY_ROW.stack, np.int32),
+        _buffer1(table, STEADY_ROW.start, np.int32),
+        chain,
+        _buffer1(table, STEADY_ROW.codes, np.int32),
+        points,
+        counts,
+    )
     out[STEADY_POINTS] = n
     if n <= 0 or counts[1] != 0 or counts[2] != 0:
         return STEADY_AFTER_CONTOUR
     split_state[_STATE_SWEEP] = last_sweep_px
     split_state[_STATE_POINTS] = n
-    sides = _buffer3(table, _SIDES, np.float32)
+    sides = _buffer3(table, STEADY_ROW.sides, np.float32)
     status = split_frame(
-        points, chain, mag, gx, gy, frame, weights, lo, hi, _buffer1(table, _BOX_LO, np.int32),
-        _buffer1(table, _BOX_HI, np.int32), tmp, smooth, _buffer1(table, _PARAMS, np.float64), split_state,
-        _buffer2(table, _CURVES, np.float64), _buffer1(table, _TABLE, np.float32),
-        _buffer1(table, _SWEEP_INDEX, np.int32), _buffer2(table, _LINES, np.float32), sides,
-        _buffer2(table, _SCRATCH, np.float64), _buffer1(table, _TURN, np.float32), _buffer1(table, _IDX, np.int32),
-        _buffer2(table, _OUT_SEG, np.float32), split_info,
-    )  # fmt: skip
+        points,
+        chain,
+        mag,
+        gx,
+        gy,
+        frame,
+        weights,
+        lo,
+        hi,
+        _buffer1(table, STEADY_ROW.box_lo, np.int32),
+        _buffer1(table, STEADY_ROW.box_hi, np.int32),
+        tmp,
+        smooth,
+        _buffer1(table, STEADY_ROW.params, np.float64),
+        split_state,
+        _buffer2(table, STEADY_ROW.curves, np.float64),
+        _buffer1(table, STEADY_ROW.table, np.float32),
+        _buffer1(table, STEADY_ROW.sweep_index, np.int32),
+        _buffer2(table, STEADY_ROW.lines, np.float32),
+        sides,
+        _buffer2(table, STEADY_ROW.scratch, np.float64),
+        _buffer1(table, STEADY_ROW.turn, np.float32),
+        _buffer1(table, STEADY_ROW.idx, np.int32),
+        _buffer2(table, STEADY_ROW.out_seg, np.float32),
+        split_info,
+    )
     out[STEADY_STATUS] = status
     if status != _SHAPES:
         return STEADY_AFTER_SPLIT
     shape_a = sides[0 if split_info[_INFO_SMOOTHED_A] != 0.0 else 2, : int(split_info[_INFO_COUNT_A])]
     shape_b = sides[1 if split_info[_INFO_SMOOTHED_B] != 0.0 else 3, : int(split_info[_INFO_COUNT_B])]
     swap, confidence, stretch_begin, stretch_end = track_frame(
-        shape_a, shape_b, False, t_ns, t_end_ns, max_age_ns, _buffer1(table, _ORDER_STATE, np.int64),
-        _buffer2(table, _HIST_RC, np.float64), fixed, split_info[_INFO_SWEEP], exposure_ns, motion_state, motion_log,
-        _buffer1(table, _FRACTION, np.float64), constants[9], _buffer3(table, _OUT_POINTS, np.float32),
-        _buffer1(table, _OUT_LENGTHS, np.float64), _buffer1(table, _WORK_SEG, np.float64),
-    )  # fmt: skip
+        shape_a,
+        shape_b,
+        False,
+        t_ns,
+        t_end_ns,
+        max_age_ns,
+        _buffer1(table, STEADY_ROW.order_state, np.int64),
+        _buffer2(table, STEADY_ROW.hist_rc, np.float64),
+        fixed,
+        split_info[_INFO_SWEEP],
+        exposure_ns,
+        motion_state,
+        motion_log,
+        _buffer1(table, STEADY_ROW.fraction, np.float64),
+        constants[STEADY_CONSTANT.length0_px],
+        _buffer3(table, STEADY_ROW.out_points, np.float32),
+        _buffer1(table, STEADY_ROW.out_lengths, np.float64),
+        _buffer1(table, STEADY_ROW.work_seg, np.float64),
+    )
     out[STEADY_SWAP] = swap
     out[STEADY_CONFIDENCE] = confidence
     out[STEADY_STRETCH_BEGIN] = stretch_begin

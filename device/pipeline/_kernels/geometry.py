@@ -7,7 +7,7 @@ import math
 import numpy as np
 from numba import boolean, float32, float64, int32, int64, types
 
-from ropecam.device.pipeline._kernels._common import FULL, NOT_FOUND, f4_1d_ro
+from ropecam.device.pipeline._kernels._common import FULL, NOT_FOUND, f4_1d_ro, vector_length
 from ropecam.shared.jit import (
     f4_1d,
     f4_2d,
@@ -83,24 +83,6 @@ def refine_subpixel(mag, gx, gy, chain, n, out_points):
     return n
 
 
-@kernel(float64(f4_2d_ro, int32))
-def signed_area(points, n):
-    """Return the signed area (shoelace, in (row, col) coordinates) of the closed polygon of the first `n`
-    points; positive for a clockwise traversal on screen."""
-    acc = 0.0
-    for i in range(n):
-        j = (i + 1) % n
-        acc += float(points[i, 1]) * float(points[j, 0]) - float(points[j, 1]) * float(points[i, 0])
-    return 0.5 * acc
-
-
-@kernel(float64(float64, float64))
-def _length(d_r, d_c):
-    """Return the length of the vector (d_r, d_c): an inline square root (``math.hypot`` is a libm call guarding
-    against overflow that coordinates in pixels never reach, ~3x the time)."""
-    return math.sqrt(d_r * d_r + d_c * d_c)
-
-
 @kernel(float64(f4_2d_ro, int64, int64, int64))
 def _turn_at(points, n, scale, i):
     """Return the unsigned turning angle (radians) at point `i` between the chords to the points `scale` places
@@ -136,38 +118,6 @@ def turning_angles(points, n, scale, out_turn):
     for i in range(n):
         out_turn[i] = _turn_at(points, n, scale, i)
     return n
-
-
-@kernel(int32(f4_2d_ro, int32, int32, float32, float32, float32, f8_1d, f4_1d))
-def turning_angles_far(points, n, scale, fixed_r, fixed_c, search_px, out_dist, out_turn):
-    """Write the distance of every point from (fixed_r, fixed_c) into `out_dist` (for `split_contour`) and the
-    turning angle (as `turning_angles`) only where `split_contour` reads it: at the points at least
-    ``R_far - search_px`` from the fixed end (R_far the largest distance) and at their two neighbours; 0
-    elsewhere. The angle costs an ``acos`` per point, and the tip zone is a small part of the contour.
-    Returns the number of angles computed, or FULL when `out_dist` is shorter than `n`."""
-    if out_dist.shape[0] < n or out_turn.shape[0] < n:
-        return FULL
-    r_far = -1.0
-    for i in range(n):
-        d = _length(points[i, 0] - fixed_r, points[i, 1] - fixed_c)
-        out_dist[i] = d
-        out_turn[i] = 0.0
-        if d > r_far:
-            r_far = d
-    threshold = r_far - search_px
-    computed = 0
-    done = -1  # last index written (the zone is visited in order; its neighbours may repeat)
-    for i in range(n):
-        if out_dist[i] < threshold:
-            continue
-        for j in range(i - 1, i + 2):
-            k = (j + n) % n
-            if j <= done and j >= 0:
-                continue
-            out_turn[k] = _turn_at(points, n, scale, k)
-            computed += 1
-            done = max(done, j)
-    return computed
 
 
 @kernel(int64(int64, int64, boolean))
@@ -279,7 +229,15 @@ def _pick_corners(
     int32(f4_2d_ro, f4_1d_ro, f8_1d_ro, int64, int64, int64, float64, float32, int32, float32, f4_1d, i4_1d)
 )  # fmt: skip
 def _split_from(points, turn, dist, n, i_fix, i_far, r_far, search_px, min_gap, corner_rad, work_arc, out_idx):
-    """`split_contour` once the fixed end `i_fix`, the far point `i_far` and its distance `r_far` are known."""
+    """Find the two segmentation points once the fixed end `i_fix`, the far point `i_far` and its distance `r_far`
+    are known: side A runs forward along the chain from the fixed end to the far point, side B backward. Among the
+    points at least ``r_far - search_px`` from the fixed end, the corner candidates of each side are the local
+    maxima of the turning angle above `corner_rad` and above half the side's sharpest; of the pairs at least
+    `min_gap` chain steps apart, those whose arc lengths from the fixed end differ by at most 2 px more than the
+    best-matching pair's compete, and the sharpest (largest sum) wins. Without candidates, the points of largest
+    turning angle on each side (at least `min_gap` apart) are used. `dist` holds each point's distance from the
+    fixed end; `work_arc` (n) is scratch. Writes ``out_idx = [fixed, seg_a, far, seg_b]``; returns 4, NOT_FOUND
+    or FULL."""
     threshold = r_far - search_px
     len_a = (i_far - i_fix + n) % n
     len_b = (i_fix - i_far + n) % n
@@ -294,7 +252,7 @@ def _split_from(points, turn, dist, n, i_fix, i_far, r_far, search_px, min_gap, 
     ip = i_fix
     for step in range(1, n + 1):
         i = ip + 1 if ip + 1 < n else 0
-        total += _length(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
+        total += vector_length(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
         if step < n:
             arc[i] = total
         ip = i
@@ -323,48 +281,17 @@ def _split_from(points, turn, dist, n, i_fix, i_far, r_far, search_px, min_gap, 
     )
 
 
-@kernel(int32(f4_2d_ro, f4_1d_ro, f8_1d_ro, int32, float32, float32, float32, int32, float32, f4_1d, i4_1d))
-def split_contour(points, turn, dist, n, fixed_r, fixed_c, search_px, min_gap, corner_rad, work_arc, out_idx):
-    """Find the fixed end, the far point and the two segmentation points on the closed subpixel contour.
-
-    The fixed-end index is the contour point nearest to (fixed_r, fixed_c); the far index the point farthest
-    from it. Side A runs forward along the chain from the fixed end to the far point, side B backward. Among the
-    points at least ``R_far - search_px`` from the fixed end, the corner candidates of each side are the local
-    maxima of the turning angle above `corner_rad` and above half the side's sharpest; of the pairs at least
-    `min_gap` chain steps apart, those whose arc lengths from the fixed end differ by at most 2 px more than the
-    best-matching pair's compete, and the sharpest (largest sum) wins. Without candidates, the points of largest
-    turning angle on each side (at least `min_gap` apart) are used. `dist` holds each point's distance from the
-    fixed end (`turning_angles_far` writes it); `work_arc` (n) is scratch.
-    Writes ``out_idx = [fixed, seg_a, far, seg_b]``; returns 4, NOT_FOUND or FULL (`work_arc` or `dist` too short).
-    """
-    if n < 8:
-        return NOT_FOUND
-    if dist.shape[0] < n:
-        return FULL
-    i_fix = 0
-    best = 1e30
-    i_far = 0
-    r_far = -1.0
-    for i in range(n):
-        d = dist[i]
-        if d < best:
-            best = d
-            i_fix = i
-        if d > r_far:
-            r_far = d
-            i_far = i
-    return _split_from(points, turn, dist, n, i_fix, i_far, r_far, search_px, min_gap, corner_rad, work_arc, out_idx)
-
-
 @kernel(int32(f4_2d_ro, int32, int32, float32, float32, float32, int32, float32, f8_1d, f4_1d, f4_1d, i4_1d))
 def find_segmentation_points(
     points, n, scale, fixed_r, fixed_c, search_px, min_gap, corner_rad, out_dist, out_turn, work_arc, out_idx
 ):
-    """`turning_angles_far` then `split_contour` in one call, with the same `out_dist`, `work_arc`, `out_idx` and
-    return value (`split_contour`'s; FULL also when `out_dist` or `out_turn` is shorter than `n`).
+    """Find the fixed end, the far point and the two segmentation points on the closed subpixel contour: the
+    distances from (fixed_r, fixed_c) into `out_dist`, the turning angles (`turning_angles`) where they are read
+    into `out_turn`, then `_split_from` (the fixed end is the nearest point, the far point the farthest), with its
+    `work_arc`, `out_idx` and return value (FULL also when `out_dist` or `out_turn` is shorter than `n`).
 
     One pass gives the distances, the fixed end and the far point; `out_turn` is written only where
-    `split_contour` reads it (the tip zone and its neighbours), not cleared elsewhere.
+    `_split_from` reads it (the tip zone and its neighbours), not cleared elsewhere.
     """
     if n < 8:
         return NOT_FOUND
@@ -375,7 +302,7 @@ def find_segmentation_points(
     i_far = 0
     r_far = -1.0
     for i in range(n):
-        d = _length(points[i, 0] - fixed_r, points[i, 1] - fixed_c)
+        d = vector_length(points[i, 0] - fixed_r, points[i, 1] - fixed_c)
         out_dist[i] = d
         if d < best:
             best = d
@@ -417,10 +344,10 @@ def find_segmentation_points_seg(
     if out_dist.shape[0] < n or out_turn.shape[0] < n or work_seg.shape[0] < n:
         return FULL
     for i in range(n):
-        out_dist[i] = _length(points[i, 0] - fixed_r, points[i, 1] - fixed_c)
+        out_dist[i] = vector_length(points[i, 0] - fixed_r, points[i, 1] - fixed_c)
     for i in range(1, n):
-        work_seg[i] = _length(points[i, 0] - points[i - 1, 0], points[i, 1] - points[i - 1, 1])
-    work_seg[0] = _length(points[0, 0] - points[n - 1, 0], points[0, 1] - points[n - 1, 1])
+        work_seg[i] = vector_length(points[i, 0] - points[i - 1, 0], points[i, 1] - points[i - 1, 1])
+    work_seg[0] = vector_length(points[0, 0] - points[n - 1, 0], points[0, 1] - points[n - 1, 1])
     i_fix = 0
     best = 1e30
     i_far = 0
@@ -489,7 +416,7 @@ def chain_length(points, n, i_start, count, direction):
     for k in range(1, count):
         i0 = (i_start + (k - 1) * direction + n * 4) % n
         i1 = (i_start + k * direction + n * 4) % n
-        total += _length(points[i1, 0] - points[i0, 0], points[i1, 1] - points[i0, 1])
+        total += vector_length(points[i1, 0] - points[i0, 0], points[i1, 1] - points[i0, 1])
     return total
 
 
@@ -514,7 +441,7 @@ def offset_side(points, n, i_start, i_stop, direction, interior_sign, width_px, 
         i = (i_start + k * direction + n * 4) % n
         if k > 0:
             ip = (i_start + (k - 1) * direction + n * 4) % n
-            s += _length(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
+            s += vector_length(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
         a = (i - tangent_span + n * 4) % n
         b = (i + tangent_span) % n
         t_r = points[b, 0] - points[a, 0]

@@ -8,7 +8,7 @@ from typing import Final
 import numpy as np
 from numba import float32, float64, int32, int64, types, void
 
-from ropecam.device.pipeline._kernels._common import FULL, INVALID, NOT_FOUND, f4_1d_ro, prefetch_read
+from ropecam.device.pipeline._kernels._common import FULL, INVALID, NOT_FOUND, f4_1d_ro, prefetch_read, vector_length
 from ropecam.device.pipeline._kernels.geometry import axis_offset, chain_length
 from ropecam.device.pipeline._kernels.polylines import (
     anchor_start,
@@ -30,14 +30,6 @@ from ropecam.shared.jit import (
     kernel,
     u1_2d_ro,
 )
-
-
-@kernel(float64(float64, float64))
-def _length(d_r, d_c):
-    """Return the length of the vector (d_r, d_c): an inline square root (``math.hypot`` is a libm call guarding
-    against overflow that coordinates in pixels never reach, ~3x the time)."""
-    return math.sqrt(d_r * d_r + d_c * d_c)
-
 
 f4_3d: Final = types.Array(types.float32, 3, "C")
 
@@ -154,58 +146,12 @@ def offset_by_gradient(
         i = (i_start + k * direction + n * 4) % n
         if k > 0:
             ip = (i_start + (k - 1) * direction + n * 4) % n
-            s += _length(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
+            s += vector_length(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
         shift = 0.5 * width_px
         if total > 0.0:
             shift = max(0.0, 0.5 * (width_px - sweep_tip_px * s / total))
         place_along_gradient(points, chain, i, gx, gy, polarity, shift, out_poly, k)
     return count
-
-
-@kernel(int32(i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, float32, f4_1d))
-def side_slope_samples(chain, n, i_fix, i_seg, direction, mag, lo_frac, hi_frac, out_values):
-    """Write the gradient magnitude at the chain pixels of one side (from `i_fix` stepping `direction` to
-    `i_seg`) whose arc fraction lies in [lo_frac, hi_frac) into `out_values`, each followed by its fraction:
-    ``out_values[2k] = mag``, ``out_values[2k + 1] = fraction`` (fraction by index, the chain being
-    8-connected). Returns the number of pairs written or FULL."""
-    count = ((i_seg - i_fix) * direction % n + n) % n + 1
-    if count < 2:
-        return 0
-    m = 0
-    for k in range(count):
-        frac = k / (count - 1)
-        if frac < lo_frac or frac >= hi_frac:
-            continue
-        if 2 * m + 1 >= out_values.shape[0]:
-            return FULL
-        i = (i_fix + k * direction + 4 * n) % n
-        out_values[2 * m] = mag[chain[i, 0], chain[i, 1]]
-        out_values[2 * m + 1] = frac
-        m += 1
-    return m
-
-
-@kernel(float32(f8_1d_ro, f8_1d_ro, float64))
-def interp_sorted(xs, ys, x):
-    """Return the piecewise-linear interpolation of (`xs`, `ys`) at `x` (`xs` increasing; clamped at the ends)."""
-    m = xs.shape[0]
-    if m == 0:
-        return np.float32(np.nan)
-    if x <= xs[0]:
-        return np.float32(ys[0])
-    if x >= xs[m - 1]:
-        return np.float32(ys[m - 1])
-    lo = 0
-    hi = m - 1
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if xs[mid] <= x:
-            lo = mid
-        else:
-            hi = mid
-    span = xs[hi] - xs[lo]
-    t = (x - xs[lo]) / span if span > 0.0 else 0.0
-    return np.float32(ys[lo] + t * (ys[hi] - ys[lo]))
 
 
 @kernel(int32(i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f8_1d_ro, f8_1d_ro, int32, f4_1d, f4_1d))
@@ -218,7 +164,7 @@ def side_sweeps(chain, n, i_start, i_stop, direction, mag, inv_contrast, ratios,
     if count > out_sweeps.shape[0] or count > work.shape[0]:
         return FULL
     # The table lookup walks from the last point's interval (neighbours' ratios are close): the same interval as
-    # `interp_sorted`'s bisection (the last `lo` with ratios[lo] <= x), without its unpredictable branches.
+    # A bisection (the last `lo` with ratios[lo] <= x), without its unpredictable branches.
     m = ratios.shape[0]
     lo = 0
     i = (i_start + 4 * n) % n
@@ -373,7 +319,7 @@ def offset_by_table(
             d = sweeps[k]
         else:
             if k > 0:
-                s += _length(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
+                s += vector_length(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
             d = sweep_tip_px * s / total if total > 0.0 else 0.0
         x = max(d, 0.0) / step_px
         j = min(int(x), last)
@@ -518,7 +464,7 @@ def split_shapes_local(
         b3c = float(out_side_b[nb - 3, 1])
         u_r = a1r - a3r + b1r - b3r
         u_c = a1c - a3c + b1c - b3c
-        norm = _length(u_r, u_c)
+        norm = vector_length(u_r, u_c)
         if norm > 0.0 and slant_gain_px > 0:
             u_r = u_r / norm
             u_c = u_c / norm
@@ -650,7 +596,8 @@ def slope_sweep_median(chain, n, i_fix, i_seg, direction, mag, lo_frac, hi_frac,
     gradient height ``mag / contrast`` (float32, as NumPy divides a float32 array by a Python float; then
     `np.interp` on (`ratios`, `sweeps`)), extrapolated to the tip as d / f; the median of those (as
     `np.median`). `work` holds the values (reordered in place: `_select`). nan with fewer than 6 samples or a
-    full `work`. The same as `side_slope_samples` followed by the stage's NumPy, without its ~150 us of NumPy calls."""
+    full `work`. The same as sampling the magnitudes and taking the median with NumPy (the tests' reference),
+    without ~150 us of NumPy calls."""
     count = ((i_seg - i_fix) * direction % n + n) % n + 1
     if count < 2:
         return np.nan

@@ -8,7 +8,7 @@ from typing import Final
 import numpy as np
 from numba import float32, float64, int32, types
 
-from ropecam.device.pipeline._kernels._common import FULL, INVALID
+from ropecam.device.pipeline._kernels._common import FULL, INVALID, vector_length
 from ropecam.device.pipeline._kernels.geometry import sample_bilinear
 from ropecam.shared.jit import (
     f4_2d,
@@ -18,19 +18,12 @@ from ropecam.shared.jit import (
 )
 
 
-@kernel(float64(float64, float64))
-def _length(d_r, d_c):
-    """Return the length of the vector (d_r, d_c): an inline square root (``math.hypot`` is a libm call guarding
-    against overflow that coordinates in pixels never reach, ~3x the time)."""
-    return math.sqrt(d_r * d_r + d_c * d_c)
-
-
 @kernel(float64(f4_2d_ro, int32))
 def polyline_length(poly, n):
     """Return the length of the polyline of the first `n` points, eq. (9)."""
     total = 0.0
     for i in range(1, n):
-        total += _length(float(poly[i, 0]) - float(poly[i - 1, 0]), float(poly[i, 1]) - float(poly[i - 1, 1]))
+        total += vector_length(float(poly[i, 0]) - float(poly[i - 1, 0]), float(poly[i, 1]) - float(poly[i - 1, 1]))
     return total
 
 
@@ -49,13 +42,13 @@ def resample_polyline_of_length(poly, n, total, step_px, out_poly):
     step = total / segments
     j = 0
     acc = 0.0
-    seg_len = _length(poly[1, 0] - poly[0, 0], poly[1, 1] - poly[0, 1]) if n > 1 else 0.0
+    seg_len = vector_length(poly[1, 0] - poly[0, 0], poly[1, 1] - poly[0, 1]) if n > 1 else 0.0
     for k in range(1, segments):
         target = k * step
         while acc + seg_len < target and j + 2 < n:
             acc += seg_len
             j += 1
-            seg_len = _length(poly[j + 1, 0] - poly[j, 0], poly[j + 1, 1] - poly[j, 1])
+            seg_len = vector_length(poly[j + 1, 0] - poly[j, 0], poly[j + 1, 1] - poly[j, 1])
         t = (target - acc) / seg_len if seg_len > 0.0 else 0.0
         t = min(max(t, 0.0), 1.0)
         out_poly[k, 0] = poly[j, 0] + t * (poly[j + 1, 0] - poly[j, 0])
@@ -76,7 +69,11 @@ def resample_polyline(poly, n, step_px, out_poly):
 
 @kernel(int32(f4_2d_ro, int32, float64, f8_1d_ro, float64, f4_2d))
 def track_material_points_of_length(poly, n, total, arc_px, length0_px, out_points):
-    """`track_material_points` for a polyline whose length `total` (`polyline_length`) the caller has already.
+    """Locate material points on the polyline (fixed end first, `n` points, length `total` from
+    `polyline_length`) by arc length with uniform stretch, eqs. (9)-(12): ``arc_px[k]`` is the unstretched
+    distance of point k from the fixed end; with the length Lc and the unstretched length `length0_px` (Lc0) it
+    sits at ``arc_px[k] * Lc / Lc0``, interpolated between the points bracketing it, clamped to the ends. Writes
+    `out_points` (row, col); returns the number of points or INVALID (empty polyline, Lc0 <= 0).
     Arc lengths in increasing order are located in one walk along the polyline (each search resumes where the
     last one stopped: every earlier segment ends before the previous target), others each from the start."""
     m = arc_px.shape[0]
@@ -98,7 +95,7 @@ def track_material_points_of_length(poly, n, total, arc_px, length0_px, out_poin
         acc = acc0 if increasing else 0.0
         done = False
         for j in range(j0 if increasing else 0, n - 1):
-            seg = _length(float(poly[j + 1, 0]) - float(poly[j, 0]), float(poly[j + 1, 1]) - float(poly[j, 1]))
+            seg = vector_length(float(poly[j + 1, 0]) - float(poly[j, 0]), float(poly[j + 1, 1]) - float(poly[j, 1]))
             if acc + seg > target and seg > 0.0:
                 t = (target - acc) / seg
                 out_points[k, 0] = poly[j, 0] + t * (poly[j + 1, 0] - poly[j, 0])
@@ -112,21 +109,6 @@ def track_material_points_of_length(poly, n, total, arc_px, length0_px, out_poin
             out_points[k, 0] = poly[n - 1, 0]
             out_points[k, 1] = poly[n - 1, 1]
     return m
-
-
-@kernel(int32(f4_2d_ro, int32, f8_1d_ro, float64, f4_2d))
-def track_material_points(poly, n, arc_px, length0_px, out_points):
-    """Locate material points on the polyline (fixed end first) by arc length with uniform stretch, eqs. (9)-(12).
-
-    ``arc_px[k]`` is the unstretched distance of point k from the fixed end; with the polyline's length Lc and
-    the unstretched length `length0_px` (Lc0) it sits at ``l' = arc_px[k] * Lc / Lc0``, interpolated between the
-    polyline points bracketing it; beyond the ends it is clamped to them. Writes `out_points` (row, col); returns
-    the number of points or INVALID (empty polyline, Lc0 <= 0).
-    """
-    m = arc_px.shape[0]
-    if n < 1 or not length0_px > 0.0 or out_points.shape[0] < m:
-        return INVALID
-    return track_material_points_of_length(poly, n, polyline_length(poly, n), arc_px, length0_px, out_points)
 
 
 @kernel(int32(f4_2d, int32, float32, float32, float32, float32))
@@ -150,7 +132,7 @@ def anchor_start(poly, n, point_r, point_c, skip_px, span_px):
     b_r = 0.0
     b_c = 0.0
     while k < n:
-        seg = _length(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
+        seg = vector_length(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
         if seg > 0.0:
             if not found_a and s + seg >= skip_px:
                 f = (skip_px - s) / seg
@@ -186,7 +168,7 @@ def anchor_start(poly, n, point_r, point_c, skip_px, span_px):
     out = 1
     first_r = poly[k_a, 0]
     first_c = poly[k_a, 1]
-    if _length(first_r - a_r, first_c - a_c) > 1e-6:
+    if vector_length(first_r - a_r, first_c - a_c) > 1e-6:
         out = 2
     count = out + (n - k_a)
     if count > poly.shape[0]:
@@ -216,7 +198,7 @@ def trim_polyline_end(poly, n, cut_px):
     remaining = cut_px
     k = n - 1
     while k > 0:
-        seg = _length(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
+        seg = vector_length(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
         if seg >= remaining and seg > 0.0:
             t = remaining / seg
             poly[k, 0] = poly[k, 0] + t * (poly[k - 1, 0] - poly[k, 0])
@@ -314,7 +296,7 @@ def _band_axis(poly, n, skip_px, span_px):
             srr += r * r
             scc += c * c
             src += r * c
-        back += _length(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
+        back += vector_length(poly[k, 0] - poly[k - 1, 0], poly[k, 1] - poly[k - 1, 1])
         k -= 1
     if m < 3 or base_k < 1:
         return 0.0, 0.0, 0.0, 0.0, 0.0
@@ -414,7 +396,7 @@ def extend_to_band_end_near(
         return n
     reach = max(2.0, skip_px + 4.0 * width_px)
     radius = math.sqrt(reach * reach + 0.25 * width_px * width_px) + 1.0
-    d_base = _length(base_r - fixed_r, base_c - fixed_c)
+    d_base = vector_length(base_r - fixed_r, base_c - fixed_c)
     near = d_base - radius
     far = d_base + radius
     best = -1e30

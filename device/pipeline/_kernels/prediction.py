@@ -30,7 +30,7 @@ def _wrap(k, n):
 
 @kernel(int32(f4_2d_ro, int64, f4_2d_ro, int64, int64, float64, float64, float64, float64, boolean, f8_2d, f8_1d))
 def need_profile(
-    moved, n_moved, found, n_found, margin_px, fixed_r, fixed_c, gain, floor_px, steady, need_hist, out_profile
+    moved, n_moved, found, n_found, margin_px, fixed_r, fixed_c, gain, floor_px, motion_held, need_hist, out_profile
 ):
     """Measure how much of the band's uncertainty this frame needed, per part of the rope, and write the cap on the
     next frame's uncertainty (`spans_around_chain`'s profile).
@@ -48,7 +48,7 @@ def need_profile(
 
     `need_hist` (2, bins) keeps this frame's needs in row 0 and the previous frame's in row 1; `out_profile`
     (bins,) gets ``gain * max(need of both frames over the bin and its two neighbours) + floor_px`` (px), or inf
-    (no profile) unless `steady` (the motion model held at least ``MOTION_FRAMES - 1`` frames when `moved` was
+    (no profile) unless `motion_held` (the motion model held at least ``MOTION_FRAMES - 1`` frames when `moved` was
     predicted): the next frame's prediction, from fewer than `MOTION_FRAMES` frames, is of another kind than the
     one measured (and the fixed end still a guess).
 
@@ -128,7 +128,7 @@ def need_profile(
         if need > need_hist[0, b]:
             need_hist[0, b] = need
     for b in range(bins):
-        if not steady:
+        if not motion_held:
             out_profile[b] = math.inf
             continue
         worst = 0.0

@@ -19,37 +19,6 @@ from ropecam.shared.jit import (
     u1_2d_ro,
 )
 
-
-@kernel(int32(i4_1d_ro, i4_1d_ro, int32, int32, i4_1d, i4_1d))
-def grow_spans(lo, hi, rows_apart, cols_apart, out_lo, out_hi):
-    """Write into `out_lo`/`out_hi` the union over rows ``r - rows_apart .. r + rows_apart`` of the spans `lo`/`hi`,
-    widened by `cols_apart` columns and clipped to ``[0, width)`` where width is ``max(hi) + cols_apart + 1``.
-
-    The width of the image is not known here, so clipping to the right is left to the caller through `hi` being
-    already clipped; ``out_hi`` may exceed it by `cols_apart` and is clipped with the image width by the caller's
-    kernels. Returns the number of non-empty rows.
-    """
-    n_rows = lo.shape[0]
-    count = 0
-    for r in range(n_rows):
-        best_lo = 2147483647
-        best_hi = -1
-        for rr in range(max(0, r - rows_apart), min(n_rows, r + rows_apart + 1)):
-            if hi[rr] >= lo[rr]:
-                if lo[rr] < best_lo:
-                    best_lo = lo[rr]
-                if hi[rr] > best_hi:
-                    best_hi = hi[rr]
-        if best_hi >= 0:
-            out_lo[r] = max(0, best_lo - cols_apart)
-            out_hi[r] = best_hi + cols_apart
-            count += 1
-        else:
-            out_lo[r] = 1
-            out_hi[r] = 0
-    return count
-
-
 _SEGMENT_POINTS: Final = 48
 """Most chain steps one straight piece of a band spans (`spans_around_chain`)."""
 _SEGMENT_DEV_PX: Final = 0.5

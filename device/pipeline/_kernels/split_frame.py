@@ -1,5 +1,5 @@
-"""The blur split of a steady frame in one kernel call: segmentation points, the smoothed image around the band's
-corners, the tip sweep, the two shapes."""
+"""The blur split of a frame in one kernel call, once the rope's width, polarity and contrast are known:
+segmentation points, the smoothed image around the band's corners, the tip sweep, the two shapes."""
 
 from __future__ import annotations
 
@@ -63,8 +63,7 @@ def split_frame(
     points, chain, mag, gx, gy, frame, weights, spans_lo, spans_hi, box_lo, box_hi, tmp, smooth, params, state,
     curves, table, sweep_index, lines, sides, scratch, turn, idx, out_seg, out_info,
 ):  # fmt: skip
-    """The steady-state blur split of one closed contour (``n = state[5]`` subpixel `points`, chain pixels
-    `chain`), as the
+    """The blur split of one closed contour (``n = state[5]`` subpixel `points`, chain pixels `chain`), as the
     stage's sequence (`BlurSplitter.split`) makes it once the rope's width, polarity and contrast are known:
 
     1. `find_segmentation_points` (fixed end ``state[0:2]``, search zone ``max(search_px, 1.2 last_sweep_px)``;

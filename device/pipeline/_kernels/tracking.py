@@ -2,7 +2,7 @@
 the tip), the motion model of the free end that places the next frame's region of interest, and the material
 points on both shapes (uniform stretch, eqs. 9-12 of the paper); `track_frame` does all three in one call.
 
-They keep their state in caller-owned arrays, so the steady state of a stream costs one call per frame.
+They keep their state in caller-owned arrays, so a stream's frame costs one call.
 
 Time-order state (fewer arrays: each array argument costs a dispatch): ``order_state`` (int64, HISTORY + 3) holds
 the times (ns) of the last tip samples oldest first, then [samples held, history ordered (0/1), rejects in a row]
@@ -71,7 +71,10 @@ def remember_tips(shape, single, t_ns, t_end_ns, order_state, hist_rc):
 
 @kernel(types.UniTuple(float64, 4)(int64, int64, i8_1d, f8_2d, int64))
 def _predict(t_ns, t_end_ns, hist_t, hist_rc, count):
-    """`predict_tips` on the first `count` (>= 1) samples, returned as (begin row, begin col, end row, end col)."""
+    """Predict the tip (row, col) at `t_ns` and `t_end_ns` from the first `count` (>= 1) samples: a least-squares
+    quadratic in time through four to six samples, a line through two or three, no motion from one (times scaled
+    to [-1, 0]; the normal equations solved by Cramer's rule, a singular system falls back to the line, then to
+    the mean). Returns (begin row, begin col, end row, end col)."""
     t0 = hist_t[count - 1]
     span = max(1, t0 - hist_t[0])
     size = 3 if count >= 4 else min(count, 2)
@@ -132,21 +135,6 @@ def _predict(t_ns, t_end_ns, hist_t, hist_rc, count):
     )
 
 
-@kernel(int32(int64, int64, i8_1d, f8_2d, f8_1d))
-def predict_tips(t_ns, t_end_ns, order_state, hist_rc, out_tips):
-    """Predict the tip (row, col) at `t_ns` and `t_end_ns` from the history: a least-squares quadratic in time
-    through four to six samples, a line through two or three, no motion from one (times scaled to [-1, 0]; the
-    normal equations solved by Cramer's rule, a singular system falls back to the line, then to the mean).
-
-    Writes `out_tips` = (begin row, begin col, end row, end col); returns 0, or INVALID without history.
-    """
-    count = order_state[ORDER_COUNT]
-    if count < 1:
-        return INVALID
-    out_tips[0], out_tips[1], out_tips[2], out_tips[3] = _predict(t_ns, t_end_ns, order_state, hist_rc, count)
-    return 0
-
-
 @kernel(types.Tuple((int32, float64))(f4_2d, f4_2d, boolean, int64, int64, int64, i8_1d, f8_2d))
 def order_shapes(shape_a, shape_b, single, t_ns, t_end_ns, max_age_ns, order_state, hist_rc):
     """Put a frame's two shapes (fixed end first, tip last) in time order by continuity with the tip history.
@@ -156,7 +144,7 @@ def order_shapes(shape_a, shape_b, single, t_ns, t_end_ns, max_age_ns, order_sta
     shapes keep their order. While the history's own order is a guess (one split frame before), the nearest pair
     of (last tips, these tips) orders both frames (the tip moves on from where the last exposure ended; the
     remembered samples are swapped when they were the wrong way round). Otherwise the tips predicted at `t_ns`
-    and `t_end_ns` (`predict_tips`) decide by squared distances; a frame whose tips lie far from the predicted path
+    and `t_end_ns` (`_predict`) decide by squared distances; a frame whose tips lie far from the predicted path
     (middle of the band, sweep) is left out of the history once (confidence halved towards 0.5), and on a second
     such frame in a row the history starts again from it.
 
@@ -376,21 +364,13 @@ def predict_motion(t_ns, exposure_ns, motion_state, motion_log):
 
 
 # --------------------------------------------------------------------------------------------- material points
-@kernel(float64(f4_2d))
-def shape_length(poly):
-    """Return the length of the polyline `poly` (all its points), eq. (9)."""
-    total = 0.0
-    for i in range(1, poly.shape[0]):
-        total += math.hypot(float(poly[i, 0]) - float(poly[i - 1, 0]), float(poly[i, 1]) - float(poly[i - 1, 1]))
-    return total
-
-
 @kernel(float64(f4_2d, f8_1d))
 def _segment_lengths(poly, out_seg):
-    """Write the length of each segment of `poly` into `out_seg` and return their sum (as `shape_length`)."""
+    """Write the length of each segment of `poly` into `out_seg` and return their sum (the polyline's length,
+    eq. (9))."""
     total = 0.0
     for i in range(1, poly.shape[0]):
-        # The float32 hypot of `shape_length` (libm's hypotf: the double square root of the exact sum of
+        # A float32 hypot (libm's hypotf: the double square root of the exact sum of
         # squares, rounded to float32), without its call: 3x faster, the same bits.
         d_r = np.float64(poly[i, 0] - poly[i - 1, 0])
         d_c = np.float64(poly[i, 1] - poly[i - 1, 1])

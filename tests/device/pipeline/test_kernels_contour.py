@@ -81,7 +81,8 @@ def test_trace_matches_opencv_outer_contour(shape) -> None:
     ref = contours[0][:, 0, ::-1]  # (row, col)
     assert len(chain) == len(ref)
     assert {tuple(p) for p in chain} == {tuple(p) for p in ref}
-    assert K.signed_area(chain.astype(np.float32), len(chain)) >= 0  # clockwise on screen
+    r, c = chain[:, 0].astype(np.float64), chain[:, 1].astype(np.float64)
+    assert np.sum(c * np.roll(r, -1) - np.roll(c, -1) * r) >= 0  # clockwise on screen (shoelace)
     for i in range(len(chain)):
         step = tuple(chain[(i + 1) % len(chain)] - chain[i])
         assert codes[i] == FREEMAN[step]

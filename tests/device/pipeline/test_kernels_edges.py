@@ -145,18 +145,6 @@ def test_spans_around_chain_matches_reference(rotation) -> None:
             assert hi[r] < lo[r]
 
 
-def test_grow_spans_matches_reference() -> None:
-    lo = np.array([5, 1, 0, 7, 3, 9], np.int32)
-    hi = np.array([6, 0, 2, 8, 3, 12], np.int32)  # row 1 is empty
-    out_lo = np.zeros(6, np.int32)
-    out_hi = np.zeros(6, np.int32)
-    K.grow_spans(lo, hi, 1, 2, out_lo, out_hi)
-    for r in range(6):
-        rows = [rr for rr in range(max(0, r - 1), min(6, r + 2)) if hi[rr] >= lo[rr]]
-        assert out_lo[r] == max(0, min(lo[rr] for rr in rows) - 2)
-        assert out_hi[r] == max(hi[rr] for rr in rows) + 2
-
-
 def test_union_spans_matches_reference() -> None:
     lo = np.array([5, 1, 0, 7, 3, 9], np.int32)
     hi = np.array([6, 0, 2, 8, 2, 12], np.int32)  # rows 1 and 4 empty

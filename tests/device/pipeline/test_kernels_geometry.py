@@ -9,8 +9,60 @@ import pytest
 from scipy.special import erf
 
 from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._kernels.geometry import _split_from, _turn_at
 
 pytestmark = pytest.mark.kernel
+
+
+# The steps that the package's `find_segmentation_points` fuses, and the plain material point tracking, as
+# references (the package calls only the fused kernels).
+def signed_area(points: np.ndarray, n: int) -> float:
+    """The signed area (shoelace, (row, col)) of the closed polygon of the first `n` points; positive for a
+    clockwise traversal on screen."""
+    r, c = points[:n, 0].astype(np.float64), points[:n, 1].astype(np.float64)
+    return 0.5 * float(np.sum(c * np.roll(r, -1) - np.roll(c, -1) * r))
+
+
+def turning_angles_far(points, n, scale, fixed_r, fixed_c, search_px, out_dist, out_turn) -> int:
+    """The distance of every point from the fixed end into `out_dist`, and the turning angle (`turning_angles`)
+    only where `split_contour` reads it: at the points at least ``R_far - search_px`` from the fixed end and at
+    their two neighbours; 0 elsewhere. Returns the number of angles computed, or FULL."""
+    if out_dist.shape[0] < n or out_turn.shape[0] < n:
+        return K.FULL
+    d_r = (points[:n, 0] - np.float32(fixed_r)).astype(np.float64)  # differences in float32, as the kernels
+    d_c = (points[:n, 1] - np.float32(fixed_c)).astype(np.float64)
+    d = np.sqrt(d_r * d_r + d_c * d_c)
+    out_dist[:n] = d
+    out_turn[:n] = 0.0
+    zone = d >= d.max() - search_px
+    needed = zone | np.roll(zone, 1) | np.roll(zone, -1)
+    for k in np.flatnonzero(needed):
+        out_turn[k] = _turn_at(points, n, scale, k)
+    return int(np.count_nonzero(needed))
+
+
+def split_contour(points, turn, dist, n, fixed_r, fixed_c, search_px, min_gap, corner_rad, work_arc, out_idx) -> int:
+    """The segmentation points of a closed contour from its turning angles `turn` and distances `dist` from the
+    fixed end (`turning_angles_far`): the fixed end is the nearest point, the far point the farthest, then as
+    `find_segmentation_points` (its `_split_from`). Writes ``out_idx = [fixed, seg_a, far, seg_b]``; returns 4,
+    NOT_FOUND or FULL."""
+    if n < 8:
+        return K.NOT_FOUND
+    if dist.shape[0] < n:
+        return K.FULL
+    i_fix, i_far = int(np.argmin(dist[:n])), int(np.argmax(dist[:n]))
+    return int(
+        _split_from(
+            points, turn, dist, n, i_fix, i_far, float(dist[i_far]), search_px, min_gap, corner_rad, work_arc, out_idx
+        )
+    )
+
+
+def track_material_points(poly, n, arc_px, length0_px, out_points) -> int:
+    """`track_material_points_of_length` with the polyline's length measured here (`polyline_length`)."""
+    if n < 1 or not length0_px > 0.0 or out_points.shape[0] < len(arc_px):
+        return K.INVALID
+    return int(K.track_material_points_of_length(poly, n, K.polyline_length(poly, n), arc_px, length0_px, out_points))
 
 
 def _edge_image(angle_deg: float, offset_px: float, size: int = 41) -> tuple[np.ndarray, np.ndarray, float]:
@@ -97,18 +149,18 @@ def test_split_finds_the_corners_of_a_swept_band() -> None:
     K.turning_angles(pts, len(pts), 3, turn)
     idx = np.zeros(4, np.int32)
     dist = np.hypot(pts[:, 0], pts[:, 1]).astype(np.float64)
-    assert K.split_contour(pts, turn, dist, len(pts), 0.0, 0.0, 6.0, 6, 0.5, np.zeros(len(pts), np.float32), idx) == 4
+    assert split_contour(pts, turn, dist, len(pts), 0.0, 0.0, 6.0, 6, 0.5, np.zeros(len(pts), np.float32), idx) == 4
     fixed, seg_a, far, seg_b = idx
     assert np.hypot(*pts[fixed]) <= 1.01
     assert np.allclose(pts[seg_a], (40, -1), atol=0.6)
     assert np.allclose(pts[seg_b], (40, 13), atol=0.6)
     assert np.allclose(pts[far], (40, 13), atol=0.6)
-    assert K.split_contour(pts[:6], turn, dist, 6, 0.0, 0.0, 6.0, 6, 0.5, np.zeros(6, np.float32), idx) == K.NOT_FOUND
+    assert split_contour(pts[:6], turn, dist, 6, 0.0, 0.0, 6.0, 6, 0.5, np.zeros(6, np.float32), idx) == K.NOT_FOUND
 
 
 def test_offset_side_moves_inward_by_the_modelled_half_width() -> None:
     pts = _closed_polygon([(0, 0), (0, 20), (4, 20), (4, 0)], 1.0)  # clockwise on screen
-    assert K.signed_area(pts, len(pts)) > 0
+    assert signed_area(pts, len(pts)) > 0
     out = np.zeros((64, 2), np.float32)
     count = K.offset_side(pts, len(pts), 2, 18, 1, 1.0, 4.0, 0.0, 1, out)
     assert count == 17
@@ -152,12 +204,12 @@ def test_material_point_tracking_matches_equations_9_to_12() -> None:
     arcs = np.array([0.0, 1.5, 7.25, 20.0, 33.3, 1000.0])
     out = np.zeros((len(arcs), 2), np.float32)
     length0 = 25.0
-    assert K.track_material_points(poly, len(poly), arcs, length0, out) == len(arcs)
+    assert track_material_points(poly, len(poly), arcs, length0, out) == len(arcs)
     ref, lc = _track_reference(poly.astype(float), arcs, length0)
     np.testing.assert_allclose(out, ref, atol=1e-3)
     assert K.polyline_length(poly, len(poly)) == pytest.approx(lc, rel=1e-6)
-    assert K.track_material_points(poly, 0, arcs, length0, out) == K.INVALID
-    assert K.track_material_points(poly, len(poly), arcs, 0.0, out) == K.INVALID
+    assert track_material_points(poly, 0, arcs, length0, out) == K.INVALID
+    assert track_material_points(poly, len(poly), arcs, 0.0, out) == K.INVALID
 
 
 def test_resample_keeps_ends_and_spacing() -> None:
@@ -279,14 +331,14 @@ def test_split_takes_the_corners_whose_sides_are_equally_long() -> None:
     K.turning_angles(pts, n, 3, turn)
     idx = np.zeros(4, np.int32)
     dist = np.hypot(pts[:, 0] - 5.0, pts[:, 1]).astype(np.float64)
-    assert K.split_contour(pts, turn, dist, n, 5.0, 0.0, 20.0, 4, 0.5, np.zeros(n, np.float32), idx) == 4
+    assert split_contour(pts, turn, dist, n, 5.0, 0.0, 20.0, 4, 0.5, np.zeros(n, np.float32), idx) == 4
     np.testing.assert_allclose(pts[idx[1]], [0, 100], atol=0.6)
     np.testing.assert_allclose(pts[idx[3]], [10, 100], atol=0.6)
     # "Largest turning per side" would take the kink: it turns more than the corner of its side.
     at = [int(np.argmin(np.hypot(*(pts - p).T))) for p in ([0, 100], [2, 102.5])]
     assert turn[at[1]] > turn[at[0]]
-    assert K.split_contour(pts, turn, dist, n, 5.0, 0.0, 20.0, 4, 0.5, np.zeros(n - 1, np.float32), idx) == K.FULL
-    assert K.split_contour(pts, turn, dist[:-1], n, 5.0, 0.0, 20.0, 4, 0.5, np.zeros(n, np.float32), idx) == K.FULL
+    assert split_contour(pts, turn, dist, n, 5.0, 0.0, 20.0, 4, 0.5, np.zeros(n - 1, np.float32), idx) == K.FULL
+    assert split_contour(pts, turn, dist[:-1], n, 5.0, 0.0, 20.0, 4, 0.5, np.zeros(n, np.float32), idx) == K.FULL
 
 
 def test_turning_angles_far_equals_turning_angles_in_the_tip_zone() -> None:
@@ -296,7 +348,7 @@ def test_turning_angles_far_equals_turning_angles_in_the_tip_zone() -> None:
     far = np.full(n, -1.0, np.float32)
     K.turning_angles(pts, n, 3, full)
     dist = np.zeros(n)
-    computed = K.turning_angles_far(pts, np.int32(n), np.int32(3), np.float32(5.0), np.float32(0.0), 20.0, dist, far)
+    computed = turning_angles_far(pts, np.int32(n), np.int32(3), np.float32(5.0), np.float32(0.0), 20.0, dist, far)
     d = np.hypot(pts[:, 0] - 5.0, pts[:, 1])
     np.testing.assert_allclose(dist, d, rtol=1e-6)
     zone = d >= d.max() - 20.0
@@ -320,9 +372,9 @@ def test_find_segmentation_points_equals_the_two_kernels(seed) -> None:
     fixed = (np.float32(rng.uniform(3, 7)), np.float32(0.0))
     args = (np.int32(3), *fixed, np.float32(20.0))
     dist, turn, idx = np.zeros(n), np.zeros(n, np.float32), np.zeros(4, np.int32)
-    K.turning_angles_far(pts, np.int32(n), *args, dist, turn)
+    turning_angles_far(pts, np.int32(n), *args, dist, turn)
     work = np.zeros(n, np.float32)
-    expected = K.split_contour(pts, turn, dist, n, *fixed, np.float32(20.0), 4, 0.5, work, idx)
+    expected = split_contour(pts, turn, dist, n, *fixed, np.float32(20.0), 4, 0.5, work, idx)
     dist2, turn2, idx2, work2 = (
         np.zeros(n),
         np.full(n, np.nan, np.float32),
@@ -374,6 +426,6 @@ def test_known_length_variants_equal_the_plain_kernels(arcs) -> None:
     np.testing.assert_array_equal(plain, known)
     arc = np.array(arcs, np.float64)
     plain, known = np.zeros((len(arcs), 2), np.float32), np.zeros((len(arcs), 2), np.float32)
-    assert K.track_material_points(poly, n, arc, 20.0, plain) == len(arcs)
+    assert track_material_points(poly, n, arc, 20.0, plain) == len(arcs)
     assert K.track_material_points_of_length(poly, n, total, arc, 20.0, known) == len(arcs)
     np.testing.assert_array_equal(plain, known)

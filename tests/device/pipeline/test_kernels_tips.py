@@ -11,17 +11,22 @@ from scipy.special import erf
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline.edge_model import BandEdgeModel
 from ropecam.device.pipeline.edges import gaussian_weights
-from ropecam.device.pipeline.split import sweep_index
+from ropecam.device.pipeline.width_tables import sweep_index
 
 pytestmark = pytest.mark.kernel
 
 
-def test_interp_sorted_matches_numpy() -> None:
-    rng = np.random.default_rng(1)
-    xs = np.sort(rng.uniform(0, 10, 30))
-    ys = rng.normal(size=30)
-    for x in np.concatenate([rng.uniform(-1, 11, 50), xs[:3]]):
-        assert K.interp_sorted(xs, ys, x) == pytest.approx(np.interp(x, xs, ys), abs=1e-5)
+def _side_slope_samples(chain, n, i_fix, i_seg, direction, mag, lo_frac, hi_frac) -> np.ndarray:
+    """(gradient magnitude, arc fraction) at the chain pixels of one side (from `i_fix` stepping `direction` to
+    `i_seg`) whose arc fraction (by index: the chain is 8-connected) lies in [lo_frac, hi_frac), as float32."""
+    count = ((i_seg - i_fix) * direction % n + n) % n + 1
+    pairs = []
+    for k in range(count if count >= 2 else 0):
+        frac = k / (count - 1)
+        if np.float32(lo_frac) <= frac < np.float32(hi_frac):
+            i = (i_fix + k * direction + 4 * n) % n
+            pairs.append((mag[chain[i, 0], chain[i, 1]], frac))
+    return np.array(pairs, np.float32).reshape(-1, 2)
 
 
 @pytest.mark.parametrize(("start", "stop", "direction"), [(2, 17, 1), (5, 28, -1), (25, 3, 1)])
@@ -248,9 +253,8 @@ def test_slope_sweep_median_matches_numpy(start, stop, direction) -> None:
     mag = rng.uniform(10, 200, (6, 10)).astype(np.float32)
     ratios = np.concatenate([np.linspace(0.1, 1.0, 20), [1.0], np.linspace(1.1, 2.0, 19)])  # a tie, as tables have
     sweeps = np.linspace(8.0, 0.0, 40)
-    samples = np.zeros(2 * n, np.float32)
-    m = K.side_slope_samples(chain, n, start, stop, direction, mag, np.float32(0.5), np.float32(0.85), samples)
-    pairs = samples[: 2 * m].reshape(m, 2)
+    pairs = _side_slope_samples(chain, n, start, stop, direction, mag, 0.5, 0.85)
+    m = len(pairs)
     contrast = 97.3
     expected = float(np.median(np.interp(pairs[:, 0] / contrast, ratios, sweeps) / pairs[:, 1]))
     got = K.slope_sweep_median(chain, n, start, stop, direction, mag, np.float32(0.5), np.float32(0.85),

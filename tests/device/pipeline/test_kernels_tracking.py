@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._kernels.tracking import _predict
 from ropecam.device.pipeline.motion import MotionModel
 from ropecam.device.pipeline.time_order import TimeOrder
 from ropecam.device.pipeline.tracking import PointTracker
@@ -98,7 +99,7 @@ def _shape(tip: tuple[float, float]) -> np.ndarray:
     return np.array([[0.0, 0.0], tip], np.float32)
 
 
-def test_predict_tips_matches_a_polynomial_fit() -> None:
+def test_the_tip_prediction_matches_a_polynomial_fit() -> None:
     rng = np.random.default_rng(3)
     for count in range(1, K.HISTORY + 1):
         state = np.zeros(K.HISTORY + 3, np.int64)
@@ -107,13 +108,11 @@ def test_predict_tips_matches_a_polynomial_fit() -> None:
         state[:count] = times
         state[K.ORDER_COUNT] = count
         tips[:count] = rng.normal(200.0, 50.0, (count, 2))
-        out = np.zeros(4)
         t0, t1 = int(times[-1]) + 8_000_000, int(times[-1]) + 12_000_000
-        assert K.predict_tips(t0, t1, state, tips, out) == 0
+        out = np.array(_predict(t0, t1, state, tips, count))  # `order_shapes`' prediction of the tips
         history = [(int(t), (float(r), float(c))) for t, (r, c) in zip(times, tips[:count], strict=True)]
         expected = _fit(history, t0) + _fit(history, t1)
         np.testing.assert_allclose(out, expected, rtol=1e-9, atol=1e-6)
-    assert K.predict_tips(0, 1, np.zeros(K.HISTORY + 3, np.int64), tips, out) == K.INVALID
 
 
 def test_order_shapes_matches_the_reference_through_swings_gaps_and_bad_frames() -> None:
@@ -283,7 +282,9 @@ def test_track_shapes_matches_interpolation_along_the_arc(length0_px) -> None:
     # the one-shape kernel gives the same points
     one = np.zeros_like(points_b)
     arcs0 = (tracker.fraction * length0).astype(np.float64)
-    assert K.track_material_points(begin, np.int32(len(begin)), arcs0, float(length0), one) == len(arcs0)
+    assert K.track_material_points_of_length(
+        begin, len(begin), K.polyline_length(begin, len(begin)), arcs0, float(length0), one
+    ) == len(arcs0)
     np.testing.assert_allclose(one, points_b, atol=1e-6)
 
 

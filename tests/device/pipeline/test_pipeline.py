@@ -209,7 +209,7 @@ def test_time_order_through_reversals_and_a_bad_frame() -> None:
             e_tip = b_tip + 0.5  # a failed split: both shapes end at one corner
         swap = bool(rng.integers(2))
         outcome = _two_shapes(e_tip, b_tip) if swap else _two_shapes(b_tip, e_tip)
-        begin, _, _ = pipeline._order(outcome, t0, t1)
+        begin, _, _ = pipeline._time_order.order(outcome.shape_a, outcome.shape_b, t0, t1, None)
         if k > 0 and k != 30 and np.hypot(*(tip(t1) - tip(t0))) >= 2.0:
             wrong += [k] if np.hypot(*(begin[-1] - b_tip)) > 1.0 else []
     assert wrong == []

@@ -3,8 +3,10 @@ and the table of buffers it reads (`buffer_table`)."""
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import functools
+import pickle
 
 import numpy as np
 import pytest
@@ -123,17 +125,17 @@ def test_steady_frames_of_read_only_frames(monkeypatch: pytest.MonkeyPatch) -> N
     _assert_identical(read_only, _run(monkeypatch, fused=True)[0])
 
 
-def _table_buffers() -> list[np.ndarray]:
-    return [np.zeros((3,) * ndim, dtype) for _, dtype, ndim in K.STEADY_BUFFERS]
+def _table_buffers() -> dict[str, np.ndarray]:
+    return {name: np.zeros((3,) * ndim, dtype) for name, dtype, ndim in K.STEADY_BUFFERS}
 
 
 def test_steady_frame_refuses_short_tables_before_any_call() -> None:
     buffers = _table_buffers()
-    buffers[-1] = np.zeros(K.STEADY_SLOTS, np.float64)  # `out`
+    buffers["out"] = np.zeros(K.STEADY_SLOTS, np.float64)
     table = buffer_table(buffers, K.STEADY_BUFFERS)
     frame = np.zeros((3, 3), np.uint8)
     constants = np.zeros(len(K.STEADY_CONSTANTS), np.float64)
-    band_state = buffers[6].copy()
+    band_state = buffers["band_state"].copy()
     for short_table, short_constants in ((table[:-1], constants), (table, constants[:-1])):
         status = K.steady_frame(
             frame, 0, False, False, False, 0, 0, 0, 0, 0.0, short_table.copy(), short_constants.copy()
@@ -141,28 +143,30 @@ def test_steady_frame_refuses_short_tables_before_any_call() -> None:
         assert status == K.INVALID
     # `out`, the split's state and info shorter than the kernels need: refused too (the split's state is 3 long).
     assert K.steady_frame(frame, 0, False, False, False, 0, 0, 0, 0, 0.0, table, constants) == K.INVALID
-    np.testing.assert_array_equal(buffers[6], band_state)  # nothing written: band_stage did not run
-    assert not buffers[-1].any()
+    np.testing.assert_array_equal(buffers["band_state"], band_state)  # nothing written: band_stage did not run
+    assert not buffers["out"].any()
 
 
-def test_buffer_table_holds_addresses_and_shapes() -> None:
+def test_buffer_table_holds_addresses_and_shapes_by_name() -> None:
     buffers = _table_buffers()
-    buffers[0] = np.zeros((5, 2), np.float32)
+    buffers["prev_points"] = np.zeros((5, 2), np.float32)
     table = buffer_table(buffers, K.STEADY_BUFFERS)
     assert table.shape == (len(K.STEADY_BUFFERS), 4) and table.dtype == np.int64
-    assert table[0].tolist() == [buffers[0].ctypes.data, 5, 2, 0]
-    sides = [name for name, _, _ in K.STEADY_BUFFERS].index("sides")
-    assert table[sides, 1:].tolist() == [3, 3, 3]
+    assert table[K.STEADY_ROW.prev_points].tolist() == [buffers["prev_points"].ctypes.data, 5, 2, 0]
+    assert table[K.STEADY_ROW.sides, 1:].tolist() == [3, 3, 3]
+    assert [name for name, _, _ in K.STEADY_BUFFERS] == list(K.STEADY_ROW._fields)
+    assert list(K.STEADY_ROW) == list(range(len(K.STEADY_BUFFERS)))
 
 
 @pytest.mark.parametrize(
     ("change", "message"),
     [
-        (lambda b: b.__setitem__(0, np.zeros((5, 2), np.float64)), "buffer 'prev_points' is a float64 array of 2"),
-        (lambda b: b.__setitem__(1, np.zeros((2, 2), np.float32)), "buffer 'fixed' is a float32 array of 2 dim"),
-        (lambda b: b.__setitem__(0, np.zeros((5, 4), np.float32)[:, ::2]), "'prev_points' must be C-contiguous"),
-        (lambda b: b.__setitem__(1, [0.0, 0.0]), "buffer 'fixed' is a <class 'list'>"),
-        (lambda b: b.pop(), "46 buffers given, expected 47"),
+        (lambda b: b.update(prev_points=np.zeros((5, 2), np.float64)), "buffer 'prev_points' is a float64 array of 2"),
+        (lambda b: b.update(fixed=np.zeros((2, 2), np.float32)), "buffer 'fixed' is a float32 array of 2 dim"),
+        (lambda b: b.update(prev_points=np.zeros((5, 4), np.float32)[:, ::2]), "'prev_points' must be C-contiguous"),
+        (lambda b: b.update(fixed=[0.0, 0.0]), "buffer 'fixed' is a <class 'list'>"),
+        (lambda b: b.pop("out"), "buffers missing: ['out']; not in the table: none"),
+        (lambda b: b.update(spare=np.zeros(3)), "buffers missing: none; not in the table: ['spare']"),
     ],
 )
 def test_buffer_table_refuses_wrong_buffers(change, message: str) -> None:
@@ -176,10 +180,37 @@ def test_buffer_table_refuses_read_only_memory() -> None:
     buffers = _table_buffers()
     frozen = np.zeros(3, np.float32)
     frozen.flags.writeable = False  # memory of its own, read-only (a mapped file): a kernel write would crash
-    buffers[1] = frozen
+    buffers["fixed"] = frozen
     with pytest.raises(TypeError, match="'fixed' must be C-contiguous in writable memory"):
         buffer_table(buffers, K.STEADY_BUFFERS)
     view = np.zeros(3, np.float32).view()
     view.flags.writeable = False  # a read-only view of writable memory is taken
-    buffers[1] = view
-    assert buffer_table(buffers, K.STEADY_BUFFERS)[1, 0] == view.ctypes.data
+    buffers["fixed"] = view
+    assert buffer_table(buffers, K.STEADY_BUFFERS)[K.STEADY_ROW.fixed, 0] == view.ctypes.data
+
+
+def test_a_pipeline_cannot_be_copied_or_pickled() -> None:
+    """A copy would share the raw addresses of the steady frame's table: it is refused, with a message."""
+    pipeline = Pipeline(PipelineConfig(), (32, 24))
+    for copy_it in (copy.copy, copy.deepcopy, pickle.dumps):
+        with pytest.raises(TypeError, match="a Pipeline cannot be copied or pickled"):
+            copy_it(pipeline)
+
+
+def test_the_table_buffers_cannot_be_replaced() -> None:
+    """The buffers `steady_frame`'s table points at belong to the frozen workspace: neither the workspace's
+    groups nor the stages' attributes for them can be rebound (the table would point at the old memory)."""
+    pipeline = Pipeline(PipelineConfig(), (32, 24))
+    ws = pipeline.workspace
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        ws.edges.gx = np.zeros_like(ws.edges.gx)  # type: ignore[misc]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        ws.split = ws.split  # type: ignore[misc]
+    for stage, name in ((pipeline.edges, "gx"), (pipeline.tracer, "points"), (pipeline.splitter, "sides"),
+                        (pipeline.tracker, "work"), (pipeline._motion, "profile"), (pipeline._time_order, "state"),
+                        (pipeline, "lo")):  # fmt: skip
+        with pytest.raises(AttributeError):
+            setattr(stage, name, getattr(stage, name).copy())
+    # Every buffer of the table is one of the workspace's (or of the rope width's tables, which the pipeline
+    # keeps with the table).
+    assert pipeline.edges.gx is ws.edges.gx and pipeline.tracker.work is ws.track.work

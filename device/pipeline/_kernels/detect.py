@@ -1,6 +1,9 @@
-"""Several stages' kernels in one call: each call from Python costs a dispatch (type matching of every argument,
-~0.1 us per array) and a return to the interpreter with caches the kernels have filled with image data; the steady
-state of a stream calls these instead of the stages' kernels one by one."""
+"""The edge and contour stages' kernels in one call (`detect_and_trace`), and `smooth_box` for either kind of
+frame (`smooth_frame_box`).
+
+Each call from Python costs a dispatch (type matching of every argument, ~0.1 us per array) and a return to the
+interpreter with caches the kernels have filled with image data: a stream's frames call these instead of the
+stages' kernels one by one."""
 
 from __future__ import annotations
 

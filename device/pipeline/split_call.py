@@ -1,0 +1,96 @@
+"""SplitFrameCall: a frame's blur split in one kernel call (`split_frame`), once the rope's width, polarity and
+contrast are known."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline.edges import EdgeDetector
+from ropecam.device.pipeline.width_tables import WidthTables
+from ropecam.device.pipeline.workspace import SplitBuffers
+
+__all__ = ["SplitFrameCall"]
+
+
+class SplitFrameCall:
+    """Make a frame's blur split in one `split_frame` call: the same steps and results as `BlurSplitter.split`'s
+    sequence once the width, polarity and contrast are known.
+
+    Owns the kernel's per-frame inputs (``state``: fixed end, polarity, contrast, last sweep, point count), its
+    argument list (made once per width tables, edge stage and contour buffers) and the `key` of the last split
+    that took this path: the next split with the same arguments takes it again without preparing anything.
+
+    Parameters
+    ----------
+    buffers
+        The split's buffers (`SplitBuffers`: the kernel's `state`, scratch and outputs).
+    """
+
+    def __init__(self, buffers: SplitBuffers) -> None:
+        self.buffers = buffers
+        self.key: tuple[Any, ...] | None = None
+        """(points, chain, gx, gy, mag, smooth, edge stage, fixed end, width, polarity) of the last split that
+        took this path from a given width and polarity; None when the next one is not to take it directly."""
+        self._args: list[Any] | None = None
+        """`split_frame`'s arguments after three keys: the width tables, the edge stage, the contour's views."""
+        self._state_key: tuple[tuple[float, float], np.float32, float] | None = None
+
+    @property
+    def tables(self) -> WidthTables:
+        """The width tables of the last call (made before any)."""
+        return self._args[0]  # type: ignore[index, no-any-return]
+
+    def bind(
+        self,
+        tables: WidthTables,
+        edge_stage: EdgeDetector,
+        views: tuple[NDArray[Any], ...],
+        fixed_rc: tuple[float, float],
+        fixed32: tuple[np.float32, np.float32],
+        polarity: np.float32,
+        contrast: float,
+    ) -> None:
+        """Set the kernel's inputs for a contour whose read-only `views` are (points, chain, gx, gy, mag), in
+        the planes of `edge_stage`, split with `tables`, about the fixed end `fixed_rc` (`fixed32` its float32
+        pair), with `polarity` and `contrast`. The fixed end, polarity and contrast are the same objects from
+        frame to frame once settled, and so are the buffers: both are set only when one of them changes."""
+        state = self.buffers.state
+        key = self._state_key
+        if key is None or key[0] is not fixed_rc or key[1] is not polarity or key[2] != contrast:
+            self._state_key = (fixed_rc, polarity, contrast)
+            state[0], state[1] = fixed32
+            state[2] = polarity
+            state[3] = contrast
+        args = self._args
+        if args is None or args[0] is not tables or args[1] is not edge_stage or args[2] is not views:
+            points, chain, gx, gy, mag = views
+            b = self.buffers
+            self._args = [
+                tables, edge_stage, views, points, chain, mag, gx, gy, edge_stage.edges, edge_stage.weights_ro,
+                edge_stage.spans[0], edge_stage.spans[1], edge_stage.box_lo, edge_stage.box_hi, edge_stage.tmp,
+                edge_stage.smooth, tables.frame_params, b.state, tables.curves, tables.table_ro, tables.sweep_index,
+                b.lines, b.sides, b.scratch, b.turn, b.idx, b.seg, b.info,
+            ]  # fmt: skip
+
+    def call(self, edge_stage: EdgeDetector, frame: NDArray[np.uint8], sweep_px: float, n: int) -> int:
+        """Split the `n`-point contour of `frame` (in the spans of `edge_stage`'s last detection) after a frame
+        whose sweep was `sweep_px`; returns `split_frame`'s status (its outputs are in the buffers)."""
+        state = self.buffers.state
+        state[4] = sweep_px
+        state[5] = n
+        args = self._args
+        assert args is not None
+        args[8] = frame  # `split_frame` takes a writable or a read-only frame
+        args[10], args[11] = edge_stage.spans
+        return int(K.split_frame(*args[3:]))
+
+    def one_call_key(self) -> tuple[tuple[Any, ...], WidthTables] | None:
+        """The key and the width tables when the last split took this path (the pipeline's `SteadyFrame` makes
+        the same `split_frame` call inside `steady_frame`); None when the next split would not."""
+        if self.key is None or self._args is None:
+            return None
+        return self.key, self._args[0]

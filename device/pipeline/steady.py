@@ -1,0 +1,136 @@
+"""SteadyFrame: a steady frame of the pipeline in one kernel call (`steady_frame`).
+
+A frame is steady when the rope's width, polarity and fixed end have settled (`RopeTraits.settled`), Lc0 is
+known, the last frame's contour was found and the split took its one-call path (`split_frame`) on it. Such a
+frame is `band_stage`, `detect_and_trace`, `split_frame` and `track_frame` made from compiled code, with the
+buffers passed as one table of their addresses (`Workspace.steady_table`): this saves the dispatch of ~80
+arguments (25-50 us per frame). The kernel stops where the stages' Python would take another turn; the pipeline
+goes on from there with the same state as after the same calls made one by one.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline.contour import ContourTracer
+from ropecam.device.pipeline.edges import EdgeDetector
+from ropecam.device.pipeline.locate import RopeLocator
+from ropecam.device.pipeline.split import BlurSplitter
+from ropecam.device.pipeline.tracking import PointTracker
+from ropecam.device.pipeline.traits import RopeTraits
+from ropecam.device.pipeline.workspace import Workspace, steady_constants
+
+__all__ = ["SteadyFrame"]
+
+
+class SteadyFrame:
+    """Make a steady frame in one `steady_frame` call; its arguments are made once per rope width and Lc0.
+
+    Parameters
+    ----------
+    workspace
+        The pipeline's buffers (the table holds their addresses: they cannot be replaced).
+    margin_px
+        The band's margin (px).
+    edges, tracer, splitter, tracker, locator, traits
+        The pipeline's stages: the call does their kernels' work, and they take its results.
+    """
+
+    def __init__(
+        self,
+        workspace: Workspace,
+        margin_px: int,
+        edges: EdgeDetector,
+        tracer: ContourTracer,
+        splitter: BlurSplitter,
+        tracker: PointTracker,
+        locator: RopeLocator,
+        traits: RopeTraits,
+    ) -> None:
+        self.workspace, self.margin_px = workspace, margin_px
+        self.edges, self.tracer, self.splitter, self.tracker = edges, tracer, splitter, tracker
+        self.locator, self.traits = locator, traits
+        self._frame_call = splitter.frame_call
+        self._bound: tuple[Any, ...] | None = None
+        """(the split's steady key, the rope width's tables, Lc0, `steady_frame`'s argument list) of the last
+        steady frame: its table holds the addresses of the workspace's buffers and of those tables."""
+
+    def args(self) -> list[Any] | None:
+        """`steady_frame`'s argument list when this frame can be one kernel call (the split took its one-call
+        path on the last frame with the workspace's buffers, and Lc0 is settled, so `track_frame` runs); `run`
+        sets its per-frame slots. None otherwise."""
+        call = self._frame_call.one_call_key()
+        length0_px = self.tracker.length0_settled_px
+        if call is None or length0_px < 0.0:
+            return None
+        key, width_tables = call
+        bound = self._bound
+        if bound is not None and bound[0] is key and bound[1] is width_tables and bound[2] == length0_px:
+            return bound[3]  # type: ignore[no-any-return]
+        self._bound = None
+        e, tracer, settled = self.edges, self.tracer, self.traits.settled
+        if settled is None:
+            return None
+        # The split's one-call path was taken with what the pipeline passes it: the workspace's buffers, which
+        # `steady_frame` passes it too.
+        ours = (tracer.points, tracer.chain, e.gx, e.gy, e.mag, e.smooth, e, settled.fixed_rc)
+        if not (
+            all(k is o for k, o in zip(key[:8], ours, strict=True))
+            and key[8] == settled.width_px
+            and key[9] == settled.polarity
+        ):
+            return None
+        gain, floor_px, floor_share = self.locator.motion.need_args
+        height, width = e.shape
+        constants = steady_constants(
+            margin_px=self.margin_px, height=height, width=width, gain=gain, floor_px=floor_px,
+            floor_share=floor_share, low=e.low, high=e.high, min_pixels=tracer.min_pixels, length0_px=length0_px,
+        )  # fmt: skip
+        table = self.workspace.steady_table(width_tables)
+        args = [None, 0, False, False, False, 0, 0, 0, 0, 0.0, table, constants]
+        self._bound = (key, width_tables, length0_px, args)
+        return args
+
+    def run(
+        self, args: list[Any], image: NDArray[np.uint8], t_ns: int, t_end_ns: int, exposure_ns: int, max_age_ns: int
+    ) -> tuple[int, int, int, float, int, tuple[int, float, float, float] | None]:
+        """Make the frame exposed from `t_ns` to `t_end_ns` (`exposure_ns`) in one `steady_frame` call with the
+        argument list `args` (from `args`); the edge stage and the tracer take its results (`ContourTracer.adopt`).
+
+        Returns
+        -------
+        tuple
+            Where the call stopped (STEADY_DONE, STEADY_AFTER_CONTOUR, STEADY_AFTER_SPLIT, STEADY_AFTER_SHAPES),
+            the contour's point count (in the tracer), the time since the last contour's frame (ns), the band's
+            uncertainty at the farthest point (px), `split_frame`'s status (when it ran) and, when the whole frame
+            was made, `track_frame`'s swap, order confidence and stretches (else None). A plain tuple: it is
+            made every frame.
+
+        Raises
+        ------
+        RuntimeError
+            The kernel refused its arguments.
+        """
+        loc = self.locator
+        gap_ns = t_ns - loc.prev_t_ns
+        args[0] = image
+        args[1] = loc.prev_count
+        args[2] = loc.motion.owed
+        args[3] = 2 * gap_ns <= 3 * loc.need_gap_ns
+        args[4] = loc.fixed_end.known
+        args[5] = t_ns
+        args[6] = exposure_ns
+        args[7] = t_end_ns
+        args[8] = max_age_ns
+        args[9] = self.splitter.sweep_px  # `split_frame`'s last sweep
+        stop = K.steady_frame(*args)
+        if stop < 0:
+            raise RuntimeError(f"steady_frame refused its arguments (status {stop})")
+        motion_px, points, status, swap, confidence, stretch_begin, stretch_end = self.workspace.steady_out.tolist()
+        n = self.tracer.adopt(self.edges, image, loc.lo_ro, loc.hi_ro, int(points))
+        tracked = (int(swap), confidence, stretch_begin, stretch_end) if stop == K.STEADY_DONE else None
+        return stop, n, gap_ns, motion_px, int(status), tracked

@@ -1,0 +1,117 @@
+"""The blur split's scalars and tables that depend only on the rope width (`WidthTables`), and the index of the
+edge model's sweep table (`sweep_index`)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._views import f32, i32, ro
+
+if TYPE_CHECKING:
+    from ropecam.device.pipeline.split import BlurSplitter
+
+__all__ = ["WidthTables", "sweep_index"]
+
+
+class WidthTables:
+    """The scalars (of the kernels' argument types) and tables of the blur split that depend only on the rope
+    width (made once per width, `BlurSplitter`).
+
+    Parameters
+    ----------
+    splitter
+        The split's settings (`corner_scale`, `corner_rad`, `sweep_window`, `tip_cap_ratio`, `smooth_sigma`,
+        `step`, `output_smoothing`, `static_ratio`) and its edge model (`model`).
+    width
+        The rope's edge spacing (px).
+    """
+
+    __slots__ = (
+        "blur", "cap", "corner", "curves", "frame_params", "keep", "min_gap", "params", "ratios_ro", "scale",
+        "search_px", "skip", "span", "sweep_index", "sweep_window", "sweeps_ro", "table_ro", "table_step", "tables",
+        "width",
+    )  # fmt: skip
+
+    def __init__(self, splitter: BlurSplitter, width: float) -> None:
+        scale = max(splitter.corner_scale, round(0.5 * width))
+        self.scale = i32(scale)
+        self.min_gap = i32(scale + 1)
+        self.search_px = max(3.0 * width, 8.0)
+        self.corner = f32(splitter.corner_rad)
+        self.sweep_window = i32(splitter.sweep_window)
+        self.tables = splitter.model.tables(width)
+        self.ratios_ro, self.sweeps_ro = ro(self.tables.peak_ratio), ro(self.tables.sweeps_px)
+        self.table_ro = ro(self.tables.offset_px)
+        self.table_step = f32(self.tables.sweep_step_px)
+        self.width = f32(width)
+        self.cap = f32(splitter.tip_cap_ratio * width)
+        # The corner is rounded over the edge ramp (up to a rope width) plus the smoothing on each side.
+        self.skip = f32(width + 2.0 * splitter.smooth_sigma)
+        self.blur = f32(max(splitter.smooth_sigma, 0.5))
+        # The axis is fitted over about 20 edge points: enough to average the edge noise (the fitted line is
+        # carried on ~5 px), short enough that a curled rope's bend near the tip stays far below a tenth of a
+        # pixel (measured: 3 widths gave 0.17-0.34 px mean tips on rig / dark rig, 8 widths 0.12-0.25, 20 widths
+        # let rig-soft's curl in, 0.27).
+        self.span = f32(max(8.0 * width, 16.0))
+        self.keep = i32(K.dense_end_points(self.skip, self.span))
+        # `split_shapes_local`'s width-bound arguments for `split_shapes_packed` (float32 values are exact in float64)
+        params = (
+            self.sweep_window, self.table_step, self.width, self.cap, self.skip, self.span, self.blur,
+            self.tables.slant_px, width, splitter.step, splitter.output_smoothing,
+        )  # fmt: skip
+        assert len(params) == K.SPLIT_PARAMS
+        self.params = ro(np.array([float(v) for v in params], np.float64))
+        # `split_frame`'s: the same, then the segmentation points' and the corner box's (as `split` computes them)
+        grow = 3.0 * float(self.blur) + 6.0 + width
+        frame_params = (*params, self.scale, self.min_gap, self.search_px, self.corner, grow, splitter.static_ratio)
+        assert len(frame_params) == K.FRAME_PARAMS
+        self.frame_params = ro(np.array([float(v) for v in frame_params], np.float64))
+        self.curves = ro(np.stack([self.ratios_ro, self.sweeps_ro]).astype(np.float64))
+        self.sweep_index = ro(sweep_index(self.curves[0]))
+
+
+_MAX_BUCKETS = 1 << 13
+"""The largest `sweep_index` (64 KB): past it the table's close ratios are walked (`side_sweeps`)."""
+
+
+def sweep_index(ratios: NDArray[np.float64]) -> NDArray[np.int32]:
+    """Index the sweep table's `ratios` (non-decreasing) for `side_sweeps_indexed`.
+
+    The range of `ratios` is cut into ``nb`` equal buckets (the fewest power of two, 64 or more, for which no
+    bucket holds two distinct ratios), a value's bucket computed as the kernel computes it, ``int(clip((x -
+    ratios[0]) * scale, 0, nb - 1))`` with ``scale = nb / (ratios[-1] - ratios[0])`` (the same float64
+    operations, so the same buckets). For bucket b, ``index[2 b]`` is the number of ratios in lower buckets less
+    one (at least 0), ``index[2 b + 1]`` the index of the last ratio in it or below (at most ``len(ratios) - 2``).
+
+    Parameters
+    ----------
+    ratios
+        (m,) float64: the edge model's ratios (`EdgeTables.peak_ratio`).
+
+    Returns
+    -------
+    NDArray[np.int32]
+        (2 nb,) the index, or (0,) when none fits `_MAX_BUCKETS` (fewer than two ratios, a flat or non-finite
+        table, ratios too close): the kernels then walk the table.
+    """
+    r = np.ascontiguousarray(ratios, np.float64)
+    m = r.shape[0]
+    if m < 2 or not np.all(np.isfinite(r)) or not r[m - 1] > r[0] or np.any(np.diff(r) < 0.0):
+        return np.zeros(0, np.int32)
+    buckets = 64
+    while buckets <= _MAX_BUCKETS:
+        scale = buckets / (r[m - 1] - r[0])
+        where = (r - r[0]) * scale
+        keys = np.where(where < buckets - 1.0, np.where(where > 0.0, where, 0.0), buckets - 1.0).astype(np.int64)
+        if not np.any((keys[1:] == keys[:-1]) & (r[1:] != r[:-1])):
+            grid = np.arange(buckets)
+            index = np.empty(2 * buckets, np.int32)
+            index[0::2] = np.maximum(np.searchsorted(keys, grid, side="left") - 1, 0)
+            index[1::2] = np.minimum(np.searchsorted(keys, grid, side="right") - 1, m - 2)
+            return index
+        buckets *= 2
+    return np.zeros(0, np.int32)

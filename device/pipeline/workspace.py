@@ -1,0 +1,317 @@
+"""The pipeline's workspace: every buffer the per-frame path writes, allocated once per image size, by name.
+
+Each stage owns one group (a frozen dataclass of named arrays) and gets it when it is made; a stage made alone
+makes its own. A group's arrays cannot be replaced (the dataclass is frozen, and the stages expose them as
+read-only properties, `expose`), so the table of raw addresses that `steady_frame` reads (`Workspace.steady_table`)
+stays valid as long as the workspace lives: the pipeline keeps both, and refuses to be copied or pickled.
+
+Groups: `EdgeBuffers` (`EdgeDetector`), `ContourBuffers` (`ContourTracer`), `RoiBuffers` (the band and the
+coarse search, `RopeLocator`), `FixedEndBuffers` (`FixedEndFinder`), `MotionBuffers` (`MotionModel`),
+`OrderBuffers` (`TimeOrder`), `SplitBuffers` (`BlurSplitter`), `TrackBuffers` (`PointTracker`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import operator
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, TypeVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._views import buffer_table, resident_zeros, ro, staggered_planes
+
+__all__ = [
+    "COARSE_BLOCK",
+    "NEED_BINS",
+    "ContourBuffers",
+    "EdgeBuffers",
+    "FixedEndBuffers",
+    "MotionBuffers",
+    "OrderBuffers",
+    "RoiBuffers",
+    "SplitBuffers",
+    "TrackBuffers",
+    "Workspace",
+    "expose",
+    "steady_constants",
+]
+
+COARSE_BLOCK = 4
+"""Cell size (px) of the coarse search for the rope when there is no ROI."""
+NEED_BINS = 16
+"""Bins of the normalised distance from the fixed end over which the band prediction's error is measured."""
+TRACK_WORK = 1024
+"""Smallest length of `TrackBuffers.work` (a shape's segment lengths)."""
+
+_T = TypeVar("_T")
+_group = dataclass(frozen=True, slots=True, eq=False)
+
+
+def expose(group: str, fields: type) -> Callable[[type[_T]], type[_T]]:
+    """Return a class decorator that gives the class a read-only property per field of the dataclass `fields`,
+    reading it from its attribute `group` (``stage.gx`` is ``stage.buffers.gx`` and cannot be assigned)."""
+
+    def decorate(cls: type[_T]) -> type[_T]:
+        for field in dataclasses.fields(fields):
+            getter = operator.attrgetter(f"{group}.{field.name}")
+            setattr(cls, field.name, property(getter, doc=f"``{group}.{field.name}`` (read only)."))
+        return cls
+
+    return decorate
+
+
+@_group
+class EdgeBuffers:
+    """`EdgeDetector`'s: the Gaussian `weights` (read-only), the span scratch, the five float planes (at
+    different offsets within a page, `staggered_planes`), the edge map and list, the spans of `smooth_box` and
+    the whole image's spans."""
+
+    weights: NDArray[np.float32]
+    work_spans: NDArray[np.int32]
+    tmp: NDArray[np.float32]
+    smooth: NDArray[np.float32]
+    gx: NDArray[np.float32]
+    gy: NDArray[np.float32]
+    mag: NDArray[np.float32]
+    edges: NDArray[np.uint8]
+    stack: NDArray[np.int32]
+    box_lo: NDArray[np.int32]
+    box_hi: NDArray[np.int32]
+    full_lo: NDArray[np.int32]
+    full_hi: NDArray[np.int32]
+
+    @classmethod
+    def make(cls, height: int, width: int, weights: NDArray[np.float32]) -> EdgeBuffers:
+        """Allocate the buffers of an image of `height` x `width` px for the Gaussian `weights` (copied)."""
+        tmp, smooth, gx, gy, mag = staggered_planes(5, (height, width), np.float32)
+        return cls(
+            ro(np.array(weights, np.float32)), np.zeros((4, height), np.int32), tmp, smooth, gx, gy, mag,
+            resident_zeros((height, width), np.uint8), resident_zeros(height * width, np.int32),
+            np.zeros(height, np.int32), np.zeros(height, np.int32), np.zeros(height, np.int32),
+            np.full(height, width - 1, np.int32),
+        )  # fmt: skip
+
+
+@_group
+class ContourBuffers:
+    """`ContourTracer`'s: component labels and stack, the start pixel, the chain (pixels, codes, subpixel
+    points; `capacity` each) and the trace's counts."""
+
+    labels: NDArray[np.int32]
+    stack: NDArray[np.int32]
+    start: NDArray[np.int32]
+    chain: NDArray[np.int32]
+    codes: NDArray[np.int32]
+    points: NDArray[np.float32]
+    counts: NDArray[np.int32]
+
+    @classmethod
+    def make(cls, height: int, width: int, capacity: int) -> ContourBuffers:
+        """Allocate the buffers of an image of `height` x `width` px and contours of up to `capacity` points."""
+        return cls(
+            resident_zeros((height, width), np.int32), resident_zeros(height * width, np.int32),
+            np.zeros(2, np.int32), np.zeros((capacity, 2), np.int32), np.zeros(capacity, np.int32),
+            np.zeros((capacity, 2), np.float32), np.zeros(4, np.int32),
+        )  # fmt: skip
+
+
+@_group
+class RoiBuffers:
+    """Where the rope is searched: the row spans `lo`/`hi` of the band, the spans a widening adds
+    (`grow_lo`/`grow_hi`), the last contour moved by the prediction (`moved`; `no_moved` for the widening's bands,
+    whose moved points are not kept) and the coarse search's cell sums, labels and stack."""
+
+    lo: NDArray[np.int32]
+    hi: NDArray[np.int32]
+    grow_lo: NDArray[np.int32]
+    grow_hi: NDArray[np.int32]
+    moved: NDArray[np.float32]
+    no_moved: NDArray[np.float32]
+    coarse_sums: NDArray[np.int32]
+    coarse_labels: NDArray[np.int32]
+    coarse_stack: NDArray[np.int32]
+
+    @classmethod
+    def make(cls, height: int, width: int, capacity: int) -> RoiBuffers:
+        """Allocate the buffers of an image of `height` x `width` px and contours of up to `capacity` points."""
+        cells = (max(1, height // COARSE_BLOCK), max(1, width // COARSE_BLOCK))
+        return cls(
+            *(np.zeros(height, np.int32) for _ in range(4)), np.zeros((capacity, 2), np.float32),
+            np.zeros((0, 2), np.float32), resident_zeros(cells, np.int32), resident_zeros(cells, np.int32),
+            resident_zeros(max(cells[0] * cells[1], width), np.int32),
+        )  # fmt: skip
+
+
+@_group
+class FixedEndBuffers:
+    """`FixedEndFinder`'s: the fixed end (row, col) and the turning angles of the contour it is found on."""
+
+    fixed: NDArray[np.float32]
+    turn: NDArray[np.float32]
+
+    @classmethod
+    def make(cls, capacity: int) -> FixedEndBuffers:
+        """Allocate the buffers for contours of up to `capacity` points."""
+        return cls(np.zeros(2, np.float32), np.zeros(capacity, np.float32))
+
+
+@_group
+class MotionBuffers:
+    """`MotionModel`'s (see there): its `state`, `log`, the band prediction's error `need` and `profile`, and
+    what the last band was built with (`band`)."""
+
+    state: NDArray[np.int64]
+    log: NDArray[np.float64]
+    need: NDArray[np.float64]
+    profile: NDArray[np.float64]
+    band: NDArray[np.float64]
+
+    @classmethod
+    def make(cls) -> MotionBuffers:
+        """Allocate the buffers (their size does not depend on the image)."""
+        return cls(
+            np.zeros(K.MOTION_FRAMES + 2, np.int64), np.zeros((K.MOTION_FRAMES + 1, 2), np.float64),
+            np.zeros((2, NEED_BINS), np.float64), np.full(NEED_BINS, np.inf), np.zeros(K.BAND_SLOTS, np.float64),
+        )  # fmt: skip
+
+
+@_group
+class OrderBuffers:
+    """`TimeOrder`'s (see there): sample times and counters (`state`), sample tips (`hist_rc`)."""
+
+    state: NDArray[np.int64]
+    hist_rc: NDArray[np.float64]
+
+    @classmethod
+    def make(cls) -> OrderBuffers:
+        """Allocate the buffers (their size does not depend on the image)."""
+        return cls(np.zeros(K.HISTORY + 3, np.int64), np.zeros((K.HISTORY, 2), np.float64))
+
+
+@_group
+class SplitBuffers:
+    """`BlurSplitter`'s: ``scratch`` (3, capacity) float64 (arc, distance from the fixed end, slope work),
+    ``lines`` (3, capacity) float32 (work, the sweeps of side A and side B), ``sides`` (4, capacity, 2) (side A,
+    side B, out A, out B), the turning angles, the segmentation indices, the measured widths, the two
+    segmentation points (``seg``), `split_frame`'s `info` and `state`."""
+
+    scratch: NDArray[np.float64]
+    lines: NDArray[np.float32]
+    sides: NDArray[np.float32]
+    turn: NDArray[np.float32]
+    idx: NDArray[np.int32]
+    dist: NDArray[np.float32]
+    seg: NDArray[np.float32]
+    info: NDArray[np.float64]
+    state: NDArray[np.float64]
+
+    @classmethod
+    def make(cls, capacity: int) -> SplitBuffers:
+        """Allocate the buffers for contours of up to `capacity` points."""
+        return cls(
+            np.zeros((3, capacity), np.float64), np.zeros((3, capacity), np.float32),
+            np.zeros((4, capacity, 2), np.float32), np.zeros(capacity, np.float32), np.zeros(4, np.int32),
+            np.zeros(capacity, np.float32), np.zeros((2, 2), np.float32), np.zeros(K.FRAME_INFO, np.float64),
+            np.zeros(K.FRAME_STATE, np.float64),
+        )  # fmt: skip
+
+
+@_group
+class TrackBuffers:
+    """`PointTracker`'s: the material points' arc fractions (read-only), their positions on both shapes
+    (``out``, (2, points, 2)), the shapes' lengths and the segment lengths of a shape (``work``)."""
+
+    fraction: NDArray[np.float64]
+    out: NDArray[np.float32]
+    lengths_px: NDArray[np.float64]
+    work: NDArray[np.float64]
+
+    @classmethod
+    def make(cls, fraction: NDArray[np.float64], capacity: int) -> TrackBuffers:
+        """Allocate the buffers for material points at arc `fraction` (of the rope's length) on shapes of up to
+        `capacity` points."""
+        fraction = np.array(fraction, np.float64)
+        return cls(
+            ro(fraction),
+            np.zeros((2, len(fraction), 2), np.float32),
+            np.zeros(2, np.float64),
+            np.zeros(max(TRACK_WORK, capacity), np.float64),
+        )
+
+
+@_group
+class Workspace:
+    """Every buffer of one pipeline, by stage (see the module's docstring), and the steady frame's results
+    (``steady_out``, `STEADY_SLOTS`)."""
+
+    edges: EdgeBuffers
+    contour: ContourBuffers
+    roi: RoiBuffers
+    fixed_end: FixedEndBuffers
+    motion: MotionBuffers
+    order: OrderBuffers
+    split: SplitBuffers
+    track: TrackBuffers
+    steady_out: NDArray[np.float64]
+
+    @classmethod
+    def make(
+        cls, height: int, width: int, capacity: int, weights: NDArray[np.float32], fraction: NDArray[np.float64]
+    ) -> Workspace:
+        """Allocate the buffers of a pipeline for frames of `height` x `width` px, contours of up to `capacity`
+        points, the Gaussian smoothing's `weights` and material points at arc `fraction`."""
+        return cls(
+            EdgeBuffers.make(height, width, weights), ContourBuffers.make(height, width, capacity),
+            RoiBuffers.make(height, width, capacity), FixedEndBuffers.make(capacity), MotionBuffers.make(),
+            OrderBuffers.make(), SplitBuffers.make(capacity), TrackBuffers.make(fraction, capacity),
+            np.zeros(K.STEADY_SLOTS, np.float64),
+        )  # fmt: skip
+
+    def steady_table(self, width: Any) -> NDArray[np.int64]:
+        """Return `steady_frame`'s table of this workspace's buffers and the rope width's tables `width`
+        (`ropecam.device.pipeline.split.WidthConstants`: ``frame_params``, ``curves``, ``table_ro``,
+        ``sweep_index``), by the names of `STEADY_BUFFERS`. Its raw addresses are valid while this workspace and
+        `width` live: the caller keeps both with it."""
+        e, c, r, m, s, t = self.edges, self.contour, self.roi, self.motion, self.split, self.track
+        return buffer_table(
+            {
+                # band_stage's
+                "prev_points": c.points, "fixed": self.fixed_end.fixed, "motion_state": m.state,
+                "motion_log": m.log, "need_hist": m.need, "profile": m.profile, "band_state": m.band, "lo": r.lo,
+                "hi": r.hi, "moved": r.moved,
+                # detect_and_trace's
+                "weights": e.weights, "work_spans": e.work_spans, "tmp": e.tmp, "smooth": e.smooth, "gx": e.gx,
+                "gy": e.gy, "mag": e.mag, "edges": e.edges, "edge_stack": e.stack, "labels": c.labels,
+                "stack": c.stack, "start": c.start, "chain": c.chain, "codes": c.codes, "points": c.points,
+                "counts": c.counts,
+                # split_frame's
+                "box_lo": e.box_lo, "box_hi": e.box_hi, "params": width.frame_params, "split_state": s.state,
+                "curves": width.curves, "table": width.table_ro, "sweep_index": width.sweep_index, "lines": s.lines,
+                "sides": s.sides, "scratch": s.scratch, "turn": s.turn, "idx": s.idx, "out_seg": s.seg,
+                "split_info": s.info,
+                # track_frame's
+                "order_state": self.order.state, "hist_rc": self.order.hist_rc, "fraction": t.fraction,
+                "out_points": t.out, "out_lengths": t.lengths_px, "work_seg": t.work,
+                "out": self.steady_out,
+            },
+            K.STEADY_BUFFERS,
+        )  # fmt: skip
+
+
+def steady_constants(**values: float) -> NDArray[np.float64]:
+    """Return `steady_frame`'s `constants` (float64) from their values by the names of `STEADY_CONSTANTS`.
+
+    Raises
+    ------
+    ValueError
+        A name missing or not one of `STEADY_CONSTANTS`.
+    """
+    names = K.STEADY_CONSTANTS
+    if set(values) != set(names):
+        raise ValueError(f"steady constants missing: {sorted(set(names) - set(values))}, unknown: "
+                         f"{sorted(set(values) - set(names))}")  # fmt: skip
+    return np.array([values[name] for name in names], np.float64)
