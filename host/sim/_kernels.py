@@ -23,7 +23,7 @@ from typing import Final
 import numpy as np
 from numba import float64, int32
 
-from ropecam.shared.jit import f4_2d, f8_1d_ro, f8_2d_ro, i4_1d, kernel
+from ropecam.shared.jit import f4_2d, f4_2d_ro, f8_1d_ro, f8_2d_ro, i4_1d, kernel
 
 FAR: Final = np.float32(1e30)
 """Distance stored in the scratch buffer for pixels no segment has touched."""
@@ -39,8 +39,11 @@ def normal_cdf(x):
     return 0.5 * math.erfc(-x / math.sqrt(2.0))
 
 
-@kernel(int32(f8_2d_ro, f8_1d_ro, f8_1d_ro, float64, f4_2d, f4_2d, f4_2d, f4_2d, i4_1d))
-def stamp_centreline(points_px, radius_px, level, sigma_px, out_dist, out_radius, out_level, out_cut, out_box):
+@kernel(int32(f8_2d_ro, f8_1d_ro, f8_1d_ro, float64, f4_2d_ro, float64, f4_2d, f4_2d, f4_2d, f4_2d, i4_1d))
+def stamp_centreline(
+    points_px, radius_px, level, sigma_px, texture, texture_rows_per_sample, out_dist, out_radius, out_level, out_cut,
+    out_box,
+):  # fmt: skip
     """Record, per pixel near the polyline, the nearest segment's distance, half-width, brightness and end factor.
 
     Parameters
@@ -53,6 +56,13 @@ def stamp_centreline(points_px, radius_px, level, sigma_px, out_dist, out_radius
         (S,) rope brightness at each point (any unit; carried to `out_level`).
     sigma_px
         Standard deviation of the edge blur, pixels (> 0).
+    texture
+        (A, B) relative brightness of the rope's surface: rows along the rope (periodic, `texture_rows_per_sample`
+        rows per centreline sample), columns across it from the side to the left of the direction of travel
+        (fixed end to tip, image axes) to the right; read bilinearly and multiplied into the level. (1, 1) = plain
+        rope, not read.
+    texture_rows_per_sample
+        Texture rows per centreline sample (>= 0).
     out_dist, out_radius, out_level, out_cut
         (H, W) scratch buffers, written where a segment is nearer (in distance minus half-width) than what they hold.
         `out_dist` must hold `FAR` where untouched (as `accumulate_cover` leaves it).
@@ -70,6 +80,10 @@ def stamp_centreline(points_px, radius_px, level, sigma_px, out_dist, out_radius
     if n < 2 or points_px.shape[1] != 2 or radius_px.shape[0] != n or level.shape[0] != n or not sigma_px > 0:
         return INVALID
     if out_radius.shape != out_dist.shape or out_level.shape != out_dist.shape or out_cut.shape != out_dist.shape:
+        return INVALID
+    tex_rows, tex_cols = texture.shape
+    textured = tex_rows > 1 or tex_cols > 1
+    if tex_rows < 1 or tex_cols < 1 or not texture_rows_per_sample >= 0:
         return INVALID
     # End factors apply to the segments within reach of a flat end along the rope (their round joins would
     # otherwise poke out past the cut); found by walking the arc from each end.
@@ -151,7 +165,24 @@ def stamp_centreline(points_px, radius_px, level, sigma_px, out_dist, out_radius
                     cut *= normal_cdf(inside / sigma_px)
                 out_dist[row, col] = dist
                 out_radius[row, col] = radius
-                out_level[row, col] = level[i] + tc * (level[i + 1] - level[i])
+                value = level[i] + tc * (level[i + 1] - level[i])
+                if textured:
+                    # Material coordinate along (periodic) and signed position across, -1..1 edge to edge.
+                    tr = ((i + tc) * texture_rows_per_sample) % tex_rows
+                    side = dist / radius if radius > 0 else 0.0
+                    if du * qv - dv * qu < 0:
+                        side = -side
+                    tcol = (min(max(side, -1.0), 1.0) + 1.0) * 0.5 * (tex_cols - 1)
+                    ra = int(tr)
+                    rb = ra + 1 if ra + 1 < tex_rows else 0
+                    ca = min(int(tcol), tex_cols - 1)
+                    cb = min(ca + 1, tex_cols - 1)
+                    fr = tr - ra
+                    fc = tcol - ca
+                    top = texture[ra, ca] + fc * (texture[ra, cb] - texture[ra, ca])
+                    bottom = texture[rb, ca] + fc * (texture[rb, cb] - texture[rb, ca])
+                    value *= top + fr * (bottom - top)
+                out_level[row, col] = value
                 out_cut[row, col] = cut
     out_box[0] = u_lo
     out_box[1] = v_lo
@@ -160,9 +191,9 @@ def stamp_centreline(points_px, radius_px, level, sigma_px, out_dist, out_radius
     return n - 1
 
 
-@kernel(int32(f4_2d, f4_2d, f4_2d, f4_2d, i4_1d, float64, float64, f4_2d, f4_2d))
-def accumulate_cover(dist, radius, level, cut, box, sigma_px, weight, out_cover_sum, out_signal_sum):
-    """Add one sub-frame's coverage (times `weight`) to the exposure sums and clear the scratch buffers.
+@kernel(int32(f4_2d, f4_2d, f4_2d, f4_2d, i4_1d, float64, f8_1d_ro, f4_2d, f4_2d))
+def accumulate_cover(dist, radius, level, cut, box, sigma_px, row_weight, out_cover_sum, out_signal_sum):
+    """Add one sub-frame's coverage (times its row's weight) to the exposure sums and clear the scratch buffers.
 
     Parameters
     ----------
@@ -173,12 +204,14 @@ def accumulate_cover(dist, radius, level, cut, box, sigma_px, weight, out_cover_
         (4,) int32 (u_min, v_min, u_max, v_max) inclusive, as left by `stamp_centreline`; reset to empty here.
     sigma_px
         Edge blur standard deviation, pixels (> 0).
-    weight
-        Quadrature weight of this sub-frame (the weights of one exposure sum to 1).
+    row_weight
+        (H,) quadrature weight of this sub-frame for each image row (one row's weights over an exposure sum to 1).
+        A global shutter gives every row the same weight; a rolling shutter exposes each row over its own
+        interval, so a sub-frame counts for the rows whose exposure it falls in (weight 0 elsewhere).
     out_cover_sum
-        (H, W): += weight * coverage.
+        (H, W): += row_weight[row] * coverage.
     out_signal_sum
-        (H, W): += weight * coverage * level.
+        (H, W): += row_weight[row] * coverage * level.
 
     Returns
     -------
@@ -188,7 +221,7 @@ def accumulate_cover(dist, radius, level, cut, box, sigma_px, weight, out_cover_
     height, width = dist.shape
     if radius.shape != dist.shape or level.shape != dist.shape or cut.shape != dist.shape or not sigma_px > 0:
         return INVALID
-    if out_cover_sum.shape != dist.shape or out_signal_sum.shape != dist.shape:
+    if out_cover_sum.shape != dist.shape or out_signal_sum.shape != dist.shape or row_weight.shape[0] != height:
         return INVALID
     u0 = max(box[0], 0)
     v0 = max(box[1], 0)
@@ -197,6 +230,7 @@ def accumulate_cover(dist, radius, level, cut, box, sigma_px, weight, out_cover_
     count = 0
     scale = 1.0 / (sigma_px * math.sqrt(2.0))
     for row in range(v0, v1 + 1):
+        weight = row_weight[row]
         for col in range(u0, u1 + 1):
             d = dist[row, col]
             if d < FAR:

@@ -73,8 +73,40 @@ def register(subparsers: Any) -> None:
     )
     parser.add_argument("--texture", type=float, metavar="A", help="background texture amplitude, relative (0.1)")
     parser.add_argument("--uneven", type=float, metavar="A", help="uneven rope brightness, relative (e.g. 0.3)")
+    parser.add_argument(
+        "--rope-photo",
+        metavar="FILE",
+        help="scene.rope_photo: paint the rope with the braid/texture of a real rope photo (relative to --photo-dir)",
+    )
+    parser.add_argument(
+        "--photo-dir",
+        metavar="DIR",
+        help="scene.photo_dir: folder of the rope photos (default ../shared/realdata, from the current directory)",
+    )
     parser.add_argument("--scratch", action="store_true", help="add a static bright scratch on the background")
     parser.add_argument("--clamp", action="store_true", help="add a clamp block over the fixed end")
+    camera = parser.add_argument_group("camera and lamps (all off in the rig and paper presets)")
+    camera.add_argument(
+        "--gamma", type=float, metavar="G", help="sensor.gamma: output code = 255 (light/255)^(1/G), G in [1, 3]"
+    )
+    camera.add_argument(
+        "--sharpen", type=float, metavar="A", help="sensor.sharpen: unsharp-mask amount in [0, 3] (sigma 1 px)"
+    )
+    camera.add_argument(
+        "--jpeg-quality", type=int, metavar="Q", help="sensor.jpeg_quality: JPEG/MJPEG round trip at quality 1-100"
+    )
+    camera.add_argument(
+        "--readout-ms",
+        type=float,
+        metavar="T",
+        help="camera.readout_ms: rolling shutter, the last row starts T ms after the first (0: global shutter)",
+    )
+    camera.add_argument(
+        "--flicker", type=float, metavar="A", help="scene.flicker: lamp brightness 1 + A sin(2 pi f t), A in [0, 0.9]"
+    )
+    camera.add_argument(
+        "--flicker-hz", type=float, metavar="F", help="scene.flicker_hz: lamp flicker frequency f (100 on 50 Hz mains)"
+    )
     parser.add_argument("--config", type=Path, metavar="FILE", help="TOML file overriding any preset value")
     parser.add_argument(
         "--trajectory", type=Path, metavar="FILE", help="use a saved trajectory (.npz) instead of solving the model"
@@ -116,6 +148,22 @@ def _overrides(args: argparse.Namespace) -> dict[str, Any]:
         scene["scratch"] = True
     if args.clamp:
         scene["clamp"] = True
+    sensor = overrides.setdefault("sensor", {})
+    for key in ("gamma", "sharpen", "jpeg_quality"):
+        if getattr(args, key) is not None:
+            sensor[key] = getattr(args, key)
+    if not sensor:
+        del overrides["sensor"]
+    if args.rope_photo is not None:
+        scene["rope_photo"] = args.rope_photo
+    if args.photo_dir is not None:
+        scene["photo_dir"] = args.photo_dir
+    if args.flicker is not None:
+        scene["flicker"] = args.flicker
+    if args.flicker_hz is not None:
+        scene["flicker_hz"] = args.flicker_hz
+    if args.readout_ms is not None:
+        overrides["camera"] = {"readout_ms": args.readout_ms}
     if scene:
         overrides["scene"] = scene
     return overrides
@@ -129,7 +177,7 @@ def run(args: argparse.Namespace) -> int:
     from ropecam.host.model.trajectory import Trajectory
     from ropecam.host.sim.config import merge_overrides
     from ropecam.host.sim.dynamics import solve_trajectory
-    from ropecam.host.sim.generate import frameset_paths, write_framesets
+    from ropecam.host.sim.generate import check_inputs, frameset_paths, write_framesets
     from ropecam.host.sim.presets import preset
     from ropecam.shared.config import read_toml
 
@@ -139,6 +187,7 @@ def run(args: argparse.Namespace) -> int:
     if args.config is not None:
         config = merge_overrides(config, read_toml(args.config), where=str(args.config))
     config = merge_overrides(config, _overrides(args), where="command line")
+    check_inputs(config)  # a missing photo fails before the model is solved and before anything is written
 
     if args.trajectory is not None:
         trajectory = Trajectory.load(args.trajectory)

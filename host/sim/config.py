@@ -13,6 +13,7 @@ import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
@@ -50,6 +51,9 @@ class CameraSpec:
     psf_sigma_px
         Standard deviation of the lens blur (Gaussian point-spread function), pixels; the pixel's own area is
         added to it as a box of variance 1/12.
+    readout_ms
+        Rolling shutter: row r's exposure starts ``readout_ms * r / (height_px - 1)`` after row 0's, milliseconds,
+        at most the frame period (checked by `SimConfig`); 0 = global shutter.
     """
 
     fx_px: float
@@ -63,6 +67,7 @@ class CameraSpec:
     plane_rvec: tuple[float, float, float] = (0.0, 0.0, 0.0)
     distortion: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)
     psf_sigma_px: float = 0.4
+    readout_ms: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("fx_px", "fy_px", "fps"):
@@ -72,6 +77,7 @@ class CameraSpec:
         check_range("camera.width_px", self.width_px, 8, 16384)
         check_range("camera.height_px", self.height_px, 8, 16384)
         check_range("camera.psf_sigma_px", self.psf_sigma_px, 0.0, 5.0)
+        check_range("camera.readout_ms", self.readout_ms, 0.0, 1000.0 / self.fps)
         if len(self.distortion) not in (4, 5, 8):
             raise ConfigError(f"camera.distortion must hold 4, 5 or 8 coefficients, got {list(self.distortion)}")
         for value in (*self.distortion, *self.plane_rvec, *self.plane_tvec_m):
@@ -132,6 +138,19 @@ class SceneSpec:
         Draw a static bright scratch across the swing region of the background.
     clamp
         Draw a clamp block over the fixed end (it hides the first few millimetres of rope).
+    photo_dir
+        Folder that a relative `rope_photo` is read from (relative paths: from the current directory).
+    rope_photo
+        Photograph of a real rope (path, relative to `photo_dir` unless absolute) whose brightness across and along
+        its own centreline is painted along the simulated rope (`ropecam.host.sim.rope_photo`); "" = plain rope.
+        Read when the frames are rendered; a missing file is a `ConfigError` naming this key and the path.
+    rope_photo_contrast
+        Scale of the photographed brightness variation, in [0, 2] (0: flat, 1: as photographed).
+    flicker
+        Relative amplitude a of the lamps' modulation, light x (1 + a sin(2 pi flicker_hz t)) with t on the
+        model's clock, averaged over each row's exposure; in [0, 0.9], 0 = steady light.
+    flicker_hz
+        Frequency of that modulation, Hz, in [1, 1000] (100 for lamps on 50 Hz mains, 120 on 60 Hz).
     """
 
     render_diameter_m: float | None = None
@@ -144,6 +163,11 @@ class SceneSpec:
     rope_unevenness: float = 0.0
     scratch: bool = False
     clamp: bool = False
+    photo_dir: str = "../shared/realdata"
+    rope_photo: str = ""
+    rope_photo_contrast: float = 1.0
+    flicker: float = 0.0
+    flicker_hz: float = 100.0
 
     def __post_init__(self) -> None:
         if self.render_diameter_m is not None:
@@ -155,11 +179,21 @@ class SceneSpec:
                 check_range(f"scene.{name}", value, 0.0, 255.0)
         for name in ("background_variation", "vignetting", "texture", "rope_unevenness"):
             check_range(f"scene.{name}", getattr(self, name), 0.0, 0.9)
+        check_range("scene.rope_photo_contrast", self.rope_photo_contrast, 0.0, 2.0)
+        check_range("scene.flicker", self.flicker, 0.0, 0.9)
+        check_range("scene.flicker_hz", self.flicker_hz, 1.0, 1000.0)
         if abs(self.rope_level - self.background_level) < 10:
             raise ConfigError(
                 f"scene: rope level {self.rope_level} and background level {self.background_level} must differ "
                 "by at least 10 DN (the rope would be invisible)"
             )
+
+    @property
+    def rope_photo_path(self) -> Path | None:
+        """The rope photo's path (`rope_photo` joined to `photo_dir` when relative), or None for a plain rope."""
+        if not self.rope_photo:
+            return None
+        return Path(self.photo_dir) / self.rope_photo
 
     @property
     def rope_level(self) -> float:
@@ -178,22 +212,41 @@ class SceneSpec:
 
 @dataclass(frozen=True, slots=True)
 class SensorSpec:
-    """Sensor noise: Gaussian read noise and photon shot noise, then rounding and clipping to 8 bits.
+    """The sensor and the camera's own processing: noise in linear light, gamma, sharpening, 8 bits, JPEG.
+
+    The order is that of a camera: read and shot noise on the linear light, the gamma curve, unsharp-mask
+    sharpening, rounding and clipping to 8 bits, then the JPEG/MJPEG round trip.
 
     Parameters
     ----------
     read_noise_dn
-        Standard deviation of the signal-independent noise, DN.
+        Standard deviation of the signal-independent noise, DN (linear).
     gain_dn_per_electron
         Conversion gain; shot noise has variance ``gain * signal`` (DN^2). 0 switches shot noise off.
+    gamma
+        Exponent of the output curve: code = 255 (light / 255)^(1 / gamma), in [1, 3]; 1 = linear.
+    sharpen
+        Unsharp-mask amount in [0, 3]: code + sharpen * (code - GaussianBlur(code, sharpen_sigma_px)); 0 = none.
+    sharpen_sigma_px
+        Standard deviation of the unsharp mask's Gaussian, pixels, in [0.3, 5].
+    jpeg_quality
+        JPEG quality (1-100) of a JPEG/MJPEG round trip of every frame (OpenCV's encoder); 0 = none.
     """
 
     read_noise_dn: float = 1.5
     gain_dn_per_electron: float = 0.05
+    gamma: float = 1.0
+    sharpen: float = 0.0
+    sharpen_sigma_px: float = 1.0
+    jpeg_quality: int = 0
 
     def __post_init__(self) -> None:
         check_range("sensor.read_noise_dn", self.read_noise_dn, 0.0, 50.0)
         check_range("sensor.gain_dn_per_electron", self.gain_dn_per_electron, 0.0, 10.0)
+        check_range("sensor.gamma", self.gamma, 1.0, 3.0)
+        check_range("sensor.sharpen", self.sharpen, 0.0, 3.0)
+        check_range("sensor.sharpen_sigma_px", self.sharpen_sigma_px, 0.3, 5.0)
+        check_range("sensor.jpeg_quality", self.jpeg_quality, 0, 100)
 
 
 @dataclass(frozen=True, slots=True)
@@ -253,8 +306,9 @@ class SimConfig:
 
     @property
     def duration_s(self) -> float:
-        """Model time needed: up to the end of the last frame's longest exposure."""
-        return self.first_exposure_s + (self.frames - 1) / self.camera.fps + max(self.exposure_ms) / 1000.0
+        """Model time needed: up to the end of the last frame's longest exposure (of its last row)."""
+        last_begin_s = self.first_exposure_s + (self.frames - 1) / self.camera.fps
+        return last_begin_s + max(self.exposure_ms) / 1000.0 + self.camera.readout_ms / 1000.0
 
     @property
     def render_diameter_m(self) -> float:

@@ -8,6 +8,7 @@ complete and also when the run stops early (error or Ctrl-C), covering the frame
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
 import math
 import time
@@ -24,11 +25,21 @@ from ropecam.host.calibration.geometry import plane_to_pixels
 from ropecam.host.model.trajectory import Trajectory
 from ropecam.host.sim.config import SimConfig
 from ropecam.host.sim.render import RopeRenderer, max_pixels_per_metre
+from ropecam.host.sim.rope_photo import PhotoStrip, load_rope_strip, rope_texture
 from ropecam.host.sim.scene import Sensor, build_scene, rope_levels
+from ropecam.host.sim.shutter import flicker_gain
 from ropecam.shared.cli import ropecam_version
 from ropecam.shared.errors import ConfigError, DataError
 
-__all__ = ["TRAJECTORY_FILE", "SetSummary", "arc_length_samples", "frameset_paths", "write_frameset", "write_framesets"]
+__all__ = [
+    "TRAJECTORY_FILE",
+    "SetSummary",
+    "arc_length_samples",
+    "check_inputs",
+    "frameset_paths",
+    "write_frameset",
+    "write_framesets",
+]
 
 log = logging.getLogger(__name__)
 
@@ -72,6 +83,25 @@ class SetSummary:
     seconds: float
 
 
+@functools.lru_cache(maxsize=4)
+def cached_rope_strip(path: str) -> PhotoStrip:
+    """Return `load_rope_strip(path)`, read once per process (a preset's exposures share it)."""
+    return load_rope_strip(path)
+
+
+def check_inputs(config: SimConfig) -> None:
+    """Read the files the configuration names (the rope photo) so that a missing one fails before any work.
+
+    Raises
+    ------
+    ConfigError
+        A file is missing or unusable (naming the key and the path).
+    """
+    photo = config.scene.rope_photo_path
+    if photo is not None:
+        cached_rope_strip(str(photo))
+
+
 def frameset_paths(out: str | Path, exposure_ms: tuple[float, ...]) -> list[tuple[float, Path]]:
     """Return (exposure_ms, folder) pairs: `out` itself for one exposure, ``out/exposure_<ms>ms`` for several."""
     out = Path(out)
@@ -102,11 +132,12 @@ def _check_trajectory(config: SimConfig, trajectory: Trajectory, exposure_us: in
             f"the trajectory's rope is {trajectory.length_m} m long but the configuration says rope.length_m = "
             f"{config.rope.length_m} m (set rope.length_m with --config, or use a matching trajectory)"
         )
-    last_end_s = _begin_ns(config, config.frames - 1) * 1e-9 + exposure_us * 1e-6
+    last_end_s = _begin_ns(config, config.frames - 1) * 1e-9 + exposure_us * 1e-6 + config.camera.readout_ms * 1e-3
     first_s = config.first_exposure_s
     t0, t1 = float(trajectory.times_s[0]), float(trajectory.times_s[-1])
     if first_s < t0 - 1e-12 or last_end_s > t1 + 1e-9:
-        available = max(0, math.floor((t1 - exposure_us * 1e-6 - first_s) * config.camera.fps + 1e-9) + 1)
+        span_s = exposure_us * 1e-6 + config.camera.readout_ms * 1e-3
+        available = max(0, math.floor((t1 - span_s - first_s) * config.camera.fps + 1e-9) + 1)
         raise ConfigError(
             f"the trajectory covers {t0:g}..{t1:g} s but {config.frames} frames at {config.camera.fps:g} FPS need "
             f"{first_s:g}..{last_end_s:.6f} s (it holds {available} frames; use fewer frames or a longer trajectory)"
@@ -218,11 +249,18 @@ def write_frameset(
     levels = rope_levels(config.scene, s_m, config.seed)
     fixed_end_px = plane_to_pixels(np.zeros(2), camera, plane)
     sigma = config.camera.edge_sigma_px
-    renderer = RopeRenderer(camera, plane, s_m, config.render_diameter_m, levels, sigma)
+    readout_s = config.camera.readout_ms / 1000.0
+    renderer = RopeRenderer(camera, plane, s_m, config.render_diameter_m, levels, sigma, readout_s=readout_s)
     first_m = trajectory.positions([trajectory.times_s[0]], s_m)[0]
     first_px = renderer.project(first_m)
     rope_length_px = float(np.linalg.norm(np.diff(first_px, axis=0), axis=-1).sum())
     width_px = 2.0 * float(np.median(renderer.half_width_px(first_m, first_px)))
+    photo = config.scene.rope_photo_path
+    if photo is not None:
+        strip = cached_rope_strip(str(photo))
+        renderer.texture = rope_texture(
+            strip, config.scene.rope_photo_contrast, config.render_diameter_m, float(s_m[1] - s_m[0]), width_px
+        )
     layers = build_scene(
         config.scene, config.camera.image_size, tuple(fixed_end_px), rope_length_px, width_px, sigma, config.seed
     )
@@ -232,9 +270,16 @@ def write_frameset(
         metadata["rig"]["clamp_box_px"] = list(layers.clamp_box_px)
     if layers.scratch_px is not None:
         metadata["rig"]["scratch_px"] = list(layers.scratch_px)
+    if photo is not None:
+        metadata["rig"]["rope_photo"] = str(photo)
+    rolling = readout_s > 0
+    if rolling:
+        metadata["rig"]["readout_ms"] = config.camera.readout_ms
+    if config.scene.flicker > 0:
+        metadata["rig"]["flicker"] = {"amplitude": config.scene.flicker, "frequency_hz": config.scene.flicker_hz}
 
     truth: dict[str, list[Any]] = {key: [] for key in ("begin_px", "end_px", "begin_m", "end_m", "width_px")}
-    truth.update({"t_begin_ns": [], "t_end_ns": [], "subframes": []})
+    truth.update({"t_begin_ns": [], "t_end_ns": [], "subframes": [], "begin_point_t_ns": [], "end_point_t_ns": []})
     width, height = config.camera.image_size
     out_of_view = 0
     with FrameSetWriter(out, config.camera.image_size, config.camera.fps, metadata, overwrite=overwrite) as writer:
@@ -244,7 +289,11 @@ def write_frameset(
                 t_begin_ns = _begin_ns(config, frame)
                 t_end_ns = t_begin_ns + exposure_us * 1000
                 exposure = renderer.render(trajectory, t_begin_ns * 1e-9, t_end_ns * 1e-9)
-                image = sensor.expose(exposure.cover, exposure.signal, frame)
+                illumination = None
+                if config.scene.flicker > 0:
+                    illumination = flicker_gain(t_begin_ns * 1e-9 + renderer.row_offsets_s, exposure_us * 1e-6,
+                                                config.scene.flicker, config.scene.flicker_hz)  # fmt: skip
+                image = sensor.expose(exposure.cover, exposure.signal, frame, illumination)
                 writer.add(image, t_begin_ns, exposure_us)
                 for key in ("begin_px", "end_px", "begin_m", "end_m"):
                     truth[key].append(getattr(exposure, key).copy())
@@ -252,6 +301,9 @@ def write_frameset(
                 truth["t_begin_ns"].append(t_begin_ns)
                 truth["t_end_ns"].append(t_end_ns)
                 truth["subframes"].append(exposure.subframes)
+                if rolling:
+                    truth["begin_point_t_ns"].append(exposure.begin_t_s * 1e9)
+                    truth["end_point_t_ns"].append(exposure.end_t_s * 1e9)
                 both = np.concatenate([exposure.begin_px, exposure.end_px])
                 inside = (both[:, 0] >= -0.5) & (both[:, 0] <= width - 0.5)
                 inside &= (both[:, 1] >= -0.5) & (both[:, 1] <= height - 0.5)
@@ -261,7 +313,12 @@ def write_frameset(
                     progress(frame + 1, config.frames)
         finally:
             if truth["t_begin_ns"]:
-                writer.write_truth(_truth_arrays(truth, s_m, fixed_end_px))
+                arrays = _truth_arrays(truth, s_m, fixed_end_px)
+                if rolling:
+                    arrays["row_offset_ns"] = renderer.row_offsets_s * 1e9
+                    arrays["begin_point_t_ns"] = np.stack(truth["begin_point_t_ns"])
+                    arrays["end_point_t_ns"] = np.stack(truth["end_point_t_ns"])
+                writer.write_truth(arrays)
     if out_of_view:
         log.warning("%s: the rope leaves the image in %d of %d frames", out, out_of_view, config.frames)
     return SetSummary(
@@ -315,6 +372,7 @@ def write_framesets(
         As `write_frameset`; checked for every exposure before anything is written.
     """
     paths = frameset_paths(out, config.exposure_ms)
+    check_inputs(config)
     for exposure_ms, _ in paths:
         _check_trajectory(config, trajectory, round(exposure_ms * 1000.0))
     if not overwrite:

@@ -7,6 +7,10 @@ that image over the exposure, by the trapezoidal rule on sub-frames spaced so th
 than `max_step_px` between two of them; the first and the last sub-frame are exactly the start and the end of the
 exposure, which are the ground truth.
 
+With a rolling shutter (`readout_s` > 0) each image row is exposed over its own interval, later the lower the row
+(`ropecam.host.sim.shutter`): the sub-frames span every row's exposure, each row averages those in its own, and the
+ground truth is each material point at the start and the end of the exposure of the row it is imaged in.
+
 The result is two images: the time-averaged coverage C in [0, 1] and the time-averaged coverage x rope brightness A;
 the scene composes ``background * (1 - C) + A`` (`ropecam.host.sim.scene`).
 """
@@ -22,6 +26,8 @@ from numpy.typing import ArrayLike, NDArray
 from ropecam.host.calibration.geometry import CameraModel, PlanePose, plane_to_pixels
 from ropecam.host.model.trajectory import Trajectory
 from ropecam.host.sim import _kernels
+from ropecam.host.sim.rope_photo import RopeTexture, flat_texture
+from ropecam.host.sim.shutter import rolling_centreline, row_offsets_s, row_weights
 from ropecam.shared.jit import KernelStatus
 
 __all__ = ["Exposure", "RopeRenderer", "max_pixels_per_metre"]
@@ -66,6 +72,9 @@ class Exposure:
         (S, 2) centreline on the plane at the start and the end of the exposure, metres.
     begin_px, end_px
         (S, 2) the same, distorted pixels (u, v).
+    begin_t_s, end_t_s
+        (S,) the instant of each point of `begin_*`, `end_*`: the exposure's start and end for a global shutter,
+        those of the point's own row for a rolling shutter.
     half_width_px
         (S,) apparent half-width of the rope at mid-exposure, pixels.
     subframes
@@ -80,6 +89,8 @@ class Exposure:
     end_m: NDArray[np.float64]
     begin_px: NDArray[np.float64]
     end_px: NDArray[np.float64]
+    begin_t_s: NDArray[np.float64]
+    end_t_s: NDArray[np.float64]
     half_width_px: NDArray[np.float64]
     subframes: int
     max_step_px: float
@@ -103,6 +114,11 @@ class RopeRenderer:
         Total edge blur (Gaussian standard deviation), pixels.
     max_step_px
         Largest allowed motion of any centreline point between two sub-frames, pixels.
+    readout_s
+        Rolling shutter: delay of the last row's exposure start after the first row's, seconds (0: global).
+    texture
+        The rope's surface brightness (`ropecam.host.sim.rope_photo.RopeTexture`), multiplied into `level` per
+        pixel from the material coordinate and the position across the rope; None: a plain rope.
     """
 
     def __init__(
@@ -114,6 +130,8 @@ class RopeRenderer:
         level: ArrayLike,
         edge_sigma_px: float,
         max_step_px: float = 0.5,
+        readout_s: float = 0.0,
+        texture: RopeTexture | None = None,
     ) -> None:
         s = np.ascontiguousarray(s_m, dtype=np.float64)
         levels = np.ascontiguousarray(level, dtype=np.float64)
@@ -127,6 +145,8 @@ class RopeRenderer:
             raise ValueError(f"edge_sigma_px must be > 0, got {edge_sigma_px!r}")
         if not (max_step_px > 0 and math.isfinite(max_step_px)):
             raise ValueError(f"max_step_px must be > 0, got {max_step_px!r}")
+        if not (readout_s >= 0 and math.isfinite(readout_s)):
+            raise ValueError(f"readout_s must be >= 0, got {readout_s!r}")
         self.camera = camera
         self.plane = plane
         self.s_m = s
@@ -134,7 +154,11 @@ class RopeRenderer:
         self.diameter_m = float(diameter_m)
         self.edge_sigma_px = float(edge_sigma_px)
         self.max_step_px = float(max_step_px)
+        self.readout_s = float(readout_s)
+        self.texture = texture if texture is not None else flat_texture()
         width, height = camera.image_size
+        self.row_offsets_s = row_offsets_s(height, self.readout_s)
+        self._row_weight = np.empty(height, dtype=np.float64)
         self._dist = np.full((height, width), _kernels.FAR, dtype=np.float32)
         self._radius = np.zeros((height, width), dtype=np.float32)
         self._level = np.zeros((height, width), dtype=np.float32)
@@ -190,6 +214,9 @@ class RopeRenderer:
     def render(self, trajectory: Trajectory, t_begin_s: float, t_end_s: float) -> Exposure:
         """Render the exposure from `t_begin_s` to `t_end_s` (seconds on the trajectory's time axis).
 
+        With a rolling shutter these are row 0's; row r's exposure is `row_offsets_s[r]` later, and the
+        trajectory must cover the last row's end too.
+
         Returns
         -------
         Exposure
@@ -200,38 +227,60 @@ class RopeRenderer:
         ValueError
             The times lie outside the trajectory or the exposure ends before it starts.
         """
-        times, points_m, points_px, step = self.subframes(trajectory, t_begin_s, t_end_s)
-        intervals = len(times) - 1
-        weights = np.full(len(times), 1.0 / max(intervals, 1))
-        if intervals:
-            weights[0] = weights[-1] = 0.5 / intervals
+        rolling = self.readout_s > 0
+        times, points_m, points_px, step = self.subframes(trajectory, t_begin_s, t_end_s + self.readout_s)
+        if rolling:
+            weights = row_weights(times, t_begin_s + self.row_offsets_s, t_end_s - t_begin_s)
         else:
-            weights[0] = 1.0
+            intervals = len(times) - 1
+            weights = np.full(len(times), 1.0 / max(intervals, 1))
+            if intervals:
+                weights[0] = weights[-1] = 0.5 / intervals
+            else:
+                weights[0] = 1.0
         self._cover.fill(0.0)
         self._signal.fill(0.0)
         middle = len(times) // 2
         half_mid = self.half_width_px(points_m[middle], points_px[middle])
         # The apparent width changes by far less than 1e-3 px within one exposure: computed once, at mid-exposure.
-        for k, weight in enumerate(weights):
+        for k in range(len(times)):
+            if rolling:
+                if not weights[k].any():
+                    continue
+                self._row_weight[:] = weights[k]
+            else:
+                self._row_weight.fill(weights[k])
             status = _kernels.stamp_centreline(
-                np.ascontiguousarray(points_px[k]), half_mid, self.level, self.edge_sigma_px,
-                self._dist, self._radius, self._level, self._cut, self._box,
+                np.ascontiguousarray(points_px[k]), half_mid, self.level, self.edge_sigma_px, self.texture.table,
+                self.texture.rows_per_sample, self._dist, self._radius, self._level, self._cut, self._box,
             )  # fmt: skip
             if status < 0:
                 raise RuntimeError(f"stamp_centreline failed with {KernelStatus(status).name}")
             status = _kernels.accumulate_cover(
-                self._dist, self._radius, self._level, self._cut, self._box, self.edge_sigma_px, float(weight),
+                self._dist, self._radius, self._level, self._cut, self._box, self.edge_sigma_px, self._row_weight,
                 self._cover, self._signal,
             )  # fmt: skip
             if status < 0:
                 raise RuntimeError(f"accumulate_cover failed with {KernelStatus(status).name}")
+        if rolling:
+            height = self.row_offsets_s.size
+            shutter = (self.camera, self.plane)
+            begin_m, begin_px, begin_t = rolling_centreline(
+                trajectory, self.s_m, *shutter, t_begin_s, self.readout_s, height
+            )
+            end_m, end_px, end_t = rolling_centreline(trajectory, self.s_m, *shutter, t_end_s, self.readout_s, height)
+        else:
+            begin_m, begin_px, begin_t = points_m[0], points_px[0], np.full(self.s_m.size, t_begin_s)
+            end_m, end_px, end_t = points_m[-1], points_px[-1], np.full(self.s_m.size, t_end_s)
         return Exposure(
             cover=self._cover,
             signal=self._signal,
-            begin_m=points_m[0],
-            end_m=points_m[-1],
-            begin_px=points_px[0],
-            end_px=points_px[-1],
+            begin_m=begin_m,
+            end_m=end_m,
+            begin_px=begin_px,
+            end_px=end_px,
+            begin_t_s=begin_t,
+            end_t_s=end_t,
             half_width_px=half_mid,
             subframes=len(times),
             max_step_px=step,

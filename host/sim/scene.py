@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 from scipy.special import ndtr
 
 from ropecam.host.sim.config import SceneSpec, SensorSpec
+from ropecam.host.sim.processing import encode_gamma, jpeg_round_trip, unsharp_mask
 
 __all__ = ["SceneLayers", "Sensor", "build_scene", "rope_levels"]
 
@@ -194,8 +195,13 @@ class Sensor:
         self.seed = int(seed)
         self._light = np.empty_like(layers.background)
 
-    def light(self, cover: NDArray[np.float32], signal: NDArray[np.float32]) -> NDArray[np.float32]:
-        """Return the noise-free light (DN, float32) for a rendered exposure; a view into this sensor's buffer."""
+    def light(
+        self, cover: NDArray[np.float32], signal: NDArray[np.float32], illumination: NDArray[np.float32] | None = None
+    ) -> NDArray[np.float32]:
+        """Return the noise-free light (DN, float32) for a rendered exposure; a view into this sensor's buffer.
+
+        `illumination`, (H, 1) or (H, W), multiplies the whole scene (the lamps' flicker, `shutter.flicker_gain`).
+        """
         layers = self.layers
         light = self._light
         np.subtract(1.0, cover, out=light)
@@ -204,12 +210,24 @@ class Sensor:
         if layers.clamp_box_px is not None:
             light *= 1.0 - layers.clamp
             light += CLAMP_LEVEL_DN * layers.clamp
+        if illumination is not None:
+            light *= illumination
         light *= layers.vignette
         return light
 
-    def expose(self, cover: NDArray[np.float32], signal: NDArray[np.float32], frame: int) -> NDArray[np.uint8]:
-        """Return the 8-bit frame number `frame` for a rendered exposure (noise, rounding, clipping)."""
-        light = self.light(cover, signal)
+    def expose(
+        self,
+        cover: NDArray[np.float32],
+        signal: NDArray[np.float32],
+        frame: int,
+        illumination: NDArray[np.float32] | None = None,
+    ) -> NDArray[np.uint8]:
+        """Return the 8-bit frame number `frame` for a rendered exposure.
+
+        Noise on the linear light, then the camera's processing (`ropecam.host.sim.processing`): gamma curve,
+        sharpening, rounding and clipping to 8 bits, JPEG round trip.
+        """
+        light = self.light(cover, signal, illumination)
         if self.spec.read_noise_dn > 0 or self.spec.gain_dn_per_electron > 0:
             rng = np.random.default_rng([self.seed, 1, frame])
             variance = np.maximum(light, 0.0) * np.float32(self.spec.gain_dn_per_electron)
@@ -217,4 +235,12 @@ class Sensor:
             noise = rng.standard_normal(light.shape, dtype=np.float32)
             noise *= np.sqrt(variance)
             light = light + noise
-        return np.clip(np.rint(light), 0, 255).astype(np.uint8)
+        spec = self.spec
+        if spec.gamma != 1.0 or spec.sharpen > 0:
+            light = encode_gamma(light, spec.gamma)
+            if spec.sharpen > 0:
+                light = unsharp_mask(light, spec.sharpen, spec.sharpen_sigma_px)
+        image = np.clip(np.rint(light), 0, 255).astype(np.uint8)
+        if spec.jpeg_quality:
+            image = jpeg_round_trip(image, spec.jpeg_quality)
+        return image

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -99,3 +100,13 @@ def tiny_config(clean: bool = False, **changes: object) -> SimConfig:
 def tiny() -> Callable[..., SimConfig]:
     """Factory of the small test rig: ``tiny(clean=False, **SimConfig field changes)``."""
     return tiny_config
+
+
+@pytest.fixture(scope="session")
+def realdata_dir() -> Path:
+    """The real photographs in ``../shared/realdata`` (beside the repository; beside the worktrees' parent too)."""
+    root = Path(__file__).resolve().parents[3]
+    for candidate in (root.parent / "shared" / "realdata", root.parents[1] / "shared" / "realdata"):
+        if candidate.is_dir():
+            return candidate
+    pytest.fail(f"{root.parent / 'shared' / 'realdata'} is missing: the rope photos are read from ../shared")

@@ -208,3 +208,20 @@ def test_existing_calibration_set_is_refused_before_any_work(
     assert main([*argv, "--config", str(small_toml), "--calibration-views", "4", "-q"]) == 2
     assert "a calibration set exists already (use --overwrite to replace it)" in capsys.readouterr().err
     assert sorted(p.name for p in out.iterdir()) == ["calibration"]  # no frame set rendered
+
+
+@pytest.mark.parametrize(
+    ("option", "message"),
+    [(["--gamma", "0.5"], "sensor.gamma must be in [1.0, 3.0], got 0.5"),
+     (["--jpeg-quality", "101"], "sensor.jpeg_quality must be in [0, 100], got 101"),
+     (["--sharpen", "-1"], "sensor.sharpen must be in [0.0, 3.0], got -1.0")],
+)  # fmt: skip
+def test_bad_realism_options_name_key_and_range_and_write_nothing(
+    tmp_path: Path, rod_file: Path, small_toml: Path, option: list[str], message: str,
+    capsys: pytest.CaptureFixture[str],
+) -> None:  # fmt: skip
+    out = tmp_path / "set"
+    argv = ["simulate", "rig", "--out", str(out), "--trajectory", str(rod_file), "--config", str(small_toml), "-q"]
+    assert main([*argv, *option]) == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()

@@ -15,6 +15,10 @@ pytestmark = pytest.mark.kernel
 SIGMA_PX = 0.5
 
 
+FLAT = np.ones((1, 1), dtype=np.float32)
+"""A plain rope's texture (not read by the kernel)."""
+
+
 def _arc(points: int = 60) -> np.ndarray:
     """A quarter circle of radius 25 px: a curved centreline with distinct ends."""
     angle = np.linspace(0.2, 1.8, points)
@@ -28,9 +32,10 @@ def _kernel_cover(points: np.ndarray, radius: float, shape: tuple[int, int]) -> 
     cover = np.zeros(shape, dtype=np.float32)
     signal = np.zeros(shape, dtype=np.float32)
     level = np.linspace(100.0, 200.0, len(points))
-    stamped = _kernels.stamp_centreline(points, np.full(len(points), radius), level, SIGMA_PX, dist, *scratch, box)
+    radii = np.full(len(points), radius)
+    stamped = _kernels.stamp_centreline(points, radii, level, SIGMA_PX, FLAT, 0.0, dist, *scratch, box)
     assert stamped == len(points) - 1
-    count = _kernels.accumulate_cover(dist, *scratch, box, SIGMA_PX, 1.0, cover, signal)
+    count = _kernels.accumulate_cover(dist, *scratch, box, SIGMA_PX, np.ones(shape[0]), cover, signal)
     assert count > 0
     assert np.all(dist == _kernels.FAR) and all(np.all(s == 0) for s in scratch), "scratch buffers not cleared"
     assert list(box) == [shape[1], shape[0], -1, -1]
@@ -107,8 +112,8 @@ def test_accumulation_weights_add_up() -> None:
     radius = np.full(len(points), 1.2)
     level = np.full(len(points), 50.0)
     for weight in (0.25, 0.5, 0.25):
-        _kernels.stamp_centreline(points, radius, level, SIGMA_PX, dist, *scratch, box)
-        _kernels.accumulate_cover(dist, *scratch, box, SIGMA_PX, weight, cover, signal)
+        _kernels.stamp_centreline(points, radius, level, SIGMA_PX, FLAT, 0.0, dist, *scratch, box)
+        _kernels.accumulate_cover(dist, *scratch, box, SIGMA_PX, np.full(shape[0], weight), cover, signal)
     single, _, _ = _kernel_cover(points, 1.2, shape)
     np.testing.assert_allclose(cover, single, atol=1e-6)
     np.testing.assert_allclose(signal, 50.0 * single, rtol=1e-5, atol=1e-5)
@@ -120,12 +125,18 @@ def test_invalid_arguments_return_status() -> None:
     scratch = [np.zeros(shape, dtype=np.float32) for _ in range(3)]
     box = np.array([10, 10, -1, -1], dtype=np.int32)
     one = np.zeros((1, 2))
-    assert _kernels.stamp_centreline(one, np.ones(1), np.ones(1), 0.5, dist, *scratch, box) == _kernels.INVALID
+    assert (
+        _kernels.stamp_centreline(one, np.ones(1), np.ones(1), 0.5, FLAT, 0.0, dist, *scratch, box) == _kernels.INVALID
+    )
     two = np.array([[1.0, 1.0], [5.0, 5.0]])
-    assert _kernels.stamp_centreline(two, np.ones(3), np.ones(2), 0.5, dist, *scratch, box) == _kernels.INVALID
-    assert _kernels.stamp_centreline(two, np.ones(2), np.ones(2), 0.0, dist, *scratch, box) == _kernels.INVALID
+    assert (
+        _kernels.stamp_centreline(two, np.ones(3), np.ones(2), 0.5, FLAT, 0.0, dist, *scratch, box) == _kernels.INVALID
+    )
+    assert (
+        _kernels.stamp_centreline(two, np.ones(2), np.ones(2), 0.0, FLAT, 0.0, dist, *scratch, box) == _kernels.INVALID
+    )
     small = np.zeros((5, 5), dtype=np.float32)
-    assert _kernels.accumulate_cover(dist, *scratch, box, 0.5, 1.0, small, small) == _kernels.INVALID
+    assert _kernels.accumulate_cover(dist, *scratch, box, 0.5, np.ones(10), small, small) == _kernels.INVALID
 
 
 def test_rope_outside_the_image_touches_nothing() -> None:
@@ -134,9 +145,9 @@ def test_rope_outside_the_image_touches_nothing() -> None:
     dist = np.full(shape, _kernels.FAR, dtype=np.float32)
     scratch = [np.zeros(shape, dtype=np.float32) for _ in range(3)]
     box = np.array([20, 20, -1, -1], dtype=np.int32)
-    assert _kernels.stamp_centreline(points, np.ones(2), np.ones(2), 0.5, dist, *scratch, box) == 1
+    assert _kernels.stamp_centreline(points, np.ones(2), np.ones(2), 0.5, FLAT, 0.0, dist, *scratch, box) == 1
     cover = np.zeros(shape, dtype=np.float32)
-    count = _kernels.accumulate_cover(dist, *scratch, box, 0.5, 1.0, cover, cover.copy())
+    count = _kernels.accumulate_cover(dist, *scratch, box, 0.5, np.ones(20), cover, cover.copy())
     assert count == 0 and not cover.any()
 
 
@@ -151,9 +162,11 @@ scratch = [np.zeros(shape, dtype=np.float32) for _ in range(3)]
 box = np.array([40, 30, -1, -1], dtype=np.int32)
 cover, signal = np.zeros(shape, dtype=np.float32), np.zeros(shape, dtype=np.float32)
 radius, level = np.ones(20), np.ones(20)
+flat = np.ones((1, 1), dtype=np.float32)
+row_weight = np.ones(shape[0])
 def calls():
-    _kernels.stamp_centreline(points, radius, level, 0.5, dist, *scratch, box)
-    _kernels.accumulate_cover(dist, *scratch, box, 0.5, 1.0, cover, signal)
+    _kernels.stamp_centreline(points, radius, level, 0.5, flat, 0.0, dist, *scratch, box)
+    _kernels.accumulate_cover(dist, *scratch, box, 0.5, row_weight, cover, signal)
 calls()
 before = rtsys.get_allocation_stats()
 for _ in range(10):
@@ -164,7 +177,7 @@ print(after.alloc - before.alloc, after.free - before.free)
 
 
 def test_kernels_do_not_allocate() -> None:
-    """Under NUMBA_NRT_STATS=1, a call allocates only the wrappers of its array arguments (8 + 7 per pair)."""
+    """Under NUMBA_NRT_STATS=1, a call allocates only the wrappers of its array arguments (9 + 8 per pair)."""
     import os
     import subprocess
     import sys
@@ -175,4 +188,4 @@ def test_kernels_do_not_allocate() -> None:
     assert result.returncode == 0, result.stderr
     allocs, frees = (int(v) for v in result.stdout.split())
     assert allocs == frees
-    assert allocs == 10 * (8 + 7)
+    assert allocs == 10 * (9 + 8)
