@@ -47,7 +47,7 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-from ropecam_tools.matrix_design import FACTORS, METHODS, SECTIONS, SEED_SETS, Scene, build_scenes
+from ropecam_tools.matrix_design import FACTORS, METHODS, REALDATA, SECTIONS, SEED_SETS, Scene, build_scenes
 
 MIN_FRAMES = 2
 
@@ -67,6 +67,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--factor", nargs="+", metavar="NAME",
                         help="factor rows to run (default all): " + ", ".join(f.name for f in FACTORS))  # fmt: skip
     parser.add_argument("--preset", nargs="+", metavar="NAME", help="presets for the presets section (default all)")
+    parser.add_argument("--photo-dir", type=Path, default=REALDATA, metavar="DIR",
+                        help=f"folder of the real rope photographs (default {REALDATA})")  # fmt: skip
     parser.add_argument("--keep-frames", action="store_true",
                         help="keep the rendered frame sets in OUT/framesets (and reuse matching ones)")  # fmt: skip
     parser.add_argument("--no-plots", action="store_true", help="write the tables only (no matplotlib)")
@@ -193,14 +195,14 @@ def run(args: argparse.Namespace) -> int:
     try:
         scenes, missing = build_scenes(
             presets, args.seed_set, tuple(args.only), None if args.factor is None else tuple(args.factor),
-            None if args.preset is None else tuple(args.preset),
+            None if args.preset is None else tuple(args.preset), args.photo_dir.resolve(),
         )  # fmt: skip
     except ValueError as exc:
         raise SystemExit(f"matrix: {exc}") from None
     if not scenes:
         raise SystemExit("matrix: the selection holds no scene (check --only, --factor and --preset)")
-    for factor in missing:
-        print(f"note: factor {factor.name!r} left out: the simulator has no key {factor.key}", file=sys.stderr)
+    for factor, reason in missing:
+        print(f"note: factor {factor.name!r} left out: {reason}", file=sys.stderr)
     methods = tuple(args.method)
     unique: dict[str, Scene] = {}
     for scene in scenes:
@@ -262,7 +264,7 @@ def run(args: argparse.Namespace) -> int:
         "cpu_s": sum(u.ru_utime + u.ru_stime for u in (usage_self, usage_children)),
         "cpus": os.cpu_count(),
         "load_average": os.getloadavg(),
-        "factors_left_out": [{"name": f.name, "key": f.key} for f in missing],
+        "factors_left_out": [{"name": f.name, "reason": reason} for f, reason in missing],
         "model": model_timings,
     }
     paths = write_outputs(args.out, scenes, measured, run_info, plots=not args.no_plots)

@@ -21,6 +21,7 @@ import hashlib
 import json
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 __all__ = ["FACTORS", "IDEAL", "PAIRS", "SEED_SETS", "Factor", "Scene", "build_scenes"]
@@ -70,6 +71,10 @@ def _contrast_setting(value_dn: float, base: dict[str, Any]) -> float:
     return 25.0 + value_dn
 
 
+REALDATA = Path(__file__).resolve().parents[2].parent / "shared" / "realdata"
+"""Default folder of the real photographs handed to the project (``../shared/realdata`` beside the repository)."""
+
+
 @dataclass(frozen=True)
 class Factor:
     """One row of the factor section: a simulator key varied across its values.
@@ -90,6 +95,11 @@ class Factor:
         What the value is, in words.
     setting
         Maps a shown value to the key's value, given the base configuration as a dict (None: the same).
+    extra
+        Further dotted keys set with every value but the first (the ideal scene's), e.g. ``scene.clamp = true``
+        for the clamp's size.
+    photos
+        The row paints a photographed rope: ``scene.photo_dir`` is set to the matrix's photo folder.
     """
 
     name: str
@@ -99,11 +109,25 @@ class Factor:
     stated_range: str
     meaning: str
     setting: Callable[[Any, dict[str, Any]], Any] | None = None
+    extra: tuple[tuple[str, Any], ...] = ()
+    photos: bool = False
 
-    def overrides(self, value: Any, base: dict[str, Any]) -> dict[str, Any]:
+    def overrides(self, value: Any, base: dict[str, Any], photo_dir: Path = REALDATA) -> dict[str, Any]:
         """Return the nested overrides that set this factor to `value` (shown units)."""
+        if value == self.values[0] and self.extra:
+            return {}
         target = value if self.setting is None else self.setting(value, base)
-        return _nested(self.key, target)
+        out = _nested(self.key, target)
+        for key, extra in self.extra:
+            out = _merge(out, _nested(key, extra))
+        if self.photos:
+            out = _merge(out, {"scene": {"photo_dir": str(photo_dir)}})
+        return out
+
+    @property
+    def keys(self) -> tuple[str, ...]:
+        """Every simulator key the row needs."""
+        return (self.key, *(key for key, _ in self.extra))
 
 
 def _nested(key: str, value: Any) -> dict[str, Any]:
@@ -137,6 +161,27 @@ FACTORS: tuple[Factor, ...] = (
            "bright rope on a dark plate, or dark on bright"),
     Factor("clamp", "scene.clamp", (False, True), "", "off, on", "a clamp block over the fixed end"),
     Factor("scratch", "scene.scratch", (False, True), "", "off, on", "a static bright scratch on the plate"),
+    Factor("rope photo texture", "scene.rope_photo_contrast", (0.0, 0.5, 1.0, 2.0), "rel.", "0-2",
+           "brightness across and along a real braided rope (trackdlo_rope/rope.png), scaled; 0: plain rope",
+           extra=(("scene.rope_photo", "trackdlo_rope/rope.png"),), photos=True),
+    Factor("gamma", "sensor.gamma", (1.0, 1.8, 2.2, 2.6), "", "1-3", "output code = 255 (light/255)^(1/gamma)"),
+    Factor("sharpening", "sensor.sharpen", (0.0, 0.5, 1.0, 2.0), "gain", "0-3",
+           "unsharp-mask amount on the encoded image (sigma 1 px)"),
+    Factor("JPEG quality", "sensor.jpeg_quality", (0, 95, 85, 70, 50), "", "0 (off) or 1-100",
+           "JPEG/MJPEG round trip of every frame at this quality; 0: none"),
+    Factor("flicker", "scene.flicker", (0.0, 0.1, 0.2, 0.4), "rel.", "0-0.9",
+           "lamp brightness modulation amplitude at 100 Hz (50 Hz mains)"),
+    Factor("readout time", "camera.readout_ms", (0.0, 2.0, 4.0, 7.0), "ms", "0 to the frame period (8.4 ms)",
+           "rolling shutter: the last row starts this much after the first; 0: global shutter"),
+    Factor("clamp size", "scene.clamp_width_px", (0.0, 12.0, 24.0, 48.0), "px", "0 or 4-200 px",
+           "width of a clamp block over the fixed end; 0: no clamp", extra=(("scene.clamp", True),)),
+    Factor("clamp rod", "scene.rod_width_px", (0.0, 4.0, 10.0), "px", "0-60 px",
+           "width of the rod holding the clamp, to the top border; 0: no rod", extra=(("scene.clamp", True),)),
+    Factor("plate edge", "scene.plate_edge", (0.0, 0.9, 0.7), "of width", "0 or 0.5-0.99",
+           "the plate's right edge in view at this fraction of the width; 0: plate fills the image"),
+    Factor("scratches", "scene.scratches", (0, 5, 20), "", "0-50", "thin faint scratches on the plate"),
+    Factor("dust", "scene.dust", (0, 200, 1000), "", "0-2000", "dust specks on the plate"),
+    Factor("distractor", "scene.distractor", (False, True), "", "off, on", "a second, static rope-like cable"),
 )  # fmt: skip
 
 PAIRS: tuple[tuple[tuple[str, Any], tuple[str, Any]], ...] = (
@@ -210,10 +255,18 @@ def _has_key(config: dict[str, Any], key: str) -> bool:
     return True
 
 
-def available_factors(base: dict[str, Any]) -> tuple[list[Factor], list[Factor]]:
-    """Split `FACTORS` into those the simulator has (their key exists in `base`) and those it has not."""
-    have = [f for f in FACTORS if _has_key(base, f.key)]
-    return have, [f for f in FACTORS if f not in have]
+def available_factors(base: dict[str, Any], photo_dir: Path) -> tuple[list[Factor], list[tuple[Factor, str]]]:
+    """Split `FACTORS` into those the simulator can render and those it cannot, with the reason."""
+    have, missing = [], []
+    for factor in FACTORS:
+        absent = [key for key in factor.keys if not _has_key(base, key)]
+        if absent:
+            missing.append((factor, f"the simulator has no key {', '.join(absent)}"))
+        elif factor.photos and not photo_dir.is_dir():
+            missing.append((factor, f"no photo folder {photo_dir} (give --photo-dir)"))
+        else:
+            have.append(factor)
+    return have, missing
 
 
 def _format(value: Any) -> str:
@@ -236,8 +289,9 @@ def build_scenes(
     only: tuple[str, ...] = SECTIONS,
     factor_names: tuple[str, ...] | None = None,
     preset_names: tuple[str, ...] | None = None,
-) -> tuple[list[Scene], list[Factor]]:
-    """Return the matrix's scenes and the factor rows left out because the simulator lacks their key.
+    photo_dir: Path = REALDATA,
+) -> tuple[list[Scene], list[tuple[Factor, str]]]:
+    """Return the matrix's scenes and the factor rows left out (with the reason: a key the simulator lacks).
 
     Parameters
     ----------
@@ -249,6 +303,8 @@ def build_scenes(
         Sections to build (``pairs`` come with ``factors`` in the validation set).
     factor_names, preset_names
         Restrict the factor rows and the presets section to these names (None: all).
+    photo_dir
+        Folder of the real photographs, for the rows that paint a photographed rope.
 
     Raises
     ------
@@ -277,7 +333,7 @@ def build_scenes(
                 key = _key(_merge(config, common), float(exposure))
                 scenes.append(Scene("presets", label, name, dict(common), float(exposure), key))
     base = _merge(presets[IDEAL_PRESET], IDEAL)
-    have, missing = available_factors(base)
+    have, missing = available_factors(base, photo_dir)
     by_name = {f.name: f for f in have}
     exposure = float(presets[IDEAL_PRESET]["exposure_ms"][0])
     if "factors" in only:
@@ -285,7 +341,7 @@ def build_scenes(
             if factor_names is not None and factor.name not in factor_names:
                 continue
             for value in factor.values:
-                overrides = _merge(_merge(IDEAL, factor.overrides(value, base)), common)
+                overrides = _merge(_merge(IDEAL, factor.overrides(value, base, photo_dir)), common)
                 label = factor_label(factor, value)
                 key = _key(_merge(presets[IDEAL_PRESET], overrides), exposure)
                 scenes.append(Scene("factors", label, IDEAL_PRESET, overrides, exposure, key, factor.name, value))
@@ -295,7 +351,10 @@ def build_scenes(
                     continue
                 fa, fb = by_name[name_a], by_name[name_b]
                 overrides = _merge(
-                    _merge(_merge(IDEAL, fa.overrides(value_a, base)), fb.overrides(value_b, base)), common
+                    _merge(
+                        _merge(IDEAL, fa.overrides(value_a, base, photo_dir)), fb.overrides(value_b, base, photo_dir)
+                    ),
+                    common,
                 )
                 label = f"{factor_label(fa, value_a)}, {factor_label(fb, value_b)}"
                 key = _key(_merge(presets[IDEAL_PRESET], overrides), exposure)
