@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from ropecam.host.sim.options import REALISM_OPTIONS
 from ropecam.host.sim.presets import PRESET_HELP, PRESETS
 
 __all__ = ["register"]
@@ -33,7 +34,12 @@ DIR/exposure_<ms>ms. Anything of a preset can be changed with --config FILE.toml
 
 A file written for `ropecam model simulate --config` works as it is: its [rope] and [solver] tables apply.
 
+realism options ([table] key: unit, range; each off in the rig and paper presets, on in the lab presets):
+{options}
+
 examples:
+  ropecam simulate lab --out sets/lab --photo-dir ../shared/realdata   # a lab's footage: 60 frames, 4 ms
+  ropecam simulate lab-rolling --out sets/lab-paper --paper-exposures  # four sets: 1, 5, 9, 15 ms at 30 FPS
   ropecam simulate rig --out sets/rig                      # 60 frames, 4 ms, 119 FPS (about 10 s)
   ropecam simulate paper --out sets/paper --frames 30      # four sets: 1, 5, 9 and 15 ms
   ropecam simulate rig-soft --out sets/soft --exposure-ms 0.1 --clean --seed 3
@@ -44,13 +50,14 @@ examples:
 def register(subparsers: Any) -> None:
     """Add the `simulate` sub-command."""
     presets = "\n".join(f"  {name:<11} {text}" for name, text in PRESET_HELP.items())
+    options = "\n".join(f"  {key:<27} {unit}, {allowed}: {meaning}" for key, unit, allowed, meaning in REALISM_OPTIONS)
     parser = subparsers.add_parser(
         "simulate",
         help="write simulated frame sets (motion-blurred rope frames with ground truth)",
         description="Render a swinging rope through a simulated camera into frame sets with exact ground truth: "
         "the ANCF model gives the motion, the renderer draws the anti-aliased, motion-blurred rope, a sensor "
         "model adds background, vignetting and noise.",
-        epilog=EPILOG.format(presets=presets),
+        epilog=EPILOG.format(presets=presets, options=options),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("preset", metavar="PRESET", choices=list(PRESETS), help=f"one of: {', '.join(PRESETS)}")
@@ -106,6 +113,11 @@ def register(subparsers: Any) -> None:
     )
     camera.add_argument(
         "--flicker-hz", type=float, metavar="F", help="scene.flicker_hz: lamp flicker frequency f (100 on 50 Hz mains)"
+    )
+    parser.add_argument(
+        "--paper-exposures",
+        action="store_true",
+        help="render the preset's look through the paper's camera and timing: 800x512, 30 FPS, 1/5/9/15 ms",
     )
     parser.add_argument("--config", type=Path, metavar="FILE", help="TOML file overriding any preset value")
     parser.add_argument(
@@ -178,12 +190,14 @@ def run(args: argparse.Namespace) -> int:
     from ropecam.host.sim.config import merge_overrides
     from ropecam.host.sim.dynamics import solve_trajectory
     from ropecam.host.sim.generate import check_inputs, frameset_paths, write_framesets
-    from ropecam.host.sim.presets import preset
+    from ropecam.host.sim.presets import preset, with_paper_timing
     from ropecam.shared.config import read_toml
 
     _check_calibration_request(args)  # before minutes of model solving and rendering
     console = Console(stderr=True, quiet=args.quiet, soft_wrap=True)
     config = preset(args.preset)
+    if args.paper_exposures:
+        config = with_paper_timing(config)
     if args.config is not None:
         config = merge_overrides(config, read_toml(args.config), where=str(args.config))
     config = merge_overrides(config, _overrides(args), where="command line")

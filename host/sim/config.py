@@ -138,6 +138,24 @@ class SceneSpec:
         Draw a static bright scratch across the swing region of the background.
     clamp
         Draw a clamp block over the fixed end (it hides the first few millimetres of rope).
+    clamp_width_px
+        Width of the clamp block, pixels (0 or 4-200); 0 = the plain block of `clamp` (8x the rope width, at
+        least 12 px, uniform grey). A width > 0 draws a shaded metal block with a bolt head.
+    rod_width_px
+        Diameter of a rod holding the clamp, from the clamp to the image's top border, pixels (0-60; 0 = none;
+        needs `clamp`).
+    plate_edge
+        Where the plate's right edge lies, as a fraction of the image width (0 or 0.5-0.99; 0 = the plate fills
+        the image); it leans 2 degrees, its cut edge shows as a thin bright line, and beyond it is a wall 12 % of
+        the rope's contrast brighter (darker) than the plate, lit unevenly.
+    scratches
+        Number of thin straight scratches on the plate (0-50), 16-100 px long, 3-10 % of the rope's contrast.
+    dust
+        Number of dust specks on the plate (0-2000): most 0.4-1.2 px in radius at 2-12 % of the rope's
+        contrast, one in seven a fainter, out-of-focus 1.5-3 px blot.
+    distractor
+        Draw a second, static cable of the rope's width hanging from the top border to the bottom one, beside
+        the swing.
     photo_dir
         Folder that a relative `rope_photo` is read from (relative paths: from the current directory).
     rope_photo
@@ -163,6 +181,12 @@ class SceneSpec:
     rope_unevenness: float = 0.0
     scratch: bool = False
     clamp: bool = False
+    clamp_width_px: float = 0.0
+    rod_width_px: float = 0.0
+    plate_edge: float = 0.0
+    scratches: int = 0
+    dust: int = 0
+    distractor: bool = False
     photo_dir: str = "../shared/realdata"
     rope_photo: str = ""
     rope_photo_contrast: float = 1.0
@@ -179,13 +203,23 @@ class SceneSpec:
                 check_range(f"scene.{name}", value, 0.0, 255.0)
         for name in ("background_variation", "vignetting", "texture", "rope_unevenness"):
             check_range(f"scene.{name}", getattr(self, name), 0.0, 0.9)
+        if self.clamp_width_px != 0:
+            check_range("scene.clamp_width_px", self.clamp_width_px, 4.0, 200.0)
+        check_range("scene.rod_width_px", self.rod_width_px, 0.0, 60.0)
+        if self.rod_width_px > 0 and not self.clamp:
+            raise ConfigError(f"scene.rod_width_px = {self.rod_width_px} draws the clamp's rod: set scene.clamp = true")
+        if self.plate_edge != 0:
+            check_range("scene.plate_edge", self.plate_edge, 0.5, 0.99)
+        check_range("scene.scratches", self.scratches, 0, 50)
+        check_range("scene.dust", self.dust, 0, 2000)
         check_range("scene.rope_photo_contrast", self.rope_photo_contrast, 0.0, 2.0)
         check_range("scene.flicker", self.flicker, 0.0, 0.9)
         check_range("scene.flicker_hz", self.flicker_hz, 1.0, 1000.0)
-        if abs(self.rope_level - self.background_level) < 10:
+        # Linear levels: through a gamma curve 5 DN in the darks (3.5 -> 8.5) is still 18 output codes.
+        if abs(self.rope_level - self.background_level) < 5:
             raise ConfigError(
                 f"scene: rope level {self.rope_level} and background level {self.background_level} must differ "
-                "by at least 10 DN (the rope would be invisible)"
+                "by at least 5 DN (the rope would be invisible)"
             )
 
     @property

@@ -272,6 +272,7 @@ def write_frameset(
         metadata["rig"]["scratch_px"] = list(layers.scratch_px)
     if photo is not None:
         metadata["rig"]["rope_photo"] = str(photo)
+    metadata["rig"].update(layers.parts)
     rolling = readout_s > 0
     if rolling:
         metadata["rig"]["readout_ms"] = config.camera.readout_ms

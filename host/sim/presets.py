@@ -1,4 +1,5 @@
-"""The simulator's presets: the paper's simulation, the paper's physical rig, and a soft-rope variant of each.
+"""The simulator's presets: the paper's simulation, the paper's physical rig, a soft-rope variant of each, and the
+lab scenes (the rig with a real rope's look, a rig's clutter and a camera's processing; docs/simulator.md).
 
 Choices the paper leaves open (documented in docs/simulator.md):
 
@@ -29,13 +30,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ropecam.host.model.config import RopeConfig, SolverConfig
-from ropecam.host.sim.config import CameraSpec, SceneSpec, SimConfig
+from ropecam.host.sim.config import CameraSpec, SceneSpec, SensorSpec, SimConfig
 from ropecam.shared.errors import ConfigError
 
 if TYPE_CHECKING:  # geometry imports OpenCV; kept out of `ropecam --help`
     from ropecam.host.calibration.geometry import CameraModel
 
-__all__ = ["PRESETS", "PRESET_HELP", "plane_through_pixel", "preset"]
+__all__ = ["PRESETS", "PRESET_HELP", "plane_through_pixel", "preset", "with_paper_timing"]
 
 
 def plane_through_pixel(
@@ -103,11 +104,100 @@ def _rig(soft: bool) -> SimConfig:
     return _solved_for_recording(config)
 
 
+LAB_PHOTO = "trackdlo_rope/rope.png"
+"""The braided rope whose texture the lab presets paint (relative to ``scene.photo_dir``)."""
+
+
+def _lab(variant: str) -> SimConfig:
+    """The lab scenes: the rig's camera and geometry, a 2 mm braided rope, a rig's clutter and a camera's processing.
+
+    Levels are linear light (DN before the gamma curve); the comments give the output codes they become.
+    """
+    rig = _rig(True)
+    # A 2 mm braided rope, drawn at its own width (2 px at 1.5 m). EI = 4e-5 N m^2 keeps EI per unit mass that of
+    # rig-soft (the same curling swing); the section is far from solid, as a braid is.
+    rope = RopeConfig(length_m=0.411, diameter_m=0.002, youngs_modulus_pa=1.24e11, density_kg_m3=1440.0,
+                      ei_nm2=4e-5)  # fmt: skip
+    camera = dataclasses.replace(rig.camera, psf_sigma_px=0.6)
+    scene = SceneSpec(
+        polarity="bright",
+        rope_level_dn=120.0,  # code 181 after gamma 2.2
+        background_level_dn=3.5,  # a black plate: code 36
+        background_variation=0.2,
+        vignetting=0.25,
+        texture=0.12,
+        rope_unevenness=0.15,
+        clamp=True,
+        clamp_width_px=40.0,
+        rod_width_px=12.0,
+        plate_edge=0.93,
+        scratches=10,
+        dust=120,
+        photo_dir="../shared/realdata",
+        rope_photo=LAB_PHOTO,
+        rope_photo_contrast=0.6,
+        flicker=0.04,
+        flicker_hz=100.0,
+    )
+    sensor = SensorSpec(read_noise_dn=0.8, gain_dn_per_electron=0.05, gamma=2.2, sharpen=0.8, sharpen_sigma_px=1.0)
+    if variant == "dark":
+        scene = dataclasses.replace(
+            scene,
+            polarity="dark",
+            rope_level_dn=12.0,  # code 63
+            background_level_dn=150.0,  # a white sheet, code 200 at its centre
+            background_variation=0.35,
+            vignetting=0.3,
+            texture=0.04,
+            rope_photo_contrast=0.8,
+            plate_edge=0.0,
+        )
+    elif variant == "mjpeg":
+        sensor = dataclasses.replace(sensor, jpeg_quality=85)
+    elif variant == "rolling":
+        camera = dataclasses.replace(camera, readout_ms=7.0)
+    elif variant == "hard":
+        # 30 codes of contrast: rope code 66 on the plate's 36.
+        scene = dataclasses.replace(scene, rope_level_dn=13.2, distractor=True)
+        sensor = dataclasses.replace(sensor, read_noise_dn=1.5, gain_dn_per_electron=0.1)
+    name = "lab" if variant == "bright" else f"lab-{variant}"
+    config = SimConfig(name, camera, rope, rig.solver, scene, sensor, frames=60, exposure_ms=(4.0,))
+    return _solved_for_recording(config)
+
+
+PAPER_TIMING_DIAMETER_M = 0.006
+"""Drawn rope diameter at the paper's camera (3.3 m): 2.2 px, where the 2 mm rope would be 0.7 px."""
+
+
+def with_paper_timing(config: SimConfig) -> SimConfig:
+    """Return `config`'s scene, sensor and shutter through the paper's camera, rope and exposures.
+
+    The geometry, rope, solver, frame rate and exposures (1, 5, 9, 15 ms at 30 FPS, 800x512) are the `paper`
+    preset's; the look (scene, sensor, lens blur, rolling shutter) is `config`'s. The rope is drawn
+    `PAPER_TIMING_DIAMETER_M` thick (the paper preset draws its 1 mm rope 7 mm thick). The preset name gets
+    ``+paper-exposures``.
+    """
+    paper = _paper(False)
+    camera = dataclasses.replace(
+        paper.camera, psf_sigma_px=config.camera.psf_sigma_px, readout_ms=config.camera.readout_ms
+    )
+    scene = dataclasses.replace(config.scene, render_diameter_m=PAPER_TIMING_DIAMETER_M)
+    return dataclasses.replace(
+        paper, preset=f"{config.preset}+paper-exposures", camera=camera, scene=scene, sensor=config.sensor,
+        seed=config.seed,
+    )  # fmt: skip
+
+
 PRESETS: dict[str, Callable[[], SimConfig]] = {
     "paper": lambda: _paper(False),
     "paper-soft": lambda: _paper(True),
     "rig": lambda: _rig(False),
     "rig-soft": lambda: _rig(True),
+    "lab": lambda: _lab("bright"),
+    "lab-dark": lambda: _lab("dark"),
+    "lab-mjpeg": lambda: _lab("mjpeg"),
+    "lab-rolling": lambda: _lab("rolling"),
+    "lab-hard": lambda: _lab("hard"),
 }
 
 PRESET_HELP: dict[str, str] = {
@@ -115,6 +205,12 @@ PRESET_HELP: dict[str, str] = {
     "paper-soft": "as paper, bending stiffness 1e-4 N m^2: the rope curls",
     "rig": "the paper's rig: L = 0.411 m, its calibrated camera (k1, k2), 1024x544, 119 FPS, 4 ms, plane 1.5 m",
     "rig-soft": "as rig, bending stiffness 1e-5 N m^2: the rope curls",
+    "lab": "a lab's footage: rig camera, 2 mm braided bright rope (photo texture) on a black plate, clamp + rod, "
+    "scratches, dust, plate edge, gamma 2.2, sharpening, noise, 100 Hz flicker, global shutter",
+    "lab-dark": "as lab, dark braided rope on an unevenly lit white background",
+    "lab-mjpeg": "as lab, through MJPEG at quality 85",
+    "lab-rolling": "as lab, rolling shutter with a 7 ms readout",
+    "lab-hard": "as lab, 30 DN contrast, stronger noise, a second static cable",
 }
 
 

@@ -13,7 +13,7 @@ with C and A the rope's time-averaged coverage and coverage x brightness (`ropec
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
@@ -22,6 +22,7 @@ from scipy.special import ndtr
 
 from ropecam.host.sim.config import SceneSpec, SensorSpec
 from ropecam.host.sim.processing import encode_gamma, jpeg_round_trip, unsharp_mask
+from ropecam.host.sim.rig_parts import add_plate_details, clamp_with_rod
 
 __all__ = ["SceneLayers", "Sensor", "build_scene", "rope_levels"]
 
@@ -47,6 +48,11 @@ class SceneLayers:
         (u_min, v_min, u_max, v_max) of the clamp in pixels, or None.
     scratch_px
         (u0, v0, u1, v1) end points of the scratch in pixels, or None.
+    clamp_level
+        (H, W) brightness of the clamp and its rod where they cover (DN), or None for the plain block
+        (`CLAMP_LEVEL_DN`).
+    parts
+        Where the rig's parts are, for the metadata (``rod_px``, ``plate_edge_px``, ``distractor_px``).
     """
 
     background: NDArray[np.float32]
@@ -54,6 +60,8 @@ class SceneLayers:
     clamp: NDArray[np.float32]
     clamp_box_px: tuple[float, float, float, float] | None
     scratch_px: tuple[float, float, float, float] | None
+    clamp_level: NDArray[np.float32] | None = None
+    parts: dict[str, object] = field(default_factory=dict)
 
 
 def _scene_rng(seed: int) -> np.random.Generator:
@@ -124,13 +132,28 @@ def build_scene(
         mask = _segment_cover(u, v, scratch_px, half_width_px=0.4, sigma_px=edge_sigma_px)
         background = background + SCRATCH_CONTRAST_DN * mask
 
+    background, parts = add_plate_details(
+        np.broadcast_to(background, (height, width)), u, v, rope_level=scene.rope_level,
+        background_level=scene.background_level, rope_width_px=rope_width_px, sigma_px=edge_sigma_px,
+        plate_edge=scene.plate_edge, scratches=scene.scratches, dust=scene.dust, distractor=scene.distractor,
+        seed=seed,
+    ) if _has_plate_details(scene) else (background, {})  # fmt: skip
+
     corner2 = ((width - 1) / 2) ** 2 + ((height - 1) / 2) ** 2
     radius2 = ((u - (width - 1) / 2) ** 2 + (v - (height - 1) / 2) ** 2) / corner2
     vignette = 1.0 - scene.vignetting * radius2
 
     clamp = np.zeros((height, width))
     clamp_box = None
-    if scene.clamp:
+    clamp_level = None
+    if scene.clamp and (scene.clamp_width_px > 0 or scene.rod_width_px > 0):
+        width_px = scene.clamp_width_px or max(12.0, 8.0 * rope_width_px)
+        metal = clamp_with_rod(u, v, fixed_end_px, width_px, scene.rod_width_px, CLAMP_LEVEL_DN, edge_sigma_px)
+        clamp, clamp_box = metal.cover, metal.box_px
+        clamp_level = np.ascontiguousarray(metal.level, dtype=np.float32)
+        if metal.rod_px is not None:
+            parts["rod_px"] = list(metal.rod_px)
+    elif scene.clamp:
         half_u = max(6.0, 4.0 * rope_width_px)
         half_v = 0.6 * half_u
         fu, fv = fixed_end_px
@@ -145,7 +168,13 @@ def build_scene(
         clamp=np.ascontiguousarray(clamp, dtype=np.float32),
         clamp_box_px=clamp_box,
         scratch_px=scratch_px,
+        clamp_level=clamp_level,
+        parts=parts,
     )
+
+
+def _has_plate_details(scene: SceneSpec) -> bool:
+    return bool(scene.plate_edge or scene.scratches or scene.dust or scene.distractor)
 
 
 def _segment_cover(
@@ -209,7 +238,10 @@ class Sensor:
         light += signal
         if layers.clamp_box_px is not None:
             light *= 1.0 - layers.clamp
-            light += CLAMP_LEVEL_DN * layers.clamp
+            if layers.clamp_level is None:
+                light += CLAMP_LEVEL_DN * layers.clamp
+            else:
+                light += layers.clamp_level * layers.clamp
         if illumination is not None:
             light *= illumination
         light *= layers.vignette
