@@ -47,7 +47,16 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
-from ropecam_tools.matrix_design import FACTORS, METHODS, REALDATA, SECTIONS, SEED_SETS, Scene, build_scenes
+from ropecam_tools.matrix_design import (
+    FACTORS,
+    METHODS,
+    PAPER_PRESETS,
+    REALDATA,
+    SECTIONS,
+    SEED_SETS,
+    Scene,
+    build_scenes,
+)
 
 MIN_FRAMES = 2
 
@@ -76,10 +85,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _config(scene: Scene, frames: int) -> Any:
     from ropecam.host.sim.config import merge_overrides
-    from ropecam.host.sim.presets import preset
+    from ropecam.host.sim.presets import preset, with_paper_timing
 
+    base = preset(scene.preset)
+    if scene.paper_timing:
+        base = with_paper_timing(base)
     overrides = {**scene.overrides, "frames": frames}
-    return merge_overrides(preset(scene.preset), overrides, where=f"matrix scene {scene.label!r}")
+    return merge_overrides(base, overrides, where=f"matrix scene {scene.label!r}")
 
 
 def _trajectory_key(config: Any) -> str:
@@ -183,7 +195,7 @@ def _submit(pool: ProcessPoolExecutor | None, fn: Any, *args: Any) -> Future:
 
 def run(args: argparse.Namespace) -> int:
     """Run the matrix and write its outputs; return the exit code."""
-    from ropecam.host.sim.presets import PRESETS, preset
+    from ropecam.host.sim.presets import PRESETS, preset, with_paper_timing
     from ropecam_tools.matrix_report import write_outputs
 
     if args.frames < MIN_FRAMES:
@@ -192,10 +204,14 @@ def run(args: argparse.Namespace) -> int:
         raise SystemExit(f"--workers must be >= 1, got {args.workers}")
     started_wall = time.perf_counter()
     presets = {name: preset(name).to_dict() for name in PRESETS}
+    paper_timed = {
+        name: with_paper_timing(preset(name)).to_dict() for name in PAPER_PRESETS if name in PRESETS and name != "paper"
+    }
     try:
         scenes, missing = build_scenes(
             presets, args.seed_set, tuple(args.only), None if args.factor is None else tuple(args.factor),
             None if args.preset is None else tuple(args.preset), args.photo_dir.resolve(),
+            paper_timed,
         )  # fmt: skip
     except ValueError as exc:
         raise SystemExit(f"matrix: {exc}") from None
@@ -238,11 +254,17 @@ def run(args: argparse.Namespace) -> int:
             folder = None if frames_root is None else str(frames_root / scene.folder)
             pending[_submit(pool, run_scene, scene, args.frames, methods, scene_traj[key], folder)] = key
         measured: dict[str, dict] = {}
+        failed: dict[str, str] = {}
         while pending:
             done, _ = wait(pending, return_when=FIRST_COMPLETED)
             for future in done:
                 key = pending.pop(future)
-                measured[key] = future.result()
+                try:
+                    measured[key] = future.result()
+                except Exception as exc:  # one scene's failure is reported in the tables; the others still run
+                    failed[key] = f"{type(exc).__name__}: {exc}"
+                    progress.step(f"{unique[key].label}: FAILED {failed[key]}", len(methods))
+                    continue
                 summary = ", ".join(
                     f"{m} p95 {r['summary']['tip_p95_px']:.2f} px" for m, r in measured[key]["methods"].items()
                 )
@@ -265,9 +287,13 @@ def run(args: argparse.Namespace) -> int:
         "cpus": os.cpu_count(),
         "load_average": os.getloadavg(),
         "factors_left_out": [{"name": f.name, "reason": reason} for f, reason in missing],
+        "failed_scenes": [{"scene": unique[key].label, "error": error} for key, error in failed.items()],
         "model": model_timings,
     }
     paths = write_outputs(args.out, scenes, measured, run_info, plots=not args.no_plots)
     print(f"matrix done in {run_info['wall_s'] / 60:.1f} min wall, {run_info['cpu_s'] / 60:.1f} min CPU; "
           f"wrote {', '.join(str(p) for p in paths)}", file=sys.stderr)  # fmt: skip
+    if failed:
+        print(f"matrix: {len(failed)} scene(s) failed (listed in the report)", file=sys.stderr)
+        return 1
     return 0

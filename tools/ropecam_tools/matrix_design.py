@@ -36,7 +36,9 @@ IDEAL: dict[str, Any] = {
 }
 """The ideal scene: the ``rig`` preset (bright 2.5 px rope on a 25 DN plate, 185 DN contrast, global shutter, 4 ms
 at 119 FPS) without background non-uniformity, vignetting, texture or noise."""
-PAPER_PRESETS = ("paper",)
+PAPER_PRESETS = ("paper", "lab", "lab-dark", "lab-mjpeg", "lab-rolling", "lab-hard")
+"""Presets rendered at the paper's exposures: ``paper`` itself, the others through `with_paper_timing` (their look
+through the paper's camera, rope and timing)."""
 PAPER_EXPOSURES_MS = (1.0, 5.0, 9.0, 15.0)
 
 
@@ -216,6 +218,8 @@ class Scene:
         configuration share one frame set).
     factor, value
         The factor row and its shown value (``factors`` and ``pairs`` sections), else None.
+    paper_timing
+        Render the preset through the paper's camera and timing (`ropecam.host.sim.presets.with_paper_timing`).
     """
 
     section: str
@@ -226,6 +230,7 @@ class Scene:
     key: str
     factor: str | None = None
     value: Any = None
+    paper_timing: bool = False
 
     @property
     def folder(self) -> str:
@@ -290,6 +295,7 @@ def build_scenes(
     factor_names: tuple[str, ...] | None = None,
     preset_names: tuple[str, ...] | None = None,
     photo_dir: Path = REALDATA,
+    paper_timed: dict[str, Any] | None = None,
 ) -> tuple[list[Scene], list[tuple[Factor, str]]]:
     """Return the matrix's scenes and the factor rows left out (with the reason: a key the simulator lacks).
 
@@ -304,7 +310,10 @@ def build_scenes(
     factor_names, preset_names
         Restrict the factor rows and the presets section to these names (None: all).
     photo_dir
-        Folder of the real photographs, for the rows that paint a photographed rope.
+        Folder of the real photographs, for the rows and presets that paint a photographed rope.
+    paper_timed
+        Preset name -> its configuration through the paper's camera and timing, as a dict (for the paper section;
+        ``paper`` itself is taken from `presets`).
 
     Raises
     ------
@@ -323,15 +332,21 @@ def build_scenes(
         raise ValueError(f"unknown preset(s) {sorted(set(preset_names) - set(presets))}; presets: {', '.join(presets)}")
     seeds = SEED_SETS[seed_set]
     common = {"seed": seeds.seed, "first_exposure_s": seeds.first_exposure_s}
+
+    def preset_overrides(config: dict[str, Any]) -> dict[str, Any]:
+        # a preset's photo is read from the matrix's photo folder, not from its path relative to the working directory
+        return _merge(common, {"scene": {"photo_dir": str(photo_dir)}}) if config["scene"].get("rope_photo") else common
+
     scenes: list[Scene] = []
     if "presets" in only:
         for name, config in presets.items():
             if preset_names is not None and name not in preset_names:
                 continue
+            overrides = preset_overrides(config)
             for exposure in config["exposure_ms"]:
                 label = name if len(config["exposure_ms"]) == 1 else f"{name} {exposure:g} ms"
-                key = _key(_merge(config, common), float(exposure))
-                scenes.append(Scene("presets", label, name, dict(common), float(exposure), key))
+                key = _key(_merge(config, overrides), float(exposure))
+                scenes.append(Scene("presets", label, name, overrides, float(exposure), key))
     base = _merge(presets[IDEAL_PRESET], IDEAL)
     have, missing = available_factors(base, photo_dir)
     by_name = {f.name: f for f in have}
@@ -360,10 +375,13 @@ def build_scenes(
                 key = _key(_merge(presets[IDEAL_PRESET], overrides), exposure)
                 scenes.append(Scene("pairs", label, IDEAL_PRESET, overrides, exposure, key, f"{name_a} + {name_b}"))
     if "paper" in only:
+        timed = {"paper": presets["paper"], **(paper_timed or {})}
         for name in PAPER_PRESETS:
-            if name not in presets:
+            if name not in timed:
                 continue
+            overrides = preset_overrides(timed[name])
             for exposure_ms in PAPER_EXPOSURES_MS:
-                key = _key(_merge(presets[name], common), exposure_ms)
-                scenes.append(Scene("paper", f"{name} {exposure_ms:g} ms", name, dict(common), exposure_ms, key))
+                key = _key(_merge(timed[name], overrides), exposure_ms)
+                label = f"{name} {exposure_ms:g} ms" if name == "paper" else f"{name} (paper camera) {exposure_ms:g} ms"
+                scenes.append(Scene("paper", label, name, overrides, exposure_ms, key, paper_timing=name != "paper"))
     return scenes, missing

@@ -106,7 +106,7 @@ def _factor(path: Path, rows: list[dict[str, Any]], name: str, unit: str) -> Non
     plt.close(fig)
 
 
-def _paper_tips(path: Path, rows: list[dict[str, Any]]) -> None:
+def _paper_tips(path: Path, rows: list[dict[str, Any]], scene: str) -> None:
     plt = _plt()
     fig, axes = plt.subplots(1, 2, figsize=(11, 3.6), sharey=True)
     methods = _methods(rows)
@@ -125,14 +125,14 @@ def _paper_tips(path: Path, rows: list[dict[str, Any]]) -> None:
         ax.grid(True, which="both", alpha=0.3)
     axes[0].set_ylabel("tip error (px): mean, bar to max")
     axes[0].legend(fontsize=8)
-    fig.suptitle("Paper preset (simulated, exact truth): tip error against exposure (cf. the paper's Fig. 9/11)",
+    fig.suptitle(f"{scene} (simulated, exact truth): tip error against exposure (cf. the paper's Fig. 9/11)",
                  fontsize=10)  # fmt: skip
     fig.tight_layout()
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
 
 
-def _paper_points(path: Path, rows: list[dict[str, Any]]) -> None:
+def _paper_points(path: Path, rows: list[dict[str, Any]], scene: str) -> None:
     plt = _plt()
     exposures = sorted({r["exposure_ms"] for r in rows})
     methods = _methods(rows)
@@ -153,7 +153,7 @@ def _paper_points(path: Path, rows: list[dict[str, Any]]) -> None:
         ax.grid(True, axis="y", alpha=0.3)
     axes[0][0].set_ylabel("mean error (px)")
     axes[0][0].legend(fontsize=7)
-    fig.suptitle("Paper preset (simulated): segmentation-point errors (cf. the paper's Table 4, real frames)",
+    fig.suptitle(f"{scene} (simulated): segmentation-point errors (cf. the paper's Table 4, real frames)",
                  fontsize=10)  # fmt: skip
     fig.tight_layout()
     fig.savefig(path, dpi=DPI)
@@ -179,9 +179,11 @@ def make_plots(folder: Path, rows: list[dict[str, Any]]) -> list[tuple[str, str]
         _bars(folder / "pairs.png", pairs, "Held-out pairs of factors (validation set)")
         made.append(("pairs.png", "Held-out pairs: tip error p95 and silent + missing frames"))
     paper = [r for r in rows if r["section"] == "paper"]
-    if paper:
-        _paper_tips(folder / "paper_tips.png", paper)
-        made.append(("paper_tips.png", "Paper exposures: tip error against exposure (cf. Fig. 9/11)"))
-        _paper_points(folder / "paper_points.png", paper)
-        made.append(("paper_points.png", "Paper exposures: segmentation-point errors (cf. Table 4)"))
+    for family in dict.fromkeys(r["preset"] for r in paper):
+        got = [r for r in paper if r["preset"] == family]
+        scene = family if family == "paper" else f"{family} through the paper's camera"
+        _paper_tips(folder / f"paper_tips_{_slug(family)}.png", got, scene)
+        made.append((f"paper_tips_{_slug(family)}.png", f"{scene}: tip error against exposure (cf. Fig. 9/11)"))
+        _paper_points(folder / f"paper_points_{_slug(family)}.png", got, scene)
+        made.append((f"paper_points_{_slug(family)}.png", f"{scene}: segmentation-point errors (cf. Table 4)"))
     return made

@@ -108,13 +108,17 @@ def sections(rows: list[dict[str, Any]], run_info: dict[str, Any]) -> list[tuple
                       _table(by["pairs"])))  # fmt: skip
     if by["paper"]:
         text = (
-            "The `paper` preset at the paper's exposure times (1, 5, 9, 15 ms at 30 FPS, 800x512): tip error "
-            "against exposure for each method (cf. the paper's Fig. 9 and Fig. 11, which are on its own simulation)."
+            "The `paper` preset at the paper's exposure times (1, 5, 9, 15 ms at 30 FPS, 800x512), and each lab "
+            "preset's look through the paper's camera, rope and timing (`ropecam simulate PRESET --paper-exposures`): "
+            "tip error against exposure for each method (cf. the paper's Fig. 9 and Fig. 11, which are on the "
+            "paper's own simulation, whose rope and camera the `paper` preset has)."
         )
         parts.append(("Paper exposures: tip error (Fig. 9/11)", text, _table(by["paper"])))
-        text = ("Error of each shape's two end points, the paper's four segmentation points (its Table 4), on the same "
-                "renders. The paper's row is its real rig (1.5 m, 119 FPS, 4 ms) against manual labels: a different "
-                "scene and a different reference, shown for scale only.")  # fmt: skip
+        text = (
+            "Error of each shape's two end points (start point = fixed end, endpoint = free tip), the paper's four "
+            "segmentation points (its Table 4), on the same renders. The paper's row is its real rig (1.5 m, "
+            "119 FPS, 4 ms) against manual labels: a different scene and a different reference, shown for scale only."
+        )
         parts.append(("Segmentation points (the paper's Table 4)", text, _seg_table(by["paper"])))
     return parts
 
@@ -130,8 +134,10 @@ def _markdown(parts: list[tuple[str, str, Any]], run_info: dict[str, Any], plots
 
 
 def _run_line(run_info: dict[str, Any]) -> str:
-    left = ", ".join(f["name"] for f in run_info["factors_left_out"])
-    note = f" Factors the simulator does not have yet: {left}." if left else ""
+    left = "; ".join(f"{f['name']} ({f['reason']})" for f in run_info["factors_left_out"])
+    note = f" Factors left out: {left}." if left else ""
+    failed = "; ".join(f"{f['scene']}: {f['error']}" for f in run_info.get("failed_scenes", []))
+    note += f" Scenes that failed to render or measure: {failed}." if failed else ""
     load = ", ".join(f"{x:.1f}" for x in run_info["load_average"])
     return (f"Seed {run_info['seed']}, motion from {run_info['first_exposure_s']:g} s after the release; "
             f"{run_info['workers']} worker(s); whole run {run_info['wall_s'] / 60:.1f} min wall, "
