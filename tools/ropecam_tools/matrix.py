@@ -50,11 +50,13 @@ from typing import Any
 from ropecam_tools.matrix_design import (
     FACTORS,
     METHODS,
+    PAIRS,
     PAPER_PRESETS,
     REALDATA,
     SECTIONS,
     SEED_SETS,
     Scene,
+    available_factors,
     build_scenes,
 )
 
@@ -63,7 +65,10 @@ MIN_FRAMES = 2
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the matrix's options to `parser`."""
-    parser.add_argument("--out", required=True, type=Path, metavar="DIR", help="folder for the tables and plots")
+    parser.add_argument("--out", type=Path, metavar="DIR", help="folder for the tables and plots (required)")
+    parser.add_argument(
+        "--list", action="store_true", help="print the factor rows and the presets as Markdown, and exit"
+    )
     parser.add_argument("--only", nargs="+", choices=SECTIONS, default=list(SECTIONS), metavar="SECTION",
                         help=f"sections to run: {', '.join(SECTIONS)} (default: all)")  # fmt: skip
     parser.add_argument("--frames", type=int, default=60, metavar="N", help="frames per cell (default 60)")
@@ -193,11 +198,37 @@ def _submit(pool: ProcessPoolExecutor | None, fn: Any, *args: Any) -> Future:
     return future
 
 
+def factor_table(presets_available: tuple[str, ...], photo_dir: Path) -> str:
+    """Return the matrix's rows as Markdown: the factor rows (key, values, unit, range, meaning) and the presets."""
+    from ropecam.host.sim.presets import preset
+
+    base = preset("rig").to_dict()
+    have = {f.name for f in available_factors(base, photo_dir)[0]}
+    lines = [
+        "| factor | simulator key | values (ideal first) | unit | simulator's range | meaning |",
+        "|---|---|---|---|---|---|",
+    ]
+    for f in FACTORS:
+        extra = "".join(f"; with {key} = {value}" for key, value in f.extra)
+        values = ", ".join(str(v) for v in f.values)
+        missing = "" if f.name in have else " (left out here)"
+        lines.append(f"| {f.name}{missing} | `{f.key}`{extra} | {values} | {f.unit} | {f.stated_range} | {f.meaning} |")
+    lines += ["", f"Presets: {', '.join(presets_available)}; at the paper's exposures: {', '.join(PAPER_PRESETS)}."]
+    pairs = "; ".join(f"{a} = {va} with {b} = {vb}" for (a, va), (b, vb) in PAIRS)
+    lines += ["", f"Held-out pairs (validation set only): {pairs}."]
+    return "\n".join(lines)
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the matrix and write its outputs; return the exit code."""
     from ropecam.host.sim.presets import PRESETS, preset, with_paper_timing
     from ropecam_tools.matrix_report import write_outputs
 
+    if args.list:
+        print(factor_table(tuple(PRESETS), args.photo_dir))
+        return 0
+    if args.out is None:
+        raise SystemExit("matrix: --out DIR is required")
     if args.frames < MIN_FRAMES:
         raise SystemExit(f"--frames must be >= {MIN_FRAMES}, got {args.frames}")
     if args.workers < 1:
