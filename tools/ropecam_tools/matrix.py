@@ -86,6 +86,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--keep-frames", action="store_true",
                         help="keep the rendered frame sets in OUT/framesets (and reuse matching ones)")  # fmt: skip
     parser.add_argument("--no-plots", action="store_true", help="write the tables only (no matplotlib)")
+    parser.add_argument("--replot", action="store_true",
+                        help="measure nothing: rewrite the tables and plots of OUT from OUT/matrix.json")  # fmt: skip
 
 
 def _config(scene: Scene, frames: int) -> Any:
@@ -219,6 +221,20 @@ def factor_table(presets_available: tuple[str, ...], photo_dir: Path) -> str:
     return "\n".join(lines)
 
 
+def _replot(out: Path, plots: bool) -> int:
+    from ropecam_tools.matrix_report import write_reports
+
+    source = out / "matrix.json"
+    try:
+        payload = json.loads(source.read_text(encoding="utf-8"))
+        rows, run_info = payload["rows"], payload["run"]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise SystemExit(f"matrix --replot: cannot read {source}: {exc}") from None
+    paths = write_reports(out, rows, run_info, plots)
+    print(f"wrote {', '.join(str(p) for p in paths)}", file=sys.stderr)
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the matrix and write its outputs; return the exit code."""
     from ropecam.host.sim.presets import PRESETS, preset, with_paper_timing
@@ -229,6 +245,8 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if args.out is None:
         raise SystemExit("matrix: --out DIR is required")
+    if args.replot:
+        return _replot(args.out, plots=not args.no_plots)
     if args.frames < MIN_FRAMES:
         raise SystemExit(f"--frames must be >= {MIN_FRAMES}, got {args.frames}")
     if args.workers < 1:

@@ -73,6 +73,11 @@ def _contrast_setting(value_dn: float, base: dict[str, Any]) -> float:
     return 25.0 + value_dn
 
 
+def _jpeg_setting(value: Any, base: dict[str, Any]) -> int:
+    """JPEG quality shown as "off" or 1-100 -> ``sensor.jpeg_quality`` (0: no round trip)."""
+    return 0 if value == "off" else int(value)
+
+
 REALDATA = Path(__file__).resolve().parents[2].parent / "shared" / "realdata"
 """Default folder of the real photographs handed to the project (``../shared/realdata`` beside the repository)."""
 
@@ -169,8 +174,8 @@ FACTORS: tuple[Factor, ...] = (
     Factor("gamma", "sensor.gamma", (1.0, 1.8, 2.2, 2.6), "", "1-3", "output code = 255 (light/255)^(1/gamma)"),
     Factor("sharpening", "sensor.sharpen", (0.0, 0.5, 1.0, 2.0), "gain", "0-3",
            "unsharp-mask amount on the encoded image (sigma 1 px)"),
-    Factor("JPEG quality", "sensor.jpeg_quality", (0, 95, 85, 70, 50), "", "0 (off) or 1-100",
-           "JPEG/MJPEG round trip of every frame at this quality; 0: none"),
+    Factor("JPEG quality", "sensor.jpeg_quality", ("off", 95, 85, 70, 50), "", "0 (off) or 1-100",
+           "JPEG/MJPEG round trip of every frame at this quality", _jpeg_setting),
     Factor("flicker", "scene.flicker", (0.0, 0.1, 0.2, 0.4), "rel.", "0-0.9",
            "lamp brightness modulation amplitude at 100 Hz (50 Hz mains)"),
     Factor("readout time", "camera.readout_ms", (0.0, 2.0, 4.0, 7.0), "ms", "0 to the frame period (8.4 ms)",

@@ -27,6 +27,16 @@ def _plt() -> Any:
     return plt
 
 
+def _plain_log(ax: Any) -> None:
+    """Log y axis with plain numbers (0.5, 1, 3) rather than powers of ten."""
+    from matplotlib.ticker import FormatStrFormatter
+
+    ax.set_yscale("log")
+    ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
+    ax.yaxis.set_minor_formatter(FormatStrFormatter("%g"))
+    ax.tick_params(axis="y", which="minor", labelsize=6)
+
+
 def _floor(values: list[float]) -> list[float]:
     """Log axes: NaN stays NaN, zero becomes 0.01."""
     return [v if math.isnan(v) else max(v, 0.01) for v in values]
@@ -54,7 +64,7 @@ def _bars(path: Path, rows: list[dict[str, Any]], title: str) -> None:
         shift = (number - (len(methods) - 1) / 2) * width
         ax_tip.bar(x + shift, tip, width, color=COLOURS.get(method), label=method)
         ax_bad.bar(x + shift, bad, width, color=COLOURS.get(method), label=method)
-    ax_tip.set_yscale("log")
+    _plain_log(ax_tip)
     ax_tip.axhline(3.0, color="k", lw=0.8, ls="--")
     ax_tip.set_ylabel("tip error p95 (px)")
     ax_bad.set_ylabel("silent + missing (% of frames)")
@@ -88,7 +98,7 @@ def _factor(path: Path, rows: list[dict[str, Any]], name: str, unit: str) -> Non
         axes[2].plot(xs, [r["silent_pct"] for r in series], "o-", color=colour, label=f"{method} silent")
         axes[2].plot(xs, [r["missing_pct"] for r in series], "x:", color=colour, label=f"{method} missing")
     for ax, ylabel, limit in ((axes[0], "tip p95 (px)", 3.0), (axes[1], "centreline mean (px)", 1.0)):
-        ax.set_yscale("log")
+        _plain_log(ax)
         ax.axhline(limit, color="k", lw=0.8, ls="--")
         ax.set_ylabel(ylabel)
     axes[2].set_ylabel("% of frames")
@@ -101,6 +111,44 @@ def _factor(path: Path, rows: list[dict[str, Any]], name: str, unit: str) -> Non
     axes[0].legend(fontsize=7)
     axes[2].legend(fontsize=6, ncol=2)
     fig.suptitle(f"{name}: ideal scene (rig preset, clean) with only this factor changed", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+
+
+def _overview(path: Path, rows: list[dict[str, Any]], key: str, ylabel: str, log: bool, limit: float | None) -> None:
+    """One small panel per factor: `key` against the factor's value, one line per method."""
+    plt = _plt()
+    names = list(dict.fromkeys(r["factor"] for r in rows))
+    columns = 4
+    lines = math.ceil(len(names) / columns)
+    fig, axes = plt.subplots(lines, columns, figsize=(11, 2.0 * lines), squeeze=False)
+    units = {f.name: f.unit for f in FACTORS}
+    for ax, name in zip(axes.flat, names, strict=False):
+        got = [r for r in rows if r["factor"] == name]
+        values = list(dict.fromkeys(repr(r["value"]) for r in got))
+        shown = [next(r["value"] for r in got if repr(r["value"]) == v) for v in values]
+        numeric = all(isinstance(v, int | float) and not isinstance(v, bool) for v in shown)
+        order = sorted(range(len(values)), key=lambda i: shown[i]) if numeric else list(range(len(values)))
+        for method in _methods(got):
+            by_value = {repr(r["value"]): r for r in got if r["method"] == method}
+            xs = [shown[i] if numeric else i for i in order]
+            ys = [by_value[values[i]][key] if values[i] in by_value else math.nan for i in order]
+            ax.plot(xs, _floor(ys) if log else ys, "o-", ms=3, color=COLOURS.get(method), label=method)
+        if not numeric:
+            ax.set_xticks(range(len(values)), [str(shown[i]) for i in order], fontsize=7)
+        if log:
+            _plain_log(ax)
+        if limit is not None:
+            ax.axhline(limit, color="k", lw=0.7, ls="--")
+        unit = units.get(name, "")
+        ax.set_title(f"{name} ({unit})" if unit else name, fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.grid(True, alpha=0.3)
+    for ax in list(axes.flat)[len(names) :]:
+        ax.set_visible(False)
+    axes[0][0].legend(fontsize=6)
+    fig.suptitle(f"{ylabel}: ideal scene (rig preset, clean) with one factor changed", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
@@ -174,6 +222,14 @@ def make_plots(folder: Path, rows: list[dict[str, Any]]) -> list[tuple[str, str]
         _factor(folder / name_file, [r for r in rows if r["section"] == "factors" and r["factor"] == name], name,
                 units.get(name, ""))  # fmt: skip
         made.append((name_file, f"Factor {name}: tip p95, centreline error, silent and missing frames"))
+    factors = [r for r in rows if r["section"] == "factors"]
+    if factors:
+        _overview(folder / "factors_tip.png", factors, "tip_p95_px", "tip error p95 (px)", True, 3.0)
+        made.append(("factors_tip.png", "All factors: tip error p95 (px; dashed: 3 px)"))
+        _overview(folder / "factors_silent.png", factors, "silent_pct", "silent failures (% of frames)", False, None)
+        made.append(("factors_silent.png", "All factors: silent failures (% of frames)"))
+        _overview(folder / "factors_missing.png", factors, "missing_pct", "missing (% of frames)", False, None)
+        made.append(("factors_missing.png", "All factors: frames without shapes (%)"))
     pairs = [r for r in rows if r["section"] == "pairs"]
     if pairs:
         _bars(folder / "pairs.png", pairs, "Held-out pairs of factors (validation set)")

@@ -11,7 +11,7 @@ from typing import Any
 
 from ropecam_tools.matrix_design import IDEAL_PRESET, Scene
 
-__all__ = ["rows_of", "sections", "write_outputs"]
+__all__ = ["rows_of", "sections", "write_outputs", "write_reports"]
 
 COLUMNS = (
     ("tip_mean_px", "tip mean (px)", 2),
@@ -148,13 +148,17 @@ def _run_line(run_info: dict[str, Any]) -> str:
 def write_outputs(
     out: Path, scenes: list[Scene], measured: dict[str, dict], run_info: dict[str, Any], plots: bool = True
 ) -> list[Path]:
-    """Write matrix.json, matrix.csv, matrix.md and (with `plots`) index.html and plots/*.png into `out`."""
-    rows = rows_of(scenes, measured)
-    json_path = out / "matrix.json"
-    payload = {"run": run_info, "rows": rows,
+    """Write matrix.json (every figure, per-frame errors, timings), then the reports of `write_reports`."""
+    payload = {"run": run_info, "rows": rows_of(scenes, measured),
                "frames": {key: {m: c["frames"] for m, c in r["methods"].items()} for key, r in measured.items()},
                "timings": {key: r["timings"] for key, r in measured.items()}}  # fmt: skip
+    json_path = out / "matrix.json"
     json_path.write_text(json.dumps(payload, indent=1, default=str) + "\n", encoding="utf-8")
+    return [*write_reports(out, payload["rows"], run_info, plots), json_path]
+
+
+def write_reports(out: Path, rows: list[dict[str, Any]], run_info: dict[str, Any], plots: bool = True) -> list[Path]:
+    """Write matrix.csv, matrix.md and (with `plots`) index.html and plots/*.png into `out` from the rows."""
     csv_path = out / "matrix.csv"
     fields = [k for k in rows[0] if k != "statuses"] + ["statuses"] if rows else []
     with csv_path.open("w", newline="", encoding="utf-8") as handle:
@@ -170,7 +174,7 @@ def write_outputs(
         made = make_plots(out / "plots", rows)
     md_path = out / "matrix.md"
     md_path.write_text(_markdown(parts, run_info, made), encoding="utf-8")
-    paths = [md_path, csv_path, json_path]
+    paths = [md_path, csv_path]
     if plots:
         html_path = out / "index.html"
         body = [f"<h1>Robustness matrix: seed set {html.escape(run_info['seed_set'])}, "
