@@ -94,3 +94,16 @@ def test_matrix_refuses_an_unknown_factor(tmp_path: Path) -> None:
     assert done.returncode != 0
     assert "unknown factor(s) ['nosuch']" in done.stderr and "texture" in done.stderr
     assert not (tmp_path / "m").exists()
+
+
+def test_matrix_list_names_every_factor_and_leaves_out_what_it_cannot_render(tmp_path: Path) -> None:
+    done = subprocess.run(
+        [sys.executable, str(TOOLS / "evaluate.py"), "matrix", "--list", "--photo-dir", str(tmp_path / "none")],
+        capture_output=True, text=True, timeout=120, check=False,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    rows = [line for line in done.stdout.splitlines() if line.startswith("| ") and "`" in line]
+    names = {row.split("|")[1].strip() for row in rows}
+    assert {"texture", "contrast", "read noise", "PSF", "rope width", "clamp", "gamma", "JPEG quality"} <= names
+    assert "rope photo texture (left out here)" in names  # no photographs in the given folder
+    assert "Held-out pairs (validation set only)" in done.stdout
