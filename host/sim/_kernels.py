@@ -39,10 +39,11 @@ def normal_cdf(x):
     return 0.5 * math.erfc(-x / math.sqrt(2.0))
 
 
-@kernel(int32(f8_2d_ro, f8_1d_ro, f8_1d_ro, float64, f4_2d_ro, float64, f4_2d, f4_2d, f4_2d, f4_2d, i4_1d))
+@kernel(int32(f8_2d_ro, f8_1d_ro, f8_1d_ro, float64, f4_2d_ro, float64, int32, int32, f4_2d, f4_2d, f4_2d, f4_2d,
+             i4_1d))  # fmt: skip
 def stamp_centreline(
-    points_px, radius_px, level, sigma_px, texture, texture_rows_per_sample, out_dist, out_radius, out_level, out_cut,
-    out_box,
+    points_px, radius_px, level, sigma_px, texture, texture_rows_per_sample, row_first, row_last, out_dist,
+    out_radius, out_level, out_cut, out_box,
 ):  # fmt: skip
     """Record, per pixel near the polyline, the nearest segment's distance, half-width, brightness and end factor.
 
@@ -63,6 +64,9 @@ def stamp_centreline(
         rope, not read.
     texture_rows_per_sample
         Texture rows per centreline sample (>= 0).
+    row_first, row_last
+        Only image rows in this inclusive range are stamped (a rolling shutter's sub-frame counts for some rows
+        only); 0 and H - 1 for all.
     out_dist, out_radius, out_level, out_cut
         (H, W) scratch buffers, written where a segment is nearer (in distance minus half-width) than what they hold.
         `out_dist` must hold `FAR` where untouched (as `accumulate_cover` leaves it).
@@ -130,8 +134,8 @@ def stamp_centreline(
         reach = max(radius_px[i], radius_px[i + 1]) + REACH_SIGMAS * sigma_px
         c0 = max(0, math.floor(min(au, au + du) - reach))
         c1 = min(width - 1, math.ceil(max(au, au + du) + reach))
-        r0 = max(0, math.floor(min(av, av + dv) - reach))
-        r1 = min(height - 1, math.ceil(max(av, av + dv) + reach))
+        r0 = max(row_first, math.floor(min(av, av + dv) - reach))
+        r1 = min(row_last, height - 1, math.ceil(max(av, av + dv) + reach))
         if c0 > c1 or r0 > r1:
             continue
         u_lo = min(u_lo, c0)

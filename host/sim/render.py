@@ -243,16 +243,21 @@ class RopeRenderer:
         middle = len(times) // 2
         half_mid = self.half_width_px(points_m[middle], points_px[middle])
         # The apparent width changes by far less than 1e-3 px within one exposure: computed once, at mid-exposure.
+        height = self.row_offsets_s.size
+        row_first, row_last = 0, height - 1
         for k in range(len(times)):
             if rolling:
-                if not weights[k].any():
+                (active,) = np.nonzero(weights[k])
+                if not active.size:
                     continue
+                row_first, row_last = int(active[0]), int(active[-1])
                 self._row_weight[:] = weights[k]
             else:
                 self._row_weight.fill(weights[k])
             status = _kernels.stamp_centreline(
                 np.ascontiguousarray(points_px[k]), half_mid, self.level, self.edge_sigma_px, self.texture.table,
-                self.texture.rows_per_sample, self._dist, self._radius, self._level, self._cut, self._box,
+                self.texture.rows_per_sample, row_first, row_last, self._dist, self._radius, self._level, self._cut,
+                self._box,
             )  # fmt: skip
             if status < 0:
                 raise RuntimeError(f"stamp_centreline failed with {KernelStatus(status).name}")
@@ -263,7 +268,6 @@ class RopeRenderer:
             if status < 0:
                 raise RuntimeError(f"accumulate_cover failed with {KernelStatus(status).name}")
         if rolling:
-            height = self.row_offsets_s.size
             shutter = (self.camera, self.plane)
             begin_m, begin_px, begin_t = rolling_centreline(
                 trajectory, self.s_m, *shutter, t_begin_s, self.readout_s, height

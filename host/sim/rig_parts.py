@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 from scipy.special import ndtr
@@ -19,18 +20,26 @@ from ropecam.host.sim import _kernels
 
 __all__ = ["ClampParts", "add_plate_details", "clamp_with_rod"]
 
+SHADOW_OFFSET_PX = (4, 6)
+"""Where the clamp's shadow falls on the plate relative to the clamp (right, down), pixels."""
+SHADOW_BLUR_PX = 2.5
+"""Softness of that shadow (Gaussian sigma), pixels."""
+SHADOW_DEPTH = 0.6
+"""Fraction of the plate's light the shadow takes away."""
 WALL_TILT_RAD = math.radians(2.0)
 """The plate's edge leans by this much from the image's vertical (a plate is never quite aligned)."""
 
 
 @dataclass(frozen=True)
 class ClampParts:
-    """The clamp block and its rod: coverage, brightness where covered, and their outlines in pixels."""
+    """The clamp block and its rod: coverage, brightness where covered, outlines in pixels, and the factor their
+    shadow multiplies the plate's brightness by."""
 
     cover: NDArray[np.float64]
     level: NDArray[np.float64]
     box_px: tuple[float, float, float, float]
     rod_px: tuple[float, float, float, float] | None
+    shadow: NDArray[np.float64]
 
 
 def clamp_with_rod(
@@ -63,22 +72,44 @@ def clamp_with_rod(
     half_u, half_v = 0.5 * width_px, 0.3 * width_px
     box = (fu - half_u, fv - half_v, fu + half_u, fv + half_v)
     block = ndtr(np.minimum(u - box[0], box[2] - u) / sigma_px) * ndtr(np.minimum(v - box[1], box[3] - v) / sigma_px)
-    # Machined metal: lit from above (brighter top), a darker bolt head in the middle of the block's face.
-    shade = 1.15 - 0.3 * np.clip((v - box[1]) / (2 * half_v), 0, 1)
-    bolt = ndtr((0.45 * half_v - np.hypot(u - fu, v - fv)) / sigma_px)
-    level = level_dn * shade * (1.0 - 0.45 * bolt)
+    # Anodised metal lit from the upper left: a bright chamfer along the top and left edges, the face darkening
+    # downwards, two dark bolt heads beside the rope's entry, each with a small specular glint.
+    face = 0.75 - 0.25 * np.clip((v - box[1]) / (2 * half_v), 0, 1) + 0 * u
+    chamfer = np.maximum(
+        np.exp(-0.5 * ((v - box[1] - 1.0) / 1.0) ** 2), 0.6 * np.exp(-0.5 * ((u - box[0] - 1.0) / 1.0) ** 2)
+    )
+    level = level_dn * (face + 0.9 * chamfer)
+    head = 0.35 * half_v + 1.0
+    for side in (-1.0, 1.0):
+        bu = fu + side * 0.55 * half_u
+        bolt = ndtr((head - np.hypot(u - bu, v - fv)) / sigma_px)
+        glint = np.exp(-0.5 * np.hypot(u - bu + 0.35 * head, v - fv + 0.35 * head) ** 2 / 0.8**2)
+        level = level * (1.0 - 0.6 * bolt) + level_dn * 0.9 * glint * bolt
     cover = block
     rod = None
     if rod_width_px > 0:
         radius = 0.5 * rod_width_px
         across = (u - fu) / radius
-        rod_cover = ndtr((radius - np.abs(u - fu)) / sigma_px) * ndtr((fv - v) / sigma_px)
-        # A cylinder: a highlight along its axis, darker towards its sides.
-        rod_level = level_dn * (0.55 + 0.7 * np.exp(-(((across - 0.25) / 0.35) ** 2))) + 0 * v
+        rod_end = box[1] + 2.0  # the rod goes into the block's top
+        rod_cover = ndtr((radius - np.abs(u - fu)) / sigma_px) * ndtr((rod_end - v) / sigma_px)
+        # A cylinder lit from the left: a highlight left of its axis, darker towards its sides.
+        rod_level = level_dn * (0.35 + 0.8 * np.exp(-(((across + 0.3) / 0.35) ** 2))) + 0 * v
         level = np.where(rod_cover > block, rod_level, level)
         cover = np.maximum(block, rod_cover)
-        rod = (fu - radius, 0.0, fu + radius, fv)
-    return ClampParts(cover=cover, level=level, box_px=box, rod_px=rod)
+        rod = (fu - radius, 0.0, fu + radius, rod_end)
+    # Their soft shadow on the plate, down and to the right (the plate is a few centimetres behind them).
+    shadow = 1.0 - SHADOW_DEPTH * cv2.GaussianBlur(
+        _shifted(np.ascontiguousarray(cover, dtype=np.float32), SHADOW_OFFSET_PX), (0, 0), SHADOW_BLUR_PX
+    )
+    return ClampParts(cover=cover, level=level, box_px=box, rod_px=rod, shadow=shadow.astype(np.float64))
+
+
+def _shifted(image: NDArray[np.float32], offset: tuple[int, int]) -> NDArray[np.float32]:
+    """`image` moved by (du, dv) >= 0 pixels, zeros shifted in."""
+    du, dv = offset
+    out = np.zeros_like(image)
+    out[dv:, du:] = image[: image.shape[0] - dv, : image.shape[1] - du]
+    return out
 
 
 def _local(u: NDArray[np.float64], v: NDArray[np.float64], centre: tuple[float, float], reach: float) -> tuple:
@@ -99,7 +130,7 @@ def _static_cable(points_px: NDArray[np.float64], radius_px: float, sigma_px: fl
     flat = np.ones((1, 1), dtype=np.float32)
     n = len(points_px)
     _kernels.stamp_centreline(np.ascontiguousarray(points_px), np.full(n, radius_px), np.ones(n), sigma_px, flat,
-                              0.0, dist, *scratch, box)  # fmt: skip
+                              0.0, 0, shape[0] - 1, dist, *scratch, box)  # fmt: skip
     _kernels.accumulate_cover(dist, *scratch, box, sigma_px, np.ones(shape[0]), cover, signal)
     return cover.astype(np.float64)
 

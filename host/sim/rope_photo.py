@@ -44,7 +44,8 @@ class PhotoStrip:
     ----------
     strip
         (L, B) float32 brightness relative to its mean: rows one photo pixel apart along the rope, B columns
-        across it from one edge to the other.
+        across it from one edge to the other. Its mean profile across is symmetric (the photo's one-sided
+        lighting removed).
     diameter_px
         The rope's diameter in the photo, pixels (twice the median distance from the skeleton to the background).
     path_px
@@ -164,6 +165,10 @@ def load_rope_strip(photo: str | Path, key: str = "scene.rope_photo") -> PhotoSt
     grid = centre[:, None, :] + across[None, :, None] * normal[:, None, :]
     strip = cv2.remap(image.astype(np.float32), grid[..., 0].astype(np.float32), grid[..., 1].astype(np.float32),
                       cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)  # fmt: skip
+    # The photo's light came from one side; the mean profile across is made symmetric, so that the rope's mean
+    # brightness centre is its axis (the braid's local slant stays).
+    profile = strip.mean(axis=0)
+    strip *= (0.5 * (profile + profile[::-1]) / np.maximum(profile, 1e-6))[None, :]
     strip /= max(float(strip.mean()), 1e-6)
     return PhotoStrip(strip=strip.astype(np.float32), diameter_px=2 * radius, path_px=centre)
 

@@ -150,6 +150,7 @@ def build_scene(
         width_px = scene.clamp_width_px or max(12.0, 8.0 * rope_width_px)
         metal = clamp_with_rod(u, v, fixed_end_px, width_px, scene.rod_width_px, CLAMP_LEVEL_DN, edge_sigma_px)
         clamp, clamp_box = metal.cover, metal.box_px
+        background = background * metal.shadow
         clamp_level = np.ascontiguousarray(metal.level, dtype=np.float32)
         if metal.rod_px is not None:
             parts["rod_px"] = list(metal.rod_px)

@@ -21,12 +21,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.host.calibration.geometry import CameraModel, PlanePose, plane_to_pixels
-from ropecam.host.model.trajectory import Trajectory
+from ropecam.host.model.trajectory import Trajectory, hermite_shape
 
 __all__ = ["flicker_gain", "positions_at", "rolling_centreline", "row_offsets_s", "row_weights"]
 
-FIXED_POINT_TOLERANCE_S = 1e-12
-"""The rolling-shutter truth's instants are solved to this (a rope point moves well below 1e-6 px in it)."""
+FIXED_POINT_TOLERANCE_S = 1e-10
+"""The rolling-shutter truth's instants are solved to this (a rope point moves below 1e-6 px in it)."""
 FIXED_POINT_ITERATIONS = 60
 
 
@@ -79,15 +79,22 @@ def row_weights(
 
 
 def positions_at(trajectory: Trajectory, t_s: NDArray[np.float64], s_m: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Return (S, 2) positions (metres) of material points `s_m` each at its own time `t_s` (both (S,))."""
-    out = np.empty((s_m.size, 2))
-    element = np.minimum((s_m / trajectory.element_length_m).astype(np.intp), trajectory.n_elements - 1)
-    for e in np.unique(element):
-        (index,) = np.nonzero(element == e)
-        # Points of one element: their (time x point) block is small; its diagonal is each point at its time.
-        block = trajectory.positions(t_s[index], s_m[index])
-        out[index] = block[np.arange(index.size), np.arange(index.size)]
-    return out
+    """Return (S, 2) positions (metres) of material points `s_m` each at its own time `t_s` (both (S,)).
+
+    The same interpolation as `Trajectory.positions` (cubic Hermite in time, the ANCF element's cubic in space),
+    evaluated once per (time, point) pair instead of on the grid of all times by all points.
+    """
+    # Trajectory has no public pairwise evaluation; its time interpolation (`_state_at`) is reused as it is.
+    q, _ = trajectory._state_at(t_s)
+    le = trajectory.element_length_m
+    element = np.clip(np.floor(s_m / le).astype(np.intp), 0, trajectory.n_elements - 1)
+    shape = hermite_shape(np.clip(s_m / le - element, 0.0, 1.0), le)
+    nodes = q.reshape(s_m.size, trajectory.n_elements + 1, 4)
+    rows = np.arange(s_m.size)
+    left, right = nodes[rows, element], nodes[rows, element + 1]
+    x = shape[:, 0] * left[:, 0] + shape[:, 1] * left[:, 2] + shape[:, 2] * right[:, 0] + shape[:, 3] * right[:, 2]
+    y = shape[:, 0] * left[:, 1] + shape[:, 1] * left[:, 3] + shape[:, 2] * right[:, 1] + shape[:, 3] * right[:, 3]
+    return np.stack([x, y], axis=-1)
 
 
 def rolling_centreline(

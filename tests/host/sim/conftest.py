@@ -110,3 +110,50 @@ def realdata_dir() -> Path:
         if candidate.is_dir():
             return candidate
     pytest.fail(f"{root.parent / 'shared' / 'realdata'} is missing: the rope photos are read from ../shared")
+
+
+def _distance_to_polyline(point: np.ndarray, polyline: np.ndarray) -> float:
+    a, b = polyline[:-1], polyline[1:]
+    d = b - a
+    t = np.clip(np.einsum("ij,ij->i", point - a, d) / np.einsum("ij,ij->i", d, d), 0, 1)
+    return float(np.linalg.norm(point - a - t[:, None] * d, axis=1).min())
+
+
+def _cross_centres(image: np.ndarray, weight: np.ndarray, centreline: np.ndarray, skip_px: float) -> np.ndarray:
+    """Intensity-weighted centres across the rope: per pixel column (or row, where the rope is steep).
+
+    Returns the distance of each centre to the centreline polyline, for crossings more than `skip_px` (along the
+    rope) from its ends.
+    """
+    height, width = image.shape
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(centreline, axis=0), axis=1))])
+    errors = []
+    for i in range(len(centreline) - 1):
+        if arc[i] < skip_px or arc[i] > arc[-1] - skip_px:
+            continue
+        a, b = centreline[i], centreline[i + 1]
+        steep = abs(b[1] - a[1]) > abs(b[0] - a[0])
+        along, across = (1, 0) if steep else (0, 1)
+        # Each integer column (row) crossed by this segment gives one profile.
+        for line in range(int(np.ceil(min(a[along], b[along]))), int(np.floor(max(a[along], b[along]))) + 1):
+            if b[along] == a[along] or not (a[along] <= line < b[along] or b[along] <= line < a[along]):
+                continue
+            at = a[across] + (line - a[along]) / (b[along] - a[along]) * (b[across] - a[across])
+            cells = np.arange(round(at) - 6, round(at) + 7)
+            if (
+                cells.min() < 0
+                or cells.max() >= (height if not steep else width)
+                or not 0 <= line < (width if not steep else height)
+            ):
+                continue
+            w = weight[cells, line] if not steep else weight[line, cells]
+            centre = float((w * cells).sum() / w.sum())
+            point = np.array([line, centre]) if not steep else np.array([centre, line])
+            errors.append(_distance_to_polyline(point, centreline))
+    return np.array(errors)
+
+
+@pytest.fixture
+def cross_centres() -> Callable[..., np.ndarray]:
+    """``cross_centres(image, weight, centreline, skip_px)``: distances of the weighted centres across the rope."""
+    return _cross_centres

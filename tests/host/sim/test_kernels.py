@@ -33,7 +33,7 @@ def _kernel_cover(points: np.ndarray, radius: float, shape: tuple[int, int]) -> 
     signal = np.zeros(shape, dtype=np.float32)
     level = np.linspace(100.0, 200.0, len(points))
     radii = np.full(len(points), radius)
-    stamped = _kernels.stamp_centreline(points, radii, level, SIGMA_PX, FLAT, 0.0, dist, *scratch, box)
+    stamped = _kernels.stamp_centreline(points, radii, level, SIGMA_PX, FLAT, 0.0, 0, 10**6, dist, *scratch, box)
     assert stamped == len(points) - 1
     count = _kernels.accumulate_cover(dist, *scratch, box, SIGMA_PX, np.ones(shape[0]), cover, signal)
     assert count > 0
@@ -112,7 +112,7 @@ def test_accumulation_weights_add_up() -> None:
     radius = np.full(len(points), 1.2)
     level = np.full(len(points), 50.0)
     for weight in (0.25, 0.5, 0.25):
-        _kernels.stamp_centreline(points, radius, level, SIGMA_PX, FLAT, 0.0, dist, *scratch, box)
+        _kernels.stamp_centreline(points, radius, level, SIGMA_PX, FLAT, 0.0, 0, 10**6, dist, *scratch, box)
         _kernels.accumulate_cover(dist, *scratch, box, SIGMA_PX, np.full(shape[0], weight), cover, signal)
     single, _, _ = _kernel_cover(points, 1.2, shape)
     np.testing.assert_allclose(cover, single, atol=1e-6)
@@ -126,14 +126,17 @@ def test_invalid_arguments_return_status() -> None:
     box = np.array([10, 10, -1, -1], dtype=np.int32)
     one = np.zeros((1, 2))
     assert (
-        _kernels.stamp_centreline(one, np.ones(1), np.ones(1), 0.5, FLAT, 0.0, dist, *scratch, box) == _kernels.INVALID
+        _kernels.stamp_centreline(one, np.ones(1), np.ones(1), 0.5, FLAT, 0.0, 0, 10**6, dist, *scratch, box)
+        == _kernels.INVALID
     )
     two = np.array([[1.0, 1.0], [5.0, 5.0]])
     assert (
-        _kernels.stamp_centreline(two, np.ones(3), np.ones(2), 0.5, FLAT, 0.0, dist, *scratch, box) == _kernels.INVALID
+        _kernels.stamp_centreline(two, np.ones(3), np.ones(2), 0.5, FLAT, 0.0, 0, 10**6, dist, *scratch, box)
+        == _kernels.INVALID
     )
     assert (
-        _kernels.stamp_centreline(two, np.ones(2), np.ones(2), 0.0, FLAT, 0.0, dist, *scratch, box) == _kernels.INVALID
+        _kernels.stamp_centreline(two, np.ones(2), np.ones(2), 0.0, FLAT, 0.0, 0, 10**6, dist, *scratch, box)
+        == _kernels.INVALID
     )
     small = np.zeros((5, 5), dtype=np.float32)
     assert _kernels.accumulate_cover(dist, *scratch, box, 0.5, np.ones(10), small, small) == _kernels.INVALID
@@ -145,7 +148,7 @@ def test_rope_outside_the_image_touches_nothing() -> None:
     dist = np.full(shape, _kernels.FAR, dtype=np.float32)
     scratch = [np.zeros(shape, dtype=np.float32) for _ in range(3)]
     box = np.array([20, 20, -1, -1], dtype=np.int32)
-    assert _kernels.stamp_centreline(points, np.ones(2), np.ones(2), 0.5, FLAT, 0.0, dist, *scratch, box) == 1
+    assert _kernels.stamp_centreline(points, np.ones(2), np.ones(2), 0.5, FLAT, 0.0, 0, 10**6, dist, *scratch, box) == 1
     cover = np.zeros(shape, dtype=np.float32)
     count = _kernels.accumulate_cover(dist, *scratch, box, 0.5, np.ones(20), cover, cover.copy())
     assert count == 0 and not cover.any()
@@ -165,7 +168,7 @@ radius, level = np.ones(20), np.ones(20)
 flat = np.ones((1, 1), dtype=np.float32)
 row_weight = np.ones(shape[0])
 def calls():
-    _kernels.stamp_centreline(points, radius, level, 0.5, flat, 0.0, dist, *scratch, box)
+    _kernels.stamp_centreline(points, radius, level, 0.5, flat, 0.0, 0, 10**6, dist, *scratch, box)
     _kernels.accumulate_cover(dist, *scratch, box, 0.5, row_weight, cover, signal)
 calls()
 before = rtsys.get_allocation_stats()
@@ -189,3 +192,19 @@ def test_kernels_do_not_allocate() -> None:
     allocs, frees = (int(v) for v in result.stdout.split())
     assert allocs == frees
     assert allocs == 10 * (9 + 8)
+
+
+def test_row_range_limits_what_is_stamped() -> None:
+    points = _arc()
+    shape = (40, 40)
+    full, _, _ = _kernel_cover(points, 1.2, shape)
+    dist = np.full(shape, _kernels.FAR, dtype=np.float32)
+    scratch = [np.zeros(shape, dtype=np.float32) for _ in range(3)]
+    box = np.array([40, 40, -1, -1], dtype=np.int32)
+    cover = np.zeros(shape, dtype=np.float32)
+    _kernels.stamp_centreline(points, np.full(len(points), 1.2), np.ones(len(points)), SIGMA_PX, FLAT, 0.0, 12, 20,
+                              dist, *scratch, box)  # fmt: skip
+    assert box[1] >= 12 and box[3] <= 20
+    _kernels.accumulate_cover(dist, *scratch, box, SIGMA_PX, np.ones(40), cover, cover.copy())
+    np.testing.assert_array_equal(cover[12:21], full[12:21])
+    assert not cover[:12].any() and not cover[21:].any()

@@ -63,7 +63,7 @@ def test_kernel_paints_the_texture_by_material_coordinate_and_side() -> None:
     dist = np.full(shape, _kernels.FAR, dtype=np.float32)
     radius_px, level_px, cut = (np.zeros(shape, dtype=np.float32) for _ in range(3))
     box = np.array([50, 20, -1, -1], dtype=np.int32)
-    stamped = _kernels.stamp_centreline(points, np.full(81, 2.0), np.full(81, 100.0), 0.5, table, 0.37,
+    stamped = _kernels.stamp_centreline(points, np.full(81, 2.0), np.full(81, 100.0), 0.5, table, 0.37, 0, 19,
                                         dist, radius_px, level_px, cut, box)  # fmt: skip
     assert stamped == 80
     for pixel in [(12, 9), (20, 10), (27, 11), (33, 12), (40, 8)]:

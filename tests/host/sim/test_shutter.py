@@ -135,3 +135,13 @@ def test_timing_options_are_validated(changes: dict, message: str) -> None:
 
     with pytest.raises(ConfigError, match=message):
         merge_overrides(preset("rig"), changes)
+
+
+def test_positions_at_each_points_own_time_match_the_trajectory(curl_factory: Callable[..., Trajectory]) -> None:
+    from ropecam.host.sim.shutter import positions_at
+
+    curl = curl_factory(0.411, 0.2)
+    s = np.linspace(0.0, 0.411, 57)
+    t = np.linspace(0.013, 0.171, 57)
+    expected = np.stack([curl.positions([ti], [si])[0, 0] for ti, si in zip(t, s, strict=True)])
+    np.testing.assert_allclose(positions_at(curl, t, s), expected, atol=1e-14)
