@@ -42,6 +42,7 @@ import shutil
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import asdict
 from pathlib import Path
@@ -235,6 +236,19 @@ def _replot(out: Path, plots: bool) -> int:
     return 0
 
 
+def _as_done(pool: ProcessPoolExecutor | None, jobs: dict[str, tuple]) -> Iterator[tuple[str, Future]]:
+    """Yield (key, finished future) of each job ``(fn, *args)``: in the pool as they finish, else one at a time."""
+    if pool is None:
+        for key, (fn, *job_args) in jobs.items():
+            yield key, _submit(None, fn, *job_args)
+        return
+    pending = {pool.submit(fn, *job_args): key for key, (fn, *job_args) in jobs.items()}
+    while pending:
+        done, _ = wait(pending, return_when=FIRST_COMPLETED)
+        for future in done:
+            yield pending.pop(future), future
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the matrix and write its outputs; return the exit code."""
     from ropecam.host.sim.presets import PRESETS, preset, with_paper_timing
@@ -298,26 +312,23 @@ def run(args: argparse.Namespace) -> int:
             model_timings[tkey] = future.result()
             print(f"model solved for {by_traj[tkey].label} ({model_timings[tkey]['wall_s']:.1f} s)", file=sys.stderr)
         progress = _Progress(len(unique) * len(methods), len(unique))
-        pending: dict[Future, str] = {}
+        jobs = {}
         for key, scene in unique.items():
             folder = None if frames_root is None else str(frames_root / scene.folder)
-            pending[_submit(pool, run_scene, scene, args.frames, methods, scene_traj[key], folder)] = key
+            jobs[key] = (run_scene, scene, args.frames, methods, scene_traj[key], folder)
         measured: dict[str, dict] = {}
         failed: dict[str, str] = {}
-        while pending:
-            done, _ = wait(pending, return_when=FIRST_COMPLETED)
-            for future in done:
-                key = pending.pop(future)
-                try:
-                    measured[key] = future.result()
-                except Exception as exc:  # one scene's failure is reported in the tables; the others still run
-                    failed[key] = f"{type(exc).__name__}: {exc}"
-                    progress.step(f"{unique[key].label}: FAILED {failed[key]}", len(methods))
-                    continue
-                summary = ", ".join(
-                    f"{m} p95 {r['summary']['tip_p95_px']:.2f} px" for m, r in measured[key]["methods"].items()
-                )
-                progress.step(f"{unique[key].label}: {summary}", len(methods))
+        for key, future in _as_done(pool, jobs):
+            try:
+                measured[key] = future.result()
+            except Exception as exc:  # one scene's failure is reported in the tables; the others still run
+                failed[key] = f"{type(exc).__name__}: {exc}"
+                progress.step(f"{unique[key].label}: FAILED {failed[key]}", len(methods))
+                continue
+            summary = ", ".join(
+                f"{m} p95 {r['summary']['tip_p95_px']:.2f} px" for m, r in measured[key]["methods"].items()
+            )
+            progress.step(f"{unique[key].label}: {summary}", len(methods))
     finally:
         if pool is not None:
             pool.shutdown(cancel_futures=True)
