@@ -29,12 +29,12 @@ def _plt() -> Any:
 
 def _plain_log(ax: Any) -> None:
     """Log y axis with plain numbers (0.5, 1, 3) rather than powers of ten."""
-    from matplotlib.ticker import FormatStrFormatter
+    from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
 
     ax.set_yscale("log")
+    ax.yaxis.set_major_locator(LogLocator(subs=(1.0, 3.0)))
     ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
-    ax.yaxis.set_minor_formatter(FormatStrFormatter("%g"))
-    ax.tick_params(axis="y", which="minor", labelsize=6)
+    ax.yaxis.set_minor_formatter(NullFormatter())
 
 
 def _floor(values: list[float]) -> list[float]:
