@@ -7,9 +7,10 @@ Usage::
     done
     python tools/sim_montage.py sets --frame 40 --out docs/img/simulator_lab.png
 
-Each row is one preset: the whole frame scaled to a quarter (INTER_AREA), then two 1:1 crops read from the frame
-itself: around the clamp (the fixed end) and around the rope's middle at the frame's start of exposure (from
-truth.npz). Nothing is retouched; the PNG holds the frames' own grey levels.
+Each row is one preset: the whole frame scaled to the crops' height (INTER_AREA), then three 1:1 crops: around the clamp
+(the fixed end) and around the rope's middle in the same frame (from truth.npz), and the rope's middle in frame 0,
+where it hangs at rest before the release and its braid shows unblurred. Nothing is retouched; the PNG holds the
+frames' own grey levels.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ import numpy as np
 from ropecam.device.capture.frameset import FrameSet
 
 PRESETS = ("lab", "lab-dark", "lab-mjpeg", "lab-rolling", "lab-hard")
-CROP = 112
+CROP = 128
 
 
 def _crop(image: np.ndarray, centre: np.ndarray) -> np.ndarray:
@@ -39,13 +40,13 @@ def _row(folder: Path, frame: int, label: str) -> np.ndarray:
     if truth is None:
         raise SystemExit(f"{folder}: no truth.npz")
     image = frames.read(frame)
-    whole = cv2.resize(image, (image.shape[1] // 4, image.shape[0] // 4), interpolation=cv2.INTER_AREA)
+    whole = cv2.resize(image, (round(image.shape[1] * CROP / image.shape[0]), CROP), interpolation=cv2.INTER_AREA)
     fixed = truth["fixed_end_px"] + np.array([0.0, 20.0])
     middle = truth["begin_px"][frame][int(0.6 * len(truth["s_m"]))]
     gap = np.full((CROP, 4), 255, dtype=np.uint8)
-    pad = np.zeros((CROP - whole.shape[0], whole.shape[1]), dtype=np.uint8) if whole.shape[0] < CROP else None
-    left = whole if pad is None else np.vstack([whole, pad])
-    row = np.hstack([left[:CROP], gap, _crop(image, fixed), gap, _crop(image, middle)])
+    still = frames.read(0)  # released at rest: the braid shows unblurred
+    resting = truth["begin_px"][0][int(0.6 * len(truth["s_m"]))]
+    row = np.hstack([whole, gap, _crop(image, fixed), gap, _crop(image, middle), gap, _crop(still, resting)])
     cv2.putText(row, label, (4, CROP - 6), cv2.FONT_HERSHEY_SIMPLEX, 0.4, 255, 1, cv2.LINE_AA)
     return row
 

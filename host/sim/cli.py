@@ -34,7 +34,7 @@ DIR/exposure_<ms>ms. Anything of a preset can be changed with --config FILE.toml
 
 A file written for `ropecam model simulate --config` works as it is: its [rope] and [solver] tables apply.
 
-realism options ([table] key: unit, range; each off in the rig and paper presets, on in the lab presets):
+realism options ([table] key: unit, range: meaning; set with --config FILE.toml; the lab presets use them):
 {options}
 
 examples:

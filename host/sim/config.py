@@ -164,6 +164,12 @@ class SceneSpec:
         Read when the frames are rendered; a missing file is a `ConfigError` naming this key and the path.
     rope_photo_contrast
         Scale of the photographed brightness variation, in [0, 2] (0: flat, 1: as photographed).
+    plate_photo
+        Photograph of a plain surface (path, relative to `photo_dir` unless absolute) whose rope-free part gives
+        the plate its grain and smudges (`ropecam.host.sim.rope_photo.load_plate_texture`); "" = none.
+    plate_photo_contrast
+        Scale of that texture's relative variation, in [0, 20] (1: as photographed; a white table photographed
+        at about 0.8 % standard deviation).
     flicker
         Relative amplitude a of the lamps' modulation, light x (1 + a sin(2 pi flicker_hz t)) with t on the
         model's clock, averaged over each row's exposure; in [0, 0.9], 0 = steady light.
@@ -190,6 +196,8 @@ class SceneSpec:
     photo_dir: str = "../shared/realdata"
     rope_photo: str = ""
     rope_photo_contrast: float = 1.0
+    plate_photo: str = ""
+    plate_photo_contrast: float = 1.0
     flicker: float = 0.0
     flicker_hz: float = 100.0
 
@@ -213,6 +221,7 @@ class SceneSpec:
         check_range("scene.scratches", self.scratches, 0, 50)
         check_range("scene.dust", self.dust, 0, 2000)
         check_range("scene.rope_photo_contrast", self.rope_photo_contrast, 0.0, 2.0)
+        check_range("scene.plate_photo_contrast", self.plate_photo_contrast, 0.0, 20.0)
         check_range("scene.flicker", self.flicker, 0.0, 0.9)
         check_range("scene.flicker_hz", self.flicker_hz, 1.0, 1000.0)
         # Linear levels: through a gamma curve 5 DN in the darks (3.5 -> 8.5) is still 18 output codes.
@@ -228,6 +237,11 @@ class SceneSpec:
         if not self.rope_photo:
             return None
         return Path(self.photo_dir) / self.rope_photo
+
+    @property
+    def plate_photo_path(self) -> Path | None:
+        """The plate photo's path (`plate_photo` joined to `photo_dir` when relative), or None."""
+        return Path(self.photo_dir) / self.plate_photo if self.plate_photo else None
 
     @property
     def rope_level(self) -> float:

@@ -25,7 +25,7 @@ from ropecam.host.calibration.geometry import plane_to_pixels
 from ropecam.host.model.trajectory import Trajectory
 from ropecam.host.sim.config import SimConfig
 from ropecam.host.sim.render import RopeRenderer, max_pixels_per_metre
-from ropecam.host.sim.rope_photo import PhotoStrip, load_rope_strip, rope_texture
+from ropecam.host.sim.rope_photo import PhotoStrip, load_plate_texture, load_rope_strip, rope_texture
 from ropecam.host.sim.scene import Sensor, build_scene, rope_levels
 from ropecam.host.sim.shutter import flicker_gain
 from ropecam.shared.cli import ropecam_version
@@ -90,7 +90,7 @@ def cached_rope_strip(path: str) -> PhotoStrip:
 
 
 def check_inputs(config: SimConfig) -> None:
-    """Read the files the configuration names (the rope photo) so that a missing one fails before any work.
+    """Read the files the configuration names (rope and plate photos) so that a missing one fails before any work.
 
     Raises
     ------
@@ -100,6 +100,9 @@ def check_inputs(config: SimConfig) -> None:
     photo = config.scene.rope_photo_path
     if photo is not None:
         cached_rope_strip(str(photo))
+    plate = config.scene.plate_photo_path
+    if plate is not None:
+        load_plate_texture(plate, (64, 64))
 
 
 def frameset_paths(out: str | Path, exposure_ms: tuple[float, ...]) -> list[tuple[float, Path]]:
@@ -272,6 +275,8 @@ def write_frameset(
         metadata["rig"]["scratch_px"] = list(layers.scratch_px)
     if photo is not None:
         metadata["rig"]["rope_photo"] = str(photo)
+    if config.scene.plate_photo_path is not None:
+        metadata["rig"]["plate_photo"] = str(config.scene.plate_photo_path)
     metadata["rig"].update(layers.parts)
     rolling = readout_s > 0
     if rolling:

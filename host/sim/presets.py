@@ -123,7 +123,7 @@ def _lab(variant: str) -> SimConfig:
         polarity="bright",
         rope_level_dn=120.0,  # code 181 after gamma 2.2
         background_level_dn=3.5,  # a black plate: code 36
-        background_variation=0.2,
+        background_variation=0.45,
         vignetting=0.25,
         texture=0.12,
         rope_unevenness=0.15,
@@ -136,6 +136,8 @@ def _lab(variant: str) -> SimConfig:
         photo_dir="../shared/realdata",
         rope_photo=LAB_PHOTO,
         rope_photo_contrast=0.6,
+        plate_photo=LAB_PHOTO,
+        plate_photo_contrast=6.0,
         flicker=0.04,
         flicker_hz=100.0,
     )
@@ -150,6 +152,7 @@ def _lab(variant: str) -> SimConfig:
             vignetting=0.3,
             texture=0.04,
             rope_photo_contrast=0.8,
+            plate_photo_contrast=2.5,
             plate_edge=0.0,
         )
     elif variant == "mjpeg":

@@ -84,7 +84,7 @@ def clamp_with_rod(
         bu = fu + side * 0.55 * half_u
         bolt = ndtr((head - np.hypot(u - bu, v - fv)) / sigma_px)
         glint = np.exp(-0.5 * np.hypot(u - bu + 0.35 * head, v - fv + 0.35 * head) ** 2 / 0.8**2)
-        level = level * (1.0 - 0.6 * bolt) + level_dn * 0.9 * glint * bolt
+        level = level * (1.0 - 0.35 * bolt) + level_dn * 0.5 * glint * bolt
     cover = block
     rod = None
     if rod_width_px > 0:

@@ -26,7 +26,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from ropecam.shared.errors import ConfigError
 
-__all__ = ["PhotoStrip", "RopeTexture", "flat_texture", "load_rope_strip", "rope_texture"]
+__all__ = ["PhotoStrip", "RopeTexture", "flat_texture", "load_plate_texture", "load_rope_strip", "rope_texture"]
 
 END_TRIM_DIAMETERS = 3.0
 """Arc length left out at each end of the photographed rope (end caps, frayed ends), in rope diameters."""
@@ -106,6 +106,19 @@ def _longest_path(skeleton: NDArray[np.bool_]) -> NDArray[np.float64]:
     return np.stack([cols[path], rows[path]], axis=-1).astype(np.float64)
 
 
+def _read_grey(path: Path, key: str, what: str, expected: str) -> NDArray[np.uint8]:
+    """Read `path` as grey, or raise `ConfigError` naming `key`, the path and what was expected."""
+    if not path.is_file():
+        raise ConfigError(
+            f"{key}: {what} {str(path)!r} not found (give a path to {expected}; a relative path is read from "
+            "scene.photo_dir, which --photo-dir sets)"
+        )
+    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    if image is None:
+        raise ConfigError(f"{key}: {str(path)!r} is not an image OpenCV can read")
+    return image
+
+
 def _rope_mask(image: NDArray[np.uint8], photo: Path) -> NDArray[np.bool_]:
     mask_file = photo.parent.parent / "gt_labels" / f"{photo.stem}.npy"
     if mask_file.is_file():
@@ -141,11 +154,7 @@ def load_rope_strip(photo: str | Path, key: str = "scene.rope_photo") -> PhotoSt
         The file is missing or unreadable, or holds no rope long enough (errors name `key` and the path).
     """
     path = Path(photo)
-    if not path.is_file():
-        raise ConfigError(f"{key}: rope photo {str(path)!r} not found (give a path to an image of a rope)")
-    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
-    if image is None:
-        raise ConfigError(f"{key}: {str(path)!r} is not an image OpenCV can read")
+    image = _read_grey(path, key, "rope photo", "an image of a rope")
     mask = _rope_mask(image, path)
     distance = cv2.distanceTransform(mask.astype(np.uint8), cv2.DIST_L2, 5)
     path_px = _longest_path(_thin(mask))
@@ -224,3 +233,42 @@ def rope_texture(
     table = np.clip(1.0 + contrast * (table / table.mean() - 1.0), 0.0, None).astype(np.float32)
     rows_per_m = rows / (strip.strip.shape[0] / photo_px_per_m)
     return RopeTexture(np.ascontiguousarray(table), rows_per_m * sample_spacing_m)
+
+
+def load_plate_texture(photo: str | Path, size: tuple[int, int], key: str = "scene.plate_photo") -> NDArray[np.float32]:
+    """Return a (H, W) float32 surface texture with mean 0 from the rope-free part of a photo of a plain surface.
+
+    The photo's rope (found as by `load_rope_strip`) is masked out with a margin and the largest band of rows free
+    of it is kept; its slow shading is divided out (a 25 px Gaussian), leaving the surface's own grain, smudges
+    and the camera's noise at 1:1 scale, relative to the local brightness. The band is mirrored to fill `size`
+    (width, height), so no seam shows.
+
+    Raises
+    ------
+    ConfigError
+        The file is missing or unreadable, or has no rope-free band at least 32 rows high.
+    """
+    path = Path(photo)
+    image = _read_grey(path, key, "plate photo", "an image of a plain surface")
+    rope = cv2.dilate(_rope_mask(image, path).astype(np.uint8), np.ones((41, 41), np.uint8)) > 0
+    free_rows = ~rope.any(axis=1)
+    best, run_start = (0, 0), None
+    for row, free in enumerate([*free_rows, False]):
+        if free and run_start is None:
+            run_start = row
+        elif not free and run_start is not None:
+            if row - run_start > best[1] - best[0]:
+                best = (run_start, row)
+            run_start = None
+    if best[1] - best[0] < 32:
+        raise ConfigError(f"{key}: {str(path)!r} has no band of 32 rows clear of the rope to take a texture from")
+    band = image[best[0] : best[1]].astype(np.float32)
+    shading = cv2.GaussianBlur(band, (0, 0), 25.0, borderType=cv2.BORDER_REFLECT)
+    relative = band / np.maximum(shading, 1.0) - 1.0
+    width, height = size
+    tiles_v = -(-height // relative.shape[0])
+    tiles_u = -(-width // relative.shape[1])
+    column = np.concatenate([relative if k % 2 == 0 else relative[::-1] for k in range(tiles_v)], axis=0)
+    tiled = np.concatenate([column if k % 2 == 0 else column[:, ::-1] for k in range(tiles_u)], axis=1)
+    out = tiled[:height, :width]
+    return np.ascontiguousarray(out - out.mean(), dtype=np.float32)

@@ -23,6 +23,7 @@ from scipy.special import ndtr
 from ropecam.host.sim.config import SceneSpec, SensorSpec
 from ropecam.host.sim.processing import encode_gamma, jpeg_round_trip, unsharp_mask
 from ropecam.host.sim.rig_parts import add_plate_details, clamp_with_rod
+from ropecam.host.sim.rope_photo import load_plate_texture
 
 __all__ = ["SceneLayers", "Sensor", "build_scene", "rope_levels"]
 
@@ -117,6 +118,12 @@ def build_scene(
         grain /= max(float(grain.std()), 1e-12)
         background = background * (1.0 + scene.texture * grain)
 
+    plate = scene.plate_photo_path
+    surface = None
+    if plate is not None:
+        surface = scene.plate_photo_contrast * load_plate_texture(plate, (width, height))
+        background = background * (1.0 + surface)
+
     scratch_params = rng.uniform(size=5)
     scratch_px = None
     if scene.scratch:
@@ -151,7 +158,11 @@ def build_scene(
         metal = clamp_with_rod(u, v, fixed_end_px, width_px, scene.rod_width_px, CLAMP_LEVEL_DN, edge_sigma_px)
         clamp, clamp_box = metal.cover, metal.box_px
         background = background * metal.shadow
-        clamp_level = np.ascontiguousarray(metal.level, dtype=np.float32)
+        if surface is not None:  # the metal's own grain: the surface texture, shifted and fainter
+            metal_level = metal.level * (1.0 + 0.5 * np.roll(surface, (97, 211), axis=(0, 1)))
+        else:
+            metal_level = metal.level
+        clamp_level = np.ascontiguousarray(metal_level, dtype=np.float32)
         if metal.rod_px is not None:
             parts["rod_px"] = list(metal.rod_px)
     elif scene.clamp:

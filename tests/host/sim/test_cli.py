@@ -225,3 +225,28 @@ def test_bad_realism_options_name_key_and_range_and_write_nothing(
     assert main([*argv, *option]) == 2
     assert message in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_lab_preset_and_paper_exposures_end_to_end(
+    tmp_path: Path, rod_factory: Callable[..., Trajectory], small_toml: Path, realdata_dir: Path
+) -> None:
+    rod = tmp_path / "rod.npz"
+    rod_factory(0.411, 0.1).save(rod)
+    out = tmp_path / "lab"
+    argv = ["simulate", "lab-rolling", "--out", str(out), "--frames", "2", "--trajectory", str(rod), "-q"]
+    assert main([*argv, "--config", str(small_toml), "--photo-dir", str(realdata_dir)]) == 0
+    frames = FrameSet(out)
+    rig = frames.meta["rig"]
+    assert rig["preset"] == "lab-rolling" and rig["readout_ms"] == 7.0 and "rod_px" in rig
+    assert rig["rope_photo"] == str(realdata_dir / "trackdlo_rope/rope.png")
+    assert rig["config"]["sensor"]["gamma"] == 2.2
+    truth = frames.truth()
+    assert truth is not None and truth["row_offset_ns"].shape == (200,)
+    long_rod = tmp_path / "long.npz"
+    rod_factory(1.0, 0.1).save(long_rod)
+    paper = tmp_path / "paper"
+    argv = ["simulate", "lab-hard", "--out", str(paper), "--frames", "2", "--trajectory", str(long_rod), "-q"]
+    assert main([*argv, "--paper-exposures", "--exposure-ms", "15", "--photo-dir", str(realdata_dir)]) == 0
+    one = FrameSet(paper)  # the four exposures are the preset's; one is enough here
+    assert one.image_size == (800, 512) and one.fps == 30.0 and one.exposure_us == 15000
+    assert one.meta["rig"]["preset"] == "lab-hard+paper-exposures" and "distractor_px" in one.meta["rig"]

@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import cv2
 import numpy as np
 import pytest
 
-from ropecam.host.sim.config import SceneSpec, SensorSpec
+from ropecam.host.model.trajectory import Trajectory
+from ropecam.host.sim.config import SceneSpec, SensorSpec, SimConfig
 from ropecam.host.sim.processing import encode_gamma, jpeg_round_trip, unsharp_mask
+from ropecam.host.sim.render import RopeRenderer
 from ropecam.host.sim.scene import Sensor, build_scene
 from ropecam.shared.errors import ConfigError
 
@@ -79,3 +82,34 @@ def test_jpeg_round_trip_leaves_8x8_block_artefacts() -> None:
 def test_processing_options_are_validated(key: str, value: float, message: str) -> None:
     with pytest.raises(ConfigError, match=message):
         SensorSpec(**{key: value})
+
+
+def test_lens_psf_widens_the_ropes_edges_by_its_sigma(tiny: Callable[..., SimConfig],
+                                                       rod_factory: Callable[..., Trajectory]) -> None:  # fmt: skip
+    """Across the rope, the coverage's variance is (width^2 / 12) + psf^2 + 1/12: the PSF adds its own variance."""
+    config = tiny()
+    camera, plane = config.camera.camera_model(), config.camera.plane_pose()
+    s = np.linspace(0, 0.411, 500)
+    rod = rod_factory(0.411, 0.1)  # at rest and horizontal at t = 0
+    variances = {}
+    for psf in (0.5, 1.5):
+        sigma = math.sqrt(psf**2 + 1 / 12)
+        renderer = RopeRenderer(camera, plane, s, 0.024, np.full(500, 100.0), sigma)  # about 8 px wide
+        cover = renderer.render(rod, 0.0, 0.0).cover.astype(np.float64)
+        centre = renderer.project(rod.positions([0.0], s)[0])
+        columns = np.rint(centre[150:350:10, 0]).astype(int)
+        rows = np.arange(cover.shape[0])
+        per_column = []
+        for col in columns:
+            weight = cover[:, col]
+            mean = (weight * rows).sum() / weight.sum()
+            per_column.append((weight * (rows - mean) ** 2).sum() / weight.sum())
+        variances[psf] = float(np.median(per_column))
+    assert variances[1.5] - variances[0.5] == pytest.approx(1.5**2 - 0.5**2, rel=0.05)
+
+
+def test_motion_blur_is_averaged_in_linear_light_before_the_gamma_curve() -> None:
+    half = np.full(SIZE[::-1], 0.5, dtype=np.float32)  # a pixel covered half of the exposure by a 200 DN rope
+    frame = _flat_sensor(20.0, gamma=2.2).expose(half, 200.0 * half, 0)
+    linear_mean = 0.5 * 20.0 + 0.5 * 200.0
+    assert np.all(frame == round(255 * (linear_mean / 255) ** (1 / 2.2)))  # 174, not the mean of the codes (154)

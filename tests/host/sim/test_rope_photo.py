@@ -112,3 +112,22 @@ def test_missing_photo_names_key_and_path_and_writes_nothing(
     assert main([*argv, "--photo-dir", str(tmp_path), "--rope-photo", "blank.png"]) == 2
     assert "not an image OpenCV can read" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_plate_photo_gives_the_plate_a_real_surfaces_grain(realdata_dir: Path) -> None:
+    from ropecam.host.sim.rope_photo import load_plate_texture
+    from ropecam.host.sim.scene import build_scene
+
+    texture = load_plate_texture(realdata_dir / BRAIDED, (300, 200))
+    assert texture.shape == (200, 300) and abs(float(texture.mean())) < 1e-6
+    assert 0.003 < texture.std() < 0.03  # a white table: grain and smudges of about 1 %
+    plain = SceneSpec(background_variation=0.0, vignetting=0.0, photo_dir=str(realdata_dir))
+    layers = build_scene(dataclasses.replace(plain, plate_photo=BRAIDED, plate_photo_contrast=5.0), (300, 200),
+                         (150.0, 10.0), 100.0, 2.0, 0.5, seed=0)  # fmt: skip
+    relative = layers.background / 25.0 - 1.0
+    np.testing.assert_allclose(relative, 5.0 * texture, atol=1e-5)
+    with pytest.raises(ConfigError, match=r"scene.plate_photo: plate photo '.*missing.png' not found"):
+        build_scene(dataclasses.replace(plain, plate_photo="missing.png"), (300, 200), (150.0, 10.0), 100.0, 2.0,
+                    0.5, seed=0)  # fmt: skip
+    with pytest.raises(ConfigError, match=r"scene.plate_photo_contrast must be in \[0.0, 20.0\], got 25"):
+        SceneSpec(plate_photo_contrast=25)
