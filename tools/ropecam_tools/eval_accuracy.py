@@ -27,12 +27,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from ropecam_tools.truth_metrics import point_to_polyline, resample
 
 from ropecam.device.capture.synthetic import SyntheticRope
 from ropecam.device.pipeline.config import METHODS, PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam_tools.cli import UsageError
+from ropecam_tools.truth_metrics import point_to_polyline, resample
 
 RIG = SyntheticRope(
     width=640, height=400, fixed_uv=(320.4, 30.7), length_px=300.0, diameter_px=3.0, amplitude_rad=0.6,
