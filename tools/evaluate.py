@@ -1,5 +1,5 @@
 """Evaluations of ropecam against ground truth: pipeline accuracy, calibration, the paper's Harris figure, the daemon
-end to end.
+end to end, and the robustness matrix (every method on every simulated scene).
 
     python tools/evaluate.py COMMAND [options]         python tools/evaluate.py COMMAND --help
 
@@ -16,6 +16,7 @@ COMMANDS = {
     "calibration": "eval_calibration",
     "harris": "eval_harris",
     "e2e": "eval_e2e",
+    "matrix": "matrix",
     "montage": "sim_montage",
 }
 """Subcommand -> module of `ropecam_tools` (with ``add_arguments(parser)`` and ``run(args) -> int``)."""

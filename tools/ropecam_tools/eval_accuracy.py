@@ -32,29 +32,12 @@ from ropecam.device.capture.synthetic import SyntheticRope
 from ropecam.device.pipeline.config import METHODS, PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam_tools.cli import UsageError
+from ropecam_tools.truth_metrics import point_to_polyline, resample
 
 RIG = SyntheticRope(
     width=640, height=400, fixed_uv=(320.4, 30.7), length_px=300.0, diameter_px=3.0, amplitude_rad=0.6,
     period_s=1.3, bend=0.3, fps=119.0, exposure_us=4000, noise_dn=2.0, phase_rad=1.2,
 )  # fmt: skip
-
-
-def point_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
-    """Distance of each point (k, 2) to the polyline (m, 2)."""
-    a = poly[:-1][None]
-    d = (poly[1:] - poly[:-1])[None]
-    p = points[:, None]
-    t = np.clip(((p - a) * d).sum(-1) / np.maximum((d * d).sum(-1), 1e-12), 0.0, 1.0)
-    foot = a + t[..., None] * d
-    return np.min(np.hypot(*(p - foot).transpose(2, 0, 1)), axis=1)
-
-
-def resample(poly: np.ndarray, count: int) -> np.ndarray:
-    """`count` points at equal arc length along `poly`."""
-    seg = np.hypot(*np.diff(poly, axis=0).T)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
-    target = np.linspace(0.0, s[-1], count)
-    return np.stack([np.interp(target, s, poly[:, 0]), np.interp(target, s, poly[:, 1])], axis=1)
 
 
 def synthetic_sequence(exposure_ms: float, frames: int) -> list[tuple[np.ndarray, int, float, np.ndarray, np.ndarray]]:
