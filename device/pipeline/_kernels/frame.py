@@ -18,8 +18,7 @@ The table holds raw addresses: whoever makes it keeps its arrays alive and uncha
 from __future__ import annotations
 
 import ctypes
-from collections import namedtuple
-from typing import Any, Final
+from typing import Any, Final, NamedTuple
 
 import numba
 import numpy as np
@@ -98,10 +97,14 @@ STEADY_CONSTANTS: Final = (
 )  # fmt: skip
 """`steady_frame`'s `constants` (float64), in order: the scalars of the four kernels that do not change between
 frames (the int and float32 ones exactly representable)."""
-STEADY_CONSTANT: Final = namedtuple("SteadyConstants", STEADY_CONSTANTS)(*range(len(STEADY_CONSTANTS)))
+STEADY_CONSTANT: Final = NamedTuple("SteadyConstants", [(name, int) for name in STEADY_CONSTANTS])(
+    *range(len(STEADY_CONSTANTS))
+)
 """The index of each of `steady_frame`'s `constants` (``STEADY_CONSTANT.low``), from `STEADY_CONSTANTS`."""
 
-STEADY_ROW: Final = namedtuple("SteadyRows", [name for name, _, _ in STEADY_BUFFERS])(*range(len(STEADY_BUFFERS)))
+STEADY_ROW: Final = NamedTuple("SteadyRows", [(name, int) for name, _, _ in STEADY_BUFFERS])(
+    *range(len(STEADY_BUFFERS))
+)
 """The row of each buffer in `steady_frame`'s table (``STEADY_ROW.lo``), made from `STEADY_BUFFERS`: the one list
 of the table's buffers, kept in this file so that an edit of it recompiles the kernel (Numba freezes the rows)."""
 
