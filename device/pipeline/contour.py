@@ -141,6 +141,10 @@ class ContourTracer:
         args = self._detect_args if detector is self._detector else self.detect_args(detector)
         return self.adopt(detector, frame, lo, hi, K.detect_and_trace(frame, lo, hi, *args))
 
+    def forget_args(self) -> None:
+        """Make `detect_args` again on the next call (the detector's thresholds changed)."""
+        self._detector = None
+
     def detect_args(self, detector: EdgeDetector) -> tuple[Any, ...]:
         """The arguments of the `detect_and_trace` kernel after the frame and the spans, for `detector`: its
         buffers, then this tracer's (made once per detector)."""

@@ -78,6 +78,14 @@ class EdgeDetector:
         self.frame: NDArray[np.uint8] = self.edges
         """The frame of the last `detect` (what `refresh` smooths)."""
 
+    def set_thresholds(self, low: float, high: float) -> None:
+        """Set the hysteresis thresholds (``0 < low <= high``); the stages that pass them to a kernel made once
+        (`ContourTracer.detect_args`, `SteadyFrame.args`) must make it again."""
+        if not 0 < low <= high:
+            raise ValueError(f"need 0 < low <= high, got low={low}, high={high}")
+        self.low = np.float32(low)
+        self.high = np.float32(high)
+
     def detect(self, frame: NDArray[np.uint8], lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
         """Detect edges of `frame` inside the row spans `lo`/`hi`; returns the number of edge pixels.
 

@@ -25,6 +25,7 @@ from ropecam.device.pipeline.result import FrameResult, FrameStatus, exposure_in
 from ropecam.device.pipeline.split import BlurSplitter, SplitOutcome
 from ropecam.device.pipeline.static_mask import StaticMask
 from ropecam.device.pipeline.steady import SteadyFrame
+from ropecam.device.pipeline.thresholds import EdgeThresholds
 from ropecam.device.pipeline.time_order import DEFAULT_PERIOD_NS, TimeOrder
 from ropecam.device.pipeline.tracking import PointTracker
 from ropecam.device.pipeline.traits import RopeTraits
@@ -72,6 +73,10 @@ class Pipeline:
             ws.edges, config.static_frames, config.static_margin_dn, config.static_relative, given
         )
         """The static structures whose edges are dropped (learned over the first `static_frames` frames)."""
+        self.thresholds = EdgeThresholds(
+            height, width, config.smooth_sigma_px, config.canny_low, config.canny_high, config.threshold_frames
+        )
+        """The Canny thresholds measured on the first `threshold_frames` frames (at most `canny_low`/`high`)."""
         self.splitter = BlurSplitter(
             cap, config.method, config.static_ratio, config.corner_scale_px,
             config.paper_endpoint_radius_px, config.output_step_px, config.tip_cap, config.smooth_sigma_px,
@@ -168,6 +173,10 @@ class Pipeline:
         else:
             assert isinstance(frame, np.ndarray)
             image = frame if frame.strides == self._strides else np.ascontiguousarray(frame)
+            if self.thresholds.measuring:
+                measured = self.thresholds.measure(image)
+                if measured is not None:
+                    self._set_thresholds(*measured)
             if self.static_mask.learning:
                 self.static_mask.learn(image)
                 if not self.static_mask.learning and self._unclean_frames > 0:
@@ -193,9 +202,11 @@ class Pipeline:
         height, width = self.shape
         loc = self.locator
         counters = (loc.frames_full, loc.frames_coarse, loc.frames_roi, loc.roi_retries)
-        learn_frames, self.static_mask.frames = self.static_mask.frames, 0  # a blank frame teaches nothing
+        # A blank frame teaches nothing.
+        learn_frames, self.static_mask.frames = self.static_mask.frames, 0
+        measure_frames, self.thresholds.frames = self.thresholds.frames, 0
         self.process(np.zeros((height, width), np.uint8), 0, 0, 0.0)
-        self.static_mask.frames = learn_frames
+        self.static_mask.frames, self.thresholds.frames = learn_frames, measure_frames
         loc.frames_full, loc.frames_coarse, loc.frames_roi, loc.roi_retries = counters
         self._last_frame_t_ns = None  # the blank frame's time is not the stream's
         width_px = self.traits.width()
@@ -208,6 +219,13 @@ class Pipeline:
         again too (after a gap in the frames, `_forget`, it goes on from the recent tips)."""
         self._forget(roi=True)
         self._time_order.clear()
+
+    def _set_thresholds(self, low: float, high: float) -> None:
+        """Use the Canny thresholds `low`/`high` from now on (the kernels' argument lists made again)."""
+        self.edges.set_thresholds(low, high)
+        self.tracer.forget_args()
+        self.locator.set_canny_low(low)
+        self._steady.unbind()
 
     def _relearn(self) -> None:
         """Learn the rope's traits (fixed end, width, polarity, Lc0) again, with the static mask now known: the
