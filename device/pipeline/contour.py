@@ -142,13 +142,18 @@ class ContourTracer:
         args = self._detect_args if detector is self._detector else self.detect_args(detector)
         return self.adopt(detector, frame, lo, hi, K.detect_and_trace(frame, lo, hi, *args))
 
+    def forget_args(self) -> None:
+        """Make `detect_args` again on the next call (the detector's thresholds changed)."""
+        self._detector = None
+
     def detect_args(self, detector: EdgeDetector) -> tuple[Any, ...]:
         """The arguments of the `detect_and_trace` kernel after the frame and the spans, for `detector`: its
         buffers, then this tracer's (made once per detector)."""
         if detector is not self._detector:
             d = detector
             self._detect_args = (
-                d.weights_ro, d.low, d.high, self._min32, d.work_spans, d.tmp, d.smooth, d.gx, d.gy, d.mag, d.edges,
+                d.weights_ro, d.low, d.high, self._min32, d.static_mask_ro, d.static_low_ro, d.static_high_ro,
+                d.work_spans, d.tmp, d.smooth, d.gx, d.gy, d.mag, d.edges,
                 d.stack, self.labels, self.stack, self.start, self.chain, self.codes, self.points, self.counts,
             )  # fmt: skip
             self._detector = detector

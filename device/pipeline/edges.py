@@ -67,6 +67,9 @@ class EdgeDetector:
         self.weights_ro = self.weights
         self.edges_ro, self.mag_ro, self.gx_ro, self.gy_ro = (ro(a) for a in (self.edges, self.mag, self.gx, self.gy))
         self.stack_ro = ro(self.stack)
+        self.static_mask_ro, self.static_low_ro, self.static_high_ro = (
+            ro(a) for a in (self.static_mask, self.static_low, self.static_high)
+        )
         self.full_lo_ro, self.full_hi_ro = ro(self.full_lo), ro(self.full_hi)
         self.spans: tuple[NDArray[np.int32], NDArray[np.int32]] = (
             ro(np.ones(height, np.int32)), ro(np.zeros(height, np.int32))
@@ -74,6 +77,14 @@ class EdgeDetector:
         """The row spans (lo, hi) of the last `detect` (read-only views; none before the first)."""
         self.frame: NDArray[np.uint8] = self.edges
         """The frame of the last `detect` (what `refresh` smooths)."""
+
+    def set_thresholds(self, low: float, high: float) -> None:
+        """Set the hysteresis thresholds (``0 < low <= high``); the stages that pass them to a kernel made once
+        (`ContourTracer.detect_args`, `SteadyFrame.args`) must make it again."""
+        if not 0 < low <= high:
+            raise ValueError(f"need 0 < low <= high, got low={low}, high={high}")
+        self.low = np.float32(low)
+        self.high = np.float32(high)
 
     def detect(self, frame: NDArray[np.uint8], lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
         """Detect edges of `frame` inside the row spans `lo`/`hi`; returns the number of edge pixels.

@@ -83,11 +83,15 @@ class RopeLocator:
         """`band_stage`'s arguments after the frame's (Python ints and floats for its int64/float64 scalars)."""
         # A cell is active when its mean differs from a neighbour's by canny_low / 8 grey levels: the step over
         # which the Sobel magnitude of a sharp edge reaches the low threshold.
-        self._coarse_step = i32(max(1, round(COARSE_BLOCK * COARSE_BLOCK * canny_low / 8.0)))
+        self.set_canny_low(canny_low)
         self.frames_full = 0
         self.frames_coarse = 0
         self.frames_roi = 0
         self.roi_retries = 0
+
+    def set_canny_low(self, canny_low: float) -> None:
+        """Follow the edge detector's low threshold (the coarse look's step)."""
+        self._coarse_step = i32(max(1, round(COARSE_BLOCK * COARSE_BLOCK * canny_low / 8.0)))
 
     def forget(self) -> None:
         """Forget the last contour: the next frame is searched without a band."""

@@ -23,7 +23,9 @@ from ropecam.device.pipeline.locate import RopeLocator
 from ropecam.device.pipeline.motion import MotionModel
 from ropecam.device.pipeline.result import FrameResult, FrameStatus, exposure_in_ns, frame_problem
 from ropecam.device.pipeline.split import BlurSplitter, SplitOutcome
+from ropecam.device.pipeline.static_mask import StaticMask
 from ropecam.device.pipeline.steady import SteadyFrame
+from ropecam.device.pipeline.thresholds import EdgeThresholds
 from ropecam.device.pipeline.time_order import DEFAULT_PERIOD_NS, TimeOrder
 from ropecam.device.pipeline.tracking import PointTracker
 from ropecam.device.pipeline.traits import RopeTraits
@@ -62,6 +64,19 @@ class Pipeline:
         holds their addresses)."""
         self.edges = EdgeDetector(height, width, config.smooth_sigma_px, config.canny_low, config.canny_high, ws.edges)
         self.tracer = ContourTracer(height, width, cap, config.min_contour_px, buffers=ws.contour)
+        given = None
+        if config.static_mask_png:
+            from ropecam.device.capture.mask_file import read_mask_png  # a file read once, at construction
+
+            given = read_mask_png(config.static_mask_png, self.shape)
+        self.static_mask = StaticMask(
+            ws.edges, config.static_frames, config.static_margin_dn, config.static_relative, given
+        )
+        """The static structures whose edges are dropped (learned over the first `static_frames` frames)."""
+        self.thresholds = EdgeThresholds(
+            height, width, config.smooth_sigma_px, config.canny_low, config.canny_high, config.threshold_frames
+        )
+        """The Canny thresholds measured on the first `threshold_frames` frames (at most `canny_low`/`high`)."""
         self.splitter = BlurSplitter(
             cap, config.method, config.static_ratio, config.corner_scale_px,
             config.paper_endpoint_radius_px, config.output_step_px, config.tip_cap, config.smooth_sigma_px,
@@ -92,6 +107,7 @@ class Pipeline:
         self._strides = (width, 1)
         self._period_ns: int | None = None  # the shortest time between frame starts seen: the frame period
         self._last_frame_t_ns: int | None = None
+        self._unclean_frames = 0  # frames without an OK result while the static mask was being learned
 
     def __copy__(self) -> Pipeline:
         raise TypeError(_NO_COPY)
@@ -157,9 +173,19 @@ class Pipeline:
         else:
             assert isinstance(frame, np.ndarray)
             image = frame if frame.strides == self._strides else np.ascontiguousarray(frame)
+            if self.thresholds.measuring:
+                measured = self.thresholds.measure(image)
+                if measured is not None:
+                    self._set_thresholds(*measured)
+            if self.static_mask.learning:
+                self.static_mask.learn(image)
+                if not self.static_mask.learning and self._unclean_frames > 0:
+                    self._relearn()
             self._measure(image, result, exposure_ns)
             if result.status is not FrameStatus.OK:
                 self._forget(roi=result.status is FrameStatus.NO_ROPE)
+                if self.static_mask.learning:
+                    self._unclean_frames += 1
             elif exposure_ns == 0:
                 result.message = "exposure unknown (0): no time order, the ROI follows the tip steps only"
         result.pipeline_us = (time.perf_counter_ns() - start_ns) / 1000.0
@@ -176,7 +202,11 @@ class Pipeline:
         height, width = self.shape
         loc = self.locator
         counters = (loc.frames_full, loc.frames_coarse, loc.frames_roi, loc.roi_retries)
+        # A blank frame teaches nothing.
+        learn_frames, self.static_mask.frames = self.static_mask.frames, 0
+        measure_frames, self.thresholds.frames = self.thresholds.frames, 0
         self.process(np.zeros((height, width), np.uint8), 0, 0, 0.0)
+        self.static_mask.frames, self.thresholds.frames = learn_frames, measure_frames
         loc.frames_full, loc.frames_coarse, loc.frames_roi, loc.roi_retries = counters
         self._last_frame_t_ns = None  # the blank frame's time is not the stream's
         width_px = self.traits.width()
@@ -189,6 +219,21 @@ class Pipeline:
         again too (after a gap in the frames, `_forget`, it goes on from the recent tips)."""
         self._forget(roi=True)
         self._time_order.clear()
+
+    def _set_thresholds(self, low: float, high: float) -> None:
+        """Use the Canny thresholds `low`/`high` from now on (the kernels' argument lists made again)."""
+        self.edges.set_thresholds(low, high)
+        self.tracer.forget_args()
+        self.locator.set_canny_low(low)
+        self._steady.unbind()
+
+    def _relearn(self) -> None:
+        """Learn the rope's traits (fixed end, width, polarity, Lc0) again, with the static mask now known: the
+        first frames failed (a clamp, rod or plate edge joined to the rope's contour), so what they taught is
+        suspect."""
+        self.traits.restart()
+        self.tracker.restart()
+        self.reset_tracking()
 
     def _forget(self, roi: bool) -> None:
         """Drop the state that predicts this frame from the last one after a frame without shapes (a gap): the

@@ -60,6 +60,10 @@ class SteadyFrame:
         """(the split's steady key, the rope width's tables, Lc0, `steady_frame`'s argument list) of the last
         steady frame: its table holds the addresses of the workspace's buffers and of those tables."""
 
+    def unbind(self) -> None:
+        """Make the argument list again on the next `args` (a constant in it, such as a threshold, changed)."""
+        self._bound = None
+
     def args(self) -> list[Any] | None:
         """`steady_frame`'s argument list when this frame can be one kernel call (the split took its one-call
         path on the last frame with the workspace's buffers, and Lc0 is settled, so `track_frame` runs); `run`

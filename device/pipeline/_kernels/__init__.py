@@ -150,6 +150,14 @@ from ropecam.device.pipeline._kernels.split_shapes import (
     split_shapes_packed,
     split_shapes_packed_near,
 )
+from ropecam.device.pipeline._kernels.static_mask import (
+    MASK_ALWAYS,
+    MASK_FREE,
+    MASK_STATIC,
+    drop_static_edges,
+    learn_static_range,
+    mark_static,
+)
 from ropecam.device.pipeline._kernels.tracking import (
     HISTORY,
     MOTION_COUNT,
@@ -184,6 +192,9 @@ __all__ = [
     "FULL",
     "HISTORY",
     "INVALID",
+    "MASK_ALWAYS",
+    "MASK_FREE",
+    "MASK_STATIC",
     "MOTION_COUNT",
     "MOTION_EXPOSURE",
     "MOTION_FRAMES",
@@ -225,6 +236,7 @@ __all__ = [
     "dense_end_points",
     "detect_and_trace",
     "detect_edges",
+    "drop_static_edges",
     "extend_to_band_end",
     "extend_to_band_end_near",
     "f4_1d_ro",
@@ -242,6 +254,8 @@ __all__ = [
     "keep_largest_component",
     "keep_largest_listed",
     "keep_traced",
+    "learn_static_range",
+    "mark_static",
     "measure_widths",
     "midline",
     "need_profile",
