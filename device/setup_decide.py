@@ -124,7 +124,7 @@ def static_mask(
     frames: Sequence[Frame], config: PipelineConfig, samples: int = 40
 ) -> tuple[NDArray[np.bool_], NDArray[np.float32]]:
     """Return the pixels that are edges in at least `STATIC_FRACTION` of up to `samples` frames (the pipeline's
-    edge detector over whole frames), and each pixel's edge frequency (0-1)."""
+    edge detector over whole frames), grown by one pixel, and each pixel's edge frequency (0-1)."""
     height, width = frames[0].image.shape
     detector = EdgeDetector(height, width, config.smooth_sigma_px, config.canny_low, config.canny_high)
     lo = np.zeros(height, np.int32)
@@ -135,7 +135,15 @@ def static_mask(
         detector.detect(frames[position].image, lo, hi)
         counts += detector.edges != 0
     frequency = counts / len(picks)
-    return frequency >= STATIC_FRACTION, frequency
+    static = frequency >= STATIC_FRACTION
+    # Noise moves a static edge by a pixel now and then: the mask covers its 8 neighbours too.
+    grown = static.copy()
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            grown[max(dr, 0) : height + min(dr, 0), max(dc, 0) : width + min(dc, 0)] |= static[
+                max(-dr, 0) : height + min(-dr, 0), max(-dc, 0) : width + min(-dc, 0)
+            ]
+    return grown, frequency
 
 
 def _near_shapes(shape: tuple[int, int], shapes: Sequence[NDArray[np.float32]], radius_px: float) -> NDArray[np.bool_]:
