@@ -260,8 +260,8 @@ def _polarity(frames: Sequence[Frame], run: Run) -> tuple[str | None, str]:
             continue
         on_rope = float(np.median(image[points[ok, 0], points[ok, 1]]))
         votes.append(on_rope - float(np.median(image)))
-    if not votes:
-        return None, "no frame with shapes to read it from"
+    if len(votes) < 3:
+        return None, f"{len(votes)} frames with shapes to read it from, 3 needed"
     bright = sum(v > 0 for v in votes) / len(votes)
     if bright >= 0.8 or bright <= 0.2:
         name = "bright" if bright >= 0.8 else "dark"

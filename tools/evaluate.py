@@ -1,5 +1,5 @@
 """Evaluations of ropecam against ground truth: pipeline accuracy, calibration, the paper's Harris figure, the daemon
-end to end, and the robustness matrix (every method on every simulated scene).
+end to end, the robustness matrix (every method on every simulated scene), and `ropecam-device setup`'s configs.
 
     python tools/evaluate.py COMMAND [options]         python tools/evaluate.py COMMAND --help
 
@@ -17,6 +17,7 @@ COMMANDS = {
     "harris": "eval_harris",
     "e2e": "eval_e2e",
     "matrix": "matrix",
+    "setup": "eval_setup",
 }
 """Subcommand -> module of `ropecam_tools` (with ``add_arguments(parser)`` and ``run(args) -> int``)."""
 
