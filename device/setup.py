@@ -15,7 +15,9 @@ from ropecam.shared.errors import ConfigError, DataError
 
 __all__ = ["DECIDED_KEYS", "read_frames", "register", "run_setup", "with_pipeline_table"]
 
-DECIDED_KEYS = ("polarity", "canny_low", "canny_high", "rope_width_px", "length0_px", "fixed_end_uv")
+DECIDED_KEYS = (
+    "polarity", "canny_low", "canny_high", "rope_width_px", "length0_px", "fixed_end_uv", "static_mask_png"
+)  # fmt: skip
 """The `[pipeline]` keys setup decides (an existing table's other keys are kept)."""
 
 HELP = """\
@@ -241,6 +243,15 @@ def run_setup(
             f"{run.frames} frames with every edge threshold and polarity tried (statuses with the best: {statuses}). "
             f"{_hint(run.statuses)} Nothing was written."
         )
+    if not run.moving:
+        raise DataError(
+            f"{source}: no rope found: what the pipeline measured does not move (its tips stay within "
+            f"{run.tip_spread_px:.0f} px over {run.frames} frames): a rod, clamp or static cable, not a swinging "
+            "rope. Record the rope swinging. Nothing was written."
+        )
+    mask_path = out.resolve().with_name(out.stem + "_mask.png")
+    if findings.mask is not None:
+        findings.settings["static_mask_png"] = str(mask_path)
     settings = {**kept, **findings.settings}
     config = from_mapping(PipelineConfig, settings, where="the decided settings")
     lines = [
@@ -249,16 +260,14 @@ def run_setup(
         f"# check {_overlay_name(out, overlay)} by eye before measuring",
     ]
     lines += [f"{key} = {_toml_value(value)}" for key, value in settings.items()]
-    if findings.mask is not None:
-        lines.append(f"# static mask: {out.stem}_mask.png (white = static edges); no [pipeline] key reads a mask yet")
     table = "\n".join(lines) + "\n"
     text = with_pipeline_table(old_text, table)
-    from_mapping(PipelineConfig, tomllib.loads(text)["pipeline"], where=f"{out} [pipeline]")  # what extract reads
     del config
 
     overlay_path = Path(overlay) if overlay else _overlay_path(out)
     if findings.mask is not None:
-        write_png(out.with_name(out.stem + "_mask.png"), findings.mask.astype("uint8") * 255)
+        write_png(mask_path, findings.mask.astype("uint8") * 255)
+    from_mapping(PipelineConfig, tomllib.loads(text)["pipeline"], where=f"{out} [pipeline]")  # what extract reads
     position = findings.split_frame
     begin = end = segmentation = None
     if position is not None:

@@ -2,14 +2,17 @@
 
 Nothing here re-implements a pipeline step: each candidate setting is tried by running `Pipeline` over the frames,
 and the setting that measures most frames, most consistently (the same rope length, width and fixed end on every
-frame) is kept. The static mask comes from the pipeline's own `EdgeDetector` run over whole frames.
+frame) is kept. The static mask comes from the pipeline's own `EdgeDetector` run over whole frames, and every
+candidate runs with it, as the device will.
 """
 
 from __future__ import annotations
 
 import math
+import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -19,6 +22,7 @@ from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.edges import EdgeDetector
 from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam.device.pipeline.result import FrameStatus
+from ropecam.device.setup_overlay import write_png
 
 __all__ = ["THRESHOLDS", "Frame", "Run", "SetupFindings", "decide", "run_candidate", "static_mask"]
 
@@ -58,7 +62,23 @@ class Run:
         default_factory=dict
     )
     """Frame position -> (begin, end, segmentation points) copies, (row, col)."""
+    tips: list[tuple[float, float]] = field(default_factory=list)
+    """(row, col) of both free tips of every frame with shapes."""
     frames: int = 0
+
+    @property
+    def tip_spread_px(self) -> float:
+        """90th percentile of the tips' distances from their median (0 without shapes): how far the rope moves."""
+        if not self.tips:
+            return 0.0
+        tips = np.asarray(self.tips)
+        return float(np.percentile(np.hypot(*(tips - np.median(tips, axis=0)).T), 90))
+
+    @property
+    def moving(self) -> bool:
+        """Whether what was measured moves (a still outline is a rod, a clamp or a static cable, not the rope)."""
+        width = float(np.median(self.widths_px)) if self.widths_px else 3.0
+        return self.tip_spread_px > 2.0 * width + 2.0
 
     @property
     def measured(self) -> float:
@@ -75,7 +95,10 @@ class Run:
 
     @property
     def score(self) -> float:
-        """Measured fraction, lowered by inconsistent lengths: the setting with the highest score is kept."""
+        """Measured fraction, lowered by inconsistent lengths (0 when what was measured does not move): the setting
+        with the highest score is kept."""
+        if not self.moving:
+            return 0.0
         return self.measured * max(0.0, 1.0 - 5.0 * min(self.length_spread, 1.0))
 
 
@@ -109,6 +132,8 @@ def run_candidate(frames: Sequence[Frame], config: PipelineConfig, keep_shapes: 
         if result.status is not FrameStatus.OK or result.begin is None or result.end is None:
             continue
         run.lengths_px += [_polyline_length(result.begin), _polyline_length(result.end)]
+        run.tips += [(float(result.begin[-1, 0]), float(result.begin[-1, 1]))]
+        run.tips += [(float(result.end[-1, 0]), float(result.end[-1, 1]))]
         if result.rope_width_px is not None and math.isfinite(result.rope_width_px):
             run.widths_px.append(float(result.rope_width_px))
         if result.fixed_end is not None:
@@ -146,27 +171,6 @@ def static_mask(
     return grown, frequency
 
 
-def _near_shapes(shape: tuple[int, int], shapes: Sequence[NDArray[np.float32]], radius_px: float) -> NDArray[np.bool_]:
-    """Pixels within `radius_px` of any point of the polylines (rows, cols), sampled densely along them."""
-    near = np.zeros(shape, bool)
-    r = math.ceil(radius_px)
-    offsets = [(dr, dc) for dr in range(-r, r + 1) for dc in range(-r, r + 1) if dr * dr + dc * dc <= radius_px**2]
-    for line in shapes:
-        if len(line) < 2:
-            continue
-        steps = np.maximum(1, np.ceil(np.hypot(*np.diff(line, axis=0).T)).astype(int))
-        dense = np.concatenate(
-            [np.linspace(a, b, n, endpoint=False) for a, b, n in zip(line[:-1], line[1:], steps, strict=True)]
-            + [line[-1:]]
-        )
-        rows, cols = np.round(dense[:, 0]).astype(int), np.round(dense[:, 1]).astype(int)
-        for dr, dc in offsets:
-            rr, cc = rows + dr, cols + dc
-            ok = (rr >= 0) & (rr < shape[0]) & (cc >= 0) & (cc < shape[1])
-            near[rr[ok], cc[ok]] = True
-    return near
-
-
 def decide(
     frames: Sequence[Frame],
     base: PipelineConfig,
@@ -185,6 +189,7 @@ def decide(
         Called with one line of progress per step.
     trial_frames
         Frames (the first ones) each candidate setting is tried on; the kept one then runs over all frames.
+        Each candidate runs with the static mask learned at its thresholds (`static_mask_png`).
 
     Returns
     -------
@@ -197,47 +202,60 @@ def decide(
     trial = frames[: max(5, min(trial_frames, len(frames)))]
     tried: list[str] = []
     runs: list[Run] = []
-    for low, high in THRESHOLDS:
-        config = replace(base, canny_low=low, canny_high=high, polarity="auto")
-        run = run_candidate(trial, config)
-        runs.append(run)
+    masks: list[NDArray[np.bool_]] = []
+    with tempfile.TemporaryDirectory(prefix="ropecam-setup-") as folder:
+        for index, (low, high) in enumerate(THRESHOLDS):
+            # The static mask at these thresholds (edges in nearly every frame), applied as the device will.
+            config = replace(base, canny_low=low, canny_high=high, polarity="auto", static_mask_png="")
+            mask, _ = static_mask(frames, config)
+            masks.append(mask)
+            mask_file = Path(folder) / f"mask{index}.png"
+            write_png(mask_file, mask.astype(np.uint8) * 255)
+            run = run_candidate(trial, replace(config, static_mask_png=str(mask_file)))
+            runs.append(run)
+            tried.append(
+                f"edges {low:g}/{high:g}: static mask {100 * mask.mean():.2f} % of the frame; shapes on "
+                f"{100 * run.measured:.0f} % of {run.frames} frames, length spread {100 * run.length_spread:.1f} %, "
+                f"tips move {run.tip_spread_px:.0f} px (p90)"
+            )
+            progress(tried[-1])
+        default_index = THRESHOLDS.index((20.0, 50.0))
+        # Ties (within 2 % of the best score) go to the default, then to the lower thresholds (fewer edges lost).
+        best_score = max(r.score for r in runs)
+        close = [i for i, r in enumerate(runs) if r.score >= best_score - 0.02]
+        chosen = default_index if default_index in close else close[0]
+        thresholds = runs[chosen].config
+        # The mask also cuts the rope's own still part near the fixed end: it is kept only when it measures better.
+        bare = run_candidate(trial, replace(thresholds, static_mask_png=""))
+        use_mask = bare.score < runs[chosen].score - 0.02
         tried.append(
-            f"edges {low:g}/{high:g}: shapes on {100 * run.measured:.0f} % of {run.frames} frames, "
-            f"length spread {100 * run.length_spread:.1f} %"
+            f"without the static mask: shapes on {100 * bare.measured:.0f} %, length spread "
+            f"{100 * bare.length_spread:.1f} %: {'mask kept' if use_mask else 'no mask (it measures no better)'}"
         )
         progress(tried[-1])
-    default_index = THRESHOLDS.index((20.0, 50.0))
-    # Ties (within 2 % of the best score) go to the default, then to the lower thresholds (more edges, less lost).
-    best_score = max(r.score for r in runs)
-    close = [i for i, r in enumerate(runs) if r.score >= best_score - 0.02]
-    chosen = default_index if default_index in close else close[0]
-    thresholds = runs[chosen].config
-    notes: list[str] = []
-    undecided: list[str] = []
-    settings: dict[str, Any] = {}
-    final = thresholds
-    polarity, why = _polarity(trial, run_candidate(trial, thresholds, keep_shapes=True))
-    if polarity is None:
-        undecided.append(f"polarity: {why}; left to the per-frame decision (auto)")
-    else:
-        settings["polarity"] = polarity
-        final = replace(thresholds, polarity=polarity)
-        tried.append(f"polarity {polarity}: {why}")
-        progress(tried[-1])
-    progress(f"running the pipeline over all {len(frames)} frames with the chosen settings")
-    run = run_candidate(frames, final, keep_shapes=True)
-    findings = SetupFindings(settings, run, notes, undecided, None, None, None, tried)
-    if run.measured < MIN_MEASURED:
+        if not use_mask:
+            thresholds = replace(thresholds, static_mask_png="")
+        notes: list[str] = []
+        undecided: list[str] = []
+        settings: dict[str, Any] = {}
+        final = thresholds
+        polarity, why = _polarity(trial, run_candidate(trial, thresholds, keep_shapes=True))
+        if polarity is None:
+            undecided.append(f"polarity: {why}; left to the per-frame decision (auto)")
+        else:
+            settings["polarity"] = polarity
+            final = replace(thresholds, polarity=polarity)
+            tried.append(f"polarity {polarity}: {why}")
+            progress(tried[-1])
+        progress(f"running the pipeline over all {len(frames)} frames with the chosen settings")
+        run = run_candidate(frames, final, keep_shapes=True)
+    findings = SetupFindings(settings, run, notes, undecided, masks[chosen] if use_mask else None, None, None, tried)
+    if run.measured < MIN_MEASURED or not run.moving:
         return findings
     settings["canny_low"], settings["canny_high"] = final.canny_low, final.canny_high
     _decide_traits(findings)
-    progress("learning the static mask (edges in nearly every frame)")
-    mask, _ = static_mask(frames, final)
-    width_px = settings.get("rope_width_px") or (float(np.median(run.widths_px)) if run.widths_px else 3.0)
-    shapes = [line for begin, end, _ in run.shapes.values() for line in (begin, end)]
-    mask &= ~_near_shapes(mask.shape, shapes, 1.5 * width_px + 3.0)
-    findings.mask = mask
-    notes.append(f"static mask: {int(mask.sum())} pixels ({100 * mask.mean():.2f} % of the frame)")
+    share = f"{int(masks[chosen].sum())} pixels ({100 * masks[chosen].mean():.2f} % of the frame)"
+    notes.append(f"static mask: {share}" + ("" if use_mask else ", not used: the pipeline measures as well without"))
     sweeps = {p: float(np.hypot(*(b[-1] - e[-1]))) for p, (b, e, _) in run.shapes.items()}
     findings.split_frame = max(sweeps, key=sweeps.__getitem__) if sweeps else None
     return findings

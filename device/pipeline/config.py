@@ -72,6 +72,17 @@ class PipelineConfig:
         the rope bends sharply (tight loops, a kink at a clamp).
     max_contour
         Capacity of the contour buffers (points).
+    static_frames
+        Frames over which the static mask is learned (each pixel's range of grey levels; pixels that stay within
+        the noise are static structures: clamp, rod, plate edge, scratches, dust), whose edges are then dropped
+        while they look as learned. 0: no learned mask. The rope must swing during these frames.
+    static_margin_dn
+        Grey levels beyond a static pixel's learned range at which it counts as changed (the rope is there).
+    static_relative
+        Part of a pixel's grey level that its learned range may span (flicker, shot noise) and still be static.
+    static_mask_png
+        A mask image of the frames' size (non-zero: never the rope; edges there are dropped from the first
+        frame), or "" for none.
     """
 
     method: Literal["blur_split", "paper", "centerline", "static"] = "blur_split"
@@ -96,6 +107,10 @@ class PipelineConfig:
     output_step_px: float = 2.0
     output_smoothing_px: float = 24.0
     max_contour: int = 40_000
+    static_frames: int = 0
+    static_margin_dn: int = 3
+    static_relative: float = 0.1
+    static_mask_png: str = ""
 
     def __post_init__(self) -> None:
         check_in("method", self.method, METHODS)
@@ -130,3 +145,8 @@ class PipelineConfig:
         check_range("output_step_px", self.output_step_px, 0.25, 100.0)
         check_range("output_smoothing_px", self.output_smoothing_px, 0.0, 200.0)
         check_range("max_contour", self.max_contour, 100, 10_000_000)
+        check_range("static_frames", self.static_frames, 0, 10_000)
+        check_range("static_margin_dn", self.static_margin_dn, 0, 255)
+        check_range("static_relative", self.static_relative, 0.0, 1.0)
+        if not isinstance(self.static_mask_png, str):
+            raise ConfigError(f'static_mask_png must be a file path or "", got {self.static_mask_png!r}')

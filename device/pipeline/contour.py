@@ -147,7 +147,8 @@ class ContourTracer:
         if detector is not self._detector:
             d = detector
             self._detect_args = (
-                d.weights_ro, d.low, d.high, self._min32, d.work_spans, d.tmp, d.smooth, d.gx, d.gy, d.mag, d.edges,
+                d.weights_ro, d.low, d.high, self._min32, d.static_mask_ro, d.static_low_ro, d.static_high_ro,
+                d.work_spans, d.tmp, d.smooth, d.gx, d.gy, d.mag, d.edges,
                 d.stack, self.labels, self.stack, self.start, self.chain, self.codes, self.points, self.counts,
             )  # fmt: skip
             self._detector = detector

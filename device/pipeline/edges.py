@@ -67,6 +67,9 @@ class EdgeDetector:
         self.weights_ro = self.weights
         self.edges_ro, self.mag_ro, self.gx_ro, self.gy_ro = (ro(a) for a in (self.edges, self.mag, self.gx, self.gy))
         self.stack_ro = ro(self.stack)
+        self.static_mask_ro, self.static_low_ro, self.static_high_ro = (
+            ro(a) for a in (self.static_mask, self.static_low, self.static_high)
+        )
         self.full_lo_ro, self.full_hi_ro = ro(self.full_lo), ro(self.full_hi)
         self.spans: tuple[NDArray[np.int32], NDArray[np.int32]] = (
             ro(np.ones(height, np.int32)), ro(np.zeros(height, np.int32))

@@ -44,6 +44,12 @@ class FixedEndFinder:
         if fixed_end_uv is not None:
             self.fixed[:] = (fixed_end_uv[1], fixed_end_uv[0])
 
+    def restart(self) -> None:
+        """Forget a found fixed end (a configured one stays): the next contours find it again."""
+        self.known = self.configured
+        self.frames = 0
+        self._first_ends = None
+
     @property
     def settled(self) -> bool:
         """Whether the fixed end no longer changes (configured, or averaged over `FIXED_END_FRAMES` contours)."""

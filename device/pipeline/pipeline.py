@@ -23,6 +23,7 @@ from ropecam.device.pipeline.locate import RopeLocator
 from ropecam.device.pipeline.motion import MotionModel
 from ropecam.device.pipeline.result import FrameResult, FrameStatus, exposure_in_ns, frame_problem
 from ropecam.device.pipeline.split import BlurSplitter, SplitOutcome
+from ropecam.device.pipeline.static_mask import StaticMask
 from ropecam.device.pipeline.steady import SteadyFrame
 from ropecam.device.pipeline.time_order import DEFAULT_PERIOD_NS, TimeOrder
 from ropecam.device.pipeline.tracking import PointTracker
@@ -62,6 +63,15 @@ class Pipeline:
         holds their addresses)."""
         self.edges = EdgeDetector(height, width, config.smooth_sigma_px, config.canny_low, config.canny_high, ws.edges)
         self.tracer = ContourTracer(height, width, cap, config.min_contour_px, buffers=ws.contour)
+        given = None
+        if config.static_mask_png:
+            from ropecam.device.capture.mask_file import read_mask_png  # a file read once, at construction
+
+            given = read_mask_png(config.static_mask_png, self.shape)
+        self.static_mask = StaticMask(
+            ws.edges, config.static_frames, config.static_margin_dn, config.static_relative, given
+        )
+        """The static structures whose edges are dropped (learned over the first `static_frames` frames)."""
         self.splitter = BlurSplitter(
             cap, config.method, config.static_ratio, config.corner_scale_px,
             config.paper_endpoint_radius_px, config.output_step_px, config.tip_cap, config.smooth_sigma_px,
@@ -92,6 +102,7 @@ class Pipeline:
         self._strides = (width, 1)
         self._period_ns: int | None = None  # the shortest time between frame starts seen: the frame period
         self._last_frame_t_ns: int | None = None
+        self._unclean_frames = 0  # frames without an OK result while the static mask was being learned
 
     def __copy__(self) -> Pipeline:
         raise TypeError(_NO_COPY)
@@ -157,9 +168,15 @@ class Pipeline:
         else:
             assert isinstance(frame, np.ndarray)
             image = frame if frame.strides == self._strides else np.ascontiguousarray(frame)
+            if self.static_mask.learning:
+                self.static_mask.learn(image)
+                if not self.static_mask.learning and self._unclean_frames > 0:
+                    self._relearn()
             self._measure(image, result, exposure_ns)
             if result.status is not FrameStatus.OK:
                 self._forget(roi=result.status is FrameStatus.NO_ROPE)
+                if self.static_mask.learning:
+                    self._unclean_frames += 1
             elif exposure_ns == 0:
                 result.message = "exposure unknown (0): no time order, the ROI follows the tip steps only"
         result.pipeline_us = (time.perf_counter_ns() - start_ns) / 1000.0
@@ -176,7 +193,9 @@ class Pipeline:
         height, width = self.shape
         loc = self.locator
         counters = (loc.frames_full, loc.frames_coarse, loc.frames_roi, loc.roi_retries)
+        learn_frames, self.static_mask.frames = self.static_mask.frames, 0  # a blank frame teaches nothing
         self.process(np.zeros((height, width), np.uint8), 0, 0, 0.0)
+        self.static_mask.frames = learn_frames
         loc.frames_full, loc.frames_coarse, loc.frames_roi, loc.roi_retries = counters
         self._last_frame_t_ns = None  # the blank frame's time is not the stream's
         width_px = self.traits.width()
@@ -189,6 +208,14 @@ class Pipeline:
         again too (after a gap in the frames, `_forget`, it goes on from the recent tips)."""
         self._forget(roi=True)
         self._time_order.clear()
+
+    def _relearn(self) -> None:
+        """Learn the rope's traits (fixed end, width, polarity, Lc0) again, with the static mask now known: the
+        first frames failed (a clamp, rod or plate edge joined to the rope's contour), so what they taught is
+        suspect."""
+        self.traits.restart()
+        self.tracker.restart()
+        self.reset_tracking()
 
     def _forget(self, roi: bool) -> None:
         """Drop the state that predicts this frame from the last one after a frame without shapes (a gap): the

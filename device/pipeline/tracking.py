@@ -60,6 +60,12 @@ class PointTracker:
         self.length0_settled_px = -1.0 if length0_px is None else float(length0_px)
         """Lc0 once it no longer changes (configured, or all its shapes seen); -1 before."""
 
+    def restart(self) -> None:
+        """Forget the shapes' lengths seen so far (a configured Lc0 stays): Lc0 is measured again."""
+        self._lengths.clear()
+        self._median = None
+        self.length0_settled_px = -1.0 if self.length0_px is None else float(self.length0_px)
+
     def length(self, poly: NDArray[np.float32]) -> float:
         """Return the polyline length Lc in pixels, eq. (9)."""
         return float(K.polyline_length(as_ro(poly), np.int32(len(poly))))

@@ -67,6 +67,15 @@ class RopeTraits:
         self.settled: Settled | None = None
         """The traits once none of them changes any more (None before)."""
 
+    def restart(self) -> None:
+        """Forget what the first frames taught (found fixed end, widths, polarity votes; configured values stay):
+        they were measured on contours the static mask did not yet clean."""
+        self.fixed_end.restart()
+        self._widths.clear()
+        self._width_cache = None
+        self._polarity_votes.clear()
+        self.settled = None
+
     @property
     def measuring_width(self) -> bool:
         """Whether the split is to measure the rope's width on this frame (not configured, not enough seen)."""

@@ -68,7 +68,7 @@ def expose(group: str, fields: type) -> Callable[[type[_T]], type[_T]]:
 class EdgeBuffers:
     """`EdgeDetector`'s: the Gaussian `weights` (read-only), the span scratch, the five float planes (at
     different offsets within a page, `staggered_planes`), the edge map and list, the spans of `smooth_box` and
-    the whole image's spans."""
+    the whole image's spans, and the static mask with each pixel's learned grey-level range (`StaticMask`)."""
 
     weights: NDArray[np.float32]
     work_spans: NDArray[np.int32]
@@ -83,6 +83,9 @@ class EdgeBuffers:
     box_hi: NDArray[np.int32]
     full_lo: NDArray[np.int32]
     full_hi: NDArray[np.int32]
+    static_mask: NDArray[np.uint8]
+    static_low: NDArray[np.uint8]
+    static_high: NDArray[np.uint8]
 
     @classmethod
     def make(cls, height: int, width: int, weights: NDArray[np.float32]) -> EdgeBuffers:
@@ -92,7 +95,8 @@ class EdgeBuffers:
             ro(np.array(weights, np.float32)), np.zeros((4, height), np.int32), tmp, smooth, gx, gy, mag,
             resident_zeros((height, width), np.uint8), resident_zeros(height * width, np.int32),
             np.zeros(height, np.int32), np.zeros(height, np.int32), np.zeros(height, np.int32),
-            np.full(height, width - 1, np.int32),
+            np.full(height, width - 1, np.int32), np.zeros((height, width), np.uint8),
+            np.full((height, width), 255, np.uint8), np.zeros((height, width), np.uint8),
         )  # fmt: skip
 
 
@@ -284,7 +288,8 @@ class Workspace:
                 "motion_log": m.log, "need_hist": m.need, "profile": m.profile, "band_state": m.band, "lo": r.lo,
                 "hi": r.hi, "moved": r.moved,
                 # detect_and_trace's
-                "weights": e.weights, "work_spans": e.work_spans, "tmp": e.tmp, "smooth": e.smooth, "gx": e.gx,
+                "weights": e.weights, "static_mask": e.static_mask, "static_low": e.static_low,
+                "static_high": e.static_high, "work_spans": e.work_spans, "tmp": e.tmp, "smooth": e.smooth, "gx": e.gx,
                 "gy": e.gy, "mag": e.mag, "edges": e.edges, "edge_stack": e.stack, "labels": c.labels,
                 "stack": c.stack, "start": c.start, "chain": c.chain, "codes": c.codes, "points": c.points,
                 "counts": c.counts,

@@ -149,6 +149,14 @@ from ropecam.device.pipeline._kernels.split_frame import (
     SPLIT_STATIC,
     split_frame,
 )
+from ropecam.device.pipeline._kernels.static_mask import (
+    MASK_ALWAYS,
+    MASK_FREE,
+    MASK_STATIC,
+    drop_static_edges,
+    learn_static_range,
+    mark_static,
+)
 from ropecam.device.pipeline._kernels.tracking import (
     HISTORY,
     MOTION_COUNT,
@@ -183,6 +191,9 @@ __all__ = [
     "FULL",
     "HISTORY",
     "INVALID",
+    "MASK_ALWAYS",
+    "MASK_FREE",
+    "MASK_STATIC",
     "MOTION_COUNT",
     "MOTION_EXPOSURE",
     "MOTION_FRAMES",
@@ -224,6 +235,7 @@ __all__ = [
     "dense_end_points",
     "detect_and_trace",
     "detect_edges",
+    "drop_static_edges",
     "extend_to_band_end",
     "extend_to_band_end_near",
     "f4_1d_ro",
@@ -241,6 +253,8 @@ __all__ = [
     "keep_largest_component",
     "keep_largest_listed",
     "keep_traced",
+    "learn_static_range",
+    "mark_static",
     "measure_widths",
     "midline",
     "need_profile",

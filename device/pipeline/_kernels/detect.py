@@ -14,24 +14,27 @@ from numba import float32, int32, int64
 from ropecam.device.pipeline._kernels._common import INVALID, f4_1d_ro
 from ropecam.device.pipeline._kernels.canny import detect_edges, smooth_box
 from ropecam.device.pipeline._kernels.contour import trace_rope
+from ropecam.device.pipeline._kernels.static_mask import drop_static_edges
 from ropecam.shared.jit import f4_2d, i4_1d, i4_1d_ro, i4_2d, kernel, u1_2d, u1_2d_ro
 
 # The frame is taken read-only (a mapped capture buffer) or writable (a frame a reader made): a read-only view per
 # frame costs 1-3 us of Python, the second signature a few seconds of compilation once.
 _DETECT_AND_TRACE_ARGS: Final = (  # after the frame
-    i4_1d_ro, i4_1d_ro, f4_1d_ro, float32, float32, int32, i4_2d, f4_2d, f4_2d, f4_2d, f4_2d, f4_2d, u1_2d, i4_1d,
-    i4_2d, i4_1d, i4_1d, i4_2d, i4_1d, f4_2d, i4_1d,
+    i4_1d_ro, i4_1d_ro, f4_1d_ro, float32, float32, int32, u1_2d_ro, u1_2d_ro, u1_2d_ro, i4_2d, f4_2d, f4_2d,
+    f4_2d, f4_2d, f4_2d, u1_2d, i4_1d, i4_2d, i4_1d, i4_1d, i4_2d, i4_1d, f4_2d, i4_1d,
 )  # fmt: skip
 
 
 @kernel([int32(frame, *_DETECT_AND_TRACE_ARGS) for frame in (u1_2d_ro, u1_2d)])
 def detect_and_trace(
-    frame, lo, hi, weights, low, high, min_pixels, work_spans, out_tmp, out_smooth, out_gx, out_gy, out_mag,
-    out_edges, edge_stack, out_labels, stack, out_start, out_chain, out_codes, out_points, out_counts,
+    frame, lo, hi, weights, low, high, min_pixels, static_mask, static_low, static_high, work_spans, out_tmp,
+    out_smooth, out_gx, out_gy, out_mag, out_edges, edge_stack, out_labels, stack, out_start, out_chain, out_codes,
+    out_points, out_counts,
 ):  # fmt: skip
     """`detect_edges` inside the spans `lo`/`hi`, then `trace_rope` on its edges (the edge pixels it lists in
-    `edge_stack`, `ring_clear` true: `detect_edges` leaves the edge map 0 next to its spans): the edge and contour
-    stages in one call, with the same outputs as those two calls.
+    `edge_stack`, `ring_clear` true: `detect_edges` leaves the edge map 0 next to its spans) after
+    `drop_static_edges` with `static_mask`, `static_low`, `static_high` (a 1x1 mask: none): the edge and contour
+    stages in one call, with the same outputs as those calls.
 
     Arguments as for those kernels (`work_spans` .. `edge_stack` are `detect_edges`' outputs, `out_labels` ..
     `out_counts` `trace_rope`'s). `out_counts` needs 4 slots: `trace_rope`'s three (component pixels, ROI contacts,
@@ -51,6 +54,8 @@ def detect_and_trace(
         out_counts[1] = 0
         out_counts[2] = 0
         return INVALID
+    count = drop_static_edges(frame, static_mask, static_low, static_high, out_edges, edge_stack, count)
+    out_counts[3] = count
     return trace_rope(
         out_edges, lo, hi, edge_stack, count, min_pixels, True, out_mag, out_gx, out_gy, out_labels, stack, out_start,
         out_chain, out_codes, out_points, out_counts,

@@ -12,6 +12,10 @@ from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
 pytestmark = pytest.mark.kernel
 
 HEIGHT, WIDTH = 48, 64
+NO_MASK = tuple(np.zeros((1, 1), np.uint8) for _ in range(3))
+for _array in NO_MASK:
+    _array.flags.writeable = False
+"""`detect_and_trace`'s static mask and learned range when there is none (1x1)."""
 
 
 def _rope_frame(seed: int) -> np.ndarray:
@@ -84,7 +88,7 @@ def test_detect_and_trace_is_detect_edges_then_trace_rope(seed: int, full: bool,
     writable = frame.copy()  # the second signature: a frame a reader made, not a read-only buffer
     for image in (frame, writable):
         got = _buffers()
-        n = K.detect_and_trace(image, lo, hi, weights, low, high, np.int32(min_pixels), *got.values())
+        n = K.detect_and_trace(image, lo, hi, weights, low, high, np.int32(min_pixels), *NO_MASK, *got.values())
         assert n == n_ref
         for name, expected in ref.items():
             np.testing.assert_array_equal(got[name], expected, err_msg=name)
@@ -114,9 +118,9 @@ def test_detect_and_trace_refuses_short_counts_and_bad_spans() -> None:
     args = list(buffers.values())
     short = [*args[:-1], np.zeros(3, np.int32)]
     low, high, min_px = np.float32(20.0), np.float32(50.0), np.int32(10)
-    assert K.detect_and_trace(frame, lo, hi, weights, low, high, min_px, *short) == K.INVALID
+    assert K.detect_and_trace(frame, lo, hi, weights, low, high, min_px, *NO_MASK, *short) == K.INVALID
     bad_lo = _ro(np.zeros(HEIGHT - 1, np.int32))
-    assert K.detect_and_trace(frame, bad_lo, hi, weights, low, high, min_px, *args) == K.INVALID
+    assert K.detect_and_trace(frame, bad_lo, hi, weights, low, high, min_px, *NO_MASK, *args) == K.INVALID
     assert buffers["counts"].tolist() == [0, 0, 0, K.INVALID]
 
 

@@ -1,0 +1,168 @@
+"""The static mask: its kernels against slow references, the mask file's errors, and the pipeline with a mask of a
+clamp rod that otherwise joins the rope's contour to the image border."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from ropecam.device.capture.mask_file import read_mask_png
+from ropecam.device.capture.synthetic import SyntheticRope
+from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline.config import PipelineConfig
+from ropecam.device.pipeline.pipeline import Pipeline
+from ropecam.device.pipeline.result import FrameStatus
+from ropecam.device.pipeline.static_mask import StaticMask
+from ropecam.device.pipeline.workspace import EdgeBuffers
+from ropecam.shared.errors import ConfigError
+
+
+def _ro(a: np.ndarray) -> np.ndarray:
+    view = a.view()
+    view.flags.writeable = False
+    return view
+
+
+def _frames(seed: int, count: int, shape: tuple[int, int] = (24, 32)) -> list[np.ndarray]:
+    rng = np.random.default_rng(seed)
+    return [rng.integers(0, 256, shape).astype(np.uint8) for _ in range(count)]
+
+
+@pytest.mark.kernel
+def test_learn_static_range_is_the_min_and_max_over_frames() -> None:
+    frames = _frames(0, 4)
+    low, high = np.full(frames[0].shape, 255, np.uint8), np.zeros(frames[0].shape, np.uint8)
+    for frame in frames:
+        assert K.learn_static_range(_ro(frame), low, high) == frame.size
+    np.testing.assert_array_equal(low, np.min(frames, axis=0))
+    np.testing.assert_array_equal(high, np.max(frames, axis=0))
+    assert K.learn_static_range(_ro(frames[0][:, :-1].copy()), low, high) == -1
+
+
+@pytest.mark.kernel
+def test_mark_static_matches_a_slow_reference() -> None:
+    frames = _frames(1, 3)
+    low, high = np.min(frames, axis=0), np.max(frames, axis=0)
+    mask = np.zeros(low.shape, np.uint8)
+    mask[0, :5] = K.MASK_ALWAYS
+    base, relative, margin = 30.0, 0.1, 4
+    expected_mask = mask.copy()
+    expected_low, expected_high = low.astype(int), high.astype(int)
+    for r, c in np.ndindex(low.shape):
+        if mask[r, c] != K.MASK_ALWAYS:
+            still = expected_high[r, c] - expected_low[r, c] <= base + relative * expected_high[r, c]
+            expected_mask[r, c] = K.MASK_STATIC if still else K.MASK_FREE
+    count = K.mark_static(low, high, base, relative, np.int32(margin), mask)
+    assert count == np.count_nonzero(expected_mask == K.MASK_STATIC) > 0
+    np.testing.assert_array_equal(mask, expected_mask)
+    np.testing.assert_array_equal(low, np.maximum(expected_low - margin, 0))
+    np.testing.assert_array_equal(high, np.minimum(expected_high + margin, 255))
+
+
+def _drop_reference(frame, mask, low, high, edge_list):  # type: ignore[no-untyped-def]
+    width = frame.shape[1]
+    kept = []
+    for k in edge_list:
+        r, c = divmod(int(k), width)
+        if mask[r, c] == K.MASK_ALWAYS:
+            continue
+        if mask[r, c] == K.MASK_STATIC:
+            window = (slice(max(r - 1, 0), r + 2), slice(max(c - 1, 0), c + 2))
+            inside = (frame[window] >= low[window]) & (frame[window] <= high[window])
+            if inside.all():
+                continue
+        kept.append(k)
+    return kept
+
+
+@pytest.mark.kernel
+@pytest.mark.parametrize("seed", [2, 3, 4])
+def test_drop_static_edges_matches_a_slow_reference(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    shape = (24, 32)
+    frame = rng.integers(0, 256, shape).astype(np.uint8)
+    low = np.clip(frame.astype(int) - rng.integers(-20, 60, shape), 0, 255).astype(np.uint8)
+    high = np.clip(frame.astype(int) + rng.integers(-20, 60, shape), 0, 255).astype(np.uint8)
+    mask = rng.choice(np.array([K.MASK_FREE, K.MASK_ALWAYS, K.MASK_STATIC], np.uint8), shape, p=[0.3, 0.1, 0.6])
+    edge_list = np.zeros(frame.size, np.int32)
+    listed = rng.choice(frame.size, 200, replace=False).astype(np.int32)
+    edge_list[:200] = listed
+    edges = np.zeros(shape, np.uint8)
+    edges.reshape(-1)[listed] = 1
+    expected = _drop_reference(frame, mask, low, high, listed)
+    for image in (_ro(frame), frame.copy()):
+        got_edges, got_list = edges.copy(), edge_list.copy()
+        kept = K.drop_static_edges(image, _ro(mask), _ro(low), _ro(high), got_edges, got_list, 200)
+        assert 0 < kept < 200
+        assert got_list[:kept].tolist() == expected
+        expected_edges = np.zeros(shape, np.uint8)
+        expected_edges.reshape(-1)[expected] = 1
+        np.testing.assert_array_equal(got_edges, expected_edges)
+    placeholder = _ro(np.zeros((1, 1), np.uint8))
+    assert K.drop_static_edges(_ro(frame), placeholder, placeholder, placeholder, edges, edge_list, 200) == 200
+
+
+def test_static_mask_learns_then_marks_only_still_pixels() -> None:
+    buffers = EdgeBuffers.make(24, 32, np.ones(1, np.float32))
+    given = np.zeros((24, 32), bool)
+    given[0, 0] = True
+    mask = StaticMask(buffers, frames=3, margin_dn=2, relative=0.0, mask=given)
+    base = np.full((24, 32), 50, np.uint8)
+    for shift in range(3):
+        frame = base.copy()
+        frame[10:14, 4 + 8 * shift : 8 + 8 * shift] = 200  # a block that moves: never static
+        assert mask.learning
+        mask.learn(frame)
+    assert not mask.learning
+    static = mask.static()
+    assert static[0, 0] and static[0, 5] and not static[11, 5] and not static[11, 21]
+    assert mask.static_px == static.size - 1 - 3 * 16
+
+
+def test_mask_png_must_exist_and_have_the_frames_size(tmp_path: Path) -> None:
+    path = tmp_path / "mask.png"
+    with pytest.raises(ConfigError, match=r"static_mask_png.*does not exist"):
+        read_mask_png(path, (24, 32))
+    cv2.imwrite(str(path), np.zeros((20, 32), np.uint8))
+    with pytest.raises(ConfigError, match=r"static_mask_png: mask .*mask.png is 32x20 px, the frames are 32x24"):
+        read_mask_png(path, (24, 32))
+    (tmp_path / "bad.png").write_bytes(b"not a png")
+    with pytest.raises(ConfigError, match="not a readable image"):
+        read_mask_png(tmp_path / "bad.png", (24, 32))
+    with pytest.raises(ConfigError, match="static_mask_png"):
+        Pipeline(PipelineConfig(static_mask_png=str(path)), (32, 24))
+
+
+def test_a_given_mask_of_a_clamp_rod_keeps_the_rod_out_of_the_rope(tmp_path: Path) -> None:
+    """A bright rod from the top border to the fixed end joins the rope's contour to the border: today
+    the far end of that contour (the rod's top) passes for a tip. With the rod's mask given, the rope is measured.
+    """
+    rope = SyntheticRope(exposure_us=8000, amplitude_rad=0.7, period_s=0.9)
+    frames = list(rope.frames(6, start=2))
+    pivot = rope.centreline(0.0)[0]  # (u, v) of the fixed end
+    col, row = round(float(pivot[0])), round(float(pivot[1]))
+    mask = np.zeros((rope.height, rope.width), np.uint8)
+    mask[: row - 1, col - 6 : col + 7] = 255  # the rod down to 2 px above the fixed end
+    path = tmp_path / "rod.png"
+    cv2.imwrite(str(path), mask)
+    worst = {}
+    for given in ("", str(path)):
+        pipeline = Pipeline(PipelineConfig(static_mask_png=given), (rope.width, rope.height))
+        errors = []
+        for frame in frames:
+            image = frame.image.copy()
+            image[: row + 1, col - 3 : col + 4] = 230  # the rod, touching the rope
+            result = pipeline.process(image, frame.index, frame.t_ns, float(rope.exposure_us))
+            if result.status is not FrameStatus.OK:
+                errors.append(np.inf)
+                continue
+            tips = (result.begin[-1][::-1], result.end[-1][::-1])  # (row, col) -> (u, v)
+            errors.append(max(np.hypot(*(tips[0] - frame.tip_begin_uv)), np.hypot(*(tips[1] - frame.tip_end_uv))))
+        worst[given] = max(errors)
+    assert worst[""] > 100.0  # the rod's top taken for the tip, with status OK
+    # The rope, not the rod; the few pixels left are the rod's unmasked stub at the fixed end, which the
+    # contour still follows (the polyline at a clamp is #19 point 3's).
+    assert worst[str(path)] < 8.0
