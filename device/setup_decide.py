@@ -114,6 +114,8 @@ class SetupFindings:
     length_px: float | None
     split_frame: int | None
     tried: list[str]
+    image_shape: tuple[int, int] = (0, 0)
+    """(height, width) of the frames."""
 
 
 def _polyline_length(points: NDArray[np.float32]) -> float:
@@ -250,6 +252,7 @@ def decide(
         progress(f"running the pipeline over all {len(frames)} frames with the chosen settings")
         run = run_candidate(frames, final, keep_shapes=True)
     findings = SetupFindings(settings, run, notes, undecided, masks[chosen] if use_mask else None, None, None, tried)
+    findings.image_shape = frames[0].image.shape
     if run.measured < MIN_MEASURED or not run.moving:
         return findings
     settings["canny_low"], settings["canny_high"] = final.canny_low, final.canny_high
@@ -322,7 +325,15 @@ def _decide_traits(findings: SetupFindings) -> None:
         uv = np.asarray(run.fixed_uv)
         median_uv = np.median(uv, axis=0)
         spread = float(np.percentile(np.hypot(*(uv - median_uv).T), 90))
-        if spread <= FIXED_END_SPREAD_PX:
+        height, width = findings.image_shape
+        on_border = min(median_uv[0], median_uv[1], width - 1 - median_uv[0], height - 1 - median_uv[1]) < 2.0
+        if on_border:
+            findings.undecided.append(
+                f"fixed_end_uv: the pipeline's fixed end ({median_uv[0]:.0f}, {median_uv[1]:.0f}) lies on the image "
+                "border: the rope's outline probably runs along a rod or cable out of the frame (see the overlay); "
+                "left to the pipeline"
+            )
+        elif spread <= FIXED_END_SPREAD_PX:
             settings["fixed_end_uv"] = [round(float(median_uv[0]), 2), round(float(median_uv[1]), 2)]
         else:
             findings.undecided.append(
