@@ -229,7 +229,10 @@ def decide(
         thresholds = runs[chosen].config
         # The mask also cuts the rope's own still part near the fixed end: it is kept only when it measures better.
         bare = run_candidate(trial, replace(thresholds, static_mask_png=""))
-        use_mask = bare.score < runs[chosen].score - 0.02
+        shape = frames[0].image.shape
+        use_mask = bare.score < runs[chosen].score - 0.02 or (
+            _on_border(bare, shape) and not _on_border(runs[chosen], shape)
+        )
         tried.append(
             f"without the static mask: shapes on {100 * bare.measured:.0f} %, length spread "
             f"{100 * bare.length_spread:.1f} %: {'mask kept' if use_mask else 'no mask (it measures no better)'}"
@@ -262,6 +265,14 @@ def decide(
     sweeps = {p: float(np.hypot(*(b[-1] - e[-1]))) for p, (b, e, _) in run.shapes.items()}
     findings.split_frame = max(sweeps, key=sweeps.__getitem__) if sweeps else None
     return findings
+
+
+def _on_border(run: Run, shape: tuple[int, int]) -> bool:
+    """Whether the run's median fixed end lies on the image border (a rod or cable taken for the rope's root)."""
+    if not run.fixed_uv:
+        return False
+    u, v = np.median(np.asarray(run.fixed_uv), axis=0)
+    return bool(min(u, v, shape[1] - 1 - u, shape[0] - 1 - v) < 2.0)
 
 
 def _polarity(frames: Sequence[Frame], run: Run) -> tuple[str | None, str]:
