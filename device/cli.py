@@ -18,6 +18,7 @@ ropecam-device turns camera frames into rope shapes and tracked material points 
 # One module per sub-command; each defines register(subparsers).
 COMMAND_MODULES: tuple[str, ...] = (
     "ropecam.device.extract",
+    "ropecam.device.setup",
     "ropecam.device.capture.probe",
     "ropecam.device.daemon.cli",
 )

@@ -1,5 +1,5 @@
 """Evaluations of ropecam against ground truth: pipeline accuracy, calibration, the paper's Harris figure, the daemon
-end to end, and the robustness matrix (every method on every simulated scene).
+end to end, the robustness matrix (every method on every simulated scene), and `ropecam-device setup`'s configs.
 
     python tools/evaluate.py COMMAND [options]         python tools/evaluate.py COMMAND --help
 
@@ -18,6 +18,7 @@ COMMANDS = {
     "e2e": "eval_e2e",
     "matrix": "matrix",
     "montage": "sim_montage",
+    "setup": "eval_setup",
 }
 """Subcommand -> module of `ropecam_tools` (with ``add_arguments(parser)`` and ``run(args) -> int``)."""
 

@@ -18,7 +18,7 @@ into the figures of a table row. Definitions (also in docs/robustness.md):
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -167,7 +167,7 @@ def frameset_camera(meta: dict[str, Any]) -> tuple[Any, Any]:
     return model, PlanePose.from_rvec(meta["plane"]["rvec"], meta["plane"]["tvec_m"])
 
 
-def measure_frameset(path: str | Path, method: str, frames: int | None = None) -> list[FrameErrors]:
+def measure_frameset(path: str | Path, method: str, frames: int | None = None, config: Any = None) -> list[FrameErrors]:
     """Run `method` over a simulator frame set, as the device would (fixed end found automatically).
 
     The pipeline is told the rope's true length (``rig.rope_length_m``) so that its material points (at
@@ -181,6 +181,9 @@ def measure_frameset(path: str | Path, method: str, frames: int | None = None) -
         A pipeline method (`ropecam.device.pipeline.config.METHODS`).
     frames
         Use at most this many frames (all when None).
+    config
+        A `PipelineConfig` to start from (a device.toml's, e.g. written by ``ropecam-device setup``); its method,
+        rope length and material points are replaced as above. None: the defaults.
 
     Raises
     ------
@@ -197,7 +200,8 @@ def measure_frameset(path: str | Path, method: str, frames: int | None = None) -
         raise ValueError(f"{path}: no truth.npz (a simulator frame set is needed)")
     rig = fs.meta.get("rig", {})
     length_m = float(rig.get("rope_length_m", 1.0))
-    config = PipelineConfig(
+    config = replace(
+        PipelineConfig() if config is None else config,
         method=method,  # type: ignore[arg-type]
         rope_length_m=length_m,
         material_points_m=tuple(round(f * length_m, 9) for f in MATERIAL_FRACTIONS),

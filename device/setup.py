@@ -1,0 +1,311 @@
+"""`ropecam-device setup`: decide a new rig's `[pipeline]` settings from a few seconds of its frames."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tomllib
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from ropecam.shared.cli import declare_outputs
+from ropecam.shared.errors import ConfigError, DataError
+
+__all__ = ["DECIDED_KEYS", "read_frames", "register", "run_setup", "with_pipeline_table"]
+
+DECIDED_KEYS = (
+    "polarity", "canny_low", "canny_high", "rope_width_px", "length0_px", "fixed_end_uv", "static_mask_png"
+)  # fmt: skip
+"""The `[pipeline]` keys setup decides (an existing table's other keys are kept)."""
+
+HELP = """\
+Decide a rig's pipeline settings from a few seconds of its frames, with the rope swinging as it will when you
+measure: edge thresholds, polarity (bright rope on dark ground or the reverse), the rope's width and length in
+pixels, the fixed end, and the static mask (pixels that are edges in nearly every frame while the rope moves:
+clamp, rod, plate edge, scratches, a static second cable). Each candidate setting is tried by running the pipeline
+itself over the frames; the one that measures most frames most consistently is kept.
+
+It writes the [pipeline] table of OUT (a device.toml; with --force an existing file keeps its other tables and the
+[pipeline] keys setup does not decide, such as rope_length_m), the static mask beside it (OUT_mask.png, white =
+static), and an overlay picture (OUT_overlay.png) to check by eye before measuring. It prints what it could not
+decide, and why; a scene in which no setting finds a rope ends with exit status 1.
+
+INPUT is what `extract` takes (a frame set, a folder of images in name order, a video) or a camera URL as the
+daemon takes it (v4l2:///dev/video0?width=1024&height=544&fps=119&format=GREY, frames:DIR).
+
+examples:
+  ropecam-device setup sets/lab --out device.toml
+  ropecam-device setup "v4l2:///dev/video0?fps=119&format=GREY" --exposure-ms 4 --out /etc/ropecam/device.toml \\
+      --rope-length-m 0.411 --force
+  ropecam-device extract sets/lab --config device.toml --out lab.jsonl
+"""
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    """Add the `setup` sub-command."""
+    parser = subparsers.add_parser(
+        "setup",
+        help="decide a rig's [pipeline] settings (thresholds, polarity, width, fixed end, mask) from its frames",
+        description=HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("input", metavar="INPUT", help="frame set, image folder, video, or camera URL (v4l2:, frames:)")
+    parser.add_argument("--out", required=True, metavar="TOML", help="device.toml to write ([pipeline] table)")
+    parser.add_argument("--overlay", metavar="PNG", help="overlay picture (default: OUT's name + _overlay.png)")
+    parser.add_argument("--seconds", type=float, default=2.0, help="seconds of frames to decide from (default 2)")
+    parser.add_argument("--fps", type=float, help="frame rate (needed for image folders; default: the input's)")
+    parser.add_argument("--exposure-ms", type=float, help="exposure time in ms (default: the input's own)")
+    parser.add_argument("--rope-length-m", type=float, help="rope length in metres (setup cannot see metres)")
+    parser.add_argument(
+        "--material-points-m", type=float, nargs="+", metavar="S", help="arc lengths of tracked points (m)"
+    )
+    parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    declare_outputs(parser, "out", derived=lambda args: _derived_outputs(args.out, args.overlay))
+    parser.set_defaults(func=_main)
+
+
+def _derived_outputs(out: str, overlay: str | None) -> list[Path]:
+    path = Path(out)
+    return [path.with_name(path.stem + "_mask.png"), Path(overlay) if overlay else _overlay_path(path)]
+
+
+def _overlay_path(out: Path) -> Path:
+    return out.with_name(out.stem + "_overlay.png")
+
+
+def _main(args: argparse.Namespace) -> int:
+    if not args.seconds > 0:
+        raise ConfigError(f"--seconds must be > 0, got {args.seconds}")
+    exposure_us = None if args.exposure_ms is None else args.exposure_ms * 1000.0
+    return run_setup(
+        args.input,
+        args.out,
+        overlay=args.overlay,
+        seconds=args.seconds,
+        fps=args.fps,
+        exposure_us=exposure_us,
+        rope_length_m=args.rope_length_m,
+        material_points_m=args.material_points_m,
+        progress=not args.quiet,
+    )
+
+
+def read_frames(
+    source: str, seconds: float, fps: float | None, exposure_us: float | None
+) -> tuple[list[Any], str, float | None]:
+    """Read up to `seconds` of frames from a frame set, image folder, video or camera URL.
+
+    Returns the frames (`setup_decide.Frame`), a description of the input, and its frame rate (None if unknown:
+    then up to 240 frames are read). Unreadable frames are skipped. Raises `CaptureError`/`ConfigError` when the
+    input cannot be opened.
+    """
+    from ropecam.device.setup_decide import Frame
+
+    frames: list[Frame] = []
+    if source.split(":", 1)[0].lower() in ("v4l2", "frames"):
+        from ropecam.device.capture.url import open_camera_source
+
+        camera = open_camera_source(
+            source, fps=fps, exposure_us=None if exposure_us is None else round(exposure_us), loop=False
+        )
+        with camera:
+            rate = camera.fps or fps
+            count = round(seconds * rate) if rate else 240
+            misses = 0
+            while len(frames) < count and misses < 5 and not camera.finished:
+                item = camera.read(timeout_s=2.0)
+                if item is None:
+                    misses += 1
+                    continue
+                frames.append(Frame(item.image.copy(), int(item.t_ns), float(item.exposure_us)))
+        return frames, f"camera {source}", rate
+    from ropecam.device.capture.sources import open_source
+
+    opened = open_source(source, fps, exposure_us)
+    rate = opened.fps
+    count = round(seconds * rate) if rate else 240
+    for item in opened:
+        if len(frames) >= count:
+            break
+        if item.image is not None:
+            frames.append(Frame(item.image, int(item.t_ns), float(item.exposure_us or 0.0)))
+    return frames, f"{opened.kind} {source}", rate
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, int | float):
+        return repr(float(value)) if isinstance(value, float) else str(value)
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    raise TypeError(f"cannot write {value!r} to TOML")
+
+
+def with_pipeline_table(old_text: str, table: str) -> str:
+    """Return `old_text` (a TOML file) with its ``[pipeline]`` table and sub-tables replaced by `table` (appended
+    when there was none)."""
+    out: list[str] = []
+    skipping = inserted = False
+    for line in old_text.splitlines(keepends=True):
+        stripped = line.split("#", 1)[0].strip()
+        if stripped.startswith("["):
+            name = stripped.strip("[]").strip()
+            skipping = name == "pipeline" or name.startswith("pipeline.")
+            if skipping and not inserted:
+                out.append(table)
+                inserted = True
+        if not skipping:
+            out.append(line)
+    if not inserted:
+        if out and not out[-1].endswith("\n"):
+            out.append("\n")
+        out.append(("\n" if out else "") + table)
+    return "".join(out)
+
+
+def _write_text(path: Path, text: str) -> None:
+    temporary = path.with_name(path.name + ".tmp")
+    try:
+        temporary.write_text(text)
+        temporary.replace(path)
+    except OSError as exc:
+        raise DataError(f"{path}: cannot write: {exc.strerror}") from exc
+
+
+def run_setup(
+    source: str,
+    out: str | Path,
+    *,
+    overlay: str | Path | None = None,
+    seconds: float = 2.0,
+    fps: float | None = None,
+    exposure_us: float | None = None,
+    rope_length_m: float | None = None,
+    material_points_m: Iterable[float] | None = None,
+    progress: bool = False,
+) -> int:
+    """Decide the settings from `source`, write `out` ([pipeline] table), its mask and overlay PNGs; returns 0.
+
+    Raises
+    ------
+    DataError
+        Too few readable frames, no rope found with any setting, or an output cannot be written.
+    ConfigError
+        The existing `out` is not valid TOML, or the given rope length / material points are invalid.
+    """
+    from ropecam.device.pipeline.config import PipelineConfig
+    from ropecam.device.setup_decide import MIN_MEASURED, decide
+    from ropecam.device.setup_overlay import COLOURS, draw_overlay, write_png
+    from ropecam.shared.config import from_mapping
+
+    def say(line: str) -> None:
+        if progress:
+            print(f"setup: {line}", file=sys.stderr, flush=True)
+
+    out = Path(out)
+    old_text = ""
+    kept: dict[str, Any] = {}
+    if out.exists():
+        try:
+            old_text = out.read_text()
+            kept = dict(tomllib.loads(old_text).get("pipeline", {}))
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+            raise ConfigError(f"{out}: cannot read the existing file to update its [pipeline] table: {exc}") from exc
+    kept = {k: v for k, v in kept.items() if k not in DECIDED_KEYS and not isinstance(v, dict)}
+    if rope_length_m is not None:
+        kept["rope_length_m"] = rope_length_m
+    if material_points_m is not None:
+        kept["material_points_m"] = list(material_points_m)
+    elif rope_length_m is not None and "material_points_m" in kept:
+        kept["material_points_m"] = [s for s in kept["material_points_m"] if s <= rope_length_m]
+    if rope_length_m is not None and "material_points_m" not in kept:
+        kept["material_points_m"] = [round(rope_length_m * f, 6) for f in (0.25, 0.5, 0.75, 1.0)]
+    base = from_mapping(PipelineConfig, kept, where=f"{out} [pipeline] (kept keys and options)")
+
+    frames, described, rate = read_frames(source, seconds, fps, exposure_us)
+    if len(frames) < 5:
+        raise DataError(f"{source}: {len(frames)} readable frames, setup needs at least 5 (a few seconds of the rope)")
+    shape = frames[0].image.shape
+    if any(f.image.shape != shape for f in frames):
+        raise DataError(f"{source}: the frames are not all of one size (the first is {shape[1]}x{shape[0]})")
+    say(f"{len(frames)} frames of {shape[1]}x{shape[0]} from {described}" + (f" at {rate:g} fps" if rate else ""))
+    findings = decide(frames, base, say)
+    run = findings.run
+    if run.measured < MIN_MEASURED:
+        statuses = ", ".join(f"{k} {v}" for k, v in sorted(run.statuses.items()))
+        raise DataError(
+            f"{source}: no rope found: the pipeline measured a rope on {100 * run.measured:.0f} % of "
+            f"{run.frames} frames with every edge threshold and polarity tried (statuses with the best: {statuses}). "
+            f"{_hint(run.statuses)} Nothing was written."
+        )
+    if not run.moving:
+        raise DataError(
+            f"{source}: no rope found: what the pipeline measured does not move (its tips stay within "
+            f"{run.tip_spread_px:.0f} px over {run.frames} frames): a rod, clamp or static cable, not a swinging "
+            "rope. Record the rope swinging. Nothing was written."
+        )
+    mask_path = out.resolve().with_name(out.stem + "_mask.png")
+    if findings.mask is not None:
+        findings.settings["static_mask_png"] = str(mask_path)
+    settings = {**kept, **findings.settings}
+    config = from_mapping(PipelineConfig, settings, where="the decided settings")
+    lines = [
+        "[pipeline]",
+        f"# written by `ropecam-device setup` from {described} ({len(frames)} frames)",
+        f"# check {_overlay_name(out, overlay)} by eye before measuring",
+    ]
+    lines += [f"{key} = {_toml_value(value)}" for key, value in settings.items()]
+    table = "\n".join(lines) + "\n"
+    text = with_pipeline_table(old_text, table)
+    del config
+
+    overlay_path = Path(overlay) if overlay else _overlay_path(out)
+    if findings.mask is not None:
+        write_png(mask_path, findings.mask.astype("uint8") * 255)
+    from_mapping(PipelineConfig, tomllib.loads(text)["pipeline"], where=f"{out} [pipeline]")  # what extract reads
+    position = findings.split_frame
+    begin = end = segmentation = None
+    if position is not None:
+        begin, end, segmentation = run.shapes[position]
+    fixed = findings.settings.get("fixed_end_uv")
+    image = frames[position if position is not None else 0].image
+    write_png(overlay_path, draw_overlay(image, findings.mask, begin, end, segmentation, fixed))
+    _write_text(out, text)
+
+    report = [f"setup: shapes on {100 * run.measured:.0f} % of {run.frames} frames with the chosen settings"]
+    report += [f"  {key} = {_toml_value(value)}" for key, value in findings.settings.items()]
+    if findings.length_px is not None:
+        report.append(f"  rope length on the frames: {findings.length_px:.1f} px (median of the shapes)")
+    report += [f"  {note}" for note in findings.notes]
+    if findings.undecided:
+        report.append("not decided:")
+        report += [f"  {item}" for item in findings.undecided]
+    if "rope_length_m" not in settings:
+        report.append("  rope_length_m: metres cannot be seen in pixels; give --rope-length-m (default 1.0 m applies)")
+    legend = ", ".join(f"{name} #{rgb[0]:02x}{rgb[1]:02x}{rgb[2]:02x}" for name, rgb in COLOURS.items())
+    report.append(f"wrote {out}, {overlay_path} (frame {position}: {legend})")
+    if findings.mask is not None:
+        report.append(f"wrote {out.with_name(out.stem + '_mask.png')}")
+    report.append(f"check the overlay, then: ropecam-device extract INPUT --config {out} --out results.jsonl")
+    print("\n".join(report), file=sys.stderr)
+    return 0
+
+
+def _hint(statuses: dict[str, int]) -> str:
+    """What the most frequent status of a failed run suggests to the user."""
+    worst = max(statuses, key=statuses.__getitem__) if statuses else "NO_ROPE"
+    return {
+        "ROPE_CLIPPED": "Most frames were ROPE_CLIPPED: the edges the pipeline took for the rope reach the image "
+        "border (a rod, cable or plate edge joined to the rope, or the rope swinging out of view).",
+        "LOST_TRACK": "Most frames were LOST_TRACK: an outline was found but could not be split into two shapes "
+        '(is the rope moving? a still rope needs method = "static").',
+    }.get(worst, "Is the rope in view, in focus, and against a plain background?")
+
+
+def _overlay_name(out: Path, overlay: str | Path | None) -> str:
+    return Path(overlay).name if overlay else _overlay_path(out).name

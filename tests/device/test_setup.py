@@ -1,0 +1,98 @@
+"""`ropecam-device setup` end to end: a small synthetic frame set -> device.toml that extract measures with; a scene
+without a rope; the refusal to overwrite; the [pipeline] table replaced inside an existing file."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from ropecam.device.capture.frameset import FrameSetWriter
+from ropecam.device.capture.synthetic import SyntheticRope
+from ropecam.device.cli import main
+from ropecam.device.setup import with_pipeline_table
+
+ROPE = SyntheticRope(exposure_us=12000, amplitude_rad=0.7, period_s=0.9, diameter_px=3.0, phase_rad=1.2)
+FRAMES = 12
+
+
+def _write_set(root: Path, images, t_ns, exposure_us: float) -> None:
+    with FrameSetWriter(root, (ROPE.width, ROPE.height), ROPE.fps) as writer:
+        for image, t in zip(images, t_ns, strict=True):
+            writer.add(image, t, exposure_us)
+
+
+@pytest.fixture(scope="module")
+def rope_set(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("setup") / "set"
+    frames = list(ROPE.frames(FRAMES))
+    images = []
+    for f in frames:
+        image = f.image.copy()
+        image[212:226, 8:22] = 250  # a static block: edges in every frame, away from the rope
+        images.append(image)
+    _write_set(root, images, [f.t_ns for f in frames], ROPE.exposure_us)
+    return root
+
+
+def test_setup_writes_a_config_extract_measures_with(tmp_path, rope_set, capsys) -> None:
+    out = tmp_path / "device.toml"
+    assert main(["setup", str(rope_set), "--out", str(out), "--rope-length-m", "0.5", "--quiet"]) == 0
+    table = tomllib.loads(out.read_text())["pipeline"]
+    assert table["rope_length_m"] == 0.5
+    assert {"canny_low", "canny_high"} <= set(table)
+    assert table.get("polarity") == "bright"
+    assert 2.0 < table["rope_width_px"] < 4.5  # the synthetic rope is 3 px wide
+    truth = next(iter(ROPE.frames(1))).begin_uv[0]
+    assert np.hypot(*(np.array(table["fixed_end_uv"]) - truth)) < 3.0
+    overlay = tmp_path / "device_overlay.png"
+    assert cv2.imread(str(overlay)).shape == (ROPE.height, ROPE.width, 3)
+    # The small static block never passes for the rope: the pipeline measures as well without a mask, so none.
+    assert "static_mask_png" not in table and not (tmp_path / "device_mask.png").exists()
+    results = tmp_path / "out.jsonl"
+    assert main(["extract", str(rope_set), "--config", str(out), "--out", str(results), "--quiet"]) == 0
+    records = [json.loads(line) for line in results.read_text().splitlines()]
+    assert sum(r["status"] == "OK" for r in records) >= FRAMES - 1
+    assert records[-1]["fixed_end"] == pytest.approx(table["fixed_end_uv"], abs=1e-3)
+
+
+def test_setup_refuses_to_overwrite_and_keeps_other_tables_with_force(tmp_path, rope_set, capsys) -> None:
+    out = tmp_path / "device.toml"
+    original = (
+        "[capture]\nexposure_us = 4000\n\n"
+        "[pipeline]\nrope_length_m = 0.4\nmaterial_points_m = [0.2, 0.4]\ncanny_low = 3.0\n\n"
+        "[sender]\ndevice_id = 2\n"
+    )
+    out.write_text(original)
+    assert main(["setup", str(rope_set), "--out", str(out), "--quiet"]) == 2
+    assert "--force" in capsys.readouterr().err
+    assert out.read_text() == original
+    assert not (tmp_path / "device_overlay.png").exists()
+    assert main(["setup", str(rope_set), "--out", str(out), "--quiet", "--force"]) == 0
+    data = tomllib.loads(out.read_text())
+    assert data["capture"] == {"exposure_us": 4000} and data["sender"] == {"device_id": 2}
+    assert data["pipeline"]["rope_length_m"] == 0.4  # kept: setup cannot see metres
+    assert data["pipeline"]["canny_low"] != 3.0  # decided
+
+
+def test_setup_on_a_scene_without_a_rope_says_so(tmp_path, capsys) -> None:
+    root = tmp_path / "empty"
+    rng = np.random.default_rng(3)
+    images = [np.clip(rng.normal(60, 2, (ROPE.height, ROPE.width)), 0, 255).astype(np.uint8) for _ in range(8)]
+    _write_set(root, images, [round(i * 1e9 / ROPE.fps) for i in range(8)], ROPE.exposure_us)
+    out = tmp_path / "device.toml"
+    assert main(["setup", str(root), "--out", str(out), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert "no rope found" in err and "Nothing was written" in err
+    assert not out.exists() and not (tmp_path / "device_overlay.png").exists()
+
+
+def test_pipeline_table_replaced_in_place() -> None:
+    old = "# head\n[capture]\nx = 1\n[pipeline]\na = 1\n[pipeline.edges]\nb = 2\n[sender]\ny = 3\n"
+    new = with_pipeline_table(old, "[pipeline]\nc = 4\n")
+    assert new == "# head\n[capture]\nx = 1\n[pipeline]\nc = 4\n[sender]\ny = 3\n"
+    assert with_pipeline_table("[capture]\nx = 1", "[pipeline]\nc = 4\n") == "[capture]\nx = 1\n\n[pipeline]\nc = 4\n"
