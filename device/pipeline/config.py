@@ -72,6 +72,10 @@ class PipelineConfig:
         the rope bends sharply (tight loops, a kink at a clamp).
     max_contour
         Capacity of the contour buffers (points).
+    plane_file
+        A plane calibration (``plane.yaml`` of ``ropecam calibrate plane``, read by the application with
+        `ropecam.shared.plane.read_plane_file`): the fixed end is then its origin projected into the image (unless
+        `fixed_end_uv` is given) and material points are placed by arc length on the plane. None: no calibration.
     """
 
     method: Literal["blur_split", "paper", "centerline", "static"] = "blur_split"
@@ -96,6 +100,7 @@ class PipelineConfig:
     output_step_px: float = 2.0
     output_smoothing_px: float = 24.0
     max_contour: int = 40_000
+    plane_file: str | None = None
 
     def __post_init__(self) -> None:
         check_in("method", self.method, METHODS)
@@ -130,3 +135,5 @@ class PipelineConfig:
         check_range("output_step_px", self.output_step_px, 0.25, 100.0)
         check_range("output_smoothing_px", self.output_smoothing_px, 0.0, 200.0)
         check_range("max_contour", self.max_contour, 100, 10_000_000)
+        if self.plane_file is not None and (not isinstance(self.plane_file, str) or not self.plane_file):
+            raise ConfigError(f"plane_file must be the path of a plane.yaml, got {self.plane_file!r}")
