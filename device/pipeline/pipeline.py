@@ -26,7 +26,7 @@ from ropecam.device.pipeline.result import FrameResult, FrameStatus, exposure_in
 from ropecam.device.pipeline.split import BlurSplitter, SplitOutcome
 from ropecam.device.pipeline.steady import SteadyFrame
 from ropecam.device.pipeline.time_order import DEFAULT_PERIOD_NS, TimeOrder
-from ropecam.device.pipeline.tracking import PointTracker
+from ropecam.device.pipeline.tracking import PointTracker, plane_params
 from ropecam.device.pipeline.traits import RopeTraits
 from ropecam.device.pipeline.workspace import Workspace
 from ropecam.shared.config import check_readout
@@ -106,6 +106,8 @@ class Pipeline:
         self.tracker = PointTracker(
             config.material_points_m, config.rope_length_m, config.length0_px, config.length0_frames, ws.track
         )
+        if plane is not None:
+            self.tracker.plane = plane_params(plane)
         self.traits = RopeTraits(config, self.shape, ws.fixed_end, self.splitter.model.edge_spacing)
         self.fixed = ws.fixed_end.fixed
         """The fixed end (row, col) float32 (`RopeTraits.fixed_end`)."""
@@ -376,6 +378,8 @@ class Pipeline:
             )
             t_mid_ns = result.t_ns + exposure_ns // 2
             self._motion.observe(begin, end, self.fixed, t_mid_ns, float(self.splitter.sweep_px), exposure_ns)
+        if tracker.plane is not None:  # by arc length on the plane (metres), not in pixels
+            tracker.place_on_plane(result.begin, result.end)
         result.status = FrameStatus.OK
 
     def max_age_ns(self) -> int:
