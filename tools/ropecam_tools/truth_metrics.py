@@ -218,7 +218,7 @@ def measure_frameset(
         rope_length_m=length_m,
         material_points_m=tuple(round(f * length_m, 9) for f in MATERIAL_FRACTIONS),
     )
-    camera, plane = frameset_camera(fs.meta)
+    camera, pose = frameset_camera(fs.meta)
     readout_us = round(float(rig.get("readout_ms", 0.0)) * 1000.0)
     pipeline = Pipeline(config, fs.image_size, readout_us, frameset_plane(fs.meta) if plane else None)
     count = len(fs) if frames is None else min(frames, len(fs))
@@ -226,7 +226,7 @@ def measure_frameset(
     for position in range(count):
         record = fs.records[position]
         result = pipeline.process(fs.read(position), position, record.t_ns, float(record.exposure_us))
-        out.append(frame_errors(result, truth, position, camera, plane))
+        out.append(frame_errors(result, truth, position, camera, pose))
     return out
 
 
