@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from typing import Final
 
+import numpy as np
 from numba import float64, int32, types
 
 from ropecam.device.pipeline._kernels._common import INVALID
@@ -74,9 +75,9 @@ def plane_segment_lengths(poly, params, out_seg):
     the total (NaN when a point misses the plane)."""
     n = poly.shape[0]
     total = 0.0
-    px, py = pixel_to_plane(float64(poly[0, 0]), float64(poly[0, 1]), params)
+    px, py = pixel_to_plane(np.float64(poly[0, 0]), np.float64(poly[0, 1]), params)
     for j in range(1, n):
-        x, y = pixel_to_plane(float64(poly[j, 0]), float64(poly[j, 1]), params)
+        x, y = pixel_to_plane(np.float64(poly[j, 0]), np.float64(poly[j, 1]), params)
         seg = math.hypot(x - px, y - py)
         out_seg[j - 1] = seg
         total += seg
