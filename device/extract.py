@@ -62,6 +62,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     parser.add_argument(
         "--fixed-end", nargs=2, type=float, metavar=("U", "V"), help="fixed end pixel (default: found automatically)"
     )
+    parser.add_argument(
+        "--plane",
+        metavar="YAML",
+        help="plane calibration (plane.yaml of `ropecam calibrate plane`): the fixed end is its origin projected "
+        "into the image and material points are placed by arc length on the plane (default: [pipeline] plane_file)",
+    )
+    parser.add_argument(
+        "--readout-us",
+        type=int,
+        metavar="US",
+        help="rolling-shutter readout time in microseconds, first row to last (0 = global shutter, the default; "
+        "default: [capture] readout_us of --config); each record's readout_ns gives every row its own time",
+    )
     parser.add_argument("--limit", type=int, metavar="N", help="stop after N frames")
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
     declare_outputs(parser, "out")
@@ -74,16 +87,24 @@ def _main(args: argparse.Namespace) -> int:
 
     data: dict[str, Any] = {}
     where = "command line"
+    readout_us: Any = 0
+    readout_where = "--readout-us"
     if args.config:
-        table = read_toml(args.config).get("pipeline", {})
-        data = dict(table)
+        document = read_toml(args.config)
+        data = dict(document.get("pipeline", {}))
         where = f"{args.config} [pipeline]"
-    overrides: dict[str, Any] = {"method": args.method}
+        readout_us = document.get("capture", {}).get("readout_us", 0)
+        readout_where = f"{args.config} [capture] readout_us"
+    if args.readout_us is not None:
+        readout_us, readout_where = args.readout_us, "--readout-us"
+    overrides: dict[str, Any] = {"method": args.method, "plane_file": args.plane}
     if args.fixed_end is not None:
         overrides["fixed_end_uv"] = tuple(args.fixed_end)
     config = from_mapping(PipelineConfig, data, where=where, **overrides)
     exposure_us = None if args.exposure_ms is None else args.exposure_ms * 1000.0
-    return run_extract(args.input, args.out, config, args.fps, exposure_us, args.limit, not args.quiet)
+    return run_extract(
+        args.input, args.out, config, args.fps, exposure_us, args.limit, not args.quiet, readout_us, readout_where
+    )
 
 
 def run_extract(
@@ -94,27 +115,45 @@ def run_extract(
     exposure_us: float | None = None,
     limit: int | None = None,
     progress: bool = False,
+    readout_us: int = 0,
+    readout_where: str = "readout_us",
 ) -> int:
     """Run the pipeline over `input_path` and write JSON lines to `out_path`; returns the exit code (0).
+
+    `readout_us` is the rolling shutter's readout time (0: global shutter; `readout_where` names where it was set,
+    for messages); `config.plane_file` a plane calibration. Both are checked before anything is written.
 
     Raises
     ------
     CaptureError
         The input cannot be opened.
+    ConfigError
+        A bad `readout_us` (negative, longer than the frame period) or plane file (unreadable, its origin outside
+        the image, another image size).
     DataError
         The output cannot be written.
     """
     from ropecam.device.capture.sources import open_source
     from ropecam.device.pipeline.pipeline import Pipeline
+    from ropecam.shared.config import check_readout
     from ropecam.shared.errors import DataError
+    from ropecam.shared.plane import read_plane_file
 
+    plane = None if config.plane_file is None else read_plane_file(config.plane_file)
+    if plane is not None:
+        plane.check_image(plane.image_size)
     source = open_source(input_path, fps, exposure_us)
+    check_readout(readout_where, readout_us, source.fps)
+    if source.image_size is not None:  # every check that can fail before the output is created
+        pipeline_first: Pipeline | None = Pipeline(config, source.image_size, readout_us, plane)
+    else:
+        pipeline_first = None
     total = len(source)
     if limit is not None:
         total = min(total, limit) if total else limit
     statuses: Counter[str] = Counter()
     times_us: list[float] = []
-    pipeline: Pipeline | None = None
+    pipeline = pipeline_first
     started = time.monotonic()
     last_report = started
     try:
@@ -127,7 +166,7 @@ def run_extract(
                 break
             image = item.image
             if image is not None and pipeline is None:
-                pipeline = Pipeline(config, (image.shape[1], image.shape[0]))
+                pipeline = Pipeline(config, (image.shape[1], image.shape[0]), readout_us, plane)
             if pipeline is None or image is None:
                 record = _bad_frame(item.index, item.t_ns, item.exposure_us, item.message or "unreadable frame")
             else:

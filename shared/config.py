@@ -25,6 +25,7 @@ __all__ = [
     "check_in",
     "check_positive",
     "check_range",
+    "check_readout",
     "from_mapping",
     "load_tables",
     "load_toml",
@@ -52,6 +53,20 @@ def check_range(name: str, value: float, low: float, high: float) -> None:
     check_finite(name, value)
     if not low <= value <= high:
         raise ConfigError(f"{name} must be in [{low}, {high}], got {value!r}")
+
+
+def check_readout(name: str, readout_us: object, fps: float | None) -> None:
+    """Raise `ConfigError` unless `readout_us` (a rolling shutter's readout time in microseconds, 0 = global
+    shutter) is an integer in [0, frame period]; the period is checked only when `fps` is known."""
+    if isinstance(readout_us, bool) or not isinstance(readout_us, int):
+        raise ConfigError(f"{name} must be an integer number of microseconds (0 = global shutter), got {readout_us!r}")
+    if readout_us < 0:
+        raise ConfigError(f"{name} must be >= 0 (0 = global shutter), got {readout_us}")
+    if fps is not None and fps > 0 and readout_us > 1e6 / fps:
+        raise ConfigError(
+            f"{name} is {readout_us} us, longer than the frame period {1e6 / fps:.0f} us at {fps:g} FPS; "
+            "a sensor reads its rows out within one frame"
+        )
 
 
 def check_in(name: str, value: object, allowed: typing.Iterable[object]) -> None:

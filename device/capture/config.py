@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from ropecam.device.capture.driver import DriverFactory
 from ropecam.device.capture.source import CameraSource
 from ropecam.device.capture.url import open_camera_source, parse_source_url
-from ropecam.shared.config import check_range
+from ropecam.shared.config import check_range, check_readout
 
 __all__ = ["CaptureConfig"]
 
@@ -29,6 +29,10 @@ class CaptureConfig:
         Replay a frame set in a loop; overrides the URL's.
     read_timeout_s
         Longest wait for one frame before a read counts a timeout.
+    readout_us
+        The sensor's rolling-shutter readout time (first row to last row) in microseconds; 0 = global shutter.
+        Row r of a frame starts its exposure ``r / height * readout_us`` after row 0 (docs/pipeline.md, "Time of
+        a shape point"); at most the frame period.
     """
 
     source: str = "v4l2:///dev/video0"
@@ -36,6 +40,7 @@ class CaptureConfig:
     exposure_us: int | None = None
     loop: bool | None = None
     read_timeout_s: float = 1.0
+    readout_us: int = 0
 
     def __post_init__(self) -> None:
         parse_source_url(self.source)
@@ -44,6 +49,7 @@ class CaptureConfig:
         if self.exposure_us is not None:
             check_range("capture.exposure_us", self.exposure_us, 1, 10_000_000)
         check_range("capture.read_timeout_s", self.read_timeout_s, 0.001, 60.0)
+        check_readout("capture.readout_us", self.readout_us, self.fps)
 
     def open(self, driver_factory: DriverFactory | None = None) -> CameraSource:
         """Build the (not started) source; see `open_camera_source`."""

@@ -24,6 +24,7 @@ from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam.device.pipeline.result import to_wire
 from ropecam.device.senders.stream import ResultSender
 from ropecam.shared.errors import CaptureError, TransportError
+from ropecam.shared.plane import read_plane_file
 from ropecam.shared.protocol import AckResult, Command, ControlAck, Log, Status, Verifier, load_key, split_frame
 from ropecam.shared.transport.base import Transport, open_transport
 
@@ -67,6 +68,8 @@ class Daemon:
         self.link_reopened = 0
         self.camera_reopened = 0
         self._pipeline_config = config.pipeline
+        plane_file = config.pipeline.plane_file
+        self._plane = None if plane_file is None else read_plane_file(plane_file)  # [pipeline] plane_file
         self._pipeline: Pipeline | None = None
         self._running = True
         self._raw_frame_requested = False
@@ -237,9 +240,13 @@ class Daemon:
         width, height = source.image_size
         if self._pipeline is not None and self._pipeline.shape == (height, width):
             return False
-        self._pipeline = Pipeline(self._pipeline_config, (width, height))
+        self._pipeline = self._new_pipeline((width, height))
         self._pipeline.warm_up()  # a blank frame (no rope: no tracking state) and the edge model's tables
         return True
+
+    def _new_pipeline(self, image_size: tuple[int, int]) -> Pipeline:
+        """A pipeline for frames of `image_size` with the camera's readout time and the plane calibration."""
+        return Pipeline(self._pipeline_config, image_size, self.config.capture.readout_us, self._plane)
 
     # -- commands --------------------------------------------------------------------------------------------------
     def _apply(self, pending: PendingCommand, source: CameraSource) -> ControlAck:
@@ -365,7 +372,7 @@ class Daemon:
     # -- the loop ----------------------------------------------------------------------------------------------------
     def _measure(self, frame: CapturedFrame, source: CameraSource) -> None:
         if self._pipeline is None:
-            self._pipeline = Pipeline(self._pipeline_config, source.image_size)
+            self._pipeline = self._new_pipeline(source.image_size)
         result = self._pipeline.process(frame.image, frame.sequence, frame.t_ns, frame.exposure_us)
         self.statuses[result.status.name] += 1
         self.frames_measured += 1

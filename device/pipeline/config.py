@@ -87,6 +87,10 @@ class PipelineConfig:
     static_mask_png
         A mask image of the frames' size (non-zero: never the rope; edges there are dropped from the first
         frame), or "" for none.
+    plane_file
+        A plane calibration (``plane.yaml`` of ``ropecam calibrate plane``, read by the application with
+        `ropecam.shared.plane.read_plane_file`): the fixed end is then its origin projected into the image (unless
+        `fixed_end_uv` is given) and material points are placed by arc length on the plane. None: no calibration.
     """
 
     method: Literal["blur_split", "paper", "centerline", "static"] = "blur_split"
@@ -116,6 +120,7 @@ class PipelineConfig:
     static_margin_dn: int = 3
     static_relative: float = 0.1
     static_mask_png: str = ""
+    plane_file: str | None = None
 
     def __post_init__(self) -> None:
         check_in("method", self.method, METHODS)
@@ -156,3 +161,5 @@ class PipelineConfig:
         check_range("static_relative", self.static_relative, 0.0, 1.0)
         if not isinstance(self.static_mask_png, str):
             raise ConfigError(f'static_mask_png must be a file path or "", got {self.static_mask_png!r}')
+        if self.plane_file is not None and (not isinstance(self.plane_file, str) or not self.plane_file):
+            raise ConfigError(f"plane_file must be the path of a plane.yaml, got {self.plane_file!r}")

@@ -10,6 +10,7 @@ last frame was found in its band, a frame is one kernel call (`SteadyFrame`). Ev
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from operator import attrgetter
 
 import numpy as np
@@ -27,9 +28,12 @@ from ropecam.device.pipeline.static_mask import StaticMask
 from ropecam.device.pipeline.steady import SteadyFrame
 from ropecam.device.pipeline.thresholds import EdgeThresholds
 from ropecam.device.pipeline.time_order import DEFAULT_PERIOD_NS, TimeOrder
-from ropecam.device.pipeline.tracking import PointTracker
+from ropecam.device.pipeline.tracking import PointTracker, plane_params
 from ropecam.device.pipeline.traits import RopeTraits
 from ropecam.device.pipeline.workspace import Workspace
+from ropecam.shared.config import check_readout
+from ropecam.shared.errors import ConfigError
+from ropecam.shared.plane import PlaneCalibration
 
 __all__ = ["Pipeline"]
 
@@ -48,12 +52,43 @@ class Pipeline:
         Pipeline settings.
     image_size
         (width, height) of every frame; frames of another size get status BAD_FRAME.
+    readout_us
+        The camera's rolling-shutter readout time (microseconds, 0 = global shutter): every result's
+        ``readout_ns``, the time row r of a shape was seen being ``t_ns + r / height * readout_ns`` (begin) and
+        ``t_end_ns + r / height * readout_ns`` (end).
+    plane
+        The plane calibration (`ropecam.shared.plane.read_plane_file`) or None: its origin projected into the
+        image is the fixed end (unless the config gives `fixed_end_uv`).
+
+    Raises
+    ------
+    ConfigError
+        The plane origin projects outside the image; `readout_us` is negative.
     """
 
-    def __init__(self, config: PipelineConfig, image_size: tuple[int, int]) -> None:
+    def __init__(
+        self,
+        config: PipelineConfig,
+        image_size: tuple[int, int],
+        readout_us: int = 0,
+        plane: PlaneCalibration | None = None,
+    ) -> None:
         width, height = (int(v) for v in image_size)
         if width < 8 or height < 8:
             raise ValueError(f"image_size must be at least 8x8, got {image_size}")
+        check_readout("readout_us", readout_us, None)
+        self.readout_ns = int(readout_us) * 1000
+        """Every result's ``readout_ns`` (0: global shutter)."""
+        self.plane = plane
+        if plane is not None:
+            if tuple(plane.image_size) != (width, height):
+                raise ConfigError(
+                    f"{plane.source}: calibrated for {plane.image_size[0]}x{plane.image_size[1]} images, the frames "
+                    f"are {width}x{height}; expected a plane calibration of this camera at this resolution"
+                )
+            plane.check_image((width, height))
+            if config.fixed_end_uv is None:
+                config = replace(config, fixed_end_uv=plane.origin_uv())
         self.config = config
         self.shape = (height, width)
         cap = config.max_contour
@@ -86,6 +121,8 @@ class Pipeline:
         self.tracker = PointTracker(
             config.material_points_m, config.rope_length_m, config.length0_px, config.length0_frames, ws.track
         )
+        if plane is not None:
+            self.tracker.plane = plane_params(plane)
         self.traits = RopeTraits(config, self.shape, ws.fixed_end, self.splitter.model.edge_spacing)
         self.fixed = ws.fixed_end.fixed
         """The fixed end (row, col) float32 (`RopeTraits.fixed_end`)."""
@@ -163,6 +200,7 @@ class Pipeline:
             if type(exposure_us) is float:
                 self._exposure_key, self._exposure_value = exposure_us, (exposure_ns, exposure_problem)
         result = FrameResult(int(index), t, t + exposure_ns, FrameStatus.BAD_FRAME)
+        result.readout_ns = self.readout_ns
         if type(frame) is np.ndarray and frame.dtype is self._u8 and frame.shape == self.shape:
             problem = exposure_problem  # the usual case, without building the messages of `frame_problem`
         else:
@@ -385,6 +423,8 @@ class Pipeline:
             )
             t_mid_ns = result.t_ns + exposure_ns // 2
             self._motion.observe(begin, end, self.fixed, t_mid_ns, float(self.splitter.sweep_px), exposure_ns)
+        if tracker.plane is not None:  # by arc length on the plane (metres), not in pixels
+            tracker.place_on_plane(result.begin, result.end)
         result.status = FrameStatus.OK
 
     def max_age_ns(self) -> int:

@@ -31,6 +31,9 @@ class FrameResult:
 
     ``begin``/``end`` are the centrelines at the start and end of the exposure, fixed end first; ``None`` when not
     measured. ``order_confidence`` (0-1) says how sure the pipeline is that ``begin`` really is the earlier shape.
+    ``readout_ns`` is the rolling shutter's readout time (0: global shutter): a point of ``begin`` on image row r
+    (its v) was seen at ``t_ns + r / height * readout_ns``, a point of ``end`` at ``t_end_ns + r / height *
+    readout_ns`` (height: the image's rows); material points likewise.
     """
 
     frame: int
@@ -53,6 +56,7 @@ class FrameResult:
     pipeline_us: float = 0.0
     message: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
+    readout_ns: int = 0
 
     @property
     def tips(self) -> tuple[NDArray[np.float32], NDArray[np.float32]] | None:
@@ -71,6 +75,7 @@ class FrameResult:
             roi=not self.full_frame,
             message=self.message,
         )
+        record.setdefault("readout_ns", int(self.readout_ns))
         return record
 
 

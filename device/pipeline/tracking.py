@@ -8,8 +8,21 @@ from numpy.typing import NDArray
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import as_ro
 from ropecam.device.pipeline.workspace import TRACK_WORK, TrackBuffers, expose
+from ropecam.shared.plane import PlaneCalibration
 
-__all__ = ["PointTracker"]
+__all__ = ["PointTracker", "plane_params"]
+
+
+def plane_params(plane: PlaneCalibration) -> NDArray[np.float64]:
+    """Return the plane calibration as the read-only array the plane kernels take (`_kernels.plane`)."""
+    params = np.zeros(K.PLANE_PARAMS, np.float64)
+    m = plane.camera_matrix
+    params[0:5] = (m[0, 0], m[0, 1], m[0, 2], m[1, 1], m[1, 2])
+    params[5 : 5 + plane.distortion.size] = plane.distortion
+    params[13:22] = plane.rotation.ravel()
+    params[22:25] = -plane.rotation.T @ plane.translation_m
+    params.flags.writeable = False
+    return params
 
 
 @expose("buffers", TrackBuffers)
@@ -59,6 +72,8 @@ class PointTracker:
         self.out_slots = (self.out[0], self.out[1])
         self.length0_settled_px = -1.0 if length0_px is None else float(length0_px)
         """Lc0 once it no longer changes (configured, or all its shapes seen); -1 before."""
+        self.plane: NDArray[np.float64] | None = None
+        """The plane calibration (`plane_params`) when material points are placed by arc length on the plane."""
 
     def restart(self) -> None:
         """Forget the shapes' lengths seen so far (a configured Lc0 stays): Lc0 is measured again."""
@@ -122,3 +137,20 @@ class PointTracker:
         if status < 0:
             raise ValueError(f"cannot track material points on polylines of {len(begin)} and {len(end)} points")
         return self.out_slots[0], stretch_begin, self.out_slots[1], stretch_end
+
+    def place_on_plane(self, begin: NDArray[np.float32], end: NDArray[np.float32]) -> bool:
+        """Move the material points of `begin` and `end` (as `track_shapes` found them, in `out`) to the same
+        fractions of each shape's arc length on the plane (`plane` set; one kernel call, `place_on_plane`).
+        Returns False (the points as they were) when a shape misses the plane."""
+        assert self.plane is not None
+        single = begin is end
+        work = self.work
+        if len(begin) > len(work) or len(end) > len(work):
+            work = np.zeros(max(len(begin), len(end)), np.float64)
+        try:
+            status = K.place_on_plane(begin, end, single, self.fraction_ro, self.plane, self.out, work)
+        except TypeError:  # not the splitter's writable float32 buffers: copies
+            begin = np.array(begin, np.float32)
+            end = begin if single else np.array(end, np.float32)
+            status = K.place_on_plane(begin, end, single, self.fraction_ro, self.plane, self.out, work)
+        return status >= 0

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ropecam.host.calibration.geometry import CameraModel, PlanePose, pixels_to_plane
+from ropecam.host.calibration.geometry import CameraModel, PlanePose, pixels_to_plane, plane_to_pixels
 from ropecam.host.compare.tracks import MaterialPointTracks
 from ropecam.shared.errors import ConfigError, DataError
 
@@ -44,7 +44,12 @@ def default_points(length_m: float) -> list[float]:
 
 @dataclass(frozen=True)
 class MeasuredFrame:
-    """One frame's measured shapes in distorted pixels (None where not measured) and exposure times in ns."""
+    """One frame's measured shapes in distorted pixels (None where not measured) and exposure times in ns.
+
+    ``readout_ns`` is the rolling shutter's readout time (0: global shutter): a point on image row v of the begin
+    shape was seen at ``t_begin_ns + v / height * readout_ns``, of the end shape at ``t_end_ns + v / height *
+    readout_ns`` (height: the camera's image height).
+    """
 
     frame: int
     t_begin_ns: int
@@ -52,6 +57,7 @@ class MeasuredFrame:
     begin_px: NDArray[np.float64] | None
     end_px: NDArray[np.float64] | None
     status: str = "OK"
+    readout_ns: int = 0
 
 
 def measured_frame(record: FrameResult) -> MeasuredFrame:
@@ -63,6 +69,7 @@ def measured_frame(record: FrameResult) -> MeasuredFrame:
         record.begin_px,
         record.end_px,
         record.status.name,
+        int(getattr(record, "readout_ns", 0)),  # wire v2 carries it; v1 is a global shutter
     )
 
 
@@ -99,12 +106,15 @@ def read_extract_jsonl(path: str | Path) -> list[MeasuredFrame]:
             t_begin = int(record["t_ns"])
             end_time = record.get("t_end_ns")
             t_end = t_begin if end_time is None else int(end_time)
+            readout_ns = int(record.get("readout_ns", 0) or 0)
         except (json.JSONDecodeError, KeyError, TypeError, ValueError, AttributeError) as exc:
             raise DataError(f"{where}: not an extract record (needs frame, t_ns): {exc}") from exc
         if record.get("end") is not None and (end_time is None or t_end <= t_begin):
             # The end shape belongs to the end of the exposure: without its own later time it would be placed at
             # the start and bias every fit by one exposure.
             raise DataError(f"{where}: an 'end' shape needs 't_end_ns' after 't_ns', got {end_time!r}")
+        if readout_ns < 0:
+            raise DataError(f"{where}: 'readout_ns' must be >= 0 (0 = global shutter), got {readout_ns}")
         frames.append(
             MeasuredFrame(
                 frame=frame,
@@ -113,6 +123,7 @@ def read_extract_jsonl(path: str | Path) -> list[MeasuredFrame]:
                 begin_px=_points(record.get("begin"), f"{where} begin"),
                 end_px=_points(record.get("end"), f"{where} end"),
                 status=str(record.get("status", "OK")),
+                readout_ns=readout_ns,
             )
         )
     if not frames:
@@ -174,6 +185,24 @@ def shape_points_m(
     return points_at_arc_lengths(pixels_to_plane(shape_px, camera, plane), s_m, length_m)
 
 
+def _point_times(
+    t_ns: int,
+    readout_ns: int,
+    points_m: NDArray[np.float64],
+    camera: CameraModel,
+    plane: PlanePose,
+    height: float,
+) -> NDArray[np.float64]:
+    """When each material point (K, 2) m of a shape exposed from `t_ns` was seen (s): ``t_ns + v / height *
+    readout_ns``, v its image row (a rolling shutter); `t_ns` for all with a global shutter or unmeasured points."""
+    times = np.full(len(points_m), t_ns * 1e-9)
+    measured = np.all(np.isfinite(points_m), axis=1)
+    if readout_ns > 0 and measured.any():
+        rows = plane_to_pixels(points_m[measured], camera, plane)[:, 1]
+        times[measured] += np.clip(rows, 0.0, height) / height * readout_ns * 1e-9
+    return times
+
+
 def tracks_from_frames(
     frames: Iterable[MeasuredFrame],
     camera: CameraModel,
@@ -210,6 +239,8 @@ def tracks_from_frames(
     numbers: list[int] = []
     velocities: list[NDArray[np.float64]] = []
     mid_exposure: list[float] = []
+    point_times: list[NDArray[np.float64]] = []
+    height = float(camera.image_size[1])
     off_plane: list[str] = []
     shapes = 0
     for frame in frames:
@@ -223,6 +254,7 @@ def tracks_from_frames(
                 off_plane.append(f"frame {frame.frame} (t_ns {t_ns}): {exc}")
                 points, stretch = np.full((s.size, 2), np.nan), math.nan
             positions.append(points)
+            point_times.append(_point_times(t_ns, frame.readout_ns, points, camera, plane, height))
             stretches.append(stretch)
             pair.append(points)
         exposure_s = (frame.t_end_ns - frame.t_begin_ns) * 1e-9
@@ -240,7 +272,8 @@ def tracks_from_frames(
     if skipped is not None:
         skipped.extend(f"{line}: skipped (off the plane)" for line in off_plane)
     tracks = MaterialPointTracks(
-        np.asarray(times), s, np.stack(positions), np.asarray(numbers), np.stack(velocities), np.asarray(mid_exposure)
-    )
+        np.asarray(times), s, np.stack(positions), np.asarray(numbers), np.stack(velocities), np.asarray(mid_exposure),
+        np.stack(point_times),
+    )  # fmt: skip
     order = np.argsort(np.asarray(times), kind="stable")
     return tracks, np.asarray(stretches)[order]

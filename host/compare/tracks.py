@@ -33,6 +33,10 @@ class MaterialPointTracks:
     mid_exposure_s
         Optional, shape (M,): the middle of the sample's exposure, the time the in-frame velocity belongs to
         (default: `times_s`).
+    point_times_s
+        Optional, shape (M, K): when each point of each sample was seen. A rolling shutter exposes row r
+        ``r / height * readout`` after row 0, so the points of one shape have their own times (docs/compare.md,
+        "Rolling shutter"); default: `times_s` for every point (a global shutter). The model is evaluated there.
     """
 
     times_s: NDArray[np.float64]
@@ -41,6 +45,7 @@ class MaterialPointTracks:
     frames: NDArray[np.int64] | None = None
     in_frame_velocities_m_s: NDArray[np.float64] | None = None
     mid_exposure_s: NDArray[np.float64] | None = None
+    point_times_s: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         t = np.asarray(self.times_s, dtype=np.float64)
@@ -59,7 +64,12 @@ class MaterialPointTracks:
                 f"frames and mid_exposure_s must have shape ({t.size},), in_frame_velocities_m_s {p.shape}; got "
                 f"{frames.shape}, {mid.shape}, {velocities.shape}"
             )
+        point_t = np.repeat(t[:, None], s.size, axis=1) if self.point_times_s is None else self.point_times_s
+        point_t = np.asarray(point_t, dtype=np.float64)
+        if point_t.shape != (t.size, s.size) or not np.all(np.isfinite(point_t)):
+            raise ValueError(f"point_times_s must be finite with shape ({t.size}, {s.size}), got {point_t.shape}")
         order = np.argsort(t, kind="stable")
+        object.__setattr__(self, "point_times_s", point_t[order])
         object.__setattr__(self, "times_s", t[order])
         object.__setattr__(self, "s_m", s)
         object.__setattr__(self, "positions_m", p[order])
@@ -74,14 +84,22 @@ class MaterialPointTracks:
 
 
 def model_positions(trajectory: Trajectory, tracks: MaterialPointTracks, release_time_s: float) -> NDArray[np.float64]:
-    """Evaluate the model at the tracks' times and arc lengths; shape (M, K, 2).
+    """Evaluate the model at the tracks' arc lengths, each point at its own time (`point_times_s`: a rolling
+    shutter sees each row at its own time); shape (M, K, 2).
 
     Model time is ``t - release_time_s``; before the release the rope is in its initial state.
     """
-    model_t = np.clip(tracks.times_s - release_time_s, trajectory.times_s[0], trajectory.times_s[-1])
-    if np.any(tracks.times_s - release_time_s > trajectory.times_s[-1] + 1e-9):
+    point_t = tracks.point_times_s
+    assert point_t is not None  # set by __post_init__
+    if np.any(point_t - release_time_s > trajectory.times_s[-1] + 1e-9):
         raise ValueError("the model trajectory ends before the last measurement")
-    return trajectory.positions(model_t, tracks.s_m)
+    model_t = np.clip(point_t - release_time_s, trajectory.times_s[0], trajectory.times_s[-1])
+    if np.array_equal(point_t, np.repeat(tracks.times_s[:, None], tracks.s_m.size, axis=1)):
+        return trajectory.positions(model_t[:, 0], tracks.s_m)  # a global shutter: one time per sample
+    out = np.empty((*point_t.shape, 2))
+    for k in range(tracks.s_m.size):
+        out[:, k] = trajectory.positions(model_t[:, k], tracks.s_m[k : k + 1])[:, 0]
+    return out
 
 
 def model_velocities(trajectory: Trajectory, tracks: MaterialPointTracks, release_time_s: float) -> NDArray[np.float64]:

@@ -47,7 +47,7 @@ def _row(frameset: Path, out: Path, seconds: float, frames: int | None) -> dict[
     table = read_toml(toml).get("pipeline", {})
     row["setup"] = {k: v for k, v in table.items() if k not in ("rope_length_m", "material_points_m")}
     config = from_mapping(PipelineConfig, table, where=str(toml))
-    row.update(summarise(measure_frameset(frameset, "blur_split", frames, config)))
+    row.update(summarise(measure_frameset(frameset, "blur_split", frames, config=config)))
     return row
 
 

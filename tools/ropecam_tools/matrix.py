@@ -62,6 +62,12 @@ from ropecam_tools.matrix_design import (
 )
 
 MIN_FRAMES = 2
+PLANE_CHOICES = ("lab", "all", "none")
+
+
+def uses_plane(scene: Scene, plane: str) -> bool:
+    """Whether the pipeline gets the plane calibration on `scene` under ``--plane`` `plane`."""
+    return plane == "all" or (plane == "lab" and scene.preset.startswith("lab"))
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -86,6 +92,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"folder of the real rope photographs (default {REALDATA})")  # fmt: skip
     parser.add_argument("--keep-frames", action="store_true",
                         help="keep the rendered frame sets in OUT/framesets (and reuse matching ones)")  # fmt: skip
+    parser.add_argument("--plane", choices=PLANE_CHOICES, default="lab",
+                        help="give the pipeline the plane calibration (the simulator's true camera and plane, as "
+                        "plane.yaml would): lab (default: the lab presets' scenes, as a lab's device would have one), "
+                        "all scenes, or none")  # fmt: skip
     parser.add_argument("--no-plots", action="store_true", help="write the tables only (no matplotlib)")
     parser.add_argument("--replot", action="store_true",
                         help="measure nothing: rewrite the tables and plots of OUT from OUT/matrix.json")  # fmt: skip
@@ -126,8 +136,11 @@ def _reusable(folder: Path, frames: int) -> bool:
     return len(FrameSet(folder)) == frames
 
 
-def run_scene(scene: Scene, frames: int, methods: tuple[str, ...], trajectory: str, folder: str | None) -> dict:
-    """Render `scene` (or reuse its kept frame set) and measure every method on it.
+def run_scene(
+    scene: Scene, frames: int, methods: tuple[str, ...], trajectory: str, folder: str | None, plane: bool = False
+) -> dict:
+    """Render `scene` (or reuse its kept frame set) and measure every method on it (with the true plane
+    calibration when `plane`).
 
     Returns the per-method summaries and per-frame errors, and the wall and CPU seconds of each step.
     """
@@ -151,7 +164,7 @@ def run_scene(scene: Scene, frames: int, methods: tuple[str, ...], trajectory: s
         results = {}
         for method in methods:
             wall, cpu = time.perf_counter(), time.process_time()
-            errors = measure_frameset(target, method, frames)
+            errors = measure_frameset(target, method, frames, plane=plane)
             results[method] = {
                 "summary": summarise(errors),
                 "frames": frame_rows(errors),
@@ -315,7 +328,7 @@ def run(args: argparse.Namespace) -> int:
         jobs = {}
         for key, scene in unique.items():
             folder = None if frames_root is None else str(frames_root / scene.folder)
-            jobs[key] = (run_scene, scene, args.frames, methods, scene_traj[key], folder)
+            jobs[key] = (run_scene, scene, args.frames, methods, scene_traj[key], folder, uses_plane(scene, args.plane))
         measured: dict[str, dict] = {}
         failed: dict[str, str] = {}
         for key, future in _as_done(pool, jobs):
@@ -342,6 +355,7 @@ def run(args: argparse.Namespace) -> int:
         "methods": list(methods),
         "sections": list(args.only),
         "workers": args.workers,
+        "plane": args.plane,
         "wall_s": time.perf_counter() - started_wall,
         "cpu_s": sum(u.ru_utime + u.ru_stime for u in (usage_self, usage_children)),
         "cpus": os.cpu_count(),

@@ -167,11 +167,27 @@ def frameset_camera(meta: dict[str, Any]) -> tuple[Any, Any]:
     return model, PlanePose.from_rvec(meta["plane"]["rvec"], meta["plane"]["tvec_m"])
 
 
-def measure_frameset(path: str | Path, method: str, frames: int | None = None, config: Any = None) -> list[FrameErrors]:
-    """Run `method` over a simulator frame set, as the device would (fixed end found automatically).
+def frameset_plane(meta: dict[str, Any]) -> Any:
+    """Return the simulator's true camera and plane as the device's `PlaneCalibration` (what a perfect
+    ``plane.yaml`` holds)."""
+    from ropecam.shared.plane import PlaneCalibration
+
+    camera, plane = frameset_camera(meta)
+    return PlaneCalibration(
+        camera.camera_matrix, camera.distortion.ravel(), tuple(camera.image_size), plane.rotation,
+        plane.translation_m, "the frame set's true plane",
+    )  # fmt: skip
+
+
+def measure_frameset(
+    path: str | Path, method: str, frames: int | None = None, plane: bool = False, config: Any = None
+) -> list[FrameErrors]:
+    """Run `method` over a simulator frame set, as the device would (fixed end found automatically, or with
+    `plane` from the true plane calibration as the device's ``plane_file`` gives it).
 
     The pipeline is told the rope's true length (``rig.rope_length_m``) so that its material points (at
-    `MATERIAL_FRACTIONS` of the length) are the same material as the truth's; nothing else of the truth is given.
+    `MATERIAL_FRACTIONS` of the length) are the same material as the truth's; nothing else of the truth is given
+    (but the plane calibration with `plane`).
 
     Parameters
     ----------
@@ -181,6 +197,8 @@ def measure_frameset(path: str | Path, method: str, frames: int | None = None, c
         A pipeline method (`ropecam.device.pipeline.config.METHODS`).
     frames
         Use at most this many frames (all when None).
+    plane
+        Give the pipeline the frame set's true plane calibration (a perfect ``plane.yaml``).
     config
         A `PipelineConfig` to start from (a device.toml's, e.g. written by ``ropecam-device setup``); its method,
         rope length and material points are replaced as above. None: the defaults.
@@ -206,14 +224,15 @@ def measure_frameset(path: str | Path, method: str, frames: int | None = None, c
         rope_length_m=length_m,
         material_points_m=tuple(round(f * length_m, 9) for f in MATERIAL_FRACTIONS),
     )
-    camera, plane = frameset_camera(fs.meta)
-    pipeline = Pipeline(config, fs.image_size)
+    camera, pose = frameset_camera(fs.meta)
+    readout_us = round(float(rig.get("readout_ms", 0.0)) * 1000.0)
+    pipeline = Pipeline(config, fs.image_size, readout_us, frameset_plane(fs.meta) if plane else None)
     count = len(fs) if frames is None else min(frames, len(fs))
     out = []
     for position in range(count):
         record = fs.records[position]
         result = pipeline.process(fs.read(position), position, record.t_ns, float(record.exposure_us))
-        out.append(frame_errors(result, truth, position, camera, plane))
+        out.append(frame_errors(result, truth, position, camera, pose))
     return out
 
 

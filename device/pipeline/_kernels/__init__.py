@@ -118,6 +118,12 @@ from ropecam.device.pipeline._kernels.offsets import (
     slope_sweep_median,
 )
 from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots, thin_chain
+from ropecam.device.pipeline._kernels.plane import (
+    PLANE_PARAMS,
+    pixel_to_plane,
+    place_on_plane,
+    plane_segment_lengths,
+)
 from ropecam.device.pipeline._kernels.polylines import (
     anchor_start,
     extend_to_band_end,
@@ -203,6 +209,7 @@ __all__ = [
     "ORDER_COUNT",
     "ORDER_ORDERED",
     "ORDER_REJECTS",
+    "PLANE_PARAMS",
     "SPLIT_PARAMS",
     "SPLIT_STATIC",
     "STEADY_AFTER_CONTOUR",
@@ -267,7 +274,10 @@ __all__ = [
     "offset_side",
     "order_shapes",
     "padded_end",
+    "pixel_to_plane",
     "place_along_gradient",
+    "place_on_plane",
+    "plane_segment_lengths",
     "polyline_length",
     "predict_motion",
     "quotient",

@@ -240,6 +240,8 @@ def test_systemd_ready_watchdog_and_stopping(rig_set: Path, tmp_path: Path) -> N
         ("[sender]\ndevice_id = 0\n", r"sender.device_id must be in \[1, 65534\]"),
         ("[pipeline]\nmethod = 'magic'\n", "method"),
         ("[control]\nkey_hex = '12'\n", "at least 16 are required"),
+        ("[capture]\nreadout_us = -1\n", r"capture.readout_us must be >= 0 \(0 = global shutter\)"),
+        ("[capture]\nfps = 119\nreadout_us = 9000\n", "capture.readout_us is 9000 us, longer than the frame period"),
     ],
 )
 def test_bad_config_names_the_table_and_key(tmp_path: Path, toml: str, message: str) -> None:
@@ -248,3 +250,12 @@ def test_bad_config_names_the_table_and_key(tmp_path: Path, toml: str, message: 
     with pytest.raises(ConfigError, match=message) as info:
         load_device_config(path)
     assert str(path) in str(info.value)
+
+
+def test_a_plane_file_that_does_not_fit_stops_the_daemon_with_its_name(rig_set: Path, tmp_path: Path) -> None:
+    missing = tmp_path / "plane.yaml"
+    config = _config(rig_set, "loop://daemon-plane")
+    with pytest.raises(ConfigError, match=r"plane\.yaml: cannot read the plane calibration"):
+        Daemon(
+            DeviceConfig(capture=config.capture, pipeline=PipelineConfig(plane_file=str(missing)), sender=config.sender)
+        )
