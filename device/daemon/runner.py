@@ -63,6 +63,8 @@ class Daemon:
         self._transport_factory = transport_factory
         self._verifier = Verifier(load_key(config.control))
         self.statuses: Counter[str] = Counter()
+        self.check_failures: Counter[str] = Counter()
+        """Frames a self-check failed, by reason (``"length"``, ``"no_blur"``, ...; sent as ``check_<reason>``)."""
         self.frames_measured = 0
         self.link_reopened = 0
         self.camera_reopened = 0
@@ -335,6 +337,7 @@ class Daemon:
             "running": int(self._running),
         }
         named.update({f"frames_{status.lower()}": count for status, count in self.statuses.items()})
+        named.update({f"check_{reason}": count for reason, count in self.check_failures.items()})
         status = Status(
             frame_rate_hz=self._rate.sample(delivered),
             frames_captured=delivered,
@@ -368,6 +371,8 @@ class Daemon:
             self._pipeline = Pipeline(self._pipeline_config, source.image_size)
         result = self._pipeline.process(frame.image, frame.sequence, frame.t_ns, frame.exposure_us)
         self.statuses[result.status.name] += 1
+        if result.reason:
+            self.check_failures[result.reason] += 1
         self.frames_measured += 1
         if self.sender is not None:
             self.sender.submit_frame(to_wire(result))

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
+from ropecam.device.pipeline.checks import ChecksConfig
 from ropecam.shared.config import check_in, check_positive, check_range
 from ropecam.shared.errors import ConfigError
 
@@ -72,6 +73,8 @@ class PipelineConfig:
         the rope bends sharply (tight loops, a kink at a clamp).
     max_contour
         Capacity of the contour buffers (points).
+    checks
+        The self-checks' thresholds (the ``[pipeline.checks]`` table, `ChecksConfig`).
     """
 
     method: Literal["blur_split", "paper", "centerline", "static"] = "blur_split"
@@ -96,6 +99,7 @@ class PipelineConfig:
     output_step_px: float = 2.0
     output_smoothing_px: float = 24.0
     max_contour: int = 40_000
+    checks: ChecksConfig = field(default_factory=ChecksConfig)
 
     def __post_init__(self) -> None:
         check_in("method", self.method, METHODS)
@@ -130,3 +134,5 @@ class PipelineConfig:
         check_range("output_step_px", self.output_step_px, 0.25, 100.0)
         check_range("output_smoothing_px", self.output_smoothing_px, 0.0, 200.0)
         check_range("max_contour", self.max_contour, 100, 10_000_000)
+        if not isinstance(self.checks, ChecksConfig):
+            raise ConfigError(f"checks must be a ChecksConfig ([pipeline.checks] table), got {self.checks!r}")
