@@ -25,6 +25,7 @@ from ropecam.device.pipeline.result import to_wire
 from ropecam.device.senders.stream import ResultSender
 from ropecam.shared.errors import CaptureError, TransportError
 from ropecam.shared.protocol import AckResult, Command, ControlAck, Log, Status, Verifier, load_key, split_frame
+from ropecam.shared.protocol.shapes import ShapeCodecConfig
 from ropecam.shared.transport.base import Transport, open_transport
 
 __all__ = ["EXIT_CAMERA_LOST", "EXIT_OK", "Daemon"]
@@ -108,8 +109,9 @@ class Daemon:
             sender_config = self.config.sender
             broken = threading.Event()
             self.sender = ResultSender(
-                self.transport, sender_config.device_id, sender_config.queue_frames, sequence, link_broken=broken
-            )
+                self.transport, sender_config.device_id, sender_config.queue_frames, sequence, link_broken=broken,
+                shape_config=ShapeCodecConfig(tolerance_px=sender_config.shape_tolerance_px),
+            )  # fmt: skip
             self.listener = ControlListener(
                 self.transport,
                 self.sender,

@@ -71,8 +71,8 @@ def _assert_same_results(received: list[FrameResult], expected: list[FrameResult
             a, b = getattr(got, name), getattr(want, name)
             assert (a is None) == (b is None)
             if a is not None:
-                # The wire carries a compact curve within 0.05 px of the device's polyline.
-                assert polyline_distances_px(b, a).max() <= 0.05 + 1e-6
+                # The wire carries a compact curve within the sender's tolerance of the device's polyline.
+                assert polyline_distances_px(b, a).max() <= SenderConfig().shape_tolerance_px + 1e-6
 
 
 def _collect(link, until: float, decode=decode_message) -> list:
