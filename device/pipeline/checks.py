@@ -163,6 +163,11 @@ class SelfChecks:
         predicted[1] = fixed[1] + f_re * z_im + f_im * z_re
         predicted[2] = error_px
 
+    def needs_area(self, exposure_ns: int) -> bool:
+        """True when a split needs the contour's area as evidence of blur: its exposure is unknown, or the motion
+        model has no prediction to check its tips against (the first frames, a gap)."""
+        return exposure_ns <= 0 or math.isnan(self._predicted[2])
+
     def forget(self) -> None:
         """Drop the prediction (the motion model was cleared)."""
         self._predicted[2] = math.nan
@@ -241,14 +246,15 @@ class SelfChecks:
         if failed is Reason.NONE and split and exposure_ns > 0 and order_confidence < c.min_order_confidence:
             failed = Reason.ORDER
         evidence = math.nan
-        if split and exposure_ns <= 0:
+        unchecked = split and self.needs_area(exposure_ns)
+        if unchecked:
             length_px = _length_px(begin)
             evidence = (contour_area_px2 - length_px * width) / max(0.5 * length_px * separation, 1.0)
         q["blur_evidence"] = evidence
         # The pixel contour's area is uncertain by ~ half a pixel along both sides (~ length px^2), which is
         # 2 / separation of the implied sweep area: a verdict only where that is below half the threshold.
         limit_px = max(c.no_blur_px, 4.0 / c.min_blur_evidence) if c.min_blur_evidence > 0 else c.no_blur_px
-        if split and exposure_ns <= 0 and separation > limit_px and not evidence >= c.min_blur_evidence:
+        if unchecked and separation > limit_px and not evidence >= c.min_blur_evidence:
             failed = Reason.NO_BLUR  # before the others: the pipeline replaces the split by the static centreline
         if failed is Reason.NONE or not c.enabled:
             return FrameStatus.OK, Reason.NONE

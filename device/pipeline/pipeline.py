@@ -358,8 +358,10 @@ class Pipeline:
         learned_px = traits.settled[0] if traits.settled is not None else traits.width()
         checks = self.checks
         split = outcome.shape_a is not outcome.shape_b
-        # The contour's area only where it is evidence: a split of unknown exposure (never a steady lab frame).
-        area = contour_area_px2(self.tracer.points, self.locator.prev_count) if split and not exposure_ns else 0.0
+        # The contour's area only where it is the evidence: a split of unknown exposure or without a prediction.
+        area = 0.0
+        if split and checks.needs_area(exposure_ns):
+            area = contour_area_px2(self.tracer.points, self.locator.prev_count)
         status, reason = checks.check(
             begin, end, self.fixed, result.stretch_begin, result.stretch_end, outcome.width_px, learned_px,
             result.order_confidence, exposure_ns, split, area,

@@ -15,6 +15,10 @@ from ropecam.shared.errors import ConfigError
 
 FIXED = np.array([10.0, 100.0], np.float32)
 WIDTH_PX = 5.0
+STILL_AREA_PX2 = 200.0 * WIDTH_PX
+"""A still rope's contour (200 px long) encloses length x width."""
+SWEPT_AREA_PX2 = STILL_AREA_PX2 + 0.5 * 200.0 * 20.0
+"""... and the band of a 20 px tip sweep about the fixed end adds half the length x the sweep."""
 
 
 def _shape(tip_col: float, start: tuple[float, float] = (10.0, 100.0), length: int = 200) -> np.ndarray:
@@ -36,6 +40,7 @@ def _check(checks: SelfChecks, **changes: object) -> tuple[FrameStatus, Reason]:
         "order_confidence": 0.97,
         "exposure_ns": 4_000_000,
         "split": True,
+        "contour_area_px2": SWEPT_AREA_PX2,
     }
     frame.update(changes)
     return checks.check(**frame)  # type: ignore[arg-type]
@@ -82,8 +87,8 @@ def test_tip_motion_against_the_motion_models_prediction() -> None:
     jumped = _shape(160.0)  # 60 px off the prediction
     assert _check(checks, begin=jumped, end=jumped) == (FrameStatus.IMPLAUSIBLE, Reason.TIP_MOTION)
     assert checks.quality["tip_motion_px"] > checks.quality["tip_motion_limit_px"]
-    checks.forget()
-    assert _check(checks, begin=jumped, end=jumped) == (FrameStatus.OK, Reason.NONE)
+    checks.forget()  # no prediction: the jump is not checked (one shape: no blur evidence needed either)
+    assert _check(checks, begin=jumped, end=jumped, split=False) == (FrameStatus.OK, Reason.NONE)
 
 
 def test_an_uncertain_time_order_fails_only_when_asked_and_decidable() -> None:
@@ -93,18 +98,21 @@ def test_an_uncertain_time_order_fails_only_when_asked_and_decidable() -> None:
     assert _check(SelfChecks(ChecksConfig()), order_confidence=0.6) == (FrameStatus.OK, Reason.NONE)  # default off
 
 
-def test_a_split_of_unknown_exposure_needs_evidence_of_blur() -> None:
+@pytest.mark.parametrize("exposure_ns", [0, 4_000_000], ids=["unknown exposure", "no motion prediction"])
+def test_a_split_needs_evidence_of_blur(exposure_ns: int) -> None:
     checks = SelfChecks(ChecksConfig())
-    still_area = 200.0 * WIDTH_PX  # a still rope's contour: length x width
-    # Tips 20 px apart, nothing swept: a still photo read as a split.
-    assert _check(checks, exposure_ns=0, contour_area_px2=still_area) == (FrameStatus.NO_BLUR, Reason.NO_BLUR)
-    assert _check(checks, exposure_ns=0) == (FrameStatus.NO_BLUR, Reason.NO_BLUR)  # no area: no evidence
-    swept = still_area + 0.5 * 200.0 * 20.0  # the band the 20 px sweep about the fixed end implies
-    assert _check(checks, exposure_ns=0, contour_area_px2=swept) == (FrameStatus.OK, Reason.NONE)
+    # Tips 20 px apart, nothing swept: a still photo, or a first frame, read as a split.
+    still = _check(checks, exposure_ns=exposure_ns, contour_area_px2=STILL_AREA_PX2)
+    assert still == (FrameStatus.NO_BLUR, Reason.NO_BLUR)
+    no_area = _check(checks, exposure_ns=exposure_ns, contour_area_px2=math.nan)
+    assert no_area == (FrameStatus.NO_BLUR, Reason.NO_BLUR)
+    assert _check(checks, exposure_ns=exposure_ns) == (FrameStatus.OK, Reason.NONE)  # the swept band is there
     assert checks.quality["blur_evidence"] == pytest.approx(1.0, abs=0.01)
     same = _shape(100.0)
-    assert _check(checks, exposure_ns=0, begin=same, end=same) == (FrameStatus.OK, Reason.NONE)
-    assert _check(checks, exposure_ns=0, split=False) == (FrameStatus.OK, Reason.NONE)
+    assert _check(checks, exposure_ns=exposure_ns, begin=same, end=same, contour_area_px2=STILL_AREA_PX2)[0] is (
+        FrameStatus.OK
+    )
+    assert _check(checks, exposure_ns=exposure_ns, split=False, contour_area_px2=STILL_AREA_PX2)[0] is FrameStatus.OK
 
 
 def test_contour_area_is_the_shoelace_area() -> None:
