@@ -159,7 +159,7 @@ class Session:
             mid_t_ns = (record.exposure_start_t_ns + record.exposure_end_t_ns) // 2
             self._frame(record, device_id, self.clock.to_host(device_id, mid_t_ns, receive_t_ns), receive_t_ns)
         elif isinstance(record, Status):
-            self.stats.status_received(device_id, record.frames_dropped)
+            self.stats.status_received(device_id, record.frames_dropped, record.counters)
             data = status_message(record, device_id, sent_t_ns)
             self._emit(device_topic(device_id, "status"), data, "ropecam.Status", sent_t_ns, receive_t_ns, "json",
                        header.sequence)  # fmt: skip

@@ -31,12 +31,17 @@ class SenderConfig:
     queue_frames
         Results waiting to be encoded and sent; when the link cannot keep up the oldest is dropped (counted), so the
         pipeline never waits for the link.
+    shape_tolerance_px
+        Largest distance between a measured shape point and the shape the host decodes (the shape codec's
+        tolerance, docs/protocol.md). 0.1 px keeps the frames of the simulated rigs within a 921600 baud serial
+        line's budget at 119 FPS (mean <= 200 B, none over 774 B); 0.05 px costs about 30 % more bytes.
     """
 
     sink: str = "udp://127.0.0.1:5600"
     device_id: int = 1
     status_period_s: float = 1.0
     queue_frames: int = 16
+    shape_tolerance_px: float = 0.1
 
     def __post_init__(self) -> None:
         if not isinstance(self.sink, str) or "://" not in self.sink:
@@ -50,6 +55,7 @@ class SenderConfig:
         check_range("sender.device_id", self.device_id, 1, 0xFFFE)
         check_range("sender.status_period_s", self.status_period_s, 0.05, 60.0)
         check_range("sender.queue_frames", self.queue_frames, 1, 10_000)
+        check_range("sender.shape_tolerance_px", self.shape_tolerance_px, 0.02, 2.0)  # >= the 1/64 px quantum
 
 
 @dataclass(frozen=True, slots=True)

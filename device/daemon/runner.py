@@ -26,6 +26,7 @@ from ropecam.device.senders.stream import ResultSender
 from ropecam.shared.errors import CaptureError, TransportError
 from ropecam.shared.plane import read_plane_file
 from ropecam.shared.protocol import AckResult, Command, ControlAck, Log, Status, Verifier, load_key, split_frame
+from ropecam.shared.protocol.shapes import ShapeCodecConfig
 from ropecam.shared.transport.base import Transport, open_transport
 
 __all__ = ["EXIT_CAMERA_LOST", "EXIT_OK", "Daemon"]
@@ -64,6 +65,8 @@ class Daemon:
         self._transport_factory = transport_factory
         self._verifier = Verifier(load_key(config.control))
         self.statuses: Counter[str] = Counter()
+        self.check_failures: Counter[str] = Counter()
+        """Frames a self-check failed, by reason (``"length"``, ``"no_blur"``, ...; sent as ``check_<reason>``)."""
         self.frames_measured = 0
         self.link_reopened = 0
         self.camera_reopened = 0
@@ -109,8 +112,9 @@ class Daemon:
             sender_config = self.config.sender
             broken = threading.Event()
             self.sender = ResultSender(
-                self.transport, sender_config.device_id, sender_config.queue_frames, sequence, link_broken=broken
-            )
+                self.transport, sender_config.device_id, sender_config.queue_frames, sequence, link_broken=broken,
+                shape_config=ShapeCodecConfig(tolerance_px=sender_config.shape_tolerance_px),
+            )  # fmt: skip
             self.listener = ControlListener(
                 self.transport,
                 self.sender,
@@ -342,6 +346,7 @@ class Daemon:
             "running": int(self._running),
         }
         named.update({f"frames_{status.lower()}": count for status, count in self.statuses.items()})
+        named.update({f"check_{reason}": count for reason, count in self.check_failures.items()})
         status = Status(
             frame_rate_hz=self._rate.sample(delivered),
             frames_captured=delivered,
@@ -375,6 +380,8 @@ class Daemon:
             self._pipeline = self._new_pipeline(source.image_size)
         result = self._pipeline.process(frame.image, frame.sequence, frame.t_ns, frame.exposure_us)
         self.statuses[result.status.name] += 1
+        if result.reason:
+            self.check_failures[result.reason] += 1
         self.frames_measured += 1
         if self.sender is not None:
             self.sender.submit_frame(to_wire(result))

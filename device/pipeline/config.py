@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
+from ropecam.device.pipeline.checks import ChecksConfig
 from ropecam.shared.config import check_in, check_positive, check_range
 from ropecam.shared.errors import ConfigError
 
@@ -91,6 +92,8 @@ class PipelineConfig:
         A plane calibration (``plane.yaml`` of ``ropecam calibrate plane``, read by the application with
         `ropecam.shared.plane.read_plane_file`): the fixed end is then its origin projected into the image (unless
         `fixed_end_uv` is given) and material points are placed by arc length on the plane. None: no calibration.
+    checks
+        The self-checks' thresholds (the ``[pipeline.checks]`` table, `ChecksConfig`).
     """
 
     method: Literal["blur_split", "paper", "centerline", "static"] = "blur_split"
@@ -121,6 +124,7 @@ class PipelineConfig:
     static_relative: float = 0.1
     static_mask_png: str = ""
     plane_file: str | None = None
+    checks: ChecksConfig = field(default_factory=ChecksConfig)
 
     def __post_init__(self) -> None:
         check_in("method", self.method, METHODS)
@@ -163,3 +167,5 @@ class PipelineConfig:
             raise ConfigError(f'static_mask_png must be a file path or "", got {self.static_mask_png!r}')
         if self.plane_file is not None and (not isinstance(self.plane_file, str) or not self.plane_file):
             raise ConfigError(f"plane_file must be the path of a plane.yaml, got {self.plane_file!r}")
+        if not isinstance(self.checks, ChecksConfig):
+            raise ConfigError(f"checks must be a ChecksConfig ([pipeline.checks] table), got {self.checks!r}")

@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline.checks import Reason, SelfChecks, contour_area_px2
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.contour import ContourTracer
 from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
@@ -127,6 +128,8 @@ class Pipeline:
         self.fixed = ws.fixed_end.fixed
         """The fixed end (row, col) float32 (`RopeTraits.fixed_end`)."""
         self._motion = MotionModel(ws.motion)
+        self.checks = SelfChecks(config.checks)
+        """The self-checks that turn an implausible frame into a status with a reason (`SelfChecks`)."""
         self._time_order = TimeOrder(ws.order)
         self.locator = RopeLocator(
             config.roi_margin_px, self.edges, self.tracer, self._motion, self.traits.fixed_end, config.canny_low,
@@ -219,6 +222,8 @@ class Pipeline:
                 self.static_mask.learn(image)
                 if not self.static_mask.learning and self._unclean_frames > 0:
                     self._relearn()
+            motion = self._motion
+            self.checks.predict(motion.state, motion.log, self.fixed, t, exposure_ns, self.traits.settled is not None)
             self._measure(image, result, exposure_ns)
             if result.status is not FrameStatus.OK:
                 self._forget(roi=result.status is FrameStatus.NO_ROPE)
@@ -426,6 +431,41 @@ class Pipeline:
         if tracker.plane is not None:  # by arc length on the plane (metres), not in pixels
             tracker.place_on_plane(result.begin, result.end)
         result.status = FrameStatus.OK
+        self._check(result, outcome, exposure_ns)
+
+    def _check(self, result: FrameResult, outcome: SplitOutcome, exposure_ns: int) -> None:
+        """Run the self-checks on a measured frame (`SelfChecks.check`): a failed one sets the status, the reason
+        and the message; a split without blur is replaced by the static centreline."""
+        begin, end = result.begin, result.end
+        if begin is None or end is None or len(begin) == 0 or len(end) == 0:
+            return
+        traits = self.traits
+        learned_px = traits.settled[0] if traits.settled is not None else traits.width()
+        checks = self.checks
+        split = outcome.shape_a is not outcome.shape_b
+        # The contour's area only where it is the evidence: a split of unknown exposure or without a prediction.
+        area = 0.0
+        if split and checks.needs_area(exposure_ns):
+            area = contour_area_px2(self.tracer.points, self.locator.prev_count)
+        status, reason = checks.check(
+            begin, end, self.fixed, result.stretch_begin, result.stretch_end, outcome.width_px, learned_px,
+            result.order_confidence, exposure_ns, split, area,
+        )  # fmt: skip
+        result.quality = checks.quality
+        if status is FrameStatus.OK:
+            return
+        result.status, result.reason, result.message = status, reason.text, checks.message(reason)
+        if reason is Reason.NO_BLUR or (split and not exposure_ns):
+            # Without a known exposure only a split that passes every check shows blur: never report another.
+            static = self.splitter.static((float(self.fixed[0]), float(self.fixed[1])))
+            if static is None:
+                result.begin = result.end = result.material_begin = result.material_end = None
+                return
+            result.method, result.segmentation_points = static.method, None
+            result.begin = result.end = static.shape_a
+            (result.material_begin, result.stretch_begin, result.material_end, result.stretch_end) = (
+                self.tracker.track_shapes(static.shape_a, static.shape_a)
+            )
 
     def max_age_ns(self) -> int:
         """The age (ns) past which the time order's history is dropped: four frame periods."""

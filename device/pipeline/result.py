@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.shared.protocol.frame_result import FrameResult as WireFrameResult
-from ropecam.shared.protocol.frame_result import FrameStatus, Method
+from ropecam.shared.protocol.frame_result import FrameStatus, Method, Reason
 from ropecam.shared.protocol.jsonl import frame_result_json
 
 # FrameStatus and Method are the wire protocol's: one definition of what happened to a frame, on both sides.
@@ -56,7 +56,12 @@ class FrameResult:
     pipeline_us: float = 0.0
     message: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
+    reason: str = ""
+    """Why the status is not OK when a self-check failed (`Reason`'s text: ``"length"``, ``"no_blur"``, ...)."""
+    quality: dict[str, float] = field(default_factory=dict)
+    """The self-checks' measures (`QUALITY_KEYS`; the pipeline's dict, valid until its next call)."""
     readout_ns: int = 0
+    """Rolling-shutter readout time of the frame (ns, 0 = global shutter)."""
 
     @property
     def tips(self) -> tuple[NDArray[np.float32], NDArray[np.float32]] | None:
@@ -134,6 +139,9 @@ def to_wire(result: FrameResult) -> WireFrameResult:
         stretch_begin=np.nan if result.stretch_begin is None else float(result.stretch_begin),
         stretch_end=np.nan if result.stretch_end is None else float(result.stretch_end),
         pipeline_us=round(float(result.pipeline_us)),
+        reason=Reason.from_text(result.reason),
+        readout_ns=int(result.readout_ns),
+        quality=result.quality,
     )
 
 

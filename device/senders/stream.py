@@ -21,6 +21,7 @@ from typing import Any
 
 from ropecam.shared.errors import ProtocolError, TransportError
 from ropecam.shared.protocol import FrameResult, ShapeHint, encode_message
+from ropecam.shared.protocol.shapes import ShapeCodecConfig
 from ropecam.shared.transport.base import Transport
 
 __all__ = ["ResultSender", "SenderStats"]
@@ -62,6 +63,8 @@ class ResultSender:
         Consecutive failed sends (TransportError) after which `link_broken` is set.
     link_broken
         Event set when the link is considered broken (shared with the control listener); a new one by default.
+    shape_config
+        Tolerance and quantum of the shape codec for frame results (the codec's default 0.05 px when None).
     """
 
     def __init__(
@@ -73,6 +76,7 @@ class ResultSender:
         clock_ns: Callable[[], int] = time.monotonic_ns,
         broken_after: int = 3,
         link_broken: threading.Event | None = None,
+        shape_config: ShapeCodecConfig | None = None,
     ) -> None:
         self.transport = transport
         self.device_id = device_id
@@ -87,6 +91,9 @@ class ResultSender:
         self._failures_in_row = 0
         self.link_broken = link_broken if link_broken is not None else threading.Event()
         self._hint = ShapeHint()
+        self._frame_options: dict[str, object] = {"hint": self._hint}
+        if shape_config is not None:
+            self._frame_options["shape_config"] = shape_config
         self._thread = threading.Thread(target=self._run, name="ropecam-sender", daemon=True)
         self._thread.start()
 
@@ -169,7 +176,7 @@ class ResultSender:
             if taken is None:
                 return
             record, sequence = taken
-            options = {"hint": self._hint} if isinstance(record, FrameResult) else None
+            options = self._frame_options if isinstance(record, FrameResult) else None
             try:
                 data = encode_message(
                     record, device_id=self.device_id, sequence=sequence, t_ns=self._clock_ns(), pack_options=options

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Final
 
@@ -25,6 +26,8 @@ PIPELINE_SAMPLES: Final = 512
 SYNCED_CLOCK_LIMIT_NS: Final = 10_000_000_000
 """Latency is shown only when device and host clocks agree within 10 s (else they are different clocks)."""
 STALL_NS: Final = 2_000_000_000
+CHECK_PREFIX: Final = "check_"
+"""Status counters of this prefix count the device's self-check failures by reason (`ropecam.device.daemon`)."""
 
 
 @dataclass(slots=True)
@@ -46,6 +49,8 @@ class _Device:
     device_dropped: int = 0
     device_dropped_reported: int = 0
     model_error_mm: float = math.nan
+    check_failures: dict[str, int] = field(default_factory=dict)  # the device's counts by reason (its Status)
+    check_failures_reported: dict[str, int] = field(default_factory=dict)
 
 
 @dataclass(frozen=True, slots=True)
@@ -150,9 +155,14 @@ class StreamStats:
         """Record the RMS distance (mm) of the latest frame's material points from the model."""
         self._device(device_id).model_error_mm = rms_error_mm
 
-    def status_received(self, device_id: int, frames_dropped: int) -> None:
-        """Record the device's own count of dropped frames (from its Status)."""
-        self._device(device_id).device_dropped = frames_dropped
+    def status_received(self, device_id: int, frames_dropped: int, counters: Sequence[tuple[str, int]] = ()) -> None:
+        """Record the device's own count of dropped frames and its self-check failures by reason (the
+        ``check_<reason>`` counters of its Status)."""
+        device = self._device(device_id)
+        device.device_dropped = frames_dropped
+        for name, count in counters:
+            if name.startswith(CHECK_PREFIX):
+                device.check_failures[name[len(CHECK_PREFIX) :]] = count
 
     def snapshot(self, now_ns: int) -> list[DeviceRow]:
         """Return one row per device, computed over the last `WINDOW_NS` before `now_ns`."""
@@ -190,6 +200,10 @@ class StreamStats:
             if device.device_dropped > device.device_dropped_reported:
                 warnings.append(f"DEVICE DROPPED +{device.device_dropped - device.device_dropped_reported} frames")
             device.device_dropped_reported = device.device_dropped
+            for reason, count in sorted(device.check_failures.items()):
+                if count > device.check_failures_reported.get(reason, 0):
+                    warnings.append(f"CHECK {reason} +{count - device.check_failures_reported.get(reason, 0)}")
+                device.check_failures_reported[reason] = count
             if now_ns - device.last_receive_t_ns > STALL_NS:
                 warnings.append(f"silent {(now_ns - device.last_receive_t_ns) / 1e9:.0f} s")
             if device.crc_errors or device.decode_errors:

@@ -63,6 +63,8 @@ def example_records() -> dict[MessageType, Record]:
         stretch_begin=1.0021,
         stretch_end=0.9987,
         pipeline_us=2750,
+        readout_ns=7_500_000,
+        quality={"length_ratio": 1.002, "width_ratio": 0.987, "fixed_end_px": 1.3, "tip_separation_px": 12.4},
     )
     image = (np.arange(64 * 48, dtype=np.uint32) * 7 % 251).astype(np.uint8).tobytes()
     return {

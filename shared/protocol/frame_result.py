@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 from ropecam.shared.errors import ProtocolError
 from ropecam.shared.protocol._kernels import points_within, rows_on_wire
 from ropecam.shared.protocol.bytecodec import ByteReader, ByteWriter, check_int
+from ropecam.shared.protocol.quality import QUALITY_KEYS, Reason, check_quality, pack_quality, unpack_quality
 from ropecam.shared.protocol.shapes import (
     MAX_SHAPE_POINTS,
     POLYLINE_LIMIT_PX,
@@ -29,9 +30,18 @@ from ropecam.shared.protocol.shapes import (
     decode_shape,
     encode_shape,
 )
-from ropecam.shared.protocol.wire import MessageType, register_record
+from ropecam.shared.protocol.wire import PROTOCOL_VERSION, MessageType, register_record
 
-__all__ = ["FrameResult", "FrameStatus", "FrameSummary", "Method", "ShapeHint", "peek_frame_summary"]
+__all__ = [
+    "QUALITY_KEYS",
+    "FrameResult",
+    "FrameStatus",
+    "FrameSummary",
+    "Method",
+    "Reason",
+    "ShapeHint",
+    "peek_frame_summary",
+]
 
 POINT_SHIFT: Final = 6
 """Pixel points are coded in units of 1/64 px."""
@@ -63,6 +73,10 @@ class FrameStatus(IntEnum):
     """The pipeline ran out of time and skipped work on this frame."""
     ROPE_CLIPPED = 6
     """The rope's free part touches the image border: it is leaving the field of view."""
+    IMPLAUSIBLE = 7
+    """A self-check failed (the record's `reason` says which): the shapes are given but not trusted."""
+    NO_BLUR = 8
+    """A split was found where nothing can have moved (no exposure time): the shapes are the static centreline."""
 
 
 class Method(IntEnum):
@@ -248,9 +262,19 @@ class FrameResult:
         Lc / Lc0 of each shape; nan when not measured.
     pipeline_us
         Device processing time of the frame, microseconds.
+    reason
+        Why the status is not OK when a self-check failed (`Reason`; version 2 only, NONE in version 1).
+    readout_ns
+        Rolling-shutter readout time (ns, 0 = global shutter): a shape point on image row r was seen at
+        ``exposure_start_t_ns + r / height * readout_ns`` (begin) and ``exposure_end_t_ns + ...`` (end)
+        (version 2 only, 0 in version 1).
+    quality
+        The self-checks' measures by name (`QUALITY_KEYS`; version 2 only, empty in version 1).
     """
 
     TYPE: ClassVar[MessageType] = MessageType.FRAME_RESULT
+    VERSIONED: ClassVar[bool] = True
+    """`pack` and `unpack` take the protocol version (the payload grew in version 2)."""
 
     frame_index: int
     exposure_start_t_ns: int
@@ -269,6 +293,9 @@ class FrameResult:
     stretch_begin: float = math.nan
     stretch_end: float = math.nan
     pipeline_us: int = 0
+    reason: Reason = Reason.NONE
+    readout_ns: int = 0
+    quality: dict[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         # `frozen` guards setattr, not the instance dict: the checked values are stored there directly (this runs
@@ -308,6 +335,10 @@ class FrameResult:
             if not (math.isnan(value) or 0.0 <= value < 50.0):
                 raise ValueError(f"{name} must be nan or in [0, 50), got {value!r}")
             values[name] = value
+        reason = values["reason"]
+        values["reason"] = reason if type(reason) is Reason else Reason(reason)
+        values["readout_ns"] = check_int("readout_ns", values["readout_ns"], high=2**40 - 1)
+        values["quality"] = check_quality(values["quality"])
 
     def __repr__(self) -> str:
         def shape(value: NDArray[np.float64] | None) -> str:
@@ -319,11 +350,16 @@ class FrameResult:
             f"order_confidence={self.order_confidence:.4f}, begin_px={shape(self.begin_px)}, "
             f"end_px={shape(self.end_px)}, begin_tip_px={self.begin_tip_px}, end_tip_px={self.end_tip_px}, "
             f"fixed_end_px={self.fixed_end_px}, material_s_m={self.material_s_m}, stretch_begin={self.stretch_begin}, "
-            f"stretch_end={self.stretch_end}, pipeline_us={self.pipeline_us})"
+            f"stretch_end={self.stretch_end}, pipeline_us={self.pipeline_us}, reason={self.reason.name}, "
+            f"readout_ns={self.readout_ns}, quality={self.quality})"
         )
 
     def pack(
-        self, t_ns_ref: int = 0, shape_config: ShapeCodecConfig | None = None, hint: ShapeHint | None = None
+        self,
+        t_ns_ref: int = 0,
+        shape_config: ShapeCodecConfig | None = None,
+        hint: ShapeHint | None = None,
+        version: int = PROTOCOL_VERSION,
     ) -> bytes:
         """Return the payload bytes.
 
@@ -335,6 +371,8 @@ class FrameResult:
             Tolerance and quantum of the shape codec (default 0.05 px at 1/64 px).
         hint
             Per-stream encoder memory, updated in place (saves most of the shape search on consecutive frames).
+        version
+            Protocol version of the payload: 2 appends the quality record (`quality`), 1 leaves it out.
         """
         config = shape_config or _DEFAULT_SHAPES
         w = ByteWriter()
@@ -384,6 +422,8 @@ class FrameResult:
             if flags & present:
                 w.svarint(round((value - 1.0) * _STRETCH_SCALE))
         self._pack_material(w, origin)
+        if version >= 2:
+            pack_quality(w, self.reason, self.readout_ns, self.quality)
         return w.getvalue()
 
     def _pack_material(self, w: ByteWriter, origin: _PointQ) -> None:
@@ -410,8 +450,8 @@ class FrameResult:
                     previous = end_q
 
     @classmethod
-    def unpack(cls, payload: bytes, t_ns_ref: int = 0) -> FrameResult:
-        """Parse a payload written by `pack`; raise `ProtocolError` on anything malformed."""
+    def unpack(cls, payload: bytes, t_ns_ref: int = 0, version: int = PROTOCOL_VERSION) -> FrameResult:
+        """Parse a payload written by `pack` in protocol `version`; raise `ProtocolError` on anything malformed."""
         r = ByteReader(payload)
         summary = _read_summary(r, t_ns_ref)
         frame_index, start, end = summary.frame_index, summary.exposure_start_t_ns, summary.exposure_end_t_ns
@@ -444,6 +484,7 @@ class FrameResult:
             if flags & bit:
                 stretch[i] = 1.0 + r.svarint("stretch ratio", 4_900_000) / _STRETCH_SCALE
         s_m, material_begin, material_end = _unpack_material(r, origin)
+        reason, readout_ns, quality = unpack_quality(r) if version >= 2 else (Reason.NONE, 0, {})
         r.finish("FrameResult")
         return cls(
             frame_index=frame_index,
@@ -463,6 +504,9 @@ class FrameResult:
             stretch_begin=stretch[0],
             stretch_end=stretch[1],
             pipeline_us=pipeline_us,
+            reason=reason,
+            readout_ns=readout_ns,
+            quality=quality,
         )
 
 

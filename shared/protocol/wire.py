@@ -4,7 +4,7 @@ Layout of one message (all integers little-endian)::
 
     offset size field
     0      2    magic            b"RC"
-    2      1    version          PROTOCOL_VERSION (1)
+    2      1    version          PROTOCOL_VERSION (2; 1 is read too: only FrameResult's payload differs)
     3      1    type             MessageType
     4      1    flags            bit 0: authenticated (trailer present); other bits must be 0
     5      2    device id        uint16
@@ -57,8 +57,8 @@ __all__ = [
 ]
 
 MAGIC: Final = b"RC"
-PROTOCOL_VERSION: Final = 1
-SUPPORTED_VERSIONS: Final = frozenset({1})
+PROTOCOL_VERSION: Final = 2
+SUPPORTED_VERSIONS: Final = frozenset({1, 2})
 HEADER: Final = struct.Struct("<2sBBBHIqH")
 HEADER_BYTES: Final = HEADER.size
 TAG_BYTES: Final = 16
@@ -179,6 +179,7 @@ def encode_message(
     t_ns: int,
     signer: Signer | None = None,
     pack_options: Mapping[str, Any] | None = None,
+    version: int = PROTOCOL_VERSION,
 ) -> bytes:
     """Return the complete bytes of one message carrying `record`.
 
@@ -196,6 +197,9 @@ def encode_message(
         Adds the authentication trailer (required for control messages the device should accept).
     pack_options
         Extra keyword arguments of the record's `pack` (FrameResult: ``shape_config``, ``hint``).
+    version
+        Protocol version written in the header (one of SUPPORTED_VERSIONS; a record whose payload changed
+        between versions, ``VERSIONED``, is packed in that version).
 
     Raises
     ------
@@ -205,11 +209,16 @@ def encode_message(
     device_id = check_int("device_id", device_id, high=_U16)
     sequence = check_int("sequence", sequence, high=_U32)
     t_ns = check_int("t_ns", t_ns, low=-_I64, high=_I64 - 1)
-    payload = record.pack(t_ns, **(pack_options or {}))
+    if version not in SUPPORTED_VERSIONS:
+        raise ValueError(f"version must be one of {sorted(SUPPORTED_VERSIONS)}, got {version!r}")
+    options = dict(pack_options or {})
+    if getattr(record, "VERSIONED", False):
+        options["version"] = version
+    payload = record.pack(t_ns, **options)
     if len(payload) > MAX_PAYLOAD_BYTES:
         raise ValueError(f"{type(record).__name__} payload is {len(payload)} bytes, more than {MAX_PAYLOAD_BYTES}")
     flags = HeaderFlags.AUTHENTICATED if signer is not None else HeaderFlags.NONE
-    header = Header(record.TYPE, device_id, sequence, t_ns, len(payload), flags).pack()
+    header = Header(record.TYPE, device_id, sequence, t_ns, len(payload), flags, version).pack()
     body = header + payload
     if signer is not None:
         counter = signer.next_counter()
@@ -270,7 +279,11 @@ def decode_message(data: bytes | bytearray | memoryview) -> Message:
         signed = data[: payload_end + COUNTER.size]
         tag = data[payload_end + COUNTER.size : payload_end + AUTH_TRAILER_BYTES]
     try:
-        record = record_class(header.type).unpack(payload, header.t_ns)
+        cls = record_class(header.type)
+        if getattr(cls, "VERSIONED", False):
+            record = cls.unpack(payload, header.t_ns, header.version)
+        else:
+            record = cls.unpack(payload, header.t_ns)
     except (ValueError, TypeError, OverflowError) as exc:
         # Records validate their fields in __post_init__; on the wire a rejected value is a protocol error.
         raise ProtocolError(f"{header.type.name} payload holds an invalid value: {exc}") from exc

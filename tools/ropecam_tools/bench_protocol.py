@@ -32,11 +32,12 @@ from typing import Any
 
 import numpy as np
 
+from ropecam.device.daemon.config import SenderConfig
 from ropecam.host.sim.stream import rig_frame_results
 from ropecam.shared.protocol import FrameResult, ShapeHint, decode_message, encode_message
 from ropecam.shared.protocol._kernels import fit_bspline, sample_bspline
 from ropecam.shared.protocol.framing import frame
-from ropecam.shared.protocol.shapes import MAX_CONTROL_POINTS, polyline_distances_px
+from ropecam.shared.protocol.shapes import MAX_CONTROL_POINTS, ShapeCodecConfig, polyline_distances_px
 from ropecam.shared.protocol.wire import CRC_BYTES, HEADER_BYTES
 
 SERIAL_BUDGET_BYTES = 921600 / 10 / 119  # 8N1: 10 bits per byte
@@ -65,7 +66,9 @@ def pipeline_results(frameset: str, rope_length_m: float, output_smoothing_px: f
     return [r for r in results if r.begin is not None and r.end is not None]
 
 
-def daemon_stream(results: list[Any], hint: ShapeHint) -> tuple[list[bytes], dict[str, list[float]]]:
+def daemon_stream(
+    results: list[Any], hint: ShapeHint, shape_config: ShapeCodecConfig | None = None
+) -> tuple[list[bytes], dict[str, list[float]]]:
     """Do per result what the daemon does after the pipeline (`to_wire`, `encode_message` with the stream's hint,
     the serial link's COBS `frame`) and return the messages and the seconds of each step per message."""
     from ropecam.device.pipeline.result import to_wire
@@ -77,7 +80,8 @@ def daemon_stream(results: list[Any], hint: ShapeHint) -> tuple[list[bytes], dic
         record = to_wire(result)
         converted = time.perf_counter()
         t_ns = record.exposure_end_t_ns + 2_000_000
-        message = encode_message(record, device_id=1, sequence=sequence, t_ns=t_ns, pack_options={"hint": hint})
+        options = {"hint": hint, "shape_config": shape_config}
+        message = encode_message(record, device_id=1, sequence=sequence, t_ns=t_ns, pack_options=options)
         encoded = time.perf_counter()
         frame(message)
         framed = time.perf_counter()
@@ -116,14 +120,17 @@ def roughness_stats(records: list[FrameResult]) -> dict[str, float]:
     }
 
 
-def encode_stream(records: list[FrameResult], hint: ShapeHint | None = None) -> tuple[list[bytes], list[float]]:
-    """Encode all records as one device stream (`hint`: the stream's encoder memory, a fresh one by default);
-    return the messages and the seconds each one took."""
+def encode_stream(
+    records: list[FrameResult], hint: ShapeHint | None = None, shape_config: ShapeCodecConfig | None = None
+) -> tuple[list[bytes], list[float]]:
+    """Encode all records as one device stream (`hint`: the stream's encoder memory, a fresh one by default;
+    `shape_config`: the shape codec's tolerance, its default when None); return the messages and the seconds each
+    one took."""
     hint = hint if hint is not None else ShapeHint()
     out, seconds = [], []
     for sequence, record in enumerate(records):
         t_ns = record.exposure_end_t_ns + 2_000_000
-        options = {"hint": hint}
+        options = {"hint": hint, "shape_config": shape_config}
         start = time.perf_counter()
         out.append(encode_message(record, device_id=1, sequence=sequence, t_ns=t_ns, pack_options=options))
         seconds.append(time.perf_counter() - start)
@@ -152,6 +159,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--repeats", type=int, default=5, help="timing runs; the median is reported (default 5)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument(
+        "--shape-tolerance-px", type=float, default=SenderConfig().shape_tolerance_px,
+        help="shape codec tolerance (default: the daemon's [sender] shape_tolerance_px, %(default)s)",
+    )  # fmt: skip
     parser.add_argument("--frameset", help="measure the device pipeline's output on this recorded frame set instead")
     parser.add_argument("--rope-length-m", type=float, default=0.411, help="with --frameset (default 0.411)")
     parser.add_argument(
@@ -173,6 +184,7 @@ def run(args: argparse.Namespace) -> int:
         args.frames, args.noise = len(records), f"pipeline output on {args.frameset}"
     else:
         records = build_records(args.frames, args.noise, args.seed)
+    shape_config = ShapeCodecConfig(tolerance_px=args.shape_tolerance_px)
     encode_s: list[float] = []
     decode_s: list[float] = []
     daemon_s: dict[str, list[float]] = {}
@@ -181,12 +193,12 @@ def run(args: argparse.Namespace) -> int:
     for _ in range(args.repeats):
         hint = ShapeHint()
         if results:
-            messages, steps = daemon_stream(results, hint)
+            messages, steps = daemon_stream(results, hint, shape_config)
             encode_s += steps["encode"]
             for key, values in steps.items():
                 daemon_s.setdefault(key, []).extend(values)
         else:
-            messages, seconds = encode_stream(records, hint)
+            messages, seconds = encode_stream(records, hint, shape_config)
             encode_s += seconds
         decoded, seconds = decode_stream(messages)
         decode_s += seconds
@@ -222,7 +234,7 @@ def run(args: argparse.Namespace) -> int:
             f"  FrameResult: mean {result['mean_bytes_per_frame_result']} B, max {result['max_bytes']} B "
             f"(header + CRC {result['header_and_crc_bytes']} B; serial budget {result['serial_budget_bytes']} B)"
         )
-        print(f"  worst shape error {result['max_shape_error_px']} px (tolerance 0.05 px)")
+        print(f"  worst shape error {result['max_shape_error_px']} px (tolerance {args.shape_tolerance_px} px)")
         print(f"  shape roughness (distance to a smooth fit) p95 {result['roughness_p95_px']} px, "
               f"max {result['roughness_max_px']} px; {result['corrections_per_shape']} corrections/shape")  # fmt: skip
         print(f"  encode {result['encode_us_per_message']} us/message, "

@@ -4,6 +4,7 @@ offline pipeline; authenticated control; a camera that vanishes; systemd notific
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
 import pty
 import socket
@@ -19,6 +20,7 @@ from ropecam.device.capture.frameset import FrameSet
 from ropecam.device.daemon.config import DaemonConfig, DeviceConfig, SenderConfig, load_device_config
 from ropecam.device.daemon.runner import EXIT_CAMERA_LOST, EXIT_OK, Daemon
 from ropecam.device.daemon.systemd import Notifier
+from ropecam.device.pipeline.checks import ChecksConfig
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam.device.pipeline.result import to_wire
@@ -38,6 +40,7 @@ from ropecam.shared.protocol import (
     encode_message,
     polyline_distances_px,
 )
+from ropecam.shared.protocol.frame_result import FrameStatus, Reason
 from ropecam.shared.transport import open_transport
 
 from .conftest import running
@@ -68,8 +71,8 @@ def _assert_same_results(received: list[FrameResult], expected: list[FrameResult
             a, b = getattr(got, name), getattr(want, name)
             assert (a is None) == (b is None)
             if a is not None:
-                # The wire carries a compact curve within 0.05 px of the device's polyline.
-                assert polyline_distances_px(b, a).max() <= 0.05 + 1e-6
+                # The wire carries a compact curve within the sender's tolerance of the device's polyline.
+                assert polyline_distances_px(b, a).max() <= SenderConfig().shape_tolerance_px + 1e-6
 
 
 def _collect(link, until: float, decode=decode_message) -> list:
@@ -259,3 +262,21 @@ def test_a_plane_file_that_does_not_fit_stops_the_daemon_with_its_name(rig_set: 
         Daemon(
             DeviceConfig(capture=config.capture, pipeline=PipelineConfig(plane_file=str(missing)), sender=config.sender)
         )
+
+
+def test_self_check_failures_are_sent_with_their_reason_and_counted(rig_set: Path) -> None:
+    """A check made impossible to pass (a shape must start exactly at the fixed end): every measured frame goes
+    out IMPLAUSIBLE with reason fixed_end and its quality record, and the Status counts them by reason."""
+    strict = dataclasses.replace(PIPELINE, checks=ChecksConfig(fixed_end_widths=0.0, fixed_end_floor_px=0.0))
+    config = dataclasses.replace(_config(rig_set, "loop://daemon-checks"), pipeline=strict)
+    host = open_transport("loop://daemon-checks")
+    with running(Daemon(config)) as run:
+        assert run.wait() == EXIT_OK
+    messages = _collect(host, time.monotonic() + 0.5)
+    results = [m.record for m in messages if isinstance(m.record, FrameResult)]
+    flagged = [r for r in results if r.status is FrameStatus.IMPLAUSIBLE]
+    assert flagged and all(r.reason is Reason.FIXED_END and r.quality["fixed_end_px"] > 0 for r in flagged)
+    assert all(m.header.version == 2 for m in messages)
+    counters = dict([m.record for m in messages if isinstance(m.record, Status)][-1].counters)
+    assert counters["check_fixed_end"] == counters["frames_implausible"] == len(flagged)
+    host.close()

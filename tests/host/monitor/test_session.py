@@ -200,6 +200,23 @@ def test_frames_the_device_dropped_raise_a_warning() -> None:
     assert session.snapshot(time.time_ns())[0].warnings == ()  # reported once
 
 
+def test_self_check_failures_the_device_counted_raise_a_warning() -> None:
+    from ropecam.shared.protocol import Status, encode_message
+
+    session = Session()
+    for sequence, count in enumerate((0, 2, 2, 5)):
+        counters = (("frames_ok", 10 * sequence), ("check_length", count), ("check_no_blur", min(count, 1)))
+        status = Status(119.0, 100 * sequence, 0, 0, 4000, 0.0, sequence * 10**9, counters=counters)
+        session.handle(check_packet(encode_message(status, device_id=2, sequence=sequence, t_ns=time.time_ns()),
+                                    time.time_ns()))  # fmt: skip
+        warnings = session.snapshot(time.time_ns())[0].warnings
+        if sequence == 1:
+            assert warnings == ("CHECK length +2", "CHECK no_blur +1")
+        elif sequence == 2:
+            assert warnings == ()  # reported once
+    assert warnings == ("CHECK length +3",)
+
+
 def test_raw_frames_become_foxglove_raw_images(tmp_path: Path, read_messages) -> None:
     import base64
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from ropecam.shared.protocol import FrameResult, polyline_distances_px
+from ropecam.shared.protocol.quality import QUALITY_KEYS, QUALITY_SCALES
 
 POINT_RESOLUTION_PX = 1 / 128 + 1e-12  # half of the 1/64 px quantum
 
@@ -45,6 +46,11 @@ def assert_frame_results_match(original: FrameResult, decoded: FrameResult, tole
         assert math.isnan(a) == math.isnan(b), name
         if not math.isnan(a):
             assert b == pytest.approx(a, abs=0.5e-5 + 1e-12), name
+    assert (decoded.reason, decoded.readout_ns) == (original.reason, original.readout_ns)
+    assert decoded.quality.keys() == original.quality.keys()
+    for key, scale in zip(QUALITY_KEYS, QUALITY_SCALES, strict=True):
+        if key in original.quality:
+            assert decoded.quality[key] == pytest.approx(original.quality[key], abs=0.5 * scale + 1e-12), key
 
 
 @pytest.fixture(scope="session")

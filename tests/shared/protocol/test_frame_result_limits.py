@@ -10,9 +10,9 @@ import pytest
 
 from ropecam.shared.errors import ProtocolError
 from ropecam.shared.protocol import Command, Control, FrameResult, Status, decode_message, encode_message
-from ropecam.shared.protocol.frame_result import MAX_MATERIAL_POINTS
+from ropecam.shared.protocol.frame_result import MAX_MATERIAL_POINTS, Reason
 from ropecam.shared.protocol.records import COMMAND_VALUES
-from ropecam.shared.protocol.wire import CRC
+from ropecam.shared.protocol.wire import CRC, HEADER_BYTES
 
 
 def _trip(record: object) -> object:
@@ -61,13 +61,41 @@ def test_material_mask_padding_bits_are_refused() -> None:
         frame_index=1, exposure_start_t_ns=0, exposure_end_t_ns=10, material_s_m=(0.1, 0.2, 0.3),
         material_begin_px=np.full((3, 2), np.nan), material_end_px=np.full((3, 2), np.nan),
     )  # fmt: skip
-    data = bytearray(encode_message(record, device_id=1, sequence=0, t_ns=0))
+    data = bytearray(encode_message(record, device_id=1, sequence=0, t_ns=0, version=1))
     payload_end = len(data) - 4
-    assert data[payload_end - 1] == 0  # no point measured: the mask is the last payload byte
+    assert data[payload_end - 1] == 0  # no point measured: the mask is the last payload byte of version 1
     data[payload_end - 1] = 0x40  # bit 6: a 4th point that does not exist
     data[payload_end:] = CRC.pack(zlib.crc32(bytes(data[:payload_end])))
     with pytest.raises(ProtocolError, match="beyond its 3 points"):
         decode_message(bytes(data))
+
+
+@pytest.mark.parametrize(
+    ("last_bytes", "fragment"),
+    [(b"\x07\x00\x00", "unknown reason code 7"), (b"\x00\x00\x80\x01", "quality keys")],
+    ids=["reason", "quality key"],
+)
+def test_unknown_quality_codes_are_refused(last_bytes: bytes, fragment: str) -> None:
+    # Version 2 ends with the quality record: reason, readout_ns, the present measures (none here: 3 bytes).
+    record = FrameResult(frame_index=1, exposure_start_t_ns=0, exposure_end_t_ns=10)
+    data = bytearray(encode_message(record, device_id=1, sequence=0, t_ns=0))
+    assert data[-7:-4] == b"\x00\x00\x00"
+    payload = bytes(data[HEADER_BYTES:-7]) + last_bytes
+    with pytest.raises(ProtocolError, match=fragment):
+        FrameResult.unpack(payload)
+
+
+def test_a_version_1_frame_decodes_without_quality() -> None:
+    record = FrameResult(frame_index=1, exposure_start_t_ns=0, exposure_end_t_ns=10, reason=Reason.LENGTH,
+                         readout_ns=5000, quality={"length_ratio": 1.4})  # fmt: skip
+    v1 = decode_message(encode_message(record, device_id=1, sequence=0, t_ns=0, version=1))
+    assert v1.header.version == 1
+    assert (v1.record.reason, v1.record.readout_ns, v1.record.quality) == (Reason.NONE, 0, {})
+    v2 = decode_message(encode_message(record, device_id=1, sequence=0, t_ns=0))
+    assert (v2.record.reason, v2.record.readout_ns) == (Reason.LENGTH, 5000)
+    assert v2.record.quality == {"length_ratio": pytest.approx(1.4, abs=5e-4)}  # coded to 1e-3
+    with pytest.raises(ValueError, match="quality key 'stretch'"):
+        FrameResult(frame_index=1, exposure_start_t_ns=0, exposure_end_t_ns=10, quality={"stretch": 1.0})
 
 
 @pytest.mark.parametrize(

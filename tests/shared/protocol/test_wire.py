@@ -10,7 +10,7 @@ import pytest
 from ropecam.shared.errors import ProtocolError
 from ropecam.shared.protocol import Log, MessageType, decode_message, encode_message
 from ropecam.shared.protocol.bytecodec import ByteReader, ByteWriter, unzigzag, zigzag
-from ropecam.shared.protocol.wire import HEADER_BYTES, MAX_PAYLOAD_BYTES, peek_header
+from ropecam.shared.protocol.wire import HEADER_BYTES, MAX_PAYLOAD_BYTES, PROTOCOL_VERSION, peek_header
 
 
 def _log_message(**kwargs: int) -> bytes:
@@ -21,7 +21,7 @@ def _log_message(**kwargs: int) -> bytes:
 def test_header_layout_is_the_documented_one() -> None:
     data = _log_message()
     magic, version, kind, flags, device, sequence, t_ns, length = struct.unpack_from("<2sBBBHIqH", data)
-    assert (magic, version, kind, flags) == (b"RC", 1, MessageType.LOG, 0)
+    assert (magic, version, kind, flags) == (b"RC", PROTOCOL_VERSION, MessageType.LOG, 0)
     assert (device, sequence, t_ns, length) == (513, 0x01020304, -5, len(data) - HEADER_BYTES - 4)
     assert struct.unpack_from("<I", data, len(data) - 4)[0] == zlib.crc32(data[:-4])
 

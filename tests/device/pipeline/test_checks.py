@@ -1,0 +1,138 @@
+"""The self-checks: each turns a constructed wrong frame into its status with its reason; a right frame stays OK."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ropecam.device.pipeline.checks import ChecksConfig, Reason, SelfChecks, contour_area_px2
+from ropecam.device.pipeline.motion import MotionModel
+from ropecam.device.pipeline.result import FrameStatus
+from ropecam.shared.config import from_mapping
+from ropecam.shared.errors import ConfigError
+
+FIXED = np.array([10.0, 100.0], np.float32)
+WIDTH_PX = 5.0
+STILL_AREA_PX2 = 200.0 * WIDTH_PX
+"""A still rope's contour (200 px long) encloses length x width."""
+SWEPT_AREA_PX2 = STILL_AREA_PX2 + 0.5 * 200.0 * 20.0
+"""... and the band of a 20 px tip sweep about the fixed end adds half the length x the sweep."""
+
+
+def _shape(tip_col: float, start: tuple[float, float] = (10.0, 100.0), length: int = 200) -> np.ndarray:
+    """A straight rope hanging from `start` (row, col) to row start + length, its tip moved to `tip_col`."""
+    rows = np.linspace(start[0], start[0] + length, 101)
+    cols = np.linspace(start[1], tip_col, 101)
+    return np.column_stack([rows, cols]).astype(np.float32)
+
+
+def _check(checks: SelfChecks, **changes: object) -> tuple[FrameStatus, Reason]:
+    frame = {
+        "begin": _shape(90.0),
+        "end": _shape(110.0),
+        "fixed": FIXED,
+        "stretch_begin": 1.01,
+        "stretch_end": 0.99,
+        "width_px": WIDTH_PX,
+        "learned_width_px": WIDTH_PX,
+        "order_confidence": 0.97,
+        "exposure_ns": 4_000_000,
+        "split": True,
+        "contour_area_px2": SWEPT_AREA_PX2,
+    }
+    frame.update(changes)
+    return checks.check(**frame)  # type: ignore[arg-type]
+
+
+def test_a_right_frame_is_ok_and_its_quality_is_measured() -> None:
+    checks = SelfChecks(ChecksConfig())
+    assert _check(checks) == (FrameStatus.OK, Reason.NONE)
+    q = checks.quality
+    assert q["length_ratio"] == pytest.approx(1.01)
+    assert q["width_ratio"] == pytest.approx(1.0)
+    assert q["fixed_end_px"] == pytest.approx(0.0)
+    assert q["tip_separation_px"] == pytest.approx(20.0)
+    assert math.isnan(q["tip_motion_px"])  # no motion model yet: no prediction
+
+
+@pytest.mark.parametrize(
+    ("changes", "reason"),
+    [
+        ({"stretch_end": 1.4}, Reason.LENGTH),
+        ({"stretch_begin": 0.6}, Reason.LENGTH),
+        ({"width_px": 2.0 * WIDTH_PX + 1.0}, Reason.WIDTH),
+        ({"begin": _shape(96.0, start=(10.0, 130.0))}, Reason.FIXED_END),
+        ({"end": _shape(104.0, start=(40.0, 100.0))}, Reason.FIXED_END),
+    ],
+    ids=["too long", "too short", "too wide", "begin off the fixed end", "end off the fixed end"],
+)
+def test_each_implausible_frame_gets_its_reason(changes: dict, reason: Reason) -> None:
+    assert _check(SelfChecks(ChecksConfig()), **changes) == (FrameStatus.IMPLAUSIBLE, reason)
+
+
+def test_tip_motion_against_the_motion_models_prediction() -> None:
+    motion = MotionModel()
+    period_ns = 8_403_361
+    for k, col in enumerate((96.0, 98.0)):  # the tip moves 2 px a frame
+        tips = _shape(col)
+        motion.observe(tips, tips, FIXED, k * period_ns + 2_000_000, 0.0, 4_000_000)
+    checks = SelfChecks(ChecksConfig())
+    for _ in range(3):  # the fixed end has settled for as long as the model's history
+        checks.predict(motion.state, motion.log, FIXED, 2 * period_ns, 4_000_000)
+    expected = _shape(100.0)  # the motion continued: OK
+    assert _check(checks, begin=expected, end=expected) == (FrameStatus.OK, Reason.NONE)
+    assert checks.quality["tip_motion_px"] < 0.5
+    jumped = _shape(160.0)  # 60 px off the prediction
+    assert _check(checks, begin=jumped, end=jumped) == (FrameStatus.IMPLAUSIBLE, Reason.TIP_MOTION)
+    assert checks.quality["tip_motion_px"] > checks.quality["tip_motion_limit_px"]
+    checks.forget()  # no prediction: the jump is not checked (one shape: no blur evidence needed either)
+    assert _check(checks, begin=jumped, end=jumped, split=False) == (FrameStatus.OK, Reason.NONE)
+
+
+def test_an_uncertain_time_order_fails_only_when_asked_and_decidable() -> None:
+    checks = SelfChecks(ChecksConfig(min_order_confidence=0.8))
+    assert _check(checks, order_confidence=0.6) == (FrameStatus.IMPLAUSIBLE, Reason.ORDER)
+    assert _check(checks, order_confidence=0.6, split=False) == (FrameStatus.OK, Reason.NONE)  # one shape
+    assert _check(SelfChecks(ChecksConfig()), order_confidence=0.6) == (FrameStatus.OK, Reason.NONE)  # default off
+
+
+@pytest.mark.parametrize("exposure_ns", [0, 4_000_000], ids=["unknown exposure", "no motion prediction"])
+def test_a_split_needs_evidence_of_blur(exposure_ns: int) -> None:
+    checks = SelfChecks(ChecksConfig())
+    # Tips 20 px apart, nothing swept: a still photo, or a first frame, read as a split.
+    still = _check(checks, exposure_ns=exposure_ns, contour_area_px2=STILL_AREA_PX2)
+    assert still == (FrameStatus.NO_BLUR, Reason.NO_BLUR)
+    no_area = _check(checks, exposure_ns=exposure_ns, contour_area_px2=math.nan)
+    assert no_area == (FrameStatus.NO_BLUR, Reason.NO_BLUR)
+    assert _check(checks, exposure_ns=exposure_ns) == (FrameStatus.OK, Reason.NONE)  # the swept band is there
+    assert checks.quality["blur_evidence"] == pytest.approx(1.0, abs=0.01)
+    same = _shape(100.0)
+    assert _check(checks, exposure_ns=exposure_ns, begin=same, end=same, contour_area_px2=STILL_AREA_PX2)[0] is (
+        FrameStatus.OK
+    )
+    assert _check(checks, exposure_ns=exposure_ns, split=False, contour_area_px2=STILL_AREA_PX2)[0] is FrameStatus.OK
+
+
+def test_contour_area_is_the_shoelace_area() -> None:
+    square = np.array([[0, 0], [0, 10], [10, 10], [10, 0]], np.float32)
+    assert contour_area_px2(square, 4) == pytest.approx(100.0)
+    assert contour_area_px2(square, 2) == 0.0
+
+
+def test_disabled_checks_report_ok_but_still_measure() -> None:
+    checks = SelfChecks(ChecksConfig(enabled=False))
+    assert _check(checks, stretch_end=2.0) == (FrameStatus.OK, Reason.NONE)
+    assert checks.quality["length_ratio"] == pytest.approx(2.0)
+
+
+def test_the_checks_table_is_read_and_checked() -> None:
+    from ropecam.device.pipeline.config import PipelineConfig
+
+    config = from_mapping(PipelineConfig, {"checks": {"length_tolerance": 0.1}})
+    assert config.checks.length_tolerance == 0.1
+    with pytest.raises(ConfigError, match="length_tol"):
+        from_mapping(PipelineConfig, {"checks": {"length_tol": 0.1}})
+    with pytest.raises(ConfigError, match=r"checks\.no_blur_px"):
+        ChecksConfig(no_blur_px=-1.0)
