@@ -80,7 +80,6 @@ class FrameResult:
             roi=not self.full_frame,
             message=self.message,
         )
-        record.setdefault("readout_ns", int(self.readout_ns))
         return record
 
 

@@ -60,7 +60,8 @@ def frame_result_json(record: FrameResult, digits: int | None = None) -> dict[st
         ``[u, v]`` or null; null when neither is known), ``fixed_end``, ``material_points`` (``{"s_m", "begin",
         "end"}``, rows null where unmeasured; null without material points), ``stretch`` (``{"begin", "end"}``
         or null when neither is known), ``pipeline_us``, ``reason`` (``""`` or the failed self-check: `Reason`),
-        ``quality`` (the self-checks' measures by name, `QUALITY_KEYS`; ``{}`` from a version 1 device).
+        ``quality`` (the self-checks' measures by name, `QUALITY_KEYS`; ``{}`` from a version 1 device), ``readout_ns``
+        (rolling-shutter readout, 0 = global shutter or a version 1 device).
     """
     measured = record.begin_px is not None or record.end_px is not None
     tips = None
@@ -91,4 +92,5 @@ def frame_result_json(record: FrameResult, digits: int | None = None) -> dict[st
         "pipeline_us": int(record.pipeline_us),
         "reason": record.reason.text,
         "quality": {key: round(value, 4) for key, value in record.quality.items()},
+        "readout_ns": int(record.readout_ns),
     }

@@ -180,7 +180,10 @@ def test_authenticated_control_is_applied_and_forgeries_refused(rig_set: Path) -
     counters = dict(statuses[-1].counters)
     assert counters["control_applied"] == 3 and counters["control_failed"] == 2 and counters["control_refused"] == 2
     after = [m.record for m in messages if isinstance(m.record, FrameResult)][-5:]
-    assert after and all(r.status.name == "OK" for r in after)  # measured on after the reset and the rebuild
+    # Measured on after the reset and the rebuild: shapes on every frame. The replayed set loops, so the jump back
+    # to its first frame may be flagged IMPLAUSIBLE (tip_motion) by the self-checks, which is right.
+    assert after and all(r.begin_px is not None for r in after)
+    assert all(r.status.name == "OK" or r.reason.text == "tip_motion" for r in after), [r.status for r in after]
     assert counters["running"] == 1
     host.close()
 

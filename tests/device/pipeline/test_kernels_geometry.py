@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 import pytest
@@ -384,7 +385,12 @@ def test_find_segmentation_points_equals_the_two_kernels(seed) -> None:
     got = K.find_segmentation_points(pts, np.int32(n), *args, np.int32(4), np.float32(0.5), dist2, turn2, work2, idx2)
     assert got == expected == 4
     np.testing.assert_array_equal(idx2, idx)
-    np.testing.assert_array_equal(dist2, dist)
+    if os.environ.get("NUMBA_DISABLE_JIT") == "1":
+        # Plain Python rounds the float32 segment lengths of the test reference and the kernel differently
+        # (~5e-8 relative); compiled, both are bit-identical.
+        np.testing.assert_allclose(dist2, dist, rtol=1e-7, atol=0.0)
+    else:
+        np.testing.assert_array_equal(dist2, dist)
     np.testing.assert_array_equal(work2, work)
     written = ~np.isnan(turn2)
     np.testing.assert_array_equal(turn2[written], turn[written])
