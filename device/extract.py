@@ -29,11 +29,15 @@ segmentation points, material points and stretch. One JSON object per line and f
    "stretch": {"begin": 1.0, "end": 1.0}, "pipeline_us": 412.0, ...}
 
 A frame that cannot be measured gets a status (BAD_FRAME, NO_ROPE, LOST_TRACK, ROPE_CLIPPED) and null shapes; the
-run goes on. INPUT is a frame set (the simulator's format), a folder of images taken in name order, or a video.
+run goes on. INPUT is a frame set (the simulator's format), a folder of images, or a video. A folder of images is
+a sequence in name order when --fps gives its frame rate; without --fps its images are separate photos, each
+measured on its own as the first frame of a stream (nothing learned on one, such as the fixed end, the width or
+the thresholds, carries over to the next).
 
 examples:
   ropecam-device extract sim/rig --out rig.jsonl
-  ropecam-device extract photos/ --fps 119 --exposure-ms 4 --out photos.jsonl --method paper
+  ropecam-device extract frames/ --fps 119 --exposure-ms 4 --out frames.jsonl --method paper
+  ropecam-device extract photos/ --out photos.jsonl                   # separate still photos
   ropecam-device extract run.avi --fps 119 --exposure-ms 4 --config device.toml --out run.jsonl
 """
 
@@ -48,7 +52,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     )
     parser.add_argument("input", metavar="INPUT", help="frame set folder, image folder or video file")
     parser.add_argument("--out", required=True, metavar="FILE", help="output JSON-lines file ('-' for stdout)")
-    parser.add_argument("--fps", type=float, help="frame rate (needed for image folders; default: the input's own)")
+    parser.add_argument(
+        "--fps",
+        type=float,
+        help="frame rate; an image folder without it is a set of separate photos (default: the input's own)",
+    )
     parser.add_argument(
         "--exposure-ms", type=float, help="exposure time in ms (default: the frame set's; 0 for folders/videos)"
     )
@@ -165,7 +173,7 @@ def run_extract(
             if limit is not None and count >= limit:
                 break
             image = item.image
-            if image is not None and pipeline is None:
+            if image is not None and (pipeline is None or source.independent):  # a photo: measured on its own
                 pipeline = Pipeline(config, (image.shape[1], image.shape[0]), readout_us, plane)
             if pipeline is None or image is None:
                 record = _bad_frame(item.index, item.t_ns, item.exposure_us, item.message or "unreadable frame")

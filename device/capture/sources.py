@@ -45,6 +45,8 @@ class FrameSource:
         self.fps = fps
         self.exposure_us = exposure_us
         self.image_size: tuple[int, int] | None = None
+        self.independent = False
+        """Whether the frames are separate photos rather than a sequence (each to be measured on its own)."""
 
     def __len__(self) -> int:
         return 0
@@ -104,10 +106,15 @@ class _FrameSetSource(FrameSource):
 
 
 class _FolderSource(FrameSource):
+    """A folder of images in name order: a sequence when a frame rate is given, else separate photos."""
+
     kind = "image folder"
 
     def __init__(self, path: Path, fps: float | None, exposure_us: float | None) -> None:
         super().__init__(path, fps, exposure_us)
+        self.independent = fps is None
+        if self.independent:
+            self.kind = "folder of separate photos"
         self.files = sorted(p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file())
         if not self.files:
             raise CaptureError(f"{path}: no images ({', '.join(IMAGE_SUFFIXES)}) in this folder")

@@ -38,6 +38,12 @@ from ropecam.shared.plane import PlaneCalibration
 
 __all__ = ["Pipeline"]
 
+
+def _tip_gap_px(begin: NDArray[np.float32], end: NDArray[np.float32]) -> float:
+    """Distance between the free tips (last points, row/col) of two shapes."""
+    return float(np.hypot(*(end[-1] - begin[-1])))
+
+
 _NO_COPY = (
     "a Pipeline cannot be copied or pickled: its steady frames read a table of the raw addresses of its buffers, "
     "which a copy would share; make a new Pipeline(config, image_size) instead"
@@ -129,6 +135,8 @@ class Pipeline:
         """The fixed end (row, col) float32 (`RopeTraits.fixed_end`)."""
         self._motion = MotionModel(ws.motion)
         self.checks = SelfChecks(config.checks)
+        self._still_px = config.checks.no_blur_px
+        """A split of unknown exposure whose tips lie closer is a still rope (the static centreline is given)."""
         """The self-checks that turn an implausible frame into a status with a reason (`SelfChecks`)."""
         self._time_order = TimeOrder(ws.order)
         self.locator = RopeLocator(
@@ -387,6 +395,13 @@ class Pipeline:
     ) -> None:
         """Fill `result` from the split's `outcome`: the shapes in time order and the material points (with
         `tracked`, the results of a `track_frame` call made on them already), or why there are none."""
+        rejected = ""
+        if not exposure_ns and (outcome is None or self._still(outcome)):
+            # Unknown exposure (a still photo) and no split, or one without blur between its tips: the rope is
+            # the static centreline, which follows the contour whole where a split's two sides may pair across a
+            # loop of the rope.
+            rejected = self.splitter.failure if outcome is None else ""
+            outcome = self.splitter.static((float(self.fixed[0]), float(self.fixed[1]))) or outcome
         if outcome is None:
             result.status = FrameStatus.LOST_TRACK
             result.message = self.splitter.failure
@@ -432,6 +447,14 @@ class Pipeline:
             tracker.place_on_plane(result.begin, result.end)
         result.status = FrameStatus.OK
         self._check(result, outcome, exposure_ns)
+        if rejected and result.status is FrameStatus.OK:
+            result.status, result.reason = FrameStatus.NO_BLUR, Reason.NO_BLUR.text
+            result.message = f"{self.checks.message(Reason.NO_BLUR)} (the split: {rejected})"
+
+    def _still(self, outcome: SplitOutcome) -> bool:
+        """Whether `outcome` is a split without blur between its tips."""
+        a, b = outcome.shape_a, outcome.shape_b
+        return a is not b and len(a) > 0 and len(b) > 0 and _tip_gap_px(a, b) <= self._still_px
 
     def _check(self, result: FrameResult, outcome: SplitOutcome, exposure_ns: int) -> None:
         """Run the self-checks on a measured frame (`SelfChecks.check`): a failed one sets the status, the reason
@@ -455,17 +478,24 @@ class Pipeline:
         if status is FrameStatus.OK:
             return
         result.status, result.reason, result.message = status, reason.text, checks.message(reason)
-        if reason is Reason.NO_BLUR or (split and not exposure_ns):
+        if (reason is Reason.NO_BLUR or (split and not exposure_ns)) and not self._use_static(result):
             # Without a known exposure only a split that passes every check shows blur: never report another.
-            static = self.splitter.static((float(self.fixed[0]), float(self.fixed[1])))
-            if static is None:
-                result.begin = result.end = result.material_begin = result.material_end = None
-                return
-            result.method, result.segmentation_points = static.method, None
-            result.begin = result.end = static.shape_a
-            (result.material_begin, result.stretch_begin, result.material_end, result.stretch_end) = (
-                self.tracker.track_shapes(static.shape_a, static.shape_a)
-            )
+            result.begin = result.end = result.material_begin = result.material_end = None
+
+    def _use_static(self, result: FrameResult) -> bool:
+        """Give `result` the static centreline of the frame's contour (one shape for both instants, its material
+        points); False when there is none."""
+        static = self.splitter.static((float(self.fixed[0]), float(self.fixed[1])))
+        if static is None:
+            return False
+        result.method, result.segmentation_points = static.method, None
+        result.begin = result.end = static.shape_a
+        (result.material_begin, result.stretch_begin, result.material_end, result.stretch_end) = (
+            self.tracker.track_shapes(static.shape_a, static.shape_a)
+        )
+        if self.tracker.plane is not None:
+            self.tracker.place_on_plane(static.shape_a, static.shape_a)
+        return True
 
     def max_age_ns(self) -> int:
         """The age (ns) past which the time order's history is dropped: four frame periods."""
