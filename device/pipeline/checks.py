@@ -125,13 +125,21 @@ class SelfChecks:
         The last checked frame's measures (`QUALITY_KEYS`; one dict reused, valid until the next `check`).
     """
 
-    __slots__ = ("_predicted", "_settled_frames", "config", "quality")
+    __slots__ = ("_measure_values", "_measures", "_predicted", "_settled_frames", "_thresholds", "config", "quality")
 
     def __init__(self, config: ChecksConfig) -> None:
         self.config = config
         self.quality: dict[str, float] = {}
         self._predicted = np.full(3, math.nan)
         """The tips' predicted midpoint (row, col) and the prediction's error (px); nan: no prediction."""
+        self._thresholds = np.zeros(1, K.CHECK_THRESHOLDS)
+        for name in K.CHECK_THRESHOLDS.names:
+            self._thresholds[0][name] = getattr(config, name)
+        self._thresholds.flags.writeable = False
+        self._measures = np.zeros(1, K.CHECK_QUALITY)
+        """The last checked frame's measures, by name (`check_frame` writes them; `quality` holds a copy)."""
+        self._measure_values = self._measures.view(np.float64)
+        """The same measures as a plain array in `QUALITY_KEYS` order (read in one `tolist`)."""
         self._settled_frames = 0
 
     @staticmethod
@@ -149,19 +157,11 @@ class SelfChecks:
         Nothing while the fixed end is not `settled` or the model holds fewer than two frames measured after it
         settled: the model's history is relative to the fixed end of its time, which may have moved since.
         """
-        count = int(motion_state[K.MOTION_COUNT])
-        predicted = self._predicted
         self._settled_frames = self._settled_frames + 1 if settled else 0
-        if count < 2 or self._settled_frames <= 2:
-            predicted[2] = math.nan
+        if self._settled_frames <= 2:
+            self._predicted[2] = math.nan
             return
-        f_re, f_im, error_px = K.predict_motion(t_ns, exposure_ns, motion_state, motion_log)
-        radius = math.exp(motion_log[count - 1, 0])
-        angle = motion_log[count - 1, 1]
-        z_re, z_im = radius * math.cos(angle), radius * math.sin(angle)
-        predicted[0] = fixed[0] + f_re * z_re - f_im * z_im
-        predicted[1] = fixed[1] + f_re * z_im + f_im * z_re
-        predicted[2] = error_px
+        K.predict_tips(t_ns, exposure_ns, motion_state, motion_log, fixed, self._predicted)
 
     def needs_area(self, exposure_ns: int) -> bool:
         """True when a split needs the contour's area as evidence of blur: its exposure is unknown, or the motion
@@ -208,63 +208,20 @@ class SelfChecks:
             Area the rope's contour encloses (`contour_area_px2`; needed only for a split of unknown exposure:
             nan counts as no evidence of blur).
         """
-        c = self.config
-        q = self.quality
-        failed = Reason.NONE
-        length_ratio = math.nan
-        for stretch in (stretch_begin, stretch_end):
-            if stretch is not None and math.isfinite(stretch) and not abs(stretch - 1.0) <= abs(length_ratio - 1.0):
-                length_ratio = stretch
-        q["length_ratio"] = length_ratio
-        if abs(length_ratio - 1.0) > c.length_tolerance:
-            failed = Reason.LENGTH
-        width_ratio = width_px / learned_width_px if learned_width_px else math.nan
-        q["width_ratio"] = width_ratio
-        if failed is Reason.NONE and abs(width_ratio - 1.0) > c.width_tolerance:
-            failed = Reason.WIDTH
-        fr, fc = float(fixed[0]), float(fixed[1])
-        offset = max(
-            math.hypot(float(begin[0, 0]) - fr, float(begin[0, 1]) - fc),
-            math.hypot(float(end[0, 0]) - fr, float(end[0, 1]) - fc),
-        )
-        q["fixed_end_px"] = offset
-        width = learned_width_px or width_px
-        if failed is Reason.NONE and offset > c.fixed_end_widths * width + c.fixed_end_floor_px:
-            failed = Reason.FIXED_END
-        br, bc, er, ec = float(begin[-1, 0]), float(begin[-1, 1]), float(end[-1, 0]), float(end[-1, 1])
-        separation = math.hypot(er - br, ec - bc)
-        q["tip_separation_px"] = separation
-        predicted = self._predicted
-        motion_px = limit_px = math.nan
-        if not math.isnan(predicted[2]):
-            motion_px = math.hypot(0.5 * (br + er) - predicted[0], 0.5 * (bc + ec) - predicted[1])
-            limit_px = c.tip_motion_factor * predicted[2] + c.tip_motion_floor_px
-        q["tip_motion_px"] = motion_px
-        q["tip_motion_limit_px"] = limit_px
-        if failed is Reason.NONE and motion_px > limit_px:
-            failed = Reason.TIP_MOTION
-        if failed is Reason.NONE and split and exposure_ns > 0 and order_confidence < c.min_order_confidence:
-            failed = Reason.ORDER
-        evidence = math.nan
-        unchecked = split and self.needs_area(exposure_ns)
-        if unchecked:
-            length_px = _length_px(begin)
-            evidence = (contour_area_px2 - length_px * width) / max(0.5 * length_px * separation, 1.0)
-        q["blur_evidence"] = evidence
-        # The pixel contour's area is uncertain by ~ half a pixel along both sides (~ length px^2), which is
-        # 2 / separation of the implied sweep area: a verdict only where that is below half the threshold.
-        limit_px = max(c.no_blur_px, 4.0 / c.min_blur_evidence) if c.min_blur_evidence > 0 else c.no_blur_px
-        if unchecked and separation > limit_px and not evidence >= c.min_blur_evidence:
-            failed = Reason.NO_BLUR  # before the others: the pipeline replaces the split by the static centreline
-        if failed is Reason.NONE or not c.enabled:
+        code = K.check_frame(
+            begin, end, fixed, self._predicted, _nan_if_none(stretch_begin), _nan_if_none(stretch_end), width_px,
+            learned_width_px or 0.0, order_confidence, exposure_ns, split, contour_area_px2, self._thresholds,
+            self._measures,
+        )  # fmt: skip
+        self.quality.update(zip(QUALITY_KEYS, self._measure_values.tolist(), strict=True))
+        if code == K.CHECK_NONE or not self.config.enabled:
             return FrameStatus.OK, Reason.NONE
+        failed = Reason(code)
         return (FrameStatus.NO_BLUR if failed is Reason.NO_BLUR else FrameStatus.IMPLAUSIBLE), failed
 
 
-def _length_px(shape: NDArray[np.float32]) -> float:
-    """Length of a polyline (row, col) in px."""
-    steps = np.diff(shape.astype(np.float64), axis=0)
-    return float(np.hypot(steps[:, 0], steps[:, 1]).sum())
+def _nan_if_none(value: float | None) -> float:
+    return math.nan if value is None else float(value)
 
 
 def contour_area_px2(points: NDArray[np.float32], n: int) -> float:

@@ -61,6 +61,14 @@ from ropecam.device.pipeline._kernels.canny import (
     suppress_rows,
 )
 from ropecam.device.pipeline._kernels.centerline import band_sides
+from ropecam.device.pipeline._kernels.checks import (
+    CHECK_NO_BLUR,
+    CHECK_NONE,
+    CHECK_QUALITY,
+    CHECK_THRESHOLDS,
+    check_frame,
+    predict_tips,
+)
 from ropecam.device.pipeline._kernels.contacts import count_border_contacts, count_roi_contacts
 from ropecam.device.pipeline._kernels.contour import (
     first_listed,
@@ -187,6 +195,10 @@ __all__ = [
     "BAND_MOTION_PX",
     "BAND_MOVED",
     "BAND_SLOTS",
+    "CHECK_NONE",
+    "CHECK_NO_BLUR",
+    "CHECK_QUALITY",
+    "CHECK_THRESHOLDS",
     "DIR_COL",
     "DIR_ROW",
     "EDGE_NONE",
@@ -237,6 +249,7 @@ __all__ = [
     "band_sides",
     "band_stage",
     "chain_length",
+    "check_frame",
     "coarse_spans",
     "count_border_contacts",
     "count_roi_contacts",
@@ -280,6 +293,7 @@ __all__ = [
     "plane_segment_lengths",
     "polyline_length",
     "predict_motion",
+    "predict_tips",
     "quotient",
     "refine_inner",
     "refine_subpixel",

@@ -136,3 +136,14 @@ def test_the_checks_table_is_read_and_checked() -> None:
         from_mapping(PipelineConfig, {"checks": {"length_tol": 0.1}})
     with pytest.raises(ConfigError, match=r"checks\.no_blur_px"):
         ChecksConfig(no_blur_px=-1.0)
+
+
+def test_the_check_kernel_speaks_the_wire_s_reasons_and_measures() -> None:
+    from ropecam.device.pipeline import _kernels as K
+    from ropecam.device.pipeline._kernels import checks as kernel_checks
+    from ropecam.shared.protocol.quality import QUALITY_KEYS
+
+    codes = {name: getattr(kernel_checks, f"CHECK_{name}") for name in Reason.__members__}
+    assert codes == {name: int(member) for name, member in Reason.__members__.items()}
+    assert K.CHECK_QUALITY.names == QUALITY_KEYS
+    assert set(K.CHECK_THRESHOLDS.names) <= {f.name for f in ChecksConfig.__dataclass_fields__.values()}
