@@ -80,7 +80,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         "--readout-us",
         type=int,
         metavar="US",
-        help="rolling-shutter readout time in microseconds, first row to last (0 = global shutter, the default; "
+        help="rolling-shutter frame readout time in microseconds: row r starts r / height of it after row 0 "
+        "(0 = global shutter, the default; "
         "default: [capture] readout_us of --config); each record's readout_ns gives every row its own time",
     )
     parser.add_argument("--limit", type=int, metavar="N", help="stop after N frames")

@@ -30,9 +30,9 @@ class CaptureConfig:
     read_timeout_s
         Longest wait for one frame before a read counts a timeout.
     readout_us
-        The sensor's rolling-shutter readout time (first row to last row) in microseconds; 0 = global shutter.
-        Row r of a frame starts its exposure ``r / height * readout_us`` after row 0 (docs/pipeline.md, "Time of
-        a shape point"); at most the frame period.
+        The sensor's rolling-shutter frame readout time in microseconds (height line times, as datasheets give
+        it); 0 = global shutter. Row r of a frame starts its exposure ``r / height * readout_us`` after row 0
+        (docs/pipeline.md, "Time of a shape point"); at most the frame period.
     """
 
     source: str = "v4l2:///dev/video0"

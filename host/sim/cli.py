@@ -107,7 +107,8 @@ def register(subparsers: Any) -> None:
         "--readout-ms",
         type=float,
         metavar="T",
-        help="camera.readout_ms: rolling shutter, the last row starts T ms after the first (0: global shutter)",
+        help="camera.readout_ms: rolling shutter, the frame readout time T (row r starts r x T / height ms after "
+        "row 0; 0: global shutter)",
     )
     camera.add_argument(
         "--flicker", type=float, metavar="A", help="scene.flicker: lamp brightness 1 + A sin(2 pi f t), A in [0, 0.9]"

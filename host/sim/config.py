@@ -52,7 +52,7 @@ class CameraSpec:
         Standard deviation of the lens blur (Gaussian point-spread function), pixels; the pixel's own area is
         added to it as a box of variance 1/12.
     readout_ms
-        Rolling shutter: row r's exposure starts ``readout_ms * r / (height_px - 1)`` after row 0's, milliseconds,
+        Rolling shutter: row r's exposure starts ``readout_ms * r / height_px`` after row 0's, milliseconds,
         at most the frame period (checked by `SimConfig`); 0 = global shutter.
     """
 

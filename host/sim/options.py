@@ -35,7 +35,12 @@ REALISM_OPTIONS: Final[tuple[tuple[str, str, str, str], ...]] = (
     ("scene.flicker", "relative", "0-0.9", "lamp modulation amplitude: light x (1 + a sin(2 pi f t))"),
     ("scene.flicker_hz", "Hz", "1-1000", "lamp modulation frequency (100 on 50 Hz mains, 120 on 60 Hz)"),
     ("camera.psf_sigma_px", "px", "0-5", "lens blur, Gaussian sigma (the pixel's area is added)"),
-    ("camera.readout_ms", "ms", "0 to the frame period", "rolling shutter: last row starts this much after row 0"),
+    (
+        "camera.readout_ms",
+        "ms",
+        "0 to the frame period",
+        "rolling shutter: frame readout time (row r starts r / height of it after row 0)",
+    ),
     ("sensor.read_noise_dn", "DN", "0-50", "read noise, linear light"),
     ("sensor.gain_dn_per_electron", "DN/e-", "0-10", "shot noise: variance = gain x signal"),
     ("sensor.gamma", "exponent", "1-3", "output curve: code = 255 (light/255)^(1/gamma)"),

@@ -1,7 +1,9 @@
 """Exposure timing per image row: the rolling shutter's row weights and ground truth, and lamp flicker.
 
-A rolling shutter starts row r's exposure ``readout_s * r / (H - 1)`` after row 0's (`row_offsets_s`): row 0 at
-the frame's exposure start, the last row `readout_s` later; every row is exposed for the same time. The renderer
+A rolling shutter starts row r's exposure ``readout_s * r / H`` after row 0's (`row_offsets_s`): `readout_s` is
+the sensor's frame readout time, H line times (the convention of sensor datasheets, and the device's and host's
+``readout_ns``), so row 0 starts at the frame's exposure start and the last row ``readout_s * (H - 1) / H`` later;
+every row is exposed for the same time. The renderer
 samples the rope at sub-frame times spanning all rows' exposures and gives each sub-frame, per row, the integral of
 its linear-interpolation hat function over that row's exposure divided by the exposure time (`row_weights`), so
 each row is the time average of the rope over its own exposure. With no readout every row gets the trapezoidal
@@ -34,7 +36,7 @@ def row_offsets_s(height_px: int, readout_s: float) -> NDArray[np.float64]:
     """Return (H,) exposure-start offsets of the image rows from row 0's, seconds (zeros for a global shutter)."""
     if height_px < 2:
         raise ValueError(f"height_px must be >= 2, got {height_px}")
-    return readout_s * np.arange(height_px, dtype=np.float64) / (height_px - 1)
+    return readout_s * np.arange(height_px, dtype=np.float64) / height_px
 
 
 def _hat_integral(x: NDArray[np.float64], h: float) -> NDArray[np.float64]:
@@ -129,7 +131,7 @@ def rolling_centreline(
     ValueError
         The fixed point does not converge (the rope crosses rows about as fast as the shutter).
     """
-    scale = readout_s / (height_px - 1)
+    scale = readout_s / height_px
     times = np.full(s_m.size, t0_s)
     for _ in range(FIXED_POINT_ITERATIONS):
         points_m = positions_at(trajectory, times, s_m)

@@ -66,7 +66,7 @@ def test_rolling_shutter_shears_a_moving_rope_by_speed_times_row_delay(
     rows, centres = _row_centroids(frames.read(0), config.scene.background_level)
     rows_used = (rows > 10) & (rows < 0.25 * FX - 10)  # away from the rope's ends
     slope, _ = np.polyfit(rows[rows_used], centres[rows_used], 1)
-    expected = FX * speed / Z * readout_ms * 1e-3 / (HEIGHT - 1)
+    expected = FX * speed / Z * readout_ms * 1e-3 / HEIGHT
     assert slope == pytest.approx(expected, abs=0.002), f"shear {slope:.4f} px/row, expected {expected:.4f}"
     # Each row is the rope at the middle of that row's exposure: u = 80 + FX (x(t_row + T / 2)) / Z.
     t_mid = 0.02 + row_offsets_s(HEIGHT, readout_ms * 1e-3)[rows[rows_used]] + 0.5e-3
@@ -75,9 +75,9 @@ def test_rolling_shutter_shears_a_moving_rope_by_speed_times_row_delay(
     begin, end = truth["begin_px"][0], truth["end_px"][0]
     if readout_ms:
         t_begin = truth["begin_point_t_ns"][0] * 1e-9
-        np.testing.assert_allclose(t_begin, 0.02 + readout_ms * 1e-3 * begin[:, 1] / (HEIGHT - 1), atol=1e-11)
+        np.testing.assert_allclose(t_begin, 0.02 + readout_ms * 1e-3 * begin[:, 1] / HEIGHT, atol=1e-11)
         np.testing.assert_allclose(truth["end_point_t_ns"][0] * 1e-9 - t_begin, 1e-3, atol=1e-11)
-        np.testing.assert_allclose(truth["row_offset_ns"], np.arange(HEIGHT) * readout_ms * 1e6 / (HEIGHT - 1))
+        np.testing.assert_allclose(truth["row_offset_ns"], np.arange(HEIGHT) * readout_ms * 1e6 / HEIGHT)
         assert frames.meta["rig"]["readout_ms"] == readout_ms
     else:
         assert "begin_point_t_ns" not in truth and "row_offset_ns" not in truth
