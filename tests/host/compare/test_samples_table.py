@@ -201,3 +201,16 @@ def test_a_rolling_shutter_measures_as_well_as_a_global_one(compared: Path, tmp_
     assert velocity[max(velocity)] < 0.02
     summary = json.loads((rolling / "report" / "summary.json").read_text())
     assert max(summary["rms_error_m"]) < 0.5e-3  # against the model, at the fitted release
+
+
+@pytest.mark.parametrize("capture", ["readout_us = -1", "readout_us = 9000"])  # negative; longer than 8.4 ms
+def test_a_bad_readout_in_the_config_is_refused_naming_it(
+    compared: Path, tmp_path: Path, capture: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    config = tmp_path / "device.toml"
+    config.write_text(f"[capture]\n{capture}\n")
+    command = ["compare", str(compared / "rig"), "--plane", str(compared / "plane.yaml"), "--config", str(config),
+               "--out", str(tmp_path / "report")]  # fmt: skip
+    assert main(command) == 2
+    assert "[capture] readout_us" in capsys.readouterr().err
+    assert not (tmp_path / "report").exists()
