@@ -69,14 +69,16 @@ def _at(s_vertices: NDArray[np.float64], values: NDArray[np.float64], s: NDArray
 
 class _Curve:
     """A measured curve (n, 2) m, the delays (n,) s of its vertices after row 0, and the material arc length of each
-    vertex (uniform stretch on the curve brought to row 0's time)."""
+    vertex: uniform stretch on the curve itself (`place`), re-placed on the rope at one instant for a rolling
+    shutter (`_place_at_one_instant`)."""
 
     def __init__(self, curve_m: NDArray[np.float64], delay_s: NDArray[np.float64], length_m: float) -> None:
         self.curve, self.delay, self.length = curve_m, delay_s, length_m
         self.place(curve_m)
 
-    def place(self, at_row0_m: NDArray[np.float64]) -> None:
-        arc = _arc(at_row0_m)
+    def place(self, curve_m: NDArray[np.float64]) -> None:
+        """Material arc lengths of the vertices by uniform stretch on `curve_m`."""
+        arc = _arc(curve_m)
         self.stretch = float(arc[-1]) / self.length
         self.s_vertices = arc / self.stretch if self.stretch > 0 else arc
 
