@@ -15,7 +15,6 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Final
 
 import numpy as np
-from numpy.typing import NDArray
 
 from ropecam.host.calibration.geometry import CameraModel, PlanePose
 from ropecam.host.compare.measurement import default_points
@@ -96,30 +95,38 @@ class ModelOverlay:
             return None  # the model run stopped: no model to compare with (not its last state)
         return float(max(t_s, times[0]))
 
-    def _errors_mm(self, shape_px: NDArray[np.float64] | None, model_t_s: float | None) -> list[float | None]:
-        from ropecam.host.compare.measurement import shape_points_m
-
-        if shape_px is None or model_t_s is None:
-            return [None] * len(self.s_m)
-        measured, _ = shape_points_m(shape_px, "OK", *self.calibration, np.asarray(self.s_m), self.length_m)
-        model = self.trajectory.positions([model_t_s], self.s_m)[0]
-        distance_mm = np.linalg.norm(measured - model, axis=1) * 1e3
-        return [None if math.isnan(d) else round(float(d), 6) for d in distance_mm]
-
     def frame_errors_mm(self, record: FrameResult) -> tuple[list[float | None], list[float | None]]:
         """Distances (mm) of the frame's material points from the model at exposure start and end.
 
-        None where not measured, for every point of a frame whose status is not OK (the fit ignores those too), and
-        for a time past the end of the model run.
+        The points are placed and timed as `ropecam compare` does (`tracks_from_frames`): with a rolling shutter
+        each at its own row's time, placed on the rope at one instant (docs/compare.md, "Rolling shutter"). None
+        where not measured, for every point of a frame whose status is not OK (the fit ignores those too) or whose
+        shapes miss the plane, and for a shape seen past the end of the model run.
         """
+        from ropecam.host.compare.measurement import measured_frame, tracks_from_frames
         from ropecam.shared.protocol.records import FrameStatus
 
+        nothing: list[float | None] = [None] * len(self.s_m)
         if record.status != FrameStatus.OK:
-            return [None] * len(self.s_m), [None] * len(self.s_m)
-        return (
-            self._errors_mm(record.begin_px, self._model_time(record.exposure_start_t_ns)),
-            self._errors_mm(record.end_px, self._model_time(record.exposure_end_t_ns)),
-        )
+            return list(nothing), list(nothing)
+        try:
+            tracks, _ = tracks_from_frames([measured_frame(record)], *self.calibration, self.s_m, self.length_m, [])
+        except DataError:  # both shapes miss the plane
+            return list(nothing), list(nothing)
+        assert tracks.point_times_s is not None  # set by MaterialPointTracks
+        out: list[list[float | None]] = []
+        for sample in range(2):  # exposure start, then end (the tracks are in time order)
+            model_t = tracks.point_times_s[sample] - self.release_time_s
+            if np.any(model_t > self.trajectory.times_s[-1] + 1e-9):
+                out.append(list(nothing))  # the model run stopped: no model to compare with (not its last state)
+                continue
+            model_t = np.maximum(model_t, self.trajectory.times_s[0])  # before the release the rope rests
+            model = np.stack(
+                [self.trajectory.positions([t], [s])[0, 0] for t, s in zip(model_t, self.s_m, strict=True)]
+            )
+            distance_mm = np.linalg.norm(tracks.positions_m[sample] - model, axis=1) * 1e3
+            out.append([None if math.isnan(d) else round(float(d), 6) for d in distance_mm])
+        return out[0], out[1]
 
     def messages(
         self,

@@ -63,7 +63,7 @@ def model_for_tracks(
     rope: RopeConfig, solver: SolverConfig, tracks: MaterialPointTracks, release_time_s: float, margin_s: float = 0.05
 ) -> Trajectory:
     """Simulate the model from the release until `margin_s` after the last measurement (at least two steps)."""
-    duration = max(float(tracks.times_s[-1] - release_time_s) + margin_s, 2 * solver.step_s)
+    duration = max(tracks.last_time_s - release_time_s + margin_s, 2 * solver.step_s)
     trajectory, _ = CableModel(rope, dataclasses.replace(solver, duration_s=duration)).run()
     return trajectory
 
@@ -140,7 +140,7 @@ def fit_parameters(
 
     def trajectory_for(values: dict[str, float]) -> Trajectory:
         key = tuple(round(values[n], 15) for n in ("ei", "damping", "drag"))
-        needed = tracks.times_s[-1] - values["t0"]
+        needed = tracks.last_time_s - values["t0"]
         cached = cache.get(key)
         if cached is None or cached.times_s[-1] < needed:
             # Long enough for any release time down to the earliest plausible one, so t0 steps reuse it.

@@ -19,7 +19,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ropecam.host.calibration.geometry import CameraModel, PlanePose, pixels_to_plane, plane_to_pixels
+from ropecam.host.calibration.geometry import CameraModel, PlanePose, pixels_to_plane
+from ropecam.host.compare.shutter import frame_points
 from ropecam.host.compare.tracks import MaterialPointTracks
 from ropecam.shared.errors import ConfigError, DataError
 
@@ -185,24 +186,6 @@ def shape_points_m(
     return points_at_arc_lengths(pixels_to_plane(shape_px, camera, plane), s_m, length_m)
 
 
-def _point_times(
-    t_ns: int,
-    readout_ns: int,
-    points_m: NDArray[np.float64],
-    camera: CameraModel,
-    plane: PlanePose,
-    height: float,
-) -> NDArray[np.float64]:
-    """When each material point (K, 2) m of a shape exposed from `t_ns` was seen (s): ``t_ns + v / height *
-    readout_ns``, v its image row (a rolling shutter); `t_ns` for all with a global shutter or unmeasured points."""
-    times = np.full(len(points_m), t_ns * 1e-9)
-    measured = np.all(np.isfinite(points_m), axis=1)
-    if readout_ns > 0 and measured.any():
-        rows = plane_to_pixels(points_m[measured], camera, plane)[:, 1]
-        times[measured] += np.clip(rows, 0.0, height) / height * readout_ns * 1e-9
-    return times
-
-
 def tracks_from_frames(
     frames: Iterable[MeasuredFrame],
     camera: CameraModel,
@@ -238,30 +221,36 @@ def tracks_from_frames(
     stretches: list[float] = []
     numbers: list[int] = []
     velocities: list[NDArray[np.float64]] = []
-    mid_exposure: list[float] = []
+    mid_exposure: list[NDArray[np.float64]] = []
     point_times: list[NDArray[np.float64]] = []
     height = float(camera.image_size[1])
     off_plane: list[str] = []
     shapes = 0
     for frame in frames:
-        pair = []
+        curves: list[NDArray[np.float64] | None] = []
+        rows: list[NDArray[np.float64] | None] = []
         for t_ns, shape in ((frame.t_begin_ns, frame.begin_px), (frame.t_end_ns, frame.end_px)):
-            times.append(t_ns * 1e-9)
-            shapes += shape is not None and frame.status == "OK"
-            try:
-                points, stretch = shape_points_m(shape, frame.status, camera, plane, s, length_m)
-            except ValueError as exc:
-                off_plane.append(f"frame {frame.frame} (t_ns {t_ns}): {exc}")
-                points, stretch = np.full((s.size, 2), np.nan), math.nan
-            positions.append(points)
-            point_times.append(_point_times(t_ns, frame.readout_ns, points, camera, plane, height))
-            stretches.append(stretch)
-            pair.append(points)
-        exposure_s = (frame.t_end_ns - frame.t_begin_ns) * 1e-9
-        velocity = (pair[1] - pair[0]) / exposure_s if exposure_s > 0 else np.full((s.size, 2), np.nan)
-        velocities += [velocity, velocity]
+            measured = shape is not None and frame.status == "OK"
+            shapes += measured
+            curve = None
+            if measured:
+                try:
+                    curve = pixels_to_plane(shape, camera, plane)
+                except ValueError as exc:
+                    off_plane.append(f"frame {frame.frame} (t_ns {t_ns}): {exc}")
+            curves.append(curve)
+            rows.append(None if curve is None else np.asarray(shape, dtype=np.float64)[:, 1])
+        got = frame_points(
+            curves[0], curves[1], rows[0], rows[1], frame.t_begin_ns * 1e-9, frame.t_end_ns * 1e-9,
+            frame.readout_ns * 1e-9, height, s, length_m,
+        )  # fmt: skip
+        times += [frame.t_begin_ns * 1e-9, frame.t_end_ns * 1e-9]
+        positions += [got.begin_m, got.end_m]
+        point_times += [got.begin_t_s, got.end_t_s]
+        stretches += [got.begin_stretch, got.end_stretch]
+        velocities += [got.velocity_m_s, got.velocity_m_s]
+        mid_exposure += [got.mid_t_s, got.mid_t_s]
         numbers += [frame.frame, frame.frame]
-        mid_exposure += [(frame.t_begin_ns + frame.t_end_ns) * 0.5e-9] * 2
     if not times:
         raise DataError("no frames to convert")
     if off_plane and 2 * len(off_plane) > shapes:
@@ -272,8 +261,8 @@ def tracks_from_frames(
     if skipped is not None:
         skipped.extend(f"{line}: skipped (off the plane)" for line in off_plane)
     tracks = MaterialPointTracks(
-        np.asarray(times), s, np.stack(positions), np.asarray(numbers), np.stack(velocities), np.asarray(mid_exposure),
-        np.stack(point_times),
+        np.asarray(times), s, np.stack(positions), np.asarray(numbers), np.stack(velocities), np.stack(mid_exposure),
+        np.stack(point_times), np.tile([False, True], len(numbers) // 2),
     )  # fmt: skip
     order = np.argsort(np.asarray(times), kind="stable")
     return tracks, np.asarray(stretches)[order]

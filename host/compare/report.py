@@ -87,6 +87,8 @@ def _plots(c: Comparison, out: Path) -> list[tuple[str, str]]:
 
     written = []
     t = c.tracks.times_s
+    seen = c.tracks.point_times_s  # each point at its own time (a rolling shutter's rows)
+    assert seen is not None  # set by MaterialPointTracks
     model = model_positions(c.trajectory, c.tracks, c.release_time_s)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
 
@@ -108,7 +110,7 @@ def _plots(c: Comparison, out: Path) -> list[tuple[str, str]]:
 
     fig, ax = plt.subplots(figsize=(9, 4.5), constrained_layout=True)
     for k, s in enumerate(c.tracks.s_m):
-        ax.plot(t - c.release_time_s, c.errors.error_m[:, k] * 1e3, ".-", ms=2, lw=0.6, label=f"s = {s:.3f} m")
+        ax.plot(seen[:, k] - c.release_time_s, c.errors.error_m[:, k] * 1e3, ".-", ms=2, lw=0.6, label=f"s = {s:.3f} m")
     ax.set_xlabel(f"time after the fitted release (s; release at {c.release_time_s:.4f} s on the device clock)")
     ax.set_ylabel("position error |measured - model| (mm)")
     ax.set_title("Error against time")
@@ -140,13 +142,14 @@ def _plots(c: Comparison, out: Path) -> list[tuple[str, str]]:
 
     fig, axes = plt.subplots(c.tracks.s_m.size, 2, figsize=(10, 2.2 * c.tracks.s_m.size + 0.8), sharex=True,
                              squeeze=False, constrained_layout=True)  # fmt: skip
-    dense_t = np.linspace(t[0], t[-1], max(200, 4 * t.size))
+    dense_t = np.linspace(t[0], c.tracks.last_time_s, max(200, 4 * t.size))
+
     model_t = np.clip(dense_t - c.release_time_s, c.trajectory.times_s[0], c.trajectory.times_s[-1])
     dense = c.trajectory.positions(model_t, c.tracks.s_m)
     for k, s in enumerate(c.tracks.s_m):
         for axis, name in enumerate(("x (m, horizontal)", "y (m, down)")):
             ax = axes[k, axis]
-            ax.plot(t - c.release_time_s, c.tracks.positions_m[:, k, axis], ".", ms=3, label="measured")
+            ax.plot(seen[:, k] - c.release_time_s, c.tracks.positions_m[:, k, axis], ".", ms=3, label="measured")
             ax.plot(dense_t - c.release_time_s, dense[:, k, axis], "k-", lw=0.8, label="model")
             ax.set_ylabel(f"{name[0]}, s = {s:.3f} m")
             ax.grid(alpha=0.3)

@@ -1,23 +1,28 @@
 """The per-sample table of a comparison, in metres: CSV always, Parquet when pyarrow is installed.
 
 One row per sample and material point (two samples per frame: the rope at the start and at the end of the
-exposure), in time order:
+exposure), in the order of the samples (frames in time order, start before end):
 
 ========================  ==========================================================================================
 column                    meaning
 ========================  ==========================================================================================
-``time_s``                the sample's time on the device clock (exposure start or end), s
+``time_s``                when the point was seen, on the device clock, s: the exposure's start or end, plus, with a
+                          rolling shutter, its row's delay (docs/compare.md, "Rolling shutter"); the model is
+                          evaluated there
 ``frame``                 the frame the sample belongs to (-1: unknown)
 ``sample``                ``start`` or ``end`` of that frame's exposure
 ``point_s_m``             the material point: unstretched arc length from the fixed end, m
 ``measured_x_m/_y_m``     the measured position in the plane frame (x horizontal, y down), m; empty: not measured
 ``model_x_m/_y_m``        the model's position at the same time and material point, m
 ``error_m``               ``|measured - model|``, m; its RMS over a point's rows is the summary's RMS for the point
-``mid_exposure_s``        the middle of the frame's exposure (device clock), s
+``mid_exposure_s``        the time the in-frame velocity belongs to: the middle between the point's two times (its
+                          ``time_s`` in the start and in the end row of the frame), s; with a global shutter the
+                          middle of the frame's exposure
 ``in_frame_vx/vy_m_s``    the velocity measured within the frame: the point's displacement from the start to the
-                          end of the exposure over the exposure time, m/s (the same in both rows of a frame)
-``model_vx/vy_m_s``       the model's velocity at mid-exposure, m/s: what the in-frame velocity measures to
-                          second order in the exposure time
+                          end of the exposure over the time between its two times, m/s (the same in both rows of a
+                          frame)
+``model_vx/vy_m_s``       the model's velocity at ``mid_exposure_s``, m/s: what the in-frame velocity measures to
+                          second order in the time between the two shapes
 ========================  ==========================================================================================
 
 ``ropecam replay --export-csv`` writes the measured columns only (no model). Numbers are written with Python's
@@ -53,10 +58,11 @@ def sample_table(
     def per_sample(values: NDArray) -> NDArray:
         return np.repeat(values, k)
 
+    assert tracks.point_times_s is not None and tracks.mid_exposure_s is not None  # set by __post_init__
     columns: Columns = {
-        "time_s": per_sample(tracks.times_s),
+        "time_s": tracks.point_times_s.ravel(),
         "frame": per_sample(tracks.frames),
-        "sample": per_sample(np.where(tracks.times_s <= tracks.mid_exposure_s, "start", "end")),
+        "sample": per_sample(np.where(tracks.exposure_end, "end", "start")),
         "point_s_m": np.tile(tracks.s_m, m),
         "measured_x_m": tracks.positions_m[:, :, 0].ravel(),
         "measured_y_m": tracks.positions_m[:, :, 1].ravel(),
@@ -68,7 +74,7 @@ def sample_table(
             "error_m": error_m.ravel(),
         }
     columns |= {
-        "mid_exposure_s": per_sample(tracks.mid_exposure_s),
+        "mid_exposure_s": tracks.mid_exposure_s.ravel(),
         "in_frame_vx_m_s": tracks.in_frame_velocities_m_s[:, :, 0].ravel(),
         "in_frame_vy_m_s": tracks.in_frame_velocities_m_s[:, :, 1].ravel(),
     }

@@ -28,15 +28,18 @@ class MaterialPointTracks:
         Optional, shape (M,): the frame number each sample belongs to (default -1: unknown).
     in_frame_velocities_m_s
         Optional, shape (M, K, 2): each point's velocity measured within the sample's frame, its displacement from
-        the rope at the start to the rope at the end of the exposure over the exposure time (both samples of a frame
-        carry it); NaN where either shape misses the point (default: all NaN).
+        the rope at the start to the rope at the end of the exposure over the time between the two (both samples
+        of a frame carry it); NaN where either shape misses the point (default: all NaN).
     mid_exposure_s
-        Optional, shape (M,): the middle of the sample's exposure, the time the in-frame velocity belongs to
-        (default: `times_s`).
+        Optional, shape (M,) or (M, K): the time each in-frame velocity belongs to, the middle between the point's
+        two times (with a global shutter the middle of the exposure); default `times_s`. Stored as (M, K).
     point_times_s
         Optional, shape (M, K): when each point of each sample was seen. A rolling shutter exposes row r
         ``r / height * readout`` after row 0, so the points of one shape have their own times (docs/compare.md,
         "Rolling shutter"); default: `times_s` for every point (a global shutter). The model is evaluated there.
+    exposure_end
+        Optional, shape (M,): True where the sample is the rope at the end of its frame's exposure; default: the
+        samples after their (M,) `mid_exposure_s`.
     """
 
     times_s: NDArray[np.float64]
@@ -46,6 +49,7 @@ class MaterialPointTracks:
     in_frame_velocities_m_s: NDArray[np.float64] | None = None
     mid_exposure_s: NDArray[np.float64] | None = None
     point_times_s: NDArray[np.float64] | None = None
+    exposure_end: NDArray[np.bool_] | None = None
 
     def __post_init__(self) -> None:
         t = np.asarray(self.times_s, dtype=np.float64)
@@ -59,11 +63,18 @@ class MaterialPointTracks:
         velocities = np.full(p.shape, np.nan) if self.in_frame_velocities_m_s is None else self.in_frame_velocities_m_s
         velocities = np.asarray(velocities, dtype=np.float64)
         mid = t if self.mid_exposure_s is None else np.asarray(self.mid_exposure_s, dtype=np.float64)
-        if frames.shape != t.shape or velocities.shape != p.shape or mid.shape != t.shape:
+        if frames.shape != t.shape or velocities.shape != p.shape or mid.shape not in (t.shape, p.shape[:2]):
             raise ValueError(
-                f"frames and mid_exposure_s must have shape ({t.size},), in_frame_velocities_m_s {p.shape}; got "
-                f"{frames.shape}, {mid.shape}, {velocities.shape}"
+                f"frames must have shape ({t.size},), mid_exposure_s ({t.size},) or ({t.size}, {s.size}), "
+                f"in_frame_velocities_m_s {p.shape}; got {frames.shape}, {mid.shape}, {velocities.shape}"
             )
+        if self.exposure_end is not None:
+            ends = np.asarray(self.exposure_end, dtype=bool)
+        else:
+            ends = t > (mid if mid.ndim == 1 else mid.min(axis=1))
+        if ends.shape != t.shape:
+            raise ValueError(f"exposure_end must have shape ({t.size},), got {ends.shape}")
+        mid = np.repeat(mid[:, None], s.size, axis=1) if mid.ndim == 1 else mid
         point_t = np.repeat(t[:, None], s.size, axis=1) if self.point_times_s is None else self.point_times_s
         point_t = np.asarray(point_t, dtype=np.float64)
         if point_t.shape != (t.size, s.size) or not np.all(np.isfinite(point_t)):
@@ -76,6 +87,13 @@ class MaterialPointTracks:
         object.__setattr__(self, "frames", frames[order])
         object.__setattr__(self, "in_frame_velocities_m_s", velocities[order])
         object.__setattr__(self, "mid_exposure_s", mid[order])
+        object.__setattr__(self, "exposure_end", ends[order])
+
+    @property
+    def last_time_s(self) -> float:
+        """The latest time any point was seen (a rolling shutter's lowest rows come after the samples' times)."""
+        assert self.point_times_s is not None  # set by __post_init__
+        return float(max(self.times_s[-1], self.point_times_s.max()))
 
     @property
     def measured(self) -> NDArray[np.bool_]:
@@ -103,14 +121,22 @@ def model_positions(trajectory: Trajectory, tracks: MaterialPointTracks, release
 
 
 def model_velocities(trajectory: Trajectory, tracks: MaterialPointTracks, release_time_s: float) -> NDArray[np.float64]:
-    """Evaluate the model's velocity (m/s) at the middle of each sample's exposure; shape (M, K, 2).
+    """Evaluate the model's velocity (m/s) of each point at its in-frame velocity's time (`mid_exposure_s`: the
+    middle between the point's two times, with a global shutter mid-exposure); shape (M, K, 2).
 
-    This is what an in-frame velocity (displacement over the exposure / exposure time) measures to second order in
-    the exposure time. Before the release the model rests (zero velocity).
+    This is what an in-frame velocity (displacement over the time between the two shapes) measures to second order
+    in that time. Before the release the model rests (zero velocity).
     """
-    model_t = np.clip(tracks.mid_exposure_s - release_time_s, trajectory.times_s[0], trajectory.times_s[-1])
-    velocities = trajectory.velocities(model_t, tracks.s_m)
-    velocities[tracks.mid_exposure_s - release_time_s < trajectory.times_s[0]] = 0.0
+    mid = tracks.mid_exposure_s
+    assert mid is not None  # set by __post_init__
+    model_t = np.clip(mid - release_time_s, trajectory.times_s[0], trajectory.times_s[-1])
+    if np.all(mid == mid[:, :1]):  # one time per sample (a global shutter)
+        velocities = trajectory.velocities(model_t[:, 0], tracks.s_m)
+    else:
+        velocities = np.empty((*mid.shape, 2))
+        for k in range(tracks.s_m.size):
+            velocities[:, k] = trajectory.velocities(model_t[:, k], tracks.s_m[k : k + 1])[:, 0]
+    velocities[mid - release_time_s < trajectory.times_s[0]] = 0.0
     return velocities
 
 

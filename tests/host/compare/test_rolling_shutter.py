@@ -66,3 +66,18 @@ def test_each_point_is_compared_at_its_rows_time(tmp_path: Path) -> None:
     tracks, _ = tracks_from_frames(frames, CAMERA, PLANE, [0.1, 0.2], LENGTH_M)
     rms_mm = 1000.0 * point_errors(tracks, model_positions(_trajectory(), tracks, 0.0)).overall_rms_m
     assert 3.5 < rms_mm < 5.0
+
+
+def test_the_model_error_channel_times_the_points_as_compare_does() -> None:
+    """`replay --model` / the live monitor's ModelError: the same rows' times as compare; read at the exposure's
+    start and end instead, the same shapes are 4-5 mm off."""
+    from ropecam.host.model_overlay import ModelOverlay
+    from ropecam.shared.protocol.records import FrameResult
+
+    t_ns, t_end_ns = 10_000_000, 14_000_000
+    shapes = {"begin_px": np.array(_shape_px(t_ns)), "end_px": np.array(_shape_px(t_end_ns))}
+    overlay = ModelOverlay(_trajectory(), 0.0, LENGTH_M, (0.1, 0.2), (CAMERA, PLANE))
+    begin, end = overlay.frame_errors_mm(FrameResult(3, t_ns, t_end_ns, readout_ns=READOUT_NS, **shapes))
+    assert max(begin + end) < 1e-6
+    begin, end = overlay.frame_errors_mm(FrameResult(3, t_ns, t_end_ns, **shapes))
+    assert min(begin + end) > 3.9 and max(begin + end) < 5.1  # rows 400 and 500: 4 and 5 ms at 1 m/s
