@@ -47,9 +47,13 @@ from ropecam.device.pipeline._kernels.canny import (
     detect_edges,
     finish_edges,
     grow_edges,
+    nms_pixel,
+    sobel_suppress,
+    suppress_rows,
+)
+from ropecam.device.pipeline._kernels.canny_gradient import (
     grow_spans_inplace,
     grow_spans_once,
-    nms_pixel,
     padded_end,
     smooth_box,
     smooth_columns,
@@ -57,8 +61,6 @@ from ropecam.device.pipeline._kernels.canny import (
     smooth_ring,
     smooth_rows,
     sobel_rows,
-    sobel_suppress,
-    suppress_rows,
 )
 from ropecam.device.pipeline._kernels.centerline import band_sides
 from ropecam.device.pipeline._kernels.contacts import count_border_contacts, count_roi_contacts

@@ -10,7 +10,7 @@ import numpy as np
 from numba import int32
 
 from ropecam.device.pipeline._kernels._common import INVALID, f4_1d_ro
-from ropecam.device.pipeline._kernels.canny import smooth_box
+from ropecam.device.pipeline._kernels.canny_gradient import smooth_box
 from ropecam.device.pipeline._kernels.geometry import find_segmentation_points_seg
 from ropecam.device.pipeline._kernels.offsets import slope_sweep_median
 from ropecam.device.pipeline._kernels.split_shapes import SPLIT_PARAMS, f4_3d, split_shapes_packed_near
