@@ -406,9 +406,8 @@ class Pipeline:
             order, motion = self._time_order, self._motion
             try:
                 swap, confidence, stretch_begin, stretch_end = K.track_frame(
-                    a, b, a is b, result.t_ns, result.t_end_ns, self.max_age_ns(), order.state, order.hist_rc,
-                    self.fixed, float(self.splitter.sweep_px), exposure_ns, motion.state, motion.log,
-                    tracker.fraction_ro, tracker.length0_settled_px, tracker.out, tracker.lengths_px, tracker.work,
+                    a, b, a is b, result.t_ns, result.t_end_ns, self.max_age_ns(), order.group, self.fixed,
+                    float(self.splitter.sweep_px), exposure_ns, motion.group, tracker.length0_settled_px, tracker.group,
                 )  # fmt: skip
             except TypeError:  # not the splitter's writable float32 buffers
                 swap = -1

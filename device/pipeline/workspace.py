@@ -138,15 +138,18 @@ class RoiBuffers:
     coarse_sums: NDArray[np.int32]
     coarse_labels: NDArray[np.int32]
     coarse_stack: NDArray[np.int32]
+    band: K.Band
+    """`lo`, `hi`, `moved` as `band_stage`'s group."""
 
     @classmethod
     def make(cls, height: int, width: int, capacity: int) -> RoiBuffers:
         """Allocate the buffers of an image of `height` x `width` px and contours of up to `capacity` points."""
         cells = (max(1, height // COARSE_BLOCK), max(1, width // COARSE_BLOCK))
+        lo, hi, moved = np.zeros(height, np.int32), np.zeros(height, np.int32), np.zeros((capacity, 2), np.float32)
         return cls(
-            *(np.zeros(height, np.int32) for _ in range(4)), np.zeros((capacity, 2), np.float32),
-            np.zeros((0, 2), np.float32), resident_zeros(cells, np.int32), resident_zeros(cells, np.int32),
-            resident_zeros(max(cells[0] * cells[1], width), np.int32),
+            lo, hi, np.zeros(height, np.int32), np.zeros(height, np.int32), moved, np.zeros((0, 2), np.float32),
+            resident_zeros(cells, np.int32), resident_zeros(cells, np.int32),
+            resident_zeros(max(cells[0] * cells[1], width), np.int32), K.Band(lo, hi, moved),
         )  # fmt: skip
 
 
@@ -173,14 +176,17 @@ class MotionBuffers:
     need: NDArray[np.float64]
     profile: NDArray[np.float64]
     band: NDArray[np.float64]
+    group: K.Motion
+    """The five as the kernels' group."""
 
     @classmethod
     def make(cls) -> MotionBuffers:
         """Allocate the buffers (their size does not depend on the image)."""
-        return cls(
+        arrays = (
             np.zeros(K.MOTION_FRAMES + 2, np.int64), np.zeros((K.MOTION_FRAMES + 1, 2), np.float64),
             np.zeros((2, NEED_BINS), np.float64), np.full(NEED_BINS, np.inf), np.zeros(K.BAND_SLOTS, np.float64),
         )  # fmt: skip
+        return cls(*arrays, K.Motion(*arrays))
 
 
 @_group
@@ -189,11 +195,14 @@ class OrderBuffers:
 
     state: NDArray[np.int64]
     hist_rc: NDArray[np.float64]
+    group: K.Order
+    """The two as the kernels' group."""
 
     @classmethod
     def make(cls) -> OrderBuffers:
         """Allocate the buffers (their size does not depend on the image)."""
-        return cls(np.zeros(K.HISTORY + 3, np.int64), np.zeros((K.HISTORY, 2), np.float64))
+        arrays = (np.zeros(K.HISTORY + 3, np.int64), np.zeros((K.HISTORY, 2), np.float64))
+        return cls(*arrays, K.Order(*arrays))
 
 
 @_group
@@ -233,18 +242,19 @@ class TrackBuffers:
     out: NDArray[np.float32]
     lengths_px: NDArray[np.float64]
     work: NDArray[np.float64]
+    group: K.Track
+    """The four as the kernels' group (its ``fraction`` the writable array `fraction` views: the kernels only
+    read it)."""
 
     @classmethod
     def make(cls, fraction: NDArray[np.float64], capacity: int) -> TrackBuffers:
         """Allocate the buffers for material points at arc `fraction` (of the rope's length) on shapes of up to
         `capacity` points."""
         fraction = np.array(fraction, np.float64)
-        return cls(
-            ro(fraction),
-            np.zeros((2, len(fraction), 2), np.float32),
-            np.zeros(2, np.float64),
-            np.zeros(max(TRACK_WORK, capacity), np.float64),
-        )
+        out = np.zeros((2, len(fraction), 2), np.float32)
+        lengths_px = np.zeros(2, np.float64)
+        work = np.zeros(max(TRACK_WORK, capacity), np.float64)
+        return cls(ro(fraction), out, lengths_px, work, K.Track(fraction, out, lengths_px, work))
 
 
 @_group

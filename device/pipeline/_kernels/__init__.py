@@ -107,6 +107,7 @@ from ropecam.device.pipeline._kernels.geometry import (
     sample_bilinear,
     turning_angles,
 )
+from ropecam.device.pipeline._kernels.groups import BAND, MOTION, ORDER, TRACK, Band, Motion, Order, Track
 from ropecam.device.pipeline._kernels.offsets import (
     dense_end_points,
     find_caps,
@@ -183,6 +184,7 @@ from ropecam.device.pipeline._kernels.tracking import (
 )
 
 __all__ = [
+    "BAND",
     "BAND_FIXED_C",
     "BAND_FIXED_R",
     "BAND_MOTION_HELD",
@@ -203,11 +205,13 @@ __all__ = [
     "MASK_ALWAYS",
     "MASK_FREE",
     "MASK_STATIC",
+    "MOTION",
     "MOTION_COUNT",
     "MOTION_EXPOSURE",
     "MOTION_FRAMES",
     "NOT_FOUND",
     "OPERATOR",
+    "ORDER",
     "ORDER_COUNT",
     "ORDER_ORDERED",
     "ORDER_REJECTS",
@@ -231,8 +235,13 @@ __all__ = [
     "STEADY_STRETCH_END",
     "STEADY_SWAP",
     "TAN_22_5",
+    "TRACK",
     "TWO",
     "ZERO",
+    "Band",
+    "Motion",
+    "Order",
+    "Track",
     "anchor_start",
     "apply_operator",
     "axis_offset",

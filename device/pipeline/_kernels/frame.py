@@ -28,6 +28,7 @@ from numba.extending import intrinsic
 from ropecam.device.pipeline._kernels._common import INVALID
 from ropecam.device.pipeline._kernels.band_stage import band_stage
 from ropecam.device.pipeline._kernels.detect import detect_and_trace
+from ropecam.device.pipeline._kernels.groups import Band, Motion, Order, Track
 from ropecam.device.pipeline._kernels.split_frame import FRAME_INFO, FRAME_STATE, split_frame
 from ropecam.device.pipeline._kernels.tracking import track_frame
 from ropecam.shared.jit import f8_1d, kernel, u1_2d, u1_2d_ro
@@ -186,8 +187,13 @@ def steady_frame(
     lo = _buffer1(table, STEADY_ROW.lo, np.int32)
     hi = _buffer1(table, STEADY_ROW.hi, np.int32)
     fixed = _buffer1(table, STEADY_ROW.fixed, np.float32)
-    motion_state = _buffer1(table, STEADY_ROW.motion_state, np.int64)
-    motion_log = _buffer2(table, STEADY_ROW.motion_log, np.float64)
+    motion = Motion(
+        _buffer1(table, STEADY_ROW.motion_state, np.int64),
+        _buffer2(table, STEADY_ROW.motion_log, np.float64),
+        _buffer2(table, STEADY_ROW.need_hist, np.float64),
+        _buffer1(table, STEADY_ROW.profile, np.float64),
+        _buffer1(table, STEADY_ROW.band_state, np.float64),
+    )
     out[STEADY_MOTION] = band_stage(
         _buffer2(table, STEADY_ROW.prev_points, np.float32),
         prev_count,
@@ -203,14 +209,8 @@ def steady_frame(
         constants[STEADY_CONSTANT.floor_px],
         constants[STEADY_CONSTANT.floor_share],
         fixed,
-        motion_state,
-        motion_log,
-        _buffer2(table, STEADY_ROW.need_hist, np.float64),
-        _buffer1(table, STEADY_ROW.profile, np.float64),
-        _buffer1(table, STEADY_ROW.band_state, np.float64),
-        lo,
-        hi,
-        _buffer2(table, STEADY_ROW.moved, np.float32),
+        motion,
+        Band(lo, hi, _buffer2(table, STEADY_ROW.moved, np.float32)),
     )
     weights = _buffer1(table, STEADY_ROW.weights, np.float32)
     tmp = _buffer2(table, STEADY_ROW.tmp, np.float32)
@@ -293,18 +293,18 @@ def steady_frame(
         t_ns,
         t_end_ns,
         max_age_ns,
-        _buffer1(table, STEADY_ROW.order_state, np.int64),
-        _buffer2(table, STEADY_ROW.hist_rc, np.float64),
+        Order(_buffer1(table, STEADY_ROW.order_state, np.int64), _buffer2(table, STEADY_ROW.hist_rc, np.float64)),
         fixed,
         split_info[_INFO_SWEEP],
         exposure_ns,
-        motion_state,
-        motion_log,
-        _buffer1(table, STEADY_ROW.fraction, np.float64),
+        motion,
         constants[STEADY_CONSTANT.length0_px],
-        _buffer3(table, STEADY_ROW.out_points, np.float32),
-        _buffer1(table, STEADY_ROW.out_lengths, np.float64),
-        _buffer1(table, STEADY_ROW.work_seg, np.float64),
+        Track(
+            _buffer1(table, STEADY_ROW.fraction, np.float64),
+            _buffer3(table, STEADY_ROW.out_points, np.float32),
+            _buffer1(table, STEADY_ROW.out_lengths, np.float64),
+            _buffer1(table, STEADY_ROW.work_seg, np.float64),
+        ),
     )
     out[STEADY_SWAP] = swap
     out[STEADY_CONFIDENCE] = confidence
