@@ -86,6 +86,8 @@ class EdgeBuffers:
     static_mask: NDArray[np.uint8]
     static_low: NDArray[np.uint8]
     static_high: NDArray[np.uint8]
+    planes: K.Planes
+    """`smooth`, `gx`, `gy`, `mag` as the split kernels' group."""
 
     @classmethod
     def make(cls, height: int, width: int, weights: NDArray[np.float32]) -> EdgeBuffers:
@@ -97,6 +99,7 @@ class EdgeBuffers:
             np.zeros(height, np.int32), np.zeros(height, np.int32), np.zeros(height, np.int32),
             np.full(height, width - 1, np.int32), np.zeros((height, width), np.uint8),
             np.full((height, width), 255, np.uint8), np.zeros((height, width), np.uint8),
+            K.Planes(smooth, gx, gy, mag),
         )  # fmt: skip
 
 
@@ -210,7 +213,7 @@ class SplitBuffers:
     """`BlurSplitter`'s: ``scratch`` (3, capacity) float64 (arc, distance from the fixed end, slope work),
     ``lines`` (3, capacity) float32 (work, the sweeps of side A and side B), ``sides`` (4, capacity, 2) (side A,
     side B, out A, out B), the turning angles, the segmentation indices, the measured widths, the two
-    segmentation points (``seg``), `split_frame`'s `info` and `state`."""
+    segmentation points (``seg``), `split_frame`'s `info` and `state` (`FRAME_STATES`)."""
 
     scratch: NDArray[np.float64]
     lines: NDArray[np.float32]
@@ -221,15 +224,18 @@ class SplitBuffers:
     seg: NDArray[np.float32]
     info: NDArray[np.float64]
     state: NDArray[np.float64]
+    group: K.SplitWork
+    """`lines`, `sides`, `scratch`, `turn`, `idx`, `seg`, `info` as the split kernels' group."""
 
     @classmethod
     def make(cls, capacity: int) -> SplitBuffers:
         """Allocate the buffers for contours of up to `capacity` points."""
+        scratch, lines = np.zeros((3, capacity), np.float64), np.zeros((3, capacity), np.float32)
+        sides, turn, idx = np.zeros((4, capacity, 2), np.float32), np.zeros(capacity, np.float32), np.zeros(4, np.int32)
+        seg, info = np.zeros((2, 2), np.float32), np.zeros(K.FRAME_INFO, np.float64)
         return cls(
-            np.zeros((3, capacity), np.float64), np.zeros((3, capacity), np.float32),
-            np.zeros((4, capacity, 2), np.float32), np.zeros(capacity, np.float32), np.zeros(4, np.int32),
-            np.zeros(capacity, np.float32), np.zeros((2, 2), np.float32), np.zeros(K.FRAME_INFO, np.float64),
-            np.zeros(K.FRAME_STATE, np.float64),
+            scratch, lines, sides, turn, idx, np.zeros(capacity, np.float32), seg, info,
+            np.zeros(len(K.FRAME_STATES), np.float64), K.SplitWork(lines, sides, scratch, turn, idx, seg, info),
         )  # fmt: skip
 
 
@@ -287,7 +293,7 @@ class Workspace:
 
     def steady_table(self, width: Any) -> NDArray[np.int64]:
         """Return `steady_frame`'s table of this workspace's buffers and the rope width's tables `width`
-        (`ropecam.device.pipeline.split.WidthConstants`: ``frame_params``, ``curves``, ``table_ro``,
+        (`ropecam.device.pipeline.width_tables.WidthTables`: ``width_scalars``, ``curves``, ``table_ro``,
         ``sweep_index``), by the names of `STEADY_BUFFERS`. Its raw addresses are valid while this workspace and
         `width` live: the caller keeps both with it."""
         e, c, r, m, s, t = self.edges, self.contour, self.roi, self.motion, self.split, self.track
@@ -304,7 +310,7 @@ class Workspace:
                 "stack": c.stack, "start": c.start, "chain": c.chain, "codes": c.codes, "points": c.points,
                 "counts": c.counts,
                 # split_frame's
-                "box_lo": e.box_lo, "box_hi": e.box_hi, "params": width.frame_params, "split_state": s.state,
+                "box_lo": e.box_lo, "box_hi": e.box_hi, "width_scalars": width.width_scalars, "split_state": s.state,
                 "curves": width.curves, "table": width.table_ro, "sweep_index": width.sweep_index, "lines": s.lines,
                 "sides": s.sides, "scratch": s.scratch, "turn": s.turn, "idx": s.idx, "out_seg": s.seg,
                 "split_info": s.info,

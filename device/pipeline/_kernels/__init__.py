@@ -107,7 +107,23 @@ from ropecam.device.pipeline._kernels.geometry import (
     sample_bilinear,
     turning_angles,
 )
-from ropecam.device.pipeline._kernels.groups import BAND, MOTION, ORDER, TRACK, Band, Motion, Order, Track
+from ropecam.device.pipeline._kernels.groups import (
+    BAND,
+    MOTION,
+    ORDER,
+    PLANES,
+    SPLIT_WIDTH,
+    SPLIT_WIDTH_SCALARS,
+    SPLIT_WORK,
+    TRACK,
+    Band,
+    Motion,
+    Order,
+    Planes,
+    SplitWidth,
+    SplitWork,
+    Track,
+)
 from ropecam.device.pipeline._kernels.offsets import (
     dense_end_points,
     find_caps,
@@ -122,6 +138,8 @@ from ropecam.device.pipeline._kernels.offsets import (
 )
 from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots, thin_chain
 from ropecam.device.pipeline._kernels.plane import (
+    PLANE,
+    PLANE_NAMES,
     PLANE_PARAMS,
     pixel_to_plane,
     place_on_plane,
@@ -148,17 +166,12 @@ from ropecam.device.pipeline._kernels.spans import (
 )
 from ropecam.device.pipeline._kernels.split_frame import (
     FRAME_INFO,
-    FRAME_PARAMS,
     FRAME_STATE,
+    FRAME_STATES,
     SPLIT_STATIC,
     split_frame,
 )
-from ropecam.device.pipeline._kernels.split_shapes import (
-    SPLIT_PARAMS,
-    split_shapes_local,
-    split_shapes_packed,
-    split_shapes_packed_near,
-)
+from ropecam.device.pipeline._kernels.split_shapes import SPLIT_SCALAR, split_shapes, split_width
 from ropecam.device.pipeline._kernels.static_mask import (
     MASK_ALWAYS,
     MASK_FREE,
@@ -197,8 +210,8 @@ __all__ = [
     "EDGE_STRONG",
     "EDGE_WEAK",
     "FRAME_INFO",
-    "FRAME_PARAMS",
     "FRAME_STATE",
+    "FRAME_STATES",
     "FULL",
     "HISTORY",
     "INVALID",
@@ -215,9 +228,15 @@ __all__ = [
     "ORDER_COUNT",
     "ORDER_ORDERED",
     "ORDER_REJECTS",
+    "PLANE",
+    "PLANES",
+    "PLANE_NAMES",
     "PLANE_PARAMS",
-    "SPLIT_PARAMS",
+    "SPLIT_SCALAR",
     "SPLIT_STATIC",
+    "SPLIT_WIDTH",
+    "SPLIT_WIDTH_SCALARS",
+    "SPLIT_WORK",
     "STEADY_AFTER_CONTOUR",
     "STEADY_AFTER_SHAPES",
     "STEADY_AFTER_SPLIT",
@@ -241,6 +260,9 @@ __all__ = [
     "Band",
     "Motion",
     "Order",
+    "Planes",
+    "SplitWidth",
+    "SplitWork",
     "Track",
     "anchor_start",
     "apply_operator",
@@ -313,9 +335,8 @@ __all__ = [
     "sobel_suppress",
     "spans_around_chain",
     "split_frame",
-    "split_shapes_local",
-    "split_shapes_packed",
-    "split_shapes_packed_near",
+    "split_shapes",
+    "split_width",
     "steady_frame",
     "suppress_rows",
     "thin_chain",

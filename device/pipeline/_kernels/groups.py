@@ -13,9 +13,9 @@ from __future__ import annotations
 
 from typing import Any, Final, NamedTuple
 
-from numba import types
+from numba import float32, float64, int32, types
 
-from ropecam.shared.jit import f4_2d, f8_1d, f8_2d, i4_1d
+from ropecam.shared.jit import f4_1d, f4_2d, f8_1d, f8_2d, i4_1d
 
 i8_1d: Final = types.Array(types.int64, 1, "C")
 f4_3d: Final = types.Array(types.float32, 3, "C")
@@ -72,4 +72,96 @@ class Track(NamedTuple):
 
 TRACK: Final = types.NamedTuple((f8_1d, f4_3d, f8_1d, f8_1d), Track)
 
-__all__ = ["BAND", "MOTION", "ORDER", "TRACK", "Band", "Motion", "Order", "Track", "f4_3d", "i8_1d"]
+
+class Planes(NamedTuple):
+    """The edge stage's float planes that the split reads (`EdgeBuffers`): the smoothed image ``smooth`` (which
+    `split_frame` also writes, around the band's corners), the Sobel gradients ``gx``, ``gy`` and their norm
+    ``mag`` (float32, the image's shape)."""
+
+    smooth: Any
+    gx: Any
+    gy: Any
+    mag: Any
+
+
+PLANES: Final = types.NamedUniTuple(f4_2d, 4, Planes)
+
+
+class SplitWork(NamedTuple):
+    """The blur split's buffers (`SplitBuffers`): ``lines`` float32 (3, capacity) (work, the sweeps of side A, of
+    side B), ``sides`` float32 (4, capacity, 2) (side A, side B, out A, out B), ``scratch`` float64 (3, capacity)
+    (arc lengths, distances from the fixed end, slope work), the turning angles ``turn``, the segmentation
+    indices ``idx`` (4,), the segmentation points ``seg`` (2, 2) and the results ``info`` (`FRAME_INFO`)."""
+
+    lines: Any
+    sides: Any
+    scratch: Any
+    turn: Any
+    idx: Any
+    seg: Any
+    info: Any
+
+
+SPLIT_WORK: Final = types.NamedTuple((f4_2d, f4_3d, f8_2d, f4_1d, i4_1d, f4_2d, f8_1d), SplitWork)
+
+
+class SplitWidth(NamedTuple):
+    """What the blur split takes from the rope's width (`WidthTables.group`): the edge model's ``ratios`` and
+    ``sweeps`` (float64) and ``offsets`` (float32) tables, then the scalars, each of the type the kernels compute
+    with: the sweep window ``half`` (points), the table's ``step_px``, the width ``width_px``, the tip cap
+    ``cap_px``, the tip fit's ``skip_px``, ``span_px`` and ``blur_px``, the slant gain ``slant_gain_px`` and the
+    width again as ``width64_px`` (float64: the length check's and the sweep tests'), the output's
+    ``out_step_px`` and ``smoothing_px``; the segmentation points' ``scale`` and ``min_gap`` (int32),
+    ``search_px`` (float64) and ``corner_rad``, the corner box's growth ``grow_px`` and the ``static_ratio``
+    (sweep / width below which the rope is taken as not moving; float64)."""
+
+    ratios: Any
+    sweeps: Any
+    offsets: Any
+    half: Any
+    step_px: Any
+    width_px: Any
+    cap_px: Any
+    skip_px: Any
+    span_px: Any
+    blur_px: Any
+    slant_gain_px: Any
+    width64_px: Any
+    out_step_px: Any
+    smoothing_px: Any
+    scale: Any
+    min_gap: Any
+    search_px: Any
+    corner_rad: Any
+    grow_px: Any
+    static_ratio: Any
+
+
+SPLIT_WIDTH_SCALARS: Final = SplitWidth._fields[3:]
+"""The scalars of `SplitWidth`, in order: `steady_frame`'s table holds them as one float64 array (each exactly
+representable) that `split_width` reads by these names."""
+SPLIT_WIDTH: Final = types.NamedTuple(
+    (f8_1d, f8_1d, f4_1d, int32, float32, float32, float32, float32, float32, float32, float64, float64, float32,
+     float32, int32, int32, float64, float32, float64, float64),
+    SplitWidth,
+)  # fmt: skip
+
+__all__ = [
+    "BAND",
+    "MOTION",
+    "ORDER",
+    "PLANES",
+    "SPLIT_WIDTH",
+    "SPLIT_WIDTH_SCALARS",
+    "SPLIT_WORK",
+    "TRACK",
+    "Band",
+    "Motion",
+    "Order",
+    "Planes",
+    "SplitWidth",
+    "SplitWork",
+    "Track",
+    "f4_3d",
+    "i8_1d",
+]
