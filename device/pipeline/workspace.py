@@ -16,7 +16,7 @@ import dataclasses
 import operator
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, TypeVar
+from typing import Any, NoReturn, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,6 +37,7 @@ __all__ = [
     "TrackBuffers",
     "Workspace",
     "expose",
+    "refuse_copies",
     "steady_constants",
 ]
 
@@ -49,6 +50,23 @@ TRACK_WORK = 1024
 
 _T = TypeVar("_T")
 _group = dataclass(frozen=True, slots=True, eq=False)
+
+
+def refuse_copies(message: str) -> Callable[[type[_T]], type[_T]]:
+    """Return a class decorator that makes `copy.copy`, `copy.deepcopy` and `pickle` of an instance raise
+    `TypeError` with `message` (an owner of a workspace and its `steady_table`: a copy would share the raw
+    addresses, and write into freed memory once the original is gone)."""
+
+    def refuse(*_: object) -> NoReturn:
+        raise TypeError(message)
+
+    def decorate(cls: type[_T]) -> type[_T]:
+        cls.__copy__ = refuse  # type: ignore[attr-defined]
+        cls.__deepcopy__ = refuse  # type: ignore[attr-defined]
+        cls.__reduce_ex__ = refuse  # type: ignore[assignment, method-assign]
+        return cls
+
+    return decorate
 
 
 def expose(group: str, fields: type) -> Callable[[type[_T]], type[_T]]:
