@@ -10,7 +10,7 @@ from ropecam.device.pipeline.checks import Reason, SelfChecks, contour_area_px2
 from ropecam.device.pipeline.contour import ContourTracer
 from ropecam.device.pipeline.locate import RopeLocator
 from ropecam.device.pipeline.motion import MotionModel
-from ropecam.device.pipeline.result import FrameResult, FrameStatus, exposure_in_ns
+from ropecam.device.pipeline.result import FrameStatus, PipelineResult, exposure_in_ns
 from ropecam.device.pipeline.split import BlurSplitter, SplitOutcome
 from ropecam.device.pipeline.time_order import DEFAULT_PERIOD_NS, TimeOrder
 from ropecam.device.pipeline.tracking import PointTracker
@@ -83,7 +83,7 @@ class ResultFinisher:
 
     def finish(
         self,
-        result: FrameResult,
+        result: PipelineResult,
         outcome: SplitOutcome | None,
         exposure_ns: int,
         period_ns: int | None,
@@ -137,7 +137,7 @@ class ResultFinisher:
         result.status = FrameStatus.OK
         self.check(result, outcome, exposure_ns)
 
-    def check(self, result: FrameResult, outcome: SplitOutcome, exposure_ns: int) -> None:
+    def check(self, result: PipelineResult, outcome: SplitOutcome, exposure_ns: int) -> None:
         """Run the self-checks on a measured frame (`SelfChecks.check`): a failed one sets the status, the reason
         and the message; a split without blur is replaced by the static centreline."""
         begin, end = result.begin, result.end

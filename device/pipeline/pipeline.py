@@ -23,7 +23,7 @@ from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
 from ropecam.device.pipeline.finish import FrameClock, ResultFinisher, max_age_ns
 from ropecam.device.pipeline.locate import RopeLocator
 from ropecam.device.pipeline.motion import MotionModel
-from ropecam.device.pipeline.result import FrameResult, FrameStatus, frame_problem
+from ropecam.device.pipeline.result import FrameStatus, PipelineResult, frame_problem
 from ropecam.device.pipeline.split import BlurSplitter
 from ropecam.device.pipeline.static_mask import StaticMask
 from ropecam.device.pipeline.steady import SteadyFrame
@@ -143,7 +143,7 @@ class Pipeline:
     roi_retries = property(attrgetter("locator.roi_retries"), doc="Widenings of a band the rope ran out of.")
 
     # ----------------------------------------------------------------------------------------------------------
-    def process(self, frame: object, index: int, t_ns: int, exposure_us: float | None) -> FrameResult:
+    def process(self, frame: object, index: int, t_ns: int, exposure_us: float | None) -> PipelineResult:
         """Measure one frame.
 
         Parameters
@@ -161,13 +161,13 @@ class Pipeline:
 
         Returns
         -------
-        FrameResult
+        PipelineResult
             Arrays in it are views into the pipeline's buffers, valid until the next call.
         """
         start_ns = time.perf_counter_ns()
         t = int(t_ns)
         exposure_ns, exposure_problem = self._clock.start(t, exposure_us)
-        result = FrameResult(int(index), t, t + exposure_ns, FrameStatus.BAD_FRAME)
+        result = PipelineResult(int(index), t, t + exposure_ns, FrameStatus.BAD_FRAME)
         result.readout_ns = self.readout_ns
         if type(frame) is np.ndarray and frame.dtype is self._u8 and frame.shape == self.shape:
             problem = exposure_problem  # the usual case, without building the messages of `frame_problem`
@@ -255,7 +255,7 @@ class Pipeline:
             self.locator.forget()
 
     # ----------------------------------------------------------------------------------------------------------
-    def _measure(self, image: NDArray[np.uint8], result: FrameResult, exposure_ns: int) -> None:
+    def _measure(self, image: NDArray[np.uint8], result: PipelineResult, exposure_ns: int) -> None:
         if self.locator.prev_count > 0 and self.traits.settled is not None and self.one_call:
             args = self._steady.args()
             if args is not None:
@@ -264,7 +264,7 @@ class Pipeline:
         n, used_roi = self.locator.locate(image, result.t_ns, exposure_ns)
         self._measure_contour(image, result, exposure_ns, n, used_roi)
 
-    def _measure_steady(self, image: NDArray[np.uint8], result: FrameResult, exposure_ns: int, args: list) -> None:
+    def _measure_steady(self, image: NDArray[np.uint8], result: PipelineResult, exposure_ns: int, args: list) -> None:
         """Measure a steady frame in one kernel call (`SteadyFrame`), then go on from where the call stopped as
         `RopeLocator.locate` and `_measure_contour` go on after those calls: the same state and result as the
         calls one by one."""
@@ -291,7 +291,7 @@ class Pipeline:
         self._finisher.finish(result, outcome, exposure_ns, self._clock.period_ns, tracked)
 
     def _measure_contour(
-        self, image: NDArray[np.uint8], result: FrameResult, exposure_ns: int, n: int, used_roi: bool
+        self, image: NDArray[np.uint8], result: PipelineResult, exposure_ns: int, n: int, used_roi: bool
     ) -> None:
         """Measure the frame from its contour (`n` points in the tracer, found in the band predicted from the last
         frame when `used_roi`)."""
@@ -338,7 +338,7 @@ class Pipeline:
             return
         self._finisher.finish(result, outcome, exposure_ns, self._clock.period_ns)
 
-    def _keep_contour(self, result: FrameResult, n: int) -> None:
+    def _keep_contour(self, result: PipelineResult, n: int) -> None:
         """The frame's contour (`n` points) is the one the next frame's band is built around."""
         self.locator.keep(n, result.t_ns)
         result.fixed_end = self.fixed
