@@ -207,11 +207,11 @@ def run_extract(
 
 
 def _bad_frame(index: int, t_ns: int, exposure_us: float | None, message: str) -> dict[str, Any]:
-    from ropecam.device.pipeline.result import FrameResult, FrameStatus
+    from ropecam.device.pipeline.result import FrameStatus, PipelineResult
 
     try:  # as `Pipeline.process`: an unknown or unusable exposure time gives t_end_ns == t_ns
         exposure_ns = max(0, round(float(exposure_us) * 1000)) if exposure_us is not None else 0
     except (TypeError, ValueError, OverflowError):
         exposure_ns = 0
-    result = FrameResult(index, t_ns, int(t_ns) + exposure_ns, FrameStatus.BAD_FRAME, message=message)
+    result = PipelineResult(index, t_ns, int(t_ns) + exposure_ns, FrameStatus.BAD_FRAME, message=message)
     return result.to_json()

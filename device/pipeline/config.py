@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Literal
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Literal
 
 from ropecam.device.pipeline.checks import ChecksConfig
 from ropecam.shared.config import check_in, check_positive, check_range
 from ropecam.shared.errors import ConfigError
+
+if TYPE_CHECKING:
+    from ropecam.shared.plane import PlaneCalibration
 
 __all__ = ["METHODS", "PipelineConfig"]
 
@@ -125,6 +128,24 @@ class PipelineConfig:
     static_mask_png: str = ""
     plane_file: str | None = None
     checks: ChecksConfig = field(default_factory=ChecksConfig)
+
+    def on_plane(self, plane: PlaneCalibration, image_size: tuple[int, int]) -> PipelineConfig:
+        """Return this config for frames of `image_size` (width, height) on the calibrated `plane`: the fixed end
+        the plane origin projected into the image, unless `fixed_end_uv` gives it.
+
+        Raises
+        ------
+        ConfigError
+            The plane was calibrated at another image size, or its origin projects outside the image.
+        """
+        width, height = image_size
+        if tuple(plane.image_size) != (width, height):
+            raise ConfigError(
+                f"{plane.source}: calibrated for {plane.image_size[0]}x{plane.image_size[1]} images, the frames "
+                f"are {width}x{height}; expected a plane calibration of this camera at this resolution"
+            )
+        plane.check_image((width, height))
+        return self if self.fixed_end_uv is not None else replace(self, fixed_end_uv=plane.origin_uv())
 
     def __post_init__(self) -> None:
         check_in("method", self.method, METHODS)

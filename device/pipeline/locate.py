@@ -77,8 +77,7 @@ class RopeLocator:
         """The time gap over which the motion model's band error (profile) was measured."""
         height, width = self.shape
         self.band_args = (
-            self.margin_px, height, width, *motion.need_args, fixed_end.fixed, motion.state, motion.log, motion.need,
-            motion.profile, motion.band, buffers.lo, buffers.hi, buffers.moved,
+            self.margin_px, height, width, *motion.need_args, fixed_end.fixed, motion.group, buffers.band,
         )  # fmt: skip
         """`band_stage`'s arguments after the frame's (Python ints and floats for its int64/float64 scalars)."""
         # A cell is active when its mean differs from a neighbour's by canny_low / 8 grey levels: the step over

@@ -10,46 +10,38 @@ last frame was found in its band, a frame is one kernel call (`SteadyFrame`). Ev
 from __future__ import annotations
 
 import time
-from dataclasses import replace
 from operator import attrgetter
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline.checks import Reason, SelfChecks, contour_area_px2
+from ropecam.device.pipeline.checks import SelfChecks
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.contour import ContourTracer
 from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
+from ropecam.device.pipeline.finish import FrameClock, ResultFinisher, max_age_ns
 from ropecam.device.pipeline.locate import RopeLocator
 from ropecam.device.pipeline.motion import MotionModel
-from ropecam.device.pipeline.result import FrameResult, FrameStatus, exposure_in_ns, frame_problem
-from ropecam.device.pipeline.split import BlurSplitter, SplitOutcome
+from ropecam.device.pipeline.result import FrameStatus, PipelineResult, frame_problem
+from ropecam.device.pipeline.split import BlurSplitter
 from ropecam.device.pipeline.static_mask import StaticMask
 from ropecam.device.pipeline.steady import SteadyFrame
 from ropecam.device.pipeline.thresholds import EdgeThresholds
-from ropecam.device.pipeline.time_order import DEFAULT_PERIOD_NS, TimeOrder
+from ropecam.device.pipeline.time_order import TimeOrder
 from ropecam.device.pipeline.tracking import PointTracker, plane_params
 from ropecam.device.pipeline.traits import RopeTraits
-from ropecam.device.pipeline.workspace import Workspace
+from ropecam.device.pipeline.workspace import Workspace, refuse_copies
 from ropecam.shared.config import check_readout
-from ropecam.shared.errors import ConfigError
 from ropecam.shared.plane import PlaneCalibration
 
 __all__ = ["Pipeline"]
 
 
-def _tip_gap_px(begin: NDArray[np.float32], end: NDArray[np.float32]) -> float:
-    """Distance between the free tips (last points, row/col) of two shapes."""
-    return float(np.hypot(*(end[-1] - begin[-1])))
-
-
-_NO_COPY = (
+@refuse_copies(
     "a Pipeline cannot be copied or pickled: its steady frames read a table of the raw addresses of its buffers, "
     "which a copy would share; make a new Pipeline(config, image_size) instead"
 )
-
-
 class Pipeline:
     """Measure the rope in each frame.
 
@@ -88,14 +80,7 @@ class Pipeline:
         """Every result's ``readout_ns`` (0: global shutter)."""
         self.plane = plane
         if plane is not None:
-            if tuple(plane.image_size) != (width, height):
-                raise ConfigError(
-                    f"{plane.source}: calibrated for {plane.image_size[0]}x{plane.image_size[1]} images, the frames "
-                    f"are {width}x{height}; expected a plane calibration of this camera at this resolution"
-                )
-            plane.check_image((width, height))
-            if config.fixed_end_uv is None:
-                config = replace(config, fixed_end_uv=plane.origin_uv())
+            config = config.on_plane(plane, (width, height))
         self.config = config
         self.shape = (height, width)
         cap = config.max_contour
@@ -106,14 +91,7 @@ class Pipeline:
         holds their addresses)."""
         self.edges = EdgeDetector(height, width, config.smooth_sigma_px, config.canny_low, config.canny_high, ws.edges)
         self.tracer = ContourTracer(height, width, cap, config.min_contour_px, buffers=ws.contour)
-        given = None
-        if config.static_mask_png:
-            from ropecam.device.capture.mask_file import read_mask_png  # a file read once, at construction
-
-            given = read_mask_png(config.static_mask_png, self.shape)
-        self.static_mask = StaticMask(
-            ws.edges, config.static_frames, config.static_margin_dn, config.static_relative, given
-        )
+        self.static_mask = StaticMask.from_config(ws.edges, config, self.shape)
         """The static structures whose edges are dropped (learned over the first `static_frames` frames)."""
         self.thresholds = EdgeThresholds(
             height, width, config.smooth_sigma_px, config.canny_low, config.canny_high, config.threshold_frames
@@ -135,8 +113,6 @@ class Pipeline:
         """The fixed end (row, col) float32 (`RopeTraits.fixed_end`)."""
         self._motion = MotionModel(ws.motion)
         self.checks = SelfChecks(config.checks)
-        self._still_px = config.checks.no_blur_px
-        """A split of unknown exposure whose tips lie closer is a still rope (the static centreline is given)."""
         """The self-checks that turn an implausible frame into a status with a reason (`SelfChecks`)."""
         self._time_order = TimeOrder(ws.order)
         self.locator = RopeLocator(
@@ -146,25 +122,17 @@ class Pipeline:
         self.one_call = True
         """Make a steady frame in one kernel call (`steady_frame`); False: with the calls one by one (the same
         results; the tools that time or record single kernels set it)."""
+        self._finisher = ResultFinisher(
+            self.splitter, self.tracker, self._time_order, self._motion, self.checks, self.traits, self.tracer,
+            self.locator, self.fixed,
+        )  # fmt: skip
         self._steady = SteadyFrame(
             ws, config.roi_margin_px, self.edges, self.tracer, self.splitter, self.tracker, self.locator, self.traits
         )
-        self._exposure_key: float | None = None  # the last float exposure_us and what `exposure_in_ns` made of it
-        self._exposure_value: tuple[int, str] = (0, "")
+        self._clock = FrameClock()
         self._u8 = np.dtype(np.uint8)
         self._strides = (width, 1)
-        self._period_ns: int | None = None  # the shortest time between frame starts seen: the frame period
-        self._last_frame_t_ns: int | None = None
         self._unclean_frames = 0  # frames without an OK result while the static mask was being learned
-
-    def __copy__(self) -> Pipeline:
-        raise TypeError(_NO_COPY)
-
-    def __deepcopy__(self, memo: dict[int, object]) -> Pipeline:
-        raise TypeError(_NO_COPY)
-
-    def __reduce_ex__(self, protocol: object) -> tuple[object, ...]:
-        raise TypeError(_NO_COPY)
 
     # What the locator keeps and counts (tests and tools read them here).
     lo = property(attrgetter("locator.lo"), doc="The first column of each row of the last band searched.")
@@ -175,7 +143,7 @@ class Pipeline:
     roi_retries = property(attrgetter("locator.roi_retries"), doc="Widenings of a band the rope ran out of.")
 
     # ----------------------------------------------------------------------------------------------------------
-    def process(self, frame: object, index: int, t_ns: int, exposure_us: float | None) -> FrameResult:
+    def process(self, frame: object, index: int, t_ns: int, exposure_us: float | None) -> PipelineResult:
         """Measure one frame.
 
         Parameters
@@ -193,24 +161,13 @@ class Pipeline:
 
         Returns
         -------
-        FrameResult
+        PipelineResult
             Arrays in it are views into the pipeline's buffers, valid until the next call.
         """
         start_ns = time.perf_counter_ns()
         t = int(t_ns)
-        last = self._last_frame_t_ns
-        if last is not None and t > last:
-            gap_ns = t - last
-            period = self._period_ns
-            self._period_ns = gap_ns if period is None or gap_ns < period else period
-        self._last_frame_t_ns = t
-        if type(exposure_us) is float and exposure_us == self._exposure_key:
-            exposure_ns, exposure_problem = self._exposure_value  # the usual case: the same exposure every frame
-        else:
-            exposure_ns, exposure_problem = exposure_in_ns(exposure_us)
-            if type(exposure_us) is float:
-                self._exposure_key, self._exposure_value = exposure_us, (exposure_ns, exposure_problem)
-        result = FrameResult(int(index), t, t + exposure_ns, FrameStatus.BAD_FRAME)
+        exposure_ns, exposure_problem = self._clock.start(t, exposure_us)
+        result = PipelineResult(int(index), t, t + exposure_ns, FrameStatus.BAD_FRAME)
         result.readout_ns = self.readout_ns
         if type(frame) is np.ndarray and frame.dtype is self._u8 and frame.shape == self.shape:
             problem = exposure_problem  # the usual case, without building the messages of `frame_problem`
@@ -259,7 +216,7 @@ class Pipeline:
         self.process(np.zeros((height, width), np.uint8), 0, 0, 0.0)
         self.static_mask.frames, self.thresholds.frames = learn_frames, measure_frames
         loc.frames_full, loc.frames_coarse, loc.frames_roi, loc.roi_retries = counters
-        self._last_frame_t_ns = None  # the blank frame's time is not the stream's
+        self._clock.last_t_ns = None  # the blank frame's time is not the stream's
         width_px = self.traits.width()
         if width_px is not None:
             self.splitter.model.tables(width_px)
@@ -298,7 +255,7 @@ class Pipeline:
             self.locator.forget()
 
     # ----------------------------------------------------------------------------------------------------------
-    def _measure(self, image: NDArray[np.uint8], result: FrameResult, exposure_ns: int) -> None:
+    def _measure(self, image: NDArray[np.uint8], result: PipelineResult, exposure_ns: int) -> None:
         if self.locator.prev_count > 0 and self.traits.settled is not None and self.one_call:
             args = self._steady.args()
             if args is not None:
@@ -307,12 +264,12 @@ class Pipeline:
         n, used_roi = self.locator.locate(image, result.t_ns, exposure_ns)
         self._measure_contour(image, result, exposure_ns, n, used_roi)
 
-    def _measure_steady(self, image: NDArray[np.uint8], result: FrameResult, exposure_ns: int, args: list) -> None:
+    def _measure_steady(self, image: NDArray[np.uint8], result: PipelineResult, exposure_ns: int, args: list) -> None:
         """Measure a steady frame in one kernel call (`SteadyFrame`), then go on from where the call stopped as
         `RopeLocator.locate` and `_measure_contour` go on after those calls: the same state and result as the
         calls one by one."""
         stop, n, gap_ns, motion_px, status, tracked = self._steady.run(
-            args, image, result.t_ns, result.t_end_ns, exposure_ns, self.max_age_ns()
+            args, image, result.t_ns, result.t_end_ns, exposure_ns, max_age_ns(self._clock.period_ns)
         )
         if stop == K.STEADY_AFTER_CONTOUR:
             n, used_roi = self.locator.locate_in_band(image, motion_px, gap_ns, n)
@@ -331,10 +288,10 @@ class Pipeline:
                 self.tracer.points, self.tracer.chain, n, fixed_rc, width_px, e.gx, e.gy, e.edges, e.mag,
                 e.smooth, polarity, edge_stage=e, frame=image,
             )  # fmt: skip
-        self._finish(result, outcome, exposure_ns, tracked)
+        self._finisher.finish(result, outcome, exposure_ns, self._clock.period_ns, tracked)
 
     def _measure_contour(
-        self, image: NDArray[np.uint8], result: FrameResult, exposure_ns: int, n: int, used_roi: bool
+        self, image: NDArray[np.uint8], result: PipelineResult, exposure_ns: int, n: int, used_roi: bool
     ) -> None:
         """Measure the frame from its contour (`n` points in the tracer, found in the band predicted from the last
         frame when `used_roi`)."""
@@ -379,124 +336,9 @@ class Pipeline:
                 result.rope_width_px = outcome.width_px
                 result.order_confidence = 1.0
             return
-        self._finish(result, outcome, exposure_ns)
+        self._finisher.finish(result, outcome, exposure_ns, self._clock.period_ns)
 
-    def _keep_contour(self, result: FrameResult, n: int) -> None:
+    def _keep_contour(self, result: PipelineResult, n: int) -> None:
         """The frame's contour (`n` points) is the one the next frame's band is built around."""
         self.locator.keep(n, result.t_ns)
         result.fixed_end = self.fixed
-
-    def _finish(
-        self,
-        result: FrameResult,
-        outcome: SplitOutcome | None,
-        exposure_ns: int,
-        tracked: tuple[int, float, float, float] | None = None,
-    ) -> None:
-        """Fill `result` from the split's `outcome`: the shapes in time order and the material points (with
-        `tracked`, the results of a `track_frame` call made on them already), or why there are none."""
-        rejected = ""
-        if not exposure_ns and (outcome is None or self._still(outcome)):
-            # Unknown exposure (a still photo) and no split, or one without blur between its tips: the rope is
-            # the static centreline, which follows the contour whole where a split's two sides may pair across a
-            # loop of the rope.
-            rejected = self.splitter.failure if outcome is None else ""
-            outcome = self.splitter.static((float(self.fixed[0]), float(self.fixed[1]))) or outcome
-        if outcome is None:
-            result.status = FrameStatus.LOST_TRACK
-            result.message = self.splitter.failure
-            return
-        result.method = outcome.method
-        result.rope_width_px = outcome.width_px
-        result.segmentation_points = outcome.segmentation_points
-        tracker = self.tracker
-        result.material_arc_m = tracker.arc_m
-        a, b = outcome.shape_a, outcome.shape_b
-        if tracked is not None:
-            swap, confidence, stretch_begin, stretch_end = tracked
-        elif tracker.length0_settled_px >= 0.0:
-            # Time order, material points and the motion model's update in one kernel call (`track_frame`: as
-            # `TimeOrder.order`, `PointTracker.track_shapes` and `MotionModel.observe` in turn); a negative `swap`
-            # (an empty shape, a shape longer than the tracker's scratch) has written nothing.
-            order, motion = self._time_order, self._motion
-            try:
-                swap, confidence, stretch_begin, stretch_end = K.track_frame(
-                    a, b, a is b, result.t_ns, result.t_end_ns, self.max_age_ns(), order.state, order.hist_rc,
-                    self.fixed, float(self.splitter.sweep_px), exposure_ns, motion.state, motion.log,
-                    tracker.fraction_ro, tracker.length0_settled_px, tracker.out, tracker.lengths_px, tracker.work,
-                )  # fmt: skip
-            except TypeError:  # not the splitter's writable float32 buffers
-                swap = -1
-        else:
-            swap = -1
-        if swap >= 0:
-            result.begin, result.end = (b, a) if swap else (a, b)
-            result.order_confidence = confidence
-            result.material_begin, result.material_end = tracker.out_slots
-            result.stretch_begin, result.stretch_end = stretch_begin, stretch_end
-        else:
-            # The first frames (Lc0 still being measured) or shapes `track_frame` does not take: step by step.
-            begin, end, confidence = self._time_order.order(a, b, result.t_ns, result.t_end_ns, self._period_ns)
-            result.begin, result.end, result.order_confidence = begin, end, confidence
-            (result.material_begin, result.stretch_begin, result.material_end, result.stretch_end) = (
-                tracker.track_shapes(begin, end)
-            )
-            t_mid_ns = result.t_ns + exposure_ns // 2
-            self._motion.observe(begin, end, self.fixed, t_mid_ns, float(self.splitter.sweep_px), exposure_ns)
-        if tracker.plane is not None:  # by arc length on the plane (metres), not in pixels
-            tracker.place_on_plane(result.begin, result.end)
-        result.status = FrameStatus.OK
-        self._check(result, outcome, exposure_ns)
-        if rejected and result.status is FrameStatus.OK:
-            result.status, result.reason = FrameStatus.NO_BLUR, Reason.NO_BLUR.text
-            result.message = f"{self.checks.message(Reason.NO_BLUR)} (the split: {rejected})"
-
-    def _still(self, outcome: SplitOutcome) -> bool:
-        """Whether `outcome` is a split without blur between its tips."""
-        a, b = outcome.shape_a, outcome.shape_b
-        return a is not b and len(a) > 0 and len(b) > 0 and _tip_gap_px(a, b) <= self._still_px
-
-    def _check(self, result: FrameResult, outcome: SplitOutcome, exposure_ns: int) -> None:
-        """Run the self-checks on a measured frame (`SelfChecks.check`): a failed one sets the status, the reason
-        and the message; a split without blur is replaced by the static centreline."""
-        begin, end = result.begin, result.end
-        if begin is None or end is None or len(begin) == 0 or len(end) == 0:
-            return
-        traits = self.traits
-        learned_px = traits.settled[0] if traits.settled is not None else traits.width()
-        checks = self.checks
-        split = outcome.shape_a is not outcome.shape_b
-        # The contour's area only where it is the evidence: a split of unknown exposure or without a prediction.
-        area = 0.0
-        if split and checks.needs_area(exposure_ns):
-            area = contour_area_px2(self.tracer.points, self.locator.prev_count)
-        status, reason = checks.check(
-            begin, end, self.fixed, result.stretch_begin, result.stretch_end, outcome.width_px, learned_px,
-            result.order_confidence, exposure_ns, split, area,
-        )  # fmt: skip
-        result.quality = checks.quality
-        if status is FrameStatus.OK:
-            return
-        result.status, result.reason, result.message = status, reason.text, checks.message(reason)
-        if (reason is Reason.NO_BLUR or (split and not exposure_ns)) and not self._use_static(result):
-            # Without a known exposure only a split that passes every check shows blur: never report another.
-            result.begin = result.end = result.material_begin = result.material_end = None
-
-    def _use_static(self, result: FrameResult) -> bool:
-        """Give `result` the static centreline of the frame's contour (one shape for both instants, its material
-        points); False when there is none."""
-        static = self.splitter.static((float(self.fixed[0]), float(self.fixed[1])))
-        if static is None:
-            return False
-        result.method, result.segmentation_points = static.method, None
-        result.begin = result.end = static.shape_a
-        (result.material_begin, result.stretch_begin, result.material_end, result.stretch_end) = (
-            self.tracker.track_shapes(static.shape_a, static.shape_a)
-        )
-        if self.tracker.plane is not None:
-            self.tracker.place_on_plane(static.shape_a, static.shape_a)
-        return True
-
-    def max_age_ns(self) -> int:
-        """The age (ns) past which the time order's history is dropped: four frame periods."""
-        return 4 * (self._period_ns or DEFAULT_PERIOD_NS)

@@ -9,12 +9,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ropecam.shared.protocol.frame_result import FrameResult as WireFrameResult
-from ropecam.shared.protocol.frame_result import FrameStatus, Method, Reason
+from ropecam.shared.protocol.frame_result import FrameResult, FrameStatus, Method, Reason
 from ropecam.shared.protocol.jsonl import frame_result_json
 
 # FrameStatus and Method are the wire protocol's: one definition of what happened to a frame, on both sides.
-__all__ = ["FrameResult", "FrameStatus", "Method", "SplitOutcome", "exposure_in_ns", "frame_problem", "to_wire"]
+__all__ = ["FrameStatus", "Method", "PipelineResult", "SplitOutcome", "exposure_in_ns", "frame_problem", "to_wire"]
 
 
 def _uv(points: NDArray[np.float32] | None, digits: int = 3) -> list[list[float]] | None:
@@ -25,9 +24,10 @@ def _uv(points: NDArray[np.float32] | None, digits: int = 3) -> list[list[float]
 
 
 @dataclass(slots=True)
-class FrameResult:
-    """The measurement of one frame. Arrays are (row, col) float32 views into the pipeline's buffers, valid until
-    its next call; `to_json` copies them out as (u, v) = (col, row) lists.
+class PipelineResult:
+    """The measurement of one frame, as `Pipeline.process` returns it (the wire's record of it is
+    `ropecam.shared.protocol.FrameResult`, made by `to_wire`). Arrays are (row, col) float32 views into the
+    pipeline's buffers, valid until its next call; `to_json` copies them out as (u, v) = (col, row) lists.
 
     ``begin``/``end`` are the centrelines at the start and end of the exposure, fixed end first; ``None`` when not
     measured. ``order_confidence`` (0-1) says how sure the pipeline is that ``begin`` really is the earlier shape.
@@ -113,14 +113,14 @@ def _tip(points: NDArray[np.float32] | None) -> tuple[float, float] | None:
     return col, row
 
 
-def to_wire(result: FrameResult) -> WireFrameResult:
+def to_wire(result: PipelineResult) -> FrameResult:
     """Build the FrameResult message record of one pipeline result (shapes fixed end first, (u, v) pixels)."""
     begin, end = _wire_uv(result.begin), _wire_uv(result.end)
     material_s = tuple(float(s) for s in result.material_arc_m) if result.material_begin is not None else ()
     material_begin = _wire_uv(result.material_begin) if material_s else np.zeros((0, 2))
     material_end = _wire_uv(result.material_end) if material_s and result.material_end is not None else material_begin
     fixed = None if result.fixed_end is None else (float(result.fixed_end[1]), float(result.fixed_end[0]))
-    return WireFrameResult(
+    return FrameResult(
         frame_index=int(result.frame),
         exposure_start_t_ns=int(result.t_ns),
         exposure_end_t_ns=int(result.t_end_ns),

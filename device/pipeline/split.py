@@ -25,7 +25,7 @@ from ropecam.device.pipeline.workspace import SplitBuffers, expose
 __all__ = ["BlurSplitter", "SplitOutcome"]
 
 _SHAPES = 2
-"""`split_frame`'s (and `split_shapes_packed`'s) return value when it made the two shapes."""
+"""`split_frame`'s (and `split_shapes`') return value when it made the two shapes."""
 _BLUR_SPLIT = Method.BLUR_SPLIT
 
 
@@ -125,6 +125,9 @@ class BlurSplitter:
         read-only views are made once."""
         self._bound_views: tuple[NDArray, ...] = ()
         """Their read-only views (points, chain, gx, gy, mag), made with `_bound`."""
+        self._gradients: tuple[NDArray, ...] = ()
+        """(gx, gy, mag) of the last `_prepare` as given (writable: `split_shapes` takes them in `Planes`)."""
+        self._no_index, self._no_distances = ro(np.zeros(0, np.int32)), ro(np.zeros(0, np.float64))
         self.measure = BandMeasure(self.model, self.dist, self.slope_work)
         self._info, self._seg = buffers.info, buffers.seg  # read every frame (`_frame_outcome`): plain attributes
         self.frame_call = SplitFrameCall(buffers)
@@ -267,6 +270,9 @@ class BlurSplitter:
             and self.method == "blur_split"
             and self.measure.contrast_settled
             and smooth is edge_stage.smooth
+            and gx is edge_stage.gx
+            and gy is edge_stage.gy
+            and mag is edge_stage.mag
         ):
             call = self.frame_call
             call.bind(
@@ -341,10 +347,11 @@ class BlurSplitter:
         local = plus if contrast >= 5.0 else self._zero
         if local:
             # The usual case, in one kernel call; its rare failures (a full buffer) are redone step by step below.
-            status = K.split_shapes_packed(
-                points, chain, n, i_fix, seg_a, seg_b, self._mag_ro, np.float32(1.0 / contrast), gx, gy, pol,
-                self._ro(self._smooth), fixed_r, fixed_c, consts.params, consts.curves, table, self.lines, self.sides,
-                self.arc, self.info,
+            # Every contour point checked by the tip fit (no distances), the sweep table walked (no index).
+            status = K.split_shapes(
+                points, chain, n, i_fix, seg_a, seg_b, K.Planes(self._smooth, *self._gradients),
+                np.float32(1.0 / contrast), pol, consts.group, self._no_index, fixed_r, fixed_c, self._no_distances,
+                self.group,
             )  # fmt: skip
             if status >= 0 or status == K.NOT_FOUND:
                 self.sweep_px = sweep
@@ -362,7 +369,7 @@ class BlurSplitter:
         sweeps_a, sweeps_b = self._sweeps_a_ro, self._sweeps_b_ro
         for _ in range(2):
             sw = np.float32(sweep)
-            if local:  # as `split_shapes_local` does
+            if local:  # as `split_shapes` does
                 keep = consts.keep
                 na = K.offset_by_table_thinned(
                     points, chain, n, i_fix, seg_a, plus, gx, gy, pol, sweeps_a, step, table, keep, keep, self.side_a
@@ -429,6 +436,7 @@ class BlurSplitter:
             self._gx, self._gy = self._ro(gx), self._ro(gy)
             self._bound = (points, chain, gx, gy, mag)
             self._bound_views = (self._points, self._chain, self._gx, self._gy, self._mag_ro)
+            self._gradients = (gx, gy, mag)
         self._n = np.int32(n)  # NumPy 2 refuses a value out of the int32 range
         self._mag = mag
         mag = self._mag_ro

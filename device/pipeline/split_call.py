@@ -15,6 +15,8 @@ from ropecam.device.pipeline.workspace import SplitBuffers
 
 __all__ = ["SplitFrameCall"]
 
+_STATE = K.FRAME_STATE
+
 
 class SplitFrameCall:
     """Make a frame's blur split in one `split_frame` call: the same steps and results as `BlurSplitter.split`'s
@@ -56,39 +58,37 @@ class SplitFrameCall:
         polarity: np.float32,
         contrast: float,
     ) -> None:
-        """Set the kernel's inputs for a contour whose read-only `views` are (points, chain, gx, gy, mag), in
-        the planes of `edge_stage`, split with `tables`, about the fixed end `fixed_rc` (`fixed32` its float32
+        """Set the kernel's inputs for a contour whose read-only `views` are (points, chain, gx, gy, mag) (the
+        planes those of `edge_stage`), split with `tables`, about the fixed end `fixed_rc` (`fixed32` its float32
         pair), with `polarity` and `contrast`. The fixed end, polarity and contrast are the same objects from
         frame to frame once settled, and so are the buffers: both are set only when one of them changes."""
         state = self.buffers.state
         key = self._state_key
         if key is None or key[0] is not fixed_rc or key[1] is not polarity or key[2] != contrast:
             self._state_key = (fixed_rc, polarity, contrast)
-            state[0], state[1] = fixed32
-            state[2] = polarity
-            state[3] = contrast
+            state[_STATE.fixed_r], state[_STATE.fixed_c] = fixed32
+            state[_STATE.polarity] = polarity
+            state[_STATE.contrast] = contrast
         self.width_px = tables.tables.width_px
         args = self._args
         if args is None or args[0] is not tables or args[1] is not edge_stage or args[2] is not views:
-            points, chain, gx, gy, mag = views
             b = self.buffers
             self._args = [
-                tables, edge_stage, views, points, chain, mag, gx, gy, edge_stage.edges, edge_stage.weights_ro,
-                edge_stage.spans[0], edge_stage.spans[1], edge_stage.box_lo, edge_stage.box_hi, edge_stage.tmp,
-                edge_stage.smooth, tables.frame_params, b.state, tables.curves, tables.table_ro, tables.sweep_index,
-                b.lines, b.sides, b.scratch, b.turn, b.idx, b.seg, b.info,
+                tables, edge_stage, views, views[0], views[1], edge_stage.planes, edge_stage.edges,
+                edge_stage.weights_ro, edge_stage.spans[0], edge_stage.spans[1], edge_stage.box_lo, edge_stage.box_hi,
+                edge_stage.tmp, tables.group, tables.sweep_index, b.state, b.group,
             ]  # fmt: skip
 
     def call(self, edge_stage: EdgeDetector, frame: NDArray[np.uint8], sweep_px: float, n: int) -> int:
         """Split the `n`-point contour of `frame` (in the spans of `edge_stage`'s last detection) after a frame
         whose sweep was `sweep_px`; returns `split_frame`'s status (its outputs are in the buffers)."""
         state = self.buffers.state
-        state[4] = sweep_px
-        state[5] = n
+        state[_STATE.last_sweep_px] = sweep_px
+        state[_STATE.n] = n
         args = self._args
         assert args is not None
-        args[8] = frame  # `split_frame` takes a writable or a read-only frame
-        args[10], args[11] = edge_stage.spans
+        args[6] = frame  # `split_frame` takes a writable or a read-only frame
+        args[8], args[9] = edge_stage.spans
         return int(K.split_frame(*args[3:]))
 
     def one_call_key(self) -> tuple[tuple[Any, ...], WidthTables] | None:

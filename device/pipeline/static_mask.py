@@ -3,12 +3,17 @@ the first frames and optionally given as a mask image, whose edges the contour s
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import as_ro
 from ropecam.device.pipeline.workspace import EdgeBuffers
+
+if TYPE_CHECKING:
+    from ropecam.device.pipeline.config import PipelineConfig
 
 __all__ = ["StaticMask"]
 
@@ -64,6 +69,17 @@ class StaticMask:
             if mask.shape != buffers.static_mask.shape:
                 raise ValueError(f"mask is {mask.shape}, expected {buffers.static_mask.shape}")
             buffers.static_mask[mask] = K.MASK_ALWAYS
+
+    @classmethod
+    def from_config(cls, buffers: EdgeBuffers, config: PipelineConfig, shape: tuple[int, int]) -> StaticMask:
+        """Make the static mask of `config` (``static_mask_png``, read now, and the learning settings) for frames
+        of `shape` (height, width) in the edge stage's `buffers`."""
+        given = None
+        if config.static_mask_png:
+            from ropecam.device.capture.mask_file import read_mask_png  # a file read once, at construction
+
+            given = read_mask_png(config.static_mask_png, shape)
+        return cls(buffers, config.static_frames, config.static_margin_dn, config.static_relative, given)
 
     @property
     def learning(self) -> bool:

@@ -16,11 +16,11 @@ __all__ = ["PointTracker", "plane_params"]
 def plane_params(plane: PlaneCalibration) -> NDArray[np.float64]:
     """Return the plane calibration as the read-only array the plane kernels take (`_kernels.plane`)."""
     params = np.zeros(K.PLANE_PARAMS, np.float64)
-    m = plane.camera_matrix
-    params[0:5] = (m[0, 0], m[0, 1], m[0, 2], m[1, 1], m[1, 2])
-    params[5 : 5 + plane.distortion.size] = plane.distortion
-    params[13:22] = plane.rotation.ravel()
-    params[22:25] = -plane.rotation.T @ plane.translation_m
+    m, p = plane.camera_matrix, K.PLANE
+    params[[p.fx, p.skew, p.cx, p.fy, p.cy]] = (m[0, 0], m[0, 1], m[0, 2], m[1, 1], m[1, 2])
+    params[p.k1 : p.k1 + plane.distortion.size] = plane.distortion  # k1 k2 p1 p2 k3 k4 k5 k6, as OpenCV orders them
+    params[p.r00 : p.r22 + 1] = plane.rotation.ravel()
+    params[[p.ox, p.oy, p.oz]] = -plane.rotation.T @ plane.translation_m
     params.flags.writeable = False
     return params
 

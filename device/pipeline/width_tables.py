@@ -31,9 +31,9 @@ class WidthTables:
     """
 
     __slots__ = (
-        "blur", "cap", "corner", "curves", "frame_params", "keep", "min_gap", "params", "ratios_ro", "scale",
-        "search_px", "skip", "span", "sweep_index", "sweep_window", "sweeps_ro", "table_ro", "table_step", "tables",
-        "width",
+        "blur", "cap", "corner", "curves", "group", "keep", "min_gap", "ratios_ro", "scale", "search_px", "skip",
+        "span", "sweep_index", "sweep_window", "sweeps_ro", "table_ro", "table_step", "tables", "width",
+        "width_scalars",
     )  # fmt: skip
 
     def __init__(self, splitter: BlurSplitter, width: float) -> None:
@@ -58,20 +58,21 @@ class WidthTables:
         # let rig-soft's curl in, 0.27).
         self.span = f32(max(8.0 * width, 16.0))
         self.keep = i32(K.dense_end_points(self.skip, self.span))
-        # `split_shapes_local`'s width-bound arguments for `split_shapes_packed` (float32 values are exact in float64)
-        params = (
-            self.sweep_window, self.table_step, self.width, self.cap, self.skip, self.span, self.blur,
-            self.tables.slant_px, width, splitter.step, splitter.output_smoothing,
-        )  # fmt: skip
-        assert len(params) == K.SPLIT_PARAMS
-        self.params = ro(np.array([float(v) for v in params], np.float64))
-        # `split_frame`'s: the same, then the segmentation points' and the corner box's (as `split` computes them)
-        grow = 3.0 * float(self.blur) + 6.0 + width
-        frame_params = (*params, self.scale, self.min_gap, self.search_px, self.corner, grow, splitter.static_ratio)
-        assert len(frame_params) == K.FRAME_PARAMS
-        self.frame_params = ro(np.array([float(v) for v in frame_params], np.float64))
-        self.curves = ro(np.stack([self.ratios_ro, self.sweeps_ro]).astype(np.float64))
+        curves = np.stack([self.ratios_ro, self.sweeps_ro]).astype(np.float64)
+        self.curves = ro(curves)
         self.sweep_index = ro(sweep_index(self.curves[0]))
+        # The kernels' group of the width (`split_shapes`, `split_frame`), each scalar of the type they compute
+        # with; the corner box's growth as `split` computes it.
+        self.group = K.SplitWidth(
+            ratios=curves[0], sweeps=curves[1], offsets=np.array(self.tables.offset_px, np.float32),
+            half=self.sweep_window, step_px=self.table_step, width_px=self.width, cap_px=self.cap,
+            skip_px=self.skip, span_px=self.span, blur_px=self.blur, slant_gain_px=float(self.tables.slant_px),
+            width64_px=float(width), out_step_px=splitter.step, smoothing_px=splitter.output_smoothing,
+            scale=self.scale, min_gap=self.min_gap, search_px=float(self.search_px), corner_rad=self.corner,
+            grow_px=3.0 * float(self.blur) + 6.0 + width, static_ratio=float(splitter.static_ratio),
+        )  # fmt: skip
+        # Its scalars as `steady_frame`'s table holds them (float64, exact), by name.
+        self.width_scalars = ro(np.array([float(getattr(self.group, n)) for n in K.SPLIT_WIDTH_SCALARS], np.float64))
 
 
 _MAX_BUCKETS = 1 << 13

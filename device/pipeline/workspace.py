@@ -16,7 +16,7 @@ import dataclasses
 import operator
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, TypeVar
+from typing import Any, NoReturn, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,6 +37,7 @@ __all__ = [
     "TrackBuffers",
     "Workspace",
     "expose",
+    "refuse_copies",
     "steady_constants",
 ]
 
@@ -49,6 +50,23 @@ TRACK_WORK = 1024
 
 _T = TypeVar("_T")
 _group = dataclass(frozen=True, slots=True, eq=False)
+
+
+def refuse_copies(message: str) -> Callable[[type[_T]], type[_T]]:
+    """Return a class decorator that makes `copy.copy`, `copy.deepcopy` and `pickle` of an instance raise
+    `TypeError` with `message` (an owner of a workspace and its `steady_table`: a copy would share the raw
+    addresses, and write into freed memory once the original is gone)."""
+
+    def refuse(*_: object) -> NoReturn:
+        raise TypeError(message)
+
+    def decorate(cls: type[_T]) -> type[_T]:
+        cls.__copy__ = refuse  # type: ignore[attr-defined]
+        cls.__deepcopy__ = refuse  # type: ignore[attr-defined]
+        cls.__reduce_ex__ = refuse  # type: ignore[assignment, method-assign]
+        return cls
+
+    return decorate
 
 
 def expose(group: str, fields: type) -> Callable[[type[_T]], type[_T]]:
@@ -86,6 +104,8 @@ class EdgeBuffers:
     static_mask: NDArray[np.uint8]
     static_low: NDArray[np.uint8]
     static_high: NDArray[np.uint8]
+    planes: K.Planes
+    """`smooth`, `gx`, `gy`, `mag` as the split kernels' group."""
 
     @classmethod
     def make(cls, height: int, width: int, weights: NDArray[np.float32]) -> EdgeBuffers:
@@ -97,6 +117,7 @@ class EdgeBuffers:
             np.zeros(height, np.int32), np.zeros(height, np.int32), np.zeros(height, np.int32),
             np.full(height, width - 1, np.int32), np.zeros((height, width), np.uint8),
             np.full((height, width), 255, np.uint8), np.zeros((height, width), np.uint8),
+            K.Planes(smooth, gx, gy, mag),
         )  # fmt: skip
 
 
@@ -138,15 +159,18 @@ class RoiBuffers:
     coarse_sums: NDArray[np.int32]
     coarse_labels: NDArray[np.int32]
     coarse_stack: NDArray[np.int32]
+    band: K.Band
+    """`lo`, `hi`, `moved` as `band_stage`'s group."""
 
     @classmethod
     def make(cls, height: int, width: int, capacity: int) -> RoiBuffers:
         """Allocate the buffers of an image of `height` x `width` px and contours of up to `capacity` points."""
         cells = (max(1, height // COARSE_BLOCK), max(1, width // COARSE_BLOCK))
+        lo, hi, moved = np.zeros(height, np.int32), np.zeros(height, np.int32), np.zeros((capacity, 2), np.float32)
         return cls(
-            *(np.zeros(height, np.int32) for _ in range(4)), np.zeros((capacity, 2), np.float32),
-            np.zeros((0, 2), np.float32), resident_zeros(cells, np.int32), resident_zeros(cells, np.int32),
-            resident_zeros(max(cells[0] * cells[1], width), np.int32),
+            lo, hi, np.zeros(height, np.int32), np.zeros(height, np.int32), moved, np.zeros((0, 2), np.float32),
+            resident_zeros(cells, np.int32), resident_zeros(cells, np.int32),
+            resident_zeros(max(cells[0] * cells[1], width), np.int32), K.Band(lo, hi, moved),
         )  # fmt: skip
 
 
@@ -173,14 +197,17 @@ class MotionBuffers:
     need: NDArray[np.float64]
     profile: NDArray[np.float64]
     band: NDArray[np.float64]
+    group: K.Motion
+    """The five as the kernels' group."""
 
     @classmethod
     def make(cls) -> MotionBuffers:
         """Allocate the buffers (their size does not depend on the image)."""
-        return cls(
+        arrays = (
             np.zeros(K.MOTION_FRAMES + 2, np.int64), np.zeros((K.MOTION_FRAMES + 1, 2), np.float64),
             np.zeros((2, NEED_BINS), np.float64), np.full(NEED_BINS, np.inf), np.zeros(K.BAND_SLOTS, np.float64),
         )  # fmt: skip
+        return cls(*arrays, K.Motion(*arrays))
 
 
 @_group
@@ -189,11 +216,14 @@ class OrderBuffers:
 
     state: NDArray[np.int64]
     hist_rc: NDArray[np.float64]
+    group: K.Order
+    """The two as the kernels' group."""
 
     @classmethod
     def make(cls) -> OrderBuffers:
         """Allocate the buffers (their size does not depend on the image)."""
-        return cls(np.zeros(K.HISTORY + 3, np.int64), np.zeros((K.HISTORY, 2), np.float64))
+        arrays = (np.zeros(K.HISTORY + 3, np.int64), np.zeros((K.HISTORY, 2), np.float64))
+        return cls(*arrays, K.Order(*arrays))
 
 
 @_group
@@ -201,7 +231,7 @@ class SplitBuffers:
     """`BlurSplitter`'s: ``scratch`` (3, capacity) float64 (arc, distance from the fixed end, slope work),
     ``lines`` (3, capacity) float32 (work, the sweeps of side A and side B), ``sides`` (4, capacity, 2) (side A,
     side B, out A, out B), the turning angles, the segmentation indices, the measured widths, the two
-    segmentation points (``seg``), `split_frame`'s `info` and `state`."""
+    segmentation points (``seg``), `split_frame`'s `info` and `state` (`FRAME_STATES`)."""
 
     scratch: NDArray[np.float64]
     lines: NDArray[np.float32]
@@ -212,15 +242,18 @@ class SplitBuffers:
     seg: NDArray[np.float32]
     info: NDArray[np.float64]
     state: NDArray[np.float64]
+    group: K.SplitWork
+    """`lines`, `sides`, `scratch`, `turn`, `idx`, `seg`, `info` as the split kernels' group."""
 
     @classmethod
     def make(cls, capacity: int) -> SplitBuffers:
         """Allocate the buffers for contours of up to `capacity` points."""
+        scratch, lines = np.zeros((3, capacity), np.float64), np.zeros((3, capacity), np.float32)
+        sides, turn, idx = np.zeros((4, capacity, 2), np.float32), np.zeros(capacity, np.float32), np.zeros(4, np.int32)
+        seg, info = np.zeros((2, 2), np.float32), np.zeros(K.FRAME_INFO, np.float64)
         return cls(
-            np.zeros((3, capacity), np.float64), np.zeros((3, capacity), np.float32),
-            np.zeros((4, capacity, 2), np.float32), np.zeros(capacity, np.float32), np.zeros(4, np.int32),
-            np.zeros(capacity, np.float32), np.zeros((2, 2), np.float32), np.zeros(K.FRAME_INFO, np.float64),
-            np.zeros(K.FRAME_STATE, np.float64),
+            scratch, lines, sides, turn, idx, np.zeros(capacity, np.float32), seg, info,
+            np.zeros(len(K.FRAME_STATES), np.float64), K.SplitWork(lines, sides, scratch, turn, idx, seg, info),
         )  # fmt: skip
 
 
@@ -233,18 +266,19 @@ class TrackBuffers:
     out: NDArray[np.float32]
     lengths_px: NDArray[np.float64]
     work: NDArray[np.float64]
+    group: K.Track
+    """The four as the kernels' group (its ``fraction`` the writable array `fraction` views: the kernels only
+    read it)."""
 
     @classmethod
     def make(cls, fraction: NDArray[np.float64], capacity: int) -> TrackBuffers:
         """Allocate the buffers for material points at arc `fraction` (of the rope's length) on shapes of up to
         `capacity` points."""
         fraction = np.array(fraction, np.float64)
-        return cls(
-            ro(fraction),
-            np.zeros((2, len(fraction), 2), np.float32),
-            np.zeros(2, np.float64),
-            np.zeros(max(TRACK_WORK, capacity), np.float64),
-        )
+        out = np.zeros((2, len(fraction), 2), np.float32)
+        lengths_px = np.zeros(2, np.float64)
+        work = np.zeros(max(TRACK_WORK, capacity), np.float64)
+        return cls(ro(fraction), out, lengths_px, work, K.Track(fraction, out, lengths_px, work))
 
 
 @_group
@@ -277,7 +311,7 @@ class Workspace:
 
     def steady_table(self, width: Any) -> NDArray[np.int64]:
         """Return `steady_frame`'s table of this workspace's buffers and the rope width's tables `width`
-        (`ropecam.device.pipeline.split.WidthConstants`: ``frame_params``, ``curves``, ``table_ro``,
+        (`ropecam.device.pipeline.width_tables.WidthTables`: ``width_scalars``, ``curves``, ``table_ro``,
         ``sweep_index``), by the names of `STEADY_BUFFERS`. Its raw addresses are valid while this workspace and
         `width` live: the caller keeps both with it."""
         e, c, r, m, s, t = self.edges, self.contour, self.roi, self.motion, self.split, self.track
@@ -294,7 +328,7 @@ class Workspace:
                 "stack": c.stack, "start": c.start, "chain": c.chain, "codes": c.codes, "points": c.points,
                 "counts": c.counts,
                 # split_frame's
-                "box_lo": e.box_lo, "box_hi": e.box_hi, "params": width.frame_params, "split_state": s.state,
+                "box_lo": e.box_lo, "box_hi": e.box_hi, "width_scalars": width.width_scalars, "split_state": s.state,
                 "curves": width.curves, "table": width.table_ro, "sweep_index": width.sweep_index, "lines": s.lines,
                 "sides": s.sides, "scratch": s.scratch, "turn": s.turn, "idx": s.idx, "out_seg": s.seg,
                 "split_info": s.info,

@@ -51,9 +51,16 @@ WARM_UP = 3
 """Frames processed before the timed ones (fixed end, width and length estimates, one-time tables)."""
 
 
+def count_arrays(value: Any) -> int:
+    """The NumPy arrays in a kernel argument: 1 for an array, its members' for a named group (`_kernels.groups`)."""
+    if isinstance(value, np.ndarray):
+        return 1
+    return sum(count_arrays(v) for v in value) if isinstance(value, tuple) else 0
+
+
 class ArrayArgCounter:
-    """Count NumPy array arguments passed to the kernels (each costs one NRT MemInfo, not a real allocation) and
-    the frames made by one `steady_frame` call."""
+    """Count NumPy array arguments passed to the kernels (each costs one NRT MemInfo, not a real allocation; each
+    array of a named group too) and the frames made by one `steady_frame` call."""
 
     def __init__(self) -> None:
         self.count = 0
@@ -71,7 +78,7 @@ class ArrayArgCounter:
         steady = name == "steady_frame"
 
         def wrapper(*args: Any) -> Any:
-            self.count += sum(isinstance(a, np.ndarray) for a in args)
+            self.count += count_arrays(args)
             self.steady_calls += steady
             return fn(*args)
 

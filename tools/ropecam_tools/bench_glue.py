@@ -36,7 +36,7 @@ _FIELDS = (
     "segmentation_points", "material_arc_m", "material_begin", "material_end", "stretch_begin", "stretch_end",
     "rope_width_px", "full_frame", "message", "extra",
 )  # fmt: skip
-"""The `FrameResult` fields compared (all but `pipeline_us`)."""
+"""The `PipelineResult` fields compared (all but `pipeline_us`)."""
 
 
 def _same(x: Any, y: Any) -> bool:
@@ -53,7 +53,7 @@ def _same(x: Any, y: Any) -> bool:
 
 
 def compare(a: Any, b: Any, pipeline_a: Any, pipeline_b: Any) -> list[str]:
-    """The fields of two `FrameResult`s that differ, and the pipelines' ROI spans (`lo`, `hi`) if they differ."""
+    """The fields of two `PipelineResult`s that differ, and the pipelines' ROI spans (`lo`, `hi`) if they differ."""
     out = [
         f"{name}: {getattr(a, name)!r} != {getattr(b, name)!r}"
         for name in _FIELDS
@@ -128,7 +128,7 @@ def run(args: argparse.Namespace) -> int:
         )
     if args.against:
         print(
-            f"  outputs (every FrameResult field but pipeline_us, the ROI spans after each frame; first pass, "
+            f"  outputs (every PipelineResult field but pipeline_us, the ROI spans after each frame; first pass, "
             f"{len(frames)} frames): {'identical' if not differences else f'{len(differences)} DIFFERENCES'}"
         )
         for line in differences[:20]:

@@ -7,7 +7,7 @@ rope's true free tip at the start and at the end of the exposure (two points) ar
 * ``harris``: `cv2.goodFeaturesToTrack(..., useHarrisDetector=True)` on the Canny edge map of the frame, as in
   the paper's figure (or on the blurred frame itself with ``--on frame``);
 * ``paper`` and ``blur_split`` (the default method): the segmentation points the pipeline reports
-  (`FrameResult.segmentation_points`; none on frames where the method fell back to a centreline).
+  (`PipelineResult.segmentation_points`; none on frames where the method fell back to a centreline).
 
 Per exposure and detector it prints: points per frame, the share of true tips with a point within
 ``--radius-px`` (detected), the mean and p95 distance from each true tip to the nearest point, and the share of

@@ -72,7 +72,7 @@ class FrameErrors:
     order
         1.0 right time order, 0.0 swapped, NaN when the true tip moved less than `ORDER_MIN_SWEEP_PX`.
     pipeline_ms
-        The pipeline's own time for the frame (`FrameResult.pipeline_us`), milliseconds.
+        The pipeline's own time for the frame (`PipelineResult.pipeline_us`), milliseconds.
     """
 
     status: str
@@ -102,12 +102,12 @@ def _material_truth(s_m: NDArray[np.float64], true_m: NDArray[np.float64], arcs:
 
 
 def frame_errors(result: Any, truth: dict[str, NDArray[Any]], position: int, camera: Any, plane: Any) -> FrameErrors:
-    """Compare one `FrameResult` with frame `position` of a frame set's truth arrays.
+    """Compare one `PipelineResult` with frame `position` of a frame set's truth arrays.
 
     Parameters
     ----------
     result
-        The pipeline's `FrameResult` for the frame.
+        The pipeline's `PipelineResult` for the frame.
     truth
         The frame set's ``truth.npz`` arrays (``begin_px``/``end_px`` (F, S, 2) (u, v), ``begin_m``/``end_m``
         (F, S, 2) metres on the plane, ``s_m`` (S,)).

@@ -47,9 +47,13 @@ from ropecam.device.pipeline._kernels.canny import (
     detect_edges,
     finish_edges,
     grow_edges,
+    nms_pixel,
+    sobel_suppress,
+    suppress_rows,
+)
+from ropecam.device.pipeline._kernels.canny_gradient import (
     grow_spans_inplace,
     grow_spans_once,
-    nms_pixel,
     padded_end,
     smooth_box,
     smooth_columns,
@@ -57,8 +61,6 @@ from ropecam.device.pipeline._kernels.canny import (
     smooth_ring,
     smooth_rows,
     sobel_rows,
-    sobel_suppress,
-    suppress_rows,
 )
 from ropecam.device.pipeline._kernels.centerline import band_sides
 from ropecam.device.pipeline._kernels.checks import (
@@ -113,6 +115,23 @@ from ropecam.device.pipeline._kernels.geometry import (
     sample_bilinear,
     turning_angles,
 )
+from ropecam.device.pipeline._kernels.groups import (
+    BAND,
+    MOTION,
+    ORDER,
+    PLANES,
+    SPLIT_WIDTH,
+    SPLIT_WIDTH_SCALARS,
+    SPLIT_WORK,
+    TRACK,
+    Band,
+    Motion,
+    Order,
+    Planes,
+    SplitWidth,
+    SplitWork,
+    Track,
+)
 from ropecam.device.pipeline._kernels.offsets import (
     dense_end_points,
     find_caps,
@@ -127,6 +146,8 @@ from ropecam.device.pipeline._kernels.offsets import (
 )
 from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots, thin_chain
 from ropecam.device.pipeline._kernels.plane import (
+    PLANE,
+    PLANE_NAMES,
     PLANE_PARAMS,
     pixel_to_plane,
     place_on_plane,
@@ -153,17 +174,12 @@ from ropecam.device.pipeline._kernels.spans import (
 )
 from ropecam.device.pipeline._kernels.split_frame import (
     FRAME_INFO,
-    FRAME_PARAMS,
     FRAME_STATE,
+    FRAME_STATES,
     SPLIT_STATIC,
     split_frame,
 )
-from ropecam.device.pipeline._kernels.split_shapes import (
-    SPLIT_PARAMS,
-    split_shapes_local,
-    split_shapes_packed,
-    split_shapes_packed_near,
-)
+from ropecam.device.pipeline._kernels.split_shapes import SPLIT_SCALAR, split_shapes, split_width
 from ropecam.device.pipeline._kernels.static_mask import (
     MASK_ALWAYS,
     MASK_FREE,
@@ -189,6 +205,7 @@ from ropecam.device.pipeline._kernels.tracking import (
 )
 
 __all__ = [
+    "BAND",
     "BAND_FIXED_C",
     "BAND_FIXED_R",
     "BAND_MOTION_HELD",
@@ -205,25 +222,33 @@ __all__ = [
     "EDGE_STRONG",
     "EDGE_WEAK",
     "FRAME_INFO",
-    "FRAME_PARAMS",
     "FRAME_STATE",
+    "FRAME_STATES",
     "FULL",
     "HISTORY",
     "INVALID",
     "MASK_ALWAYS",
     "MASK_FREE",
     "MASK_STATIC",
+    "MOTION",
     "MOTION_COUNT",
     "MOTION_EXPOSURE",
     "MOTION_FRAMES",
     "NOT_FOUND",
     "OPERATOR",
+    "ORDER",
     "ORDER_COUNT",
     "ORDER_ORDERED",
     "ORDER_REJECTS",
+    "PLANE",
+    "PLANES",
+    "PLANE_NAMES",
     "PLANE_PARAMS",
-    "SPLIT_PARAMS",
+    "SPLIT_SCALAR",
     "SPLIT_STATIC",
+    "SPLIT_WIDTH",
+    "SPLIT_WIDTH_SCALARS",
+    "SPLIT_WORK",
     "STEADY_AFTER_CONTOUR",
     "STEADY_AFTER_SHAPES",
     "STEADY_AFTER_SPLIT",
@@ -241,8 +266,16 @@ __all__ = [
     "STEADY_STRETCH_END",
     "STEADY_SWAP",
     "TAN_22_5",
+    "TRACK",
     "TWO",
     "ZERO",
+    "Band",
+    "Motion",
+    "Order",
+    "Planes",
+    "SplitWidth",
+    "SplitWork",
+    "Track",
     "anchor_start",
     "apply_operator",
     "axis_offset",
@@ -316,9 +349,8 @@ __all__ = [
     "sobel_suppress",
     "spans_around_chain",
     "split_frame",
-    "split_shapes_local",
-    "split_shapes_packed",
-    "split_shapes_packed_near",
+    "split_shapes",
+    "split_width",
     "steady_frame",
     "suppress_rows",
     "thin_chain",

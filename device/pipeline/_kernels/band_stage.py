@@ -11,10 +11,11 @@ from typing import Final
 
 from numba import boolean, float64, int64
 
+from ropecam.device.pipeline._kernels.groups import BAND, MOTION
 from ropecam.device.pipeline._kernels.prediction import need_profile
 from ropecam.device.pipeline._kernels.spans import spans_around_chain
-from ropecam.device.pipeline._kernels.tracking import MOTION_COUNT, MOTION_FRAMES, i8_1d, predict_motion
-from ropecam.shared.jit import f4_1d, f4_2d, f4_2d_ro, f8_1d, f8_2d, i4_1d, kernel
+from ropecam.device.pipeline._kernels.tracking import MOTION_COUNT, MOTION_FRAMES, predict_motion
+from ropecam.shared.jit import f4_1d, f4_2d_ro, kernel
 
 BAND_FIXED_R: Final = 0
 """Slots of `band_stage`'s `band_state` (float64): the fixed end (row, col) the last band was built about,"""
@@ -31,12 +32,12 @@ BAND_SLOTS: Final = 5
 @kernel(
     float64(
         f4_2d_ro, int64, boolean, boolean, boolean, int64, int64, int64, int64, int64, float64, float64, float64,
-        f4_1d, i8_1d, f8_2d, f8_2d, f8_1d, f8_1d, i4_1d, i4_1d, f4_2d,
+        f4_1d, MOTION, BAND,
     )
 )  # fmt: skip
 def band_stage(
     points, n_points, measure, use_profile, predict, t_ns, exposure_ns, margin_px, height, width, gain, floor_px,
-    floor_share, fixed, motion_state, motion_log, need_hist, profile, band_state, out_lo, out_hi, out_moved,
+    floor_share, fixed, motion, band,
 ):  # fmt: skip
     """Build the band of the frame exposed from `t_ns` for `exposure_ns` around the last contour (`points`, a
     closed chain of `n_points` (row, col)), first measuring how well the last band predicted it when `measure`.
@@ -51,9 +52,20 @@ def band_stage(
        (else none), into `out_lo`/`out_hi` (`height` rows, `width` columns); the moved points into `out_moved`.
        `band_state` (BAND_SLOTS,) gets what step 1 of the next call needs.
 
-    The same results as `need_profile` after the last frame's search, then `predict_motion` and
-    `spans_around_chain` on this frame. Returns the uncertainty at the farthest point (px).
+    `motion` is the motion model's group (`Motion`: ``state``, ``log`` as `motion_state`, `motion_log` above,
+    ``need`` as `need_hist`, ``profile``, ``band`` as `band_state`), `band` the band's (`Band`: ``lo``, ``hi``,
+    ``moved`` as `out_lo`, `out_hi`, `out_moved`). The same results as `need_profile` after the last frame's
+    search, then `predict_motion` and `spans_around_chain` on this frame. Returns the uncertainty at the farthest
+    point (px).
     """
+    motion_state = motion.state
+    motion_log = motion.log
+    need_hist = motion.need
+    profile = motion.profile
+    band_state = motion.band
+    out_lo = band.lo
+    out_hi = band.hi
+    out_moved = band.moved
     if measure:
         need_profile(
             out_moved, int(band_state[BAND_MOVED]), points, n_points, margin_px, band_state[BAND_FIXED_R],

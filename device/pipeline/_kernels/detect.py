@@ -12,7 +12,8 @@ from typing import Final
 from numba import float32, int32, int64
 
 from ropecam.device.pipeline._kernels._common import INVALID, f4_1d_ro
-from ropecam.device.pipeline._kernels.canny import detect_edges, smooth_box
+from ropecam.device.pipeline._kernels.canny import detect_edges
+from ropecam.device.pipeline._kernels.canny_gradient import smooth_box
 from ropecam.device.pipeline._kernels.contour import trace_rope
 from ropecam.device.pipeline._kernels.static_mask import drop_static_edges
 from ropecam.shared.jit import f4_2d, i4_1d, i4_1d_ro, i4_2d, kernel, u1_2d, u1_2d_ro

@@ -28,7 +28,9 @@ from numba.extending import intrinsic
 from ropecam.device.pipeline._kernels._common import INVALID
 from ropecam.device.pipeline._kernels.band_stage import band_stage
 from ropecam.device.pipeline._kernels.detect import detect_and_trace
-from ropecam.device.pipeline._kernels.split_frame import FRAME_INFO, FRAME_STATE, split_frame
+from ropecam.device.pipeline._kernels.groups import SPLIT_WIDTH_SCALARS, Band, Motion, Order, Planes, SplitWork, Track
+from ropecam.device.pipeline._kernels.split_frame import FRAME_INFO, FRAME_STATE, FRAME_STATES, split_frame
+from ropecam.device.pipeline._kernels.split_shapes import split_width
 from ropecam.device.pipeline._kernels.tracking import track_frame
 from ropecam.shared.jit import f8_1d, kernel, u1_2d, u1_2d_ro
 
@@ -65,8 +67,6 @@ _INFO_COUNT_B: Final = 1
 _INFO_SMOOTHED_A: Final = 4
 _INFO_SMOOTHED_B: Final = 5
 _INFO_SWEEP: Final = 6
-_STATE_SWEEP: Final = 4
-_STATE_POINTS: Final = 5
 
 
 STEADY_BUFFERS: Final = (
@@ -81,7 +81,7 @@ STEADY_BUFFERS: Final = (
     ("edge_stack", np.int32, 1), ("labels", np.int32, 2), ("stack", np.int32, 1), ("start", np.int32, 1),
     ("chain", np.int32, 2), ("codes", np.int32, 1), ("points", np.float32, 2), ("counts", np.int32, 1),
     # split_frame's
-    ("box_lo", np.int32, 1), ("box_hi", np.int32, 1), ("params", np.float64, 1), ("split_state", np.float64, 1),
+    ("box_lo", np.int32, 1), ("box_hi", np.int32, 1), ("width_scalars", np.float64, 1), ("split_state", np.float64, 1),
     ("curves", np.float64, 2), ("table", np.float32, 1), ("sweep_index", np.int32, 1), ("lines", np.float32, 2),
     ("sides", np.float32, 3), ("scratch", np.float64, 2), ("turn", np.float32, 1), ("idx", np.int32, 1),
     ("out_seg", np.float32, 2), ("split_info", np.float64, 1),
@@ -161,8 +161,9 @@ def steady_frame(
     """One steady frame, exposed from `t_ns` to `t_end_ns` (`exposure_ns`): `band_stage` around the last contour
     (`prev_count` points of ``prev_points``, `measure` and `use_profile` and `predict` as its arguments) into the
     spans ``lo``/``hi``; `detect_and_trace` of `frame` in them; when it found a contour (``points``, ``chain``)
-    that touches neither the band's border nor the image's, `split_frame` of it (``split_state[4]`` set to
-    `last_sweep_px`, ``split_state[5]`` to the point count) with the same planes, frame, weights and spans; when
+    that touches neither the band's border nor the image's, `split_frame` of it (``split_state``'s
+    ``last_sweep_px`` set to `last_sweep_px`, its ``n`` to the point count; the width's group made by
+    `split_width` of ``width_scalars``, ``curves``, ``table``) with the same planes, frame, weights and spans; when
     that made the two shapes (views of ``sides``, smoothed or not as ``split_info`` says), `track_frame` of them
     with the new sweep, ``fixed``, the band's motion state and `max_age_ns`.
 
@@ -173,21 +174,34 @@ def steady_frame(
 
     Returns STEADY_DONE, or where it stopped (STEADY_AFTER_CONTOUR, STEADY_AFTER_SPLIT, STEADY_AFTER_SHAPES):
     everything before that point is done and written exactly as the calls one by one write it, nothing after it;
-    or INVALID, before any call, when `table` or `constants` has too few rows, or ``out``, ``split_state`` or
-    ``split_info`` is too short.
+    or INVALID, before any call, when `table` or `constants` has too few rows, or ``out``, ``split_state``,
+    ``split_info``, ``width_scalars`` or ``curves`` is too short.
     """
     if table.shape[0] < STEADY_ROW.out + 1 or table.shape[1] < 4 or constants.shape[0] < len(STEADY_CONSTANTS):
         return INVALID
     out = _buffer1(table, STEADY_ROW.out, np.float64)
     split_state = _buffer1(table, STEADY_ROW.split_state, np.float64)
     split_info = _buffer1(table, STEADY_ROW.split_info, np.float64)
-    if out.shape[0] < STEADY_SLOTS or split_state.shape[0] < FRAME_STATE or split_info.shape[0] < FRAME_INFO:
+    width_scalars = _buffer1(table, STEADY_ROW.width_scalars, np.float64)
+    curves = _buffer2(table, STEADY_ROW.curves, np.float64)
+    if (
+        out.shape[0] < STEADY_SLOTS
+        or split_state.shape[0] < len(FRAME_STATES)
+        or split_info.shape[0] < FRAME_INFO
+        or width_scalars.shape[0] < len(SPLIT_WIDTH_SCALARS)
+        or curves.shape[0] < 2
+    ):
         return INVALID
     lo = _buffer1(table, STEADY_ROW.lo, np.int32)
     hi = _buffer1(table, STEADY_ROW.hi, np.int32)
     fixed = _buffer1(table, STEADY_ROW.fixed, np.float32)
-    motion_state = _buffer1(table, STEADY_ROW.motion_state, np.int64)
-    motion_log = _buffer2(table, STEADY_ROW.motion_log, np.float64)
+    motion = Motion(
+        _buffer1(table, STEADY_ROW.motion_state, np.int64),
+        _buffer2(table, STEADY_ROW.motion_log, np.float64),
+        _buffer2(table, STEADY_ROW.need_hist, np.float64),
+        _buffer1(table, STEADY_ROW.profile, np.float64),
+        _buffer1(table, STEADY_ROW.band_state, np.float64),
+    )
     out[STEADY_MOTION] = band_stage(
         _buffer2(table, STEADY_ROW.prev_points, np.float32),
         prev_count,
@@ -203,14 +217,8 @@ def steady_frame(
         constants[STEADY_CONSTANT.floor_px],
         constants[STEADY_CONSTANT.floor_share],
         fixed,
-        motion_state,
-        motion_log,
-        _buffer2(table, STEADY_ROW.need_hist, np.float64),
-        _buffer1(table, STEADY_ROW.profile, np.float64),
-        _buffer1(table, STEADY_ROW.band_state, np.float64),
-        lo,
-        hi,
-        _buffer2(table, STEADY_ROW.moved, np.float32),
+        motion,
+        Band(lo, hi, _buffer2(table, STEADY_ROW.moved, np.float32)),
     )
     weights = _buffer1(table, STEADY_ROW.weights, np.float32)
     tmp = _buffer2(table, STEADY_ROW.tmp, np.float32)
@@ -251,15 +259,13 @@ def steady_frame(
     out[STEADY_POINTS] = n
     if n <= 0 or counts[1] != 0 or counts[2] != 0:
         return STEADY_AFTER_CONTOUR
-    split_state[_STATE_SWEEP] = last_sweep_px
-    split_state[_STATE_POINTS] = n
+    split_state[FRAME_STATE.last_sweep_px] = last_sweep_px
+    split_state[FRAME_STATE.n] = n
     sides = _buffer3(table, STEADY_ROW.sides, np.float32)
     status = split_frame(
         points,
         chain,
-        mag,
-        gx,
-        gy,
+        Planes(smooth, gx, gy, mag),
         frame,
         weights,
         lo,
@@ -267,19 +273,18 @@ def steady_frame(
         _buffer1(table, STEADY_ROW.box_lo, np.int32),
         _buffer1(table, STEADY_ROW.box_hi, np.int32),
         tmp,
-        smooth,
-        _buffer1(table, STEADY_ROW.params, np.float64),
-        split_state,
-        _buffer2(table, STEADY_ROW.curves, np.float64),
-        _buffer1(table, STEADY_ROW.table, np.float32),
+        split_width(width_scalars, curves, _buffer1(table, STEADY_ROW.table, np.float32)),
         _buffer1(table, STEADY_ROW.sweep_index, np.int32),
-        _buffer2(table, STEADY_ROW.lines, np.float32),
-        sides,
-        _buffer2(table, STEADY_ROW.scratch, np.float64),
-        _buffer1(table, STEADY_ROW.turn, np.float32),
-        _buffer1(table, STEADY_ROW.idx, np.int32),
-        _buffer2(table, STEADY_ROW.out_seg, np.float32),
-        split_info,
+        split_state,
+        SplitWork(
+            _buffer2(table, STEADY_ROW.lines, np.float32),
+            sides,
+            _buffer2(table, STEADY_ROW.scratch, np.float64),
+            _buffer1(table, STEADY_ROW.turn, np.float32),
+            _buffer1(table, STEADY_ROW.idx, np.int32),
+            _buffer2(table, STEADY_ROW.out_seg, np.float32),
+            split_info,
+        ),
     )
     out[STEADY_STATUS] = status
     if status != _SHAPES:
@@ -293,18 +298,18 @@ def steady_frame(
         t_ns,
         t_end_ns,
         max_age_ns,
-        _buffer1(table, STEADY_ROW.order_state, np.int64),
-        _buffer2(table, STEADY_ROW.hist_rc, np.float64),
+        Order(_buffer1(table, STEADY_ROW.order_state, np.int64), _buffer2(table, STEADY_ROW.hist_rc, np.float64)),
         fixed,
         split_info[_INFO_SWEEP],
         exposure_ns,
-        motion_state,
-        motion_log,
-        _buffer1(table, STEADY_ROW.fraction, np.float64),
+        motion,
         constants[STEADY_CONSTANT.length0_px],
-        _buffer3(table, STEADY_ROW.out_points, np.float32),
-        _buffer1(table, STEADY_ROW.out_lengths, np.float64),
-        _buffer1(table, STEADY_ROW.work_seg, np.float64),
+        Track(
+            _buffer1(table, STEADY_ROW.fraction, np.float64),
+            _buffer3(table, STEADY_ROW.out_points, np.float32),
+            _buffer1(table, STEADY_ROW.out_lengths, np.float64),
+            _buffer1(table, STEADY_ROW.work_seg, np.float64),
+        ),
     )
     out[STEADY_SWAP] = swap
     out[STEADY_CONFIDENCE] = confidence

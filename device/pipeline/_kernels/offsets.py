@@ -27,7 +27,7 @@ _AHEAD: Final = 16
 """Chain points ahead whose plane values `side_sweeps` and `offset_by_table` ask the caches for."""
 _DENSE_ENDS: Final = 1.2
 """Arc lengths (in units of the tip fit's skip + span) at both ends of a side offset at every contour point by
-`split_shapes_local`; between them every other point (the output is resampled at 2 px)."""
+`split_shapes`; between them every other point (the output is resampled at 2 px)."""
 
 
 @kernel(int32(u1_2d_ro, i4_1d_ro, i4_1d_ro, f4_2d_ro, f4_2d_ro, f4_2d_ro, i4_2d_ro, int32, float32, float32, f4_1d))
@@ -323,7 +323,7 @@ def offset_by_table(
 
 @kernel(int32(float32, float32))
 def dense_end_points(skip_px, span_px):
-    """The points at each end of a side that `split_shapes_local` offsets one by one (`offset_by_table_thinned`):
+    """The points at each end of a side that `split_shapes` offsets one by one (`offset_by_table_thinned`):
     ``_DENSE_ENDS`` times the tip fit's `skip_px` + `span_px` (contour points are at least ~1 px apart), plus one,
     so that the tip fit (`extend_to_band_end`) and the anchoring at the fixed end (`anchor_start`) read the same
     points as on the dense side."""

@@ -3,15 +3,16 @@
 Lens distortion and a camera not square to the plane make a pixel of the image a different length of rope in
 different places; with a plane calibration, eqs. 9-12's uniform stretch is applied to the arc length on the plane.
 
-The calibration travels as one float64 array of `PLANE_PARAMS` values: fx, skew, cx, fy, cy, the eight OpenCV
-distortion coefficients k1 k2 p1 p2 k3 k4 k5 k6 (zeros beyond those given), the plane rotation R row-major
-(X_camera = R X_plane + t), and the camera centre in the plane frame, -R^T t.
+The calibration travels as one float64 array of `PLANE_PARAMS` values, read by the names of `PLANE_NAMES`
+(``params[PLANE.fx]``): fx, skew, cx, fy, cy, the eight OpenCV distortion coefficients k1 k2 p1 p2 k3 k4 k5 k6
+(zeros beyond those given), the plane rotation R row-major (r00 ... r22; X_camera = R X_plane + t), and the
+camera centre in the plane frame, -R^T t (ox, oy, oz).
 """
 
 from __future__ import annotations
 
 import math
-from typing import Final
+from typing import Final, NamedTuple
 
 import numpy as np
 from numba import float64, int32, types
@@ -22,7 +23,14 @@ from ropecam.shared.jit import f4_2d, f8_1d, f8_1d_ro, kernel
 
 f4_3d: Final = types.Array(types.float32, 3, "C")
 
-PLANE_PARAMS: Final = 25
+PLANE_NAMES: Final = (
+    "fx", "skew", "cx", "fy", "cy", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6", "r00", "r01", "r02", "r10",
+    "r11", "r12", "r20", "r21", "r22", "ox", "oy", "oz",
+)  # fmt: skip
+"""The values of the calibration array, in order (see the module's docstring)."""
+PLANE: Final = NamedTuple("PlaneSlots", [(name, int) for name in PLANE_NAMES])(*range(len(PLANE_NAMES)))
+"""The index of each value of the calibration array (``PLANE.fx``), from `PLANE_NAMES`."""
+PLANE_PARAMS: Final = len(PLANE_NAMES)
 """Length of the calibration array."""
 UNDISTORT_ITERATIONS: Final = 20
 """Fixed-point iterations of the undistortion from a cold start (OpenCV's method; converged well below 1e-6 px for
@@ -37,19 +45,19 @@ def _to_plane(row, col, params, x0, y0, iterations):
     """Map pixel (`row`, `col`) to the plane: `iterations` fixed-point steps of the undistortion from the
     normalised guess (`x0`, `y0`). Returns (x m, y m (NaN when the ray misses the plane in front of the camera),
     the undistorted normalised x, y)."""
-    fx = params[0]
-    skew = params[1]
-    cx = params[2]
-    fy = params[3]
-    cy = params[4]
-    k1 = params[5]
-    k2 = params[6]
-    p1 = params[7]
-    p2 = params[8]
-    k3 = params[9]
-    k4 = params[10]
-    k5 = params[11]
-    k6 = params[12]
+    fx = params[PLANE.fx]
+    skew = params[PLANE.skew]
+    cx = params[PLANE.cx]
+    fy = params[PLANE.fy]
+    cy = params[PLANE.cy]
+    k1 = params[PLANE.k1]
+    k2 = params[PLANE.k2]
+    p1 = params[PLANE.p1]
+    p2 = params[PLANE.p2]
+    k3 = params[PLANE.k3]
+    k4 = params[PLANE.k4]
+    k5 = params[PLANE.k5]
+    k6 = params[PLANE.k6]
     yd = (row - cy) / fy
     xd = (col - cx - skew * yd) / fx
     x = x0
@@ -61,24 +69,24 @@ def _to_plane(row, col, params, x0, y0, iterations):
         dy = p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
         x = (xd - dx) * icdist
         y = (yd - dy) * icdist
-    # The ray (x, y, 1) in the plane frame: R^T ray (R row-major at params[13:22]).
-    rx = params[13] * x + params[16] * y + params[19]
-    ry = params[14] * x + params[17] * y + params[20]
-    rz = params[15] * x + params[18] * y + params[21]
+    # The ray (x, y, 1) in the plane frame: R^T ray (R row-major at r00 ... r22).
+    rx = params[PLANE.r00] * x + params[PLANE.r10] * y + params[PLANE.r20]
+    ry = params[PLANE.r01] * x + params[PLANE.r11] * y + params[PLANE.r21]
+    rz = params[PLANE.r02] * x + params[PLANE.r12] * y + params[PLANE.r22]
     if abs(rz) < 1e-12:
         return math.nan, math.nan, x, y
-    scale = -params[24] / rz
+    scale = -params[PLANE.oz] / rz
     if not scale > 0.0:
         return math.nan, math.nan, x, y
-    return params[22] + scale * rx, params[23] + scale * ry, x, y
+    return params[PLANE.ox] + scale * rx, params[PLANE.oy] + scale * ry, x, y
 
 
 @kernel(types.UniTuple(float64, 2)(float64, float64, f8_1d_ro))
 def pixel_to_plane(row, col, params):
     """Return the point (x, y) in metres on the plane seen at pixel (`row`, `col`) (distorted; NaN when its ray
     misses the plane in front of the camera)."""
-    yd = (row - params[4]) / params[3]
-    xd = (col - params[2] - params[1] * yd) / params[0]
+    yd = (row - params[PLANE.cy]) / params[PLANE.fy]
+    xd = (col - params[PLANE.cx] - params[PLANE.skew] * yd) / params[PLANE.fx]
     x, y, _, _ = _to_plane(row, col, params, xd, yd, UNDISTORT_ITERATIONS)
     return x, y
 
@@ -95,14 +103,14 @@ def plane_segment_lengths(poly, params, out_seg):
     total = 0.0
     row = np.float64(poly[0, 0])
     col = np.float64(poly[0, 1])
-    yd = (row - params[4]) / params[3]
-    xd = (col - params[2] - params[1] * yd) / params[0]
+    yd = (row - params[PLANE.cy]) / params[PLANE.fy]
+    xd = (col - params[PLANE.cx] - params[PLANE.skew] * yd) / params[PLANE.fx]
     px, py, ux, uy = _to_plane(row, col, params, xd, yd, UNDISTORT_ITERATIONS)
     for j in range(1, n):
         row = np.float64(poly[j, 0])
         col = np.float64(poly[j, 1])
-        yd_j = (row - params[4]) / params[3]
-        xd_j = (col - params[2] - params[1] * yd_j) / params[0]
+        yd_j = (row - params[PLANE.cy]) / params[PLANE.fy]
+        xd_j = (col - params[PLANE.cx] - params[PLANE.skew] * yd_j) / params[PLANE.fx]
         x, y, ux, uy = _to_plane(row, col, params, ux + xd_j - xd, uy + yd_j - yd, WARM_ITERATIONS)
         xd = xd_j
         yd = yd_j

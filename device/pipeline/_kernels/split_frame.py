@@ -4,43 +4,28 @@ segmentation points, the smoothed image around the band's corners, the tip sweep
 from __future__ import annotations
 
 import math
-from typing import Any, Final
+from typing import Any, Final, NamedTuple
 
 import numpy as np
 from numba import int32
 
 from ropecam.device.pipeline._kernels._common import INVALID, f4_1d_ro
-from ropecam.device.pipeline._kernels.canny import smooth_box
+from ropecam.device.pipeline._kernels.canny_gradient import smooth_box
 from ropecam.device.pipeline._kernels.geometry import find_segmentation_points_seg
+from ropecam.device.pipeline._kernels.groups import PLANES, SPLIT_WIDTH, SPLIT_WORK
 from ropecam.device.pipeline._kernels.offsets import slope_sweep_median
-from ropecam.device.pipeline._kernels.split_shapes import SPLIT_PARAMS, f4_3d, split_shapes_packed_near
-from ropecam.shared.jit import (
-    f4_1d,
-    f4_2d,
-    f4_2d_ro,
-    f8_1d,
-    f8_1d_ro,
-    f8_2d,
-    f8_2d_ro,
-    i4_1d,
-    i4_1d_ro,
-    i4_2d_ro,
-    kernel,
-    u1_2d,
-    u1_2d_ro,
-)
+from ropecam.device.pipeline._kernels.split_shapes import split_shapes
+from ropecam.shared.jit import f4_2d, f4_2d_ro, f8_1d_ro, i4_1d, i4_1d_ro, i4_2d_ro, kernel, u1_2d, u1_2d_ro
 
-FRAME_PARAMS: Final = SPLIT_PARAMS + 6
-"""Length of `split_frame`'s `params`: `split_shapes_packed`'s `SPLIT_PARAMS`, then `scale`, `min_gap`,
-`search_px`, `corner_rad` of `find_segmentation_points`, the corner box's growth `grow_px` (beyond the two corners,
-each way) and the `static_ratio` (sweep / width below which the rope is taken as not moving)."""
-FRAME_STATE: Final = 6
-"""Length of `split_frame`'s `state`: ``[fixed_r, fixed_c, polarity, contrast, last_sweep_px, n]`` (the float32
-values of the first three exactly, the contrast as measured, the last frame's sweep, the contour's point count:
-a Python int in a float64 array costs less than an int32 scalar made per frame)."""
+FRAME_STATES: Final = ("fixed_r", "fixed_c", "polarity", "contrast", "last_sweep_px", "n")
+"""`split_frame`'s `state` (float64), in order: the fixed end and the polarity (float32 values, exactly), the
+contrast as measured, the last frame's sweep (px), the contour's point count (a Python int in a float64 array
+costs less than an int32 scalar made per frame)."""
+FRAME_STATE: Final = NamedTuple("SplitFrameState", [(name, int) for name in FRAME_STATES])(*range(len(FRAME_STATES)))
+"""The index of each value of `split_frame`'s `state` (``FRAME_STATE.contrast``), from `FRAME_STATES`."""
 FRAME_INFO: Final = 7
-"""Length of `split_frame`'s `out_info`: `split_shapes_packed`'s six values, then the sweep (px) of this frame
-(-1 when no segmentation points were found)."""
+"""Length of `SplitWork.info`: `split_shapes`'s six values, then the sweep (px) of this frame (-1 when no
+segmentation points were found)."""
 SPLIT_STATIC: Final = 0
 """`split_frame`'s return when the contour is to be taken as one static shape (no segmentation points, or a sweep
 below ``static_ratio`` widths)."""
@@ -52,8 +37,8 @@ _SLOPE_HIGH: Final = np.float32(0.85)
 def _signature(frame_type: Any) -> Any:
     """`split_frame`'s signature with the frame of `frame_type`."""
     return int32(
-        f4_2d_ro, i4_2d_ro, f4_2d_ro, f4_2d_ro, f4_2d_ro, frame_type, f4_1d_ro, i4_1d_ro, i4_1d_ro, i4_1d, i4_1d,
-        f4_2d, f4_2d, f8_1d_ro, f8_1d_ro, f8_2d_ro, f4_1d_ro, i4_1d_ro, f4_2d, f4_3d, f8_2d, f4_1d, i4_1d, f4_2d, f8_1d,
+        f4_2d_ro, i4_2d_ro, PLANES, frame_type, f4_1d_ro, i4_1d_ro, i4_1d_ro, i4_1d, i4_1d, f4_2d, SPLIT_WIDTH,
+        i4_1d_ro, f8_1d_ro, SPLIT_WORK,
     )  # fmt: skip
 
 
@@ -61,50 +46,54 @@ def _signature(frame_type: Any) -> Any:
 # read-only view of the frame made per call costs ~1-3 us of Python.
 @kernel([_signature(u1_2d_ro), _signature(u1_2d)])
 def split_frame(
-    points, chain, mag, gx, gy, frame, weights, spans_lo, spans_hi, box_lo, box_hi, tmp, smooth, params, state,
-    curves, table, sweep_index, lines, sides, scratch, turn, idx, out_seg, out_info,
+    points, chain, planes, frame, weights, spans_lo, spans_hi, box_lo, box_hi, tmp, width, sweep_index, state,
+    buffers,
 ):  # fmt: skip
-    """The blur split of one closed contour (``n = state[5]`` subpixel `points`, chain pixels `chain`), as the
-    stage's sequence (`BlurSplitter.split`) makes it once the rope's width, polarity and contrast are known:
+    """The blur split of one closed contour (``n = state[FRAME_STATE.n]`` subpixel `points`, chain pixels `chain`),
+    as the stage's sequence (`BlurSplitter.split`) makes it once the rope's width, polarity and contrast are known:
 
-    1. `find_segmentation_points` (fixed end ``state[0:2]``, search zone ``max(search_px, 1.2 last_sweep_px)``;
-       distances into ``scratch[1]``, angles into `turn`, indices into `idx`; as `find_segmentation_points_seg`
-       with the segment lengths in ``scratch[2]``);
+    1. `find_segmentation_points` (fixed end ``fixed_r``, ``fixed_c`` of `state`, search zone ``max(search_px,
+       1.2 last_sweep_px)``; distances into ``scratch[1]``, angles into ``turn``, indices into ``idx``; as
+       `find_segmentation_points_seg` with the segment lengths in ``scratch[2]``);
     2. the smoothed image made this frame's (`smooth_box` on `frame` with the edge stage's `weights` and spans
-       `spans_lo`/`spans_hi`, scratch `box_lo`, `box_hi`, `tmp`; writes `smooth`) over the box around the two
-       corners grown by `grow_px`, which the tip fit reads;
+       `spans_lo`/`spans_hi`, scratch `box_lo`, `box_hi`, `tmp`; writes ``planes.smooth``) over the box around
+       the two corners grown by ``grow_px``, which the tip fit reads;
     3. the sweep: the corners' distance, or below 1.5 widths the mean of the two sides' `slope_sweep_median`
-       (contrast ``state[3]``; scratch ``scratch[2]``) when finite, capped at 1.5 widths;
-    4. below ``static_ratio`` widths SPLIT_STATIC, else `split_shapes_packed` with ``1 / contrast`` (as
-       `split_shapes_packed_near`: the tip fit's search takes the distances of step 1).
+       (the ``contrast`` of `state`; scratch ``scratch[2]``) when finite, capped at 1.5 widths;
+    4. below ``static_ratio`` widths SPLIT_STATIC, else `split_shapes` with ``1 / contrast``, `sweep_index` and
+       the distances of step 1 (the tip fit's search).
 
-    `params` holds `FRAME_PARAMS` values, `curves` the edge model's ``[ratios, sweeps]``, `table` its offsets,
-    `sweep_index` the ratios' index (`split_shapes_local`'s: the same sweeps, found faster; or empty);
-    `lines`, `sides`, ``scratch[0]`` are `split_shapes_packed`'s buffers. Writes the corners to `out_seg` (2, 2)
-    and ``out_info`` (`FRAME_INFO`): `split_shapes_packed`'s values and the sweep. Returns
-    `split_shapes_packed`'s value (2, NOT_FOUND when the lengths differ, FULL, INVALID), SPLIT_STATIC, or
-    INVALID when an array is too small or n out of their range.
+    `planes` are the edge stage's (`Planes`), `width` the rope width's tables and scalars (`SplitWidth`),
+    `sweep_index` the ratios' index (`split_shapes`'; or empty), `state` the `FRAME_STATES` (float64),
+    `buffers` the split's (`SplitWork`: the names in ``double backquotes`` above are its members). Writes the
+    corners to ``seg`` (2, 2) and ``info`` (`FRAME_INFO`): `split_shapes`' values and the sweep. Returns
+    `split_shapes`' value (2, NOT_FOUND when the lengths differ, FULL, INVALID), SPLIT_STATIC, or INVALID when an
+    array is too small or n out of their range.
     """
+    scratch = buffers.scratch
+    lines = buffers.lines
+    out_seg = buffers.seg
+    out_info = buffers.info
     if (
-        params.shape[0] < FRAME_PARAMS
-        or state.shape[0] < FRAME_STATE
+        state.shape[0] < len(FRAME_STATES)
         or out_info.shape[0] < FRAME_INFO
         or scratch.shape[0] < 3
         or lines.shape[0] < 1
         or out_seg.shape[0] < 2
         or out_seg.shape[1] < 2
-        or curves.shape[0] < 2
-        or not 0.0 <= state[5] <= min(points.shape[0], chain.shape[0])
+        or not 0.0 <= state[FRAME_STATE.n] <= min(points.shape[0], chain.shape[0])
     ):
         return INVALID
-    n = np.int32(state[5])
-    width = params[8]
-    fixed_r = np.float32(state[0])
-    fixed_c = np.float32(state[1])
-    search = np.float32(max(params[SPLIT_PARAMS + 2], 1.2 * state[4]))
+    idx = buffers.idx
+    smooth = planes.smooth
+    n = np.int32(state[FRAME_STATE.n])
+    width64 = width.width64_px
+    fixed_r = np.float32(state[FRAME_STATE.fixed_r])
+    fixed_c = np.float32(state[FRAME_STATE.fixed_c])
+    search = np.float32(max(width.search_px, 1.2 * state[FRAME_STATE.last_sweep_px]))
     found = find_segmentation_points_seg(
-        points, n, np.int32(params[SPLIT_PARAMS]), fixed_r, fixed_c, search, np.int32(params[SPLIT_PARAMS + 1]),
-        np.float32(params[SPLIT_PARAMS + 3]), scratch[1], turn, lines[0], scratch[2], idx,
+        points, n, width.scale, fixed_r, fixed_c, search, width.min_gap, width.corner_rad, scratch[1], buffers.turn,
+        lines[0], scratch[2], idx,
     )  # fmt: skip
     out_info[6] = -1.0
     if found < 0:
@@ -118,7 +107,7 @@ def split_frame(
     bc = np.float64(points[seg_b, 1])
     # The tip fit reads the smoothed image a few pixels past the band's end next to each corner (see
     # `BlurSplitter.split`): this frame's values must be there.
-    grow = params[SPLIT_PARAMS + 4]
+    grow = width.grow_px
     height = smooth.shape[0]
     cols = smooth.shape[1]
     smooth_box(
@@ -131,27 +120,27 @@ def split_frame(
     out_seg[1, 0] = points[seg_b, 0]
     out_seg[1, 1] = points[seg_b, 1]
     sweep = math.hypot(ar - br, ac - bc)
-    contrast = state[3]
-    if sweep < 1.5 * width and contrast >= 5.0:
+    contrast = state[FRAME_STATE.contrast]
+    if sweep < 1.5 * width64 and contrast >= 5.0:
         # The corners are a rope width apart whatever the sweep below that: the sweep from the edge slope.
         contrast32 = np.float32(contrast)
         total = 0.0
         count = 0
         for side in range(2):
             median = slope_sweep_median(
-                chain, n, i_fix, seg_a if side == 0 else seg_b, np.int32(1 if side == 0 else -1), mag, _SLOPE_LOW,
-                _SLOPE_HIGH, contrast32, curves[0], curves[1], scratch[2],
+                chain, n, i_fix, seg_a if side == 0 else seg_b, np.int32(1 if side == 0 else -1), planes.mag,
+                _SLOPE_LOW, _SLOPE_HIGH, contrast32, width.ratios, width.sweeps, scratch[2],
             )  # fmt: skip
             if math.isfinite(median):
                 total += median
                 count += 1
         if count > 0:
-            sweep = min(total if count == 1 else total / 2.0, 1.5 * width)
+            sweep = min(total if count == 1 else total / 2.0, 1.5 * width64)
     out_info[6] = sweep
-    if sweep < params[SPLIT_PARAMS + 5] * width:
+    if sweep < width.static_ratio * width64:
         return SPLIT_STATIC
     # The tip fit's search takes the distances from the fixed end that step 1 left in ``scratch[1]``.
-    return split_shapes_packed_near(
-        points, chain, n, i_fix, seg_a, seg_b, mag, np.float32(1.0 / contrast), gx, gy, np.float32(state[2]), smooth,
-        fixed_r, fixed_c, params, curves, table, lines, sides, scratch[0], out_info, scratch[1], sweep_index,
+    return split_shapes(
+        points, chain, n, i_fix, seg_a, seg_b, planes, np.float32(1.0 / contrast),
+        np.float32(state[FRAME_STATE.polarity]), width, sweep_index, fixed_r, fixed_c, scratch[1], buffers,
     )  # fmt: skip

@@ -1,15 +1,22 @@
-"""The blur split's two shapes from its segmentation points in one call (`split_shapes_local`), and the same with
-its arguments packed in fewer arrays (`split_shapes_packed`, `split_shapes_packed_near`): a sequence of calls to
-the step kernels of `offsets`, `polylines` and `smoothing`."""
+"""The blur split's two shapes from its segmentation points in one call (`split_shapes`): a sequence of calls to
+the step kernels of `offsets`, `polylines` and `smoothing`; and `split_width`, the width's group from the arrays
+`steady_frame`'s table holds."""
 
 from __future__ import annotations
 
-from typing import Final
+from typing import Final, NamedTuple
 
 import numpy as np
-from numba import float32, float64, int32, types
+from numba import float32, int32
 
-from ropecam.device.pipeline._kernels._common import FULL, INVALID, NOT_FOUND, f4_1d_ro, vector_length
+from ropecam.device.pipeline._kernels._common import FULL, INVALID, NOT_FOUND, vector_length
+from ropecam.device.pipeline._kernels.groups import (
+    PLANES,
+    SPLIT_WIDTH,
+    SPLIT_WIDTH_SCALARS,
+    SPLIT_WORK,
+    SplitWidth,
+)
 from ropecam.device.pipeline._kernels.offsets import (
     dense_end_points,
     offset_by_table_thinned,
@@ -23,45 +30,88 @@ from ropecam.device.pipeline._kernels.polylines import (
     resample_polyline_of_length,
 )
 from ropecam.device.pipeline._kernels.smoothing import smooth_polyline
-from ropecam.shared.jit import f4_1d, f4_2d, f4_2d_ro, f8_1d, f8_1d_ro, f8_2d_ro, i4_1d_ro, i4_2d_ro, kernel
+from ropecam.shared.jit import f4_1d, f4_2d_ro, f8_1d, f8_1d_ro, f8_2d, i4_1d_ro, i4_2d_ro, kernel
 
-f4_3d: Final = types.Array(types.float32, 3, "C")
+SPLIT_SCALAR: Final = NamedTuple("SplitWidthSlots", [(name, int) for name in SPLIT_WIDTH_SCALARS])(
+    *range(len(SPLIT_WIDTH_SCALARS))
+)
+"""The index of each scalar of `SplitWidth` in `split_width`'s `scalars` (``SPLIT_SCALAR.half``)."""
 
-SPLIT_PARAMS: Final = 11
-"""Length of `split_shapes_packed`'s `params`: `split_shapes_local`'s scalars that depend only on the rope width,
-in its order (`half`, `step_px`, `width_px`, `cap_px`, `skip_px`, `span_px`, `blur_px`, `slant_gain_px`,
-`width_check_px`, `out_step_px`, `smoothing_px`), each exactly representable in float64."""
+
+@kernel(SPLIT_WIDTH(f8_1d, f8_2d, f4_1d))
+def split_width(scalars, curves, offsets):
+    """Return the `SplitWidth` of the edge model's ``curves = [ratios, sweeps]``, its `offsets` and `scalars`
+    (float64, the `SPLIT_WIDTH_SCALARS` in order, each converted back to the type `SplitWidth` has: the values
+    `WidthTables` writes are exact). Reads ``scalars[:len(SPLIT_WIDTH_SCALARS)]`` and ``curves[:2]``: the caller
+    checks their sizes."""
+    s = scalars
+    return SplitWidth(
+        curves[0], curves[1], offsets, np.int32(s[SPLIT_SCALAR.half]), np.float32(s[SPLIT_SCALAR.step_px]),
+        np.float32(s[SPLIT_SCALAR.width_px]), np.float32(s[SPLIT_SCALAR.cap_px]), np.float32(s[SPLIT_SCALAR.skip_px]),
+        np.float32(s[SPLIT_SCALAR.span_px]), np.float32(s[SPLIT_SCALAR.blur_px]), s[SPLIT_SCALAR.slant_gain_px],
+        s[SPLIT_SCALAR.width64_px], np.float32(s[SPLIT_SCALAR.out_step_px]), np.float32(s[SPLIT_SCALAR.smoothing_px]),
+        np.int32(s[SPLIT_SCALAR.scale]), np.int32(s[SPLIT_SCALAR.min_gap]), s[SPLIT_SCALAR.search_px],
+        np.float32(s[SPLIT_SCALAR.corner_rad]), s[SPLIT_SCALAR.grow_px], s[SPLIT_SCALAR.static_ratio],
+    )  # fmt: skip
 
 
 @kernel(
-    int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f8_1d_ro, f8_1d_ro, int32, f4_2d_ro,
-          f4_2d_ro, float32, float32, f4_1d_ro, f4_2d_ro, float32, float32, float32, float32, float32, float64,
-          float64, float32, float32, float32, float32, f4_1d, f4_1d, f4_1d, f4_2d, f4_2d, f4_2d, f4_2d, f8_1d,
-          f8_1d, f8_1d_ro, i4_1d_ro)
+    int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, PLANES, float32, float32, SPLIT_WIDTH, i4_1d_ro, float32,
+          float32, f8_1d_ro, SPLIT_WORK)
 )  # fmt: skip
-def split_shapes_local(
-    points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, ratios, sweeps, half, gx, gy, polarity, step_px, table,
-    smooth, width_px, cap_px, skip_px, span_px, blur_px, slant_gain_px, width_check_px, out_step_px, smoothing_px,
-    fixed_r, fixed_c, work, out_sweeps_a, out_sweeps_b, out_side_a, out_side_b, out_a, out_b, work_arc, out_info,
-    fixed_dist, sweep_index,
+def split_shapes(
+    points, chain, n, i_fix, seg_a, seg_b, planes, inv_contrast, polarity, width, sweep_index, fixed_r, fixed_c,
+    fixed_dist, buffers,
 ):  # fmt: skip
     """The blur split's shapes from its segmentation points, with local sweeps, in one call (the stage's
     sequence of kernels, without a Python step between them): per side (A forward from `i_fix` to `seg_a`, B
     backward to `seg_b`) `side_sweeps`, `offset_by_table`, `extend_to_band_end`; then the slant correction of
     the two tips (`BlurSplitter._correct_slant`: float32 updates as NumPy makes them), the two lengths, the
-    length check (``|La - Lb| > max(3 width_check_px, 0.1 max(La, Lb))`` rejects the split), and per side
+    length check (``|La - Lb| > max(3 width64_px, 0.1 max(La, Lb))`` rejects the split), and per side
     `anchor_start` at the fixed end (`fixed_r`, `fixed_c`; axis from `skip_px` over `span_px`),
-    `resample_polyline_of_length` into `out_a`/`out_b`, then `smooth_polyline` into `out_side_a`/`out_side_b`
-    when `smoothing_px` > 0 and the shape has 3 points or more. `fixed_dist` holds the distances of the `points`
-    from (`fixed_r`, `fixed_c`) (`find_segmentation_points`' `out_dist`) for the tip fit's search
-    (`extend_to_band_end_near`: the same results with fewer points checked), or is shorter than `n` (every
-    point checked). `sweep_index` is the `ratios`' index for `side_sweeps_indexed` (the same sweeps, found
-    faster), or empty (`side_sweeps`).
+    `resample_polyline_of_length` into out A / out B, then `smooth_polyline` into side A / side B when
+    `smoothing_px` > 0 and the shape has 3 points or more. The planes are `planes`' (`Planes`, read only), the
+    width's tables and scalars `width`'s (`SplitWidth`), the buffers `buffers`' (`SplitWork`: ``lines`` = [work,
+    sweeps of side A, of side B], ``sides`` = [side A, side B, out A, out B], ``scratch[0]`` the arc lengths,
+    ``info``). `fixed_dist` holds the distances of the `points` from (`fixed_r`, `fixed_c`)
+    (`find_segmentation_points`' `out_dist`) for the tip fit's search (`extend_to_band_end_near`: the same
+    results with fewer points checked), or is shorter than `n` (every point checked). `sweep_index` is the
+    ratios' index for `side_sweeps_indexed` (the same sweeps, found faster), or empty (`side_sweeps`).
 
-    Writes ``out_info = [count_a, count_b, length_a, length_b, smoothed_a, smoothed_b]`` (a smoothed shape is in
-    ``out_side_*[:count]``, else in ``out_*[:count]``). Returns 2, NOT_FOUND when the lengths differ (the lengths
-    written), or FULL / INVALID when a step did (the caller redoes the steps one by one for its message).
+    Writes ``info[:6] = [count_a, count_b, length_a, length_b, smoothed_a, smoothed_b]`` (a smoothed shape is in
+    ``sides[0 or 1, :count]``, else in ``sides[2 or 3, :count]``). Returns 2, NOT_FOUND when the lengths differ
+    (the lengths written), or FULL / INVALID when a step did (the caller redoes the steps one by one for its
+    message); INVALID when a buffer of `buffers` is too small to hold them.
     """
+    if buffers.lines.shape[0] < 3 or buffers.sides.shape[0] < 4 or buffers.scratch.shape[0] < 1:
+        return INVALID
+    mag = planes.mag
+    gx = planes.gx
+    gy = planes.gy
+    smooth = planes.smooth
+    ratios = width.ratios
+    sweeps = width.sweeps
+    table = width.offsets
+    half = width.half
+    step_px = width.step_px
+    width_px = width.width_px
+    cap_px = width.cap_px
+    skip_px = width.skip_px
+    span_px = width.span_px
+    blur_px = width.blur_px
+    slant_gain_px = width.slant_gain_px
+    width_check_px = width.width64_px
+    out_step_px = width.out_step_px
+    smoothing_px = width.smoothing_px
+    work = buffers.lines[0]
+    out_sweeps_a = buffers.lines[1]
+    out_sweeps_b = buffers.lines[2]
+    out_side_a = buffers.sides[0]
+    out_side_b = buffers.sides[1]
+    out_a = buffers.sides[2]
+    out_b = buffers.sides[3]
+    work_arc = buffers.scratch[0]
+    out_info = buffers.info
     if out_info.shape[0] < 6:
         return INVALID
     plus = np.int32(1)
@@ -141,45 +191,3 @@ def split_shapes_local(
                 return INVALID
             out_info[4 + side] = 1.0
     return 2
-
-
-@kernel(
-    int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f4_2d_ro, f4_2d_ro, float32, f4_2d_ro,
-          float32, float32, f8_1d_ro, f8_2d_ro, f4_1d_ro, f4_2d, f4_3d, f8_1d, f8_1d, f8_1d_ro, i4_1d_ro)
-)  # fmt: skip
-def split_shapes_packed_near(
-    points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, gx, gy, polarity, smooth, fixed_r, fixed_c, params,
-    curves, table, lines, sides, work_arc, out_info, fixed_dist, sweep_index,
-):  # fmt: skip
-    """`split_shapes_packed` with the points' distances from the fixed end (`split_shapes_local`'s `fixed_dist`)
-    and the ratios' index (its `sweep_index`): the same results, the tip fit's search over fewer points and the
-    sweep table's intervals found without a walk."""
-    if params.shape[0] < SPLIT_PARAMS or curves.shape[0] < 2 or lines.shape[0] < 3 or sides.shape[0] < 4:
-        return INVALID
-    return split_shapes_local(
-        points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, curves[0], curves[1], np.int32(params[0]), gx, gy,
-        polarity, np.float32(params[1]), table, smooth, np.float32(params[2]), np.float32(params[3]),
-        np.float32(params[4]), np.float32(params[5]), np.float32(params[6]), params[7], params[8],
-        np.float32(params[9]), np.float32(params[10]), fixed_r, fixed_c, lines[0], lines[1], lines[2], sides[0],
-        sides[1], sides[2], sides[3], work_arc, out_info, fixed_dist, sweep_index,
-    )  # fmt: skip
-
-
-@kernel(
-    int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f4_2d_ro, f4_2d_ro, float32, f4_2d_ro,
-          float32, float32, f8_1d_ro, f8_2d_ro, f4_1d_ro, f4_2d, f4_3d, f8_1d, f8_1d)
-)  # fmt: skip
-def split_shapes_packed(
-    points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, gx, gy, polarity, smooth, fixed_r, fixed_c, params,
-    curves, table, lines, sides, work_arc, out_info,
-):  # fmt: skip
-    """`split_shapes_local` with its arguments bound in fewer arrays (a dispatch costs ~0.1 us per argument): the
-    width's scalars in `params` (`SPLIT_PARAMS` values, converted back to the types `split_shapes_local` takes),
-    ``curves = [ratios, sweeps]``, ``lines = [work, out_sweeps_a, out_sweeps_b]`` and ``sides = [out_side_a,
-    out_side_b, out_a, out_b]``; every contour point is checked by the tip fit (no `fixed_dist`), the sweep table
-    walked (no `sweep_index`). Same results
-    and returns; INVALID when an array is too small to hold them."""
-    return split_shapes_packed_near(
-        points, chain, n, i_fix, seg_a, seg_b, mag, inv_contrast, gx, gy, polarity, smooth, fixed_r, fixed_c, params,
-        curves, table, lines, sides, work_arc, out_info, work_arc[:0], chain.reshape(chain.size)[:0],
-    )  # fmt: skip

@@ -25,10 +25,8 @@ import numpy as np
 from numba import boolean, float64, int32, int64, types
 
 from ropecam.device.pipeline._kernels._common import INVALID
+from ropecam.device.pipeline._kernels.groups import MOTION, ORDER, TRACK, f4_3d, i8_1d
 from ropecam.shared.jit import f4_1d, f4_2d, f8_1d, f8_1d_ro, f8_2d, kernel
-
-i8_1d: Final = types.Array(types.int64, 1, "C")
-f4_3d: Final = types.Array(types.float32, 3, "C")
 
 HISTORY: Final = 6
 """Tip samples kept for the time order (two per split frame: three frames)."""
@@ -466,23 +464,33 @@ def track_shapes(begin, end, single, fraction, length0_px, out_points, out_lengt
 # --------------------------------------------------------------------------------------------- the three at once
 @kernel(
     types.Tuple((int32, float64, float64, float64))(
-        f4_2d, f4_2d, boolean, int64, int64, int64, i8_1d, f8_2d, f4_1d, float64, int64, i8_1d, f8_2d, f8_1d_ro,
-        float64, f4_3d, f8_1d, f8_1d,
+        f4_2d, f4_2d, boolean, int64, int64, int64, ORDER, f4_1d, float64, int64, MOTION, float64, TRACK
     )
 )  # fmt: skip
 def track_frame(
-    shape_a, shape_b, single, t_ns, t_end_ns, max_age_ns, order_state, hist_rc, fixed, sweep_px, exposure_ns,
-    motion_state, motion_log, fraction, length0_px, out_points, out_lengths, work_seg,
+    shape_a, shape_b, single, t_ns, t_end_ns, max_age_ns, order, fixed, sweep_px, exposure_ns, motion, length0_px,
+    track,
 ):  # fmt: skip
     """`order_shapes`, then `track_shapes` on the shapes in time order, then `observe_motion`, in one call: what
     a frame's two shapes (the same array for one shape) give once they are known, exposed from `t_ns` for
     `exposure_ns` (>= 0; `t_end_ns` = `t_ns` + exposure: not later means unknown, no time order, confidence 0.5
-    or 1 for one shape, the history untouched). Arguments as those three kernels'.
+    or 1 for one shape, the history untouched). Arguments as those three kernels': `order` is the time order's
+    group (`Order`: ``state`` as `order_state`, ``hist_rc``), `motion` the motion model's (`Motion`: ``state``
+    and ``log`` as `motion_state` and `motion_log`), `track` the material points' (`Track`: ``fraction``,
+    ``out`` as `out_points`, ``lengths_px`` as `out_lengths`, ``work`` as `work_seg`).
 
     Every size is checked before any state is written. Returns (0 or 1: `shape_b` is the start of the exposure,
     or INVALID (an empty shape, buffers too small; nothing written); the order confidence; the stretch of the
     begin shape; of the end shape).
     """
+    order_state = order.state
+    hist_rc = order.hist_rc
+    motion_state = motion.state
+    motion_log = motion.log
+    fraction = track.fraction
+    out_points = track.out
+    out_lengths = track.lengths_px
+    work_seg = track.work
     na = shape_a.shape[0]
     nb = shape_b.shape[0]
     m = fraction.shape[0]

@@ -70,7 +70,8 @@ def test_band_stage_equals_its_steps(frames, predict) -> None:
         points = _outline(0.05 * (frames + k), bend)
         t_ns = T0_NS + (frames + k) * PERIOD_NS
         lo, hi = np.zeros(HEIGHT, np.int32), np.full(HEIGHT, 7, np.int32)
-        args = (MARGIN, HEIGHT, WIDTH, GAIN, FLOOR, SHARE, FIXED, state, log, need, profile, band, lo, hi, moved)
+        args = (MARGIN, HEIGHT, WIDTH, GAIN, FLOOR, SHARE, FIXED, K.Motion(state, log, need, profile, band),
+                K.Band(lo, hi, moved))  # fmt: skip
         motion = K.band_stage(points, len(points), measure, use_profile, predict, t_ns, EXPOSURE_NS, *args)
         ref_motion, ref_lo, ref_hi, last = _steps(points, measure, use_profile, predict, t_ns, state, log, ref_need,
                                                   ref_profile, last, ref_moved)  # fmt: skip

@@ -301,6 +301,11 @@ def test_track_shapes_refuses_empty_shapes_and_copes_with_read_only_ones() -> No
 
 
 # ------------------------------------------------------------------------------------------- all three at once
+def _motion(state: np.ndarray, log: np.ndarray) -> K.Motion:
+    """The motion group of `state` and `log` (`track_frame` reads only those two)."""
+    return K.Motion(state, log, np.zeros((2, 16)), np.zeros(16), np.zeros(K.BAND_SLOTS))
+
+
 def test_track_frame_is_order_then_material_points_then_motion() -> None:
     """`track_frame` gives what `order_shapes`, `track_shapes` and `observe_motion` give called in turn (the
     reference here), states included, through swaps, single shapes, unknown exposures; it writes nothing when a
@@ -328,8 +333,9 @@ def test_track_frame_is_order_then_material_points_then_motion() -> None:
         a = shapes[0]
         b = a if k % 11 == 0 else shapes[1]
         order_state, hist_rc, motion_state, motion_log, out, lengths, work = states[0]
-        got = K.track_frame(a, b, a is b, t0, t1, 4 * period, order_state, hist_rc, fixed, 2.5, t1 - t0,
-                            motion_state, motion_log, fraction, 120.0, out, lengths, work)  # fmt: skip
+        got = K.track_frame(a, b, a is b, t0, t1, 4 * period, K.Order(order_state, hist_rc), fixed, 2.5, t1 - t0,
+                            _motion(motion_state, motion_log), 120.0,
+                            K.Track(fraction, out, lengths, work))  # fmt: skip
         order_state, hist_rc, motion_state, motion_log, out_ref, lengths_ref, work_ref = states[1]
         if t1 > t0:
             swap, confidence = K.order_shapes(a, b, a is b, t0, t1, 4 * period, order_state, hist_rc)
@@ -346,7 +352,8 @@ def test_track_frame_is_order_then_material_points_then_motion() -> None:
     before = [s.copy() for s in states[0]]
     order_state, hist_rc, motion_state, motion_log, out, lengths, work = states[0]
     long_shape = np.zeros((600, 2), np.float32)  # longer than the scratch
-    assert K.track_frame(long_shape, a, False, 10**9, 10**9 + 1, 4 * period, order_state, hist_rc, fixed, 2.5, 1,
-                         motion_state, motion_log, fraction, 120.0, out, lengths, work)[0] == K.INVALID  # fmt: skip
+    assert K.track_frame(long_shape, a, False, 10**9, 10**9 + 1, 4 * period, K.Order(order_state, hist_rc), fixed,
+                         2.5, 1, _motion(motion_state, motion_log), 120.0,
+                         K.Track(fraction, out, lengths, work))[0] == K.INVALID  # fmt: skip
     for now, then in zip(states[0], before, strict=True):
         np.testing.assert_array_equal(now, then)

@@ -122,7 +122,7 @@ def test_warm_up_builds_the_edge_tables_and_leaves_no_state(swing, swing_frames)
     pipeline.warm_up()
     model = pipeline.splitter.model
     assert max(1, round(pipeline.traits.width() * 10)) in model._cache  # the configured width's tables are built
-    assert (pipeline.locator.prev_count, pipeline.frames_full, pipeline.frames_coarse, pipeline._last_frame_t_ns) == (
+    assert (pipeline.locator.prev_count, pipeline.frames_full, pipeline.frames_coarse, pipeline._clock.last_t_ns) == (
         0,
         0,
         0,

@@ -1,6 +1,6 @@
 """The blur split's one-call paths against the same kernels called one by one: `split_frame` (a steady frame:
-segmentation points, the corner box's smoothing, the sweep, the shapes) and `split_shapes_packed`
-(`split_shapes_local`, the shapes from the segmentation points)."""
+segmentation points, the corner box's smoothing, the sweep, the shapes) and `split_shapes` (the shapes from the
+segmentation points)."""
 
 from __future__ import annotations
 
@@ -31,13 +31,13 @@ _LAST_ARGS: list[tuple] = []
 
 def _shapes(monkeypatch: pytest.MonkeyPatch, path: str, garbage: bool = False, read_only: bool = False) -> list[tuple]:
     """(sweep, begin, end) of each frame, the split made by `path`: ``frame`` (`split_frame`), ``packed`` (its
-    steps before the shapes one by one, then `split_shapes_packed`) or ``steps`` (every step one by one: both
+    steps before the shapes one by one, then `split_shapes`) or ``steps`` (every step one by one: both
     one-call kernels report a full buffer). With `garbage`, the edge stage's planes are overwritten before every
     frame (the split must make the smoothed image it reads beyond the band itself). With `read_only`, the frames
     are read-only arrays (a mapped capture buffer; `split_frame` is compiled for both)."""
     if (path, garbage, read_only) in _RUNS:
         return _RUNS[(path, garbage, read_only)]
-    calls = {"split_frame": 0, "split_shapes_packed": 0}
+    calls = {"split_frame": 0, "split_shapes": 0}
     for name in calls:
         real = getattr(K, name)
 
@@ -66,7 +66,7 @@ def _shapes(monkeypatch: pytest.MonkeyPatch, path: str, garbage: bool = False, r
         out.append((pipeline.splitter.sweep_px, np.array(result.begin), np.array(result.end)))
     assert calls["split_frame"] >= 3  # the steady path ran
     if path != "frame":
-        assert calls["split_shapes_packed"] >= 4  # and its fallback
+        assert calls["split_shapes"] >= 4  # and its fallback
     _RUNS[(path, garbage, read_only)] = out
     return out
 
@@ -85,7 +85,7 @@ def test_split_frame_equals_its_steps(monkeypatch) -> None:
 
 
 @pytest.mark.jit_only  # 13 s without JIT; the shape kernels one by one have their own reference tests
-def test_split_shapes_local_equals_the_kernels_one_by_one(monkeypatch) -> None:
+def test_split_shapes_equals_the_kernels_one_by_one(monkeypatch) -> None:
     _assert_same(_shapes(monkeypatch, "packed"), _shapes(monkeypatch, "steps"), atol=1e-3)
 
 
@@ -103,11 +103,15 @@ def test_split_frame_takes_read_only_frames(monkeypatch) -> None:
 def test_split_frame_refuses_short_arrays(monkeypatch) -> None:
     _shapes(monkeypatch, "frame")
     recorded = _LAST_ARGS[0]
-    for index, size in ((13, K.FRAME_PARAMS - 1), (14, K.FRAME_STATE - 1), (24, K.FRAME_INFO - 1)):
-        args = list(recorded)
-        args[index] = np.zeros(size)
-        assert K.split_frame(*args) == K.INVALID
-    state = recorded[14].copy()
+    state, buffers = 12, 13  # `split_frame`'s arguments
+    args = list(recorded)
+    args[state] = np.zeros(len(K.FRAME_STATES) - 1)
+    assert K.split_frame(*args) == K.INVALID
+    args = list(recorded)
+    args[buffers] = recorded[buffers]._replace(info=np.zeros(K.FRAME_INFO - 1))
+    assert K.split_frame(*args) == K.INVALID
+    args = list(recorded)
     for n in (-1, recorded[0].shape[0] + 1):  # the count out of the contour's buffers
-        state[5] = n
-        assert K.split_frame(*recorded[:14], state, *recorded[15:]) == K.INVALID
+        args[state] = recorded[state].copy()
+        args[state][K.FRAME_STATE.n] = n
+        assert K.split_frame(*args) == K.INVALID

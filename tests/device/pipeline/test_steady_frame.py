@@ -40,7 +40,7 @@ _RUNS: dict[tuple[bool, bool], tuple[list[dict], list[int]]] = {}
 
 
 def _run(monkeypatch: pytest.MonkeyPatch, fused: bool, read_only: bool = False) -> tuple[list[dict], list[int]]:
-    """Every FrameResult field (but the time) and the state that links frames, after each frame; and the
+    """Every PipelineResult field (but the time) and the state that links frames, after each frame; and the
     `steady_frame` returns. Without `fused`, the pipeline never takes the one-call path."""
     if (fused, read_only) in _RUNS:
         return _RUNS[(fused, read_only)]

@@ -1,0 +1,167 @@
+"""Named groups of arrays that kernels take as one argument: `typing.NamedTuple` classes and their Numba types.
+
+Each group mirrors a group of the pipeline's workspace (`ropecam.device.pipeline.workspace`), which makes its
+instance once; a kernel reads a member by name (``motion.log``), never by position. A group is typed as a
+whole at every call from Python (about 1 us per member on top of the call: measured in `docs/speed.md`,
+"Named argument groups"), so the per-frame path passes them from compiled code (`steady_frame`) or on frames
+that are not steady. The members are writable arrays: Numba does not convert a group of writable arrays into a
+group of read-only ones, and `steady_frame` makes its groups from writable buffers; the docstrings of the kernels
+say which members they write.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Final, NamedTuple
+
+from numba import float32, float64, int32, types
+
+from ropecam.shared.jit import f4_1d, f4_2d, f8_1d, f8_2d, i4_1d
+
+i8_1d: Final = types.Array(types.int64, 1, "C")
+f4_3d: Final = types.Array(types.float32, 3, "C")
+
+
+class Motion(NamedTuple):
+    """The motion model's arrays (`MotionBuffers`): `predict_motion`'s and `observe_motion`'s ``state`` and
+    ``log``, the band prediction's measured error ``need`` (2, bins) and ``profile`` (bins,), and ``band``
+    (`BAND_SLOTS`: what the last band was built with)."""
+
+    state: Any
+    log: Any
+    need: Any
+    profile: Any
+    band: Any
+
+
+MOTION: Final = types.NamedTuple((i8_1d, f8_2d, f8_2d, f8_1d, f8_1d), Motion)
+
+
+class Band(NamedTuple):
+    """A band's row spans ``lo``/``hi`` (int32, one per image row) and the last contour moved by the prediction
+    (``moved``, float32 (capacity, 2)): `band_stage`'s outputs (`RoiBuffers`)."""
+
+    lo: Any
+    hi: Any
+    moved: Any
+
+
+BAND: Final = types.NamedTuple((i4_1d, i4_1d, f4_2d), Band)
+
+
+class Order(NamedTuple):
+    """The time order's history (`OrderBuffers`): sample times and counters ``state`` (int64), sample tips
+    ``hist_rc`` (float64 (HISTORY, 2))."""
+
+    state: Any
+    hist_rc: Any
+
+
+ORDER: Final = types.NamedTuple((i8_1d, f8_2d), Order)
+
+
+class Track(NamedTuple):
+    """The material points' arrays (`TrackBuffers`): arc ``fraction`` (float64, read only by the kernels), their
+    positions on both shapes ``out`` (float32 (2, points, 2)), the shapes' lengths ``lengths_px`` (float64 (2,))
+    and a shape's segment lengths ``work`` (float64)."""
+
+    fraction: Any
+    out: Any
+    lengths_px: Any
+    work: Any
+
+
+TRACK: Final = types.NamedTuple((f8_1d, f4_3d, f8_1d, f8_1d), Track)
+
+
+class Planes(NamedTuple):
+    """The edge stage's float planes that the split reads (`EdgeBuffers`): the smoothed image ``smooth`` (which
+    `split_frame` also writes, around the band's corners), the Sobel gradients ``gx``, ``gy`` and their norm
+    ``mag`` (float32, the image's shape)."""
+
+    smooth: Any
+    gx: Any
+    gy: Any
+    mag: Any
+
+
+PLANES: Final = types.NamedUniTuple(f4_2d, 4, Planes)
+
+
+class SplitWork(NamedTuple):
+    """The blur split's buffers (`SplitBuffers`): ``lines`` float32 (3, capacity) (work, the sweeps of side A, of
+    side B), ``sides`` float32 (4, capacity, 2) (side A, side B, out A, out B), ``scratch`` float64 (3, capacity)
+    (arc lengths, distances from the fixed end, slope work), the turning angles ``turn``, the segmentation
+    indices ``idx`` (4,), the segmentation points ``seg`` (2, 2) and the results ``info`` (`FRAME_INFO`)."""
+
+    lines: Any
+    sides: Any
+    scratch: Any
+    turn: Any
+    idx: Any
+    seg: Any
+    info: Any
+
+
+SPLIT_WORK: Final = types.NamedTuple((f4_2d, f4_3d, f8_2d, f4_1d, i4_1d, f4_2d, f8_1d), SplitWork)
+
+
+class SplitWidth(NamedTuple):
+    """What the blur split takes from the rope's width (`WidthTables.group`): the edge model's ``ratios`` and
+    ``sweeps`` (float64) and ``offsets`` (float32) tables, then the scalars, each of the type the kernels compute
+    with: the sweep window ``half`` (points), the table's ``step_px``, the width ``width_px``, the tip cap
+    ``cap_px``, the tip fit's ``skip_px``, ``span_px`` and ``blur_px``, the slant gain ``slant_gain_px`` and the
+    width again as ``width64_px`` (float64: the length check's and the sweep tests'), the output's
+    ``out_step_px`` and ``smoothing_px``; the segmentation points' ``scale`` and ``min_gap`` (int32),
+    ``search_px`` (float64) and ``corner_rad``, the corner box's growth ``grow_px`` and the ``static_ratio``
+    (sweep / width below which the rope is taken as not moving; float64)."""
+
+    ratios: Any
+    sweeps: Any
+    offsets: Any
+    half: Any
+    step_px: Any
+    width_px: Any
+    cap_px: Any
+    skip_px: Any
+    span_px: Any
+    blur_px: Any
+    slant_gain_px: Any
+    width64_px: Any
+    out_step_px: Any
+    smoothing_px: Any
+    scale: Any
+    min_gap: Any
+    search_px: Any
+    corner_rad: Any
+    grow_px: Any
+    static_ratio: Any
+
+
+SPLIT_WIDTH_SCALARS: Final = SplitWidth._fields[3:]
+"""The scalars of `SplitWidth`, in order: `steady_frame`'s table holds them as one float64 array (each exactly
+representable) that `split_width` reads by these names."""
+SPLIT_WIDTH: Final = types.NamedTuple(
+    (f8_1d, f8_1d, f4_1d, int32, float32, float32, float32, float32, float32, float32, float64, float64, float32,
+     float32, int32, int32, float64, float32, float64, float64),
+    SplitWidth,
+)  # fmt: skip
+
+__all__ = [
+    "BAND",
+    "MOTION",
+    "ORDER",
+    "PLANES",
+    "SPLIT_WIDTH",
+    "SPLIT_WIDTH_SCALARS",
+    "SPLIT_WORK",
+    "TRACK",
+    "Band",
+    "Motion",
+    "Order",
+    "Planes",
+    "SplitWidth",
+    "SplitWork",
+    "Track",
+    "f4_3d",
+    "i8_1d",
+]

@@ -1,0 +1,199 @@
+"""ResultFinisher: a measured frame's result filled from its split (time order, material points, the motion
+model's update, the plane) and checked (`SelfChecks`); FrameClock: the stream's frame period and exposures."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline.checks import Reason, SelfChecks, contour_area_px2
+from ropecam.device.pipeline.contour import ContourTracer
+from ropecam.device.pipeline.locate import RopeLocator
+from ropecam.device.pipeline.motion import MotionModel
+from ropecam.device.pipeline.result import FrameStatus, PipelineResult, exposure_in_ns
+from ropecam.device.pipeline.split import BlurSplitter, SplitOutcome
+from ropecam.device.pipeline.time_order import DEFAULT_PERIOD_NS, TimeOrder
+from ropecam.device.pipeline.tracking import PointTracker
+from ropecam.device.pipeline.traits import RopeTraits
+
+__all__ = ["FrameClock", "ResultFinisher", "max_age_ns"]
+
+
+def max_age_ns(period_ns: int | None) -> int:
+    """The age (ns) past which the time order's history is dropped: four frame periods of `period_ns` (None:
+    the default period)."""
+    return 4 * (period_ns or DEFAULT_PERIOD_NS)
+
+
+class FrameClock:
+    """A stream's frame period (the shortest time between frame starts seen) and each frame's exposure in ns."""
+
+    __slots__ = ("_exposure_key", "_exposure_value", "last_t_ns", "period_ns")
+
+    def __init__(self) -> None:
+        self.period_ns: int | None = None
+        """The frame period (ns; None until two frames were seen)."""
+        self.last_t_ns: int | None = None
+        """The start of the last frame (ns)."""
+        self._exposure_key: float | None = None  # the last float exposure_us and what `exposure_in_ns` made of it
+        self._exposure_value: tuple[int, str] = (0, "")
+
+    def start(self, t: int, exposure_us: float | None) -> tuple[int, str]:
+        """Take the start `t` (ns) of a frame exposed for `exposure_us`; return the exposure in ns and what is
+        wrong with it (`exposure_in_ns`)."""
+        last = self.last_t_ns
+        if last is not None and t > last:
+            gap_ns = t - last
+            period = self.period_ns
+            self.period_ns = gap_ns if period is None or gap_ns < period else period
+        self.last_t_ns = t
+        if type(exposure_us) is float and exposure_us == self._exposure_key:
+            return self._exposure_value  # the usual case: the same exposure every frame
+        exposure_ns, exposure_problem = exposure_in_ns(exposure_us)
+        if type(exposure_us) is float:
+            self._exposure_key, self._exposure_value = exposure_us, (exposure_ns, exposure_problem)
+        return exposure_ns, exposure_problem
+
+
+class ResultFinisher:
+    """Fill a frame's result from its split and run the self-checks on it: the pipeline's last steps.
+
+    Parameters
+    ----------
+    splitter, tracker, time_order, motion, checks, traits, tracer, locator
+        The pipeline's stages whose results and state the last steps read and update.
+    fixed
+        The fixed end (row, col) float32 (`RopeTraits.fixed_end`).
+    """
+
+    def __init__(
+        self,
+        splitter: BlurSplitter,
+        tracker: PointTracker,
+        time_order: TimeOrder,
+        motion: MotionModel,
+        checks: SelfChecks,
+        traits: RopeTraits,
+        tracer: ContourTracer,
+        locator: RopeLocator,
+        fixed: np.ndarray,
+    ) -> None:
+        self.splitter, self.tracker, self.time_order, self.motion = splitter, tracker, time_order, motion
+        self.checks, self.traits, self.tracer, self.locator, self.fixed = checks, traits, tracer, locator, fixed
+
+    def finish(
+        self,
+        result: PipelineResult,
+        outcome: SplitOutcome | None,
+        exposure_ns: int,
+        period_ns: int | None,
+        tracked: tuple[int, float, float, float] | None = None,
+    ) -> None:
+        """Fill `result` from the split's `outcome`: the shapes in time order and the material points (with
+        `tracked`, the results of a `track_frame` call made on them already), or why there are none; the frame
+        period is `period_ns` (None: not known yet)."""
+        rejected = ""
+        if not exposure_ns and (outcome is None or self._still(outcome)):
+            # Unknown exposure (a still photo) and no split, or one without blur between its tips: the rope is
+            # the static centreline, which follows the contour whole where a split's two sides may pair across a
+            # loop of the rope.
+            rejected = self.splitter.failure if outcome is None else ""
+            outcome = self.splitter.static((float(self.fixed[0]), float(self.fixed[1]))) or outcome
+        if outcome is None:
+            result.status = FrameStatus.LOST_TRACK
+            result.message = self.splitter.failure
+            return
+        result.method = outcome.method
+        result.rope_width_px = outcome.width_px
+        result.segmentation_points = outcome.segmentation_points
+        tracker = self.tracker
+        result.material_arc_m = tracker.arc_m
+        a, b = outcome.shape_a, outcome.shape_b
+        if tracked is not None:
+            swap, confidence, stretch_begin, stretch_end = tracked
+        elif tracker.length0_settled_px >= 0.0:
+            # Time order, material points and the motion model's update in one kernel call (`track_frame`: as
+            # `TimeOrder.order`, `PointTracker.track_shapes` and `MotionModel.observe` in turn); a negative `swap`
+            # (an empty shape, a shape longer than the tracker's scratch) has written nothing.
+            order, motion = self.time_order, self.motion
+            try:
+                swap, confidence, stretch_begin, stretch_end = K.track_frame(
+                    a, b, a is b, result.t_ns, result.t_end_ns, max_age_ns(period_ns), order.group, self.fixed,
+                    float(self.splitter.sweep_px), exposure_ns, motion.group, tracker.length0_settled_px, tracker.group,
+                )  # fmt: skip
+            except TypeError:  # not the splitter's writable float32 buffers
+                swap = -1
+        else:
+            swap = -1
+        if swap >= 0:
+            result.begin, result.end = (b, a) if swap else (a, b)
+            result.order_confidence = confidence
+            result.material_begin, result.material_end = tracker.out_slots
+            result.stretch_begin, result.stretch_end = stretch_begin, stretch_end
+        else:
+            # The first frames (Lc0 still being measured) or shapes `track_frame` does not take: step by step.
+            begin, end, confidence = self.time_order.order(a, b, result.t_ns, result.t_end_ns, period_ns)
+            result.begin, result.end, result.order_confidence = begin, end, confidence
+            (result.material_begin, result.stretch_begin, result.material_end, result.stretch_end) = (
+                tracker.track_shapes(begin, end)
+            )
+            t_mid_ns = result.t_ns + exposure_ns // 2
+            self.motion.observe(begin, end, self.fixed, t_mid_ns, float(self.splitter.sweep_px), exposure_ns)
+        if tracker.plane is not None:  # by arc length on the plane (metres), not in pixels
+            tracker.place_on_plane(result.begin, result.end)
+        result.status = FrameStatus.OK
+        self.check(result, outcome, exposure_ns)
+        if rejected and result.status is FrameStatus.OK:
+            result.status, result.reason = FrameStatus.NO_BLUR, Reason.NO_BLUR.text
+            result.message = f"{self.checks.message(Reason.NO_BLUR)} (the split: {rejected})"
+
+    def _still(self, outcome: SplitOutcome) -> bool:
+        """Whether `outcome` is a split without blur between its tips (closer than ``checks.no_blur_px``)."""
+        a, b = outcome.shape_a, outcome.shape_b
+        return a is not b and len(a) > 0 and len(b) > 0 and _tip_gap_px(a, b) <= self.checks.config.no_blur_px
+
+    def check(self, result: PipelineResult, outcome: SplitOutcome, exposure_ns: int) -> None:
+        """Run the self-checks on a measured frame (`SelfChecks.check`): a failed one sets the status, the reason
+        and the message; a split without blur is replaced by the static centreline."""
+        begin, end = result.begin, result.end
+        if begin is None or end is None or len(begin) == 0 or len(end) == 0:
+            return
+        traits = self.traits
+        learned_px = traits.settled[0] if traits.settled is not None else traits.width()
+        checks = self.checks
+        split = outcome.shape_a is not outcome.shape_b
+        # The contour's area only where it is the evidence: a split of unknown exposure or without a prediction.
+        area = 0.0
+        if split and checks.needs_area(exposure_ns):
+            area = contour_area_px2(self.tracer.points, self.locator.prev_count)
+        status, reason = checks.check(
+            begin, end, self.fixed, result.stretch_begin, result.stretch_end, outcome.width_px, learned_px,
+            result.order_confidence, exposure_ns, split, area,
+        )  # fmt: skip
+        result.quality = checks.quality
+        if status is FrameStatus.OK:
+            return
+        result.status, result.reason, result.message = status, reason.text, checks.message(reason)
+        if (reason is Reason.NO_BLUR or (split and not exposure_ns)) and not self._use_static(result):
+            # Without a known exposure only a split that passes every check shows blur: never report another.
+            result.begin = result.end = result.material_begin = result.material_end = None
+
+    def _use_static(self, result: PipelineResult) -> bool:
+        """Give `result` the static centreline of the frame's contour (one shape for both instants, its material
+        points); False when there is none."""
+        static = self.splitter.static((float(self.fixed[0]), float(self.fixed[1])))
+        if static is None:
+            return False
+        result.method, result.segmentation_points = static.method, None
+        result.begin = result.end = static.shape_a
+        (result.material_begin, result.stretch_begin, result.material_end, result.stretch_end) = (
+            self.tracker.track_shapes(static.shape_a, static.shape_a)
+        )
+        if self.tracker.plane is not None:
+            self.tracker.place_on_plane(static.shape_a, static.shape_a)
+        return True
+
+
+def _tip_gap_px(begin: np.ndarray, end: np.ndarray) -> float:
+    """Distance between the free tips (last points, row/col) of two shapes."""
+    return float(np.hypot(*(end[-1] - begin[-1])))
