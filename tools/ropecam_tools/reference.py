@@ -58,6 +58,21 @@ def pipeline_modules(ref: str | None) -> tuple[ModuleType, type, type]:
         print(f"importing {ref} as ropecam_ref (its kernels compile once)...", file=sys.stderr, flush=True)
         prefix = "ropecam_ref"
     kernels = importlib.import_module(f"{prefix}.device.pipeline._kernels")
+    if ref is not None:
+        _rename_groups(kernels)
     config = importlib.import_module(f"{prefix}.device.pipeline.config").PipelineConfig
     pipeline = importlib.import_module(f"{prefix}.device.pipeline.pipeline").Pipeline
     return kernels, config, pipeline
+
+
+def _rename_groups(kernels: ModuleType) -> None:
+    """Give the exported tree's named argument groups (`_kernels.groups`) names of their own.
+
+    Numba's dispatcher types a named tuple by its class's name and its members (numba/numba#6145): this tree's
+    `Motion` and the exported tree's `Motion` would share one type, and the second tree's kernels would refuse their
+    own groups ("No matching definition").
+    """
+    for name in dir(kernels):
+        value = getattr(kernels, name)
+        if isinstance(value, type) and issubclass(value, tuple) and hasattr(value, "_fields"):
+            value.__name__ = f"ropecam_ref_{value.__name__}"
