@@ -117,6 +117,7 @@ from ropecam.device.pipeline._kernels.offsets import (
     side_sweeps_indexed,
     slope_sweep_median,
 )
+from ropecam.device.pipeline._kernels.outline import OPEN_RATIO, keep_open_once
 from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots, thin_chain
 from ropecam.device.pipeline._kernels.plane import (
     PLANE_PARAMS,
@@ -205,6 +206,7 @@ __all__ = [
     "MOTION_EXPOSURE",
     "MOTION_FRAMES",
     "NOT_FOUND",
+    "OPEN_RATIO",
     "OPERATOR",
     "ORDER_COUNT",
     "ORDER_ORDERED",
@@ -260,6 +262,7 @@ __all__ = [
     "keep_largest_closed",
     "keep_largest_component",
     "keep_largest_listed",
+    "keep_open_once",
     "keep_traced",
     "learn_static_range",
     "mark_static",
