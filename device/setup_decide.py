@@ -123,9 +123,15 @@ def _polyline_length(points: NDArray[np.float32]) -> float:
 
 
 def run_candidate(frames: Sequence[Frame], config: PipelineConfig, keep_shapes: bool = False) -> Run:
-    """Run the pipeline with `config` over `frames` and collect what it measured (`Run`)."""
+    """Run the pipeline with `config` over `frames` and collect what it measured (`Run`); with the config's
+    `plane_file` as the device runs it (the fixed end from the plane)."""
     height, width = frames[0].image.shape
-    pipeline = Pipeline(config, (width, height))
+    plane = None
+    if config.plane_file:
+        from ropecam.shared.plane import read_plane_file
+
+        plane = read_plane_file(config.plane_file)
+    pipeline = Pipeline(config, (width, height), plane=plane)
     run = Run(config, frames=len(frames))
     for position, frame in enumerate(frames):
         result = pipeline.process(frame.image, position, frame.t_ns, frame.exposure_us)
@@ -332,7 +338,9 @@ def _decide_traits(findings: SetupFindings) -> None:
                 f"length0_px: the shapes' lengths vary by {100 * run.length_spread:.1f} % (IQR/median, more than "
                 f"{100 * LENGTH_SPREAD:.0f} %); left to the pipeline's first frames"
             )
-    if run.fixed_uv:
+    if run.config.plane_file:
+        findings.notes.append(f"fixed end: the plane calibration's origin ({run.config.plane_file})")
+    elif run.fixed_uv:
         uv = np.asarray(run.fixed_uv)
         median_uv = np.median(uv, axis=0)
         spread = float(np.percentile(np.hypot(*(uv - median_uv).T), 90))
