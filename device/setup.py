@@ -23,7 +23,7 @@ DECIDED_KEYS = (
 HELP = """\
 Decide a rig's pipeline settings from a few seconds of its frames, with the rope swinging as it will when you
 measure: edge thresholds, polarity (bright rope on dark ground or the reverse), the rope's width and length in
-pixels, the fixed end, and the static mask (pixels that are edges in nearly every frame while the rope moves:
+pixels, the fixed end, and the static mask (pixels that are edges in at least half the frames while the rope moves:
 clamp, rod, plate edge, scratches, a static second cable). Each candidate setting is tried by running the pipeline
 itself over the frames; the one that measures most frames most consistently is kept.
 

@@ -30,8 +30,12 @@ THRESHOLDS: tuple[tuple[float, float], ...] = ((8.0, 20.0), (12.0, 30.0), (20.0,
 """Candidate Canny hysteresis thresholds (low, high), the pipeline's default (20, 50) among them."""
 MIN_MEASURED = 0.5
 """A setting that gives shapes on fewer than this fraction of the frames has not found a rope."""
-STATIC_FRACTION = 0.9
-"""A pixel that is an edge in at least this fraction of the frames belongs to the static mask."""
+STATIC_FRACTION = 0.5
+"""A pixel that is an edge in at least this fraction of the frames belongs to the static mask. Half, not nearly
+all: the rope passes over the clamp's edge where it leaves the clamp on most frames and hides it there (at 0.9
+that part of the clamp's outline stayed out of the mask and joined the rope's contour). A moving rope's own
+pixels are edges on far fewer frames; the few still ones next to the clamp are masked too, and the pipeline seals
+and extends the rope across them (`seal_cut_ends`, `anchor_start`)."""
 FIXED_END_SPREAD_PX = 3.0
 """The fixed end is decided when its per-frame readings stay within this distance of their median (p90)."""
 WIDTH_SPREAD = 0.25
