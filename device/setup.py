@@ -23,7 +23,7 @@ DECIDED_KEYS = (
 HELP = """\
 Decide a rig's pipeline settings from a few seconds of its frames, with the rope swinging as it will when you
 measure: edge thresholds, polarity (bright rope on dark ground or the reverse), the rope's width and length in
-pixels, the fixed end, and the static mask (pixels that are edges in nearly every frame while the rope moves:
+pixels, the fixed end, and the static mask (pixels that are edges in at least half the frames while the rope moves:
 clamp, rod, plate edge, scratches, a static second cable). Each candidate setting is tried by running the pipeline
 itself over the frames; the one that measures most frames most consistently is kept.
 
@@ -61,6 +61,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     parser.add_argument(
         "--material-points-m", type=float, nargs="+", metavar="S", help="arc lengths of tracked points (m)"
     )
+    parser.add_argument(
+        "--plane",
+        metavar="YAML",
+        help="the rig's plane calibration (plane.yaml): the fixed end is its origin projected, as the device will "
+        "measure with it; written to the table as plane_file",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress on stderr")
     declare_outputs(parser, "out", derived=lambda args: _derived_outputs(args.out, args.overlay))
     parser.set_defaults(func=_main)
@@ -88,6 +94,7 @@ def _main(args: argparse.Namespace) -> int:
         exposure_us=exposure_us,
         rope_length_m=args.rope_length_m,
         material_points_m=args.material_points_m,
+        plane_file=args.plane,
         progress=not args.quiet,
     )
 
@@ -187,6 +194,7 @@ def run_setup(
     exposure_us: float | None = None,
     rope_length_m: float | None = None,
     material_points_m: Iterable[float] | None = None,
+    plane_file: str | Path | None = None,
     progress: bool = False,
 ) -> int:
     """Decide the settings from `source`, write `out` ([pipeline] table), its mask and overlay PNGs; returns 0.
@@ -196,7 +204,9 @@ def run_setup(
     DataError
         Too few readable frames, no rope found with any setting, or an output cannot be written.
     ConfigError
-        The existing `out` is not valid TOML, or the given rope length / material points are invalid.
+        The existing `out` is not valid TOML, the given rope length / material points are invalid, or
+        `plane_file` cannot be read or does not fit the frames (it is then used as the device will: every
+        candidate runs with the fixed end it gives, and the table gets ``plane_file``).
     """
     from ropecam.device.pipeline.config import PipelineConfig
     from ropecam.device.setup_decide import MIN_MEASURED, decide
@@ -223,6 +233,8 @@ def run_setup(
         kept["material_points_m"] = list(material_points_m)
     elif rope_length_m is not None and "material_points_m" in kept:
         kept["material_points_m"] = [s for s in kept["material_points_m"] if s <= rope_length_m]
+    if plane_file is not None:
+        kept["plane_file"] = str(Path(plane_file).resolve())
     if rope_length_m is not None and "material_points_m" not in kept:
         kept["material_points_m"] = [round(rope_length_m * f, 6) for f in (0.25, 0.5, 0.75, 1.0)]
     base = from_mapping(PipelineConfig, kept, where=f"{out} [pipeline] (kept keys and options)")

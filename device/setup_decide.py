@@ -30,8 +30,12 @@ THRESHOLDS: tuple[tuple[float, float], ...] = ((8.0, 20.0), (12.0, 30.0), (20.0,
 """Candidate Canny hysteresis thresholds (low, high), the pipeline's default (20, 50) among them."""
 MIN_MEASURED = 0.5
 """A setting that gives shapes on fewer than this fraction of the frames has not found a rope."""
-STATIC_FRACTION = 0.9
-"""A pixel that is an edge in at least this fraction of the frames belongs to the static mask."""
+STATIC_FRACTION = 0.5
+"""A pixel that is an edge in at least this fraction of the frames belongs to the static mask. Half, not nearly
+all: the rope passes over the clamp's edge where it leaves the clamp on most frames and hides it there (at 0.9
+that part of the clamp's outline stayed out of the mask and joined the rope's contour). A moving rope's own
+pixels are edges on far fewer frames; the few still ones next to the clamp are masked too, and the pipeline seals
+and extends the rope across them (`seal_cut_ends`, `anchor_start`)."""
 FIXED_END_SPREAD_PX = 3.0
 """The fixed end is decided when its per-frame readings stay within this distance of their median (p90)."""
 WIDTH_SPREAD = 0.25
@@ -123,9 +127,15 @@ def _polyline_length(points: NDArray[np.float32]) -> float:
 
 
 def run_candidate(frames: Sequence[Frame], config: PipelineConfig, keep_shapes: bool = False) -> Run:
-    """Run the pipeline with `config` over `frames` and collect what it measured (`Run`)."""
+    """Run the pipeline with `config` over `frames` and collect what it measured (`Run`); with the config's
+    `plane_file` as the device runs it (the fixed end from the plane)."""
     height, width = frames[0].image.shape
-    pipeline = Pipeline(config, (width, height))
+    plane = None
+    if config.plane_file:
+        from ropecam.shared.plane import read_plane_file
+
+        plane = read_plane_file(config.plane_file)
+    pipeline = Pipeline(config, (width, height), plane=plane)
     run = Run(config, frames=len(frames))
     for position, frame in enumerate(frames):
         result = pipeline.process(frame.image, position, frame.t_ns, frame.exposure_us)
@@ -332,7 +342,9 @@ def _decide_traits(findings: SetupFindings) -> None:
                 f"length0_px: the shapes' lengths vary by {100 * run.length_spread:.1f} % (IQR/median, more than "
                 f"{100 * LENGTH_SPREAD:.0f} %); left to the pipeline's first frames"
             )
-    if run.fixed_uv:
+    if run.config.plane_file:
+        findings.notes.append(f"fixed end: the plane calibration's origin ({run.config.plane_file})")
+    elif run.fixed_uv:
         uv = np.asarray(run.fixed_uv)
         median_uv = np.median(uv, axis=0)
         spread = float(np.percentile(np.hypot(*(uv - median_uv).T), 90))

@@ -96,3 +96,28 @@ def test_pipeline_table_replaced_in_place() -> None:
     new = with_pipeline_table(old, "[pipeline]\nc = 4\n")
     assert new == "# head\n[capture]\nx = 1\n[pipeline]\nc = 4\n[sender]\ny = 3\n"
     assert with_pipeline_table("[capture]\nx = 1", "[pipeline]\nc = 4\n") == "[capture]\nx = 1\n\n[pipeline]\nc = 4\n"
+
+
+def test_setup_with_a_plane_measures_from_its_fixed_end(tmp_path, rope_set) -> None:
+    """With `--plane` every candidate runs with the plane origin as the fixed end, as the device will; the table
+    names the plane file instead of a decided `fixed_end_uv`, and extract measures from that fixed end."""
+    from ropecam.host.calibration.files import write_plane
+    from ropecam.host.calibration.geometry import CameraModel, PlanePose
+
+    truth = next(iter(ROPE.frames(1))).begin_uv[0]
+    focal, cx, cy = 400.0, (ROPE.width - 1) / 2, (ROPE.height - 1) / 2
+    camera = CameraModel(
+        np.array([[focal, 0, cx], [0, focal, cy], [0, 0, 1.0]]), np.zeros(5), (ROPE.width, ROPE.height)
+    )
+    pose = PlanePose.from_rvec([0.0, 0.0, 0.0], [(truth[0] - cx) / focal, (truth[1] - cy) / focal, 1.0])
+    plane = write_plane(tmp_path / "plane.yaml", camera, pose)
+    out = tmp_path / "device.toml"
+    assert main(["setup", str(rope_set), "--out", str(out), "--plane", str(plane), "--quiet"]) == 0
+    table = tomllib.loads(out.read_text())["pipeline"]
+    assert table["plane_file"] == str(plane.resolve())
+    assert "fixed_end_uv" not in table
+    results = tmp_path / "out.jsonl"
+    assert main(["extract", str(rope_set), "--config", str(out), "--out", str(results), "--quiet"]) == 0
+    records = [json.loads(line) for line in results.read_text().splitlines()]
+    assert sum(r["status"] == "OK" for r in records) >= FRAMES - 1
+    assert records[-1]["fixed_end"] == pytest.approx(list(truth), abs=0.05)

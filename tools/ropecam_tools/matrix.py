@@ -63,11 +63,17 @@ from ropecam_tools.matrix_design import (
 
 MIN_FRAMES = 2
 PLANE_CHOICES = ("lab", "all", "none")
+SETUP_CHOICES = ("lab", "none")
 
 
 def uses_plane(scene: Scene, plane: str) -> bool:
     """Whether the pipeline gets the plane calibration on `scene` under ``--plane`` `plane`."""
     return plane == "all" or (plane == "lab" and scene.preset.startswith("lab"))
+
+
+def uses_setup(scene: Scene, setup: str) -> bool:
+    """Whether the pipeline measures `scene` with the config `ropecam-device setup` wrote under ``--setup``."""
+    return setup == "lab" and scene.preset.startswith("lab")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -96,6 +102,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="give the pipeline the plane calibration (the simulator's true camera and plane, as "
                         "plane.yaml would): lab (default: the lab presets' scenes, as a lab's device would have one), "
                         "all scenes, or none")  # fmt: skip
+    parser.add_argument("--setup", choices=SETUP_CHOICES, default="lab",
+                        help="measure with the device.toml `ropecam-device setup` writes from the cell's own frames "
+                        "(with the plane calibration when the cell has one): lab (default: the lab presets' scenes, "
+                        "as a lab's device is set up) or none (a fresh device: every key at its default)")  # fmt: skip
     parser.add_argument("--no-plots", action="store_true", help="write the tables only (no matplotlib)")
     parser.add_argument("--replot", action="store_true",
                         help="measure nothing: rewrite the tables and plots of OUT from OUT/matrix.json")  # fmt: skip
@@ -137,12 +147,19 @@ def _reusable(folder: Path, frames: int) -> bool:
 
 
 def run_scene(
-    scene: Scene, frames: int, methods: tuple[str, ...], trajectory: str, folder: str | None, plane: bool = False
+    scene: Scene,
+    frames: int,
+    methods: tuple[str, ...],
+    trajectory: str,
+    folder: str | None,
+    plane: bool = False,
+    setup: bool = False,
 ) -> dict:
     """Render `scene` (or reuse its kept frame set) and measure every method on it (with the true plane
-    calibration when `plane`).
+    calibration when `plane`; with the config `ropecam-device setup` writes from the same frames when `setup`).
 
-    Returns the per-method summaries and per-frame errors, and the wall and CPU seconds of each step.
+    Returns the per-method summaries and per-frame errors, and the wall and CPU seconds of each step (and what
+    setup decided, or why it refused: the cell is then measured as a fresh device).
     """
     from ropecam.host.model.trajectory import Trajectory
     from ropecam.host.sim.generate import write_frameset
@@ -152,6 +169,7 @@ def run_scene(
     root = Path(folder) if keep else Path(tempfile.mkdtemp(prefix="ropecam-matrix-"))
     target = root if keep else root / scene.folder
     timings: dict[str, Any] = {"render_reused": False}
+    setup_dir: Path | None = None
     try:
         wall, cpu = time.perf_counter(), time.process_time()
         if keep and _reusable(target, frames):
@@ -161,10 +179,17 @@ def run_scene(
             write_frameset(config, Trajectory.load(trajectory), target, scene.exposure_ms, overwrite=True)
         timings["render_wall_s"] = time.perf_counter() - wall
         timings["render_cpu_s"] = time.process_time() - cpu
+        config = None
+        if setup:
+            wall, cpu = time.perf_counter(), time.process_time()
+            setup_dir = Path(tempfile.mkdtemp(prefix="ropecam-setup-"))
+            config, timings["setup"] = _set_up(target, setup_dir, plane)
+            timings["setup_wall_s"] = time.perf_counter() - wall
+            timings["setup_cpu_s"] = time.process_time() - cpu
         results = {}
         for method in methods:
             wall, cpu = time.perf_counter(), time.process_time()
-            errors = measure_frameset(target, method, frames, plane=plane)
+            errors = measure_frameset(target, method, frames, plane=plane, config=config)
             results[method] = {
                 "summary": summarise(errors),
                 "frames": frame_rows(errors),
@@ -174,7 +199,38 @@ def run_scene(
     finally:
         if not keep:
             shutil.rmtree(root, ignore_errors=True)
+        if setup_dir is not None:
+            shutil.rmtree(setup_dir, ignore_errors=True)
     return {"timings": timings, "methods": results}
+
+
+def _set_up(frameset: Path, folder: Path, plane: bool) -> tuple[Any, str | dict[str, Any]]:
+    """Run `ropecam-device setup` on all of `frameset`'s frames (with its true plane as plane.yaml when `plane`);
+    return the config it wrote (None when it refused) and what it decided (or its refusal)."""
+    import contextlib
+    import io
+
+    from ropecam.device.capture.frameset import FrameSet
+    from ropecam.device.pipeline.config import PipelineConfig
+    from ropecam.device.setup import run_setup
+    from ropecam.host.calibration.files import write_plane
+    from ropecam.shared.config import from_mapping, read_toml
+    from ropecam.shared.errors import RopecamError
+    from ropecam_tools.truth_metrics import frameset_camera
+
+    folder.mkdir(parents=True, exist_ok=True)
+    plane_file = None
+    if plane:
+        plane_file = write_plane(folder / "plane.yaml", *frameset_camera(FrameSet(frameset).meta))
+    toml = folder / "device.toml"
+    try:
+        with contextlib.redirect_stderr(io.StringIO()):
+            run_setup(str(frameset), toml, seconds=1e6, plane_file=plane_file)
+    except RopecamError as exc:
+        return None, f"refused: {exc}"
+    table = read_toml(toml).get("pipeline", {})
+    decided = {k: v for k, v in table.items() if k not in ("plane_file", "static_mask_png")}
+    return from_mapping(PipelineConfig, table, where=str(toml)), decided
 
 
 class _Progress:
@@ -328,7 +384,10 @@ def run(args: argparse.Namespace) -> int:
         jobs = {}
         for key, scene in unique.items():
             folder = None if frames_root is None else str(frames_root / scene.folder)
-            jobs[key] = (run_scene, scene, args.frames, methods, scene_traj[key], folder, uses_plane(scene, args.plane))
+            jobs[key] = (
+                run_scene, scene, args.frames, methods, scene_traj[key], folder, uses_plane(scene, args.plane),
+                uses_setup(scene, args.setup),
+            )  # fmt: skip
         measured: dict[str, dict] = {}
         failed: dict[str, str] = {}
         for key, future in _as_done(pool, jobs):
@@ -356,6 +415,7 @@ def run(args: argparse.Namespace) -> int:
         "sections": list(args.only),
         "workers": args.workers,
         "plane": args.plane,
+        "setup": args.setup,
         "wall_s": time.perf_counter() - started_wall,
         "cpu_s": sum(u.ru_utime + u.ru_stime for u in (usage_self, usage_children)),
         "cpus": os.cpu_count(),

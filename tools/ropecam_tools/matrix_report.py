@@ -54,6 +54,8 @@ def rows_of(scenes: list[Scene], measured: dict[str, dict]) -> list[dict[str, An
                    "scene_key": scene.key, "method": method, **cell["summary"],
                    "method_wall_s": cell["wall_s"], "method_cpu_s": cell["cpu_s"],
                    "render_wall_s": result["timings"]["render_wall_s"]}  # fmt: skip
+            if "setup" in result["timings"]:
+                row["setup"] = result["timings"]["setup"]
             rows.append(row)
     return rows
 
@@ -138,6 +140,11 @@ def _run_line(run_info: dict[str, Any]) -> str:
     note = f" Factors left out: {left}." if left else ""
     failed = "; ".join(f"{f['scene']}: {f['error']}" for f in run_info.get("failed_scenes", []))
     note += f" Scenes that failed to render or measure: {failed}." if failed else ""
+    setup = run_info.get("setup", "none")
+    if setup != "none":
+        note += (f" Plane calibration: `--plane {run_info.get('plane', 'lab')}`; setup: `--setup {setup}` (the lab "
+                 "scenes are measured with the device.toml `ropecam-device setup` wrote from the cell's own frames; "
+                 "what it decided is in matrix.json, `setup` of each row).")  # fmt: skip
     load = ", ".join(f"{x:.1f}" for x in run_info["load_average"])
     return (f"Seed {run_info['seed']}, motion from {run_info['first_exposure_s']:g} s after the release; "
             f"{run_info['workers']} worker(s); whole run {run_info['wall_s'] / 60:.1f} min wall, "
@@ -160,12 +167,14 @@ def write_outputs(
 def write_reports(out: Path, rows: list[dict[str, Any]], run_info: dict[str, Any], plots: bool = True) -> list[Path]:
     """Write matrix.csv, matrix.md and (with `plots`) index.html and plots/*.png into `out` from the rows."""
     csv_path = out / "matrix.csv"
-    fields = [k for k in rows[0] if k != "statuses"] + ["statuses"] if rows else []
+    nested = ("setup", "statuses")  # written as JSON; "setup" only on the rows of set-up scenes
+    fields = list(dict.fromkeys(k for row in rows for k in row if k not in nested))
+    fields += [k for k in nested if any(k in row for row in rows)]
     with csv_path.open("w", newline="", encoding="utf-8") as handle:
         writer = csv.DictWriter(handle, fieldnames=fields)
         writer.writeheader()
         for row in rows:
-            writer.writerow({**row, "statuses": json.dumps(row["statuses"])})
+            writer.writerow({**row, **{k: json.dumps(row[k], default=str) for k in nested if k in row}})
     parts = sections(rows, run_info)
     made: list[tuple[str, str]] = []
     if plots:

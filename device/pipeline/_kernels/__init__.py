@@ -144,6 +144,7 @@ from ropecam.device.pipeline._kernels.offsets import (
     side_sweeps_indexed,
     slope_sweep_median,
 )
+from ropecam.device.pipeline._kernels.outline import OPEN_RATIO, keep_open_once
 from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots, thin_chain
 from ropecam.device.pipeline._kernels.plane import (
     PLANE,
@@ -184,9 +185,13 @@ from ropecam.device.pipeline._kernels.static_mask import (
     MASK_ALWAYS,
     MASK_FREE,
     MASK_STATIC,
+    SEAL_REACH_PX,
     drop_static_edges,
+    is_cut_end,
     learn_static_range,
     mark_static,
+    nearest_cut_end,
+    seal_cut_ends,
 )
 from ropecam.device.pipeline._kernels.tracking import (
     HISTORY,
@@ -235,6 +240,7 @@ __all__ = [
     "MOTION_EXPOSURE",
     "MOTION_FRAMES",
     "NOT_FOUND",
+    "OPEN_RATIO",
     "OPERATOR",
     "ORDER",
     "ORDER_COUNT",
@@ -244,6 +250,7 @@ __all__ = [
     "PLANES",
     "PLANE_NAMES",
     "PLANE_PARAMS",
+    "SEAL_REACH_PX",
     "SPLIT_SCALAR",
     "SPLIT_STATIC",
     "SPLIT_WIDTH",
@@ -303,14 +310,17 @@ __all__ = [
     "grow_spans_once",
     "half_level_crossing",
     "in_spans",
+    "is_cut_end",
     "keep_largest_closed",
     "keep_largest_component",
     "keep_largest_listed",
+    "keep_open_once",
     "keep_traced",
     "learn_static_range",
     "mark_static",
     "measure_widths",
     "midline",
+    "nearest_cut_end",
     "need_profile",
     "nms_pixel",
     "observe_motion",
@@ -335,6 +345,7 @@ __all__ = [
     "resample_polyline_of_length",
     "sample_bilinear",
     "score_knots",
+    "seal_cut_ends",
     "side_sweeps",
     "side_sweeps_indexed",
     "slope_sweep_median",

@@ -10,6 +10,7 @@ from numba import boolean, float64, int32, int64
 from ropecam.device.pipeline._kernels._common import DIR_COL, DIR_ROW, FULL, NOT_FOUND
 from ropecam.device.pipeline._kernels.contacts import on_image_border, touches_roi_border
 from ropecam.device.pipeline._kernels.geometry import axis_offset
+from ropecam.device.pipeline._kernels.outline import keep_open_once
 from ropecam.device.pipeline._kernels.spans import in_spans
 from ropecam.shared.jit import (
     f4_2d,
@@ -489,7 +490,8 @@ def trace_rope(
     out_counts,
 ):
     """The contour stage in one call: `keep_largest_listed`, `trace_contour` from the component's start,
-    `refine_subpixel` of the chain and `count_roi_contacts`; same outputs as those calls in that order. When
+    `keep_open_once` (an open curve, the rope cut by a static mask at its clamp, walked once), `refine_subpixel`
+    of the chain and `count_roi_contacts`; same outputs as those calls in that order. When
     `ring_clear` and the spans keep off the image border, the trace is `trace_closed` (no span tests), run
     first from the first listed pixel: `keep_traced` then floods only the pixels the chain missed (when another
     component is larger, the component is chosen again by `keep_largest_closed` and traced from its start),
@@ -530,6 +532,7 @@ def trace_rope(
                 out_start[0] = start_r
                 out_start[1] = start_c
                 out_counts[0] = size
+                n = keep_open_once(out_chain, out_codes, n, size)
                 out_counts[1] = refine_inner(mag, gx, gy, lo, hi, out_chain, n, scratch, out_points)
                 return n
         # Another component is larger, or the chain overflows (its size is then reported): the general way.
@@ -548,6 +551,7 @@ def trace_rope(
         n = trace_contour(edges, lo, hi, out_start[0], out_start[1], out_chain, out_codes)
     if n < 0:
         return n
+    n = keep_open_once(out_chain, out_codes, n, size)
     if inner:
         out_counts[1] = refine_inner(mag, gx, gy, lo, hi, out_chain, n, scratch, out_points)
         return n

@@ -15,7 +15,7 @@ from ropecam.device.pipeline._kernels._common import INVALID, f4_1d_ro
 from ropecam.device.pipeline._kernels.canny import detect_edges
 from ropecam.device.pipeline._kernels.canny_gradient import smooth_box
 from ropecam.device.pipeline._kernels.contour import trace_rope
-from ropecam.device.pipeline._kernels.static_mask import drop_static_edges
+from ropecam.device.pipeline._kernels.static_mask import drop_static_edges, seal_cut_ends
 from ropecam.shared.jit import f4_2d, i4_1d, i4_1d_ro, i4_2d, kernel, u1_2d, u1_2d_ro
 
 # The frame is taken read-only (a mapped capture buffer) or writable (a frame a reader made): a read-only view per
@@ -34,8 +34,9 @@ def detect_and_trace(
 ):  # fmt: skip
     """`detect_edges` inside the spans `lo`/`hi`, then `trace_rope` on its edges (the edge pixels it lists in
     `edge_stack`, `ring_clear` true: `detect_edges` leaves the edge map 0 next to its spans) after
-    `drop_static_edges` with `static_mask`, `static_low`, `static_high` (a 1x1 mask: none): the edge and contour
-    stages in one call, with the same outputs as those calls.
+    `drop_static_edges` with `static_mask`, `static_low`, `static_high` (a 1x1 mask: none) and `seal_cut_ends`
+    (the rope's sides cut at a masked clamp joined across its exit): the edge and contour stages in one call, with
+    the same outputs as those calls.
 
     Arguments as for those kernels (`work_spans` .. `edge_stack` are `detect_edges`' outputs, `out_labels` ..
     `out_counts` `trace_rope`'s). `out_counts` needs 4 slots: `trace_rope`'s three (component pixels, ROI contacts,
@@ -56,6 +57,7 @@ def detect_and_trace(
         out_counts[2] = 0
         return INVALID
     count = drop_static_edges(frame, static_mask, static_low, static_high, out_edges, edge_stack, count)
+    count = seal_cut_ends(static_mask, lo, hi, out_edges, edge_stack, count)
     out_counts[3] = count
     return trace_rope(
         out_edges, lo, hi, edge_stack, count, min_pixels, True, out_mag, out_gx, out_gy, out_labels, stack, out_start,

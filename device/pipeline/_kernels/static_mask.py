@@ -12,9 +12,10 @@ from __future__ import annotations
 
 from typing import Final
 
-from numba import float64, int32, int64
+import numpy as np
+from numba import boolean, float64, int32, int64
 
-from ropecam.shared.jit import i4_1d, kernel, u1_2d, u1_2d_ro
+from ropecam.shared.jit import i4_1d, i4_1d_ro, kernel, u1_2d, u1_2d_ro
 
 MASK_FREE: Final = 0
 """Mask value: edges kept."""
@@ -108,3 +109,121 @@ def drop_static_edges(frame, mask, low, high, edges, edge_list, n_edges):
             edge_list[kept] = k
             kept += 1
     return int32(kept)
+
+
+SEAL_REACH_PX: Final = 6
+"""How far apart (px, per axis) two cut ends may lie to be sealed: a rope's two sides where it leaves a clamp are
+a rope width (up to about 4 px) plus a pixel or two apart. A larger reach also seals the stub of a rod (7 px and
+wider) below its mask into a cap wider than the rope's, which the fixed-end guess then takes for the free end."""
+_CUT: Final = 3  # an edge pixel marked as a cut end while the ends are paired (edges are 1 otherwise)
+
+
+@kernel(boolean(u1_2d, u1_2d_ro, int64, int64))
+def is_cut_end(edges, mask, r, c):
+    """Whether the edge pixel (`r`, `c`) (not on the image border) ends a line where the mask cut it: it has one
+    edge neighbour, or two that touch each other (a line's end), and a masked neighbour."""
+    count = 0
+    masked = False
+    first_r = 0
+    first_c = 0
+    touching = True
+    for dr in range(-1, 2):
+        for dc in range(-1, 2):
+            if dr == 0 and dc == 0:
+                continue
+            if mask[r + dr, c + dc] != MASK_FREE:
+                masked = True
+            if edges[r + dr, c + dc] != 0:
+                count += 1
+                if count == 1:
+                    first_r = dr
+                    first_c = dc
+                elif abs(dr - first_r) > 1 or abs(dc - first_c) > 1:
+                    touching = False
+    return masked and (count == 1 or (count == 2 and touching))
+
+
+@kernel(int64(u1_2d, int64, int64, int64))
+def nearest_cut_end(edges, r, c, reach):
+    """Flat index of the cut end (marked `_CUT` in `edges`) nearest (`r`, `c`) within `reach` px per axis and at
+    least 2 px away (a line's own neighbouring pixel is not another end), or -1."""
+    height = edges.shape[0]
+    width = edges.shape[1]
+    best = np.int64(-1)
+    best_d = np.int64(4 * reach * reach + 1)
+    for rr in range(max(r - reach, 1), min(r + reach + 1, height - 1)):
+        for cc in range(max(c - reach, 1), min(c + reach + 1, width - 1)):
+            if edges[rr, cc] != _CUT:
+                continue
+            d = (rr - r) * (rr - r) + (cc - c) * (cc - c)
+            if d >= 4 and d < best_d:
+                best_d = d
+                best = np.int64(rr) * width + cc
+    return best
+
+
+@kernel(int64(u1_2d_ro, i4_1d_ro, i4_1d_ro, u1_2d, i4_1d, int64))
+def seal_cut_ends(mask, lo, hi, edges, edge_list, n_edges):
+    """Join the ends of edge lines that the mask cut, in pairs, with a straight line of edge pixels (after
+    `drop_static_edges`).
+
+    Where a rope leaves a clamp whose outline the mask dropped, its two sides end at the mask: the rope's outline
+    is open there (and, with its free end blurred open too, falls apart into its two sides). A cut end
+    (`is_cut_end`) is joined to the nearest other cut end within `SEAL_REACH_PX` when each is the other's nearest:
+    the outline is closed across the clamp's exit as a fixed-end cap would close it. The line's pixels inside the
+    spans `lo`/`hi` and off the image border are set in `edges` and appended to `edge_list` (the first `n_edges`
+    are the kept edge pixels, flat ``row * width + col``). Returns the new edge count; `n_edges` when `mask` is not
+    of the frame's shape (no mask) or `edge_list` is full."""
+    height = edges.shape[0]
+    width = edges.shape[1]
+    if mask.shape[0] != height or mask.shape[1] != width:
+        return n_edges
+    cuts = 0
+    for t in range(n_edges):
+        k = edge_list[t]
+        r = k // width
+        c = k - r * width
+        if r < 1 or r > height - 2 or c < 1 or c > width - 2:
+            continue
+        if is_cut_end(edges, mask, r, c):
+            edges[r, c] = _CUT
+            cuts += 1
+    if cuts < 2:
+        for t in range(n_edges):
+            k = edge_list[t]
+            if edges[k // width, k - k // width * width] == _CUT:
+                edges[k // width, k - k // width * width] = 1
+        return n_edges
+    count = n_edges
+    reach = np.int64(SEAL_REACH_PX)
+    for t in range(n_edges):
+        k = edge_list[t]
+        r = k // width
+        c = k - r * width
+        if edges[r, c] != _CUT:
+            continue
+        other = nearest_cut_end(edges, r, c, reach)
+        if other <= k or nearest_cut_end(edges, other // width, other - other // width * width, reach) != k:
+            continue  # each pair once (from its smaller index), and only mutual nearest ends
+        r2 = other // width
+        c2 = other - r2 * width
+        steps = max(abs(r2 - r), abs(c2 - c))
+        for s in range(1, steps):
+            rr = r + (r2 - r) * s / steps
+            cc = c + (c2 - c) * s / steps
+            pr = np.int64(np.floor(rr + 0.5))
+            pc = np.int64(np.floor(cc + 0.5))
+            if pr < 1 or pr > height - 2 or pc < 1 or pc > width - 2 or pc < lo[pr] or pc > hi[pr]:
+                continue
+            if edges[pr, pc] != 0 or count >= edge_list.shape[0]:
+                continue
+            edges[pr, pc] = 1
+            edge_list[count] = np.int32(pr * width + pc)
+            count += 1
+    for t in range(n_edges):
+        k = edge_list[t]
+        r = k // width
+        c = k - r * width
+        if edges[r, c] == _CUT:
+            edges[r, c] = 1
+    return count

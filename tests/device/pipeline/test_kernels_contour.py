@@ -483,3 +483,64 @@ def test_trace_rope_traced_first_equals_the_kernels_one_by_one(case, spans) -> N
         assert K.trace_rope(edges, lo, hi, edge_list, len(edge_list), min_px, True, mag, gx, gy, *short) == K.FULL
         assert out[6][0] == size
         np.testing.assert_array_equal(edges, ref)
+
+
+def _u_curve(shape=(40, 60), thick_end=False):
+    """A one-pixel open U (the rope's two sides joined at its tip, cut at the clamp), as the mask leaves it."""
+    mask = np.zeros(shape, bool)
+    mask[5:30, 10] = True  # one side
+    mask[5:30, 14] = True  # the other
+    mask[30, 10:15] = True  # the tip's cap
+    if thick_end:
+        mask[5, 15] = True  # the walk returns on a neighbouring pixel at this end
+    return mask
+
+
+@pytest.mark.parametrize("thick_end", [False, True])
+def test_keep_open_once_keeps_an_out_and_back_walk_once(thick_end) -> None:
+    mask = _u_curve(thick_end=thick_end)
+    size, _, chain, codes = _trace(mask)
+    n = len(chain)
+    assert n >= K.OPEN_RATIO * size  # walked out and back
+    chain, codes = chain.copy(), codes.copy()
+    m = K.keep_open_once(chain, codes, np.int32(n), np.int32(size))
+    kept = chain[:m]
+    ends = {tuple(kept[0]), tuple(kept[-1])}
+    assert ends <= {(5, 10), (5, 14), (5, 15), (6, 14)}  # from one cut end to the other
+    assert len({tuple(p) for p in kept}) >= size - 2  # every pixel of the curve, about once
+    assert m <= size + 2
+
+
+def test_keep_open_once_leaves_a_closed_outline() -> None:
+    mask = _u_curve()
+    mask[5, 10:15] = True  # closed at the fixed end: a ring
+    size, _, chain, codes = _trace(mask)
+    before = chain.copy()
+    m = K.keep_open_once(chain, codes, np.int32(len(chain)), np.int32(size))
+    assert m == len(before)
+    np.testing.assert_array_equal(chain, before)
+
+
+def test_trace_rope_walks_an_open_outline_once() -> None:
+    """The contour stage on a rope cut at its clamp: the chain from one cut end round the tip to the other."""
+    mask = _u_curve((40, 60))
+    height, width = mask.shape
+    edges = mask.astype(np.uint8)
+    listed = np.flatnonzero(edges.ravel()).astype(np.int32)
+    lo = np.zeros(height, np.int32)
+    hi = np.full(height, width - 1, np.int32)
+    mag = np.ones(mask.shape, np.float32)
+    gx = np.zeros(mask.shape, np.float32)
+    labels = np.zeros(mask.shape, np.int32)
+    stack = np.zeros(height * width, np.int32)
+    start = np.zeros(2, np.int32)
+    chain = np.zeros((4 * mask.size, 2), np.int32)
+    codes = np.zeros(4 * mask.size, np.int32)
+    points = np.zeros((4 * mask.size, 2), np.float32)
+    counts = np.zeros(3, np.int32)
+    n = K.trace_rope(
+        edges, lo, hi, listed, len(listed), 5, False, mag, gx, gx, labels, stack, start, chain, codes, points, counts
+    )
+    assert counts[0] == mask.sum()
+    assert mask.sum() - 4 <= n <= mask.sum()  # once (the walk cuts the cap's corners), not out and back
+    assert {tuple(chain[0]), tuple(chain[n - 1])} == {(5, 10), (5, 14)}

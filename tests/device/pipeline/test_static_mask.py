@@ -166,3 +166,75 @@ def test_a_given_mask_of_a_clamp_rod_keeps_the_rod_out_of_the_rope(tmp_path: Pat
     # The rope, not the rod; the few pixels left are the rod's unmasked stub at the fixed end, which the
     # contour still follows (the polyline at a clamp is #19 point 3's).
     assert worst[str(path)] < 8.0
+
+
+def _seal(edges: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, int, int]:
+    height, width = edges.shape
+    listed = np.zeros(height * width, np.int32)
+    flat = np.flatnonzero(edges.ravel())
+    listed[: len(flat)] = flat
+    lo = np.zeros(height, np.int32)
+    hi = np.full(height, width - 1, np.int32)
+    out = edges.copy()
+    count = K.seal_cut_ends(_ro(mask), _ro(lo), _ro(hi), out, listed, len(flat))
+    assert sorted(listed[:count]) == sorted(np.flatnonzero(out.ravel()))  # the list is the map's edges
+    return out, count, len(flat)
+
+
+def test_seal_cut_ends_closes_a_rope_cut_at_a_clamp() -> None:
+    """The mask dropped a clamp's outline: the rope's two sides end at the mask 4 px apart and are joined (its
+    outline closed across the clamp's exit, one component); a line that runs along the mask, or ends away from
+    it, is left as it is."""
+    edges = np.zeros((30, 40), np.uint8)
+    mask = np.zeros(edges.shape, np.uint8)
+    mask[2:12, 10:30] = K.MASK_ALWAYS  # the clamp (its edges already dropped)
+    edges[12:28, 18] = 1  # the rope's sides leaving it
+    edges[12:28, 22] = 1
+    edges[13, 2:9] = 1  # a scratch along the mask's side: not cut, not joined
+    edges[20, 30:36] = 1  # a fragment ending away from the mask
+    out, count, before = _seal(edges, mask)
+    assert count == before + 3
+    assert out[12, 19:22].all()
+    labels = cv2.connectedComponents(out, connectivity=8)[1]
+    assert labels[12, 18] == labels[12, 22] != labels[13, 2]
+
+
+def test_seal_cut_ends_needs_a_mask_and_a_close_partner() -> None:
+    edges = np.zeros((30, 40), np.uint8)
+    edges[12:28, 18] = 1
+    edges[12:28, 26] = 1  # 8 px apart: a rod's stub, not a rope
+    mask = np.zeros(edges.shape, np.uint8)
+    mask[2:12, 10:30] = K.MASK_ALWAYS
+    for given in (mask, np.zeros((1, 1), np.uint8)):
+        out, count, before = _seal(edges, given)
+        assert count == before
+        np.testing.assert_array_equal(out, edges)
+
+
+def test_a_rope_cut_by_a_clamp_mask_is_measured_from_the_fixed_end(tmp_path: Path) -> None:
+    """A clamp block round the fixed end and its rod to the top border, given as a mask: the mask drops the
+    clamp's outline, so the rope's edges end at the clamp. The outline is sealed across the clamp's exit; the
+    shapes are the rope from the fixed end (extended through the clamp along the rope) to its tips at the start
+    and the end of the exposure, never round the clamp, up the rod or twice along the rope."""
+    rope = SyntheticRope(exposure_us=8000, amplitude_rad=0.7, period_s=0.9)
+    frames = list(rope.frames(5, start=2))
+    pivot = rope.centreline(0.0)[0]  # (u, v) of the fixed end
+    col, row = round(float(pivot[0])), round(float(pivot[1]))
+    half = 9  # the clamp block: 19 x 19 px round the fixed end
+    mask = np.zeros((rope.height, rope.width), np.uint8)
+    mask[: row + half + 3, col - half - 2 : col + half + 3] = 255  # the block and the rod, 2 px grown
+    path = tmp_path / "clamp.png"
+    cv2.imwrite(str(path), mask)
+    config = PipelineConfig(static_mask_png=str(path), fixed_end_uv=(float(pivot[0]), float(pivot[1])))
+    pipeline = Pipeline(config, (rope.width, rope.height))
+    for frame in frames:
+        image = frame.image.copy()
+        image[: row + half + 1, col - 3 : col + 4] = 230  # the rod
+        image[row - half : row + half + 1, col - half : col + half + 1] = 200  # the clamp over the rope's end
+        result = pipeline.process(image, frame.index, frame.t_ns, float(rope.exposure_us))
+        assert result.status is FrameStatus.OK
+        for shape, tip in ((result.begin, frame.tip_begin_uv), (result.end, frame.tip_end_uv)):
+            assert np.hypot(*(shape[-1][::-1] - tip)) < 1.0
+            assert np.hypot(*(shape[0][::-1] - pivot)) < 2.5
+            length = float(np.hypot(*np.diff(shape.astype(np.float64), axis=0).T).sum())
+            assert abs(length - rope.length_px) < 0.03 * rope.length_px
