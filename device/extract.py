@@ -146,6 +146,7 @@ def run_extract(
     check_readout(readout_where, readout_us, source.fps)
     if source.image_size is not None:  # every check that can fail before the output is created
         pipeline_first: Pipeline | None = Pipeline(config, source.image_size, readout_us, plane)
+        pipeline_first.warm_up()  # as the daemon: the first frame's time is its measurement's, not the set-up's
     else:
         pipeline_first = None
     total = len(source)
@@ -167,6 +168,7 @@ def run_extract(
             image = item.image
             if image is not None and pipeline is None:
                 pipeline = Pipeline(config, (image.shape[1], image.shape[0]), readout_us, plane)
+                pipeline.warm_up()
             if pipeline is None or image is None:
                 record = _bad_frame(item.index, item.t_ns, item.exposure_us, item.message or "unreadable frame")
             else:

@@ -45,10 +45,7 @@ def test_daemon_streams_into_the_monitor_recording(tmp_path: Path) -> None:
     )
     try:
         daemon = subprocess.run(
-            # Paced at 10 FPS: the first frame takes ~60 ms since the frame-relative thresholds and self-checks
-            # (#19), so 30 FPS drops frame 0 and the live path no longer matches the offline one frame by frame.
-            # Making the first frame fit one period again is open work of #19.
-            [sys.executable, "-m", "ropecam.device.cli", "run", "--source", f"frames:{frames}?fps=10",
+            [sys.executable, "-m", "ropecam.device.cli", "run", "--source", f"frames:{frames}?fps=30",
              "--sink", f"udp://127.0.0.1:{port}", "--device-id", "7"],
             capture_output=True, text=True, timeout=120,
         )  # fmt: skip
