@@ -33,11 +33,8 @@ def _read_jsonl(path: Path) -> list[dict]:
 
 
 @pytest.mark.slow
-def test_daemon_streams_into_the_monitor_recording(tmp_path: Path) -> None:
-    frames = tmp_path / "rig"
-    assert (
-        host_main(["simulate", "rig", "--out", str(frames), "--frames", "12", "--first-exposure-ms", "200", "-q"]) == 0
-    )
+def test_daemon_streams_into_the_monitor_recording(tmp_path: Path, rig_frames: Path) -> None:
+    frames = rig_frames
     port = _free_udp_port()
     recording = tmp_path / "run.mcap"
     monitor = MonitorProcess(
