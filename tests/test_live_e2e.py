@@ -42,7 +42,11 @@ def test_daemon_streams_into_the_monitor_recording(tmp_path: Path, rig_frames: P
     )
     try:
         daemon = subprocess.run(
-            [sys.executable, "-m", "ropecam.device.cli", "run", "--source", f"frames:{frames}?fps=30",
+            # Paced at 10 FPS: the paced replay hands the daemon the newest frame, as a camera does, so a frame that
+            # takes longer than the period skips the next. Frame 0 costs ~40 ms of CPU (whole-frame search, the
+            # thresholds, the edge model's tables of the measured width), the others 5-13 ms; at 30 FPS this was
+            # measured to skip frames on a loaded machine (2 of 12 measured at load 9 on 2 cores).
+            [sys.executable, "-m", "ropecam.device.cli", "run", "--source", f"frames:{frames}?fps=10",
              "--sink", f"udp://127.0.0.1:{port}", "--device-id", "7"],
             capture_output=True, text=True, timeout=120,
         )  # fmt: skip
