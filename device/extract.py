@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import logging
 import sys
 import time
 from collections import Counter
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -153,10 +155,21 @@ def run_extract(
         plane.check_image(plane.image_size)
     source = open_source(input_path, fps, exposure_us)
     check_readout(readout_where, readout_us, source.fps)
-    if source.image_size is not None:  # every check that can fail before the output is created
-        pipeline_first: Pipeline | None = Pipeline(config, source.image_size, readout_us, plane)
-    else:
-        pipeline_first = None
+    frames: Iterator[Any] = iter(source)
+    image_size = source.image_size
+    if image_size is None:  # an image folder or a video: its first readable frame gives the size
+        ahead = []
+        for item in frames:
+            ahead.append(item)
+            if item.image is not None or (limit is not None and len(ahead) >= limit):
+                break
+        if ahead and ahead[-1].image is not None:
+            image_size = (ahead[-1].image.shape[1], ahead[-1].image.shape[0])
+        frames = itertools.chain(ahead, frames)
+    pipeline_first: Pipeline | None = None
+    if image_size is not None:  # every check that can fail (mask, plane, readout) before the output is created
+        pipeline_first = Pipeline(config, image_size, readout_us, plane)
+        pipeline_first.warm_up()  # as the daemon: the first frame's time is its measurement's, not the set-up's
     total = len(source)
     if limit is not None:
         total = min(total, limit) if total else limit
@@ -170,12 +183,13 @@ def run_extract(
     except OSError as exc:
         raise DataError(f"{out_path}: cannot write results: {exc.strerror}") from exc
     try:
-        for count, item in enumerate(source):
+        for count, item in enumerate(frames):
             if limit is not None and count >= limit:
                 break
             image = item.image
             if image is not None and (pipeline is None or source.independent):  # a photo: measured on its own
                 pipeline = Pipeline(config, (image.shape[1], image.shape[0]), readout_us, plane)
+                pipeline.warm_up()
             if pipeline is None or image is None:
                 record = _bad_frame(item.index, item.t_ns, item.exposure_us, item.message or "unreadable frame")
             else:

@@ -220,12 +220,15 @@ def run_setup(
     out = Path(out)
     old_text = ""
     kept: dict[str, Any] = {}
+    readout_us: Any = 0
     if out.exists():
         try:
             old_text = out.read_text()
-            kept = dict(tomllib.loads(old_text).get("pipeline", {}))
+            old = tomllib.loads(old_text)
         except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
             raise ConfigError(f"{out}: cannot read the existing file to update its [pipeline] table: {exc}") from exc
+        kept = dict(old.get("pipeline", {}))
+        readout_us = old.get("capture", {}).get("readout_us", 0)
     kept = {k: v for k, v in kept.items() if k not in DECIDED_KEYS and not isinstance(v, dict)}
     if rope_length_m is not None:
         kept["rope_length_m"] = rope_length_m
@@ -246,6 +249,7 @@ def run_setup(
     if any(f.image.shape != shape for f in frames):
         raise DataError(f"{source}: the frames are not all of one size (the first is {shape[1]}x{shape[0]})")
     say(f"{len(frames)} frames of {shape[1]}x{shape[0]} from {described}" + (f" at {rate:g} fps" if rate else ""))
+    _check_kept(out, base, (shape[1], shape[0]), readout_us, rate)
     findings = decide(frames, base, say)
     run = findings.run
     if run.measured < MIN_MEASURED:
@@ -306,6 +310,20 @@ def run_setup(
     report.append(f"check the overlay, then: ropecam-device extract INPUT --config {out} --out results.jsonl")
     print("\n".join(report), file=sys.stderr)
     return 0
+
+
+def _check_kept(out: Path, base: Any, image_size: tuple[int, int], readout_us: object, rate: float | None) -> None:
+    """Refuse (`ConfigError`, nothing written) the kept settings of the existing `out` that do not fit these
+    frames: its [pipeline] plane_file (unreadable, another image size, its origin outside the image) and its
+    [capture] readout_us (negative, longer than the frame period), as `extract` and the daemon would refuse them."""
+    from ropecam.device.pipeline.pipeline import Pipeline
+    from ropecam.shared.config import check_readout
+    from ropecam.shared.plane import read_plane_file
+
+    check_readout(f"{out} [capture] readout_us", readout_us, rate)
+    if base.plane_file is not None:
+        plane = read_plane_file(base.plane_file)
+        Pipeline(base, image_size, 0, plane)  # the plane's image size and its origin inside the image
 
 
 def _hint(statuses: dict[str, int]) -> str:

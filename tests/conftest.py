@@ -46,3 +46,14 @@ def shared_dir() -> Path:
 def ancf_reference_dir(shared_dir: Path) -> Path:
     """Exudyn's reference trajectories of the paper's rope."""
     return shared_dir / "reference" / "ancf"
+
+
+@pytest.fixture(scope="session")
+def rig_frames(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Twelve frames of the simulated rig (1024x544, 4 ms, from 200 ms into the swing, where the rope swings fast),
+    rendered once per session for every test that runs the live or offline path on them: read them, never write."""
+    from ropecam.host.cli import main as host_main
+
+    out = tmp_path_factory.mktemp("rig_frames") / "rig"
+    assert host_main(["simulate", "rig", "--out", str(out), "--frames", "12", "--first-exposure-ms", "200", "-q"]) == 0
+    return out

@@ -24,6 +24,7 @@ COMMANDS = {
     "simulate": "bench_simulate",
     "boards": "bench_boards",
     "recording-size": "bench_recording_size",
+    "wire-size": "bench_wire",
 }
 """Subcommand -> module of `ropecam_tools` (with ``add_arguments(parser)`` and ``run(args) -> int``)."""
 

@@ -23,7 +23,8 @@ from ropecam.device.daemon.systemd import Notifier
 from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam.device.pipeline.result import to_wire
 from ropecam.device.senders.stream import ResultSender
-from ropecam.shared.errors import CaptureError, TransportError
+from ropecam.shared.config import check_readout
+from ropecam.shared.errors import CaptureError, ConfigError, TransportError
 from ropecam.shared.plane import read_plane_file
 from ropecam.shared.protocol import AckResult, Command, ControlAck, Log, Status, Verifier, load_key, split_frame
 from ropecam.shared.protocol.shapes import ShapeCodecConfig
@@ -213,6 +214,8 @@ class Daemon:
             try:
                 source = self.config.capture.open(self._driver_factory)
                 source.start()
+                # The readout time against the camera's real frame period (the config may not give the rate).
+                check_readout("capture.readout_us", self.config.capture.readout_us, source.fps)
                 if self._warm_up(source):
                     # Frames that streamed in while the pipeline was built are not part of the measurement: start
                     # the stream again (this also zeroes the source's counters), so the first frame is not skipped.
@@ -221,6 +224,12 @@ class Daemon:
                 self._camera_lost_since = None
                 self._reapply_settings(source)
                 return source
+            except ConfigError:
+                # Settings that do not fit this camera (a plane or mask of another size, a readout time longer
+                # than its frame period): no retry helps; the caller ends the daemon.
+                if source is not None:
+                    source.stop()
+                raise
             except CaptureError as exc:
                 if source is not None:
                     source.stop()
@@ -390,7 +399,11 @@ class Daemon:
         """Run until `stop` is set, a recording ends, or the camera stays lost too long; return the exit code."""
         if not self._open_link(stop):
             return EXIT_OK
-        source = self._open_camera(stop)
+        try:
+            source = self._open_camera(stop)
+        except BaseException:
+            self._close_link()  # its control listener's thread too: the error ends the process cleanly
+            raise
         if source is None:
             self._close_link()
             return EXIT_OK if stop.is_set() else EXIT_CAMERA_LOST

@@ -28,6 +28,8 @@ class Notifier:
             self._address = b"\0" + socket_path[1:].encode() if socket_path.startswith("@") else socket_path
         self.watchdog_period_s = watchdog_usec / 2e6 if watchdog_usec else None
         self.sent: list[str] = []
+        self.failed = 0
+        """Notifications that could not be sent (no reader, or its queue full)."""
 
     @property
     def enabled(self) -> bool:
@@ -40,10 +42,15 @@ class Notifier:
             return
         try:
             with socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM) as sock:
+                # Never block the measuring loop: a notify socket whose queue is full (its reader stalled) drops
+                # the message instead (a blocking send waited until the reader came back).
+                sock.setblocking(False)
                 sock.sendto(text.encode(), self._address)
             self.sent.append(text)
         except OSError as exc:
-            _log.warning("systemd notification %r failed: %s", text, exc)
+            self.failed += 1
+            if self.failed & (self.failed - 1) == 0:  # 1st, 2nd, 4th, 8th ...: a stalled reader does not flood the log
+                _log.warning("systemd notification %r failed (%d so far): %s", text, self.failed, exc)
 
     def ready(self, status: str = "") -> None:
         """Tell systemd the service is up (after the pipeline has warmed up)."""

@@ -59,20 +59,28 @@ class EdgeThresholds:
         self._detector: EdgeDetector | None = None
         self._shape = (height, width)
         self._sigma = smooth_sigma_px
+        # The median needs the magnitude on every `_STEP`-th row only: edges detected on those rows' spans give
+        # the same values there (the smoothing and Sobel spans grow around them) for a fraction of a whole frame.
+        self._lo = np.ones(height, np.int32)
+        self._hi = np.zeros(height, np.int32)
+        self._lo[::_STEP], self._hi[::_STEP] = 0, width - 1
 
     @property
     def measuring(self) -> bool:
         """Whether frames are still being measured."""
         return len(self._medians) < self.frames
 
+    def prepare(self) -> None:
+        """Build the detector of the measured frames and run it once on a blank frame (its buffers touched, the
+        median's code paths run), so that the first measured frame pays only its measurement; nothing is
+        measured. Does nothing when no frame is to be measured."""
+        if self.measuring:
+            self._median(np.zeros(self._shape, np.uint8))
+
     def measure(self, frame: NDArray[np.uint8]) -> tuple[float, float] | None:
-        """Measure one frame (a whole-frame gradient: only the first `frames` frames); returns the thresholds
-        (low, high) after the last of them, else None."""
-        if self._detector is None:
-            self._detector = EdgeDetector(*self._shape, self._sigma, self.low, self.high)
-        d = self._detector
-        d.detect(frame, d.full_lo, d.full_hi)
-        self._medians.append(float(np.median(d.mag[::_STEP, ::_STEP])))
+        """Measure one frame (the gradient on every `_STEP`-th row: only the first `frames` frames); returns the
+        thresholds (low, high) after the last of them, else None."""
+        self._medians.append(self._median(frame))
         if self.measuring:
             return None
         self._detector = None  # its planes are not needed any more
@@ -80,6 +88,14 @@ class EdgeThresholds:
         low = min(max(LOW_PER_NOISE * noise, self.floor_low), self.low)
         high = min(max(HIGH_PER_NOISE * noise, self.floor_high), self.high)
         return low, max(high, low)
+
+    def _median(self, frame: NDArray[np.uint8]) -> float:
+        """The median gradient magnitude of `frame`'s smoothed image on a grid of `_STEP` px."""
+        if self._detector is None:
+            self._detector = EdgeDetector(*self._shape, self._sigma, self.low, self.high)
+        d = self._detector
+        d.detect(frame, self._lo, self._hi)
+        return float(np.median(d.mag[::_STEP, ::_STEP]))
 
     @property
     def noise(self) -> float | None:

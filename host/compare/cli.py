@@ -64,6 +64,10 @@ def register(subparsers: Any) -> None:
         "--config", type=Path, metavar="device.toml", help="frame set input: device config whose [pipeline] to use"
     )
     parser.add_argument("--out", type=Path, required=True, help="report folder (created)")
+    parser.add_argument(
+        "--no-plots", action="store_true",
+        help="leave the PNG plots out of the report (numbers, tables and HTML only; a batch of many runs is faster)",
+    )  # fmt: skip
     parser.add_argument("--scheduler", help="batch mode: address of an existing Dask scheduler (default: local)")
     parser.add_argument("--workers", type=int, default=2, help="batch mode: local Dask worker processes (default 2)")
     declare_outputs(parser, "out")
@@ -110,6 +114,7 @@ def run_compare(args: argparse.Namespace) -> int:
         "device_id": args.device,
         "pipeline_config": args.config,
         "command_line": getattr(args, "command_line", None),
+        "plots": not args.no_plots,
     }
     if is_single_measurement(args.input):
         numbers = compare_recording(args.input, out=args.out, **options)

@@ -206,13 +206,13 @@ def _provenance_html(provenance: dict[str, Any]) -> str:
     )
 
 
-def write_report(comparison: Comparison, out: str | Path) -> Path:
-    """Write plots, ``samples.csv`` (and ``.parquet``), ``summary.json`` and ``index.html`` into `out` (created);
-    return the HTML path."""
+def write_report(comparison: Comparison, out: str | Path, plots: bool = True) -> Path:
+    """Write plots (unless `plots` is False), ``samples.csv`` (and ``.parquet``), ``summary.json`` and
+    ``index.html`` into `out` (created); return the HTML path."""
     out = Path(out)
     try:
         out.mkdir(parents=True, exist_ok=True)
-        plots = _plots(comparison, out)
+        pictures = _plots(comparison, out) if plots else []
         c = comparison
         table = sample_table(
             c.tracks,
@@ -246,7 +246,7 @@ def write_report(comparison: Comparison, out: str | Path) -> Path:
         )
     figures = "".join(
         f'<figure><img src="{name}" alt="{html.escape(text)}"><figcaption>{html.escape(text)}</figcaption></figure>'
-        for name, text in plots
+        for name, text in pictures
     )
     notes = "".join(f"<li>{html.escape(n)}</li>" for n in comparison.notes)
     provenance = _provenance_html(comparison.provenance)

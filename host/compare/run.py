@@ -65,10 +65,11 @@ def compare_recording(
     device_id: int | None = None,
     pipeline_config: Path | None = None,
     command_line: str | None = None,
+    plots: bool = True,
 ) -> dict[str, Any]:
-    """Compare one measurement (see `ropecam.host.compare.inputs`) with the model, write its report into `out`,
-    return the summary mapping. The report records the ropecam version, the date, `command_line` and the
-    calibration and model files with their SHA-256.
+    """Compare one measurement (see `ropecam.host.compare.inputs`) with the model, write its report into `out`
+    (with its PNG plots unless `plots` is False), return the summary mapping. The report records the ropecam
+    version, the date, `command_line` and the calibration and model files with their SHA-256.
 
     Raises
     ------
@@ -128,7 +129,7 @@ def compare_recording(
     )
     files = {"plane": plane_path, "camera": camera_path, "model": model_path, "pipeline config": pipeline_config}
     comparison.provenance = provenance(command_line, files)
-    index = write_report(comparison, out)
+    index = write_report(comparison, out, plots=plots)
     numbers = summary(comparison)
     numbers["report"] = str(index)
     numbers["finite"] = bool(np.isfinite(errors.overall_rms_m))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -12,29 +13,10 @@ from ropecam.device.capture.frameset import FrameSetWriter
 from ropecam.device.capture.synthetic import SyntheticRope
 from ropecam.device.cli import main
 
+PlaneYaml = Callable[[Path, tuple[float, float], tuple[int, int]], Path]
+"""The `plane_yaml` fixture (tests/device/conftest.py)."""
+
 ROPE = SyntheticRope(exposure_us=12000, amplitude_rad=0.7, period_s=0.9, diameter_px=3.0, phase_rad=1.2)
-FOCAL_PX = 400.0
-
-
-def plane_yaml(path: Path, origin_uv: tuple[float, float], size: tuple[int, int] = (ROPE.width, ROPE.height)) -> Path:
-    """Write a plane.yaml (OpenCV FileStorage, as `ropecam calibrate plane` does) of a camera square to the plane
-    at 1 m whose origin projects to `origin_uv`."""
-    cx, cy = (size[0] - 1) / 2, (size[1] - 1) / 2
-    t = ((origin_uv[0] - cx) / FOCAL_PX, (origin_uv[1] - cy) / FOCAL_PX, 1.0)
-
-    def matrix(rows: int, cols: int, data: list[float]) -> str:
-        values = ", ".join(repr(float(v)) for v in data)
-        return f"!!opencv-matrix\n   rows: {rows}\n   cols: {cols}\n   dt: d\n   data: [ {values} ]\n"
-
-    path.write_text(
-        "%YAML:1.0\n---\n"
-        f"image_width: {size[0]}\nimage_height: {size[1]}\n"
-        f"camera_matrix: {matrix(3, 3, [FOCAL_PX, 0, cx, 0, FOCAL_PX, cy, 0, 0, 1])}"
-        f"distortion_coefficients: {matrix(5, 1, [0, 0, 0, 0, 0])}"
-        f"plane_rotation: {matrix(3, 3, [1, 0, 0, 0, 1, 0, 0, 0, 1])}"
-        f"plane_translation_m: {matrix(3, 1, list(t))}"
-    )
-    return path
 
 
 @pytest.fixture(scope="module")
@@ -50,9 +32,11 @@ def _read(path: Path) -> list[dict]:
     return [json.loads(line) for line in path.read_text().splitlines()]
 
 
-def test_the_fixed_end_is_the_plane_origin_and_rows_have_their_times(tmp_path: Path, frameset: Path) -> None:
+def test_the_fixed_end_is_the_plane_origin_and_rows_have_their_times(
+    tmp_path: Path, frameset: Path, plane_yaml: PlaneYaml
+) -> None:
     origin = (ROPE.fixed_uv[0] + 0.4, ROPE.fixed_uv[1] - 0.3)
-    plane = plane_yaml(tmp_path / "plane.yaml", origin)
+    plane = plane_yaml(tmp_path / "plane.yaml", origin, (ROPE.width, ROPE.height))
     config = tmp_path / "device.toml"
     config.write_text("[pipeline]\nrope_length_m = 1.0\nmaterial_points_m = [0.0, 0.5, 1.0]\n")
     out = tmp_path / "out.jsonl"
@@ -83,10 +67,15 @@ def test_the_fixed_end_is_the_plane_origin_and_rows_have_their_times(tmp_path: P
     ],
 )
 def test_bad_plane_or_readout_is_an_error_and_writes_nothing(
-    tmp_path: Path, frameset: Path, capsys: pytest.CaptureFixture[str], extra: list[str], message: str
+    tmp_path: Path,
+    frameset: Path,
+    capsys: pytest.CaptureFixture[str],
+    plane_yaml: PlaneYaml,
+    extra: list[str],
+    message: str,
 ) -> None:
     files = {
-        "far": str(plane_yaml(tmp_path / "far.yaml", (ROPE.width + 40.0, 20.0))),
+        "far": str(plane_yaml(tmp_path / "far.yaml", (ROPE.width + 40.0, 20.0), (ROPE.width, ROPE.height))),
         "small": str(plane_yaml(tmp_path / "small.yaml", (80.0, 10.0), (160, 120))),
         "missing": str(tmp_path / "missing.yaml"),
     }

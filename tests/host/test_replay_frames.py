@@ -15,11 +15,8 @@ from ropecam.host.recording.reader import iter_raw
 from ropecam.shared.protocol import polyline_distances_px
 
 
-def test_replay_frames_records_and_exports_the_pipeline_results(tmp_path: Path) -> None:
-    frames = tmp_path / "rig"
-    assert (
-        host_main(["simulate", "rig", "--out", str(frames), "--frames", "6", "--first-exposure-ms", "200", "-q"]) == 0
-    )
+def test_replay_frames_records_and_exports_the_pipeline_results(tmp_path: Path, rig_frames: Path) -> None:
+    frames = rig_frames
     recording, exported = tmp_path / "rig.mcap", tmp_path / "rig.jsonl"
     assert (
         host_main(["replay", "--frames", str(frames), "--record", str(recording), "--export-jsonl", str(exported)]) == 0
@@ -27,7 +24,7 @@ def test_replay_frames_records_and_exports_the_pipeline_results(tmp_path: Path) 
     assert device_main(["extract", str(frames), "--out", str(tmp_path / "offline.jsonl"), "--quiet"]) == 0
     live = [json.loads(line) for line in exported.read_text().splitlines()]
     offline = [json.loads(line) for line in (tmp_path / "offline.jsonl").read_text().splitlines()]
-    assert [r["frame"] for r in live] == [r["frame"] for r in offline] == list(range(6))
+    assert [r["frame"] for r in live] == [r["frame"] for r in offline] == list(range(12))
     from ropecam.shared.protocol.jsonl import DEVICE_ONLY_FIELDS
 
     for got, want in zip(live, offline, strict=True):
@@ -43,7 +40,7 @@ def test_replay_frames_records_and_exports_the_pipeline_results(tmp_path: Path) 
         for key in ("begin", "end"):
             if want[key] is not None:
                 assert polyline_distances_px(np.array(want[key]), np.array(got[key])).max() <= 0.05 + 2e-3
-    assert len(list(iter_raw([recording]))) == 6  # the raw messages are in the recording for exact replay
+    assert len(list(iter_raw([recording]))) == 12  # the raw messages are in the recording for exact replay
 
 
 def test_replay_needs_exactly_one_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

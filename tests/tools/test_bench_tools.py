@@ -7,9 +7,12 @@ import json
 import math
 import re
 from collections.abc import Callable
+from pathlib import Path
 from subprocess import CompletedProcess
 
 import pytest
+
+from ropecam.host.cli import main as host_main
 
 RunTool = Callable[..., CompletedProcess[str]]
 """The `run_tool` fixture (tests/tools/conftest.py)."""
@@ -53,3 +56,21 @@ def test_bench_kernels_times_every_kernel_inside_the_pipeline(run_tool: RunTool)
     times = dict(re.findall(r"^(\S.*?)\s{2,}(\S+)$", done.stdout, re.MULTILINE))
     assert {"detect_and_trace", "<timed kernels>", "pipeline"} <= set(times), done.stdout
     assert float(times["pipeline"]) >= float(times["<timed kernels>"]) > 0, done.stdout
+
+
+@pytest.mark.slow
+def test_wire_size_keeps_rig_soft_first_frames_within_the_serial_budget(tmp_path: Path, run_tool: RunTool) -> None:
+    """Issue 19 acceptance 8: with the quality record, rig-soft's first frames (the curling rope; frame 4 is its
+    roughest shape) fit the 921600-baud serial line at 119 FPS (774 B framed) and the mean stays <= 200 B, for the
+    device's shapes and for the true ones."""
+    frames = tmp_path / "rig-soft"
+    assert host_main(["simulate", "rig-soft", "--out", str(frames), "--frames", "5", "-q"]) == 0
+    done = run_tool("bench.py", "wire-size", str(frames), "--source", "both", "--check", "--json")
+    assert done.returncode == 0, done.stdout + done.stderr  # --check: 1 when a frame is over the budget
+    rows = [json.loads(line) for line in done.stdout.splitlines()]
+    assert [(row["source"], row["frames"]) for row in rows] == [("device", 5), ("truth", 5)]
+    for row in rows:
+        assert row["budget_bytes"] == pytest.approx(921600 / 10 / 119, abs=0.1)
+        assert row["over_budget"] == 0 and max(row["first_6_framed"]) == row["max_framed_bytes"] <= 774
+        assert row["mean_bytes"] <= 200
+    assert rows[0]["statuses"] == {"OK": 5}

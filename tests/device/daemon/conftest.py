@@ -10,15 +10,12 @@ from pathlib import Path
 import pytest
 
 from ropecam.device.daemon.runner import Daemon
-from ropecam.host.cli import main as host_main
 
 
 @pytest.fixture(scope="package")
-def rig_set(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """Twelve frames of the simulated rig (1024x544, 4 ms) while the rope swings fast."""
-    out = tmp_path_factory.mktemp("rig") / "set"
-    assert host_main(["simulate", "rig", "--out", str(out), "--frames", "12", "--first-exposure-ms", "200", "-q"]) == 0
-    return out
+def rig_set(rig_frames: Path) -> Path:
+    """Twelve frames of the simulated rig (1024x544, 4 ms) while the rope swings fast (`rig_frames`)."""
+    return rig_frames
 
 
 class RunningDaemon:

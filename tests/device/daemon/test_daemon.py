@@ -8,6 +8,7 @@ import dataclasses
 import os
 import pty
 import socket
+import threading
 import time
 from pathlib import Path
 
@@ -220,17 +221,38 @@ def test_systemd_ready_watchdog_and_stopping(rig_set: Path, tmp_path: Path) -> N
     server.bind(path)
     server.settimeout(0.2)
     notifier = Notifier(path, watchdog_usec=20_000)
+    texts: list[str] = []
+    done = threading.Event()
+
+    def read() -> None:  # as systemd does, while the daemon runs (a full queue drops notifications)
+        while not done.is_set():
+            with contextlib.suppress(TimeoutError):
+                texts.append(server.recv(4096).decode())
+
+    reader = threading.Thread(target=read)
+    reader.start()
     with running(Daemon(_config(rig_set, "loop://daemon-sd"), notifier=notifier)) as run:
-        run.wait()
-    texts = []
-    while True:
-        try:
-            texts.append(server.recv(4096).decode())
-        except TimeoutError:
-            break
+        assert run.wait() == EXIT_OK
+    time.sleep(0.3)
+    done.set()
+    reader.join()
     server.close()
     assert texts[0].startswith("READY=1")
     assert "WATCHDOG=1" in texts and texts[-1] == "STOPPING=1"
+
+
+def test_a_stalled_notify_socket_drops_notifications_instead_of_blocking(tmp_path: Path) -> None:
+    """systemd's socket queues few datagrams (net.unix.max_dgram_qlen, 10 by default): a reader that stalls must
+    not stop the measuring loop, whose watchdog pings then wait for it (a blocking send did)."""
+    path = str(tmp_path / "notify.sock")
+    server = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    server.bind(path)
+    notifier = Notifier(path)
+    pings = 20_000  # far more than any queue holds
+    for _ in range(pings):
+        notifier.watchdog()
+    server.close()
+    assert 0 < len(notifier.sent) < pings and notifier.failed == pings - len(notifier.sent)
 
 
 @pytest.mark.parametrize(

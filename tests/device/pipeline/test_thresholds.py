@@ -25,13 +25,26 @@ def test_thresholds_follow_the_median_gradient_within_floor_and_cap() -> None:
     detector.detect(frame, detector.full_lo, detector.full_hi)
     median = float(np.median(detector.mag[::4, ::4]))  # the slow reference: the same planes, NumPy's median
     assert 2.0 < median < 8.0
-    measured = EdgeThresholds(60, 80, 1.0, 20.0, 50.0, frames=1).measure(frame)
+    thresholds = EdgeThresholds(60, 80, 1.0, 20.0, 50.0, frames=1)
+    measured = thresholds.measure(frame)
+    assert thresholds.noise == median  # its rows-only detection gives the whole frame's values on its grid
     assert measured == pytest.approx((LOW_PER_NOISE * median, HIGH_PER_NOISE * median), rel=1e-6)
     quiet = EdgeThresholds(60, 80, 1.0, 20.0, 50.0, frames=2)
     assert quiet.measure(np.full((60, 80), 40, np.uint8)) is None and quiet.measuring
     assert quiet.measure(np.full((60, 80), 40, np.uint8)) == (4.0, 10.0)  # the floors
     loud = EdgeThresholds(60, 80, 1.0, 20.0, 50.0, frames=1)
     assert loud.measure(_noise(40.0)) == (20.0, 50.0)  # never above the configured ones
+
+
+def test_warm_up_prepares_the_measurement_without_measuring() -> None:
+    frame = _noise(3.0)
+    warmed, cold = Pipeline(PipelineConfig(), (80, 60)), Pipeline(PipelineConfig(), (80, 60))
+    warmed.warm_up()
+    assert warmed.thresholds.measuring and warmed.thresholds.noise is None  # the blank frame taught nothing
+    warmed.process(frame, 0, 0, 4000.0)
+    cold.process(frame, 0, 0, 4000.0)
+    assert warmed.thresholds.noise == cold.thresholds.noise
+    assert (warmed.edges.low, warmed.edges.high) == (cold.edges.low, cold.edges.high)
 
 
 def test_threshold_frames_is_validated() -> None:

@@ -61,10 +61,11 @@ def test_folder_argument_and_empty_folder(good: list[Path], tmp_path: Path, caps
 
 
 def test_wrong_board_size(good: list[Path], tmp_path: Path, capsys) -> None:
-    code, _, err = _run(["calibrate", "intrinsics", *map(str, good), "--board", "10x7", "--square-mm", "25",
+    # Two views: OpenCV's search for a board that is not there is slow (it tries every quad grouping).
+    code, _, err = _run(["calibrate", "intrinsics", *map(str, good[:2]), "--board", "10x7", "--square-mm", "25",
                          "--out", str(tmp_path / "c.yaml")], capsys)  # fmt: skip
     assert code == 1
-    assert "only 0 of 5 images show a 10x7 board" in err
+    assert "only 0 of 2 images show a 10x7 board" in err
     assert "check --board (inner corners, not squares)" in err
     assert str(good[0]) in err
     assert not (tmp_path / "c.yaml").exists()
