@@ -22,6 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ropecam.device.pipeline import _kernels as K
+
 __all__ = ["BandEdgeModel", "EdgeTables", "shared_model"]
 
 _PHASES = (0.0, 0.25, 0.5, 0.75)
@@ -90,6 +92,7 @@ class BandEdgeModel:
         self.weights = np.asarray(smooth_weights, np.float64)
         self.lens_blur_px = float(lens_blur_px)
         self._cache: dict[int, EdgeTables] = {}
+        self._slants: dict[int, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
         self._spacings: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
 
     def _edges(
@@ -186,6 +189,74 @@ class BandEdgeModel:
         self._cache[key] = tables
         return tables
 
+    def slant_bias(self, edge_width_px: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Return how much shorter a still rope's edge spacing reads across a slanted rope than across an image
+        axis: (angles in degrees 0-45 from the nearest axis, spacing there minus across an axis, px; <= 0).
+
+        The model's edge is that of a band across an image axis. `measure_widths` reads the spacing between the
+        Sobel magnitude's ridges, each found by a parabola along the image axis nearest the gradient; across a
+        slanted band the 3x3 Sobel and that parabola read it shorter (a 2.49 px rope, lens blur 0.4 px,
+        smoothing 1 px: -0.01 px at 15 degrees, -0.06 at 30, -0.13 at 45). Computed here by the same
+        operations on a still band drawn at each angle (its edge blur the lens's and the pixel's variance, four
+        positions of the band on the pixel grid); cached on a 0.1 px grid of the spacing, as `tables`.
+        """
+        key = max(1, round(edge_width_px * 10))
+        cached = self._slants.get(key)
+        if cached is not None:
+            return cached
+        width = self.rope_width(key / 10.0)
+        sigma = math.sqrt(self.lens_blur_px**2 + 1.0 / 12.0)
+        half = len(self.weights) // 2
+        size = 2 * math.ceil(width + 4.0 * sigma + half + 6.0) + 1
+        angles = np.arange(0.0, 46.0, 2.5)  # (the suppression changes sectors at 22.5 degrees)
+        theta = np.radians(angles)[:, None, None, None]
+        shifts = np.asarray(_PHASES)[None, :, None, None]
+        rows, cols = np.mgrid[0:size, 0:size].astype(np.float64) - (size - 1) / 2.0
+        across = cols[None, None] * np.cos(theta) + rows[None, None] * np.sin(theta) - shifts  # (A, P, S, S)
+        image = _normal_cdf((0.5 * width - across) / sigma) - _normal_cdf((-0.5 * width - across) / sigma)
+        for axis in (-1, -2):  # the pipeline's separable smoothing (valid part only)
+            count = image.shape[axis] - 2 * half
+            image = sum(w * np.take(image, np.arange(k, k + count), axis=axis) for k, w in enumerate(self.weights))
+        gx = (image[..., :-2, 2:] + 2.0 * image[..., 1:-1, 2:] + image[..., 2:, 2:]) - (
+            image[..., :-2, :-2] + 2.0 * image[..., 1:-1, :-2] + image[..., 2:, :-2]
+        )
+        gy = (image[..., 2:, :-2] + 2.0 * image[..., 2:, 1:-1] + image[..., 2:, 2:]) - (
+            image[..., :-2, :-2] + 2.0 * image[..., :-2, 1:-1] + image[..., :-2, 2:]
+        )
+        gx, gy = gx.astype(np.float32), gy.astype(np.float32)
+        mag = np.hypot(gx, gy)
+        edges = _suppressed(mag, gx, gy)
+        inner = np.zeros(edges.shape[-2:], bool)
+        quarter = edges.shape[-1] // 4
+        inner[quarter:-quarter, quarter:-quarter] = True
+        height, count = edges.shape[-2:]
+        lo, hi = np.zeros(height, np.int32), np.full(height, count - 1, np.int32)
+        spacing = np.zeros(angles.size)
+        out = np.empty(height * count, np.float32)
+        for a in range(angles.size):
+            found = []
+            for p in range(len(_PHASES)):
+                chain = np.ascontiguousarray(np.argwhere(edges[a, p] & inner & (gx[a, p] > 0.0)), np.int32)
+                plane, reach = edges[a, p].view(np.uint8), np.float32(3.0 * width + 8.0)
+                n = K.measure_widths(
+                    plane,
+                    lo,
+                    hi,
+                    mag[a, p],
+                    gx[a, p],
+                    gy[a, p],
+                    chain,
+                    np.int32(len(chain)),
+                    np.float32(1.0),
+                    reach,
+                    out,
+                )
+                found.append(out[:n][np.isfinite(out[:n])])
+            spacing[a] = float(np.mean(np.concatenate(found)))
+        result = (angles, np.minimum(spacing - spacing[0], 0.0))
+        self._slants[key] = result
+        return result
+
     def slant_gain(self, width: float) -> float:
         """Return how far the tip read at the half-level crossing lies beyond the true flat end, per unit slope of
         the end's track (along the axis per unit across: an end that also moves along the rope).
@@ -201,6 +272,25 @@ class BandEdgeModel:
         weight = np.exp(-0.5 * x**2 / variance) * np.clip((x + 0.5 * width) / width, 0.0, 1.0)
         m = np.where(x < 0.5 * width, 0.5 * (x + 0.5 * width), x)
         return float(np.sum(weight * m) / np.sum(weight))
+
+
+def _suppressed(mag: NDArray[np.float32], gx: NDArray[np.float32], gy: NDArray[np.float32]) -> NDArray[np.bool_]:
+    """Canny's non-maximum suppression (OpenCV's sectors, as the pipeline's `nms_pixel`) over the last two axes;
+    the border pixels are not kept."""
+    keep = np.zeros(mag.shape, bool)
+    m = mag[..., 1:-1, 1:-1]
+    ax, ay = np.abs(gx[..., 1:-1, 1:-1]), np.abs(gy[..., 1:-1, 1:-1])
+    tan = math.tan(math.pi / 8.0)
+    across = m > mag[..., 1:-1, :-2]
+    across &= m >= mag[..., 1:-1, 2:]
+    down = m > mag[..., :-2, 1:-1]
+    down &= m >= mag[..., 2:, 1:-1]
+    same = gx[..., 1:-1, 1:-1] * gy[..., 1:-1, 1:-1] >= 0.0  # s = 1: (r - 1, c - 1) and (r + 1, c + 1)
+    diagonal = np.where(same, (m > mag[..., :-2, :-2]) & (m > mag[..., 2:, 2:]),
+                        (m > mag[..., :-2, 2:]) & (m > mag[..., 2:, :-2]))  # fmt: skip
+    keep[..., 1:-1, 1:-1] = np.where(ay < ax * tan, across, np.where(ay > ax * (tan + 2.0), down, diagonal))
+    keep[..., 1:-1, 1:-1] &= m > 1e-3 * float(mag.max())
+    return keep
 
 
 def _second_antiderivative(z: NDArray[np.float64]) -> NDArray[np.float64]:

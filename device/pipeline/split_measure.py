@@ -121,10 +121,23 @@ class BandMeasure:
         Motion only widens the band (for a sweep beyond the rope's width the spacing is the sweep), so the
         spacing is read where the rope moved least: first the lower quartile over the whole contour, then the
         median just beyond the fixed end's cap (within a tenth of the rope's extent).
+
+        Each point's spacing is first corrected for the slant of the rope to the image axes
+        (`BandEdgeModel.slant_bias`: the model's spacing is that across an axis; across a slanted rope the
+        pipeline reads it up to 0.14 px shorter, and the model's width, contrast and sweep tables built on such a
+        spacing read sweeps below the rope's width wrongly: on the simulated rig-soft demo, whose rope near the
+        fixed end turns through 45 degrees on the first frames, the begin and end shapes were 0.4-0.7 mm too
+        close where the sweep is 0.5-2 px).
         """
         K.measure_widths(edges, *spans, mag, gx, gy, chain, n, polarity, f32(64.0), self.dist)
         widths = self.dist[:n]
         finite = np.isfinite(widths)
+        if np.any(finite):
+            across = np.abs(gx[chain[:n, 0], chain[:n, 1]])
+            down = np.abs(gy[chain[:n, 0], chain[:n, 1]])
+            slant = np.degrees(np.arctan2(np.minimum(across, down), np.maximum(across, down)))
+            angles, bias = self.model.slant_bias(float(np.percentile(widths[finite], 25)))
+            widths = widths - np.interp(slant, angles, bias)
         valid = widths[finite]
         measured = float(np.percentile(valid, 25)) if valid.size else float("nan")
         if fixed_rc is not None and valid.size:
