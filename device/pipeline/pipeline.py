@@ -23,7 +23,7 @@ from ropecam.device.pipeline.contour import ContourTracer
 from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
 from ropecam.device.pipeline.locate import RopeLocator
 from ropecam.device.pipeline.motion import MotionModel
-from ropecam.device.pipeline.result import FrameResult, FrameStatus, exposure_in_ns, frame_problem
+from ropecam.device.pipeline.result import FrameResult, FrameStatus, Method, exposure_in_ns, frame_problem
 from ropecam.device.pipeline.split import BlurSplitter, SplitOutcome
 from ropecam.device.pipeline.static_mask import StaticMask
 from ropecam.device.pipeline.steady import SteadyFrame
@@ -441,6 +441,12 @@ class Pipeline:
             return
         traits = self.traits
         learned_px = traits.settled[0] if traits.settled is not None else traits.width()
+        used_px = outcome.width_px
+        if outcome.method is Method.BLUR_SPLIT:
+            # The split reports the rope's width (`EdgeTables.width_px`), the traits the edges' spacing: compare
+            # the spacings (a thin rope's edges lie up to 3x its width apart, and its width read from them swings
+            # by 2x for a 0.1 px change of spacing).
+            used_px = self.splitter.width
         checks = self.checks
         split = outcome.shape_a is not outcome.shape_b
         # The contour's area only where it is the evidence: a split of unknown exposure or without a prediction.
@@ -448,7 +454,7 @@ class Pipeline:
         if split and checks.needs_area(exposure_ns):
             area = contour_area_px2(self.tracer.points, self.locator.prev_count)
         status, reason = checks.check(
-            begin, end, self.fixed, result.stretch_begin, result.stretch_end, outcome.width_px, learned_px,
+            begin, end, self.fixed, result.stretch_begin, result.stretch_end, used_px, learned_px,
             result.order_confidence, exposure_ns, split, area,
         )  # fmt: skip
         result.quality = checks.quality
