@@ -164,6 +164,7 @@ from ropecam.device.pipeline._kernels.static_mask import (
     learn_static_range,
     mark_static,
 )
+from ropecam.device.pipeline._kernels.thresholds import HIST_PER_UNIT, histogram_median, sample_gradient_histogram
 from ropecam.device.pipeline._kernels.tracking import (
     HISTORY,
     MOTION_COUNT,
@@ -197,6 +198,7 @@ __all__ = [
     "FRAME_STATE",
     "FULL",
     "HISTORY",
+    "HIST_PER_UNIT",
     "INVALID",
     "MASK_ALWAYS",
     "MASK_FREE",
@@ -256,6 +258,7 @@ __all__ = [
     "grow_spans_inplace",
     "grow_spans_once",
     "half_level_crossing",
+    "histogram_median",
     "in_spans",
     "keep_largest_closed",
     "keep_largest_component",
@@ -287,6 +290,7 @@ __all__ = [
     "resample_polyline",
     "resample_polyline_of_length",
     "sample_bilinear",
+    "sample_gradient_histogram",
     "score_knots",
     "side_sweeps",
     "side_sweeps_indexed",
