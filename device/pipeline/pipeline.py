@@ -36,7 +36,10 @@ from ropecam.shared.config import check_readout
 from ropecam.shared.errors import ConfigError
 from ropecam.shared.plane import PlaneCalibration
 
-__all__ = ["Pipeline"]
+__all__ = ["BROKEN_OUTLINE", "Pipeline"]
+
+BROKEN_OUTLINE = 0.15
+"""Largest part of the contour's pixels walked twice (spurs of noise and texture) before it is no band outline."""
 
 _NO_COPY = (
     "a Pipeline cannot be copied or pickled: its steady frames read a table of the raw addresses of its buffers, "
@@ -401,6 +404,17 @@ class Pipeline:
         if outcome is None:
             result.status = FrameStatus.LOST_TRACK
             result.message = self.splitter.failure
+            return
+        n = self.locator.prev_count
+        revisits = K.count_revisits(self.tracer.chain_ro, np.int32(n), self.edges.edges)
+        if revisits > BROKEN_OUTLINE * n:
+            # A faint far side on a textured plate broke the band's edge: the contour went out along each piece
+            # and back (a tree walk), and any two "sides" read from it are guesses.
+            result.status = FrameStatus.LOST_TRACK
+            result.message = (
+                f"the band's edge is broken: the contour walks {100.0 * revisits / n:.0f} % of its pixels twice "
+                f"(more than {100.0 * BROKEN_OUTLINE:.0f} %), it is not the band's outline"
+            )
             return
         result.method = outcome.method
         result.rope_width_px = outcome.width_px

@@ -117,6 +117,7 @@ from ropecam.device.pipeline._kernels.offsets import (
     side_sweeps_indexed,
     slope_sweep_median,
 )
+from ropecam.device.pipeline._kernels.outline import VISITED, count_revisits
 from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots, thin_chain
 from ropecam.device.pipeline._kernels.plane import (
     PLANE_PARAMS,
@@ -232,6 +233,7 @@ __all__ = [
     "STEADY_SWAP",
     "TAN_22_5",
     "TWO",
+    "VISITED",
     "ZERO",
     "anchor_start",
     "apply_operator",
@@ -241,6 +243,7 @@ __all__ = [
     "chain_length",
     "coarse_spans",
     "count_border_contacts",
+    "count_revisits",
     "count_roi_contacts",
     "dense_end_points",
     "detect_and_trace",
