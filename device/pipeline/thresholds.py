@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import as_ro, ro
+from ropecam.device.pipeline._views import ro
 from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
 
 __all__ = ["FOLLOW_WEIGHT", "HIGH_PER_NOISE", "LOW_PER_NOISE", "EdgeThresholds"]
@@ -128,9 +128,7 @@ class EdgeThresholds:
         cycle, phase, step = self.update_frames, self._phase, self._step
         if phase == 0:
             self._hist.fill(0)
-        K.sample_gradient_histogram(
-            as_ro(frame), self._weights, step * phase, step * cycle, step, self._work, self._hist
-        )
+        K.sample_gradient_histogram(frame, self._weights, step * phase, step * cycle, step, self._work, self._hist)
         self._phase = phase = phase + 1
         if phase < cycle:
             return None
