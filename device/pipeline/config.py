@@ -80,6 +80,11 @@ class PipelineConfig:
         Frames on whose gradient magnitude the Canny thresholds are measured (`EdgeThresholds`: 2.5 and 4 times
         the median magnitude, at least 4 and 10, at most `canny_low` and `canny_high`); 0: `canny_low` and
         `canny_high` as given.
+    threshold_update_frames
+        After the first `threshold_frames`, the thresholds follow the frames slowly (a lamp warming up, a cloud,
+        flicker, a gain change): each frame samples a slice of a sparse grid (every 8th pixel) of the gradient
+        magnitude, and every `threshold_update_frames` frames the grid's median is averaged into the noise level
+        (weight 0.25); the thresholds are set again when they move by more than 5 %. 0: measured once.
     static_frames
         Frames over which the static mask is learned (each pixel's range of grey levels; pixels that stay within
         the noise are static structures: clamp, rod, plate edge, scratches, dust), whose edges are then dropped
@@ -122,6 +127,7 @@ class PipelineConfig:
     output_smoothing_px: float = 24.0
     max_contour: int = 40_000
     threshold_frames: int = 1
+    threshold_update_frames: int = 16
     static_frames: int = 0
     static_margin_dn: int = 3
     static_relative: float = 0.1
@@ -181,6 +187,7 @@ class PipelineConfig:
         check_range("output_smoothing_px", self.output_smoothing_px, 0.0, 200.0)
         check_range("max_contour", self.max_contour, 100, 10_000_000)
         check_range("threshold_frames", self.threshold_frames, 0, 10_000)
+        check_range("threshold_update_frames", self.threshold_update_frames, 0, 100_000)
         check_range("static_frames", self.static_frames, 0, 10_000)
         check_range("static_margin_dn", self.static_margin_dn, 0, 255)
         check_range("static_relative", self.static_relative, 0.0, 1.0)

@@ -10,13 +10,16 @@ from ropecam.device.pipeline.checks import Reason, SelfChecks, contour_area_px2
 from ropecam.device.pipeline.contour import ContourTracer
 from ropecam.device.pipeline.locate import RopeLocator
 from ropecam.device.pipeline.motion import MotionModel
-from ropecam.device.pipeline.result import FrameStatus, PipelineResult, exposure_in_ns
+from ropecam.device.pipeline.result import FrameStatus, Method, PipelineResult, exposure_in_ns
 from ropecam.device.pipeline.split import BlurSplitter, SplitOutcome
 from ropecam.device.pipeline.time_order import DEFAULT_PERIOD_NS, TimeOrder
 from ropecam.device.pipeline.tracking import PointTracker
 from ropecam.device.pipeline.traits import RopeTraits
 
-__all__ = ["FrameClock", "ResultFinisher", "max_age_ns"]
+__all__ = ["BROKEN_OUTLINE", "FrameClock", "ResultFinisher", "max_age_ns"]
+
+BROKEN_OUTLINE = 0.15
+"""Largest part of the contour's pixels walked twice (spurs of noise and texture) before it is no band outline."""
 
 
 def max_age_ns(period_ns: int | None) -> int:
@@ -103,6 +106,17 @@ class ResultFinisher:
             result.status = FrameStatus.LOST_TRACK
             result.message = self.splitter.failure
             return
+        n = self.locator.prev_count
+        revisits = K.count_revisits(self.tracer.chain_ro, np.int32(n), self.locator.edges.edges)
+        if revisits > BROKEN_OUTLINE * n:
+            # A faint far side on a textured plate broke the band's edge: the contour went out along each piece
+            # and back (a tree walk), and any two "sides" read from it are guesses.
+            result.status = FrameStatus.LOST_TRACK
+            result.message = (
+                f"the band's edge is broken: the contour walks {100.0 * revisits / n:.0f} % of its pixels twice "
+                f"(more than {100.0 * BROKEN_OUTLINE:.0f} %), it is not the band's outline"
+            )
+            return
         result.method = outcome.method
         result.rope_width_px = outcome.width_px
         result.segmentation_points = outcome.segmentation_points
@@ -166,8 +180,14 @@ class ResultFinisher:
         area = 0.0
         if split and checks.needs_area(exposure_ns):
             area = contour_area_px2(self.tracer.points, self.locator.prev_count)
+        used_px = outcome.width_px
+        if outcome.method is Method.BLUR_SPLIT:
+            # The split reports the rope's width (`EdgeTables.width_px`), the traits the edges' spacing: compare
+            # the spacings (a thin rope's edges lie up to 3x its width apart, and its width read from them swings
+            # by 2x for a 0.1 px change of spacing).
+            used_px = self.splitter.width
         status, reason = checks.check(
-            begin, end, self.fixed, result.stretch_begin, result.stretch_end, outcome.width_px, learned_px,
+            begin, end, self.fixed, result.stretch_begin, result.stretch_end, used_px, learned_px,
             result.order_confidence, exposure_ns, split, area,
         )  # fmt: skip
         result.quality = checks.quality

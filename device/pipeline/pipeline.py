@@ -94,9 +94,16 @@ class Pipeline:
         self.static_mask = StaticMask.from_config(ws.edges, config, self.shape)
         """The static structures whose edges are dropped (learned over the first `static_frames` frames)."""
         self.thresholds = EdgeThresholds(
-            height, width, config.smooth_sigma_px, config.canny_low, config.canny_high, config.threshold_frames
+            height,
+            width,
+            config.smooth_sigma_px,
+            config.canny_low,
+            config.canny_high,
+            config.threshold_frames,
+            update_frames=config.threshold_update_frames,
         )
-        """The Canny thresholds measured on the first `threshold_frames` frames (at most `canny_low`/`high`)."""
+        """The Canny thresholds measured on the first `threshold_frames` frames (at most `canny_low`/`high`), then
+        followed every `threshold_update_frames` frames."""
         self.splitter = BlurSplitter(
             cap, config.method, config.static_ratio, config.corner_scale_px,
             config.paper_endpoint_radius_px, config.output_step_px, config.tip_cap, config.smooth_sigma_px,
@@ -183,6 +190,10 @@ class Pipeline:
                 measured = self.thresholds.measure(image)
                 if measured is not None:
                     self._set_thresholds(*measured)
+            elif self.thresholds.following:
+                followed = self.thresholds.follow(image)
+                if followed is not None:
+                    self._set_thresholds(*followed)
             if self.static_mask.learning:
                 self.static_mask.learn(image)
                 if not self.static_mask.learning and self._unclean_frames > 0:

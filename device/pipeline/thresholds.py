@@ -1,14 +1,19 @@
 """EdgeThresholds: Canny thresholds relative to the frame's own noise, so that a faint rope on a quiet plate is
-found with the same pipeline as a bright one, and a noisy or textured plate does not flood it with edges."""
+found with the same pipeline as a bright one, and a noisy or textured plate does not flood it with edges; then
+followed slowly over the stream (a lamp warming up, a cloud, a gain change)."""
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ropecam.device.pipeline.edges import EdgeDetector
+from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._views import ro
+from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
 
-__all__ = ["HIGH_PER_NOISE", "LOW_PER_NOISE", "EdgeThresholds"]
+__all__ = ["FOLLOW_WEIGHT", "HIGH_PER_NOISE", "LOW_PER_NOISE", "EdgeThresholds"]
 
 LOW_PER_NOISE = 2.5
 """Low threshold per median background gradient magnitude: for Gaussian noise the magnitude is Rayleigh
@@ -17,6 +22,15 @@ HIGH_PER_NOISE = 4.0
 """High threshold per median background gradient magnitude: 1.6e-5 of the background passes it (no seeds)."""
 _STEP = 4
 """Pixel step of the subsample of the gradient magnitude whose median is taken."""
+FOLLOW_SAMPLES = 2048
+"""Samples of the gradient magnitude per following cycle: the grid's step is chosen for it (16 px on a 1024x544
+frame), and a cycle's slices share them out (~130 per frame at 16 frames per cycle)."""
+FOLLOW_WEIGHT = 0.25
+"""Weight of a cycle's median in the followed noise level (an exponential average: a step change is 90 % followed
+after 8 cycles)."""
+FOLLOW_CHANGE = 0.05
+"""Relative change of the followed thresholds below which the pipeline keeps the ones it uses (setting them makes
+the kernels' argument lists again)."""
 
 
 class EdgeThresholds:
@@ -35,6 +49,10 @@ class EdgeThresholds:
         The configured thresholds: the largest the measured ones may be.
     frames
         Frames to measure on (their medians are averaged); 0: the configured thresholds are kept.
+    update_frames
+        After the first `frames`, the frames of one following cycle (`follow`): each samples a slice of a sparse
+        grid of the gradient magnitude, the cycle's median is averaged into the noise level (`FOLLOW_WEIGHT`) and
+        the thresholds follow it. 0: the first measurement is kept.
     floor_low, floor_high
         The smallest thresholds.
     """
@@ -49,13 +67,26 @@ class EdgeThresholds:
         frames: int,
         floor_low: float = 4.0,
         floor_high: float = 10.0,
+        update_frames: int = 0,
     ) -> None:
         if frames < 0:
             raise ValueError(f"frames must be >= 0, got {frames}")
+        if update_frames < 0:
+            raise ValueError(f"update_frames must be >= 0, got {update_frames}")
         self.low, self.high = float(low), float(high)
         self.frames = int(frames)
         self.floor_low, self.floor_high = min(floor_low, self.low), min(floor_high, self.high)
         self._medians: list[float] = []
+        self.update_frames = int(update_frames)
+        self._weights = ro(gaussian_weights(smooth_sigma_px))
+        self._hist = np.zeros(4096, np.int32)  # magnitudes to 1024 in 1 / HIST_PER_UNIT bins
+        self._hist_ro = ro(self._hist)
+        self._work = np.zeros((len(self._weights) + 2, 3), np.float32)
+        self._step = max(2, int(math.sqrt(height * width / FOLLOW_SAMPLES)))  # the following grid's step (px)
+        self._phase = 0
+        self._level: float | None = None  # the followed noise level (median gradient magnitude)
+        self.used: tuple[float, float] | None = None
+        """The thresholds last handed out (`measure` or `follow`)."""
         self._detector: EdgeDetector | None = None
         self._shape = (height, width)
         self._sigma = smooth_sigma_px
@@ -84,7 +115,11 @@ class EdgeThresholds:
         if self.measuring:
             return None
         self._detector = None  # its planes are not needed any more
-        noise = float(np.mean(self._medians))
+        self._level = float(np.mean(self._medians))
+        self.used = self._from_level(self._level)
+        return self.used
+
+    def _from_level(self, noise: float) -> tuple[float, float]:
         low = min(max(LOW_PER_NOISE * noise, self.floor_low), self.low)
         high = min(max(HIGH_PER_NOISE * noise, self.floor_high), self.high)
         return low, max(high, low)
@@ -98,6 +133,40 @@ class EdgeThresholds:
         return float(np.median(d.mag[::_STEP, ::_STEP]))
 
     @property
+    def following(self) -> bool:
+        """Whether the thresholds follow the frames (measured first, `update_frames` > 0)."""
+        return self.update_frames > 0 and self._level is not None
+
+    def follow(self, frame: NDArray[np.uint8]) -> tuple[float, float] | None:
+        """Sample this frame's slice of the grid (every `update_frames`-th row of it, in turn); at the end of a
+        cycle, average its median into the noise level. Returns new thresholds when they moved by more than
+        `FOLLOW_CHANGE` from the ones last handed out, else None. One kernel call per frame, no allocation."""
+        cycle, phase, step = self.update_frames, self._phase, self._step
+        if phase == 0:
+            self._hist.fill(0)
+        K.sample_gradient_histogram(frame, self._weights, step * phase, step * cycle, step, self._work, self._hist)
+        self._phase = phase = phase + 1
+        if phase < cycle:
+            return None
+        self._phase = 0
+        median = float(K.histogram_median(self._hist_ro))
+        if median < 0.0 or self._level is None:
+            return None
+        self._level += FOLLOW_WEIGHT * (median - self._level)
+        low, high = self._from_level(self._level)
+        used = self.used
+        if (
+            used is not None
+            and abs(low - used[0]) <= FOLLOW_CHANGE * used[0]
+            and (abs(high - used[1]) <= FOLLOW_CHANGE * used[1])
+        ):
+            return None
+        self.used = (low, high)
+        return self.used
+
+    @property
     def noise(self) -> float | None:
-        """The mean of the measured medians (None before the first frame)."""
+        """The noise level: the mean of the measured medians, then followed (None before the first frame)."""
+        if self._level is not None:
+            return self._level
         return float(np.mean(self._medians)) if self._medians else None

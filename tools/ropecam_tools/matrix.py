@@ -30,6 +30,8 @@ examples:
   python tools/evaluate.py matrix --out runs/val --seed-set validation
   python tools/evaluate.py matrix --out runs/tex --only factors --factor texture contrast --frames 30
   python tools/evaluate.py matrix --out runs/p --only presets --preset rig --method blur_split --frames 8
+  python tools/evaluate.py matrix --out runs/nc --only presets --preset lab-dark --set scene.clamp=false \
+      scene.rod_width_px=0 scene.distractor=false                              # a preset without its clamp
 """
 
 from __future__ import annotations
@@ -94,6 +96,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--factor", nargs="+", metavar="NAME",
                         help="factor rows to run (default all): " + ", ".join(f.name for f in FACTORS))  # fmt: skip
     parser.add_argument("--preset", nargs="+", metavar="NAME", help="presets for the presets section (default all)")
+    parser.add_argument("--set", nargs="+", default=[], metavar="KEY=VALUE", dest="settings",
+                        help="simulator keys set on every preset and paper scene (TOML values, e.g. "
+                        "scene.clamp=false scene.rod_width_px=0); their rows are labelled with them")  # fmt: skip
     parser.add_argument("--photo-dir", type=Path, default=REALDATA, metavar="DIR",
                         help=f"folder of the real rope photographs (default {REALDATA})")  # fmt: skip
     parser.add_argument("--keep-frames", action="store_true",
@@ -109,6 +114,29 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-plots", action="store_true", help="write the tables only (no matplotlib)")
     parser.add_argument("--replot", action="store_true",
                         help="measure nothing: rewrite the tables and plots of OUT from OUT/matrix.json")  # fmt: skip
+
+
+def parse_settings(items: list[str]) -> dict[str, Any]:
+    """Parse ``--set`` items ``KEY=VALUE`` (VALUE a TOML value; a bare word is a string) into {dotted key: value}.
+
+    Raises
+    ------
+    SystemExit
+        An item without ``=`` or with an empty key (the message names the item).
+    """
+    import tomllib
+
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or not key.strip() or not text.strip():
+            raise SystemExit(f"matrix --set: expected KEY=VALUE (e.g. scene.clamp=false), got {item!r}")
+        try:
+            value = tomllib.loads(f"v = {text.strip()}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text.strip()
+        out[key.strip()] = value
+    return out
 
 
 def _config(scene: Scene, frames: int) -> Any:
@@ -343,7 +371,7 @@ def run(args: argparse.Namespace) -> int:
         scenes, missing = build_scenes(
             presets, args.seed_set, tuple(args.only), None if args.factor is None else tuple(args.factor),
             None if args.preset is None else tuple(args.preset), args.photo_dir.resolve(),
-            paper_timed,
+            paper_timed, parse_settings(args.settings),
         )  # fmt: skip
     except ValueError as exc:
         raise SystemExit(f"matrix: {exc}") from None
@@ -416,6 +444,7 @@ def run(args: argparse.Namespace) -> int:
         "workers": args.workers,
         "plane": args.plane,
         "setup": args.setup,
+        "settings": args.settings,
         "wall_s": time.perf_counter() - started_wall,
         "cpu_s": sum(u.ru_utime + u.ru_stime for u in (usage_self, usage_children)),
         "cpus": os.cpu_count(),

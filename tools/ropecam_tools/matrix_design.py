@@ -301,6 +301,7 @@ def build_scenes(
     preset_names: tuple[str, ...] | None = None,
     photo_dir: Path = REALDATA,
     paper_timed: dict[str, Any] | None = None,
+    preset_set: dict[str, Any] | None = None,
 ) -> tuple[list[Scene], list[tuple[Factor, str]]]:
     """Return the matrix's scenes and the factor rows left out (with the reason: a key the simulator lacks).
 
@@ -319,6 +320,9 @@ def build_scenes(
     paper_timed
         Preset name -> its configuration through the paper's camera and timing, as a dict (for the paper section;
         ``paper`` itself is taken from `presets`).
+    preset_set
+        Dotted simulator keys -> values set on every scene of the presets and paper sections (``--set``), e.g.
+        ``{"scene.clamp": False}``; their rows are labelled with them.
 
     Raises
     ------
@@ -338,9 +342,15 @@ def build_scenes(
     seeds = SEED_SETS[seed_set]
     common = {"seed": seeds.seed, "first_exposure_s": seeds.first_exposure_s}
 
+    settings: dict[str, Any] = {}
+    for key, value in (preset_set or {}).items():
+        settings = _merge(settings, _nested(key, value))
+    suffix = " [" + ", ".join(f"{k}={_format(v)}" for k, v in preset_set.items()) + "]" if preset_set else ""
+
     def preset_overrides(config: dict[str, Any]) -> dict[str, Any]:
         # a preset's photo is read from the matrix's photo folder, not from its path relative to the working directory
-        return _merge(common, {"scene": {"photo_dir": str(photo_dir)}}) if config["scene"].get("rope_photo") else common
+        out = _merge(common, settings)
+        return _merge(out, {"scene": {"photo_dir": str(photo_dir)}}) if config["scene"].get("rope_photo") else out
 
     scenes: list[Scene] = []
     if "presets" in only:
@@ -349,7 +359,7 @@ def build_scenes(
                 continue
             overrides = preset_overrides(config)
             for exposure in config["exposure_ms"]:
-                label = name if len(config["exposure_ms"]) == 1 else f"{name} {exposure:g} ms"
+                label = (name if len(config["exposure_ms"]) == 1 else f"{name} {exposure:g} ms") + suffix
                 key = _key(_merge(config, overrides), float(exposure))
                 scenes.append(Scene("presets", label, name, overrides, float(exposure), key))
     base = _merge(presets[IDEAL_PRESET], IDEAL)
@@ -388,5 +398,6 @@ def build_scenes(
             for exposure_ms in PAPER_EXPOSURES_MS:
                 key = _key(_merge(timed[name], overrides), exposure_ms)
                 label = f"{name} {exposure_ms:g} ms" if name == "paper" else f"{name} (paper camera) {exposure_ms:g} ms"
+                label += suffix
                 scenes.append(Scene("paper", label, name, overrides, exposure_ms, key, paper_timing=name != "paper"))
     return scenes, missing

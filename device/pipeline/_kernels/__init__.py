@@ -166,6 +166,7 @@ from ropecam.device.pipeline._kernels.polylines import (
     trim_polyline_end,
 )
 from ropecam.device.pipeline._kernels.prediction import need_profile
+from ropecam.device.pipeline._kernels.revisits import VISITED, count_revisits
 from ropecam.device.pipeline._kernels.smoothing import smooth_polyline
 from ropecam.device.pipeline._kernels.spans import (
     coarse_spans,
@@ -193,6 +194,7 @@ from ropecam.device.pipeline._kernels.static_mask import (
     nearest_cut_end,
     seal_cut_ends,
 )
+from ropecam.device.pipeline._kernels.thresholds import HIST_PER_UNIT, histogram_median, sample_gradient_histogram
 from ropecam.device.pipeline._kernels.tracking import (
     HISTORY,
     MOTION_COUNT,
@@ -231,6 +233,7 @@ __all__ = [
     "FRAME_STATES",
     "FULL",
     "HISTORY",
+    "HIST_PER_UNIT",
     "INVALID",
     "MASK_ALWAYS",
     "MASK_FREE",
@@ -275,6 +278,7 @@ __all__ = [
     "TAN_22_5",
     "TRACK",
     "TWO",
+    "VISITED",
     "ZERO",
     "Band",
     "Motion",
@@ -292,6 +296,7 @@ __all__ = [
     "check_frame",
     "coarse_spans",
     "count_border_contacts",
+    "count_revisits",
     "count_roi_contacts",
     "dense_end_points",
     "detect_and_trace",
@@ -309,6 +314,7 @@ __all__ = [
     "grow_spans_inplace",
     "grow_spans_once",
     "half_level_crossing",
+    "histogram_median",
     "in_spans",
     "is_cut_end",
     "keep_largest_closed",
@@ -344,6 +350,7 @@ __all__ = [
     "resample_polyline",
     "resample_polyline_of_length",
     "sample_bilinear",
+    "sample_gradient_histogram",
     "score_knots",
     "seal_cut_ends",
     "side_sweeps",

@@ -71,3 +71,41 @@ def test_a_faint_rope_is_found_with_measured_thresholds() -> None:
         worst[threshold_frames] = max(errors)
     assert worst[0] == np.inf
     assert worst[1] < 0.5
+
+
+def test_followed_thresholds_match_a_fresh_measurement_and_cost_one_kernel_call() -> None:
+    """The sparse grid's median (`follow`) is the whole-frame measurement's within a histogram bin and a few %."""
+    frame = _noise(6.0, (120, 160))
+    fresh = EdgeThresholds(120, 160, 1.0, 200.0, 500.0, frames=1).measure(frame)
+    follower = EdgeThresholds(120, 160, 1.0, 200.0, 500.0, frames=1, update_frames=2)
+    follower.measure(_noise(1.0, (120, 160)))  # a quiet start
+    assert follower.following
+    for _ in range(40):  # 20 cycles: (1 - 0.25) ** 20 of the start is left
+        follower.follow(frame)
+    assert follower.used == pytest.approx(fresh, rel=0.1)
+    with pytest.raises(ValueError, match="update_frames"):
+        EdgeThresholds(10, 10, 1.0, 20.0, 50.0, frames=1, update_frames=-1)
+
+
+def test_the_pipeline_follows_a_noise_change_mid_stream() -> None:
+    """Frames of a quiet plate, then the noise rises 6x (the lamp dimmed and the gain went up): the thresholds
+    follow it within a few cycles; with `threshold_update_frames = 0` they stay at the first frame's."""
+    shape = (120, 160)
+    quiet = [_noise(0.8, shape) for _ in range(3)]
+    rng = np.random.default_rng(5)
+    loud = [np.clip(60.0 + rng.normal(0.0, 5.0, shape), 0, 255).astype(np.uint8) for _ in range(36)]
+    expected = EdgeThresholds(*shape, 1.0, 20.0, 50.0, frames=1).measure(loud[0])
+    lows = {}
+    for update in (0, 2):  # 18 cycles: (1 - 0.25) ** 18 of the quiet level is left
+        pipeline = Pipeline(PipelineConfig(threshold_update_frames=update), (shape[1], shape[0]))
+        for index, frame in enumerate(quiet + loud):
+            pipeline.process(frame, index, index * 8_403_361, 4000.0)
+        lows[update] = float(pipeline.edges.low)
+    assert lows[0] == pytest.approx(4.0)  # the quiet plate's floor, kept
+    assert lows[2] == pytest.approx(expected[0], rel=0.1)
+    assert expected[0] > 2.0 * lows[0]
+
+
+def test_threshold_update_frames_is_validated() -> None:
+    with pytest.raises(ConfigError, match="threshold_update_frames"):
+        PipelineConfig(threshold_update_frames=-2)
