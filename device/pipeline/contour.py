@@ -91,8 +91,8 @@ class ContourTracer:
             # they are (an `as_ro` or a NumPy scalar costs 0.5-1.5 us here): read-only views, as the pipeline and
             # `EdgeDetector` keep them, match the kernel's signature; writable ones work, through the slow path.
             n = K.trace_rope(
-                edges, lo, hi, edge_list, int(n_edges), self._min32, True, mag, gx, gy, self.labels, self.stack,
-                self.start, self.chain, self.codes, self.points, self.counts,
+                edges, lo, hi, edge_list, int(n_edges), self._min32, True, False, mag, gx, gy, self.labels,
+                self.stack, self.start, self.chain, self.codes, self.points, self.counts,
             )  # fmt: skip
             self.component_px, self.contacts, self.on_border = self.counts[:3].tolist()
             self.count = n if n > 0 else 0  # FULL: a contour longer than the buffers is not a rope

@@ -458,6 +458,7 @@ def refine_inner(mag, gx, gy, lo, hi, chain, n, scratch, out_points):
         int64,
         int32,
         boolean,
+        boolean,
         f4_2d_ro,
         f4_2d_ro,
         f4_2d_ro,
@@ -478,6 +479,7 @@ def trace_rope(
     n_edges,
     min_pixels,
     ring_clear,
+    open_once,
     mag,
     gx,
     gy,
@@ -490,7 +492,8 @@ def trace_rope(
     out_counts,
 ):
     """The contour stage in one call: `keep_largest_listed`, `trace_contour` from the component's start,
-    `keep_open_once` (an open curve, the rope cut by a static mask at its clamp, walked once), `refine_subpixel`
+    with `open_once` `keep_open_once` (an open curve, the rope cut by a static mask at its clamp, walked once;
+    without a mask an out-and-back walk is a broken band edge, which the outline check must see), `refine_subpixel`
     of the chain and `count_roi_contacts`; same outputs as those calls in that order. When
     `ring_clear` and the spans keep off the image border, the trace is `trace_closed` (no span tests), run
     first from the first listed pixel: `keep_traced` then floods only the pixels the chain missed (when another
@@ -532,7 +535,8 @@ def trace_rope(
                 out_start[0] = start_r
                 out_start[1] = start_c
                 out_counts[0] = size
-                n = keep_open_once(out_chain, out_codes, n, size)
+                if open_once:
+                    n = keep_open_once(out_chain, out_codes, n, size)
                 out_counts[1] = refine_inner(mag, gx, gy, lo, hi, out_chain, n, scratch, out_points)
                 return n
         # Another component is larger, or the chain overflows (its size is then reported): the general way.
@@ -551,7 +555,8 @@ def trace_rope(
         n = trace_contour(edges, lo, hi, out_start[0], out_start[1], out_chain, out_codes)
     if n < 0:
         return n
-    n = keep_open_once(out_chain, out_codes, n, size)
+    if open_once:
+        n = keep_open_once(out_chain, out_codes, n, size)
     if inner:
         out_counts[1] = refine_inner(mag, gx, gy, lo, hi, out_chain, n, scratch, out_points)
         return n

@@ -35,7 +35,8 @@ def detect_and_trace(
     """`detect_edges` inside the spans `lo`/`hi`, then `trace_rope` on its edges (the edge pixels it lists in
     `edge_stack`, `ring_clear` true: `detect_edges` leaves the edge map 0 next to its spans) after
     `drop_static_edges` with `static_mask`, `static_low`, `static_high` (a 1x1 mask: none) and `seal_cut_ends`
-    (the rope's sides cut at a masked clamp joined across its exit): the edge and contour stages in one call, with
+    (the rope's sides cut at a masked clamp joined across its exit; with a mask, an open outline is walked once):
+    the edge and contour stages in one call, with
     the same outputs as those calls.
 
     Arguments as for those kernels (`work_spans` .. `edge_stack` are `detect_edges`' outputs, `out_labels` ..
@@ -59,9 +60,10 @@ def detect_and_trace(
     count = drop_static_edges(frame, static_mask, static_low, static_high, out_edges, edge_stack, count)
     count = seal_cut_ends(static_mask, lo, hi, out_edges, edge_stack, count)
     out_counts[3] = count
+    masked = static_mask.shape[0] == frame.shape[0] and static_mask.shape[1] == frame.shape[1]
     return trace_rope(
-        out_edges, lo, hi, edge_stack, count, min_pixels, True, out_mag, out_gx, out_gy, out_labels, stack, out_start,
-        out_chain, out_codes, out_points, out_counts,
+        out_edges, lo, hi, edge_stack, count, min_pixels, True, masked, out_mag, out_gx, out_gy, out_labels, stack,
+        out_start, out_chain, out_codes, out_points, out_counts,
     )  # fmt: skip
 
 

@@ -78,7 +78,7 @@ def test_detect_and_trace_is_detect_edges_then_trace_rope(seed: int, full: bool,
         ref["mag"], ref["edges"], ref["edge_stack"],
     )  # fmt: skip
     n_ref = K.trace_rope(
-        ref["edges"], lo, hi, _ro(ref["edge_stack"]), count, np.int32(min_pixels), True, _ro(ref["mag"]),
+        ref["edges"], lo, hi, _ro(ref["edge_stack"]), count, np.int32(min_pixels), True, False, _ro(ref["mag"]),
         _ro(ref["gx"]), _ro(ref["gy"]), ref["labels"], ref["stack"], ref["start"], ref["chain"], ref["codes"],
         ref["points"], ref["counts"],
     )  # fmt: skip
