@@ -16,6 +16,10 @@ if TYPE_CHECKING:
 
 __all__ = ["ContourTracer"]
 
+_NO_MASK = np.zeros((1, 1), np.uint8)
+_NO_MASK.flags.writeable = False
+"""The static-mask placeholder of `trace` (no mask: an out-and-back walk is kept as it is)."""
+
 
 @expose("buffers", ContourBuffers)
 class ContourTracer:
@@ -91,7 +95,7 @@ class ContourTracer:
             # they are (an `as_ro` or a NumPy scalar costs 0.5-1.5 us here): read-only views, as the pipeline and
             # `EdgeDetector` keep them, match the kernel's signature; writable ones work, through the slow path.
             n = K.trace_rope(
-                edges, lo, hi, edge_list, int(n_edges), self._min32, True, False, mag, gx, gy, self.labels,
+                edges, lo, hi, edge_list, int(n_edges), self._min32, True, _NO_MASK, mag, gx, gy, self.labels,
                 self.stack, self.start, self.chain, self.codes, self.points, self.counts,
             )  # fmt: skip
             self.component_px, self.contacts, self.on_border = self.counts[:3].tolist()

@@ -107,7 +107,10 @@ class ResultFinisher:
             result.message = self.splitter.failure
             return
         n = self.locator.prev_count
-        revisits = K.count_revisits(self.tracer.chain_ro, np.int32(n), self.locator.edges.edges)
+        # Two shapes read from the outline's two sides, of a known exposure (without one, a split needs evidence of
+        # blur anyway, `checks.no_blur`, and a still photo's looped rope walks its crossings twice).
+        split = outcome.shape_a is not outcome.shape_b and exposure_ns > 0
+        revisits = K.count_revisits(self.tracer.chain_ro, np.int32(n), self.locator.edges.edges) if split else 0
         if revisits > BROKEN_OUTLINE * n:
             # A faint far side on a textured plate broke the band's edge: the contour went out along each piece
             # and back (a tree walk), and any two "sides" read from it are guesses.

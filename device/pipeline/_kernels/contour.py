@@ -10,7 +10,7 @@ from numba import boolean, float64, int32, int64
 from ropecam.device.pipeline._kernels._common import DIR_COL, DIR_ROW, FULL, NOT_FOUND
 from ropecam.device.pipeline._kernels.contacts import on_image_border, touches_roi_border
 from ropecam.device.pipeline._kernels.geometry import axis_offset
-from ropecam.device.pipeline._kernels.outline import keep_open_once
+from ropecam.device.pipeline._kernels.outline import OPEN_RATIO, keep_open_once, touches_mask
 from ropecam.device.pipeline._kernels.spans import in_spans
 from ropecam.shared.jit import (
     f4_2d,
@@ -458,7 +458,7 @@ def refine_inner(mag, gx, gy, lo, hi, chain, n, scratch, out_points):
         int64,
         int32,
         boolean,
-        boolean,
+        u1_2d_ro,
         f4_2d_ro,
         f4_2d_ro,
         f4_2d_ro,
@@ -479,7 +479,7 @@ def trace_rope(
     n_edges,
     min_pixels,
     ring_clear,
-    open_once,
+    static_mask,
     mag,
     gx,
     gy,
@@ -492,8 +492,9 @@ def trace_rope(
     out_counts,
 ):
     """The contour stage in one call: `keep_largest_listed`, `trace_contour` from the component's start,
-    with `open_once` `keep_open_once` (an open curve, the rope cut by a static mask at its clamp, walked once;
-    without a mask an out-and-back walk is a broken band edge, which the outline check must see), `refine_subpixel`
+    `keep_open_once` when the chain walks out and back along a curve that touches `static_mask` (the rope cut by
+    the mask at its clamp: walked once; without a mask, a 1x1 placeholder, an out-and-back walk is a broken band
+    edge or a photo's looped rope, kept as it is for the outline check), `refine_subpixel`
     of the chain and `count_roi_contacts`; same outputs as those calls in that order. When
     `ring_clear` and the spans keep off the image border, the trace is `trace_closed` (no span tests), run
     first from the first listed pixel: `keep_traced` then floods only the pixels the chain missed (when another
@@ -535,7 +536,7 @@ def trace_rope(
                 out_start[0] = start_r
                 out_start[1] = start_c
                 out_counts[0] = size
-                if open_once:
+                if n >= OPEN_RATIO * size and touches_mask(static_mask, out_chain, n):
                     n = keep_open_once(out_chain, out_codes, n, size)
                 out_counts[1] = refine_inner(mag, gx, gy, lo, hi, out_chain, n, scratch, out_points)
                 return n
@@ -555,7 +556,7 @@ def trace_rope(
         n = trace_contour(edges, lo, hi, out_start[0], out_start[1], out_chain, out_codes)
     if n < 0:
         return n
-    if open_once:
+    if n >= OPEN_RATIO * size and touches_mask(static_mask, out_chain, n):
         n = keep_open_once(out_chain, out_codes, n, size)
     if inner:
         out_counts[1] = refine_inner(mag, gx, gy, lo, hi, out_chain, n, scratch, out_points)

@@ -60,9 +60,8 @@ def detect_and_trace(
     count = drop_static_edges(frame, static_mask, static_low, static_high, out_edges, edge_stack, count)
     count = seal_cut_ends(static_mask, lo, hi, out_edges, edge_stack, count)
     out_counts[3] = count
-    masked = static_mask.shape[0] == frame.shape[0] and static_mask.shape[1] == frame.shape[1]
     return trace_rope(
-        out_edges, lo, hi, edge_stack, count, min_pixels, True, masked, out_mag, out_gx, out_gy, out_labels, stack,
+        out_edges, lo, hi, edge_stack, count, min_pixels, True, static_mask, out_mag, out_gx, out_gy, out_labels, stack,
         out_start, out_chain, out_codes, out_points, out_counts,
     )  # fmt: skip
 

@@ -13,7 +13,10 @@ from typing import Final
 
 from numba import boolean, int32
 
-from ropecam.shared.jit import i4_1d, i4_2d, kernel
+from ropecam.shared.jit import i4_1d, i4_2d, kernel, u1_2d_ro
+
+MASK_FREE: Final = 0
+"""The static mask's value for a pixel whose edges are kept (`_kernels.static_mask.MASK_FREE`)."""
 
 OPEN_RATIO: Final = 1.6
 """A chain at least this many times longer than its component's pixel count was walked out and back (an open
@@ -68,3 +71,19 @@ def keep_open_once(chain, codes, n, size):
         chain[k, 1] = chain[best_i + k, 1]
         codes[k] = codes[best_i + k]
     return int32(m)
+
+
+@kernel(boolean(u1_2d_ro, i4_2d, int32))
+def touches_mask(mask, chain, n):
+    """Whether a point of the first `n` of `chain` (row, col) has a masked 8-neighbour (`mask` not `MASK_FREE`);
+    False for a mask of another size than the image's (a 1x1 placeholder: no mask)."""
+    height = mask.shape[0]
+    width = mask.shape[1]
+    for k in range(n):
+        r = chain[k, 0]
+        c = chain[k, 1]
+        for rr in range(max(r - 1, 0), min(r + 2, height)):
+            for cc in range(max(c - 1, 0), min(c + 2, width)):
+                if mask[rr, cc] != MASK_FREE:
+                    return True
+    return False

@@ -18,6 +18,10 @@ pytestmark = pytest.mark.kernel
 
 FREEMAN = {(0, 1): 0, (-1, 1): 1, (-1, 0): 2, (-1, -1): 3, (0, -1): 4, (1, -1): 5, (1, 0): 6, (1, 1): 7}
 
+_NO_MASK = np.zeros((1, 1), np.uint8)
+_NO_MASK.flags.writeable = False
+"""No static mask (a 1x1 placeholder)."""
+
 
 def _label_buffers(shape):
     height, width = shape
@@ -349,7 +353,7 @@ def test_trace_rope_equals_the_kernels_one_by_one(blurred_frames, frame, ring_cl
     out = [np.zeros((height, width), np.int32), np.zeros(height * width, np.int32), np.zeros(2, np.int32),
            np.zeros((capacity, 2), np.int32), np.zeros(capacity, np.int32), np.zeros((capacity, 2), np.float32),
            np.full(3, -5, np.int32)]  # fmt: skip
-    got = K.trace_rope(edges, lo, hi, stack, count, 20, ring_clear, False, mag, gx, gy, *out)
+    got = K.trace_rope(edges, lo, hi, stack, count, 20, ring_clear, _NO_MASK, mag, gx, gy, *out)
     assert got == n
     np.testing.assert_array_equal(edges, ref_edges)
     np.testing.assert_array_equal(out[2], start)
@@ -368,7 +372,7 @@ def test_trace_rope_equals_the_kernels_one_by_one(blurred_frames, frame, ring_cl
     ref_edges = edges.copy()
     K.keep_largest_listed(ref_edges, lo2, hi2, stack, count, 20, ring_clear, labels, work_stack, start)
     n = K.trace_contour(ref_edges, lo2, hi2, start[0], start[1], chain, codes)
-    got = K.trace_rope(edges, lo2, hi2, stack, count, 20, ring_clear, False, mag, gx, gy, *out)
+    got = K.trace_rope(edges, lo2, hi2, stack, count, 20, ring_clear, _NO_MASK, mag, gx, gy, *out)
     assert got == n > 0
     assert out[6][1] == K.count_roi_contacts(chain, n, lo2, hi2, width) > 0
 
@@ -382,11 +386,11 @@ def test_trace_rope_without_a_component(blurred_frames) -> None:
            np.full(3, -5, np.int32)]  # fmt: skip
     keep = edges.copy()
     assert (
-        K.trace_rope(edges, lo, hi, stack, count, 10**6, True, False, planes[4], planes[2], planes[3], *out)
+        K.trace_rope(edges, lo, hi, stack, count, 10**6, True, _NO_MASK, planes[4], planes[2], planes[3], *out)
         == K.NOT_FOUND
     )
     assert out[6].tolist() == [0, 0, 0]
-    assert K.trace_rope(keep, lo, hi, stack, count, 20, True, False, planes[4], planes[2], planes[3], *out) == K.FULL
+    assert K.trace_rope(keep, lo, hi, stack, count, 20, True, _NO_MASK, planes[4], planes[2], planes[3], *out) == K.FULL
     assert out[6][0] > 100
 
 
@@ -461,7 +465,7 @@ def test_trace_rope_traced_first_equals_the_kernels_one_by_one(case, spans) -> N
            np.zeros((capacity, 2), np.int32), np.zeros(capacity, np.int32), np.zeros((capacity, 2), np.float32),
            np.full(3, -5, np.int32)]  # fmt: skip
     edges = mask.copy()
-    got = K.trace_rope(edges, lo, hi, edge_list, len(edge_list), min_px, True, False, mag, gx, gy, *out)
+    got = K.trace_rope(edges, lo, hi, edge_list, len(edge_list), min_px, True, _NO_MASK, mag, gx, gy, *out)
     np.testing.assert_array_equal(edges, ref)
     if size < 0:
         assert got == K.NOT_FOUND and case == "all too small"
@@ -484,7 +488,8 @@ def test_trace_rope_traced_first_equals_the_kernels_one_by_one(case, spans) -> N
     edges = mask.copy()
     if n > 1:
         assert (
-            K.trace_rope(edges, lo, hi, edge_list, len(edge_list), min_px, True, False, mag, gx, gy, *short) == K.FULL
+            K.trace_rope(edges, lo, hi, edge_list, len(edge_list), min_px, True, _NO_MASK, mag, gx, gy, *short)
+            == K.FULL
         )
         assert out[6][0] == size
         np.testing.assert_array_equal(edges, ref)
@@ -543,6 +548,9 @@ def test_trace_rope_walks_an_open_outline_once() -> None:
     codes = np.zeros(4 * mask.size, np.int32)
     points = np.zeros((4 * mask.size, 2), np.float32)
     counts = np.zeros(3, np.int32)
+    static = np.zeros(mask.shape, np.uint8)
+    static[:5, 8:17] = K.MASK_ALWAYS  # the clamp above the cut ends (5, 10) and (5, 14)
+    static.flags.writeable = False
     n = K.trace_rope(
         edges,
         lo,
@@ -551,7 +559,7 @@ def test_trace_rope_walks_an_open_outline_once() -> None:
         len(listed),
         5,
         False,
-        True,
+        static,
         mag,
         gx,
         gx,

@@ -17,6 +17,10 @@ for _array in NO_MASK:
     _array.flags.writeable = False
 """`detect_and_trace`'s static mask and learned range when there is none (1x1)."""
 
+_NO_MASK = np.zeros((1, 1), np.uint8)
+_NO_MASK.flags.writeable = False
+"""No static mask (a 1x1 placeholder)."""
+
 
 def _rope_frame(seed: int) -> np.ndarray:
     """A bright bent band on a noisy dark ground."""
@@ -78,7 +82,7 @@ def test_detect_and_trace_is_detect_edges_then_trace_rope(seed: int, full: bool,
         ref["mag"], ref["edges"], ref["edge_stack"],
     )  # fmt: skip
     n_ref = K.trace_rope(
-        ref["edges"], lo, hi, _ro(ref["edge_stack"]), count, np.int32(min_pixels), True, False, _ro(ref["mag"]),
+        ref["edges"], lo, hi, _ro(ref["edge_stack"]), count, np.int32(min_pixels), True, _NO_MASK, _ro(ref["mag"]),
         _ro(ref["gx"]), _ro(ref["gy"]), ref["labels"], ref["stack"], ref["start"], ref["chain"], ref["codes"],
         ref["points"], ref["counts"],
     )  # fmt: skip
