@@ -1,8 +1,8 @@
 """The self-checks of a measured frame in one call: the tips' predicted position, then every check and its measure.
 
 The thresholds and the measures travel as one-record structured arrays (`CHECK_THRESHOLDS`, `CHECK_QUALITY`), read
-and written by field name. The reason codes are the wire's (`ropecam.shared.protocol.quality.Reason`; a test keeps
-them equal).
+and written by field name (``record["name"]``, which NumPy also takes: the kernels run without the JIT too). The
+reason codes are the wire's (`ropecam.shared.protocol.quality.Reason`; a test keeps them equal).
 """
 
 from __future__ import annotations
@@ -106,12 +106,12 @@ def check_frame(
     for stretch in (stretch_begin, stretch_end):
         if math.isfinite(stretch) and not abs(stretch - 1.0) <= abs(length_ratio - 1.0):
             length_ratio = stretch
-    q.length_ratio = length_ratio
-    if abs(length_ratio - 1.0) > limits.length_tolerance:
+    q["length_ratio"] = length_ratio
+    if abs(length_ratio - 1.0) > limits["length_tolerance"]:
         failed = CHECK_LENGTH
     width_ratio = width_px / learned_width_px if learned_width_px != 0.0 else math.nan
-    q.width_ratio = width_ratio
-    if failed == CHECK_NONE and abs(width_ratio - 1.0) > limits.width_tolerance:
+    q["width_ratio"] = width_ratio
+    if failed == CHECK_NONE and abs(width_ratio - 1.0) > limits["width_tolerance"]:
         failed = CHECK_WIDTH
     fr = float64(fixed[0])
     fc = float64(fixed[1])
@@ -119,9 +119,9 @@ def check_frame(
         math.hypot(float64(begin[0, 0]) - fr, float64(begin[0, 1]) - fc),
         math.hypot(float64(end[0, 0]) - fr, float64(end[0, 1]) - fc),
     )
-    q.fixed_end_px = offset
+    q["fixed_end_px"] = offset
     width = learned_width_px if learned_width_px != 0.0 else width_px
-    if failed == CHECK_NONE and offset > limits.fixed_end_widths * width + limits.fixed_end_floor_px:
+    if failed == CHECK_NONE and offset > limits["fixed_end_widths"] * width + limits["fixed_end_floor_px"]:
         failed = CHECK_FIXED_END
     nb = begin.shape[0] - 1
     ne = end.shape[0] - 1
@@ -130,17 +130,17 @@ def check_frame(
     er = float64(end[ne, 0])
     ec = float64(end[ne, 1])
     separation = math.hypot(er - br, ec - bc)
-    q.tip_separation_px = separation
+    q["tip_separation_px"] = separation
     motion_px = math.nan
     motion_limit_px = math.nan
     if not math.isnan(predicted[2]):
         motion_px = math.hypot(0.5 * (br + er) - predicted[0], 0.5 * (bc + ec) - predicted[1])
-        motion_limit_px = limits.tip_motion_factor * predicted[2] + limits.tip_motion_floor_px
-    q.tip_motion_px = motion_px
-    q.tip_motion_limit_px = motion_limit_px
+        motion_limit_px = limits["tip_motion_factor"] * predicted[2] + limits["tip_motion_floor_px"]
+    q["tip_motion_px"] = motion_px
+    q["tip_motion_limit_px"] = motion_limit_px
     if failed == CHECK_NONE and motion_px > motion_limit_px:
         failed = CHECK_TIP_MOTION
-    if failed == CHECK_NONE and split and exposure_ns > 0 and order_confidence < limits.min_order_confidence:
+    if failed == CHECK_NONE and split and exposure_ns > 0 and order_confidence < limits["min_order_confidence"]:
         failed = CHECK_ORDER
     evidence = math.nan
     unchecked = split and (exposure_ns <= 0 or math.isnan(predicted[2]))
@@ -151,12 +151,12 @@ def check_frame(
                 float64(begin[k + 1, 0]) - float64(begin[k, 0]), float64(begin[k + 1, 1]) - float64(begin[k, 1])
             )
         evidence = (contour_area_px2 - length_px * width) / max(0.5 * length_px * separation, 1.0)
-    q.blur_evidence = evidence
+    q["blur_evidence"] = evidence
     # The pixel contour's area is uncertain by ~ half a pixel along both sides (~ length px^2), which is
     # 2 / separation of the implied sweep area: a verdict only where that is below half the threshold.
-    no_blur_px = limits.no_blur_px
-    if limits.min_blur_evidence > 0.0:
-        no_blur_px = max(no_blur_px, 4.0 / limits.min_blur_evidence)
-    if unchecked and separation > no_blur_px and not evidence >= limits.min_blur_evidence:
+    no_blur_px = limits["no_blur_px"]
+    if limits["min_blur_evidence"] > 0.0:
+        no_blur_px = max(no_blur_px, 4.0 / limits["min_blur_evidence"])
+    if unchecked and separation > no_blur_px and not evidence >= limits["min_blur_evidence"]:
         failed = CHECK_NO_BLUR
     return failed
