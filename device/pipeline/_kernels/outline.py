@@ -13,10 +13,8 @@ from typing import Final
 
 from numba import boolean, int32
 
+from ropecam.device.pipeline._kernels.static_mask import MASK_FREE
 from ropecam.shared.jit import i4_1d, i4_2d, kernel, u1_2d_ro
-
-MASK_FREE: Final = 0
-"""The static mask's value for a pixel whose edges are kept (`_kernels.static_mask.MASK_FREE`)."""
 
 OPEN_RATIO: Final = 1.6
 """A chain at least this many times longer than its component's pixel count was walked out and back (an open
