@@ -27,6 +27,24 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(compiled_only)
 
 
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """Start tests/test_nojit.py's plain-Python rerun of the kernel tests in the background when that test is
+    selected, so that it runs on a second core beside the compiled tests instead of after them."""
+    if WITHOUT_JIT or session.config.option.collectonly:
+        return
+    if any(item.nodeid.endswith("test_nojit.py::test_kernel_tests_pass_without_jit") for item in session.items):
+        from .test_nojit import start_rerun
+
+        session.config._ropecam_nojit = start_rerun()
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    """Stop the background rerun if the session ends before its test waited for it (-x, Ctrl-C)."""
+    rerun = getattr(session.config, "_ropecam_nojit", None)
+    if rerun is not None:
+        rerun.stop()
+
+
 @pytest.fixture(scope="session")
 def jit_enabled() -> bool:
     """False in the plain-Python rerun (tests/test_nojit.py): a test may then use a smaller input that still
