@@ -137,6 +137,7 @@ class ResultFinisher:
                 swap, confidence, stretch_begin, stretch_end = K.track_frame(
                     a, b, a is b, result.t_ns, result.t_end_ns, max_age_ns(period_ns), order.group, self.fixed,
                     float(self.splitter.sweep_px), exposure_ns, motion.group, tracker.length0_settled_px, tracker.group,
+                    float(outcome.width_px),
                 )  # fmt: skip
             except TypeError:  # not the splitter's writable float32 buffers
                 swap = -1

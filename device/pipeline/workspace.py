@@ -212,17 +212,23 @@ class MotionBuffers:
 
 @_group
 class OrderBuffers:
-    """`TimeOrder`'s (see there): sample times and counters (`state`), sample tips (`hist_rc`)."""
+    """`TimeOrder`'s (see there): sample times and counters (`state`), sample tips (`hist_rc`), and
+    `uncross_shapes`' previous end shape (`prev_end`) and scratch (`splice`)."""
 
     state: NDArray[np.int64]
     hist_rc: NDArray[np.float64]
+    prev_end: NDArray[np.float32]
+    splice: NDArray[np.float32]
     group: K.Order
-    """The two as the kernels' group."""
+    """The four as the kernels' group."""
 
     @classmethod
-    def make(cls) -> OrderBuffers:
-        """Allocate the buffers (their size does not depend on the image)."""
-        arrays = (np.zeros(K.HISTORY + 3, np.int64), np.zeros((K.HISTORY, 2), np.float64))
+    def make(cls, capacity: int = TRACK_WORK) -> OrderBuffers:
+        """Allocate the buffers for shapes of up to `capacity` points (a longer shape is not uncrossed)."""
+        arrays = (
+            np.zeros(K.ORDER_STATE_SIZE, np.int64), np.zeros((K.HISTORY, 2), np.float64),
+            np.zeros((capacity, 2), np.float32), np.zeros((3, 2 * capacity, 2), np.float32),
+        )  # fmt: skip
         return cls(*arrays, K.Order(*arrays))
 
 
@@ -305,7 +311,7 @@ class Workspace:
         return cls(
             EdgeBuffers.make(height, width, weights), ContourBuffers.make(height, width, capacity),
             RoiBuffers.make(height, width, capacity), FixedEndBuffers.make(capacity), MotionBuffers.make(),
-            OrderBuffers.make(), SplitBuffers.make(capacity), TrackBuffers.make(fraction, capacity),
+            OrderBuffers.make(capacity), SplitBuffers.make(capacity), TrackBuffers.make(fraction, capacity),
             np.zeros(K.STEADY_SLOTS, np.float64),
         )  # fmt: skip
 
@@ -333,7 +339,8 @@ class Workspace:
                 "sides": s.sides, "scratch": s.scratch, "turn": s.turn, "idx": s.idx, "out_seg": s.seg,
                 "split_info": s.info,
                 # track_frame's
-                "order_state": self.order.state, "hist_rc": self.order.hist_rc, "fraction": t.fraction,
+                "order_state": self.order.state, "hist_rc": self.order.hist_rc,
+                "prev_end": self.order.prev_end, "splice": self.order.splice, "fraction": t.fraction,
                 "out_points": t.out, "out_lengths": t.lengths_px, "work_seg": t.work,
                 "out": self.steady_out,
             },

@@ -117,8 +117,15 @@ from ropecam.device.pipeline._kernels.geometry import (
 )
 from ropecam.device.pipeline._kernels.groups import (
     BAND,
+    HISTORY,
     MOTION,
     ORDER,
+    ORDER_COUNT,
+    ORDER_ORDERED,
+    ORDER_PREV_COUNT,
+    ORDER_PREV_T,
+    ORDER_REJECTS,
+    ORDER_STATE_SIZE,
     PLANES,
     SPLIT_WIDTH,
     SPLIT_WIDTH_SCALARS,
@@ -196,13 +203,9 @@ from ropecam.device.pipeline._kernels.static_mask import (
 )
 from ropecam.device.pipeline._kernels.thresholds import HIST_PER_UNIT, histogram_median, sample_gradient_histogram
 from ropecam.device.pipeline._kernels.tracking import (
-    HISTORY,
     MOTION_COUNT,
     MOTION_EXPOSURE,
     MOTION_FRAMES,
-    ORDER_COUNT,
-    ORDER_ORDERED,
-    ORDER_REJECTS,
     observe_motion,
     order_shapes,
     predict_motion,
@@ -210,6 +213,7 @@ from ropecam.device.pipeline._kernels.tracking import (
     track_frame,
     track_shapes,
 )
+from ropecam.device.pipeline._kernels.uncross import nearest_on, uncross_shapes
 
 __all__ = [
     "BAND",
@@ -248,7 +252,10 @@ __all__ = [
     "ORDER",
     "ORDER_COUNT",
     "ORDER_ORDERED",
+    "ORDER_PREV_COUNT",
+    "ORDER_PREV_T",
     "ORDER_REJECTS",
+    "ORDER_STATE_SIZE",
     "PLANE",
     "PLANES",
     "PLANE_NAMES",
@@ -327,6 +334,7 @@ __all__ = [
     "measure_widths",
     "midline",
     "nearest_cut_end",
+    "nearest_on",
     "need_profile",
     "nms_pixel",
     "observe_motion",
@@ -380,5 +388,6 @@ __all__ = [
     "track_shapes",
     "trim_polyline_end",
     "turning_angles",
+    "uncross_shapes",
     "union_spans",
 ]

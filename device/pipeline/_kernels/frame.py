@@ -30,7 +30,7 @@ from ropecam.device.pipeline._kernels.band_stage import band_stage
 from ropecam.device.pipeline._kernels.detect import detect_and_trace
 from ropecam.device.pipeline._kernels.groups import SPLIT_WIDTH_SCALARS, Band, Motion, Order, Planes, SplitWork, Track
 from ropecam.device.pipeline._kernels.split_frame import FRAME_INFO, FRAME_STATE, FRAME_STATES, split_frame
-from ropecam.device.pipeline._kernels.split_shapes import split_width
+from ropecam.device.pipeline._kernels.split_shapes import SPLIT_SCALAR, split_width
 from ropecam.device.pipeline._kernels.tracking import track_frame
 from ropecam.shared.jit import f8_1d, kernel, u1_2d, u1_2d_ro
 
@@ -86,7 +86,8 @@ STEADY_BUFFERS: Final = (
     ("sides", np.float32, 3), ("scratch", np.float64, 2), ("turn", np.float32, 1), ("idx", np.int32, 1),
     ("out_seg", np.float32, 2), ("split_info", np.float64, 1),
     # track_frame's
-    ("order_state", np.int64, 1), ("hist_rc", np.float64, 2), ("fraction", np.float64, 1),
+    ("order_state", np.int64, 1), ("hist_rc", np.float64, 2), ("prev_end", np.float32, 2), ("splice", np.float32, 3),
+    ("fraction", np.float64, 1),
     ("out_points", np.float32, 3), ("out_lengths", np.float64, 1), ("work_seg", np.float64, 1),
     # steady_frame's results (STEADY_* slots)
     ("out", np.float64, 1),
@@ -298,7 +299,12 @@ def steady_frame(
         t_ns,
         t_end_ns,
         max_age_ns,
-        Order(_buffer1(table, STEADY_ROW.order_state, np.int64), _buffer2(table, STEADY_ROW.hist_rc, np.float64)),
+        Order(
+            _buffer1(table, STEADY_ROW.order_state, np.int64),
+            _buffer2(table, STEADY_ROW.hist_rc, np.float64),
+            _buffer2(table, STEADY_ROW.prev_end, np.float32),
+            _buffer3(table, STEADY_ROW.splice, np.float32),
+        ),
         fixed,
         split_info[_INFO_SWEEP],
         exposure_ns,
@@ -310,6 +316,7 @@ def steady_frame(
             _buffer1(table, STEADY_ROW.out_lengths, np.float64),
             _buffer1(table, STEADY_ROW.work_seg, np.float64),
         ),
+        width_scalars[SPLIT_SCALAR.width64_px],
     )
     out[STEADY_SWAP] = swap
     out[STEADY_CONFIDENCE] = confidence

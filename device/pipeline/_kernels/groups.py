@@ -48,15 +48,34 @@ class Band(NamedTuple):
 BAND: Final = types.NamedTuple((i4_1d, i4_1d, f4_2d), Band)
 
 
+HISTORY: Final = 6
+"""Tip samples kept for the time order (two per split frame: three frames)."""
+ORDER_COUNT: Final = HISTORY
+"""``Order.state`` after the sample times: samples held,"""
+ORDER_ORDERED: Final = HISTORY + 1
+"""whether the history's own order is known (0/1),"""
+ORDER_REJECTS: Final = HISTORY + 2
+"""frames off the predicted path in a row,"""
+ORDER_PREV_COUNT: Final = HISTORY + 3
+"""points of the previous frame's end shape in ``Order.prev_end`` (0: none),"""
+ORDER_PREV_T: Final = HISTORY + 4
+"""and the end of that shape's exposure (ns)."""
+ORDER_STATE_SIZE: Final = HISTORY + 5
+
+
 class Order(NamedTuple):
-    """The time order's history (`OrderBuffers`): sample times and counters ``state`` (int64), sample tips
-    ``hist_rc`` (float64 (HISTORY, 2))."""
+    """The time order's arrays (`OrderBuffers`): sample times and counters ``state`` (int64, `ORDER_STATE_SIZE`:
+    the `HISTORY` sample times, then the ``ORDER_*`` slots), sample tips ``hist_rc`` (float64 (HISTORY, 2)), the
+    previous frame's end shape ``prev_end`` (float32 (capacity, 2)) and `uncross_shapes`' scratch ``splice``
+    (float32 (3, 2 capacity, 2))."""
 
     state: Any
     hist_rc: Any
+    prev_end: Any
+    splice: Any
 
 
-ORDER: Final = types.NamedTuple((i8_1d, f8_2d), Order)
+ORDER: Final = types.NamedTuple((i8_1d, f8_2d, f4_2d, f4_3d), Order)
 
 
 class Track(NamedTuple):

@@ -4,10 +4,10 @@ points on both shapes (uniform stretch, eqs. 9-12 of the paper); `track_frame` d
 
 They keep their state in caller-owned arrays, so a stream's frame costs one call.
 
-Time-order state (fewer arrays: each array argument costs a dispatch): ``order_state`` (int64, HISTORY + 3) holds
-the times (ns) of the last tip samples oldest first, then [samples held, history ordered (0/1), rejects in a row]
-(indices ``ORDER_COUNT``, ``ORDER_ORDERED``, ``ORDER_REJECTS``); ``hist_rc`` (float64, (HISTORY, 2)) their
-(row, col).
+Time-order state (fewer arrays: each array argument costs a dispatch): ``order_state`` (int64,
+`ORDER_STATE_SIZE`) holds the times (ns) of the last tip samples oldest first, then [samples held, history ordered
+(0/1), rejects in a row] (indices ``ORDER_COUNT``, ``ORDER_ORDERED``, ``ORDER_REJECTS``; the layout is in
+`groups`), then `uncross_shapes`' slots; ``hist_rc`` (float64, (HISTORY, 2)) their (row, col).
 
 Motion state: ``motion_state`` (int64, MOTION_FRAMES + 2) holds the mid-exposure times (ns) of up to three
 measured frames, then [frames held, last exposure in ns] (``MOTION_COUNT``, ``MOTION_EXPOSURE``);
@@ -25,14 +25,20 @@ import numpy as np
 from numba import boolean, float64, int32, int64, types
 
 from ropecam.device.pipeline._kernels._common import INVALID
-from ropecam.device.pipeline._kernels.groups import MOTION, ORDER, TRACK, f4_3d, i8_1d
+from ropecam.device.pipeline._kernels.groups import (
+    HISTORY,
+    MOTION,
+    ORDER,
+    ORDER_COUNT,
+    ORDER_ORDERED,
+    ORDER_REJECTS,
+    TRACK,
+    f4_3d,
+    i8_1d,
+)
+from ropecam.device.pipeline._kernels.uncross import uncross_shapes
 from ropecam.shared.jit import f4_1d, f4_2d, f8_1d, f8_1d_ro, f8_2d, kernel
 
-HISTORY: Final = 6
-"""Tip samples kept for the time order (two per split frame: three frames)."""
-ORDER_COUNT: Final = HISTORY
-ORDER_ORDERED: Final = HISTORY + 1
-ORDER_REJECTS: Final = HISTORY + 2
 MOTION_FRAMES: Final = 3
 """Measured frames kept by the motion model."""
 MOTION_COUNT: Final = MOTION_FRAMES
@@ -464,14 +470,16 @@ def track_shapes(begin, end, single, fraction, length0_px, out_points, out_lengt
 # --------------------------------------------------------------------------------------------- the three at once
 @kernel(
     types.Tuple((int32, float64, float64, float64))(
-        f4_2d, f4_2d, boolean, int64, int64, int64, ORDER, f4_1d, float64, int64, MOTION, float64, TRACK
+        f4_2d, f4_2d, boolean, int64, int64, int64, ORDER, f4_1d, float64, int64, MOTION, float64, TRACK, float64
     )
 )  # fmt: skip
 def track_frame(
     shape_a, shape_b, single, t_ns, t_end_ns, max_age_ns, order, fixed, sweep_px, exposure_ns, motion, length0_px,
-    track,
+    track, width_px,
 ):  # fmt: skip
-    """`order_shapes`, then `track_shapes` on the shapes in time order, then `observe_motion`, in one call: what
+    """`order_shapes`, then `uncross_shapes` (the stretches of a rope whose start and end shapes cross, put in
+    time order by continuity; `width_px` the rope's width), `track_shapes` on the shapes in time order, then
+    `observe_motion`, in one call: what
     a frame's two shapes (the same array for one shape) give once they are known, exposed from `t_ns` for
     `exposure_ns` (>= 0; `t_end_ns` = `t_ns` + exposure: not later means unknown, no time order, confidence 0.5
     or 1 for one shape, the history untouched). Arguments as those three kernels': `order` is the time order's
@@ -504,6 +512,8 @@ def track_frame(
         swap, confidence = 0, (1.0 if single else 0.5)
     begin = shape_b if swap == 1 else shape_a
     end = shape_a if swap == 1 else shape_b
+    if t_end_ns > t_ns:
+        uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, order)
     _, stretch_begin, stretch_end = track_shapes(
         begin, end, single, fraction, length0_px, out_points, out_lengths, work_seg
     )

@@ -102,7 +102,7 @@ def _shape(tip: tuple[float, float]) -> np.ndarray:
 def test_the_tip_prediction_matches_a_polynomial_fit() -> None:
     rng = np.random.default_rng(3)
     for count in range(1, K.HISTORY + 1):
-        state = np.zeros(K.HISTORY + 3, np.int64)
+        state = np.zeros(K.ORDER_STATE_SIZE, np.int64)
         tips = np.zeros((K.HISTORY, 2))
         times = np.sort(rng.choice(10**8, count, replace=False)).astype(np.int64)
         state[:count] = times
@@ -152,7 +152,7 @@ def test_order_shapes_matches_the_reference_through_swings_gaps_and_bad_frames()
 
 def test_order_shapes_refuses_empty_shapes() -> None:
     empty = np.zeros((0, 2), np.float32)
-    state, tips = np.zeros(K.HISTORY + 3, np.int64), np.zeros((K.HISTORY, 2))
+    state, tips = np.zeros(K.ORDER_STATE_SIZE, np.int64), np.zeros((K.HISTORY, 2))
     assert K.order_shapes(empty, _shape((1.0, 1.0)), False, 0, 10, 100, state, tips)[0] == K.INVALID
     with pytest.raises(ValueError, match="cannot order"):
         TimeOrder().order(empty, empty, 0, 10, None)
@@ -314,8 +314,9 @@ def test_track_frame_is_order_then_material_points_then_motion() -> None:
     fraction = np.array([0.0, 0.25, 0.5, 1.0])
     fixed = np.array([20.0, 300.0], np.float32)
     states = [
-        (np.zeros(K.HISTORY + 3, np.int64), np.zeros((K.HISTORY, 2)), np.zeros(K.MOTION_FRAMES + 2, np.int64),
-         np.zeros((K.MOTION_FRAMES + 1, 2)), np.zeros((2, 4, 2), np.float32), np.zeros(2), np.zeros(512))
+        (np.zeros(K.ORDER_STATE_SIZE, np.int64), np.zeros((K.HISTORY, 2)), np.zeros(K.MOTION_FRAMES + 2, np.int64),
+         np.zeros((K.MOTION_FRAMES + 1, 2)), np.zeros((2, 4, 2), np.float32), np.zeros(2), np.zeros(512),
+         np.zeros((512, 2), np.float32), np.zeros((3, 1024, 2), np.float32))
         for _ in range(2)
     ]  # fmt: skip
     period, exposure = 8_403_361, 4_000_000
@@ -332,16 +333,21 @@ def test_track_frame_is_order_then_material_points_then_motion() -> None:
             shapes.reverse()
         a = shapes[0]
         b = a if k % 11 == 0 else shapes[1]
-        order_state, hist_rc, motion_state, motion_log, out, lengths, work = states[0]
-        got = K.track_frame(a, b, a is b, t0, t1, 4 * period, K.Order(order_state, hist_rc), fixed, 2.5, t1 - t0,
-                            _motion(motion_state, motion_log), 120.0,
-                            K.Track(fraction, out, lengths, work))  # fmt: skip
-        order_state, hist_rc, motion_state, motion_log, out_ref, lengths_ref, work_ref = states[1]
+        a_ref, b_ref = a.copy(), (None if a is b else b.copy())  # track_frame may exchange stretches in place
+        b_ref = a_ref if b_ref is None else b_ref
+        order_state, hist_rc, motion_state, motion_log, out, lengths, work, prev_end, splice = states[0]
+        got = K.track_frame(a, b, a is b, t0, t1, 4 * period, K.Order(order_state, hist_rc, prev_end, splice), fixed,
+                            2.5, t1 - t0, _motion(motion_state, motion_log), 120.0,
+                            K.Track(fraction, out, lengths, work), 3.0)  # fmt: skip
+        order_state, hist_rc, motion_state, motion_log, out_ref, lengths_ref, work_ref, prev_end, splice = states[1]
+        a, b = a_ref, b_ref
         if t1 > t0:
             swap, confidence = K.order_shapes(a, b, a is b, t0, t1, 4 * period, order_state, hist_rc)
         else:  # exposure unknown: no order
             swap, confidence = 0, (1.0 if a is b else 0.5)
         begin, end = (b, a) if swap else (a, b)
+        if t1 > t0:
+            K.uncross_shapes(begin, end, a is b, t1, 4 * period, 3.0, K.Order(order_state, hist_rc, prev_end, splice))
         _, stretch_begin, stretch_end = K.track_shapes(
             begin, end, a is b, fraction, 120.0, out_ref, lengths_ref, work_ref
         )
@@ -350,10 +356,11 @@ def test_track_frame_is_order_then_material_points_then_motion() -> None:
         for mine, ref in zip(states[0], states[1], strict=True):
             np.testing.assert_array_equal(mine, ref)
     before = [s.copy() for s in states[0]]
-    order_state, hist_rc, motion_state, motion_log, out, lengths, work = states[0]
+    order_state, hist_rc, motion_state, motion_log, out, lengths, work, prev_end, splice = states[0]
     long_shape = np.zeros((600, 2), np.float32)  # longer than the scratch
-    assert K.track_frame(long_shape, a, False, 10**9, 10**9 + 1, 4 * period, K.Order(order_state, hist_rc), fixed,
-                         2.5, 1, _motion(motion_state, motion_log), 120.0,
-                         K.Track(fraction, out, lengths, work))[0] == K.INVALID  # fmt: skip
+    assert K.track_frame(long_shape, a, False, 10**9, 10**9 + 1, 4 * period,
+                         K.Order(order_state, hist_rc, prev_end, splice), fixed, 2.5, 1,
+                         _motion(motion_state, motion_log), 120.0, K.Track(fraction, out, lengths, work),
+                         3.0)[0] == K.INVALID  # fmt: skip
     for now, then in zip(states[0], before, strict=True):
         np.testing.assert_array_equal(now, then)

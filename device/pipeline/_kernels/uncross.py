@@ -1,0 +1,186 @@
+"""Shapes that cross: where the rope at the start and at the end of the exposure cross each other, each side of the
+blurred band is the start shape on one stretch and the end shape on the next.
+
+The split makes its two shapes from the band's two sides, and the time order (`tracking.order_shapes`) decides
+which side is the start of the exposure from the tip's path. That is right for the whole rope only while every part
+of it moves the same way across the band. A wave that runs down a swinging rope moves its middle one way and its
+tip the other; the two true shapes then cross where the motion changes sign, the band pinches there to the rope's
+width, and beyond the pinch the side that was the start shape is the end shape. Measured on the simulated `lab`
+preset (240 frames, 2 s of a swing, tuning seed), a quarter of the frames had such a crossing and their centreline
+error was 1-5 px with both tips right.
+
+`uncross_shapes` finds the pinches (interior local minima, below the rope's width, of the distance from the start
+shape to the end shape) and decides each stretch between two pinches by continuity: between exposures the rope
+moves on from where the last one ended, so of the two sides on a stretch, the start shape is the one nearer to the
+previous frame's end shape. The stretch that holds the tip keeps the tip's order. The previous end shape is kept in
+the time order's group (`Order`): ``prev_end`` and its count and time in ``state``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Final
+
+import numpy as np
+from numba import boolean, float64, int32, int64, types
+
+from ropecam.device.pipeline._kernels.groups import ORDER, ORDER_PREV_COUNT, ORDER_PREV_T
+from ropecam.shared.jit import f4_2d, kernel
+
+_WINDOW: Final = 24
+"""Segments searched either side of the proportional guess for a point's nearest point on another shape: the
+shapes run the same way from the fixed end with similar point spacing, so a point's match is near the same arc
+fraction; the window covers the along-rope shift of a fast tip over one exposure and one gap."""
+
+
+@kernel(types.UniTuple(float64, 2)(float64, float64, f4_2d, int64, int64))
+def nearest_on(r, c, poly, n, guess):
+    """Distance from (`r`, `c`) to the polyline ``poly[:n]`` (n >= 1) over its segments within `_WINDOW` of
+    index `guess`, and the index of its vertex nearest to the foot of that distance. Returns (distance, index)."""
+    if n == 1:
+        return math.hypot(r - poly[0, 0], c - poly[0, 1]), 0.0
+    lo = max(0, guess - _WINDOW)
+    hi = min(n - 1, guess + _WINDOW)
+    if lo >= hi:
+        lo = max(0, hi - 1)
+    best = math.inf
+    best_i = lo
+    for i in range(lo, hi):
+        ar = float(poly[i, 0])
+        ac = float(poly[i, 1])
+        dr = float(poly[i + 1, 0]) - ar
+        dc = float(poly[i + 1, 1]) - ac
+        length2 = dr * dr + dc * dc
+        t = 0.0
+        if length2 > 0.0:
+            t = min(max(((r - ar) * dr + (c - ac) * dc) / length2, 0.0), 1.0)
+        d = math.hypot(r - ar - t * dr, c - ac - t * dc)
+        if d < best:
+            best = d
+            best_i = i + 1 if t > 0.5 else i
+    return best, float(best_i)
+
+
+@kernel(float64(f4_2d, int64, int64, f4_2d, int64))
+def _mean_distance(shape, first, stop, other, m):
+    """Mean distance of ``shape[first:stop]`` (stop > first) to the polyline ``other[:m]`` (matched by arc
+    fraction: `nearest_on` around the proportional index)."""
+    n = shape.shape[0]
+    total = 0.0
+    for k in range(first, stop):
+        guess = (k * (m - 1)) // max(1, n - 1)
+        d, _ = nearest_on(float(shape[k, 0]), float(shape[k, 1]), other, m, guess)
+        total += d
+    return total / (stop - first)
+
+
+@kernel(int64(f4_2d, int64, int64, f4_2d))
+def _resample_into(source, count, out_count, out):
+    """Resample the polyline ``source[:count]`` (count >= 2) to `out_count` (>= 2) points evenly spaced along its
+    arc into ``out[:out_count]`` (not `source`). Returns `out_count`."""
+    total = 0.0
+    for i in range(count - 1):
+        total += math.hypot(float(source[i + 1, 0] - source[i, 0]), float(source[i + 1, 1] - source[i, 1]))
+    step = total / (out_count - 1)
+    i = 0
+    walked = 0.0
+    seg = math.hypot(float(source[1, 0] - source[0, 0]), float(source[1, 1] - source[0, 1]))
+    for k in range(out_count):
+        target = k * step
+        while i < count - 2 and walked + seg < target:
+            walked += seg
+            i += 1
+            seg = math.hypot(float(source[i + 1, 0] - source[i, 0]), float(source[i + 1, 1] - source[i, 1]))
+        t = 0.0 if seg <= 0.0 else min(max((target - walked) / seg, 0.0), 1.0)
+        out[k, 0] = np.float32(source[i, 0] + t * (source[i + 1, 0] - source[i, 0]))
+        out[k, 1] = np.float32(source[i, 1] + t * (source[i + 1, 1] - source[i, 1]))
+    out[out_count - 1, 0] = source[count - 1, 0]
+    out[out_count - 1, 1] = source[count - 1, 1]
+    return out_count
+
+
+@kernel(int32(f4_2d, f4_2d, boolean, int64, int64, float64, ORDER))
+def uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, order):
+    """Exchange the stretches of `begin` and `end` (float32 (n, 2), fixed end first, in time order by the tip)
+    that the previous frame's end shape says are the other way round, between the pinches where the two cross;
+    then remember `end` as the previous end shape (exposure ending at `t_end_ns`).
+
+    A pinch is an interior local minimum, below `width_px`, of the distance from a point of `begin` to `end`. On
+    every stretch between pinches but the last (the tip's), the side nearer to the previous end shape (kept at most
+    `max_age_ns` before this exposure's end) is the start of the exposure. The exchanged shapes keep their point
+    counts (each resampled evenly along its new arc). Nothing is exchanged for a `single` shape, without a
+    previous end shape, or when a shape is longer than ``order.prev_end``. Uses ``order.splice`` as scratch (its
+    rows hold the new begin, the new end, and each begin point's (distance, match) on `end`).
+
+    Returns the stretches exchanged (0 or more), or -1 when the shapes were not looked at.
+    """
+    prev = order.prev_end
+    splice = order.splice
+    state = order.state
+    cap = prev.shape[0]
+    nb = begin.shape[0]
+    ne = end.shape[0]
+    if single or nb > cap or ne > cap or splice.shape[0] < 3 or splice.shape[1] < nb + ne:
+        state[ORDER_PREV_COUNT] = 0
+        return -1
+    n_prev = state[ORDER_PREV_COUNT]
+    fresh = n_prev >= 2 and 0 <= t_end_ns - state[ORDER_PREV_T] <= max_age_ns
+    flipped = 0
+    if fresh and nb >= 5 and ne >= 5:
+        # The distance of each begin point to the end shape, and its match there (in splice[2]).
+        match = splice[2]
+        for k in range(nb):
+            guess = (k * (ne - 1)) // (nb - 1)
+            d, j = nearest_on(float(begin[k, 0]), float(begin[k, 1]), end, ne, guess)
+            match[k, 0] = np.float32(d)
+            match[k, 1] = np.float32(j)
+        # Stretches between pinches, from the fixed end; the last one (the tip's) keeps its side.
+        out_b = splice[0]
+        out_e = splice[1]
+        kb = 0  # begin's points written
+        ke = 0
+        start_b = 0
+        start_e = 0
+        for k in range(2, nb - 1):
+            last = k == nb - 2
+            pinch = match[k, 0] < width_px and match[k, 0] <= match[k - 1, 0] and match[k, 0] <= match[k + 1, 0]
+            if not (pinch or last):
+                continue
+            stop_b = nb if last else k
+            stop_e = ne if last else min(max(int(match[k, 1]), start_e + 1), ne - 1)
+            if (stop_b - start_b < 2 or stop_e - start_e < 2) and not last:
+                continue
+            swap = False
+            if not last:
+                keep = _mean_distance(begin, start_b, stop_b, prev, n_prev)
+                other = _mean_distance(end, start_e, stop_e, prev, n_prev)
+                swap = other < keep
+            src_b = end if swap else begin
+            src_e = begin if swap else end
+            lo_b, hi_b = (start_e, stop_e) if swap else (start_b, stop_b)
+            lo_e, hi_e = (start_b, stop_b) if swap else (start_e, stop_e)
+            for i in range(lo_b, hi_b):
+                out_b[kb, 0] = src_b[i, 0]
+                out_b[kb, 1] = src_b[i, 1]
+                kb += 1
+            for i in range(lo_e, hi_e):
+                out_e[ke, 0] = src_e[i, 0]
+                out_e[ke, 1] = src_e[i, 1]
+                ke += 1
+            if swap:
+                flipped += 1
+            start_b = stop_b
+            start_e = stop_e
+            if last:
+                break
+        if flipped > 0 and kb >= 2 and ke >= 2:
+            _resample_into(out_b, kb, nb, begin)
+            _resample_into(out_e, ke, ne, end)
+        else:
+            flipped = 0
+    for k in range(ne):
+        prev[k, 0] = end[k, 0]
+        prev[k, 1] = end[k, 1]
+    state[ORDER_PREV_COUNT] = ne
+    state[ORDER_PREV_T] = t_end_ns
+    return flipped

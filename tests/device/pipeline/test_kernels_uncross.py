@@ -1,0 +1,100 @@
+"""`uncross_shapes`: a rope whose start and end shapes cross (a wave: the body moves one way, the tip the other)
+gets each stretch between the pinches in time order from the previous frame's end shape."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline.workspace import OrderBuffers
+
+pytestmark = pytest.mark.kernel
+
+_X = np.linspace(0.0, 100.0, 101)
+"""The rope's columns (px), fixed end at 0."""
+_PERIOD_NS = 8_403_361
+_EXPOSURE_NS = 4_000_000
+
+
+def _shape(rows: np.ndarray) -> np.ndarray:
+    """The shape (row, col) with `rows` at the columns `_X`."""
+    return np.stack([rows, _X], axis=1).astype(np.float32)
+
+
+def _wave(step: float) -> np.ndarray:
+    """Rows of the rope `step` exposures after the previous end shape (row 10 everywhere): the body (x < 60) moves
+    to larger rows, the tip the other way; the fixed end does not move."""
+    return 10.0 + step * (_X / 100.0) * (60.0 - _X) / 5.0
+
+
+def _sides(begin: np.ndarray, end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """What the split gives for that band: its two sides (the larger rows and the smaller), the tip's begin first
+    (the tip's order is right, the body's is not)."""
+    hi, lo = np.maximum(begin, end), np.minimum(begin, end)
+    return (_shape(hi), _shape(lo)) if begin[-1] >= end[-1] else (_shape(lo), _shape(hi))
+
+
+def _remember(order: OrderBuffers, rows: np.ndarray, t_end_ns: int) -> None:
+    """Remember `rows` as the previous frame's end shape (what `uncross_shapes` does on every frame)."""
+    shape = _shape(rows)
+    assert K.uncross_shapes(shape, shape.copy(), False, t_end_ns, 4 * _PERIOD_NS, 2.0, order.group) == 0
+
+
+def test_the_stretch_before_a_pinch_is_put_in_order_by_the_previous_end_shape() -> None:
+    order = OrderBuffers.make(256)
+    _remember(order, _wave(0.0), 0)
+    true_begin, true_end = _wave(1.0), _wave(2.0)
+    begin, end = _sides(true_begin, true_end)
+    assert np.abs(begin[:50, 0] - true_begin[:50]).max() > 0.5  # the body is the wrong way round
+    flipped = K.uncross_shapes(begin, end, False, _PERIOD_NS + _EXPOSURE_NS, 4 * _PERIOD_NS, 2.0, order.group)
+    assert flipped == 1
+    # on the true shapes (compared where the exchanged points now lie: they are spread evenly along the new arc)
+    np.testing.assert_allclose(begin[:, 0], np.interp(begin[:, 1], _X, true_begin), atol=0.02)
+    np.testing.assert_allclose(end[:, 0], np.interp(end[:, 1], _X, true_end), atol=0.02)
+    steps = np.hypot(*np.diff(begin.astype(np.float64), axis=0).T)
+    assert steps.max() - steps.min() < 0.01  # spread evenly along the arc, from end to end
+    assert begin[0, 1] == 0.0 and begin[-1, 1] == 100.0
+    # and this frame's end shape is now the previous one
+    assert order.state[K.ORDER_PREV_COUNT] == len(_X)
+    np.testing.assert_array_equal(order.prev_end[: len(_X)], end)
+
+
+def test_shapes_that_do_not_cross_are_left_alone() -> None:
+    order = OrderBuffers.make(256)
+    _remember(order, np.full_like(_X, 10.0), 0)
+    begin = _shape(10.0 + 0.02 * _X)
+    end = _shape(10.0 + 0.04 * _X)
+    want_begin, want_end = begin.copy(), end.copy()
+    assert K.uncross_shapes(begin, end, False, _PERIOD_NS + _EXPOSURE_NS, 4 * _PERIOD_NS, 2.0, order.group) == 0
+    np.testing.assert_array_equal(begin, want_begin)
+    np.testing.assert_array_equal(end, want_end)
+
+
+@pytest.mark.parametrize("previous", ["none", "too old", "single"])
+def test_without_a_recent_previous_end_shape_nothing_is_exchanged(previous: str) -> None:
+    order = OrderBuffers.make(256)
+    t_end = _PERIOD_NS + _EXPOSURE_NS
+    if previous == "too old":
+        _remember(order, _wave(0.0), t_end - 5 * _PERIOD_NS)
+    begin, end = _sides(_wave(1.0), _wave(2.0))
+    want_begin, want_end = begin.copy(), end.copy()
+    single = previous == "single"
+    got = K.uncross_shapes(begin, begin if single else end, single, t_end, 4 * _PERIOD_NS, 2.0, order.group)
+    assert got == (-1 if single else 0)
+    np.testing.assert_array_equal(begin, want_begin)
+    np.testing.assert_array_equal(end, want_end)
+
+
+def test_a_shape_longer_than_the_buffers_is_not_looked_at() -> None:
+    order = OrderBuffers.make(64)
+    begin, end = _sides(_wave(1.0), _wave(2.0))
+    assert K.uncross_shapes(begin, end, False, _PERIOD_NS, 4 * _PERIOD_NS, 2.0, order.group) == -1
+    assert order.state[K.ORDER_PREV_COUNT] == 0  # and nothing is remembered
+
+
+def test_nearest_on_finds_the_foot_on_a_segment() -> None:
+    line = _shape(np.full_like(_X, 5.0))
+    distance, index = K.nearest_on(8.0, 40.3, line, len(_X), 40)
+    assert distance == pytest.approx(3.0)
+    assert index == 40.0
