@@ -99,6 +99,19 @@ def _main(args: argparse.Namespace) -> int:
     )
 
 
+def _declared_gamma(source: str) -> float | None:
+    """The camera gamma a frame set folder's metadata states (`FrameSet.camera_gamma`), else None."""
+    from ropecam.device.capture.frameset import FrameSet
+    from ropecam.shared.errors import RopecamError
+
+    if not (Path(source) / "frameset.json").is_file():
+        return None
+    try:
+        return FrameSet(source).camera_gamma
+    except RopecamError:
+        return None
+
+
 def read_frames(
     source: str, seconds: float, fps: float | None, exposure_us: float | None
 ) -> tuple[list[Any], str, float | None]:
@@ -243,6 +256,11 @@ def run_setup(
     base = from_mapping(PipelineConfig, kept, where=f"{out} [pipeline] (kept keys and options)")
 
     frames, described, rate = read_frames(source, seconds, fps, exposure_us)
+    declared = _declared_gamma(source)
+    if "gamma" not in kept and declared is not None and declared != 1.0:
+        kept["gamma"] = declared  # the camera's own output curve, as its recording states it
+        base = from_mapping(PipelineConfig, kept, where=f"{source}: the gamma its metadata states")
+        say(f"gamma {declared:g}: the camera's output curve, as the frame set's metadata states; frames are linearised")
     if len(frames) < 5:
         raise DataError(f"{source}: {len(frames)} readable frames, setup needs at least 5 (a few seconds of the rope)")
     shape = frames[0].image.shape

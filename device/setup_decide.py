@@ -22,6 +22,7 @@ from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.edges import EdgeDetector
 from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam.device.pipeline.result import FrameStatus
+from ropecam.device.pipeline.tone import ToneCurve
 from ropecam.device.setup_overlay import write_png
 
 __all__ = ["THRESHOLDS", "Frame", "Run", "SetupFindings", "decide", "run_candidate", "static_mask"]
@@ -161,15 +162,17 @@ def static_mask(
     frames: Sequence[Frame], config: PipelineConfig, samples: int = 40
 ) -> tuple[NDArray[np.bool_], NDArray[np.float32]]:
     """Return the pixels that are edges in at least `STATIC_FRACTION` of up to `samples` frames (the pipeline's
-    edge detector over whole frames), grown by one pixel, and each pixel's edge frequency (0-1)."""
+    edge detector over whole frames, in linear light as the pipeline sees them), grown by one pixel, and each
+    pixel's edge frequency (0-1)."""
     height, width = frames[0].image.shape
     detector = EdgeDetector(height, width, config.smooth_sigma_px, config.canny_low, config.canny_high)
+    tone = ToneCurve(config.gamma, (height, width))
     lo = np.zeros(height, np.int32)
     hi = np.full(height, width - 1, np.int32)
     picks = np.unique(np.linspace(0, len(frames) - 1, min(samples, len(frames))).round().astype(int))
     counts = np.zeros((height, width), np.float32)
     for position in picks:
-        detector.detect(frames[position].image, lo, hi)
+        detector.detect(tone.apply(frames[position].image), lo, hi)
         counts += detector.edges != 0
     frequency = counts / len(picks)
     static = frequency >= STATIC_FRACTION

@@ -141,6 +141,17 @@ class FrameSet:
         """The exposure time of the first frame in us (None for an empty set)."""
         return self.records[0].exposure_us if self.records else None
 
+    @property
+    def camera_gamma(self) -> float | None:
+        """The gamma of the camera's output curve, when the metadata states it (``camera.gamma``, or the
+        simulator's ``rig.config.sensor.gamma``); None when it does not say."""
+        camera = self.meta.get("camera")
+        value = camera.get("gamma") if isinstance(camera, dict) else None
+        if value is None:
+            sensor = self.meta.get("rig", {}).get("config", {}).get("sensor", {})
+            value = sensor.get("gamma") if isinstance(sensor, dict) else None
+        return float(value) if isinstance(value, int | float) and not isinstance(value, bool) else None
+
     def read(self, position: int) -> NDArray[np.uint8]:
         """Return frame number `position` of the index as a (height, width) uint8 array.
 

@@ -35,6 +35,10 @@ class PipelineConfig:
         ``round`` (the band's edge runs half a width beyond the axis end).
     smooth_sigma_px
         Gaussian smoothing before the Sobel gradient (0 disables it).
+    gamma
+        The camera's output curve, ``code = 255 (light / 255) ** (1 / gamma)`` (1: linear, the default; many cameras
+        encode with 2.2 unless their gamma control is off): each frame is mapped back to linear light before its
+        edges (`ropecam.device.pipeline.tone`), as the edge model assumes.
     lens_blur_px
         The camera's own blur (lens, focus; Gaussian sigma in px, the pixel's area apart) assumed by the model of
         the blurred band's edge (`ropecam.device.pipeline.edge_model`); results change little with it (0 to 0.8
@@ -108,6 +112,7 @@ class PipelineConfig:
     polarity: Literal["auto", "bright", "dark"] = "auto"
     tip_cap: Literal["round", "flat"] = "flat"
     smooth_sigma_px: float = 1.0
+    gamma: float = 1.0
     lens_blur_px: float = 0.5
     canny_low: float = 20.0
     canny_high: float = 50.0
@@ -158,6 +163,7 @@ class PipelineConfig:
         check_in("polarity", self.polarity, ("auto", "bright", "dark"))
         check_in("tip_cap", self.tip_cap, ("round", "flat"))
         check_range("smooth_sigma_px", self.smooth_sigma_px, 0.0, 5.0)
+        check_range("gamma", self.gamma, 1.0, 3.0)
         check_range("lens_blur_px", self.lens_blur_px, 0.0, 5.0)
         check_positive("canny_low", self.canny_low)
         check_positive("canny_high", self.canny_high)

@@ -29,6 +29,7 @@ from ropecam.device.pipeline.static_mask import StaticMask
 from ropecam.device.pipeline.steady import SteadyFrame
 from ropecam.device.pipeline.thresholds import EdgeThresholds
 from ropecam.device.pipeline.time_order import TimeOrder
+from ropecam.device.pipeline.tone import ToneCurve
 from ropecam.device.pipeline.tracking import PointTracker, plane_params
 from ropecam.device.pipeline.traits import RopeTraits
 from ropecam.device.pipeline.workspace import Workspace, refuse_copies
@@ -83,6 +84,7 @@ class Pipeline:
             config = config.on_plane(plane, (width, height))
         self.config = config
         self.shape = (height, width)
+        self._tone = ToneCurve(config.gamma, self.shape)
         cap = config.max_contour
         weights = gaussian_weights(config.smooth_sigma_px)
         fraction = np.array(config.material_points_m, np.float64) / config.rope_length_m
@@ -186,6 +188,7 @@ class Pipeline:
         else:
             assert isinstance(frame, np.ndarray)
             image = frame if frame.strides == self._strides else np.ascontiguousarray(frame)
+            image = self._tone.apply(image)
             if self.thresholds.measuring:
                 measured = self.thresholds.measure(image)
                 if measured is not None:

@@ -121,3 +121,24 @@ def test_setup_with_a_plane_measures_from_its_fixed_end(tmp_path, rope_set) -> N
     records = [json.loads(line) for line in results.read_text().splitlines()]
     assert sum(r["status"] == "OK" for r in records) >= FRAMES - 1
     assert records[-1]["fixed_end"] == pytest.approx(list(truth), abs=0.05)
+
+
+def test_setup_takes_the_camera_gamma_the_frame_set_states(tmp_path, rope_set) -> None:
+    # The same rope through a camera with gamma 2.2: its metadata says so, setup writes the key and the rope's width
+    # is read in linear light as on the linear set; told nothing, the curve widens the rope.
+    frames = list(ROPE.frames(FRAMES))
+    encoded = [np.round(255.0 * (f.image / 255.0) ** (1 / 2.2)).astype(np.uint8) for f in frames]
+    widths = {}
+    for name, metadata in (("linear", None), ("stated", {"camera": {"gamma": 2.2}}), ("unstated", None)):
+        root = tmp_path / name
+        images = [f.image for f in frames] if name == "linear" else encoded
+        with FrameSetWriter(root, (ROPE.width, ROPE.height), ROPE.fps, metadata) as writer:
+            for image, f in zip(images, frames, strict=True):
+                writer.add(image, f.t_ns, ROPE.exposure_us)
+        out = tmp_path / f"{name}.toml"
+        assert main(["setup", str(root), "--out", str(out), "--quiet"]) == 0
+        table = tomllib.loads(out.read_text())["pipeline"]
+        assert table.get("gamma") == (2.2 if name == "stated" else None)
+        widths[name] = table["rope_width_px"]
+    assert abs(widths["stated"] - widths["linear"]) < 0.1, widths
+    assert widths["unstated"] - widths["linear"] > 0.15, widths

@@ -202,6 +202,7 @@ from ropecam.device.pipeline._kernels.static_mask import (
     seal_cut_ends,
 )
 from ropecam.device.pipeline._kernels.thresholds import HIST_PER_UNIT, histogram_median, sample_gradient_histogram
+from ropecam.device.pipeline._kernels.tone import apply_table
 from ropecam.device.pipeline._kernels.tracking import (
     MOTION_COUNT,
     MOTION_EXPOSURE,
@@ -296,6 +297,7 @@ __all__ = [
     "Track",
     "anchor_start",
     "apply_operator",
+    "apply_table",
     "axis_offset",
     "band_sides",
     "band_stage",
