@@ -44,8 +44,7 @@ from ropecam.device.pipeline._kernels.canny import (
     suppress_rows,
 )
 from ropecam.device.pipeline._kernels.canny_gradient import (
-    grow_spans_inplace,
-    grow_spans_once,
+    grow_spans,
     padded_end,
     smooth_box,
     smooth_columns,
@@ -311,8 +310,7 @@ __all__ = [
     "finish_edges",
     "first_listed",
     "grow_edges",
-    "grow_spans_inplace",
-    "grow_spans_once",
+    "grow_spans",
     "half_level_crossing",
     "histogram_median",
     "in_spans",
