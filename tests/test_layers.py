@@ -201,3 +201,44 @@ def test_the_checker_accepts_what_the_rules_allow(tmp_path: Path, file: str, sou
     (tmp_path / file).parent.mkdir(parents=True)
     (tmp_path / file).write_text(source + "\n")
     assert violations(tmp_path, known={}) == []
+
+
+MAX_KERNEL_ARGUMENTS = 16
+"""Issue 17 ("no kernel with more than 16 arguments"): related arrays travel as the named groups of
+`ropecam.device.pipeline._kernels.groups`, made once by the workspace, not as long positional lists."""
+
+
+def kernel_arities(root: Path, folder: str = "device/pipeline/_kernels") -> list[tuple[int, str]]:
+    """Return (argument count, ``file:name``) of every function decorated with ``kernel(...)`` in the modules
+    under `root` / `folder`, the largest first."""
+    found = []
+    for path in sorted((root / folder).rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if not isinstance(node, ast.FunctionDef):
+                continue
+            for decorator in node.decorator_list:
+                target = decorator.func if isinstance(decorator, ast.Call) else decorator
+                if getattr(target, "id", getattr(target, "attr", None)) == "kernel":
+                    found.append((len(node.args.args), f"{path.relative_to(root)}:{node.name}"))
+    return sorted(found, reverse=True)
+
+
+def test_no_pipeline_kernel_takes_more_than_16_arguments() -> None:
+    arities = kernel_arities(ROOT)
+    assert len(arities) > 100  # the checker sees the kernels
+    too_many = [f"{name}: {count}" for count, name in arities if count > MAX_KERNEL_ARGUMENTS]
+    assert not too_many, f"kernels with more than {MAX_KERNEL_ARGUMENTS} arguments (use a named group): {too_many}"
+
+
+def test_the_arity_checker_counts_decorated_kernels_only(tmp_path: Path) -> None:
+    folder = tmp_path / "device/pipeline/_kernels"
+    folder.mkdir(parents=True)
+    names = ", ".join(f"a{i}" for i in range(17))
+    (folder / "x.py").write_text(
+        f"@kernel(sig)\ndef wide({names}):\n    pass\n\n\n@njit\ndef helper({names}):\n    pass\n\n\n"
+        "@jit.kernel([sig])\ndef narrow(a, b):\n    pass\n"
+    )
+    assert kernel_arities(tmp_path) == [
+        (17, "device/pipeline/_kernels/x.py:wide"),
+        (2, "device/pipeline/_kernels/x.py:narrow"),
+    ]

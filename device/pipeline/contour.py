@@ -95,9 +95,8 @@ class ContourTracer:
             # they are (an `as_ro` or a NumPy scalar costs 0.5-1.5 us here): read-only views, as the pipeline and
             # `EdgeDetector` keep them, match the kernel's signature; writable ones work, through the slow path.
             n = K.trace_rope(
-                edges, lo, hi, edge_list, int(n_edges), self._min32, True, _NO_MASK, mag, gx, gy, self.labels,
-                self.stack, self.start, self.chain, self.codes, self.points, self.counts,
-            )  # fmt: skip
+                edges, lo, hi, edge_list, int(n_edges), self._min32, True, _NO_MASK, mag, gx, gy, self.group
+            )
             self.component_px, self.contacts, self.on_border = self.counts[:3].tolist()
             self.count = n if n > 0 else 0  # FULL: a contour longer than the buffers is not a rope
             return self.count
@@ -152,14 +151,11 @@ class ContourTracer:
 
     def detect_args(self, detector: EdgeDetector) -> tuple[Any, ...]:
         """The arguments of the `detect_and_trace` kernel after the frame and the spans, for `detector`: its
-        buffers, then this tracer's (made once per detector)."""
+        weights and thresholds, our smallest component, its groups of buffers (`Static`, `EdgeWork`, `Planes`),
+        then ours (`Contour`); made once per detector."""
         if detector is not self._detector:
             d = detector
-            self._detect_args = (
-                d.weights_ro, d.low, d.high, self._min32, d.static_mask_ro, d.static_low_ro, d.static_high_ro,
-                d.work_spans, d.tmp, d.smooth, d.gx, d.gy, d.mag, d.edges,
-                d.stack, self.labels, self.stack, self.start, self.chain, self.codes, self.points, self.counts,
-            )  # fmt: skip
+            self._detect_args = (d.weights_ro, d.low, d.high, self._min32, d.static, d.work, d.planes, self.group)
             self._detector = detector
         return self._detect_args
 

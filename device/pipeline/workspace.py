@@ -105,19 +105,27 @@ class EdgeBuffers:
     static_low: NDArray[np.uint8]
     static_high: NDArray[np.uint8]
     planes: K.Planes
-    """`smooth`, `gx`, `gy`, `mag` as the split kernels' group."""
+    """`smooth`, `gx`, `gy`, `mag` as the kernels' group (`detect_and_trace`, the split)."""
+    static: K.Static
+    """`static_mask`, `static_low`, `static_high` as `detect_and_trace`'s group."""
+    work: K.EdgeWork
+    """`work_spans`, `tmp`, `edges`, `stack` as `detect_and_trace`'s group."""
 
     @classmethod
     def make(cls, height: int, width: int, weights: NDArray[np.float32]) -> EdgeBuffers:
         """Allocate the buffers of an image of `height` x `width` px for the Gaussian `weights` (copied)."""
         tmp, smooth, gx, gy, mag = staggered_planes(5, (height, width), np.float32)
+        work_spans, edges = np.zeros((4, height), np.int32), resident_zeros((height, width), np.uint8)
+        stack = resident_zeros(height * width, np.int32)
+        static = K.Static(
+            np.zeros((height, width), np.uint8), np.full((height, width), 255, np.uint8),
+            np.zeros((height, width), np.uint8),
+        )  # fmt: skip
         return cls(
-            ro(np.array(weights, np.float32)), np.zeros((4, height), np.int32), tmp, smooth, gx, gy, mag,
-            resident_zeros((height, width), np.uint8), resident_zeros(height * width, np.int32),
+            ro(np.array(weights, np.float32)), work_spans, tmp, smooth, gx, gy, mag, edges, stack,
             np.zeros(height, np.int32), np.zeros(height, np.int32), np.zeros(height, np.int32),
-            np.full(height, width - 1, np.int32), np.zeros((height, width), np.uint8),
-            np.full((height, width), 255, np.uint8), np.zeros((height, width), np.uint8),
-            K.Planes(smooth, gx, gy, mag),
+            np.full(height, width - 1, np.int32), *static, K.Planes(smooth, gx, gy, mag), static,
+            K.EdgeWork(work_spans, tmp, edges, stack),
         )  # fmt: skip
 
 
@@ -133,15 +141,18 @@ class ContourBuffers:
     codes: NDArray[np.int32]
     points: NDArray[np.float32]
     counts: NDArray[np.int32]
+    group: K.Contour
+    """The seven as the kernels' group (`trace_rope`, `detect_and_trace`)."""
 
     @classmethod
     def make(cls, height: int, width: int, capacity: int) -> ContourBuffers:
         """Allocate the buffers of an image of `height` x `width` px and contours of up to `capacity` points."""
-        return cls(
+        arrays = (
             resident_zeros((height, width), np.int32), resident_zeros(height * width, np.int32),
             np.zeros(2, np.int32), np.zeros((capacity, 2), np.int32), np.zeros(capacity, np.int32),
             np.zeros((capacity, 2), np.float32), np.zeros(4, np.int32),
         )  # fmt: skip
+        return cls(*arrays, K.Contour(*arrays))
 
 
 @_group
@@ -190,13 +201,13 @@ class FixedEndBuffers:
 @_group
 class MotionBuffers:
     """`MotionModel`'s (see there): its `state`, `log`, the band prediction's error `need` and `profile`, and
-    what the last band was built with (`band`)."""
+    what the last band was built with (`band`, one `BAND_STATE` record)."""
 
     state: NDArray[np.int64]
     log: NDArray[np.float64]
     need: NDArray[np.float64]
     profile: NDArray[np.float64]
-    band: NDArray[np.float64]
+    band: NDArray[np.void]
     group: K.Motion
     """The five as the kernels' group."""
 
@@ -205,7 +216,7 @@ class MotionBuffers:
         """Allocate the buffers (their size does not depend on the image)."""
         arrays = (
             np.zeros(K.MOTION_FRAMES + 2, np.int64), np.zeros((K.MOTION_FRAMES + 1, 2), np.float64),
-            np.zeros((2, NEED_BINS), np.float64), np.full(NEED_BINS, np.inf), np.zeros(K.BAND_SLOTS, np.float64),
+            np.zeros((2, NEED_BINS), np.float64), np.full(NEED_BINS, np.inf), np.zeros(1, K.BAND_STATE),
         )  # fmt: skip
         return cls(*arrays, K.Motion(*arrays))
 

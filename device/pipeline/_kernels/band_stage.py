@@ -7,8 +7,6 @@ caches the frame's kernels have filled: a stream builds its band with one call i
 
 from __future__ import annotations
 
-from typing import Final
-
 from numba import boolean, float64, int64
 
 from ropecam.device.pipeline._kernels.groups import BAND, MOTION
@@ -16,17 +14,6 @@ from ropecam.device.pipeline._kernels.prediction import need_profile
 from ropecam.device.pipeline._kernels.spans import spans_around_chain
 from ropecam.device.pipeline._kernels.tracking import MOTION_COUNT, MOTION_FRAMES, predict_motion
 from ropecam.shared.jit import f4_1d, f4_2d_ro, kernel
-
-BAND_FIXED_R: Final = 0
-"""Slots of `band_stage`'s `band_state` (float64): the fixed end (row, col) the last band was built about,"""
-BAND_FIXED_C: Final = 1
-BAND_MOTION_PX: Final = 2
-"""its uncertainty at the farthest point (px),"""
-BAND_MOVED: Final = 3
-"""the number of points it moved (written to `out_moved`),"""
-BAND_MOTION_HELD: Final = 4
-"""1.0 when the motion model held at least ``MOTION_FRAMES - 1`` frames when it was predicted, else 0.0."""
-BAND_SLOTS: Final = 5
 
 
 @kernel(
@@ -43,14 +30,14 @@ def band_stage(
     closed chain of `n_points` (row, col)), first measuring how well the last band predicted it when `measure`.
 
     1. With `measure` (the last frame was found in the band the last call built, and `points` is that contour):
-       `need_profile` of `points` against the last call's moved points (`out_moved`, ``band_state[BAND_MOVED]``
+       `need_profile` of `points` against the last call's moved points (`out_moved`, ``band_state["moved"]``
        of them) with the last call's fixed end, margin `margin_px`, `gain` and ``floor_px + floor_share *
-       band_state[BAND_MOTION_PX]``, and its `motion_held`: updates `need_hist` (2, bins) and `profile` (bins,).
+       band_state["motion_px"]``, and its ``motion_held``: updates `need_hist` (2, bins) and `profile` (bins,).
     2. With `predict` (the fixed end `fixed`, float32 (row, col), is known): `predict_motion(t_ns, exposure_ns,
        motion_state, motion_log)`; else no motion (1, 0, 0) about (0, 0).
     3. `spans_around_chain` of `points` with that motion, margin `margin_px` and, when `use_profile`, `profile`
        (else none), into `out_lo`/`out_hi` (`height` rows, `width` columns); the moved points into `out_moved`.
-       `band_state` (BAND_SLOTS,) gets what step 1 of the next call needs.
+       `band_state` (one `BAND_STATE` record) gets what step 1 of the next call needs.
 
     `motion` is the motion model's group (`Motion`: ``state``, ``log`` as `motion_state`, `motion_log` above,
     ``need`` as `need_hist`, ``profile``, ``band`` as `band_state`), `band` the band's (`Band`: ``lo``, ``hi``,
@@ -62,15 +49,15 @@ def band_stage(
     motion_log = motion.log
     need_hist = motion.need
     profile = motion.profile
-    band_state = motion.band
+    band_state = motion.band[0]
     out_lo = band.lo
     out_hi = band.hi
     out_moved = band.moved
     if measure:
         need_profile(
-            out_moved, int(band_state[BAND_MOVED]), points, n_points, margin_px, band_state[BAND_FIXED_R],
-            band_state[BAND_FIXED_C], gain, floor_px + floor_share * band_state[BAND_MOTION_PX],
-            band_state[BAND_MOTION_HELD] != 0.0, need_hist, profile,
+            out_moved, band_state["moved"], points, n_points, margin_px, band_state["fixed_r"],
+            band_state["fixed_c"], gain, floor_px + floor_share * band_state["motion_px"], band_state["motion_held"],
+            need_hist, profile,
         )  # fmt: skip
     rot_a = 1.0
     rot_b = 0.0
@@ -85,9 +72,9 @@ def band_stage(
         points, n_points, margin_px, motion_px, profile if use_profile else profile[:0], rot_a, rot_b, fixed_r,
         fixed_c, height, width, out_lo, out_hi, out_moved,
     )  # fmt: skip
-    band_state[BAND_FIXED_R] = fixed_r
-    band_state[BAND_FIXED_C] = fixed_c
-    band_state[BAND_MOTION_PX] = motion_px
-    band_state[BAND_MOVED] = n_points
-    band_state[BAND_MOTION_HELD] = 1.0 if motion_state[MOTION_COUNT] >= MOTION_FRAMES - 1 else 0.0
+    band_state["fixed_r"] = fixed_r
+    band_state["fixed_c"] = fixed_c
+    band_state["motion_px"] = motion_px
+    band_state["moved"] = n_points
+    band_state["motion_held"] = motion_state[MOTION_COUNT] >= MOTION_FRAMES - 1
     return motion_px

@@ -36,8 +36,7 @@ from ropecam.device.pipeline._kernels._common import (
 from ropecam.device.pipeline._kernels.canny_gradient import (
     AHEAD,
     VEC,
-    grow_spans_inplace,
-    grow_spans_once,
+    grow_spans,
     padded_end,
     smooth_columns,
     smooth_ring,
@@ -385,21 +384,21 @@ def detect_edges(
     sob_end = min(r_last + 1, height - 1)
     gau_begin = max(r_first - 2, 0)
     gau_end = min(r_last + 2, height - 1)
-    grow_spans_once(lo, hi, r_first, r_last, width, gau_lo, gau_hi)
-    grow_spans_inplace(sob_begin, sob_end, 1, width, gau_lo, gau_hi)
+    grow_spans(lo, hi, r_first, r_last, 1, width, gau_lo, gau_hi)
+    grow_spans(gau_lo, gau_hi, sob_begin, sob_end, 1, width, gau_lo, gau_hi)
     hor_begin = gau_begin
     hor_end = gau_end
     for r in range(hor_begin, hor_end + 1):
         sob_lo[r] = gau_lo[r]
         sob_hi[r] = gau_hi[r]
     for _ in range(radius):
-        grow_spans_inplace(hor_begin, hor_end, 0, width, sob_lo, sob_hi)
+        grow_spans(sob_lo, sob_hi, hor_begin, hor_end, 0, width, sob_lo, sob_hi)
         hor_begin = max(hor_begin - 1, 0)
         hor_end = min(hor_end + 1, height - 1)
     if not smooth_ring(frame, weights, sob_lo, sob_hi, gau_lo, gau_hi, gau_begin, gau_end, out_tmp, out_smooth):
         smooth_rows(frame, weights, sob_lo, sob_hi, hor_begin, hor_end, out_tmp)
         smooth_columns(out_tmp, weights, gau_lo, gau_hi, gau_begin, gau_end, out_smooth)
-    grow_spans_once(lo, hi, r_first, r_last, width, sob_lo, sob_hi)
+    grow_spans(lo, hi, r_first, r_last, 1, width, sob_lo, sob_hi)
     top = sobel_suppress(
         out_smooth, lo, hi, sob_lo, sob_hi, r_first, r_last, low, high, out_gx, out_gy, out_mag, out_edges, stack
     )

@@ -52,11 +52,13 @@ def padded_end(c0, c1, width):
     return min(c0 + ((c1 - c0) // VEC + 1) * VEC - 1, width - 1)
 
 
-@kernel(void(i4_1d_ro, i4_1d_ro, int64, int64, int64, i4_1d, i4_1d))
-def grow_spans_once(lo, hi, r_begin, r_end, width, out_lo, out_hi):
+@kernel(void(i4_1d_ro, i4_1d_ro, int64, int64, int64, int64, i4_1d, i4_1d))
+def grow_spans(lo, hi, r_begin, r_end, cols_apart, width, out_lo, out_hi):
     """Write into `out_lo`/`out_hi`, for the rows ``r_begin - 1 .. r_end + 1`` (clipped to the image), the union
     of the spans `lo`/`hi` of the row and its two neighbours (only rows ``r_begin .. r_end`` are read, the others
-    count as empty), widened by one column and clipped to ``[0, width)``; an empty result is ``(1, 0)``."""
+    count as empty), widened by `cols_apart` columns and clipped to ``[0, width)``; an empty result is ``(1, 0)``.
+
+    `out_lo`/`out_hi` may be `lo`/`hi` themselves (grown in place): each row is read before it is written."""
     height = lo.shape[0]
     prev_lo = _EMPTY_LO
     prev_hi = -1
@@ -72,35 +74,8 @@ def grow_spans_once(lo, hi, r_begin, r_end, width, out_lo, out_hi):
             nxt_hi = np.int64(hi[r + 1])
         a = min(min(prev_lo, cur_lo), nxt_lo)
         z = max(max(prev_hi, cur_hi), nxt_hi)
-        out_lo[r] = max(0, a - 1) if z >= 0 else 1
-        out_hi[r] = min(width - 1, z + 1) if z >= 0 else 0
-        prev_lo = cur_lo
-        prev_hi = cur_hi
-        cur_lo = nxt_lo
-        cur_hi = nxt_hi
-
-
-@kernel(void(int64, int64, int64, int64, i4_1d, i4_1d))
-def grow_spans_inplace(r_begin, r_end, cols_apart, width, spans_lo, spans_hi):
-    """`grow_spans_once` in place on `spans_lo`/`spans_hi` (valid for the rows ``r_begin .. r_end``), widening by
-    `cols_apart` columns instead of one: afterwards the rows ``r_begin - 1 .. r_end + 1`` (clipped) are valid."""
-    height = spans_lo.shape[0]
-    prev_lo = _EMPTY_LO
-    prev_hi = -1
-    b = max(r_begin - 1, 0)
-    e = min(r_end + 1, height - 1)
-    cur_lo = np.int64(spans_lo[b]) if b >= r_begin and spans_hi[b] >= spans_lo[b] else _EMPTY_LO
-    cur_hi = np.int64(spans_hi[b]) if b >= r_begin and spans_hi[b] >= spans_lo[b] else -1
-    for r in range(b, e + 1):
-        nxt_lo = _EMPTY_LO
-        nxt_hi = -1
-        if r + 1 <= r_end and spans_hi[r + 1] >= spans_lo[r + 1]:
-            nxt_lo = np.int64(spans_lo[r + 1])
-            nxt_hi = np.int64(spans_hi[r + 1])
-        a = min(min(prev_lo, cur_lo), nxt_lo)
-        z = max(max(prev_hi, cur_hi), nxt_hi)
-        spans_lo[r] = max(0, a - cols_apart) if z >= 0 else 1
-        spans_hi[r] = min(width - 1, z + cols_apart) if z >= 0 else 0
+        out_lo[r] = max(0, a - cols_apart) if z >= 0 else 1
+        out_hi[r] = min(width - 1, z + cols_apart) if z >= 0 else 0
         prev_lo = cur_lo
         prev_hi = cur_hi
         cur_lo = nxt_lo

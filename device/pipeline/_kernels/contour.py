@@ -3,13 +3,16 @@ contacts with the ROI border."""
 
 from __future__ import annotations
 
+from typing import Final
+
 import numba
 import numpy as np
-from numba import boolean, float64, int32, int64
+from numba import boolean, float64, int32, int64, types
 
 from ropecam.device.pipeline._kernels._common import DIR_COL, DIR_ROW, FULL, NOT_FOUND
-from ropecam.device.pipeline._kernels.contacts import on_image_border, touches_roi_border
-from ropecam.device.pipeline._kernels.geometry import axis_offset
+from ropecam.device.pipeline._kernels.contacts import count_border_contacts, count_roi_contacts
+from ropecam.device.pipeline._kernels.geometry import refine_subpixel
+from ropecam.device.pipeline._kernels.groups import CONTOUR
 from ropecam.device.pipeline._kernels.outline import OPEN_RATIO, keep_open_once, touches_mask
 from ropecam.device.pipeline._kernels.spans import in_spans
 from ropecam.shared.jit import (
@@ -23,6 +26,78 @@ from ropecam.shared.jit import (
     u1_2d,
     u1_2d_ro,
 )
+
+
+@kernel(types.UniTuple(int64, 2)(u1_2d_ro, i4_1d_ro, i4_1d_ro, int64, int64, i4_2d, i4_1d))
+def flood_labels(edges, lo, hi, seed, label, out_labels, stack):
+    """Label with `label` the edge pixels (nonzero `edges`, inside the spans `lo`/`hi`, label 0 so far) joined
+    8-connected to the flat pixel `seed` (``row * width + col``, labelled already), depth first through `stack`.
+
+    Writes `out_labels` at them; returns their count and the smallest flat index among them (the component's
+    first pixel in raster order)."""
+    height = edges.shape[0]
+    width = edges.shape[1]
+    stack[0] = seed
+    top = 1
+    size = 0
+    first = seed
+    while top > 0:
+        top -= 1
+        here = np.int64(stack[top])
+        first = min(first, here)
+        size += 1
+        pr = here // width
+        pc = here - pr * width
+        for k in range(8):
+            rr = pr + DIR_ROW[k]
+            cc = pc + DIR_COL[k]
+            if rr < 0 or rr >= height or cc < lo[rr] or cc > hi[rr] or cc >= width:
+                continue
+            if edges[rr, cc] != 0 and out_labels[rr, cc] == 0:
+                out_labels[rr, cc] = label
+                stack[top] = rr * width + cc
+                top += 1
+    return size, first
+
+
+@kernel(types.Tuple((int64, int64, boolean))(u1_1d, int64, int64, i4_1d, int64))
+def flood_flat(edges, width, seed, stack, tail):
+    """Flood breadth first, through the flat map `edges` (rows of `width`), the pixels of value 1 joined
+    8-connected to the pixel `seed` (value 1; none of them on the image border): each is set to 3 and appended
+    to `stack` from index `tail`, the seed first.
+
+    Returns the new tail, the smallest flat index flooded (the component's first pixel in raster order) and
+    whether a flooded pixel has a neighbour of value 2."""
+    offsets = (-width - 1, -width, -width + 1, -1, 1, width - 1, width, width + 1)
+    edges[seed] = 3
+    stack[tail] = seed
+    head = tail
+    tail += 1
+    first = seed
+    touches = False
+    while head < tail:
+        here = np.int64(stack[head])
+        head += 1
+        first = min(first, here)
+        for o in offsets:
+            k = np.uint64(here + o)
+            v = edges[k]
+            if v == 1:
+                edges[k] = 3
+                stack[tail] = np.int32(k)
+                tail += 1
+            touches |= v == 2
+    return tail, first, touches
+
+
+@kernel(boolean(i4_1d_ro, i4_1d_ro, int64, int64))
+def spans_off_border(lo, hi, height, width):
+    """Return whether every non-empty span of the first `height` rows of `lo`/`hi` keeps off the border of a
+    `height` x `width` image (not in its first or last row, within columns 1 .. width - 2)."""
+    for r in range(height):
+        if hi[r] >= lo[r] and (r == 0 or r == height - 1 or lo[r] < 1 or hi[r] > width - 2):
+            return False
+    return True
 
 
 @kernel(int32(u1_2d, i4_1d_ro, i4_1d_ro, int32, i4_2d, i4_1d, i4_1d))
@@ -57,24 +132,7 @@ def keep_largest_component(edges, lo, hi, min_pixels, out_labels, stack, out_sta
             c = c0 + i
             label += 1
             out_labels[r, c] = label
-            top = 0
-            stack[top] = r * width + c
-            top += 1
-            size = 0
-            while top > 0:
-                top -= 1
-                pr = stack[top] // width
-                pc = stack[top] - pr * width
-                size += 1
-                for k in range(8):
-                    rr = pr + DIR_ROW[k]
-                    cc = pc + DIR_COL[k]
-                    if rr < 0 or rr >= height or cc < lo[rr] or cc > hi[rr] or cc >= width:
-                        continue
-                    if edges[rr, cc] != 0 and out_labels[rr, cc] == 0:
-                        out_labels[rr, cc] = label
-                        stack[top] = rr * width + cc
-                        top += 1
+            size, _ = flood_labels(edges, lo, hi, r * width + c, label, out_labels, stack)
             if size > best_size:
                 best_size = size
                 best_label = label
@@ -105,7 +163,6 @@ def keep_largest_closed(edges, edge_list, n_edges, min_pixels, width, stack, out
     the largest component, ties to the one first in raster order; 2 = the others), writes its first pixel in
     raster order into `out_start` (row, col) and returns its size, or NOT_FOUND when below `min_pixels`.
     """
-    offsets = (-width - 1, -width, -width + 1, -1, 1, width - 1, width, width + 1)
     tail = 0
     best_size = 0
     best_first = 0
@@ -114,22 +171,8 @@ def keep_largest_closed(edges, edge_list, n_edges, min_pixels, width, stack, out
         seed = edge_list[t]
         if edges[seed] != 1:
             continue
-        edges[seed] = 3
         begin = tail
-        stack[tail] = seed
-        tail += 1
-        head = begin
-        first = np.int64(seed)
-        while head < tail:
-            here = np.int64(stack[head])
-            head += 1
-            first = min(first, here)
-            for o in offsets:
-                k = np.uint64(here + o)
-                if edges[k] == 1:
-                    edges[k] = 3
-                    stack[tail] = np.int32(k)
-                    tail += 1
+        tail, first, _ = flood_flat(edges, width, seed, stack, tail)
         size = tail - begin
         if size > best_size or (size == best_size and first < best_first):
             best_size = size
@@ -163,11 +206,7 @@ def keep_largest_listed(edges, lo, hi, edge_list, n_edges, min_pixels, ring_clea
     width = edges.shape[1]
     labels = out_labels.reshape(height * width)
     flat_edges = edges.reshape(height * width)
-    inner = ring_clear
-    for r in range(height):
-        if hi[r] >= lo[r] and (r == 0 or r == height - 1 or lo[r] < 1 or hi[r] > width - 2):
-            inner = False
-    if inner:
+    if ring_clear and spans_off_border(lo, hi, height, width):
         return keep_largest_closed(flat_edges, edge_list, n_edges, min_pixels, width, stack, out_start)
     for t in range(n_edges):
         labels[edge_list[t]] = 0
@@ -176,30 +215,12 @@ def keep_largest_listed(edges, lo, hi, edge_list, n_edges, min_pixels, ring_clea
     best_size = 0
     best_first = 0
     for t in range(n_edges):
-        first = edge_list[t]
-        if labels[first] != 0:
+        seed = edge_list[t]
+        if labels[seed] != 0:
             continue
         label += 1
-        labels[first] = label
-        stack[0] = first
-        top = 1
-        size = 0
-        while top > 0:
-            top -= 1
-            here = np.int64(stack[top])
-            first = min(first, here)  # the component's first pixel in raster order
-            size += 1
-            pr = here // width
-            pc = here - pr * width
-            for k in range(8):
-                rr = pr + DIR_ROW[k]
-                cc = pc + DIR_COL[k]
-                if rr < 0 or rr >= height or cc < lo[rr] or cc > hi[rr] or cc >= width:
-                    continue
-                if edges[rr, cc] != 0 and out_labels[rr, cc] == 0:
-                    out_labels[rr, cc] = label
-                    stack[top] = rr * width + cc
-                    top += 1
+        labels[seed] = label
+        size, first = flood_labels(edges, lo, hi, seed, label, out_labels, stack)
         if size > best_size or (size == best_size and first < best_first):
             best_size = size
             best_label = label
@@ -271,6 +292,10 @@ def trace_closed(edges, width, start_r, start_c, out_chain, out_codes):
     """`trace_contour` on a flat map `edges` (rows of `width`) whose traced component (value 1) has only
     pixels of the spans or 0 around it, none on the image border (as `keep_largest_closed` leaves it): no span
     or border test per neighbour. Same outputs and return value."""
+    # A second copy of `trace_contour`'s walk, on purpose: the steady frame's trace runs here, and what this copy
+    # leaves out is exactly the per-neighbour span and border tests (one load per neighbour instead of five
+    # compares and two loads). A walk with the test as an argument would branch on it in the inner loop. Keep
+    # the two in step: `test_trace_rope_equals_the_kernels_one_by_one` compares them on every kind of band.
     capacity = out_chain.shape[0]
     if capacity < 1 or out_codes.shape[0] < capacity:
         return FULL
@@ -352,7 +377,6 @@ def keep_traced(edges, width, edge_list, n_edges, min_pixels, chain, n, stack):
     """
     for i in range(n):
         edges[np.int64(chain[i, 0]) * width + chain[i, 1]] = 2
-    offsets = (-width - 1, -width, -width + 1, -1, 1, width - 1, width, width + 1)
     tail = 0
     others = 0
     largest_other = 0
@@ -360,23 +384,8 @@ def keep_traced(edges, width, edge_list, n_edges, min_pixels, chain, n, stack):
         seed = edge_list[t]
         if edges[seed] != 1:
             continue
-        edges[seed] = 3
         begin = tail
-        stack[tail] = seed
-        tail += 1
-        head = begin
-        touches = False
-        while head < tail:
-            here = np.int64(stack[head])
-            head += 1
-            for o in offsets:
-                k = np.uint64(here + o)
-                v = edges[k]
-                if v == 1:
-                    edges[k] = 3
-                    stack[tail] = np.int32(k)
-                    tail += 1
-                touches |= v == 2
+        tail, _, touches = flood_flat(edges, width, seed, stack, tail)
         if touches:  # pixels of the traced component inside its boundary
             for i in range(begin, tail):
                 edges[stack[i]] = 2
@@ -407,6 +416,9 @@ def refine_inner(mag, gx, gy, lo, hi, chain, n, scratch, out_points):
     8-neighbour outside the spans into ``scratch[:height]`` and ``scratch[height : 2 * height]``; returns the
     ROI contacts.
     """
+    # Not `refine_subpixel` then `count_roi_contacts` (as `trace_rope` calls them for spans that touch the image
+    # border): on the steady frame's path their per-pixel branches (border, no gradient, no maximum) and the
+    # second pass over the chain are what this kernel saves.
     height = mag.shape[0]
     width = mag.shape[1]
     near_lo = scratch[:height]
@@ -449,48 +461,14 @@ def refine_inner(mag, gx, gy, lo, hi, chain, n, scratch, out_points):
     return contacts
 
 
+_NO_FIXED: Final = -1e9
+"""A fixed end far off the image: `count_border_contacts` then counts every chain pixel on the image border."""
+
+
 @kernel(
-    int32(
-        u1_2d,
-        i4_1d_ro,
-        i4_1d_ro,
-        i4_1d_ro,
-        int64,
-        int32,
-        boolean,
-        u1_2d_ro,
-        f4_2d_ro,
-        f4_2d_ro,
-        f4_2d_ro,
-        i4_2d,
-        i4_1d,
-        i4_1d,
-        i4_2d,
-        i4_1d,
-        f4_2d,
-        i4_1d,
-    )
+    int32(u1_2d, i4_1d_ro, i4_1d_ro, i4_1d_ro, int64, int32, boolean, u1_2d_ro, f4_2d_ro, f4_2d_ro, f4_2d_ro, CONTOUR)
 )
-def trace_rope(
-    edges,
-    lo,
-    hi,
-    edge_list,
-    n_edges,
-    min_pixels,
-    ring_clear,
-    static_mask,
-    mag,
-    gx,
-    gy,
-    out_labels,
-    stack,
-    out_start,
-    out_chain,
-    out_codes,
-    out_points,
-    out_counts,
-):
+def trace_rope(edges, lo, hi, edge_list, n_edges, min_pixels, ring_clear, static_mask, mag, gx, gy, contour):
     """The contour stage in one call: `keep_largest_listed`, `trace_contour` from the component's start,
     `keep_open_once` when the chain walks out and back along a curve that touches `static_mask` (the rope cut by
     the mask at its clamp: walked once; without a mask, a 1x1 placeholder, an out-and-back walk is a broken band
@@ -502,23 +480,27 @@ def trace_rope(
     and `refine_inner` refines and counts without border tests.
 
     Arguments as for those kernels (`n_edges` is an int64: a Python int passes as it is; `edges` is
-    rewritten, `out_labels` (with `ring_clear`: scratch), `stack`, `out_start`, `out_chain`, `out_codes` and
-    `out_points` written; past the returned count, and after NOT_FOUND or FULL, the chain buffers hold no
-    meaningful values).
-    `out_counts` (3 slots) gets the component's pixel count, the chain's ROI contacts and how many chain pixels
-    lie on the image border (0 means `count_border_contacts` is 0 too).
+    rewritten). `contour` (`Contour`) gets the outputs: ``labels`` (with `ring_clear`: scratch), ``stack``,
+    ``start``, ``chain``, ``codes`` and ``points`` as those kernels' (past the returned count, and after
+    NOT_FOUND or FULL, the chain buffers hold no meaningful values), and ``counts`` (3 slots at least) the
+    component's pixel count, the chain's ROI contacts and how many chain pixels lie on the image border (0
+    means `count_border_contacts` is 0 too).
     Returns the chain length, NOT_FOUND (no component of `min_pixels`; counts 0) or FULL (chain longer than the
-    buffers; `out_counts[0]` set).
+    buffers; ``counts[0]`` set).
     """
+    out_labels = contour.labels
+    stack = contour.stack
+    out_start = contour.start
+    out_chain = contour.chain
+    out_codes = contour.codes
+    out_points = contour.points
+    out_counts = contour.counts
     out_counts[0] = 0
     out_counts[1] = 0
     out_counts[2] = 0
     height = edges.shape[0]
     width = edges.shape[1]
-    inner = ring_clear
-    for r in range(height):
-        if hi[r] >= lo[r] and (r == 0 or r == height - 1 or lo[r] < 1 or hi[r] > width - 2):
-            inner = False
+    inner = ring_clear and spans_off_border(lo, hi, height, width)
     flat = edges.reshape(height * width)
     scratch = out_labels.reshape(height * width)
     if inner and n_edges >= min_pixels and n_edges > 0:
@@ -561,16 +543,7 @@ def trace_rope(
     if inner:
         out_counts[1] = refine_inner(mag, gx, gy, lo, hi, out_chain, n, scratch, out_points)
         return n
-    contacts = 0
-    on_border = 0
-    for i in range(n):
-        r = out_chain[i, 0]
-        c = out_chain[i, 1]
-        d_r, d_c = axis_offset(mag, gx, gy, r, c)
-        out_points[i, 0] = r + d_r
-        out_points[i, 1] = c + d_c
-        contacts += touches_roi_border(r, c, lo, hi, width, height)
-        on_border += on_image_border(r, c, height, width)
-    out_counts[1] = contacts
-    out_counts[2] = on_border
+    refine_subpixel(mag, gx, gy, out_chain, n, out_points)
+    out_counts[1] = count_roi_contacts(out_chain, n, lo, hi, width)
+    out_counts[2] = count_border_contacts(out_chain, n, height, width, _NO_FIXED, _NO_FIXED, 0.0)
     return n

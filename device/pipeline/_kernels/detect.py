@@ -15,55 +15,64 @@ from ropecam.device.pipeline._kernels._common import INVALID, f4_1d_ro
 from ropecam.device.pipeline._kernels.canny import detect_edges
 from ropecam.device.pipeline._kernels.canny_gradient import smooth_box
 from ropecam.device.pipeline._kernels.contour import trace_rope
+from ropecam.device.pipeline._kernels.groups import CONTOUR, EDGE_WORK, PLANES, STATIC
 from ropecam.device.pipeline._kernels.static_mask import drop_static_edges, seal_cut_ends
-from ropecam.shared.jit import f4_2d, i4_1d, i4_1d_ro, i4_2d, kernel, u1_2d, u1_2d_ro
+from ropecam.shared.jit import f4_2d, i4_1d, i4_1d_ro, kernel, u1_2d, u1_2d_ro
 
 # The frame is taken read-only (a mapped capture buffer) or writable (a frame a reader made): a read-only view per
 # frame costs 1-3 us of Python, the second signature a few seconds of compilation once.
-_DETECT_AND_TRACE_ARGS: Final = (  # after the frame
-    i4_1d_ro, i4_1d_ro, f4_1d_ro, float32, float32, int32, u1_2d_ro, u1_2d_ro, u1_2d_ro, i4_2d, f4_2d, f4_2d,
-    f4_2d, f4_2d, f4_2d, u1_2d, i4_1d, i4_2d, i4_1d, i4_1d, i4_2d, i4_1d, f4_2d, i4_1d,
-)  # fmt: skip
+_DETECT_AND_TRACE_ARGS: Final = (
+    i4_1d_ro,
+    i4_1d_ro,
+    f4_1d_ro,
+    float32,
+    float32,
+    int32,
+    STATIC,
+    EDGE_WORK,
+    PLANES,
+    CONTOUR,
+)
+"""The arguments after the frame."""
 
 
 @kernel([int32(frame, *_DETECT_AND_TRACE_ARGS) for frame in (u1_2d_ro, u1_2d)])
-def detect_and_trace(
-    frame, lo, hi, weights, low, high, min_pixels, static_mask, static_low, static_high, work_spans, out_tmp,
-    out_smooth, out_gx, out_gy, out_mag, out_edges, edge_stack, out_labels, stack, out_start, out_chain, out_codes,
-    out_points, out_counts,
-):  # fmt: skip
+def detect_and_trace(frame, lo, hi, weights, low, high, min_pixels, static, work, planes, contour):
     """`detect_edges` inside the spans `lo`/`hi`, then `trace_rope` on its edges (the edge pixels it lists in
-    `edge_stack`, `ring_clear` true: `detect_edges` leaves the edge map 0 next to its spans) after
-    `drop_static_edges` with `static_mask`, `static_low`, `static_high` (a 1x1 mask: none) and `seal_cut_ends`
-    (the rope's sides cut at a masked clamp joined across its exit; with a mask, an open outline is walked once):
-    the edge and contour stages in one call, with
-    the same outputs as those calls.
+    ``work.stack``, `ring_clear` true: `detect_edges` leaves the edge map 0 next to its spans) after
+    `drop_static_edges` with `static` (`Static`: ``mask``, ``low``, ``high``; 1x1 each: no mask) and
+    `seal_cut_ends` (the rope's sides cut at a masked clamp joined across its exit; with a mask, an open outline
+    is walked once): the edge and contour stages in one call, with the same outputs as those calls.
 
-    Arguments as for those kernels (`work_spans` .. `edge_stack` are `detect_edges`' outputs, `out_labels` ..
-    `out_counts` `trace_rope`'s). `out_counts` needs 4 slots: `trace_rope`'s three (component pixels, ROI contacts,
-    chain pixels on the image border), then the number of edge pixels `detect_edges` returned (or its status).
-    Returns `trace_rope`'s result (chain length, NOT_FOUND or FULL), or INVALID when `out_counts` is too short or
-    `detect_edges` refused its arguments (its status is then in ``out_counts[3]``, the other slots 0).
+    `weights`, `low`, `high` are `detect_edges`' arguments, `min_pixels` `trace_rope`'s. Writes `work`
+    (`EdgeWork`: ``work_spans``, ``tmp``, ``edges``, ``stack``) and `planes` (`Planes`: ``smooth``, ``gx``,
+    ``gy``, ``mag``) as `detect_edges` writes its outputs, and `contour` (`Contour`) as `trace_rope`.
+    ``contour.counts`` needs 4 slots: `trace_rope`'s three (component pixels, ROI contacts, chain pixels on the
+    image border), then the number of edge pixels `detect_edges` returned (or its status).
+    Returns `trace_rope`'s result (chain length, NOT_FOUND or FULL), or INVALID when ``contour.counts`` is too
+    short or `detect_edges` refused its arguments (its status is then in ``counts[3]``, the other slots 0).
     """
-    if out_counts.shape[0] < 4:
+    counts = contour.counts
+    if counts.shape[0] < 4:
         return INVALID
+    edges = work.edges
+    edge_list = work.stack
     count = detect_edges(
-        frame, weights, lo, hi, low, high, work_spans, out_tmp, out_smooth, out_gx, out_gy, out_mag, out_edges,
-        edge_stack,
+        frame, weights, lo, hi, low, high, work.work_spans, work.tmp, planes.smooth, planes.gx, planes.gy,
+        planes.mag, edges, edge_list,
     )  # fmt: skip
-    out_counts[3] = count
+    counts[3] = count
     if count < 0:
-        out_counts[0] = 0
-        out_counts[1] = 0
-        out_counts[2] = 0
+        counts[0] = 0
+        counts[1] = 0
+        counts[2] = 0
         return INVALID
-    count = drop_static_edges(frame, static_mask, static_low, static_high, out_edges, edge_stack, count)
-    count = seal_cut_ends(static_mask, lo, hi, out_edges, edge_stack, count)
-    out_counts[3] = count
+    count = drop_static_edges(frame, static.mask, static.low, static.high, edges, edge_list, count)
+    count = seal_cut_ends(static.mask, lo, hi, edges, edge_list, count)
+    counts[3] = count
     return trace_rope(
-        out_edges, lo, hi, edge_stack, count, min_pixels, True, static_mask, out_mag, out_gx, out_gy, out_labels, stack,
-        out_start, out_chain, out_codes, out_points, out_counts,
-    )  # fmt: skip
+        edges, lo, hi, edge_list, count, min_pixels, True, static.mask, planes.mag, planes.gx, planes.gy, contour
+    )
 
 
 @kernel(

@@ -28,7 +28,19 @@ from numba.extending import intrinsic
 from ropecam.device.pipeline._kernels._common import INVALID
 from ropecam.device.pipeline._kernels.band_stage import band_stage
 from ropecam.device.pipeline._kernels.detect import detect_and_trace
-from ropecam.device.pipeline._kernels.groups import SPLIT_WIDTH_SCALARS, Band, Motion, Order, Planes, SplitWork, Track
+from ropecam.device.pipeline._kernels.groups import (
+    BAND_STATE,
+    SPLIT_WIDTH_SCALARS,
+    Band,
+    Contour,
+    EdgeWork,
+    Motion,
+    Order,
+    Planes,
+    SplitWork,
+    Static,
+    Track,
+)
 from ropecam.device.pipeline._kernels.split_frame import FRAME_INFO, FRAME_STATE, FRAME_STATES, split_frame
 from ropecam.device.pipeline._kernels.split_shapes import SPLIT_SCALAR, split_width
 from ropecam.device.pipeline._kernels.tracking import track_frame
@@ -73,7 +85,7 @@ STEADY_BUFFERS: Final = (
     # band_stage's
     ("prev_points", np.float32, 2), ("fixed", np.float32, 1), ("motion_state", np.int64, 1),
     ("motion_log", np.float64, 2), ("need_hist", np.float64, 2), ("profile", np.float64, 1),
-    ("band_state", np.float64, 1), ("lo", np.int32, 1), ("hi", np.int32, 1), ("moved", np.float32, 2),
+    ("band_state", BAND_STATE, 1), ("lo", np.int32, 1), ("hi", np.int32, 1), ("moved", np.float32, 2),
     # detect_and_trace's
     ("weights", np.float32, 1), ("static_mask", np.uint8, 2), ("static_low", np.uint8, 2),
     ("static_high", np.uint8, 2), ("work_spans", np.int32, 2), ("tmp", np.float32, 2), ("smooth", np.float32, 2),
@@ -110,19 +122,21 @@ STEADY_ROW: Final = NamedTuple("SteadyRows", [(name, int) for name, _, _ in STEA
 """The row of each buffer in `steady_frame`'s table (``STEADY_ROW.lo``), made from `STEADY_BUFFERS`: the one list
 of the table's buffers, kept in this file so that an edit of it recompiles the kernel (Numba freezes the rows)."""
 
-# ``_pointer(address, dtype)``: the int64 `address` as a pointer to `dtype` (a NumPy scalar type).
+# ``_pointer(address, dtype)``: the int64 `address` as a pointer to `dtype` (a NumPy scalar type, or a record
+# dtype such as `BAND_STATE`); `carray` takes the dtype too, which it needs for the untyped pointer without JIT.
 if numba.config.DISABLE_JIT:
 
     def _pointer(address: int, dtype: Any) -> Any:
-        return ctypes.cast(int(address), ctypes.POINTER(np.ctypeslib.as_ctypes_type(dtype)))
+        return ctypes.c_void_p(int(address))
 
 else:
 
     @intrinsic
     def _pointer(typingctx: Any, address: Any, dtype: Any) -> Any:
-        if not isinstance(address, types.Integer) or not isinstance(dtype, types.NumberClass):
+        if not isinstance(address, types.Integer) or not isinstance(dtype, (types.NumberClass, types.DType)):
             return None
-        pointer_type = types.CPointer(dtype.instance_type)
+        target = dtype.instance_type if isinstance(dtype, types.NumberClass) else dtype.dtype
+        pointer_type = types.CPointer(target)
 
         def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
             return builder.inttoptr(args[0], context.get_value_type(pointer_type))
@@ -133,19 +147,19 @@ else:
 @numba.njit(inline="always")
 def _buffer1(table, row, dtype):  # type: ignore[no-untyped-def]
     """The 1-D buffer of `table`'s `row`."""
-    return carray(_pointer(table[row, 0], dtype), (table[row, 1],))
+    return carray(_pointer(table[row, 0], dtype), (table[row, 1],), dtype)
 
 
 @numba.njit(inline="always")
 def _buffer2(table, row, dtype):  # type: ignore[no-untyped-def]
     """The 2-D buffer of `table`'s `row`."""
-    return carray(_pointer(table[row, 0], dtype), (table[row, 1], table[row, 2]))
+    return carray(_pointer(table[row, 0], dtype), (table[row, 1], table[row, 2]), dtype)
 
 
 @numba.njit(inline="always")
 def _buffer3(table, row, dtype):  # type: ignore[no-untyped-def]
     """The 3-D buffer of `table`'s `row`."""
-    return carray(_pointer(table[row, 0], dtype), (table[row, 1], table[row, 2], table[row, 3]))
+    return carray(_pointer(table[row, 0], dtype), (table[row, 1], table[row, 2], table[row, 3]), dtype)
 
 
 def _signature(frame_type: Any) -> Any:
@@ -201,7 +215,7 @@ def steady_frame(
         _buffer2(table, STEADY_ROW.motion_log, np.float64),
         _buffer2(table, STEADY_ROW.need_hist, np.float64),
         _buffer1(table, STEADY_ROW.profile, np.float64),
-        _buffer1(table, STEADY_ROW.band_state, np.float64),
+        _buffer1(table, STEADY_ROW.band_state, BAND_STATE),
     )
     out[STEADY_MOTION] = band_stage(
         _buffer2(table, STEADY_ROW.prev_points, np.float32),
@@ -230,6 +244,7 @@ def steady_frame(
     chain = _buffer2(table, STEADY_ROW.chain, np.int32)
     points = _buffer2(table, STEADY_ROW.points, np.float32)
     counts = _buffer1(table, STEADY_ROW.counts, np.int32)
+    planes = Planes(smooth, gx, gy, mag)
     n = detect_and_trace(
         frame,
         lo,
@@ -238,24 +253,27 @@ def steady_frame(
         float32(constants[STEADY_CONSTANT.low]),
         float32(constants[STEADY_CONSTANT.high]),
         int32(constants[STEADY_CONSTANT.min_pixels]),
-        _buffer2(table, STEADY_ROW.static_mask, np.uint8),
-        _buffer2(table, STEADY_ROW.static_low, np.uint8),
-        _buffer2(table, STEADY_ROW.static_high, np.uint8),
-        _buffer2(table, STEADY_ROW.work_spans, np.int32),
-        tmp,
-        smooth,
-        gx,
-        gy,
-        mag,
-        _buffer2(table, STEADY_ROW.edges, np.uint8),
-        _buffer1(table, STEADY_ROW.edge_stack, np.int32),
-        _buffer2(table, STEADY_ROW.labels, np.int32),
-        _buffer1(table, STEADY_ROW.stack, np.int32),
-        _buffer1(table, STEADY_ROW.start, np.int32),
-        chain,
-        _buffer1(table, STEADY_ROW.codes, np.int32),
-        points,
-        counts,
+        Static(
+            _buffer2(table, STEADY_ROW.static_mask, np.uint8),
+            _buffer2(table, STEADY_ROW.static_low, np.uint8),
+            _buffer2(table, STEADY_ROW.static_high, np.uint8),
+        ),
+        EdgeWork(
+            _buffer2(table, STEADY_ROW.work_spans, np.int32),
+            tmp,
+            _buffer2(table, STEADY_ROW.edges, np.uint8),
+            _buffer1(table, STEADY_ROW.edge_stack, np.int32),
+        ),
+        planes,
+        Contour(
+            _buffer2(table, STEADY_ROW.labels, np.int32),
+            _buffer1(table, STEADY_ROW.stack, np.int32),
+            _buffer1(table, STEADY_ROW.start, np.int32),
+            chain,
+            _buffer1(table, STEADY_ROW.codes, np.int32),
+            points,
+            counts,
+        ),
     )
     out[STEADY_POINTS] = n
     if n <= 0 or counts[1] != 0 or counts[2] != 0:
@@ -266,7 +284,7 @@ def steady_frame(
     status = split_frame(
         points,
         chain,
-        Planes(smooth, gx, gy, mag),
+        planes,
         frame,
         weights,
         lo,

@@ -369,6 +369,8 @@ def find_segmentation_points_seg(
     level_b = np.float64(corner_rad)
     zone_a = len_a
     zone_b = len_b
+    # `find_segmentation_points`' angle loop with the tip zones noted in it, on purpose: a separate pass (or
+    # `_split_from`'s walk along both sides) over the zone is what this variant saves on the steady frame.
     done = -1  # last index written (the zone is visited in order; its neighbours may repeat)
     for i in range(n):
         if out_dist[i] < threshold:

@@ -13,18 +13,41 @@ from __future__ import annotations
 
 from typing import Any, Final, NamedTuple
 
+import numpy as np
 from numba import float32, float64, int32, types
+from numba.np.numpy_support import from_dtype
 
-from ropecam.shared.jit import f4_1d, f4_2d, f8_1d, f8_2d, i4_1d
+from ropecam.shared.jit import f4_1d, f4_2d, f8_1d, f8_2d, i4_1d, i4_2d, u1_2d
 
 i8_1d: Final = types.Array(types.int64, 1, "C")
 f4_3d: Final = types.Array(types.float32, 3, "C")
 
+# A record read by field name, not a float64 vector read through numbered slots: the fields keep their own types
+# (a count, a flag), NumPy takes the same ``state["name"]`` (the kernels run without the JIT too), it is one
+# argument and one row of `steady_frame`'s table like the vector it replaces, and a record type caches as any
+# array type. A named tuple of small arrays would have cost a table row and ~0.2 us of typing per member on every
+# call from Python, and ``[0]`` on every read.
+BAND_STATE: Final = np.dtype(
+    [
+        ("fixed_r", np.float64),
+        ("fixed_c", np.float64),
+        ("motion_px", np.float64),
+        ("moved", np.int64),
+        ("motion_held", np.bool_),
+    ],
+    align=True,
+)
+"""What `band_stage` built its last band with, one record (`Motion.band`, shape (1,)): the fixed end
+(``fixed_r``, ``fixed_c``) it was built about, its uncertainty at the farthest point (``motion_px``), the number
+of points it moved (``moved``, written to `Band.moved`), and ``motion_held``: the motion model held at least
+``MOTION_FRAMES - 1`` frames when it was predicted."""
+band_state_1d: Final = types.Array(from_dtype(BAND_STATE), 1, "C")
+
 
 class Motion(NamedTuple):
     """The motion model's arrays (`MotionBuffers`): `predict_motion`'s and `observe_motion`'s ``state`` and
-    ``log``, the band prediction's measured error ``need`` (2, bins) and ``profile`` (bins,), and ``band``
-    (`BAND_SLOTS`: what the last band was built with)."""
+    ``log``, the band prediction's measured error ``need`` (2, bins) and ``profile`` (bins,), and ``band`` (one
+    `BAND_STATE` record: what the last band was built with)."""
 
     state: Any
     log: Any
@@ -33,7 +56,7 @@ class Motion(NamedTuple):
     band: Any
 
 
-MOTION: Final = types.NamedTuple((i8_1d, f8_2d, f8_2d, f8_1d, f8_1d), Motion)
+MOTION: Final = types.NamedTuple((i8_1d, f8_2d, f8_2d, f8_1d, band_state_1d), Motion)
 
 
 class Band(NamedTuple):
@@ -61,6 +84,51 @@ ORDER_PREV_COUNT: Final = HISTORY + 3
 ORDER_PREV_T: Final = HISTORY + 4
 """and the end of that shape's exposure (ns)."""
 ORDER_STATE_SIZE: Final = HISTORY + 5
+
+
+class Static(NamedTuple):
+    """The static mask and each pixel's learned grey-level range (`EdgeBuffers`' ``static_mask``,
+    ``static_low``, ``static_high``; uint8, the image's shape, or 1x1 each when there is no mask), which
+    `drop_static_edges` and `seal_cut_ends` read."""
+
+    mask: Any
+    low: Any
+    high: Any
+
+
+STATIC: Final = types.NamedUniTuple(u1_2d, 3, Static)
+
+
+class EdgeWork(NamedTuple):
+    """The edge stage's buffers besides its planes (`EdgeBuffers`): the span scratch ``work_spans`` (int32 (4,
+    rows)), the smoothing's row pass ``tmp`` (float32, the image's shape), the edge map ``edges`` (uint8) and the
+    edge list ``stack`` (int32 flat indices, one slot per pixel): `detect_edges`' outputs besides the planes."""
+
+    work_spans: Any
+    tmp: Any
+    edges: Any
+    stack: Any
+
+
+EDGE_WORK: Final = types.NamedTuple((i4_2d, f4_2d, u1_2d, i4_1d), EdgeWork)
+
+
+class Contour(NamedTuple):
+    """The contour stage's buffers (`ContourBuffers`), `trace_rope`'s outputs: component ``labels`` (int32, the
+    image's shape) and ``stack`` (int32, one slot per pixel), the component's first pixel ``start`` (int32
+    (2,)), the ``chain`` (int32 (capacity, 2)), its Freeman ``codes`` (int32 (capacity,)), its subpixel
+    ``points`` (float32 (capacity, 2)) and the trace's ``counts`` (int32 (4,))."""
+
+    labels: Any
+    stack: Any
+    start: Any
+    chain: Any
+    codes: Any
+    points: Any
+    counts: Any
+
+
+CONTOUR: Final = types.NamedTuple((i4_2d, i4_1d, i4_1d, i4_2d, i4_1d, f4_2d, i4_1d), Contour)
 
 
 class Order(NamedTuple):
@@ -167,19 +235,26 @@ SPLIT_WIDTH: Final = types.NamedTuple(
 
 __all__ = [
     "BAND",
+    "BAND_STATE",
+    "CONTOUR",
+    "EDGE_WORK",
     "MOTION",
     "ORDER",
     "PLANES",
     "SPLIT_WIDTH",
     "SPLIT_WIDTH_SCALARS",
     "SPLIT_WORK",
+    "STATIC",
     "TRACK",
     "Band",
+    "Contour",
+    "EdgeWork",
     "Motion",
     "Order",
     "Planes",
     "SplitWidth",
     "SplitWork",
+    "Static",
     "Track",
     "f4_3d",
     "i8_1d",

@@ -139,6 +139,19 @@ def offset_by_gradient(
     return count
 
 
+@kernel(void(f4_1d, int64, int64, f4_1d))
+def box_mean(work, count, half, out):
+    """Write into ``out[:count]`` the mean of ``work[:count]`` over the ``2 half + 1`` points centred on each (the
+    end points repeated beyond the ends), as a running sum (float64)."""
+    acc = 0.0
+    for j in range(-half, half + 1):
+        acc += work[min(max(j, 0), count - 1)]
+    width = 2 * half + 1
+    for k in range(count):
+        out[k] = acc / width
+        acc += work[min(k + half + 1, count - 1)] - work[max(k - half, 0)]
+
+
 @kernel(int32(i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f8_1d_ro, f8_1d_ro, int32, f4_1d, f4_1d))
 def side_sweeps(chain, n, i_start, i_stop, direction, mag, inv_contrast, ratios, sweeps, half, work, out_sweeps):
     """Write the local sideways sweep (px) at each contour point of one side (from `i_start` stepping `direction`
@@ -185,13 +198,7 @@ def side_sweeps(chain, n, i_start, i_stop, direction, mag, inv_contrast, ratios,
             i = 0
         elif i < 0:
             i = n - 1
-    acc = 0.0
-    for j in range(-half, half + 1):
-        acc += work[min(max(j, 0), count - 1)]
-    width = 2 * half + 1
-    for k in range(count):
-        out_sweeps[k] = acc / width
-        acc += work[min(k + half + 1, count - 1)] - work[max(k - half, 0)]
+    box_mean(work, count, half, out_sweeps)
     return count
 
 
@@ -253,13 +260,7 @@ def side_sweeps_indexed(
             i = 0
         elif i < 0:
             i = n - 1
-    acc = 0.0
-    for j in range(-half, half + 1):
-        acc += work[min(max(j, 0), count - 1)]
-    width = 2 * half + 1
-    for k in range(count):
-        out_sweeps[k] = acc / width
-        acc += work[min(k + half + 1, count - 1)] - work[max(k - half, 0)]
+    box_mean(work, count, half, out_sweeps)
     return count
 
 

@@ -49,6 +49,16 @@ _LOG_LARGE: Final = math.log(sys.float_info.max / 4.0)
 
 
 # --------------------------------------------------------------------------------------------- time order
+@kernel(types.void(i8_1d, f8_2d, int64))
+def drop_oldest(times, rows, count):
+    """Drop the oldest of `count` samples: move samples ``1 .. count - 1`` of `times` and of `rows` (row, col)
+    one place down (the last place is then free)."""
+    for i in range(1, count):
+        times[i - 1] = times[i]
+        rows[i - 1, 0] = rows[i, 0]
+        rows[i - 1, 1] = rows[i, 1]
+
+
 @kernel(int32(f4_2d, boolean, int64, int64, i8_1d, f8_2d))
 def remember_tips(shape, single, t_ns, t_end_ns, order_state, hist_rc):
     """Append the tip (last point) of `shape` to the history: at mid-exposure when `single` (one shape, no blur to
@@ -61,10 +71,7 @@ def remember_tips(shape, single, t_ns, t_end_ns, order_state, hist_rc):
     t = (t_ns + t_end_ns) // 2 if single else t_ns
     count = order_state[ORDER_COUNT]
     if count >= HISTORY:
-        for i in range(1, HISTORY):
-            order_state[i - 1] = order_state[i]
-            hist_rc[i - 1, 0] = hist_rc[i, 0]
-            hist_rc[i - 1, 1] = hist_rc[i, 1]
+        drop_oldest(order_state, hist_rc, HISTORY)
         count = HISTORY - 1
     order_state[count] = t
     hist_rc[count, 0] = np.float64(shape[n - 1, 0])
@@ -300,10 +307,7 @@ def observe_motion(begin, end, fixed, t_mid_ns, sweep_px, exposure_ns, motion_st
         turns = round((log_im - motion_log[count - 1, 1]) / _TWO_PI)
         log_im -= _TWO_PI * turns
     if count >= MOTION_FRAMES:
-        for i in range(1, count):
-            motion_state[i - 1] = motion_state[i]
-            motion_log[i - 1, 0] = motion_log[i, 0]
-            motion_log[i - 1, 1] = motion_log[i, 1]
+        drop_oldest(motion_state, motion_log, count)
         count -= 1
     motion_state[count] = t_mid_ns
     motion_log[count, 0] = log_re

@@ -353,7 +353,7 @@ def test_trace_rope_equals_the_kernels_one_by_one(blurred_frames, frame, ring_cl
     out = [np.zeros((height, width), np.int32), np.zeros(height * width, np.int32), np.zeros(2, np.int32),
            np.zeros((capacity, 2), np.int32), np.zeros(capacity, np.int32), np.zeros((capacity, 2), np.float32),
            np.full(3, -5, np.int32)]  # fmt: skip
-    got = K.trace_rope(edges, lo, hi, stack, count, 20, ring_clear, _NO_MASK, mag, gx, gy, *out)
+    got = K.trace_rope(edges, lo, hi, stack, count, 20, ring_clear, _NO_MASK, mag, gx, gy, K.Contour(*out))
     assert got == n
     np.testing.assert_array_equal(edges, ref_edges)
     np.testing.assert_array_equal(out[2], start)
@@ -372,7 +372,7 @@ def test_trace_rope_equals_the_kernels_one_by_one(blurred_frames, frame, ring_cl
     ref_edges = edges.copy()
     K.keep_largest_listed(ref_edges, lo2, hi2, stack, count, 20, ring_clear, labels, work_stack, start)
     n = K.trace_contour(ref_edges, lo2, hi2, start[0], start[1], chain, codes)
-    got = K.trace_rope(edges, lo2, hi2, stack, count, 20, ring_clear, _NO_MASK, mag, gx, gy, *out)
+    got = K.trace_rope(edges, lo2, hi2, stack, count, 20, ring_clear, _NO_MASK, mag, gx, gy, K.Contour(*out))
     assert got == n > 0
     assert out[6][1] == K.count_roi_contacts(chain, n, lo2, hi2, width) > 0
 
@@ -386,11 +386,16 @@ def test_trace_rope_without_a_component(blurred_frames) -> None:
            np.full(3, -5, np.int32)]  # fmt: skip
     keep = edges.copy()
     assert (
-        K.trace_rope(edges, lo, hi, stack, count, 10**6, True, _NO_MASK, planes[4], planes[2], planes[3], *out)
+        K.trace_rope(
+            edges, lo, hi, stack, count, 10**6, True, _NO_MASK, planes[4], planes[2], planes[3], K.Contour(*out)
+        )
         == K.NOT_FOUND
     )
     assert out[6].tolist() == [0, 0, 0]
-    assert K.trace_rope(keep, lo, hi, stack, count, 20, True, _NO_MASK, planes[4], planes[2], planes[3], *out) == K.FULL
+    assert (
+        K.trace_rope(keep, lo, hi, stack, count, 20, True, _NO_MASK, planes[4], planes[2], planes[3], K.Contour(*out))
+        == K.FULL
+    )
     assert out[6][0] > 100
 
 
@@ -465,7 +470,7 @@ def test_trace_rope_traced_first_equals_the_kernels_one_by_one(case, spans) -> N
            np.zeros((capacity, 2), np.int32), np.zeros(capacity, np.int32), np.zeros((capacity, 2), np.float32),
            np.full(3, -5, np.int32)]  # fmt: skip
     edges = mask.copy()
-    got = K.trace_rope(edges, lo, hi, edge_list, len(edge_list), min_px, True, _NO_MASK, mag, gx, gy, *out)
+    got = K.trace_rope(edges, lo, hi, edge_list, len(edge_list), min_px, True, _NO_MASK, mag, gx, gy, K.Contour(*out))
     np.testing.assert_array_equal(edges, ref)
     if size < 0:
         assert got == K.NOT_FOUND and case == "all too small"
@@ -488,7 +493,9 @@ def test_trace_rope_traced_first_equals_the_kernels_one_by_one(case, spans) -> N
     edges = mask.copy()
     if n > 1:
         assert (
-            K.trace_rope(edges, lo, hi, edge_list, len(edge_list), min_px, True, _NO_MASK, mag, gx, gy, *short)
+            K.trace_rope(
+                edges, lo, hi, edge_list, len(edge_list), min_px, True, _NO_MASK, mag, gx, gy, K.Contour(*short)
+            )
             == K.FULL
         )
         assert out[6][0] == size
@@ -563,13 +570,7 @@ def test_trace_rope_walks_an_open_outline_once() -> None:
         mag,
         gx,
         gx,
-        labels,
-        stack,
-        start,
-        chain,
-        codes,
-        points,
-        counts,
+        K.Contour(labels, stack, start, chain, codes, points, counts),
     )
     assert counts[0] == mask.sum()
     assert mask.sum() - 4 <= n <= mask.sum()  # once (the walk cuts the cap's corners), not out and back

@@ -12,9 +12,7 @@ from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
 pytestmark = pytest.mark.kernel
 
 HEIGHT, WIDTH = 48, 64
-NO_MASK = tuple(np.zeros((1, 1), np.uint8) for _ in range(3))
-for _array in NO_MASK:
-    _array.flags.writeable = False
+NO_MASK = K.Static(*(np.zeros((1, 1), np.uint8) for _ in range(3)))
 """`detect_and_trace`'s static mask and learned range when there is none (1x1)."""
 
 _NO_MASK = np.zeros((1, 1), np.uint8)
@@ -62,6 +60,17 @@ def _buffers() -> dict[str, np.ndarray]:
     }
 
 
+def _contour(buffers: dict[str, np.ndarray]) -> K.Contour:
+    """`trace_rope`'s outputs among `buffers`."""
+    return K.Contour(*(buffers[name] for name in ("labels", "stack", "start", "chain", "codes", "points", "counts")))
+
+
+def _groups(buffers: dict[str, np.ndarray]) -> tuple[K.EdgeWork, K.Planes, K.Contour]:
+    """`detect_and_trace`'s groups of `buffers`."""
+    work = K.EdgeWork(buffers["work_spans"], buffers["tmp"], buffers["edges"], buffers["edge_stack"])
+    return work, K.Planes(*(buffers[name] for name in ("smooth", "gx", "gy", "mag"))), _contour(buffers)
+
+
 def _ro(a: np.ndarray) -> np.ndarray:
     view = a.view()
     view.flags.writeable = False
@@ -83,8 +92,7 @@ def test_detect_and_trace_is_detect_edges_then_trace_rope(seed: int, full: bool,
     )  # fmt: skip
     n_ref = K.trace_rope(
         ref["edges"], lo, hi, _ro(ref["edge_stack"]), count, np.int32(min_pixels), True, _NO_MASK, _ro(ref["mag"]),
-        _ro(ref["gx"]), _ro(ref["gy"]), ref["labels"], ref["stack"], ref["start"], ref["chain"], ref["codes"],
-        ref["points"], ref["counts"],
+        _ro(ref["gx"]), _ro(ref["gy"]), _contour(ref),
     )  # fmt: skip
     ref["counts"][3] = count
     assert count > 0
@@ -92,7 +100,7 @@ def test_detect_and_trace_is_detect_edges_then_trace_rope(seed: int, full: bool,
     writable = frame.copy()  # the second signature: a frame a reader made, not a read-only buffer
     for image in (frame, writable):
         got = _buffers()
-        n = K.detect_and_trace(image, lo, hi, weights, low, high, np.int32(min_pixels), *NO_MASK, *got.values())
+        n = K.detect_and_trace(image, lo, hi, weights, low, high, np.int32(min_pixels), NO_MASK, *_groups(got))
         assert n == n_ref
         for name, expected in ref.items():
             np.testing.assert_array_equal(got[name], expected, err_msg=name)
@@ -119,12 +127,12 @@ def test_detect_and_trace_refuses_short_counts_and_bad_spans() -> None:
     lo, hi = (_ro(a) for a in _spans(4, True))
     weights = _ro(gaussian_weights(1.0))
     buffers = _buffers()
-    args = list(buffers.values())
-    short = [*args[:-1], np.zeros(3, np.int32)]
+    args = _groups(buffers)
+    short = _groups({**buffers, "counts": np.zeros(3, np.int32)})
     low, high, min_px = np.float32(20.0), np.float32(50.0), np.int32(10)
-    assert K.detect_and_trace(frame, lo, hi, weights, low, high, min_px, *NO_MASK, *short) == K.INVALID
+    assert K.detect_and_trace(frame, lo, hi, weights, low, high, min_px, NO_MASK, *short) == K.INVALID
     bad_lo = _ro(np.zeros(HEIGHT - 1, np.int32))
-    assert K.detect_and_trace(frame, bad_lo, hi, weights, low, high, min_px, *NO_MASK, *args) == K.INVALID
+    assert K.detect_and_trace(frame, bad_lo, hi, weights, low, high, min_px, NO_MASK, *args) == K.INVALID
     assert buffers["counts"].tolist() == [0, 0, 0, K.INVALID]
 
 

@@ -206,7 +206,7 @@ def _union_reference(lo, hi, rows_apart, cols_apart, width):
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_grow_spans_once_and_in_place_match_reference(seed) -> None:
+def test_grow_spans_out_of_place_and_in_place_match_reference(seed) -> None:
     rng = np.random.default_rng(seed)
     height, width = 30, 40
     lo = rng.integers(-1, 38, height).astype(np.int32)
@@ -217,11 +217,11 @@ def test_grow_spans_once_and_in_place_match_reference(seed) -> None:
     first, last = int(rows[0]), int(rows[-1])
     out_lo = np.full(height, -7, np.int32)
     out_hi = np.full(height, -7, np.int32)
-    K.grow_spans_once(lo, hi, first, last, width, out_lo, out_hi)
+    K.grow_spans(lo, hi, first, last, 1, width, out_lo, out_hi)
     for r, want in enumerate(_union_reference(lo, hi, 1, 1, width)):
         if max(first - 1, 0) <= r <= min(last + 1, height - 1):
             assert (out_lo[r], out_hi[r]) == (want if want else (1, 0)), r
-    K.grow_spans_inplace(max(first - 1, 0), min(last + 1, height - 1), 3, width, out_lo, out_hi)
+    K.grow_spans(out_lo, out_hi, max(first - 1, 0), min(last + 1, height - 1), 3, width, out_lo, out_hi)
     for r, want in enumerate(_union_reference(lo, hi, 2, 4, width)):
         if max(first - 2, 0) <= r <= min(last + 2, height - 1):
             assert (out_lo[r], out_hi[r]) == (want if want else (1, 0)), r

@@ -303,7 +303,7 @@ def test_track_shapes_refuses_empty_shapes_and_copes_with_read_only_ones() -> No
 # ------------------------------------------------------------------------------------------- all three at once
 def _motion(state: np.ndarray, log: np.ndarray) -> K.Motion:
     """The motion group of `state` and `log` (`track_frame` reads only those two)."""
-    return K.Motion(state, log, np.zeros((2, 16)), np.zeros(16), np.zeros(K.BAND_SLOTS))
+    return K.Motion(state, log, np.zeros((2, 16)), np.zeros(16), np.zeros(1, K.BAND_STATE))
 
 
 def test_track_frame_is_order_then_material_points_then_motion() -> None:
