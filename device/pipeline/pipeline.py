@@ -101,9 +101,10 @@ class Pipeline:
             config.canny_high,
             config.threshold_frames,
             update_frames=config.threshold_update_frames,
+            sample_every=config.threshold_sample_every,
         )
         """The Canny thresholds measured on the first `threshold_frames` frames (at most `canny_low`/`high`), then
-        followed every `threshold_update_frames` frames."""
+        followed: updated every `threshold_update_frames` slices, a slice every `threshold_sample_every` frames."""
         self.splitter = BlurSplitter(
             cap, config.method, config.static_ratio, config.corner_scale_px,
             config.paper_endpoint_radius_px, config.output_step_px, config.tip_cap, config.smooth_sigma_px,
