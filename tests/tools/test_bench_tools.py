@@ -21,11 +21,11 @@ RunTool = Callable[..., CompletedProcess[str]]
 @pytest.mark.slow
 def test_bench_device_reports_the_ratio_and_the_allocations(run_tool: RunTool, tmp_path: Path) -> None:
     toml = tmp_path / "device.toml"
-    toml.write_text("[pipeline]\nthreshold_sample_every = 2\nplane_file = 'absent.yaml'\n")
+    toml.write_text("[pipeline]\nthreshold_sample_every = 2\n")
     done = run_tool("bench.py", "device", "--frames", "16", "--json", "--config", str(toml))
     assert done.returncode == 0, done.stderr
     report = json.loads(done.stdout.splitlines()[-1])
-    assert report["config"] == str(toml)  # its [pipeline] table without the plane file
+    assert report["config"] == str(toml)
     assert report["frames"] == 16 and report["image_size"] == [1024, 544]
     assert report["source"].startswith("synthetic rig frames")
     assert report["statuses"] == {"OK": 16}
@@ -47,11 +47,15 @@ def test_bench_device_reports_the_ratio_and_the_allocations(run_tool: RunTool, t
 @pytest.mark.slow
 def test_bench_device_names_a_bad_config(run_tool: RunTool, tmp_path: Path) -> None:
     toml = tmp_path / "device.toml"
-    toml.write_text("[pipeline]\nthreshold_sample_every = 0\n")
-    done = run_tool("bench.py", "device", "--frames", "4", "--config", str(toml))
-    assert done.returncode == 2
-    assert f"--config {toml}" in done.stderr and "threshold_sample_every" in done.stderr, done.stderr
-    assert "Traceback" not in done.stderr
+    for table, named in (
+        ("threshold_sample_every = 0", "threshold_sample_every"),
+        ("plane_file = 'no.yaml'", "no.yaml"),
+    ):
+        toml.write_text(f"[pipeline]\n{table}\n")
+        done = run_tool("bench.py", "device", "--frames", "4", "--config", str(toml))
+        assert done.returncode == 2
+        assert f"--config {toml}" in done.stderr and named in done.stderr, done.stderr
+        assert "Traceback" not in done.stderr
 
 
 @pytest.mark.slow

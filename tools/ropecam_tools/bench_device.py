@@ -37,6 +37,7 @@ os.environ.setdefault("NUMBA_NRT_STATS", "1")  # must be set before numba is imp
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import argparse
+import functools
 import json
 import time
 import tracemalloc
@@ -102,7 +103,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--config",
         metavar="TOML",
-        help="the [pipeline] table of this device.toml (default: the default settings; its plane_file is not used)",
+        help="the [pipeline] table of this device.toml, with its plane_file and mask (default: the defaults)",
     )
     parser.add_argument("--method", default="blur_split", choices=("blur_split", "paper", "centerline"))
     parser.add_argument("--stages", action="store_true", help="also time each stage, full-frame and ROI-miss frames")
@@ -113,7 +114,7 @@ def nrt_report(config: PipelineConfig, frames: list[Frame]) -> tuple[dict[str, A
     """NRT allocations per timed frame (a fresh pipeline, the warm-up frames first) and the indices of the timed
     frames made by one `steady_frame` call."""
     height, width = frames[0][0].shape
-    pipeline = Pipeline(config, (width, height))
+    pipeline = new_pipeline(config, (width, height))
     for image, t_ns, exposure_us in frames[:WARM_UP]:
         pipeline.process(image, 0, t_ns, exposure_us)
     counter = ArrayArgCounter()
@@ -140,8 +141,7 @@ def nrt_report(config: PipelineConfig, frames: list[Frame]) -> tuple[dict[str, A
 
 
 def load_config(args: argparse.Namespace) -> PipelineConfig:
-    """The pipeline settings: ``--config``'s [pipeline] table (without its plane file), else the defaults; the
-    method ``--method``."""
+    """The pipeline settings: ``--config``'s [pipeline] table, else the defaults; the method ``--method``."""
     if not args.config:
         return PipelineConfig(method=args.method)
     from ropecam.shared.config import from_mapping, read_toml
@@ -149,11 +149,26 @@ def load_config(args: argparse.Namespace) -> PipelineConfig:
 
     try:
         table = dict(read_toml(args.config).get("pipeline", {}))
-        return from_mapping(
-            PipelineConfig, table, where=f"{args.config} [pipeline]", method=args.method, plane_file=None
-        )
-    except RopecamError as exc:
+        config = from_mapping(PipelineConfig, table, where=f"{args.config} [pipeline]", method=args.method)
+        if config.plane_file is not None:
+            _read_plane(config.plane_file)  # read now: its errors named
+    except (RopecamError, ValueError) as exc:
         raise UsageError(f"--config {args.config}: {exc}") from exc
+    return config
+
+
+def new_pipeline(config: PipelineConfig, size: tuple[int, int]) -> Pipeline:
+    """A pipeline of `config` for frames of `size` (width, height), with the plane calibration of the config's
+    ``plane_file`` as `extract` and the daemon use it."""
+    plane = None if config.plane_file is None else _read_plane(config.plane_file)
+    return Pipeline(config, size, plane=plane)
+
+
+@functools.cache
+def _read_plane(path: str) -> Any:
+    from ropecam.shared.plane import read_plane_file
+
+    return read_plane_file(path)
 
 
 def python_alloc_report(
@@ -163,7 +178,7 @@ def python_alloc_report(
     `steady` (made by one `steady_frame` call), and the lines that allocate most on one steady frame. With `reuse`
     every frame fills one result record (`Pipeline.process`'s `out`), else each gets a new one."""
     height, width = frames[0][0].shape
-    pipeline = Pipeline(config, (width, height))
+    pipeline = new_pipeline(config, (width, height))
     record = PipelineResult(0, 0, 0, FrameStatus.BAD_FRAME) if reuse else None
     for image, t_ns, exposure_us in frames[:WARM_UP]:
         pipeline.process(image, 0, t_ns, exposure_us, out=record)
@@ -220,7 +235,7 @@ def run(args: argparse.Namespace) -> int:
     if len(frames) <= WARM_UP:
         raise UsageError(f"--frameset {args.frameset}: {len(frames)} frames, need more than {WARM_UP}")
     height, width = frames[0][0].shape
-    pipeline = Pipeline(config, (width, height))
+    pipeline = new_pipeline(config, (width, height))
     warm_up_us = []
     for image, t_ns, exposure_us in frames[:WARM_UP]:
         warm_up_us.append(pipeline.process(image, 0, t_ns, exposure_us).pipeline_us)
@@ -359,7 +374,7 @@ def stage_report(
 ) -> dict[str, Any]:
     """Median per-frame time of each stage; times of frames searched without a band and of frames whose band
     misses (both after the first `_SETTLE_FRAMES` frames, when the pipeline measures only what changes)."""
-    pipeline = Pipeline(config, size)
+    pipeline = new_pipeline(config, size)
     for index, (image, t_ns, exposure_us) in enumerate(frames[:3]):
         pipeline.process(image, index, t_ns, exposure_us)
     per_frame: list[dict[str, float]] = []
@@ -383,7 +398,7 @@ def stage_report(
     stages = {label: float(np.median([row.get(label, 0.0) for row in per_frame])) for label in labels}
     # A frame searched without an ROI: the pipeline knows the rope (width, fixed end) but not where it is.
     searched, searched_paths = [], []
-    pipeline = Pipeline(config, size)
+    pipeline = new_pipeline(config, size)
     settled = min(_SETTLE_FRAMES, len(frames) // 2)  # width, polarity and fixed end are measured until then
     for index, (image, t_ns, exposure_us) in enumerate(frames):
         if index >= settled:
@@ -397,7 +412,7 @@ def stage_report(
     missed, missed_paths = [], []
     period_ns = int(np.median(np.diff([t for _, t, _ in frames]))) if len(frames) > 1 else 8_400_000
     for start in range(settled, len(frames) - 12, 3):  # none with fewer than settled + 13 frames
-        pipeline = Pipeline(config, size)
+        pipeline = new_pipeline(config, size)
         for index in range(start):
             image, t_ns, exposure_us = frames[index]
             pipeline.process(image, index, t_ns, exposure_us)
@@ -410,7 +425,7 @@ def stage_report(
             missed_paths.append(f"roi+{pipeline.roi_retries - before[2]}")
         else:
             missed_paths.append("coarse" if pipeline.frames_coarse > before[1] else "full")
-    first = Pipeline(config, size)
+    first = new_pipeline(config, size)
     image, t_ns, exposure_us = frames[0]
     first_us = first.process(image, 0, t_ns, exposure_us).pipeline_us
     return {
