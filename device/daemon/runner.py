@@ -21,7 +21,7 @@ from ropecam.device.daemon.control import ControlListener, PendingCommand
 from ropecam.device.daemon.health import CpuLoadMeter, RateMeter, read_temperature_c
 from ropecam.device.daemon.systemd import Notifier
 from ropecam.device.pipeline.pipeline import Pipeline
-from ropecam.device.pipeline.result import to_wire
+from ropecam.device.pipeline.result import FrameStatus, PipelineResult, to_wire
 from ropecam.device.senders.stream import ResultSender
 from ropecam.shared.config import check_readout
 from ropecam.shared.errors import CaptureError, ConfigError, TransportError
@@ -75,6 +75,7 @@ class Daemon:
         plane_file = config.pipeline.plane_file
         self._plane = None if plane_file is None else read_plane_file(plane_file)  # [pipeline] plane_file
         self._pipeline: Pipeline | None = None
+        self._result = PipelineResult(0, 0, 0, FrameStatus.BAD_FRAME)  # refilled by every frame (`_measure`)
         self._running = True
         self._raw_frame_requested = False
         self._camera_lost_since: float | None = None
@@ -387,7 +388,8 @@ class Daemon:
     def _measure(self, frame: CapturedFrame, source: CameraSource) -> None:
         if self._pipeline is None:
             self._pipeline = self._new_pipeline(source.image_size)
-        result = self._pipeline.process(frame.image, frame.sequence, frame.t_ns, frame.exposure_us)
+        # One record refilled every frame: it is counted and turned into the wire record before the next one.
+        result = self._pipeline.process(frame.image, frame.sequence, frame.t_ns, frame.exposure_us, out=self._result)
         self.statuses[result.status.name] += 1
         if result.reason:
             self.check_failures[result.reason] += 1

@@ -157,7 +157,10 @@ class SelfChecks:
         Nothing while the fixed end is not `settled` or the model holds fewer than two frames measured after it
         settled: the model's history is relative to the fixed end of its time, which may have moved since.
         """
-        self._settled_frames = self._settled_frames + 1 if settled else 0
+        if not settled:
+            self._settled_frames = 0
+        elif self._settled_frames <= 2:  # counted to 3 only: a count past 256 would be a new int object per frame
+            self._settled_frames += 1
         if self._settled_frames <= 2:
             self._predicted[2] = math.nan
             return

@@ -90,11 +90,13 @@ class ResultFinisher:
         outcome: SplitOutcome | None,
         exposure_ns: int,
         period_ns: int | None,
+        revisits: int | None = None,
         tracked: tuple[int, float, float, float] | None = None,
     ) -> None:
         """Fill `result` from the split's `outcome`: the shapes in time order and the material points (with
         `tracked`, the results of a `track_frame` call made on them already), or why there are none; the frame
-        period is `period_ns` (None: not known yet)."""
+        period is `period_ns` (None: not known yet), the contour's pixels walked twice `revisits` (None: counted
+        here when needed)."""
         rejected = ""
         if not exposure_ns and (outcome is None or self._still(outcome)):
             # Unknown exposure (a still photo) and no split, or one without blur between its tips: the rope is
@@ -110,7 +112,10 @@ class ResultFinisher:
         # Two shapes read from the outline's two sides, of a known exposure (without one, a split needs evidence of
         # blur anyway, `checks.no_blur`, and a still photo's looped rope walks its crossings twice).
         split = outcome.shape_a is not outcome.shape_b and exposure_ns > 0
-        revisits = K.count_revisits(self.tracer.chain_ro, np.int32(n), self.locator.edges.edges) if split else 0
+        if not split:
+            revisits = 0
+        elif revisits is None:
+            revisits = K.count_revisits(self.tracer.chain_ro, np.int32(n), self.locator.edges.edges)
         if revisits > BROKEN_OUTLINE * n:
             # A faint far side on a textured plate broke the band's edge: the contour went out along each piece
             # and back (a tree walk), and any two "sides" read from it are guesses.
@@ -120,11 +125,8 @@ class ResultFinisher:
                 f"(more than {100.0 * BROKEN_OUTLINE:.0f} %), it is not the band's outline"
             )
             return
-        result.method = outcome.method
-        result.rope_width_px = outcome.width_px
-        result.segmentation_points = outcome.segmentation_points
+        self._take_outcome(result, outcome)
         tracker = self.tracker
-        result.material_arc_m = tracker.arc_m
         a, b = outcome.shape_a, outcome.shape_b
         if tracked is not None:
             swap, confidence, stretch_begin, stretch_end = tracked
@@ -144,10 +146,7 @@ class ResultFinisher:
         else:
             swap = -1
         if swap >= 0:
-            result.begin, result.end = (b, a) if swap else (a, b)
-            result.order_confidence = confidence
-            result.material_begin, result.material_end = tracker.out_slots
-            result.stretch_begin, result.stretch_end = stretch_begin, stretch_end
+            self._take_tracked(result, outcome, swap, confidence, stretch_begin, stretch_end)
         else:
             # The first frames (Lc0 still being measured) or shapes `track_frame` does not take: step by step.
             begin, end, confidence = self.time_order.order(a, b, result.t_ns, result.t_end_ns, period_ns)
@@ -157,13 +156,53 @@ class ResultFinisher:
             )
             t_mid_ns = result.t_ns + exposure_ns // 2
             self.motion.observe(begin, end, self.fixed, t_mid_ns, float(self.splitter.sweep_px), exposure_ns)
-        if tracker.plane is not None:  # by arc length on the plane (metres), not in pixels
-            tracker.place_on_plane(result.begin, result.end)
-        result.status = FrameStatus.OK
-        self.check(result, outcome, exposure_ns)
+        self._conclude(result, outcome, exposure_ns)
         if rejected and result.status is FrameStatus.OK:
             result.status, result.reason = FrameStatus.NO_BLUR, Reason.NO_BLUR.text
             result.message = f"{self.checks.message(Reason.NO_BLUR)} (the split: {rejected})"
+
+    def finish_tracked(
+        self,
+        result: PipelineResult,
+        outcome: SplitOutcome,
+        exposure_ns: int,
+        swap: int,
+        confidence: float,
+        stretch_begin: float,
+        stretch_end: float,
+    ) -> None:
+        """`finish` of a frame of known exposure (`exposure_ns` > 0) whose split made two shapes that are the
+        band's outline, and whose `track_frame` call was made (`steady_frame` returned STEADY_DONE): its results
+        `swap`, `confidence`, `stretch_begin`, `stretch_end` are taken as they are (no tuple made per frame)."""
+        self._take_outcome(result, outcome)
+        self._take_tracked(result, outcome, swap, confidence, stretch_begin, stretch_end)
+        self._conclude(result, outcome, exposure_ns)
+
+    def _take_outcome(self, result: PipelineResult, outcome: SplitOutcome) -> None:
+        result.method = outcome.method
+        result.rope_width_px = outcome.width_px
+        result.segmentation_points = outcome.segmentation_points
+        result.material_arc_m = self.tracker.arc_m
+
+    def _take_tracked(
+        self, result: PipelineResult, outcome: SplitOutcome, swap: int, confidence: float, stretch_begin: float,
+        stretch_end: float,
+    ) -> None:  # fmt: skip
+        """Take `track_frame`'s results on the outcome's shapes (in the tracker's buffers)."""
+        if swap:
+            result.begin, result.end = outcome.shape_b, outcome.shape_a
+        else:
+            result.begin, result.end = outcome.shape_a, outcome.shape_b
+        result.order_confidence = confidence
+        result.material_begin, result.material_end = self.tracker.out_slots
+        result.stretch_begin, result.stretch_end = stretch_begin, stretch_end
+
+    def _conclude(self, result: PipelineResult, outcome: SplitOutcome, exposure_ns: int) -> None:
+        """The shapes on the plane (when calibrated), status OK, then the self-checks."""
+        if self.tracker.plane is not None:  # by arc length on the plane (metres), not in pixels
+            self.tracker.place_on_plane(result.begin, result.end)
+        result.status = FrameStatus.OK
+        self.check(result, outcome, exposure_ns)
 
     def _still(self, outcome: SplitOutcome) -> bool:
         """Whether `outcome` is a split without blur between its tips (closer than ``checks.no_blur_px``)."""

@@ -103,9 +103,10 @@ class Pipeline:
             config.canny_high,
             config.threshold_frames,
             update_frames=config.threshold_update_frames,
+            sample_every=config.threshold_sample_every,
         )
         """The Canny thresholds measured on the first `threshold_frames` frames (at most `canny_low`/`high`), then
-        followed every `threshold_update_frames` frames."""
+        followed: updated every `threshold_update_frames` slices, a slice every `threshold_sample_every` frames."""
         self.splitter = BlurSplitter(
             cap, config.method, config.static_ratio, config.corner_scale_px,
             config.paper_endpoint_radius_px, config.output_step_px, config.tip_cap, config.smooth_sigma_px,
@@ -142,6 +143,7 @@ class Pipeline:
         self._u8 = np.dtype(np.uint8)
         self._strides = (width, 1)
         self._unclean_frames = 0  # frames without an OK result while the static mask was being learned
+        self._no_quality: dict[str, float] = {}  # a reused result's quality before the checks ran (`process`)
 
     # What the locator keeps and counts (tests and tools read them here).
     lo = property(attrgetter("locator.lo"), doc="The first column of each row of the last band searched.")
@@ -152,7 +154,9 @@ class Pipeline:
     roi_retries = property(attrgetter("locator.roi_retries"), doc="Widenings of a band the rope ran out of.")
 
     # ----------------------------------------------------------------------------------------------------------
-    def process(self, frame: object, index: int, t_ns: int, exposure_us: float | None) -> PipelineResult:
+    def process(
+        self, frame: object, index: int, t_ns: int, exposure_us: float | None, out: PipelineResult | None = None
+    ) -> PipelineResult:
         """Measure one frame.
 
         Parameters
@@ -167,16 +171,24 @@ class Pipeline:
             Exposure time in microseconds; 0 or None when unknown (then ``t_end_ns == t_ns``, the shapes get no
             time order (confidence 0.5) and the ROI follows the tip's frame-to-frame steps). A negative or
             non-finite value gives status BAD_FRAME.
+        out
+            A record to fill (every field set again) and return instead of a new one: a caller that hands each
+            result on before the next frame (the daemon) reuses one, and a steady frame then makes no Python
+            object that outlives the call.
 
         Returns
         -------
         PipelineResult
-            Arrays in it are views into the pipeline's buffers, valid until the next call.
+            `out`, or a new record. Arrays in it are views into the pipeline's buffers, valid until the next call.
         """
         start_ns = time.perf_counter_ns()
         t = int(t_ns)
         exposure_ns, exposure_problem = self._clock.start(t, exposure_us)
-        result = PipelineResult(int(index), t, t + exposure_ns, FrameStatus.BAD_FRAME)
+        if out is None:
+            result = PipelineResult(int(index), t, t + exposure_ns, FrameStatus.BAD_FRAME)
+        else:
+            result = out
+            result.reset(int(index), t, t + exposure_ns, FrameStatus.BAD_FRAME, self._no_quality)
         result.readout_ns = self.readout_ns
         if type(frame) is np.ndarray and frame.dtype is self._u8 and frame.shape == self.shape:
             problem = exposure_problem  # the usual case, without building the messages of `frame_problem`
@@ -284,27 +296,34 @@ class Pipeline:
         """Measure a steady frame in one kernel call (`SteadyFrame`), then go on from where the call stopped as
         `RopeLocator.locate` and `_measure_contour` go on after those calls: the same state and result as the
         calls one by one."""
-        stop, n, gap_ns, motion_px, status, tracked = self._steady.run(
-            args, image, result.t_ns, result.t_end_ns, exposure_ns, max_age_ns(self._clock.period_ns)
-        )
+        steady, loc = self._steady, self.locator
+        stop = steady.run(args, image, result.t_ns, result.t_end_ns, exposure_ns, max_age_ns(self._clock.period_ns))
+        motion_px, points, status, revisits, swap, confidence, stretch_begin, stretch_end = steady.out.item()
+        n = self.tracer.adopt(self.edges, image, loc.lo_ro, loc.hi_ro, points)
         if stop == K.STEADY_AFTER_CONTOUR:
-            n, used_roi = self.locator.locate_in_band(image, motion_px, gap_ns, n)
+            n, used_roi = loc.locate_in_band(image, motion_px, steady.gap_ns, n)
             self._measure_contour(image, result, exposure_ns, n, used_roi)
             return
         # The contour lies whole in the band and off the image border: `locate_in_band` and `_measure_contour`
         # up to the split.
-        self.locator.found_in_band(gap_ns)
+        loc.found_in_band(steady.gap_ns)
         result.full_frame = False
         self._keep_contour(result, n)
-        width_px, fixed_rc, _, polarity = self.traits.settled  # type: ignore[misc]  # `SteadyFrame.args` checked it
-        outcome = self.splitter.adopt_frame(status, n, fixed_rc)
+        outcome = self.splitter.adopt_frame(status, n, self.traits.settled.fixed_rc)  # type: ignore[union-attr]
         if outcome is False:  # a buffer too small for the one-call split: the split step by step
+            width_px, fixed_rc, _, polarity = self.traits.settled  # type: ignore[misc]  # `SteadyFrame.args` checked it
             e = self.edges
             outcome = self.splitter.split(
                 self.tracer.points, self.tracer.chain, n, fixed_rc, width_px, e.gx, e.gy, e.edges, e.mag,
                 e.smooth, polarity, edge_stage=e, frame=image,
             )  # fmt: skip
-        self._finisher.finish(result, outcome, exposure_ns, self._clock.period_ns, tracked)
+            self._finisher.finish(result, outcome, exposure_ns, self._clock.period_ns)
+        elif stop == K.STEADY_DONE and exposure_ns > 0:
+            self._finisher.finish_tracked(result, outcome, exposure_ns, swap, confidence, stretch_begin, stretch_end)
+        else:  # not two shapes, no band outline, shapes `track_frame` refused or made without a known exposure
+            tracked = (swap, confidence, stretch_begin, stretch_end) if stop == K.STEADY_DONE else None
+            counted = revisits if stop in (K.STEADY_BROKEN, K.STEADY_AFTER_SHAPES) and exposure_ns > 0 else None
+            self._finisher.finish(result, outcome, exposure_ns, self._clock.period_ns, counted, tracked)
 
     def _measure_contour(
         self, image: NDArray[np.uint8], result: PipelineResult, exposure_ns: int, n: int, used_roi: bool

@@ -63,6 +63,23 @@ class PipelineResult:
     readout_ns: int = 0
     """Rolling-shutter readout time of the frame (ns, 0 = global shutter)."""
 
+    def reset(self, frame: int, t_ns: int, t_end_ns: int, status: FrameStatus, quality: dict[str, float]) -> None:
+        """Make this record the new record of frame `frame` exposed from `t_ns` to `t_end_ns` with `status`: every
+        other field to its default, ``extra`` emptied and ``quality`` set to `quality` (an empty dict its owner
+        keeps, so that a reused record allocates nothing; see `Pipeline.process`'s `out`)."""
+        self.frame, self.t_ns, self.t_end_ns, self.status = frame, t_ns, t_end_ns, status
+        self.method = self.begin = self.end = self.fixed_end = self.segmentation_points = None
+        self.material_begin = self.material_end = self.stretch_begin = self.stretch_end = self.rope_width_px = None
+        self.order_confidence = 0.0
+        self.material_arc_m = ()
+        self.full_frame = True
+        self.pipeline_us = 0.0
+        self.message = self.reason = ""
+        if self.extra:
+            self.extra.clear()
+        self.quality = quality
+        self.readout_ns = 0
+
     @property
     def tips(self) -> tuple[NDArray[np.float32], NDArray[np.float32]] | None:
         """The free tips (row, col) at the start and end of the exposure."""

@@ -130,6 +130,9 @@ class BlurSplitter:
         self._no_index, self._no_distances = ro(np.zeros(0, np.int32)), ro(np.zeros(0, np.float64))
         self.measure = BandMeasure(self.model, self.dist, self.slope_work)
         self._info, self._seg = buffers.info, buffers.seg  # read every frame (`_frame_outcome`): plain attributes
+        self._shape_views: tuple[dict[int, NDArray[np.float32]], ...] = ({}, {}, {}, {})
+        """Views of the first n points of `side_a`, `side_b`, `out_a`, `out_b` by n, each made once: a steady frame
+        then makes no array object for its shapes (`_shape`)."""
         self.frame_call = SplitFrameCall(buffers)
         self.polarity_used = np.float32(0.0)
         """The polarity of the last split (+1 bright rope, -1 dark)."""
@@ -512,8 +515,8 @@ class BlurSplitter:
             count_a, count_b, _, _, smoothed_a, smoothed_b, sweep = info.tolist()
             self.sweep_px = sweep
             return SplitOutcome(
-                _BLUR_SPLIT, (self.side_a if smoothed_a else self.out_a)[: int(count_a)],
-                (self.side_b if smoothed_b else self.out_b)[: int(count_b)], seg, width_px, sweep,
+                _BLUR_SPLIT, self._shape(0 if smoothed_a else 2, int(count_a)),
+                self._shape(1 if smoothed_b else 3, int(count_b)), seg, width_px, sweep,
             )  # fmt: skip
         if status < 0 and status != K.NOT_FOUND:
             return False
@@ -528,6 +531,14 @@ class BlurSplitter:
         shape_a = (self.side_a if smoothed_a else self.out_a)[: int(count_a)]
         shape_b = (self.side_b if smoothed_b else self.out_b)[: int(count_b)]
         return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, seg, width_px, sweep)
+
+    def _shape(self, row: int, count: int) -> NDArray[np.float32]:
+        """The first `count` points of `sides[row]` (0: `side_a`, 1: `side_b`, 2: `out_a`, 3: `out_b`)."""
+        views = self._shape_views[row]
+        view = views.get(count)
+        if view is None:
+            view = views[count] = self.sides[row][:count]
+        return view
 
     def _anchor_fixed_end(self, poly: NDArray[np.float32], n: np.int32, fixed_rc: tuple[float, float]) -> np.int32:
         """Start an axis polyline at the fixed end: the inward offset moved the end cap's contour points along

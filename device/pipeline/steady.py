@@ -2,9 +2,9 @@
 
 A frame is steady when the rope's width, polarity and fixed end have settled (`RopeTraits.settled`), Lc0 is
 known, the last frame's contour was found and the split took its one-call path (`split_frame`) on it. Such a
-frame is `band_stage`, `detect_and_trace`, `split_frame` and `track_frame` made from compiled code, with the
-buffers passed as one table of their addresses (`Workspace.steady_table`): this saves the dispatch of ~80
-arguments (25-50 us per frame). The kernel stops where the stages' Python would take another turn; the pipeline
+frame is `band_stage`, `detect_and_trace`, `split_frame`, `count_revisits` and `track_frame` made from compiled
+code, with the buffers passed as one table of their addresses (`Workspace.steady_table`): this saves the dispatch
+of ~80 arguments (25-50 us per frame). The kernel stops where the stages' Python would take another turn; the pipeline
 goes on from there with the same state as after the same calls made one by one.
 """
 
@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline.contour import ContourTracer
 from ropecam.device.pipeline.edges import EdgeDetector
+from ropecam.device.pipeline.finish import BROKEN_OUTLINE
 from ropecam.device.pipeline.locate import RopeLocator
 from ropecam.device.pipeline.split import BlurSplitter
 from ropecam.device.pipeline.tracking import PointTracker
@@ -56,6 +57,10 @@ class SteadyFrame:
         self.locator, self.traits = locator, traits
         self._frame_call = splitter.frame_call
         self._motion, self._fixed_end = locator.motion, locator.fixed_end  # read every frame (`run`)
+        self.out = workspace.steady_out
+        """The last call's results (one `STEADY_OUT` record, read by name: ``out["points"]``)."""
+        self.gap_ns = 0
+        """The time (ns) from the last contour's frame to the one of the last call."""
         self._bound: tuple[Any, ...] | None = None
         """(the split's steady key, the rope width's tables, Lc0, `steady_frame`'s argument list) of the last
         steady frame: its table holds the addresses of the workspace's buffers and of those tables."""
@@ -94,26 +99,25 @@ class SteadyFrame:
         constants = steady_constants(
             margin_px=self.margin_px, height=height, width=width, gain=gain, floor_px=floor_px,
             floor_share=floor_share, low=e.low, high=e.high, min_pixels=tracer.min_pixels, length0_px=length0_px,
+            broken_outline=BROKEN_OUTLINE,
         )  # fmt: skip
         table = self.workspace.steady_table(width_tables)
-        args = [None, 0, False, False, False, 0, 0, 0, 0, 0.0, table, constants]
+        args = [None, 0, False, False, False, 0, 0, 0, 0, 0.0, table, constants, self.out]
         self._bound = (key, width_tables, length0_px, args)
         return args
 
     def run(
         self, args: list[Any], image: NDArray[np.uint8], t_ns: int, t_end_ns: int, exposure_ns: int, max_age_ns: int
-    ) -> tuple[int, int, int, float, int, tuple[int, float, float, float] | None]:
+    ) -> int:
         """Make the frame exposed from `t_ns` to `t_end_ns` (`exposure_ns`) in one `steady_frame` call with the
-        argument list `args` (from `args`); the edge stage and the tracer take its results (`ContourTracer.adopt`).
+        argument list `args` (from `args`); its results are in `out`, the time since the last contour's frame in
+        `gap_ns`.
 
         Returns
         -------
-        tuple
-            Where the call stopped (STEADY_DONE, STEADY_AFTER_CONTOUR, STEADY_AFTER_SPLIT, STEADY_AFTER_SHAPES),
-            the contour's point count (in the tracer), the time since the last contour's frame (ns), the band's
-            uncertainty at the farthest point (px), `split_frame`'s status (when it ran) and, when the whole frame
-            was made, `track_frame`'s swap, order confidence and stretches (else None). A plain tuple: it is
-            made every frame.
+        int
+            Where the call stopped (STEADY_DONE, STEADY_AFTER_CONTOUR, STEADY_AFTER_SPLIT, STEADY_BROKEN,
+            STEADY_AFTER_SHAPES).
 
         Raises
         ------
@@ -121,7 +125,7 @@ class SteadyFrame:
             The kernel refused its arguments.
         """
         loc = self.locator
-        gap_ns = t_ns - loc.prev_t_ns
+        self.gap_ns = gap_ns = t_ns - loc.prev_t_ns
         args[0] = image
         args[1] = loc.prev_count
         args[2] = self._motion.owed
@@ -132,10 +136,7 @@ class SteadyFrame:
         args[7] = t_end_ns
         args[8] = max_age_ns
         args[9] = self.splitter.sweep_px  # `split_frame`'s last sweep
-        stop = K.steady_frame(*args)
+        stop: int = K.steady_frame(*args)
         if stop < 0:
             raise RuntimeError(f"steady_frame refused its arguments (status {stop})")
-        motion_px, points, status, swap, confidence, stretch_begin, stretch_end = self.workspace.steady_out.tolist()
-        n = self.tracer.adopt(self.edges, image, loc.lo_ro, loc.hi_ro, int(points))
-        tracked = (int(swap), confidence, stretch_begin, stretch_end) if stop == K.STEADY_DONE else None
-        return stop, n, gap_ns, motion_px, int(status), tracked
+        return stop

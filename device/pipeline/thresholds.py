@@ -50,9 +50,12 @@ class EdgeThresholds:
     frames
         Frames to measure on (their medians are averaged); 0: the configured thresholds are kept.
     update_frames
-        After the first `frames`, the frames of one following cycle (`follow`): each samples a slice of a sparse
+        After the first `frames`, the slices of one following cycle (`follow`): each samples a slice of a sparse
         grid of the gradient magnitude, the cycle's median is averaged into the noise level (`FOLLOW_WEIGHT`) and
         the thresholds follow it. 0: the first measurement is kept.
+    sample_every
+        The frames `follow` takes per slice: it samples one of them (the first), so a cycle is `update_frames` x
+        `sample_every` frames and the slice's cost (~30-45 us on 1024x544) is paid on one frame in `sample_every`.
     floor_low, floor_high
         The smallest thresholds.
     """
@@ -68,16 +71,21 @@ class EdgeThresholds:
         floor_low: float = 4.0,
         floor_high: float = 10.0,
         update_frames: int = 0,
+        sample_every: int = 1,
     ) -> None:
         if frames < 0:
             raise ValueError(f"frames must be >= 0, got {frames}")
         if update_frames < 0:
             raise ValueError(f"update_frames must be >= 0, got {update_frames}")
+        if sample_every < 1:
+            raise ValueError(f"sample_every must be >= 1, got {sample_every}")
         self.low, self.high = float(low), float(high)
         self.frames = int(frames)
         self.floor_low, self.floor_high = min(floor_low, self.low), min(floor_high, self.high)
         self._medians: list[float] = []
         self.update_frames = int(update_frames)
+        self.sample_every = int(sample_every)
+        self._wait = 0  # frames `follow` skips before its next slice
         self._weights = ro(gaussian_weights(smooth_sigma_px))
         self._hist = np.zeros(4096, np.int32)  # magnitudes to 1024 in 1 / HIST_PER_UNIT bins
         self._hist_ro = ro(self._hist)
@@ -138,9 +146,14 @@ class EdgeThresholds:
         return self.update_frames > 0 and self._level is not None
 
     def follow(self, frame: NDArray[np.uint8]) -> tuple[float, float] | None:
-        """Sample this frame's slice of the grid (every `update_frames`-th row of it, in turn); at the end of a
-        cycle, average its median into the noise level. Returns new thresholds when they moved by more than
-        `FOLLOW_CHANGE` from the ones last handed out, else None. One kernel call per frame, no allocation."""
+        """On one frame in `sample_every` (the others return None at once), sample the next slice of the grid
+        (every `update_frames`-th row of it, in turn); at the end of a cycle, average its median into the noise
+        level. Returns new thresholds when they moved by more than `FOLLOW_CHANGE` from the ones last handed out,
+        else None. One kernel call per sampled frame, no allocation."""
+        if self._wait:
+            self._wait -= 1
+            return None
+        self._wait = self.sample_every - 1
         cycle, phase, step = self.update_frames, self._phase, self._step
         if phase == 0:
             self._hist.fill(0)

@@ -301,7 +301,7 @@ class TrackBuffers:
 @_group
 class Workspace:
     """Every buffer of one pipeline, by stage (see the module's docstring), and the steady frame's results
-    (``steady_out``, `STEADY_SLOTS`)."""
+    (``steady_out``, one `STEADY_OUT` record)."""
 
     edges: EdgeBuffers
     contour: ContourBuffers
@@ -311,7 +311,7 @@ class Workspace:
     order: OrderBuffers
     split: SplitBuffers
     track: TrackBuffers
-    steady_out: NDArray[np.float64]
+    steady_out: NDArray[np.void]
 
     @classmethod
     def make(
@@ -323,7 +323,7 @@ class Workspace:
             EdgeBuffers.make(height, width, weights), ContourBuffers.make(height, width, capacity),
             RoiBuffers.make(height, width, capacity), FixedEndBuffers.make(capacity), MotionBuffers.make(),
             OrderBuffers.make(capacity), SplitBuffers.make(capacity), TrackBuffers.make(fraction, capacity),
-            np.zeros(K.STEADY_SLOTS, np.float64),
+            np.zeros(1, K.STEADY_OUT),
         )  # fmt: skip
 
     def steady_table(self, width: Any) -> NDArray[np.int64]:
@@ -353,22 +353,25 @@ class Workspace:
                 "order_state": self.order.state, "hist_rc": self.order.hist_rc,
                 "prev_end": self.order.prev_end, "splice": self.order.splice, "fraction": t.fraction,
                 "out_points": t.out, "out_lengths": t.lengths_px, "work_seg": t.work,
-                "out": self.steady_out,
             },
             K.STEADY_BUFFERS,
         )  # fmt: skip
 
 
-def steady_constants(**values: float) -> NDArray[np.float64]:
-    """Return `steady_frame`'s `constants` (float64) from their values by the names of `STEADY_CONSTANTS`.
+def steady_constants(**values: float) -> NDArray[np.void]:
+    """Return `steady_frame`'s `constants` (one read-only `STEADY_CONSTANTS` record) from their values by name.
 
     Raises
     ------
     ValueError
         A name missing or not one of `STEADY_CONSTANTS`.
     """
-    names = K.STEADY_CONSTANTS
+    names = K.STEADY_CONSTANTS.names
     if set(values) != set(names):
         raise ValueError(f"steady constants missing: {sorted(set(names) - set(values))}, unknown: "
                          f"{sorted(set(values) - set(names))}")  # fmt: skip
-    return np.array([values[name] for name in names], np.float64)
+    record = np.zeros(1, K.STEADY_CONSTANTS)
+    for name in names:
+        record[name] = values[name]
+    record.flags.writeable = False
+    return record

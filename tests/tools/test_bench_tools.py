@@ -19,10 +19,13 @@ RunTool = Callable[..., CompletedProcess[str]]
 
 
 @pytest.mark.slow
-def test_bench_device_reports_the_ratio_and_the_allocations(run_tool: RunTool) -> None:
-    done = run_tool("bench.py", "device", "--frames", "16", "--json")
+def test_bench_device_reports_the_ratio_and_the_allocations(run_tool: RunTool, tmp_path: Path) -> None:
+    toml = tmp_path / "device.toml"
+    toml.write_text("[pipeline]\nthreshold_sample_every = 2\n")
+    done = run_tool("bench.py", "device", "--frames", "16", "--json", "--config", str(toml))
     assert done.returncode == 0, done.stderr
     report = json.loads(done.stdout.splitlines()[-1])
+    assert report["config"] == str(toml)
     assert report["frames"] == 16 and report["image_size"] == [1024, 544]
     assert report["source"].startswith("synthetic rig frames")
     assert report["statuses"] == {"OK": 16}
@@ -35,6 +38,20 @@ def test_bench_device_reports_the_ratio_and_the_allocations(run_tool: RunTool) -
     assert report["python_alloc_peak_bytes_per_steady_frame"] >= 0
     assert report["python_alloc_peak_bytes_max"] >= report["python_alloc_peak_bytes_per_steady_frame"]
     assert all(site["bytes"] > 0 and ":" in site["line"] for site in report["python_alloc_sites"])
+    # ... with one result record reused (as the daemon) and with a new record per frame, which holds more.
+    new_record = report["new_record"]
+    assert new_record["steady_frames"] == report["steady_frames"]
+    assert new_record["python_alloc_peak_bytes_per_steady_frame"] >= report["python_alloc_peak_bytes_per_steady_frame"]
+
+
+@pytest.mark.slow
+def test_bench_device_names_a_bad_config(run_tool: RunTool, tmp_path: Path) -> None:
+    toml = tmp_path / "device.toml"
+    toml.write_text("[pipeline]\nplane_file = 'no.yaml'\n")  # read before any frame (a bad key: `from_mapping`)
+    done = run_tool("bench.py", "device", "--frames", "4", "--config", str(toml))
+    assert done.returncode == 2
+    assert f"--config {toml}" in done.stderr and "no.yaml" in done.stderr, done.stderr
+    assert "Traceback" not in done.stderr
 
 
 @pytest.mark.slow

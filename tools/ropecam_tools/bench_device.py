@@ -10,17 +10,23 @@ over the same frames (so that the timed pass is not disturbed):
 - Python-level allocation per steady frame (a frame made by one ``steady_frame`` call, once the rope's width,
   polarity, fixed end and length have settled), measured with ``tracemalloc`` after the warm-up: the peak of the
   bytes allocated during the frame above what was allocated before it (the frame's result included), the bytes
-  still held once the result is dropped, and the source lines that allocate most (target 0 bytes).
+  still held once the result is dropped, and the source lines that allocate most (target 0 bytes); once with one
+  result record reused (``Pipeline.process(..., out=record)``, as the daemon calls it) and once with a new record
+  per frame.
 
 With ``--stages`` it also reports the median time per frame of each stage (on a steady frame all of them are one
 ``steady_frame`` call; "other" is the rest: Python glue, result records), the time of a frame searched without a
 region of interest (the first frame of a fresh pipeline, or after ``reset_tracking``) and of a frame whose predicted
 region of interest misses (the rope jumped: the band is widened, then the coarse search runs).
 
-    taskset -c 1 python tools/bench.py device [--frames N] [--frameset DIR] [--method M] [--stages] [--json]
+    taskset -c 1 python tools/bench.py device [--frames N] [--frameset DIR] [--config TOML] [--method M] [--stages]
 
 Without ``--frameset`` the frames are synthetic 1024x544 rig frames made on the fly (4 ms exposure at 119 FPS, a
-420 px rope of 3 px on noise).
+420 px rope of 3 px on noise). A scene that needs its own settings (the ``lab`` presets) is measured with the
+``[pipeline]`` table ``ropecam-device setup`` wrote for it (``--config``):
+
+    ropecam simulate lab --out LAB && ropecam-device setup LAB --out lab.toml
+    taskset -c 1 python tools/bench.py device --frameset LAB --config lab.toml --frames 60 --stages
 """
 
 from __future__ import annotations
@@ -31,6 +37,7 @@ os.environ.setdefault("NUMBA_NRT_STATS", "1")  # must be set before numba is imp
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import argparse
+import functools
 import json
 import time
 import tracemalloc
@@ -44,6 +51,7 @@ from numba.core.runtime import rtsys
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
+from ropecam.device.pipeline.result import FrameStatus, PipelineResult
 from ropecam_tools.cli import UsageError
 from ropecam_tools.frames import Frame, add_frame_arguments, frames_from, source_name
 
@@ -92,6 +100,11 @@ class ArrayArgCounter:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add this subcommand's options to `parser`."""
     add_frame_arguments(parser, frames=40)
+    parser.add_argument(
+        "--config",
+        metavar="TOML",
+        help="the [pipeline] table of this device.toml, with its plane_file and mask (default: the defaults)",
+    )
     parser.add_argument("--method", default="blur_split", choices=("blur_split", "paper", "centerline"))
     parser.add_argument("--stages", action="store_true", help="also time each stage, full-frame and ROI-miss frames")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
@@ -101,7 +114,7 @@ def nrt_report(config: PipelineConfig, frames: list[Frame]) -> tuple[dict[str, A
     """NRT allocations per timed frame (a fresh pipeline, the warm-up frames first) and the indices of the timed
     frames made by one `steady_frame` call."""
     height, width = frames[0][0].shape
-    pipeline = Pipeline(config, (width, height))
+    pipeline = new_pipeline(config, (width, height))
     for image, t_ns, exposure_us in frames[:WARM_UP]:
         pipeline.process(image, 0, t_ns, exposure_us)
     counter = ArrayArgCounter()
@@ -127,13 +140,48 @@ def nrt_report(config: PipelineConfig, frames: list[Frame]) -> tuple[dict[str, A
     }, steady
 
 
-def python_alloc_report(config: PipelineConfig, frames: list[Frame], steady: list[int]) -> dict[str, Any]:
+def load_config(args: argparse.Namespace) -> PipelineConfig:
+    """The pipeline settings: ``--config``'s [pipeline] table, else the defaults; the method ``--method``."""
+    if not args.config:
+        return PipelineConfig(method=args.method)
+    from ropecam.shared.config import from_mapping, read_toml
+    from ropecam.shared.errors import RopecamError
+
+    try:
+        table = dict(read_toml(args.config).get("pipeline", {}))
+        config = from_mapping(PipelineConfig, table, where=f"{args.config} [pipeline]", method=args.method)
+        if config.plane_file is not None:
+            _read_plane(config.plane_file)  # read now: its errors named
+    except (RopecamError, ValueError) as exc:
+        raise UsageError(f"--config {args.config}: {exc}") from exc
+    return config
+
+
+def new_pipeline(config: PipelineConfig, size: tuple[int, int]) -> Pipeline:
+    """A pipeline of `config` for frames of `size` (width, height), with the plane calibration of the config's
+    ``plane_file`` as `extract` and the daemon use it."""
+    plane = None if config.plane_file is None else _read_plane(config.plane_file)
+    return Pipeline(config, size, plane=plane)
+
+
+@functools.cache
+def _read_plane(path: str) -> Any:
+    from ropecam.shared.plane import read_plane_file
+
+    return read_plane_file(path)
+
+
+def python_alloc_report(
+    config: PipelineConfig, frames: list[Frame], steady: list[int], reuse: bool = True
+) -> dict[str, Any]:
     """Python-level allocation (`tracemalloc`) of each timed frame of a fresh pipeline; medians over the frames in
-    `steady` (made by one `steady_frame` call), and the lines that allocate most on one steady frame."""
+    `steady` (made by one `steady_frame` call), and the lines that allocate most on one steady frame. With `reuse`
+    every frame fills one result record (`Pipeline.process`'s `out`), else each gets a new one."""
     height, width = frames[0][0].shape
-    pipeline = Pipeline(config, (width, height))
+    pipeline = new_pipeline(config, (width, height))
+    record = PipelineResult(0, 0, 0, FrameStatus.BAD_FRAME) if reuse else None
     for image, t_ns, exposure_us in frames[:WARM_UP]:
-        pipeline.process(image, 0, t_ns, exposure_us)
+        pipeline.process(image, 0, t_ns, exposure_us, out=record)
     peak_bytes: dict[int, int] = {}
     held_bytes: dict[int, int] = {}
     sites: list[tuple[str, int, int]] = []
@@ -141,7 +189,7 @@ def python_alloc_report(config: PipelineConfig, frames: list[Frame], steady: lis
     first = steady[0] if steady else len(frames)
     for index in range(WARM_UP, first):  # untraced up to the first steady frame (tracing slows Python down)
         image, t_ns, exposure_us = frames[index]
-        pipeline.process(image, index, t_ns, exposure_us)
+        pipeline.process(image, index, t_ns, exposure_us, out=record)
     tracemalloc.start()
     try:
         for index in range(first, len(frames)):
@@ -149,7 +197,7 @@ def python_alloc_report(config: PipelineConfig, frames: list[Frame], steady: lis
             snapshot = tracemalloc.take_snapshot() if index == steady[-1] else None
             start = tracemalloc.get_traced_memory()[0]
             tracemalloc.reset_peak()
-            result = pipeline.process(image, index, t_ns, exposure_us)
+            result = pipeline.process(image, index, t_ns, exposure_us, out=record)
             peak = tracemalloc.get_traced_memory()[1]
             if snapshot is not None:  # what the last steady frame allocated and still holds (its result included)
                 stats = tracemalloc.take_snapshot().compare_to(snapshot, "lineno")
@@ -182,12 +230,12 @@ def python_alloc_report(config: PipelineConfig, frames: list[Frame], steady: lis
 def run(args: argparse.Namespace) -> int:
     """Time the pipeline and cv2.Canny, count the allocations, print the report."""
     cv2.setNumThreads(1)
+    config = load_config(args)
     frames = frames_from(args, args.frames + WARM_UP)
     if len(frames) <= WARM_UP:
         raise UsageError(f"--frameset {args.frameset}: {len(frames)} frames, need more than {WARM_UP}")
     height, width = frames[0][0].shape
-    config = PipelineConfig(method=args.method)
-    pipeline = Pipeline(config, (width, height))
+    pipeline = new_pipeline(config, (width, height))
     warm_up_us = []
     for image, t_ns, exposure_us in frames[:WARM_UP]:
         warm_up_us.append(pipeline.process(image, 0, t_ns, exposure_us).pipeline_us)
@@ -206,6 +254,7 @@ def run(args: argparse.Namespace) -> int:
     report = {
         "frames": len(ours),
         "source": source_name(args),
+        "config": args.config,
         "image_size": [width, height],
         "method": args.method,
         "pipeline_median_us": float(np.median(ours)),
@@ -222,6 +271,7 @@ def run(args: argparse.Namespace) -> int:
         "statuses": statuses,
         **nrt,
         **python_alloc_report(config, frames, steady),
+        "new_record": python_alloc_report(config, frames, steady, reuse=False),
     }
     if args.stages:
         report.update(stage_report(config, frames, (width, height)))
@@ -255,14 +305,18 @@ def print_python_alloc(report: dict[str, Any]) -> None:
     if not report["steady_frames"]:
         print("Python allocation per steady frame: no steady frame (give more --frames: steady from about frame 16)")
         return
-    print(
-        f"Python allocation per steady frame (tracemalloc, {report['steady_frames']} steady frames): peak "
-        f"{report['python_alloc_peak_bytes_per_steady_frame']:.0f} bytes above the frame's start (median; max "
-        f"{report['python_alloc_peak_bytes_max']}), {report['python_alloc_held_bytes_per_steady_frame']:.0f} bytes "
-        "held once the result is dropped; target 0"
-    )
-    for site in report["python_alloc_sites"]:
-        print(f"  {site['bytes']:7d} bytes in {site['blocks']:3d} blocks  {site['line']}")
+    for how, part in (
+        ("one result record reused (out=)", report),
+        ("a new result record per frame", report["new_record"]),
+    ):
+        print(
+            f"Python allocation per steady frame, {how} (tracemalloc, {part['steady_frames']} steady frames): peak "
+            f"{part['python_alloc_peak_bytes_per_steady_frame']:.0f} bytes above the frame's start (median; max "
+            f"{part['python_alloc_peak_bytes_max']}), {part['python_alloc_held_bytes_per_steady_frame']:.0f} bytes "
+            "held once the result is dropped; target 0"
+        )
+        for site in part["python_alloc_sites"]:
+            print(f"  {site['bytes']:7d} bytes in {site['blocks']:3d} blocks  {site['line']}")
 
 
 _STAGES = (
@@ -320,7 +374,7 @@ def stage_report(
 ) -> dict[str, Any]:
     """Median per-frame time of each stage; times of frames searched without a band and of frames whose band
     misses (both after the first `_SETTLE_FRAMES` frames, when the pipeline measures only what changes)."""
-    pipeline = Pipeline(config, size)
+    pipeline = new_pipeline(config, size)
     for index, (image, t_ns, exposure_us) in enumerate(frames[:3]):
         pipeline.process(image, index, t_ns, exposure_us)
     per_frame: list[dict[str, float]] = []
@@ -344,7 +398,7 @@ def stage_report(
     stages = {label: float(np.median([row.get(label, 0.0) for row in per_frame])) for label in labels}
     # A frame searched without an ROI: the pipeline knows the rope (width, fixed end) but not where it is.
     searched, searched_paths = [], []
-    pipeline = Pipeline(config, size)
+    pipeline = new_pipeline(config, size)
     settled = min(_SETTLE_FRAMES, len(frames) // 2)  # width, polarity and fixed end are measured until then
     for index, (image, t_ns, exposure_us) in enumerate(frames):
         if index >= settled:
@@ -358,7 +412,7 @@ def stage_report(
     missed, missed_paths = [], []
     period_ns = int(np.median(np.diff([t for _, t, _ in frames]))) if len(frames) > 1 else 8_400_000
     for start in range(settled, len(frames) - 12, 3):  # none with fewer than settled + 13 frames
-        pipeline = Pipeline(config, size)
+        pipeline = new_pipeline(config, size)
         for index in range(start):
             image, t_ns, exposure_us = frames[index]
             pipeline.process(image, index, t_ns, exposure_us)
@@ -371,7 +425,7 @@ def stage_report(
             missed_paths.append(f"roi+{pipeline.roi_retries - before[2]}")
         else:
             missed_paths.append("coarse" if pipeline.frames_coarse > before[1] else "full")
-    first = Pipeline(config, size)
+    first = new_pipeline(config, size)
     image, t_ns, exposure_us = frames[0]
     first_us = first.process(image, 0, t_ns, exposure_us).pipeline_us
     return {

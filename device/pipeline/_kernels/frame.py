@@ -2,14 +2,17 @@
 material points.
 
 Once a stream is steady (the rope's width, polarity, contrast, fixed end and Lc0 are known and the last frame was
-found in its band), a frame is four kernel calls (`band_stage`, `detect_and_trace`, `split_frame`, `track_frame`)
-with a little Python between them. Each call from Python pays a dispatch: a fixed cost, then the type matching and
-unboxing of every argument, ~0.1 us per array warm and ~0.2-0.3 us after the frame's kernels have evicted the
-dispatcher's data, ~80 arguments in all. `steady_frame` makes the four calls from compiled code, and takes the
-buffers, which are the same every frame, as one table of their addresses and shapes (`STEADY_BUFFERS`, made once
-by `ropecam.device.pipeline._views.buffer_table`): 12 arguments. It stops where the stages' Python would have
-taken another turn (a contour that leaves the band, a split that is not two shapes, shapes `track_frame` does not
-take), so that Python goes on from there with the same state as after the same calls made one by one.
+found in its band), a frame is five kernel calls (`band_stage`, `detect_and_trace`, `split_frame`,
+`count_revisits`, `track_frame`) with a little Python between them. Each call from Python pays a dispatch: a
+fixed cost, then the type matching and unboxing of every argument, ~0.1 us per array warm and ~0.2-0.3 us after
+the frame's kernels have evicted the dispatcher's data, ~80 arguments in all. `steady_frame` makes the five calls
+from compiled code, and takes the buffers, which are the same every frame, as one table of their addresses and
+shapes (`STEADY_BUFFERS`, made once by `ropecam.device.pipeline._views.buffer_table`), its constant scalars as
+one named record (`STEADY_CONSTANTS`) and its results as another (`STEADY_OUT`; a record argument costs ~0.15 us
+more to dispatch than a plain float64 array): 13 arguments. It stops where the stages' Python would have taken
+another turn (a contour that leaves the band, a split that is not two shapes, a contour that is no band outline,
+shapes `track_frame` does not take), so that Python goes on from there with the same state as after the same
+calls made one by one.
 
 The table holds raw addresses: whoever makes it keeps its arrays alive and unchanged in shape while it is used
 (the pipeline keeps them with the table, and makes a new table when one of them is replaced).
@@ -22,8 +25,9 @@ from typing import Any, Final, NamedTuple
 
 import numba
 import numpy as np
-from numba import boolean, carray, float32, float64, int32, int64, types
+from numba import boolean, carray, float64, int64, types
 from numba.extending import intrinsic
+from numba.np.numpy_support import from_dtype
 
 from ropecam.device.pipeline._kernels._common import INVALID
 from ropecam.device.pipeline._kernels.band_stage import band_stage
@@ -41,10 +45,11 @@ from ropecam.device.pipeline._kernels.groups import (
     Static,
     Track,
 )
+from ropecam.device.pipeline._kernels.revisits import count_revisits
 from ropecam.device.pipeline._kernels.split_frame import FRAME_INFO, FRAME_STATE, FRAME_STATES, split_frame
 from ropecam.device.pipeline._kernels.split_shapes import SPLIT_SCALAR, split_width
 from ropecam.device.pipeline._kernels.tracking import track_frame
-from ropecam.shared.jit import f8_1d, kernel, u1_2d, u1_2d_ro
+from ropecam.shared.jit import kernel, u1_2d, u1_2d_ro
 
 i8_2d: Final = types.Array(types.int64, 2, "C")
 
@@ -54,23 +59,49 @@ STEADY_AFTER_CONTOUR: Final = 1
 """It stopped after `detect_and_trace`: no contour, or one that touches the band's border or the image's (the
 stage widens the band, searches elsewhere or checks the clipping)."""
 STEADY_AFTER_SPLIT: Final = 2
-"""It stopped after `split_frame`, which did not make two shapes (its status is in ``out[STEADY_STATUS]``)."""
+"""It stopped after `split_frame`, which did not make two shapes (its status is in ``out["status"]``)."""
 STEADY_AFTER_SHAPES: Final = 3
 """It stopped after the split's two shapes, which `track_frame` refused (nothing written by it)."""
+STEADY_BROKEN: Final = 4
+"""It stopped after the split's two shapes (of a known exposure) because the contour walks more than
+``broken_outline`` of its pixels twice (``out["revisits"]``): it is no band outline (`track_frame` not called)."""
 
-STEADY_MOTION: Final = 0
-"""Slots of `steady_frame`'s `out` (float64): the band's uncertainty at the farthest point (px, `band_stage`),"""
-STEADY_POINTS: Final = 1
-"""the contour's point count (`detect_and_trace`),"""
-STEADY_STATUS: Final = 2
-"""`split_frame`'s status,"""
-STEADY_SWAP: Final = 3
-"""then `track_frame`'s four results: the swap (0 or 1), the order confidence, the stretch of the begin shape and
-of the end shape."""
-STEADY_CONFIDENCE: Final = 4
-STEADY_STRETCH_BEGIN: Final = 5
-STEADY_STRETCH_END: Final = 6
-STEADY_SLOTS: Final = 7
+STEADY_OUT: Final = np.dtype(
+    [
+        ("motion_px", np.float64),
+        ("points", np.int64),
+        ("status", np.int64),
+        ("revisits", np.int64),
+        ("swap", np.int64),
+        ("confidence", np.float64),
+        ("stretch_begin", np.float64),
+        ("stretch_end", np.float64),
+    ]
+)
+"""`steady_frame`'s results, one record, each written as far as the calls went: the band's uncertainty at the
+farthest point (px, `band_stage`), the contour's point count (`detect_and_trace`), `split_frame`'s status, the
+contour pixels walked twice (`count_revisits`; -1: not counted), then `track_frame`'s four results: the swap (0 or
+1), the order confidence, the stretch of the begin shape and of the end shape."""
+STEADY_CONSTANTS: Final = np.dtype(
+    [
+        ("margin_px", np.int64),
+        ("height", np.int64),
+        ("width", np.int64),
+        ("gain", np.float64),
+        ("floor_px", np.float64),
+        ("floor_share", np.float64),
+        ("low", np.float32),
+        ("high", np.float32),
+        ("min_pixels", np.int32),
+        ("length0_px", np.float64),
+        ("broken_outline", np.float64),
+    ]
+)
+"""`steady_frame`'s `constants`, one record: the scalars of its kernels that do not change between frames (the band's
+margin, the image size, the band's need model, the Canny thresholds, the smallest component, Lc0) and the largest
+part of the contour's pixels walked twice before it is no band outline."""
+_out = types.Array(from_dtype(STEADY_OUT), 1, "C")
+_constants_ro = types.Array(from_dtype(STEADY_CONSTANTS), 1, "C", readonly=True)
 
 _SHAPES: Final = 2
 """`split_frame`'s return when it made the two shapes."""
@@ -101,20 +132,9 @@ STEADY_BUFFERS: Final = (
     ("order_state", np.int64, 1), ("hist_rc", np.float64, 2), ("prev_end", np.float32, 2), ("splice", np.float32, 3),
     ("fraction", np.float64, 1),
     ("out_points", np.float32, 3), ("out_lengths", np.float64, 1), ("work_seg", np.float64, 1),
-    # steady_frame's results (STEADY_* slots)
-    ("out", np.float64, 1),
 )  # fmt: skip
 """The buffers of `steady_frame`'s table, in its row order: (name, dtype, dimensions), C-contiguous; each is the
-argument of that name of the kernel it is listed under (`out`: the STEADY_* slots)."""
-STEADY_CONSTANTS: Final = (
-    "margin_px", "height", "width", "gain", "floor_px", "floor_share", "low", "high", "min_pixels", "length0_px",
-)  # fmt: skip
-"""`steady_frame`'s `constants` (float64), in order: the scalars of the four kernels that do not change between
-frames (the int and float32 ones exactly representable)."""
-STEADY_CONSTANT: Final = NamedTuple("SteadyConstants", [(name, int) for name in STEADY_CONSTANTS])(
-    *range(len(STEADY_CONSTANTS))
-)
-"""The index of each of `steady_frame`'s `constants` (``STEADY_CONSTANT.low``), from `STEADY_CONSTANTS`."""
+argument of that name of the kernel it is listed under."""
 
 STEADY_ROW: Final = NamedTuple("SteadyRows", [(name, int) for name, _, _ in STEADY_BUFFERS])(
     *range(len(STEADY_BUFFERS))
@@ -163,7 +183,9 @@ def _buffer3(table, row, dtype):  # type: ignore[no-untyped-def]
 
 
 def _signature(frame_type: Any) -> Any:
-    return int64(frame_type, int64, boolean, boolean, boolean, int64, int64, int64, int64, float64, i8_2d, f8_1d)
+    return int64(
+        frame_type, int64, boolean, boolean, boolean, int64, int64, int64, int64, float64, i8_2d, _constants_ro, _out
+    )
 
 
 # Compiled for a read-only frame (a mapped capture buffer) and a writable one (a frame read from a file), as the
@@ -171,7 +193,7 @@ def _signature(frame_type: Any) -> Any:
 @kernel([_signature(u1_2d_ro), _signature(u1_2d)])
 def steady_frame(
     frame, prev_count, measure, use_profile, predict, t_ns, exposure_ns, t_end_ns, max_age_ns, last_sweep_px, table,
-    constants,
+    constants, out,
 ):  # fmt: skip
     """One steady frame, exposed from `t_ns` to `t_end_ns` (`exposure_ns`): `band_stage` around the last contour
     (`prev_count` points of ``prev_points``, `measure` and `use_profile` and `predict` as its arguments) into the
@@ -180,28 +202,30 @@ def steady_frame(
     ``last_sweep_px`` set to `last_sweep_px`, its ``n`` to the point count; the width's group made by
     `split_width` of ``width_scalars``, ``curves``, ``table``) with the same planes, frame, weights and spans; when
     that made the two shapes (views of ``sides``, smoothed or not as ``split_info`` says), `track_frame` of them
-    with the new sweep, ``fixed``, the band's motion state and `max_age_ns`.
+    with the new sweep, ``fixed``, the band's motion state and `max_age_ns` (first, for a known exposure, the
+    contour's pixels walked twice are counted: more than ``broken_outline`` of them stop it).
 
     The buffers (names in ``double backquotes``) are the rows of `table` (int64, (len(STEADY_BUFFERS), 4):
-    address, then the sizes of up to three dimensions; `buffer_table` makes it), the constant scalars the
-    entries of `constants` (STEADY_CONSTANTS). ``out`` gets the band's uncertainty, the contour's point count,
-    the split's status and `track_frame`'s four results (slots STEADY_*), each as far as the calls went.
+    address, then the sizes of up to three dimensions; `buffer_table` makes it), the constant scalars the fields
+    of the one record `constants` (`STEADY_CONSTANTS`). The record `out` (`STEADY_OUT`) gets the band's
+    uncertainty, the contour's point count, the split's status, the pixels walked twice and `track_frame`'s four
+    results, each as far as the calls went.
 
-    Returns STEADY_DONE, or where it stopped (STEADY_AFTER_CONTOUR, STEADY_AFTER_SPLIT, STEADY_AFTER_SHAPES):
-    everything before that point is done and written exactly as the calls one by one write it, nothing after it;
-    or INVALID, before any call, when `table` or `constants` has too few rows, or ``out``, ``split_state``,
-    ``split_info``, ``width_scalars`` or ``curves`` is too short.
+    Returns STEADY_DONE, or where it stopped (STEADY_AFTER_CONTOUR, STEADY_AFTER_SPLIT, STEADY_BROKEN,
+    STEADY_AFTER_SHAPES): everything before that point is done and written exactly as the calls one by one write
+    it, nothing after it; or INVALID, before any call, when `table` has too few rows, `constants` or `out` no
+    record, or ``split_state``, ``split_info``, ``width_scalars`` or ``curves`` is too short.
     """
-    if table.shape[0] < STEADY_ROW.out + 1 or table.shape[1] < 4 or constants.shape[0] < len(STEADY_CONSTANTS):
+    if table.shape[0] < len(STEADY_BUFFERS) or table.shape[1] < 4 or constants.shape[0] < 1 or out.shape[0] < 1:
         return INVALID
-    out = _buffer1(table, STEADY_ROW.out, np.float64)
+    c = constants[0]
+    result = out[0]
     split_state = _buffer1(table, STEADY_ROW.split_state, np.float64)
     split_info = _buffer1(table, STEADY_ROW.split_info, np.float64)
     width_scalars = _buffer1(table, STEADY_ROW.width_scalars, np.float64)
     curves = _buffer2(table, STEADY_ROW.curves, np.float64)
     if (
-        out.shape[0] < STEADY_SLOTS
-        or split_state.shape[0] < len(FRAME_STATES)
+        split_state.shape[0] < len(FRAME_STATES)
         or split_info.shape[0] < FRAME_INFO
         or width_scalars.shape[0] < len(SPLIT_WIDTH_SCALARS)
         or curves.shape[0] < 2
@@ -217,7 +241,8 @@ def steady_frame(
         _buffer1(table, STEADY_ROW.profile, np.float64),
         _buffer1(table, STEADY_ROW.band_state, BAND_STATE),
     )
-    out[STEADY_MOTION] = band_stage(
+    result["revisits"] = -1
+    result["motion_px"] = band_stage(
         _buffer2(table, STEADY_ROW.prev_points, np.float32),
         prev_count,
         measure,
@@ -225,16 +250,19 @@ def steady_frame(
         predict,
         t_ns,
         exposure_ns,
-        int64(constants[STEADY_CONSTANT.margin_px]),
-        int64(constants[STEADY_CONSTANT.height]),
-        int64(constants[STEADY_CONSTANT.width]),
-        constants[STEADY_CONSTANT.gain],
-        constants[STEADY_CONSTANT.floor_px],
-        constants[STEADY_CONSTANT.floor_share],
+        c["margin_px"],
+        c["height"],
+        c["width"],
+        c["gain"],
+        c["floor_px"],
+        c["floor_share"],
         fixed,
         motion,
         Band(lo, hi, _buffer2(table, STEADY_ROW.moved, np.float32)),
     )
+    low = c["low"]
+    high = c["high"]
+    min_pixels = c["min_pixels"]
     weights = _buffer1(table, STEADY_ROW.weights, np.float32)
     tmp = _buffer2(table, STEADY_ROW.tmp, np.float32)
     smooth = _buffer2(table, STEADY_ROW.smooth, np.float32)
@@ -242,6 +270,7 @@ def steady_frame(
     gy = _buffer2(table, STEADY_ROW.gy, np.float32)
     mag = _buffer2(table, STEADY_ROW.mag, np.float32)
     chain = _buffer2(table, STEADY_ROW.chain, np.int32)
+    edges = _buffer2(table, STEADY_ROW.edges, np.uint8)
     points = _buffer2(table, STEADY_ROW.points, np.float32)
     counts = _buffer1(table, STEADY_ROW.counts, np.int32)
     planes = Planes(smooth, gx, gy, mag)
@@ -250,9 +279,9 @@ def steady_frame(
         lo,
         hi,
         weights,
-        float32(constants[STEADY_CONSTANT.low]),
-        float32(constants[STEADY_CONSTANT.high]),
-        int32(constants[STEADY_CONSTANT.min_pixels]),
+        low,
+        high,
+        min_pixels,
         Static(
             _buffer2(table, STEADY_ROW.static_mask, np.uint8),
             _buffer2(table, STEADY_ROW.static_low, np.uint8),
@@ -261,7 +290,7 @@ def steady_frame(
         EdgeWork(
             _buffer2(table, STEADY_ROW.work_spans, np.int32),
             tmp,
-            _buffer2(table, STEADY_ROW.edges, np.uint8),
+            edges,
             _buffer1(table, STEADY_ROW.edge_stack, np.int32),
         ),
         planes,
@@ -275,7 +304,7 @@ def steady_frame(
             counts,
         ),
     )
-    out[STEADY_POINTS] = n
+    result["points"] = n
     if n <= 0 or counts[1] != 0 or counts[2] != 0:
         return STEADY_AFTER_CONTOUR
     split_state[FRAME_STATE.last_sweep_px] = last_sweep_px
@@ -305,9 +334,16 @@ def steady_frame(
             split_info,
         ),
     )
-    out[STEADY_STATUS] = status
+    result["status"] = status
     if status != _SHAPES:
         return STEADY_AFTER_SPLIT
+    if exposure_ns > 0:
+        # `ResultFinisher.finish`'s test of a split of a known exposure, before the time order and the material
+        # points take the shapes: a contour that went out along the pieces of a broken edge and back.
+        revisits = count_revisits(chain, n, edges)
+        result["revisits"] = revisits
+        if revisits > c["broken_outline"] * n:
+            return STEADY_BROKEN
     shape_a = sides[0 if split_info[_INFO_SMOOTHED_A] != 0.0 else 2, : int(split_info[_INFO_COUNT_A])]
     shape_b = sides[1 if split_info[_INFO_SMOOTHED_B] != 0.0 else 3, : int(split_info[_INFO_COUNT_B])]
     swap, confidence, stretch_begin, stretch_end = track_frame(
@@ -327,7 +363,7 @@ def steady_frame(
         split_info[_INFO_SWEEP],
         exposure_ns,
         motion,
-        constants[STEADY_CONSTANT.length0_px],
+        c["length0_px"],
         Track(
             _buffer1(table, STEADY_ROW.fraction, np.float64),
             _buffer3(table, STEADY_ROW.out_points, np.float32),
@@ -336,10 +372,10 @@ def steady_frame(
         ),
         width_scalars[SPLIT_SCALAR.width64_px],
     )
-    out[STEADY_SWAP] = swap
-    out[STEADY_CONFIDENCE] = confidence
-    out[STEADY_STRETCH_BEGIN] = stretch_begin
-    out[STEADY_STRETCH_END] = stretch_end
+    result["swap"] = swap
+    result["confidence"] = confidence
+    result["stretch_begin"] = stretch_begin
+    result["stretch_end"] = stretch_end
     if swap < 0:
         return STEADY_AFTER_SHAPES
     return STEADY_DONE

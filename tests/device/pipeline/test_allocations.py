@@ -7,11 +7,20 @@ each) and asserts the NRT allocation count equals it (and that every allocation 
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import json
 import os
 import subprocess
 import sys
 import textwrap
+
+import numpy as np
+
+from ropecam.device.capture.synthetic import SyntheticRope
+from ropecam.device.pipeline.config import PipelineConfig
+from ropecam.device.pipeline.pipeline import Pipeline
+from ropecam.device.pipeline.result import FrameStatus, PipelineResult
 
 SCRIPT = textwrap.dedent(
     """
@@ -80,3 +89,40 @@ def test_no_numba_allocations_per_frame_after_warm_up() -> None:
     assert set(report["blur_split"]["statuses"]) == {"OK"}
     assert set(report["steady"]["statuses"]) == {"OK"}
     assert "steady_frame" in report["steady"]["called"]
+
+
+def _fields(result: PipelineResult) -> dict[str, object]:
+    """Every field of `result` but its time, arrays copied (they are views valid until the next call)."""
+    return {
+        f.name: np.array(value) if isinstance(value, np.ndarray) else copy.copy(value)
+        for f in dataclasses.fields(result)
+        if f.name != "pipeline_us"
+        for value in [getattr(result, f.name)]
+    }
+
+
+def test_a_reused_result_record_gets_the_fields_of_a_new_one() -> None:
+    """`Pipeline.process(..., out=record)` fills the one record with what a new record would get, every field of
+    every frame, through steady frames, a bad frame, a frame of unknown exposure and a search without a band."""
+    rope = SyntheticRope(exposure_us=4000, amplitude_rad=0.6, period_s=0.9, diameter_px=3.0, fps=119.0)
+    frames = [(f.image, f.index, f.t_ns, float(f.exposure_us)) for f in rope.frames(26)]
+    frames[20] = (frames[20][0][:, :-1], *frames[20][1:])  # the wrong size: BAD_FRAME, the band forgotten
+    frames[23] = (*frames[23][:3], 0.0)  # exposure unknown
+    new, reused = (Pipeline(PipelineConfig(), (rope.width, rope.height)) for _ in range(2))
+    record = PipelineResult(0, 0, 0, FrameStatus.BAD_FRAME)
+    statuses = set()
+    for image, index, t_ns, exposure_us in frames:
+        expected = _fields(new.process(image, index, t_ns, exposure_us))
+        assert reused.process(image, index, t_ns, exposure_us, out=record) is record
+        got = _fields(record)
+        assert got.keys() == expected.keys()
+        for name, value in expected.items():
+            if isinstance(value, dict):  # the quality record: nan where a measure was not made
+                assert list(got[name]) == list(value), (index, name)
+                np.testing.assert_array_equal(list(got[name].values()), list(value.values()), f"{index}: {name}")
+            elif isinstance(value, np.ndarray):
+                np.testing.assert_array_equal(got[name], value, err_msg=f"frame {index}: {name}")
+            else:
+                assert got[name] == value, (index, name)
+        statuses.add(record.status)
+    assert {FrameStatus.OK, FrameStatus.BAD_FRAME} <= statuses

@@ -16,6 +16,7 @@ from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import buffer_table
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
+from ropecam.device.pipeline.workspace import steady_constants
 
 pytestmark = pytest.mark.kernel
 
@@ -134,20 +135,38 @@ def _table_buffers() -> dict[str, np.ndarray]:
 
 def test_steady_frame_refuses_short_tables_before_any_call() -> None:
     buffers = _table_buffers()
-    buffers["out"] = np.zeros(K.STEADY_SLOTS, np.float64)
     table = buffer_table(buffers, K.STEADY_BUFFERS)
     frame = np.zeros((3, 3), np.uint8)
-    constants = np.zeros(len(K.STEADY_CONSTANTS), np.float64)
+    constants = np.zeros(1, K.STEADY_CONSTANTS)
+    constants.flags.writeable = False
+    out = np.zeros(1, K.STEADY_OUT)
     band_state = buffers["band_state"].copy()
-    for short_table, short_constants in ((table[:-1], constants), (table, constants[:-1])):
+    for short_table, short_constants, short_out in ((table[:-1], constants, out), (table, constants[:0], out),
+                                                    (table, constants, out[:0])):  # fmt: skip
         status = K.steady_frame(
-            frame, 0, False, False, False, 0, 0, 0, 0, 0.0, short_table.copy(), short_constants.copy()
+            frame, 0, False, False, False, 0, 0, 0, 0, 0.0, short_table.copy(), short_constants.copy(), short_out
         )
         assert status == K.INVALID
-    # `out`, the split's state and info shorter than the kernels need: refused too (the split's state is 3 long).
-    assert K.steady_frame(frame, 0, False, False, False, 0, 0, 0, 0, 0.0, table, constants) == K.INVALID
+    # The split's state and info shorter than the kernels need: refused too (the split's state is 3 long).
+    assert K.steady_frame(frame, 0, False, False, False, 0, 0, 0, 0, 0.0, table, constants, out) == K.INVALID
     np.testing.assert_array_equal(buffers["band_state"], band_state)  # nothing written: band_stage did not run
-    assert not buffers["out"].any()
+    assert not out.view(np.uint8).any()
+
+
+def test_steady_frame_records_are_named_as_the_stages_read_them() -> None:
+    """The constants and results travel as one record each, by name (`STEADY_CONSTANTS`, `STEADY_OUT`)."""
+    names = K.STEADY_CONSTANTS.names
+    assert {"low", "high", "min_pixels", "length0_px", "broken_outline"} <= set(names)
+    assert K.STEADY_OUT.names == (
+        "motion_px", "points", "status", "revisits", "swap", "confidence", "stretch_begin", "stretch_end",
+    )  # fmt: skip
+    values = {name: float(k + 1) for k, name in enumerate(names)}
+    values["low"] = 6.4712345  # stored as the float32 `detect_and_trace` takes
+    record = steady_constants(**values)
+    assert record.dtype == K.STEADY_CONSTANTS and record.shape == (1,) and not record.flags.writeable
+    assert record["low"][0] == np.float32(6.4712345) and record["broken_outline"][0] == values["broken_outline"]
+    with pytest.raises(ValueError, match=r"missing: \['broken_outline'\]"):
+        steady_constants(**{k: v for k, v in values.items() if k != "broken_outline"})
 
 
 def test_buffer_table_holds_addresses_and_shapes_by_name() -> None:
@@ -168,7 +187,7 @@ def test_buffer_table_holds_addresses_and_shapes_by_name() -> None:
         (lambda b: b.update(fixed=np.zeros((2, 2), np.float32)), "buffer 'fixed' is a float32 array of 2 dim"),
         (lambda b: b.update(prev_points=np.zeros((5, 4), np.float32)[:, ::2]), "'prev_points' must be C-contiguous"),
         (lambda b: b.update(fixed=[0.0, 0.0]), "buffer 'fixed' is a <class 'list'>"),
-        (lambda b: b.pop("out"), "buffers missing: ['out']; not in the table: none"),
+        (lambda b: b.pop("lo"), "buffers missing: ['lo']; not in the table: none"),
         (lambda b: b.update(spare=np.zeros(3)), "buffers missing: none; not in the table: ['spare']"),
     ],
 )

@@ -97,7 +97,8 @@ def test_the_pipeline_follows_a_noise_change_mid_stream() -> None:
     expected = EdgeThresholds(*shape, 1.0, 20.0, 50.0, frames=1).measure(loud[0])
     lows = {}
     for update in (0, 2):  # 18 cycles: (1 - 0.25) ** 18 of the quiet level is left
-        pipeline = Pipeline(PipelineConfig(threshold_update_frames=update), (shape[1], shape[0]))
+        config = PipelineConfig(threshold_update_frames=update, threshold_sample_every=1)
+        pipeline = Pipeline(config, (shape[1], shape[0]))
         for index, frame in enumerate(quiet + loud):
             pipeline.process(frame, index, index * 8_403_361, 4000.0)
         lows[update] = float(pipeline.edges.low)
@@ -109,3 +110,29 @@ def test_the_pipeline_follows_a_noise_change_mid_stream() -> None:
 def test_threshold_update_frames_is_validated() -> None:
     with pytest.raises(ConfigError, match="threshold_update_frames"):
         PipelineConfig(threshold_update_frames=-2)
+    with pytest.raises(ConfigError, match="threshold_sample_every"):
+        PipelineConfig(threshold_sample_every=0)
+    with pytest.raises(ValueError, match="sample_every"):
+        EdgeThresholds(10, 10, 1.0, 20.0, 50.0, frames=1, sample_every=0)
+
+
+def test_following_samples_one_frame_in_sample_every() -> None:
+    """With `sample_every = 3` the thresholds follow as a follower given only every third frame: the same
+    slices of the same frames, the same noise level and thresholds, nothing sampled on the other frames."""
+    rng = np.random.default_rng(11)
+    frames = [np.clip(80.0 + rng.normal(0.0, 1.0 + 0.4 * i, (120, 160)), 0, 255).astype(np.uint8) for i in range(30)]
+    sparse = EdgeThresholds(120, 160, 1.0, 200.0, 500.0, frames=1, update_frames=2, sample_every=3)
+    every = EdgeThresholds(120, 160, 1.0, 200.0, 500.0, frames=1, update_frames=2)
+    sparse.measure(frames[0])
+    every.measure(frames[0])
+    changes = 0
+    for index, frame in enumerate(frames[1:]):
+        hist = sparse._hist.copy()
+        followed = sparse.follow(frame)
+        if index % 3:
+            assert followed is None and np.array_equal(sparse._hist, hist)  # not sampled
+        else:
+            assert followed == every.follow(frame)
+            changes += followed is not None
+        assert sparse.noise == every.noise
+    assert changes > 0  # the rising noise moved them
