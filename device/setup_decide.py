@@ -68,6 +68,8 @@ class Run:
     """Frame position -> (begin, end, segmentation points) copies, (row, col)."""
     tips: list[tuple[float, float]] = field(default_factory=list)
     """(row, col) of both free tips of every frame with shapes."""
+    lens_blur_px: float | None = None
+    """The camera's blur the pipeline measured on the first frames (None: not measured)."""
     frames: int = 0
 
     @property
@@ -154,6 +156,7 @@ def run_candidate(frames: Sequence[Frame], config: PipelineConfig, keep_shapes: 
         run.shapes[position] = (
             (result.begin.copy(), result.end.copy(), seg) if keep_shapes else (result.begin[:0], result.end[:0], None)
         )
+    run.lens_blur_px = pipeline.splitter.lens_blur_measured_px
     return run
 
 
@@ -319,8 +322,16 @@ def _polarity(frames: Sequence[Frame], run: Run) -> tuple[str | None, str]:
 
 
 def _decide_traits(findings: SetupFindings) -> None:
-    """Rope width, Lc0 and fixed end from the kept run, each only when its readings agree."""
+    """Lens blur, rope width, Lc0 and fixed end from the kept run, each only when its readings agree."""
     run, settings = findings.run, findings.settings
+    if run.lens_blur_px is not None:
+        # The rope width below is the edge model's for this blur: the two go into the config together.
+        settings["lens_blur_px"] = round(run.lens_blur_px, 2)
+    elif run.config.lens_blur_px is None:
+        findings.undecided.append(
+            "lens_blur_px: the rope never held still enough near the fixed end to read the camera's blur; "
+            "left to the pipeline's first frames"
+        )
     widths = np.asarray(run.widths_px)
     if len(widths) >= 3:
         q1, median, q3 = np.percentile(widths, (25, 50, 75))

@@ -12,9 +12,11 @@ from ropecam.shared.errors import ConfigError
 if TYPE_CHECKING:
     from ropecam.shared.plane import PlaneCalibration
 
-__all__ = ["METHODS", "PipelineConfig"]
+__all__ = ["DEFAULT_LENS_BLUR_PX", "METHODS", "PipelineConfig"]
 
 METHODS = ("blur_split", "paper", "centerline", "static")
+DEFAULT_LENS_BLUR_PX = 0.5
+"""The lens blur (px) the edge model assumes where it is neither given nor measured yet."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -36,9 +38,11 @@ class PipelineConfig:
     smooth_sigma_px
         Gaussian smoothing before the Sobel gradient (0 disables it).
     lens_blur_px
-        The camera's own blur (lens, focus; Gaussian sigma in px, the pixel's area apart) assumed by the model of
-        the blurred band's edge (`ropecam.device.pipeline.edge_model`); results change little with it (0 to 0.8
-        px moves the simulator's errors by < 0.05 px).
+        The camera's own blur (lens, focus; Gaussian sigma in px, the pixel's area apart) of the model of the
+        blurred band's edge (`ropecam.device.pipeline.edge_model`). Not given: measured on the first frames from
+        the rope's cross-section near the fixed end (`ropecam.device.pipeline.edge_profile`; 0.5 px until then),
+        unless `rope_width_px` is given (the configured width is converted to an edge spacing with the model, so
+        the model must not change: then 0.5 px). ``ropecam-device setup`` writes the measured value.
     canny_low, canny_high
         Hysteresis thresholds on the L2 Sobel magnitude of the smoothed image (grey levels x 8 per pixel).
     min_contour_px
@@ -108,7 +112,7 @@ class PipelineConfig:
     polarity: Literal["auto", "bright", "dark"] = "auto"
     tip_cap: Literal["round", "flat"] = "flat"
     smooth_sigma_px: float = 1.0
-    lens_blur_px: float = 0.5
+    lens_blur_px: float | None = None
     canny_low: float = 20.0
     canny_high: float = 50.0
     min_contour_px: int = 40
@@ -135,6 +139,14 @@ class PipelineConfig:
     plane_file: str | None = None
     checks: ChecksConfig = field(default_factory=ChecksConfig)
 
+    @property
+    def lens_blur_given_px(self) -> float | None:
+        """The edge model's lens blur when it is not to be measured (`lens_blur_px`, or 0.5 px when only
+        `rope_width_px` is given); None: measure it."""
+        if self.lens_blur_px is None and self.rope_width_px is not None:
+            return DEFAULT_LENS_BLUR_PX
+        return self.lens_blur_px
+
     def on_plane(self, plane: PlaneCalibration, image_size: tuple[int, int]) -> PipelineConfig:
         """Return this config for frames of `image_size` (width, height) on the calibrated `plane`: the fixed end
         the plane origin projected into the image, unless `fixed_end_uv` gives it.
@@ -158,7 +170,8 @@ class PipelineConfig:
         check_in("polarity", self.polarity, ("auto", "bright", "dark"))
         check_in("tip_cap", self.tip_cap, ("round", "flat"))
         check_range("smooth_sigma_px", self.smooth_sigma_px, 0.0, 5.0)
-        check_range("lens_blur_px", self.lens_blur_px, 0.0, 5.0)
+        if self.lens_blur_px is not None:
+            check_range("lens_blur_px", self.lens_blur_px, 0.0, 5.0)
         check_positive("canny_low", self.canny_low)
         check_positive("canny_high", self.canny_high)
         if self.canny_high < self.canny_low:

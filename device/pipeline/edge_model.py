@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
 
-__all__ = ["BandEdgeModel", "EdgeTables", "shared_model"]
+__all__ = ["BandEdgeModel", "EdgeTables", "normal_cdf", "shared_model"]
 
 _PHASES = (0.0, 0.25, 0.5, 0.75)
 
@@ -213,7 +213,7 @@ class BandEdgeModel:
         shifts = np.asarray(_PHASES)[None, :, None, None]
         rows, cols = np.mgrid[0:size, 0:size].astype(np.float64) - (size - 1) / 2.0
         across = cols[None, None] * np.cos(theta) + rows[None, None] * np.sin(theta) - shifts  # (A, P, S, S)
-        image = _normal_cdf((0.5 * width - across) / sigma) - _normal_cdf((-0.5 * width - across) / sigma)
+        image = normal_cdf((0.5 * width - across) / sigma) - normal_cdf((-0.5 * width - across) / sigma)
         for axis in (-1, -2):  # the pipeline's separable smoothing (valid part only)
             count = image.shape[axis] - 2 * half
             image = sum(w * np.take(image, np.arange(k, k + count), axis=axis) for k, w in enumerate(self.weights))
@@ -304,13 +304,13 @@ def _second_antiderivative(z: NDArray[np.float64]) -> NDArray[np.float64]:
     out = np.multiply(z, z)
     out += 1.0
     out *= 0.5
-    out *= _normal_cdf(z)
+    out *= normal_cdf(z)
     density *= np.multiply(z, 0.5)
     out += density
     return out
 
 
-def _normal_cdf(z: NDArray[np.float64]) -> NDArray[np.float64]:
+def normal_cdf(z: NDArray[np.float64]) -> NDArray[np.float64]:
     """Standard normal CDF (erf by Abramowitz and Stegun 7.1.26, |error| < 1.5e-7: far below what matters here;
     NumPy has no erf and the device has no SciPy). In place, as `_second_antiderivative`."""
     x = np.abs(z)

@@ -107,7 +107,7 @@ class Pipeline:
         self.splitter = BlurSplitter(
             cap, config.method, config.static_ratio, config.corner_scale_px,
             config.paper_endpoint_radius_px, config.output_step_px, config.tip_cap, config.smooth_sigma_px,
-            config.lens_blur_px, output_smoothing_px=config.output_smoothing_px, buffers=ws.split,
+            config.lens_blur_given_px, output_smoothing_px=config.output_smoothing_px, buffers=ws.split,
         )  # fmt: skip
         self.splitter.paper.radius_scaled = config.paper_endpoint_radius_scaled
         self.tracker = PointTracker(
@@ -115,7 +115,7 @@ class Pipeline:
         )
         if plane is not None:
             self.tracker.plane = plane_params(plane)
-        self.traits = RopeTraits(config, self.shape, ws.fixed_end, self.splitter.model.edge_spacing)
+        self.traits = RopeTraits(config, self.shape, ws.fixed_end, self.splitter.edge_spacing)
         self.fixed = ws.fixed_end.fixed
         """The fixed end (row, col) float32 (`RopeTraits.fixed_end`)."""
         self._motion = MotionModel(ws.motion)

@@ -12,7 +12,9 @@ from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import f32, i32, ro
+from ropecam.device.pipeline.config import DEFAULT_LENS_BLUR_PX
 from ropecam.device.pipeline.edge_model import shared_model
+from ropecam.device.pipeline.edge_profile import LensBlurEstimate
 from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
 from ropecam.device.pipeline.paper_method import PaperSegmenter, split_by_comparison
 from ropecam.device.pipeline.result import Method, SplitOutcome
@@ -58,7 +60,8 @@ class BlurSplitter:
     smooth_sigma_px
         The edge detector's Gaussian smoothing.
     lens_blur_px
-        Assumed camera blur (Gaussian sigma, px) of the band edge model (`BandEdgeModel`).
+        The camera blur (Gaussian sigma, px) of the band edge model (`BandEdgeModel`); None: measured on the
+        first frames of the blur split (`LensBlurEstimate`), `DEFAULT_LENS_BLUR_PX` until then.
     output_smoothing_px
         Half-width along the rope of the smoothing of the returned polylines (0: none).
     """
@@ -73,7 +76,7 @@ class BlurSplitter:
         output_step_px: float = 2.0,
         tip_cap: str = "flat",
         smooth_sigma_px: float = 1.0,
-        lens_blur_px: float = 0.5,
+        lens_blur_px: float | None = None,
         output_smoothing_px: float = 0.0,
         buffers: SplitBuffers | None = None,
     ) -> None:
@@ -91,7 +94,13 @@ class BlurSplitter:
         self.tip_cap_ratio = 0.5 if tip_cap == "round" else 0.0
         self.weights = gaussian_weights(smooth_sigma_px).astype(np.float64)
         self.smooth_sigma = float(smooth_sigma_px)
-        self.model = shared_model(self.weights, lens_blur_px)  # its tables are built once per process
+        given = lens_blur_px is not None
+        self.model = shared_model(self.weights, lens_blur_px if given else DEFAULT_LENS_BLUR_PX)
+        """The band edge model (its tables are built once per process: `shared_model`)."""
+        self.blur_estimate = None if given or method != "blur_split" else LensBlurEstimate()
+        """The lens blur being measured on the first frames (None: given, measured, or not needed by the method)."""
+        self.lens_blur_measured_px: float | None = None
+        """The lens blur the first frames measured (px; None: given, or not measured yet)."""
         self.model.rope_width(3.0)  # its width table (~20 ms) now, not on the first frames
         self.sweep_window = 3
         self.corner_rad = 0.5
@@ -175,7 +184,66 @@ class BlurSplitter:
             found = self._per_width[width] = WidthTables(self, width)
         return found
 
+    def edge_spacing(self, width_px: float) -> float:
+        """Edge spacing (px) of a still rope `width_px` wide under the edge model in use (`BandEdgeModel`)."""
+        return self.model.edge_spacing(width_px)
+
+    def set_lens_blur(self, lens_blur_px: float) -> bool:
+        """Use the edge model of `lens_blur_px` from the next split on (rounded to 0.05 px, so that pipelines share
+        the models' tables: `shared_model`); return whether the model changed. What was derived from the old
+        model is made again: the tables per width, the contrast (divided by its rope width), the one-call split's
+        arguments (`SteadyFrame` binds again)."""
+        value = round(max(float(lens_blur_px), 0.0) * 20.0) / 20.0
+        if value == self.model.lens_blur_px:
+            return False
+        self.model = shared_model(self.weights, value)
+        self.measure.model = self.model
+        self.measure.rescale()
+        self._per_width.clear()
+        self._width_key = math.nan
+        self._width_consts = None
+        self.frame_call.key = None
+        return True
+
     def split(
+        self,
+        points: NDArray[np.float32],
+        chain: NDArray[np.int32],
+        n: int,
+        fixed_rc: tuple[float, float],
+        width_px: float | None,
+        gx: NDArray[np.float32],
+        gy: NDArray[np.float32],
+        edges: NDArray[np.uint8],
+        mag: NDArray[np.float32],
+        smooth: NDArray[np.float32],
+        polarity: float = 0.0,
+        edge_stage: EdgeDetector | None = None,
+        frame: NDArray[np.uint8] | None = None,
+    ) -> SplitOutcome | None:
+        """Split the closed contour (`_split`); while the lens blur is being measured, read it on this frame
+        (`LensBlurEstimate`) and, when the readings' median changes the edge model, split the frame again with it.
+        """
+        outcome = self._split(
+            points, chain, n, fixed_rc, width_px, gx, gy, edges, mag, smooth, polarity, edge_stage, frame
+        )
+        estimate = self.blur_estimate
+        if estimate is not None and outcome is not None and frame is not None:
+            if estimate.read(frame, points, n, fixed_rc, self.width, self.sweep_px) is None:
+                return outcome
+            value = estimate.value_px or 0.0
+            if estimate.done:
+                self.blur_estimate = None
+                self.lens_blur_measured_px = value
+            if self.set_lens_blur(value):
+                # The model read a still rope under a blur it did not expect as a moving one (a blurred edge's
+                # gradient is low, as a sweeping one's): the frame is split again with the measured blur.
+                outcome = self._split(
+                    points, chain, n, fixed_rc, width_px, gx, gy, edges, mag, smooth, polarity, edge_stage, frame
+                )
+        return outcome
+
+    def _split(
         self,
         points: NDArray[np.float32],
         chain: NDArray[np.int32],

@@ -46,11 +46,18 @@ class BandMeasure:
         self.slope_work = slope_work
         self.contrasts: list[float] = []
         """The first frames' contrast readings (grey levels)."""
+        self._areas: list[tuple[float, float]] = []
+        """Each contrast reading's integral across the band and the edge spacing it was read with (`rescale`)."""
         self.contrast_px = float("nan")
         """The median of `contrasts` (the rope's contrast once `CONTRAST_FRAMES` are in)."""
         self._contrast_key = math.nan
         self._contrast32 = np.float32(0.0)
         self._whole: Spans | None = None
+
+    def rescale(self) -> None:
+        """Divide the contrast readings' integrals by the rope width of the current `model` (it changed)."""
+        self.contrasts = [area / self.model.tables(width).width_px for area, width in self._areas]
+        self.contrast_px = float(np.median(self.contrasts)) if self.contrasts else float("nan")
 
     @property
     def contrast_settled(self) -> bool:
@@ -240,9 +247,11 @@ class BandMeasure:
         frac = (t - t[0]) / (t[-1] - t[0])
         background = first[:, None] + (last - first)[:, None] * frac[None, :]
         area = polarity * (values - background).sum(axis=1) * step
-        value = float(np.median(area)) / self.model.tables(width).width_px
+        integral = float(np.median(area))
+        value = integral / self.model.tables(width).width_px
         if not value > 0:
             return float("nan")
+        self._areas.append((integral, width))
         self.contrasts.append(value)
         self.contrast_px = float(np.median(self.contrasts))
         return self.contrast_px
