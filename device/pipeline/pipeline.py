@@ -104,10 +104,12 @@ class Pipeline:
         )
         """The Canny thresholds measured on the first `threshold_frames` frames (at most `canny_low`/`high`), then
         followed every `threshold_update_frames` frames."""
+        lens_blur_px, sharpen_gain, sharpen_sigma_px = config.edge_blur_given or (None, 0.0, 1.0)
         self.splitter = BlurSplitter(
             cap, config.method, config.static_ratio, config.corner_scale_px,
             config.paper_endpoint_radius_px, config.output_step_px, config.tip_cap, config.smooth_sigma_px,
-            config.lens_blur_given_px, output_smoothing_px=config.output_smoothing_px, buffers=ws.split,
+            lens_blur_px, output_smoothing_px=config.output_smoothing_px, buffers=ws.split,
+            sharpen_gain=sharpen_gain, sharpen_sigma_px=sharpen_sigma_px,
         )  # fmt: skip
         self.splitter.paper.radius_scaled = config.paper_endpoint_radius_scaled
         self.tracker = PointTracker(

@@ -14,7 +14,7 @@ from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import f32, i32, ro
 from ropecam.device.pipeline.config import DEFAULT_LENS_BLUR_PX
 from ropecam.device.pipeline.edge_model import shared_model
-from ropecam.device.pipeline.edge_profile import LensBlurEstimate
+from ropecam.device.pipeline.edge_profile import EdgeBlur, LensBlurEstimate
 from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
 from ropecam.device.pipeline.paper_method import PaperSegmenter, split_by_comparison
 from ropecam.device.pipeline.result import Method, SplitOutcome
@@ -61,7 +61,9 @@ class BlurSplitter:
         The edge detector's Gaussian smoothing.
     lens_blur_px
         The camera blur (Gaussian sigma, px) of the band edge model (`BandEdgeModel`); None: measured on the
-        first frames of the blur split (`LensBlurEstimate`), `DEFAULT_LENS_BLUR_PX` until then.
+        first frames of the blur split with the sharpening (`LensBlurEstimate`), `DEFAULT_LENS_BLUR_PX` until then.
+    sharpen_gain, sharpen_sigma_px
+        The camera's sharpening (unsharp mask) of the band edge model, with a given `lens_blur_px`.
     output_smoothing_px
         Half-width along the rope of the smoothing of the returned polylines (0: none).
     """
@@ -78,6 +80,8 @@ class BlurSplitter:
         smooth_sigma_px: float = 1.0,
         lens_blur_px: float | None = None,
         output_smoothing_px: float = 0.0,
+        sharpen_gain: float = 0.0,
+        sharpen_sigma_px: float = 1.0,
         buffers: SplitBuffers | None = None,
     ) -> None:
         self.output_smoothing = np.float32(output_smoothing_px)
@@ -95,12 +99,14 @@ class BlurSplitter:
         self.weights = gaussian_weights(smooth_sigma_px).astype(np.float64)
         self.smooth_sigma = float(smooth_sigma_px)
         given = lens_blur_px is not None
-        self.model = shared_model(self.weights, lens_blur_px if given else DEFAULT_LENS_BLUR_PX)
+        blur = EdgeBlur(lens_blur_px if given else DEFAULT_LENS_BLUR_PX, sharpen_gain if given else 0.0,
+                        sharpen_sigma_px if given else 1.0)  # fmt: skip
+        self.model = shared_model(self.weights, *blur)
         """The band edge model (its tables are built once per process: `shared_model`)."""
         self.blur_estimate = None if given or method != "blur_split" else LensBlurEstimate()
-        """The lens blur being measured on the first frames (None: given, measured, or not needed by the method)."""
-        self.lens_blur_measured_px: float | None = None
-        """The lens blur the first frames measured (px; None: given, or not measured yet)."""
+        """The blur being measured on the first frames (None: given, measured, or not needed by the method)."""
+        self.blur_measured: EdgeBlur | None = None
+        """The lens blur and sharpening the first frames measured (None: given, or not measured yet)."""
         self.model.rope_width(3.0)  # its width table (~20 ms) now, not on the first frames
         self.sweep_window = 3
         self.corner_rad = 0.5
@@ -184,19 +190,29 @@ class BlurSplitter:
             found = self._per_width[width] = WidthTables(self, width)
         return found
 
+    @property
+    def blur_read(self) -> EdgeBlur | None:
+        """The lens blur and sharpening the first frames measured, or read so far (None: given, or none read)."""
+        if self.blur_measured is not None or self.blur_estimate is None:
+            return self.blur_measured
+        return self.blur_estimate.value
+
     def edge_spacing(self, width_px: float) -> float:
         """Edge spacing (px) of a still rope `width_px` wide under the edge model in use (`BandEdgeModel`)."""
         return self.model.edge_spacing(width_px)
 
-    def set_lens_blur(self, lens_blur_px: float) -> bool:
-        """Use the edge model of `lens_blur_px` from the next split on (rounded to 0.05 px, so that pipelines share
-        the models' tables: `shared_model`); return whether the model changed. What was derived from the old
-        model is made again: the tables per width, the contrast (divided by its rope width), the one-call split's
-        arguments (`SteadyFrame` binds again)."""
-        value = round(max(float(lens_blur_px), 0.0) * 20.0) / 20.0
-        if value == self.model.lens_blur_px:
+    def set_edge_blur(self, blur: EdgeBlur) -> bool:
+        """Use the edge model of `blur` from the next split on (the lens blur rounded to 0.05 px, the sharpening
+        to 0.1, so that pipelines share the models' tables: `shared_model`); return whether the model changed.
+        What was derived from the old model is made again: the tables per width, the contrast (divided by its
+        rope width), the one-call split's arguments (`SteadyFrame` binds again)."""
+        lens = round(max(float(blur.lens_blur_px), 0.0) * 20.0) / 20.0
+        gain = round(max(float(blur.sharpen_gain), 0.0) * 10.0) / 10.0
+        radius = round(float(blur.sharpen_sigma_px) * 10.0) / 10.0 if gain > 0.0 else 1.0
+        model = self.model
+        if (lens, gain, radius) == (model.lens_blur_px, model.sharpen_gain, model.sharpen_sigma_px):
             return False
-        self.model = shared_model(self.weights, value)
+        self.model = shared_model(self.weights, lens, gain, radius)
         self.measure.model = self.model
         self.measure.rescale()
         self._per_width.clear()
@@ -231,11 +247,12 @@ class BlurSplitter:
         if estimate is not None and outcome is not None and frame is not None:
             if estimate.read(frame, points, n, fixed_rc, self.width, self.sweep_px) is None:
                 return outcome
-            value = estimate.value_px or 0.0
+            value = estimate.value
+            assert value is not None
             if estimate.done:
                 self.blur_estimate = None
-                self.lens_blur_measured_px = value
-            if self.set_lens_blur(value):
+                self.blur_measured = value
+            if self.set_edge_blur(value):
                 # The model read a still rope under a blur it did not expect as a moving one (a blurred edge's
                 # gradient is low, as a sweeping one's): the frame is split again with the measured blur.
                 outcome = self._split(

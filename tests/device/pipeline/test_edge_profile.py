@@ -14,8 +14,21 @@ from ropecam.device.pipeline.edge_profile import LensBlurEstimate, fit_bar_profi
 from ropecam.device.pipeline.pipeline import Pipeline
 
 
+def _unsharp(image: np.ndarray, gain: float, sigma_px: float) -> np.ndarray:
+    """``image + gain (image - G * image)``, G a separable Gaussian of `sigma_px` (the border repeated)."""
+    radius = math.ceil(4.0 * sigma_px)
+    taps = np.exp(-0.5 * (np.arange(-radius, radius + 1) / sigma_px) ** 2)
+    taps /= taps.sum()
+    blurred = image
+    for axis in (0, 1):
+        padded = np.pad(blurred, [(radius, radius) if a == axis else (0, 0) for a in (0, 1)], mode="edge")
+        size = image.shape[axis]
+        blurred = sum(w * np.take(padded, np.arange(k, k + size), axis=axis) for k, w in enumerate(taps))
+    return image + gain * (image - blurred)
+
+
 def _still_rope(
-    lens_px: float, width_px: float, angle_deg: float, noise_dn: float, seed: int
+    lens_px: float, width_px: float, angle_deg: float, noise_dn: float, seed: int, sharpen: float = 0.0
 ) -> tuple[np.ndarray, np.ndarray, tuple[float, float]]:
     """A straight still rope from (10.3, 60.6) at `angle_deg` from the image's rows, rendered as the simulator
     renders an edge (a Gaussian of the lens and the pixel's area, sqrt(lens^2 + 1/12)); and its two edges as a
@@ -31,7 +44,7 @@ def _still_rope(
     sigma = math.sqrt(lens_px**2 + 1.0 / 12.0)
     bar = normal_cdf((x + 0.5 * width_px) / sigma) - normal_cdf((x - 0.5 * width_px) / sigma)
     bar *= np.clip(t, 0.0, 1.0) * np.clip(95.0 - t, 0.0, 1.0)
-    image = 30.0 + 150.0 * bar + np.random.default_rng(seed).normal(0.0, noise_dn, bar.shape)
+    image = _unsharp(30.0 + 150.0 * bar, sharpen, 1.0) + np.random.default_rng(seed).normal(0.0, noise_dn, bar.shape)
     frame = np.clip(np.rint(image), 0, 255).astype(np.uint8)
     s = np.arange(0.5, 95.0, 1.0)
     half = 0.5 * max(width_px, 2.0 * sigma)
@@ -60,7 +73,23 @@ def test_the_estimate_recovers_the_rendered_lens_blur(lens_px: float, angle_deg:
         spacing = 2.5 if lens_px < 1.0 else 2.0 * math.sqrt(lens_px**2 + 1.0 / 12.0)
         assert estimate.read(frame, points, len(points), fixed, spacing, 0.0) is not None
     assert estimate.done
-    assert estimate.value_px == pytest.approx(lens_px, abs=0.12)
+    assert estimate.value is not None
+    assert estimate.value.lens_blur_px == pytest.approx(lens_px, abs=0.12)
+    assert estimate.value.sharpen_gain == 0.0  # none read: a plain blurred bar
+
+
+@pytest.mark.parametrize("gain", [0.5, 1.0])
+def test_the_estimate_reads_a_cameras_sharpening(gain: float) -> None:
+    """An unsharp mask (sigma 1 px) after a 0.5 px lens blur: its share of the edge's variance (gain sigma^2)
+    and the lens blur are recovered (the two trade off a little against each other)."""
+    estimate = LensBlurEstimate(readings=3)
+    for seed in range(3):
+        frame, points, fixed = _still_rope(0.5, 2.5, 23.0, 1.0, seed, sharpen=gain)
+        assert estimate.read(frame, points, len(points), fixed, 2.6, 0.0) is not None
+    value = estimate.value
+    assert value is not None
+    assert value.sharpen_gain * value.sharpen_sigma_px**2 == pytest.approx(gain, rel=0.3)
+    assert value.lens_blur_px == pytest.approx(0.5, abs=0.15)
 
 
 def test_a_moving_rope_is_not_read() -> None:
@@ -68,7 +97,7 @@ def test_a_moving_rope_is_not_read() -> None:
     estimate = LensBlurEstimate()
     # A tip sweep of 40 px moves the stretch near the fixed end by more than a pixel.
     assert estimate.read(frame, points, len(points), fixed, 3.0, 40.0) is None
-    assert estimate.value_px is None
+    assert estimate.value is None
 
 
 def test_one_edge_only_is_no_cross_section() -> None:
@@ -109,7 +138,8 @@ def test_the_pipeline_measures_the_blur_and_splits_with_it() -> None:
                 max(_curve_error(ours, truth) for ours, truth in swapped),
             ))  # fmt: skip
         if name == "measured":
-            assert pipeline.splitter.lens_blur_measured_px == pytest.approx(1.5, abs=0.15)
+            assert pipeline.splitter.blur_measured is not None
+            assert pipeline.splitter.blur_measured.lens_blur_px == pytest.approx(1.5, abs=0.15)
             assert pipeline.splitter.model.lens_blur_px == pytest.approx(1.5, abs=0.15)
     measured, assumed, true = (np.asarray(errors[k]) for k in ("measured", "assumed", "true"))
     assert np.all(measured <= true + 0.1), (measured, true)  # the first readings' median moves a little
