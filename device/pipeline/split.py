@@ -24,7 +24,10 @@ from ropecam.device.pipeline.tip_geometry import correct_slant, tip_lateral
 from ropecam.device.pipeline.width_tables import WidthTables
 from ropecam.device.pipeline.workspace import SplitBuffers, expose
 
-__all__ = ["BlurSplitter", "SplitOutcome"]
+__all__ = ["BLUR_TOLERANCE_PX", "BlurSplitter", "SplitOutcome"]
+
+BLUR_TOLERANCE_PX = 0.1
+"""The measured lens blur (px) or sharpening variance (px^2) replaces the model in use only beyond this change."""
 
 _SHAPES = 2
 """`split_frame`'s (and `split_shapes`') return value when it made the two shapes."""
@@ -201,16 +204,23 @@ class BlurSplitter:
         """Edge spacing (px) of a still rope `width_px` wide under the edge model in use (`BandEdgeModel`)."""
         return self.model.edge_spacing(width_px)
 
-    def set_edge_blur(self, blur: EdgeBlur) -> bool:
+    def set_edge_blur(self, blur: EdgeBlur, tolerance_px: float = 0.0) -> bool:
         """Use the edge model of `blur` from the next split on (the lens blur rounded to 0.05 px, the sharpening
-        to 0.1, so that pipelines share the models' tables: `shared_model`); return whether the model changed.
-        What was derived from the old model is made again: the tables per width, the contrast (divided by its
-        rope width), the one-call split's arguments (`SteadyFrame` binds again)."""
+        to 0.1, so that pipelines share the models' tables: `shared_model`), unless the lens blur and the
+        sharpening's variance (gain x sigma^2, px^2) of the model in use are within `tolerance_px` of it;
+        return whether the model changed. What was derived from the old model is made again: the tables per
+        width, the contrast (divided by its rope width), the one-call split's arguments (`SteadyFrame` binds
+        again)."""
         lens = round(max(float(blur.lens_blur_px), 0.0) * 20.0) / 20.0
         gain = round(max(float(blur.sharpen_gain), 0.0) * 10.0) / 10.0
         radius = round(float(blur.sharpen_sigma_px) * 10.0) / 10.0 if gain > 0.0 else 1.0
         model = self.model
         if (lens, gain, radius) == (model.lens_blur_px, model.sharpen_gain, model.sharpen_sigma_px):
+            return False
+        if (
+            abs(lens - model.lens_blur_px) <= tolerance_px
+            and abs(gain * radius**2 - model.sharpen_gain * model.sharpen_sigma_px**2) <= tolerance_px
+        ):
             return False
         self.model = shared_model(self.weights, lens, gain, radius)
         self.measure.model = self.model
@@ -252,7 +262,9 @@ class BlurSplitter:
             if estimate.done:
                 self.blur_estimate = None
                 self.blur_measured = value
-            if self.set_edge_blur(value):
+            # Each new model costs its tables (30-60 ms on the first frames): the readings' median changes it only
+            # when it moves by more than `BLUR_TOLERANCE_PX` (below that the shapes move by < 0.02 px).
+            if self.set_edge_blur(value, 0.0 if len(estimate.read_values) == 1 else BLUR_TOLERANCE_PX):
                 # The model read a still rope under a blur it did not expect as a moving one (a blurred edge's
                 # gradient is low, as a sweeping one's): the frame is split again with the measured blur.
                 outcome = self._split(
