@@ -205,12 +205,13 @@ class BandMeasure:
         width: float,
         fixed_rc: tuple[float, float],
     ) -> float:
-        """Return the rope's contrast (rope minus background, grey levels) near the fixed end: the median of the
-        first `CONTRAST_FRAMES` frames' readings (then this contour is not read); nan when not readable.
+        """Return the rope's contrast (rope minus background, grey levels) near the fixed end: from the first
+        `CONTRAST_FRAMES` readings (then this contour is not read); nan when not readable.
 
         Across the band the time-averaged coverage integrates to the rope's width whatever the sweep and the blur,
         so the contrast is the integral of the smoothed image across the band (background removed: a line through
-        the levels on both sides) divided by the unbiased width (`BandEdgeModel`). Read near the fixed end, where
+        the levels on both sides; the median of the readings) divided by the unbiased width (`BandEdgeModel`) of
+        the edge spacing `width` in use. Read near the fixed end, where
         the band is narrow and nothing else is likely to lie within it. `refresh` (r0, r1, c0, c1) makes
         `smooth` this frame's over a box first (None: it is valid everywhere).
         """
