@@ -16,15 +16,17 @@ from ropecam.shared.errors import ConfigError, DataError
 __all__ = ["DECIDED_KEYS", "read_frames", "register", "run_setup", "with_pipeline_table"]
 
 DECIDED_KEYS = (
-    "polarity", "canny_low", "canny_high", "rope_width_px", "length0_px", "fixed_end_uv", "static_mask_png"
+    "polarity", "canny_low", "canny_high", "lens_blur_px", "sharpen_gain", "sharpen_sigma_px", "rope_width_px",
+    "length0_px", "fixed_end_uv", "static_mask_png",
 )  # fmt: skip
 """The `[pipeline]` keys setup decides (an existing table's other keys are kept)."""
 
 HELP = """\
 Decide a rig's pipeline settings from a few seconds of its frames, with the rope swinging as it will when you
-measure: edge thresholds, polarity (bright rope on dark ground or the reverse), the rope's width and length in
-pixels, the fixed end, and the static mask (pixels that are edges in at least half the frames while the rope moves:
-clamp, rod, plate edge, scratches, a static second cable). Each candidate setting is tried by running the pipeline
+measure: edge thresholds, polarity (bright rope on dark ground or the reverse), the camera's blur and sharpening
+(read across the rope's still part near the fixed end), the rope's width and length in pixels, the fixed end, and
+the static mask (pixels that are edges in at least half the frames while the rope moves: clamp, rod, plate edge,
+scratches, a static second cable). Each candidate setting is tried by running the pipeline
 itself over the frames; the one that measures most frames most consistently is kept.
 
 It writes the [pipeline] table of OUT (a device.toml; with --force an existing file keeps its other tables and the

@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline.config import PipelineConfig
+from ropecam.device.pipeline.edge_profile import EdgeBlur
 from ropecam.device.pipeline.edges import EdgeDetector
 from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam.device.pipeline.result import FrameStatus
@@ -69,6 +70,8 @@ class Run:
     """Frame position -> (begin, end, segmentation points) copies, (row, col)."""
     tips: list[tuple[float, float]] = field(default_factory=list)
     """(row, col) of both free tips of every frame with shapes."""
+    blur: EdgeBlur | None = None
+    """The camera's blur and sharpening the pipeline measured on the first frames (None: not measured)."""
     frames: int = 0
 
     @property
@@ -155,6 +158,7 @@ def run_candidate(frames: Sequence[Frame], config: PipelineConfig, keep_shapes: 
         run.shapes[position] = (
             (result.begin.copy(), result.end.copy(), seg) if keep_shapes else (result.begin[:0], result.end[:0], None)
         )
+    run.blur = pipeline.splitter.blur_read
     return run
 
 
@@ -322,8 +326,19 @@ def _polarity(frames: Sequence[Frame], run: Run) -> tuple[str | None, str]:
 
 
 def _decide_traits(findings: SetupFindings) -> None:
-    """Rope width, Lc0 and fixed end from the kept run, each only when its readings agree."""
+    """Lens blur, rope width, Lc0 and fixed end from the kept run, each only when its readings agree."""
     run, settings = findings.run, findings.settings
+    if run.blur is not None:
+        # The rope width below is the edge model's for this blur: they go into the config together.
+        settings["lens_blur_px"] = round(run.blur.lens_blur_px, 2)
+        if run.blur.sharpen_gain > 0.0:
+            settings["sharpen_gain"] = round(run.blur.sharpen_gain, 2)
+            settings["sharpen_sigma_px"] = round(run.blur.sharpen_sigma_px, 2)
+    elif run.config.lens_blur_px is None:
+        findings.undecided.append(
+            "lens_blur_px: the rope never held still enough near the fixed end to read the camera's blur; "
+            "left to the pipeline's first frames"
+        )
     widths = np.asarray(run.widths_px)
     if len(widths) >= 3:
         q1, median, q3 = np.percentile(widths, (25, 50, 75))

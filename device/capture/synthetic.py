@@ -73,6 +73,8 @@ class SyntheticRope:
     rope_end
         ``flat`` (default: a cut rope or cable, as the rig simulator draws it) or ``round`` (a cap of the rope's
         radius beyond each end of the centreline).
+    blur_px
+        Gaussian sigma (px) of the camera's blur applied to the exposed image (0: none, the pixel's area only).
     """
 
     width: int = 320
@@ -92,10 +94,13 @@ class SyntheticRope:
     seed: int = 1
     nodes: int = field(default=64)
     rope_end: str = "flat"
+    blur_px: float = 0.0
 
     def __post_init__(self) -> None:
         if self.rope_end not in ("flat", "round"):
             raise ValueError(f"rope_end must be 'flat' or 'round', got {self.rope_end!r}")
+        if not (0.0 <= self.blur_px <= 10.0):
+            raise ValueError(f"blur_px must be in [0, 10], got {self.blur_px!r}")
 
     def centreline(self, t_s: float) -> NDArray[np.float64]:
         """Return the centreline (nodes, 2) as (u, v) pixels at time `t_s`, fixed end first."""
@@ -162,6 +167,8 @@ class SyntheticRope:
         for k in range(n_sub):
             acc += self.coverage(self.centreline(t0 + exposure_s * (k + 0.5) / n_sub))
         acc /= n_sub
+        if self.blur_px > 0.0:
+            acc = _gaussian_blur(acc, self.blur_px)
         image = self.background + (self.rope_level - self.background) * acc
         if self.noise_dn > 0:
             rng = rng if rng is not None else np.random.default_rng(self.seed + index)
@@ -173,3 +180,15 @@ class SyntheticRope:
         """Yield `count` consecutive frames starting at frame `start`."""
         for index in range(start, start + count):
             yield self.render(index)
+
+
+def _gaussian_blur(image: NDArray[np.float64], sigma_px: float) -> NDArray[np.float64]:
+    """`image` convolved with a Gaussian of `sigma_px` (separable; the border repeats the edge pixels)."""
+    radius = max(1, math.ceil(4.0 * sigma_px))
+    taps = np.exp(-0.5 * (np.arange(-radius, radius + 1) / sigma_px) ** 2)
+    taps /= taps.sum()
+    for axis in (0, 1):
+        padded = np.pad(image, [(radius, radius) if a == axis else (0, 0) for a in (0, 1)], mode="edge")
+        size = image.shape[axis]
+        image = sum(w * np.take(padded, np.arange(k, k + size), axis=axis) for k, w in enumerate(taps))
+    return image

@@ -12,9 +12,11 @@ from ropecam.shared.errors import ConfigError
 if TYPE_CHECKING:
     from ropecam.shared.plane import PlaneCalibration
 
-__all__ = ["METHODS", "PipelineConfig"]
+__all__ = ["DEFAULT_LENS_BLUR_PX", "METHODS", "PipelineConfig"]
 
 METHODS = ("blur_split", "paper", "centerline", "static")
+DEFAULT_LENS_BLUR_PX = 0.5
+"""The lens blur (px) the edge model assumes where it is neither given nor measured yet."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -40,9 +42,14 @@ class PipelineConfig:
         encode with 2.2 unless their gamma control is off): each frame is mapped back to linear light before its
         edges (`ropecam.device.pipeline.tone`), as the edge model assumes.
     lens_blur_px
-        The camera's own blur (lens, focus; Gaussian sigma in px, the pixel's area apart) assumed by the model of
-        the blurred band's edge (`ropecam.device.pipeline.edge_model`); results change little with it (0 to 0.8
-        px moves the simulator's errors by < 0.05 px).
+        The camera's own blur (lens, focus; Gaussian sigma in px, the pixel's area apart) of the model of the
+        blurred band's edge (`ropecam.device.pipeline.edge_model`). Not given: measured on the first frames from
+        the rope's cross-section near the fixed end (`ropecam.device.pipeline.edge_profile`; 0.5 px until then),
+        unless `rope_width_px` is given (the configured width is converted to an edge spacing with the model, so
+        the model must not change: then 0.5 px). ``ropecam-device setup`` writes the measured value.
+    sharpen_gain, sharpen_sigma_px
+        The camera's sharpening (an unsharp mask ``p + gain (p - G * p)``, G a Gaussian of `sharpen_sigma_px`) of
+        the edge model, with a given `lens_blur_px` (measured with it otherwise; setup writes them).
     canny_low, canny_high
         Hysteresis thresholds on the L2 Sobel magnitude of the smoothed image (grey levels x 8 per pixel).
     min_contour_px
@@ -117,7 +124,9 @@ class PipelineConfig:
     tip_cap: Literal["round", "flat"] = "flat"
     smooth_sigma_px: float = 1.0
     gamma: float = 1.0
-    lens_blur_px: float = 0.5
+    lens_blur_px: float | None = None
+    sharpen_gain: float = 0.0
+    sharpen_sigma_px: float = 1.0
     canny_low: float = 20.0
     canny_high: float = 50.0
     min_contour_px: int = 40
@@ -145,6 +154,14 @@ class PipelineConfig:
     plane_file: str | None = None
     checks: ChecksConfig = field(default_factory=ChecksConfig)
 
+    @property
+    def edge_blur_given(self) -> tuple[float, float, float] | None:
+        """The edge model's (lens blur, sharpening gain, its sigma) when they are not to be measured (given, or
+        `DEFAULT_LENS_BLUR_PX` and no sharpening when only `rope_width_px` is given); None: measure them."""
+        if self.lens_blur_px is None:
+            return None if self.rope_width_px is None else (DEFAULT_LENS_BLUR_PX, 0.0, 1.0)
+        return (self.lens_blur_px, self.sharpen_gain, self.sharpen_sigma_px)
+
     def on_plane(self, plane: PlaneCalibration, image_size: tuple[int, int]) -> PipelineConfig:
         """Return this config for frames of `image_size` (width, height) on the calibrated `plane`: the fixed end
         the plane origin projected into the image, unless `fixed_end_uv` gives it.
@@ -169,7 +186,10 @@ class PipelineConfig:
         check_in("tip_cap", self.tip_cap, ("round", "flat"))
         check_range("smooth_sigma_px", self.smooth_sigma_px, 0.0, 5.0)
         check_range("gamma", self.gamma, 1.0, 3.0)
-        check_range("lens_blur_px", self.lens_blur_px, 0.0, 5.0)
+        if self.lens_blur_px is not None:
+            check_range("lens_blur_px", self.lens_blur_px, 0.0, 5.0)
+        check_range("sharpen_gain", self.sharpen_gain, 0.0, 5.0)
+        check_range("sharpen_sigma_px", self.sharpen_sigma_px, 0.3, 4.0)
         check_positive("canny_low", self.canny_low)
         check_positive("canny_high", self.canny_high)
         if self.canny_high < self.canny_low:

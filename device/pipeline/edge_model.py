@@ -24,26 +24,29 @@ from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
 
-__all__ = ["BandEdgeModel", "EdgeTables", "shared_model"]
+__all__ = ["BandEdgeModel", "EdgeTables", "normal_cdf", "shared_model"]
 
 _PHASES = (0.0, 0.25, 0.5, 0.75)
 
-_SHARED: dict[tuple[tuple[float, ...], float], BandEdgeModel] = {}
-"""One model per (smoothing weights, lens blur) in the process: its tables depend on nothing else, so a new
+_SHARED: dict[tuple[tuple[float, ...], float, float, float], BandEdgeModel] = {}
+"""One model per (smoothing weights, lens blur, sharpening) in the process: its tables depend on nothing else, so a new
 pipeline (settings changed, the daemon's restart after a camera loss, offline runs) reuses the ones built."""
 
 
-def shared_model(smooth_weights: NDArray[np.floating], lens_blur_px: float) -> BandEdgeModel:
-    """Return the process-wide `BandEdgeModel` for this smoothing and lens blur (built on first use).
+def shared_model(
+    smooth_weights: NDArray[np.floating], lens_blur_px: float, sharpen_gain: float = 0.0, sharpen_sigma_px: float = 1.0
+) -> BandEdgeModel:
+    """Return the process-wide `BandEdgeModel` for this smoothing, lens blur and sharpening (built on first use).
 
     Its tables (~10-20 ms each, one per 0.1 px of edge spacing) are then built once per process, not once per
     pipeline. Safe to call from several threads: at worst a table is built twice, the results are equal.
     """
     weights = np.asarray(smooth_weights, np.float64)
-    key = (tuple(float(w) for w in weights), float(lens_blur_px))
+    sigma = float(sharpen_sigma_px) if sharpen_gain > 0.0 else 1.0
+    key = (tuple(float(w) for w in weights), float(lens_blur_px), float(sharpen_gain), sigma)
     model = _SHARED.get(key)
     if model is None:
-        model = _SHARED.setdefault(key, BandEdgeModel(weights, lens_blur_px))
+        model = _SHARED.setdefault(key, BandEdgeModel(weights, lens_blur_px, sharpen_gain, sigma))
     return model
 
 
@@ -86,11 +89,22 @@ class BandEdgeModel:
         The pipeline's Gaussian smoothing kernel (1-D).
     lens_blur_px
         Standard deviation of the camera's blur (lens, focus) in pixels; the pixel's own area is modelled apart.
+    sharpen_gain, sharpen_sigma_px
+        The camera's sharpening after the pixels: ``p + gain (p - G * p)``, G a Gaussian of `sharpen_sigma_px`
+        across the edge (an unsharp mask; 0: none).
     """
 
-    def __init__(self, smooth_weights: NDArray[np.floating], lens_blur_px: float) -> None:
+    def __init__(
+        self,
+        smooth_weights: NDArray[np.floating],
+        lens_blur_px: float,
+        sharpen_gain: float = 0.0,
+        sharpen_sigma_px: float = 1.0,
+    ) -> None:
         self.weights = np.asarray(smooth_weights, np.float64)
         self.lens_blur_px = float(lens_blur_px)
+        self.sharpen_gain = float(sharpen_gain)
+        self.sharpen_sigma_px = float(sharpen_sigma_px)
         self._cache: dict[int, EdgeTables] = {}
         self._slants: dict[int, tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
         self._spacings: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
@@ -110,7 +124,7 @@ class BandEdgeModel:
         width = np.broadcast_to(np.asarray(widths, np.float64), d.shape[:1])[:, None, None]
         sigma = max(self.lens_blur_px, 1e-3)
         half = len(self.weights) // 2
-        pad = 6.0 + 4.0 * sigma + half
+        pad = 6.0 + 4.0 * sigma + half + (3.0 * self.sharpen_sigma_px if self.sharpen_gain > 0.0 else 0.0)
         phases = np.asarray(_PHASES)[None, :, None]
         centres = np.arange(-math.ceil(pad), math.ceil(float((width + d).max()) + pad) + 1)[None, None, :] + phases
         ramp = np.minimum(width, d)
@@ -124,8 +138,10 @@ class BandEdgeModel:
         for x_k, change in knots:
             g = _second_antiderivative((borders - x_k) / sigma)
             pix += change * sigma**2 * (g[..., 1:] - g[..., :-1])
-        smooth = np.zeros_like(pix)
         count = pix.shape[-1]
+        if self.sharpen_gain > 0.0:
+            pix = pix + self.sharpen_gain * (pix - _convolved(pix, _gaussian_taps(self.sharpen_sigma_px)))
+        smooth = np.zeros_like(pix)
         for k, weight in enumerate(self.weights):
             shift = k - half
             smooth[..., max(0, -shift) : count - max(0, shift)] += (
@@ -213,7 +229,7 @@ class BandEdgeModel:
         shifts = np.asarray(_PHASES)[None, :, None, None]
         rows, cols = np.mgrid[0:size, 0:size].astype(np.float64) - (size - 1) / 2.0
         across = cols[None, None] * np.cos(theta) + rows[None, None] * np.sin(theta) - shifts  # (A, P, S, S)
-        image = _normal_cdf((0.5 * width - across) / sigma) - _normal_cdf((-0.5 * width - across) / sigma)
+        image = normal_cdf((0.5 * width - across) / sigma) - normal_cdf((-0.5 * width - across) / sigma)
         for axis in (-1, -2):  # the pipeline's separable smoothing (valid part only)
             count = image.shape[axis] - 2 * half
             image = sum(w * np.take(image, np.arange(k, k + count), axis=axis) for k, w in enumerate(self.weights))
@@ -269,9 +285,27 @@ class BandEdgeModel:
         x = np.linspace(-12.0, 12.0, 4801)
         grid = np.arange(len(self.weights)) - len(self.weights) // 2
         variance = float(np.sum(self.weights * grid**2)) + self.lens_blur_px**2 + 1.0 / 12.0
+        variance = max(variance - self.sharpen_gain * self.sharpen_sigma_px**2, 0.25)  # an unsharp mask's share
         weight = np.exp(-0.5 * x**2 / variance) * np.clip((x + 0.5 * width) / width, 0.0, 1.0)
         m = np.where(x < 0.5 * width, 0.5 * (x + 0.5 * width), x)
         return float(np.sum(weight * m) / np.sum(weight))
+
+
+def _gaussian_taps(sigma_px: float) -> NDArray[np.float64]:
+    """A normalised Gaussian of `sigma_px` on integer offsets -3 sigma..3 sigma (at least -1..1)."""
+    radius = max(1, math.ceil(3.0 * sigma_px))
+    taps = np.exp(-0.5 * (np.arange(-radius, radius + 1) / sigma_px) ** 2)
+    return taps / taps.sum()
+
+
+def _convolved(values: NDArray[np.float64], taps: NDArray[np.float64]) -> NDArray[np.float64]:
+    """`values` convolved along the last axis with the centred `taps` (zero beyond the ends)."""
+    out = np.zeros_like(values)
+    count, half = values.shape[-1], len(taps) // 2
+    for k, weight in enumerate(taps):
+        shift = k - half
+        out[..., max(0, -shift) : count - max(0, shift)] += weight * values[..., max(0, shift) : count + min(0, shift)]
+    return out
 
 
 def _suppressed(mag: NDArray[np.float32], gx: NDArray[np.float32], gy: NDArray[np.float32]) -> NDArray[np.bool_]:
@@ -304,13 +338,13 @@ def _second_antiderivative(z: NDArray[np.float64]) -> NDArray[np.float64]:
     out = np.multiply(z, z)
     out += 1.0
     out *= 0.5
-    out *= _normal_cdf(z)
+    out *= normal_cdf(z)
     density *= np.multiply(z, 0.5)
     out += density
     return out
 
 
-def _normal_cdf(z: NDArray[np.float64]) -> NDArray[np.float64]:
+def normal_cdf(z: NDArray[np.float64]) -> NDArray[np.float64]:
     """Standard normal CDF (erf by Abramowitz and Stegun 7.1.26, |error| < 1.5e-7: far below what matters here;
     NumPy has no erf and the device has no SciPy). In place, as `_second_antiderivative`."""
     x = np.abs(z)

@@ -107,10 +107,12 @@ class Pipeline:
         )
         """The Canny thresholds measured on the first `threshold_frames` frames (at most `canny_low`/`high`), then
         followed: updated every `threshold_update_frames` slices, a slice every `threshold_sample_every` frames."""
+        lens_blur_px, sharpen_gain, sharpen_sigma_px = config.edge_blur_given or (None, 0.0, 1.0)
         self.splitter = BlurSplitter(
             cap, config.method, config.static_ratio, config.corner_scale_px,
             config.paper_endpoint_radius_px, config.output_step_px, config.tip_cap, config.smooth_sigma_px,
-            config.lens_blur_px, output_smoothing_px=config.output_smoothing_px, buffers=ws.split,
+            lens_blur_px, output_smoothing_px=config.output_smoothing_px, buffers=ws.split,
+            sharpen_gain=sharpen_gain, sharpen_sigma_px=sharpen_sigma_px,
         )  # fmt: skip
         self.splitter.paper.radius_scaled = config.paper_endpoint_radius_scaled
         self.tracker = PointTracker(
@@ -118,7 +120,7 @@ class Pipeline:
         )
         if plane is not None:
             self.tracker.plane = plane_params(plane)
-        self.traits = RopeTraits(config, self.shape, ws.fixed_end, self.splitter.model.edge_spacing)
+        self.traits = RopeTraits(config, self.shape, ws.fixed_end, self.splitter.edge_spacing)
         self.fixed = ws.fixed_end.fixed
         """The fixed end (row, col) float32 (`RopeTraits.fixed_end`)."""
         self._motion = MotionModel(ws.motion)

@@ -12,7 +12,9 @@ from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import f32, i32, ro
+from ropecam.device.pipeline.config import DEFAULT_LENS_BLUR_PX
 from ropecam.device.pipeline.edge_model import shared_model
+from ropecam.device.pipeline.edge_profile import EdgeBlur, LensBlurEstimate
 from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
 from ropecam.device.pipeline.paper_method import PaperSegmenter, split_by_comparison
 from ropecam.device.pipeline.result import Method, SplitOutcome
@@ -22,7 +24,10 @@ from ropecam.device.pipeline.tip_geometry import correct_slant, tip_lateral
 from ropecam.device.pipeline.width_tables import WidthTables
 from ropecam.device.pipeline.workspace import SplitBuffers, expose
 
-__all__ = ["BlurSplitter", "SplitOutcome"]
+__all__ = ["BLUR_TOLERANCE_PX", "BlurSplitter", "SplitOutcome"]
+
+BLUR_TOLERANCE_PX = 0.1
+"""The measured lens blur (px) or sharpening variance (px^2) replaces the model in use only beyond this change."""
 
 _SHAPES = 2
 """`split_frame`'s (and `split_shapes`') return value when it made the two shapes."""
@@ -58,7 +63,10 @@ class BlurSplitter:
     smooth_sigma_px
         The edge detector's Gaussian smoothing.
     lens_blur_px
-        Assumed camera blur (Gaussian sigma, px) of the band edge model (`BandEdgeModel`).
+        The camera blur (Gaussian sigma, px) of the band edge model (`BandEdgeModel`); None: measured on the
+        first frames of the blur split with the sharpening (`LensBlurEstimate`), `DEFAULT_LENS_BLUR_PX` until then.
+    sharpen_gain, sharpen_sigma_px
+        The camera's sharpening (unsharp mask) of the band edge model, with a given `lens_blur_px`.
     output_smoothing_px
         Half-width along the rope of the smoothing of the returned polylines (0: none).
     """
@@ -73,8 +81,10 @@ class BlurSplitter:
         output_step_px: float = 2.0,
         tip_cap: str = "flat",
         smooth_sigma_px: float = 1.0,
-        lens_blur_px: float = 0.5,
+        lens_blur_px: float | None = None,
         output_smoothing_px: float = 0.0,
+        sharpen_gain: float = 0.0,
+        sharpen_sigma_px: float = 1.0,
         buffers: SplitBuffers | None = None,
     ) -> None:
         self.output_smoothing = np.float32(output_smoothing_px)
@@ -91,7 +101,15 @@ class BlurSplitter:
         self.tip_cap_ratio = 0.5 if tip_cap == "round" else 0.0
         self.weights = gaussian_weights(smooth_sigma_px).astype(np.float64)
         self.smooth_sigma = float(smooth_sigma_px)
-        self.model = shared_model(self.weights, lens_blur_px)  # its tables are built once per process
+        given = lens_blur_px is not None
+        blur = EdgeBlur(lens_blur_px if given else DEFAULT_LENS_BLUR_PX, sharpen_gain if given else 0.0,
+                        sharpen_sigma_px if given else 1.0)  # fmt: skip
+        self.model = shared_model(self.weights, *blur)
+        """The band edge model (its tables are built once per process: `shared_model`)."""
+        self.blur_estimate = None if given or method != "blur_split" else LensBlurEstimate()
+        """The blur being measured on the first frames (None: given, measured, or not needed by the method)."""
+        self.blur_measured: EdgeBlur | None = None
+        """The lens blur and sharpening the first frames measured (None: given, or not measured yet)."""
         self.model.rope_width(3.0)  # its width table (~20 ms) now, not on the first frames
         self.sweep_window = 3
         self.corner_rad = 0.5
@@ -178,7 +196,86 @@ class BlurSplitter:
             found = self._per_width[width] = WidthTables(self, width)
         return found
 
+    @property
+    def blur_read(self) -> EdgeBlur | None:
+        """The lens blur and sharpening the first frames measured, or read so far (None: given, or none read)."""
+        if self.blur_measured is not None or self.blur_estimate is None:
+            return self.blur_measured
+        return self.blur_estimate.value
+
+    def edge_spacing(self, width_px: float) -> float:
+        """Edge spacing (px) of a still rope `width_px` wide under the edge model in use (`BandEdgeModel`)."""
+        return self.model.edge_spacing(width_px)
+
+    def set_edge_blur(self, blur: EdgeBlur, tolerance_px: float = 0.0) -> bool:
+        """Use the edge model of `blur` from the next split on (the lens blur rounded to 0.05 px, the sharpening
+        to 0.1, so that pipelines share the models' tables: `shared_model`), unless the lens blur and the
+        sharpening's variance (gain x sigma^2, px^2) of the model in use are within `tolerance_px` of it;
+        return whether the model changed. What was derived from the old model is made again: the tables per
+        width, the contrast (divided by its rope width), the one-call split's arguments (`SteadyFrame` binds
+        again)."""
+        lens = round(max(float(blur.lens_blur_px), 0.0) * 20.0) / 20.0
+        gain = round(max(float(blur.sharpen_gain), 0.0) * 10.0) / 10.0
+        radius = round(float(blur.sharpen_sigma_px) * 10.0) / 10.0 if gain > 0.0 else 1.0
+        model = self.model
+        if (lens, gain, radius) == (model.lens_blur_px, model.sharpen_gain, model.sharpen_sigma_px):
+            return False
+        if (
+            abs(lens - model.lens_blur_px) <= tolerance_px
+            and abs(gain * radius**2 - model.sharpen_gain * model.sharpen_sigma_px**2) <= tolerance_px
+        ):
+            return False
+        self.model = shared_model(self.weights, lens, gain, radius)
+        self.measure.model = self.model
+        self.measure.rescale()
+        self._per_width.clear()
+        self._width_key = math.nan
+        self._width_consts = None
+        self.frame_call.key = None
+        return True
+
     def split(
+        self,
+        points: NDArray[np.float32],
+        chain: NDArray[np.int32],
+        n: int,
+        fixed_rc: tuple[float, float],
+        width_px: float | None,
+        gx: NDArray[np.float32],
+        gy: NDArray[np.float32],
+        edges: NDArray[np.uint8],
+        mag: NDArray[np.float32],
+        smooth: NDArray[np.float32],
+        polarity: float = 0.0,
+        edge_stage: EdgeDetector | None = None,
+        frame: NDArray[np.uint8] | None = None,
+    ) -> SplitOutcome | None:
+        """Split the closed contour (`_split`); while the lens blur is being measured, read it on this frame
+        (`LensBlurEstimate`) and, when the readings' median changes the edge model, split the frame again with it.
+        """
+        outcome = self._split(
+            points, chain, n, fixed_rc, width_px, gx, gy, edges, mag, smooth, polarity, edge_stage, frame
+        )
+        estimate = self.blur_estimate
+        if estimate is not None and outcome is not None and frame is not None:
+            if estimate.read(frame, points, n, fixed_rc, self.width, self.sweep_px) is None:
+                return outcome
+            value = estimate.value
+            assert value is not None
+            if estimate.done:
+                self.blur_estimate = None
+                self.blur_measured = value
+            # Each new model costs its tables (30-60 ms on the first frames): the readings' median changes it only
+            # when it moves by more than `BLUR_TOLERANCE_PX` (below that the shapes move by < 0.02 px).
+            if self.set_edge_blur(value, 0.0 if len(estimate.read_values) == 1 else BLUR_TOLERANCE_PX):
+                # The model read a still rope under a blur it did not expect as a moving one (a blurred edge's
+                # gradient is low, as a sweeping one's): the frame is split again with the measured blur.
+                outcome = self._split(
+                    points, chain, n, fixed_rc, width_px, gx, gy, edges, mag, smooth, polarity, edge_stage, frame
+                )
+        return outcome
+
+    def _split(
         self,
         points: NDArray[np.float32],
         chain: NDArray[np.int32],

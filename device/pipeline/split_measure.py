@@ -45,12 +45,19 @@ class BandMeasure:
         self.dist = dist
         self.slope_work = slope_work
         self.contrasts: list[float] = []
-        """The first frames' contrast readings (grey levels)."""
+        """The first frames' contrast readings: integrals across the band (grey levels x px)."""
+        self._width_px = math.nan
+        """The edge spacing of the last reading, whose rope width divides the integrals (`rescale`)."""
         self.contrast_px = float("nan")
         """The median of `contrasts` (the rope's contrast once `CONTRAST_FRAMES` are in)."""
         self._contrast_key = math.nan
         self._contrast32 = np.float32(0.0)
         self._whole: Spans | None = None
+
+    def rescale(self) -> None:
+        """Divide the contrast readings' integrals by the rope width of the current `model` (it changed)."""
+        if self.contrasts:
+            self.contrast_px = float(np.median(self.contrasts)) / self.model.tables(self._width_px).width_px
 
     @property
     def contrast_settled(self) -> bool:
@@ -198,12 +205,13 @@ class BandMeasure:
         width: float,
         fixed_rc: tuple[float, float],
     ) -> float:
-        """Return the rope's contrast (rope minus background, grey levels) near the fixed end: the median of the
-        first `CONTRAST_FRAMES` frames' readings (then this contour is not read); nan when not readable.
+        """Return the rope's contrast (rope minus background, grey levels) near the fixed end: from the first
+        `CONTRAST_FRAMES` readings (then this contour is not read); nan when not readable.
 
         Across the band the time-averaged coverage integrates to the rope's width whatever the sweep and the blur,
         so the contrast is the integral of the smoothed image across the band (background removed: a line through
-        the levels on both sides) divided by the unbiased width (`BandEdgeModel`). Read near the fixed end, where
+        the levels on both sides; the median of the readings) divided by the unbiased width (`BandEdgeModel`) of
+        the edge spacing `width` in use. Read near the fixed end, where
         the band is narrow and nothing else is likely to lie within it. `refresh` (r0, r1, c0, c1) makes
         `smooth` this frame's over a box first (None: it is valid everywhere).
         """
@@ -240,9 +248,13 @@ class BandMeasure:
         frac = (t - t[0]) / (t[-1] - t[0])
         background = first[:, None] + (last - first)[:, None] * frac[None, :]
         area = polarity * (values - background).sum(axis=1) * step
-        value = float(np.median(area)) / self.model.tables(width).width_px
-        if not value > 0:
+        integral = float(np.median(area))
+        if not integral > 0:
             return float("nan")
-        self.contrasts.append(value)
-        self.contrast_px = float(np.median(self.contrasts))
+        # The median integral divided by the rope width of the edge spacing in use: under a strong blur the
+        # width read from a spacing changes steeply with it (2.3 px at 4.21, 2.74 at 4.27 for a 1.5 px blur), so
+        # readings divided each by its own frame's width scatter by 10 % and more.
+        self.contrasts.append(integral)
+        self._width_px = width
+        self.contrast_px = float(np.median(self.contrasts)) / self.model.tables(width).width_px
         return self.contrast_px

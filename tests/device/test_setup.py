@@ -47,6 +47,9 @@ def test_setup_writes_a_config_extract_measures_with(tmp_path, rope_set, capsys)
     assert {"canny_low", "canny_high"} <= set(table)
     assert table.get("polarity") == "bright"
     assert 2.0 < table["rope_width_px"] < 4.5  # the synthetic rope is 3 px wide
+    # The rope swings fast on every frame (12 ms, mid-swing): its blur is not read, and the width is the model's
+    # for the default lens blur, which the pipeline then keeps.
+    assert "lens_blur_px" not in table
     truth = next(iter(ROPE.frames(1))).begin_uv[0]
     assert np.hypot(*(np.array(table["fixed_end_uv"]) - truth)) < 3.0
     overlay = tmp_path / "device_overlay.png"

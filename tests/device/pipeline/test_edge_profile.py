@@ -1,0 +1,200 @@
+"""The lens blur read off a still rope's cross-section (`edge_profile`) recovers the blur it was rendered with."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ropecam.device.capture.synthetic import SyntheticRope
+from ropecam.device.pipeline.config import PipelineConfig
+from ropecam.device.pipeline.edge_model import normal_cdf
+from ropecam.device.pipeline.edge_profile import LensBlurEstimate, fit_bar_profile, read_cross_section
+from ropecam.device.pipeline.pipeline import Pipeline
+from ropecam.shared.errors import ConfigError
+
+
+def _unsharp(image: np.ndarray, gain: float, sigma_px: float) -> np.ndarray:
+    """``image + gain (image - G * image)``, G a separable Gaussian of `sigma_px` (the border repeated)."""
+    radius = math.ceil(4.0 * sigma_px)
+    taps = np.exp(-0.5 * (np.arange(-radius, radius + 1) / sigma_px) ** 2)
+    taps /= taps.sum()
+    blurred = image
+    for axis in (0, 1):
+        padded = np.pad(blurred, [(radius, radius) if a == axis else (0, 0) for a in (0, 1)], mode="edge")
+        size = image.shape[axis]
+        blurred = sum(w * np.take(padded, np.arange(k, k + size), axis=axis) for k, w in enumerate(taps))
+    return image + gain * (image - blurred)
+
+
+def _still_rope(
+    lens_px: float, width_px: float, angle_deg: float, noise_dn: float, seed: int, sharpen: float = 0.0
+) -> tuple[np.ndarray, np.ndarray, tuple[float, float]]:
+    """A straight still rope from (10.3, 60.6) at `angle_deg` from the image's rows, rendered as the simulator
+    renders an edge (a Gaussian of the lens and the pixel's area, sqrt(lens^2 + 1/12)); and its two edges as a
+    contour would give them (points on both sides, the fixed end's cap first)."""
+    height, width = 120, 120
+    fixed = (10.3, 60.6)
+    theta = math.radians(angle_deg)
+    along = np.array([math.cos(theta), math.sin(theta)])  # (row, col)
+    across = np.array([-along[1], along[0]])
+    rows, cols = np.mgrid[0:height, 0:width].astype(np.float64)
+    x = (rows - fixed[0]) * across[0] + (cols - fixed[1]) * across[1]
+    t = (rows - fixed[0]) * along[0] + (cols - fixed[1]) * along[1]
+    sigma = math.sqrt(lens_px**2 + 1.0 / 12.0)
+    bar = normal_cdf((x + 0.5 * width_px) / sigma) - normal_cdf((x - 0.5 * width_px) / sigma)
+    bar *= np.clip(t, 0.0, 1.0) * np.clip(95.0 - t, 0.0, 1.0)
+    image = _unsharp(30.0 + 150.0 * bar, sharpen, 1.0) + np.random.default_rng(seed).normal(0.0, noise_dn, bar.shape)
+    frame = np.clip(np.rint(image), 0, 255).astype(np.uint8)
+    s = np.arange(0.5, 95.0, 1.0)
+    half = 0.5 * max(width_px, 2.0 * sigma)
+    side_a = np.asarray(fixed) + s[:, None] * along + half * across
+    side_b = np.asarray(fixed) + s[::-1, None] * along - half * across
+    points = np.concatenate([side_a, side_b]).astype(np.float32)
+    return frame, points, fixed
+
+
+def test_the_bar_fit_recovers_width_and_blur_of_an_exact_profile() -> None:
+    x = np.linspace(-6.0, 6.0, 400)
+    values = 20.0 + 0.5 * x + 140.0 * (normal_cdf((x + 1.25) / 0.9) - normal_cdf((x - 1.25) / 0.9))
+    fit = fit_bar_profile(x, values, 3.0)
+    assert fit is not None
+    assert fit.width_px == pytest.approx(2.5, abs=0.01)
+    assert fit.sigma_px == pytest.approx(0.9, abs=0.01)
+    assert fit.contrast == pytest.approx(140.0, rel=0.01)
+
+
+@pytest.mark.parametrize("lens_px", [0.4, 1.2, 2.0])
+@pytest.mark.parametrize("angle_deg", [7.0, 38.0])
+def test_the_estimate_recovers_the_rendered_lens_blur(lens_px: float, angle_deg: float) -> None:
+    estimate = LensBlurEstimate(readings=3)
+    for seed in range(3):
+        frame, points, fixed = _still_rope(lens_px, 2.5, angle_deg, 2.0, seed)
+        spacing = 2.5 if lens_px < 1.0 else 2.0 * math.sqrt(lens_px**2 + 1.0 / 12.0)
+        assert estimate.read(frame, points, len(points), fixed, spacing, 0.0) is not None
+    assert estimate.done
+    assert estimate.value is not None
+    assert estimate.value.lens_blur_px == pytest.approx(lens_px, abs=0.12)
+    assert estimate.value.sharpen_gain == 0.0  # none read: a plain blurred bar
+
+
+@pytest.mark.parametrize("gain", [0.5, 1.0])
+def test_the_estimate_reads_a_cameras_sharpening(gain: float) -> None:
+    """An unsharp mask (sigma 1 px) after a 0.5 px lens blur: its share of the edge's variance (gain sigma^2)
+    and the lens blur are recovered (the two trade off a little against each other)."""
+    estimate = LensBlurEstimate(readings=3)
+    for seed in range(3):
+        frame, points, fixed = _still_rope(0.5, 2.5, 23.0, 1.0, seed, sharpen=gain)
+        assert estimate.read(frame, points, len(points), fixed, 2.6, 0.0) is not None
+    value = estimate.value
+    assert value is not None
+    assert value.sharpen_gain * value.sharpen_sigma_px**2 == pytest.approx(gain, rel=0.3)
+    assert value.lens_blur_px == pytest.approx(0.5, abs=0.15)
+
+
+def test_a_moving_rope_is_not_read() -> None:
+    frame, points, fixed = _still_rope(1.0, 2.5, 20.0, 1.0, 0)
+    estimate = LensBlurEstimate()
+    # A tip sweep of 40 px moves the stretch near the fixed end by more than a pixel.
+    assert estimate.read(frame, points, len(points), fixed, 3.0, 40.0) is None
+    assert estimate.value is None
+
+
+def test_one_edge_only_is_no_cross_section() -> None:
+    frame, points, fixed = _still_rope(1.0, 2.5, 20.0, 1.0, 0)
+    one_side = np.ascontiguousarray(points[: len(points) // 2])
+    assert read_cross_section(frame, one_side, len(one_side), fixed, 3.0) is None
+
+
+def _curve_error(ours_rc: np.ndarray, truth_uv: np.ndarray) -> float:
+    """Mean distance (px) of our points (row, col) to the true centreline (u, v), densely resampled."""
+    t = np.linspace(0.0, 1.0, 2000)
+    s = np.linspace(0.0, 1.0, len(truth_uv))
+    dense = np.stack([np.interp(t, s, truth_uv[:, 1]), np.interp(t, s, truth_uv[:, 0])], axis=1)
+    return float(np.mean(np.min(np.hypot(*(ours_rc[:, None, :] - dense[None]).transpose(2, 0, 1)), axis=1)))
+
+
+def test_the_pipeline_measures_the_blur_and_splits_with_it() -> None:
+    """A rope under a 1.5 px lens blur, still on the first frames (released at the top of its swing): the
+    pipeline measures the blur there, and its shapes of the moving rope that follows are as good as with the
+    true blur given; with the blur assumed 0.5 px they lie over a pixel off (the still rope's blurred edges read
+    as a rope twice as wide, its low edge slope as a sweep)."""
+    rope = SyntheticRope(
+        width=200, height=170, fixed_uv=(100.3, 12.6), length_px=140.0, diameter_px=2.5, blur_px=1.5,
+        amplitude_rad=0.5, period_s=0.9, phase_rad=0.0, noise_dn=1.0, exposure_us=4000,
+    )  # fmt: skip
+    frames = list(rope.frames(12))
+    errors = {}
+    for name, lens_blur_px in (("measured", None), ("assumed", 0.5), ("true", 1.5)):
+        pipeline = Pipeline(PipelineConfig(lens_blur_px=lens_blur_px), (rope.width, rope.height))
+        errors[name] = []
+        for frame in frames:
+            result = pipeline.process(frame.image, frame.index, frame.t_ns, float(rope.exposure_us))
+            assert result.begin is not None and result.end is not None
+            pairs = ((result.begin, frame.begin_uv), (result.end, frame.end_uv))
+            swapped = ((result.begin, frame.end_uv), (result.end, frame.begin_uv))
+            errors[name].append(min(  # the first frames' time order is a guess
+                max(_curve_error(ours, truth) for ours, truth in pairs),
+                max(_curve_error(ours, truth) for ours, truth in swapped),
+            ))  # fmt: skip
+        if name == "measured":
+            assert pipeline.splitter.blur_measured is not None
+            assert pipeline.splitter.blur_measured.lens_blur_px == pytest.approx(1.5, abs=0.15)
+            assert pipeline.splitter.model.lens_blur_px == pytest.approx(1.5, abs=0.15)
+    measured, assumed, true = (np.asarray(errors[k]) for k in ("measured", "assumed", "true"))
+    assert np.all(measured <= true + 0.1), (measured, true)  # the first readings' median moves a little
+    assert np.mean(measured) <= np.mean(true) + 0.02
+    assert np.all(assumed > 1.0), assumed
+
+
+def test_the_pipeline_measures_a_cameras_sharpening_and_splits_with_it() -> None:
+    """The rope of the blur test under a 0.5 px blur, then a camera's unsharp mask (gain 1, sigma 1 px): the
+    pipeline reads the sharpening (its share of the edge's variance, gain sigma^2) and its shapes are as good as
+    with the true edge profile given. (This rope sweeps more than its width from the second frame on, where the
+    profile hardly matters; the matrix's sharpening rows show the gain where it reads the sweep from the edge
+    slope: 0.27 -> 0.08 px tip mean at gain 1.)"""
+    rope = SyntheticRope(
+        width=200, height=170, fixed_uv=(100.3, 12.6), length_px=140.0, diameter_px=2.5, blur_px=0.5,
+        amplitude_rad=0.5, period_s=0.9, phase_rad=0.0, noise_dn=0.0, exposure_us=4000,
+    )  # fmt: skip
+    rng = np.random.default_rng(3)
+    frames = list(rope.frames(12))
+    images = [
+        np.clip(
+            np.rint(_unsharp(f.image.astype(np.float64), 1.0, 1.0) + rng.normal(0.0, 1.0, f.image.shape)), 0, 255
+        ).astype(np.uint8)
+        for f in frames
+    ]
+    configs = {
+        "measured": PipelineConfig(),
+        "true": PipelineConfig(lens_blur_px=0.5, sharpen_gain=1.0, sharpen_sigma_px=1.0),
+    }
+    errors = {}
+    for name, config in configs.items():
+        pipeline = Pipeline(config, (rope.width, rope.height))
+        errors[name] = []
+        for frame, image in zip(frames, images, strict=True):
+            result = pipeline.process(image, frame.index, frame.t_ns, float(rope.exposure_us))
+            assert result.begin is not None and result.end is not None
+            pairs = ((result.begin, frame.begin_uv), (result.end, frame.end_uv))
+            swapped = ((result.begin, frame.end_uv), (result.end, frame.begin_uv))
+            errors[name].append(min(
+                max(_curve_error(ours, truth) for ours, truth in pairs),
+                max(_curve_error(ours, truth) for ours, truth in swapped),
+            ))  # fmt: skip
+        if name == "measured":
+            blur = pipeline.splitter.blur_measured
+            assert blur is not None
+            assert blur.sharpen_gain * blur.sharpen_sigma_px**2 == pytest.approx(1.0, rel=0.4)
+    measured, true = (np.mean(errors[k]) for k in ("measured", "true"))
+    assert measured <= true + 0.03, (measured, true)
+
+
+def test_the_config_says_when_the_blur_is_measured() -> None:
+    assert PipelineConfig().edge_blur_given is None  # measured
+    assert PipelineConfig(rope_width_px=2.5).edge_blur_given == (0.5, 0.0, 1.0)  # the width's model is fixed
+    given = PipelineConfig(lens_blur_px=0.7, sharpen_gain=0.8, sharpen_sigma_px=1.2)
+    assert given.edge_blur_given == (0.7, 0.8, 1.2)
+    with pytest.raises(ConfigError, match="sharpen_gain"):
+        PipelineConfig(sharpen_gain=-1.0)
