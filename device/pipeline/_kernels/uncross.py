@@ -27,6 +27,14 @@ from numba import boolean, float64, int32, int64, types
 from ropecam.device.pipeline._kernels.groups import ORDER, ORDER_PREV_COUNT, ORDER_PREV_T
 from ropecam.shared.jit import f4_2d, kernel
 
+PINCH_WIDTHS: Final = 0.5
+"""A pinch is closer than this many rope widths: the two shapes cross there (a true crossing's distance is the
+edges' noise; splicing at a wider one would leave a step of that size in both shapes)."""
+DECISIVE: Final = 0.25
+"""A stretch is exchanged only when the other side is nearer to the previous end shape by this fraction of the
+stretch's mean separation, and that separation is at least `PINCH_WIDTHS` rope widths: where the two sides lie
+within noise of each other, nearness decides nothing (measured: a rope swinging as a rigid pendulum, whose shapes
+never cross, had stretches by the fixed end exchanged on noise, with steps in the shapes)."""
 _WINDOW: Final = 24
 """Segments searched either side of the proportional guess for a point's nearest point on another shape: the
 shapes run the same way from the fixed end with similar point spacing, so a point's match is near the same arc
@@ -105,9 +113,10 @@ def uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, order):
     that the previous frame's end shape says are the other way round, between the pinches where the two cross;
     then remember `end` as the previous end shape (exposure ending at `t_end_ns`).
 
-    A pinch is an interior local minimum, below `width_px`, of the distance from a point of `begin` to `end`. On
-    every stretch between pinches but the last (the tip's), the side nearer to the previous end shape (kept at most
-    `max_age_ns` before this exposure's end) is the start of the exposure. The exchanged shapes keep their point
+    A pinch is an interior local minimum, below `PINCH_WIDTHS` x `width_px`, of the distance from a point of
+    `begin` to `end`. On every stretch between pinches but the last (the tip's), the side decisively nearer
+    (`DECISIVE`) to the previous end shape (kept at most `max_age_ns` before this exposure's end) is the start of
+    the exposure. The exchanged shapes keep their point
     counts (each resampled evenly along its new arc). Nothing is exchanged for a `single` shape, without a
     previous end shape, or when a shape is longer than ``order.prev_end``. Uses ``order.splice`` as scratch (its
     rows hold the new begin, the new end, and each begin point's (distance, match) on `end`).
@@ -143,7 +152,11 @@ def uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, order):
         start_e = 0
         for k in range(2, nb - 1):
             last = k == nb - 2
-            pinch = match[k, 0] < width_px and match[k, 0] <= match[k - 1, 0] and match[k, 0] <= match[k + 1, 0]
+            pinch = (
+                match[k, 0] < PINCH_WIDTHS * width_px
+                and match[k, 0] <= match[k - 1, 0]
+                and match[k, 0] <= match[k + 1, 0]
+            )
             if not (pinch or last):
                 continue
             stop_b = nb if last else k
@@ -152,9 +165,14 @@ def uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, order):
                 continue
             swap = False
             if not last:
-                keep = _mean_distance(begin, start_b, stop_b, prev, n_prev)
-                other = _mean_distance(end, start_e, stop_e, prev, n_prev)
-                swap = other < keep
+                separation = 0.0
+                for i in range(start_b, stop_b):
+                    separation += match[i, 0]
+                separation /= stop_b - start_b
+                if separation >= PINCH_WIDTHS * width_px:
+                    keep = _mean_distance(begin, start_b, stop_b, prev, n_prev)
+                    other = _mean_distance(end, start_e, stop_e, prev, n_prev)
+                    swap = other < keep - DECISIVE * separation
             src_b = end if swap else begin
             src_e = begin if swap else end
             lo_b, hi_b = (start_e, stop_e) if swap else (start_b, stop_b)

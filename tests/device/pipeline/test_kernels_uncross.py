@@ -98,3 +98,25 @@ def test_nearest_on_finds_the_foot_on_a_segment() -> None:
     distance, index = K.nearest_on(8.0, 40.3, line, len(_X), 40)
     assert distance == pytest.approx(3.0)
     assert index == 40.0
+
+
+def test_a_rigid_swing_with_noisy_edges_is_never_exchanged() -> None:
+    # A pendulum's shapes never cross: by the fixed end they lie within the edges' noise of each other, and
+    # nearness to the previous end shape must not exchange such stretches (that left steps in the shapes).
+    rng = np.random.default_rng(3)
+    radius = np.linspace(0.0, 180.0, 91)
+    for trial in range(40):
+        angle = rng.uniform(0.2, 1.2)
+        order = OrderBuffers.make(256)
+
+        def line(a: float) -> np.ndarray:
+            pts = np.stack([radius * np.cos(a), radius * np.sin(a)], axis=1) + rng.normal(0.0, 0.15, (91, 2))
+            return pts.astype(np.float32)
+
+        _remember_shape(order, line(angle - 0.02), 0)
+        begin, end = line(angle), line(angle + 0.02)
+        assert K.uncross_shapes(begin, end, False, _PERIOD_NS, 4 * _PERIOD_NS, 3.0, order.group) == 0, trial
+
+
+def _remember_shape(order: OrderBuffers, shape: np.ndarray, t_end_ns: int) -> None:
+    assert K.uncross_shapes(shape, shape.copy(), False, t_end_ns, 4 * _PERIOD_NS, 3.0, order.group) == 0
