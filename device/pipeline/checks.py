@@ -24,6 +24,10 @@ reason                  fails when                                              
                         ``min_blur_evidence`` x the area the split's sweep implies (0.5 x length x tip
                         separation, the rope turning about its fixed end); the frame then carries the
                         static centreline instead of the split
+``tip_masked``          the static mask begins within ``tip_mask_widths`` rope widths +                 IMPLAUSIBLE
+                        ``tip_mask_floor_px`` beyond either shape's free tip, along the rope: the mask
+                        may have cut the rope there (a rope crossing a masked plate edge ends at it),
+                        and the rope's end is not seen
 ======================  ==============================================================================  ===========
 
 Each check's measure goes into the frame's quality record (`QUALITY_KEYS`), whether it passes or not.
@@ -72,6 +76,9 @@ class ChecksConfig:
     min_blur_evidence
         Smallest ratio of the contour's area beyond the still rope's to the area the split's sweep implies that
         counts as evidence of blur (frames of unknown exposure only).
+    tip_mask_widths, tip_mask_floor_px
+        A free tip must end farther than ``tip_mask_widths`` x the rope width + ``tip_mask_floor_px`` before the
+        static mask, along the rope (both 0: the check is off).
     """
 
     enabled: bool = True
@@ -84,6 +91,8 @@ class ChecksConfig:
     min_order_confidence: float = 0.0
     no_blur_px: float = 2.0
     min_blur_evidence: float = 0.3
+    tip_mask_widths: float = 1.0
+    tip_mask_floor_px: float = 2.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.enabled, bool):
@@ -97,6 +106,8 @@ class ChecksConfig:
         check_range("checks.min_order_confidence", self.min_order_confidence, 0.0, 1.0)
         check_range("checks.no_blur_px", self.no_blur_px, 0.0, 10_000.0)
         check_range("checks.min_blur_evidence", self.min_blur_evidence, 0.0, 100.0)
+        check_range("checks.tip_mask_widths", self.tip_mask_widths, 0.0, 100.0)
+        check_range("checks.tip_mask_floor_px", self.tip_mask_floor_px, 0.0, 100.0)
 
 
 _MESSAGES = {
@@ -108,6 +119,8 @@ _MESSAGES = {
     "tip_motion_limit_px)",
     Reason.ORDER: "the time order is not certain enough (order_confidence below checks.min_order_confidence)",
     Reason.NO_BLUR: "no blur to split (no exposure time): the static centreline is given instead",
+    Reason.TIP_MASKED: "a free tip ends at the static mask, which may hide the rope's end (within "
+    "checks.tip_mask_widths rope widths + checks.tip_mask_floor_px of it)",
 }
 
 
@@ -185,6 +198,7 @@ class SelfChecks:
         exposure_ns: int,
         split: bool,
         contour_area_px2: float = math.nan,
+        mask: NDArray[np.uint8] | None = None,
     ) -> tuple[FrameStatus, Reason]:
         """Check one measured frame; return its status (OK when every check passes) and the first failed reason.
 
@@ -207,17 +221,25 @@ class SelfChecks:
         contour_area_px2
             Area the rope's contour encloses (`contour_area_px2`; needed only for a split of unknown exposure:
             nan counts as no evidence of blur).
+        mask
+            The static mask (uint8, the image's shape, read-only; `MASK_FREE` where edges are kept; None: no
+            mask), for ``tip_masked``.
         """
         code = K.check_frame(
             begin, end, fixed, self._predicted, _nan_if_none(stretch_begin), _nan_if_none(stretch_end), width_px,
-            learned_width_px or 0.0, order_confidence, exposure_ns, split, contour_area_px2, self._thresholds,
-            self._measures,
+            learned_width_px or 0.0, order_confidence, exposure_ns, split, contour_area_px2,
+            _NO_MASK if mask is None else mask, self._thresholds, self._measures,
         )  # fmt: skip
         self.quality.update(zip(QUALITY_KEYS, self._measure_values.tolist(), strict=True))
         if code == K.CHECK_NONE or not self.config.enabled:
             return FrameStatus.OK, Reason.NONE
         failed = Reason(code)
         return (FrameStatus.NO_BLUR if failed is Reason.NO_BLUR else FrameStatus.IMPLAUSIBLE), failed
+
+
+_NO_MASK = np.zeros((1, 1), np.uint8)
+"""A mask with nothing masked (`check_frame` reads pixels outside a mask as free)."""
+_NO_MASK.flags.writeable = False
 
 
 def _nan_if_none(value: float | None) -> float:

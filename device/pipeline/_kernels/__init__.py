@@ -68,8 +68,10 @@ from ropecam.device.pipeline._kernels.checks import (
     CHECK_NONE,
     CHECK_QUALITY,
     CHECK_THRESHOLDS,
+    CHECK_TIP_MASKED,
     check_frame,
     predict_tips,
+    tip_mask_distance,
 )
 from ropecam.device.pipeline._kernels.contacts import count_border_contacts, count_roi_contacts
 from ropecam.device.pipeline._kernels.contour import (
@@ -223,6 +225,7 @@ __all__ = [
     "CHECK_NO_BLUR",
     "CHECK_QUALITY",
     "CHECK_THRESHOLDS",
+    "CHECK_TIP_MASKED",
     "DIR_COL",
     "DIR_ROW",
     "EDGE_NONE",
@@ -372,6 +375,7 @@ __all__ = [
     "steady_frame",
     "suppress_rows",
     "thin_chain",
+    "tip_mask_distance",
     "trace_closed",
     "trace_contour",
     "trace_rope",
