@@ -7,7 +7,8 @@ predicted, using scalars the pipeline has already computed (no per-frame allocat
 reason                  fails when                                                                      status
 ======================  ==============================================================================  ===========
 ``length``              a shape's length Lc differs from Lc0 (the median of the first shapes) by more   IMPLAUSIBLE
-                        than ``length_tolerance`` (a fraction of Lc0)
+                        than ``length_tolerance`` (a fraction of Lc0), or the two shapes of a split
+                        differ from each other by more than ``length_mismatch`` (a fraction of Lc0)
 ``width``               the width the split used differs from the learned width by more than            IMPLAUSIBLE
                         ``width_tolerance`` (a fraction of it)
 ``fixed_end``           a shape starts farther from the learned or given fixed end than                  IMPLAUSIBLE
@@ -60,6 +61,8 @@ class ChecksConfig:
         ``false`` reports every measured frame as OK (the quality record is still filled).
     length_tolerance
         Largest accepted |Lc / Lc0 - 1| of either shape (fraction of the length the first frames measured).
+    length_mismatch
+        Largest accepted difference of the two shapes' Lc / Lc0 in one split (the same rope at two instants).
     width_tolerance
         Largest accepted |w / w0 - 1| of the width the split used against the learned (or given) width.
     fixed_end_widths, fixed_end_floor_px
@@ -83,6 +86,7 @@ class ChecksConfig:
 
     enabled: bool = True
     length_tolerance: float = 0.25
+    length_mismatch: float = 0.03
     width_tolerance: float = 0.5
     fixed_end_widths: float = 3.0
     fixed_end_floor_px: float = 6.0
@@ -98,6 +102,7 @@ class ChecksConfig:
         if not isinstance(self.enabled, bool):
             raise ConfigError(f"checks.enabled must be true or false, got {self.enabled!r}")
         check_range("checks.length_tolerance", self.length_tolerance, 0.01, 10.0)
+        check_range("checks.length_mismatch", self.length_mismatch, 0.001, 10.0)
         check_range("checks.width_tolerance", self.width_tolerance, 0.01, 10.0)
         check_range("checks.fixed_end_widths", self.fixed_end_widths, 0.0, 1000.0)
         check_range("checks.fixed_end_floor_px", self.fixed_end_floor_px, 0.0, 10_000.0)
@@ -111,7 +116,8 @@ class ChecksConfig:
 
 
 _MESSAGES = {
-    Reason.LENGTH: "the rope's length is implausible (length_ratio off Lc0 by more than checks.length_tolerance)",
+    Reason.LENGTH: "the rope's length is implausible (length_ratio off Lc0 by more than checks.length_tolerance, "
+    "or the two shapes' lengths apart by more than checks.length_mismatch)",
     Reason.WIDTH: "the rope's width is implausible (width_ratio off the learned width by more than "
     "checks.width_tolerance)",
     Reason.FIXED_END: "a shape does not start at the fixed end (fixed_end_px beyond checks.fixed_end_widths)",

@@ -31,6 +31,7 @@ CHECK_TIP_MASKED: Final = 7
 CHECK_THRESHOLDS: Final = np.dtype(
     [
         ("length_tolerance", np.float64),
+        ("length_mismatch", np.float64),
         ("width_tolerance", np.float64),
         ("fixed_end_widths", np.float64),
         ("fixed_end_floor_px", np.float64),
@@ -151,6 +152,10 @@ def check_frame(
             length_ratio = stretch
     q["length_ratio"] = length_ratio
     if abs(length_ratio - 1.0) > limits["length_tolerance"]:
+        failed = CHECK_LENGTH
+    # The two instants' shapes are one rope: a side that ran on along a scratch or lost its end differs from the
+    # other one (a nan stretch compares False).
+    if split and abs(stretch_begin - stretch_end) > limits["length_mismatch"]:
         failed = CHECK_LENGTH
     width_ratio = width_px / learned_width_px if learned_width_px != 0.0 else math.nan
     q["width_ratio"] = width_ratio

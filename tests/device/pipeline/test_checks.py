@@ -62,11 +62,19 @@ def test_a_right_frame_is_ok_and_its_quality_is_measured() -> None:
     [
         ({"stretch_end": 1.4}, Reason.LENGTH),
         ({"stretch_begin": 0.6}, Reason.LENGTH),
+        ({"stretch_begin": 1.04, "stretch_end": 0.995}, Reason.LENGTH),
         ({"width_px": 2.0 * WIDTH_PX + 1.0}, Reason.WIDTH),
         ({"begin": _shape(96.0, start=(10.0, 130.0))}, Reason.FIXED_END),
         ({"end": _shape(104.0, start=(40.0, 100.0))}, Reason.FIXED_END),
     ],
-    ids=["too long", "too short", "too wide", "begin off the fixed end", "end off the fixed end"],
+    ids=[
+        "too long",
+        "too short",
+        "the two shapes' lengths apart",
+        "too wide",
+        "begin off the fixed end",
+        "end off the fixed end",
+    ],
 )
 def test_each_implausible_frame_gets_its_reason(changes: dict, reason: Reason) -> None:
     assert _check(SelfChecks(ChecksConfig()), **changes) == (FrameStatus.IMPLAUSIBLE, reason)
@@ -89,6 +97,14 @@ def test_tip_motion_against_the_motion_models_prediction() -> None:
     assert checks.quality["tip_motion_px"] > checks.quality["tip_motion_limit_px"]
     checks.forget()  # no prediction: the jump is not checked (one shape: no blur evidence needed either)
     assert _check(checks, begin=jumped, end=jumped, split=False) == (FrameStatus.OK, Reason.NONE)
+
+
+def test_shapes_of_different_lengths_fail_only_as_a_split() -> None:
+    checks = SelfChecks(ChecksConfig())
+    assert _check(checks, stretch_begin=1.015, stretch_end=0.99) == (FrameStatus.OK, Reason.NONE)  # 2.5 % apart
+    one = _shape(100.0)  # one shape (a centreline) for both instants: nothing to compare
+    assert _check(checks, begin=one, end=one, split=False, stretch_begin=1.05, stretch_end=1.0)[0] is FrameStatus.OK
+    assert _check(checks, stretch_begin=math.nan, stretch_end=1.1)[0] is FrameStatus.OK  # Lc0 not known yet
 
 
 def test_an_uncertain_time_order_fails_only_when_asked_and_decidable() -> None:
