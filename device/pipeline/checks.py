@@ -7,7 +7,8 @@ predicted, using scalars the pipeline has already computed (no per-frame allocat
 reason                  fails when                                                                      status
 ======================  ==============================================================================  ===========
 ``length``              a shape's length Lc differs from Lc0 (the median of the first shapes) by more   IMPLAUSIBLE
-                        than ``length_tolerance`` (a fraction of Lc0)
+                        than ``length_tolerance`` (a fraction of Lc0), or the two shapes of a split
+                        differ from each other by more than ``length_mismatch`` (a fraction of Lc0)
 ``width``               the width the split used differs from the learned width by more than            IMPLAUSIBLE
                         ``width_tolerance`` (a fraction of it)
 ``fixed_end``           a shape starts farther from the learned or given fixed end than                  IMPLAUSIBLE
@@ -24,6 +25,10 @@ reason                  fails when                                              
                         ``min_blur_evidence`` x the area the split's sweep implies (0.5 x length x tip
                         separation, the rope turning about its fixed end); the frame then carries the
                         static centreline instead of the split
+``tip_masked``          the static mask begins within ``tip_mask_widths`` rope widths +                 IMPLAUSIBLE
+                        ``tip_mask_floor_px`` beyond either shape's free tip, along the rope: the mask
+                        may have cut the rope there (a rope crossing a masked plate edge ends at it),
+                        and the rope's end is not seen
 ======================  ==============================================================================  ===========
 
 Each check's measure goes into the frame's quality record (`QUALITY_KEYS`), whether it passes or not.
@@ -56,6 +61,8 @@ class ChecksConfig:
         ``false`` reports every measured frame as OK (the quality record is still filled).
     length_tolerance
         Largest accepted |Lc / Lc0 - 1| of either shape (fraction of the length the first frames measured).
+    length_mismatch
+        Largest accepted difference of the two shapes' Lc / Lc0 in one split (the same rope at two instants).
     width_tolerance
         Largest accepted |w / w0 - 1| of the width the split used against the learned (or given) width.
     fixed_end_widths, fixed_end_floor_px
@@ -72,10 +79,14 @@ class ChecksConfig:
     min_blur_evidence
         Smallest ratio of the contour's area beyond the still rope's to the area the split's sweep implies that
         counts as evidence of blur (frames of unknown exposure only).
+    tip_mask_widths, tip_mask_floor_px
+        A free tip must end farther than ``tip_mask_widths`` x the rope width + ``tip_mask_floor_px`` before the
+        static mask, along the rope (both 0: the check is off).
     """
 
     enabled: bool = True
     length_tolerance: float = 0.25
+    length_mismatch: float = 0.03
     width_tolerance: float = 0.5
     fixed_end_widths: float = 3.0
     fixed_end_floor_px: float = 6.0
@@ -84,11 +95,14 @@ class ChecksConfig:
     min_order_confidence: float = 0.0
     no_blur_px: float = 2.0
     min_blur_evidence: float = 0.3
+    tip_mask_widths: float = 1.0
+    tip_mask_floor_px: float = 2.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.enabled, bool):
             raise ConfigError(f"checks.enabled must be true or false, got {self.enabled!r}")
         check_range("checks.length_tolerance", self.length_tolerance, 0.01, 10.0)
+        check_range("checks.length_mismatch", self.length_mismatch, 0.001, 10.0)
         check_range("checks.width_tolerance", self.width_tolerance, 0.01, 10.0)
         check_range("checks.fixed_end_widths", self.fixed_end_widths, 0.0, 1000.0)
         check_range("checks.fixed_end_floor_px", self.fixed_end_floor_px, 0.0, 10_000.0)
@@ -97,10 +111,13 @@ class ChecksConfig:
         check_range("checks.min_order_confidence", self.min_order_confidence, 0.0, 1.0)
         check_range("checks.no_blur_px", self.no_blur_px, 0.0, 10_000.0)
         check_range("checks.min_blur_evidence", self.min_blur_evidence, 0.0, 100.0)
+        check_range("checks.tip_mask_widths", self.tip_mask_widths, 0.0, 100.0)
+        check_range("checks.tip_mask_floor_px", self.tip_mask_floor_px, 0.0, 100.0)
 
 
 _MESSAGES = {
-    Reason.LENGTH: "the rope's length is implausible (length_ratio off Lc0 by more than checks.length_tolerance)",
+    Reason.LENGTH: "the rope's length is implausible (length_ratio off Lc0 by more than checks.length_tolerance, "
+    "or the two shapes' lengths apart by more than checks.length_mismatch)",
     Reason.WIDTH: "the rope's width is implausible (width_ratio off the learned width by more than "
     "checks.width_tolerance)",
     Reason.FIXED_END: "a shape does not start at the fixed end (fixed_end_px beyond checks.fixed_end_widths)",
@@ -108,6 +125,8 @@ _MESSAGES = {
     "tip_motion_limit_px)",
     Reason.ORDER: "the time order is not certain enough (order_confidence below checks.min_order_confidence)",
     Reason.NO_BLUR: "no blur to split (no exposure time): the static centreline is given instead",
+    Reason.TIP_MASKED: "a free tip ends at the static mask, which may hide the rope's end (within "
+    "checks.tip_mask_widths rope widths + checks.tip_mask_floor_px of it)",
 }
 
 
@@ -188,6 +207,7 @@ class SelfChecks:
         exposure_ns: int,
         split: bool,
         contour_area_px2: float = math.nan,
+        mask: NDArray[np.uint8] | None = None,
     ) -> tuple[FrameStatus, Reason]:
         """Check one measured frame; return its status (OK when every check passes) and the first failed reason.
 
@@ -210,17 +230,25 @@ class SelfChecks:
         contour_area_px2
             Area the rope's contour encloses (`contour_area_px2`; needed only for a split of unknown exposure:
             nan counts as no evidence of blur).
+        mask
+            The static mask (uint8, the image's shape, read-only; `MASK_FREE` where edges are kept; None: no
+            mask), for ``tip_masked``.
         """
         code = K.check_frame(
             begin, end, fixed, self._predicted, _nan_if_none(stretch_begin), _nan_if_none(stretch_end), width_px,
-            learned_width_px or 0.0, order_confidence, exposure_ns, split, contour_area_px2, self._thresholds,
-            self._measures,
+            learned_width_px or 0.0, order_confidence, exposure_ns, split, contour_area_px2,
+            _NO_MASK if mask is None else mask, self._thresholds, self._measures,
         )  # fmt: skip
         self.quality.update(zip(QUALITY_KEYS, self._measure_values.tolist(), strict=True))
         if code == K.CHECK_NONE or not self.config.enabled:
             return FrameStatus.OK, Reason.NONE
         failed = Reason(code)
         return (FrameStatus.NO_BLUR if failed is Reason.NO_BLUR else FrameStatus.IMPLAUSIBLE), failed
+
+
+_NO_MASK = np.zeros((1, 1), np.uint8)
+"""A mask with nothing masked (`check_frame` reads pixels outside a mask as free)."""
+_NO_MASK.flags.writeable = False
 
 
 def _nan_if_none(value: float | None) -> float:

@@ -231,7 +231,7 @@ class ResultFinisher:
             used_px = self.splitter.width
         status, reason = checks.check(
             begin, end, self.fixed, result.stretch_begin, result.stretch_end, used_px, learned_px,
-            result.order_confidence, exposure_ns, split, area,
+            result.order_confidence, exposure_ns, split, area, self.locator.edges.static_mask_ro,
         )  # fmt: skip
         result.quality = checks.quality
         if status is FrameStatus.OK:

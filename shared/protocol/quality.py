@@ -37,6 +37,7 @@ class Reason(IntEnum):
     TIP_MOTION = 4
     ORDER = 5
     NO_BLUR = 6
+    TIP_MASKED = 7
 
     @property
     def text(self) -> str:

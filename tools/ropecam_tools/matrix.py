@@ -95,7 +95,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"methods to measure (default: {' '.join(METHODS)})")  # fmt: skip
     parser.add_argument("--factor", nargs="+", metavar="NAME",
                         help="factor rows to run (default all): " + ", ".join(f.name for f in FACTORS))  # fmt: skip
-    parser.add_argument("--preset", nargs="+", metavar="NAME", help="presets for the presets section (default all)")
+    parser.add_argument(
+        "--preset",
+        nargs="+",
+        metavar="NAME",
+        help="presets for the presets and paper sections (default all; e.g. --only paper --preset lab: "
+        "the lab look through the paper's camera only)",
+    )
     parser.add_argument("--set", nargs="+", default=[], metavar="KEY=VALUE", dest="settings",
                         help="simulator keys set on every preset and paper scene (TOML values, e.g. "
                         "scene.clamp=false scene.rod_width_px=0); their rows are labelled with them")  # fmt: skip

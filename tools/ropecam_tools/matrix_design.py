@@ -314,7 +314,7 @@ def build_scenes(
     only
         Sections to build (``pairs`` come with ``factors`` in the validation set).
     factor_names, preset_names
-        Restrict the factor rows and the presets section to these names (None: all).
+        Restrict the factor rows, and the presets and paper sections, to these names (None: all).
     photo_dir
         Folder of the real photographs, for the rows and presets that paint a photographed rope.
     paper_timed
@@ -392,7 +392,7 @@ def build_scenes(
     if "paper" in only:
         timed = {"paper": presets["paper"], **(paper_timed or {})}
         for name in PAPER_PRESETS:
-            if name not in timed:
+            if name not in timed or (preset_names is not None and name not in preset_names):
                 continue
             overrides = preset_overrides(timed[name])
             for exposure_ms in PAPER_EXPOSURES_MS:

@@ -59,8 +59,10 @@ from ropecam.device.pipeline._kernels.checks import (
     CHECK_NONE,
     CHECK_QUALITY,
     CHECK_THRESHOLDS,
+    CHECK_TIP_MASKED,
     check_frame,
     predict_tips,
+    tip_mask_distance,
 )
 from ropecam.device.pipeline._kernels.contacts import count_border_contacts, count_roi_contacts
 from ropecam.device.pipeline._kernels.contour import (
@@ -219,6 +221,7 @@ __all__ = [
     "CHECK_NO_BLUR",
     "CHECK_QUALITY",
     "CHECK_THRESHOLDS",
+    "CHECK_TIP_MASKED",
     "CONTOUR",
     "DIR_COL",
     "DIR_ROW",
@@ -376,6 +379,7 @@ __all__ = [
     "steady_frame",
     "suppress_rows",
     "thin_chain",
+    "tip_mask_distance",
     "trace_closed",
     "trace_contour",
     "trace_rope",

@@ -14,8 +14,9 @@ import numpy as np
 from numba import boolean, float64, int64, types
 from numba.np.numpy_support import from_dtype
 
+from ropecam.device.pipeline._kernels.static_mask import MASK_FREE
 from ropecam.device.pipeline._kernels.tracking import MOTION_COUNT, i8_1d, predict_motion
-from ropecam.shared.jit import f4_1d, f4_2d, f4_2d_ro, f8_1d, f8_2d, kernel
+from ropecam.shared.jit import f4_1d, f4_2d, f4_2d_ro, f8_1d, f8_2d, kernel, u1_2d_ro
 
 CHECK_NONE: Final = 0
 """Every check passed."""
@@ -25,10 +26,12 @@ CHECK_FIXED_END: Final = 3
 CHECK_TIP_MOTION: Final = 4
 CHECK_ORDER: Final = 5
 CHECK_NO_BLUR: Final = 6
+CHECK_TIP_MASKED: Final = 7
 
 CHECK_THRESHOLDS: Final = np.dtype(
     [
         ("length_tolerance", np.float64),
+        ("length_mismatch", np.float64),
         ("width_tolerance", np.float64),
         ("fixed_end_widths", np.float64),
         ("fixed_end_floor_px", np.float64),
@@ -37,6 +40,8 @@ CHECK_THRESHOLDS: Final = np.dtype(
         ("min_order_confidence", np.float64),
         ("no_blur_px", np.float64),
         ("min_blur_evidence", np.float64),
+        ("tip_mask_widths", np.float64),
+        ("tip_mask_floor_px", np.float64),
     ]
 )
 """The checks' thresholds (`ChecksConfig`'s numbers), one record."""
@@ -80,15 +85,53 @@ def predict_tips(t_ns, exposure_ns, motion_state, motion_log, fixed, out_predict
 
 # The shapes as the splitter leaves them (writable) or read-only views; the fixed end is the workspace's.
 _CHECK_SIGNATURES = [
-    int64(shape, shape, f4_1d, f8_1d, *(float64,) * 5, int64, boolean, float64, _thresholds_ro, _quality)
+    int64(shape, shape, f4_1d, f8_1d, *(float64,) * 5, int64, boolean, float64, u1_2d_ro, _thresholds_ro, _quality)
     for shape in (f4_2d, f4_2d_ro)
 ]
+
+TIP_DIRECTION_PX: Final = 3.0
+"""The tip's direction is read over this much of the shape's end (px)."""
+
+
+@kernel([float64(shape, u1_2d_ro, float64, float64) for shape in (f4_2d, f4_2d_ro)])
+def tip_mask_distance(shape, mask, width_px, reach_px):
+    """Return how far (px) beyond the free tip of `shape` (row, col; the last point) the static `mask` (not
+    `MASK_FREE`) begins, looking along the shape's direction at its end, across the rope's `width_px`, up to
+    `reach_px`; nan when no masked pixel lies within reach (or the shape has fewer than two points). Pixels
+    outside `mask` (a 1x1 placeholder: no mask) are free."""
+    n = shape.shape[0]
+    if n < 2 or not reach_px > 0.0:
+        return math.nan
+    tr = float64(shape[n - 1, 0])
+    tc = float64(shape[n - 1, 1])
+    k = n - 2
+    while k > 0 and math.hypot(tr - float64(shape[k, 0]), tc - float64(shape[k, 1])) < TIP_DIRECTION_PX:
+        k -= 1
+    dr = tr - float64(shape[k, 0])
+    dc = tc - float64(shape[k, 1])
+    norm = math.hypot(dr, dc)
+    if norm == 0.0:
+        return math.nan
+    dr /= norm
+    dc /= norm
+    height = mask.shape[0]
+    width = mask.shape[1]
+    half = 0.5 * width_px
+    steps = int(reach_px * 2.0) + 1
+    for step in range(steps):
+        along = 0.5 * step
+        for side in (-half, 0.0, half):
+            r = math.floor(tr + along * dr - side * dc + 0.5)
+            c = math.floor(tc + along * dc + side * dr + 0.5)
+            if 0 <= r < height and 0 <= c < width and mask[r, c] != MASK_FREE:
+                return along
+    return math.nan
 
 
 @kernel(_CHECK_SIGNATURES)
 def check_frame(
     begin, end, fixed, predicted, stretch_begin, stretch_end, width_px, learned_width_px, order_confidence,
-    exposure_ns, split, contour_area_px2, thresholds, out_quality,
+    exposure_ns, split, contour_area_px2, mask, thresholds, out_quality,
 ):  # fmt: skip
     """Run every self-check on a measured frame; return the first failed check's code (`CHECK_NO_BLUR` before the
     others; `CHECK_NONE`: all passed) and write every measure into `out_quality[0]`.
@@ -97,7 +140,8 @@ def check_frame(
     midpoint and its error (`predict_tips`; nan error: none); `stretch_*` Lc / Lc0 of each shape (nan: unknown);
     `width_px` the split's width, `learned_width_px` the learned one (0: unknown); `split` whether the method gave
     two shapes; `contour_area_px2` the contour's area (used only for a split the motion model cannot check:
-    unknown exposure or no prediction). The rules are `ropecam.device.pipeline.checks`' table.
+    unknown exposure or no prediction); `mask` the static mask (`tip_mask_distance`). The rules are
+    `ropecam.device.pipeline.checks`' table.
     """
     limits = thresholds[0]
     q = out_quality[0]
@@ -108,6 +152,10 @@ def check_frame(
             length_ratio = stretch
     q["length_ratio"] = length_ratio
     if abs(length_ratio - 1.0) > limits["length_tolerance"]:
+        failed = CHECK_LENGTH
+    # The two instants' shapes are one rope: a side that ran on along a scratch or lost its end differs from the
+    # other one (a nan stretch compares False).
+    if split and abs(stretch_begin - stretch_end) > limits["length_mismatch"]:
         failed = CHECK_LENGTH
     width_ratio = width_px / learned_width_px if learned_width_px != 0.0 else math.nan
     q["width_ratio"] = width_ratio
@@ -142,6 +190,14 @@ def check_frame(
         failed = CHECK_TIP_MOTION
     if failed == CHECK_NONE and split and exposure_ns > 0 and order_confidence < limits["min_order_confidence"]:
         failed = CHECK_ORDER
+    # A tip that ends where the static mask begins may be where the mask cut the rope (a rope crossing a masked
+    # plate edge ends at it): the rope's end is then not seen, and the shapes are short.
+    reach_px = limits["tip_mask_widths"] * width + limits["tip_mask_floor_px"]
+    if failed == CHECK_NONE and (
+        math.isfinite(tip_mask_distance(begin, mask, width, reach_px))
+        or math.isfinite(tip_mask_distance(end, mask, width, reach_px))
+    ):
+        failed = CHECK_TIP_MASKED
     evidence = math.nan
     unchecked = split and (exposure_ns <= 0 or math.isnan(predicted[2]))
     if unchecked:

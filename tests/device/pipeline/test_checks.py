@@ -62,11 +62,19 @@ def test_a_right_frame_is_ok_and_its_quality_is_measured() -> None:
     [
         ({"stretch_end": 1.4}, Reason.LENGTH),
         ({"stretch_begin": 0.6}, Reason.LENGTH),
+        ({"stretch_begin": 1.04, "stretch_end": 0.995}, Reason.LENGTH),
         ({"width_px": 2.0 * WIDTH_PX + 1.0}, Reason.WIDTH),
         ({"begin": _shape(96.0, start=(10.0, 130.0))}, Reason.FIXED_END),
         ({"end": _shape(104.0, start=(40.0, 100.0))}, Reason.FIXED_END),
     ],
-    ids=["too long", "too short", "too wide", "begin off the fixed end", "end off the fixed end"],
+    ids=[
+        "too long",
+        "too short",
+        "the two shapes' lengths apart",
+        "too wide",
+        "begin off the fixed end",
+        "end off the fixed end",
+    ],
 )
 def test_each_implausible_frame_gets_its_reason(changes: dict, reason: Reason) -> None:
     assert _check(SelfChecks(ChecksConfig()), **changes) == (FrameStatus.IMPLAUSIBLE, reason)
@@ -89,6 +97,14 @@ def test_tip_motion_against_the_motion_models_prediction() -> None:
     assert checks.quality["tip_motion_px"] > checks.quality["tip_motion_limit_px"]
     checks.forget()  # no prediction: the jump is not checked (one shape: no blur evidence needed either)
     assert _check(checks, begin=jumped, end=jumped, split=False) == (FrameStatus.OK, Reason.NONE)
+
+
+def test_shapes_of_different_lengths_fail_only_as_a_split() -> None:
+    checks = SelfChecks(ChecksConfig())
+    assert _check(checks, stretch_begin=1.015, stretch_end=0.99) == (FrameStatus.OK, Reason.NONE)  # 2.5 % apart
+    one = _shape(100.0)  # one shape (a centreline) for both instants: nothing to compare
+    assert _check(checks, begin=one, end=one, split=False, stretch_begin=1.05, stretch_end=1.0)[0] is FrameStatus.OK
+    assert _check(checks, stretch_begin=math.nan, stretch_end=1.1)[0] is FrameStatus.OK  # Lc0 not known yet
 
 
 def test_an_uncertain_time_order_fails_only_when_asked_and_decidable() -> None:
@@ -147,3 +163,53 @@ def test_the_check_kernel_speaks_the_wire_s_reasons_and_measures() -> None:
     assert codes == {name: int(member) for name, member in Reason.__members__.items()}
     assert K.CHECK_QUALITY.names == QUALITY_KEYS
     assert set(K.CHECK_THRESHOLDS.names) <= {f.name for f in ChecksConfig.__dataclass_fields__.values()}
+
+
+def _mask_across(row: int, rows: int = 2, shape: tuple[int, int] = (260, 200)) -> np.ndarray:
+    """A static mask of `rows` masked rows from `row` across the whole image (a masked plate edge), read-only."""
+    mask = np.zeros(shape, np.uint8)
+    mask[row : row + rows] = 1
+    mask.flags.writeable = False
+    return mask
+
+
+def test_a_tip_that_ends_at_the_static_mask_is_not_trusted() -> None:
+    # The shapes run from row 10 to row 210: a masked plate edge 2 px beyond the tips may have cut the rope there.
+    checks = SelfChecks(ChecksConfig())
+    assert _check(checks, mask=_mask_across(212)) == (FrameStatus.IMPLAUSIBLE, Reason.TIP_MASKED)
+    assert "static mask" in checks.message(Reason.TIP_MASKED)
+    # The same mask farther than a width + 2 px beyond the tips, or along the rope's side, or none: OK.
+    assert _check(checks, mask=_mask_across(220)) == (FrameStatus.OK, Reason.NONE)
+    assert _check(checks, mask=_mask_across(120)) == (FrameStatus.OK, Reason.NONE)
+    assert _check(checks, mask=None) == (FrameStatus.OK, Reason.NONE)
+    assert _check(SelfChecks(ChecksConfig(tip_mask_widths=0.0, tip_mask_floor_px=0.0)), mask=_mask_across(212))[0] is (
+        FrameStatus.OK
+    )
+
+
+def _tip_mask_distance_reference(shape: np.ndarray, mask: np.ndarray, width_px: float, reach_px: float) -> float:
+    """Slow reference of `tip_mask_distance`: every sample point beyond the tip, nearest first."""
+    tip = shape[-1].astype(np.float64)
+    back = next(
+        (p.astype(np.float64) for p in shape[-2::-1] if np.hypot(*(tip - p)) >= 3.0), shape[0].astype(np.float64)
+    )
+    u = (tip - back) / np.hypot(*(tip - back))
+    v = np.array([-u[1], u[0]])
+    for along in np.arange(0.0, reach_px + 0.25, 0.5):
+        for side in (-0.5 * width_px, 0.0, 0.5 * width_px):
+            r, c = np.floor(tip + along * u + side * v + 0.5).astype(int)
+            if 0 <= r < mask.shape[0] and 0 <= c < mask.shape[1] and mask[r, c]:
+                return float(along)
+    return math.nan
+
+
+@pytest.mark.parametrize("tip_col", [60.0, 100.0, 130.0])
+@pytest.mark.parametrize("mask_row", [205, 211, 214, 230])
+def test_tip_mask_distance_matches_its_reference(tip_col: float, mask_row: int) -> None:
+    from ropecam.device.pipeline import _kernels as K
+
+    shape = _shape(tip_col)
+    mask = _mask_across(mask_row, rows=3)
+    expected = _tip_mask_distance_reference(shape, mask, WIDTH_PX, 7.0)
+    got = K.tip_mask_distance(shape, mask, WIDTH_PX, 7.0)
+    assert (math.isnan(got) and math.isnan(expected)) or got == pytest.approx(expected)

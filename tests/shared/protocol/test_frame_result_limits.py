@@ -72,7 +72,10 @@ def test_material_mask_padding_bits_are_refused() -> None:
 
 @pytest.mark.parametrize(
     ("last_bytes", "fragment"),
-    [(b"\x07\x00\x00", "unknown reason code 7"), (b"\x00\x00\x80\x01", "quality keys")],
+    [
+        (bytes([max(Reason) + 1, 0, 0]), f"unknown reason code {max(Reason) + 1}"),  # the first code not defined
+        (b"\x00\x00\x80\x01", "quality keys"),
+    ],
     ids=["reason", "quality key"],
 )
 def test_unknown_quality_codes_are_refused(last_bytes: bytes, fragment: str) -> None:
