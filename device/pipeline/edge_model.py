@@ -285,7 +285,8 @@ class BandEdgeModel:
         x = np.linspace(-12.0, 12.0, 4801)
         grid = np.arange(len(self.weights)) - len(self.weights) // 2
         variance = float(np.sum(self.weights * grid**2)) + self.lens_blur_px**2 + 1.0 / 12.0
-        variance = max(variance - self.sharpen_gain * self.sharpen_sigma_px**2, 0.25)  # an unsharp mask's share
+        if self.sharpen_gain > 0.0:  # an unsharp mask's share
+            variance = max(variance - self.sharpen_gain * self.sharpen_sigma_px**2, 0.25)
         weight = np.exp(-0.5 * x**2 / variance) * np.clip((x + 0.5 * width) / width, 0.0, 1.0)
         m = np.where(x < 0.5 * width, 0.5 * (x + 0.5 * width), x)
         return float(np.sum(weight * m) / np.sum(weight))

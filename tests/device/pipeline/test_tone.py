@@ -14,7 +14,8 @@ from ropecam.device.pipeline.result import FrameStatus
 from ropecam.device.pipeline.tone import ToneCurve
 from ropecam.shared.errors import ConfigError
 
-ROPE = SyntheticRope(exposure_us=4000, amplitude_rad=0.6, period_s=0.9, diameter_px=2.0, phase_rad=1.5, fps=119.0)
+ROPE = SyntheticRope(exposure_us=8000, amplitude_rad=0.7, period_s=0.9, diameter_px=2.0, phase_rad=1.5, fps=119.0)
+"""A thin rope swept 4-8 px at its tip: every frame a blur split, clear of the static fallback's threshold."""
 
 
 def _encode(image: np.ndarray, gamma: float) -> np.ndarray:
@@ -64,5 +65,5 @@ def test_a_gamma_encoded_rope_measured_with_its_gamma_is_the_linear_rope() -> No
     # the last frames, once the rope's width and the thresholds have settled
     err_undone = np.abs(undone[-4:] - linear[-4:]).max()
     err_ignored = np.abs(ignored[-4:] - linear[-4:]).max()
-    assert err_undone < 0.1, (err_undone, err_ignored)
-    assert err_ignored > 5.0 * err_undone, (err_undone, err_ignored)
+    assert err_undone < 0.05, (err_undone, err_ignored)  # measured: 0.02
+    assert err_ignored > 4.0 * err_undone, (err_undone, err_ignored)  # measured: 0.16
