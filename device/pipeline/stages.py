@@ -70,7 +70,8 @@ class Stages:
         shape
             (height, width) of every frame, pixels.
         plane
-            The plane calibration, or None: the material points are then tracked in the image only.
+            The plane calibration, or None: with it the material points are placed by arc length on the plane
+            (`PointTracker.plane`), without it by arc length in the image.
 
         Returns
         -------
