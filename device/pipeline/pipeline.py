@@ -3,8 +3,8 @@
 It keeps the frame's sequence: locate the rope's contour (`RopeLocator`), split it into the two shapes
 (`BlurSplitter`), put them in time order (`TimeOrder`) and track the material points (`PointTracker`); the rope's
 width, polarity and fixed end are learned over the first frames (`RopeTraits`). Once they have settled and the
-last frame was found in its band, a frame is one kernel call (`SteadyFrame`). Every buffer is the workspace's
-(`Workspace`), allocated once per image size.
+last frame was found in its band, a frame is one kernel call (`SteadyFrame`). The stages are made, wired to one
+workspace (`Workspace`, every buffer allocated once per image size) and reset together by `Stages`.
 """
 
 from __future__ import annotations
@@ -16,23 +16,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline.checks import SelfChecks
 from ropecam.device.pipeline.config import PipelineConfig
-from ropecam.device.pipeline.contour import ContourTracer
-from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
-from ropecam.device.pipeline.finish import FrameClock, ResultFinisher, max_age_ns
-from ropecam.device.pipeline.locate import RopeLocator
-from ropecam.device.pipeline.motion import MotionModel
+from ropecam.device.pipeline.finish import FrameClock, max_age_ns
 from ropecam.device.pipeline.result import FrameStatus, PipelineResult, frame_problem
-from ropecam.device.pipeline.split import BlurSplitter
-from ropecam.device.pipeline.static_mask import StaticMask
-from ropecam.device.pipeline.steady import SteadyFrame
-from ropecam.device.pipeline.thresholds import EdgeThresholds
-from ropecam.device.pipeline.time_order import TimeOrder
-from ropecam.device.pipeline.tone import ToneCurve
-from ropecam.device.pipeline.tracking import PointTracker, plane_params
-from ropecam.device.pipeline.traits import RopeTraits
-from ropecam.device.pipeline.workspace import Workspace, refuse_copies
+from ropecam.device.pipeline.stages import Stages
+from ropecam.device.pipeline.workspace import refuse_copies
 from ropecam.shared.config import check_readout
 from ropecam.shared.plane import PlaneCalibration
 
@@ -84,63 +72,18 @@ class Pipeline:
             config = config.on_plane(plane, (width, height))
         self.config = config
         self.shape = (height, width)
-        self._tone = ToneCurve(config.gamma, self.shape)
-        cap = config.max_contour
-        weights = gaussian_weights(config.smooth_sigma_px)
-        fraction = np.array(config.material_points_m, np.float64) / config.rope_length_m
-        self.workspace = ws = Workspace.make(height, width, cap, weights, fraction)
-        """Every buffer of the per-frame path, by stage (its arrays cannot be replaced: `steady_frame`'s table
-        holds their addresses)."""
-        self.edges = EdgeDetector(height, width, config.smooth_sigma_px, config.canny_low, config.canny_high, ws.edges)
-        self.tracer = ContourTracer(height, width, cap, config.min_contour_px, buffers=ws.contour)
-        self.static_mask = StaticMask.from_config(ws.edges, config, self.shape)
-        """The static structures whose edges are dropped (learned over the first `static_frames` frames)."""
-        self.thresholds = EdgeThresholds(
-            height,
-            width,
-            config.smooth_sigma_px,
-            config.canny_low,
-            config.canny_high,
-            config.threshold_frames,
-            update_frames=config.threshold_update_frames,
-            sample_every=config.threshold_sample_every,
-        )
-        """The Canny thresholds measured on the first `threshold_frames` frames (at most `canny_low`/`high`), then
-        followed: updated every `threshold_update_frames` slices, a slice every `threshold_sample_every` frames."""
-        lens_blur_px, sharpen_gain, sharpen_sigma_px = config.edge_blur_given or (None, 0.0, 1.0)
-        self.splitter = BlurSplitter(
-            cap, config.method, config.static_ratio, config.corner_scale_px,
-            config.paper_endpoint_radius_px, config.output_step_px, config.tip_cap, config.smooth_sigma_px,
-            lens_blur_px, output_smoothing_px=config.output_smoothing_px, buffers=ws.split,
-            sharpen_gain=sharpen_gain, sharpen_sigma_px=sharpen_sigma_px,
-        )  # fmt: skip
-        self.splitter.paper.radius_scaled = config.paper_endpoint_radius_scaled
-        self.tracker = PointTracker(
-            config.material_points_m, config.rope_length_m, config.length0_px, config.length0_frames, ws.track
-        )
-        if plane is not None:
-            self.tracker.plane = plane_params(plane)
-        self.traits = RopeTraits(config, self.shape, ws.fixed_end, self.splitter.edge_spacing)
-        self.fixed = ws.fixed_end.fixed
+        self.stages = stages = Stages.make(config, self.shape, plane)
+        """The stages, wired to one workspace (`Stages`); the attributes below are theirs."""
+        self.workspace, self.edges, self.tracer = stages.workspace, stages.edges, stages.tracer
+        self.static_mask, self.thresholds, self.checks = stages.static_mask, stages.thresholds, stages.checks
+        self.splitter, self.tracker, self.traits = stages.splitter, stages.tracker, stages.traits
+        self.locator, self._motion, self._time_order = stages.locator, stages.motion, stages.time_order
+        self._tone, self._finisher, self._steady = stages.tone, stages.finisher, stages.steady
+        self.fixed = stages.workspace.fixed_end.fixed
         """The fixed end (row, col) float32 (`RopeTraits.fixed_end`)."""
-        self._motion = MotionModel(ws.motion)
-        self.checks = SelfChecks(config.checks)
-        """The self-checks that turn an implausible frame into a status with a reason (`SelfChecks`)."""
-        self._time_order = TimeOrder(ws.order)
-        self.locator = RopeLocator(
-            config.roi_margin_px, self.edges, self.tracer, self._motion, self.traits.fixed_end, config.canny_low,
-            ws.roi,
-        )  # fmt: skip
         self.one_call = True
         """Make a steady frame in one kernel call (`steady_frame`); False: with the calls one by one (the same
         results; the tools that time or record single kernels set it)."""
-        self._finisher = ResultFinisher(
-            self.splitter, self.tracker, self._time_order, self._motion, self.checks, self.traits, self.tracer,
-            self.locator, self.fixed,
-        )  # fmt: skip
-        self._steady = SteadyFrame(
-            ws, config.roi_margin_px, self.edges, self.tracer, self.splitter, self.tracker, self.locator, self.traits
-        )
         self._clock = FrameClock()
         self._u8 = np.dtype(np.uint8)
         self._strides = (width, 1)
@@ -198,7 +141,7 @@ class Pipeline:
             problem = frame_problem(frame, self.shape) or exposure_problem
         if problem:
             result.message = problem
-            self._forget(roi=True)
+            self.stages.forget(roi=True)
         else:
             assert isinstance(frame, np.ndarray)
             image = frame if frame.strides == self._strides else np.ascontiguousarray(frame)
@@ -206,20 +149,20 @@ class Pipeline:
             if self.thresholds.measuring:
                 measured = self.thresholds.measure(image)
                 if measured is not None:
-                    self._set_thresholds(*measured)
+                    self.stages.set_thresholds(*measured)
             elif self.thresholds.following:
                 followed = self.thresholds.follow(image)
                 if followed is not None:
-                    self._set_thresholds(*followed)
+                    self.stages.set_thresholds(*followed)
             if self.static_mask.learning:
                 self.static_mask.learn(image)
                 if not self.static_mask.learning and self._unclean_frames > 0:
-                    self._relearn()
+                    self.stages.relearn()
             motion = self._motion
             self.checks.predict(motion.state, motion.log, self.fixed, t, exposure_ns, self.traits.settled is not None)
             self._measure(image, result, exposure_ns)
             if result.status is not FrameStatus.OK:
-                self._forget(roi=result.status is FrameStatus.NO_ROPE)
+                self.stages.forget(roi=result.status is FrameStatus.NO_ROPE)
                 if self.static_mask.learning:
                     self._unclean_frames += 1
             elif exposure_ns == 0:
@@ -254,35 +197,8 @@ class Pipeline:
     def reset_tracking(self) -> None:
         """Forget the region of interest and the motion: the next frame is searched whole, as the first one.
         What does not change between frames (fixed end, width, polarity, Lc0) is kept; the time order starts
-        again too (after a gap in the frames, `_forget`, it goes on from the recent tips)."""
-        self._forget(roi=True)
-        self._time_order.clear()
-
-    def _set_thresholds(self, low: float, high: float) -> None:
-        """Use the Canny thresholds `low`/`high` from now on (the kernels' argument lists made again)."""
-        self.edges.set_thresholds(low, high)
-        self.tracer.forget_args()
-        self.locator.set_canny_low(low)
-        self._steady.unbind()
-
-    def _relearn(self) -> None:
-        """Learn the rope's traits (fixed end, width, polarity, Lc0) again, with the static mask now known: the
-        first frames failed (a clamp, rod or plate edge joined to the rope's contour), so what they taught is
-        suspect."""
-        self.traits.restart()
-        self.tracker.restart()
-        self.reset_tracking()
-
-    def _forget(self, roi: bool) -> None:
-        """Drop the state that predicts this frame from the last one after a frame without shapes (a gap): the
-        tips, steps and sweeps (and with `roi`, the region of interest), so the next frame starts afresh instead
-        of extrapolating stale motion. What does not change between frames (fixed end, width, polarity, Lc0)
-        is kept, and so is the time-order history, which `TimeOrder.order` drops itself when it is over four frame
-        periods old."""
-        self._motion.clear()
-        self.splitter.sweep_px = 0.0
-        if roi:
-            self.locator.forget()
+        again too (after a gap in the frames, `Stages.forget`, it goes on from the recent tips)."""
+        self.stages.reset_tracking()
 
     # ----------------------------------------------------------------------------------------------------------
     def _measure(self, image: NDArray[np.uint8], result: PipelineResult, exposure_ns: int) -> None:
