@@ -36,19 +36,25 @@ stretch's mean separation, and that separation is at least `PINCH_WIDTHS` rope w
 within noise of each other, nearness decides nothing (measured: a rope swinging as a rigid pendulum, whose shapes
 never cross, had stretches by the fixed end exchanged on noise, with steps in the shapes)."""
 _WINDOW: Final = 24
-"""Segments searched either side of the proportional guess for a point's nearest point on another shape: the
+"""Segments searched either side of the proportional guess for the first point of a stretch on another shape: the
 shapes run the same way from the fixed end with similar point spacing, so a point's match is near the same arc
 fraction; the window covers the along-rope shift of a fast tip over one exposure and one gap."""
+_BACK: Final = 3
+_AHEAD: Final = 5
+"""The next point's match is searched from `_BACK` segments before the last match to `_AHEAD` after it: both
+shapes are spaced at the output step, so a match moves on by about one point per point (a window of 48 segments
+for every point cost ~225 us per frame on a 200-point rope; tracked, ~8 segments)."""
 
 
-@kernel(types.UniTuple(float64, 2)(float64, float64, f4_2d, int64, int64))
-def nearest_on(r, c, poly, n, guess):
-    """Distance from (`r`, `c`) to the polyline ``poly[:n]`` (n >= 1) over its segments within `_WINDOW` of
-    index `guess`, and the index of its vertex nearest to the foot of that distance. Returns (distance, index)."""
+@kernel(types.UniTuple(float64, 2)(float64, float64, f4_2d, int64, int64, int64))
+def nearest_on(r, c, poly, n, lo, hi):
+    """Distance from (`r`, `c`) to the polyline ``poly[:n]`` (n >= 1) over its segments `lo` .. `hi` - 1 (clipped
+    to the polyline; at least one), and the index of its vertex nearest to the foot of that distance. Returns
+    (distance, index)."""
     if n == 1:
         return math.hypot(r - poly[0, 0], c - poly[0, 1]), 0.0
-    lo = max(0, guess - _WINDOW)
-    hi = min(n - 1, guess + _WINDOW)
+    lo = max(0, lo)
+    hi = min(n - 1, hi)
     if lo >= hi:
         lo = max(0, hi - 1)
     best = math.inf
@@ -71,14 +77,18 @@ def nearest_on(r, c, poly, n, guess):
 
 @kernel(float64(f4_2d, int64, int64, f4_2d, int64))
 def _mean_distance(shape, first, stop, other, m):
-    """Mean distance of ``shape[first:stop]`` (stop > first) to the polyline ``other[:m]`` (matched by arc
-    fraction: `nearest_on` around the proportional index)."""
+    """Mean distance of ``shape[first:stop]`` (stop > first) to the polyline ``other[:m]``: the first point
+    matched within `_WINDOW` of its arc fraction, the next ones tracked from the last match."""
     n = shape.shape[0]
     total = 0.0
+    guess = (first * (m - 1)) // max(1, n - 1)
+    lo = guess - _WINDOW
+    hi = guess + _WINDOW
     for k in range(first, stop):
-        guess = (k * (m - 1)) // max(1, n - 1)
-        d, _ = nearest_on(float(shape[k, 0]), float(shape[k, 1]), other, m, guess)
+        d, j = nearest_on(float(shape[k, 0]), float(shape[k, 1]), other, m, lo, hi)
         total += d
+        lo = int(j) - _BACK
+        hi = int(j) + _AHEAD
     return total / (stop - first)
 
 
@@ -138,11 +148,14 @@ def uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, order):
     if fresh and nb >= 5 and ne >= 5:
         # The distance of each begin point to the end shape, and its match there (in splice[2]).
         match = splice[2]
+        lo = 0
+        hi = _WINDOW
         for k in range(nb):
-            guess = (k * (ne - 1)) // (nb - 1)
-            d, j = nearest_on(float(begin[k, 0]), float(begin[k, 1]), end, ne, guess)
+            d, j = nearest_on(float(begin[k, 0]), float(begin[k, 1]), end, ne, lo, hi)
             match[k, 0] = np.float32(d)
             match[k, 1] = np.float32(j)
+            lo = int(j) - _BACK
+            hi = int(j) + _AHEAD
         # Stretches between pinches, from the fixed end; the last one (the tip's) keeps its side.
         out_b = splice[0]
         out_e = splice[1]

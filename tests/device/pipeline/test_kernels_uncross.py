@@ -95,7 +95,7 @@ def test_a_shape_longer_than_the_buffers_is_not_looked_at() -> None:
 
 def test_nearest_on_finds_the_foot_on_a_segment() -> None:
     line = _shape(np.full_like(_X, 5.0))
-    distance, index = K.nearest_on(8.0, 40.3, line, len(_X), 40)
+    distance, index = K.nearest_on(8.0, 40.3, line, len(_X), 30, 50)
     assert distance == pytest.approx(3.0)
     assert index == 40.0
 
