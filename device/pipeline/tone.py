@@ -32,11 +32,6 @@ class ToneCurve:
         """Code -> linear light (0-255, rounded)."""
         self._out = np.zeros(shape, np.uint8)
 
-    @property
-    def linear(self) -> bool:
-        """Whether frames pass unchanged (gamma 1)."""
-        return self.gamma == 1.0
-
     def apply(self, frame: NDArray[np.uint8]) -> NDArray[np.uint8]:
         """Return `frame` in linear light: `frame` itself when the curve is linear, else this curve's buffer (valid
         until the next call). `frame` has the shape the curve was made for."""

@@ -126,10 +126,10 @@ def uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, order):
     A pinch is an interior local minimum, below `PINCH_WIDTHS` x `width_px`, of the distance from a point of
     `begin` to `end`. On every stretch between pinches but the last (the tip's), the side decisively nearer
     (`DECISIVE`) to the previous end shape (kept at most `max_age_ns` before this exposure's end) is the start of
-    the exposure. The exchanged shapes keep their point
-    counts (each resampled evenly along its new arc). Nothing is exchanged for a `single` shape, without a
-    previous end shape, or when a shape is longer than ``order.prev_end``. Uses ``order.splice`` as scratch (its
-    rows hold the new begin, the new end, and each begin point's (distance, match) on `end`).
+    the exposure. The exchanged shapes keep their point counts (each resampled evenly along its new arc). Nothing
+    is exchanged for a `single` shape, without a previous end shape, or when a shape is longer than
+    ``order.prev_end``. Uses ``order.splice`` as scratch (its rows hold the new begin, the new end, and each begin
+    point's (distance, match) on `end`).
 
     Returns the stretches exchanged (0 or more), or -1 when the shapes were not looked at.
     """

@@ -35,15 +35,14 @@ def _sides(begin: np.ndarray, end: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (_shape(hi), _shape(lo)) if begin[-1] >= end[-1] else (_shape(lo), _shape(hi))
 
 
-def _remember(order: OrderBuffers, rows: np.ndarray, t_end_ns: int) -> None:
-    """Remember `rows` as the previous frame's end shape (what `uncross_shapes` does on every frame)."""
-    shape = _shape(rows)
+def _remember(order: OrderBuffers, shape: np.ndarray, t_end_ns: int) -> None:
+    """Remember `shape` as the previous frame's end shape (what `uncross_shapes` does on every frame)."""
     assert K.uncross_shapes(shape, shape.copy(), False, t_end_ns, 4 * _PERIOD_NS, 2.0, order.group) == 0
 
 
 def test_the_stretch_before_a_pinch_is_put_in_order_by_the_previous_end_shape() -> None:
     order = OrderBuffers.make(256)
-    _remember(order, _wave(0.0), 0)
+    _remember(order, _shape(_wave(0.0)), 0)
     true_begin, true_end = _wave(1.0), _wave(2.0)
     begin, end = _sides(true_begin, true_end)
     assert np.abs(begin[:50, 0] - true_begin[:50]).max() > 0.5  # the body is the wrong way round
@@ -62,7 +61,7 @@ def test_the_stretch_before_a_pinch_is_put_in_order_by_the_previous_end_shape() 
 
 def test_shapes_that_do_not_cross_are_left_alone() -> None:
     order = OrderBuffers.make(256)
-    _remember(order, np.full_like(_X, 10.0), 0)
+    _remember(order, _shape(np.full_like(_X, 10.0)), 0)
     begin = _shape(10.0 + 0.02 * _X)
     end = _shape(10.0 + 0.04 * _X)
     want_begin, want_end = begin.copy(), end.copy()
@@ -76,7 +75,7 @@ def test_without_a_recent_previous_end_shape_nothing_is_exchanged(previous: str)
     order = OrderBuffers.make(256)
     t_end = _PERIOD_NS + _EXPOSURE_NS
     if previous == "too old":
-        _remember(order, _wave(0.0), t_end - 5 * _PERIOD_NS)
+        _remember(order, _shape(_wave(0.0)), t_end - 5 * _PERIOD_NS)
     begin, end = _sides(_wave(1.0), _wave(2.0))
     want_begin, want_end = begin.copy(), end.copy()
     single = previous == "single"
@@ -113,10 +112,6 @@ def test_a_rigid_swing_with_noisy_edges_is_never_exchanged() -> None:
             pts = np.stack([radius * np.cos(a), radius * np.sin(a)], axis=1) + rng.normal(0.0, 0.15, (91, 2))
             return pts.astype(np.float32)
 
-        _remember_shape(order, line(angle - 0.02), 0)
+        _remember(order, line(angle - 0.02), 0)
         begin, end = line(angle), line(angle + 0.02)
         assert K.uncross_shapes(begin, end, False, _PERIOD_NS, 4 * _PERIOD_NS, 3.0, order.group) == 0, trial
-
-
-def _remember_shape(order: OrderBuffers, shape: np.ndarray, t_end_ns: int) -> None:
-    assert K.uncross_shapes(shape, shape.copy(), False, t_end_ns, 4 * _PERIOD_NS, 3.0, order.group) == 0
