@@ -242,3 +242,20 @@ def test_the_arity_checker_counts_decorated_kernels_only(tmp_path: Path) -> None
         (17, "device/pipeline/_kernels/x.py:wide"),
         (2, "device/pipeline/_kernels/x.py:narrow"),
     ]
+
+
+MAX_PIPELINE_MODULE_LINES = 600
+"""Issue 17: no module of device/pipeline over 600 lines (STYLE.md: aim under 400, split before 800)."""
+MAX_PIPELINE_PY_LINES = 350
+"""Issue 17: `Pipeline` keeps the frame's sequence only (`pipeline.py` under 350 lines)."""
+
+
+def test_no_pipeline_module_is_over_600_lines() -> None:
+    sizes = {
+        str(path.relative_to(ROOT)): len(path.read_text().splitlines())
+        for path in sorted((ROOT / "device/pipeline").rglob("*.py"))
+    }
+    assert len(sizes) > 40  # the test sees the modules
+    too_long = [f"{name}: {count}" for name, count in sizes.items() if count > MAX_PIPELINE_MODULE_LINES]
+    assert not too_long, f"modules over {MAX_PIPELINE_MODULE_LINES} lines (split them by job): {too_long}"
+    assert sizes["device/pipeline/pipeline.py"] < MAX_PIPELINE_PY_LINES

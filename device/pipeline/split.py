@@ -11,23 +11,21 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import f32, i32, ro
-from ropecam.device.pipeline.config import DEFAULT_LENS_BLUR_PX
-from ropecam.device.pipeline.edge_model import shared_model
-from ropecam.device.pipeline.edge_profile import EdgeBlur, LensBlurEstimate
+from ropecam.device.pipeline._views import ro
+from ropecam.device.pipeline.edge_model import BandEdgeModel
+from ropecam.device.pipeline.edge_profile import EdgeBlur
 from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
+from ropecam.device.pipeline.lens_blur import LensBlur
 from ropecam.device.pipeline.paper_method import PaperSegmenter, split_by_comparison
 from ropecam.device.pipeline.result import Method, SplitOutcome
+from ropecam.device.pipeline.split_axis import AxisPolylines
 from ropecam.device.pipeline.split_call import SplitFrameCall
 from ropecam.device.pipeline.split_measure import BandMeasure
 from ropecam.device.pipeline.tip_geometry import correct_slant, tip_lateral
 from ropecam.device.pipeline.width_tables import WidthTables
 from ropecam.device.pipeline.workspace import SplitBuffers, expose
 
-__all__ = ["BLUR_TOLERANCE_PX", "BlurSplitter", "SplitOutcome"]
-
-BLUR_TOLERANCE_PX = 0.1
-"""The measured lens blur (px) or sharpening variance (px^2) replaces the model in use only beyond this change."""
+__all__ = ["BlurSplitter", "SplitOutcome"]
 
 _SHAPES = 2
 """`split_frame`'s (and `split_shapes`') return value when it made the two shapes."""
@@ -40,7 +38,8 @@ class BlurSplitter:
 
     The sequence of the blur split is `split`; its collaborators own their state: `measure` (`BandMeasure`:
     polarity, width, contrast, sweep from the edge slope), `frame_call` (`SplitFrameCall`: the whole split in
-    one `split_frame` call once width, polarity and contrast are known), the tables of each rope width
+    one `split_frame` call once width, polarity and contrast are known), `lens` (`LensBlur`: the band edge
+    model, of the camera blur given or read from the first frames), the tables of each rope width
     (`WidthTables`) and the comparison methods (`split_by_comparison`).
 
     Parameters
@@ -64,7 +63,7 @@ class BlurSplitter:
         The edge detector's Gaussian smoothing.
     lens_blur_px
         The camera blur (Gaussian sigma, px) of the band edge model (`BandEdgeModel`); None: measured on the
-        first frames of the blur split with the sharpening (`LensBlurEstimate`), `DEFAULT_LENS_BLUR_PX` until then.
+        first frames of the blur split with the sharpening (`LensBlur`), `DEFAULT_LENS_BLUR_PX` until then.
     sharpen_gain, sharpen_sigma_px
         The camera's sharpening (unsharp mask) of the band edge model, with a given `lens_blur_px`.
     output_smoothing_px
@@ -87,30 +86,20 @@ class BlurSplitter:
         sharpen_sigma_px: float = 1.0,
         buffers: SplitBuffers | None = None,
     ) -> None:
-        self.output_smoothing = np.float32(output_smoothing_px)
         if buffers is None:
             buffers = SplitBuffers.make(capacity)
         elif buffers.turn.shape[0] != capacity:
             raise ValueError(f"buffers are for {buffers.turn.shape[0]} contour points, expected {capacity}")
         self.buffers = buffers
         """The split's buffers (`SplitBuffers`; each also a read-only attribute: ``self.sides``)."""
-        self.arc, self.fixed_dist, self.slope_work = self.scratch[0], self.scratch[1], self.scratch[2]
+        self.fixed_dist, self.slope_work = self.scratch[1], self.scratch[2]
         self.method = method
         self.paper = PaperSegmenter(capacity, paper_radius_px, output_step_px=output_step_px)
-        self.centerline = self.paper.centerline
         self.tip_cap_ratio = 0.5 if tip_cap == "round" else 0.0
         self.weights = gaussian_weights(smooth_sigma_px).astype(np.float64)
         self.smooth_sigma = float(smooth_sigma_px)
-        given = lens_blur_px is not None
-        blur = EdgeBlur(lens_blur_px if given else DEFAULT_LENS_BLUR_PX, sharpen_gain if given else 0.0,
-                        sharpen_sigma_px if given else 1.0)  # fmt: skip
-        self.model = shared_model(self.weights, *blur)
-        """The band edge model (its tables are built once per process: `shared_model`)."""
-        self.blur_estimate = None if given or method != "blur_split" else LensBlurEstimate()
-        """The blur being measured on the first frames (None: given, measured, or not needed by the method)."""
-        self.blur_measured: EdgeBlur | None = None
-        """The lens blur and sharpening the first frames measured (None: given, or not measured yet)."""
-        self.model.rope_width(3.0)  # its width table (~20 ms) now, not on the first frames
+        self.lens = LensBlur(self.weights, lens_blur_px, sharpen_gain, sharpen_sigma_px, method == "blur_split")
+        """The band edge model in use and the camera blur behind it (read on the first frames unless given)."""
         self.sweep_window = 3
         self.corner_rad = 0.5
         """Smallest turning angle (rad, at the chord scale) taken for a band corner: a slanted band end's obtuse
@@ -121,18 +110,16 @@ class BlurSplitter:
         self.sweep_px = 0.0
         self.static_ratio = float(static_ratio)
         self.corner_scale = int(corner_scale_px)
-        self.step = np.float32(output_step_px)
         self._refresh: Callable[[int, int, int, int], None] | None = None
         self.side_a, self.side_b, self.out_a, self.out_b = self.sides[0], self.sides[1], self.sides[2], self.sides[3]
         self._count = 0
         """The stored contour's point count (`_n`)."""
         self._given = False
         """Whether the last `_prepare` was given the width and polarity (nothing measured)."""
+        self.axis = AxisPolylines(buffers, output_step_px, output_smoothing_px, smooth_sigma_px)
+        """The returned polylines' finish (tip fit, anchoring, resampling) and the centreline fallback."""
         # Read-only views of the own buffers and int32 constants, made once (a view costs 1-2 us of Python).
-        self._turn_ro = ro(self.turn)
-        self._fixed_dist_ro = ro(self.fixed_dist)
         self._side_a_ro, self._side_b_ro = ro(self.side_a), ro(self.side_b)
-        self._out_a_ro, self._out_b_ro = ro(self.out_a), ro(self.out_b)
         self._sweeps_a_ro, self._sweeps_b_ro = ro(self.sweeps_a), ro(self.sweeps_b)
         self._plus, self._minus = np.int32(1), np.int32(-1)
         self._zero = np.int32(0)
@@ -146,11 +133,8 @@ class BlurSplitter:
         self._gradients: tuple[NDArray, ...] = ()
         """(gx, gy, mag) of the last `_prepare` as given (writable: `split_shapes` takes them in `Planes`)."""
         self._no_index, self._no_distances = ro(np.zeros(0, np.int32)), ro(np.zeros(0, np.float64))
-        self.measure = BandMeasure(self.model, self.dist, self.slope_work)
+        self.measure = BandMeasure(self.lens.model, self.dist, self.slope_work)
         self._info, self._seg = buffers.info, buffers.seg  # read every frame (`_frame_outcome`): plain attributes
-        self._shape_views: tuple[dict[int, NDArray[np.float32]], ...] = ({}, {}, {}, {})
-        """Views of the first n points of `side_a`, `side_b`, `out_a`, `out_b` by n, each made once: a steady frame
-        then makes no array object for its shapes (`_shape`)."""
         self.frame_call = SplitFrameCall(buffers)
         self.polarity_used = np.float32(0.0)
         """The polarity of the last split (+1 bright rope, -1 dark)."""
@@ -197,42 +181,34 @@ class BlurSplitter:
         return found
 
     @property
+    def model(self) -> BandEdgeModel:
+        """The band edge model in use (`LensBlur.model`)."""
+        return self.lens.model
+
+    @property
+    def blur_measured(self) -> EdgeBlur | None:
+        """The lens blur and sharpening the first frames measured (`LensBlur.measured`)."""
+        return self.lens.measured
+
+    @property
     def blur_read(self) -> EdgeBlur | None:
-        """The lens blur and sharpening the first frames measured, or read so far (None: given, or none read)."""
-        if self.blur_measured is not None or self.blur_estimate is None:
-            return self.blur_measured
-        return self.blur_estimate.value
+        """The lens blur and sharpening measured, or read so far (`LensBlur.value`)."""
+        return self.lens.value
 
     def edge_spacing(self, width_px: float) -> float:
         """Edge spacing (px) of a still rope `width_px` wide under the edge model in use (`BandEdgeModel`)."""
         return self.model.edge_spacing(width_px)
 
-    def set_edge_blur(self, blur: EdgeBlur, tolerance_px: float = 0.0) -> bool:
-        """Use the edge model of `blur` from the next split on (the lens blur rounded to 0.05 px, the sharpening
-        to 0.1, so that pipelines share the models' tables: `shared_model`), unless the lens blur and the
-        sharpening's variance (gain x sigma^2, px^2) of the model in use are within `tolerance_px` of it;
-        return whether the model changed. What was derived from the old model is made again: the tables per
+    def _forget_model(self) -> None:
+        """Make again what was derived from the edge model, which changed (`LensBlur.read`): the tables per
         width, the contrast (divided by its rope width), the one-call split's arguments (`SteadyFrame` binds
         again)."""
-        lens = round(max(float(blur.lens_blur_px), 0.0) * 20.0) / 20.0
-        gain = round(max(float(blur.sharpen_gain), 0.0) * 10.0) / 10.0
-        radius = round(float(blur.sharpen_sigma_px) * 10.0) / 10.0 if gain > 0.0 else 1.0
-        model = self.model
-        if (lens, gain, radius) == (model.lens_blur_px, model.sharpen_gain, model.sharpen_sigma_px):
-            return False
-        if (
-            abs(lens - model.lens_blur_px) <= tolerance_px
-            and abs(gain * radius**2 - model.sharpen_gain * model.sharpen_sigma_px**2) <= tolerance_px
-        ):
-            return False
-        self.model = shared_model(self.weights, lens, gain, radius)
-        self.measure.model = self.model
+        self.measure.model = self.lens.model
         self.measure.rescale()
         self._per_width.clear()
         self._width_key = math.nan
         self._width_consts = None
         self.frame_call.key = None
-        return True
 
     def split(
         self,
@@ -250,29 +226,25 @@ class BlurSplitter:
         edge_stage: EdgeDetector | None = None,
         frame: NDArray[np.uint8] | None = None,
     ) -> SplitOutcome | None:
-        """Split the closed contour (`_split`); while the lens blur is being measured, read it on this frame
-        (`LensBlurEstimate`) and, when the readings' median changes the edge model, split the frame again with it.
+        """Split the closed contour (`_split`); while the lens blur is being read (`LensBlur.read`), read it on
+        this frame and, when that changes the edge model, split the frame again with it.
         """
         outcome = self._split(
             points, chain, n, fixed_rc, width_px, gx, gy, edges, mag, smooth, polarity, edge_stage, frame
         )
-        estimate = self.blur_estimate
-        if estimate is not None and outcome is not None and frame is not None:
-            if estimate.read(frame, points, n, fixed_rc, self.width, self.sweep_px) is None:
-                return outcome
-            value = estimate.value
-            assert value is not None
-            if estimate.done:
-                self.blur_estimate = None
-                self.blur_measured = value
-            # Each new model costs its tables (30-60 ms on the first frames): the readings' median changes it only
-            # when it moves by more than `BLUR_TOLERANCE_PX` (below that the shapes move by < 0.02 px).
-            if self.set_edge_blur(value, 0.0 if len(estimate.read_values) == 1 else BLUR_TOLERANCE_PX):
-                # The model read a still rope under a blur it did not expect as a moving one (a blurred edge's
-                # gradient is low, as a sweeping one's): the frame is split again with the measured blur.
-                outcome = self._split(
-                    points, chain, n, fixed_rc, width_px, gx, gy, edges, mag, smooth, polarity, edge_stage, frame
-                )
+        lens = self.lens
+        if (
+            lens.estimate is not None
+            and outcome is not None
+            and frame is not None
+            and lens.read(frame, points, n, fixed_rc, self.width, self.sweep_px)
+        ):
+            # The model read a still rope under a blur it did not expect as a moving one (a blurred edge's
+            # gradient is low, as a sweeping one's): the frame is split again with the measured blur.
+            self._forget_model()
+            outcome = self._split(
+                points, chain, n, fixed_rc, width_px, gx, gy, edges, mag, smooth, polarity, edge_stage, frame
+            )
         return outcome
 
     def _split(
@@ -313,20 +285,8 @@ class BlurSplitter:
         SplitOutcome or None
             None when the contour cannot be split (too short, no segmentation points).
         """
-        key = self.frame_call.key
-        if (
-            key is not None
-            and points is key[0]
-            and chain is key[1]
-            and gx is key[2]
-            and gy is key[3]
-            and mag is key[4]
-            and smooth is key[5]
-            and edge_stage is key[6]
-            and fixed_rc is key[7]
-            and width_px == key[8]
-            and polarity == key[9]
-            and frame is not None
+        if frame is not None and self.frame_call.matches(
+            points, chain, gx, gy, mag, smooth, edge_stage, fixed_rc, width_px, polarity
         ):
             # The same contour buffers, edge stage, fixed end, width and polarity as the last frame, which took
             # the one-call path: everything `_prepare` and the checks below would set is set already.
@@ -382,18 +342,7 @@ class BlurSplitter:
             outcome = self._frame_outcome(call.call(edge_stage, frame, self.sweep_px, self._count), fixed_rc)
             if outcome is not False:
                 if self._given:
-                    call.key = (
-                        points_in,
-                        chain_in,
-                        gx,
-                        gy,
-                        mag,
-                        smooth,
-                        edge_stage,
-                        fixed_rc,
-                        width_px,
-                        polarity,
-                    )
+                    call.key = (points_in, chain_in, gx, gy, mag, smooth, edge_stage, fixed_rc, width_px, polarity)
                 return outcome
         # The band's corners lie at the free end, but an end that also moves along the rope (a whipping tip)
         # slants the band's end: the corners can then differ in distance from the fixed end by up to about the
@@ -455,18 +404,13 @@ class BlurSplitter:
             )  # fmt: skip
             if status >= 0 or status == K.NOT_FOUND:
                 self.sweep_px = sweep
-                count_a, count_b, len_a, len_b, smoothed_a, smoothed_b, _ = self.info.tolist()
-                if status == K.NOT_FOUND:
-                    self.failure = f"the two shapes differ in length ({len_a:.0f} and {len_b:.0f} px): split rejected"
-                    return None
-                shape_a = (self.side_a if smoothed_a else self.out_a)[: int(count_a)]
-                shape_b = (self.side_b if smoothed_b else self.out_b)[: int(count_b)]
-                return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, seg, tables.width_px, sweep)
+                return self._written_outcome(status, tables.width_px, sweep)
             inv, half, mag = np.float32(1.0 / contrast), consts.sweep_window, self._mag_ro
             ratios, sweeps = tables.peak_ratio, tables.sweeps_px
             K.side_sweeps(chain, n, i_fix, seg_a, plus, mag, inv, ratios, sweeps, half, self.work, self.sweeps_a)
             K.side_sweeps(chain, n, i_fix, seg_b, minus, mag, inv, ratios, sweeps, half, self.work, self.sweeps_b)
         sweeps_a, sweeps_b = self._sweeps_a_ro, self._sweeps_b_ro
+        smooth_ro = self._ro(self._smooth)
         for _ in range(2):
             sw = np.float32(sweep)
             if local:  # as `split_shapes` does
@@ -484,8 +428,8 @@ class BlurSplitter:
                 nb = K.offset_by_table(
                     points, chain, n, i_fix, seg_b, minus, gx, gy, pol, sweeps_b, local, sw, step, table, self.side_b
                 )
-            na = self._fit_tip(self.side_a, na, consts)
-            nb = self._fit_tip(self.side_b, nb, consts)
+            na = self.axis.fit_tip(self.side_a, na, points, n, smooth_ro, consts)
+            nb = self.axis.fit_tip(self.side_b, nb, points, n, smooth_ro, consts)
             # The fitted tips are sharper than the band's rounded corners: their distance across the rope is the
             # sideways sweep at the tip. Where it differs, the offsets of the proportional model are redone with it.
             if local:
@@ -505,12 +449,12 @@ class BlurSplitter:
         if abs(len_a - len_b) > max(3.0 * width, 0.1 * max(len_a, len_b)):
             self.failure = f"the two shapes differ in length ({len_a:.0f} and {len_b:.0f} px): split rejected"
             return None
-        na = self._anchor_fixed_end(self.side_a, na, fixed_rc)
-        nb = self._anchor_fixed_end(self.side_b, nb, fixed_rc)
+        na = self.axis.anchor_fixed_end(self.side_a, na, fixed_rc, width)
+        nb = self.axis.anchor_fixed_end(self.side_b, nb, fixed_rc, width)
         len_a = K.polyline_length(self._side_a_ro, np.int32(na))
         len_b = K.polyline_length(self._side_b_ro, np.int32(nb))
-        shape_a = self._resample(self.side_a, na, self.out_a, len_a)
-        shape_b = self._resample(self.side_b, nb, self.out_b, len_b)
+        shape_a = self.axis.resample(0, na, len_a)
+        shape_b = self.axis.resample(1, nb, len_b)
         return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, seg, tables.width_px, sweep)
 
     def _prepare(
@@ -538,7 +482,6 @@ class BlurSplitter:
             self._bound_views = (self._points, self._chain, self._gx, self._gy, self._mag_ro)
             self._gradients = (gx, gy, mag)
         self._n = np.int32(n)  # NumPy 2 refuses a value out of the int32 range
-        self._mag = mag
         mag = self._mag_ro
         pol = float(polarity)
         if pol != 0.0 and width_px is not None:
@@ -563,36 +506,12 @@ class BlurSplitter:
         )  # fmt: skip
 
     def static(self, fixed_rc: tuple[float, float] | None = None) -> SplitOutcome | None:
-        """Return the centreline of a rope that did not move (or cannot be split): one side of the contour, from
-        rope end to rope end, moved half a rope width into the rope along the gradient. The end nearer
-        `fixed_rc` comes first. Call after `split` on the same contour."""
-        points, chain, n = self._points, self._chain, self._n
-        if n < 8:
-            return None
-        K.turning_angles(points, n, i32(max(3, round(self.width))), self.turn)
-        if K.find_caps(ro(self.turn), n, i32(max(4, n // 8)), self.idx) < 0:
-            return None
-        e1, e2 = np.int32(self.idx[0]), np.int32(self.idx[1])
-        if fixed_rc is not None:
-            d1 = np.hypot(points[e1, 0] - fixed_rc[0], points[e1, 1] - fixed_rc[1])
-            d2 = np.hypot(points[e2, 0] - fixed_rc[0], points[e2, 1] - fixed_rc[1])
-            if d2 < d1:
-                e1, e2 = e2, e1
-        w = np.float32(self.width)
-        count = K.offset_by_gradient(
-            points, chain, n, e1, e2, i32(1), self._gx, self._gy, self.polarity_used, w, f32(0.0), self.side_a
-        )
-        if count < 2:
-            return None
-        # The cap's edge was moved half a width back along the axis with the gradient: carry the axis on to the
-        # band's end instead, as for the split shapes.
-        count = self._fit_tip(self.side_a, i32(count))
-        if fixed_rc is not None:
-            count = self._anchor_fixed_end(self.side_a, count, fixed_rc)
-        shape = self._resample(self.side_a, i32(count), self.out_a)
-        self.seg[0] = points[e2]
-        self.seg[1] = points[e2]
-        return SplitOutcome(Method.STATIC_FALLBACK, shape, shape, None, self.width, 0.0)
+        """Return the centreline of a rope that did not move (or cannot be split) (`AxisPolylines.centreline`) on
+        the contour of the last `split`. Call after `split` on the same contour."""
+        return self.axis.centreline(
+            self._points, self._chain, self._n, self._gx, self._gy, self.polarity_used, self.width, fixed_rc,
+            self._ro(self._smooth), self._constants,
+        )  # fmt: skip
 
     def adopt_frame(self, status: int, n: int, fixed_rc: tuple[float, float]) -> SplitOutcome | bool | None:
         """Take the results of a `split_frame` call made inside `steady_frame` (with the state `split` would have
@@ -611,70 +530,27 @@ class BlurSplitter:
         if status == _SHAPES:  # the usual outcome first
             count_a, count_b, _, _, smoothed_a, smoothed_b, sweep = info.tolist()
             self.sweep_px = sweep
+            shape = self.axis.shape
             return SplitOutcome(
-                _BLUR_SPLIT, self._shape(0 if smoothed_a else 2, int(count_a)),
-                self._shape(1 if smoothed_b else 3, int(count_b)), seg, width_px, sweep,
+                _BLUR_SPLIT, shape(0 if smoothed_a else 2, int(count_a)), shape(1 if smoothed_b else 3, int(count_b)),
+                seg, width_px, sweep,
             )  # fmt: skip
         if status < 0 and status != K.NOT_FOUND:
             return False
-        count_a, count_b, len_a, len_b, smoothed_a, smoothed_b, sweep = info.tolist()
+        sweep = float(info[6])
         if sweep >= 0.0:
             self.sweep_px = sweep
         if status == K.SPLIT_STATIC:
             return self.static(fixed_rc)
+        return self._written_outcome(status, width_px, sweep)
+
+    def _written_outcome(self, status: int, width_px: float, sweep_px: float) -> SplitOutcome | None:
+        """The two shapes a kernel (`split_shapes`, `split_frame`) wrote when it returned `status` (their counts,
+        lengths and which buffer holds each in `info`), or None for NOT_FOUND (lengths too different)."""
+        count_a, count_b, len_a, len_b, smoothed_a, smoothed_b, _ = self._info.tolist()
         if status == K.NOT_FOUND:
             self.failure = f"the two shapes differ in length ({len_a:.0f} and {len_b:.0f} px): split rejected"
             return None
         shape_a = (self.side_a if smoothed_a else self.out_a)[: int(count_a)]
         shape_b = (self.side_b if smoothed_b else self.out_b)[: int(count_b)]
-        return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, seg, width_px, sweep)
-
-    def _shape(self, row: int, count: int) -> NDArray[np.float32]:
-        """The first `count` points of `sides[row]` (0: `side_a`, 1: `side_b`, 2: `out_a`, 3: `out_b`)."""
-        views = self._shape_views[row]
-        view = views.get(count)
-        if view is None:
-            view = views[count] = self.sides[row][:count]
-        return view
-
-    def _anchor_fixed_end(self, poly: NDArray[np.float32], n: np.int32, fixed_rc: tuple[float, float]) -> np.int32:
-        """Start an axis polyline at the fixed end: the inward offset moved the end cap's contour points along
-        the rope (0.8 px into it on the rig), so the polyline is started at the foot of the fixed end (the cap's
-        centre, on its edge) on the axis fitted just beyond the cap's rounded corners (`anchor_start`)."""
-        skip = f32(self.width + 2.0 * self.smooth_sigma)
-        span = f32(max(8.0 * self.width, 16.0))
-        return i32(K.anchor_start(poly, n, f32(fixed_rc[0]), f32(fixed_rc[1]), skip, span))
-
-    def _fit_tip(self, poly: NDArray[np.float32], n: int, consts: WidthTables | None = None) -> int:
-        """Put the free end of an axis polyline where the band ends along that axis, less the cap.
-
-        The segmentation point is only as good as the corner of the band, which the smoothing rounds over a few
-        pixels: the axis is fitted on the straight side before the corner and carried on to where the band ends
-        along it (`extend_to_band_end`).
-        """
-        c = consts if consts is not None else self._constants(self.width)
-        smooth = self._ro(self._smooth)
-        return K.extend_to_band_end(
-            poly, np.int32(n), self._points, self._n, smooth, c.width, c.cap, c.skip, c.span, c.blur
-        )
-
-    def _resample(
-        self, poly: NDArray[np.float32], n: int, out: NDArray[np.float32], length_px: float | None = None
-    ) -> NDArray[np.float32]:
-        """Resample the first `n` points of `poly` at the output step into `out`, then smooth them across the rope
-        (`smooth_polyline`, with `poly` as scratch: it is overwritten); return the view of `out` holding the result."""
-        poly_ro, out_ro = (
-            (self._side_a_ro, self._out_a_ro) if poly is self.side_a else (self._side_b_ro, self._out_b_ro)
-        )
-        if length_px is None:
-            count = K.resample_polyline(poly_ro, np.int32(n), self.step, out)
-        else:  # its length is known already (`polyline_length` of the same points)
-            count = K.resample_polyline_of_length(poly_ro, np.int32(n), length_px, self.step, out)
-        if count < 0:
-            raise RuntimeError(f"resample_polyline returned status {count}")
-        if self.output_smoothing > 0.0 and count >= 3:
-            # After resampling: a quarter of the work of smoothing the dense sides, and as the points only move
-            # sideways (by ~0.1 px) their spacing along the rope stays equal to a few thousandths of a pixel.
-            K.smooth_polyline(out_ro, np.int32(count), self.output_smoothing, self.arc, poly)
-            return poly[:count]  # the smoothed points (valid until the next split, as `out`)
-        return out[:count]
+        return SplitOutcome(Method.BLUR_SPLIT, shape_a, shape_b, self._seg, width_px, sweep_px)

@@ -43,6 +43,36 @@ class SplitFrameCall:
         self.width_px = 0.0
         """The rope width (px) of the width tables of the last `bind`."""
 
+    def matches(
+        self,
+        points: NDArray[np.float32],
+        chain: NDArray[np.int32],
+        gx: NDArray[np.float32],
+        gy: NDArray[np.float32],
+        mag: NDArray[np.float32],
+        smooth: NDArray[np.float32],
+        edge_stage: EdgeDetector | None,
+        fixed_rc: tuple[float, float],
+        width_px: float | None,
+        polarity: float,
+    ) -> bool:
+        """Whether a split of these arguments (`BlurSplitter.split`'s) is to take this path directly: the same
+        contour buffers, planes, edge stage and fixed end (the same objects), width and polarity as the `key`."""
+        key = self.key
+        return (
+            key is not None
+            and points is key[0]
+            and chain is key[1]
+            and gx is key[2]
+            and gy is key[3]
+            and mag is key[4]
+            and smooth is key[5]
+            and edge_stage is key[6]
+            and fixed_rc is key[7]
+            and width_px == key[8]
+            and polarity == key[9]
+        )
+
     @property
     def tables(self) -> WidthTables:
         """The width tables of the last call (made before any)."""

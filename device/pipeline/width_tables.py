@@ -25,7 +25,8 @@ class WidthTables:
     ----------
     splitter
         The split's settings (`corner_scale`, `corner_rad`, `sweep_window`, `tip_cap_ratio`, `smooth_sigma`,
-        `step`, `output_smoothing`, `static_ratio`) and its edge model (`model`).
+        `static_ratio`), its output spacing and smoothing (`axis`: `step`, `output_smoothing`) and its edge model
+        (`model`).
     width
         The rope's edge spacing (px).
     """
@@ -67,7 +68,7 @@ class WidthTables:
             ratios=curves[0], sweeps=curves[1], offsets=np.array(self.tables.offset_px, np.float32),
             half=self.sweep_window, step_px=self.table_step, width_px=self.width, cap_px=self.cap,
             skip_px=self.skip, span_px=self.span, blur_px=self.blur, slant_gain_px=float(self.tables.slant_px),
-            width64_px=float(width), out_step_px=splitter.step, smoothing_px=splitter.output_smoothing,
+            width64_px=float(width), out_step_px=splitter.axis.step, smoothing_px=splitter.axis.output_smoothing,
             scale=self.scale, min_gap=self.min_gap, search_px=float(self.search_px), corner_rad=self.corner,
             grow_px=3.0 * float(self.blur) + 6.0 + width, static_ratio=float(splitter.static_ratio),
         )  # fmt: skip

@@ -1,0 +1,112 @@
+"""LensBlur: the band edge model the blur split uses, and the camera blur behind it, given or read from the image.
+
+The split turns edge positions into the rope's positions with a band edge model (`BandEdgeModel`) of the camera's
+lens blur and sharpening. Given in the config (`lens_blur_px`), that blur is used as it is; otherwise it is read
+on the first frames of the blur split from the rope's own cross-section (`LensBlurEstimate`, in
+`edge_profile.py`), and the model follows the readings' median.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ropecam.device.pipeline.config import DEFAULT_LENS_BLUR_PX
+from ropecam.device.pipeline.edge_model import BandEdgeModel, shared_model
+from ropecam.device.pipeline.edge_profile import EdgeBlur, LensBlurEstimate
+
+__all__ = ["BLUR_TOLERANCE_PX", "LensBlur"]
+
+BLUR_TOLERANCE_PX = 0.1
+"""The measured lens blur (px) or sharpening variance (px^2) replaces the model in use only beyond this change."""
+
+
+class LensBlur:
+    """Choose the band edge model of the split: from the given camera blur, or from the blur read on the first
+    frames (`LensBlurEstimate`), `DEFAULT_LENS_BLUR_PX` until the first reading.
+
+    Owns the model in use (`model`), the estimate while it reads (`estimate`) and what it measured (`measured`).
+    Whoever derived something from the model makes it again when `use` or `read` returns True (`BlurSplitter`:
+    its tables per width, its contrast, its one-call split's arguments).
+
+    Parameters
+    ----------
+    weights
+        The edge detector's Gaussian smoothing weights (float64; the model's own smoothing).
+    lens_blur_px
+        The camera blur (Gaussian sigma, px); None: read from the first frames.
+    sharpen_gain, sharpen_sigma_px
+        The camera's sharpening (unsharp mask) with a given `lens_blur_px` (ignored without one).
+    read
+        Whether to read the blur from the first frames when it is not given (the blur split's method only).
+    """
+
+    def __init__(
+        self,
+        weights: NDArray[np.float64],
+        lens_blur_px: float | None,
+        sharpen_gain: float = 0.0,
+        sharpen_sigma_px: float = 1.0,
+        read: bool = True,
+    ) -> None:
+        given = lens_blur_px is not None
+        blur = EdgeBlur(lens_blur_px if given else DEFAULT_LENS_BLUR_PX, sharpen_gain if given else 0.0,
+                        sharpen_sigma_px if given else 1.0)  # fmt: skip
+        self.weights = weights
+        self.model: BandEdgeModel = shared_model(weights, *blur)
+        """The band edge model in use (its tables are built once per process: `shared_model`)."""
+        self.estimate = None if given or not read else LensBlurEstimate()
+        """The blur being read on the first frames (None: given, measured, or not read)."""
+        self.measured: EdgeBlur | None = None
+        """The lens blur and sharpening the first frames measured (None: given, or not measured yet)."""
+        self.model.rope_width(3.0)  # its width table (~20 ms) now, not on the first frames
+
+    @property
+    def value(self) -> EdgeBlur | None:
+        """The lens blur and sharpening the first frames measured, or read so far (None: given, or none read)."""
+        if self.measured is not None or self.estimate is None:
+            return self.measured
+        return self.estimate.value
+
+    def use(self, blur: EdgeBlur, tolerance_px: float = 0.0) -> bool:
+        """Use the edge model of `blur` (the lens blur rounded to 0.05 px, the sharpening to 0.1, so that
+        pipelines share the models' tables: `shared_model`), unless the lens blur and the sharpening's variance
+        (gain x sigma^2, px^2) of the model in use are within `tolerance_px` of it; return whether the model
+        changed."""
+        lens = round(max(float(blur.lens_blur_px), 0.0) * 20.0) / 20.0
+        gain = round(max(float(blur.sharpen_gain), 0.0) * 10.0) / 10.0
+        radius = round(float(blur.sharpen_sigma_px) * 10.0) / 10.0 if gain > 0.0 else 1.0
+        model = self.model
+        if (lens, gain, radius) == (model.lens_blur_px, model.sharpen_gain, model.sharpen_sigma_px):
+            return False
+        if (
+            abs(lens - model.lens_blur_px) <= tolerance_px
+            and abs(gain * radius**2 - model.sharpen_gain * model.sharpen_sigma_px**2) <= tolerance_px
+        ):
+            return False
+        self.model = shared_model(self.weights, lens, gain, radius)
+        return True
+
+    def read(
+        self,
+        frame: NDArray[np.uint8],
+        points: NDArray[np.float32],
+        n: int,
+        fixed_rc: tuple[float, float],
+        edge_width_px: float,
+        tip_sweep_px: float,
+    ) -> bool:
+        """Read the blur on one frame (`LensBlurEstimate.read`: its contour's `n` `points`, fixed end, the rope's
+        edge spacing and the frame's tip sweep) while it is being measured; return whether the edge model
+        changed (the frame is then to be split again)."""
+        estimate = self.estimate
+        if estimate is None or estimate.read(frame, points, n, fixed_rc, edge_width_px, tip_sweep_px) is None:
+            return False
+        value = estimate.value
+        assert value is not None
+        if estimate.done:
+            self.estimate = None
+            self.measured = value
+        # Each new model costs its tables (30-60 ms on the first frames): the readings' median changes it only
+        # when it moves by more than `BLUR_TOLERANCE_PX` (below that the shapes move by < 0.02 px).
+        return self.use(value, 0.0 if len(estimate.read_values) == 1 else BLUR_TOLERANCE_PX)
