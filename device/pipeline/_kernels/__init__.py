@@ -166,7 +166,6 @@ from ropecam.device.pipeline._kernels.polylines import (
     polyline_length,
     resample_polyline,
     resample_polyline_of_length,
-    track_material_points_of_length,
     trim_polyline_end,
 )
 from ropecam.device.pipeline._kernels.prediction import need_profile
@@ -384,7 +383,6 @@ __all__ = [
     "trace_contour",
     "trace_rope",
     "track_frame",
-    "track_material_points_of_length",
     "track_shapes",
     "trim_polyline_end",
     "turning_angles",

@@ -9,7 +9,7 @@ import numpy as np
 from numba import float32, float64, int32, int64, void
 
 from ropecam.device.pipeline._kernels._common import FULL, INVALID, NOT_FOUND, f4_1d_ro, prefetch_read, vector_length
-from ropecam.device.pipeline._kernels.geometry import axis_offset, chain_length
+from ropecam.device.pipeline._kernels.geometry import axis_offset, chain_length, chain_step_length, linear_sweep_shift
 from ropecam.shared.jit import (
     f4_1d,
     f4_2d,
@@ -130,11 +130,10 @@ def offset_by_gradient(
     for k in range(count):
         i = (i_start + k * direction + n * 4) % n
         if k > 0:
-            ip = (i_start + (k - 1) * direction + n * 4) % n
-            s += vector_length(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
+            s += chain_step_length(points, n, i_start, direction, k)
         shift = 0.5 * width_px
         if total > 0.0:
-            shift = max(0.0, 0.5 * (width_px - sweep_tip_px * s / total))
+            shift = linear_sweep_shift(width_px, sweep_tip_px, s, total)
         place_along_gradient(points, chain, i, gx, gy, polarity, shift, out_poly, k)
     return count
 
@@ -235,6 +234,9 @@ def side_sweeps_indexed(
     flat_mag = mag.reshape(mag.size)
     cols = mag.shape[1]
     ahead = (i_start + _AHEAD * direction + 4 * n) % n
+    # The walk and its prefetch are `side_sweeps`' (written out: see `offset_by_table_thinned`); the lookup
+    # differs. One loop for both lookups would choose per point (or call a function argument, which Numba does
+    # not inline) in the steady frame's split: kept as two loops.
     for k in range(count):
         if k + _AHEAD < count:  # as in `side_sweeps`
             prefetch_read(flat_mag, chain[ahead, 0] * cols + chain[ahead, 1])
@@ -261,64 +263,6 @@ def side_sweeps_indexed(
         elif i < 0:
             i = n - 1
     box_mean(work, count, half, out_sweeps)
-    return count
-
-
-@kernel(
-    int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, f4_2d_ro, float32, f4_1d_ro, int32, float32,
-          float32, f4_1d_ro, f4_2d)
-)  # fmt: skip
-def offset_by_table(
-    points, chain, n, i_start, i_stop, direction, gx, gy, polarity, sweeps, local, sweep_tip_px, step_px, table,
-    out_poly,
-):  # fmt: skip
-    """Copy the contour from `i_start` to `i_stop` (stepping `direction`, cyclic) into `out_poly`, each point moved
-    into the rope along ``polarity`` times its gradient direction by the modelled offset from the band's edge to
-    the rope's axis: ``table[d / step_px]`` (linear interpolation, the last entry beyond) for the local sweep d,
-    which is ``sweeps[k]`` when `local` is 1, else ``sweep_tip_px * s / total`` (rotation about the fixed end, s the
-    arc length from `i_start`). Returns the number of points written or FULL."""
-    count = (i_stop - i_start) * direction
-    count = (count % n + n) % n + 1
-    if count > out_poly.shape[0] or (local == 1 and count > sweeps.shape[0]):
-        return FULL
-    # The arc length is needed only for the proportional sweep (`local` 0).
-    total = chain_length(points, n, i_start, count, direction) if local != 1 else 0.0
-    last = table.shape[0] - 1
-    s = 0.0
-    i = (i_start + n * 4) % n
-    ip = i
-    flat_gx = gx.reshape(gx.size)
-    flat_gy = gy.reshape(gy.size)
-    cols = gx.shape[1]
-    ahead = (i_start + _AHEAD * direction + 4 * n) % n
-    for k in range(count):
-        if k + _AHEAD < count:  # as in `side_sweeps`
-            at = chain[ahead, 0] * cols + chain[ahead, 1]
-            prefetch_read(flat_gx, at)
-            prefetch_read(flat_gy, at)
-            ahead += direction
-            if ahead == n:
-                ahead = 0
-            elif ahead < 0:
-                ahead = n - 1
-        if local == 1:
-            d = sweeps[k]
-        else:
-            if k > 0:
-                s += vector_length(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
-            d = sweep_tip_px * s / total if total > 0.0 else 0.0
-        x = max(d, 0.0) / step_px
-        j = min(int(x), last)
-        shift = table[last]
-        if j < last:
-            shift = table[j] + (x - j) * (table[j + 1] - table[j])
-        place_along_gradient(points, chain, i, gx, gy, polarity, shift, out_poly, k)
-        ip = i
-        i += direction
-        if i == n:
-            i = 0
-        elif i < 0:
-            i = n - 1
     return count
 
 
@@ -356,6 +300,12 @@ def offset_by_table_thinned(
     ahead = (i_start + _AHEAD * direction + 4 * n) % n
     tail = count - keep_tail
     out = 0
+    # The walk, its prefetch and the table lookup are written out here, in `offset_by_table` and (walk and
+    # prefetch) in `side_sweeps` / `side_sweeps_indexed` on purpose: folded into step kernels both loops call (the
+    # lookup, the cyclic step, the prefetch) they were slower, the calls not inlined away. Measured (script,
+    # session 10; a side of 700 points of a rig-sized contour, median of 300 alternating calls): this kernel
+    # 16.9 -> 20.4 us (+20 %, twice per steady frame), `side_sweeps` 12.0 -> 12.7 us, `offset_by_table`
+    # (its arc length by index too) 38.7 -> 50.7 us.
     for k in range(count):
         if k + _AHEAD < count:  # as in `side_sweeps`
             at = chain[ahead, 0] * cols + chain[ahead, 1]
@@ -380,6 +330,66 @@ def offset_by_table_thinned(
         elif i < 0:
             i = n - 1
     return out
+
+
+@kernel(
+    int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, f4_2d_ro, float32, f4_1d_ro, int32, float32,
+          float32, f4_1d_ro, f4_2d)
+)  # fmt: skip
+def offset_by_table(
+    points, chain, n, i_start, i_stop, direction, gx, gy, polarity, sweeps, local, sweep_tip_px, step_px, table,
+    out_poly,
+):  # fmt: skip
+    """Copy the contour from `i_start` to `i_stop` (stepping `direction`, cyclic) into `out_poly`, each point moved
+    into the rope along ``polarity`` times its gradient direction by the modelled offset from the band's edge to
+    the rope's axis: ``table[d / step_px]`` (linear interpolation, the last entry beyond) for the local sweep d,
+    which is ``sweeps[k]`` when `local` is 1 (`offset_by_table_thinned` keeping every point), else
+    ``sweep_tip_px * s / total`` (rotation about the fixed end, s the arc length from `i_start`). Returns the
+    number of points written or FULL."""
+    count = (i_stop - i_start) * direction
+    count = (count % n + n) % n + 1
+    if local == 1:
+        return offset_by_table_thinned(
+            points, chain, n, i_start, i_stop, direction, gx, gy, polarity, sweeps, step_px, table, np.int32(count),
+            np.int32(0), out_poly,
+        )  # fmt: skip
+    if count > out_poly.shape[0]:
+        return FULL
+    total = chain_length(points, n, i_start, count, direction)
+    last = table.shape[0] - 1
+    s = 0.0
+    i = (i_start + n * 4) % n
+    ip = i
+    flat_gx = gx.reshape(gx.size)
+    flat_gy = gy.reshape(gy.size)
+    cols = gx.shape[1]
+    ahead = (i_start + _AHEAD * direction + 4 * n) % n
+    for k in range(count):  # `offset_by_table_thinned`'s walk and lookup (see the comment there)
+        if k + _AHEAD < count:
+            at = chain[ahead, 0] * cols + chain[ahead, 1]
+            prefetch_read(flat_gx, at)
+            prefetch_read(flat_gy, at)
+            ahead += direction
+            if ahead == n:
+                ahead = 0
+            elif ahead < 0:
+                ahead = n - 1
+        if k > 0:
+            s += vector_length(points[i, 0] - points[ip, 0], points[i, 1] - points[ip, 1])
+        d = sweep_tip_px * s / total if total > 0.0 else 0.0
+        x = max(d, 0.0) / step_px
+        j = min(int(x), last)
+        shift = table[last]
+        if j < last:
+            shift = table[j] + (x - j) * (table[j + 1] - table[j])
+        place_along_gradient(points, chain, i, gx, gy, polarity, shift, out_poly, k)
+        ip = i
+        i += direction
+        if i == n:
+            i = 0
+        elif i < 0:
+            i = n - 1
+    return count
 
 
 @kernel(float64(f8_1d, int64, int64))

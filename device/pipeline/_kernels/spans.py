@@ -283,6 +283,9 @@ def spans_around_chain(
             qr = points[i, 0] - fixed_r  # (as in the first loop: the same d2 with or without the JIT)
             qc = points[i, 1] - fixed_c
             d2 = qr * qr + qc * qc
+            # The known-range lookup is written out here and in the scan below on purpose: as one step kernel
+            # returning (radius, range), Numba called it per point instead of inlining it, `spans_around_chain`
+            # 51 -> 70 us on a 1400-point rig-sized contour (+40 %, on every band; script, session 10).
             if known_lo <= d2 <= known_hi:
                 own = known_m
             else:

@@ -59,13 +59,6 @@ def split_contour(points, turn, dist, n, fixed_r, fixed_c, search_px, min_gap, c
     )
 
 
-def track_material_points(poly, n, arc_px, length0_px, out_points) -> int:
-    """`track_material_points_of_length` with the polyline's length measured here (`polyline_length`)."""
-    if n < 1 or not length0_px > 0.0 or out_points.shape[0] < len(arc_px):
-        return K.INVALID
-    return int(K.track_material_points_of_length(poly, n, K.polyline_length(poly, n), arc_px, length0_px, out_points))
-
-
 def _edge_image(angle_deg: float, offset_px: float, size: int = 41) -> tuple[np.ndarray, np.ndarray, float]:
     """A blurred straight step edge through the image centre shifted by `offset_px` along its normal."""
     normal = np.array([math.sin(math.radians(angle_deg)), math.cos(math.radians(angle_deg))])  # (row, col)
@@ -203,14 +196,17 @@ def test_material_point_tracking_matches_equations_9_to_12() -> None:
     rng = np.random.default_rng(4)
     poly = np.cumsum(rng.normal(size=(30, 2)), axis=0).astype(np.float32)
     arcs = np.array([0.0, 1.5, 7.25, 20.0, 33.3, 1000.0])
-    out = np.zeros((len(arcs), 2), np.float32)
     length0 = 25.0
-    assert track_material_points(poly, len(poly), arcs, length0, out) == len(arcs)
+    fraction = arcs / length0
+    out, lengths, work = np.zeros((2, len(arcs), 2), np.float32), np.zeros(2), np.zeros(len(poly))
+    count, stretch, _ = K.track_shapes(poly, poly, True, fraction, length0, out, lengths, work)
+    assert count == len(arcs)
     ref, lc = _track_reference(poly.astype(float), arcs, length0)
-    np.testing.assert_allclose(out, ref, atol=1e-3)
+    np.testing.assert_allclose(out[0], ref, atol=1e-3)
+    assert lengths[0] == pytest.approx(lc, rel=1e-6)
+    assert stretch == pytest.approx(lc / length0, rel=1e-6)
     assert K.polyline_length(poly, len(poly)) == pytest.approx(lc, rel=1e-6)
-    assert track_material_points(poly, 0, arcs, length0, out) == K.INVALID
-    assert track_material_points(poly, len(poly), arcs, 0.0, out) == K.INVALID
+    assert K.track_shapes(poly[:0], poly, True, fraction, length0, out, lengths, work)[0] == K.INVALID
 
 
 def test_resample_keeps_ends_and_spacing() -> None:
@@ -420,8 +416,7 @@ def test_find_segmentation_points_equals_the_two_kernels(seed) -> None:
     )
 
 
-@pytest.mark.parametrize("arcs", [[0.0, 3.0, 7.5, 12.0, 40.0], [12.0, 3.0, 7.5, -1.0]])
-def test_known_length_variants_equal_the_plain_kernels(arcs) -> None:
+def test_known_length_variant_equals_the_plain_kernel() -> None:
     rng = np.random.default_rng(7)
     poly = np.cumsum(rng.normal(size=(30, 2)), axis=0).astype(np.float32)
     poly[5] = poly[4]  # a zero-length segment
@@ -429,9 +424,4 @@ def test_known_length_variants_equal_the_plain_kernels(arcs) -> None:
     total = K.polyline_length(poly, n)
     plain, known = np.zeros((40, 2), np.float32), np.zeros((40, 2), np.float32)
     assert K.resample_polyline(poly, n, 1.5, plain) == K.resample_polyline_of_length(poly, n, total, 1.5, known)
-    np.testing.assert_array_equal(plain, known)
-    arc = np.array(arcs, np.float64)
-    plain, known = np.zeros((len(arcs), 2), np.float32), np.zeros((len(arcs), 2), np.float32)
-    assert track_material_points(poly, n, arc, 20.0, plain) == len(arcs)
-    assert K.track_material_points_of_length(poly, n, total, arc, 20.0, known) == len(arcs)
     np.testing.assert_array_equal(plain, known)

@@ -279,13 +279,6 @@ def test_track_shapes_matches_interpolation_along_the_arc(length0_px) -> None:
             assert stretch == pytest.approx(tracker.lengths_px[slot] / length0, rel=1e-12)
             arcs = np.array(arc_m) / 0.5 * lc  # fraction * Lc0 * (Lc / Lc0)
             np.testing.assert_allclose(points, _reference_points(poly, np.minimum(arcs, lc)), atol=2e-3)
-    # the one-shape kernel gives the same points
-    one = np.zeros_like(points_b)
-    arcs0 = (tracker.fraction * length0).astype(np.float64)
-    assert K.track_material_points_of_length(
-        begin, len(begin), K.polyline_length(begin, len(begin)), arcs0, float(length0), one
-    ) == len(arcs0)
-    np.testing.assert_allclose(one, points_b, atol=1e-6)
 
 
 def test_track_shapes_refuses_empty_shapes_and_copes_with_read_only_ones() -> None:
