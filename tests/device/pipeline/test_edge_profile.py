@@ -115,6 +115,17 @@ def _curve_error(ours_rc: np.ndarray, truth_uv: np.ndarray) -> float:
     return float(np.mean(np.min(np.hypot(*(ours_rc[:, None, :] - dense[None]).transpose(2, 0, 1)), axis=1)))
 
 
+def _shape_error(result, frame) -> float:
+    """The worse of a frame's two shapes' curve errors (px), in the better of the two time orders (the first
+    frames' time order is a guess)."""
+    pairs = ((result.begin, frame.begin_uv), (result.end, frame.end_uv))
+    swapped = ((result.begin, frame.end_uv), (result.end, frame.begin_uv))
+    return min(
+        max(_curve_error(ours, truth) for ours, truth in pairs),
+        max(_curve_error(ours, truth) for ours, truth in swapped),
+    )
+
+
 def test_the_pipeline_measures_the_blur_and_splits_with_it() -> None:
     """A rope under a 1.5 px lens blur, still on the first frames (released at the top of its swing): the
     pipeline measures the blur there, and its shapes of the moving rope that follows are as good as with the
@@ -132,12 +143,7 @@ def test_the_pipeline_measures_the_blur_and_splits_with_it() -> None:
         for frame in frames:
             result = pipeline.process(frame.image, frame.index, frame.t_ns, float(rope.exposure_us))
             assert result.begin is not None and result.end is not None
-            pairs = ((result.begin, frame.begin_uv), (result.end, frame.end_uv))
-            swapped = ((result.begin, frame.end_uv), (result.end, frame.begin_uv))
-            errors[name].append(min(  # the first frames' time order is a guess
-                max(_curve_error(ours, truth) for ours, truth in pairs),
-                max(_curve_error(ours, truth) for ours, truth in swapped),
-            ))  # fmt: skip
+            errors[name].append(_shape_error(result, frame))
         if name == "measured":
             assert pipeline.splitter.blur_measured is not None
             assert pipeline.splitter.blur_measured.lens_blur_px == pytest.approx(1.5, abs=0.15)
@@ -177,12 +183,7 @@ def test_the_pipeline_measures_a_cameras_sharpening_and_splits_with_it() -> None
         for frame, image in zip(frames, images, strict=True):
             result = pipeline.process(image, frame.index, frame.t_ns, float(rope.exposure_us))
             assert result.begin is not None and result.end is not None
-            pairs = ((result.begin, frame.begin_uv), (result.end, frame.end_uv))
-            swapped = ((result.begin, frame.end_uv), (result.end, frame.begin_uv))
-            errors[name].append(min(
-                max(_curve_error(ours, truth) for ours, truth in pairs),
-                max(_curve_error(ours, truth) for ours, truth in swapped),
-            ))  # fmt: skip
+            errors[name].append(_shape_error(result, frame))
         if name == "measured":
             blur = pipeline.splitter.blur_measured
             assert blur is not None
@@ -228,12 +229,7 @@ def test_a_decoded_frame_is_read_without_the_cameras_sharpening() -> None:
         for frame, image in zip(frames, images, strict=True):
             result = pipeline.process(image, frame.index, frame.t_ns, float(rope.exposure_us))
             assert result.begin is not None and result.end is not None
-            pairs = ((result.begin, frame.begin_uv), (result.end, frame.end_uv))
-            swapped = ((result.begin, frame.end_uv), (result.end, frame.begin_uv))
-            errors[decoded].append(min(
-                max(_curve_error(ours, truth) for ours, truth in pairs),
-                max(_curve_error(ours, truth) for ours, truth in swapped),
-            ))  # fmt: skip
+            errors[decoded].append(_shape_error(result, frame))
         blur = pipeline.splitter.blur_measured
         assert blur is not None
         if decoded:
