@@ -272,6 +272,17 @@ def run_setup(
     _check_kept(out, base, (shape[1], shape[0]), readout_us, rate)
     findings = decide(frames, base, say)
     run = findings.run
+    if run.measured < MIN_MEASURED and run.found:
+        reasons = "; ".join(f"{why} ({count})" for why, count in sorted(run.reasons.items(), key=lambda i: -i[1]))
+        raise DataError(
+            f"{source}: a rope was found but too few frames measure: the pipeline measured it on "
+            f"{100 * run.measured:.0f} % of {run.frames} frames with the best of every edge threshold and polarity "
+            f"tried ({100 * MIN_MEASURED:.0f} % needed); it moves (tips within {run.tip_spread_px:.0f} px, p90) and "
+            f"its length stays within {100 * run.length_spread:.1f} % (IQR/median) on the frames measured. "
+            f"The others: {reasons}. A faint band (a long exposure, low contrast) against a textured or unevenly "
+            "lit background loses its far end; a shorter exposure, more light or a plainer background help. "
+            "Nothing was written."
+        )
     if run.measured < MIN_MEASURED:
         statuses = ", ".join(f"{k} {v}" for k, v in sorted(run.statuses.items()))
         raise DataError(

@@ -73,6 +73,14 @@ class Run:
     blur: EdgeBlur | None = None
     """The camera's blur and sharpening the pipeline measured on the first frames (None: not measured)."""
     frames: int = 0
+    reasons: dict[str, int] = field(default_factory=dict)
+    """Why frames were not measured: each status but OK with the first clause of its message, and its count."""
+
+    @property
+    def found(self) -> bool:
+        """Whether what was measured is a rope (it moves, and its length is the same on every frame measured),
+        whatever share of the frames it was measured on."""
+        return bool(self.shapes) and self.moving and self.length_spread <= LENGTH_SPREAD
 
     @property
     def tip_spread_px(self) -> float:
@@ -145,6 +153,9 @@ def run_candidate(frames: Sequence[Frame], config: PipelineConfig, keep_shapes: 
         result = pipeline.process(frame.image, position, frame.t_ns, frame.exposure_us)
         name = result.status.name
         run.statuses[name] = run.statuses.get(name, 0) + 1
+        if result.status is not FrameStatus.OK:
+            why = f"{name}: {result.message.split(':')[0].split(' (')[0]}" if result.message else name
+            run.reasons[why] = run.reasons.get(why, 0) + 1
         if result.status is not FrameStatus.OK or result.begin is None or result.end is None:
             continue
         run.lengths_px += [_polyline_length(result.begin), _polyline_length(result.end)]

@@ -337,7 +337,7 @@ class BlurSplitter:
             call = self.frame_call
             call.bind(
                 consts, edge_stage, self._bound_views, fixed_rc, self._fixed32, self.polarity_used,
-                self.measure.contrast_px,
+                self.measure.contrast_for(width),
             )  # fmt: skip
             outcome = self._frame_outcome(call.call(edge_stage, frame, self.sweep_px, self._count), fixed_rc)
             if outcome is not False:

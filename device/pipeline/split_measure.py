@@ -47,17 +47,28 @@ class BandMeasure:
         self.contrasts: list[float] = []
         """The first frames' contrast readings: integrals across the band (grey levels x px)."""
         self._width_px = math.nan
-        """The edge spacing of the last reading, whose rope width divides the integrals (`rescale`)."""
+        """The edge spacing in use at the last call, whose rope width divides the integrals (`rescale`)."""
         self.contrast_px = float("nan")
-        """The median of `contrasts` (the rope's contrast once `CONTRAST_FRAMES` are in)."""
+        """The median of `contrasts` over the rope width of the edge spacing in use (the rope's contrast once
+        `CONTRAST_FRAMES` are in)."""
         self._contrast_key = math.nan
         self._contrast32 = np.float32(0.0)
         self._whole: Spans | None = None
 
-    def rescale(self) -> None:
-        """Divide the contrast readings' integrals by the rope width of the current `model` (it changed)."""
-        if self.contrasts:
+    def rescale(self, width_px: float | None = None) -> None:
+        """Divide the contrast readings' integrals by the rope width of the current `model` (it changed) and of
+        the edge spacing `width_px` (None: the one in use)."""
+        if width_px is not None:
+            self._width_px = width_px
+        if self.contrasts and math.isfinite(self._width_px):
             self.contrast_px = float(np.median(self.contrasts)) / self.model.tables(self._width_px).width_px
+
+    def contrast_for(self, width_px: float) -> float:
+        """The rope's contrast over the rope width of the edge spacing `width_px` in use (`contrast`'s readings;
+        nan before the first)."""
+        if width_px != self._width_px:
+            self.rescale(width_px)
+        return self.contrast_px
 
     @property
     def contrast_settled(self) -> bool:
@@ -216,7 +227,7 @@ class BandMeasure:
         `smooth` this frame's over a box first (None: it is valid everywhere).
         """
         if len(self.contrasts) >= CONTRAST_FRAMES:
-            return self.contrast_px
+            return self.contrast_for(width)  # the spacing settles after the readings: the integrals over its width
         pts = points
         dist = np.hypot(pts[:n, 0] - fixed_rc[0], pts[:n, 1] - fixed_rc[1])
         r_far = float(dist.max())
@@ -253,8 +264,11 @@ class BandMeasure:
             return float("nan")
         # The median integral divided by the rope width of the edge spacing in use: under a strong blur the
         # width read from a spacing changes steeply with it (2.3 px at 4.21, 2.74 at 4.27 for a 1.5 px blur), so
-        # readings divided each by its own frame's width scatter by 10 % and more.
+        # readings divided each by its own frame's width scatter by 10 % and more. The spacing in use is that of
+        # this frame until the width settles, and the settled one afterwards (see the return above): dividing
+        # for good by the last reading's spacing froze the contrast at whatever that frame measured (a contour
+        # that took the clamp's rod in, 6-12 px: `lab-dark` read 38 instead of about 190 grey levels, and every
+        # later sweep from the edge slope was 0: static centrelines half a sweep off, reported OK).
         self.contrasts.append(integral)
-        self._width_px = width
-        self.contrast_px = float(np.median(self.contrasts)) / self.model.tables(width).width_px
+        self.rescale(width)
         return self.contrast_px

@@ -145,3 +145,23 @@ def test_setup_takes_the_camera_gamma_the_frame_set_states(tmp_path, rope_set) -
         widths[name] = table["rope_width_px"]
     assert abs(widths["stated"] - widths["linear"]) < 0.1, widths
     assert widths["unstated"] - widths["linear"] > 0.15, widths
+
+
+def test_setup_on_a_rope_measured_on_too_few_frames_says_why(tmp_path, capsys) -> None:
+    """A rope seen on 3 of 8 frames (the others show the plate only): setup refuses, but says that a rope was
+    found and why the other frames were not measured, instead of "no rope found"."""
+    root = tmp_path / "sparse"
+    rng = np.random.default_rng(5)
+    frames = list(ROPE.frames(8))
+    seen = {0, 1, 4}
+    images = [
+        f.image if f.index in seen else np.clip(rng.normal(30, 2, f.image.shape), 0, 255).astype(np.uint8)
+        for f in frames
+    ]
+    _write_set(root, images, [f.t_ns for f in frames], ROPE.exposure_us)
+    out = tmp_path / "device.toml"
+    assert main(["setup", str(root), "--out", str(out), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert "a rope was found but too few frames measure" in err and "no rope found" not in err
+    assert "NO_ROPE" in err and "Nothing was written" in err
+    assert not out.exists()
