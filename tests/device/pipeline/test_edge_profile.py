@@ -222,7 +222,7 @@ def test_a_decoded_frame_is_read_without_the_cameras_sharpening() -> None:
     errors = {}
     for decoded in (True, False):
         pipeline = Pipeline(PipelineConfig(gamma=2.2), (rope.width, rope.height))
-        estimate = pipeline.splitter.blur_estimate
+        estimate = pipeline.splitter.lens.estimate
         assert estimate is not None and estimate.decoded
         estimate.decoded = decoded  # False: read as before the rule
         errors[decoded] = []
