@@ -21,6 +21,7 @@ The table holds raw addresses: whoever makes it keeps its arrays alive and uncha
 from __future__ import annotations
 
 import ctypes
+import math
 from typing import Any, Final, NamedTuple
 
 import numba
@@ -31,6 +32,7 @@ from numba.np.numpy_support import from_dtype
 
 from ropecam.device.pipeline._kernels._common import INVALID
 from ropecam.device.pipeline._kernels.band_stage import band_stage
+from ropecam.device.pipeline._kernels.checks import CHECK_QUALITY, CHECK_THRESHOLDS, check_frame, predict_tips
 from ropecam.device.pipeline._kernels.detect import detect_and_trace
 from ropecam.device.pipeline._kernels.groups import (
     BAND_STATE,
@@ -76,12 +78,14 @@ STEADY_OUT: Final = np.dtype(
         ("confidence", np.float64),
         ("stretch_begin", np.float64),
         ("stretch_end", np.float64),
+        ("check", np.int64),
     ]
 )
 """`steady_frame`'s results, one record, each written as far as the calls went: the band's uncertainty at the
 farthest point (px, `band_stage`), the contour's point count (`detect_and_trace`), `split_frame`'s status, the
 contour pixels walked twice (`count_revisits`; -1: not counted), then `track_frame`'s four results: the swap (0 or
-1), the order confidence, the stretch of the begin shape and of the end shape."""
+1), the order confidence, the stretch of the begin shape and of the end shape; last the self-checks' code
+(`check_frame`; -1: not checked in the call, the stages' Python checks the frame)."""
 STEADY_CONSTANTS: Final = np.dtype(
     [
         ("margin_px", np.int64),
@@ -132,6 +136,8 @@ STEADY_BUFFERS: Final = (
     ("order_state", np.int64, 1), ("hist_rc", np.float64, 2), ("prev_end", np.float32, 2), ("splice", np.float32, 3),
     ("fraction", np.float64, 1),
     ("out_points", np.float32, 3), ("out_lengths", np.float64, 1), ("work_seg", np.float64, 1),
+    # predict_tips' and check_frame's
+    ("predicted", np.float64, 1), ("check_thresholds", CHECK_THRESHOLDS, 1), ("check_quality", CHECK_QUALITY, 1),
 )  # fmt: skip
 """The buffers of `steady_frame`'s table, in its row order: (name, dtype, dimensions), C-contiguous; each is the
 argument of that name of the kernel it is listed under."""
@@ -184,16 +190,17 @@ def _buffer3(table, row, dtype):  # type: ignore[no-untyped-def]
 
 def _signature(frame_type: Any) -> Any:
     return int64(
-        frame_type, int64, boolean, boolean, boolean, int64, int64, int64, int64, float64, i8_2d, _constants_ro, _out
-    )
+        frame_type, int64, boolean, boolean, boolean, int64, int64, int64, int64, float64, boolean, float64, float64,
+        i8_2d, _constants_ro, _out,
+    )  # fmt: skip
 
 
 # Compiled for a read-only frame (a mapped capture buffer) and a writable one (a frame read from a file), as the
 # kernels it calls.
 @kernel([_signature(u1_2d_ro), _signature(u1_2d)])
 def steady_frame(
-    frame, prev_count, measure, use_profile, predict, t_ns, exposure_ns, t_end_ns, max_age_ns, last_sweep_px, table,
-    constants, out,
+    frame, prev_count, measure, use_profile, predict, t_ns, exposure_ns, t_end_ns, max_age_ns, last_sweep_px,
+    predict_tips_now, check_width_px, learned_width_px, table, constants, out,
 ):  # fmt: skip
     """One steady frame, exposed from `t_ns` to `t_end_ns` (`exposure_ns`): `band_stage` around the last contour
     (`prev_count` points of ``prev_points``, `measure` and `use_profile` and `predict` as its arguments) into the
@@ -205,6 +212,13 @@ def steady_frame(
     with the new sweep, ``fixed``, the band's motion state and `max_age_ns` (first, for a known exposure, the
     contour's pixels walked twice are counted: more than ``broken_outline`` of them stop it).
 
+    The self-checks' two calls are made here too: first, when `predict_tips_now`, `predict_tips` into
+    ``predicted`` (as `SelfChecks.predict` before the frame); last, on shapes of a known exposure that
+    `track_frame` took and with a prediction (``predicted``'s error not nan: the contour's area is not needed),
+    `check_frame` of them in time order (`check_width_px` the width the split used, `learned_width_px` the learned
+    one, ``check_thresholds``, the measures into ``check_quality``, the mask ``static_mask``) as
+    `ResultFinisher.check` makes it; its code goes to ``out["check"]`` (-1: not checked here).
+
     The buffers (names in ``double backquotes``) are the rows of `table` (int64, (len(STEADY_BUFFERS), 4):
     address, then the sizes of up to three dimensions; `buffer_table` makes it), the constant scalars the fields
     of the one record `constants` (`STEADY_CONSTANTS`). The record `out` (`STEADY_OUT`) gets the band's
@@ -214,7 +228,8 @@ def steady_frame(
     Returns STEADY_DONE, or where it stopped (STEADY_AFTER_CONTOUR, STEADY_AFTER_SPLIT, STEADY_BROKEN,
     STEADY_AFTER_SHAPES): everything before that point is done and written exactly as the calls one by one write
     it, nothing after it; or INVALID, before any call, when `table` has too few rows, `constants` or `out` no
-    record, or ``split_state``, ``split_info``, ``width_scalars`` or ``curves`` is too short.
+    record, or ``split_state``, ``split_info``, ``width_scalars``, ``curves``, ``predicted``, ``check_thresholds``
+    or ``check_quality`` is too short.
     """
     if table.shape[0] < len(STEADY_BUFFERS) or table.shape[1] < 4 or constants.shape[0] < 1 or out.shape[0] < 1:
         return INVALID
@@ -224,11 +239,17 @@ def steady_frame(
     split_info = _buffer1(table, STEADY_ROW.split_info, np.float64)
     width_scalars = _buffer1(table, STEADY_ROW.width_scalars, np.float64)
     curves = _buffer2(table, STEADY_ROW.curves, np.float64)
+    predicted = _buffer1(table, STEADY_ROW.predicted, np.float64)
+    thresholds = _buffer1(table, STEADY_ROW.check_thresholds, CHECK_THRESHOLDS)
+    quality = _buffer1(table, STEADY_ROW.check_quality, CHECK_QUALITY)
     if (
         split_state.shape[0] < len(FRAME_STATES)
         or split_info.shape[0] < FRAME_INFO
         or width_scalars.shape[0] < len(SPLIT_WIDTH_SCALARS)
         or curves.shape[0] < 2
+        or predicted.shape[0] < 3
+        or thresholds.shape[0] < 1
+        or quality.shape[0] < 1
     ):
         return INVALID
     lo = _buffer1(table, STEADY_ROW.lo, np.int32)
@@ -242,6 +263,9 @@ def steady_frame(
         _buffer1(table, STEADY_ROW.band_state, BAND_STATE),
     )
     result["revisits"] = -1
+    result["check"] = -1
+    if predict_tips_now:
+        predict_tips(t_ns, exposure_ns, motion.state, motion.log, fixed, predicted)
     result["motion_px"] = band_stage(
         _buffer2(table, STEADY_ROW.prev_points, np.float32),
         prev_count,
@@ -378,4 +402,22 @@ def steady_frame(
     result["stretch_end"] = stretch_end
     if swap < 0:
         return STEADY_AFTER_SHAPES
+    if exposure_ns > 0 and not math.isnan(predicted[2]) and shape_a.shape[0] > 0 and shape_b.shape[0] > 0:
+        result["check"] = check_frame(
+            shape_b if swap else shape_a,
+            shape_a if swap else shape_b,
+            fixed,
+            predicted,
+            stretch_begin,
+            stretch_end,
+            check_width_px,
+            learned_width_px,
+            confidence,
+            exposure_ns,
+            True,
+            0.0,  # the contour's area: not read with a prediction and a known exposure
+            _buffer2(table, STEADY_ROW.static_mask, np.uint8),
+            thresholds,
+            quality,
+        )
     return STEADY_DONE

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 import pytest
 
@@ -101,20 +102,29 @@ def test_nearest_on_finds_the_foot_on_a_segment() -> None:
     assert index == 40.0
 
 
-def _nearest_on_every_hypot(r: float, c: float, poly: np.ndarray, n: int, lo: int, hi: int) -> tuple[float, float]:
-    """`nearest_on` as it was written first: `math.hypot` of every segment (the reference for its bits)."""
-    lo, hi = max(0, lo), min(n - 1, hi)
+@numba.njit
+def _nearest_on_every_hypot(r, c, poly, n, lo, hi):  # type: ignore[no-untyped-def]
+    """`nearest_on` as it was written first, compiled as the kernel is (libm's hypot, whose last bit may differ
+    from Python's): `math.hypot` of every segment, the reference for its bits."""
+    lo = max(0, lo)
+    hi = min(n - 1, hi)
     if lo >= hi:
         lo = max(0, hi - 1)
-    best, best_i = math.inf, lo
+    best = math.inf
+    best_i = lo
     for i in range(lo, hi):
-        ar, ac = float(poly[i, 0]), float(poly[i, 1])
-        dr, dc = float(poly[i + 1, 0]) - ar, float(poly[i + 1, 1]) - ac
+        ar = float(poly[i, 0])
+        ac = float(poly[i, 1])
+        dr = float(poly[i + 1, 0]) - ar
+        dc = float(poly[i + 1, 1]) - ac
         length2 = dr * dr + dc * dc
-        t = min(max(((r - ar) * dr + (c - ac) * dc) / length2, 0.0), 1.0) if length2 > 0.0 else 0.0
+        t = 0.0
+        if length2 > 0.0:
+            t = min(max(((r - ar) * dr + (c - ac) * dc) / length2, 0.0), 1.0)
         d = math.hypot(r - ar - t * dr, c - ac - t * dc)
         if d < best:
-            best, best_i = d, (i + 1 if t > 0.5 else i)
+            best = d
+            best_i = i + 1 if t > 0.5 else i
     return best, float(best_i)
 
 

@@ -38,6 +38,8 @@ def _frames(count: int) -> tuple[tuple[np.ndarray, int, int, float], ...]:
 
 
 _RUNS: dict[tuple[bool, bool], tuple[list[dict], list[int]]] = {}
+_CHECKED: dict[tuple[bool, bool], list[int]] = {}
+"""The self-checks' code each `steady_frame` call wrote (-1: it left the check to the stages' Python)."""
 
 
 def _run(monkeypatch: pytest.MonkeyPatch, fused: bool, read_only: bool = False) -> tuple[list[dict], list[int]]:
@@ -50,7 +52,10 @@ def _run(monkeypatch: pytest.MonkeyPatch, fused: bool, read_only: bool = False) 
 
     def counted(*args):
         stops.append(int(real(*args)))
+        _CHECKED[(fused, read_only)].append(int(args[-1][0]["check"]))
         return stops[-1]
+
+    _CHECKED[(fused, read_only)] = []
 
     with monkeypatch.context() as patch:
         patch.setattr(K, "steady_frame", counted)
@@ -119,6 +124,8 @@ def test_steady_frames_are_the_calls_one_by_one(monkeypatch: pytest.MonkeyPatch)
     assert K.STEADY_AFTER_SPLIT in stops
     assert K.STEADY_AFTER_CONTOUR in stops
     assert fused[24]["counters"][1] > fused[23]["counters"][1]  # the jump: the band missed, the coarse search ran
+    # The self-checks ran inside the call on most steady frames (the first settled ones have no prediction yet).
+    assert sum(code >= 0 for code in _CHECKED[(True, False)]) >= 5
     _assert_identical(fused, steps)
 
 
@@ -144,11 +151,13 @@ def test_steady_frame_refuses_short_tables_before_any_call() -> None:
     for short_table, short_constants, short_out in ((table[:-1], constants, out), (table, constants[:0], out),
                                                     (table, constants, out[:0])):  # fmt: skip
         status = K.steady_frame(
-            frame, 0, False, False, False, 0, 0, 0, 0, 0.0, short_table.copy(), short_constants.copy(), short_out
-        )
+            frame, 0, False, False, False, 0, 0, 0, 0, 0.0, False, 0.0, 0.0, short_table.copy(),
+            short_constants.copy(), short_out,
+        )  # fmt: skip
         assert status == K.INVALID
     # The split's state and info shorter than the kernels need: refused too (the split's state is 3 long).
-    assert K.steady_frame(frame, 0, False, False, False, 0, 0, 0, 0, 0.0, table, constants, out) == K.INVALID
+    status = K.steady_frame(frame, 0, False, False, False, 0, 0, 0, 0, 0.0, False, 0.0, 0.0, table, constants, out)
+    assert status == K.INVALID
     np.testing.assert_array_equal(buffers["band_state"], band_state)  # nothing written: band_stage did not run
     assert not out.view(np.uint8).any()
 
@@ -158,7 +167,7 @@ def test_steady_frame_records_are_named_as_the_stages_read_them() -> None:
     names = K.STEADY_CONSTANTS.names
     assert {"low", "high", "min_pixels", "length0_px", "broken_outline"} <= set(names)
     assert K.STEADY_OUT.names == (
-        "motion_px", "points", "status", "revisits", "swap", "confidence", "stretch_begin", "stretch_end",
+        "motion_px", "points", "status", "revisits", "swap", "confidence", "stretch_begin", "stretch_end", "check",
     )  # fmt: skip
     values = {name: float(k + 1) for k, name in enumerate(names)}
     values["low"] = 6.4712345  # stored as the float32 `detect_and_trace` takes
