@@ -175,15 +175,16 @@ class ResultFinisher:
         stretch_begin: float,
         stretch_end: float,
         checked: int = -1,
+        placed: int = -1,
     ) -> None:
         """`finish` of a frame of known exposure (`exposure_ns` > 0) whose split made two shapes that are the
         band's outline, and whose `track_frame` call was made (`steady_frame` returned STEADY_DONE): its results
         `swap`, `confidence`, `stretch_begin`, `stretch_end` are taken as they are (no tuple made per frame).
         `checked` is the code of the `check_frame` call `steady_frame` made on the shapes (-1: none, `check` makes
-        it here)."""
+        it here); `placed` 1 when it placed their material points on the plane (-1: placed here, if on a plane)."""
         self._take_outcome(result, outcome)
         self._take_tracked(result, outcome, swap, confidence, stretch_begin, stretch_end)
-        self._conclude(result, outcome, exposure_ns, checked)
+        self._conclude(result, outcome, exposure_ns, checked, placed)
 
     def _take_outcome(self, result: PipelineResult, outcome: SplitOutcome) -> None:
         result.method = outcome.method
@@ -204,10 +205,12 @@ class ResultFinisher:
         result.material_begin, result.material_end = self.tracker.out_slots
         result.stretch_begin, result.stretch_end = stretch_begin, stretch_end
 
-    def _conclude(self, result: PipelineResult, outcome: SplitOutcome, exposure_ns: int, checked: int = -1) -> None:
-        """The shapes on the plane (when calibrated), status OK, then the self-checks (made already when `checked`
-        is a `check_frame` code, not -1)."""
-        if self.tracker.plane is not None:  # by arc length on the plane (metres), not in pixels
+    def _conclude(
+        self, result: PipelineResult, outcome: SplitOutcome, exposure_ns: int, checked: int = -1, placed: int = -1
+    ) -> None:
+        """The shapes on the plane (when calibrated; done already when `placed` is 1), status OK, then the
+        self-checks (made already when `checked` is a `check_frame` code, not -1)."""
+        if placed < 0 and self.tracker.plane is not None:  # by arc length on the plane (metres), not in pixels
             self.tracker.place_on_plane(result.begin, result.end)
         result.status = FrameStatus.OK
         if checked < 0:

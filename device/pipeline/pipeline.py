@@ -220,7 +220,9 @@ class Pipeline:
         calls one by one."""
         steady, loc = self._steady, self.locator
         stop = steady.run(args, image, result.t_ns, result.t_end_ns, exposure_ns, self._clock.max_age_ns, predict)
-        motion_px, points, status, revisits, swap, confidence, stretch_begin, stretch_end, checked = steady.out.item()
+        motion_px, points, status, revisits, swap, confidence, stretch_begin, stretch_end, checked, placed = (
+            steady.out.item()
+        )
         n = self.tracer.adopt(self.edges, image, loc.lo_ro, loc.hi_ro, points)
         if stop == K.STEADY_AFTER_CONTOUR:
             n, used_roi = loc.locate_in_band(image, motion_px, steady.gap_ns, n)
@@ -242,7 +244,7 @@ class Pipeline:
             self._finisher.finish(result, outcome, exposure_ns, self._clock.period_ns)
         elif stop == K.STEADY_DONE and exposure_ns > 0:
             self._finisher.finish_tracked(
-                result, outcome, exposure_ns, swap, confidence, stretch_begin, stretch_end, checked
+                result, outcome, exposure_ns, swap, confidence, stretch_begin, stretch_end, checked, placed
             )
         else:  # not two shapes, no band outline, shapes `track_frame` refused or made without a known exposure
             tracked = (swap, confidence, stretch_begin, stretch_end) if stop == K.STEADY_DONE else None

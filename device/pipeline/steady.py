@@ -65,8 +65,11 @@ class SteadyFrame:
         self.gap_ns = 0
         """The time (ns) from the last contour's frame to the one of the last call."""
         self._bound: tuple[Any, ...] | None = None
-        """(the split's steady key, the rope width's tables, Lc0, `steady_frame`'s argument list) of the last
-        steady frame: its table holds the addresses of the workspace's buffers and of those tables."""
+        """(the split's steady key, the rope width's tables, Lc0, `steady_frame`'s argument list, the tracker's
+        plane) of the last steady frame: its table holds the addresses of the workspace's buffers, of those tables
+        and of a copy of the plane."""
+        self._plane = np.zeros(K.PLANE_PARAMS, np.float64)
+        """The tracker's plane parameters as the table's writable row (zeros without a plane)."""
 
     def unbind(self) -> None:
         """Make the argument list again on the next `args` (a constant in it, such as a threshold, changed)."""
@@ -82,7 +85,14 @@ class SteadyFrame:
             return None
         key, width_tables = call
         bound = self._bound
-        if bound is not None and bound[0] is key and bound[1] is width_tables and bound[2] == length0_px:
+        plane = self.tracker.plane
+        if (
+            bound is not None
+            and bound[0] is key
+            and bound[1] is width_tables
+            and bound[2] == length0_px
+            and bound[4] is plane
+        ):
             return bound[3]  # type: ignore[no-any-return]
         self._bound = None
         e, tracer, settled = self.edges, self.tracer, self.traits.settled
@@ -102,11 +112,12 @@ class SteadyFrame:
         constants = steady_constants(
             margin_px=self.margin_px, height=height, width=width, gain=gain, floor_px=floor_px,
             floor_share=floor_share, low=e.low, high=e.high, min_pixels=tracer.min_pixels, length0_px=length0_px,
-            broken_outline=BROKEN_OUTLINE,
+            broken_outline=BROKEN_OUTLINE, on_plane=plane is not None,
         )  # fmt: skip
-        table = self.workspace.steady_table(width_tables, self.checks.buffers)
+        self._plane[:] = 0.0 if plane is None else plane
+        table = self.workspace.steady_table(width_tables, self.checks.buffers, self._plane)
         args = [None, 0, False, False, False, 0, 0, 0, 0, 0.0, False, 0.0, 0.0, table, constants, self.out]
-        self._bound = (key, width_tables, length0_px, args)
+        self._bound = (key, width_tables, length0_px, args, plane)
         return args
 
     def run(
@@ -122,7 +133,8 @@ class SteadyFrame:
         """Make the frame exposed from `t_ns` to `t_end_ns` (`exposure_ns`) in one `steady_frame` call with the
         argument list `args` (from `args`); its results are in `out`, the time since the last contour's frame in
         `gap_ns`. With `predict` (`SelfChecks.due`) the call predicts the tips first (`SelfChecks.predict`'s
-        kernel); it checks the shapes it tracked as `ResultFinisher.check` would (the code in ``out["check"]``).
+        kernel); it places the shapes it tracked on the tracker's plane and checks them as `ResultFinisher` would
+        (``out["placed"]``, ``out["check"]``).
 
         Returns
         -------

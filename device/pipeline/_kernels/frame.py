@@ -47,6 +47,7 @@ from ropecam.device.pipeline._kernels.groups import (
     Static,
     Track,
 )
+from ropecam.device.pipeline._kernels.plane import place_on_plane
 from ropecam.device.pipeline._kernels.revisits import count_revisits
 from ropecam.device.pipeline._kernels.split_frame import FRAME_INFO, FRAME_STATE, FRAME_STATES, split_frame
 from ropecam.device.pipeline._kernels.split_shapes import SPLIT_SCALAR, split_width
@@ -79,13 +80,15 @@ STEADY_OUT: Final = np.dtype(
         ("stretch_begin", np.float64),
         ("stretch_end", np.float64),
         ("check", np.int64),
+        ("placed", np.int64),
     ]
 )
 """`steady_frame`'s results, one record, each written as far as the calls went: the band's uncertainty at the
 farthest point (px, `band_stage`), the contour's point count (`detect_and_trace`), `split_frame`'s status, the
 contour pixels walked twice (`count_revisits`; -1: not counted), then `track_frame`'s four results: the swap (0 or
-1), the order confidence, the stretch of the begin shape and of the end shape; last the self-checks' code
-(`check_frame`; -1: not checked in the call, the stages' Python checks the frame)."""
+1), the order confidence, the stretch of the begin shape and of the end shape; then the self-checks' code
+(`check_frame`; -1: not checked in the call, the stages' Python checks the frame); last 1 when the call placed the
+material points on the plane (`place_on_plane`, whatever it returned), -1 when it did not."""
 STEADY_CONSTANTS: Final = np.dtype(
     [
         ("margin_px", np.int64),
@@ -99,11 +102,13 @@ STEADY_CONSTANTS: Final = np.dtype(
         ("min_pixels", np.int32),
         ("length0_px", np.float64),
         ("broken_outline", np.float64),
+        ("on_plane", np.int64),
     ]
 )
 """`steady_frame`'s `constants`, one record: the scalars of its kernels that do not change between frames (the band's
-margin, the image size, the band's need model, the Canny thresholds, the smallest component, Lc0) and the largest
-part of the contour's pixels walked twice before it is no band outline."""
+margin, the image size, the band's need model, the Canny thresholds, the smallest component, Lc0), the largest
+part of the contour's pixels walked twice before it is no band outline, and whether the material points are placed
+on a plane (1: ``plane`` holds its `plane_params`; 0: in pixels)."""
 _out = types.Array(from_dtype(STEADY_OUT), 1, "C")
 _constants_ro = types.Array(from_dtype(STEADY_CONSTANTS), 1, "C", readonly=True)
 
@@ -138,6 +143,8 @@ STEADY_BUFFERS: Final = (
     ("out_points", np.float32, 3), ("out_lengths", np.float64, 1), ("work_seg", np.float64, 1),
     # predict_tips' and check_frame's
     ("predicted", np.float64, 1), ("check_thresholds", CHECK_THRESHOLDS, 1), ("check_quality", CHECK_QUALITY, 1),
+    # place_on_plane's
+    ("plane", np.float64, 1),
 )  # fmt: skip
 """The buffers of `steady_frame`'s table, in its row order: (name, dtype, dimensions), C-contiguous; each is the
 argument of that name of the kernel it is listed under."""
@@ -217,7 +224,10 @@ def steady_frame(
     `track_frame` took and with a prediction (``predicted``'s error not nan: the contour's area is not needed),
     `check_frame` of them in time order (`check_width_px` the width the split used, `learned_width_px` the learned
     one, ``check_thresholds``, the measures into ``check_quality``, the mask ``static_mask``) as
-    `ResultFinisher.check` makes it; its code goes to ``out["check"]`` (-1: not checked here).
+    `ResultFinisher.check` makes it; its code goes to ``out["check"]`` (-1: not checked here). Before the
+    checks, on a plane (``constants["on_plane"]``), the tracked shapes' material points are placed on it
+    (`place_on_plane` with ``plane``, ``fraction``, ``out_points``, ``work_seg``, as `ResultFinisher` places them;
+    not when a shape is longer than ``work_seg``: ``out["placed"]`` is then -1 and the stages' Python places them).
 
     The buffers (names in ``double backquotes``) are the rows of `table` (int64, (len(STEADY_BUFFERS), 4):
     address, then the sizes of up to three dimensions; `buffer_table` makes it), the constant scalars the fields
@@ -264,6 +274,7 @@ def steady_frame(
     )
     result["revisits"] = -1
     result["check"] = -1
+    result["placed"] = -1
     if predict_tips_now:
         predict_tips(t_ns, exposure_ns, motion.state, motion.log, fixed, predicted)
     result["motion_px"] = band_stage(
@@ -370,6 +381,9 @@ def steady_frame(
             return STEADY_BROKEN
     shape_a = sides[0 if split_info[_INFO_SMOOTHED_A] != 0.0 else 2, : int(split_info[_INFO_COUNT_A])]
     shape_b = sides[1 if split_info[_INFO_SMOOTHED_B] != 0.0 else 3, : int(split_info[_INFO_COUNT_B])]
+    fraction = _buffer1(table, STEADY_ROW.fraction, np.float64)
+    out_points = _buffer3(table, STEADY_ROW.out_points, np.float32)
+    work_seg = _buffer1(table, STEADY_ROW.work_seg, np.float64)
     swap, confidence, stretch_begin, stretch_end = track_frame(
         shape_a,
         shape_b,
@@ -388,12 +402,7 @@ def steady_frame(
         exposure_ns,
         motion,
         c["length0_px"],
-        Track(
-            _buffer1(table, STEADY_ROW.fraction, np.float64),
-            _buffer3(table, STEADY_ROW.out_points, np.float32),
-            _buffer1(table, STEADY_ROW.out_lengths, np.float64),
-            _buffer1(table, STEADY_ROW.work_seg, np.float64),
-        ),
+        Track(fraction, out_points, _buffer1(table, STEADY_ROW.out_lengths, np.float64), work_seg),
         width_scalars[SPLIT_SCALAR.width64_px],
     )
     result["swap"] = swap
@@ -402,10 +411,15 @@ def steady_frame(
     result["stretch_end"] = stretch_end
     if swap < 0:
         return STEADY_AFTER_SHAPES
+    begin = shape_b if swap else shape_a
+    end = shape_a if swap else shape_b
+    if c["on_plane"] != 0 and begin.shape[0] <= work_seg.shape[0] and end.shape[0] <= work_seg.shape[0]:
+        place_on_plane(begin, end, False, fraction, _buffer1(table, STEADY_ROW.plane, np.float64), out_points, work_seg)
+        result["placed"] = 1
     if exposure_ns > 0 and not math.isnan(predicted[2]) and shape_a.shape[0] > 0 and shape_b.shape[0] > 0:
         result["check"] = check_frame(
-            shape_b if swap else shape_a,
-            shape_a if swap else shape_b,
+            begin,
+            end,
             fixed,
             predicted,
             stretch_begin,
