@@ -43,6 +43,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._views import ro
 from ropecam.shared.config import check_range
 from ropecam.shared.errors import ConfigError
 from ropecam.shared.protocol.frame_result import FrameStatus
@@ -142,24 +143,29 @@ class SelfChecks:
     ----------
     quality
         The last checked frame's measures (`QUALITY_KEYS`; one dict reused, valid until the next `check`).
+    buffers
+        (predicted, thresholds, measures): the arrays `predict_tips` and `check_frame` read and write (the
+        pipeline's `steady_frame` makes both calls with them; the thresholds' memory is writable, the checks pass
+        a read-only view of it).
     """
 
-    __slots__ = ("_measure_values", "_measures", "_predicted", "_settled_frames", "_thresholds", "config", "quality")
+    __slots__ = (
+        "_measures", "_predicted", "_settled_frames", "_thresholds", "buffers", "config", "quality",
+    )  # fmt: skip
 
     def __init__(self, config: ChecksConfig) -> None:
         self.config = config
         self.quality: dict[str, float] = {}
         self._predicted = np.full(3, math.nan)
         """The tips' predicted midpoint (row, col) and the prediction's error (px); nan: no prediction."""
-        self._thresholds = np.zeros(1, K.CHECK_THRESHOLDS)
+        thresholds = np.zeros(1, K.CHECK_THRESHOLDS)
         for name in K.CHECK_THRESHOLDS.names:
-            self._thresholds[0][name] = getattr(config, name)
-        self._thresholds.flags.writeable = False
+            thresholds[0][name] = getattr(config, name)
+        self._thresholds = ro(thresholds)
         self._measures = np.zeros(1, K.CHECK_QUALITY)
         """The last checked frame's measures, by name (`check_frame` writes them; `quality` holds a copy)."""
-        self._measure_values = self._measures.view(np.float64)
-        """The same measures as a plain array in `QUALITY_KEYS` order (read in one `tolist`)."""
         self._settled_frames = 0
+        self.buffers = (self._predicted, thresholds, self._measures)
 
     @staticmethod
     def message(reason: Reason) -> str:
@@ -176,14 +182,21 @@ class SelfChecks:
         Nothing while the fixed end is not `settled` or the model holds fewer than two frames measured after it
         settled: the model's history is relative to the fixed end of its time, which may have moved since.
         """
+        if self.due(settled):
+            K.predict_tips(t_ns, exposure_ns, motion_state, motion_log, fixed, self._predicted)
+
+    def due(self, settled: bool = True) -> bool:
+        """`predict`'s first half: count the frames since the fixed end `settled`; False (and no prediction) while
+        the model cannot hold two frames measured after it, True when `predict_tips` is to be called (the caller
+        then makes the call into ``buffers[0]``: `predict`, or the pipeline's `steady_frame`)."""
         if not settled:
             self._settled_frames = 0
         elif self._settled_frames <= 2:  # counted to 3 only: a count past 256 would be a new int object per frame
             self._settled_frames += 1
         if self._settled_frames <= 2:
             self._predicted[2] = math.nan
-            return
-        K.predict_tips(t_ns, exposure_ns, motion_state, motion_log, fixed, self._predicted)
+            return False
+        return True
 
     def needs_area(self, exposure_ns: int) -> bool:
         """True when a split needs the contour's area as evidence of blur: its exposure is unknown, or the motion
@@ -239,11 +252,25 @@ class SelfChecks:
             learned_width_px or 0.0, order_confidence, exposure_ns, split, contour_area_px2,
             _NO_MASK if mask is None else mask, self._thresholds, self._measures,
         )  # fmt: skip
-        self.quality.update(zip(QUALITY_KEYS, self._measure_values.tolist(), strict=True))
+        return self.verdict(code)
+
+    def verdict(self, code: int) -> tuple[FrameStatus, Reason]:
+        """The status and reason of `check_frame`'s `code` (its measures are in ``buffers[2]``, which go into
+        `quality`): `check`'s last step, for a `check_frame` call made elsewhere (the pipeline's `steady_frame`)."""
+        _set_quality(self.quality, self._measures.item())
         if code == K.CHECK_NONE or not self.config.enabled:
             return FrameStatus.OK, Reason.NONE
         failed = Reason(code)
         return (FrameStatus.NO_BLUR if failed is Reason.NO_BLUR else FrameStatus.IMPLAUSIBLE), failed
+
+
+_Q0, _Q1, _Q2, _Q3, _Q4, _Q5, _Q6 = QUALITY_KEYS  # `_set_quality`'s keys (seven: `CHECK_QUALITY`'s fields)
+
+
+def _set_quality(quality: dict[str, float], values: tuple[float, ...]) -> None:
+    """Set the measures `values` (in `QUALITY_KEYS` order) into `quality` without making an object: no iterator, no
+    list (a frame then replaces the floats of the dict's keys)."""
+    (quality[_Q0], quality[_Q1], quality[_Q2], quality[_Q3], quality[_Q4], quality[_Q5], quality[_Q6]) = values
 
 
 _NO_MASK = np.zeros((1, 1), np.uint8)

@@ -31,11 +31,13 @@ def max_age_ns(period_ns: int | None) -> int:
 class FrameClock:
     """A stream's frame period (the shortest time between frame starts seen) and each frame's exposure in ns."""
 
-    __slots__ = ("_exposure_key", "_exposure_value", "last_t_ns", "period_ns")
+    __slots__ = ("_exposure_key", "_exposure_value", "last_t_ns", "max_age_ns", "period_ns")
 
     def __init__(self) -> None:
         self.period_ns: int | None = None
         """The frame period (ns; None until two frames were seen)."""
+        self.max_age_ns = max_age_ns(None)
+        """`max_age_ns` of `period_ns` (made when the period changes, not on every frame)."""
         self.last_t_ns: int | None = None
         """The start of the last frame (ns)."""
         self._exposure_key: float | None = None  # the last float exposure_us and what `exposure_in_ns` made of it
@@ -48,7 +50,9 @@ class FrameClock:
         if last is not None and t > last:
             gap_ns = t - last
             period = self.period_ns
-            self.period_ns = gap_ns if period is None or gap_ns < period else period
+            if period is None or gap_ns < period:
+                self.period_ns = gap_ns
+                self.max_age_ns = max_age_ns(gap_ns)
         self.last_t_ns = t
         if type(exposure_us) is float and exposure_us == self._exposure_key:
             return self._exposure_value  # the usual case: the same exposure every frame
@@ -170,13 +174,17 @@ class ResultFinisher:
         confidence: float,
         stretch_begin: float,
         stretch_end: float,
+        checked: int = -1,
+        placed: int = -1,
     ) -> None:
         """`finish` of a frame of known exposure (`exposure_ns` > 0) whose split made two shapes that are the
         band's outline, and whose `track_frame` call was made (`steady_frame` returned STEADY_DONE): its results
-        `swap`, `confidence`, `stretch_begin`, `stretch_end` are taken as they are (no tuple made per frame)."""
+        `swap`, `confidence`, `stretch_begin`, `stretch_end` are taken as they are (no tuple made per frame).
+        `checked` is the code of the `check_frame` call `steady_frame` made on the shapes (-1: none, `check` makes
+        it here); `placed` 1 when it placed their material points on the plane (-1: placed here, if on a plane)."""
         self._take_outcome(result, outcome)
         self._take_tracked(result, outcome, swap, confidence, stretch_begin, stretch_end)
-        self._conclude(result, outcome, exposure_ns)
+        self._conclude(result, outcome, exposure_ns, checked, placed)
 
     def _take_outcome(self, result: PipelineResult, outcome: SplitOutcome) -> None:
         result.method = outcome.method
@@ -197,12 +205,19 @@ class ResultFinisher:
         result.material_begin, result.material_end = self.tracker.out_slots
         result.stretch_begin, result.stretch_end = stretch_begin, stretch_end
 
-    def _conclude(self, result: PipelineResult, outcome: SplitOutcome, exposure_ns: int) -> None:
-        """The shapes on the plane (when calibrated), status OK, then the self-checks."""
-        if self.tracker.plane is not None:  # by arc length on the plane (metres), not in pixels
+    def _conclude(
+        self, result: PipelineResult, outcome: SplitOutcome, exposure_ns: int, checked: int = -1, placed: int = -1
+    ) -> None:
+        """The shapes on the plane (when calibrated; done already when `placed` is 1), status OK, then the
+        self-checks (made already when `checked` is a `check_frame` code, not -1)."""
+        if placed < 0 and self.tracker.plane is not None:  # by arc length on the plane (metres), not in pixels
             self.tracker.place_on_plane(result.begin, result.end)
         result.status = FrameStatus.OK
-        self.check(result, outcome, exposure_ns)
+        if checked < 0:
+            self.check(result, outcome, exposure_ns)
+        else:
+            status, reason = self.checks.verdict(checked)
+            self._take_verdict(result, outcome, exposure_ns, status, reason)
 
     def _still(self, outcome: SplitOutcome) -> bool:
         """Whether `outcome` is a split without blur between its tips (closer than ``checks.no_blur_px``)."""
@@ -233,9 +248,18 @@ class ResultFinisher:
             begin, end, self.fixed, result.stretch_begin, result.stretch_end, used_px, learned_px,
             result.order_confidence, exposure_ns, split, area, self.locator.edges.static_mask_ro,
         )  # fmt: skip
+        self._take_verdict(result, outcome, exposure_ns, status, reason)
+
+    def _take_verdict(
+        self, result: PipelineResult, outcome: SplitOutcome, exposure_ns: int, status: FrameStatus, reason: Reason
+    ) -> None:
+        """Give `result` the self-checks' measures and, when one failed, its `status` and `reason` (a split without
+        blur, or of an unknown exposure, is replaced by the static centreline or dropped)."""
+        checks = self.checks
         result.quality = checks.quality
         if status is FrameStatus.OK:
             return
+        split = outcome.shape_a is not outcome.shape_b
         result.status, result.reason, result.message = status, reason.text, checks.message(reason)
         if (reason is Reason.NO_BLUR or (split and not exposure_ns)) and not self._use_static(result):
             # Without a known exposure only a split that passes every check shows blur: never report another.

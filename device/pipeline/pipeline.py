@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline.config import PipelineConfig
-from ropecam.device.pipeline.finish import FrameClock, max_age_ns
+from ropecam.device.pipeline.finish import FrameClock
 from ropecam.device.pipeline.result import FrameStatus, PipelineResult, frame_problem
 from ropecam.device.pipeline.stages import Stages
 from ropecam.device.pipeline.workspace import refuse_copies
@@ -126,7 +126,7 @@ class Pipeline:
         PipelineResult
             `out`, or a new record. Arrays in it are views into the pipeline's buffers, valid until the next call.
         """
-        start_ns = time.perf_counter_ns()
+        start_s = time.perf_counter()  # a float: no new int object per frame
         t = int(t_ns)
         exposure_ns, exposure_problem = self._clock.start(t, exposure_us)
         if out is None:
@@ -158,16 +158,14 @@ class Pipeline:
                 self.static_mask.learn(image)
                 if not self.static_mask.learning and self._unclean_frames > 0:
                     self.stages.relearn()
-            motion = self._motion
-            self.checks.predict(motion.state, motion.log, self.fixed, t, exposure_ns, self.traits.settled is not None)
-            self._measure(image, result, exposure_ns)
+            self._measure(image, result, exposure_ns, self.checks.due(self.traits.settled is not None))
             if result.status is not FrameStatus.OK:
                 self.stages.forget(roi=result.status is FrameStatus.NO_ROPE)
                 if self.static_mask.learning:
                     self._unclean_frames += 1
             elif exposure_ns == 0:
                 result.message = "exposure unknown (0): no time order, the ROI follows the tip steps only"
-        result.pipeline_us = (time.perf_counter_ns() - start_ns) / 1000.0
+        result.pipeline_us = (time.perf_counter() - start_s) * 1e6
         return result
 
     def warm_up(self) -> None:
@@ -201,22 +199,30 @@ class Pipeline:
         self.stages.reset_tracking()
 
     # ----------------------------------------------------------------------------------------------------------
-    def _measure(self, image: NDArray[np.uint8], result: PipelineResult, exposure_ns: int) -> None:
+    def _measure(self, image: NDArray[np.uint8], result: PipelineResult, exposure_ns: int, predict: bool) -> None:
+        """Measure the frame; `predict`: the self-checks predict the tips first (`SelfChecks.due`)."""
         if self.locator.prev_count > 0 and self.traits.settled is not None and self.one_call:
             args = self._steady.args()
             if args is not None:
-                self._measure_steady(image, result, exposure_ns, args)
+                self._measure_steady(image, result, exposure_ns, args, predict)
                 return
+        if predict:
+            motion = self._motion
+            K.predict_tips(result.t_ns, exposure_ns, motion.state, motion.log, self.fixed, self.checks.buffers[0])
         n, used_roi = self.locator.locate(image, result.t_ns, exposure_ns)
         self._measure_contour(image, result, exposure_ns, n, used_roi)
 
-    def _measure_steady(self, image: NDArray[np.uint8], result: PipelineResult, exposure_ns: int, args: list) -> None:
+    def _measure_steady(
+        self, image: NDArray[np.uint8], result: PipelineResult, exposure_ns: int, args: list, predict: bool
+    ) -> None:
         """Measure a steady frame in one kernel call (`SteadyFrame`), then go on from where the call stopped as
         `RopeLocator.locate` and `_measure_contour` go on after those calls: the same state and result as the
         calls one by one."""
         steady, loc = self._steady, self.locator
-        stop = steady.run(args, image, result.t_ns, result.t_end_ns, exposure_ns, max_age_ns(self._clock.period_ns))
-        motion_px, points, status, revisits, swap, confidence, stretch_begin, stretch_end = steady.out.item()
+        stop = steady.run(args, image, result.t_ns, result.t_end_ns, exposure_ns, self._clock.max_age_ns, predict)
+        motion_px, points, status, revisits, swap, confidence, stretch_begin, stretch_end, checked, placed = (
+            steady.out.item()
+        )
         n = self.tracer.adopt(self.edges, image, loc.lo_ro, loc.hi_ro, points)
         if stop == K.STEADY_AFTER_CONTOUR:
             n, used_roi = loc.locate_in_band(image, motion_px, steady.gap_ns, n)
@@ -237,7 +243,9 @@ class Pipeline:
             )  # fmt: skip
             self._finisher.finish(result, outcome, exposure_ns, self._clock.period_ns)
         elif stop == K.STEADY_DONE and exposure_ns > 0:
-            self._finisher.finish_tracked(result, outcome, exposure_ns, swap, confidence, stretch_begin, stretch_end)
+            self._finisher.finish_tracked(
+                result, outcome, exposure_ns, swap, confidence, stretch_begin, stretch_end, checked, placed
+            )
         else:  # not two shapes, no band outline, shapes `track_frame` refused or made without a known exposure
             tracked = (swap, confidence, stretch_begin, stretch_end) if stop == K.STEADY_DONE else None
             counted = revisits if stop in (K.STEADY_BROKEN, K.STEADY_AFTER_SHAPES) and exposure_ns > 0 else None

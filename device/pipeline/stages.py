@@ -120,7 +120,7 @@ class Stages:
         finisher = ResultFinisher(
             splitter, tracker, time_order, motion, checks, traits, tracer, locator, ws.fixed_end.fixed
         )
-        steady = SteadyFrame(ws, config.roi_margin_px, edges, tracer, splitter, tracker, locator, traits)
+        steady = SteadyFrame(ws, config.roi_margin_px, edges, tracer, splitter, tracker, locator, traits, checks)
         return cls(
             ws, tone, edges, tracer, static_mask, thresholds, splitter, tracker, traits, motion, checks,
             time_order, locator, finisher, steady,

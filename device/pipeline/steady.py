@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline.checks import SelfChecks
 from ropecam.device.pipeline.contour import ContourTracer
 from ropecam.device.pipeline.edges import EdgeDetector
 from ropecam.device.pipeline.finish import BROKEN_OUTLINE
@@ -37,8 +38,9 @@ class SteadyFrame:
         The pipeline's buffers (the table holds their addresses: they cannot be replaced).
     margin_px
         The band's margin (px).
-    edges, tracer, splitter, tracker, locator, traits
-        The pipeline's stages: the call does their kernels' work, and they take its results.
+    edges, tracer, splitter, tracker, locator, traits, checks
+        The pipeline's stages: the call does their kernels' work (the self-checks' prediction and checks too), and
+        they take its results.
     """
 
     def __init__(
@@ -51,10 +53,11 @@ class SteadyFrame:
         tracker: PointTracker,
         locator: RopeLocator,
         traits: RopeTraits,
+        checks: SelfChecks,
     ) -> None:
         self.workspace, self.margin_px = workspace, margin_px
         self.edges, self.tracer, self.splitter, self.tracker = edges, tracer, splitter, tracker
-        self.locator, self.traits = locator, traits
+        self.locator, self.traits, self.checks = locator, traits, checks
         self._frame_call = splitter.frame_call
         self._motion, self._fixed_end = locator.motion, locator.fixed_end  # read every frame (`run`)
         self.out = workspace.steady_out
@@ -62,8 +65,11 @@ class SteadyFrame:
         self.gap_ns = 0
         """The time (ns) from the last contour's frame to the one of the last call."""
         self._bound: tuple[Any, ...] | None = None
-        """(the split's steady key, the rope width's tables, Lc0, `steady_frame`'s argument list) of the last
-        steady frame: its table holds the addresses of the workspace's buffers and of those tables."""
+        """(the split's steady key, the rope width's tables, Lc0, `steady_frame`'s argument list, the tracker's
+        plane) of the last steady frame: its table holds the addresses of the workspace's buffers, of those tables
+        and of a copy of the plane."""
+        self._plane = np.zeros(K.PLANE_PARAMS, np.float64)
+        """The tracker's plane parameters as the table's writable row (zeros without a plane)."""
 
     def unbind(self) -> None:
         """Make the argument list again on the next `args` (a constant in it, such as a threshold, changed)."""
@@ -79,7 +85,14 @@ class SteadyFrame:
             return None
         key, width_tables = call
         bound = self._bound
-        if bound is not None and bound[0] is key and bound[1] is width_tables and bound[2] == length0_px:
+        plane = self.tracker.plane
+        if (
+            bound is not None
+            and bound[0] is key
+            and bound[1] is width_tables
+            and bound[2] == length0_px
+            and bound[4] is plane
+        ):
             return bound[3]  # type: ignore[no-any-return]
         self._bound = None
         e, tracer, settled = self.edges, self.tracer, self.traits.settled
@@ -99,19 +112,29 @@ class SteadyFrame:
         constants = steady_constants(
             margin_px=self.margin_px, height=height, width=width, gain=gain, floor_px=floor_px,
             floor_share=floor_share, low=e.low, high=e.high, min_pixels=tracer.min_pixels, length0_px=length0_px,
-            broken_outline=BROKEN_OUTLINE,
+            broken_outline=BROKEN_OUTLINE, on_plane=plane is not None,
         )  # fmt: skip
-        table = self.workspace.steady_table(width_tables)
-        args = [None, 0, False, False, False, 0, 0, 0, 0, 0.0, table, constants, self.out]
-        self._bound = (key, width_tables, length0_px, args)
+        self._plane[:] = 0.0 if plane is None else plane
+        table = self.workspace.steady_table(width_tables, self.checks.buffers, self._plane)
+        args = [None, 0, False, False, False, 0, 0, 0, 0, 0.0, False, 0.0, 0.0, table, constants, self.out]
+        self._bound = (key, width_tables, length0_px, args, plane)
         return args
 
     def run(
-        self, args: list[Any], image: NDArray[np.uint8], t_ns: int, t_end_ns: int, exposure_ns: int, max_age_ns: int
+        self,
+        args: list[Any],
+        image: NDArray[np.uint8],
+        t_ns: int,
+        t_end_ns: int,
+        exposure_ns: int,
+        max_age_ns: int,
+        predict: bool,
     ) -> int:
         """Make the frame exposed from `t_ns` to `t_end_ns` (`exposure_ns`) in one `steady_frame` call with the
         argument list `args` (from `args`); its results are in `out`, the time since the last contour's frame in
-        `gap_ns`.
+        `gap_ns`. With `predict` (`SelfChecks.due`) the call predicts the tips first (`SelfChecks.predict`'s
+        kernel); it places the shapes it tracked on the tracker's plane and checks them as `ResultFinisher` would
+        (``out["placed"]``, ``out["check"]``).
 
         Returns
         -------
@@ -129,13 +152,18 @@ class SteadyFrame:
         args[0] = image
         args[1] = loc.prev_count
         args[2] = self._motion.owed
-        args[3] = 2 * gap_ns <= 3 * loc.need_gap_ns
+        # `RopeLocator.locate`'s ``2 * gap_ns <= 3 * need_gap_ns``, without two new ints per frame (the same test:
+        # 1.5 x an int below 2**52 is exact in a float, and Python compares an int with a float exactly).
+        args[3] = gap_ns <= 1.5 * loc.need_gap_ns
         args[4] = self._fixed_end.known
         args[5] = t_ns
         args[6] = exposure_ns
         args[7] = t_end_ns
         args[8] = max_age_ns
         args[9] = self.splitter.sweep_px  # `split_frame`'s last sweep
+        args[10] = predict
+        args[11] = self.splitter.width  # the width the checks compare (`ResultFinisher.check`)
+        args[12] = self.traits.settled[0]  # type: ignore[index]  # `args` checked it
         stop: int = K.steady_frame(*args)
         if stop < 0:
             raise RuntimeError(f"steady_frame refused its arguments (status {stop})")

@@ -326,11 +326,15 @@ class Workspace:
             np.zeros(1, K.STEADY_OUT),
         )  # fmt: skip
 
-    def steady_table(self, width: Any) -> NDArray[np.int64]:
-        """Return `steady_frame`'s table of this workspace's buffers and the rope width's tables `width`
+    def steady_table(
+        self, width: Any, checks: tuple[NDArray[Any], NDArray[Any], NDArray[Any]], plane: NDArray[np.float64]
+    ) -> NDArray[np.int64]:
+        """Return `steady_frame`'s table of this workspace's buffers, the rope width's tables `width`
         (`ropecam.device.pipeline.width_tables.WidthTables`: ``width_scalars``, ``curves``, ``table_ro``,
-        ``sweep_index``), by the names of `STEADY_BUFFERS`. Its raw addresses are valid while this workspace and
-        `width` live: the caller keeps both with it."""
+        ``sweep_index``), the self-checks' `checks` (`SelfChecks.buffers`: predicted, thresholds, measures) and the
+        `plane` parameters (`plane_params`' values in writable memory), by the names of `STEADY_BUFFERS`. Its raw
+        addresses are valid while this workspace, `width`, the checks' arrays and `plane` live: the caller keeps
+        them with it."""
         e, c, r, m, s, t = self.edges, self.contour, self.roi, self.motion, self.split, self.track
         return buffer_table(
             {
@@ -353,6 +357,10 @@ class Workspace:
                 "order_state": self.order.state, "hist_rc": self.order.hist_rc,
                 "prev_end": self.order.prev_end, "splice": self.order.splice, "fraction": t.fraction,
                 "out_points": t.out, "out_lengths": t.lengths_px, "work_seg": t.work,
+                # predict_tips' and check_frame's
+                "predicted": checks[0], "check_thresholds": checks[1], "check_quality": checks[2],
+                # place_on_plane's
+                "plane": plane,
             },
             K.STEADY_BUFFERS,
         )  # fmt: skip

@@ -21,6 +21,7 @@ The table holds raw addresses: whoever makes it keeps its arrays alive and uncha
 from __future__ import annotations
 
 import ctypes
+import math
 from typing import Any, Final, NamedTuple
 
 import numba
@@ -31,6 +32,7 @@ from numba.np.numpy_support import from_dtype
 
 from ropecam.device.pipeline._kernels._common import INVALID
 from ropecam.device.pipeline._kernels.band_stage import band_stage
+from ropecam.device.pipeline._kernels.checks import CHECK_QUALITY, CHECK_THRESHOLDS, check_frame, predict_tips
 from ropecam.device.pipeline._kernels.detect import detect_and_trace
 from ropecam.device.pipeline._kernels.groups import (
     BAND_STATE,
@@ -45,6 +47,7 @@ from ropecam.device.pipeline._kernels.groups import (
     Static,
     Track,
 )
+from ropecam.device.pipeline._kernels.plane import place_on_plane
 from ropecam.device.pipeline._kernels.revisits import count_revisits
 from ropecam.device.pipeline._kernels.split_frame import FRAME_INFO, FRAME_STATE, FRAME_STATES, split_frame
 from ropecam.device.pipeline._kernels.split_shapes import SPLIT_SCALAR, split_width
@@ -76,12 +79,16 @@ STEADY_OUT: Final = np.dtype(
         ("confidence", np.float64),
         ("stretch_begin", np.float64),
         ("stretch_end", np.float64),
+        ("check", np.int64),
+        ("placed", np.int64),
     ]
 )
 """`steady_frame`'s results, one record, each written as far as the calls went: the band's uncertainty at the
 farthest point (px, `band_stage`), the contour's point count (`detect_and_trace`), `split_frame`'s status, the
 contour pixels walked twice (`count_revisits`; -1: not counted), then `track_frame`'s four results: the swap (0 or
-1), the order confidence, the stretch of the begin shape and of the end shape."""
+1), the order confidence, the stretch of the begin shape and of the end shape; then the self-checks' code
+(`check_frame`; -1: not checked in the call, the stages' Python checks the frame); last 1 when the call placed the
+material points on the plane (`place_on_plane`, whatever it returned), -1 when it did not."""
 STEADY_CONSTANTS: Final = np.dtype(
     [
         ("margin_px", np.int64),
@@ -95,11 +102,13 @@ STEADY_CONSTANTS: Final = np.dtype(
         ("min_pixels", np.int32),
         ("length0_px", np.float64),
         ("broken_outline", np.float64),
+        ("on_plane", np.int64),
     ]
 )
 """`steady_frame`'s `constants`, one record: the scalars of its kernels that do not change between frames (the band's
-margin, the image size, the band's need model, the Canny thresholds, the smallest component, Lc0) and the largest
-part of the contour's pixels walked twice before it is no band outline."""
+margin, the image size, the band's need model, the Canny thresholds, the smallest component, Lc0), the largest
+part of the contour's pixels walked twice before it is no band outline, and whether the material points are placed
+on a plane (1: ``plane`` holds its `plane_params`; 0: in pixels)."""
 _out = types.Array(from_dtype(STEADY_OUT), 1, "C")
 _constants_ro = types.Array(from_dtype(STEADY_CONSTANTS), 1, "C", readonly=True)
 
@@ -132,6 +141,10 @@ STEADY_BUFFERS: Final = (
     ("order_state", np.int64, 1), ("hist_rc", np.float64, 2), ("prev_end", np.float32, 2), ("splice", np.float32, 3),
     ("fraction", np.float64, 1),
     ("out_points", np.float32, 3), ("out_lengths", np.float64, 1), ("work_seg", np.float64, 1),
+    # predict_tips' and check_frame's
+    ("predicted", np.float64, 1), ("check_thresholds", CHECK_THRESHOLDS, 1), ("check_quality", CHECK_QUALITY, 1),
+    # place_on_plane's
+    ("plane", np.float64, 1),
 )  # fmt: skip
 """The buffers of `steady_frame`'s table, in its row order: (name, dtype, dimensions), C-contiguous; each is the
 argument of that name of the kernel it is listed under."""
@@ -184,16 +197,17 @@ def _buffer3(table, row, dtype):  # type: ignore[no-untyped-def]
 
 def _signature(frame_type: Any) -> Any:
     return int64(
-        frame_type, int64, boolean, boolean, boolean, int64, int64, int64, int64, float64, i8_2d, _constants_ro, _out
-    )
+        frame_type, int64, boolean, boolean, boolean, int64, int64, int64, int64, float64, boolean, float64, float64,
+        i8_2d, _constants_ro, _out,
+    )  # fmt: skip
 
 
 # Compiled for a read-only frame (a mapped capture buffer) and a writable one (a frame read from a file), as the
 # kernels it calls.
 @kernel([_signature(u1_2d_ro), _signature(u1_2d)])
 def steady_frame(
-    frame, prev_count, measure, use_profile, predict, t_ns, exposure_ns, t_end_ns, max_age_ns, last_sweep_px, table,
-    constants, out,
+    frame, prev_count, measure, use_profile, predict, t_ns, exposure_ns, t_end_ns, max_age_ns, last_sweep_px,
+    predict_tips_now, check_width_px, learned_width_px, table, constants, out,
 ):  # fmt: skip
     """One steady frame, exposed from `t_ns` to `t_end_ns` (`exposure_ns`): `band_stage` around the last contour
     (`prev_count` points of ``prev_points``, `measure` and `use_profile` and `predict` as its arguments) into the
@@ -205,6 +219,16 @@ def steady_frame(
     with the new sweep, ``fixed``, the band's motion state and `max_age_ns` (first, for a known exposure, the
     contour's pixels walked twice are counted: more than ``broken_outline`` of them stop it).
 
+    The self-checks' two calls are made here too: first, when `predict_tips_now`, `predict_tips` into
+    ``predicted`` (as `SelfChecks.predict` before the frame); last, on shapes of a known exposure that
+    `track_frame` took and with a prediction (``predicted``'s error not nan: the contour's area is not needed),
+    `check_frame` of them in time order (`check_width_px` the width the split used, `learned_width_px` the learned
+    one, ``check_thresholds``, the measures into ``check_quality``, the mask ``static_mask``) as
+    `ResultFinisher.check` makes it; its code goes to ``out["check"]`` (-1: not checked here). Before the
+    checks, on a plane (``constants["on_plane"]``), the tracked shapes' material points are placed on it
+    (`place_on_plane` with ``plane``, ``fraction``, ``out_points``, ``work_seg``, as `ResultFinisher` places them;
+    not when a shape is longer than ``work_seg``: ``out["placed"]`` is then -1 and the stages' Python places them).
+
     The buffers (names in ``double backquotes``) are the rows of `table` (int64, (len(STEADY_BUFFERS), 4):
     address, then the sizes of up to three dimensions; `buffer_table` makes it), the constant scalars the fields
     of the one record `constants` (`STEADY_CONSTANTS`). The record `out` (`STEADY_OUT`) gets the band's
@@ -214,7 +238,8 @@ def steady_frame(
     Returns STEADY_DONE, or where it stopped (STEADY_AFTER_CONTOUR, STEADY_AFTER_SPLIT, STEADY_BROKEN,
     STEADY_AFTER_SHAPES): everything before that point is done and written exactly as the calls one by one write
     it, nothing after it; or INVALID, before any call, when `table` has too few rows, `constants` or `out` no
-    record, or ``split_state``, ``split_info``, ``width_scalars`` or ``curves`` is too short.
+    record, or ``split_state``, ``split_info``, ``width_scalars``, ``curves``, ``predicted``, ``check_thresholds``
+    or ``check_quality`` is too short.
     """
     if table.shape[0] < len(STEADY_BUFFERS) or table.shape[1] < 4 or constants.shape[0] < 1 or out.shape[0] < 1:
         return INVALID
@@ -224,11 +249,17 @@ def steady_frame(
     split_info = _buffer1(table, STEADY_ROW.split_info, np.float64)
     width_scalars = _buffer1(table, STEADY_ROW.width_scalars, np.float64)
     curves = _buffer2(table, STEADY_ROW.curves, np.float64)
+    predicted = _buffer1(table, STEADY_ROW.predicted, np.float64)
+    thresholds = _buffer1(table, STEADY_ROW.check_thresholds, CHECK_THRESHOLDS)
+    quality = _buffer1(table, STEADY_ROW.check_quality, CHECK_QUALITY)
     if (
         split_state.shape[0] < len(FRAME_STATES)
         or split_info.shape[0] < FRAME_INFO
         or width_scalars.shape[0] < len(SPLIT_WIDTH_SCALARS)
         or curves.shape[0] < 2
+        or predicted.shape[0] < 3
+        or thresholds.shape[0] < 1
+        or quality.shape[0] < 1
     ):
         return INVALID
     lo = _buffer1(table, STEADY_ROW.lo, np.int32)
@@ -242,6 +273,10 @@ def steady_frame(
         _buffer1(table, STEADY_ROW.band_state, BAND_STATE),
     )
     result["revisits"] = -1
+    result["check"] = -1
+    result["placed"] = -1
+    if predict_tips_now:
+        predict_tips(t_ns, exposure_ns, motion.state, motion.log, fixed, predicted)
     result["motion_px"] = band_stage(
         _buffer2(table, STEADY_ROW.prev_points, np.float32),
         prev_count,
@@ -346,6 +381,9 @@ def steady_frame(
             return STEADY_BROKEN
     shape_a = sides[0 if split_info[_INFO_SMOOTHED_A] != 0.0 else 2, : int(split_info[_INFO_COUNT_A])]
     shape_b = sides[1 if split_info[_INFO_SMOOTHED_B] != 0.0 else 3, : int(split_info[_INFO_COUNT_B])]
+    fraction = _buffer1(table, STEADY_ROW.fraction, np.float64)
+    out_points = _buffer3(table, STEADY_ROW.out_points, np.float32)
+    work_seg = _buffer1(table, STEADY_ROW.work_seg, np.float64)
     swap, confidence, stretch_begin, stretch_end = track_frame(
         shape_a,
         shape_b,
@@ -364,12 +402,7 @@ def steady_frame(
         exposure_ns,
         motion,
         c["length0_px"],
-        Track(
-            _buffer1(table, STEADY_ROW.fraction, np.float64),
-            _buffer3(table, STEADY_ROW.out_points, np.float32),
-            _buffer1(table, STEADY_ROW.out_lengths, np.float64),
-            _buffer1(table, STEADY_ROW.work_seg, np.float64),
-        ),
+        Track(fraction, out_points, _buffer1(table, STEADY_ROW.out_lengths, np.float64), work_seg),
         width_scalars[SPLIT_SCALAR.width64_px],
     )
     result["swap"] = swap
@@ -378,4 +411,27 @@ def steady_frame(
     result["stretch_end"] = stretch_end
     if swap < 0:
         return STEADY_AFTER_SHAPES
+    begin = shape_b if swap else shape_a
+    end = shape_a if swap else shape_b
+    if c["on_plane"] != 0 and begin.shape[0] <= work_seg.shape[0] and end.shape[0] <= work_seg.shape[0]:
+        place_on_plane(begin, end, False, fraction, _buffer1(table, STEADY_ROW.plane, np.float64), out_points, work_seg)
+        result["placed"] = 1
+    if exposure_ns > 0 and not math.isnan(predicted[2]) and shape_a.shape[0] > 0 and shape_b.shape[0] > 0:
+        result["check"] = check_frame(
+            begin,
+            end,
+            fixed,
+            predicted,
+            stretch_begin,
+            stretch_end,
+            check_width_px,
+            learned_width_px,
+            confidence,
+            exposure_ns,
+            True,
+            0.0,  # the contour's area: not read with a prediction and a known exposure
+            _buffer2(table, STEADY_ROW.static_mask, np.uint8),
+            thresholds,
+            quality,
+        )
     return STEADY_DONE

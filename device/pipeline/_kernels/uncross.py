@@ -46,18 +46,33 @@ shapes are spaced at the output step, so a match moves on by about one point per
 for every point cost ~225 us per frame on a 200-point rope; tracked, ~8 segments)."""
 
 
+_NEAR: Final = 1e-9
+"""Two squared distances closer than this fraction of each other are too close to order by their squares
+(`nearest_on` then orders them by `math.hypot`, as it reports them); farther apart, the squares order them as
+their roots do (both within a few ulp of the true distance)."""
+_TINY: Final = 1e-290
+"""Added to `_NEAR`'s margin: squares of distances below ~1e-145 px lose their precision (subnormals)."""
+
+
 @kernel(types.UniTuple(float64, 2)(float64, float64, f4_2d, int64, int64, int64))
 def nearest_on(r, c, poly, n, lo, hi):
     """Distance from (`r`, `c`) to the polyline ``poly[:n]`` (n >= 1) over its segments `lo` .. `hi` - 1 (clipped
     to the polyline; at least one), and the index of its vertex nearest to the foot of that distance. Returns
-    (distance, index)."""
+    (distance, index): the first segment of the smallest `math.hypot` distance.
+
+    Segments are compared by their squared distances, and `math.hypot` (a libm call, most of the cost when it ran
+    on every segment) is taken only of the nearest one and of a segment whose square ties with the nearest's
+    within `_NEAR`: the same segment, index and distance as `math.hypot` of every segment."""
     if n == 1:
         return math.hypot(r - poly[0, 0], c - poly[0, 1]), 0.0
     lo = max(0, lo)
     hi = min(n - 1, hi)
     if lo >= hi:
         lo = max(0, hi - 1)
-    best = math.inf
+    best = math.inf  # the nearest segment's hypot distance; -1: not taken yet
+    best_d2 = math.inf
+    best_x = 0.0
+    best_y = 0.0
     best_i = lo
     for i in range(lo, hi):
         ar = float(poly[i, 0])
@@ -68,10 +83,27 @@ def nearest_on(r, c, poly, n, lo, hi):
         t = 0.0
         if length2 > 0.0:
             t = min(max(((r - ar) * dr + (c - ac) * dc) / length2, 0.0), 1.0)
-        d = math.hypot(r - ar - t * dr, c - ac - t * dc)
-        if d < best:
+        x = r - ar - t * dr
+        y = c - ac - t * dc
+        d2 = x * x + y * y
+        if d2 > best_d2 * (1.0 + _NEAR) + _TINY or d2 != d2:
+            continue  # farther (or not a number, which `d < best` never takes)
+        if best_d2 != math.inf and d2 >= best_d2 * (1.0 - _NEAR) - _TINY:
+            # Within rounding of the nearest so far: the first of equal hypot distances stays.
+            if best < 0.0:
+                best = math.hypot(best_x, best_y)
+            d = math.hypot(x, y)
+            if not d < best:
+                continue
             best = d
-            best_i = i + 1 if t > 0.5 else i
+        else:
+            best = -1.0
+        best_d2 = d2
+        best_x = x
+        best_y = y
+        best_i = i + 1 if t > 0.5 else i
+    if best < 0.0:
+        best = math.hypot(best_x, best_y)
     return best, float(best_i)
 
 

@@ -3,6 +3,9 @@ gets each stretch between the pinches in time order from the previous frame's en
 
 from __future__ import annotations
 
+import math
+
+import numba
 import numpy as np
 import pytest
 
@@ -97,6 +100,55 @@ def test_nearest_on_finds_the_foot_on_a_segment() -> None:
     distance, index = K.nearest_on(8.0, 40.3, line, len(_X), 30, 50)
     assert distance == pytest.approx(3.0)
     assert index == 40.0
+
+
+@numba.njit
+def _nearest_on_every_hypot(r, c, poly, n, lo, hi):  # type: ignore[no-untyped-def]
+    """`nearest_on` as it was written first, compiled as the kernel is (libm's hypot, whose last bit may differ
+    from Python's): `math.hypot` of every segment, the reference for its bits."""
+    lo = max(0, lo)
+    hi = min(n - 1, hi)
+    if lo >= hi:
+        lo = max(0, hi - 1)
+    best = math.inf
+    best_i = lo
+    for i in range(lo, hi):
+        ar = float(poly[i, 0])
+        ac = float(poly[i, 1])
+        dr = float(poly[i + 1, 0]) - ar
+        dc = float(poly[i + 1, 1]) - ac
+        length2 = dr * dr + dc * dc
+        t = 0.0
+        if length2 > 0.0:
+            t = min(max(((r - ar) * dr + (c - ac) * dc) / length2, 0.0), 1.0)
+        d = math.hypot(r - ar - t * dr, c - ac - t * dc)
+        if d < best:
+            best = d
+            best_i = i + 1 if t > 0.5 else i
+    return best, float(best_i)
+
+
+def test_nearest_on_matches_hypot_of_every_segment_bit_for_bit() -> None:
+    # It orders segments by their squared distance and takes hypot only of the nearest and of near-ties: the
+    # distance and index must be those of hypot on every segment, ties (a point on a polyline's axis of
+    # symmetry, repeated points, a point on a vertex) included.
+    rng = np.random.default_rng(11)
+    walk = np.cumsum(rng.normal(0.0, 1.0, (200, 2)), axis=0).astype(np.float32)
+    walk[50:53] = walk[50]  # zero-length segments
+    vee = np.array([[0.0, -5.0], [5.0, 0.0], [0.0, 5.0], [5.0, 0.0], [0.0, -5.0]], np.float32)
+    near = rng.integers(0, 200, 400)
+    off = rng.normal(0.0, 8.0, (400, 2))
+    cases = [
+        (walk, float(walk[k, 0] + dr), float(walk[k, 1] + dc), int(k) - 4)
+        for k, (dr, dc) in zip(near, off, strict=True)
+    ]
+    cases += [(walk, float(walk[k, 0]), float(walk[k, 1]), k - 3) for k in range(3, 197)]  # on a vertex
+    cases += [(vee, -3.0, 0.0, 0), (vee, 0.0, 0.0, 0), (vee, 5.0, 0.0, 0), (vee, 2.5, 2.5, 0)]
+    for poly, r, c, lo in cases:
+        for width in (1, 8, 24):
+            expected = _nearest_on_every_hypot(r, c, poly, len(poly), lo, lo + width)
+            got = K.nearest_on(r, c, poly, len(poly), lo, lo + width)
+            assert got == expected, (r, c, lo, width)
 
 
 def test_a_rigid_swing_with_noisy_edges_is_never_exchanged() -> None:

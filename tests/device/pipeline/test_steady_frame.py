@@ -17,6 +17,7 @@ from ropecam.device.pipeline._views import buffer_table
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam.device.pipeline.workspace import steady_constants
+from ropecam.shared.plane import PlaneCalibration
 
 pytestmark = pytest.mark.kernel
 
@@ -37,25 +38,49 @@ def _frames(count: int) -> tuple[tuple[np.ndarray, int, int, float], ...]:
     return tuple(frames)
 
 
-_RUNS: dict[tuple[bool, bool], tuple[list[dict], list[int]]] = {}
+_RUNS: dict[tuple[bool, bool, bool], tuple[list[dict], list[int]]] = {}
+_CHECKED: dict[tuple[bool, bool, bool], list[int]] = {}
+"""The self-checks' code each `steady_frame` call wrote (-1: it left the check to the stages' Python)."""
+_PLACED: dict[tuple[bool, bool, bool], list[int]] = {}
+"""Whether each call placed the material points on the plane (1) or left them to the stages' Python (-1)."""
 
 
-def _run(monkeypatch: pytest.MonkeyPatch, fused: bool, read_only: bool = False) -> tuple[list[dict], list[int]]:
+def _plane() -> PlaneCalibration:
+    """A camera looking at the rope's plane, tilted, its origin projected at the synthetic rope's fixed end."""
+    tilt = 0.3
+    rotation = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(tilt), -np.sin(tilt)], [0.0, np.sin(tilt), np.cos(tilt)]])
+    camera = np.array([[400.0, 0.0, 160.0], [0.0, 400.0, 120.0], [0.0, 0.0, 1.0]])
+    distance_m = 2.0
+    origin = np.array([(160.3 - 160.0) / 400.0 * distance_m, (20.6 - 120.0) / 400.0 * distance_m, distance_m])
+    return PlaneCalibration(camera, np.zeros(5), (320, 240), rotation, origin)
+
+
+def _run(
+    monkeypatch: pytest.MonkeyPatch, fused: bool, read_only: bool = False, plane: bool = False
+) -> tuple[list[dict], list[int]]:
     """Every PipelineResult field (but the time) and the state that links frames, after each frame; and the
-    `steady_frame` returns. Without `fused`, the pipeline never takes the one-call path."""
-    if (fused, read_only) in _RUNS:
-        return _RUNS[(fused, read_only)]
+    `steady_frame` returns. Without `fused`, the pipeline never takes the one-call path; with `plane`, the
+    material points are placed on `_plane`."""
+    run = (fused, read_only, plane)
+    if run in _RUNS:
+        return _RUNS[run]
     stops: list[int] = []
     real = K.steady_frame
 
     def counted(*args):
         stops.append(int(real(*args)))
+        _CHECKED[run].append(int(args[-1][0]["check"]))
+        _PLACED[run].append(int(args[-1][0]["placed"]))
         return stops[-1]
+
+    _CHECKED[run], _PLACED[run] = [], []
 
     with monkeypatch.context() as patch:
         patch.setattr(K, "steady_frame", counted)
         frames = _frames(46)
-        pipeline = Pipeline(PipelineConfig(), (frames[0][0].shape[1], frames[0][0].shape[0]))
+        pipeline = Pipeline(
+            PipelineConfig(), (frames[0][0].shape[1], frames[0][0].shape[0]), plane=_plane() if plane else None
+        )
         pipeline.one_call = fused
         rows = []
         for image, index, t_ns, exposure_us in frames:
@@ -75,7 +100,7 @@ def _run(monkeypatch: pytest.MonkeyPatch, fused: bool, read_only: bool = False) 
                 counters=(pipeline.frames_roi, pipeline.frames_coarse, pipeline.frames_full, pipeline.roi_retries),
             )  # fmt: skip
             rows.append(row)
-    _RUNS[(fused, read_only)] = (rows, stops)
+    _RUNS[run] = (rows, stops)
     return rows, stops
 
 
@@ -119,6 +144,26 @@ def test_steady_frames_are_the_calls_one_by_one(monkeypatch: pytest.MonkeyPatch)
     assert K.STEADY_AFTER_SPLIT in stops
     assert K.STEADY_AFTER_CONTOUR in stops
     assert fused[24]["counters"][1] > fused[23]["counters"][1]  # the jump: the band missed, the coarse search ran
+    # The self-checks ran inside the call on most steady frames (the first settled ones have no prediction yet).
+    assert sum(code >= 0 for code in _CHECKED[(True, False, False)]) >= 5
+    assert set(_PLACED[(True, False, False)]) == {-1}  # no plane: nothing placed
+    _assert_identical(fused, steps)
+
+
+@pytest.mark.jit_only
+def test_steady_frames_on_a_plane_are_the_calls_one_by_one(monkeypatch: pytest.MonkeyPatch) -> None:
+    # The call places the material points on the plane (`place_on_plane`) as `ResultFinisher` does.
+    fused, stops = _run(monkeypatch, fused=True, plane=True)
+    steps, _ = _run(monkeypatch, fused=False, plane=True)
+    assert stops.count(K.STEADY_DONE) >= 5
+    assert _PLACED[(True, False, True)].count(1) == stops.count(K.STEADY_DONE)
+    in_pixels = _run(monkeypatch, fused=True)[0]
+    assert any(  # the plane moved the material points
+        a["material_begin"] is not None
+        and b["material_begin"] is not None
+        and not np.array_equal(a["material_begin"], b["material_begin"])
+        for a, b in zip(fused, in_pixels, strict=True)
+    )
     _assert_identical(fused, steps)
 
 
@@ -144,11 +189,13 @@ def test_steady_frame_refuses_short_tables_before_any_call() -> None:
     for short_table, short_constants, short_out in ((table[:-1], constants, out), (table, constants[:0], out),
                                                     (table, constants, out[:0])):  # fmt: skip
         status = K.steady_frame(
-            frame, 0, False, False, False, 0, 0, 0, 0, 0.0, short_table.copy(), short_constants.copy(), short_out
-        )
+            frame, 0, False, False, False, 0, 0, 0, 0, 0.0, False, 0.0, 0.0, short_table.copy(),
+            short_constants.copy(), short_out,
+        )  # fmt: skip
         assert status == K.INVALID
     # The split's state and info shorter than the kernels need: refused too (the split's state is 3 long).
-    assert K.steady_frame(frame, 0, False, False, False, 0, 0, 0, 0, 0.0, table, constants, out) == K.INVALID
+    status = K.steady_frame(frame, 0, False, False, False, 0, 0, 0, 0, 0.0, False, 0.0, 0.0, table, constants, out)
+    assert status == K.INVALID
     np.testing.assert_array_equal(buffers["band_state"], band_state)  # nothing written: band_stage did not run
     assert not out.view(np.uint8).any()
 
@@ -158,7 +205,8 @@ def test_steady_frame_records_are_named_as_the_stages_read_them() -> None:
     names = K.STEADY_CONSTANTS.names
     assert {"low", "high", "min_pixels", "length0_px", "broken_outline"} <= set(names)
     assert K.STEADY_OUT.names == (
-        "motion_px", "points", "status", "revisits", "swap", "confidence", "stretch_begin", "stretch_end",
+        "motion_px", "points", "status", "revisits", "swap", "confidence", "stretch_begin", "stretch_end", "check",
+        "placed",
     )  # fmt: skip
     values = {name: float(k + 1) for k, name in enumerate(names)}
     values["low"] = 6.4712345  # stored as the float32 `detect_and_trace` takes
