@@ -34,6 +34,10 @@ SHIFT_SPAN: Final = 3.0
 less towards the fixed end: the shape never folds back on itself (the points move by at most a third of their
 spacing more than their neighbours)."""
 SHIFT_MIN_PX: Final = 4.0
+MAX_GROWTH: Final = 2.0
+SAME_PATH_PX: Final = 4.0
+"""A sweep from the path larger than ``MAX_GROWTH`` x the last frame's sweep (the motion model's) + this is no
+path (the model's midpoints read about another fixed end): nothing moves."""
 
 
 @kernel(types.UniTuple(float64, 2)(f4_1d, int64, int64, int64, i8_1d, f8_2d, float64, float64))
@@ -105,7 +109,9 @@ def restore_tip_sweep(
     """Where the two shapes' tips (`begin`, `end`: in time order, fixed end first) lie closer together than
     `COLLAPSED` x the sweep their path gives (`sweep_from_path`, at least `MIN_SWEEP_PX`), put them at their
     midpoint -/+ half that sweep (`shift_tip`, in place), and the time order's last two tip samples (this frame's,
-    when `order_shapes` remembered them: times `t_ns` and `t_end_ns`) with them. Returns whether it moved them.
+    when `order_shapes` remembered them: times `t_ns` and `t_end_ns`) with them. Nothing moves when that sweep
+    is far beyond the last frame's (`MAX_GROWTH`, `SAME_PATH_PX`: the motion model was measured about another
+    fixed end). Returns whether it moved them.
 
     `fixed` is the fixed end (row, col); `exposure_ns` the exposure (the midpoint is at ``t_ns + exposure_ns //
     2``, as `observe_motion` takes it); `motion_state`/`motion_log` the motion model before this frame is added;
@@ -126,9 +132,13 @@ def restore_tip_sweep(
     sweep = math.hypot(s_r, s_c)
     if not (sweep >= MIN_SWEEP_PX and math.hypot(er - br, ec - bc) < COLLAPSED * sweep):
         return False
+    # The motion model keeps its midpoints about the fixed end of their time: read about another one (the fixed
+    # end was found again), they give a path that jumps. A sweep far beyond the last frame's is no path.
+    if sweep > MAX_GROWTH * motion_log[MOTION_FRAMES, 0] + SAME_PATH_PX:
+        return False
+    count = order_state[ORDER_COUNT]
     shift_tip(begin, mid_r - 0.5 * s_r - br, mid_c - 0.5 * s_c - bc)
     shift_tip(end, mid_r + 0.5 * s_r - er, mid_c + 0.5 * s_c - ec)
-    count = order_state[ORDER_COUNT]
     if count >= 2 and order_state[count - 2] == t_ns and order_state[count - 1] == t_end_ns:
         hist_rc[count - 2, 0] = float64(begin[nb - 1, 0])
         hist_rc[count - 2, 1] = float64(begin[nb - 1, 1])

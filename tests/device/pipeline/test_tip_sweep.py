@@ -75,7 +75,7 @@ def test_restore_tip_sweep_moves_collapsed_tips_and_their_history() -> None:
     log = np.zeros((K.MOTION_FRAMES + 1, 2))
     for k in range(2):
         mid = np.array([[10.0, 100.0 + 16.0 * k]], np.float32)
-        K.observe_motion(mid, mid, fixed, k * period + exposure // 2, 0.0, exposure, state, log)
+        K.observe_motion(mid, mid, fixed, k * period + exposure // 2, 8.0, exposure, state, log)
     t_ns = 2 * period
     cols = np.arange(60.0, 132.1, 2.0)
     a = np.stack([np.full_like(cols, 10.0), cols], axis=1).astype(np.float32)
@@ -86,6 +86,12 @@ def test_restore_tip_sweep_moves_collapsed_tips_and_their_history() -> None:
     hist = np.zeros((K.HISTORY, 2))
     order_state[:2] = (t_ns, t_ns + exposure)
     order_state[K.ORDER_COUNT] = 2
+    # A path far beyond the last frame's sweep (2 x 1 px + 4) is no path (the model was read about another fixed
+    # end): nothing moves.
+    jumped = log.copy()
+    jumped[K.MOTION_FRAMES, 0] = 1.0
+    assert not restore_tip_sweep(a.copy(), b.copy(), fixed, t_ns, t_ns + exposure, 4 * period, exposure, state,
+                                 jumped, order_state, hist)  # fmt: skip
     assert restore_tip_sweep(a, b, fixed, t_ns, t_ns + exposure, 4 * period, exposure, state, log, order_state, hist)
     assert a[-1].tolist() == pytest.approx([10.0, 128.0]) and b[-1].tolist() == pytest.approx([10.0, 136.0])
     assert hist[:2].ravel().tolist() == pytest.approx([10.0, 128.0, 10.0, 136.0])
