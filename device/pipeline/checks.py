@@ -29,6 +29,10 @@ reason                  fails when                                              
                         ``tip_mask_floor_px`` beyond either shape's free tip, along the rope: the mask
                         may have cut the rope there (a rope crossing a masked plate edge ends at it),
                         and the rope's end is not seen
+``fallback_sweep``      the blur split fell back to one shape (the band's middle: the rope at           IMPLAUSIBLE
+                        mid-exposure) while the tip's path over the last frames swept more than
+                        ``fallback_sweep_widths`` rope widths during the exposure: the shape is neither
+                        the start nor the end of the exposure
 ======================  ==============================================================================  ===========
 
 Each check's measure goes into the frame's quality record (`QUALITY_KEYS`), whether it passes or not.
@@ -83,6 +87,9 @@ class ChecksConfig:
     tip_mask_widths, tip_mask_floor_px
         A free tip must end farther than ``tip_mask_widths`` x the rope width + ``tip_mask_floor_px`` before the
         static mask, along the rope (both 0: the check is off).
+    fallback_sweep_widths
+        Largest sweep of the tip's path during the exposure, in rope widths, with which the blur split may fall
+        back to one shape (the band's middle) and report it OK (0: the check is off).
     """
 
     enabled: bool = True
@@ -98,6 +105,7 @@ class ChecksConfig:
     min_blur_evidence: float = 0.3
     tip_mask_widths: float = 1.0
     tip_mask_floor_px: float = 2.0
+    fallback_sweep_widths: float = 1.5
 
     def __post_init__(self) -> None:
         if not isinstance(self.enabled, bool):
@@ -114,6 +122,7 @@ class ChecksConfig:
         check_range("checks.min_blur_evidence", self.min_blur_evidence, 0.0, 100.0)
         check_range("checks.tip_mask_widths", self.tip_mask_widths, 0.0, 100.0)
         check_range("checks.tip_mask_floor_px", self.tip_mask_floor_px, 0.0, 100.0)
+        check_range("checks.fallback_sweep_widths", self.fallback_sweep_widths, 0.0, 100.0)
 
 
 _MESSAGES = {
@@ -128,6 +137,8 @@ _MESSAGES = {
     Reason.NO_BLUR: "no blur to split (no exposure time): the static centreline is given instead",
     Reason.TIP_MASKED: "a free tip ends at the static mask, which may hide the rope's end (within "
     "checks.tip_mask_widths rope widths + checks.tip_mask_floor_px of it)",
+    Reason.FALLBACK_SWEEP: "one shape (the band's middle) while the tip's path swept more than "
+    "checks.fallback_sweep_widths rope widths during the exposure: neither the start nor the end of the exposure",
 }
 
 
@@ -138,6 +149,9 @@ class SelfChecks:
     ----------
     config
         The thresholds.
+    fallback_single
+        A single shape is the blur split's fallback (``method = "blur_split"``), checked with
+        ``fallback_sweep``; False: one shape is what the method gives (``centerline``, ``static``), never checked so.
 
     Attributes
     ----------
@@ -153,14 +167,17 @@ class SelfChecks:
         "_measures", "_predicted", "_settled_frames", "_thresholds", "buffers", "config", "quality",
     )  # fmt: skip
 
-    def __init__(self, config: ChecksConfig) -> None:
+    def __init__(self, config: ChecksConfig, fallback_single: bool = True) -> None:
         self.config = config
         self.quality: dict[str, float] = {}
-        self._predicted = np.full(3, math.nan)
-        """The tips' predicted midpoint (row, col) and the prediction's error (px); nan: no prediction."""
+        self._predicted = np.full(4, math.nan)
+        """The tips' predicted midpoint (row, col), the prediction's error (px) and the tip's sweep along its path
+        (px); nan error: no prediction."""
         thresholds = np.zeros(1, K.CHECK_THRESHOLDS)
         for name in K.CHECK_THRESHOLDS.names:
             thresholds[0][name] = getattr(config, name)
+        if not fallback_single:
+            thresholds[0]["fallback_sweep_widths"] = 0.0
         self._thresholds = ro(thresholds)
         self._measures = np.zeros(1, K.CHECK_QUALITY)
         """The last checked frame's measures, by name (`check_frame` writes them; `quality` holds a copy)."""
@@ -195,6 +212,7 @@ class SelfChecks:
             self._settled_frames += 1
         if self._settled_frames <= 2:
             self._predicted[2] = math.nan
+            self._predicted[3] = math.nan
             return False
         return True
 
@@ -206,6 +224,7 @@ class SelfChecks:
     def forget(self) -> None:
         """Drop the prediction (the motion model was cleared)."""
         self._predicted[2] = math.nan
+        self._predicted[3] = math.nan
 
     def check(
         self,

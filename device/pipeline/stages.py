@@ -114,7 +114,7 @@ class Stages:
             tracker.plane = plane_params(plane)
         traits = RopeTraits(config, shape, ws.fixed_end, splitter.edge_spacing)
         motion = MotionModel(ws.motion)
-        checks = SelfChecks(config.checks)
+        checks = SelfChecks(config.checks, fallback_single=config.method == "blur_split")
         time_order = TimeOrder(ws.order)
         locator = RopeLocator(config.roi_margin_px, edges, tracer, motion, traits.fixed_end, config.canny_low, ws.roi)
         finisher = ResultFinisher(

@@ -38,6 +38,7 @@ class Reason(IntEnum):
     ORDER = 5
     NO_BLUR = 6
     TIP_MASKED = 7
+    FALLBACK_SWEEP = 8
 
     @property
     def text(self) -> str:

@@ -107,3 +107,24 @@ def test_matrix_list_names_every_factor_and_leaves_out_what_it_cannot_render(tmp
     assert {"texture", "contrast", "read noise", "PSF", "rope width", "clamp", "gamma", "JPEG quality"} <= names
     assert "rope photo texture (left out here)" in names  # no photographs in the given folder
     assert "Held-out pairs (validation set only)" in done.stdout
+
+
+def test_the_tuning_set_has_a_late_swing_the_validation_set_does_not() -> None:
+    """The tuning set renders `lab` also from 1 s after the release (the whipping, crossing late swing); the
+    validation set keeps its definition (other seed, motion from 0.25 s, no late-swing row)."""
+    code = (
+        "import json, sys; sys.path.insert(0, sys.argv[1])\n"
+        "from ropecam.host.sim.presets import PRESETS, preset\n"
+        "from ropecam_tools.matrix_design import build_scenes\n"
+        "presets = {name: preset(name).to_dict() for name in PRESETS}\n"
+        "out = {s: [(c.label, c.overrides['first_exposure_s'], c.overrides['seed'])\n"
+        "           for c in build_scenes(presets, s, only=('presets',), preset_names=('lab', 'rig'))[0]]\n"
+        "       for s in ('tuning', 'validation')}\n"
+        "print(json.dumps(out))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code, str(TOOLS)], capture_output=True, text=True, timeout=120,
+                          check=False)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    scenes = json.loads(done.stdout)
+    assert scenes["tuning"] == [["rig", 0.0, 0], ["lab", 0.0, 0], ["lab late swing", 1.0, 0]]
+    assert scenes["validation"] == [["rig", 0.25, 7919], ["lab", 0.25, 7919]]

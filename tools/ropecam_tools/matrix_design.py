@@ -3,7 +3,8 @@
 A *scene* is a simulator configuration (a preset plus overrides of its TOML keys) at one exposure time; a *cell* is
 one scene measured by one method. Three sections:
 
-* ``presets``: every preset of `ropecam.host.sim.presets.PRESETS`, at each of its exposure times;
+* ``presets``: every preset of `ropecam.host.sim.presets.PRESETS`, at each of its exposure times (in the tuning
+  set `LATE_SWING_PRESETS` also from 1 s after the release: a ``late swing`` row);
 * ``factors``: one `Factor` at a time across its values, every other key at the ideal scene (`IDEAL`); the first
   value of each row is the ideal scene's own;
 * ``paper``: the paper-exposure renders (1, 5, 9, 15 ms at 30 FPS, 800x512) of `PAPER_PRESETS`, for the paper's
@@ -44,17 +45,29 @@ PAPER_EXPOSURES_MS = (1.0, 5.0, 9.0, 15.0)
 
 @dataclass(frozen=True)
 class SeedSet:
-    """Render seeds and the stretch of the motion used by a seed set."""
+    """Render seeds and the stretch of the motion used by a seed set.
+
+    ``late_swing_s``: the presets of `LATE_SWING_PRESETS` are also rendered from this time after the release (a
+    ``late swing`` row each; None: not).
+    """
 
     name: str
     seed: int
     first_exposure_s: float
     pairs: bool
     purpose: str
+    late_swing_s: float | None = None
 
 
+LATE_SWING_PRESETS = ("lab",)
+"""Presets with a ``late swing`` row in the tuning set: their motion from 1 s after the release, where the rope
+whips (tips moving along their own axis, start and end shapes that cross), which the cells from the release never
+show."""
 SEED_SETS = {
-    "tuning": SeedSet("tuning", 0, 0.0, False, "the simulator's default seed, motion from the release: tune on it"),
+    "tuning": SeedSet(
+        "tuning", 0, 0.0, False, "the simulator's default seed, motion from the release (and a late swing from "
+        "1 s): tune on it", late_swing_s=1.0,
+    ),
     "validation": SeedSet(
         "validation", 7919, 0.25, True, "another seed and the motion from 0.25 s after the release, plus held-out "
         "pairs of factors: never tune on it"
@@ -357,11 +370,16 @@ def build_scenes(
         for name, config in presets.items():
             if preset_names is not None and name not in preset_names:
                 continue
-            overrides = preset_overrides(config)
-            for exposure in config["exposure_ms"]:
-                label = (name if len(config["exposure_ms"]) == 1 else f"{name} {exposure:g} ms") + suffix
-                key = _key(_merge(config, overrides), float(exposure))
-                scenes.append(Scene("presets", label, name, overrides, float(exposure), key))
+            looks = [("", preset_overrides(config))]
+            if seeds.late_swing_s is not None and name in LATE_SWING_PRESETS:
+                looks.append(
+                    (" late swing", _merge(preset_overrides(config), {"first_exposure_s": seeds.late_swing_s}))
+                )
+            for look, overrides in looks:
+                for exposure in config["exposure_ms"]:
+                    label = (name if len(config["exposure_ms"]) == 1 else f"{name} {exposure:g} ms") + look + suffix
+                    key = _key(_merge(config, overrides), float(exposure))
+                    scenes.append(Scene("presets", label, name, overrides, float(exposure), key))
     base = _merge(presets[IDEAL_PRESET], IDEAL)
     have, missing = available_factors(base, photo_dir)
     by_name = {f.name: f for f in have}

@@ -55,6 +55,7 @@ from ropecam.device.pipeline._kernels.canny_gradient import (
 )
 from ropecam.device.pipeline._kernels.centerline import band_sides
 from ropecam.device.pipeline._kernels.checks import (
+    CHECK_FALLBACK_SWEEP,
     CHECK_NO_BLUR,
     CHECK_NONE,
     CHECK_QUALITY,
@@ -198,6 +199,7 @@ from ropecam.device.pipeline._kernels.static_mask import (
     seal_cut_ends,
 )
 from ropecam.device.pipeline._kernels.thresholds import HIST_PER_UNIT, histogram_median, sample_gradient_histogram
+from ropecam.device.pipeline._kernels.tip_sweep import restore_tip_sweep, shift_tip, sweep_from_path
 from ropecam.device.pipeline._kernels.tone import apply_table
 from ropecam.device.pipeline._kernels.tracking import (
     MOTION_COUNT,
@@ -216,6 +218,7 @@ from ropecam.device.pipeline._kernels.uncross import nearest_on, uncross_shapes
 __all__ = [
     "BAND",
     "BAND_STATE",
+    "CHECK_FALLBACK_SWEEP",
     "CHECK_NONE",
     "CHECK_NO_BLUR",
     "CHECK_QUALITY",
@@ -354,10 +357,12 @@ __all__ = [
     "remember_tips",
     "resample_polyline",
     "resample_polyline_of_length",
+    "restore_tip_sweep",
     "sample_bilinear",
     "sample_gradient_histogram",
     "score_knots",
     "seal_cut_ends",
+    "shift_tip",
     "side_sweeps",
     "side_sweeps_indexed",
     "slope_sweep_median",
@@ -377,6 +382,7 @@ __all__ = [
     "split_width",
     "steady_frame",
     "suppress_rows",
+    "sweep_from_path",
     "thin_chain",
     "tip_mask_distance",
     "trace_closed",

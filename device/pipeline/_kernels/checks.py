@@ -15,6 +15,7 @@ from numba import boolean, float64, int64, types
 from numba.np.numpy_support import from_dtype
 
 from ropecam.device.pipeline._kernels.static_mask import MASK_FREE
+from ropecam.device.pipeline._kernels.tip_sweep import sweep_from_path
 from ropecam.device.pipeline._kernels.tracking import MOTION_COUNT, i8_1d, predict_motion
 from ropecam.shared.jit import f4_1d, f4_2d, f4_2d_ro, f8_1d, f8_2d, kernel, u1_2d_ro
 
@@ -27,6 +28,7 @@ CHECK_TIP_MOTION: Final = 4
 CHECK_ORDER: Final = 5
 CHECK_NO_BLUR: Final = 6
 CHECK_TIP_MASKED: Final = 7
+CHECK_FALLBACK_SWEEP: Final = 8
 
 CHECK_THRESHOLDS: Final = np.dtype(
     [
@@ -42,6 +44,7 @@ CHECK_THRESHOLDS: Final = np.dtype(
         ("min_blur_evidence", np.float64),
         ("tip_mask_widths", np.float64),
         ("tip_mask_floor_px", np.float64),
+        ("fallback_sweep_widths", np.float64),
     ]
 )
 """The checks' thresholds (`ChecksConfig`'s numbers), one record."""
@@ -62,15 +65,21 @@ _thresholds_ro = types.Array(from_dtype(CHECK_THRESHOLDS), 1, "C", readonly=True
 _quality = types.Array(from_dtype(CHECK_QUALITY), 1, "C")
 
 
+_NO_AGE_LIMIT: Final = 1 << 62
+"""The motion model's frames are as fresh as the model keeps them (it starts again after a gap)."""
+
+
 @kernel(boolean(int64, int64, i8_1d, f8_2d, f4_1d, f8_1d))
 def predict_tips(t_ns, exposure_ns, motion_state, motion_log, fixed, out_predicted):
     """Write where the motion model (`motion_state`, `motion_log`) puts the tips' midpoint (row, col) in the frame
-    exposed from `t_ns` for `exposure_ns`, about the fixed end (row, col), and the prediction's error (px), into
-    `out_predicted` (3,). With fewer than two frames in the model: nan error (no prediction); returns whether there
-    is a prediction."""
+    exposed from `t_ns` for `exposure_ns`, about the fixed end (row, col), the prediction's error (px), and how far
+    the tip sweeps during that exposure along its path (px: `sweep_from_path` through the model's last midpoints
+    and the predicted one; nan for an unknown exposure) into `out_predicted` (4,). With fewer than two frames in
+    the model: nan error and sweep (no prediction); returns whether there is a prediction."""
     count = motion_state[MOTION_COUNT]
     if count < 2:
         out_predicted[2] = math.nan
+        out_predicted[3] = math.nan
         return False
     f_re, f_im, error_px = predict_motion(t_ns, exposure_ns, motion_state, motion_log)
     radius = math.exp(motion_log[count - 1, 0])
@@ -80,6 +89,9 @@ def predict_tips(t_ns, exposure_ns, motion_state, motion_log, fixed, out_predict
     out_predicted[0] = float64(fixed[0]) + f_re * z_re - f_im * z_im
     out_predicted[1] = float64(fixed[1]) + f_re * z_im + f_im * z_re
     out_predicted[2] = error_px
+    s_r, s_c = sweep_from_path(fixed, t_ns + exposure_ns // 2, exposure_ns, _NO_AGE_LIMIT, motion_state, motion_log,
+                               out_predicted[0], out_predicted[1])  # fmt: skip
+    out_predicted[3] = math.hypot(s_r, s_c)
     return True
 
 
@@ -137,10 +149,11 @@ def check_frame(
     others; `CHECK_NONE`: all passed) and write every measure into `out_quality[0]`.
 
     `begin`/`end` are the shapes (row, col), fixed end first; `fixed` the fixed end; `predicted` the tips' predicted
-    midpoint and its error (`predict_tips`; nan error: none); `stretch_*` Lc / Lc0 of each shape (nan: unknown);
-    `width_px` the split's width, `learned_width_px` the learned one (0: unknown); `split` whether the method gave
-    two shapes; `contour_area_px2` the contour's area (used only for a split the motion model cannot check:
-    unknown exposure or no prediction); `mask` the static mask (`tip_mask_distance`). The rules are
+    midpoint, its error and the tip's sweep (`predict_tips`; nan error: none); `stretch_*` Lc / Lc0 of each shape
+    (nan: unknown); `width_px` the split's width, `learned_width_px` the learned one (0: unknown); `split` whether
+    the method gave two shapes (a single shape is checked against the tip's sweep: a fallback);
+    `contour_area_px2` the contour's area (used only for a split the motion model cannot check: unknown exposure or
+    no prediction); `mask` the static mask (`tip_mask_distance`). The rules are
     `ropecam.device.pipeline.checks`' table.
     """
     limits = thresholds[0]
@@ -190,6 +203,15 @@ def check_frame(
         failed = CHECK_TIP_MOTION
     if failed == CHECK_NONE and split and exposure_ns > 0 and order_confidence < limits["min_order_confidence"]:
         failed = CHECK_ORDER
+    # One shape (the split's static fallback: the band's middle, the rope at mid-exposure) while the tip's path
+    # swept more than a rope width or so: the shape is neither the start nor the end of the exposure.
+    if (
+        failed == CHECK_NONE
+        and not split
+        and limits["fallback_sweep_widths"] > 0.0
+        and predicted[3] > limits["fallback_sweep_widths"] * width
+    ):
+        failed = CHECK_FALLBACK_SWEEP
     # A tip that ends where the static mask begins may be where the mask cut the rope (a rope crossing a masked
     # plate edge ends at it): the rope's end is then not seen, and the shapes are short.
     reach_px = limits["tip_mask_widths"] * width + limits["tip_mask_floor_px"]

@@ -36,11 +36,10 @@ from ropecam.device.pipeline._kernels.groups import (
     f4_3d,
     i8_1d,
 )
+from ropecam.device.pipeline._kernels.tip_sweep import MOTION_FRAMES, restore_tip_sweep
 from ropecam.device.pipeline._kernels.uncross import uncross_shapes
 from ropecam.shared.jit import f4_1d, f4_2d, f8_1d, f8_1d_ro, f8_2d, kernel
 
-MOTION_FRAMES: Final = 3
-"""Measured frames kept by the motion model."""
 MOTION_COUNT: Final = MOTION_FRAMES
 MOTION_EXPOSURE: Final = MOTION_FRAMES + 1
 _TWO_PI: Final = 2.0 * math.pi
@@ -482,8 +481,9 @@ def track_frame(
     track, width_px,
 ):  # fmt: skip
     """`order_shapes`, then `uncross_shapes` (the stretches of a rope whose start and end shapes cross, put in
-    time order by continuity; `width_px` the rope's width), `track_shapes` on the shapes in time order, then
-    `observe_motion`, in one call: what
+    time order by continuity; `width_px` the rope's width), `restore_tip_sweep` (tips the band's end put together,
+    moved apart by the sweep of their path), `track_shapes` on the shapes in time order, then `observe_motion`, in
+    one call: what
     a frame's two shapes (the same array for one shape) give once they are known, exposed from `t_ns` for
     `exposure_ns` (>= 0; `t_end_ns` = `t_ns` + exposure: not later means unknown, no time order, confidence 0.5
     or 1 for one shape, the history untouched). Arguments as those three kernels': `order` is the time order's
@@ -518,6 +518,9 @@ def track_frame(
     end = shape_a if swap == 1 else shape_b
     if t_end_ns > t_ns:
         uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, order)
+        if not single:
+            restore_tip_sweep(begin, end, fixed, t_ns, t_end_ns, max_age_ns, exposure_ns, motion_state, motion_log,
+                              order_state, hist_rc)  # fmt: skip
     _, stretch_begin, stretch_end = track_shapes(
         begin, end, single, fraction, length0_px, out_points, out_lengths, work_seg
     )

@@ -99,6 +99,26 @@ def test_tip_motion_against_the_motion_models_prediction() -> None:
     assert _check(checks, begin=jumped, end=jumped, split=False) == (FrameStatus.OK, Reason.NONE)
 
 
+@pytest.mark.parametrize(("step_px", "fallback", "expected"), [
+    (20.0, True, Reason.FALLBACK_SWEEP),  # 9.5 px in the 4 ms exposure: 1.9 widths
+    (20.0, False, Reason.NONE),  # the centreline method: one shape is its answer
+    (6.0, True, Reason.NONE),  # 2.9 px: 0.6 widths
+])  # fmt: skip
+def test_one_shape_while_the_tip_swept_fails_as_a_fallback(step_px: float, fallback: bool, expected: Reason) -> None:
+    motion = MotionModel()
+    period_ns = 8_403_361
+    for k in range(2):
+        tips = _shape(96.0 + k * step_px)
+        motion.observe(tips, tips, FIXED, k * period_ns + 2_000_000, 0.0, 4_000_000)
+    checks = SelfChecks(ChecksConfig(), fallback_single=fallback)
+    for _ in range(3):
+        checks.predict(motion.state, motion.log, FIXED, 2 * period_ns, 4_000_000)
+    middle = _shape(96.0 + 2 * step_px)
+    status = FrameStatus.OK if expected is Reason.NONE else FrameStatus.IMPLAUSIBLE
+    assert _check(checks, begin=middle, end=middle, split=False) == (status, expected)
+    assert _check(checks, split=True)[1] is not Reason.FALLBACK_SWEEP  # two shapes: not a fallback
+
+
 def test_shapes_of_different_lengths_fail_only_as_a_split() -> None:
     checks = SelfChecks(ChecksConfig())
     assert _check(checks, stretch_begin=1.015, stretch_end=0.99) == (FrameStatus.OK, Reason.NONE)  # 2.5 % apart

@@ -300,7 +300,8 @@ def _motion(state: np.ndarray, log: np.ndarray) -> K.Motion:
 
 
 def test_track_frame_is_order_then_material_points_then_motion() -> None:
-    """`track_frame` gives what `order_shapes`, `track_shapes` and `observe_motion` give called in turn (the
+    """`track_frame` gives what `order_shapes`, `uncross_shapes`, `restore_tip_sweep`, `track_shapes` and
+    `observe_motion` give called in turn (the
     reference here), states included, through swaps, single shapes, unknown exposures; it writes nothing when a
     size is wrong."""
     rng = np.random.default_rng(21)
@@ -313,6 +314,7 @@ def test_track_frame_is_order_then_material_points_then_motion() -> None:
         for _ in range(2)
     ]  # fmt: skip
     period, exposure = 8_403_361, 4_000_000
+    moved = 0
     for k in range(80):
         t0 = k * period
         t1 = t0 + (exposure if k % 17 else 0)
@@ -341,6 +343,9 @@ def test_track_frame_is_order_then_material_points_then_motion() -> None:
         begin, end = (b, a) if swap else (a, b)
         if t1 > t0:
             K.uncross_shapes(begin, end, a is b, t1, 4 * period, 3.0, K.Order(order_state, hist_rc, prev_end, splice))
+            if a is not b:
+                moved += K.restore_tip_sweep(begin, end, fixed, t0, t1, 4 * period, t1 - t0, motion_state, motion_log,
+                                             order_state, hist_rc)  # fmt: skip
         _, stretch_begin, stretch_end = K.track_shapes(
             begin, end, a is b, fraction, 120.0, out_ref, lengths_ref, work_ref
         )
@@ -348,6 +353,7 @@ def test_track_frame_is_order_then_material_points_then_motion() -> None:
         assert got == (swap, confidence, stretch_begin, stretch_end), k
         for mine, ref in zip(states[0], states[1], strict=True):
             np.testing.assert_array_equal(mine, ref)
+    assert moved > 0  # the sequence includes tips the band's end put together (the shift of 4 cos(0.15 k) px)
     before = [s.copy() for s in states[0]]
     order_state, hist_rc, motion_state, motion_log, out, lengths, work, prev_end, splice = states[0]
     long_shape = np.zeros((600, 2), np.float32)  # longer than the scratch

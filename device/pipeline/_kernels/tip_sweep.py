@@ -1,0 +1,147 @@
+"""The tip's sweep during the exposure from its path over the last frames, where the band's end cannot show it.
+
+A tip that moves along its own axis during the exposure leaves no corner at the band's far end: the band ends in a
+ramp as long as the along-axis sweep, and both shapes' tips are read at the ramp's middle (the half-level crossing
+of `extend_to_band_end`). Each tip is then off by half the sweep (3-7 px on the ``lab`` swing's whipping frames),
+while their midpoint is right: it is the tip at mid-exposure. The midpoints of the last frames (the motion
+model's log) and of this frame give the tip's velocity at mid-exposure (a quadratic through three midpoints, a
+line through two); velocity x exposure is the sweep. Where the two measured tips lie much closer together than
+that sweep, they are moved apart to the midpoint -/+ half the sweep (`restore_tip_sweep`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Final
+
+import numpy as np
+from numba import boolean, float64, int64, types
+
+from ropecam.device.pipeline._kernels.groups import ORDER_COUNT, i8_1d
+from ropecam.shared.jit import f4_1d, f4_2d, f8_2d, kernel
+
+MOTION_FRAMES: Final = 3
+"""Measured frames kept by the motion model (`observe_motion`; its layout is `tracking`'s docstring)."""
+MIN_SWEEP_PX: Final = 2.0
+"""A sweep estimated shorter than this is left as measured (within the tips' own noise)."""
+COLLAPSED: Final = 0.6
+"""The measured tips count as collapsed when they lie closer than this fraction of the estimated sweep: the split
+lost at least 40 % of it. Where the band's corners resolve the sweep (a sideways motion, a slanted end that
+`correct_slant` reads), the measured and estimated sweeps agree within about 10 % on ``lab`` (simulated, tuning
+seed, 240 frames), and the measured ones stand."""
+SHIFT_SPAN: Final = 3.0
+"""A tip moved by d carries the shape's last ``max(SHIFT_SPAN d, SHIFT_MIN_PX)`` of arc along with it, linearly
+less towards the fixed end: the shape never folds back on itself (the points move by at most a third of their
+spacing more than their neighbours)."""
+SHIFT_MIN_PX: Final = 4.0
+MAX_GROWTH: Final = 2.0
+SAME_PATH_PX: Final = 4.0
+"""A sweep from the path larger than ``MAX_GROWTH`` x the last frame's sweep (the motion model's) + this is no
+path (the model's midpoints read about another fixed end): nothing moves."""
+
+
+@kernel(types.UniTuple(float64, 2)(f4_1d, int64, int64, int64, i8_1d, f8_2d, float64, float64))
+def sweep_from_path(fixed, t_mid_ns, exposure_ns, max_age_ns, motion_state, motion_log, mid_r, mid_c):
+    """Return the tip's sweep (row, col: end minus start) during the exposure of `exposure_ns` centred on
+    `t_mid_ns`, from the tips' midpoints the motion model holds (`motion_state`, `motion_log`: log-polar about the
+    fixed end, at their mid-exposure times) and this frame's midpoint (`mid_r`, `mid_c`), about the fixed end
+    `fixed` (row, col): the derivative at `t_mid_ns` of the quadratic through the last two held midpoints and this
+    one (the line through one held midpoint and this one), times the exposure. (nan, nan) with no held frame, an
+    unknown exposure, or a held frame not before `t_mid_ns` or older than `max_age_ns`.
+    """
+    count = motion_state[MOTION_FRAMES]
+    if count < 1 or exposure_ns <= 0 or count > MOTION_FRAMES:
+        return math.nan, math.nan
+    t2 = motion_state[count - 1]
+    if not (0 < t_mid_ns - t2 <= max_age_ns):
+        return math.nan, math.nan
+    fr = float64(fixed[0])
+    fc = float64(fixed[1])
+    radius = math.exp(motion_log[count - 1, 0])
+    m2_r = fr + radius * math.cos(motion_log[count - 1, 1])
+    m2_c = fc + radius * math.sin(motion_log[count - 1, 1])
+    h2 = float64(t_mid_ns - t2)
+    if count < 2 or not (0 < t2 - motion_state[count - 2] <= max_age_ns):
+        scale = exposure_ns / h2
+        return (mid_r - m2_r) * scale, (mid_c - m2_c) * scale
+    t1 = motion_state[count - 2]
+    radius = math.exp(motion_log[count - 2, 0])
+    m1_r = fr + radius * math.cos(motion_log[count - 2, 1])
+    m1_c = fc + radius * math.sin(motion_log[count - 2, 1])
+    h1 = float64(t_mid_ns - t1)
+    # Lagrange's derivative at the last node of the quadratic through (t1, m1), (t2, m2), (t, m).
+    w1 = h2 / ((h1 - h2) * h1)
+    w2 = -h1 / ((h1 - h2) * h2)
+    w3 = (h1 + h2) / (h1 * h2)
+    return (
+        (w1 * m1_r + w2 * m2_r + w3 * mid_r) * exposure_ns,
+        (w1 * m1_c + w2 * m2_c + w3 * mid_c) * exposure_ns,
+    )
+
+
+@kernel(types.void(f4_2d, float64, float64))
+def shift_tip(shape, d_r, d_c):
+    """Move the last point of `shape` (row, col) by (`d_r`, `d_c`) and the points before it by that times a weight
+    falling linearly to 0 over the last ``max(SHIFT_SPAN |d|, SHIFT_MIN_PX)`` of arc, in place."""
+    n = shape.shape[0]
+    if n < 1:
+        return
+    span = max(SHIFT_SPAN * math.hypot(d_r, d_c), SHIFT_MIN_PX)
+    back = 0.0
+    k = n - 1
+    while k >= 0:
+        weight = 1.0 - back / span
+        if weight <= 0.0:
+            break
+        if k > 0:
+            back += math.hypot(
+                float64(shape[k, 0]) - float64(shape[k - 1, 0]), float64(shape[k, 1]) - float64(shape[k - 1, 1])
+            )
+        shape[k, 0] = np.float32(float64(shape[k, 0]) + weight * d_r)
+        shape[k, 1] = np.float32(float64(shape[k, 1]) + weight * d_c)
+        k -= 1
+
+
+@kernel(boolean(f4_2d, f4_2d, f4_1d, int64, int64, int64, int64, i8_1d, f8_2d, i8_1d, f8_2d))
+def restore_tip_sweep(
+    begin, end, fixed, t_ns, t_end_ns, max_age_ns, exposure_ns, motion_state, motion_log, order_state, hist_rc
+):  # fmt: skip
+    """Where the two shapes' tips (`begin`, `end`: in time order, fixed end first) lie closer together than
+    `COLLAPSED` x the sweep their path gives (`sweep_from_path`, at least `MIN_SWEEP_PX`), put them at their
+    midpoint -/+ half that sweep (`shift_tip`, in place), and the time order's last two tip samples (this frame's,
+    when `order_shapes` remembered them: times `t_ns` and `t_end_ns`) with them. Nothing moves when that sweep
+    is far beyond the last frame's (`MAX_GROWTH`, `SAME_PATH_PX`: the motion model was measured about another
+    fixed end). Returns whether it moved them.
+
+    `fixed` is the fixed end (row, col); `exposure_ns` the exposure (the midpoint is at ``t_ns + exposure_ns //
+    2``, as `observe_motion` takes it); `motion_state`/`motion_log` the motion model before this frame is added;
+    `order_state`/`hist_rc` the time order's history.
+    """
+    nb = begin.shape[0]
+    ne = end.shape[0]
+    if nb < 2 or ne < 2 or exposure_ns <= 0 or t_end_ns <= t_ns:
+        return False
+    br = float64(begin[nb - 1, 0])
+    bc = float64(begin[nb - 1, 1])
+    er = float64(end[ne - 1, 0])
+    ec = float64(end[ne - 1, 1])
+    mid_r = 0.5 * (br + er)
+    mid_c = 0.5 * (bc + ec)
+    s_r, s_c = sweep_from_path(fixed, t_ns + exposure_ns // 2, exposure_ns, max_age_ns, motion_state, motion_log,
+                               mid_r, mid_c)  # fmt: skip
+    sweep = math.hypot(s_r, s_c)
+    if not (sweep >= MIN_SWEEP_PX and math.hypot(er - br, ec - bc) < COLLAPSED * sweep):
+        return False
+    # The motion model keeps its midpoints about the fixed end of their time: read about another one (the fixed
+    # end was found again), they give a path that jumps. A sweep far beyond the last frame's is no path.
+    if sweep > MAX_GROWTH * motion_log[MOTION_FRAMES, 0] + SAME_PATH_PX:
+        return False
+    count = order_state[ORDER_COUNT]
+    shift_tip(begin, mid_r - 0.5 * s_r - br, mid_c - 0.5 * s_c - bc)
+    shift_tip(end, mid_r + 0.5 * s_r - er, mid_c + 0.5 * s_c - ec)
+    if count >= 2 and order_state[count - 2] == t_ns and order_state[count - 1] == t_end_ns:
+        hist_rc[count - 2, 0] = float64(begin[nb - 1, 0])
+        hist_rc[count - 2, 1] = float64(begin[nb - 1, 1])
+        hist_rc[count - 1, 0] = float64(end[ne - 1, 0])
+        hist_rc[count - 1, 1] = float64(end[ne - 1, 1])
+    return True

@@ -1,0 +1,120 @@
+"""Tips that move along their own axis during the exposure (#19 acc. 7): the band's end is then a ramp as long as
+the sweep, both shapes' tips are read at its middle, and `restore_tip_sweep` moves them apart by the sweep of the
+tips' path over the last frames."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ropecam.device.capture.frameset import FrameSet
+from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._kernels.tip_sweep import MOTION_FRAMES as SWEEP_MOTION_FRAMES
+from ropecam.device.pipeline._kernels.tip_sweep import restore_tip_sweep, shift_tip, sweep_from_path
+from ropecam.device.pipeline.config import PipelineConfig
+from ropecam.device.pipeline.pipeline import Pipeline
+from ropecam.device.pipeline.result import FrameStatus
+from ropecam.host.sim.dynamics import solve_trajectory
+from ropecam.host.sim.generate import write_frameset
+from ropecam.host.sim.presets import preset
+
+FIRST_S = 0.672
+"""The soft rope's whip: from 0.672 s after the release its tip moves 3-6 px along its own axis per 4 ms exposure
+and 1.5 px or less across it (frames 80-88 of the 240-frame ``lab`` swing, which has the same motion)."""
+FRAMES = 9
+
+
+@pytest.fixture(scope="module")
+def whip(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """`FRAMES` frames of ``rig-soft`` from `FIRST_S` (4 ms, 119 FPS), rendered in-process."""
+    config = preset("rig-soft")
+    config = dataclasses.replace(config, frames=FRAMES, first_exposure_s=FIRST_S)
+    out = tmp_path_factory.mktemp("whip") / "set"
+    write_frameset(config, solve_trajectory(config), out, 4.0)
+    return out
+
+
+def test_tips_moving_along_their_axis_are_moved_apart_by_the_path_sweep(whip: Path) -> None:
+    frames = FrameSet(whip)
+    truth = frames.truth()
+    assert truth is not None
+    begin_true, end_true = truth["begin_px"], truth["end_px"]
+    axis = begin_true[:, -1] - begin_true[:, -4]
+    axis /= np.hypot(*axis.T)[:, None]
+    sweep = end_true[:, -1] - begin_true[:, -1]
+    along = np.abs(np.sum(sweep * axis, axis=1))
+    across = np.abs(sweep[:, 0] * axis[:, 1] - sweep[:, 1] * axis[:, 0])
+    # The scene is what the test is about: from frame 3 on the tip sweeps 4-7 px along its axis and at most
+    # 1.5 px across, so the band's end cannot separate the tips (read at its middle: 2-3.5 px off each).
+    assert np.all(along[3:] > 4.0) and np.all(across[3:] < 1.5), (along, across)
+    width, height = frames.meta["image_size"]
+    pipeline = Pipeline(PipelineConfig(), (width, height))
+    errors, separations = [], []
+    for k, (record, image) in enumerate(frames):
+        result = pipeline.process(image, record.frame, record.t_ns, record.exposure_us)
+        assert result.status is FrameStatus.OK, f"frame {k}: {result.status.name} {result.message}"
+        assert result.begin is not None and result.end is not None
+        if k >= 3:  # the tip's path needs two frames measured before
+            errors.append(np.hypot(*(result.begin[-1, ::-1] - begin_true[k, -1])))
+            errors.append(np.hypot(*(result.end[-1, ::-1] - end_true[k, -1])))
+            # read at the band's middle, the two tips lay within 0.5 px of each other
+            separations.append(np.hypot(*(result.end[-1] - result.begin[-1])))
+    assert max(errors) < 1.0, np.round(errors, 2)
+    assert min(separations) > 0.8 * min(along[3:]), (np.round(separations, 2), along)
+
+
+def test_restore_tip_sweep_moves_collapsed_tips_and_their_history() -> None:
+    assert SWEEP_MOTION_FRAMES == K.MOTION_FRAMES
+    fixed = np.array([10.0, 50.0], np.float32)
+    period, exposure = 8_000_000, 4_000_000
+    # The tips' midpoint moves along +col by 2 px per ms (8 px per exposure) on a straight rope along col.
+    state = np.zeros(MOTION_STATE_SIZE, np.int64)
+    log = np.zeros((K.MOTION_FRAMES + 1, 2))
+    for k in range(2):
+        mid = np.array([[10.0, 100.0 + 16.0 * k]], np.float32)
+        K.observe_motion(mid, mid, fixed, k * period + exposure // 2, 8.0, exposure, state, log)
+    t_ns = 2 * period
+    cols = np.arange(60.0, 132.1, 2.0)
+    a = np.stack([np.full_like(cols, 10.0), cols], axis=1).astype(np.float32)
+    b = a.copy()
+    sweep = sweep_from_path(fixed, t_ns + exposure // 2, exposure, 4 * period, state, log, 10.0, 132.0)
+    assert sweep == pytest.approx((0.0, 8.0), abs=1e-6)
+    order_state = np.zeros(K.ORDER_STATE_SIZE, np.int64)
+    hist = np.zeros((K.HISTORY, 2))
+    order_state[:2] = (t_ns, t_ns + exposure)
+    order_state[K.ORDER_COUNT] = 2
+    # A path far beyond the last frame's sweep (2 x 1 px + 4) is no path (the model was read about another fixed
+    # end): nothing moves.
+    jumped = log.copy()
+    jumped[K.MOTION_FRAMES, 0] = 1.0
+    assert not restore_tip_sweep(a.copy(), b.copy(), fixed, t_ns, t_ns + exposure, 4 * period, exposure, state,
+                                 jumped, order_state, hist)  # fmt: skip
+    assert restore_tip_sweep(a, b, fixed, t_ns, t_ns + exposure, 4 * period, exposure, state, log, order_state, hist)
+    assert a[-1].tolist() == pytest.approx([10.0, 128.0]) and b[-1].tolist() == pytest.approx([10.0, 136.0])
+    assert hist[:2].ravel().tolist() == pytest.approx([10.0, 128.0, 10.0, 136.0])
+    assert np.all(np.diff(a[:, 1]) > 0) and np.all(np.diff(b[:, 1]) > 0)  # neither shape folds back
+    assert a[:20].tolist() == b[:20].tolist() and a[0, 1] == 60.0  # far from the tip nothing moved
+    # Tips the band's corners already put apart stay where they are.
+    c, d = a.copy(), b.copy()
+    assert not restore_tip_sweep(c, d, fixed, t_ns, t_ns + exposure, 4 * period, exposure, state, log,
+                                 order_state, hist)  # fmt: skip
+    assert c.tolist() == a.tolist() and d.tolist() == b.tolist()
+    # Without a frame in the motion model there is no path: nothing moves.
+    e, f = np.repeat(a[:1], 3, axis=0), np.repeat(a[:1], 3, axis=0)
+    state[K.MOTION_COUNT] = 0
+    assert not restore_tip_sweep(e, f, fixed, t_ns, t_ns + exposure, 4 * period, exposure, state, log,
+                                 order_state, hist)  # fmt: skip
+
+
+def test_shift_tip_spreads_the_move_over_the_last_arc() -> None:
+    shape = np.stack([np.zeros(11), np.arange(0.0, 22.0, 2.0)], axis=1).astype(np.float32)
+    shift_tip(shape, 0.0, -3.0)  # back by 3 px: spread over the last 9 px of arc
+    assert shape[-1].tolist() == pytest.approx([0.0, 17.0])
+    assert shape[:6].tolist() == np.stack([np.zeros(6), np.arange(0.0, 12.0, 2.0)], axis=1).tolist()
+    assert np.all(np.diff(shape[:, 1]) > 0)
+
+
+MOTION_STATE_SIZE = K.MOTION_FRAMES + 2
