@@ -86,7 +86,7 @@ class Stages:
         ws = Workspace.make(height, width, cap, weights, fraction)
         edges = EdgeDetector(height, width, config.smooth_sigma_px, config.canny_low, config.canny_high, ws.edges)
         tracer = ContourTracer(height, width, cap, config.min_contour_px, buffers=ws.contour)
-        static_mask = StaticMask.from_config(ws.edges, config, shape)
+        static_mask = StaticMask.from_config(ws.edges, config, shape, edges)
         thresholds = EdgeThresholds(
             height,
             width,

@@ -238,3 +238,66 @@ def test_a_rope_cut_by_a_clamp_mask_is_measured_from_the_fixed_end(tmp_path: Pat
             assert np.hypot(*(shape[0][::-1] - pivot)) < 2.5
             length = float(np.hypot(*np.diff(shape.astype(np.float64), axis=0).T).sum())
             assert abs(length - rope.length_px) < 0.03 * rope.length_px
+
+
+def _with_cable(image: np.ndarray, col: int) -> np.ndarray:
+    """`image` with a still bright cable from the top border to the bottom one at column `col` (3 px wide)."""
+    out = image.copy()
+    out[:, col - 1 : col + 2] = 200
+    return out
+
+
+def test_a_fresh_device_learns_a_static_cable_and_never_takes_it_for_the_rope() -> None:
+    """A still cable from the top border to the bottom one, longer than the rope, beside the swing: a fresh
+    device (every key at its default) learns it as static over its first `static_frames` frames and measures the
+    rope on every frame from then on, to a pixel (the cable's structure marked static does not end the rope's free
+    tips "at the mask"); with the learning off as well."""
+    rope = SyntheticRope(width=240, height=200, fixed_uv=(150.3, 20.6), length_px=120.0, amplitude_rad=0.5)
+    learn = PipelineConfig().static_frames
+    assert learn > 0  # the default learns
+    frames = [(f, _with_cable(f.image, 30)) for f in rope.frames(learn + 4)]
+    for static_frames in (learn, 0):
+        pipeline = Pipeline(PipelineConfig(static_frames=static_frames), (rope.width, rope.height))
+        errors = []
+        for frame, image in frames:
+            result = pipeline.process(image, frame.index, frame.t_ns, float(rope.exposure_us))
+            if frame.index < learn:
+                continue
+            assert result.status is FrameStatus.OK
+            tips = (result.begin[-1][::-1], result.end[-1][::-1])  # (row, col) -> (u, v)
+            errors.append(max(np.hypot(*(tips[0] - frame.tip_begin_uv)), np.hypot(*(tips[1] - frame.tip_end_uv))))
+        assert max(errors) < 1.0
+
+
+def test_the_learned_mask_marks_structures_not_the_plain_plate() -> None:
+    """A still scratch on a plain noisy plate, with the rope swinging over it: after learning, the scratch's
+    pixels are static and the plain plate far from it is not (the `tip_masked` check reads the mask)."""
+    rope = SyntheticRope(width=240, height=200, fixed_uv=(120.3, 20.6), length_px=120.0, amplitude_rad=0.5)
+    pipeline = Pipeline(PipelineConfig(static_frames=6), (rope.width, rope.height))
+    for frame in rope.frames(6):
+        image = frame.image.copy()
+        image[170:172, 20:80] = 90  # the scratch, below the swing
+        pipeline.process(image, frame.index, frame.t_ns, float(rope.exposure_us))
+    static = pipeline.static_mask.static()
+    assert static[169:173, 25:75].all(axis=0).sum() >= 40  # across the scratch, along most of it
+    plate = np.zeros_like(static)
+    plate[120:160, 180:230] = True  # plain plate, away from the rope and the scratch
+    assert not static[plate].any()
+    assert static.mean() < 0.05
+
+
+def test_an_outline_whose_fixed_end_lies_on_the_border_is_never_ok() -> None:
+    """A bright rod from the top border down to the rope's fixed end joins the rope's outline to the border, and
+    a fresh device's first frames (before the mask is learned) may take the rod's top for the fixed end: such an
+    outline is reported ROPE_CLIPPED, never OK with the rope measured from the border."""
+    rope = SyntheticRope(width=240, height=200, fixed_uv=(120.3, 20.6), length_px=120.0, amplitude_rad=0.5)
+    pipeline = Pipeline(PipelineConfig(static_frames=0), (rope.width, rope.height))
+    statuses = []
+    for frame in rope.frames(4):
+        image = frame.image.copy()
+        image[:22, 117:124] = 230  # the rod, touching the rope's fixed end
+        result = pipeline.process(image, frame.index, frame.t_ns, float(rope.exposure_us))
+        statuses.append(result.status)
+        if result.status is FrameStatus.OK:
+            assert result.fixed_end is not None and result.fixed_end[0] > 2.0  # not on the top border
+    assert FrameStatus.ROPE_CLIPPED in statuses
