@@ -147,7 +147,7 @@ class PipelineConfig:
     threshold_frames: int = 1
     threshold_update_frames: int = 16
     threshold_sample_every: int = 4
-    static_frames: int = 12
+    static_frames: int = 10
     static_margin_dn: int = 3
     static_relative: float = 0.1
     static_mask_png: str = ""

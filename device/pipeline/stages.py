@@ -111,6 +111,7 @@ class Stages:
         if plane is not None:
             tracker.plane = plane_params(plane)
         traits = RopeTraits(config, shape, ws.fixed_end, splitter.edge_spacing)
+        traits.fixed_end.mask = ws.edges.static_mask  # a rope's end hidden in a masked clamp is found inside it
         motion = MotionModel(ws.motion)
         checks = SelfChecks(config.checks)
         time_order = TimeOrder(ws.order)

@@ -72,6 +72,8 @@ class StaticMask:
         self.smooth_sigma_px = float(smooth_sigma_px)
         self.seen = 0
         """Frames learned from so far."""
+        self.marked = False
+        """Whether the learned mask is marked (on the frame after the learned ones)."""
         self.static_px = 0
         """Pixels marked static when the learning ended (0 before)."""
         self.base_dn = 0.0
@@ -107,15 +109,23 @@ class StaticMask:
 
     @property
     def learning(self) -> bool:
-        """Whether frames are still being learned from."""
-        return self.seen < self.frames
+        """Whether frames are still being learned from (or the mask is still to be marked on the next frame)."""
+        return self.frames > 0 and not self.marked
 
     def learn(self, frame: NDArray[np.uint8]) -> None:
-        """Learn from one frame (a whole-frame pass: only the first `frames` frames); the last one marks the mask."""
+        """Learn from one frame (a whole-frame pass: only the first `frames` frames); the frame after them marks
+        the mask without being learned from. The frame that is measured first with the mask must not be in the
+        learned ranges: its moving rope's faint edges (the border of the area the rope swept so far) would look
+        as learned, and be dropped."""
         b = self.buffers
-        if K.learn_static_range(as_ro(frame), b.static_low, b.static_high) < 0:
+        if self.seen < self.frames:
+            if K.learn_static_range(as_ro(frame), b.static_low, b.static_high) < 0:
+                raise ValueError(f"frame is {frame.shape}, expected {b.static_low.shape}")
+            self.seen += 1
+            return
+        if frame.shape != b.static_low.shape:
             raise ValueError(f"frame is {frame.shape}, expected {b.static_low.shape}")
-        self.seen += 1
+        self.marked = True
         if self.seen == self.frames:
             spread = b.static_high[::_SAMPLE_STEP, ::_SAMPLE_STEP].astype(np.int16)
             spread -= b.static_low[::_SAMPLE_STEP, ::_SAMPLE_STEP]
