@@ -203,6 +203,18 @@ class BlurSplitter:
             return self.blur_measured
         return self.blur_estimate.value
 
+    def restart(self) -> None:
+        """Forget what the first frames read off the band (the contrast readings, and the lens blur and sharpening
+        when they were measured rather than given): they were read on contours the static mask did not yet clean,
+        where a clamp's edges pass for the rope's (`Stages.relearn`)."""
+        self.measure.contrasts.clear()
+        self.measure.contrast_px = float("nan")
+        self.frame_call.key = None
+        if self.blur_measured is not None or self.blur_estimate is not None:
+            self.blur_estimate = LensBlurEstimate()
+            self.blur_measured = None
+            self.set_edge_blur(EdgeBlur(DEFAULT_LENS_BLUR_PX, 0.0, 1.0))
+
     def edge_spacing(self, width_px: float) -> float:
         """Edge spacing (px) of a still rope `width_px` wide under the edge model in use (`BandEdgeModel`)."""
         return self.model.edge_spacing(width_px)
@@ -578,6 +590,8 @@ class BlurSplitter:
             d2 = np.hypot(points[e2, 0] - fixed_rc[0], points[e2, 1] - fixed_rc[1])
             if d2 < d1:
                 e1, e2 = e2, e1
+            if max(d1, d2) < 3.0 * self.width + 6.0:  # both "ends" at the fixed end: two corners of a clamp
+                return None
         w = np.float32(self.width)
         count = K.offset_by_gradient(
             points, chain, n, e1, e2, i32(1), self._gx, self._gy, self.polarity_used, w, f32(0.0), self.side_a

@@ -150,9 +150,12 @@ class Stages:
         self.time_order.clear()
 
     def relearn(self) -> None:
-        """Learn the rope's traits (fixed end, width, polarity, Lc0) again, with the static mask now known: the
+        """Learn the rope's traits (fixed end, width, polarity, Lc0, and the contrast and lens blur the split reads)
+        again, with the static mask now known: the
         first frames failed (a clamp, rod or plate edge joined to the rope's contour), so what they taught is
         suspect."""
         self.traits.restart()
         self.tracker.restart()
+        self.splitter.restart()
+        self.steady.unbind()
         self.reset_tracking()
