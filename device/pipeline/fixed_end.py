@@ -99,6 +99,9 @@ class FixedEndFinder:
                 k = 0 if far[0] <= far[1] else 1
             else:
                 k = 0 if widths[0] < widths[1] else 1
+            attached = _attached_structure(points[:n], e1, e2, ends, w)
+            if attached is not None:
+                k = attached
             self.fixed[:] = ends[k]
             self._first_ends = (ends[k].copy(), ends[1 - k].copy())
             self.known = True
@@ -201,3 +204,36 @@ def hidden_end(
         return end
     middle = 0.25 * (runs[0][0] + runs[0][1] + runs[-1][0] + runs[-1][1])
     return np.array([r0 + middle * axis[0], c0 + middle * axis[1]], np.float32)
+
+
+def _attached_structure(
+    points: NDArray[np.float32], e1: int, e2: int, ends: list[NDArray[np.float32]], width_px: float
+) -> int | None:
+    """Which of the outline's two ends (0: at contour index `e1`, 1: `e2`; `ends` their cap centres) is a
+    structure the rope is attached to (a clamp), or None.
+
+    The first guess takes the narrower end for the fixed one because the free end sweeps: the band then widens
+    along the rope, and its middle is wider than a still rope. An end much thicker than the other (the spread
+    across the outline's points within 4 widths of it) on a band whose middle is as narrow as a still rope is no
+    sweep: a still rope joined to a clamp, whose end that is. On `clamp size = 24 px` (simulated) the rope at rest
+    after the release was measured from its free end (a rope length off) before this rule.
+    """
+    n = len(points)
+    spread = []
+    for end in ends:
+        near = points[np.hypot(points[:, 0] - end[0], points[:, 1] - end[1]) <= 4.0 * width_px + 4.0]
+        if len(near) < 3:
+            return None
+        spread.append(float(np.sqrt(max(np.linalg.eigvalsh(np.cov(near.astype(np.float64).T))[0], 0.0))))
+    wide = 0 if spread[0] > spread[1] else 1
+    narrow = spread[1 - wide]
+    if not spread[wide] > 2.5 * narrow:
+        return None
+    # The band's middle: a point half-way round one side, and the nearest point of the other side.
+    middle_index = (e1 + ((e2 - e1) % n) // 2) % n
+    offset = np.abs((np.arange(n) - middle_index + n // 2) % n - n // 2)
+    across = points[offset > 3.0 * width_px] - points[middle_index]
+    if len(across) == 0:
+        return None
+    middle = float(np.hypot(across[:, 0], across[:, 1]).min())
+    return wide if middle <= 2.3 * narrow else None

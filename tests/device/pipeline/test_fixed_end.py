@@ -47,3 +47,31 @@ def test_an_end_away_from_the_mask_or_without_a_far_edge_is_kept() -> None:
     rod[76:85, :127] = 1  # a masked structure that runs to the image border: no far edge
     end = np.array([80.0, 126.0], np.float32)
     assert hidden_end(end, points, 2.5, rod) is end
+
+
+def _outline(image: np.ndarray) -> np.ndarray:
+    """The outer contour (row, col) float32 of the one blob in `image`."""
+    import cv2
+
+    contours, _ = cv2.findContours(image, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    return contours[0][:, 0, ::-1].astype(np.float32)
+
+
+def test_a_still_rope_joined_to_a_clamp_is_fixed_at_the_clamp_and_a_sweep_is_not() -> None:
+    """A still rope's outline joined to a clamp block: the thick end is the fixed one (the narrower-end rule
+    would take the free end). A sweeping rope's band (widening from a narrow fixed end) is left to that rule."""
+    from ropecam.device.pipeline.fixed_end import _attached_structure
+
+    image = np.zeros((120, 420), np.uint8)
+    image[40:55, 18:43] = 1  # the clamp, 25 x 15 px
+    image[46:49, 30:400] = 1  # the still rope, 3 px wide
+    points = _outline(image)
+    e1, e2 = int(np.argmin(points[:, 1])), int(np.argmax(points[:, 1]))
+    assert _attached_structure(points, e1, e2, [points[e1], points[e2]], 3.0) == 0
+    fan = np.zeros((120, 420), np.uint8)
+    for col in range(30, 400):
+        half = 1 + round(10 * (col - 30) / 370)  # the band widens to the swept tip
+        fan[47 - half : 48 + half, col] = 1
+    points = _outline(fan)
+    e1, e2 = int(np.argmin(points[:, 1])), int(np.argmax(points[:, 1]))
+    assert _attached_structure(points, e1, e2, [points[e1], points[e2]], 3.0) is None
