@@ -47,6 +47,10 @@ class FixedEndFinder:
         self.frames = 0
         """Contours the found fixed end is averaged over."""
         self._first_ends: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None
+        self.exposure_known = True
+        """Whether the frame being measured has a known exposure (set by `RopeLocator.locate`): a stream, where
+        a still outline with one thick end is a rope at rest joined to a clamp (`_attached_structure`); a still
+        photo (exposure unknown) may show any object at a rope's end, and keeps the narrower-end rule."""
         self.mask: NDArray[np.uint8] | None = None
         """The static mask (non-zero: a static structure's edges, `StaticMask`), or None: an end of the rope at a
         structure is then taken where the rope is last seen (`hidden_end`)."""
@@ -99,7 +103,7 @@ class FixedEndFinder:
                 k = 0 if far[0] <= far[1] else 1
             else:
                 k = 0 if widths[0] < widths[1] else 1
-            attached = _attached_structure(points[:n], e1, e2, ends, w)
+            attached = _attached_structure(points[:n], e1, e2, ends, w) if self.exposure_known else None
             if attached is not None:
                 k = attached
             self.fixed[:] = ends[k]

@@ -590,8 +590,6 @@ class BlurSplitter:
             d2 = np.hypot(points[e2, 0] - fixed_rc[0], points[e2, 1] - fixed_rc[1])
             if d2 < d1:
                 e1, e2 = e2, e1
-            if max(d1, d2) < 3.0 * self.width + 6.0:  # both "ends" at the fixed end: two corners of a clamp
-                return None
         w = np.float32(self.width)
         count = K.offset_by_gradient(
             points, chain, n, e1, e2, i32(1), self._gx, self._gy, self.polarity_used, w, f32(0.0), self.side_a
