@@ -103,7 +103,8 @@ class PipelineConfig:
     static_frames
         Frames over which the static mask is learned (each pixel's range of grey levels; pixels that stay within
         the noise are static structures: clamp, rod, plate edge, scratches, dust), whose edges are then dropped
-        while they look as learned. 0: no learned mask. The rope must swing during these frames.
+        while they look as learned (only still pixels on an edge of the learned scene: the plain plate stays free).
+        0: no learned mask. The rope must swing during these frames. The mask is marked on the next frame.
     static_margin_dn
         Grey levels beyond a static pixel's learned range at which it counts as changed (the rope is there).
     static_relative
@@ -147,7 +148,7 @@ class PipelineConfig:
     threshold_frames: int = 1
     threshold_update_frames: int = 16
     threshold_sample_every: int = 4
-    static_frames: int = 0
+    static_frames: int = 10
     static_margin_dn: int = 3
     static_relative: float = 0.1
     static_mask_png: str = ""

@@ -14,7 +14,10 @@ from ropecam.device.pipeline.workspace import ContourBuffers, expose
 if TYPE_CHECKING:
     from ropecam.device.pipeline.edges import EdgeDetector
 
-__all__ = ["ContourTracer"]
+__all__ = ["BORDER_FIXED_END_PX", "ContourTracer"]
+
+BORDER_FIXED_END_PX = 2.0
+"""A fixed end nearer the image border than this (px) is not a rope's: its outline's border contacts all count."""
 
 _NO_MASK = np.zeros((1, 1), np.uint8)
 _NO_MASK.flags.writeable = False
@@ -180,10 +183,20 @@ class ContourTracer:
         return int(K.count_roi_contacts(self.chain_ro, np.int32(self.count), as_ro(lo), as_ro(hi), self._width32))
 
     def border_contacts(self, fixed_rc: tuple[float, float] | None, exclude_px: float) -> int:
-        """Return how many contour pixels lie on the image border farther than `exclude_px` from the fixed end."""
+        """Return how many contour pixels lie on the image border farther than `exclude_px` from the fixed end.
+
+        A fixed end on the image border (within `BORDER_FIXED_END_PX`) excludes none: a rope is fixed inside the
+        view (docs/pipeline.md, "Known limits"), and an outline whose fixed end was found on the border runs out
+        of the frame along something else (a clamp's rod, a static cable), which is not the rope's end."""
         if self.on_border == 0 or self.count == 0:
             return 0
-        fr, fc = (np.float32(-1e9), np.float32(-1e9)) if fixed_rc is None else (f32(fixed_rc[0]), f32(fixed_rc[1]))
+        height, width = self.shape
+        if fixed_rc is None or min(fixed_rc[0], fixed_rc[1], height - 1 - fixed_rc[0], width - 1 - fixed_rc[1]) < (
+            BORDER_FIXED_END_PX
+        ):
+            fr, fc = np.float32(-1e9), np.float32(-1e9)
+        else:
+            fr, fc = f32(fixed_rc[0]), f32(fixed_rc[1])
         return int(
             K.count_border_contacts(
                 self.chain_ro, np.int32(self.count), self._height32, self._width32, fr, fc, f32(exclude_px)

@@ -13,6 +13,12 @@ __all__ = ["FIXED_END_FRAMES", "FixedEndFinder"]
 
 FIXED_END_FRAMES = 10
 """Frames over which a fixed end that is not configured is averaged; it does not change afterwards."""
+HIDDEN_REACH_PX = 120.0
+"""Farthest a rope's axis is followed into a static structure (a clamp) for the structure's far side (px)."""
+HIDDEN_GAP_PX = 16.0
+"""Longest stretch of unmasked pixels between two edges of one structure along the rope's axis (px): a clamp's
+face between its outline and its bolts' is shorter; the plate beyond the clamp's far side is longer."""
+_STEP_PX = 0.5
 
 
 class FixedEndFinder:
@@ -41,6 +47,13 @@ class FixedEndFinder:
         self.frames = 0
         """Contours the found fixed end is averaged over."""
         self._first_ends: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None
+        self.exposure_known = True
+        """Whether the frame being measured has a known exposure (set by `RopeLocator.locate`): a stream, where
+        a still outline with one thick end is a rope at rest joined to a clamp (`_attached_structure`); a still
+        photo (exposure unknown) may show any object at a rope's end, and keeps the narrower-end rule."""
+        self.mask: NDArray[np.uint8] | None = None
+        """The static mask (non-zero: a static structure's edges, `StaticMask`), or None: an end of the rope at a
+        structure is then taken where the rope is last seen (`hidden_end`)."""
         if fixed_end_uv is not None:
             self.fixed[:] = (fixed_end_uv[1], fixed_end_uv[0])
 
@@ -78,6 +91,9 @@ class FixedEndFinder:
         e1 = int(np.argmax(turn[:n]))
         e2 = int(np.argmax(np.hypot(points[:n, 0] - points[e1, 0], points[:n, 1] - points[e1, 1])))
         ends = [self._cap_centre(points, n, e, w) for e in (e1, e2)]
+        if self.mask is not None:
+            # Where the rope goes into a masked structure (a clamp), its end is hidden inside it.
+            ends = [hidden_end(end, points[:n], w, self.mask) for end in ends]
         if not self.known:
             m = max(4, round(2 * w))
             widths = [np.hypot(*(points[(e - m) % n] - points[(e + m) % n])) for e in (e1, e2)]
@@ -87,6 +103,9 @@ class FixedEndFinder:
                 k = 0 if far[0] <= far[1] else 1
             else:
                 k = 0 if widths[0] < widths[1] else 1
+            attached = _attached_structure(points[:n], e1, e2, ends, w) if self.exposure_known else None
+            if attached is not None:
+                k = attached
             self.fixed[:] = ends[k]
             self._first_ends = (ends[k].copy(), ends[1 - k].copy())
             self.known = True
@@ -125,3 +144,100 @@ class FixedEndFinder:
         centre = (points[idx].astype(np.float64) * weights[:, None]).sum(axis=0) / weights.sum()
         k = idx[int(np.argmin(np.hypot(points[idx, 0] - centre[0], points[idx, 1] - centre[1])))]
         return points[k].copy()
+
+
+def hidden_end(
+    end: NDArray[np.float32], points: NDArray[np.float32], width_px: float, mask: NDArray[np.uint8]
+) -> NDArray[np.float32]:
+    """Return the rope's end hidden inside the static structure it goes into at `end`, or `end` itself.
+
+    A clamp over the fixed end hides the rope's last part: the rope's outline ends where it leaves the clamp
+    (its sides sealed there, `seal_cut_ends`). When the static mask (the structure's edges, grown) lies next to
+    `end`, the rope's axis is followed beyond `end` across the structure's edges (masked runs: its outline, its
+    bolts') up to its far edge (the last run before `HIDDEN_GAP_PX` of unmasked pixels, within
+    `HIDDEN_REACH_PX`), and the end is put halfway between the middles of the first and the last edge: the middle
+    of the clamp along the rope, where a clamp centred on the fixed end holds it. Without a far edge
+    (the axis runs up a rod out of the view) or without a mask next to `end`, `end` is kept. The plane
+    calibration (or ``fixed_end_uv``) gives the fixed end exactly; this is the estimate without it.
+
+    Parameters
+    ----------
+    end
+        (row, col) float32: the rope's end on the contour.
+    points
+        (n, 2) float32 contour points (row, col).
+    width_px
+        The rope's edge spacing (px).
+    mask
+        (height, width) uint8 static mask (non-zero: masked).
+    """
+    height, width = mask.shape
+    r0, c0 = float(end[0]), float(end[1])
+    near = round(width_px) + 2
+    ri, ci = round(r0), round(c0)
+    if not mask[max(ri - near, 0) : ri + near + 1, max(ci - near, 0) : ci + near + 1].any():
+        return end
+    # The rope's axis at its end: from the middle of its contour points 3-6 widths away to the end.
+    d = np.hypot(points[:, 0] - r0, points[:, 1] - c0)
+    body = points[(d >= 3.0 * width_px + 3.0) & (d <= 6.0 * width_px + 6.0)]
+    if len(body) < 4:
+        return end
+    axis = np.array([r0, c0]) - body.astype(np.float64).mean(axis=0)
+    length = float(np.hypot(*axis))
+    if length < 1.0:
+        return end
+    axis /= length
+    runs: list[list[float]] = []  # [start, stop] distances of the masked runs along the axis
+    inside = False
+    gap = max(HIDDEN_GAP_PX, 4.0 * near)
+    t = 0.0
+    while t <= HIDDEN_REACH_PX:
+        r, c = round(r0 + t * axis[0]), round(c0 + t * axis[1])
+        if not (0 <= r < height and 0 <= c < width):
+            break
+        masked = mask[r, c] != 0
+        if masked and not inside:
+            runs.append([t, t])
+        elif masked:
+            runs[-1][1] = t
+        inside = masked
+        if not inside and t - (runs[-1][1] if runs else 0.0) > (gap if runs else near):
+            break  # beyond the structure's last edge (or no structure right beyond the end)
+        t += _STEP_PX
+    if len(runs) < 2 or inside:
+        return end
+    middle = 0.25 * (runs[0][0] + runs[0][1] + runs[-1][0] + runs[-1][1])
+    return np.array([r0 + middle * axis[0], c0 + middle * axis[1]], np.float32)
+
+
+def _attached_structure(
+    points: NDArray[np.float32], e1: int, e2: int, ends: list[NDArray[np.float32]], width_px: float
+) -> int | None:
+    """Which of the outline's two ends (0: at contour index `e1`, 1: `e2`; `ends` their cap centres) is a
+    structure the rope is attached to (a clamp), or None.
+
+    The first guess takes the narrower end for the fixed one because the free end sweeps: the band then widens
+    along the rope, and its middle is wider than a still rope. An end much thicker than the other (the spread
+    across the outline's points within 4 widths of it) on a band whose middle is as narrow as a still rope is no
+    sweep: a still rope joined to a clamp, whose end that is. On `clamp size = 24 px` (simulated) the rope at rest
+    after the release was measured from its free end (a rope length off) before this rule.
+    """
+    n = len(points)
+    spread = []
+    for end in ends:
+        near = points[np.hypot(points[:, 0] - end[0], points[:, 1] - end[1]) <= 4.0 * width_px + 4.0]
+        if len(near) < 3:
+            return None
+        spread.append(float(np.sqrt(max(np.linalg.eigvalsh(np.cov(near.astype(np.float64).T))[0], 0.0))))
+    wide = 0 if spread[0] > spread[1] else 1
+    narrow = spread[1 - wide]
+    if not spread[wide] > 2.5 * narrow:
+        return None
+    # The band's middle: a point half-way round one side, and the nearest point of the other side.
+    middle_index = (e1 + ((e2 - e1) % n) // 2) % n
+    offset = np.abs((np.arange(n) - middle_index + n // 2) % n - n // 2)
+    across = points[offset > 3.0 * width_px] - points[middle_index]
+    if len(across) == 0:
+        return None
+    middle = float(np.hypot(across[:, 0], across[:, 1]).min())
+    return wide if middle <= 2.3 * narrow else None

@@ -105,6 +105,7 @@ class RopeLocator:
             The contour's point count (in the tracer; 0: none) and whether it was found in the band predicted
             from the last frame.
         """
+        self.fixed_end.exposure_known = exposure_ns > 0
         if self.prev_count > 0:
             model = self.motion
             # The measured error holds for the time gap it was measured over: a longer one (a dropped frame) gets

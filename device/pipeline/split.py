@@ -195,6 +195,18 @@ class BlurSplitter:
         """The lens blur and sharpening measured, or read so far (`LensBlur.value`)."""
         return self.lens.value
 
+    def restart(self) -> None:
+        """Forget what the first frames read off the band (the contrast readings, and the lens blur and sharpening
+        when they were measured rather than given): they were read on contours the static mask did not yet clean,
+        where a clamp's edges pass for the rope's (`Stages.relearn`)."""
+        self.measure.contrasts.clear()
+        self.measure.contrast_px = float("nan")
+        self.frame_call.key = None
+        if self.blur_measured is not None or self.blur_estimate is not None:
+            self.blur_estimate = LensBlurEstimate()
+            self.blur_measured = None
+            self.set_edge_blur(EdgeBlur(DEFAULT_LENS_BLUR_PX, 0.0, 1.0))
+
     def edge_spacing(self, width_px: float) -> float:
         """Edge spacing (px) of a still rope `width_px` wide under the edge model in use (`BandEdgeModel`)."""
         return self.model.edge_spacing(width_px)

@@ -86,7 +86,7 @@ class Stages:
         ws = Workspace.make(height, width, cap, weights, fraction)
         edges = EdgeDetector(height, width, config.smooth_sigma_px, config.canny_low, config.canny_high, ws.edges)
         tracer = ContourTracer(height, width, cap, config.min_contour_px, buffers=ws.contour)
-        static_mask = StaticMask.from_config(ws.edges, config, shape)
+        static_mask = StaticMask.from_config(ws.edges, config, shape, edges)
         thresholds = EdgeThresholds(
             height,
             width,
@@ -113,6 +113,7 @@ class Stages:
         if plane is not None:
             tracker.plane = plane_params(plane)
         traits = RopeTraits(config, shape, ws.fixed_end, splitter.edge_spacing)
+        traits.fixed_end.mask = ws.edges.static_mask  # a rope's end hidden in a masked clamp is found inside it
         motion = MotionModel(ws.motion)
         checks = SelfChecks(config.checks, fallback_single=config.method == "blur_split")
         time_order = TimeOrder(ws.order)
@@ -151,9 +152,12 @@ class Stages:
         self.time_order.clear()
 
     def relearn(self) -> None:
-        """Learn the rope's traits (fixed end, width, polarity, Lc0) again, with the static mask now known: the
+        """Learn the rope's traits (fixed end, width, polarity, Lc0, and the contrast and lens blur the split reads)
+        again, with the static mask now known: the
         first frames failed (a clamp, rod or plate edge joined to the rope's contour), so what they taught is
         suspect."""
         self.traits.restart()
         self.tracker.restart()
+        self.splitter.restart()
+        self.steady.unbind()
         self.reset_tracking()

@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import as_ro
+from ropecam.device.pipeline.edges import EdgeDetector
 from ropecam.device.pipeline.workspace import EdgeBuffers
 
 if TYPE_CHECKING:
@@ -23,8 +24,14 @@ _SAMPLE_STEP = 7
 
 class StaticMask:
     """Learn each pixel's range of grey levels over the first `frames` frames and mark the pixels that stay
-    within the noise as static; the edge stage then drops their edges while the frame there looks as learned
-    (`drop_static_edges`). A given `mask` (True: never the rope) is applied from the first frame.
+    within the noise and lie on a structure as static; the edge stage then drops their edges while the frame
+    there looks as learned (`drop_static_edges`). A given `mask` (True: never the rope) is applied from the
+    first frame.
+
+    A structure is where the edge detector, at the pipeline's thresholds, finds an edge in the learned scene
+    (the middle of each pixel's range), grown by a pixel: the clamp, its rod, a plate edge, a scratch, a static
+    cable. The plain plate around them stays free, so that the mask marks only what can hide or join the rope
+    (the ``tip_masked`` self-check reads it: a flat plate marked static would end every free tip "at the mask").
 
     Parameters
     ----------
@@ -38,6 +45,9 @@ class StaticMask:
         Part of a pixel's grey level its range may span and still be static (flicker, shot noise).
     mask
         (height, width) bool: pixels whose edges are never the rope's, or None.
+    detector
+        The pipeline's edge detector: its smoothing and its thresholds when the learning ends find the
+        structures (None: every still pixel is static).
     """
 
     def __init__(
@@ -47,6 +57,8 @@ class StaticMask:
         margin_dn: int,
         relative: float,
         mask: NDArray[np.bool_] | None = None,
+        detector: EdgeDetector | None = None,
+        smooth_sigma_px: float = 1.0,
     ) -> None:
         if frames < 0:
             raise ValueError(f"frames must be >= 0, got {frames}")
@@ -56,8 +68,12 @@ class StaticMask:
         self.frames = int(frames)
         self.margin_dn = int(margin_dn)
         self.relative = float(relative)
+        self.detector = detector
+        self.smooth_sigma_px = float(smooth_sigma_px)
         self.seen = 0
         """Frames learned from so far."""
+        self.marked = False
+        """Whether the learned mask is marked (on the frame after the learned ones)."""
         self.static_px = 0
         """Pixels marked static when the learning ended (0 before)."""
         self.base_dn = 0.0
@@ -71,35 +87,87 @@ class StaticMask:
             buffers.static_mask[mask] = K.MASK_ALWAYS
 
     @classmethod
-    def from_config(cls, buffers: EdgeBuffers, config: PipelineConfig, shape: tuple[int, int]) -> StaticMask:
+    def from_config(
+        cls,
+        buffers: EdgeBuffers,
+        config: PipelineConfig,
+        shape: tuple[int, int],
+        detector: EdgeDetector | None = None,
+    ) -> StaticMask:
         """Make the static mask of `config` (``static_mask_png``, read now, and the learning settings) for frames
-        of `shape` (height, width) in the edge stage's `buffers`."""
+        of `shape` (height, width) in the edge stage's `buffers`; `detector` finds the structures (see the
+        class)."""
         given = None
         if config.static_mask_png:
             from ropecam.device.capture.mask_file import read_mask_png  # a file read once, at construction
 
             given = read_mask_png(config.static_mask_png, shape)
-        return cls(buffers, config.static_frames, config.static_margin_dn, config.static_relative, given)
+        return cls(
+            buffers, config.static_frames, config.static_margin_dn, config.static_relative, given, detector,
+            config.smooth_sigma_px,
+        )  # fmt: skip
 
     @property
     def learning(self) -> bool:
-        """Whether frames are still being learned from."""
-        return self.seen < self.frames
+        """Whether frames are still being learned from (or the mask is still to be marked on the next frame)."""
+        return self.frames > 0 and not self.marked
 
     def learn(self, frame: NDArray[np.uint8]) -> None:
-        """Learn from one frame (a whole-frame pass: only the first `frames` frames); the last one marks the mask."""
+        """Learn from one frame (a whole-frame pass: only the first `frames` frames); the frame after them marks
+        the mask without being learned from. The frame that is measured first with the mask must not be in the
+        learned ranges: its moving rope's faint edges (the border of the area the rope swept so far) would look
+        as learned, and be dropped."""
         b = self.buffers
-        if K.learn_static_range(as_ro(frame), b.static_low, b.static_high) < 0:
+        if self.seen < self.frames:
+            if K.learn_static_range(as_ro(frame), b.static_low, b.static_high) < 0:
+                raise ValueError(f"frame is {frame.shape}, expected {b.static_low.shape}")
+            self.seen += 1
+            return
+        if frame.shape != b.static_low.shape:
             raise ValueError(f"frame is {frame.shape}, expected {b.static_low.shape}")
-        self.seen += 1
+        self.marked = True
         if self.seen == self.frames:
             spread = b.static_high[::_SAMPLE_STEP, ::_SAMPLE_STEP].astype(np.int16)
             spread -= b.static_low[::_SAMPLE_STEP, ::_SAMPLE_STEP]
             self.base_dn = 2.0 * float(np.median(spread)) + 2.0
+            structure = self._structure() if self.detector is not None else None
             self.static_px = int(
                 K.mark_static(b.static_low, b.static_high, self.base_dn, self.relative, self.margin_dn, b.static_mask)
             )
+            if structure is not None:
+                off = (b.static_mask == K.MASK_STATIC) & ~structure
+                b.static_mask[off] = K.MASK_FREE
+                self.static_px -= int(off.sum())
+
+    def _structure(self) -> NDArray[np.bool_]:
+        """The pixels on or next to a static edge of the learned scene: an edge of the middle of each pixel's
+        range, found by an edge detector with the pipeline's smoothing and current thresholds over the whole
+        frame (once, when the learning ends), whose 3x3 neighbourhood stayed still. The border of the area the
+        rope swept while the mask was learned is an edge of the middle image too, with moving pixels on one
+        side: it is not a structure."""
+        b, d = self.buffers, self.detector
+        assert d is not None
+        height, width = b.static_low.shape
+        low, high = b.static_low.astype(np.int16), b.static_high.astype(np.int16)
+        still = (high >= low) & (high - low <= self.base_dn + self.relative * high)
+        middle = ((low + high) // 2).astype(np.uint8)
+        finder = EdgeDetector(height, width, self.smooth_sigma_px, float(d.low), float(d.high))
+        finder.detect(middle, np.zeros(height, np.int32), np.full(height, width - 1, np.int32))
+        edge = (finder.edges != 0) & _spread(~still, invert=True)
+        return _spread(edge)  # noise moves a static edge by a pixel now and then
 
     def static(self) -> NDArray[np.bool_]:
         """Return the pixels whose edges are dropped (given, or learned static), True where dropped."""
         return self.buffers.static_mask != K.MASK_FREE
+
+
+def _spread(pixels: NDArray[np.bool_], invert: bool = False) -> NDArray[np.bool_]:
+    """`pixels` grown over their 3x3 neighbourhoods (with `invert`: the pixels whose 3x3 neighbourhood holds
+    none of `pixels`)."""
+    rows = pixels.copy()
+    rows[1:, :] |= pixels[:-1, :]
+    rows[:-1, :] |= pixels[1:, :]
+    grown = rows.copy()
+    grown[:, 1:] |= rows[:, :-1]
+    grown[:, :-1] |= rows[:, 1:]
+    return ~grown if invert else grown

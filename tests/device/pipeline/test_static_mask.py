@@ -116,6 +116,8 @@ def test_static_mask_learns_then_marks_only_still_pixels() -> None:
         frame[10:14, 4 + 8 * shift : 8 + 8 * shift] = 200  # a block that moves: never static
         assert mask.learning
         mask.learn(frame)
+    assert mask.learning  # marked on the next frame, which is not learned from
+    mask.learn(np.zeros((24, 32), np.uint8))
     assert not mask.learning
     static = mask.static()
     assert static[0, 0] and static[0, 5] and not static[11, 5] and not static[11, 21]
@@ -238,3 +240,96 @@ def test_a_rope_cut_by_a_clamp_mask_is_measured_from_the_fixed_end(tmp_path: Pat
             assert np.hypot(*(shape[0][::-1] - pivot)) < 2.5
             length = float(np.hypot(*np.diff(shape.astype(np.float64), axis=0).T).sum())
             assert abs(length - rope.length_px) < 0.03 * rope.length_px
+
+
+def _with_cable(image: np.ndarray, col: int) -> np.ndarray:
+    """`image` with a still bright cable from the top border to the bottom one at column `col` (3 px wide)."""
+    out = image.copy()
+    out[:, col - 1 : col + 2] = 200
+    return out
+
+
+def test_a_fresh_device_learns_a_static_cable_and_never_takes_it_for_the_rope() -> None:
+    """A still cable from the top border to the bottom one, longer than the rope, beside the swing: a fresh
+    device (every key at its default) learns it as static over its first `static_frames` frames and measures the
+    rope from then on, to a pixel whenever it says OK (the cable's structure marked static does not end the
+    rope's free tips "at the mask"). The first frame measured with the mask may find the rope's still top cut
+    (its length then fails the self-check): a status, never a wrong OK."""
+    rope = SyntheticRope(width=240, height=200, fixed_uv=(150.3, 20.6), length_px=120.0, amplitude_rad=0.5)
+    learn = PipelineConfig().static_frames
+    assert learn > 0  # the default learns
+    pipeline = Pipeline(PipelineConfig(), (rope.width, rope.height))
+    ok = 0
+    for frame in rope.frames(learn + 5):
+        result = pipeline.process(_with_cable(frame.image, 30), frame.index, frame.t_ns, float(rope.exposure_us))
+        if frame.index < learn or result.status is not FrameStatus.OK:
+            continue
+        ok += 1
+        tips = (result.begin[-1][::-1], result.end[-1][::-1])  # (row, col) -> (u, v)
+        assert np.hypot(*(tips[0] - frame.tip_begin_uv)) < 1.0
+        assert np.hypot(*(tips[1] - frame.tip_end_uv)) < 1.0
+    assert not pipeline.static_mask.learning
+    assert pipeline.static_mask.static()[:, 27:34].any(axis=1).mean() > 0.9  # the cable's edges, on nearly every row
+    assert ok >= 4
+
+
+def test_the_learned_mask_marks_structures_not_the_plain_plate() -> None:
+    """A still scratch on a plain noisy plate, with the rope swinging over it: after learning, the scratch's
+    pixels are static and the plain plate far from it is not (the `tip_masked` check reads the mask)."""
+    rope = SyntheticRope(width=240, height=200, fixed_uv=(120.3, 20.6), length_px=120.0, amplitude_rad=0.5)
+    pipeline = Pipeline(PipelineConfig(static_frames=6), (rope.width, rope.height))
+    for frame in rope.frames(7):  # learned from the first 6, marked on the 7th
+        image = frame.image.copy()
+        image[170:172, 20:80] = 90  # the scratch, below the swing
+        pipeline.process(image, frame.index, frame.t_ns, float(rope.exposure_us))
+    static = pipeline.static_mask.static()
+    assert static[169:173, 25:75].all(axis=0).sum() >= 40  # across the scratch, along most of it
+    plate = np.zeros_like(static)
+    plate[120:160, 180:230] = True  # plain plate, away from the rope and the scratch
+    assert not static[plate].any()
+    assert static.mean() < 0.05
+
+
+def test_an_outline_whose_fixed_end_lies_on_the_border_is_never_ok() -> None:
+    """A bright rod from the top border down to the rope's fixed end joins the rope's outline to the border, and
+    a fresh device's first frames (before the mask is learned) may take the rod's top for the fixed end: such an
+    outline is reported ROPE_CLIPPED, never OK with the rope measured from the border."""
+    rope = SyntheticRope(width=240, height=200, fixed_uv=(120.3, 20.6), length_px=120.0, amplitude_rad=0.5)
+    pipeline = Pipeline(PipelineConfig(static_frames=0), (rope.width, rope.height))
+    statuses = []
+    for frame in rope.frames(4):
+        image = frame.image.copy()
+        image[:22, 117:124] = 230  # the rod, touching the rope's fixed end
+        result = pipeline.process(image, frame.index, frame.t_ns, float(rope.exposure_us))
+        statuses.append(result.status)
+        if result.status is FrameStatus.OK:
+            assert result.fixed_end is not None and result.fixed_end[0] > 2.0  # not on the top border
+    assert FrameStatus.ROPE_CLIPPED in statuses
+
+
+def test_a_fresh_device_measures_a_rope_held_by_a_clamp_on_a_rod() -> None:
+    """A clamp block over the fixed end and its rod to the top border, nothing given (every key at its default):
+    no frame is a wrong OK, and once the static mask is learned the rope is measured from the clamp to its tips,
+    to a pixel (the traits, the contrast and the lens blur learned again without the clamp's edges)."""
+    rope = SyntheticRope(width=240, height=200, fixed_uv=(120.3, 30.6), length_px=120.0, amplitude_rad=0.5)
+    learn = PipelineConfig().static_frames
+    pipeline = Pipeline(PipelineConfig(), (rope.width, rope.height))
+    pivot = np.array(rope.fixed_uv)
+    ok_after = 0
+    for frame in rope.frames(learn + 6):
+        image = frame.image.copy()
+        image[:31, 118:123] = 150  # the rod, into the clamp's top
+        image[25:37, 110:131] = 120  # the clamp, 21 x 12 px, centred on the fixed end
+        result = pipeline.process(image, frame.index, frame.t_ns, float(rope.exposure_us))
+        if result.status is not FrameStatus.OK:
+            continue
+        tips = (result.begin[-1][::-1], result.end[-1][::-1])  # (row, col) -> (u, v)
+        errors = (np.hypot(*(tips[0] - frame.tip_begin_uv)), np.hypot(*(tips[1] - frame.tip_end_uv)))
+        assert max(errors) < 3.0, f"frame {frame.index}: a wrong OK"
+        if frame.index > learn:
+            ok_after += 1
+            assert max(errors) < 1.0
+            # From the clamp: the rope hangs out of its bottom, and its axis runs on up the rod, so the end stays
+            # where the rope leaves the clamp (6 px below the fixed end; `hidden_end` needs the clamp's far edge).
+            assert np.hypot(*(result.begin[0][::-1] - pivot)) < 8.0
+    assert ok_after >= 4
