@@ -59,6 +59,7 @@ class LensBlur:
         """The blur being read on the first frames (None: given, measured, or not read)."""
         self.measured: EdgeBlur | None = None
         """The lens blur and sharpening the first frames measured (None: given, or not measured yet)."""
+        self._decoded = False
         self.model.rope_width(3.0)  # its width table (~20 ms) now, not on the first frames
 
     @property
@@ -67,6 +68,28 @@ class LensBlur:
         if self.measured is not None or self.estimate is None:
             return self.measured
         return self.estimate.value
+
+    @property
+    def decoded(self) -> bool:
+        """Whether the frames are decoded through the camera's gamma before they are read
+        (`LensBlurEstimate.decoded`: the camera's sharpening is then not read as an unsharp mask)."""
+        return self._decoded
+
+    @decoded.setter
+    def decoded(self, value: bool) -> None:
+        self._decoded = bool(value)
+        if self.estimate is not None:
+            self.estimate.decoded = self._decoded
+
+    def restart(self) -> bool:
+        """Read the blur again from the next frames, when it is read rather than given (the first readings were
+        taken across a clamp's edges: `BlurSplitter.restart`); return whether the edge model changed (back to
+        `DEFAULT_LENS_BLUR_PX` until the first new reading)."""
+        if self.measured is None and self.estimate is None:
+            return False
+        self.estimate = LensBlurEstimate(decoded=self._decoded)
+        self.measured = None
+        return self.use(EdgeBlur(DEFAULT_LENS_BLUR_PX, 0.0, 1.0))
 
     def use(self, blur: EdgeBlur, tolerance_px: float = 0.0) -> bool:
         """Use the edge model of `blur` (the lens blur rounded to 0.05 px, the sharpening to 0.1, so that

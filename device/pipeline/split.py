@@ -202,10 +202,8 @@ class BlurSplitter:
         self.measure.contrasts.clear()
         self.measure.contrast_px = float("nan")
         self.frame_call.key = None
-        if self.blur_measured is not None or self.blur_estimate is not None:
-            self.blur_estimate = LensBlurEstimate()
-            self.blur_measured = None
-            self.set_edge_blur(EdgeBlur(DEFAULT_LENS_BLUR_PX, 0.0, 1.0))
+        if self.lens.restart():
+            self._forget_model()
 
     def edge_spacing(self, width_px: float) -> float:
         """Edge spacing (px) of a still rope `width_px` wide under the edge model in use (`BandEdgeModel`)."""

@@ -105,8 +105,7 @@ class Stages:
             sharpen_gain=sharpen_gain, sharpen_sigma_px=sharpen_sigma_px,
         )  # fmt: skip
         splitter.paper.radius_scaled = config.paper_endpoint_radius_scaled
-        if splitter.lens.estimate is not None:  # a camera sharpens the encoded frame (`LensBlurEstimate`)
-            splitter.lens.estimate.decoded = config.gamma != 1.0
+        splitter.lens.decoded = config.gamma != 1.0  # a camera sharpens the encoded frame (`LensBlurEstimate`)
         tracker = PointTracker(
             config.material_points_m, config.rope_length_m, config.length0_px, config.length0_frames, ws.track
         )
