@@ -10,7 +10,10 @@ reason                  fails when                                              
                         than ``length_tolerance`` (a fraction of Lc0), or the two shapes of a split
                         differ from each other by more than ``length_mismatch`` (a fraction of Lc0)
 ``width``               the width the split used differs from the learned width by more than            IMPLAUSIBLE
-                        ``width_tolerance`` (a fraction of it)
+                        ``width_tolerance`` (a fraction of it); or, on a split of known exposure whose
+                        contour's area is measured (no prediction yet), the contour encloses less than
+                        ``min_band_area`` x the still rope's area (length x width): the outline is not a
+                        band round the rope (a whisker of a structure's outline that ran out and back)
 ``fixed_end``           a shape starts farther from the learned or given fixed end than                  IMPLAUSIBLE
                         ``fixed_end_widths`` rope widths plus ``fixed_end_floor_px``
 ``tip_motion``          the tips' midpoint lies farther from where the motion model predicted it than    IMPLAUSIBLE
@@ -87,6 +90,9 @@ class ChecksConfig:
     tip_mask_widths, tip_mask_floor_px
         A free tip must end farther than ``tip_mask_widths`` x the rope width + ``tip_mask_floor_px`` before the
         static mask, along the rope (both 0: the check is off).
+    min_band_area
+        Smallest ratio of the contour's area to the still rope's (the begin shape's length x the learned width) with
+        which a split of known exposure, whose area is measured, may be reported OK (0: the check is off).
     fallback_sweep_widths
         Largest sweep of the tip's path during the exposure, in rope widths, with which the blur split may fall
         back to one shape (the band's middle) and report it OK (0: the check is off).
@@ -106,6 +112,7 @@ class ChecksConfig:
     tip_mask_widths: float = 1.0
     tip_mask_floor_px: float = 2.0
     fallback_sweep_widths: float = 1.5
+    min_band_area: float = 0.25
 
     def __post_init__(self) -> None:
         if not isinstance(self.enabled, bool):
@@ -123,6 +130,7 @@ class ChecksConfig:
         check_range("checks.tip_mask_widths", self.tip_mask_widths, 0.0, 100.0)
         check_range("checks.tip_mask_floor_px", self.tip_mask_floor_px, 0.0, 100.0)
         check_range("checks.fallback_sweep_widths", self.fallback_sweep_widths, 0.0, 100.0)
+        check_range("checks.min_band_area", self.min_band_area, 0.0, 1.0)
 
 
 _MESSAGES = {
@@ -271,6 +279,10 @@ class SelfChecks:
             learned_width_px or 0.0, order_confidence, exposure_ns, split, contour_area_px2,
             _NO_MASK if mask is None else mask, self._thresholds, self._measures,
         )  # fmt: skip
+        if code == K.CHECK_NONE and exposure_ns > 0 and split and math.isfinite(self._measures[0]["blur_evidence"]):
+            width = learned_width_px or width_px
+            if contour_area_px2 < self.config.min_band_area * _length_px(begin) * width:
+                code = int(Reason.WIDTH)
         return self.verdict(code)
 
     def verdict(self, code: int) -> tuple[FrameStatus, Reason]:
@@ -295,6 +307,12 @@ def _set_quality(quality: dict[str, float], values: tuple[float, ...]) -> None:
 _NO_MASK = np.zeros((1, 1), np.uint8)
 """A mask with nothing masked (`check_frame` reads pixels outside a mask as free)."""
 _NO_MASK.flags.writeable = False
+
+
+def _length_px(shape: NDArray[np.float32]) -> float:
+    """Return the length (px) of the polyline `shape` (row, col)."""
+    steps = np.diff(shape.astype(np.float64), axis=0)
+    return float(np.hypot(steps[:, 0], steps[:, 1]).sum())
 
 
 def _nan_if_none(value: float | None) -> float:

@@ -151,6 +151,19 @@ def test_a_split_needs_evidence_of_blur(exposure_ns: int) -> None:
     assert _check(checks, exposure_ns=exposure_ns, split=False, contour_area_px2=STILL_AREA_PX2)[0] is FrameStatus.OK
 
 
+def test_a_split_whose_contour_is_no_band_round_the_rope_is_implausible() -> None:
+    # Known exposure, no prediction yet, tips 10 px apart (too close for the evidence of blur to decide): a contour
+    # that encloses almost nothing (a whisker run out and back along a clamp's outline) is not the rope's band.
+    checks = SelfChecks(ChecksConfig())
+    near = {"begin": _shape(95.0), "end": _shape(105.0)}
+    assert _check(checks, **near, contour_area_px2=0.1 * STILL_AREA_PX2) == (FrameStatus.IMPLAUSIBLE, Reason.WIDTH)
+    assert _check(checks, **near, contour_area_px2=STILL_AREA_PX2) == (FrameStatus.OK, Reason.NONE)
+    # Off, or a frame of unknown exposure (a still photo keeps its no-blur verdicts), or one shape: not this check.
+    assert _check(SelfChecks(ChecksConfig(min_band_area=0.0)), **near, contour_area_px2=0.0)[0] is FrameStatus.OK
+    assert _check(checks, **near, exposure_ns=0, contour_area_px2=0.0)[1] is not Reason.WIDTH
+    assert _check(checks, **near, split=False, contour_area_px2=0.0)[0] is FrameStatus.OK
+
+
 def test_contour_area_is_the_shoelace_area() -> None:
     square = np.array([[0, 0], [0, 10], [10, 10], [10, 0]], np.float32)
     assert contour_area_px2(square, 4) == pytest.approx(100.0)
