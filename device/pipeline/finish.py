@@ -94,6 +94,9 @@ class ResultFinisher:
     ) -> None:
         self.splitter, self.tracker, self.time_order, self.motion = splitter, tracker, time_order, motion
         self.checks, self.traits, self.tracer, self.locator, self.fixed = checks, traits, tracer, locator, fixed
+        self.after_still = False
+        """Whether the last frame that reached the self-checks was a single shape (a still rope): the time order of
+        a split right after it has no motion to go by."""
 
     def finish(
         self,
@@ -216,18 +219,20 @@ class ResultFinisher:
         self, result: PipelineResult, outcome: SplitOutcome, exposure_ns: int, checked: int = -1, placed: int = -1
     ) -> None:
         """The shapes on the plane (when calibrated; done already when `placed` is 1), status OK, then the
-        self-checks (made already when `checked` is a `check_frame` code, not -1). A split of a sweep below
-        `UNDECIDED_SWEEP_WIDTHS` rope widths whose time order is a coin flip (confidence below `UNDECIDED_ORDER`:
-        the first split after still frames has no motion to go by) reports the band's middle line instead."""
+        self-checks (made already when `checked` is a `check_frame` code, not -1). The first split after a still
+        rope (`after_still`) of a sweep below `UNDECIDED_SWEEP_WIDTHS` rope widths whose time order is a coin flip
+        (confidence below `UNDECIDED_ORDER`: the still frames give no motion to go by) reports the band's middle
+        line instead (its confidence kept)."""
+        after_still, self.after_still = self.after_still, outcome.shape_a is outcome.shape_b
         if (
-            outcome.method is Method.BLUR_SPLIT
+            after_still
+            and outcome.method is Method.BLUR_SPLIT
             and result.order_confidence < UNDECIDED_ORDER
             and outcome.sweep_px < UNDECIDED_SWEEP_WIDTHS * outcome.width_px
         ):
             static = self._use_static(result)
             if static is not None:
                 outcome, placed, checked = static, 1, -1
-                result.order_confidence = 1.0
         if placed < 0 and self.tracker.plane is not None:  # by arc length on the plane (metres), not in pixels
             self.tracker.place_on_plane(result.begin, result.end)
         result.status = FrameStatus.OK
