@@ -21,6 +21,13 @@ __all__ = ["BROKEN_OUTLINE", "FrameClock", "ResultFinisher", "max_age_ns"]
 BROKEN_OUTLINE = 0.15
 """Largest part of the contour's pixels walked twice (spurs of noise and texture) before it is no band outline."""
 
+UNDECIDED_ORDER = 0.6
+"""Time order confidence below which a split of a small sweep (`UNDECIDED_SWEEP_WIDTHS`) is a coin flip."""
+
+UNDECIDED_SWEEP_WIDTHS = 1.25
+"""Sweep (rope widths) below which a split whose time order is a coin flip (`UNDECIDED_ORDER`) reports the band's
+middle line for both shapes: a wrong order there puts each shape a whole sweep off, the middle line half of it."""
+
 
 def max_age_ns(period_ns: int | None) -> int:
     """The age (ns) past which the time order's history is dropped: four frame periods of `period_ns` (None:
@@ -87,6 +94,9 @@ class ResultFinisher:
     ) -> None:
         self.splitter, self.tracker, self.time_order, self.motion = splitter, tracker, time_order, motion
         self.checks, self.traits, self.tracer, self.locator, self.fixed = checks, traits, tracer, locator, fixed
+        self.after_still = False
+        """Whether the last frame that reached the self-checks was a single shape (a still rope): the time order of
+        a split right after it has no motion to go by."""
 
     def finish(
         self,
@@ -209,7 +219,20 @@ class ResultFinisher:
         self, result: PipelineResult, outcome: SplitOutcome, exposure_ns: int, checked: int = -1, placed: int = -1
     ) -> None:
         """The shapes on the plane (when calibrated; done already when `placed` is 1), status OK, then the
-        self-checks (made already when `checked` is a `check_frame` code, not -1)."""
+        self-checks (made already when `checked` is a `check_frame` code, not -1). The first split after a still
+        rope (`after_still`) of a sweep below `UNDECIDED_SWEEP_WIDTHS` rope widths whose time order is a coin flip
+        (confidence below `UNDECIDED_ORDER`: the still frames give no motion to go by) reports the band's middle
+        line instead (its confidence kept)."""
+        after_still, self.after_still = self.after_still, outcome.shape_a is outcome.shape_b
+        if (
+            after_still
+            and outcome.method is Method.BLUR_SPLIT
+            and result.order_confidence < UNDECIDED_ORDER
+            and outcome.sweep_px < UNDECIDED_SWEEP_WIDTHS * outcome.width_px
+        ):
+            static = self._use_static(result)
+            if static is not None:
+                outcome, placed, checked = static, 1, -1
         if placed < 0 and self.tracker.plane is not None:  # by arc length on the plane (metres), not in pixels
             self.tracker.place_on_plane(result.begin, result.end)
         result.status = FrameStatus.OK
@@ -265,12 +288,12 @@ class ResultFinisher:
             # Without a known exposure only a split that passes every check shows blur: never report another.
             result.begin = result.end = result.material_begin = result.material_end = None
 
-    def _use_static(self, result: PipelineResult) -> bool:
+    def _use_static(self, result: PipelineResult) -> SplitOutcome | None:
         """Give `result` the static centreline of the frame's contour (one shape for both instants, its material
-        points); False when there is none."""
+        points, on the plane when calibrated) and return its outcome; None when there is none."""
         static = self.splitter.static((float(self.fixed[0]), float(self.fixed[1])))
         if static is None:
-            return False
+            return None
         result.method, result.segmentation_points = static.method, None
         result.begin = result.end = static.shape_a
         (result.material_begin, result.stretch_begin, result.material_end, result.stretch_end) = (
@@ -278,7 +301,7 @@ class ResultFinisher:
         )
         if self.tracker.plane is not None:
             self.tracker.place_on_plane(static.shape_a, static.shape_a)
-        return True
+        return static
 
 
 def _tip_gap_px(begin: np.ndarray, end: np.ndarray) -> float:

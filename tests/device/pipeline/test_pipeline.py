@@ -213,3 +213,26 @@ def test_time_order_through_reversals_and_a_bad_frame() -> None:
         if k > 0 and k != 30 and np.hypot(*(tip(t1) - tip(t0))) >= 2.0:
             wrong += [k] if np.hypot(*(begin[-1] - b_tip)) > 1.0 else []
     assert wrong == []
+
+
+def test_a_first_split_of_a_small_sweep_reports_the_middle_line() -> None:
+    """The first split after a still rope whose time order is a coin flip and whose sweep is below
+    `UNDECIDED_SWEEP_WIDTHS` rope widths (but above ``static_ratio``) gives the band's middle line for both shapes."""
+    from ropecam.device.pipeline.finish import UNDECIDED_SWEEP_WIDTHS
+
+    rope = SyntheticRope(exposure_us=4000, amplitude_rad=0.7, period_s=0.9, phase_rad=0.3)
+    config = PipelineConfig()
+    pipeline = Pipeline(config, (rope.width, rope.height))
+    still = replace(rope, exposure_us=50).render(0)
+    assert pipeline.process(still.image, 0, 0, still.exposure_us).method is Method.STATIC_FALLBACK
+    frame = rope.render(0)  # the same pose blurred, a frame period after the still one
+    r = pipeline.process(frame.image, 1, round(1e9 / rope.fps), frame.exposure_us)
+    assert r.status is FrameStatus.OK, r.message
+    sweep, width = pipeline.splitter.sweep_px, r.rope_width_px
+    assert config.static_ratio * width < sweep < UNDECIDED_SWEEP_WIDTHS * width  # a split, not a still rope
+    assert r.method is Method.STATIC_FALLBACK
+    assert r.begin is r.end
+    assert r.order_confidence < 0.6  # kept: the reason for the middle line
+    middle = _uv(r.begin)
+    assert _curve_error(frame.begin_uv, middle) < 1.0
+    assert _curve_error(frame.end_uv, middle) < 1.0
