@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import os
 import signal
@@ -25,7 +26,9 @@ device.toml has one table per component (all optional; see docs/daemon.md):
   [control]   key_file or key_hex (pre-shared key from `ropecam keygen`; none: remote control is off)
   [daemon]    retry_initial_s, retry_max_s, camera_give_up_s
 Options given here override the file. SIGTERM or SIGINT stop the daemon cleanly. Exit codes: 0 stopped or
-recording ended, 2 bad configuration, 3 camera lost longer than camera_give_up_s.
+recording ended, 2 bad configuration, 3 camera lost longer than camera_give_up_s. The closing line accounts for
+every frame: measured (by status), skipped (the pipeline was late: a newer frame overtook them), dropped (never
+delivered: driver or recording gaps); --summary-json writes the same as JSON.
 """
 
 
@@ -44,6 +47,12 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--fps", type=float, help="frame rate (camera setting, or replay pace)")
     parser.add_argument("--exposure-ms", type=float, help="camera exposure time in milliseconds")
     parser.add_argument("--device-id", type=int, help="this device's id in every message (1..65534)")
+    parser.add_argument(
+        "--summary-json",
+        type=Path,
+        metavar="FILE",
+        help="on exit, write where every frame went (measured, skipped, dropped), the statuses and the exit code",
+    )
     parser.set_defaults(func=run_daemon)
 
 
@@ -52,6 +61,7 @@ def run_daemon(args: argparse.Namespace) -> int:
     from ropecam.device.daemon.config import load_device_config
     from ropecam.device.daemon.runner import Daemon
     from ropecam.device.daemon.systemd import Notifier
+    from ropecam.shared.errors import DataError
 
     exposure_us = None if args.exposure_ms is None else round(args.exposure_ms * 1000)
     config = load_device_config(
@@ -73,6 +83,11 @@ def run_daemon(args: argparse.Namespace) -> int:
         signal.signal(signum, on_signal)
     daemon = Daemon(config, notifier=notifier)
     code = daemon.run(stop)
-    statuses = ", ".join(f"{k} {v}" for k, v in sorted(daemon.statuses.items())) or "none"
-    print(f"measured {daemon.frames_measured} frames ({statuses}); exit {code}", flush=True)
+    print(daemon.summary(code), flush=True)
+    if args.summary_json is not None:
+        summary = {**daemon.accounting(), "statuses": dict(sorted(daemon.statuses.items())), "exit": code}
+        try:
+            args.summary_json.write_text(json.dumps(summary, indent=1) + "\n")
+        except OSError as exc:
+            raise DataError(f"{args.summary_json}: cannot write the summary: {exc}") from exc
     return code

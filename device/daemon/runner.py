@@ -69,6 +69,10 @@ class Daemon:
         self.check_failures: Counter[str] = Counter()
         """Frames a self-check failed, by reason (``"length"``, ``"no_blur"``, ...; sent as ``check_<reason>``)."""
         self.frames_measured = 0
+        self.frames_paused = 0
+        """Frames delivered while measuring was stopped by a STOP command (captured, not measured)."""
+        self.capture = CaptureCounters()
+        """The camera's counts since the daemon started (every source it opened), final when `run` returns."""
         self.link_reopened = 0
         self.camera_reopened = 0
         self._pipeline_config = config.pipeline
@@ -384,6 +388,37 @@ class Daemon:
         source.stop()
         self._previous_sources = self._capture_totals(source)
 
+    def accounting(self) -> dict[str, int]:
+        """Return where every frame of the camera went since the daemon started (final when `run` returned).
+
+        ``frames`` (the span of the camera's sequence numbers seen) is ``measured + paused + skipped + dropped``:
+        measured by the pipeline (by status in `statuses`), delivered while stopped by control (``paused``),
+        overtaken by a newer frame while the pipeline was still busy (``skipped``: the pipeline was late), or never
+        delivered (``dropped``: gaps in the driver's sequence numbers, frames missing from a recording).
+        """
+        capture = self.capture
+        counts = {
+            "measured": self.frames_measured,
+            "paused": self.frames_paused,
+            "skipped": capture.skipped,
+            "dropped": capture.dropped,
+        }
+        return {"frames": sum(counts.values()), **counts, "timeouts": capture.timeouts}
+
+    def summary(self, code: int) -> str:
+        """Return the closing line: where every frame went (`accounting`), the statuses and the exit code."""
+        counts = self.accounting()
+        statuses = ", ".join(f"{k} {v}" for k, v in sorted(self.statuses.items())) or "none"
+        lost = [
+            f"skipped {counts['skipped']} (the pipeline was late: a newer frame overtook them)",
+            f"dropped {counts['dropped']} (never delivered: driver or recording gaps)",
+        ]
+        if counts["paused"]:
+            lost.append(f"{counts['paused']} not measured (stopped by control)")
+        return (
+            f"measured {counts['measured']} of {counts['frames']} frames ({statuses}); {', '.join(lost)}; exit {code}"
+        )
+
     # -- the loop ----------------------------------------------------------------------------------------------------
     def _measure(self, frame: CapturedFrame, source: CameraSource) -> None:
         if self._pipeline is None:
@@ -438,6 +473,8 @@ class Daemon:
                         break
                 elif self._running:
                     self._measure(frame, source)
+                else:
+                    self.frames_paused += 1
                 if frame is not None and self._raw_frame_requested and self.sender is not None:
                     for chunk in split_frame(frame.sequence, frame.image):
                         self.sender.submit(chunk)
@@ -455,6 +492,7 @@ class Daemon:
         finally:
             self.notifier.stopping()
             source.stop()
+            self.capture = self._capture_totals(source)
             if self.sender is not None:
                 self._send_status(source)
             self._close_link()

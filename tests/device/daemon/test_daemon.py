@@ -98,6 +98,37 @@ def test_loop_stream_equals_the_offline_pipeline(rig_set: Path) -> None:
     sequences = [m.header.sequence for m in messages]
     assert sequences == list(range(len(sequences)))  # nothing lost, nothing reordered
     host.close()
+    # Unpaced, every frame is measured: the closing line accounts for all of them.
+    assert daemon.accounting() == {"frames": 12, "measured": 12, "paused": 0, "skipped": 0, "dropped": 0,
+                                   "timeouts": 0}  # fmt: skip
+    assert daemon.summary(EXIT_OK).startswith("measured 12 of 12 frames (OK 12); skipped 0 ")
+
+
+def test_the_closing_line_accounts_for_every_frame(rig_set: Path, tmp_path: Path) -> None:
+    # A recording with frames 3 and 4 missing from its index (a driver's gap), replayed paced much faster than
+    # the pipeline: whatever the machine's speed, measured + skipped + dropped is every frame the camera made.
+    gapped = tmp_path / "gapped"
+    gapped.mkdir()
+    (gapped / "frameset.json").write_text((rig_set / "frameset.json").read_text())
+    rows = (rig_set / "index.csv").read_text().splitlines()
+    kept = [row for row in rows if row.split(",")[0] not in ("3", "4")]
+    (gapped / "index.csv").write_text("\n".join(kept) + "\n")
+    (gapped / "frames").symlink_to(rig_set / "frames")
+    config = dataclasses.replace(
+        _config(gapped, "loop://daemon-gaps"), capture=CaptureConfig(source=f"frames:{gapped}?fps=10000")
+    )
+    host = open_transport("loop://daemon-gaps")
+    daemon = Daemon(config)
+    with running(daemon) as run:
+        assert run.wait() == EXIT_OK
+    host.close()
+    counts = daemon.accounting()
+    assert counts["frames"] == 12 and counts["dropped"] == 2  # frames 0-11, two never recorded
+    assert counts["measured"] + counts["skipped"] == 10 and counts["measured"] >= 1  # the last frame always
+    assert counts["measured"] == sum(daemon.statuses.values())
+    line = daemon.summary(EXIT_OK)
+    assert f"measured {counts['measured']} of 12 frames" in line and "dropped 2 (never delivered" in line
+    assert f"skipped {counts['skipped']} (the pipeline was late" in line and line.endswith("exit 0")
 
 
 def test_udp_loopback_stream(rig_set: Path) -> None:
