@@ -6,11 +6,15 @@ Steps (each is a command you can run yourself; the demo prints them):
    (1024x544, 119 FPS, 4 ms), with exact ground truth, plus a calibration set through the same camera.
 2. `ropecam calibrate intrinsics` and `ropecam calibrate plane`: camera and motion plane from the checkerboards.
 3. `ropecam monitor --record --plane` listens on UDP; `ropecam-device run` (the rig daemon) replays the frames as if
-   they came from the camera, measures every frame (the rope at the start and at the end of each exposure) and
-   streams the results to it over UDP on this machine. The recording holds the shapes in pixels and in metres on the
-   plane, the transforms between them and a Foxglove layout beside it (run.layout.json).
+   they came from the camera at 30 FPS, measures each frame it gets (the rope at the start and at the end of each
+   exposure) and streams the results to it over UDP on this machine. As with a camera, a frame that arrives while
+   the daemon is still busy is overtaken by the next one (skipped); the daemon's closing line accounts for every
+   frame (measured, skipped, dropped). The recording holds the shapes in pixels and in metres on the plane, the
+   transforms between them and a Foxglove layout beside it (run.layout.json).
 4. `ropecam compare run.mcap --fit ei`: the recorded material points in metres against the ANCF model, with the bending
    stiffness identified from a deliberately wrong start (3x the truth) and the release time estimated.
+
+At the end the demo prints where every frame went and the identified stiffness, and writes them to demo.json.
 """
 
 from __future__ import annotations
@@ -62,17 +66,19 @@ def _free_udp_port() -> int:
         return int(sock.getsockname()[1])
 
 
-def _stream(frames: Path, recording: Path, plane: Path, port: int) -> None:
-    """Run the monitor (recording) and the daemon (replaying `frames`) as the two programs they are on a rig."""
+def _stream(frames: Path, recording: Path, plane: Path, port: int) -> dict[str, Any]:
+    """Run the monitor (recording) and the daemon (replaying `frames`) as the two programs they are on a rig; return
+    the daemon's account of the frames (`ropecam-device run --summary-json`: measured, skipped, dropped, statuses)."""
     from ropecam.host.monitor.process import MonitorProcess
     from ropecam.shared.errors import RopecamError
 
+    accounting = recording.with_name("device-summary.json")
     monitor = MonitorProcess(["--source", f"udp://127.0.0.1:{port}", "--record", str(recording), "--plane", str(plane),
                               "--force", "--no-ui", "--duration-s", "600"])  # fmt: skip
     try:
         device = subprocess.run(
             [sys.executable, "-m", "ropecam.device.cli", "run", "--source", f"frames:{frames}?fps=30",
-             "--sink", f"udp://127.0.0.1:{port}"],
+             "--sink", f"udp://127.0.0.1:{port}", "--summary-json", str(accounting)],
             capture_output=True, text=True, timeout=600,
         )  # fmt: skip
         print("   device: " + (device.stdout.strip().splitlines() or ["(no output)"])[-1], flush=True)
@@ -87,6 +93,7 @@ def _stream(frames: Path, recording: Path, plane: Path, port: int) -> None:
     print("   monitor: " + last[0], flush=True)
     if code != 0:
         raise RopecamError(f"ropecam monitor failed ({code}):\n{err}{out}")
+    return dict(json.loads(accounting.read_text()))
 
 
 def _step(title: str, command: str) -> float:
@@ -143,7 +150,7 @@ def run_demo(args: argparse.Namespace) -> int:
         "   (and, meanwhile:)\n"
         f"   $ ropecam-device run --source frames:{rig}?fps=30 --sink udp://127.0.0.1:{port}",
     )
-    _stream(rig, recording, out / "plane.yaml", port)
+    device = _stream(rig, recording, out / "plane.yaml", port)
     timings["stream_s"] = time.perf_counter() - t
 
     model = out / "rope.toml"
@@ -157,11 +164,20 @@ def run_demo(args: argparse.Namespace) -> int:
     summary = json.loads((report / "summary.json").read_text()) if (report / "summary.json").exists() else {}
     fitted = summary.get("fit", {}).get("values", {}).get("ei")
     total = time.perf_counter() - started
+    frames = {key: device[key] for key in ("frames", "measured", "skipped", "dropped")}
+    demo = {"frames_rendered": args.frames, "device": {**frames, "statuses": device["statuses"]},
+            "measured_samples": summary.get("measured_samples"), "ei_nm2": fitted, "true_ei_nm2": TRUE_EI_NM2,
+            "timings_s": {k[:-2]: round(v, 2) for k, v in timings.items()}}  # fmt: skip
+    (out / "demo.json").write_text(json.dumps(demo, indent=1) + "\n")
     print(f"\n== done in {total:.0f} s ({', '.join(f'{k[:-2]} {v:.0f} s' for k, v in timings.items())})")
+    print(f"   frames: {args.frames} rendered, {frames['measured']} measured "
+          f"({', '.join(f'{k} {v}' for k, v in device['statuses'].items()) or 'none'}), {frames['skipped']} skipped "
+          f"(the daemon was late: a newer frame overtook them), {frames['dropped']} dropped; "
+          f"{summary.get('measured_samples')} shapes recorded")  # fmt: skip
     if fitted is not None:
         print(f"   bending stiffness: started at {3 * TRUE_EI_NM2:.3g}, identified {fitted:.4g} N m^2 "
               f"(simulated truth {TRUE_EI_NM2:.3g}, {100 * (fitted / TRUE_EI_NM2 - 1):+.1f} %)")  # fmt: skip
-    print(f"   report: {report / 'index.html'}  (plots, summary.json)")
+    print(f"   report: {report / 'index.html'}  (plots, summary.json); this summary: {out / 'demo.json'}")
     print(f"   frames and ground truth: {rig}; calibration: {out / 'camera.yaml'}, {out / 'plane.yaml'}")
     print(f"   the live recording: {recording} (open it in Foxglove with the layout {layout_path(recording)}, or "
           f"`ropecam replay {recording}`)")  # fmt: skip
