@@ -1,5 +1,5 @@
 """Benchmarks of ropecam: the device pipeline against cv2.Canny, its kernels and glue, the wire protocol, the ANCF
-model, the host monitor, capture, start-up and the simulator.
+model, the host monitor, capture, start-up (to the first result, and the first frames' latency) and the simulator.
 
     python tools/bench.py COMMAND [options]         python tools/bench.py COMMAND --help
 
@@ -21,6 +21,7 @@ COMMANDS = {
     "host": "bench_host",
     "capture": "bench_capture",
     "startup": "bench_startup",
+    "first-frames": "bench_first_frames",
     "simulate": "bench_simulate",
     "boards": "bench_boards",
     "recording-size": "bench_recording_size",

@@ -10,7 +10,7 @@ settled): total per frame, time inside kernel calls (every ``_kernels`` function
 adds ~0.2 us per call to the kernel side), the Python outside them (total minus kernels, frame by frame), and
 ``cv2.Canny`` on the same frames for the ratio.
 
-    python tools/bench.py glue [--frameset DIR] [--frames N] [--passes P] [--settle S] [--against REF]
+    python tools/bench.py glue [--frameset DIR] [--frames N] [--passes P] [--settle S] [--against REF] [--warm-up]
 """
 
 from __future__ import annotations
@@ -72,6 +72,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--settle", type=int, default=16, help="frames left out at the start of each pass")
     parser.add_argument("--against", metavar="REF", help="also measure this git commit, alternately (same frames)")
     parser.add_argument(
+        "--warm-up", action="store_true", help="warm every pipeline up first (`Pipeline.warm_up`), as the daemon does"
+    )
+    parser.add_argument(
         "--plain", action="store_true", help="no kernel timers: whole-pipeline times only (no ~0.3 us per kernel call)"
     )
 
@@ -95,6 +98,8 @@ def run(args: argparse.Namespace) -> int:
     canny: list[float] = []
     for pass_index in range(args.passes + 1):  # the first pass warms up (compilation, tables, caches)
         pipelines = {label: make(config(), (width, height)) for label, (make, config, _) in variants.items()}
+        for pipeline in pipelines.values() if args.warm_up else ():
+            pipeline.warm_up()
         labels = list(pipelines)
         for index, (image, t_ns, exposure_us) in enumerate(frames):
             order = labels if (index + pass_index) % 2 == 0 else labels[::-1]
