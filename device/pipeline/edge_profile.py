@@ -93,16 +93,28 @@ def _bar(
     return bar, d_centre, d_width, d_sigma
 
 
-def _model(x: NDArray[np.float64], params: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def _model(
+    x: NDArray[np.float64], params: NDArray[np.float64], plain: bool = False
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """The profile ``b0 + b1 x + C ((1 + a) bar(x; x0, w, s) - a bar(x; x0, w, sqrt(s^2 + u^2)))`` at `x` for
-    `params` (b0, b1, C, x0, w, s, a, u), and its Jacobian (k, 8)."""
+    `params` (b0, b1, C, x0, w, s, a, u), and its Jacobian (k, 8); `plain`: a = 0 and neither a nor u is fitted
+    (their columns are 0)."""
     level, slope, contrast, centre, width, sigma, gain, radius = params
-    wide = math.sqrt(sigma * sigma + radius * radius)
     bar, dc, dw, ds = _bar(x, centre, width, sigma)
-    bar2, dc2, dw2, ds2 = _bar(x, centre, width, wide)
     jac = np.empty((x.size, 8))
     jac[:, 0] = 1.0
     jac[:, 1] = x
+    if plain:
+        # Without the second bar: with a = 0 its terms are exactly 0 ((1 + 0) b - 0 b2 is b to the bit), and it
+        # was half the time of the first frames' plain fits.
+        jac[:, 2] = bar
+        jac[:, 3] = contrast * dc
+        jac[:, 4] = contrast * dw
+        jac[:, 5] = contrast * ds
+        jac[:, 6:] = 0.0
+        return level + slope * x + contrast * jac[:, 2], jac
+    wide = math.sqrt(sigma * sigma + radius * radius)
+    bar2, dc2, dw2, ds2 = _bar(x, centre, width, wide)
     jac[:, 2] = (1.0 + gain) * bar - gain * bar2
     jac[:, 3] = contrast * ((1.0 + gain) * dc - gain * dc2)
     jac[:, 4] = contrast * ((1.0 + gain) * dw - gain * dw2)
@@ -162,10 +174,11 @@ def fit_bar_profile(
         params[3:6] = (start.centre_px, start.width_px, start.sigma_px)
     lower, upper = (_LOWER, _UPPER) if sharpened else (_LOWER_PLAIN, _UPPER_PLAIN)
     free = 8 if sharpened else 6  # the plain bar's steps leave a and u out of the normal equations
-    _, jac = _model(x, params)
+    plain = not sharpened
+    _, jac = _model(x, params, plain)
     coef, *_ = np.linalg.lstsq(jac[:, :3], v, rcond=None)
     params[:3] = coef
-    model, jac = _model(x, params)
+    model, jac = _model(x, params, plain)
     residual = v - model
     cost = float(residual @ residual)
     damping = 1e-3
@@ -178,7 +191,7 @@ def fit_bar_profile(
             delta = np.zeros(8)
             delta[:free] = np.linalg.solve(normal + damping * diagonal, gradient)
             trial = np.clip(params + delta, lower, upper)
-            trial_model, trial_jac = _model(x, trial)
+            trial_model, trial_jac = _model(x, trial, plain)
             trial_residual = v - trial_model
             trial_cost = float(trial_residual @ trial_residual)
             if trial_cost <= cost:

@@ -171,14 +171,16 @@ class Pipeline:
     def warm_up(self) -> None:
         """Prepare everything a stream's first frames would otherwise pay for, before the stream starts.
 
-        Builds the threshold measurement's detector (`EdgeThresholds.prepare`), runs a blank frame (every buffer
-        touched, the kernels' dispatch ready; it finds no rope and leaves no state) and, when the config gives
+        Builds the threshold measurement's detector (`EdgeThresholds.prepare`) and the learned static mask's
+        (`StaticMask.prepare`), runs a blank frame (every buffer touched, the kernels' dispatch ready; it finds no
+        rope and leaves no state) and, when the config gives
         `rope_width_px`, builds the edge model's tables for that width (10-20 ms, once per process:
         `edge_model.shared_model`). A measured width is known only from the first frames; its tables are then built
         on the frame that first needs them.
         """
         height, width = self.shape
         self.thresholds.prepare()
+        self.static_mask.prepare()
         loc = self.locator
         counters = (loc.frames_full, loc.frames_coarse, loc.frames_roi, loc.roi_retries)
         # A blank frame teaches nothing.

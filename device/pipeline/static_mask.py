@@ -78,6 +78,7 @@ class StaticMask:
         """Pixels marked static when the learning ended (0 before)."""
         self.base_dn = 0.0
         """The range a still pixel spans from noise alone (2 x the median learned range + 2), once learned."""
+        self._finder: EdgeDetector | None = None  # the structures' detector, made ahead by `prepare`
         buffers.static_mask[:] = K.MASK_FREE
         buffers.static_low[:] = 255
         buffers.static_high[:] = 0
@@ -106,6 +107,20 @@ class StaticMask:
             buffers, config.static_frames, config.static_margin_dn, config.static_relative, given, detector,
             config.smooth_sigma_px,
         )  # fmt: skip
+
+    def prepare(self) -> None:
+        """Make the detector that finds the structures when the learning ends, and run it once on a blank frame,
+        now rather than on that frame (its buffers: ~15 ms, their first whole-frame pass: ~30 ms more than a warm
+        one; the daemon calls this before the camera starts, `Pipeline.warm_up`). Its results are the same."""
+        if self.detector is None or not self.learning or self._finder is not None:
+            return
+        height, width = self.buffers.static_low.shape
+        d = self.detector
+        finder = EdgeDetector(height, width, self.smooth_sigma_px, float(d.low), float(d.high))
+        finder.detect(
+            np.zeros((height, width), np.uint8), np.zeros(height, np.int32), np.full(height, width - 1, np.int32)
+        )
+        self._finder = finder
 
     @property
     def learning(self) -> bool:
@@ -151,7 +166,11 @@ class StaticMask:
         low, high = b.static_low.astype(np.int16), b.static_high.astype(np.int16)
         still = (high >= low) & (high - low <= self.base_dn + self.relative * high)
         middle = ((low + high) // 2).astype(np.uint8)
-        finder = EdgeDetector(height, width, self.smooth_sigma_px, float(d.low), float(d.high))
+        finder, self._finder = self._finder, None  # made ahead by `prepare`, or now; needed once
+        if finder is None:
+            finder = EdgeDetector(height, width, self.smooth_sigma_px, float(d.low), float(d.high))
+        else:
+            finder.set_thresholds(float(d.low), float(d.high))
         finder.detect(middle, np.zeros(height, np.int32), np.full(height, width - 1, np.int32))
         edge = (finder.edges != 0) & _spread(~still, invert=True)
         return _spread(edge)  # noise moves a static edge by a pixel now and then
