@@ -6,7 +6,8 @@ unpaced, timing each `Pipeline.process` call. Prints, as medians over the runs: 
 frames one by one and their sum, the steady frame (median of the frames after them), the ratio of the two, and the
 frames a replay paced at 30 and 119 FPS would skip for that latency (newest-frame policy, as a camera).
 
-    python tools/bench.py first-frames --frameset DIR [--runs 5] [--first 20] [--against-python OTHER_VENV/bin/python]
+    python tools/bench.py first-frames --frameset DIR [--config TOML] [--runs 5] [--first 20]
+        [--against-python OTHER_VENV/bin/python]
 
 The frame set the demo streams: ``ropecam simulate rig-soft --out DIR --frames 60 --first-exposure-ms 50``.
 Pin it to a core (``taskset -c 1``) and read it as a ratio: absolute times drift with the load.
@@ -25,14 +26,15 @@ from pathlib import Path
 from ropecam_tools.cli import UsageError, positive_int
 
 
-def one_process(frameset: Path) -> dict[str, object]:
-    """Time the warm-up and every frame of `frameset` through a fresh pipeline in this process (ms)."""
+def one_process(frameset: Path, config_path: Path | None = None) -> dict[str, object]:
+    """Time the warm-up and every frame of `frameset` through a fresh pipeline in this process (ms), with the
+    daemon's configuration `config_path` (None: the defaults)."""
     from ropecam.device.capture.replay import FrameSetSource
     from ropecam.device.daemon.config import load_device_config
     from ropecam.device.pipeline.pipeline import Pipeline
     from ropecam.device.pipeline.result import FrameStatus, PipelineResult
 
-    config = load_device_config(None, capture={"source": f"frames:{frameset}"})
+    config = load_device_config(config_path, capture={"source": f"frames:{frameset}"})
     source = FrameSetSource(frameset, paced=False)
     source.start()
     started = time.perf_counter()
@@ -70,6 +72,7 @@ def skipped_when_paced(frame_ms: list[float], fps: float) -> int:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add this subcommand's options to `parser`."""
     parser.add_argument("--frameset", type=Path, required=True, help="recorded frame set (e.g. rig-soft, 60 frames)")
+    parser.add_argument("--config", type=Path, help="the daemon's device.toml (default: built-in defaults)")
     parser.add_argument("--runs", type=positive_int, default=5, help="fresh processes (default 5); medians")
     parser.add_argument("--first", type=positive_int, default=20, help="start-up frames (default 20)")
     parser.add_argument(
@@ -102,7 +105,7 @@ def _report(label: str, runs: list[dict], first_count: int) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the subcommand with the parsed `args`; return the exit code."""
     if args.one_process:
-        print(json.dumps(one_process(args.frameset)))
+        print(json.dumps(one_process(args.frameset, args.config)))
         return 0
     bench = Path(__file__).resolve().parents[1] / "bench.py"
     pythons = {"this tree": sys.executable}
@@ -112,6 +115,7 @@ def run(args: argparse.Namespace) -> int:
     for _ in range(args.runs):  # alternately, so that both see the same load
         for label, python in pythons.items():
             command = [python, str(bench), "first-frames", "--frameset", str(args.frameset), "--one-process"]
+            command += ["--config", str(args.config)] if args.config else []
             done = subprocess.run(command, capture_output=True, text=True)
             if done.returncode != 0:
                 raise RuntimeError(f"{label}: {' '.join(command)} failed:\n{done.stderr}")
