@@ -94,3 +94,15 @@ def test_wire_size_keeps_rig_soft_first_frames_within_the_serial_budget(tmp_path
         assert row["over_budget"] == 0 and max(row["first_6_framed"]) == row["max_framed_bytes"] <= 774
         assert row["mean_bytes"] <= (200 if row["source"] == "truth" else 260)
     assert rows[0]["statuses"] == {"OK": 5}
+
+
+@pytest.mark.slow
+def test_bench_first_frames_times_a_fresh_pipeline(run_tool: RunTool, rig_frames: Path) -> None:
+    done = run_tool("bench.py", "first-frames", "--frameset", str(rig_frames), "--runs", "1", "--first", "4")
+    assert done.returncode == 0, done.stderr
+    assert "this tree: 1 fresh processes" in done.stdout
+    first = re.search(r"first 4 frames \(ms\): ((?:[0-9.]+ ?){4})$", done.stdout, re.M)
+    assert first is not None, done.stdout
+    assert re.search(r"skipped when paced \(from the medians\): 30 FPS \d+, 119 FPS \d+", done.stdout)
+    too_few = run_tool("bench.py", "first-frames", "--frameset", str(rig_frames), "--runs", "1", "--first", "12")
+    assert too_few.returncode == 2 and "12 frames, need more than --first 12" in too_few.stderr, too_few.stderr

@@ -107,6 +107,11 @@ def run(args: argparse.Namespace) -> int:
     if args.one_process:
         print(json.dumps(one_process(args.frameset, args.config)))
         return 0
+    from ropecam.device.capture.frameset import FrameSet
+
+    count = len(FrameSet(args.frameset))
+    if count <= args.first:
+        raise UsageError(f"--frameset {args.frameset}: {count} frames, need more than --first {args.first}")
     bench = Path(__file__).resolve().parents[1] / "bench.py"
     pythons = {"this tree": sys.executable}
     if args.against_python:
@@ -120,9 +125,6 @@ def run(args: argparse.Namespace) -> int:
             if done.returncode != 0:
                 raise RuntimeError(f"{label}: {' '.join(command)} failed:\n{done.stderr}")
             runs[label].append(json.loads(done.stdout))
-    count = len(runs["this tree"][0]["frame_ms"])
-    if count <= args.first:
-        raise UsageError(f"--frameset {args.frameset}: {count} frames, need more than --first {args.first}")
     print(f"{args.frameset}:")
     for label, done_runs in runs.items():
         _report(label, done_runs, args.first)
