@@ -230,9 +230,9 @@ class BandEdgeModel:
         rows, cols = np.mgrid[0:size, 0:size].astype(np.float64) - (size - 1) / 2.0
         across = cols[None, None] * np.cos(theta) + rows[None, None] * np.sin(theta) - shifts  # (A, P, S, S)
         image = normal_cdf((0.5 * width - across) / sigma) - normal_cdf((-0.5 * width - across) / sigma)
-        for axis in (-1, -2):  # the pipeline's separable smoothing (valid part only)
-            count = image.shape[axis] - 2 * half
-            image = sum(w * np.take(image, np.arange(k, k + count), axis=axis) for k, w in enumerate(self.weights))
+        count = image.shape[-1] - 2 * half  # the pipeline's separable smoothing (valid part only), on views
+        image = sum(w * image[..., k : k + count] for k, w in enumerate(self.weights))
+        image = sum(w * image[..., k : k + count, :] for k, w in enumerate(self.weights))
         gx = (image[..., :-2, 2:] + 2.0 * image[..., 1:-1, 2:] + image[..., 2:, 2:]) - (
             image[..., :-2, :-2] + 2.0 * image[..., 1:-1, :-2] + image[..., 2:, :-2]
         )
