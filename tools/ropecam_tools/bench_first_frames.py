@@ -3,8 +3,9 @@
 Each run is a fresh process (the edge model's tables are built once per process), which builds and warms the
 pipeline as the daemon does before its camera starts (`Pipeline.warm_up`) and then measures a recorded frame set
 unpaced, timing each `Pipeline.process` call. Prints, as medians over the runs: the warm-up, the first `--first`
-frames one by one and their sum, the steady frame (median of the frames after them), the ratio of the two, and the
-frames a replay paced at 30 and 119 FPS would skip for that latency (newest-frame policy, as a camera).
+frames one by one and their sum, the steady frame (median of the frames after them), the ratio of the two, the
+frames a replay paced at 30 and 119 FPS would skip for that latency (newest-frame policy, as a camera), and the same
+sums in the thread's CPU time (which other processes on a shared machine disturb less than wall time).
 
     python tools/bench.py first-frames --frameset DIR [--config TOML] [--runs 5] [--first 20]
         [--against-python OTHER_VENV/bin/python]
@@ -42,14 +43,15 @@ def one_process(frameset: Path, config_path: Path | None = None) -> dict[str, ob
     pipeline.warm_up()
     warm_up_ms = (time.perf_counter() - started) * 1e3
     out = PipelineResult(0, 0, 0, FrameStatus.BAD_FRAME)
-    times, statuses = [], []
+    times, cpu, statuses = [], [], []
     while (frame := source.read(1.0)) is not None:
-        started = time.perf_counter()
+        started, started_cpu = time.perf_counter(), time.thread_time()
         result = pipeline.process(frame.image, frame.sequence, frame.t_ns, frame.exposure_us, out=out)
         times.append((time.perf_counter() - started) * 1e3)
+        cpu.append((time.thread_time() - started_cpu) * 1e3)
         statuses.append(result.status.name)
     source.stop()
-    return {"warm_up_ms": warm_up_ms, "frame_ms": times, "statuses": statuses}
+    return {"warm_up_ms": warm_up_ms, "frame_ms": times, "cpu_ms": cpu, "statuses": statuses}
 
 
 def skipped_when_paced(frame_ms: list[float], fps: float) -> int:
@@ -98,6 +100,13 @@ def _report(label: str, runs: list[dict], first_count: int) -> None:
           "steady")  # fmt: skip
     print("  skipped when paced (from the medians): " + ", ".join(
         f"{fps:g} FPS {skipped_when_paced(frame_ms, fps)}" for fps in (30.0, 119.0)))  # fmt: skip
+    cpu_ms = [statistics.median(r["cpu_ms"][i] for r in runs) for i in range(count)]
+    cpu_steady = statistics.median(cpu_ms[first_count:])
+    print(
+        f"  CPU time of this thread (less sensitive to other processes): first {first_count} frames "
+        f"{sum(cpu_ms[:first_count]):.1f} ms = {sum(cpu_ms[:first_count]) / cpu_steady:.0f} steady frames of "
+        f"{cpu_steady:.2f} ms; per run: " + " ".join(f"{sum(r['cpu_ms'][:first_count]):.0f}" for r in runs)
+    )
     print("  first frames' total per run (ms): " + " ".join(f"{sum(r['frame_ms'][:first_count]):.0f}" for r in runs)
           + (f"; statuses other than OK: {', '.join(not_ok)}" if not_ok else ""))  # fmt: skip
 
