@@ -51,7 +51,8 @@ def register(subparsers: Any) -> None:
         "--summary-json",
         type=Path,
         metavar="FILE",
-        help="on exit, write where every frame went (measured, skipped, dropped), the statuses and the exit code",
+        help="on exit, write where every frame went (measured, skipped, dropped), the statuses and the exit code "
+        "(replaced at every run: the state of the last one)",
     )
     parser.set_defaults(func=run_daemon)
 
