@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import tomllib
 from collections.abc import Iterable
@@ -190,6 +191,25 @@ def with_pipeline_table(old_text: str, table: str) -> str:
     return "".join(out)
 
 
+def _check_writable_folder(path: Path) -> None:
+    """Raise `DataError` unless `path`'s folder exists and is writable or can be made (its nearest existing ancestor
+    is a writable folder)."""
+    folder = path.resolve().parent
+    existing = next(p for p in (folder, *folder.parents) if p.exists())
+    if not existing.is_dir():
+        raise DataError(f"{path}: cannot write here: {existing} is a file, not a folder. Nothing was written.")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        what = "its folder" if existing == folder else f"{existing} (to make its folder {folder})"
+        raise DataError(f"{path}: cannot write here: no write permission on {what}. Nothing was written.")
+
+
+def _make_folder(path: Path) -> None:
+    try:
+        path.resolve().parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DataError(f"{path}: cannot make its folder: {exc.strerror}") from exc
+
+
 def _write_text(path: Path, text: str) -> None:
     temporary = path.with_name(path.name + ".tmp")
     try:
@@ -257,6 +277,9 @@ def run_setup(
         kept["material_points_m"] = [round(rope_length_m * f, 6) for f in (0.25, 0.5, 0.75, 1.0)]
     base = from_mapping(PipelineConfig, kept, where=f"{out} [pipeline] (kept keys and options)")
 
+    overlay_path = Path(overlay) if overlay else _overlay_path(out)
+    for path in (out, overlay_path):
+        _check_writable_folder(path)  # before minutes of work, not after
     frames, described, rate = read_frames(source, seconds, fps, exposure_us)
     declared = _declared_gamma(source)
     if "gamma" not in kept and declared is not None and declared != 1.0:
@@ -311,7 +334,8 @@ def run_setup(
     text = with_pipeline_table(old_text, table)
     del config
 
-    overlay_path = Path(overlay) if overlay else _overlay_path(out)
+    for path in (out, overlay_path):
+        _make_folder(path)
     if findings.mask is not None:
         write_png(mask_path, findings.mask.astype("uint8") * 255)
     from_mapping(PipelineConfig, tomllib.loads(text)["pipeline"], where=f"{out} [pipeline]")  # what extract reads

@@ -40,7 +40,7 @@ def rope_set(tmp_path_factory) -> Path:
 
 
 def test_setup_writes_a_config_extract_measures_with(tmp_path, rope_set, capsys) -> None:
-    out = tmp_path / "device.toml"
+    out = tmp_path / "rig" / "device.toml"  # setup makes the folder, as `--out` says
     assert main(["setup", str(rope_set), "--out", str(out), "--rope-length-m", "0.5", "--quiet"]) == 0
     table = tomllib.loads(out.read_text())["pipeline"]
     assert table["rope_length_m"] == 0.5
@@ -52,10 +52,10 @@ def test_setup_writes_a_config_extract_measures_with(tmp_path, rope_set, capsys)
     assert "lens_blur_px" not in table
     truth = next(iter(ROPE.frames(1))).begin_uv[0]
     assert np.hypot(*(np.array(table["fixed_end_uv"]) - truth)) < 3.0
-    overlay = tmp_path / "device_overlay.png"
+    overlay = tmp_path / "rig" / "device_overlay.png"
     assert cv2.imread(str(overlay)).shape == (ROPE.height, ROPE.width, 3)
     # The small static block never passes for the rope: the pipeline measures as well without a mask, so none.
-    assert "static_mask_png" not in table and not (tmp_path / "device_mask.png").exists()
+    assert "static_mask_png" not in table and not (tmp_path / "rig" / "device_mask.png").exists()
     results = tmp_path / "out.jsonl"
     assert main(["extract", str(rope_set), "--config", str(out), "--out", str(results), "--quiet"]) == 0
     records = [json.loads(line) for line in results.read_text().splitlines()]
@@ -92,6 +92,16 @@ def test_setup_on_a_scene_without_a_rope_says_so(tmp_path, capsys) -> None:
     err = capsys.readouterr().err
     assert "no rope found" in err and "Nothing was written" in err
     assert not out.exists() and not (tmp_path / "device_overlay.png").exists()
+
+
+def test_setup_refuses_an_output_it_cannot_write_before_reading_frames(tmp_path, capsys) -> None:
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    missing = tmp_path / "no_such_set"  # never read: the output is checked first
+    assert main(["setup", str(missing), "--out", str(blocker / "rig" / "device.toml"), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert f"{blocker} is a file, not a folder" in err and "Nothing was written" in err
+    assert blocker.read_text() == "" and sorted(tmp_path.iterdir()) == [blocker]
 
 
 def test_pipeline_table_replaced_in_place() -> None:
