@@ -137,7 +137,11 @@ def _print_summary(numbers: dict[str, Any]) -> None:
     rms = ", ".join(
         f"s={s:.3f}: {v}" for s, v in zip(numbers["material_points_s_m"], numbers["rms_error_mm"], strict=True)
     )
-    print(f"release time {numbers['release_time_s']:.6f} s; RMS error per point (mm): {rms}")
+    release = f"release time {numbers['release_time_s']:.6f} s"
+    if numbers.get("first_sample_time_s") is not None:  # a live recording's clock is the device's uptime
+        lead = numbers["first_sample_time_s"] - numbers["release_time_s"]
+        release += f" on the recording's clock ({lead:.4f} s before its first frame)"
+    print(f"{release}; RMS error per point (mm): {rms}")
     if "fit" in numbers:
         fit = numbers["fit"]
         for name in fit["parameters"]:

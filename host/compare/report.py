@@ -55,6 +55,7 @@ def summary(comparison: Comparison) -> dict[str, Any]:
         "samples": int(c.tracks.times_s.size),
         "measured_samples": int(c.tracks.measured.any(axis=1).sum()),
         "release_time_s": c.release_time_s,
+        "first_sample_time_s": float(c.tracks.times_s[0]) if c.tracks.times_s.size else None,
         "material_points_s_m": [float(s) for s in c.tracks.s_m],
         "rms_error_mm": _mm(c.errors.rms_m),
         "rms_error_m": [float(v) if np.isfinite(v) else None for v in c.errors.rms_m],  # unrounded: the table's

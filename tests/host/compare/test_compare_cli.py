@@ -67,11 +67,15 @@ def _compare(root: Path, model: str, out: Path, *extra: str) -> int:
                  "--model", str(root / model), "--out", str(out), *extra])  # fmt: skip
 
 
-def test_true_model_matches_and_report_is_written(recording: Path, tmp_path: Path) -> None:
+def test_true_model_matches_and_report_is_written(recording: Path, tmp_path: Path, capsys) -> None:
     assert _compare(recording, "true.toml", tmp_path / "report") == 0
     summary = json.loads((tmp_path / "report" / "summary.json").read_text())
     assert max(summary["rms_error_mm"]) < 0.5
     assert abs(summary["release_time_s"]) < 0.5e-3  # the simulator's clock starts at the release
+    # The release time is on the recording's clock (a live one counts the device's uptime): the line says how long
+    # before the first frame it is.
+    lead = summary["first_sample_time_s"] - summary["release_time_s"]
+    assert 0 < lead < 1 and f"on the recording's clock ({lead:.4f} s before its first frame)" in capsys.readouterr().out
     for name in ("index.html", "trajectories.png", "error_vs_time.png", "error_per_point.png", "shapes.png"):
         assert (tmp_path / "report" / name).stat().st_size > 1000
     assert "summary.json" in (tmp_path / "report" / "index.html").read_text()
