@@ -6,11 +6,9 @@ of `extend_to_band_end`). Each tip is then off by half the sweep (3-7 px on the 
 while their midpoint is right: it is the tip at mid-exposure. The midpoints of the last frames (the motion
 model's log) and of this frame give the tip's velocity at mid-exposure (a quadratic through three midpoints, a
 line through two); velocity x exposure is the sweep. Where the two measured tips lie much closer together than
-that sweep, they are moved apart to the midpoint -/+ half the sweep (`restore_tip_sweep`). Read at the ramp's
-middle, one shape is then half the along-axis sweep too long and the other as much too short: their mean length is
-the rope's (Lc0). Where it is not (one shape ends at the band's far end, the other at the rope's length), the
-measured tips are not the ramp's middle and their midpoint is not the tip at mid-exposure: nothing moves, and the
-length self-check reports the two shapes' mismatch.
+that sweep, they are moved apart to the midpoint -/+ half the sweep (`restore_tip_sweep`). Where the two shapes'
+lengths already disagree by more than the length self-check accepts, one shape ran on to the band's far end and
+the midpoint is not the tip at mid-exposure: nothing moves, and the self-check reports the mismatch.
 """
 
 from __future__ import annotations
@@ -42,14 +40,14 @@ MAX_GROWTH: Final = 2.0
 SAME_PATH_PX: Final = 4.0
 """A sweep from the path larger than ``MAX_GROWTH`` x the last frame's sweep (the motion model's) + this is no
 path (the model's midpoints read about another fixed end): nothing moves."""
-MEAN_LENGTH: Final = 0.15
-MEAN_LENGTH_PX: Final = 2.0
-"""The two shapes' mean length must lie within ``MEAN_LENGTH`` x the sweep from the path + ``MEAN_LENGTH_PX`` of
-Lc0 (when known), or nothing moves. Measured (simulated, tuning seed): on the soft rig's whip (sweeps 4-6 px along
-the axis) the mean lies within 0.5 px of the true length and 1.1 px of Lc0, one shape 2-3 px too long and the other
-as much too short; on ``paper-soft`` 15 ms frames 45-46 the begin shape ran to the band's far end (15-18 px too
-long, the end shape right, tips 3-4 px apart against a 20-22 px sweep): the mean lay 6.7-8.3 px beyond Lc0, and
-moving the tips made them 5-11 px off and passed the length check that had flagged the frame."""
+LENGTH_MISMATCH: Final = 0.03
+"""Largest difference of the two shapes' lengths, as a fraction of Lc0, with which collapsed tips are moved: the
+default ``checks.length_mismatch`` (`ChecksConfig`), beyond which the frame is flagged. Moving the tips changes the
+two lengths by about -/+ half the sweep and can bring a flagged frame under it. Measured (simulated, tuning seed):
+on the soft rig's whip (4-6 px along-axis sweeps) the collapsed shapes differ by 2.4-5.8 px (Lc0 407 px: 12 px
+accepted), on the paper method's ``rig`` frames by 0.8-5.7 px (Lc0 403 px); on ``paper-soft`` 15 ms frames 45-46
+the begin shape ran to the band's far end (15-18 px too long, tips 3-4 px apart against a 20-22 px sweep) and they
+differ by 16-19 px (Lc0 364 px: 11 accepted): moved, the tips were 5-11 px off and the frame passed every check."""
 
 
 @kernel(types.UniTuple(float64, 2)(f4_1d, int64, int64, int64, i8_1d, f8_2d, float64, float64))
@@ -135,9 +133,8 @@ def restore_tip_sweep(
     midpoint -/+ half that sweep (`shift_tip`, in place), and the time order's last two tip samples (this frame's,
     when `order_shapes` remembered them: times `t_ns` and `t_end_ns`) with them. Nothing moves when that sweep
     is far beyond the last frame's (`MAX_GROWTH`, `SAME_PATH_PX`: the motion model was measured about another
-    fixed end), nor when the shapes' mean length lies farther than `MEAN_LENGTH` x that sweep + `MEAN_LENGTH_PX`
-    from `length0_px` (Lc0; negative: not known, not checked): the tips are not both at the ramp's middle. Returns
-    whether it moved them.
+    fixed end), nor when the shapes' lengths differ by more than `LENGTH_MISMATCH` x `length0_px` (Lc0; negative:
+    not known, not checked). Returns whether it moved them.
 
     `fixed` is the fixed end (row, col); `exposure_ns` the exposure (the midpoint is at ``t_ns + exposure_ns //
     2``, as `observe_motion` takes it); `motion_state`/`motion_log` the motion model before this frame is added;
@@ -162,10 +159,8 @@ def restore_tip_sweep(
     # end was found again), they give a path that jumps. A sweep far beyond the last frame's is no path.
     if sweep > MAX_GROWTH * motion_log[MOTION_FRAMES, 0] + SAME_PATH_PX:
         return False
-    if length0_px > 0.0:
-        mean = 0.5 * (shape_length(begin) + shape_length(end))
-        if abs(mean - length0_px) > MEAN_LENGTH * sweep + MEAN_LENGTH_PX:
-            return False
+    if length0_px > 0.0 and abs(shape_length(begin) - shape_length(end)) > LENGTH_MISMATCH * length0_px:
+        return False
     count = order_state[ORDER_COUNT]
     shift_tip(begin, mid_r - 0.5 * s_r - br, mid_c - 0.5 * s_c - bc)
     shift_tip(end, mid_r + 0.5 * s_r - er, mid_c + 0.5 * s_c - ec)

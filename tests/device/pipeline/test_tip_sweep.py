@@ -12,8 +12,15 @@ import pytest
 
 from ropecam.device.capture.frameset import FrameSet
 from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._kernels.tip_sweep import (
+    LENGTH_MISMATCH,
+    restore_tip_sweep,
+    shape_length,
+    shift_tip,
+    sweep_from_path,
+)
 from ropecam.device.pipeline._kernels.tip_sweep import MOTION_FRAMES as SWEEP_MOTION_FRAMES
-from ropecam.device.pipeline._kernels.tip_sweep import restore_tip_sweep, shape_length, shift_tip, sweep_from_path
+from ropecam.device.pipeline.checks import ChecksConfig
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam.device.pipeline.result import FrameStatus
@@ -116,20 +123,19 @@ def test_restore_tip_sweep_moves_collapsed_tips_and_their_history() -> None:
                                  order_state, hist, -1.0)  # fmt: skip
 
 
-def test_collapsed_tips_whose_mean_length_is_not_the_ropes_stay_where_they_are() -> None:
-    # Read at the ramp's middle, one shape is half the sweep too long and the other as much too short: their mean
-    # length is Lc0. A shape that runs on to the band's far end (paper-soft 15 ms, simulated: 15-18 px too long,
-    # the other right) puts the mean far from it: the tips are not the ramp's middle, their midpoint is not the tip
-    # at mid-exposure, and moving them would only hide the mismatch from the length check.
+def test_collapsed_tips_of_shapes_the_length_check_flags_stay_where_they_are() -> None:
+    # A shape that runs on to the band's far end (paper-soft 15 ms, simulated: 15-18 px too long, the other right,
+    # the tips together) makes the shapes' lengths disagree by more than the length self-check accepts: the
+    # midpoint is not the tip at mid-exposure, and moving the tips would only hide the mismatch from the check.
+    assert ChecksConfig().length_mismatch == LENGTH_MISMATCH
     fixed, period, exposure, state, log, t_ns, a = _straight_path()
-    length0 = shape_length(a)
-    assert length0 == pytest.approx(72.0)
+    length0 = 100.0  # 3 px accepted
     order_state = np.zeros(K.ORDER_STATE_SIZE, np.int64)
     hist = np.zeros((K.HISTORY, 2))
-    for lift, moves in ((2.5, True), (8.0, False)):
+    for lift, moves in ((2.0, True), (3.0, False)):
         b = a.copy()
-        b[10:20, 0] += lift  # a detour of 2 (hypot(lift, 2) - 2) px: a mean 1.2 / 6.2 px beyond Lc0 (limit 3.2)
-        assert shape_length(b) - length0 == pytest.approx(2.0 * (np.hypot(lift, 2.0) - 2.0), rel=1e-5)
+        b[10:20, 0] += lift  # a detour of 2 (hypot(lift, 2) - 2) px: 1.7 / 3.2 px longer
+        assert shape_length(b) - shape_length(a) == pytest.approx(2.0 * (np.hypot(lift, 2.0) - 2.0), rel=1e-5)
         c, d = a.copy(), b.copy()
         got = restore_tip_sweep(c, d, fixed, t_ns, t_ns + exposure, 4 * period, exposure, state, log, order_state,
                                 hist, length0)  # fmt: skip
