@@ -6,7 +6,9 @@ of `extend_to_band_end`). Each tip is then off by half the sweep (3-7 px on the 
 while their midpoint is right: it is the tip at mid-exposure. The midpoints of the last frames (the motion
 model's log) and of this frame give the tip's velocity at mid-exposure (a quadratic through three midpoints, a
 line through two); velocity x exposure is the sweep. Where the two measured tips lie much closer together than
-that sweep, they are moved apart to the midpoint -/+ half the sweep (`restore_tip_sweep`).
+that sweep, they are moved apart to the midpoint -/+ half the sweep (`restore_tip_sweep`). Where the two shapes'
+lengths already disagree by more than the length self-check accepts, one shape ran on to the band's far end and
+the midpoint is not the tip at mid-exposure: nothing moves, and the self-check reports the mismatch.
 """
 
 from __future__ import annotations
@@ -38,6 +40,14 @@ MAX_GROWTH: Final = 2.0
 SAME_PATH_PX: Final = 4.0
 """A sweep from the path larger than ``MAX_GROWTH`` x the last frame's sweep (the motion model's) + this is no
 path (the model's midpoints read about another fixed end): nothing moves."""
+LENGTH_MISMATCH: Final = 0.03
+"""Largest difference of the two shapes' lengths, as a fraction of Lc0, with which collapsed tips are moved: the
+default ``checks.length_mismatch`` (`ChecksConfig`), beyond which the frame is flagged. Moving the tips changes the
+two lengths by about -/+ half the sweep and can bring a flagged frame under it. Measured (simulated, tuning seed):
+on the soft rig's whip (4-6 px along-axis sweeps) the collapsed shapes differ by 2.4-5.8 px (Lc0 407 px: 12 px
+accepted), on the paper method's ``rig`` frames by 0.8-5.7 px (Lc0 403 px); on ``paper-soft`` 15 ms frames 45-46
+the begin shape ran to the band's far end (15-18 px too long, tips 3-4 px apart against a 20-22 px sweep) and they
+differ by 16-19 px (Lc0 364 px: 11 accepted): moved, the tips were 5-11 px off and the frame passed every check."""
 
 
 @kernel(types.UniTuple(float64, 2)(f4_1d, int64, int64, int64, i8_1d, f8_2d, float64, float64))
@@ -79,6 +89,17 @@ def sweep_from_path(fixed, t_mid_ns, exposure_ns, max_age_ns, motion_state, moti
     )
 
 
+@kernel(float64(f4_2d))
+def shape_length(shape):
+    """Return the arc length (px) of the polyline `shape` (n, 2) (0 for fewer than two points)."""
+    total = 0.0
+    for k in range(1, shape.shape[0]):
+        total += math.hypot(
+            float64(shape[k, 0]) - float64(shape[k - 1, 0]), float64(shape[k, 1]) - float64(shape[k - 1, 1])
+        )
+    return total
+
+
 @kernel(types.void(f4_2d, float64, float64))
 def shift_tip(shape, d_r, d_c):
     """Move the last point of `shape` (row, col) by (`d_r`, `d_c`) and the points before it by that times a weight
@@ -102,16 +123,18 @@ def shift_tip(shape, d_r, d_c):
         k -= 1
 
 
-@kernel(boolean(f4_2d, f4_2d, f4_1d, int64, int64, int64, int64, i8_1d, f8_2d, i8_1d, f8_2d))
+@kernel(boolean(f4_2d, f4_2d, f4_1d, int64, int64, int64, int64, i8_1d, f8_2d, i8_1d, f8_2d, float64))
 def restore_tip_sweep(
-    begin, end, fixed, t_ns, t_end_ns, max_age_ns, exposure_ns, motion_state, motion_log, order_state, hist_rc
+    begin, end, fixed, t_ns, t_end_ns, max_age_ns, exposure_ns, motion_state, motion_log, order_state, hist_rc,
+    length0_px,
 ):  # fmt: skip
     """Where the two shapes' tips (`begin`, `end`: in time order, fixed end first) lie closer together than
     `COLLAPSED` x the sweep their path gives (`sweep_from_path`, at least `MIN_SWEEP_PX`), put them at their
     midpoint -/+ half that sweep (`shift_tip`, in place), and the time order's last two tip samples (this frame's,
     when `order_shapes` remembered them: times `t_ns` and `t_end_ns`) with them. Nothing moves when that sweep
     is far beyond the last frame's (`MAX_GROWTH`, `SAME_PATH_PX`: the motion model was measured about another
-    fixed end). Returns whether it moved them.
+    fixed end), nor when the shapes' lengths differ by more than `LENGTH_MISMATCH` x `length0_px` (Lc0; negative:
+    not known, not checked). Returns whether it moved them.
 
     `fixed` is the fixed end (row, col); `exposure_ns` the exposure (the midpoint is at ``t_ns + exposure_ns //
     2``, as `observe_motion` takes it); `motion_state`/`motion_log` the motion model before this frame is added;
@@ -135,6 +158,8 @@ def restore_tip_sweep(
     # The motion model keeps its midpoints about the fixed end of their time: read about another one (the fixed
     # end was found again), they give a path that jumps. A sweep far beyond the last frame's is no path.
     if sweep > MAX_GROWTH * motion_log[MOTION_FRAMES, 0] + SAME_PATH_PX:
+        return False
+    if length0_px > 0.0 and abs(shape_length(begin) - shape_length(end)) > LENGTH_MISMATCH * length0_px:
         return False
     count = order_state[ORDER_COUNT]
     shift_tip(begin, mid_r - 0.5 * s_r - br, mid_c - 0.5 * s_c - bc)

@@ -520,7 +520,7 @@ def track_frame(
         uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, order)
         if not single:
             restore_tip_sweep(begin, end, fixed, t_ns, t_end_ns, max_age_ns, exposure_ns, motion_state, motion_log,
-                              order_state, hist_rc)  # fmt: skip
+                              order_state, hist_rc, length0_px)  # fmt: skip
     _, stretch_begin, stretch_end = track_shapes(
         begin, end, single, fraction, length0_px, out_points, out_lengths, work_seg
     )

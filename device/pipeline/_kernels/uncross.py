@@ -10,10 +10,11 @@ preset (240 frames, 2 s of a swing, tuning seed), a quarter of the frames had su
 error was 1-5 px with both tips right.
 
 `uncross_shapes` finds the pinches (interior local minima, below the rope's width, of the distance from the start
-shape to the end shape) and decides each stretch between two pinches by continuity: between exposures the rope
-moves on from where the last one ended, so of the two sides on a stretch, the start shape is the one nearer to the
-previous frame's end shape. The stretch that holds the tip keeps the tip's order. The previous end shape is kept in
-the time order's group (`Order`): ``prev_end`` and its count and time in ``state``.
+shape to the end shape, over the distance the split reads by the fixed end, `FLOOR_SPAN`, or deep below the
+distance either side, `PROMINENCE`) and decides each stretch between two pinches by continuity: between exposures
+the rope moves on from where the last one ended, so of the two sides on a stretch, the start shape is the one
+nearer to the previous frame's end shape. The stretch that holds the tip keeps the tip's order. The previous end
+shape is kept in the time order's group (`Order`): ``prev_end`` and its count and time in ``state``.
 """
 
 from __future__ import annotations
@@ -30,6 +31,20 @@ from ropecam.shared.jit import f4_2d, kernel
 PINCH_WIDTHS: Final = 0.5
 """A pinch is closer than this many rope widths: the two shapes cross there (a true crossing's distance is the
 edges' noise; splicing at a wider one would leave a step of that size in both shapes)."""
+FLOOR_SPAN: Final = 40
+"""The separation the split reads where the rope cannot move, by its fixed end (the smallest over the first
+1 / `FLOOR_SPAN` of the start shape's points, at least three), is added to the pinch's limit (up to `PINCH_WIDTHS`
+rope widths more). The local sweep read from the edge slope does not reach 0 on a still stretch under a strong
+blur: on ``paper-soft`` (simulated, tuning seed) the two shapes lie 0.3-0.6 px apart by the fixed end, and 1.3-1.6
+px apart where the true shapes cross (0.2 px), above 0.5 rope widths (1.26 px): the crossing was not seen, and the
+shapes were exchanged from the fixed end to the crossing (centreline 1-3 px off, both tips right, reported OK). A
+fixed end anchored on a plane calibration reads 0 there: the limit is then `PINCH_WIDTHS` rope widths."""
+PROMINENCE: Final = 0.35
+"""Between that limit and one rope width, an interior local minimum is a pinch when it lies below this fraction of
+the largest separation on either side of it (before it back to the last pinch, after it up to the tip): a
+crossing whose sides are read too far apart (the sweep from the edge slope over-read by a contrast or lens blur
+read 10 % off, ``paper-soft`` 15 ms: 1.3-1.7 px where the true shapes cross) still dips to a third or less of the
+separation around it."""
 DECISIVE: Final = 0.25
 """A stretch is exchanged only when the other side is nearer to the previous end shape by this fraction of the
 stretch's mean separation, and that separation is at least `PINCH_WIDTHS` rope widths: where the two sides lie
@@ -155,13 +170,14 @@ def uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, order):
     that the previous frame's end shape says are the other way round, between the pinches where the two cross;
     then remember `end` as the previous end shape (exposure ending at `t_end_ns`).
 
-    A pinch is an interior local minimum, below `PINCH_WIDTHS` x `width_px`, of the distance from a point of
-    `begin` to `end`. On every stretch between pinches but the last (the tip's), the side decisively nearer
-    (`DECISIVE`) to the previous end shape (kept at most `max_age_ns` before this exposure's end) is the start of
-    the exposure. The exchanged shapes keep their point counts (each resampled evenly along its new arc). Nothing
-    is exchanged for a `single` shape, without a previous end shape, or when a shape is longer than
-    ``order.prev_end``. Uses ``order.splice`` as scratch (its rows hold the new begin, the new end, and each begin
-    point's (distance, match) on `end`).
+    A pinch is an interior local minimum of the distance from a point of `begin` to `end` below `PINCH_WIDTHS` x
+    `width_px` plus the distance read by the fixed end (`FLOOR_SPAN`, at most as much again), or below `width_px`
+    and `PROMINENCE` x the largest distance on either side of it. On every stretch between pinches but the last
+    (the tip's), the side decisively nearer (`DECISIVE`) to the previous end shape (kept at most `max_age_ns` before
+    this exposure's end) is the start of the exposure. The exchanged shapes keep their point counts (each resampled
+    evenly along its new arc). Nothing is exchanged for a `single` shape, without a previous end shape, or when a
+    shape is longer than ``order.prev_end``. Uses ``order.splice`` as scratch (its rows hold the new begin, the new
+    end, and each begin point's (distance, match) on `end`).
 
     Returns the stretches exchanged (0 or more), or -1 when the shapes were not looked at.
     """
@@ -188,6 +204,11 @@ def uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, order):
             match[k, 1] = np.float32(j)
             lo = int(j) - _BACK
             hi = int(j) + _AHEAD
+        # The separation read by the fixed end (`FLOOR_SPAN`), added to the pinches' limit.
+        floor = math.inf
+        for k in range(max(3, nb // FLOOR_SPAN)):
+            floor = min(floor, float(match[k, 0]))
+        limit = PINCH_WIDTHS * width_px + min(floor, PINCH_WIDTHS * width_px)
         # Stretches between pinches, from the fixed end; the last one (the tip's) keeps its side.
         out_b = splice[0]
         out_e = splice[1]
@@ -197,11 +218,17 @@ def uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, order):
         start_e = 0
         for k in range(2, nb - 1):
             last = k == nb - 2
-            pinch = (
-                match[k, 0] < PINCH_WIDTHS * width_px
-                and match[k, 0] <= match[k - 1, 0]
-                and match[k, 0] <= match[k + 1, 0]
-            )
+            gap = match[k, 0]
+            pinch = gap <= match[k - 1, 0] and gap <= match[k + 1, 0] and gap < width_px
+            if pinch and gap >= limit:
+                # Above the limit only a dip to `PROMINENCE` of the separation on both sides is a crossing.
+                before = 0.0
+                for i in range(start_b, k):
+                    before = max(before, float(match[i, 0]))
+                after = 0.0
+                for i in range(k + 1, nb):
+                    after = max(after, float(match[i, 0]))
+                pinch = gap <= PROMINENCE * min(before, after)
             if not (pinch or last):
                 continue
             stop_b = nb if last else k

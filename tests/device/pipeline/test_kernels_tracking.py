@@ -314,6 +314,7 @@ def test_track_frame_is_order_then_material_points_then_motion() -> None:
         for _ in range(2)
     ]  # fmt: skip
     period, exposure = 8_403_361, 4_000_000
+    length0 = 300.0  # the shapes' length (Lc0): `restore_tip_sweep` moves only tips whose mean length is Lc0's
     moved = 0
     for k in range(80):
         t0 = k * period
@@ -332,7 +333,7 @@ def test_track_frame_is_order_then_material_points_then_motion() -> None:
         b_ref = a_ref if b_ref is None else b_ref
         order_state, hist_rc, motion_state, motion_log, out, lengths, work, prev_end, splice = states[0]
         got = K.track_frame(a, b, a is b, t0, t1, 4 * period, K.Order(order_state, hist_rc, prev_end, splice), fixed,
-                            2.5, t1 - t0, _motion(motion_state, motion_log), 120.0,
+                            2.5, t1 - t0, _motion(motion_state, motion_log), length0,
                             K.Track(fraction, out, lengths, work), 3.0)  # fmt: skip
         order_state, hist_rc, motion_state, motion_log, out_ref, lengths_ref, work_ref, prev_end, splice = states[1]
         a, b = a_ref, b_ref
@@ -345,9 +346,9 @@ def test_track_frame_is_order_then_material_points_then_motion() -> None:
             K.uncross_shapes(begin, end, a is b, t1, 4 * period, 3.0, K.Order(order_state, hist_rc, prev_end, splice))
             if a is not b:
                 moved += K.restore_tip_sweep(begin, end, fixed, t0, t1, 4 * period, t1 - t0, motion_state, motion_log,
-                                             order_state, hist_rc)  # fmt: skip
+                                             order_state, hist_rc, length0)  # fmt: skip
         _, stretch_begin, stretch_end = K.track_shapes(
-            begin, end, a is b, fraction, 120.0, out_ref, lengths_ref, work_ref
+            begin, end, a is b, fraction, length0, out_ref, lengths_ref, work_ref
         )
         K.observe_motion(begin, end, fixed, t0 + (t1 - t0) // 2, 2.5, t1 - t0, motion_state, motion_log)
         assert got == (swap, confidence, stretch_begin, stretch_end), k

@@ -62,6 +62,34 @@ def test_the_stretch_before_a_pinch_is_put_in_order_by_the_previous_end_shape() 
     np.testing.assert_array_equal(order.prev_end[: len(_X)], end)
 
 
+@pytest.mark.parametrize("reading", ["floor", "dip"])
+def test_a_crossing_read_above_half_a_width_is_still_a_pinch(reading: str) -> None:
+    # The split's two sides read farther apart than the true shapes (paper-soft 9 / 15 ms, simulated): by a
+    # constant `floor` (a still stretch read as sweeping a little; the fixed end reads as far apart), or only around
+    # the crossing (the local sweep smeared along the rope). Either way the crossing reads above half a rope width
+    # (1 px here) but below a width, and the body, the wrong way round, must still be put in order.
+    order = OrderBuffers.make(256)
+    _remember(order, _shape(_wave(0.0)), 0)
+    if reading == "floor":
+        true_begin, true_end = _wave(1.0), _wave(2.0)
+        apart = np.full_like(_X, 1.2)
+    else:
+        true_begin, true_end = _wave(2.0), _wave(6.0)
+        apart = 1.5 * np.exp(-0.5 * ((_X - 60.0) / 5.0) ** 2)
+    begin, end = _sides(true_begin, true_end)
+    outward = (np.where(begin[:, 0] >= end[:, 0], 0.5, -0.5) * apart).astype(np.float32)
+    begin[:, 0] += outward
+    end[:, 0] -= outward
+    gap = np.hypot(*(begin[55:66] - end[55:66]).T).min()
+    assert 1.15 < gap < 2.0  # read above half a width (1 px), below one
+    assert np.abs(begin[:50, 0] - true_begin[:50]).max() > 1.5  # the body is the wrong way round
+    flipped = K.uncross_shapes(begin, end, False, _PERIOD_NS + _EXPOSURE_NS, 4 * _PERIOD_NS, 2.0, order.group)
+    assert flipped == 1
+    tolerance = 0.5 * apart.max() + 0.1
+    np.testing.assert_allclose(begin[:, 0], np.interp(begin[:, 1], _X, true_begin), atol=tolerance)
+    np.testing.assert_allclose(end[:, 0], np.interp(end[:, 1], _X, true_end), atol=tolerance)
+
+
 def test_shapes_that_do_not_cross_are_left_alone() -> None:
     order = OrderBuffers.make(256)
     _remember(order, _shape(np.full_like(_X, 10.0)), 0)

@@ -12,8 +12,15 @@ import pytest
 
 from ropecam.device.capture.frameset import FrameSet
 from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._kernels.tip_sweep import (
+    LENGTH_MISMATCH,
+    restore_tip_sweep,
+    shape_length,
+    shift_tip,
+    sweep_from_path,
+)
 from ropecam.device.pipeline._kernels.tip_sweep import MOTION_FRAMES as SWEEP_MOTION_FRAMES
-from ropecam.device.pipeline._kernels.tip_sweep import restore_tip_sweep, shift_tip, sweep_from_path
+from ropecam.device.pipeline.checks import ChecksConfig
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam.device.pipeline.result import FrameStatus
@@ -66,19 +73,25 @@ def test_tips_moving_along_their_axis_are_moved_apart_by_the_path_sweep(whip: Pa
     assert min(separations) > 0.8 * min(along[3:]), (np.round(separations, 2), along)
 
 
-def test_restore_tip_sweep_moves_collapsed_tips_and_their_history() -> None:
-    assert SWEEP_MOTION_FRAMES == K.MOTION_FRAMES
+def _straight_path() -> tuple[np.ndarray, int, int, np.ndarray, np.ndarray, int, np.ndarray]:
+    """A motion model whose tips' midpoint moves along +col by 2 px per ms (8 px per 4 ms exposure), on a straight
+    rope along col from the fixed end (10, 50): the fixed end, the period and exposure (ns), the model's state and
+    log after two frames, the third frame's start (ns), and a shape (row, col) from col 60 to 132 (72 px)."""
     fixed = np.array([10.0, 50.0], np.float32)
     period, exposure = 8_000_000, 4_000_000
-    # The tips' midpoint moves along +col by 2 px per ms (8 px per exposure) on a straight rope along col.
     state = np.zeros(MOTION_STATE_SIZE, np.int64)
     log = np.zeros((K.MOTION_FRAMES + 1, 2))
     for k in range(2):
         mid = np.array([[10.0, 100.0 + 16.0 * k]], np.float32)
         K.observe_motion(mid, mid, fixed, k * period + exposure // 2, 8.0, exposure, state, log)
-    t_ns = 2 * period
     cols = np.arange(60.0, 132.1, 2.0)
-    a = np.stack([np.full_like(cols, 10.0), cols], axis=1).astype(np.float32)
+    shape = np.stack([np.full_like(cols, 10.0), cols], axis=1).astype(np.float32)
+    return fixed, period, exposure, state, log, 2 * period, shape
+
+
+def test_restore_tip_sweep_moves_collapsed_tips_and_their_history() -> None:
+    assert SWEEP_MOTION_FRAMES == K.MOTION_FRAMES
+    fixed, period, exposure, state, log, t_ns, a = _straight_path()
     b = a.copy()
     sweep = sweep_from_path(fixed, t_ns + exposure // 2, exposure, 4 * period, state, log, 10.0, 132.0)
     assert sweep == pytest.approx((0.0, 8.0), abs=1e-6)
@@ -91,8 +104,9 @@ def test_restore_tip_sweep_moves_collapsed_tips_and_their_history() -> None:
     jumped = log.copy()
     jumped[K.MOTION_FRAMES, 0] = 1.0
     assert not restore_tip_sweep(a.copy(), b.copy(), fixed, t_ns, t_ns + exposure, 4 * period, exposure, state,
-                                 jumped, order_state, hist)  # fmt: skip
-    assert restore_tip_sweep(a, b, fixed, t_ns, t_ns + exposure, 4 * period, exposure, state, log, order_state, hist)
+                                 jumped, order_state, hist, -1.0)  # fmt: skip
+    assert restore_tip_sweep(a, b, fixed, t_ns, t_ns + exposure, 4 * period, exposure, state, log, order_state, hist,
+                             72.0)  # fmt: skip
     assert a[-1].tolist() == pytest.approx([10.0, 128.0]) and b[-1].tolist() == pytest.approx([10.0, 136.0])
     assert hist[:2].ravel().tolist() == pytest.approx([10.0, 128.0, 10.0, 136.0])
     assert np.all(np.diff(a[:, 1]) > 0) and np.all(np.diff(b[:, 1]) > 0)  # neither shape folds back
@@ -100,13 +114,36 @@ def test_restore_tip_sweep_moves_collapsed_tips_and_their_history() -> None:
     # Tips the band's corners already put apart stay where they are.
     c, d = a.copy(), b.copy()
     assert not restore_tip_sweep(c, d, fixed, t_ns, t_ns + exposure, 4 * period, exposure, state, log,
-                                 order_state, hist)  # fmt: skip
+                                 order_state, hist, -1.0)  # fmt: skip
     assert c.tolist() == a.tolist() and d.tolist() == b.tolist()
     # Without a frame in the motion model there is no path: nothing moves.
     e, f = np.repeat(a[:1], 3, axis=0), np.repeat(a[:1], 3, axis=0)
     state[K.MOTION_COUNT] = 0
     assert not restore_tip_sweep(e, f, fixed, t_ns, t_ns + exposure, 4 * period, exposure, state, log,
-                                 order_state, hist)  # fmt: skip
+                                 order_state, hist, -1.0)  # fmt: skip
+
+
+def test_collapsed_tips_of_shapes_the_length_check_flags_stay_where_they_are() -> None:
+    # A shape that runs on to the band's far end (paper-soft 15 ms, simulated: 15-18 px too long, the other right,
+    # the tips together) makes the shapes' lengths disagree by more than the length self-check accepts: the
+    # midpoint is not the tip at mid-exposure, and moving the tips would only hide the mismatch from the check.
+    assert ChecksConfig().length_mismatch == LENGTH_MISMATCH
+    fixed, period, exposure, state, log, t_ns, a = _straight_path()
+    length0 = 100.0  # 3 px accepted
+    order_state = np.zeros(K.ORDER_STATE_SIZE, np.int64)
+    hist = np.zeros((K.HISTORY, 2))
+    for lift, moves in ((2.0, True), (3.0, False)):
+        b = a.copy()
+        b[10:20, 0] += lift  # a detour of 2 (hypot(lift, 2) - 2) px: 1.7 / 3.2 px longer
+        assert shape_length(b) - shape_length(a) == pytest.approx(2.0 * (np.hypot(lift, 2.0) - 2.0), rel=1e-5)
+        c, d = a.copy(), b.copy()
+        got = restore_tip_sweep(c, d, fixed, t_ns, t_ns + exposure, 4 * period, exposure, state, log, order_state,
+                                hist, length0)  # fmt: skip
+        assert got is moves, lift
+        assert (c.tolist() != a.tolist()) is moves
+        # Lc0 not known yet: not checked
+        assert restore_tip_sweep(a.copy(), b.copy(), fixed, t_ns, t_ns + exposure, 4 * period, exposure, state, log,
+                                 order_state, hist, -1.0)  # fmt: skip
 
 
 def test_shift_tip_spreads_the_move_over_the_last_arc() -> None:
