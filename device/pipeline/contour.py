@@ -148,6 +148,32 @@ class ContourTracer:
         args = self._detect_args if detector is self._detector else self.detect_args(detector)
         return self.adopt(detector, frame, lo, hi, K.detect_and_trace(frame, lo, hi, *args))
 
+    def trace_next(self, detector: EdgeDetector, lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
+        """Drop the component of the last `detect_and_trace` (with `detector`, in the spans `lo`/`hi`) from the
+        detector's edges and trace the largest of the others, as `detect_and_trace` traced (same static mask;
+        the detector's edge list then lists the pixels kept). A cold path: the caller found that the traced
+        component is not the rope (`RopeLocator`: not attached to a configured fixed end).
+
+        Returns
+        -------
+        int
+            The number of contour points, as `detect_and_trace` (0: no other component of `min_pixels` pixels).
+        """
+        listed = detector.stack[: detector.count]
+        flat = detector.edges.reshape(-1)
+        others = listed[flat[listed] == 2].copy()
+        flat[listed] = 0
+        flat[others] = 1
+        detector.stack[: len(others)] = others
+        detector.count = len(others)
+        n = K.trace_rope(
+            detector.edges, as_ro(lo), as_ro(hi), ro(detector.stack), len(others), self._min32, False,
+            detector.static_mask_ro, detector.mag_ro, detector.gx_ro, detector.gy_ro, self.group,
+        )  # fmt: skip
+        self.component_px, self.contacts, self.on_border = self.counts[:3].tolist()
+        self.count = n if n > 0 else 0
+        return self.count
+
     def forget_args(self) -> None:
         """Make `detect_args` again on the next call (the detector's thresholds changed)."""
         self._detector = None
