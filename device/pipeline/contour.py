@@ -159,15 +159,19 @@ class ContourTracer:
         int
             The number of contour points, as `detect_and_trace` (0: no other component of `min_pixels` pixels).
         """
+        lo, hi = as_ro(lo), as_ro(hi)
         listed = detector.stack[: detector.count]
         flat = detector.edges.reshape(-1)
-        others = listed[flat[listed] == 2].copy()
+        flat[listed] = flat[listed] != 0  # 1 on every edge: the trace leaves the components it did not flood as 1
+        K.keep_largest_component(detector.edges, lo, hi, i32(1), self.labels, self.stack, self.start)  # labels all
+        rejected = self.labels[int(self.chain[0, 0]), int(self.chain[0, 1])]  # the traced component's
+        others = listed[self.labels.reshape(-1)[listed] != rejected].copy()
         flat[listed] = 0
         flat[others] = 1
         detector.stack[: len(others)] = others
         detector.count = len(others)
         n = K.trace_rope(
-            detector.edges, as_ro(lo), as_ro(hi), ro(detector.stack), len(others), self._min32, False,
+            detector.edges, lo, hi, ro(detector.stack), len(others), self._min32, False,
             detector.static_mask_ro, detector.mag_ro, detector.gx_ro, detector.gy_ro, self.group,
         )  # fmt: skip
         self.component_px, self.contacts, self.on_border = self.counts[:3].tolist()

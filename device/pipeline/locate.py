@@ -130,7 +130,7 @@ class RopeLocator:
     def locate_in_band(self, image: NDArray[np.uint8], motion_px: float, gap_ns: int, n: int) -> tuple[int, bool]:
         """`locate` after the first search of the band predicted with uncertainty `motion_px` over `gap_ns` from
         the last frame, which found `n` contour points."""
-        n = self._search(image, self.margin_px + max(8, math.ceil(2.0 * motion_px)), n)
+        n = self._search(image, self.margin_px + max(8, math.ceil(2.0 * motion_px)), self._attached(n))
         if n > 0:
             self.found_in_band(gap_ns)
             return n, True

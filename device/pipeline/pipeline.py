@@ -9,6 +9,7 @@ workspace (`Workspace`, every buffer allocated once per image size) and reset to
 
 from __future__ import annotations
 
+import math
 import time
 from operator import attrgetter
 
@@ -18,6 +19,7 @@ from numpy.typing import NDArray
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.finish import FrameClock
+from ropecam.device.pipeline.locate import ATTACHED_PX
 from ropecam.device.pipeline.result import FrameStatus, PipelineResult, frame_problem
 from ropecam.device.pipeline.stages import Stages
 from ropecam.device.pipeline.workspace import refuse_copies
@@ -291,6 +293,11 @@ class Pipeline:
             outcome = self.splitter.static(fixed_rc)
             result.status = FrameStatus.ROPE_CLIPPED
             result.message = "the rope touches the image border: it is leaving the field of view"
+            if outcome is not None and not _starts_at(outcome.shape_a, fixed_rc):
+                # The outline runs out of the view along a structure the rope touches (a plate edge its tip lies
+                # across, before the static mask is learned): its centreline is that structure's, not the rope's.
+                result.message = "the rope's outline runs to the image border along a structure it touches"
+                outcome = None
             if outcome is not None:
                 result.method = outcome.method
                 result.begin = result.end = outcome.shape_a
@@ -303,3 +310,8 @@ class Pipeline:
         """The frame's contour (`n` points) is the one the next frame's band is built around."""
         self.locator.keep(n, result.t_ns)
         result.fixed_end = self.fixed
+
+
+def _starts_at(shape: NDArray[np.float32], fixed_rc: tuple[float, float]) -> bool:
+    """Whether the polyline `shape` ((n, 2) row, col) starts within `ATTACHED_PX` of the fixed end `fixed_rc`."""
+    return len(shape) > 0 and math.hypot(shape[0, 0] - fixed_rc[0], shape[0, 1] - fixed_rc[1]) <= ATTACHED_PX
