@@ -89,6 +89,8 @@ class RopeLocator:
         # A cell is active when its mean differs from a neighbour's by canny_low / 8 grey levels: the step over
         # which the Sobel magnitude of a sharp edge reaches the low threshold.
         self.set_canny_low(canny_low)
+        self.cut = False
+        """Whether this frame's contour was cut from a structure it touched (`_attached`): its tip may be cut."""
         self.frames_full = 0
         self.frames_coarse = 0
         self.frames_roi = 0
@@ -112,6 +114,7 @@ class RopeLocator:
             from the last frame.
         """
         self.fixed_end.exposure_known = exposure_ns > 0
+        self.cut = False
         if self.prev_count > 0:
             model = self.motion
             # The measured error holds for the time gap it was measured over: a longer one (a dropped frame) gets
@@ -130,6 +133,7 @@ class RopeLocator:
     def locate_in_band(self, image: NDArray[np.uint8], motion_px: float, gap_ns: int, n: int) -> tuple[int, bool]:
         """`locate` after the first search of the band predicted with uncertainty `motion_px` over `gap_ns` from
         the last frame, which found `n` contour points."""
+        self.cut = False
         n = self._search(image, self.margin_px + max(8, math.ceil(2.0 * motion_px)), self._attached(n))
         if n > 0:
             self.found_in_band(gap_ns)
@@ -180,6 +184,7 @@ class RopeLocator:
             if dropped == _OTHER_COMPONENTS:
                 return 0
             n = self.tracer.trace_next(self.edges, self.lo_ro if lo is None else lo, self.hi_ro if hi is None else hi)
+            self.cut = self.cut or self.tracer.joined
         return n
 
     def _near_fixed_end(self, n: int) -> bool:

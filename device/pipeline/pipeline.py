@@ -25,6 +25,7 @@ from ropecam.device.pipeline.stages import Stages
 from ropecam.device.pipeline.workspace import refuse_copies
 from ropecam.shared.config import check_readout
 from ropecam.shared.plane import PlaneCalibration
+from ropecam.shared.protocol.quality import Reason
 
 __all__ = ["Pipeline"]
 
@@ -305,6 +306,10 @@ class Pipeline:
                 result.order_confidence = 1.0
             return
         self._finisher.finish(result, outcome, exposure_ns, self._clock.period_ns)
+        if self.locator.cut and result.status is FrameStatus.OK:
+            # The rope was cut from a structure its tip lies across (`RopeLocator._attached`): the tip may be cut.
+            result.status, result.reason = FrameStatus.IMPLAUSIBLE, Reason.TIP_MASKED.text
+            result.message = "the rope's tip lies across a structure (cut from it): the tip may be cut"
 
     def _keep_contour(self, result: PipelineResult, n: int) -> None:
         """The frame's contour (`n` points) is the one the next frame's band is built around."""
