@@ -19,7 +19,6 @@ from numpy.typing import NDArray
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.finish import FrameClock
-from ropecam.device.pipeline.locate import ATTACHED_PX
 from ropecam.device.pipeline.result import FrameStatus, PipelineResult, frame_problem
 from ropecam.device.pipeline.stages import Stages
 from ropecam.device.pipeline.workspace import refuse_copies
@@ -294,9 +293,11 @@ class Pipeline:
             outcome = self.splitter.static(fixed_rc)
             result.status = FrameStatus.ROPE_CLIPPED
             result.message = "the rope touches the image border: it is leaving the field of view"
-            if outcome is not None and not _starts_at(outcome.shape_a, fixed_rc):
+            if outcome is not None and not _rope_from(
+                outcome.shape_a, fixed_rc, exclude, self.tracker.length0_settled_px
+            ):
                 # The outline runs out of the view along a structure the rope touches (a plate edge its tip lies
-                # across, before the static mask is learned): its centreline is that structure's, not the rope's.
+                # across, a rod, before the static mask is learned): its centreline is not the rope's.
                 result.message = "the rope's outline runs to the image border along a structure it touches"
                 outcome = None
             if outcome is not None:
@@ -317,6 +318,10 @@ class Pipeline:
         result.fixed_end = self.fixed
 
 
-def _starts_at(shape: NDArray[np.float32], fixed_rc: tuple[float, float]) -> bool:
-    """Whether the polyline `shape` ((n, 2) row, col) starts within `ATTACHED_PX` of the fixed end `fixed_rc`."""
-    return len(shape) > 0 and math.hypot(shape[0, 0] - fixed_rc[0], shape[0, 1] - fixed_rc[1]) <= ATTACHED_PX
+def _rope_from(shape: NDArray[np.float32], fixed_rc: tuple[float, float], near_px: float, length0_px: float) -> bool:
+    """Whether the polyline `shape` ((n, 2) row, col) can be the visible part of a rope: it starts within `near_px`
+    of the fixed end `fixed_rc` and, the rope's length known (`length0_px` > 0), is at most 1.1 times as long."""
+    if len(shape) == 0 or math.hypot(shape[0, 0] - fixed_rc[0], shape[0, 1] - fixed_rc[1]) > near_px:
+        return False
+    steps = np.diff(shape, axis=0)
+    return length0_px <= 0.0 or float(np.hypot(steps[:, 0], steps[:, 1]).sum()) <= 1.1 * length0_px

@@ -355,3 +355,19 @@ def test_a_fresh_device_measures_a_rope_held_by_a_clamp_on_a_rod() -> None:
             # where the rope leaves the clamp (6 px below the fixed end; `hidden_end` needs the clamp's far edge).
             assert np.hypot(*(result.begin[0][::-1] - pivot)) < 8.0
     assert ok_after >= 4
+
+
+def test_a_clipped_centreline_is_the_rope_only_from_its_fixed_end_and_no_longer_than_it() -> None:
+    """A ROPE_CLIPPED frame gives its visible centreline only when it can be the rope's: from the fixed end (not
+    along a plate edge the tip joins, 300+ px away) and no longer than the rope (not the rope and then the plate
+    edge down to the border)."""
+    from ropecam.device.pipeline.pipeline import _rope_from
+
+    fixed = (90.0, 400.0)
+    rope = np.array([[90.0, 400.0], [90.0, 760.0]], np.float32)
+    assert _rope_from(rope, fixed, 16.0, 364.0)
+    assert _rope_from(rope, fixed, 16.0, -1.0)  # length unknown
+    assert not _rope_from(rope[::-1], fixed, 16.0, 364.0)  # starts at the far end
+    down_the_plate = np.array([[90.0, 400.0], [90.0, 740.0], [511.0, 730.0]], np.float32)
+    assert not _rope_from(down_the_plate, fixed, 16.0, 364.0)
+    assert not _rope_from(rope[:0], fixed, 16.0, 364.0)
