@@ -293,11 +293,14 @@ class Pipeline:
             outcome = self.splitter.static(fixed_rc)
             result.status = FrameStatus.ROPE_CLIPPED
             result.message = "the rope touches the image border: it is leaving the field of view"
-            if outcome is not None and not _rope_from(
-                outcome.shape_a, fixed_rc, exclude, self.tracker.length0_settled_px
+            if (
+                outcome is not None
+                and self.locator.fixed_end.configured
+                and not _rope_from(outcome.shape_a, fixed_rc, exclude, self.tracker.length0_settled_px)
             ):
                 # The outline runs out of the view along a structure the rope touches (a plate edge its tip lies
-                # across, a rod, before the static mask is learned): its centreline is not the rope's.
+                # across, a rod, before the static mask is learned): its centreline is not the rope's. (A found
+                # fixed end may itself be wrong on such an outline: its centreline is kept, for what it is worth.)
                 result.message = "the rope's outline runs to the image border along a structure it touches"
                 outcome = None
             if outcome is not None:
