@@ -57,6 +57,8 @@ class ContourTracer:
         """ROI contacts of the last traced contour (-1: not counted, see `roi_contacts`)."""
         self.on_border = -1
         """Chain pixels on the image border of the last traced contour (-1: not counted)."""
+        self.joined = False
+        """Whether the contour of the last `trace_next` was joined to the contour it dropped."""
         self._counts = buffers.counts  # the per-frame path reads it here (a plain attribute is the fastest)
         self.chain_ro = ro(self.chain)
         self.points_ro = ro(self.points)
@@ -147,6 +149,50 @@ class ContourTracer:
             raise ValueError(f"frame shape is {frame.shape}, expected {detector.shape}")
         args = self._detect_args if detector is self._detector else self.detect_args(detector)
         return self.adopt(detector, frame, lo, hi, K.detect_and_trace(frame, lo, hi, *args))
+
+    def trace_next(self, detector: EdgeDetector, lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
+        """Drop the contour of the last `detect_and_trace` (with `detector`, in the spans `lo`/`hi`) from the
+        detector's edges and trace the largest component left, as `detect_and_trace` traced (same static mask;
+        the detector's edge list then lists the pixels kept). A cold path: the caller found that the traced
+        component is not the rope (`RopeLocator`: not attached to a configured fixed end).
+
+        Returns
+        -------
+        int
+            The number of contour points, as `detect_and_trace` (0: no other component of `min_pixels` pixels);
+            `joined` says whether the contour passes next to the dropped one's pixels.
+        """
+        lo, hi = as_ro(lo), as_ro(hi)
+        listed = detector.stack[: detector.count]
+        flat = detector.edges.reshape(-1)
+        # The traced chain and its 8 neighbours go; what it joined (a rope whose tip lies across a plate's edge)
+        # stays, its own component once the chain is gone.
+        height, width = self.shape
+        chain = self.chain[: self.count]
+        gone = np.zeros((height + 2, width + 2), np.bool_)
+        for dr in (0, 1, 2):
+            for dc in (0, 1, 2):
+                gone[chain[:, 0] + dr, chain[:, 1] + dc] = True
+        others = listed[(flat[listed] != 0) & ~gone[1:-1, 1:-1].reshape(-1)[listed]].copy()
+        flat[listed] = 0
+        flat[others] = 1
+        detector.stack[: len(others)] = others
+        detector.count = len(others)
+        n = K.trace_rope(
+            detector.edges, lo, hi, ro(detector.stack), len(others), self._min32, False,
+            detector.static_mask_ro, detector.mag_ro, detector.gx_ro, detector.gy_ro, self.group,
+        )  # fmt: skip
+        self.component_px, self.contacts, self.on_border = self.counts[:3].tolist()
+        self.count = n if n > 0 else 0
+        # Joined to what was dropped: the new contour passes next to the dropped chain's pixels.
+        kept = self.chain[: self.count] + 1
+        self.joined = bool(
+            self.count > 0
+            and (gone[:-2, 1:-1] | gone[2:, 1:-1] | gone[1:-1, :-2] | gone[1:-1, 2:])[
+                kept[:, 0] - 1, kept[:, 1] - 1
+            ].any()
+        )
+        return self.count
 
     def forget_args(self) -> None:
         """Make `detect_args` again on the next call (the detector's thresholds changed)."""

@@ -11,11 +11,11 @@ from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import i32, ro
 from ropecam.device.pipeline.contour import ContourTracer
 from ropecam.device.pipeline.edges import EdgeDetector
-from ropecam.device.pipeline.fixed_end import FixedEndFinder
+from ropecam.device.pipeline.fixed_end import HIDDEN_REACH_PX, FixedEndFinder
 from ropecam.device.pipeline.motion import MotionModel
 from ropecam.device.pipeline.workspace import COARSE_BLOCK, RoiBuffers, expose
 
-__all__ = ["ROI_RETRIES", "RopeLocator"]
+__all__ = ["ATTACHED_PX", "ROI_RETRIES", "RopeLocator"]
 
 ROI_RETRIES = 2
 """Times a band is widened around a contour that runs out of it before the next way of searching is tried."""
@@ -24,6 +24,12 @@ _COARSE_MIN_CELLS = 8
 smallest accepted contour, 40 px, about 20)."""
 _COARSE_DILATE = 2
 """Cells added around the kept cells."""
+ATTACHED_PX = HIDDEN_REACH_PX + 16.0
+"""Farthest a configured fixed end may lie from the nearest point of the rope's contour (px): a clamp hides the
+rope's end up to `HIDDEN_REACH_PX`. A component farther from it is another structure (a plate edge, a
+distractor), however large."""
+_OTHER_COMPONENTS = 3
+"""Components not attached to a configured fixed end dropped per search before it gives up."""
 
 
 @expose("buffers", RoiBuffers)
@@ -83,6 +89,8 @@ class RopeLocator:
         # A cell is active when its mean differs from a neighbour's by canny_low / 8 grey levels: the step over
         # which the Sobel magnitude of a sharp edge reaches the low threshold.
         self.set_canny_low(canny_low)
+        self.cut = False
+        """Whether this frame's contour was cut from a structure it touched (`_attached`): its tip may be cut."""
         self.frames_full = 0
         self.frames_coarse = 0
         self.frames_roi = 0
@@ -106,6 +114,7 @@ class RopeLocator:
             from the last frame.
         """
         self.fixed_end.exposure_known = exposure_ns > 0
+        self.cut = False
         if self.prev_count > 0:
             model = self.motion
             # The measured error holds for the time gap it was measured over: a longer one (a dropped frame) gets
@@ -124,7 +133,8 @@ class RopeLocator:
     def locate_in_band(self, image: NDArray[np.uint8], motion_px: float, gap_ns: int, n: int) -> tuple[int, bool]:
         """`locate` after the first search of the band predicted with uncertainty `motion_px` over `gap_ns` from
         the last frame, which found `n` contour points."""
-        n = self._search(image, self.margin_px + max(8, math.ceil(2.0 * motion_px)), n)
+        self.cut = False
+        n = self._search(image, self.margin_px + max(8, math.ceil(2.0 * motion_px)), self._attached(n))
         if n > 0:
             self.found_in_band(gap_ns)
             return n, True
@@ -150,13 +160,38 @@ class RopeLocator:
             self.coarse_sums, self.coarse_labels, self.coarse_stack, self.lo, self.hi,
         )  # fmt: skip
         if kept > 0:
-            first = self.tracer.detect_and_trace(self.edges, image, self.lo_ro, self.hi_ro)
+            first = self._attached(self.tracer.detect_and_trace(self.edges, image, self.lo_ro, self.hi_ro))
             n = self._search(image, self.margin_px + 8, first)
             if n > 0:
                 self.frames_coarse += 1
                 return n, False
         self.frames_full += 1
-        return self.tracer.detect_and_trace(self.edges, image, self.edges.full_lo_ro, self.edges.full_hi_ro), False
+        lo, hi = self.edges.full_lo_ro, self.edges.full_hi_ro
+        return self._attached(self.tracer.detect_and_trace(self.edges, image, lo, hi), lo, hi), False
+
+    def _attached(self, n: int, lo: NDArray[np.int32] | None = None, hi: NDArray[np.int32] | None = None) -> int:
+        """The contour just traced (`n` points, in the spans `lo`/`hi`, default the locator's), or, when the fixed
+        end is configured (a plane calibration, ``fixed_end_uv``) and the contour keeps farther than
+        `ATTACHED_PX` from it, the largest other component that comes that near (up to `_OTHER_COMPONENTS` are
+        dropped; 0: none). The rope is the structure attached to its fixed end: before the static mask is
+        learned, a plate edge the rope's tip lies across is a larger component than the rope (the lab scene
+        through the paper's camera: it was measured as the rope, "clipped" by the image border)."""
+        if not self.fixed_end.configured:
+            return n
+        for dropped in range(_OTHER_COMPONENTS + 1):
+            if n == 0 or self._near_fixed_end(n):
+                return n
+            if dropped == _OTHER_COMPONENTS:
+                return 0
+            n = self.tracer.trace_next(self.edges, self.lo_ro if lo is None else lo, self.hi_ro if hi is None else hi)
+            self.cut = self.cut or self.tracer.joined
+        return n
+
+    def _near_fixed_end(self, n: int) -> bool:
+        """Whether the contour just traced (`n` points) comes within `ATTACHED_PX` of the fixed end."""
+        fr, fc = self.fixed_end.fixed.tolist()
+        points = self.tracer.points[:n]
+        return float(np.min((points[:, 0] - fr) ** 2 + (points[:, 1] - fc) ** 2)) <= ATTACHED_PX**2
 
     def _search(self, image: NDArray[np.uint8], grow: int, n: int) -> int:
         """Go on with the search in the spans `lo`/`hi` whose first detection and trace found `n` contour points:
@@ -164,7 +199,7 @@ class RopeLocator:
         contour's points, 0 when it is not found whole inside them."""
         for attempt in range(ROI_RETRIES + 1):
             if attempt > 0:
-                n = self.tracer.detect_and_trace(self.edges, image, self.lo_ro, self.hi_ro)
+                n = self._attached(self.tracer.detect_and_trace(self.edges, image, self.lo_ro, self.hi_ro))
             if n == 0:
                 return 0
             contacts = self.tracer.contacts  # counted by the trace on these spans

@@ -9,6 +9,7 @@ workspace (`Workspace`, every buffer allocated once per image size) and reset to
 
 from __future__ import annotations
 
+import math
 import time
 from operator import attrgetter
 
@@ -23,6 +24,7 @@ from ropecam.device.pipeline.stages import Stages
 from ropecam.device.pipeline.workspace import refuse_copies
 from ropecam.shared.config import check_readout
 from ropecam.shared.plane import PlaneCalibration
+from ropecam.shared.protocol.quality import Reason
 
 __all__ = ["Pipeline"]
 
@@ -293,6 +295,16 @@ class Pipeline:
             outcome = self.splitter.static(fixed_rc)
             result.status = FrameStatus.ROPE_CLIPPED
             result.message = "the rope touches the image border: it is leaving the field of view"
+            if (
+                outcome is not None
+                and self.locator.fixed_end.configured
+                and not _rope_from(outcome.shape_a, fixed_rc, exclude, self.tracker.length0_settled_px)
+            ):
+                # The outline runs out of the view along a structure the rope touches (a plate edge its tip lies
+                # across, a rod, before the static mask is learned): its centreline is not the rope's. (A found
+                # fixed end may itself be wrong on such an outline: its centreline is kept, for what it is worth.)
+                result.message = "the rope's outline runs to the image border along a structure it touches"
+                outcome = None
             if outcome is not None:
                 result.method = outcome.method
                 result.begin = result.end = outcome.shape_a
@@ -300,8 +312,21 @@ class Pipeline:
                 result.order_confidence = 1.0
             return
         self._finisher.finish(result, outcome, exposure_ns, self._clock.period_ns)
+        if self.locator.cut and result.status is FrameStatus.OK:
+            # The rope was cut from a structure its tip lies across (`RopeLocator._attached`): the tip may be cut.
+            result.status, result.reason = FrameStatus.IMPLAUSIBLE, Reason.TIP_MASKED.text
+            result.message = "the rope's tip lies across a structure (cut from it): the tip may be cut"
 
     def _keep_contour(self, result: PipelineResult, n: int) -> None:
         """The frame's contour (`n` points) is the one the next frame's band is built around."""
         self.locator.keep(n, result.t_ns)
         result.fixed_end = self.fixed
+
+
+def _rope_from(shape: NDArray[np.float32], fixed_rc: tuple[float, float], near_px: float, length0_px: float) -> bool:
+    """Whether the polyline `shape` ((n, 2) row, col) can be the visible part of a rope: it starts within `near_px`
+    of the fixed end `fixed_rc` and, the rope's length known (`length0_px` > 0), is at most 1.1 times as long."""
+    if len(shape) == 0 or math.hypot(shape[0, 0] - fixed_rc[0], shape[0, 1] - fixed_rc[1]) > near_px:
+        return False
+    steps = np.diff(shape, axis=0)
+    return length0_px <= 0.0 or float(np.hypot(steps[:, 0], steps[:, 1]).sum()) <= 1.1 * length0_px

@@ -277,6 +277,24 @@ def test_a_fresh_device_learns_a_static_cable_and_never_takes_it_for_the_rope() 
     assert ok >= 4
 
 
+def test_a_larger_structure_away_from_a_configured_fixed_end_is_never_the_rope() -> None:
+    """A plate's edge from the top border to the bottom one (one edge, longer than the rope's outline), 180 px
+    from the configured fixed end (a plane calibration's origin): before the static mask is learned it is the
+    largest edge component, yet the rope is the structure attached to its fixed end. Every frame, the first ones
+    included, measures the rope to a pixel (the lab scene through the paper's camera measured the plate edge its
+    tip lies across instead: ROPE_CLIPPED, tips 300+ px off, on its first 10 frames)."""
+    rope = SyntheticRope(width=340, height=420, fixed_uv=(120.3, 20.6), length_px=120.0, amplitude_rad=0.5)
+    assert PipelineConfig().static_frames >= 4  # the frames below come before the mask is learned
+    pipeline = Pipeline(PipelineConfig(fixed_end_uv=rope.fixed_uv), (rope.width, rope.height))
+    for frame in rope.frames(4):
+        image = frame.image.copy()
+        image[:, 300:] = np.minimum(image[:, 300:].astype(np.int16) + 60, 255).astype(np.uint8)  # the plate
+        result = pipeline.process(image, frame.index, frame.t_ns, float(rope.exposure_us))
+        assert result.status is FrameStatus.OK, (frame.index, result.status, result.message)
+        assert np.hypot(*(result.begin[-1][::-1] - frame.tip_begin_uv)) < 1.0
+        assert np.hypot(*(result.end[-1][::-1] - frame.tip_end_uv)) < 1.0
+
+
 def test_the_learned_mask_marks_structures_not_the_plain_plate() -> None:
     """A still scratch on a plain noisy plate, with the rope swinging over it: after learning, the scratch's
     pixels are static and the plain plate far from it is not (the `tip_masked` check reads the mask)."""
@@ -337,3 +355,19 @@ def test_a_fresh_device_measures_a_rope_held_by_a_clamp_on_a_rod() -> None:
             # where the rope leaves the clamp (6 px below the fixed end; `hidden_end` needs the clamp's far edge).
             assert np.hypot(*(result.begin[0][::-1] - pivot)) < 8.0
     assert ok_after >= 4
+
+
+def test_a_clipped_centreline_is_the_rope_only_from_its_fixed_end_and_no_longer_than_it() -> None:
+    """A ROPE_CLIPPED frame gives its visible centreline only when it can be the rope's: from the fixed end (not
+    along a plate edge the tip joins, 300+ px away) and no longer than the rope (not the rope and then the plate
+    edge down to the border)."""
+    from ropecam.device.pipeline.pipeline import _rope_from
+
+    fixed = (90.0, 400.0)
+    rope = np.array([[90.0, 400.0], [90.0, 760.0]], np.float32)
+    assert _rope_from(rope, fixed, 16.0, 364.0)
+    assert _rope_from(rope, fixed, 16.0, -1.0)  # length unknown
+    assert not _rope_from(rope[::-1], fixed, 16.0, 364.0)  # starts at the far end
+    down_the_plate = np.array([[90.0, 400.0], [90.0, 740.0], [511.0, 730.0]], np.float32)
+    assert not _rope_from(down_the_plate, fixed, 16.0, 364.0)
+    assert not _rope_from(rope[:0], fixed, 16.0, 364.0)
