@@ -133,7 +133,7 @@ class EdgeDetector:
         kernels and arithmetic as `detect`). `frame` must be the one `detect` last saw.
         """
         lo, hi = self.spans
-        return K.smooth_frame_box(
+        return K.smooth_box(
             frame, self.weights_ro, lo, hi, r0, r1, c0, c1, self.box_lo, self.box_hi, self.tmp, self.smooth
         )
 
@@ -141,6 +141,6 @@ class EdgeDetector:
         """`smooth_box` of the frame the last `detect` saw (`frame`): a bound method made once serves every frame
         (a `functools.partial` per frame costs ~1 us)."""
         lo, hi = self.spans
-        return K.smooth_frame_box(
+        return K.smooth_box(
             self.frame, self.weights_ro, lo, hi, r0, r1, c0, c1, self.box_lo, self.box_hi, self.tmp, self.smooth
         )

@@ -81,7 +81,7 @@ from ropecam.device.pipeline._kernels.contour import (
     trace_contour,
     trace_rope,
 )
-from ropecam.device.pipeline._kernels.detect import detect_and_trace, smooth_frame_box
+from ropecam.device.pipeline._kernels.detect import detect_and_trace
 from ropecam.device.pipeline._kernels.frame import (
     STEADY_AFTER_CONTOUR,
     STEADY_AFTER_SHAPES,
@@ -368,7 +368,6 @@ __all__ = [
     "slope_sweep_median",
     "smooth_box",
     "smooth_columns",
-    "smooth_frame_box",
     "smooth_polyline",
     "smooth_replicated",
     "smooth_ring",

@@ -17,7 +17,7 @@ from numba.np.numpy_support import from_dtype
 from ropecam.device.pipeline._kernels.static_mask import MASK_FREE
 from ropecam.device.pipeline._kernels.tip_sweep import sweep_from_path
 from ropecam.device.pipeline._kernels.tracking import MOTION_COUNT, i8_1d, predict_motion
-from ropecam.shared.jit import f4_1d, f4_2d, f4_2d_ro, f8_1d, f8_2d, kernel, u1_2d_ro
+from ropecam.shared.jit import f4_1d, f4_2d_ro, f8_1d, f8_2d, kernel, u1_2d_ro
 
 CHECK_NONE: Final = 0
 """Every check passed."""
@@ -96,16 +96,16 @@ def predict_tips(t_ns, exposure_ns, motion_state, motion_log, fixed, out_predict
 
 
 # The shapes as the splitter leaves them (writable) or read-only views; the fixed end is the workspace's.
-_CHECK_SIGNATURES = [
-    int64(shape, shape, f4_1d, f8_1d, *(float64,) * 5, int64, boolean, float64, u1_2d_ro, _thresholds_ro, _quality)
-    for shape in (f4_2d, f4_2d_ro)
-]
+_CHECK_SIGNATURES = int64(
+    f4_2d_ro, f4_2d_ro, f4_1d, f8_1d, *(float64,) * 5, int64, boolean, float64, u1_2d_ro, _thresholds_ro, _quality
+)
+"""`check_frame`'s one signature: writable shapes are taken through Numba's safe mutable-to-read-only conversion."""
 
 TIP_DIRECTION_PX: Final = 3.0
 """The tip's direction is read over this much of the shape's end (px)."""
 
 
-@kernel([float64(shape, u1_2d_ro, float64, float64) for shape in (f4_2d, f4_2d_ro)])
+@kernel(float64(f4_2d_ro, u1_2d_ro, float64, float64))
 def tip_mask_distance(shape, mask, width_px, reach_px):
     """Return how far (px) beyond the free tip of `shape` (row, col; the last point) the static `mask` (not
     `MASK_FREE`) begins, looking along the shape's direction at its end, across the rope's `width_px`, up to

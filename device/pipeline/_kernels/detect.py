@@ -1,5 +1,4 @@
-"""The edge and contour stages' kernels in one call (`detect_and_trace`), and `smooth_box` for either kind of
-frame (`smooth_frame_box`).
+"""The edge and contour stages' kernels in one call (`detect_and_trace`).
 
 Each call from Python costs a dispatch (type matching of every argument, ~0.1 us per array) and a return to the
 interpreter with caches the kernels have filled with image data: a stream's frames call these instead of the
@@ -9,18 +8,18 @@ from __future__ import annotations
 
 from typing import Final
 
-from numba import float32, int32, int64
+from numba import float32, int32
 
 from ropecam.device.pipeline._kernels._common import INVALID, f4_1d_ro
 from ropecam.device.pipeline._kernels.canny import detect_edges
-from ropecam.device.pipeline._kernels.canny_gradient import smooth_box
 from ropecam.device.pipeline._kernels.contour import trace_rope
 from ropecam.device.pipeline._kernels.groups import CONTOUR, EDGE_WORK, PLANES, STATIC
 from ropecam.device.pipeline._kernels.static_mask import drop_static_edges, seal_cut_ends
-from ropecam.shared.jit import f4_2d, i4_1d, i4_1d_ro, kernel, u1_2d, u1_2d_ro
+from ropecam.shared.jit import i4_1d_ro, kernel, u1_2d_ro
 
-# The frame is taken read-only (a mapped capture buffer) or writable (a frame a reader made): a read-only view per
-# frame costs 1-3 us of Python, the second signature a few seconds of compilation once.
+# The frame is declared read-only (a mapped capture buffer); a writable one (a frame a reader made) is taken through
+# Numba's safe mutable-to-read-only conversion, at the dispatch cost of an exact match: no view per frame, and no
+# second signature to compile.
 _DETECT_AND_TRACE_ARGS: Final = (
     i4_1d_ro,
     i4_1d_ro,
@@ -36,7 +35,7 @@ _DETECT_AND_TRACE_ARGS: Final = (
 """The arguments after the frame."""
 
 
-@kernel([int32(frame, *_DETECT_AND_TRACE_ARGS) for frame in (u1_2d_ro, u1_2d)])
+@kernel(int32(u1_2d_ro, *_DETECT_AND_TRACE_ARGS))
 def detect_and_trace(frame, lo, hi, weights, low, high, min_pixels, static, work, planes, contour):
     """`detect_edges` inside the spans `lo`/`hi`, then `trace_rope` on its edges (the edge pixels it lists in
     ``work.stack``, `ring_clear` true: `detect_edges` leaves the edge map 0 next to its spans) after
@@ -73,14 +72,3 @@ def detect_and_trace(frame, lo, hi, weights, low, high, min_pixels, static, work
     return trace_rope(
         edges, lo, hi, edge_list, count, min_pixels, True, static.mask, planes.mag, planes.gx, planes.gy, contour
     )
-
-
-@kernel(
-    [
-        int64(frame, f4_1d_ro, i4_1d_ro, i4_1d_ro, int64, int64, int64, int64, i4_1d, i4_1d, f4_2d, f4_2d)
-        for frame in (u1_2d_ro, u1_2d)
-    ]
-)
-def smooth_frame_box(frame, weights, lo, hi, r0, r1, c0, c1, work_lo, work_hi, out_tmp, out_smooth):
-    """`smooth_box` for a read-only or a writable frame (see `detect_and_trace`): the same arguments and result."""
-    return smooth_box(frame, weights, lo, hi, r0, r1, c0, c1, work_lo, work_hi, out_tmp, out_smooth)

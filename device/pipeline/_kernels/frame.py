@@ -52,7 +52,7 @@ from ropecam.device.pipeline._kernels.revisits import count_revisits
 from ropecam.device.pipeline._kernels.split_frame import FRAME_INFO, FRAME_STATE, FRAME_STATES, split_frame
 from ropecam.device.pipeline._kernels.split_shapes import SPLIT_SCALAR, split_width
 from ropecam.device.pipeline._kernels.tracking import track_frame
-from ropecam.shared.jit import kernel, u1_2d, u1_2d_ro
+from ropecam.shared.jit import kernel, u1_2d_ro
 
 i8_2d: Final = types.Array(types.int64, 2, "C")
 
@@ -202,9 +202,10 @@ def _signature(frame_type: Any) -> Any:
     )  # fmt: skip
 
 
-# Compiled for a read-only frame (a mapped capture buffer) and a writable one (a frame read from a file), as the
-# kernels it calls.
-@kernel([_signature(u1_2d_ro), _signature(u1_2d)])
+# Compiled for a read-only frame only: a writable frame (one a reader made) is taken through Numba's safe
+# mutable-to-read-only conversion, at the dispatch cost of an exact match and with no view made per frame; a
+# second, writable signature would cost its compilation again on every fresh install.
+@kernel(_signature(u1_2d_ro))
 def steady_frame(
     frame, prev_count, measure, use_profile, predict, t_ns, exposure_ns, t_end_ns, max_age_ns, last_sweep_px,
     predict_tips_now, check_width_px, learned_width_px, table, constants, out,

@@ -15,7 +15,7 @@ from ropecam.device.pipeline._kernels.geometry import find_segmentation_points_s
 from ropecam.device.pipeline._kernels.groups import PLANES, SPLIT_WIDTH, SPLIT_WORK
 from ropecam.device.pipeline._kernels.offsets import slope_sweep_median
 from ropecam.device.pipeline._kernels.split_shapes import split_shapes
-from ropecam.shared.jit import f4_2d, f4_2d_ro, f8_1d_ro, i4_1d, i4_1d_ro, i4_2d_ro, kernel, u1_2d, u1_2d_ro
+from ropecam.shared.jit import f4_2d, f4_2d_ro, f8_1d_ro, i4_1d, i4_1d_ro, i4_2d_ro, kernel, u1_2d_ro
 
 FRAME_STATES: Final = ("fixed_r", "fixed_c", "polarity", "contrast", "last_sweep_px", "n")
 """`split_frame`'s `state` (float64), in order: the fixed end and the polarity (float32 values, exactly), the
@@ -42,9 +42,10 @@ def _signature(frame_type: Any) -> Any:
     )  # fmt: skip
 
 
-# Compiled for a read-only frame (a mapped capture buffer) and a writable one (a frame read from a file): a
-# read-only view of the frame made per call costs ~1-3 us of Python.
-@kernel([_signature(u1_2d_ro), _signature(u1_2d)])
+# Compiled for a read-only frame only: a writable frame (one a reader made) is taken through Numba's safe
+# mutable-to-read-only conversion, at the dispatch cost of an exact match and with no view made per frame; a
+# second, writable signature would cost its compilation again on every fresh install.
+@kernel(_signature(u1_2d_ro))
 def split_frame(
     points, chain, planes, frame, weights, spans_lo, spans_hi, box_lo, box_hi, tmp, width, sweep_index, state,
     buffers,

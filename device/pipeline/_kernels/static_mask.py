@@ -75,8 +75,9 @@ def mark_static(low, high, base_dn, relative, margin_dn, out_mask):
     return count
 
 
-# The frame read-only (a mapped capture buffer) or writable (a frame a reader made), as `detect_and_trace`.
-@kernel([int32(frame, u1_2d_ro, u1_2d_ro, u1_2d_ro, u1_2d, i4_1d, int64) for frame in (u1_2d_ro, u1_2d)])
+# The frame read-only (a mapped capture buffer) or writable (a frame a reader made, through Numba's safe
+# conversion), as `detect_and_trace`.
+@kernel(int32(u1_2d_ro, u1_2d_ro, u1_2d_ro, u1_2d_ro, u1_2d, i4_1d, int64))
 def drop_static_edges(frame, mask, low, high, edges, edge_list, n_edges):
     """Drop the listed edge pixels (flat indices ``row * width + col``, the first `n_edges` of `edge_list`) that
     the mask excludes: `MASK_ALWAYS` pixels, and `MASK_STATIC` pixels whose 3x3 neighbourhood (inside the image)

@@ -14,7 +14,7 @@ import numpy as np
 from numba import float32, int64
 
 from ropecam.device.pipeline._kernels._common import TWO, ZERO, f4_1d_ro
-from ropecam.shared.jit import f4_2d, i4_1d, i4_1d_ro, kernel, u1_2d, u1_2d_ro
+from ropecam.shared.jit import f4_2d, i4_1d, i4_1d_ro, kernel, u1_2d_ro
 
 HIST_PER_UNIT: Final = 4
 """Histogram bins per unit of gradient magnitude (the median is read to 0.25 of the pipeline's magnitude scale,
@@ -25,9 +25,10 @@ def _signature(frame_type: object) -> object:
     return int64(frame_type, f4_1d_ro, int64, int64, int64, f4_2d, i4_1d)
 
 
-# Compiled for a read-only frame (a mapped capture buffer) and a writable one (a frame read from a file): a
-# read-only view made per frame would cost a Python allocation on every steady frame.
-@kernel([_signature(u1_2d_ro), _signature(u1_2d)])
+# Compiled for a read-only frame only: a writable frame (one a reader made) is taken through Numba's safe
+# mutable-to-read-only conversion, at the dispatch cost of an exact match and with no view made per frame; a
+# second, writable signature would cost its compilation again on every fresh install.
+@kernel(_signature(u1_2d_ro))
 def sample_gradient_histogram(frame, weights, row0, row_step, col_step, work, out_hist):
     """Add the gradient magnitude at the samples (rows ``row0, row0 + row_step, ...``, columns every `col_step`
     from the first one inside the margin) to `out_hist` (bin ``int(magnitude * HIST_PER_UNIT)``, the last bin

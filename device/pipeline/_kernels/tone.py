@@ -7,7 +7,8 @@ from numba import int32
 from ropecam.shared.jit import kernel, u1_1d, u1_2d, u1_2d_ro
 
 
-@kernel([int32(frame, u1_1d, u1_2d) for frame in (u1_2d_ro, u1_2d)])
+# The frame read-only or writable (Numba's safe conversion): one signature.
+@kernel(int32(u1_2d_ro, u1_1d, u1_2d))
 def apply_table(frame, table, out):
     """Write ``table[frame]`` into `out` (both (height, width) uint8; `table` 256 entries). Returns 0, or -1 when
     the shapes differ or the table is short (nothing written)."""

@@ -97,7 +97,7 @@ def test_detect_and_trace_is_detect_edges_then_trace_rope(seed: int, full: bool,
     ref["counts"][3] = count
     assert count > 0
     assert (n_ref > 0) == (min_pixels < 1000)
-    writable = frame.copy()  # the second signature: a frame a reader made, not a read-only buffer
+    writable = frame.copy()  # a frame a reader made, not a read-only buffer: Numba's safe conversion
     for image in (frame, writable):
         got = _buffers()
         n = K.detect_and_trace(image, lo, hi, weights, low, high, np.int32(min_pixels), NO_MASK, *_groups(got))
@@ -106,12 +106,14 @@ def test_detect_and_trace_is_detect_edges_then_trace_rope(seed: int, full: bool,
             np.testing.assert_array_equal(got[name], expected, err_msg=name)
 
 
-def test_smooth_frame_box_is_smooth_box_for_both_kinds_of_frame() -> None:
+def test_smooth_box_takes_both_kinds_of_frame() -> None:
+    """A read-only frame (a mapped capture buffer) and a writable one (a frame a reader made) give the same values:
+    the writable one goes through Numba's safe mutable-to-read-only conversion to the one signature."""
     frame = _ro(_rope_frame(7))
     weights = _ro(gaussian_weights(1.0))
     lo, hi = (_ro(a) for a in _spans(7, False))
     outputs = []
-    for fn, image in ((K.smooth_box, frame), (K.smooth_frame_box, frame), (K.smooth_frame_box, frame.copy())):
+    for fn, image in ((K.smooth_box, frame), (K.smooth_box, frame.copy())):
         work = (np.zeros(HEIGHT, np.int32), np.zeros(HEIGHT, np.int32))
         tmp, smooth = np.zeros((HEIGHT, WIDTH), np.float32), np.full((HEIGHT, WIDTH), -1.0, np.float32)
         count = fn(image, weights, lo, hi, 0, HEIGHT - 1, 0, 20, *work, tmp, smooth)

@@ -34,7 +34,8 @@ def _shapes(monkeypatch: pytest.MonkeyPatch, path: str, garbage: bool = False, r
     steps before the shapes one by one, then `split_shapes`) or ``steps`` (every step one by one: both
     one-call kernels report a full buffer). With `garbage`, the edge stage's planes are overwritten before every
     frame (the split must make the smoothed image it reads beyond the band itself). With `read_only`, the frames
-    are read-only arrays (a mapped capture buffer; `split_frame` is compiled for both)."""
+    are read-only arrays (a mapped capture buffer; `split_frame` takes both, a writable one through Numba's safe
+    conversion)."""
     if (path, garbage, read_only) in _RUNS:
         return _RUNS[(path, garbage, read_only)]
     calls = {"split_frame": 0, "split_shapes": 0}
