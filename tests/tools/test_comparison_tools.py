@@ -48,3 +48,18 @@ def test_tools_refuse_bad_arguments(run_tool: RunTool) -> None:
     assert done.returncode == 2 and "harris: error: --frames must be >= 1, got 0" in done.stderr, done.stderr
     done = run_tool("evaluate.py", "accuracy", "--methods", "nonsense")
     assert done.returncode == 2 and "invalid choice" in done.stderr
+
+
+@pytest.mark.slow
+def test_e2e_compares_what_the_daemon_measured_with_the_offline_pipeline(run_tool: RunTool, rig_frames: Path) -> None:
+    done = run_tool("evaluate.py", "e2e", "--frameset", str(rig_frames), "--fps", "30", "--start-s", "0.1",
+                    "--transports", "udp", "--json")  # fmt: skip
+    row = json.loads(done.stdout.splitlines()[-1])
+    # Which frames a fresh daemon skips depends on the machine's speed; what it measured never does: every result
+    # that arrived equals the offline pipeline's over the same frames, and every frame is accounted for.
+    assert row["exit_code"] == 0 and row["sequence_gaps"] == 0, done.stderr
+    assert row["received"] == row["equal_to_offline"] >= 1
+    assert row["received"] + row["skipped_at_start"] + row["skipped_after_start"] == row["frames"] == 12
+    assert done.returncode == (0 if row["skipped_after_start"] == 0 else 1), done.stderr
+    too_short = run_tool("evaluate.py", "e2e", "--frameset", str(rig_frames), "--fps", "30", "--start-s", "1")
+    assert too_short.returncode == 2 and "12 frames last no longer than --start-s 1 s at 30 FPS" in too_short.stderr
