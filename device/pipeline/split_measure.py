@@ -18,11 +18,13 @@ __all__ = ["CONTRAST_FRAMES", "MAX_CONTRAST", "BandMeasure"]
 
 CONTRAST_FRAMES = 10
 """Frames whose contrast readings (median) are kept afterwards: the lighting does not change."""
-MAX_CONTRAST = 1.25 * 255.0
-"""The largest contrast (grey levels) kept as the rope's: an 8-bit frame has 255 levels between black and white
-(a gamma-decoded one too: the tone curve maps 0-255 onto 0-255), and the readings divide by a modelled rope
-width that is off by 10-20 % on a strongly blurred band. A larger one is a width that is not the rope's (an edge
-model made of a lens blur read across a clamp's edges: 0.30 px for a 2.4 px rope, 1516 levels)."""
+MAX_CONTRAST = 3.0 * 255.0
+"""The largest contrast (grey levels) kept as the rope's (larger: nan, `BandMeasure.contrast_rejected`). An 8-bit
+frame has 255 levels between black and white (a gamma-decoded one too: the tone curve maps 0-255 onto 0-255); the
+readings are divided by a modelled rope width that can be a third of the rope's where the width table is steep
+(`lab-dark`: 0.5-1.5 px for edge spacings 2.90-2.98 px, 163 levels read as up to 480). A larger one comes from a
+width that is not the rope's at all: an edge model made of a lens blur read across a clamp's edges (`clamp on`:
+1.15 px for 0.4, a 2.4 px rope read as 0.30 px, 1516 levels)."""
 _PLUS, _MINUS = np.int32(1), np.int32(-1)
 _SLOPE_LOW, _SLOPE_HIGH = np.float32(0.5), np.float32(0.85)
 """The arc fractions of each side whose edge slope gives the sweep (as `split_frame`)."""
