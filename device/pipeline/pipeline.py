@@ -165,6 +165,9 @@ class Pipeline:
                 self.stages.forget(roi=result.status is FrameStatus.NO_ROPE)
                 if self.static_mask.learning:
                     self._unclean_frames += 1
+            elif self.static_mask.learning and self.splitter.measure.contrast_rejected:
+                # A contrast no 8-bit rope has: the lens blur was read across a clamp's edges (`MAX_CONTRAST`)
+                self._unclean_frames += 1
             elif exposure_ns == 0:
                 result.message = "exposure unknown (0): no time order, the ROI follows the tip steps only"
         result.pipeline_us = (time.perf_counter() - start_s) * 1e6

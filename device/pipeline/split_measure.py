@@ -14,10 +14,17 @@ from ropecam.device.pipeline._views import f32
 from ropecam.device.pipeline.edge_model import BandEdgeModel
 from ropecam.device.pipeline.width_tables import WidthTables
 
-__all__ = ["CONTRAST_FRAMES", "BandMeasure"]
+__all__ = ["CONTRAST_FRAMES", "MAX_CONTRAST", "BandMeasure"]
 
 CONTRAST_FRAMES = 10
 """Frames whose contrast readings (median) are kept afterwards: the lighting does not change."""
+MAX_CONTRAST = 3.0 * 255.0
+"""The largest contrast (grey levels) kept as the rope's (larger: nan, `BandMeasure.contrast_rejected`). An 8-bit
+frame has 255 levels between black and white (a gamma-decoded one too: the tone curve maps 0-255 onto 0-255); the
+readings are divided by a modelled rope width that can be a third of the rope's where the width table is steep
+(`lab-dark`: 0.5-1.5 px for edge spacings 2.90-2.98 px, 163 levels read as up to 480). A larger one comes from a
+width that is not the rope's at all: an edge model made of a lens blur read across a clamp's edges (`clamp on`:
+1.15 px for 0.4, a 2.4 px rope read as 0.30 px, 1516 levels)."""
 _PLUS, _MINUS = np.int32(1), np.int32(-1)
 _SLOPE_LOW, _SLOPE_HIGH = np.float32(0.5), np.float32(0.85)
 """The arc fractions of each side whose edge slope gives the sweep (as `split_frame`)."""
@@ -50,7 +57,7 @@ class BandMeasure:
         """The edge spacing in use at the last call, whose rope width divides the integrals (`rescale`)."""
         self.contrast_px = float("nan")
         """The median of `contrasts` over the rope width of the edge spacing in use (the rope's contrast once
-        `CONTRAST_FRAMES` are in)."""
+        `CONTRAST_FRAMES` are in); nan when larger than `MAX_CONTRAST` (that width is not the rope's)."""
         self._contrast_key = math.nan
         self._contrast32 = np.float32(0.0)
         self._whole: Spans | None = None
@@ -61,7 +68,8 @@ class BandMeasure:
         if width_px is not None:
             self._width_px = width_px
         if self.contrasts and math.isfinite(self._width_px):
-            self.contrast_px = float(np.median(self.contrasts)) / self.model.tables(self._width_px).width_px
+            contrast = float(np.median(self.contrasts)) / self.model.tables(self._width_px).width_px
+            self.contrast_px = contrast if contrast <= MAX_CONTRAST else math.nan
 
     def contrast_for(self, width_px: float) -> float:
         """The rope's contrast over the rope width of the edge spacing `width_px` in use (`contrast`'s readings;
@@ -69,6 +77,12 @@ class BandMeasure:
         if width_px != self._width_px:
             self.rescale(width_px)
         return self.contrast_px
+
+    @property
+    def contrast_rejected(self) -> bool:
+        """Whether the contrast readings over the rope width in use exceed `MAX_CONTRAST`: that width, and the edge
+        model it came from (the lens blur read on the first frames), are not the rope's."""
+        return bool(self.contrasts) and math.isfinite(self._width_px) and not math.isfinite(self.contrast_px)
 
     @property
     def contrast_settled(self) -> bool:

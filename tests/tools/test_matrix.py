@@ -128,3 +128,13 @@ def test_the_tuning_set_has_a_late_swing_the_validation_set_does_not() -> None:
     scenes = json.loads(done.stdout)
     assert scenes["tuning"] == [["rig", 0.0, 0], ["lab", 0.0, 0], ["lab late swing", 1.0, 0]]
     assert scenes["validation"] == [["rig", 0.25, 7919], ["lab", 0.25, 7919]]
+
+
+def test_a_one_point_shape_is_scored_by_its_distance(monkeypatch: pytest.MonkeyPatch) -> None:
+    # a rejected frame's shape may be one point; the matrix once failed the whole scene on it (`lab-dark`)
+    monkeypatch.syspath_prepend(str(TOOLS))
+    from ropecam_tools.truth_metrics import point_to_polyline
+
+    points = np.array([[0.0, 0.0], [3.0, 4.0]])
+    assert point_to_polyline(points, np.array([[0.0, 0.0]])) == pytest.approx([0.0, 5.0])
+    assert point_to_polyline(points, np.array([[0.0, 0.0], [0.0, 4.0]])) == pytest.approx([0.0, 3.0])

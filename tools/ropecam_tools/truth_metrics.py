@@ -34,7 +34,10 @@ MATERIAL_FRACTIONS = (0.25, 0.5, 0.75, 1.0)
 
 
 def point_to_polyline(points: NDArray[np.float64], poly: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Return the distance of each point (k, 2) to the polyline (m, 2), shape (k,)."""
+    """Return the distance of each point (k, 2) to the polyline (m, 2), shape (k,) (to its point when m = 1: a
+    pipeline's shape may be one point on a rejected frame)."""
+    if len(poly) == 1:
+        return np.hypot(*(points - poly[0]).T)
     a = poly[:-1][None]
     d = (poly[1:] - poly[:-1])[None]
     p = points[:, None]

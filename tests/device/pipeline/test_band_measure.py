@@ -54,3 +54,27 @@ def test_a_frame_with_a_wrong_width_does_not_set_the_contrast() -> None:
     assert block == pytest.approx(plain, rel=0.02)
     assert block_sweep == pytest.approx(plain_sweep, abs=0.1)  # not 0: the sweep is read from the edge slope
     assert block_errors.mean() <= plain_errors.mean() + 0.05, (block_errors, plain_errors)
+
+
+@pytest.mark.parametrize("static_frames", [0, 8])
+def test_a_contrast_no_8bit_rope_has_is_not_kept(static_frames: int) -> None:
+    # A lens blur read across a clamp's edges (1.15 px for the rope's 0.5) makes the edge model read the rope's
+    # edge spacing as a rope of a fraction of a pixel: its contrast over that width was 1516 grey levels, the
+    # sweep from the edge slope 0, and a sweeping rope's centreline was reported OK (`clamp on`'s silent frames).
+    rope = SyntheticRope(
+        width=160, height=150, fixed_uv=(80.3, 12.6), length_px=120.0, diameter_px=2.5, blur_px=0.5,
+        amplitude_rad=0.5, period_s=0.9, phase_rad=0.0, noise_dn=1.0, exposure_us=4000,
+    )  # fmt: skip
+    pipeline = Pipeline(PipelineConfig(lens_blur_px=1.15, static_frames=static_frames), (rope.width, rope.height))
+    measure = pipeline.splitter.measure
+    for frame in rope.frames(static_frames + 2):
+        pipeline.process(frame.image, frame.index, frame.t_ns, float(rope.exposure_us))
+        if frame.index == static_frames - 1:  # the mask is learned: the frames that taught this are suspect
+            assert measure.contrast_rejected
+    assert measure.contrasts
+    width = pipeline.splitter.width
+    assert measure.model.tables(width).width_px < 1.0  # the premise: not the rope's 2.5 px
+    assert np.isnan(measure.contrast_for(width))
+    assert not measure.contrast_settled
+    if static_frames:  # read again once the mask is known (`Stages.relearn`)
+        assert len(measure.contrasts) < CONTRAST_FRAMES
