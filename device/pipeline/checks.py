@@ -36,6 +36,10 @@ reason                  fails when                                              
                         mid-exposure) while the tip's path over the last frames swept more than
                         ``fallback_sweep_widths`` rope widths during the exposure: the shape is neither
                         the start nor the end of the exposure
+``tip_kink``            either shape's direction turns by more than ``tip_kink_deg`` between its last    IMPLAUSIBLE
+                        ``tip_kink_widths`` rope widths and the same arc before them: a free end
+                        carries no bending moment and runs straight; a turn there is a tip that ran
+                        on along noise beyond the band's faint end
 ======================  ==============================================================================  ===========
 
 Each check's measure goes into the frame's quality record (`QUALITY_KEYS`), whether it passes or not.
@@ -96,6 +100,9 @@ class ChecksConfig:
     fallback_sweep_widths
         Largest sweep of the tip's path during the exposure, in rope widths, with which the blur split may fall
         back to one shape (the band's middle) and report it OK (0: the check is off).
+    tip_kink_widths, tip_kink_deg
+        Largest turn (degrees) of either shape's direction between the chord of its last ``tip_kink_widths`` rope
+        widths and the chord of the same arc before them (``tip_kink_widths`` 0: the check is off).
     """
 
     enabled: bool = True
@@ -113,6 +120,8 @@ class ChecksConfig:
     tip_mask_floor_px: float = 2.0
     fallback_sweep_widths: float = 1.5
     min_band_area: float = 0.25
+    tip_kink_widths: float = 5.0
+    tip_kink_deg: float = 15.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.enabled, bool):
@@ -131,6 +140,8 @@ class ChecksConfig:
         check_range("checks.tip_mask_floor_px", self.tip_mask_floor_px, 0.0, 100.0)
         check_range("checks.fallback_sweep_widths", self.fallback_sweep_widths, 0.0, 100.0)
         check_range("checks.min_band_area", self.min_band_area, 0.0, 1.0)
+        check_range("checks.tip_kink_widths", self.tip_kink_widths, 0.0, 100.0)
+        check_range("checks.tip_kink_deg", self.tip_kink_deg, 0.0, 180.0)
 
 
 _MESSAGES = {
@@ -147,6 +158,8 @@ _MESSAGES = {
     "checks.tip_mask_widths rope widths + checks.tip_mask_floor_px of it)",
     Reason.FALLBACK_SWEEP: "one shape (the band's middle) while the tip's path swept more than "
     "checks.fallback_sweep_widths rope widths during the exposure: neither the start nor the end of the exposure",
+    Reason.TIP_KINK: "a shape turns by more than checks.tip_kink_deg within checks.tip_kink_widths rope widths of its "
+    "free tip, where a rope runs straight: the tip ran on beyond the rope's end",
 }
 
 

@@ -39,6 +39,7 @@ class Reason(IntEnum):
     NO_BLUR = 6
     TIP_MASKED = 7
     FALLBACK_SWEEP = 8
+    TIP_KINK = 9
 
     @property
     def text(self) -> str:

@@ -60,10 +60,12 @@ from ropecam.device.pipeline._kernels.checks import (
     CHECK_NONE,
     CHECK_QUALITY,
     CHECK_THRESHOLDS,
+    CHECK_TIP_KINK,
     CHECK_TIP_MASKED,
     check_frame,
     predict_tips,
     tip_mask_distance,
+    tip_turn_deg,
 )
 from ropecam.device.pipeline._kernels.contacts import count_border_contacts, count_roi_contacts
 from ropecam.device.pipeline._kernels.contour import (
@@ -223,6 +225,7 @@ __all__ = [
     "CHECK_NO_BLUR",
     "CHECK_QUALITY",
     "CHECK_THRESHOLDS",
+    "CHECK_TIP_KINK",
     "CHECK_TIP_MASKED",
     "CONTOUR",
     "DIR_COL",
@@ -384,6 +387,7 @@ __all__ = [
     "sweep_from_path",
     "thin_chain",
     "tip_mask_distance",
+    "tip_turn_deg",
     "trace_closed",
     "trace_contour",
     "trace_rope",

@@ -29,6 +29,7 @@ CHECK_ORDER: Final = 5
 CHECK_NO_BLUR: Final = 6
 CHECK_TIP_MASKED: Final = 7
 CHECK_FALLBACK_SWEEP: Final = 8
+CHECK_TIP_KINK: Final = 9
 
 CHECK_THRESHOLDS: Final = np.dtype(
     [
@@ -45,6 +46,8 @@ CHECK_THRESHOLDS: Final = np.dtype(
         ("tip_mask_widths", np.float64),
         ("tip_mask_floor_px", np.float64),
         ("fallback_sweep_widths", np.float64),
+        ("tip_kink_widths", np.float64),
+        ("tip_kink_deg", np.float64),
     ]
 )
 """The checks' thresholds (`ChecksConfig`'s numbers), one record."""
@@ -140,6 +143,47 @@ def tip_mask_distance(shape, mask, width_px, reach_px):
     return math.nan
 
 
+@kernel(float64(f4_2d_ro, float64))
+def tip_turn_deg(shape, reach_px):
+    """Return how far (degrees) the direction of `shape` (row, col; its free tip last) turns at its end: the angle
+    between the chords of its last `reach_px` of arc and of the `reach_px` before them; nan when the shape is
+    shorter than twice `reach_px` (or `reach_px` is not positive)."""
+    n = shape.shape[0]
+    if n < 3 or not reach_px > 0.0:
+        return math.nan
+    tr = float64(shape[n - 1, 0])
+    tc = float64(shape[n - 1, 1])
+    mr = math.nan
+    mc = math.nan
+    arc = 0.0
+    for k in range(n - 1, 0, -1):
+        r0 = float64(shape[k, 0])
+        c0 = float64(shape[k, 1])
+        r1 = float64(shape[k - 1, 0])
+        c1 = float64(shape[k - 1, 1])
+        step = math.hypot(r1 - r0, c1 - c0)
+        target = reach_px if math.isnan(mr) else 2.0 * reach_px
+        while step > 0.0 and arc + step >= target:
+            f = (target - arc) / step
+            if math.isnan(mr):
+                mr = r0 + f * (r1 - r0)
+                mc = c0 + f * (c1 - c0)
+                target = 2.0 * reach_px
+                continue
+            br = r0 + f * (r1 - r0) - mr
+            bc = c0 + f * (c1 - c0) - mc
+            ar = tr - mr
+            ac = tc - mc
+            norm = math.hypot(ar, ac) * math.hypot(br, bc)
+            if norm == 0.0:
+                return math.nan
+            # b points back from the middle point: on a straight shape a . b = -|a| |b|, a turn of 0 degrees
+            cosine = -(ar * br + ac * bc) / norm
+            return math.degrees(math.acos(min(1.0, max(-1.0, cosine))))
+        arc += step
+    return math.nan
+
+
 @kernel(_CHECK_SIGNATURES)
 def check_frame(
     begin, end, fixed, predicted, stretch_begin, stretch_end, width_px, learned_width_px, order_confidence,
@@ -220,6 +264,18 @@ def check_frame(
         or math.isfinite(tip_mask_distance(end, mask, width, reach_px))
     ):
         failed = CHECK_TIP_MASKED
+    # A rope's free end carries no bending moment: its last few widths run straight. A shape that turns sharply
+    # there ran on along noise beyond the band's faint end (its length may still pass `length_tolerance`).
+    kink_reach_px = limits["tip_kink_widths"] * width
+    if (
+        failed == CHECK_NONE
+        and kink_reach_px > 0.0
+        and (
+            tip_turn_deg(begin, kink_reach_px) > limits["tip_kink_deg"]
+            or tip_turn_deg(end, kink_reach_px) > limits["tip_kink_deg"]
+        )
+    ):
+        failed = CHECK_TIP_KINK
     evidence = math.nan
     unchecked = split and (exposure_ns <= 0 or math.isnan(predicted[2]))
     if unchecked:

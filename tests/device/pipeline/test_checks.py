@@ -246,3 +246,44 @@ def test_tip_mask_distance_matches_its_reference(tip_col: float, mask_row: int) 
     expected = _tip_mask_distance_reference(shape, mask, WIDTH_PX, 7.0)
     got = K.tip_mask_distance(shape, mask, WIDTH_PX, 7.0)
     assert (math.isnan(got) and math.isnan(expected)) or got == pytest.approx(expected)
+
+
+def _kinked(turn_deg: float, tail_px: float = 15.0) -> np.ndarray:
+    """`_shape(110.0)` whose last `tail_px` run on turned by `turn_deg` (a tip that followed noise past the end)."""
+    shape = _shape(110.0).astype(np.float64)
+    steps = np.hypot(*np.diff(shape, axis=0).T)
+    arc_from_tip = np.concatenate([np.cumsum(steps[::-1])[::-1], [0.0]])
+    keep = int(np.argmax(arc_from_tip < tail_px))
+    start = shape[keep - 1]
+    direction = (shape[-1] - shape[0]) / np.hypot(*(shape[-1] - shape[0]))
+    angle = math.radians(turn_deg)
+    turned = np.array(
+        [direction[0] * math.cos(angle) - direction[1] * math.sin(angle),
+         direction[0] * math.sin(angle) + direction[1] * math.cos(angle)]
+    )  # fmt: skip
+    tail = start + np.outer(np.arange(1, 9) * tail_px / 8.0, turned)
+    return np.vstack([shape[:keep], tail]).astype(np.float32)
+
+
+@pytest.mark.parametrize(
+    ("turn_deg", "expected"), [(70.0, Reason.TIP_KINK), (30.0, Reason.TIP_KINK), (5.0, Reason.NONE)]
+)
+def test_a_tip_that_turns_sharply_at_the_free_end_is_not_trusted(turn_deg: float, expected: Reason) -> None:
+    # read noise = 10, frame 25 (simulated, tuning seed): both shapes reach the true tip, then run on 15 px
+    # turning 70-100 degrees with a length 3.6 % long (inside checks.length_tolerance).
+    checks = SelfChecks(ChecksConfig())
+    status = FrameStatus.OK if expected is Reason.NONE else FrameStatus.IMPLAUSIBLE
+    assert _check(checks, end=_kinked(turn_deg)) == (status, expected)
+    assert _check(SelfChecks(ChecksConfig(tip_kink_widths=0.0)), end=_kinked(turn_deg)) == (FrameStatus.OK, Reason.NONE)
+
+
+def test_a_smoothly_bent_rope_passes_the_kink_check() -> None:
+    from ropecam.device.pipeline import _kernels as K
+
+    # A rope bent along a circle of 300 px radius (a strongly swinging rope) turns ~5 degrees per 5 widths.
+    angles = np.linspace(0.0, 200.0 / 300.0, 101)
+    bent = np.column_stack([10.0 + 300.0 * np.sin(angles), 100.0 + 300.0 * (1.0 - np.cos(angles))]).astype(np.float32)
+    assert _check(SelfChecks(ChecksConfig()), end=bent)[1] is not Reason.TIP_KINK
+    assert K.tip_turn_deg(bent, 25.0) == pytest.approx(math.degrees(25.0 / 300.0), abs=0.2)
+    assert K.tip_turn_deg(_shape(110.0), 25.0) == pytest.approx(0.0, abs=1e-3)
+    assert math.isnan(K.tip_turn_deg(_shape(110.0)[:5], 25.0))  # shorter than twice the reach
