@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._views import as_ro
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.finish import FrameClock
 from ropecam.device.pipeline.result import FrameStatus, PipelineResult, frame_problem
@@ -331,5 +332,4 @@ def _rope_from(shape: NDArray[np.float32], fixed_rc: tuple[float, float], near_p
     of the fixed end `fixed_rc` and, the rope's length known (`length0_px` > 0), is at most 1.1 times as long."""
     if len(shape) == 0 or math.hypot(shape[0, 0] - fixed_rc[0], shape[0, 1] - fixed_rc[1]) > near_px:
         return False
-    steps = np.diff(shape, axis=0)
-    return length0_px <= 0.0 or float(np.hypot(steps[:, 0], steps[:, 1]).sum()) <= 1.1 * length0_px
+    return length0_px <= 0.0 or float(K.polyline_length(as_ro(shape), np.int32(len(shape)))) <= 1.1 * length0_px

@@ -115,12 +115,18 @@ class StaticMask:
         if self.detector is None or not self.learning or self._finder is not None:
             return
         height, width = self.buffers.static_low.shape
-        d = self.detector
-        finder = EdgeDetector(height, width, self.smooth_sigma_px, float(d.low), float(d.high))
+        finder = self._make_finder()
         finder.detect(
             np.zeros((height, width), np.uint8), np.zeros(height, np.int32), np.full(height, width - 1, np.int32)
         )
         self._finder = finder
+
+    def _make_finder(self) -> EdgeDetector:
+        """The whole-frame detector that finds the structures, at the rope detector's thresholds."""
+        d = self.detector
+        assert d is not None
+        height, width = self.buffers.static_low.shape
+        return EdgeDetector(height, width, self.smooth_sigma_px, float(d.low), float(d.high))
 
     @property
     def learning(self) -> bool:
@@ -168,7 +174,7 @@ class StaticMask:
         middle = ((low + high) // 2).astype(np.uint8)
         finder, self._finder = self._finder, None  # made ahead by `prepare`, or now; needed once
         if finder is None:
-            finder = EdgeDetector(height, width, self.smooth_sigma_px, float(d.low), float(d.high))
+            finder = self._make_finder()
         else:
             finder.set_thresholds(float(d.low), float(d.high))
         finder.detect(middle, np.zeros(height, np.int32), np.full(height, width - 1, np.int32))

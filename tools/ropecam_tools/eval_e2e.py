@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import itertools
 import json
 import os
@@ -31,7 +32,8 @@ from pathlib import Path
 from typing import Any
 
 
-def _offline(frameset: Path, measured: set[int]) -> dict[int, Any]:
+@functools.lru_cache(maxsize=4)
+def _offline(frameset: Path, measured: frozenset[int]) -> dict[int, Any]:
     """The offline pipeline's results over the frames numbered `measured` (the others skipped, as the daemon did)."""
     from ropecam.device.capture.frameset import FrameSet
     from ropecam.device.pipeline.config import PipelineConfig
@@ -139,7 +141,7 @@ def run_once(frameset: Path, fps: float, transport: str, start_s: float) -> dict
     start_frames = round(start_s * fps)  # paced replay: frame k is handed over k / fps after the start
     got = {r.frame_index for r in results}
     missed = [r.frame for r in records if r.frame not in got]
-    expected = _offline(frameset, got)
+    expected = _offline(frameset, frozenset(got))  # runs that measured the same frames share it
     equal = sum(1 for r in results if r.frame_index in expected and _same(r, expected[r.frame_index]))
     gaps = sum(max(0, b - a - 1) for a, b in itertools.pairwise(sequences))
     return {"transport": transport, "exit_code": code, "frames": len(records), "received": len(results),
