@@ -185,13 +185,8 @@ class ContourTracer:
         self.component_px, self.contacts, self.on_border = self.counts[:3].tolist()
         self.count = n if n > 0 else 0
         # Joined to what was dropped: the new contour passes next to the dropped chain's pixels.
-        kept = self.chain[: self.count] + 1
-        self.joined = bool(
-            self.count > 0
-            and (gone[:-2, 1:-1] | gone[2:, 1:-1] | gone[1:-1, :-2] | gone[1:-1, 2:])[
-                kept[:, 0] - 1, kept[:, 1] - 1
-            ].any()
-        )
+        r, c = (self.chain[: self.count] + 1).T  # in `gone`'s padded frame
+        self.joined = bool((gone[r - 1, c] | gone[r + 1, c] | gone[r, c - 1] | gone[r, c + 1]).any())
         return self.count
 
     def forget_args(self) -> None:
