@@ -8,13 +8,27 @@ scalars of the declared width.
 
 from __future__ import annotations
 
+import ctypes
+import functools
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["as_ro", "buffer_table", "f32", "i32", "resident_zeros", "ro", "staggered_planes"]
+from ropecam.device.pipeline._kernels.tables import ARRAY_DATA, ARRAY_DIMENSIONS, ARRAY_ND, ARRAY_STRIDES
+
+__all__ = [
+    "FrameSlot",
+    "array_layout_known",
+    "as_ro",
+    "buffer_table",
+    "f32",
+    "i32",
+    "resident_zeros",
+    "ro",
+    "staggered_planes",
+]
 
 
 def ro(array: NDArray[Any]) -> NDArray[Any]:
@@ -69,10 +83,65 @@ def resident_zeros(shape: int | tuple[int, ...], dtype: Any) -> NDArray[Any]:
     return array
 
 
-def buffer_table(arrays: Mapping[str, NDArray[Any]], spec: Sequence[tuple[str, Any, int]]) -> NDArray[np.int64]:
+@functools.cache
+def array_layout_known() -> bool:
+    """Whether this NumPy's `PyArrayObject` has ``data``, ``nd``, ``dimensions`` and ``strides`` where the kernels
+    that read a frame from a `FrameSlot` look for them (`ropecam.device.pipeline._kernels.tables`): checked once,
+    on a test array, against NumPy's own answers (it is NumPy's C ABI, which compiled extensions rely on)."""
+    probe = np.zeros((3, 5), np.uint8)[:, 1:4]
+    base = id(probe)
+
+    def word(offset: int) -> int:
+        return int(ctypes.c_int64.from_address(base + offset).value)
+
+    dims, strides = word(ARRAY_DIMENSIONS), word(ARRAY_STRIDES)
+    return (
+        word(ARRAY_DATA) == probe.ctypes.data
+        and ctypes.c_int32.from_address(base + ARRAY_ND).value == probe.ndim
+        and [ctypes.c_int64.from_address(dims + 8 * k).value for k in range(2)] == list(probe.shape)
+        and [ctypes.c_int64.from_address(strides + 8 * k).value for k in range(2)] == list(probe.strides)
+    )
+
+
+class FrameSlot:
+    """A one-slot object array that holds a frame while a kernel reads it through a table row (address of the
+    slot, 1, height, width; `ropecam.device.pipeline._kernels.tables.slot_frame_address`), so that the frame is no
+    array argument: a NumPy array passed to a compiled function costs an NRT MemInfo of 48 bytes, which Numba
+    allocates through CPython's raw allocator (Python allocation per call); a store into the slot allocates
+    nothing.
+
+    Parameters
+    ----------
+    height, width
+        The frames' size: a kernel refuses a frame of another size or not C-contiguous.
+    """
+
+    __slots__ = ("_slot", "height", "width")
+
+    def __init__(self, height: int, width: int) -> None:
+        self._slot = np.full(1, None, object)
+        self.height, self.width = int(height), int(width)
+
+    def hold(self, frame: NDArray[np.uint8]) -> None:
+        """Hold `frame` (a (height, width) C-contiguous uint8 array) for the next kernel call."""
+        self._slot[0] = frame
+
+    def release(self) -> None:
+        """Let go of the frame (a kernel reading the slot now refuses to run)."""
+        self._slot[0] = None
+
+    def row(self) -> tuple[int, int, int, int]:
+        """The slot's table row: its address, 1, height, width."""
+        return self._slot.ctypes.data, 1, self.height, self.width
+
+
+def buffer_table(
+    arrays: Mapping[str, NDArray[Any] | FrameSlot], spec: Sequence[tuple[str, Any, int]]
+) -> NDArray[np.int64]:
     """Return the table of `arrays`' addresses and shapes that a kernel taking its buffers as one argument reads
     (`ropecam.device.pipeline._kernels.steady_frame`): row k = (address, size of each dimension, 0 for the
-    dimensions it has not) of the buffer named ``spec[k][0]``.
+    dimensions it has not) of the buffer named ``spec[k][0]``; a `FrameSlot` (for an int64 row of one dimension)
+    gives its `FrameSlot.row`.
 
     The table holds raw addresses: the caller keeps `arrays` alive and in place while it uses the table.
 
@@ -98,6 +167,9 @@ def buffer_table(arrays: Mapping[str, NDArray[Any]], spec: Sequence[tuple[str, A
     table = np.zeros((len(spec), 4), np.int64)
     for row, (name, dtype, ndim) in enumerate(spec):
         array = arrays[name]
+        if isinstance(array, FrameSlot) and np.dtype(dtype) == np.int64 and ndim == 1:
+            table[row] = array.row()
+            continue
         if not isinstance(array, np.ndarray) or array.dtype != np.dtype(dtype) or array.ndim != ndim:
             got = f"{array.dtype} array of {array.ndim} dimensions" if isinstance(array, np.ndarray) else type(array)
             raise TypeError(f"buffer {name!r} is a {got}, expected a {np.dtype(dtype)} array of {ndim} dimensions")

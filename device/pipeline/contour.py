@@ -60,6 +60,7 @@ class ContourTracer:
         self.joined = False
         """Whether the contour of the last `trace_next` was joined to the contour it dropped."""
         self._counts = buffers.counts  # the per-frame path reads it here (a plain attribute is the fastest)
+        self._count = buffers.counts.item  # its values one by one (`adopt`), the bound method made once
         self.chain_ro = ro(self.chain)
         self.points_ro = ro(self.points)
         self._width32 = np.int32(width)
@@ -209,7 +210,8 @@ class ContourTracer:
         """Take the results of a `detect_and_trace` kernel call (made here, or inside `steady_frame`) of `frame` in
         the spans `lo`/`hi` into this tracer and `detector`, as `detect_and_trace` does; returns the number of
         contour points (0 when none). Raises RuntimeError as `detect_and_trace`."""
-        self.component_px, self.contacts, self.on_border, count = self._counts.tolist()
+        item = self._count  # field by field: no list per frame
+        self.component_px, self.contacts, self.on_border, count = item(0), item(1), item(2), item(3)
         if count < 0:
             raise RuntimeError(f"detect_edges returned status {count} (frame {frame.shape}, spans {lo.shape})")
         detector.count = count

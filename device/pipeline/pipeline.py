@@ -136,7 +136,9 @@ class Pipeline:
             result = PipelineResult(int(index), t, t + exposure_ns, FrameStatus.BAD_FRAME)
         else:
             result = out
-            result.reset(int(index), t, t + exposure_ns, FrameStatus.BAD_FRAME, self._no_quality)
+            # The last frame's end time let go before the new one is made (an int above 256: a new object).
+            result.reset(int(index), t, t, FrameStatus.BAD_FRAME, self._no_quality)
+            result.t_end_ns = t + exposure_ns
         result.readout_ns = self.readout_ns
         if type(frame) is np.ndarray and frame.dtype is self._u8 and frame.shape == self.shape:
             problem = exposure_problem  # the usual case, without building the messages of `frame_problem`
@@ -229,7 +231,7 @@ class Pipeline:
         steady, loc = self._steady, self.locator
         stop = steady.run(args, image, result.t_ns, result.t_end_ns, exposure_ns, self._clock.max_age_ns, predict)
         motion_px, points, status, revisits, swap, confidence, stretch_begin, stretch_end, checked, placed = (
-            steady.out.item()
+            steady.results()
         )
         n = self.tracer.adopt(self.edges, image, loc.lo_ro, loc.hi_ro, points)
         if stop == K.STEADY_AFTER_CONTOUR:

@@ -135,6 +135,10 @@ class BlurSplitter:
         self._no_index, self._no_distances = ro(np.zeros(0, np.int32)), ro(np.zeros(0, np.float64))
         self.measure = BandMeasure(self.lens.model, self.dist, self.slope_work)
         self._info, self._seg = buffers.info, buffers.seg  # read every frame (`_frame_outcome`): plain attributes
+        self._info_item = self._info.item  # its values one by one, the bound method made once
+        self._shapes_outcome = SplitOutcome(_BLUR_SPLIT, buffers.sides[0][:0], buffers.sides[1][:0], None, 0.0, 0.0)
+        """The outcome `_frame_outcome` fills for two shapes, one object for every frame (no allocation per frame):
+        valid, as its shapes, until the next split."""
         self.frame_call = SplitFrameCall(buffers)
         self.polarity_used = np.float32(0.0)
         """The polarity of the last split (+1 bright rope, -1 dark)."""
@@ -536,15 +540,17 @@ class BlurSplitter:
         """The outcome of the `split_frame` call that returned `status` (its `info`, `seg` and shapes are here);
         False when it reported a full buffer."""
         width_px = self.frame_call.width_px
-        info, seg = self._info, self._seg
-        if status == _SHAPES:  # the usual outcome first
-            count_a, count_b, _, _, smoothed_a, smoothed_b, sweep = info.tolist()
-            self.sweep_px = sweep
+        info = self._info
+        if status == _SHAPES:  # the usual outcome first; read field by field (no list), into one reused outcome
+            item = self._info_item
+            self.sweep_px = sweep = item(6)
             shape = self.axis.shape
-            return SplitOutcome(
-                _BLUR_SPLIT, shape(0 if smoothed_a else 2, int(count_a)), shape(1 if smoothed_b else 3, int(count_b)),
-                seg, width_px, sweep,
-            )  # fmt: skip
+            outcome = self._shapes_outcome
+            outcome.method, outcome.segmentation_points = _BLUR_SPLIT, self._seg
+            outcome.shape_a = shape(0 if item(4) else 2, int(item(0)))
+            outcome.shape_b = shape(1 if item(5) else 3, int(item(1)))
+            outcome.width_px, outcome.sweep_px = width_px, sweep
+            return outcome
         if status < 0 and status != K.NOT_FOUND:
             return False
         sweep = float(info[6])

@@ -3,9 +3,10 @@
 A frame is steady when the rope's width, polarity and fixed end have settled (`RopeTraits.settled`), Lc0 is
 known, the last frame's contour was found and the split took its one-call path (`split_frame`) on it. Such a
 frame is `band_stage`, `detect_and_trace`, `split_frame`, `count_revisits` and `track_frame` made from compiled
-code, with the buffers passed as one table of their addresses (`Workspace.steady_table`): this saves the dispatch
-of ~80 arguments (25-50 us per frame). The kernel stops where the stages' Python would take another turn; the pipeline
-goes on from there with the same state as after the same calls made one by one.
+code, with the buffers passed as one table of their addresses (`Workspace.steady_table`), the frame through the
+workspace's frame slot: this saves the dispatch of ~80 arguments (25-50 us per frame), and the call has no array
+argument (each would cost a MemInfo of Python allocation). The kernel stops where the stages' Python would take
+another turn; the pipeline goes on from there with the same state as after the same calls made one by one.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._views import array_layout_known
 from ropecam.device.pipeline.checks import SelfChecks
 from ropecam.device.pipeline.contour import ContourTracer
 from ropecam.device.pipeline.edges import EdgeDetector
@@ -62,12 +64,16 @@ class SteadyFrame:
         self._motion, self._fixed_end = locator.motion, locator.fixed_end  # read every frame (`run`)
         self.out = workspace.steady_out
         """The last call's results (one `STEADY_OUT` record, read by name: ``out["points"]``)."""
+        # Its fields are all 8 bytes: read one by one as Python scalars (``.item(k)``, the bound methods made once),
+        # no tuple or NumPy scalar.
+        self._out_int, self._out_float = self.out.view(np.int64).item, self.out.view(np.float64).item
+        self._slot = workspace.frame_slot
         self.gap_ns = 0
         """The time (ns) from the last contour's frame to the one of the last call."""
         self._bound: tuple[Any, ...] | None = None
         """(the split's steady key, the rope width's tables, Lc0, `steady_frame`'s argument list, the tracker's
-        plane) of the last steady frame: its table holds the addresses of the workspace's buffers, of those tables
-        and of a copy of the plane."""
+        plane, the table, the constants) of the last steady frame: its table holds the addresses of the
+        workspace's buffers, of those tables, of the constants and of a copy of the plane."""
         self._plane = np.zeros(K.PLANE_PARAMS, np.float64)
         """The tracker's plane parameters as the table's writable row (zeros without a plane)."""
 
@@ -81,7 +87,7 @@ class SteadyFrame:
         sets its per-frame slots. None otherwise."""
         call = self._frame_call.one_call_key()
         length0_px = self.tracker.length0_settled_px
-        if call is None or length0_px < 0.0:
+        if call is None or length0_px < 0.0 or not array_layout_known():
             return None
         key, width_tables = call
         bound = self._bound
@@ -115,9 +121,9 @@ class SteadyFrame:
             broken_outline=BROKEN_OUTLINE, on_plane=plane is not None,
         )  # fmt: skip
         self._plane[:] = 0.0 if plane is None else plane
-        table = self.workspace.steady_table(width_tables, self.checks.buffers, self._plane)
-        args = [None, 0, False, False, False, 0, 0, 0, 0, 0.0, False, 0.0, 0.0, table, constants, self.out]
-        self._bound = (key, width_tables, length0_px, args, plane)
+        table = self.workspace.steady_table(width_tables, self.checks.buffers, self._plane, constants)
+        args = [table.ctypes.data, 0, False, False, False, 0, 0, 0, 0, 0.0, False, 0.0, 0.0]
+        self._bound = (key, width_tables, length0_px, args, plane, table, constants)
         return args
 
     def run(
@@ -149,7 +155,6 @@ class SteadyFrame:
         """
         loc = self.locator
         self.gap_ns = gap_ns = t_ns - loc.prev_t_ns
-        args[0] = image
         args[1] = loc.prev_count
         args[2] = self._motion.owed
         # `RopeLocator.locate`'s ``2 * gap_ns <= 3 * need_gap_ns``, without two new ints per frame (the same test:
@@ -164,7 +169,17 @@ class SteadyFrame:
         args[10] = predict
         args[11] = self.splitter.width  # the width the checks compare (`ResultFinisher.check`)
         args[12] = self.traits.settled[0]  # type: ignore[index]  # `args` checked it
-        stop: int = K.steady_frame(*args)
+        self._slot.hold(image)
+        try:
+            stop: int = K.steady_frame(*args)
+        finally:
+            self._slot.release()
         if stop < 0:
             raise RuntimeError(f"steady_frame refused its arguments (status {stop})")
         return stop
+
+    def results(self) -> tuple[float, int, int, int, int, float, float, float, int, int]:
+        """The last call's results, in `STEADY_OUT`'s order (motion_px, points, status, revisits, swap, confidence,
+        stretch_begin, stretch_end, check, placed), as Python scalars."""
+        i, f = self._out_int, self._out_float
+        return f(0), i(1), i(2), i(3), i(4), f(5), f(6), f(7), i(8), i(9)

@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import ro
+from ropecam.device.pipeline._views import FrameSlot, array_layout_known, buffer_table, ro
 from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
 
 __all__ = ["FOLLOW_WEIGHT", "HIGH_PER_NOISE", "LOW_PER_NOISE", "EdgeThresholds"]
@@ -90,6 +90,14 @@ class EdgeThresholds:
         self._hist = np.zeros(4096, np.int32)  # magnitudes to 1024 in 1 / HIST_PER_UNIT bins
         self._hist_ro = ro(self._hist)
         self._work = np.zeros((len(self._weights) + 2, 3), np.float32)
+        # `follow`'s kernel reads the frame and these buffers through a table (`K.sample_slice`: no array argument,
+        # no Python allocation per call), where NumPy's array layout is the one it reads.
+        self._slot = FrameSlot(height, width)
+        self._table = buffer_table(
+            {"frame_slot": self._slot, "weights": self._weights, "work": self._work, "hist": self._hist},
+            K.SAMPLE_BUFFERS,
+        )
+        self._table_address = int(self._table.ctypes.data) if array_layout_known() else 0
         self._step = max(2, int(math.sqrt(height * width / FOLLOW_SAMPLES)))  # the following grid's step (px)
         self._phase = 0
         self._level: float | None = None  # the followed noise level (median gradient magnitude)
@@ -149,7 +157,7 @@ class EdgeThresholds:
         """On one frame in `sample_every` (the others return None at once), sample the next slice of the grid
         (every `update_frames`-th row of it, in turn); at the end of a cycle, average its median into the noise
         level. Returns new thresholds when they moved by more than `FOLLOW_CHANGE` from the ones last handed out,
-        else None. One kernel call per sampled frame, no allocation."""
+        else None. One kernel call per sampled frame, no Python allocation."""
         if self._wait:
             self._wait -= 1
             return None
@@ -157,7 +165,15 @@ class EdgeThresholds:
         cycle, phase, step = self.update_frames, self._phase, self._step
         if phase == 0:
             self._hist.fill(0)
-        K.sample_gradient_histogram(frame, self._weights, step * phase, step * cycle, step, self._work, self._hist)
+        sampled = K.INVALID
+        if self._table_address:
+            self._slot.hold(frame)
+            try:
+                sampled = K.sample_slice(self._table_address, step * phase, step * cycle, step)
+            finally:
+                self._slot.release()
+        if sampled == K.INVALID:  # not of the size the table was made for: as an argument
+            K.sample_gradient_histogram(frame, self._weights, step * phase, step * cycle, step, self._work, self._hist)
         self._phase = phase = phase + 1
         if phase < cycle:
             return None

@@ -22,7 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import buffer_table, resident_zeros, ro, staggered_planes
+from ropecam.device.pipeline._views import FrameSlot, buffer_table, resident_zeros, ro, staggered_planes
 
 __all__ = [
     "COARSE_BLOCK",
@@ -300,8 +300,9 @@ class TrackBuffers:
 
 @_group
 class Workspace:
-    """Every buffer of one pipeline, by stage (see the module's docstring), and the steady frame's results
-    (``steady_out``, one `STEADY_OUT` record)."""
+    """Every buffer of one pipeline, by stage (see the module's docstring), the steady frame's results
+    (``steady_out``, one `STEADY_OUT` record) and the slot that holds the frame while a kernel reads it through a
+    table (``frame_slot``: `steady_frame`, `sample_slice`)."""
 
     edges: EdgeBuffers
     contour: ContourBuffers
@@ -312,6 +313,7 @@ class Workspace:
     split: SplitBuffers
     track: TrackBuffers
     steady_out: NDArray[np.void]
+    frame_slot: FrameSlot
 
     @classmethod
     def make(
@@ -323,17 +325,22 @@ class Workspace:
             EdgeBuffers.make(height, width, weights), ContourBuffers.make(height, width, capacity),
             RoiBuffers.make(height, width, capacity), FixedEndBuffers.make(capacity), MotionBuffers.make(),
             OrderBuffers.make(capacity), SplitBuffers.make(capacity), TrackBuffers.make(fraction, capacity),
-            np.zeros(1, K.STEADY_OUT),
+            np.zeros(1, K.STEADY_OUT), FrameSlot(height, width),
         )  # fmt: skip
 
     def steady_table(
-        self, width: Any, checks: tuple[NDArray[Any], NDArray[Any], NDArray[Any]], plane: NDArray[np.float64]
+        self,
+        width: Any,
+        checks: tuple[NDArray[Any], NDArray[Any], NDArray[Any]],
+        plane: NDArray[np.float64],
+        constants: NDArray[np.void],
     ) -> NDArray[np.int64]:
         """Return `steady_frame`'s table of this workspace's buffers, the rope width's tables `width`
         (`ropecam.device.pipeline.width_tables.WidthTables`: ``width_scalars``, ``curves``, ``table_ro``,
-        ``sweep_index``), the self-checks' `checks` (`SelfChecks.buffers`: predicted, thresholds, measures) and the
-        `plane` parameters (`plane_params`' values in writable memory), by the names of `STEADY_BUFFERS`. Its raw
-        addresses are valid while this workspace, `width`, the checks' arrays and `plane` live: the caller keeps
+        ``sweep_index``), the self-checks' `checks` (`SelfChecks.buffers`: predicted, thresholds, measures), the
+        `plane` parameters (`plane_params`' values in writable memory), the `constants` (`steady_constants`), the
+        results ``steady_out`` and the ``frame_slot``, by the names of `STEADY_BUFFERS`. Its raw addresses are
+        valid while this workspace, `width`, the checks' arrays, `plane` and `constants` live: the caller keeps
         them with it."""
         e, c, r, m, s, t = self.edges, self.contour, self.roi, self.motion, self.split, self.track
         return buffer_table(
@@ -361,13 +368,16 @@ class Workspace:
                 "predicted": checks[0], "check_thresholds": checks[1], "check_quality": checks[2],
                 # place_on_plane's
                 "plane": plane,
+                # steady_frame's own
+                "frame_slot": self.frame_slot, "constants": constants, "out": self.steady_out,
             },
             K.STEADY_BUFFERS,
         )  # fmt: skip
 
 
 def steady_constants(**values: float) -> NDArray[np.void]:
-    """Return `steady_frame`'s `constants` (one read-only `STEADY_CONSTANTS` record) from their values by name.
+    """Return `steady_frame`'s ``constants`` (one `STEADY_CONSTANTS` record, a read-only view) from their values by
+    name.
 
     Raises
     ------
@@ -381,5 +391,4 @@ def steady_constants(**values: float) -> NDArray[np.void]:
     record = np.zeros(1, K.STEADY_CONSTANTS)
     for name in names:
         record[name] = values[name]
-    record.flags.writeable = False
-    return record
+    return ro(record)  # in writable memory: `buffer_table` takes it

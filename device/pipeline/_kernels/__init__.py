@@ -200,7 +200,13 @@ from ropecam.device.pipeline._kernels.static_mask import (
     nearest_cut_end,
     seal_cut_ends,
 )
-from ropecam.device.pipeline._kernels.thresholds import HIST_PER_UNIT, histogram_median, sample_gradient_histogram
+from ropecam.device.pipeline._kernels.thresholds import (
+    HIST_PER_UNIT,
+    SAMPLE_BUFFERS,
+    histogram_median,
+    sample_gradient_histogram,
+    sample_slice,
+)
 from ropecam.device.pipeline._kernels.tip_sweep import restore_tip_sweep, shift_tip, sweep_from_path
 from ropecam.device.pipeline._kernels.tone import apply_table
 from ropecam.device.pipeline._kernels.tracking import (
@@ -262,6 +268,7 @@ __all__ = [
     "PLANES",
     "PLANE_NAMES",
     "PLANE_PARAMS",
+    "SAMPLE_BUFFERS",
     "SEAL_REACH_PX",
     "SPLIT_SCALAR",
     "SPLIT_STATIC",
@@ -363,6 +370,7 @@ __all__ = [
     "restore_tip_sweep",
     "sample_bilinear",
     "sample_gradient_histogram",
+    "sample_slice",
     "score_knots",
     "seal_cut_ends",
     "shift_tip",

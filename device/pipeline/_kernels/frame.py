@@ -7,28 +7,25 @@ found in its band), a frame is five kernel calls (`band_stage`, `detect_and_trac
 fixed cost, then the type matching and unboxing of every argument, ~0.1 us per array warm and ~0.2-0.3 us after
 the frame's kernels have evicted the dispatcher's data, ~80 arguments in all. `steady_frame` makes the five calls
 from compiled code, and takes the buffers, which are the same every frame, as one table of their addresses and
-shapes (`STEADY_BUFFERS`, made once by `ropecam.device.pipeline._views.buffer_table`), its constant scalars as
-one named record (`STEADY_CONSTANTS`) and its results as another (`STEADY_OUT`; a record argument costs ~0.15 us
-more to dispatch than a plain float64 array): 13 arguments. It stops where the stages' Python would have taken
-another turn (a contour that leaves the band, a split that is not two shapes, a contour that is no band outline,
-shapes `track_frame` does not take), so that Python goes on from there with the same state as after the same
-calls made one by one.
+shapes (`STEADY_BUFFERS`, made once by `ropecam.device.pipeline._views.buffer_table`), passed as its address; in
+the table are its constant scalars as one named record (`STEADY_CONSTANTS`), its results as another
+(`STEADY_OUT`) and the frame, through a slot that holds it during the call (`tables.slot_frame_address`): 13
+scalar arguments, no array (an array argument costs a MemInfo of Python allocation per call). It stops where the
+stages' Python would have taken another turn (a contour that leaves the band, a split that is not two shapes, a
+contour that is no band outline, shapes `track_frame` does not take), so that Python goes on from there with the
+same state as after the same calls made one by one.
 
 The table holds raw addresses: whoever makes it keeps its arrays alive and unchanged in shape while it is used
-(the pipeline keeps them with the table, and makes a new table when one of them is replaced).
+(the pipeline keeps them with the table, and makes a new table when one of them is replaced; see `tables`).
 """
 
 from __future__ import annotations
 
-import ctypes
 import math
-from typing import Any, Final, NamedTuple
+from typing import Final, NamedTuple
 
-import numba
 import numpy as np
-from numba import boolean, carray, float64, int64, types
-from numba.extending import intrinsic
-from numba.np.numpy_support import from_dtype
+from numba import boolean, float64, int64
 
 from ropecam.device.pipeline._kernels._common import INVALID
 from ropecam.device.pipeline._kernels.band_stage import band_stage
@@ -51,10 +48,9 @@ from ropecam.device.pipeline._kernels.plane import place_on_plane
 from ropecam.device.pipeline._kernels.revisits import count_revisits
 from ropecam.device.pipeline._kernels.split_frame import FRAME_INFO, FRAME_STATE, FRAME_STATES, split_frame
 from ropecam.device.pipeline._kernels.split_shapes import SPLIT_SCALAR, split_width
+from ropecam.device.pipeline._kernels.tables import buffer1, buffer2, buffer3, slot_frame, slot_frame_address, table_at
 from ropecam.device.pipeline._kernels.tracking import track_frame
-from ropecam.shared.jit import kernel, u1_2d_ro
-
-i8_2d: Final = types.Array(types.int64, 2, "C")
+from ropecam.shared.jit import kernel
 
 STEADY_DONE: Final = 0
 """`steady_frame` made the frame's two shapes, put them in time order and tracked them (all four calls)."""
@@ -109,8 +105,6 @@ STEADY_CONSTANTS: Final = np.dtype(
 margin, the image size, the band's need model, the Canny thresholds, the smallest component, Lc0), the largest
 part of the contour's pixels walked twice before it is no band outline, and whether the material points are placed
 on a plane (1: ``plane`` holds its `plane_params`; 0: in pixels)."""
-_out = types.Array(from_dtype(STEADY_OUT), 1, "C")
-_constants_ro = types.Array(from_dtype(STEADY_CONSTANTS), 1, "C", readonly=True)
 
 _SHAPES: Final = 2
 """`split_frame`'s return when it made the two shapes."""
@@ -145,9 +139,11 @@ STEADY_BUFFERS: Final = (
     ("predicted", np.float64, 1), ("check_thresholds", CHECK_THRESHOLDS, 1), ("check_quality", CHECK_QUALITY, 1),
     # place_on_plane's
     ("plane", np.float64, 1),
+    # steady_frame's own: the frame slot (`FrameSlot`: its row is address, 1, height, width), the constants, the results
+    ("frame_slot", np.int64, 1), ("constants", STEADY_CONSTANTS, 1), ("out", STEADY_OUT, 1),
 )  # fmt: skip
 """The buffers of `steady_frame`'s table, in its row order: (name, dtype, dimensions), C-contiguous; each is the
-argument of that name of the kernel it is listed under."""
+argument of that name of the kernel it is listed under, the last three `steady_frame`'s own."""
 
 STEADY_ROW: Final = NamedTuple("SteadyRows", [(name, int) for name, _, _ in STEADY_BUFFERS])(
     *range(len(STEADY_BUFFERS))
@@ -155,60 +151,13 @@ STEADY_ROW: Final = NamedTuple("SteadyRows", [(name, int) for name, _, _ in STEA
 """The row of each buffer in `steady_frame`'s table (``STEADY_ROW.lo``), made from `STEADY_BUFFERS`: the one list
 of the table's buffers, kept in this file so that an edit of it recompiles the kernel (Numba freezes the rows)."""
 
-# ``_pointer(address, dtype)``: the int64 `address` as a pointer to `dtype` (a NumPy scalar type, or a record
-# dtype such as `BAND_STATE`); `carray` takes the dtype too, which it needs for the untyped pointer without JIT.
-if numba.config.DISABLE_JIT:
 
-    def _pointer(address: int, dtype: Any) -> Any:
-        return ctypes.c_void_p(int(address))
-
-else:
-
-    @intrinsic
-    def _pointer(typingctx: Any, address: Any, dtype: Any) -> Any:
-        if not isinstance(address, types.Integer) or not isinstance(dtype, (types.NumberClass, types.DType)):
-            return None
-        target = dtype.instance_type if isinstance(dtype, types.NumberClass) else dtype.dtype
-        pointer_type = types.CPointer(target)
-
-        def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
-            return builder.inttoptr(args[0], context.get_value_type(pointer_type))
-
-        return pointer_type(address, dtype), codegen
-
-
-@numba.njit(inline="always")
-def _buffer1(table, row, dtype):  # type: ignore[no-untyped-def]
-    """The 1-D buffer of `table`'s `row`."""
-    return carray(_pointer(table[row, 0], dtype), (table[row, 1],), dtype)
-
-
-@numba.njit(inline="always")
-def _buffer2(table, row, dtype):  # type: ignore[no-untyped-def]
-    """The 2-D buffer of `table`'s `row`."""
-    return carray(_pointer(table[row, 0], dtype), (table[row, 1], table[row, 2]), dtype)
-
-
-@numba.njit(inline="always")
-def _buffer3(table, row, dtype):  # type: ignore[no-untyped-def]
-    """The 3-D buffer of `table`'s `row`."""
-    return carray(_pointer(table[row, 0], dtype), (table[row, 1], table[row, 2], table[row, 3]), dtype)
-
-
-def _signature(frame_type: Any) -> Any:
-    return int64(
-        frame_type, int64, boolean, boolean, boolean, int64, int64, int64, int64, float64, boolean, float64, float64,
-        i8_2d, _constants_ro, _out,
-    )  # fmt: skip
-
-
-# Compiled for a read-only frame only: a writable frame (one a reader made) is taken through Numba's safe
-# mutable-to-read-only conversion, at the dispatch cost of an exact match and with no view made per frame; a
-# second, writable signature would cost its compilation again on every fresh install.
-@kernel(_signature(u1_2d_ro))
+# No array argument (each would cost a MemInfo of Python allocation per call): the table by its address, the frame
+# through the table's frame slot (`tables.slot_frame_address`).
+@kernel(int64(int64, int64, boolean, boolean, boolean, int64, int64, int64, int64, float64, boolean, float64, float64))
 def steady_frame(
-    frame, prev_count, measure, use_profile, predict, t_ns, exposure_ns, t_end_ns, max_age_ns, last_sweep_px,
-    predict_tips_now, check_width_px, learned_width_px, table, constants, out,
+    table_address, prev_count, measure, use_profile, predict, t_ns, exposure_ns, t_end_ns, max_age_ns,
+    last_sweep_px, predict_tips_now, check_width_px, learned_width_px,
 ):  # fmt: skip
     """One steady frame, exposed from `t_ns` to `t_end_ns` (`exposure_ns`): `band_stage` around the last contour
     (`prev_count` points of ``prev_points``, `measure` and `use_profile` and `predict` as its arguments) into the
@@ -230,29 +179,35 @@ def steady_frame(
     (`place_on_plane` with ``plane``, ``fraction``, ``out_points``, ``work_seg``, as `ResultFinisher` places them;
     not when a shape is longer than ``work_seg``: ``out["placed"]`` is then -1 and the stages' Python places them).
 
-    The buffers (names in ``double backquotes``) are the rows of `table` (int64, (len(STEADY_BUFFERS), 4):
-    address, then the sizes of up to three dimensions; `buffer_table` makes it), the constant scalars the fields
-    of the one record `constants` (`STEADY_CONSTANTS`). The record `out` (`STEADY_OUT`) gets the band's
-    uncertainty, the contour's point count, the split's status, the pixels walked twice and `track_frame`'s four
-    results, each as far as the calls went.
+    The buffers (names in ``double backquotes``) are the rows of the table at `table_address` (int64,
+    (len(STEADY_BUFFERS), 4): address, then the sizes of up to three dimensions; `buffer_table` makes it), the
+    constant scalars the fields of the one record ``constants`` (`STEADY_CONSTANTS`), `frame` the (height, width)
+    uint8 array the ``frame_slot`` holds (its row: the slot's address, 1, height, width). The record ``out``
+    (`STEADY_OUT`) gets the band's uncertainty, the contour's point count, the split's status, the pixels walked
+    twice and `track_frame`'s four results, each as far as the calls went.
 
     Returns STEADY_DONE, or where it stopped (STEADY_AFTER_CONTOUR, STEADY_AFTER_SPLIT, STEADY_BROKEN,
     STEADY_AFTER_SHAPES): everything before that point is done and written exactly as the calls one by one write
-    it, nothing after it; or INVALID, before any call, when `table` has too few rows, `constants` or `out` no
-    record, or ``split_state``, ``split_info``, ``width_scalars``, ``curves``, ``predicted``, ``check_thresholds``
-    or ``check_quality`` is too short.
+    it, nothing after it; or INVALID, before any call, when ``constants`` or ``out`` holds no record, the frame
+    slot no C-contiguous (height, width) array, or ``split_state``, ``split_info``, ``width_scalars``, ``curves``,
+    ``predicted``, ``check_thresholds`` or ``check_quality`` is too short.
     """
-    if table.shape[0] < len(STEADY_BUFFERS) or table.shape[1] < 4 or constants.shape[0] < 1 or out.shape[0] < 1:
+    table = table_at(table_address, len(STEADY_BUFFERS))
+    constants = buffer1(table, STEADY_ROW.constants, STEADY_CONSTANTS)
+    out = buffer1(table, STEADY_ROW.out, STEADY_OUT)
+    frame_address = slot_frame_address(table, STEADY_ROW.frame_slot)
+    if constants.shape[0] < 1 or out.shape[0] < 1 or frame_address == 0:
         return INVALID
+    frame = slot_frame(table, STEADY_ROW.frame_slot, frame_address)
     c = constants[0]
     result = out[0]
-    split_state = _buffer1(table, STEADY_ROW.split_state, np.float64)
-    split_info = _buffer1(table, STEADY_ROW.split_info, np.float64)
-    width_scalars = _buffer1(table, STEADY_ROW.width_scalars, np.float64)
-    curves = _buffer2(table, STEADY_ROW.curves, np.float64)
-    predicted = _buffer1(table, STEADY_ROW.predicted, np.float64)
-    thresholds = _buffer1(table, STEADY_ROW.check_thresholds, CHECK_THRESHOLDS)
-    quality = _buffer1(table, STEADY_ROW.check_quality, CHECK_QUALITY)
+    split_state = buffer1(table, STEADY_ROW.split_state, np.float64)
+    split_info = buffer1(table, STEADY_ROW.split_info, np.float64)
+    width_scalars = buffer1(table, STEADY_ROW.width_scalars, np.float64)
+    curves = buffer2(table, STEADY_ROW.curves, np.float64)
+    predicted = buffer1(table, STEADY_ROW.predicted, np.float64)
+    thresholds = buffer1(table, STEADY_ROW.check_thresholds, CHECK_THRESHOLDS)
+    quality = buffer1(table, STEADY_ROW.check_quality, CHECK_QUALITY)
     if (
         split_state.shape[0] < len(FRAME_STATES)
         or split_info.shape[0] < FRAME_INFO
@@ -263,15 +218,15 @@ def steady_frame(
         or quality.shape[0] < 1
     ):
         return INVALID
-    lo = _buffer1(table, STEADY_ROW.lo, np.int32)
-    hi = _buffer1(table, STEADY_ROW.hi, np.int32)
-    fixed = _buffer1(table, STEADY_ROW.fixed, np.float32)
+    lo = buffer1(table, STEADY_ROW.lo, np.int32)
+    hi = buffer1(table, STEADY_ROW.hi, np.int32)
+    fixed = buffer1(table, STEADY_ROW.fixed, np.float32)
     motion = Motion(
-        _buffer1(table, STEADY_ROW.motion_state, np.int64),
-        _buffer2(table, STEADY_ROW.motion_log, np.float64),
-        _buffer2(table, STEADY_ROW.need_hist, np.float64),
-        _buffer1(table, STEADY_ROW.profile, np.float64),
-        _buffer1(table, STEADY_ROW.band_state, BAND_STATE),
+        buffer1(table, STEADY_ROW.motion_state, np.int64),
+        buffer2(table, STEADY_ROW.motion_log, np.float64),
+        buffer2(table, STEADY_ROW.need_hist, np.float64),
+        buffer1(table, STEADY_ROW.profile, np.float64),
+        buffer1(table, STEADY_ROW.band_state, BAND_STATE),
     )
     result["revisits"] = -1
     result["check"] = -1
@@ -279,7 +234,7 @@ def steady_frame(
     if predict_tips_now:
         predict_tips(t_ns, exposure_ns, motion.state, motion.log, fixed, predicted)
     result["motion_px"] = band_stage(
-        _buffer2(table, STEADY_ROW.prev_points, np.float32),
+        buffer2(table, STEADY_ROW.prev_points, np.float32),
         prev_count,
         measure,
         use_profile,
@@ -294,21 +249,21 @@ def steady_frame(
         c["floor_share"],
         fixed,
         motion,
-        Band(lo, hi, _buffer2(table, STEADY_ROW.moved, np.float32)),
+        Band(lo, hi, buffer2(table, STEADY_ROW.moved, np.float32)),
     )
     low = c["low"]
     high = c["high"]
     min_pixels = c["min_pixels"]
-    weights = _buffer1(table, STEADY_ROW.weights, np.float32)
-    tmp = _buffer2(table, STEADY_ROW.tmp, np.float32)
-    smooth = _buffer2(table, STEADY_ROW.smooth, np.float32)
-    gx = _buffer2(table, STEADY_ROW.gx, np.float32)
-    gy = _buffer2(table, STEADY_ROW.gy, np.float32)
-    mag = _buffer2(table, STEADY_ROW.mag, np.float32)
-    chain = _buffer2(table, STEADY_ROW.chain, np.int32)
-    edges = _buffer2(table, STEADY_ROW.edges, np.uint8)
-    points = _buffer2(table, STEADY_ROW.points, np.float32)
-    counts = _buffer1(table, STEADY_ROW.counts, np.int32)
+    weights = buffer1(table, STEADY_ROW.weights, np.float32)
+    tmp = buffer2(table, STEADY_ROW.tmp, np.float32)
+    smooth = buffer2(table, STEADY_ROW.smooth, np.float32)
+    gx = buffer2(table, STEADY_ROW.gx, np.float32)
+    gy = buffer2(table, STEADY_ROW.gy, np.float32)
+    mag = buffer2(table, STEADY_ROW.mag, np.float32)
+    chain = buffer2(table, STEADY_ROW.chain, np.int32)
+    edges = buffer2(table, STEADY_ROW.edges, np.uint8)
+    points = buffer2(table, STEADY_ROW.points, np.float32)
+    counts = buffer1(table, STEADY_ROW.counts, np.int32)
     planes = Planes(smooth, gx, gy, mag)
     n = detect_and_trace(
         frame,
@@ -319,23 +274,23 @@ def steady_frame(
         high,
         min_pixels,
         Static(
-            _buffer2(table, STEADY_ROW.static_mask, np.uint8),
-            _buffer2(table, STEADY_ROW.static_low, np.uint8),
-            _buffer2(table, STEADY_ROW.static_high, np.uint8),
+            buffer2(table, STEADY_ROW.static_mask, np.uint8),
+            buffer2(table, STEADY_ROW.static_low, np.uint8),
+            buffer2(table, STEADY_ROW.static_high, np.uint8),
         ),
         EdgeWork(
-            _buffer2(table, STEADY_ROW.work_spans, np.int32),
+            buffer2(table, STEADY_ROW.work_spans, np.int32),
             tmp,
             edges,
-            _buffer1(table, STEADY_ROW.edge_stack, np.int32),
+            buffer1(table, STEADY_ROW.edge_stack, np.int32),
         ),
         planes,
         Contour(
-            _buffer2(table, STEADY_ROW.labels, np.int32),
-            _buffer1(table, STEADY_ROW.stack, np.int32),
-            _buffer1(table, STEADY_ROW.start, np.int32),
+            buffer2(table, STEADY_ROW.labels, np.int32),
+            buffer1(table, STEADY_ROW.stack, np.int32),
+            buffer1(table, STEADY_ROW.start, np.int32),
             chain,
-            _buffer1(table, STEADY_ROW.codes, np.int32),
+            buffer1(table, STEADY_ROW.codes, np.int32),
             points,
             counts,
         ),
@@ -345,7 +300,7 @@ def steady_frame(
         return STEADY_AFTER_CONTOUR
     split_state[FRAME_STATE.last_sweep_px] = last_sweep_px
     split_state[FRAME_STATE.n] = n
-    sides = _buffer3(table, STEADY_ROW.sides, np.float32)
+    sides = buffer3(table, STEADY_ROW.sides, np.float32)
     status = split_frame(
         points,
         chain,
@@ -354,19 +309,19 @@ def steady_frame(
         weights,
         lo,
         hi,
-        _buffer1(table, STEADY_ROW.box_lo, np.int32),
-        _buffer1(table, STEADY_ROW.box_hi, np.int32),
+        buffer1(table, STEADY_ROW.box_lo, np.int32),
+        buffer1(table, STEADY_ROW.box_hi, np.int32),
         tmp,
-        split_width(width_scalars, curves, _buffer1(table, STEADY_ROW.table, np.float32)),
-        _buffer1(table, STEADY_ROW.sweep_index, np.int32),
+        split_width(width_scalars, curves, buffer1(table, STEADY_ROW.table, np.float32)),
+        buffer1(table, STEADY_ROW.sweep_index, np.int32),
         split_state,
         SplitWork(
-            _buffer2(table, STEADY_ROW.lines, np.float32),
+            buffer2(table, STEADY_ROW.lines, np.float32),
             sides,
-            _buffer2(table, STEADY_ROW.scratch, np.float64),
-            _buffer1(table, STEADY_ROW.turn, np.float32),
-            _buffer1(table, STEADY_ROW.idx, np.int32),
-            _buffer2(table, STEADY_ROW.out_seg, np.float32),
+            buffer2(table, STEADY_ROW.scratch, np.float64),
+            buffer1(table, STEADY_ROW.turn, np.float32),
+            buffer1(table, STEADY_ROW.idx, np.int32),
+            buffer2(table, STEADY_ROW.out_seg, np.float32),
             split_info,
         ),
     )
@@ -382,9 +337,9 @@ def steady_frame(
             return STEADY_BROKEN
     shape_a = sides[0 if split_info[_INFO_SMOOTHED_A] != 0.0 else 2, : int(split_info[_INFO_COUNT_A])]
     shape_b = sides[1 if split_info[_INFO_SMOOTHED_B] != 0.0 else 3, : int(split_info[_INFO_COUNT_B])]
-    fraction = _buffer1(table, STEADY_ROW.fraction, np.float64)
-    out_points = _buffer3(table, STEADY_ROW.out_points, np.float32)
-    work_seg = _buffer1(table, STEADY_ROW.work_seg, np.float64)
+    fraction = buffer1(table, STEADY_ROW.fraction, np.float64)
+    out_points = buffer3(table, STEADY_ROW.out_points, np.float32)
+    work_seg = buffer1(table, STEADY_ROW.work_seg, np.float64)
     swap, confidence, stretch_begin, stretch_end = track_frame(
         shape_a,
         shape_b,
@@ -393,17 +348,17 @@ def steady_frame(
         t_end_ns,
         max_age_ns,
         Order(
-            _buffer1(table, STEADY_ROW.order_state, np.int64),
-            _buffer2(table, STEADY_ROW.hist_rc, np.float64),
-            _buffer2(table, STEADY_ROW.prev_end, np.float32),
-            _buffer3(table, STEADY_ROW.splice, np.float32),
+            buffer1(table, STEADY_ROW.order_state, np.int64),
+            buffer2(table, STEADY_ROW.hist_rc, np.float64),
+            buffer2(table, STEADY_ROW.prev_end, np.float32),
+            buffer3(table, STEADY_ROW.splice, np.float32),
         ),
         fixed,
         split_info[_INFO_SWEEP],
         exposure_ns,
         motion,
         c["length0_px"],
-        Track(fraction, out_points, _buffer1(table, STEADY_ROW.out_lengths, np.float64), work_seg),
+        Track(fraction, out_points, buffer1(table, STEADY_ROW.out_lengths, np.float64), work_seg),
         width_scalars[SPLIT_SCALAR.width64_px],
     )
     result["swap"] = swap
@@ -415,7 +370,7 @@ def steady_frame(
     begin = shape_b if swap else shape_a
     end = shape_a if swap else shape_b
     if c["on_plane"] != 0 and begin.shape[0] <= work_seg.shape[0] and end.shape[0] <= work_seg.shape[0]:
-        place_on_plane(begin, end, False, fraction, _buffer1(table, STEADY_ROW.plane, np.float64), out_points, work_seg)
+        place_on_plane(begin, end, False, fraction, buffer1(table, STEADY_ROW.plane, np.float64), out_points, work_seg)
         result["placed"] = 1
     if exposure_ns > 0 and not math.isnan(predicted[2]) and shape_a.shape[0] > 0 and shape_b.shape[0] > 0:
         result["check"] = check_frame(
@@ -431,7 +386,7 @@ def steady_frame(
             exposure_ns,
             True,
             0.0,  # the contour's area: not read with a prediction and a known exposure
-            _buffer2(table, STEADY_ROW.static_mask, np.uint8),
+            buffer2(table, STEADY_ROW.static_mask, np.uint8),
             thresholds,
             quality,
         )

@@ -14,6 +14,7 @@ import numpy as np
 from numba import float32, int64
 
 from ropecam.device.pipeline._kernels._common import TWO, ZERO, f4_1d_ro
+from ropecam.device.pipeline._kernels.tables import buffer1, buffer2, slot_frame, slot_frame_address, table_at
 from ropecam.shared.jit import f4_2d, i4_1d, i4_1d_ro, kernel, u1_2d_ro
 
 HIST_PER_UNIT: Final = 4
@@ -72,6 +73,28 @@ def sample_gradient_histogram(frame, weights, row0, row_step, col_step, work, ou
             out_hist[min(b, bins - 1)] += 1
             count += 1
     return count
+
+
+SAMPLE_BUFFERS: Final = (("frame_slot", np.int64, 1), ("weights", np.float32, 1), ("work", np.float32, 2),
+                          ("hist", np.int32, 1))  # fmt: skip
+"""The rows of `sample_slice`'s table: (name, dtype, dimensions), as `sample_gradient_histogram`'s arguments (the
+frame slot's row: the slot's address, 1, height, width; `ropecam.device.pipeline._kernels.tables`)."""
+_SAMPLE_FRAME, _SAMPLE_WEIGHTS, _SAMPLE_WORK, _SAMPLE_HIST = range(len(SAMPLE_BUFFERS))
+
+
+@kernel(int64(int64, int64, int64, int64))
+def sample_slice(table_address, row0, row_step, col_step):
+    """`sample_gradient_histogram` of the frame in the frame slot, with the weights, scratch and histogram of the
+    table at `table_address` (`SAMPLE_BUFFERS`): no array argument, so no Python allocation per call. Returns as
+    `sample_gradient_histogram`, or -2 (INVALID) when the slot holds no C-contiguous (height, width) frame."""
+    table = table_at(table_address, len(SAMPLE_BUFFERS))
+    address = slot_frame_address(table, _SAMPLE_FRAME)
+    if address == 0:
+        return -2
+    return sample_gradient_histogram(
+        slot_frame(table, _SAMPLE_FRAME, address), buffer1(table, _SAMPLE_WEIGHTS, np.float32), row0, row_step,
+        col_step, buffer2(table, _SAMPLE_WORK, np.float32), buffer1(table, _SAMPLE_HIST, np.int32),
+    )  # fmt: skip
 
 
 @kernel(float32(i4_1d_ro))

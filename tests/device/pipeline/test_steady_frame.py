@@ -13,7 +13,7 @@ import pytest
 
 from ropecam.device.capture.synthetic import SyntheticRope
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import buffer_table
+from ropecam.device.pipeline._views import FrameSlot, array_layout_known, buffer_table
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam.device.pipeline.workspace import steady_constants
@@ -67,10 +67,12 @@ def _run(
     stops: list[int] = []
     real = K.steady_frame
 
+    outs: list[np.ndarray] = []  # the pipeline's `STEADY_OUT` record
+
     def counted(*args):
         stops.append(int(real(*args)))
-        _CHECKED[run].append(int(args[-1][0]["check"]))
-        _PLACED[run].append(int(args[-1][0]["placed"]))
+        _CHECKED[run].append(int(outs[0][0]["check"]))
+        _PLACED[run].append(int(outs[0][0]["placed"]))
         return stops[-1]
 
     _CHECKED[run], _PLACED[run] = [], []
@@ -82,6 +84,7 @@ def _run(
             PipelineConfig(), (frames[0][0].shape[1], frames[0][0].shape[0]), plane=_plane() if plane else None
         )
         pipeline.one_call = fused
+        outs.append(pipeline.workspace.steady_out)
         rows = []
         for image, index, t_ns, exposure_us in frames:
             if read_only:
@@ -174,30 +177,52 @@ def test_steady_frames_of_read_only_frames(monkeypatch: pytest.MonkeyPatch) -> N
     _assert_identical(read_only, _run(monkeypatch, fused=True)[0])
 
 
-def _table_buffers() -> dict[str, np.ndarray]:
-    return {name: np.zeros((3,) * ndim, dtype) for name, dtype, ndim in K.STEADY_BUFFERS}
+def _table_buffers() -> dict[str, np.ndarray | FrameSlot]:
+    buffers: dict[str, np.ndarray | FrameSlot] = {
+        name: np.zeros((3,) * ndim, dtype) for name, dtype, ndim in K.STEADY_BUFFERS
+    }
+    buffers["frame_slot"] = FrameSlot(3, 3)
+    return buffers
 
 
-def test_steady_frame_refuses_short_tables_before_any_call() -> None:
+def test_steady_frame_refuses_bad_tables_and_frames_before_any_call() -> None:
     buffers = _table_buffers()
-    table = buffer_table(buffers, K.STEADY_BUFFERS)
-    frame = np.zeros((3, 3), np.uint8)
-    constants = np.zeros(1, K.STEADY_CONSTANTS)
-    constants.flags.writeable = False
-    out = np.zeros(1, K.STEADY_OUT)
+    slot = buffers["frame_slot"]
+    assert isinstance(slot, FrameSlot)
     band_state = buffers["band_state"].copy()
-    for short_table, short_constants, short_out in ((table[:-1], constants, out), (table, constants[:0], out),
-                                                    (table, constants, out[:0])):  # fmt: skip
-        status = K.steady_frame(
-            frame, 0, False, False, False, 0, 0, 0, 0, 0.0, False, 0.0, 0.0, short_table.copy(),
-            short_constants.copy(), short_out,
-        )  # fmt: skip
-        assert status == K.INVALID
+    frame = np.zeros((3, 3), np.uint8)
+
+    def call(**replaced: np.ndarray) -> int:
+        table = buffer_table({**buffers, **replaced}, K.STEADY_BUFFERS)
+        slot.hold(frame)
+        try:
+            return int(K.steady_frame(table.ctypes.data, 0, False, False, False, 0, 0, 0, 0, 0.0, False, 0.0, 0.0))
+        finally:
+            slot.release()
+
+    out = buffers["out"]
+    assert isinstance(out, np.ndarray)
+    assert call(constants=np.zeros(0, K.STEADY_CONSTANTS)) == K.INVALID  # no constants record
+    assert call(out=np.zeros(0, K.STEADY_OUT)) == K.INVALID  # no result record
+    frame = np.zeros((3, 4), np.uint8)  # a frame of another size than the slot's
+    assert call() == K.INVALID
+    frame = np.zeros((3, 6), np.uint8)[:, ::2]  # of the slot's size, not C-contiguous
+    assert call() == K.INVALID
+    frame = np.zeros((3, 3), np.uint8)
+    table = buffer_table(buffers, K.STEADY_BUFFERS)  # an empty slot
+    assert K.steady_frame(table.ctypes.data, 0, False, False, False, 0, 0, 0, 0, 0.0, False, 0.0, 0.0) == K.INVALID
     # The split's state and info shorter than the kernels need: refused too (the split's state is 3 long).
-    status = K.steady_frame(frame, 0, False, False, False, 0, 0, 0, 0, 0.0, False, 0.0, 0.0, table, constants, out)
-    assert status == K.INVALID
+    assert call() == K.INVALID
     np.testing.assert_array_equal(buffers["band_state"], band_state)  # nothing written: band_stage did not run
     assert not out.view(np.uint8).any()
+
+
+def test_frame_slot_reads_numpys_array_layout() -> None:
+    """The kernels read the frame's address, dimensions and strides from its `PyArrayObject` (`FrameSlot`)."""
+    assert array_layout_known()
+    slot = FrameSlot(4, 6)
+    address, one, height, width = slot.row()
+    assert (one, height, width) == (1, 4, 6) and address != 0
 
 
 def test_steady_frame_records_are_named_as_the_stages_read_them() -> None:
@@ -212,6 +237,7 @@ def test_steady_frame_records_are_named_as_the_stages_read_them() -> None:
     values["low"] = 6.4712345  # stored as the float32 `detect_and_trace` takes
     record = steady_constants(**values)
     assert record.dtype == K.STEADY_CONSTANTS and record.shape == (1,) and not record.flags.writeable
+    assert record.base is not None and record.base.flags.writeable  # a view of writable memory: in the table
     assert record["low"][0] == np.float32(6.4712345) and record["broken_outline"][0] == values["broken_outline"]
     with pytest.raises(ValueError, match=r"missing: \['broken_outline'\]"):
         steady_constants(**{k: v for k, v in values.items() if k != "broken_outline"})
@@ -219,10 +245,12 @@ def test_steady_frame_records_are_named_as_the_stages_read_them() -> None:
 
 def test_buffer_table_holds_addresses_and_shapes_by_name() -> None:
     buffers = _table_buffers()
-    buffers["prev_points"] = np.zeros((5, 2), np.float32)
+    points = buffers["prev_points"] = np.zeros((5, 2), np.float32)
     table = buffer_table(buffers, K.STEADY_BUFFERS)
     assert table.shape == (len(K.STEADY_BUFFERS), 4) and table.dtype == np.int64
-    assert table[K.STEADY_ROW.prev_points].tolist() == [buffers["prev_points"].ctypes.data, 5, 2, 0]
+    assert table[K.STEADY_ROW.prev_points].tolist() == [points.ctypes.data, 5, 2, 0]
+    slot = buffers["frame_slot"]
+    assert isinstance(slot, FrameSlot) and table[K.STEADY_ROW.frame_slot].tolist() == list(slot.row())
     assert table[K.STEADY_ROW.sides, 1:].tolist() == [3, 3, 3]
     assert [name for name, _, _ in K.STEADY_BUFFERS] == list(K.STEADY_ROW._fields)
     assert list(K.STEADY_ROW) == list(range(len(K.STEADY_BUFFERS)))

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from ropecam.device.capture.synthetic import SyntheticRope
+from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.edges import EdgeDetector
 from ropecam.device.pipeline.pipeline import Pipeline
@@ -136,3 +137,24 @@ def test_following_samples_one_frame_in_sample_every() -> None:
             changes += followed is not None
         assert sparse.noise == every.noise
     assert changes > 0  # the rising noise moved them
+
+
+def test_sample_slice_reads_the_frame_through_its_slot_as_the_array_kernel_does() -> None:
+    """`follow`'s kernel takes no array argument (`K.sample_slice`: the frame through a `FrameSlot`): the same
+    histogram as `sample_gradient_histogram` given the frame; a frame the slot was not made for is refused."""
+    thresholds = EdgeThresholds(120, 160, 1.0, 200.0, 500.0, frames=1, update_frames=2)
+    assert thresholds._table_address != 0
+    frame = _noise(5.0, (120, 160))
+    want = np.zeros_like(thresholds._hist)
+    K.sample_gradient_histogram(frame, thresholds._weights, 3, 16, 5, thresholds._work.copy(), want)
+    thresholds._slot.hold(frame)
+    assert K.sample_slice(thresholds._table_address, 3, 16, 5) > 0
+    np.testing.assert_array_equal(thresholds._hist, want)
+    thresholds._slot.hold(_noise(5.0, (120, 161)))
+    assert K.sample_slice(thresholds._table_address, 3, 16, 5) == K.INVALID
+    thresholds._slot.release()
+    assert K.sample_slice(thresholds._table_address, 3, 16, 5) == K.INVALID
+    # `follow` takes such a frame through the array kernel instead.
+    thresholds.measure(_noise(5.0, (120, 160)))
+    thresholds.follow(_noise(5.0, (100, 160)))  # another size than the slot's
+    assert thresholds._hist.sum() > 0
