@@ -64,9 +64,7 @@ class SteadyFrame:
         self._motion, self._fixed_end = locator.motion, locator.fixed_end  # read every frame (`run`)
         self.out = workspace.steady_out
         """The last call's results (one `STEADY_OUT` record, read by name: ``out["points"]``)."""
-        # Its fields are all 8 bytes: read one by one as Python scalars (``.item(k)``, the bound methods made once),
-        # no tuple or NumPy scalar.
-        self._out_int, self._out_float = self.out.view(np.int64).item, self.out.view(np.float64).item
+        self._out_item = self.out.item  # the record as one tuple of Python scalars (the bound method made once)
         self._slot = workspace.frame_slot
         self.gap_ns = 0
         """The time (ns) from the last contour's frame to the one of the last call."""
@@ -181,5 +179,4 @@ class SteadyFrame:
     def results(self) -> tuple[float, int, int, int, int, float, float, float, int, int]:
         """The last call's results, in `STEADY_OUT`'s order (motion_px, points, status, revisits, swap, confidence,
         stretch_begin, stretch_end, check, placed), as Python scalars."""
-        i, f = self._out_int, self._out_float
-        return f(0), i(1), i(2), i(3), i(4), f(5), f(6), f(7), i(8), i(9)
+        return self._out_item()  # type: ignore[no-any-return]
