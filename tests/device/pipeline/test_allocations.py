@@ -133,6 +133,7 @@ def test_a_reused_result_record_gets_the_fields_of_a_new_one() -> None:
     assert {FrameStatus.OK, FrameStatus.BAD_FRAME} <= statuses
 
 
+@pytest.mark.jit_only  # without JIT the kernels are Python, which allocates
 def test_the_steady_kernel_calls_allocate_no_python_memory(monkeypatch: pytest.MonkeyPatch) -> None:
     """`steady_frame` and the followed thresholds' `sample_slice` take no array argument (the frame through the
     workspace's `FrameSlot`, the buffers through a table): their calls allocate no Python memory (`tracemalloc`'s
