@@ -109,3 +109,19 @@ def test_bench_first_frames_times_a_fresh_pipeline(run_tool: RunTool, rig_frames
     assert re.search(r"skipped when paced \(from the medians\): 30 FPS \d+, 119 FPS \d+", done.stdout)
     too_few = run_tool("bench.py", "first-frames", "--frameset", str(rig_frames), "--runs", "1", "--first", "12")
     assert too_few.returncode == 2 and "12 frames, need more than --first 12" in too_few.stderr, too_few.stderr
+
+
+@pytest.mark.slow
+def test_bench_glue_takes_a_config_and_names_a_bad_one(run_tool: RunTool, tmp_path: Path) -> None:
+    toml = tmp_path / "device.toml"
+    toml.write_text("[pipeline]\nstatic_frames = 0\ncanny_low = 15.0\n")
+    done = run_tool(
+        "bench.py", "glue", "--frames", "18", "--settle", "16", "--passes", "1", "--plain", "--config", str(toml)
+    )
+    assert done.returncode == 0, done.stderr
+    assert "this tree: pipeline" in done.stdout
+    toml.write_text("[pipeline]\ncanny_low = 'low'\n")
+    done = run_tool("bench.py", "glue", "--frames", "18", "--passes", "1", "--config", str(toml))
+    assert done.returncode == 2
+    assert f"--config {toml}" in done.stderr and "canny_low" in done.stderr, done.stderr
+    assert "Traceback" not in done.stderr

@@ -11,6 +11,10 @@ adds ~0.2 us per call to the kernel side), the Python outside them (total minus 
 ``cv2.Canny`` on the same frames for the ratio.
 
     python tools/bench.py glue [--frameset DIR] [--frames N] [--passes P] [--settle S] [--against REF] [--warm-up]
+        [--config TOML]
+
+A scene that needs its own settings (the ``lab`` presets: gamma, plane, static mask) is compared with the
+``[pipeline]`` table ``ropecam-device setup`` wrote for it (``--config``), read by each tree's own modules.
 """
 
 from __future__ import annotations
@@ -20,7 +24,9 @@ import os
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import argparse
+import importlib
 import time
+from collections.abc import Callable
 from typing import Any
 
 import cv2
@@ -75,8 +81,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--warm-up", action="store_true", help="warm every pipeline up first (`Pipeline.warm_up`), as the daemon does"
     )
     parser.add_argument(
+        "--config",
+        metavar="TOML",
+        help="the [pipeline] table of this device.toml, with its plane_file, for both trees (default: the defaults)",
+    )
+    parser.add_argument(
         "--plain", action="store_true", help="no kernel timers: whole-pipeline times only (no ~0.3 us per kernel call)"
     )
+
+
+def pipeline_factory(prefix: str, config_class: type, make: type, toml: str | None) -> Callable[[tuple[int, int]], Any]:
+    """A function making a pipeline of tree `prefix` (``ropecam`` or ``ropecam_ref``) for a frame size: its
+    `PipelineConfig` `config_class` and `Pipeline` `make`, with the [pipeline] table of `toml` and its plane read by
+    that tree's own modules (None: the defaults)."""
+    if toml is None:
+        return lambda size: make(config_class(), size)
+    settings = importlib.import_module(f"{prefix}.shared.config")
+    errors = (OSError, ValueError, importlib.import_module(f"{prefix}.shared.errors").RopecamError)
+    try:
+        table = dict(settings.read_toml(toml).get("pipeline", {}))
+        config = settings.from_mapping(config_class, table, where=f"{toml} [pipeline]")
+        plane = None
+        if config.plane_file is not None:
+            plane = importlib.import_module(f"{prefix}.shared.plane").read_plane_file(config.plane_file)
+    except errors as exc:
+        raise UsageError(f"--config {toml}: {exc}") from exc
+    return lambda size: make(config, size, plane=plane)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -86,18 +116,19 @@ def run(args: argparse.Namespace) -> int:
     if len(frames) <= args.settle:
         raise UsageError(f"{source_name(args)} gives {len(frames)} frames, need more than --settle {args.settle}")
     height, width = frames[0][0].shape
-    variants: dict[str, tuple[Any, Any, KernelTimer | None]] = {}
+    variants: dict[str, tuple[Callable[[tuple[int, int]], Any], KernelTimer | None]] = {}
     for label, ref in [("this tree", None)] + ([(args.against, args.against)] if args.against else []):
         try:
             kernels, config, pipeline = pipeline_modules(ref)
         except ValueError as exc:
             raise UsageError(str(exc)) from exc
-        variants[label] = (pipeline, config, None if args.plain else KernelTimer(kernels))
+        factory = pipeline_factory("ropecam" if ref is None else "ropecam_ref", config, pipeline, args.config)
+        variants[label] = (factory, None if args.plain else KernelTimer(kernels))
     rows: dict[str, list[tuple[float, float]]] = {label: [] for label in variants}
     differences: list[str] = []
     canny: list[float] = []
     for pass_index in range(args.passes + 1):  # the first pass warms up (compilation, tables, caches)
-        pipelines = {label: make(config(), (width, height)) for label, (make, config, _) in variants.items()}
+        pipelines = {label: make((width, height)) for label, (make, _) in variants.items()}
         for pipeline in pipelines.values() if args.warm_up else ():
             pipeline.warm_up()
         labels = list(pipelines)
@@ -105,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
             order = labels if (index + pass_index) % 2 == 0 else labels[::-1]
             results = {}
             for label in order:
-                timer = variants[label][2]
+                timer = variants[label][1]
                 if timer is not None:
                     timer.clear()
                 start = time.perf_counter_ns()
