@@ -106,7 +106,7 @@ class ChecksConfig:
     """
 
     enabled: bool = True
-    length_tolerance: float = 0.25
+    length_tolerance: float = 0.15
     length_mismatch: float = 0.03
     width_tolerance: float = 0.5
     fixed_end_widths: float = 3.0
