@@ -106,7 +106,7 @@ class ChecksConfig:
     """
 
     enabled: bool = True
-    length_tolerance: float = 0.25
+    length_tolerance: float = 0.15
     length_mismatch: float = 0.03
     width_tolerance: float = 0.5
     fixed_end_widths: float = 3.0
@@ -153,7 +153,8 @@ _MESSAGES = {
     Reason.TIP_MOTION: "the tips are not where the motion model predicted them (tip_motion_px beyond "
     "tip_motion_limit_px)",
     Reason.ORDER: "the time order is not certain enough (order_confidence below checks.min_order_confidence)",
-    Reason.NO_BLUR: "no blur to split (no exposure time): the static centreline is given instead",
+    Reason.NO_BLUR: "no blur to split (no exposure time, or no motion prediction yet to check the split against, "
+    "and the contour's area shows too little blur for the tips' separation): the static centreline is given instead",
     Reason.TIP_MASKED: "a free tip ends at the static mask, which may hide the rope's end (within "
     "checks.tip_mask_widths rope widths + checks.tip_mask_floor_px of it)",
     Reason.FALLBACK_SWEEP: "one shape (the band's middle) while the tip's path swept more than "

@@ -85,6 +85,21 @@ class PointTracker:
         """Return the polyline length Lc in pixels, eq. (9)."""
         return float(K.polyline_length(as_ro(poly), np.int32(len(poly))))
 
+    @property
+    def lengths_seen(self) -> int:
+        """Shape lengths fed to the Lc0 estimate so far (none once Lc0 is configured)."""
+        return len(self._lengths)
+
+    def withdraw(self, count: int) -> None:
+        """Take back the last `count` lengths fed to the Lc0 estimate (the shapes of a frame found implausible
+        after `track_shapes` measured them); Lc0 is unsettled again when fewer than `length0_frames` remain."""
+        if self.length0_px is not None or count <= 0:
+            return
+        del self._lengths[-count:]
+        self._median = float(np.median(self._lengths)) if self._lengths else None
+        if len(self._lengths) < self.length0_frames:
+            self.length0_settled_px = -1.0
+
     def observe(self, length_px: float) -> None:
         """Feed the length of a measured shape to the Lc0 estimate (until it is fixed)."""
         if self.length0_px is None and len(self._lengths) < self.length0_frames:

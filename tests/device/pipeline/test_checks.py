@@ -62,6 +62,7 @@ def test_a_right_frame_is_ok_and_its_quality_is_measured() -> None:
     [
         ({"stretch_end": 1.4}, Reason.LENGTH),
         ({"stretch_begin": 0.6}, Reason.LENGTH),
+        ({"stretch_begin": 0.82, "stretch_end": 0.82}, Reason.LENGTH),
         ({"stretch_begin": 1.04, "stretch_end": 0.995}, Reason.LENGTH),
         ({"width_px": 2.0 * WIDTH_PX + 1.0}, Reason.WIDTH),
         ({"begin": _shape(96.0, start=(10.0, 130.0))}, Reason.FIXED_END),
@@ -70,6 +71,7 @@ def test_a_right_frame_is_ok_and_its_quality_is_measured() -> None:
     ids=[
         "too long",
         "too short",
+        "both shapes short of their faint band's end",
         "the two shapes' lengths apart",
         "too wide",
         "begin off the fixed end",
