@@ -40,6 +40,15 @@ reason                  fails when                                              
                         ``tip_kink_widths`` rope widths and the same arc before them: a free end
                         carries no bending moment and runs straight; a turn there is a tip that ran
                         on along noise beyond the band's faint end
+``tip_at_fixed_end``    a frame of known exposure without a motion prediction (the first frames, after   IMPLAUSIBLE
+                        a gap): a shape's free tip lies at the fixed end (within ``fixed_end_widths``
+                        rope widths + ``fixed_end_floor_px``) although the shape is more than twice
+                        that long: it ran out along the rope and back (round a clamp's outline), its
+                        tip is not the rope's
+``tip_corner``          a split of known exposure without a motion prediction: a fitted tip lies         IMPLAUSIBLE
+                        farther than ``tip_corner_widths`` rope widths + ``tip_corner_floor_px`` from
+                        its segmentation point (the band's corner it was read at): the tip fit ran
+                        along the band's end or off it
 ======================  ==============================================================================  ===========
 
 Each check's measure goes into the frame's quality record (`QUALITY_KEYS`), whether it passes or not.
@@ -103,6 +112,10 @@ class ChecksConfig:
     tip_kink_widths, tip_kink_deg
         Largest turn (degrees) of either shape's direction between the chord of its last ``tip_kink_widths`` rope
         widths and the chord of the same arc before them (``tip_kink_widths`` 0: the check is off).
+    tip_corner_widths, tip_corner_floor_px
+        Largest distance of a split's fitted tip from its segmentation point, ``tip_corner_widths`` x the rope
+        width + ``tip_corner_floor_px``, on a frame of known exposure without a motion prediction
+        (``tip_corner_widths`` 0: the check is off).
     """
 
     enabled: bool = True
@@ -122,6 +135,8 @@ class ChecksConfig:
     min_band_area: float = 0.25
     tip_kink_widths: float = 5.0
     tip_kink_deg: float = 15.0
+    tip_corner_widths: float = 1.5
+    tip_corner_floor_px: float = 2.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.enabled, bool):
@@ -142,6 +157,8 @@ class ChecksConfig:
         check_range("checks.min_band_area", self.min_band_area, 0.0, 1.0)
         check_range("checks.tip_kink_widths", self.tip_kink_widths, 0.0, 100.0)
         check_range("checks.tip_kink_deg", self.tip_kink_deg, 0.0, 180.0)
+        check_range("checks.tip_corner_widths", self.tip_corner_widths, 0.0, 100.0)
+        check_range("checks.tip_corner_floor_px", self.tip_corner_floor_px, 0.0, 100.0)
 
 
 _MESSAGES = {
@@ -161,6 +178,10 @@ _MESSAGES = {
     "checks.fallback_sweep_widths rope widths during the exposure: neither the start nor the end of the exposure",
     Reason.TIP_KINK: "a shape turns by more than checks.tip_kink_deg within checks.tip_kink_widths rope widths of its "
     "free tip, where a rope runs straight: the tip ran on beyond the rope's end",
+    Reason.TIP_AT_FIXED_END: "a shape's free tip lies at the fixed end (within checks.fixed_end_widths): it ran out "
+    "along the rope and back (round a clamp's outline)",
+    Reason.TIP_CORNER: "a split's tip lies farther than checks.tip_corner_widths rope widths + "
+    "checks.tip_corner_floor_px from the band's corner it was read at: the tip fit left the band's end",
 }
 
 
@@ -262,6 +283,7 @@ class SelfChecks:
         split: bool,
         contour_area_px2: float = math.nan,
         mask: NDArray[np.uint8] | None = None,
+        corners: NDArray[np.float32] | None = None,
     ) -> tuple[FrameStatus, Reason]:
         """Check one measured frame; return its status (OK when every check passes) and the first failed reason.
 
@@ -287,17 +309,49 @@ class SelfChecks:
         mask
             The static mask (uint8, the image's shape, read-only; `MASK_FREE` where edges are kept; None: no
             mask), for ``tip_masked``.
+        corners
+            The split's two segmentation points (2, 2) (row, col), for ``tip_corner`` (None: not checked).
         """
         code = K.check_frame(
             begin, end, fixed, self._predicted, _nan_if_none(stretch_begin), _nan_if_none(stretch_end), width_px,
             learned_width_px or 0.0, order_confidence, exposure_ns, split, contour_area_px2,
             _NO_MASK if mask is None else mask, self._thresholds, self._measures,
         )  # fmt: skip
-        if code == K.CHECK_NONE and exposure_ns > 0 and split and math.isfinite(self._measures[0]["blur_evidence"]):
-            width = learned_width_px or width_px
-            if contour_area_px2 < self.config.min_band_area * _length_px(begin) * width:
-                code = int(Reason.WIDTH)
+        if code == K.CHECK_NONE and exposure_ns > 0 and math.isnan(self._predicted[2]):
+            # Checks of a frame the motion model cannot check (the first frames, after a gap); a steady frame's
+            # tips are checked against the prediction instead (`check_frame`, inside `steady_frame`).
+            code = self._unpredicted(begin, end, fixed, learned_width_px or width_px, split, contour_area_px2, corners)
         return self.verdict(code)
+
+    def _unpredicted(
+        self,
+        begin: NDArray[np.float32],
+        end: NDArray[np.float32],
+        fixed: NDArray[np.float32],
+        width: float,
+        split: bool,
+        contour_area_px2: float,
+        corners: NDArray[np.float32] | None,
+    ) -> int:
+        """The code of the first failed check among ``width`` (the band's area), ``tip_at_fixed_end`` and
+        ``tip_corner`` on a frame of known exposure without a motion prediction (`K.CHECK_NONE`: all passed)."""
+        config = self.config
+        if (
+            split
+            and math.isfinite(self._measures[0]["blur_evidence"])
+            and contour_area_px2 < config.min_band_area * _length_px(begin) * width
+        ):
+            return int(Reason.WIDTH)
+        reach_px = config.fixed_end_widths * width + config.fixed_end_floor_px
+        for shape in (begin, end) if split else (begin,):
+            tip_px = math.hypot(float(shape[-1, 0]) - float(fixed[0]), float(shape[-1, 1]) - float(fixed[1]))
+            if tip_px <= reach_px and _length_px(shape) > 2.0 * reach_px:
+                return int(Reason.TIP_AT_FIXED_END)
+        if split and corners is not None and len(corners) == 2 and config.tip_corner_widths > 0.0:
+            limit_px = config.tip_corner_widths * width + config.tip_corner_floor_px
+            if _tip_corner_px(begin, end, corners) > limit_px:
+                return int(Reason.TIP_CORNER)
+        return K.CHECK_NONE
 
     def verdict(self, code: int) -> tuple[FrameStatus, Reason]:
         """The status and reason of `check_frame`'s `code` (its measures are in ``buffers[2]``, which go into
@@ -327,6 +381,21 @@ def _length_px(shape: NDArray[np.float32]) -> float:
     """Return the length (px) of the polyline `shape` (row, col)."""
     steps = np.diff(shape.astype(np.float64), axis=0)
     return float(np.hypot(steps[:, 0], steps[:, 1]).sum())
+
+
+def _tip_corner_px(begin: NDArray[np.float32], end: NDArray[np.float32], corners: NDArray[np.float32]) -> float:
+    """The larger distance of the two free tips from the segmentation points `corners` (2, 2), each tip paired
+    with a corner the way that makes the larger distance smaller (the split does not say which corner is which
+    instant's)."""
+    tb = begin[-1].astype(np.float64)
+    te = end[-1].astype(np.float64)
+    c0 = corners[0].astype(np.float64)
+    c1 = corners[1].astype(np.float64)
+
+    def gap(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
+        return math.hypot(float(a[0] - b[0]), float(a[1] - b[1]))
+
+    return min(max(gap(tb, c0), gap(te, c1)), max(gap(tb, c1), gap(te, c0)))
 
 
 def _nan_if_none(value: float | None) -> float:

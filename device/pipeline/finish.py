@@ -270,6 +270,7 @@ class ResultFinisher:
         status, reason = checks.check(
             begin, end, self.fixed, result.stretch_begin, result.stretch_end, used_px, learned_px,
             result.order_confidence, exposure_ns, split, area, self.locator.edges.static_mask_ro,
+            outcome.segmentation_points if split else None,
         )  # fmt: skip
         self._take_verdict(result, outcome, exposure_ns, status, reason)
 

@@ -289,3 +289,43 @@ def test_a_smoothly_bent_rope_passes_the_kink_check() -> None:
     assert K.tip_turn_deg(bent, 25.0) == pytest.approx(math.degrees(25.0 / 300.0), abs=0.2)
     assert K.tip_turn_deg(_shape(110.0), 25.0) == pytest.approx(0.0, abs=1e-3)
     assert math.isnan(K.tip_turn_deg(_shape(110.0)[:5], 25.0))  # shorter than twice the reach
+
+
+def _out_and_back(reach_px: float = 100.0) -> np.ndarray:
+    """A centreline from the fixed end 100 px down the rope and back up the other side, ending beside the fixed end
+    (the still rope's outline round a clamp, walked out and back)."""
+    down = _shape(100.0, length=int(reach_px))
+    back = down[::-1] + np.float32([0.0, 3.0])
+    return np.vstack([down, back]).astype(np.float32)
+
+
+def test_a_shape_whose_free_tip_lies_at_the_fixed_end_is_not_trusted() -> None:
+    checks = SelfChecks(ChecksConfig())
+    loop = _out_and_back()
+    single = {"begin": loop, "end": loop, "split": False}
+    assert _check(checks, **single) == (FrameStatus.IMPLAUSIBLE, Reason.TIP_AT_FIXED_END)
+    assert _check(checks, **single, exposure_ns=0)[1] is not Reason.TIP_AT_FIXED_END  # a still photo: a looped rope
+    assert _check(checks, begin=_shape(100.0), end=_shape(100.0), split=False) == (FrameStatus.OK, Reason.NONE)
+    short = _shape(100.0, length=12)  # a stub shorter than twice the fixed end's reach: its tip is near it anyway
+    assert _check(checks, begin=short, end=short, split=False, stretch_begin=None, stretch_end=None)[0] is (
+        FrameStatus.OK
+    )
+    motion = MotionModel()  # with a motion prediction (a steady frame) the tips are checked against it instead
+    for k in range(2):
+        motion.observe(_shape(100.0), _shape(100.0), FIXED, k * 8_403_361 + 2_000_000, 0.0, 4_000_000)
+    for _ in range(3):
+        checks.predict(motion.state, motion.log, FIXED, 2 * 8_403_361, 4_000_000)
+    assert _check(checks, **single) == (FrameStatus.IMPLAUSIBLE, Reason.TIP_MOTION)
+
+
+def test_a_split_tip_far_from_its_band_corner_is_not_trusted() -> None:
+    checks = SelfChecks(ChecksConfig())
+    corners = np.array([[210.0, 88.0], [210.0, 112.0]], np.float32)  # the band's far corners, beside each tip
+    assert _check(checks, corners=corners) == (FrameStatus.OK, Reason.NONE)
+    assert _check(checks, corners=corners[::-1].copy()) == (FrameStatus.OK, Reason.NONE)  # either pairing
+    # The end tip fitted 14 px along the band's end towards the begin tip's corner (limit 1.5 widths + 2 px = 9.5 px).
+    assert _check(checks, corners=corners, end=_shape(98.0)) == (FrameStatus.IMPLAUSIBLE, Reason.TIP_CORNER)
+    assert _check(SelfChecks(ChecksConfig(tip_corner_widths=0.0)), corners=corners, end=_shape(98.0))[0] is (
+        FrameStatus.OK
+    )
+    assert _check(checks, corners=corners, end=_shape(98.0), exposure_ns=0)[1] is not Reason.TIP_CORNER
