@@ -36,6 +36,8 @@ def test_bench_device_reports_the_ratio_and_the_allocations(run_tool: RunTool, t
     assert report["nrt_extra_allocations_per_frame"] == 0 and report["nrt_leaked"] == 0
     # Python-level allocation is measured on the steady frames (one `steady_frame` call each), not asserted to be 0.
     assert 0 < report["steady_frames"] < 16
+    assert 0 < report["measured_steady_frames"] <= report["steady_frames"]
+    assert report["python_alloc_peak_bytes_first_steady_frame"] >= 0
     assert report["python_alloc_peak_bytes_per_steady_frame"] >= 0
     assert report["python_alloc_peak_bytes_max"] >= report["python_alloc_peak_bytes_per_steady_frame"]
     assert all(site["bytes"] > 0 and ":" in site["line"] for site in report["python_alloc_sites"])

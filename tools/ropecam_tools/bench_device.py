@@ -12,7 +12,8 @@ over the same frames (so that the timed pass is not disturbed):
   bytes allocated during the frame above what was allocated before it (the frame's result included), the bytes
   still held once the result is dropped, and the source lines that allocate most (target 0 bytes); once with one
   result record reused (``Pipeline.process(..., out=record)``, as the daemon calls it) and once with a new record
-  per frame.
+  per frame. The first steady frame makes the call's argument table (again whenever the rope width, Lc0 or the
+  thresholds change): it is reported apart, not in the median.
 
 With ``--stages`` it also reports the median time per frame of each stage (on a steady frame all of them are one
 ``steady_frame`` call; "other" is the rest: Python glue, result records), the time of a frame searched without a
@@ -212,17 +213,20 @@ def python_alloc_report(
     finally:
         tracemalloc.stop()
 
-    # The frame with the snapshots holds them: left out of the figures when another steady frame is there.
-    measured = steady[:-1] or steady
+    # The first steady frame makes the call's argument table (once per rope width, Lc0 and thresholds: a bind,
+    # not a steady cost); the last one holds the snapshots: both left out of the figures when others are there.
+    measured = steady[1:-1] or steady[:-1] or steady
 
     def median(values: dict[int, int]) -> float | None:
         return float(np.median([values[i] for i in measured])) if measured else None
 
     return {
         "steady_frames": len(steady),
+        "measured_steady_frames": len(measured),
         "python_alloc_peak_bytes_per_steady_frame": median(peak_bytes),
         "python_alloc_peak_bytes_max": max((peak_bytes[i] for i in measured), default=None),
         "python_alloc_held_bytes_per_steady_frame": median(held_bytes),
+        "python_alloc_peak_bytes_first_steady_frame": peak_bytes[steady[0]] if steady else None,
         "python_alloc_sites": [{"line": line, "bytes": size, "blocks": count} for line, size, count in sites],
     }
 
@@ -310,10 +314,12 @@ def print_python_alloc(report: dict[str, Any]) -> None:
         ("a new result record per frame", report["new_record"]),
     ):
         print(
-            f"Python allocation per steady frame, {how} (tracemalloc, {part['steady_frames']} steady frames): peak "
-            f"{part['python_alloc_peak_bytes_per_steady_frame']:.0f} bytes above the frame's start (median; max "
-            f"{part['python_alloc_peak_bytes_max']}), {part['python_alloc_held_bytes_per_steady_frame']:.0f} bytes "
-            "held once the result is dropped; target 0"
+            f"Python allocation per steady frame, {how} (tracemalloc, {part['measured_steady_frames']} of "
+            f"{part['steady_frames']} steady frames): peak {part['python_alloc_peak_bytes_per_steady_frame']:.0f} "
+            f"bytes above the frame's start (median; max {part['python_alloc_peak_bytes_max']}), "
+            f"{part['python_alloc_held_bytes_per_steady_frame']:.0f} bytes held once the result is dropped; target 0 "
+            f"(the first steady frame, which makes the call's argument table: "
+            f"{part['python_alloc_peak_bytes_first_steady_frame']} bytes)"
         )
         for site in part["python_alloc_sites"]:
             print(f"  {site['bytes']:7d} bytes in {site['blocks']:3d} blocks  {site['line']}")
