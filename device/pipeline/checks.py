@@ -35,7 +35,8 @@ reason                  fails when                                              
 ``fallback_sweep``      the blur split fell back to one shape (the band's middle: the rope at           IMPLAUSIBLE
                         mid-exposure) while the tip's path over the last frames swept more than
                         ``fallback_sweep_widths`` rope widths during the exposure: the shape is neither
-                        the start nor the end of the exposure
+                        the start nor the end of the exposure; also the one-shape frame right after
+                        such a frame, which has no prediction (once)
 ``tip_kink``            either shape's direction turns by more than ``tip_kink_deg`` between its last    IMPLAUSIBLE
                         ``tip_kink_widths`` rope widths and the same arc before them: a free end
                         carries no bending moment and runs straight; a turn there is a tip that ran
@@ -207,7 +208,8 @@ class SelfChecks:
     """
 
     __slots__ = (
-        "_measures", "_predicted", "_settled_frames", "_thresholds", "buffers", "config", "quality",
+        "_carry_sweep", "_measures", "_predicted", "_settled_frames", "_swept", "_thresholds", "buffers", "config",
+        "quality",
     )  # fmt: skip
 
     def __init__(self, config: ChecksConfig, fallback_single: bool = True) -> None:
@@ -225,6 +227,9 @@ class SelfChecks:
         self._measures = np.zeros(1, K.CHECK_QUALITY)
         """The last checked frame's measures, by name (`check_frame` writes them; `quality` holds a copy)."""
         self._settled_frames = 0
+        self._carry_sweep = float(thresholds[0]["fallback_sweep_widths"]) > 0.0
+        self._swept = False
+        """The last frame failed ``fallback_sweep`` on its own prediction (not carried over, `verdict`)."""
         self.buffers = (self._predicted, thresholds, self._measures)
 
     @staticmethod
@@ -357,6 +362,19 @@ class SelfChecks:
         """The status and reason of `check_frame`'s `code` (its measures are in ``buffers[2]``, which go into
         `quality`): `check`'s last step, for a `check_frame` call made elsewhere (the pipeline's `steady_frame`)."""
         _set_quality(self.quality, self._measures.item())
+        # A one-shape frame right after one that failed `fallback_sweep` has no prediction to check its sweep
+        # against (that failure cleared the motion model): the tip swept a frame ago, so it fails too (once: a rope
+        # coming to rest must be reported again).
+        carried = (
+            code == K.CHECK_NONE
+            and self._swept
+            and self._carry_sweep
+            and self.quality[_Q3] == 0.0
+            and math.isnan(self._predicted[2])
+        )
+        if carried:
+            code = K.CHECK_FALLBACK_SWEEP
+        self._swept = code == K.CHECK_FALLBACK_SWEEP and not carried
         if code == K.CHECK_NONE or not self.config.enabled:
             return FrameStatus.OK, Reason.NONE
         failed = Reason(code)

@@ -201,12 +201,20 @@ from ropecam.device.pipeline._kernels.static_mask import (
     seal_cut_ends,
 )
 from ropecam.device.pipeline._kernels.thresholds import HIST_PER_UNIT, histogram_median, sample_gradient_histogram
-from ropecam.device.pipeline._kernels.tip_sweep import restore_tip_sweep, shift_tip, sweep_from_path
+from ropecam.device.pipeline._kernels.tip_sweep import (
+    restore_tip_sweep,
+    shift_tip,
+    sweep_from_history,
+    sweep_from_path,
+)
 from ropecam.device.pipeline._kernels.tone import apply_table
 from ropecam.device.pipeline._kernels.tracking import (
     MOTION_COUNT,
     MOTION_EXPOSURE,
     MOTION_FRAMES,
+    NEAR_DECISIVE,
+    NEAR_MIN_SEPARATION_PX,
+    NEAR_UNDECIDED,
     drop_oldest,
     observe_motion,
     order_shapes,
@@ -248,6 +256,9 @@ __all__ = [
     "MOTION_COUNT",
     "MOTION_EXPOSURE",
     "MOTION_FRAMES",
+    "NEAR_DECISIVE",
+    "NEAR_MIN_SEPARATION_PX",
+    "NEAR_UNDECIDED",
     "NOT_FOUND",
     "OPEN_RATIO",
     "OPERATOR",
@@ -384,6 +395,7 @@ __all__ = [
     "split_width",
     "steady_frame",
     "suppress_rows",
+    "sweep_from_history",
     "sweep_from_path",
     "thin_chain",
     "tip_mask_distance",

@@ -121,6 +121,29 @@ def test_one_shape_while_the_tip_swept_fails_as_a_fallback(step_px: float, fallb
     assert _check(checks, split=True)[1] is not Reason.FALLBACK_SWEEP  # two shapes: not a fallback
 
 
+def test_the_one_shape_frame_after_a_fallback_sweep_failure_fails_too_once() -> None:
+    # The failure clears the motion model, so the next frame has no prediction to check its one shape against
+    # (simulated lab, lab-mjpeg, lab-rolling, tuning seed, set up from their first 2 s: frames 70 and 205, the band's
+    # middle 3.0 px off at the tip or 1.7 px off along the body, reported OK). Once only: a rope coming to rest is
+    # reported again.
+    motion = MotionModel()
+    period_ns = 8_403_361
+    for k in range(2):
+        tips = _shape(96.0 + k * 20.0)
+        motion.observe(tips, tips, FIXED, k * period_ns + 2_000_000, 0.0, 4_000_000)
+    checks = SelfChecks(ChecksConfig())
+    for _ in range(3):
+        checks.predict(motion.state, motion.log, FIXED, 2 * period_ns, 4_000_000)
+    middle = _shape(136.0)
+    assert _check(checks, begin=middle, end=middle, split=False)[1] is Reason.FALLBACK_SWEEP
+    checks.forget()  # the pipeline clears the motion model after a failed frame
+    assert _check(checks, begin=middle, end=middle, split=False) == (FrameStatus.IMPLAUSIBLE, Reason.FALLBACK_SWEEP)
+    assert _check(checks, begin=middle, end=middle, split=False) == (FrameStatus.OK, Reason.NONE)  # once
+    # A one-shape method (centreline) never carries it.
+    centreline = SelfChecks(ChecksConfig(), fallback_single=False)
+    assert _check(centreline, begin=middle, end=middle, split=False)[1] is Reason.NONE
+
+
 def test_shapes_of_different_lengths_fail_only_as_a_split() -> None:
     checks = SelfChecks(ChecksConfig())
     assert _check(checks, stretch_begin=1.015, stretch_end=0.99) == (FrameStatus.OK, Reason.NONE)  # 2.5 % apart
