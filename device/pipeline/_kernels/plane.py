@@ -110,6 +110,23 @@ def pixel_to_plane(row, col, params):
     return x, y
 
 
+@kernel(types.UniTuple(float64, 6)(f4_2d, int64, f8_1d_ro, float64, float64, float64, float64))
+def _point_to_plane(poly, j, params, ux, uy, xd, yd):
+    """Map point `j` of `poly` ((n, 2) (row, col) px) to the plane: for j > 0 its undistortion starts from the
+    previous point's (`ux`, `uy`, at the normalised distorted `xd`, `yd`) moved by the difference of their
+    distorted coordinates (`WARM_ITERATIONS` steps), for j = 0 cold (`UNDISTORT_ITERATIONS`). Returns (x m, y m,
+    ux, uy, xd, yd) of point `j`."""
+    row = np.float64(poly[j, 0])
+    col = np.float64(poly[j, 1])
+    yd_j = (row - params[PLANE.cy]) / params[PLANE.fy]
+    xd_j = (col - params[PLANE.cx] - params[PLANE.skew] * yd_j) / params[PLANE.fx]
+    if j == 0:
+        x, y, ux, uy = _to_plane(row, col, params, xd_j, yd_j, UNDISTORT_ITERATIONS)
+    else:
+        x, y, ux, uy = _to_plane(row, col, params, ux + xd_j - xd, uy + yd_j - yd, WARM_ITERATIONS)
+    return x, y, ux, uy, xd_j, yd_j
+
+
 @kernel(float64(f4_2d, f8_1d_ro, f8_1d))
 def plane_segment_lengths(poly, params, out_seg):
     """Write the plane length (m) of each segment of `poly` ((n, 2) (row, col) px) into `out_seg[:n - 1]`; return
@@ -120,19 +137,9 @@ def plane_segment_lengths(poly, params, out_seg):
     `UNDISTORT_ITERATIONS` (the first point gets those)."""
     n = poly.shape[0]
     total = 0.0
-    row = np.float64(poly[0, 0])
-    col = np.float64(poly[0, 1])
-    yd = (row - params[PLANE.cy]) / params[PLANE.fy]
-    xd = (col - params[PLANE.cx] - params[PLANE.skew] * yd) / params[PLANE.fx]
-    px, py, ux, uy = _to_plane(row, col, params, xd, yd, UNDISTORT_ITERATIONS)
+    px, py, ux, uy, xd, yd = _point_to_plane(poly, 0, params, 0.0, 0.0, 0.0, 0.0)
     for j in range(1, n):
-        row = np.float64(poly[j, 0])
-        col = np.float64(poly[j, 1])
-        yd_j = (row - params[PLANE.cy]) / params[PLANE.fy]
-        xd_j = (col - params[PLANE.cx] - params[PLANE.skew] * yd_j) / params[PLANE.fx]
-        x, y, ux, uy = _to_plane(row, col, params, ux + xd_j - xd, uy + yd_j - yd, WARM_ITERATIONS)
-        xd = xd_j
-        yd = yd_j
+        x, y, ux, uy, xd, yd = _point_to_plane(poly, j, params, ux, uy, xd, yd)
         seg = math.hypot(x - px, y - py)
         out_seg[j - 1] = seg
         total += seg
@@ -147,21 +154,11 @@ def _plane_points(poly, params, work, at_xy, at_fraction):
     their arc lengths as fractions of the total to ``work[at_fraction:]``; return n, or INVALID (a point off the
     plane, a shape of no length). Each undistortion starts from the neighbour's, as `plane_segment_lengths`'."""
     n = poly.shape[0]
-    row = np.float64(poly[0, 0])
-    col = np.float64(poly[0, 1])
-    yd = (row - params[PLANE.cy]) / params[PLANE.fy]
-    xd = (col - params[PLANE.cx] - params[PLANE.skew] * yd) / params[PLANE.fx]
-    x, y, ux, uy = _to_plane(row, col, params, xd, yd, UNDISTORT_ITERATIONS)
     total = 0.0
+    ux = uy = xd = yd = 0.0
     for j in range(n):
+        x, y, ux, uy, xd, yd = _point_to_plane(poly, j, params, ux, uy, xd, yd)
         if j > 0:
-            row = np.float64(poly[j, 0])
-            col = np.float64(poly[j, 1])
-            yd_j = (row - params[PLANE.cy]) / params[PLANE.fy]
-            xd_j = (col - params[PLANE.cx] - params[PLANE.skew] * yd_j) / params[PLANE.fx]
-            x, y, ux, uy = _to_plane(row, col, params, ux + xd_j - xd, uy + yd_j - yd, WARM_ITERATIONS)
-            xd = xd_j
-            yd = yd_j
             total += math.hypot(x - work[at_xy + 2 * j - 2], y - work[at_xy + 2 * j - 1])
         if not (math.isfinite(x) and math.isfinite(y)):
             return INVALID
