@@ -54,6 +54,9 @@ fractions; on the simulated `lab-rolling`'s exact shapes: 0.17 mm mean error wit
 ROLLING_WORK: Final = 4
 """Work values per point of both shapes the rolling shutter's placement needs (plane x and y, fraction, next
 fraction)."""
+MAX_BACK_EXPOSURES: Final = 1.0
+"""Longest time (exposures) a point is moved back along its velocity (the velocity is the step between the two
+shapes over about one exposure: beyond that the shapes' noise is extrapolated, not the motion)."""
 MIN_TIME_EXPOSURES: Final = 0.25
 """Smallest time between a point of one shape and the same material of the other, in exposures (a guard: it is
 1 + the rows between them x `rolling`, about 1 +- 0.1 on lab footage)."""
@@ -203,7 +206,10 @@ def _deskewed_fractions(poly, at_xy, at_fraction, other, other_xy, other_fractio
         py = work[at_xy + 2 * j + 1]
         # Exposures from this point's instant to the other's: one exposure plus the rows between them.
         gap = max(1.0 + later * (other_row - row) * rolling, MIN_TIME_EXPOSURES)
-        back = (row - ref_row) * rolling * later / gap
+        # Extrapolated at most `MAX_BACK_EXPOSURES` beyond the two sightings: the shapes' noise over one exposure
+        # grows with it (the paper camera's 1 ms under a 7 ms readout would reach 3.5 exposures).
+        ahead = min(max((row - ref_row) * rolling, -MAX_BACK_EXPOSURES), MAX_BACK_EXPOSURES)
+        back = ahead * later / gap
         x = px - (ox - px) * back
         y = py - (oy - py) * back
         if j > 0:
