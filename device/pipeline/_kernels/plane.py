@@ -207,7 +207,7 @@ def _deskewed_fractions(poly, at_xy, at_fraction, other, other_xy, other_fractio
         # Exposures from this point's instant to the other's: one exposure plus the rows between them.
         gap = max(1.0 + later * (other_row - row) * rolling, MIN_TIME_EXPOSURES)
         # Extrapolated at most `MAX_BACK_EXPOSURES` beyond the two sightings: the shapes' noise over one exposure
-        # grows with it (the paper camera's 1 ms under a 7 ms readout would reach 3.5 exposures).
+        # grows with it (the paper camera's 1 ms under a 7 ms readout reaches several exposures).
         ahead = min(max((row - ref_row) * rolling, -MAX_BACK_EXPOSURES), MAX_BACK_EXPOSURES)
         back = ahead * later / gap
         x = px - (ox - px) * back
