@@ -138,6 +138,10 @@ class Pipeline:
             result = out
             result.reset(int(index), t, t + exposure_ns, FrameStatus.BAD_FRAME, self._no_quality)
         result.readout_ns = self.readout_ns
+        if self.readout_ns and self.tracker.plane is not None:
+            # A rolling shutter's shapes are the rope at each row's instant: their material points are placed
+            # by the rope's arc length at one instant, which needs the line time in exposures (`_kernels.plane`).
+            self.tracker.set_rolling(self.readout_ns / (self.shape[0] * exposure_ns) if exposure_ns > 0 else 0.0)
         if type(frame) is np.ndarray and frame.dtype is self._u8 and frame.shape == self.shape:
             problem = exposure_problem  # the usual case, without building the messages of `frame_problem`
         else:

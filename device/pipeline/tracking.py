@@ -153,6 +153,19 @@ class PointTracker:
             raise ValueError(f"cannot track material points on polylines of {len(begin)} and {len(end)} points")
         return self.out_slots[0], stretch_begin, self.out_slots[1], stretch_end
 
+    def set_rolling(self, rolling: float) -> None:
+        """Set the rolling shutter's line time in exposures of the plane the points are placed on (``rolling`` of
+        `_kernels.plane`: readout time / (image rows x exposure time); 0: a global shutter or an unknown
+        exposure). Nothing without a plane; a new value makes a new read-only `plane` array (the steady frame's
+        table binds it again)."""
+        plane = self.plane
+        if plane is None or plane[K.PLANE.rolling] == rolling:
+            return
+        params = plane.copy()
+        params[K.PLANE.rolling] = rolling
+        params.flags.writeable = False
+        self.plane = params
+
     def place_on_plane(self, begin: NDArray[np.float32], end: NDArray[np.float32]) -> bool:
         """Move the material points of `begin` and `end` (as `track_shapes` found them, in `out`) to the same
         fractions of each shape's arc length on the plane (`plane` set; one kernel call, `place_on_plane`).
