@@ -23,7 +23,8 @@ reason                  fails when                                              
 ``no_blur``             a split's tips lie more than ``no_blur_px`` (and 4 / ``min_blur_evidence``) px   NO_BLUR
                         apart without
                         evidence of blur: the
-                        exposure is unknown (0: a still photo, a video) and the area the contour
+                        exposure is unknown (0: a still photo, a video) or the motion model has no
+                        prediction (the first frames, after a gap), and the area the contour
                         encloses beyond the still rope's (length x width) is less than
                         ``min_blur_evidence`` x the area the split's sweep implies (0.5 x length x tip
                         separation, the rope turning about its fixed end); the frame then carries the
@@ -88,7 +89,8 @@ class ChecksConfig:
     width_tolerance
         Largest accepted |w / w0 - 1| of the width the split used against the learned (or given) width.
     fixed_end_widths, fixed_end_floor_px
-        A shape must start within ``fixed_end_widths`` x the rope width + ``fixed_end_floor_px`` of the fixed end.
+        A shape must start within ``fixed_end_widths`` x the rope width + ``fixed_end_floor_px`` of the fixed end;
+        the same reach is ``tip_at_fixed_end``'s (a free tip that near the fixed end).
     tip_motion_factor, tip_motion_floor_px
         The tips' midpoint must lie within ``tip_motion_factor`` x the motion model's predicted error +
         ``tip_motion_floor_px`` of its prediction (checked once the model holds two frames).
@@ -179,8 +181,8 @@ _MESSAGES = {
     "checks.fallback_sweep_widths rope widths during the exposure: neither the start nor the end of the exposure",
     Reason.TIP_KINK: "a shape turns by more than checks.tip_kink_deg within checks.tip_kink_widths rope widths of its "
     "free tip, where a rope runs straight: the tip ran on beyond the rope's end",
-    Reason.TIP_AT_FIXED_END: "a shape's free tip lies at the fixed end (within checks.fixed_end_widths): it ran out "
-    "along the rope and back (round a clamp's outline)",
+    Reason.TIP_AT_FIXED_END: "a shape's free tip lies at the fixed end (within checks.fixed_end_widths rope widths + "
+    "checks.fixed_end_floor_px): it ran out along the rope and back (round a clamp's outline)",
     Reason.TIP_CORNER: "a split's tip lies farther than checks.tip_corner_widths rope widths + "
     "checks.tip_corner_floor_px from the band's corner it was read at: the tip fit left the band's end",
 }
@@ -208,8 +210,8 @@ class SelfChecks:
     """
 
     __slots__ = (
-        "_carry_sweep", "_measures", "_predicted", "_settled_frames", "_swept", "_thresholds", "buffers", "config",
-        "quality",
+        "_carry", "_carry_sweep", "_measures", "_predicted", "_settled_frames", "_swept", "_thresholds", "buffers",
+        "config", "quality",
     )  # fmt: skip
 
     def __init__(self, config: ChecksConfig, fallback_single: bool = True) -> None:
@@ -228,7 +230,8 @@ class SelfChecks:
         """The last checked frame's measures, by name (`check_frame` writes them; `quality` holds a copy)."""
         self._settled_frames = 0
         self._carry_sweep = float(thresholds[0]["fallback_sweep_widths"]) > 0.0
-        self._swept = False
+        self._swept = False  # this frame failed `fallback_sweep` (not carried)
+        self._carry = False  # the frame before this one did (`due` moves `_swept` here at each frame's start)
         """The last frame failed ``fallback_sweep`` on its own prediction (not carried over, `verdict`)."""
         self.buffers = (self._predicted, thresholds, self._measures)
 
@@ -254,6 +257,7 @@ class SelfChecks:
         """`predict`'s first half: count the frames since the fixed end `settled`; False (and no prediction) while
         the model cannot hold two frames measured after it, True when `predict_tips` is to be called (the caller
         then makes the call into ``buffers[0]``: `predict`, or the pipeline's `steady_frame`)."""
+        self._carry, self._swept = self._swept, False  # a new frame: "right after" is this one only
         if not settled:
             self._settled_frames = 0
         elif self._settled_frames <= 2:  # counted to 3 only: a count past 256 would be a new int object per frame
@@ -274,6 +278,11 @@ class SelfChecks:
         self._predicted[2] = math.nan
         self._predicted[3] = math.nan
 
+    def restart(self) -> None:
+        """Forget the last frames' verdicts too (the pipeline's tracking was reset): nothing is carried."""
+        self.forget()
+        self._swept = self._carry = False
+
     def check(
         self,
         begin: NDArray[np.float32],
@@ -288,7 +297,7 @@ class SelfChecks:
         split: bool,
         contour_area_px2: float = math.nan,
         mask: NDArray[np.uint8] | None = None,
-        corners: NDArray[np.float32] | None = None,
+        corner_px: float = math.nan,
     ) -> tuple[FrameStatus, Reason]:
         """Check one measured frame; return its status (OK when every check passes) and the first failed reason.
 
@@ -314,8 +323,10 @@ class SelfChecks:
         mask
             The static mask (uint8, the image's shape, read-only; `MASK_FREE` where edges are kept; None: no
             mask), for ``tip_masked``.
-        corners
-            The split's two segmentation points (2, 2) (row, col), for ``tip_corner`` (None: not checked).
+        corner_px
+            How far the split's fitted tips lie from its segmentation points (`tip_corner_px`, measured on the
+            split's own tips, before the tracking may move them along the sweep), for ``tip_corner`` (nan: not
+            checked).
         """
         code = K.check_frame(
             begin, end, fixed, self._predicted, _nan_if_none(stretch_begin), _nan_if_none(stretch_end), width_px,
@@ -325,7 +336,9 @@ class SelfChecks:
         if code == K.CHECK_NONE and exposure_ns > 0 and math.isnan(self._predicted[2]):
             # Checks of a frame the motion model cannot check (the first frames, after a gap); a steady frame's
             # tips are checked against the prediction instead (`check_frame`, inside `steady_frame`).
-            code = self._unpredicted(begin, end, fixed, learned_width_px or width_px, split, contour_area_px2, corners)
+            code = self._unpredicted(
+                begin, end, fixed, learned_width_px or width_px, split, contour_area_px2, corner_px
+            )
         return self.verdict(code)
 
     def _unpredicted(
@@ -336,7 +349,7 @@ class SelfChecks:
         width: float,
         split: bool,
         contour_area_px2: float,
-        corners: NDArray[np.float32] | None,
+        corner_px: float,
     ) -> int:
         """The code of the first failed check among ``width`` (the band's area), ``tip_at_fixed_end`` and
         ``tip_corner`` on a frame of known exposure without a motion prediction (`K.CHECK_NONE`: all passed)."""
@@ -352,10 +365,9 @@ class SelfChecks:
             tip_px = math.hypot(float(shape[-1, 0]) - float(fixed[0]), float(shape[-1, 1]) - float(fixed[1]))
             if tip_px <= reach_px and _length_px(shape) > 2.0 * reach_px:
                 return int(Reason.TIP_AT_FIXED_END)
-        if split and corners is not None and len(corners) == 2 and config.tip_corner_widths > 0.0:
-            limit_px = config.tip_corner_widths * width + config.tip_corner_floor_px
-            if _tip_corner_px(begin, end, corners) > limit_px:
-                return int(Reason.TIP_CORNER)
+        corner_limit_px = config.tip_corner_widths * width + config.tip_corner_floor_px
+        if split and config.tip_corner_widths > 0.0 and corner_px > corner_limit_px:  # False for nan
+            return int(Reason.TIP_CORNER)
         return K.CHECK_NONE
 
     def verdict(self, code: int) -> tuple[FrameStatus, Reason]:
@@ -367,7 +379,7 @@ class SelfChecks:
         # coming to rest must be reported again).
         carried = (
             code == K.CHECK_NONE
-            and self._swept
+            and self._carry
             and self._carry_sweep
             and self.quality[_Q3] == 0.0
             and math.isnan(self._predicted[2])
@@ -401,7 +413,7 @@ def _length_px(shape: NDArray[np.float32]) -> float:
     return float(np.hypot(steps[:, 0], steps[:, 1]).sum())
 
 
-def _tip_corner_px(begin: NDArray[np.float32], end: NDArray[np.float32], corners: NDArray[np.float32]) -> float:
+def tip_corner_px(begin: NDArray[np.float32], end: NDArray[np.float32], corners: NDArray[np.float32]) -> float:
     """The larger distance of the two free tips from the segmentation points `corners` (2, 2), each tip paired
     with a corner the way that makes the larger distance smaller (the split does not say which corner is which
     instant's)."""

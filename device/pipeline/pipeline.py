@@ -333,13 +333,15 @@ class Pipeline:
             # The `length` check needs Lc0, which the first shapes are still measuring: a first shape that runs out
             # along the rope and back (simulated lab-hard with its gamma, frame 0: out 400 px and back 260, OK with
             # its tip 260 px off) is caught here instead. Streams only: a still photo's rope may lie in loops.
-            result.status, result.reason = FrameStatus.IMPLAUSIBLE, Reason.LENGTH.text
-            result.message = (
-                "the rope's length is implausible: before Lc0 is known, a shape runs out and back along itself "
-                "(its tip lies on its own earlier part)"
-            )
-            self.tracker.withdraw(self.tracker.lengths_seen - seen)  # nor is its length the rope's
-        if self.locator.cut and result.status is FrameStatus.OK:
+            # Nor is its length the rope's; the status only with the self-checks on (`checks.enabled`).
+            self.tracker.withdraw(self.tracker.lengths_seen - seen)
+            if self.checks.config.enabled:
+                result.status, result.reason = FrameStatus.IMPLAUSIBLE, Reason.LENGTH.text
+                result.message = (
+                    "the rope's length is implausible: before Lc0 is known, a shape runs out and back along itself "
+                    "(its tip lies on its own earlier part)"
+                )
+        if self.locator.cut and result.status is FrameStatus.OK and self.checks.config.enabled:
             # The rope was cut from a structure its tip lies across (`RopeLocator._attached`): the tip may be cut.
             result.status, result.reason = FrameStatus.IMPLAUSIBLE, Reason.TIP_MASKED.text
             result.message = "the rope's tip lies across a structure (cut from it): the tip may be cut"

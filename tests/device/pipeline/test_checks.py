@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from ropecam.device.pipeline.checks import ChecksConfig, Reason, SelfChecks, contour_area_px2
+from ropecam.device.pipeline.checks import ChecksConfig, Reason, SelfChecks, contour_area_px2, tip_corner_px
 from ropecam.device.pipeline.motion import MotionModel
 from ropecam.device.pipeline.result import FrameStatus
 from ropecam.shared.config import from_mapping
@@ -137,8 +137,22 @@ def test_the_one_shape_frame_after_a_fallback_sweep_failure_fails_too_once() -> 
     middle = _shape(136.0)
     assert _check(checks, begin=middle, end=middle, split=False)[1] is Reason.FALLBACK_SWEEP
     checks.forget()  # the pipeline clears the motion model after a failed frame
+    checks.due()  # and starts the next frame
     assert _check(checks, begin=middle, end=middle, split=False) == (FrameStatus.IMPLAUSIBLE, Reason.FALLBACK_SWEEP)
+    checks.due()
     assert _check(checks, begin=middle, end=middle, split=False) == (FrameStatus.OK, Reason.NONE)  # once
+    # Right after only: not across a frame that got no verdict (no shapes), nor across a reset of the tracking.
+    for between in ("no verdict", "reset"):
+        checks.due()
+        checks.predict(motion.state, motion.log, FIXED, 2 * period_ns, 4_000_000)
+        assert _check(checks, begin=middle, end=middle, split=False)[1] is Reason.FALLBACK_SWEEP
+        checks.forget()
+        checks.due()
+        if between == "reset":
+            checks.restart()
+        else:
+            checks.due()
+        assert _check(checks, begin=middle, end=middle, split=False) == (FrameStatus.OK, Reason.NONE), between
     # A one-shape method (centreline) never carries it.
     centreline = SelfChecks(ChecksConfig(), fallback_single=False)
     assert _check(centreline, begin=middle, end=middle, split=False)[1] is Reason.NONE
@@ -344,11 +358,13 @@ def test_a_shape_whose_free_tip_lies_at_the_fixed_end_is_not_trusted() -> None:
 def test_a_split_tip_far_from_its_band_corner_is_not_trusted() -> None:
     checks = SelfChecks(ChecksConfig())
     corners = np.array([[210.0, 88.0], [210.0, 112.0]], np.float32)  # the band's far corners, beside each tip
-    assert _check(checks, corners=corners) == (FrameStatus.OK, Reason.NONE)
-    assert _check(checks, corners=corners[::-1].copy()) == (FrameStatus.OK, Reason.NONE)  # either pairing
+    begin, end, off = _shape(90.0), _shape(110.0), _shape(98.0)
+    assert tip_corner_px(begin, end, corners) == tip_corner_px(begin, end, corners[::-1].copy())  # either pairing
+    assert _check(checks, corner_px=tip_corner_px(begin, end, corners)) == (FrameStatus.OK, Reason.NONE)
     # The end tip fitted 14 px along the band's end towards the begin tip's corner (limit 1.5 widths + 2 px = 9.5 px).
-    assert _check(checks, corners=corners, end=_shape(98.0)) == (FrameStatus.IMPLAUSIBLE, Reason.TIP_CORNER)
-    assert _check(SelfChecks(ChecksConfig(tip_corner_widths=0.0)), corners=corners, end=_shape(98.0))[0] is (
-        FrameStatus.OK
-    )
-    assert _check(checks, corners=corners, end=_shape(98.0), exposure_ns=0)[1] is not Reason.TIP_CORNER
+    far = tip_corner_px(begin, off, corners)
+    assert far == pytest.approx(14.0)
+    assert _check(checks, corner_px=far, end=off) == (FrameStatus.IMPLAUSIBLE, Reason.TIP_CORNER)
+    assert _check(SelfChecks(ChecksConfig(tip_corner_widths=0.0)), corner_px=far, end=off)[0] is FrameStatus.OK
+    assert _check(checks, corner_px=far, end=off, exposure_ns=0)[1] is not Reason.TIP_CORNER
+    assert _check(checks, end=off) == (FrameStatus.OK, Reason.NONE)  # not measured (nan): not checked
