@@ -428,6 +428,23 @@ def tip_corner_px(begin: NDArray[np.float32], end: NDArray[np.float32], corners:
     return min(max(gap(tb, c0), gap(te, c1)), max(gap(tb, c1), gap(te, c0)))
 
 
+def folds_back(shape: NDArray[np.float32], width_px: float | None) -> bool:
+    """Whether the polyline `shape` ((n, 2) row, col, fixed end first) runs out and back along itself: its free tip
+    lies within 2 rope widths + 2 px (`width_px`, 3 px when unknown) of a point of it more than 6 widths + 10 px
+    back along it. A rope's centreline does not lie on itself; an outline walked out and back along one of its
+    sides (a side lost to noise) gives such a centreline."""
+    if len(shape) < 3:
+        return False
+    width = width_px if width_px is not None and math.isfinite(width_px) and width_px > 0 else 3.0
+    steps = np.hypot(np.diff(shape[:, 0]), np.diff(shape[:, 1]))
+    back = np.concatenate(([0.0], np.cumsum(steps[::-1])))[::-1]  # arc length from each point to the tip
+    earlier = shape[back > 6.0 * width + 10.0]
+    if len(earlier) == 0:
+        return False
+    d_row, d_col = earlier[:, 0] - shape[-1, 0], earlier[:, 1] - shape[-1, 1]
+    return float(np.min(d_row * d_row + d_col * d_col)) <= (2.0 * width + 2.0) ** 2
+
+
 def _nan_if_none(value: float | None) -> float:
     return math.nan if value is None else float(value)
 

@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline.checks import Reason, SelfChecks, contour_area_px2, tip_corner_px
+from ropecam.device.pipeline.checks import Reason, SelfChecks, contour_area_px2, folds_back, tip_corner_px
 from ropecam.device.pipeline.contour import ContourTracer
 from ropecam.device.pipeline.locate import RopeLocator
 from ropecam.device.pipeline.motion import MotionModel
@@ -146,9 +146,18 @@ class ResultFinisher:
         a, b = outcome.shape_a, outcome.shape_b
         # The split's fitted tips against its segmentation points (``tip_corner``) before the tracking may move the
         # tips along the sweep (`restore_tip_sweep`): a tip moved there on purpose is not a tip fitted off its corner.
+        # Tips within a rope width of each other are a band's end read as a ramp (a tip moving along its own axis:
+        # simulated rig-soft's whip, 0.672 s, frame 5: tips 1.7 px apart, a corner 12.8 px on, both tips right
+        # after the restore): the restore decides those, not this check.
         corners = outcome.segmentation_points
         corner_px = math.nan
-        if split and tracked is None and corners is not None and len(corners) == 2:
+        if (
+            split
+            and tracked is None
+            and corners is not None
+            and len(corners) == 2
+            and _tip_gap_px(a, b) > float(outcome.width_px)
+        ):
             corner_px = tip_corner_px(a, b, corners)
         if tracked is not None:
             swap, confidence, stretch_begin, stretch_end = tracked
@@ -182,6 +191,27 @@ class ResultFinisher:
         if rejected and result.status is FrameStatus.OK:
             result.status, result.reason = FrameStatus.NO_BLUR, Reason.NO_BLUR.text
             result.message = f"{self.checks.message(Reason.NO_BLUR)} (the split: {rejected})"
+
+    def refuse_fold(self, result: PipelineResult, lengths_seen: int) -> None:
+        """After `finish` of a frame of known exposure measured before Lc0 is known (the tracker had seen
+        `lengths_seen` lengths before it): an OK shape that runs out along the rope and back (`folds_back`) is a
+        `length` status, and its length is taken back from the Lc0 estimate. The `length` check needs Lc0, which the
+        first shapes are still measuring (simulated lab-hard with its gamma, frame 0: out 400 px and back 260, OK
+        with its tip 260 px off). Streams only: a still photo's rope may lie in loops. No status with the
+        self-checks off (`checks.enabled`)."""
+        begin, end = result.begin, result.end
+        if result.status is not FrameStatus.OK or begin is None or end is None:
+            return
+        if not (folds_back(begin, result.rope_width_px) or folds_back(end, result.rope_width_px)):
+            return
+        tracker = self.tracker
+        tracker.withdraw(tracker.lengths_seen - lengths_seen)
+        if self.checks.config.enabled:
+            result.status, result.reason = FrameStatus.IMPLAUSIBLE, Reason.LENGTH.text
+            result.message = (
+                "the rope's length is implausible: before Lc0 is known, a shape runs out and back along itself (its "
+                "tip lies on its own earlier part)"
+            )
 
     def finish_tracked(
         self,

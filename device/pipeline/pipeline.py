@@ -27,7 +27,7 @@ from ropecam.shared.config import check_readout
 from ropecam.shared.plane import PlaneCalibration
 from ropecam.shared.protocol.quality import Reason
 
-__all__ = ["Pipeline", "folds_back"]
+__all__ = ["Pipeline"]
 
 
 @refuse_copies(
@@ -322,25 +322,8 @@ class Pipeline:
         unknown_length = self.tracker.length0_settled_px < 0.0  # before `finish` feeds this frame's shapes to Lc0
         seen = self.tracker.lengths_seen
         self._finisher.finish(result, outcome, exposure_ns, self._clock.period_ns)
-        if (
-            unknown_length
-            and exposure_ns > 0
-            and result.status is FrameStatus.OK
-            and result.begin is not None
-            and result.end is not None
-            and (folds_back(result.begin, result.rope_width_px) or folds_back(result.end, result.rope_width_px))
-        ):
-            # The `length` check needs Lc0, which the first shapes are still measuring: a first shape that runs out
-            # along the rope and back (simulated lab-hard with its gamma, frame 0: out 400 px and back 260, OK with
-            # its tip 260 px off) is caught here instead. Streams only: a still photo's rope may lie in loops.
-            # Nor is its length the rope's; the status only with the self-checks on (`checks.enabled`).
-            self.tracker.withdraw(self.tracker.lengths_seen - seen)
-            if self.checks.config.enabled:
-                result.status, result.reason = FrameStatus.IMPLAUSIBLE, Reason.LENGTH.text
-                result.message = (
-                    "the rope's length is implausible: before Lc0 is known, a shape runs out and back along itself "
-                    "(its tip lies on its own earlier part)"
-                )
+        if unknown_length and exposure_ns > 0:
+            self._finisher.refuse_fold(result, seen)
         if self.locator.cut and result.status is FrameStatus.OK and self.checks.config.enabled:
             # The rope was cut from a structure its tip lies across (`RopeLocator._attached`): the tip may be cut.
             result.status, result.reason = FrameStatus.IMPLAUSIBLE, Reason.TIP_MASKED.text
@@ -350,23 +333,6 @@ class Pipeline:
         """The frame's contour (`n` points) is the one the next frame's band is built around."""
         self.locator.keep(n, result.t_ns)
         result.fixed_end = self.fixed
-
-
-def folds_back(shape: NDArray[np.float32], width_px: float | None) -> bool:
-    """Whether the polyline `shape` ((n, 2) row, col, fixed end first) runs out and back along itself: its free tip
-    lies within 2 rope widths + 2 px (`width_px`, 3 px when unknown) of a point of it more than 6 widths + 10 px
-    back along it. A rope's centreline does not lie on itself; an outline walked out and back along one of its
-    sides (a side lost to noise) gives such a centreline."""
-    if len(shape) < 3:
-        return False
-    width = width_px if width_px is not None and math.isfinite(width_px) and width_px > 0 else 3.0
-    steps = np.hypot(np.diff(shape[:, 0]), np.diff(shape[:, 1]))
-    back = np.concatenate(([0.0], np.cumsum(steps[::-1])))[::-1]  # arc length from each point to the tip
-    earlier = shape[back > 6.0 * width + 10.0]
-    if len(earlier) == 0:
-        return False
-    d_row, d_col = earlier[:, 0] - shape[-1, 0], earlier[:, 1] - shape[-1, 1]
-    return float(np.min(d_row * d_row + d_col * d_col)) <= (2.0 * width + 2.0) ** 2
 
 
 def _rope_from(shape: NDArray[np.float32], fixed_rc: tuple[float, float], near_px: float, length0_px: float) -> bool:

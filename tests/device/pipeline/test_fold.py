@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ropecam.device.pipeline.pipeline import folds_back
+from ropecam.device.pipeline.checks import folds_back
 from ropecam.device.pipeline.tracking import PointTracker
 
 
