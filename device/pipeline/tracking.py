@@ -173,8 +173,13 @@ class PointTracker:
         assert self.plane is not None
         single = begin is end
         work = self.work
-        if len(begin) > len(work) or len(end) > len(work):
-            work = np.zeros(max(len(begin), len(end)), np.float64)
+        # The work the kernel needs: a rolling shutter's placement `K.ROLLING_WORK` values per point of both shapes
+        # (with less it would place by the sheared shapes' own arcs), else one per point of the longer shape.
+        need = max(len(begin), len(end))
+        if self.plane[K.PLANE.rolling] != 0.0:
+            need = K.ROLLING_WORK * (len(begin) + len(end))
+        if len(work) < need:
+            work = np.zeros(need, np.float64)
         try:
             status = K.place_on_plane(begin, end, single, self.fraction_ro, self.plane, self.out, work)
         except TypeError:  # not the splitter's writable float32 buffers: copies

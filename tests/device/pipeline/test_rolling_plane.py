@@ -36,3 +36,10 @@ def test_a_global_shutter_leaves_the_plane_as_calibrated() -> None:
     params = pipeline.tracker.plane
     pipeline.process(np.zeros((48, 64), np.uint8), 0, 0, 4000.0)
     assert pipeline.tracker.plane is params and params[K.PLANE.rolling] == 0.0
+
+
+def test_the_work_buffer_holds_a_rolling_placement_of_the_longest_shapes() -> None:
+    # Both shapes together have at most the contour's points; the rolling placement needs `ROLLING_WORK` values per
+    # point, else the kernel places by the sheared shapes' own arcs without a word (a lowered max_contour did).
+    pipeline = Pipeline(PipelineConfig(max_contour=100), (64, 48), readout_us=2000, plane=PLANE)
+    assert len(pipeline.tracker.work) >= K.ROLLING_WORK * 100
