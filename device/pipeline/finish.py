@@ -144,11 +144,11 @@ class ResultFinisher:
         self._take_outcome(result, outcome)
         tracker = self.tracker
         a, b = outcome.shape_a, outcome.shape_b
-        # The split's fitted tips against its segmentation points (``tip_corner``) before the tracking may move the
-        # tips along the sweep (`restore_tip_sweep`): a tip moved there on purpose is not a tip fitted off its corner.
-        # Tips within a rope width of each other are a band's end read as a ramp (a tip moving along its own axis:
-        # simulated rig-soft's whip, 0.672 s, frame 5: tips 1.7 px apart, a corner 12.8 px on, both tips right
-        # after the restore): the restore decides those, not this check.
+        # The split's fitted tips against its segmentation points (``tip_corner``), before the tracking may move the
+        # tips along the sweep (`restore_tip_sweep`; `check` adds the tips as reported). Tips within a rope width
+        # of each other are a band's end read as a ramp (a tip moving along its own axis: simulated rig-soft's
+        # whip, 0.672 s, frame 5: tips 1.7 px apart, a corner 12.8 px on, both tips right after the restore): the
+        # restore decides those, not this check.
         corners = outcome.segmentation_points
         corner_px = math.nan
         if (
@@ -311,6 +311,12 @@ class ResultFinisher:
             # the spacings (a thin rope's edges lie up to 3x its width apart, and its width read from them swings
             # by 2x for a 0.1 px change of spacing).
             used_px = self.splitter.width
+        corners = outcome.segmentation_points
+        if split and corners is not None and not math.isnan(corner_px):
+            # ... and the tips as reported: a restore that moved them off the corners is not trusted either
+            # (simulated paper-soft 15 ms, tuning seed, frame 48: tips 7 px apart as fitted, moved to 16.9, the end
+            # tip 3.8 px off).
+            corner_px = max(corner_px, tip_corner_px(begin, end, corners))
         status, reason = checks.check(
             begin, end, self.fixed, result.stretch_begin, result.stretch_end, used_px, learned_px,
             result.order_confidence, exposure_ns, split, area, self.locator.edges.static_mask_ro,
