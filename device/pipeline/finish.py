@@ -148,12 +148,13 @@ class ResultFinisher:
         # tips along the sweep (`restore_tip_sweep`; `check` adds the tips as reported). Tips within a rope width
         # of each other are a band's end read as a ramp (a tip moving along its own axis: simulated rig-soft's
         # whip, 0.672 s, frame 5: tips 1.7 px apart, a corner 12.8 px on, both tips right after the restore): the
-        # restore decides those, not this check.
+        # restore decides those, not this check. Only where the check runs: no motion prediction (`needs_area`).
         corners = outcome.segmentation_points
         corner_px = math.nan
         if (
             split
             and tracked is None
+            and self.checks.needs_area(exposure_ns)
             and corners is not None
             and len(corners) == 2
             and _tip_gap_px(a, b) > float(outcome.width_px)
