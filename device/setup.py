@@ -308,10 +308,11 @@ def run_setup(
         )
     if run.measured < MIN_MEASURED:
         statuses = ", ".join(f"{k} {v}" for k, v in sorted(run.statuses.items()))
+        reasons = "; ".join(f"{why} ({count})" for why, count in sorted(run.reasons.items(), key=lambda i: -i[1]))
         raise DataError(
             f"{source}: no rope found: the pipeline measured a rope on {100 * run.measured:.0f} % of "
-            f"{run.frames} frames with every edge threshold and polarity tried (statuses with the best: {statuses}). "
-            f"{_hint(run.statuses)} Nothing was written."
+            f"{run.frames} frames with every edge threshold and polarity tried (statuses with the best: {statuses}; "
+            f"why: {reasons}). {_hint(run.statuses, run.reasons)} Nothing was written."
         )
     if not run.moving:
         raise DataError(
@@ -381,9 +382,21 @@ def _check_kept(out: Path, base: Any, image_size: tuple[int, int], readout_us: o
         Pipeline(base, image_size, 0, plane)  # the plane's image size and its origin inside the image
 
 
-def _hint(statuses: dict[str, int]) -> str:
-    """What the most frequent status of a failed run suggests to the user."""
+def _hint(statuses: dict[str, int], reasons: dict[str, int] | None = None) -> str:
+    """What the most frequent status of a failed run (and, for LOST_TRACK, its most frequent reason) suggests to
+    the user."""
     worst = max(statuses, key=statuses.__getitem__) if statuses else "NO_ROPE"
+    if worst == "LOST_TRACK" and reasons:
+        lost = {why: count for why, count in reasons.items() if why.startswith("LOST_TRACK")}
+        common = max(lost, key=lost.__getitem__) if lost else ""
+        if "broken" in common or "differ in length" in common:
+            # The outline was there but not the band's: its faint far end or sides were lost to noise or texture.
+            return (
+                "Most frames were LOST_TRACK because the blurred band's outline was broken or its two sides did "
+                "not pair: the band is too faint against the frame's noise or texture for its edges (low contrast, "
+                "a long exposure, a grainy or textured background). More light or contrast, a shorter exposure or "
+                "a plainer background help."
+            )
     return {
         "ROPE_CLIPPED": "Most frames were ROPE_CLIPPED: the edges the pipeline took for the rope reach the image "
         "border (a rod, cable or plate edge joined to the rope, or the rope swinging out of view).",

@@ -75,6 +75,9 @@ class Run:
     frames: int = 0
     reasons: dict[str, int] = field(default_factory=dict)
     """Why frames were not measured: each status but OK with the first clause of its message, and its count."""
+    thresholds_used: tuple[float, float] | None = None
+    """The Canny thresholds the pipeline used last (low, high): measured from the frames' own noise, at most the
+    configured ones (`EdgeThresholds`); None when it measured none."""
 
     @property
     def found(self) -> bool:
@@ -170,6 +173,8 @@ def run_candidate(frames: Sequence[Frame], config: PipelineConfig, keep_shapes: 
             (result.begin.copy(), result.end.copy(), seg) if keep_shapes else (result.begin[:0], result.end[:0], None)
         )
     run.blur = pipeline.splitter.blur_read
+    used = pipeline.thresholds.used
+    run.thresholds_used = None if used is None else (float(used[0]), float(used[1]))
     return run
 
 
@@ -244,7 +249,7 @@ def decide(
             run = run_candidate(trial, replace(config, static_mask_png=str(mask_file)))
             runs.append(run)
             tried.append(
-                f"edges {low:g}/{high:g}: static mask {100 * mask.mean():.2f} % of the frame; shapes on "
+                f"edges {low:g}/{high:g}{_used(run)}: static mask {100 * mask.mean():.2f} % of the frame; shapes on "
                 f"{100 * run.measured:.0f} % of {run.frames} frames, length spread {100 * run.length_spread:.1f} %, "
                 f"tips move {run.tip_spread_px:.0f} px (p90)"
             )
@@ -293,6 +298,15 @@ def decide(
     sweeps = {p: float(np.hypot(*(b[-1] - e[-1]))) for p, (b, e, _) in run.shapes.items()}
     findings.split_frame = max(sweeps, key=sweeps.__getitem__) if sweeps else None
     return findings
+
+
+def _used(run: Run) -> str:
+    """`run`'s thresholds as the pipeline measured them from the frames' noise, when they are below the
+    configured ones (then every candidate above them measures alike)."""
+    used, config = run.thresholds_used, run.config
+    if used is None or (used[0] >= config.canny_low and used[1] >= config.canny_high):
+        return ""
+    return f" (measured from the frames' noise: {used[0]:.1f}/{used[1]:.1f})"
 
 
 def _on_border(run: Run, shape: tuple[int, int]) -> bool:

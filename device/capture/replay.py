@@ -247,10 +247,10 @@ class FrameSetSource(CameraSource):
             self.counters.skipped += k - self._next
         loops, position = divmod(k, n)
         sequence = self._sequence(k)
-        if self._last_sequence is not None:
-            # Frames the pacing overtook are `skipped`; only the recording's own gaps (frame numbers missing from
-            # the index) count as dropped.
-            self.counters.dropped += (sequence - self._last_sequence - 1) - (k - self._next)
+        # Frames the pacing overtook are `skipped`; only the recording's own gaps (frame numbers missing from the
+        # index) count as dropped, those before the first frame handed over too (a slow start overtook a gap).
+        last = self._frame_numbers[0] - 1 if self._last_sequence is None else self._last_sequence
+        self.counters.dropped += (sequence - last - 1) - (k - self._next)
         self._last_sequence = sequence
         self._next = k + 1
         self._last_position = position

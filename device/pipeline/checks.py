@@ -23,7 +23,8 @@ reason                  fails when                                              
 ``no_blur``             a split's tips lie more than ``no_blur_px`` (and 4 / ``min_blur_evidence``) px   NO_BLUR
                         apart without
                         evidence of blur: the
-                        exposure is unknown (0: a still photo, a video) and the area the contour
+                        exposure is unknown (0: a still photo, a video) or the motion model has no
+                        prediction (the first frames, after a gap), and the area the contour
                         encloses beyond the still rope's (length x width) is less than
                         ``min_blur_evidence`` x the area the split's sweep implies (0.5 x length x tip
                         separation, the rope turning about its fixed end); the frame then carries the
@@ -35,11 +36,21 @@ reason                  fails when                                              
 ``fallback_sweep``      the blur split fell back to one shape (the band's middle: the rope at           IMPLAUSIBLE
                         mid-exposure) while the tip's path over the last frames swept more than
                         ``fallback_sweep_widths`` rope widths during the exposure: the shape is neither
-                        the start nor the end of the exposure
+                        the start nor the end of the exposure; also the one-shape frame right after
+                        such a frame, which has no prediction (once)
 ``tip_kink``            either shape's direction turns by more than ``tip_kink_deg`` between its last    IMPLAUSIBLE
                         ``tip_kink_widths`` rope widths and the same arc before them: a free end
                         carries no bending moment and runs straight; a turn there is a tip that ran
                         on along noise beyond the band's faint end
+``tip_at_fixed_end``    a frame of known exposure without a motion prediction (the first frames, after   IMPLAUSIBLE
+                        a gap): a shape's free tip lies at the fixed end (within ``fixed_end_widths``
+                        rope widths + ``fixed_end_floor_px``) although the shape is more than twice
+                        that long: it ran out along the rope and back (round a clamp's outline), its
+                        tip is not the rope's
+``tip_corner``          a split of known exposure without a motion prediction: a fitted tip lies         IMPLAUSIBLE
+                        farther than ``tip_corner_widths`` rope widths + ``tip_corner_floor_px`` from
+                        its segmentation point (the band's corner it was read at): the tip fit ran
+                        along the band's end or off it
 ======================  ==============================================================================  ===========
 
 Each check's measure goes into the frame's quality record (`QUALITY_KEYS`), whether it passes or not.
@@ -78,7 +89,8 @@ class ChecksConfig:
     width_tolerance
         Largest accepted |w / w0 - 1| of the width the split used against the learned (or given) width.
     fixed_end_widths, fixed_end_floor_px
-        A shape must start within ``fixed_end_widths`` x the rope width + ``fixed_end_floor_px`` of the fixed end.
+        A shape must start within ``fixed_end_widths`` x the rope width + ``fixed_end_floor_px`` of the fixed end;
+        the same reach is ``tip_at_fixed_end``'s (a free tip that near the fixed end).
     tip_motion_factor, tip_motion_floor_px
         The tips' midpoint must lie within ``tip_motion_factor`` x the motion model's predicted error +
         ``tip_motion_floor_px`` of its prediction (checked once the model holds two frames).
@@ -103,10 +115,14 @@ class ChecksConfig:
     tip_kink_widths, tip_kink_deg
         Largest turn (degrees) of either shape's direction between the chord of its last ``tip_kink_widths`` rope
         widths and the chord of the same arc before them (``tip_kink_widths`` 0: the check is off).
+    tip_corner_widths, tip_corner_floor_px
+        Largest distance of a split's fitted tip from its segmentation point, ``tip_corner_widths`` x the rope
+        width + ``tip_corner_floor_px``, on a frame of known exposure without a motion prediction
+        (``tip_corner_widths`` 0: the check is off).
     """
 
     enabled: bool = True
-    length_tolerance: float = 0.25
+    length_tolerance: float = 0.15
     length_mismatch: float = 0.03
     width_tolerance: float = 0.5
     fixed_end_widths: float = 3.0
@@ -122,6 +138,8 @@ class ChecksConfig:
     min_band_area: float = 0.25
     tip_kink_widths: float = 5.0
     tip_kink_deg: float = 15.0
+    tip_corner_widths: float = 1.5
+    tip_corner_floor_px: float = 2.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.enabled, bool):
@@ -142,6 +160,8 @@ class ChecksConfig:
         check_range("checks.min_band_area", self.min_band_area, 0.0, 1.0)
         check_range("checks.tip_kink_widths", self.tip_kink_widths, 0.0, 100.0)
         check_range("checks.tip_kink_deg", self.tip_kink_deg, 0.0, 180.0)
+        check_range("checks.tip_corner_widths", self.tip_corner_widths, 0.0, 100.0)
+        check_range("checks.tip_corner_floor_px", self.tip_corner_floor_px, 0.0, 100.0)
 
 
 _MESSAGES = {
@@ -153,13 +173,18 @@ _MESSAGES = {
     Reason.TIP_MOTION: "the tips are not where the motion model predicted them (tip_motion_px beyond "
     "tip_motion_limit_px)",
     Reason.ORDER: "the time order is not certain enough (order_confidence below checks.min_order_confidence)",
-    Reason.NO_BLUR: "no blur to split (no exposure time): the static centreline is given instead",
+    Reason.NO_BLUR: "no blur to split (no exposure time, or no motion prediction yet to check the split against, "
+    "and the contour's area shows too little blur for the tips' separation): the static centreline is given instead",
     Reason.TIP_MASKED: "a free tip ends at the static mask, which may hide the rope's end (within "
     "checks.tip_mask_widths rope widths + checks.tip_mask_floor_px of it)",
     Reason.FALLBACK_SWEEP: "one shape (the band's middle) while the tip's path swept more than "
     "checks.fallback_sweep_widths rope widths during the exposure: neither the start nor the end of the exposure",
     Reason.TIP_KINK: "a shape turns by more than checks.tip_kink_deg within checks.tip_kink_widths rope widths of its "
     "free tip, where a rope runs straight: the tip ran on beyond the rope's end",
+    Reason.TIP_AT_FIXED_END: "a shape's free tip lies at the fixed end (within checks.fixed_end_widths rope widths + "
+    "checks.fixed_end_floor_px): it ran out along the rope and back (round a clamp's outline)",
+    Reason.TIP_CORNER: "a split's tip lies farther than checks.tip_corner_widths rope widths + "
+    "checks.tip_corner_floor_px from the band's corner it was read at: the tip fit left the band's end",
 }
 
 
@@ -185,7 +210,8 @@ class SelfChecks:
     """
 
     __slots__ = (
-        "_measures", "_predicted", "_settled_frames", "_thresholds", "buffers", "config", "quality",
+        "_carry", "_carry_sweep", "_measures", "_predicted", "_settled_frames", "_swept", "_thresholds", "buffers",
+        "config", "quality",
     )  # fmt: skip
 
     def __init__(self, config: ChecksConfig, fallback_single: bool = True) -> None:
@@ -203,6 +229,10 @@ class SelfChecks:
         self._measures = np.zeros(1, K.CHECK_QUALITY)
         """The last checked frame's measures, by name (`check_frame` writes them; `quality` holds a copy)."""
         self._settled_frames = 0
+        self._carry_sweep = float(thresholds[0]["fallback_sweep_widths"]) > 0.0
+        self._swept = False  # this frame failed `fallback_sweep` (not carried)
+        self._carry = False  # the frame before this one did (`due` moves `_swept` here at each frame's start)
+        """The last frame failed ``fallback_sweep`` on its own prediction (not carried over, `verdict`)."""
         self.buffers = (self._predicted, thresholds, self._measures)
 
     @staticmethod
@@ -227,6 +257,7 @@ class SelfChecks:
         """`predict`'s first half: count the frames since the fixed end `settled`; False (and no prediction) while
         the model cannot hold two frames measured after it, True when `predict_tips` is to be called (the caller
         then makes the call into ``buffers[0]``: `predict`, or the pipeline's `steady_frame`)."""
+        self._carry, self._swept = self._swept, False  # a new frame: "right after" is this one only
         if not settled:
             self._settled_frames = 0
         elif self._settled_frames <= 2:  # counted to 3 only: a count past 256 would be a new int object per frame
@@ -247,6 +278,11 @@ class SelfChecks:
         self._predicted[2] = math.nan
         self._predicted[3] = math.nan
 
+    def restart(self) -> None:
+        """Forget the last frames' verdicts too (the pipeline's tracking was reset): nothing is carried."""
+        self.forget()
+        self._swept = self._carry = False
+
     def check(
         self,
         begin: NDArray[np.float32],
@@ -261,6 +297,7 @@ class SelfChecks:
         split: bool,
         contour_area_px2: float = math.nan,
         mask: NDArray[np.uint8] | None = None,
+        corner_px: float = math.nan,
     ) -> tuple[FrameStatus, Reason]:
         """Check one measured frame; return its status (OK when every check passes) and the first failed reason.
 
@@ -286,22 +323,70 @@ class SelfChecks:
         mask
             The static mask (uint8, the image's shape, read-only; `MASK_FREE` where edges are kept; None: no
             mask), for ``tip_masked``.
+        corner_px
+            How far the split's fitted tips lie from its segmentation points (`tip_corner_px`, measured on the
+            split's own tips, before the tracking may move them along the sweep), for ``tip_corner`` (nan: not
+            checked).
         """
         code = K.check_frame(
             begin, end, fixed, self._predicted, _nan_if_none(stretch_begin), _nan_if_none(stretch_end), width_px,
             learned_width_px or 0.0, order_confidence, exposure_ns, split, contour_area_px2,
             _NO_MASK if mask is None else mask, self._thresholds, self._measures,
         )  # fmt: skip
-        if code == K.CHECK_NONE and exposure_ns > 0 and split and math.isfinite(self._measures[0]["blur_evidence"]):
-            width = learned_width_px or width_px
-            if contour_area_px2 < self.config.min_band_area * _length_px(begin) * width:
-                code = int(Reason.WIDTH)
+        if code == K.CHECK_NONE and exposure_ns > 0 and math.isnan(self._predicted[2]):
+            # Checks of a frame the motion model cannot check (the first frames, after a gap); a steady frame's
+            # tips are checked against the prediction instead (`check_frame`, inside `steady_frame`).
+            code = self._unpredicted(
+                begin, end, fixed, learned_width_px or width_px, split, contour_area_px2, corner_px
+            )
         return self.verdict(code)
+
+    def _unpredicted(
+        self,
+        begin: NDArray[np.float32],
+        end: NDArray[np.float32],
+        fixed: NDArray[np.float32],
+        width: float,
+        split: bool,
+        contour_area_px2: float,
+        corner_px: float,
+    ) -> int:
+        """The code of the first failed check among ``width`` (the band's area), ``tip_at_fixed_end`` and
+        ``tip_corner`` on a frame of known exposure without a motion prediction (`K.CHECK_NONE`: all passed)."""
+        config = self.config
+        if (
+            split
+            and math.isfinite(self._measures[0]["blur_evidence"])
+            and contour_area_px2 < config.min_band_area * _length_px(begin) * width
+        ):
+            return int(Reason.WIDTH)
+        reach_px = config.fixed_end_widths * width + config.fixed_end_floor_px
+        for shape in (begin, end) if split else (begin,):
+            tip_px = math.hypot(float(shape[-1, 0]) - float(fixed[0]), float(shape[-1, 1]) - float(fixed[1]))
+            if tip_px <= reach_px and _length_px(shape) > 2.0 * reach_px:
+                return int(Reason.TIP_AT_FIXED_END)
+        corner_limit_px = config.tip_corner_widths * width + config.tip_corner_floor_px
+        if split and config.tip_corner_widths > 0.0 and corner_px > corner_limit_px:  # False for nan
+            return int(Reason.TIP_CORNER)
+        return K.CHECK_NONE
 
     def verdict(self, code: int) -> tuple[FrameStatus, Reason]:
         """The status and reason of `check_frame`'s `code` (its measures are in ``buffers[2]``, which go into
         `quality`): `check`'s last step, for a `check_frame` call made elsewhere (the pipeline's `steady_frame`)."""
         _set_quality(self.quality, self._measures.item())
+        # A one-shape frame right after one that failed `fallback_sweep` has no prediction to check its sweep
+        # against (that failure cleared the motion model): the tip swept a frame ago, so it fails too (once: a rope
+        # coming to rest must be reported again).
+        carried = (
+            code == K.CHECK_NONE
+            and self._carry
+            and self._carry_sweep
+            and self.quality[_Q3] == 0.0
+            and math.isnan(self._predicted[2])
+        )
+        if carried:
+            code = K.CHECK_FALLBACK_SWEEP
+        self._swept = code == K.CHECK_FALLBACK_SWEEP and not carried
         if code == K.CHECK_NONE or not self.config.enabled:
             return FrameStatus.OK, Reason.NONE
         failed = Reason(code)
@@ -326,6 +411,38 @@ def _length_px(shape: NDArray[np.float32]) -> float:
     """Return the length (px) of the polyline `shape` (row, col)."""
     steps = np.diff(shape.astype(np.float64), axis=0)
     return float(np.hypot(steps[:, 0], steps[:, 1]).sum())
+
+
+def tip_corner_px(begin: NDArray[np.float32], end: NDArray[np.float32], corners: NDArray[np.float32]) -> float:
+    """The larger distance of the two free tips from the segmentation points `corners` (2, 2), each tip paired
+    with a corner the way that makes the larger distance smaller (the split does not say which corner is which
+    instant's)."""
+    tb = begin[-1].astype(np.float64)
+    te = end[-1].astype(np.float64)
+    c0 = corners[0].astype(np.float64)
+    c1 = corners[1].astype(np.float64)
+
+    def gap(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
+        return math.hypot(float(a[0] - b[0]), float(a[1] - b[1]))
+
+    return min(max(gap(tb, c0), gap(te, c1)), max(gap(tb, c1), gap(te, c0)))
+
+
+def folds_back(shape: NDArray[np.float32], width_px: float | None) -> bool:
+    """Whether the polyline `shape` ((n, 2) row, col, fixed end first) runs out and back along itself: its free tip
+    lies within 2 rope widths + 2 px (`width_px`, 3 px when unknown) of a point of it more than 6 widths + 10 px
+    back along it. A rope's centreline does not lie on itself; an outline walked out and back along one of its
+    sides (a side lost to noise) gives such a centreline."""
+    if len(shape) < 3:
+        return False
+    width = width_px if width_px is not None and math.isfinite(width_px) and width_px > 0 else 3.0
+    steps = np.hypot(np.diff(shape[:, 0]), np.diff(shape[:, 1]))
+    back = np.concatenate(([0.0], np.cumsum(steps[::-1])))[::-1]  # arc length from each point to the tip
+    earlier = shape[back > 6.0 * width + 10.0]
+    if len(earlier) == 0:
+        return False
+    d_row, d_col = earlier[:, 0] - shape[-1, 0], earlier[:, 1] - shape[-1, 1]
+    return float(np.min(d_row * d_row + d_col * d_col)) <= (2.0 * width + 2.0) ** 2
 
 
 def _nan_if_none(value: float | None) -> float:

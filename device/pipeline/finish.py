@@ -3,10 +3,12 @@ model's update, the plane) and checked (`SelfChecks`); FrameClock: the stream's 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline.checks import Reason, SelfChecks, contour_area_px2
+from ropecam.device.pipeline.checks import Reason, SelfChecks, contour_area_px2, folds_back, tip_corner_px
 from ropecam.device.pipeline.contour import ContourTracer
 from ropecam.device.pipeline.locate import RopeLocator
 from ropecam.device.pipeline.motion import MotionModel
@@ -142,6 +144,22 @@ class ResultFinisher:
         self._take_outcome(result, outcome)
         tracker = self.tracker
         a, b = outcome.shape_a, outcome.shape_b
+        # The split's fitted tips against its segmentation points (``tip_corner``), before the tracking may move the
+        # tips along the sweep (`restore_tip_sweep`; `check` adds the tips as reported). Tips within a rope width
+        # of each other are a band's end read as a ramp (a tip moving along its own axis: simulated rig-soft's
+        # whip, 0.672 s, frame 5: tips 1.7 px apart, a corner 12.8 px on, both tips right after the restore): the
+        # restore decides those, not this check. Only where the check runs: no motion prediction (`needs_area`).
+        corners = outcome.segmentation_points
+        corner_px = math.nan
+        if (
+            split
+            and tracked is None
+            and self.checks.needs_area(exposure_ns)
+            and corners is not None
+            and len(corners) == 2
+            and _tip_gap_px(a, b) > float(outcome.width_px)
+        ):
+            corner_px = tip_corner_px(a, b, corners)
         if tracked is not None:
             swap, confidence, stretch_begin, stretch_end = tracked
         elif tracker.length0_settled_px >= 0.0:
@@ -170,10 +188,31 @@ class ResultFinisher:
             )
             t_mid_ns = result.t_ns + exposure_ns // 2
             self.motion.observe(begin, end, self.fixed, t_mid_ns, float(self.splitter.sweep_px), exposure_ns)
-        self._conclude(result, outcome, exposure_ns)
+        self._conclude(result, outcome, exposure_ns, corner_px=corner_px)
         if rejected and result.status is FrameStatus.OK:
             result.status, result.reason = FrameStatus.NO_BLUR, Reason.NO_BLUR.text
             result.message = f"{self.checks.message(Reason.NO_BLUR)} (the split: {rejected})"
+
+    def refuse_fold(self, result: PipelineResult, lengths_seen: int) -> None:
+        """After `finish` of a frame of known exposure measured before Lc0 is known (the tracker had seen
+        `lengths_seen` lengths before it): an OK shape that runs out along the rope and back (`folds_back`) is a
+        `length` status, and its length is taken back from the Lc0 estimate. The `length` check needs Lc0, which the
+        first shapes are still measuring (simulated lab-hard with its gamma, frame 0: out 400 px and back 260, OK
+        with its tip 260 px off). Streams only: a still photo's rope may lie in loops. No status with the
+        self-checks off (`checks.enabled`)."""
+        begin, end = result.begin, result.end
+        if result.status is not FrameStatus.OK or begin is None or end is None:
+            return
+        if not (folds_back(begin, result.rope_width_px) or folds_back(end, result.rope_width_px)):
+            return
+        tracker = self.tracker
+        tracker.withdraw(tracker.lengths_seen - lengths_seen)
+        if self.checks.config.enabled:
+            result.status, result.reason = FrameStatus.IMPLAUSIBLE, Reason.LENGTH.text
+            result.message = (
+                "the rope's length is implausible: before Lc0 is known, a shape runs out and back along itself (its "
+                "tip lies on its own earlier part)"
+            )
 
     def finish_tracked(
         self,
@@ -216,13 +255,15 @@ class ResultFinisher:
         result.stretch_begin, result.stretch_end = stretch_begin, stretch_end
 
     def _conclude(
-        self, result: PipelineResult, outcome: SplitOutcome, exposure_ns: int, checked: int = -1, placed: int = -1
-    ) -> None:
+        self, result: PipelineResult, outcome: SplitOutcome, exposure_ns: int, checked: int = -1, placed: int = -1,
+        corner_px: float = math.nan,
+    ) -> None:  # fmt: skip
         """The shapes on the plane (when calibrated; done already when `placed` is 1), status OK, then the
         self-checks (made already when `checked` is a `check_frame` code, not -1). The first split after a still
         rope (`after_still`) of a sweep below `UNDECIDED_SWEEP_WIDTHS` rope widths whose time order is a coin flip
         (confidence below `UNDECIDED_ORDER`: the still frames give no motion to go by) reports the band's middle
-        line instead (its confidence kept)."""
+        line instead (its confidence kept). `corner_px`: the split's tips from its segmentation points, as
+        `check` takes it."""
         after_still, self.after_still = self.after_still, outcome.shape_a is outcome.shape_b
         if (
             after_still
@@ -237,7 +278,7 @@ class ResultFinisher:
             self.tracker.place_on_plane(result.begin, result.end)
         result.status = FrameStatus.OK
         if checked < 0:
-            self.check(result, outcome, exposure_ns)
+            self.check(result, outcome, exposure_ns, corner_px)
         else:
             status, reason = self.checks.verdict(checked)
             self._take_verdict(result, outcome, exposure_ns, status, reason)
@@ -247,9 +288,13 @@ class ResultFinisher:
         a, b = outcome.shape_a, outcome.shape_b
         return a is not b and len(a) > 0 and len(b) > 0 and _tip_gap_px(a, b) <= self.checks.config.no_blur_px
 
-    def check(self, result: PipelineResult, outcome: SplitOutcome, exposure_ns: int) -> None:
+    def check(
+        self, result: PipelineResult, outcome: SplitOutcome, exposure_ns: int, corner_px: float = math.nan
+    ) -> None:
         """Run the self-checks on a measured frame (`SelfChecks.check`): a failed one sets the status, the reason
-        and the message; a split without blur is replaced by the static centreline."""
+        and the message; a split without blur is replaced by the static centreline. `corner_px` is how far the
+        split's fitted tips lay from its segmentation points before the tracking moved them (`tip_corner_px`;
+        nan: not checked)."""
         begin, end = result.begin, result.end
         if begin is None or end is None or len(begin) == 0 or len(end) == 0:
             return
@@ -267,9 +312,16 @@ class ResultFinisher:
             # the spacings (a thin rope's edges lie up to 3x its width apart, and its width read from them swings
             # by 2x for a 0.1 px change of spacing).
             used_px = self.splitter.width
+        corners = outcome.segmentation_points
+        if split and corners is not None and not math.isnan(corner_px):
+            # ... and the tips as reported: a restore that moved them off the corners is not trusted either
+            # (simulated paper-soft 15 ms, tuning seed, frame 48: tips 7 px apart as fitted, moved to 16.9, the end
+            # tip 3.8 px off).
+            corner_px = max(corner_px, tip_corner_px(begin, end, corners))
         status, reason = checks.check(
             begin, end, self.fixed, result.stretch_begin, result.stretch_end, used_px, learned_px,
             result.order_confidence, exposure_ns, split, area, self.locator.edges.static_mask_ro,
+            corner_px,
         )  # fmt: skip
         self._take_verdict(result, outcome, exposure_ns, status, reason)
 

@@ -140,6 +140,10 @@ class Pipeline:
             result.reset(int(index), t, t, FrameStatus.BAD_FRAME, self._no_quality)
             result.t_end_ns = t + exposure_ns
         result.readout_ns = self.readout_ns
+        if self.readout_ns and self.tracker.plane is not None:
+            # A rolling shutter's shapes are the rope at each row's instant: their material points are placed
+            # by the rope's arc length at one instant, which needs the line time in exposures (`_kernels.plane`).
+            self.tracker.set_rolling(self.readout_ns / (self.shape[0] * exposure_ns) if exposure_ns > 0 else 0.0)
         if type(frame) is np.ndarray and frame.dtype is self._u8 and frame.shape == self.shape:
             problem = exposure_problem  # the usual case, without building the messages of `frame_problem`
         else:
@@ -317,8 +321,12 @@ class Pipeline:
                 result.rope_width_px = outcome.width_px
                 result.order_confidence = 1.0
             return
+        unknown_length = self.tracker.length0_settled_px < 0.0  # before `finish` feeds this frame's shapes to Lc0
+        seen = self.tracker.lengths_seen
         self._finisher.finish(result, outcome, exposure_ns, self._clock.period_ns)
-        if self.locator.cut and result.status is FrameStatus.OK:
+        if unknown_length and exposure_ns > 0:
+            self._finisher.refuse_fold(result, seen)
+        if self.locator.cut and result.status is FrameStatus.OK and self.checks.config.enabled:
             # The rope was cut from a structure its tip lies across (`RopeLocator._attached`): the tip may be cut.
             result.status, result.reason = FrameStatus.IMPLAUSIBLE, Reason.TIP_MASKED.text
             result.message = "the rope's tip lies across a structure (cut from it): the tip may be cut"

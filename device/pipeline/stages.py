@@ -149,6 +149,7 @@ class Stages:
         whole, as the first one (`Pipeline.reset_tracking`)."""
         self.forget(roi=True)
         self.time_order.clear()
+        self.checks.restart()
 
     def relearn(self) -> None:
         """Learn the rope's traits (fixed end, width, polarity, Lc0, and the contrast and lens blur the split reads)

@@ -85,6 +85,21 @@ class PointTracker:
         """Return the polyline length Lc in pixels, eq. (9)."""
         return float(K.polyline_length(as_ro(poly), np.int32(len(poly))))
 
+    @property
+    def lengths_seen(self) -> int:
+        """Shape lengths fed to the Lc0 estimate so far (none once Lc0 is configured)."""
+        return len(self._lengths)
+
+    def withdraw(self, count: int) -> None:
+        """Take back the last `count` lengths fed to the Lc0 estimate (the shapes of a frame found implausible
+        after `track_shapes` measured them); Lc0 is unsettled again when fewer than `length0_frames` remain."""
+        if self.length0_px is not None or count <= 0:
+            return
+        del self._lengths[-count:]
+        self._median = float(np.median(self._lengths)) if self._lengths else None
+        if len(self._lengths) < self.length0_frames:
+            self.length0_settled_px = -1.0
+
     def observe(self, length_px: float) -> None:
         """Feed the length of a measured shape to the Lc0 estimate (until it is fixed)."""
         if self.length0_px is None and len(self._lengths) < self.length0_frames:
@@ -138,6 +153,19 @@ class PointTracker:
             raise ValueError(f"cannot track material points on polylines of {len(begin)} and {len(end)} points")
         return self.out_slots[0], stretch_begin, self.out_slots[1], stretch_end
 
+    def set_rolling(self, rolling: float) -> None:
+        """Set the rolling shutter's line time in exposures of the plane the points are placed on (``rolling`` of
+        `_kernels.plane`: readout time / (image rows x exposure time); 0: a global shutter or an unknown
+        exposure). Nothing without a plane; a new value makes a new read-only `plane` array (the steady frame's
+        table binds it again)."""
+        plane = self.plane
+        if plane is None or plane[K.PLANE.rolling] == rolling:
+            return
+        params = plane.copy()
+        params[K.PLANE.rolling] = rolling
+        params.flags.writeable = False
+        self.plane = params
+
     def place_on_plane(self, begin: NDArray[np.float32], end: NDArray[np.float32]) -> bool:
         """Move the material points of `begin` and `end` (as `track_shapes` found them, in `out`) to the same
         fractions of each shape's arc length on the plane (`plane` set; one kernel call, `place_on_plane`).
@@ -145,8 +173,13 @@ class PointTracker:
         assert self.plane is not None
         single = begin is end
         work = self.work
-        if len(begin) > len(work) or len(end) > len(work):
-            work = np.zeros(max(len(begin), len(end)), np.float64)
+        # The work the kernel needs: a rolling shutter's placement `K.ROLLING_WORK` values per point of both shapes
+        # (with less it would place by the sheared shapes' own arcs), else one per point of the longer shape.
+        need = max(len(begin), len(end))
+        if self.plane[K.PLANE.rolling] != 0.0:
+            need = K.ROLLING_WORK * (len(begin) + len(end))
+        if len(work) < need:
+            work = np.zeros(need, np.float64)
         try:
             status = K.place_on_plane(begin, end, single, self.fraction_ro, self.plane, self.out, work)
         except TypeError:  # not the splitter's writable float32 buffers: copies

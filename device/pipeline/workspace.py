@@ -290,11 +290,12 @@ class TrackBuffers:
     @classmethod
     def make(cls, fraction: NDArray[np.float64], capacity: int) -> TrackBuffers:
         """Allocate the buffers for material points at arc `fraction` (of the rope's length) on shapes of up to
-        `capacity` points."""
+        `capacity` points (a rolling shutter's placement on the plane needs `K.ROLLING_WORK` values per point of
+        both shapes, whose points together are at most the contour's `capacity`)."""
         fraction = np.array(fraction, np.float64)
         out = np.zeros((2, len(fraction), 2), np.float32)
         lengths_px = np.zeros(2, np.float64)
-        work = np.zeros(max(TRACK_WORK, capacity), np.float64)
+        work = np.zeros(max(TRACK_WORK, K.ROLLING_WORK * capacity), np.float64)
         return cls(ro(fraction), out, lengths_px, work, K.Track(fraction, out, lengths_px, work))
 
 

@@ -276,19 +276,23 @@ def _run(args: argparse.Namespace) -> int:
     if live is not None:
         print(f"monitor: Foxglove live view at {live.url} (Foxglove: Open connection -> Foxglove WebSocket)",
               file=sys.stderr, flush=True)  # fmt: skip
-    print(f"monitor: receiving on {args.source}{where}; Ctrl-C stops", file=sys.stderr, flush=True)
     use_rich = not args.no_ui and sys.stdout.isatty()
-    display = RichDisplay(args.source) if use_rich else PlainDisplay()
+    display: RichDisplay | PlainDisplay | None = None
     interrupted = False
     stop = StopSignals()
     try:
         backlog = {"auto": DECODE_BACKLOG, "all": 1 << 62, "none": 0}[args.decode]
         with stop:
+            # The stop handlers first, then the ready line: a SIGTERM sent as soon as it appears (a service
+            # manager, `MonitorProcess`) still closes the recording instead of killing the process.
+            print(f"monitor: receiving on {args.source}{where}; Ctrl-C stops", file=sys.stderr, flush=True)
+            display = RichDisplay(args.source) if use_rich else PlainDisplay()
             monitor_loop(receiver, session, display, args.duration_s, stop.requested, backlog)
     except KeyboardInterrupt:
         interrupted = True  # a second Ctrl-C during the final drain: what was handled is still recorded
     finally:
-        display.close()
+        if display is not None:
+            display.close()
         session.close()
         transport.close()
         if live is not None:

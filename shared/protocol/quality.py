@@ -40,6 +40,8 @@ class Reason(IntEnum):
     TIP_MASKED = 7
     FALLBACK_SWEEP = 8
     TIP_KINK = 9
+    TIP_AT_FIXED_END = 10
+    TIP_CORNER = 11
 
     @property
     def text(self) -> str:

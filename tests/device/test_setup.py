@@ -175,3 +175,22 @@ def test_setup_on_a_rope_measured_on_too_few_frames_says_why(tmp_path, capsys) -
     assert "a rope was found but too few frames measure" in err and "no rope found" not in err
     assert "NO_ROPE" in err and "Nothing was written" in err
     assert not out.exists()
+
+
+def test_setup_says_why_a_faint_band_was_lost_and_which_thresholds_the_noise_gave() -> None:
+    """A run whose frames were mostly LOST_TRACK with a broken or unpaired band outline (the simulated `lab-hard`:
+    30 DN of contrast and strong noise) is told so, not asked whether the rope moves; and a candidate's tried line
+    names the thresholds the pipeline measured from the frames' noise when they are below the candidate's."""
+    from ropecam.device.pipeline.config import PipelineConfig
+    from ropecam.device.setup import _hint
+    from ropecam.device.setup_decide import Run, _used
+
+    statuses = {"LOST_TRACK": 52, "NO_ROPE": 1, "OK": 1}
+    broken = {"LOST_TRACK: the band's edge is broken": 30, "LOST_TRACK: the two shapes differ in length": 22}
+    assert "too faint against the frame's noise" in _hint(statuses, broken)
+    assert "is the rope moving?" in _hint(statuses, {"LOST_TRACK: no corner pair": 52})
+    assert "is the rope moving?" in _hint(statuses)
+    run = Run(PipelineConfig(canny_low=20.0, canny_high=50.0), thresholds_used=(8.0, 12.8))
+    assert _used(run) == " (measured from the frames' noise: 8.0/12.8)"
+    assert _used(Run(PipelineConfig(canny_low=20.0, canny_high=50.0), thresholds_used=(20.0, 50.0))) == ""
+    assert _used(Run(PipelineConfig())) == ""

@@ -116,12 +116,15 @@ def test_bench_first_frames_times_a_fresh_pipeline(run_tool: RunTool, rig_frames
 @pytest.mark.slow
 def test_bench_glue_takes_a_config_and_names_a_bad_one(run_tool: RunTool, tmp_path: Path) -> None:
     toml = tmp_path / "device.toml"
-    toml.write_text("[pipeline]\nstatic_frames = 0\ncanny_low = 15.0\n")
+    toml.write_text("[pipeline]\nstatic_frames = 0\ncanny_low = 15.0\n[capture]\nreadout_us = 2000\n")
     done = run_tool(
         "bench.py", "glue", "--frames", "18", "--settle", "16", "--passes", "1", "--plain", "--config", str(toml)
     )
     assert done.returncode == 0, done.stderr
     assert "this tree: pipeline" in done.stdout
+    toml.write_text("[capture]\nreadout_us = -5\n")
+    done = run_tool("bench.py", "glue", "--frames", "18", "--passes", "1", "--config", str(toml))
+    assert done.returncode == 2 and "readout_us must be an integer >= 0" in done.stderr, done.stderr
     toml.write_text("[pipeline]\ncanny_low = 'low'\n")
     done = run_tool("bench.py", "glue", "--frames", "18", "--passes", "1", "--config", str(toml))
     assert done.returncode == 2

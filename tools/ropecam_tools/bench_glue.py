@@ -83,7 +83,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--config",
         metavar="TOML",
-        help="the [pipeline] table of this device.toml, with its plane_file, for both trees (default: the defaults)",
+        help="the [pipeline] table of this device.toml, with its plane_file, and [capture] readout_us, for both trees "
+        "(default: the defaults)",
     )
     parser.add_argument(
         "--plain", action="store_true", help="no kernel timers: whole-pipeline times only (no ~0.3 us per kernel call)"
@@ -99,14 +100,19 @@ def pipeline_factory(prefix: str, config_class: type, make: type, toml: str | No
     settings = importlib.import_module(f"{prefix}.shared.config")
     errors = (OSError, ValueError, importlib.import_module(f"{prefix}.shared.errors").RopecamError)
     try:
-        table = dict(settings.read_toml(toml).get("pipeline", {}))
-        config = settings.from_mapping(config_class, table, where=f"{toml} [pipeline]")
+        document = settings.read_toml(toml)
+        config = settings.from_mapping(config_class, dict(document.get("pipeline", {})), where=f"{toml} [pipeline]")
         plane = None
         if config.plane_file is not None:
             plane = importlib.import_module(f"{prefix}.shared.plane").read_plane_file(config.plane_file)
+        readout_us = document.get("capture", {}).get("readout_us", 0)  # a rolling shutter's placement on the plane
+        if not isinstance(readout_us, int) or readout_us < 0:
+            raise ValueError(f"[capture] readout_us must be an integer >= 0 (microseconds), got {readout_us!r}")
+    except AttributeError as exc:  # a tree older than the config reader
+        raise UsageError(f"--config {toml}: the tree {prefix} cannot read a device.toml ({exc})") from exc
     except errors as exc:
         raise UsageError(f"--config {toml}: {exc}") from exc
-    return lambda size: make(config, size, plane=plane)
+    return lambda size: make(config, size, readout_us=readout_us, plane=plane)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -157,6 +157,7 @@ from ropecam.device.pipeline._kernels.plane import (
     PLANE,
     PLANE_NAMES,
     PLANE_PARAMS,
+    ROLLING_WORK,
     pixel_to_plane,
     place_on_plane,
     plane_segment_lengths,
@@ -207,12 +208,20 @@ from ropecam.device.pipeline._kernels.thresholds import (
     sample_gradient_histogram,
     sample_slice,
 )
-from ropecam.device.pipeline._kernels.tip_sweep import restore_tip_sweep, shift_tip, sweep_from_path
+from ropecam.device.pipeline._kernels.tip_sweep import (
+    restore_tip_sweep,
+    shift_tip,
+    sweep_from_history,
+    sweep_from_path,
+)
 from ropecam.device.pipeline._kernels.tone import apply_table
 from ropecam.device.pipeline._kernels.tracking import (
     MOTION_COUNT,
     MOTION_EXPOSURE,
     MOTION_FRAMES,
+    NEAR_DECISIVE,
+    NEAR_MIN_SEPARATION_PX,
+    NEAR_UNDECIDED,
     drop_oldest,
     observe_motion,
     order_shapes,
@@ -254,6 +263,9 @@ __all__ = [
     "MOTION_COUNT",
     "MOTION_EXPOSURE",
     "MOTION_FRAMES",
+    "NEAR_DECISIVE",
+    "NEAR_MIN_SEPARATION_PX",
+    "NEAR_UNDECIDED",
     "NOT_FOUND",
     "OPEN_RATIO",
     "OPERATOR",
@@ -268,6 +280,7 @@ __all__ = [
     "PLANES",
     "PLANE_NAMES",
     "PLANE_PARAMS",
+    "ROLLING_WORK",
     "SAMPLE_BUFFERS",
     "SEAL_REACH_PX",
     "SPLIT_SCALAR",
@@ -392,6 +405,7 @@ __all__ = [
     "split_width",
     "steady_frame",
     "suppress_rows",
+    "sweep_from_history",
     "sweep_from_path",
     "thin_chain",
     "tip_mask_distance",

@@ -30,6 +30,9 @@ CHECK_NO_BLUR: Final = 6
 CHECK_TIP_MASKED: Final = 7
 CHECK_FALLBACK_SWEEP: Final = 8
 CHECK_TIP_KINK: Final = 9
+CHECK_TIP_AT_FIXED_END: Final = 10
+"""Checked by `SelfChecks` (Python) on frames without a motion prediction, as is `CHECK_TIP_CORNER`."""
+CHECK_TIP_CORNER: Final = 11
 
 CHECK_THRESHOLDS: Final = np.dtype(
     [

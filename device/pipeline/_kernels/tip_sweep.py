@@ -89,6 +89,34 @@ def sweep_from_path(fixed, t_mid_ns, exposure_ns, max_age_ns, motion_state, moti
     )
 
 
+@kernel(types.UniTuple(float64, 3)(int64, int64, int64, i8_1d, f8_2d, float64, float64))
+def sweep_from_history(t_mid_ns, exposure_ns, max_age_ns, order_state, hist_rc, mid_r, mid_c):
+    """Return the tip's sweep (row, col: end minus start) during the exposure of `exposure_ns` centred on
+    `t_mid_ns` from the time order's history (`order_state`, `hist_rc`: tip samples, oldest first) where the motion
+    model holds no frame: the line from the last earlier frame's tip at its mid-exposure (the midpoint of its
+    begin and end samples, or its one sample) to this frame's midpoint (`mid_r`, `mid_c`), times the exposure; and
+    that frame's own sweep (the distance of its two samples; 0 for one). (nan, nan, 0) without such a sample no
+    older than `max_age_ns`."""
+    count = order_state[ORDER_COUNT]
+    start = t_mid_ns - exposure_ns // 2
+    j = count - 1
+    while j >= 0 and order_state[j] >= start:  # this frame's own samples (when the time order took them)
+        j -= 1
+    if j < 0 or not (0 < t_mid_ns - order_state[j] <= max_age_ns):
+        return math.nan, math.nan, 0.0
+    t_prev = float64(order_state[j])
+    p_r = hist_rc[j, 0]
+    p_c = hist_rc[j, 1]
+    own = 0.0
+    if j >= 1 and 0 < order_state[j] - order_state[j - 1] <= exposure_ns:  # a begin and end pair of one frame
+        own = math.hypot(p_r - hist_rc[j - 1, 0], p_c - hist_rc[j - 1, 1])
+        t_prev = 0.5 * (t_prev + float64(order_state[j - 1]))
+        p_r = 0.5 * (p_r + hist_rc[j - 1, 0])
+        p_c = 0.5 * (p_c + hist_rc[j - 1, 1])
+    scale = exposure_ns / (t_mid_ns - t_prev)
+    return (mid_r - p_r) * scale, (mid_c - p_c) * scale, own
+
+
 @kernel(float64(f4_2d))
 def shape_length(shape):
     """Return the arc length (px) of the polyline `shape` (n, 2) (0 for fewer than two points)."""
@@ -130,7 +158,8 @@ def restore_tip_sweep(
 ):  # fmt: skip
     """Where the two shapes' tips (`begin`, `end`: in time order, fixed end first) lie closer together than
     `COLLAPSED` x the sweep their path gives (`sweep_from_path`, at least `MIN_SWEEP_PX`), put them at their
-    midpoint -/+ half that sweep (`shift_tip`, in place), and the time order's last two tip samples (this frame's,
+    midpoint -/+ half that sweep (`shift_tip`, in place; where the motion model holds no frame, the sweep from the
+    time order's history, `sweep_from_history`), and the time order's last two tip samples (this frame's,
     when `order_shapes` remembered them: times `t_ns` and `t_end_ns`) with them. Nothing moves when that sweep
     is far beyond the last frame's (`MAX_GROWTH`, `SAME_PATH_PX`: the motion model was measured about another
     fixed end), nor when the shapes' lengths differ by more than `LENGTH_MISMATCH` x `length0_px` (Lc0; negative:
@@ -152,12 +181,18 @@ def restore_tip_sweep(
     mid_c = 0.5 * (bc + ec)
     s_r, s_c = sweep_from_path(fixed, t_ns + exposure_ns // 2, exposure_ns, max_age_ns, motion_state, motion_log,
                                mid_r, mid_c)  # fmt: skip
+    last_sweep = motion_log[MOTION_FRAMES, 0]
+    if math.isnan(s_r) and motion_state[MOTION_FRAMES] == 0:
+        # The motion model was cleared (a frame without shapes, a flagged one): the time order's history still
+        # holds the last frames' tips.
+        s_r, s_c, last_sweep = sweep_from_history(t_ns + exposure_ns // 2, exposure_ns, max_age_ns, order_state,
+                                                  hist_rc, mid_r, mid_c)  # fmt: skip
     sweep = math.hypot(s_r, s_c)
     if not (sweep >= MIN_SWEEP_PX and math.hypot(er - br, ec - bc) < COLLAPSED * sweep):
         return False
     # The motion model keeps its midpoints about the fixed end of their time: read about another one (the fixed
     # end was found again), they give a path that jumps. A sweep far beyond the last frame's is no path.
-    if sweep > MAX_GROWTH * motion_log[MOTION_FRAMES, 0] + SAME_PATH_PX:
+    if sweep > MAX_GROWTH * last_sweep + SAME_PATH_PX:
         return False
     if length0_px > 0.0 and abs(shape_length(begin) - shape_length(end)) > LENGTH_MISMATCH * length0_px:
         return False

@@ -45,6 +45,17 @@ MOTION_EXPOSURE: Final = MOTION_FRAMES + 1
 _TWO_PI: Final = 2.0 * math.pi
 _LOG_LARGE: Final = math.log(sys.float_info.max / 4.0)
 """Above this real part, exp(z) is computed as exp(z - 1) * e (as CPython's `cmath.exp`)."""
+NEAR_UNDECIDED: Final = 0.55
+"""The fitted path's time order counts as a coin flip below this confidence (`order_shapes`): nearness may then
+overrule it. Measured (simulated ``lab``, ``lab-rolling``, set up from their first 2 s, 240 frames, tuning seed):
+the fit's wrong orders had confidence 0.501-0.505; its right ones where nearness disagreed followed a frame whose
+tips were 367 px off (nearness not decisive there: 0.15-0.2)."""
+NEAR_DECISIVE: Final = 0.5
+"""Nearness decides only when the two tips' distances from the last sample differ by this fraction of their
+separation or more (at most 1: the last sample on the line through both, beyond one). The fit's wrong orders on
+those scenes had 0.68-1.0."""
+NEAR_MIN_SEPARATION_PX: Final = 1.0
+"""Tips closer together than this are not reordered by nearness (their order is within the tips' noise)."""
 
 
 # --------------------------------------------------------------------------------------------- time order
@@ -154,9 +165,10 @@ def order_shapes(shape_a, shape_b, single, t_ns, t_end_ns, max_age_ns, order_sta
     shapes keep their order. While the history's own order is a guess (one split frame before), the nearest pair
     of (last tips, these tips) orders both frames (the tip moves on from where the last exposure ended; the
     remembered samples are swapped when they were the wrong way round). Otherwise the tips predicted at `t_ns`
-    and `t_end_ns` (`_predict`) decide by squared distances; a frame whose tips lie far from the predicted path
-    (middle of the band, sweep) is left out of the history once (confidence halved towards 0.5), and on a second
-    such frame in a row the history starts again from it.
+    and `t_end_ns` (`_predict`) decide by squared distances, unless that is a coin flip (`NEAR_UNDECIDED`) and
+    nearness to the last sample decisively disagrees (`NEAR_DECISIVE`): nearness then decides. A frame whose tips
+    lie far from the predicted path (middle of the band, sweep) is left out of the history once (confidence halved
+    towards 0.5), and on a second such frame in a row the history starts again from it.
 
     Updates `order_state` and `hist_rc`. Returns (1 when `shape_b` is the start of the exposure (swapped), 0 when
     `shape_a` is, or INVALID on an empty shape or `t_end_ns <= t_ns`; the confidence, 0.5-1).
@@ -222,12 +234,27 @@ def order_shapes(shape_a, shape_b, single, t_ns, t_end_ns, max_age_ns, order_sta
     swapped = (br - pbr) ** 2 + (bc - pbc) ** 2 + (ar - per) ** 2 + (ac - pec) ** 2
     confidence = 0.5 + 0.5 * abs(straight - swapped) / (straight + swapped + 1e-6)
     swap = 0 if straight <= swapped else 1
+    last_r = hist_rc[count - 1, 0]
+    last_c = hist_rc[count - 1, 1]
+    # Nearness: between exposures the tip moves on from where the last sample left it. Where the fit (which
+    # extrapolates a whipping tip badly across its turns) is a coin flip and nearness decisively disagrees (the
+    # last sample lies beyond one tip, along the line through both), nearness decides.
+    d_a = math.hypot(ar - last_r, ac - last_c)
+    d_b = math.hypot(br - last_r, bc - last_c)
+    near_swap = 1 if d_b < d_a else 0
+    separation = math.hypot(br - ar, bc - ac)
+    if (
+        near_swap != swap
+        and confidence < NEAR_UNDECIDED
+        and separation >= NEAR_MIN_SEPARATION_PX
+        and abs(d_a - d_b) >= NEAR_DECISIVE * separation
+    ):
+        swap = near_swap
+        confidence = 0.5 + 0.5 * abs(d_a - d_b) / (d_a + d_b + 1e-6)
     # Judged on what does not depend on the order: where the band's middle is and how far the tip swept.
     pred_sweep = math.hypot(per - pbr, pec - pbc)
     mid_miss = 0.5 * math.hypot(ar + br - pbr - per, ac + bc - pbc - pec)
     sweep_miss = abs(math.hypot(br - ar, bc - ac) - pred_sweep)
-    last_r = hist_rc[count - 1, 0]
-    last_c = hist_rc[count - 1, 1]
     reach = math.hypot(0.5 * (pbr + per) - last_r, 0.5 * (pbc + pec) - last_c)  # how far it extrapolates
     tolerance = 3.0
     if 0.5 * pred_sweep > tolerance:
@@ -481,9 +508,9 @@ def track_frame(
     track, width_px,
 ):  # fmt: skip
     """`order_shapes`, then `uncross_shapes` (the stretches of a rope whose start and end shapes cross, put in
-    time order by continuity; `width_px` the rope's width), `restore_tip_sweep` (tips the band's end put together,
-    moved apart by the sweep of their path), `track_shapes` on the shapes in time order, then `observe_motion`, in
-    one call: what
+    time order by continuity, the tip's too when its order was a coin flip; `width_px` the rope's width),
+    `restore_tip_sweep` (tips the band's end put together, moved apart by the sweep of their path), `track_shapes`
+    on the shapes in time order, then `observe_motion`, in one call: what
     a frame's two shapes (the same array for one shape) give once they are known, exposed from `t_ns` for
     `exposure_ns` (>= 0; `t_end_ns` = `t_ns` + exposure: not later means unknown, no time order, confidence 0.5
     or 1 for one shape, the history untouched). Arguments as those three kernels': `order` is the time order's
@@ -517,7 +544,15 @@ def track_frame(
     begin = shape_b if swap == 1 else shape_a
     end = shape_a if swap == 1 else shape_b
     if t_end_ns > t_ns:
-        uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, order)
+        undecided = confidence < NEAR_UNDECIDED
+        if uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, undecided, order) > 0 and undecided:
+            # The tip's stretch may have changed sides: the time order's history takes the tips as they now are.
+            count = order_state[ORDER_COUNT]
+            if count >= 2 and order_state[count - 2] == t_ns and order_state[count - 1] == t_end_ns:
+                hist_rc[count - 2, 0] = float64(begin[begin.shape[0] - 1, 0])
+                hist_rc[count - 2, 1] = float64(begin[begin.shape[0] - 1, 1])
+                hist_rc[count - 1, 0] = float64(end[end.shape[0] - 1, 0])
+                hist_rc[count - 1, 1] = float64(end[end.shape[0] - 1, 1])
         if not single:
             restore_tip_sweep(begin, end, fixed, t_ns, t_end_ns, max_age_ns, exposure_ns, motion_state, motion_log,
                               order_state, hist_rc, length0_px)  # fmt: skip

@@ -164,8 +164,8 @@ def _resample_into(source, count, out_count, out):
     return out_count
 
 
-@kernel(int32(f4_2d, f4_2d, boolean, int64, int64, float64, ORDER))
-def uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, order):
+@kernel(int32(f4_2d, f4_2d, boolean, int64, int64, float64, boolean, ORDER))
+def uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, tip_undecided, order):
     """Exchange the stretches of `begin` and `end` (float32 (n, 2), fixed end first, in time order by the tip)
     that the previous frame's end shape says are the other way round, between the pinches where the two cross;
     then remember `end` as the previous end shape (exposure ending at `t_end_ns`).
@@ -173,8 +173,9 @@ def uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, order):
     A pinch is an interior local minimum of the distance from a point of `begin` to `end` below `PINCH_WIDTHS` x
     `width_px` plus the distance read by the fixed end (`FLOOR_SPAN`, at most as much again), or below `width_px`
     and `PROMINENCE` x the largest distance on either side of it. On every stretch between pinches but the last
-    (the tip's), the side decisively nearer (`DECISIVE`) to the previous end shape (kept at most `max_age_ns` before
-    this exposure's end) is the start of the exposure. The exchanged shapes keep their point counts (each resampled
+    (the tip's; it too when `tip_undecided`: the tips' order was a coin flip), the side decisively nearer
+    (`DECISIVE`) to the previous end shape (kept at most `max_age_ns` before this exposure's end) is the start of
+    the exposure. The exchanged shapes keep their point counts (each resampled
     evenly along its new arc). Nothing is exchanged for a `single` shape, without a previous end shape, or when a
     shape is longer than ``order.prev_end``. Uses ``order.splice`` as scratch (its rows hold the new begin, the new
     end, and each begin point's (distance, match) on `end`).
@@ -236,7 +237,7 @@ def uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, order):
             if (stop_b - start_b < 2 or stop_e - start_e < 2) and not last:
                 continue
             swap = False
-            if not last:
+            if not last or tip_undecided:
                 separation = 0.0
                 for i in range(start_b, stop_b):
                     separation += match[i, 0]

@@ -117,6 +117,23 @@ def test_recorded_gaps_count_as_drops_and_large_sets_are_decoded_on_read(tmp_pat
     assert source.counters.dropped == 1 and source.counters.delivered == 4
 
 
+def test_a_gap_overtaken_before_the_first_frame_still_counts_as_dropped(tmp_path: Path) -> None:
+    # The consumer's first read comes late, after the recording's gap (frame 2 was never recorded): every frame of
+    # the span is accounted for (CI at load 16: a daemon started late counted 10 of 12 frames).
+    _write(tmp_path / "set")
+    index = tmp_path / "set" / "index.csv"
+    lines = index.read_text().splitlines()
+    index.write_text("\n".join(lines[:3] + lines[4:]) + "\n")
+    clock = FakeClock()
+    with FrameSetSource(tmp_path / "set", clock=clock, sleep=clock.sleep) as source:
+        clock.now_ns += 3 * PERIOD_NS + PERIOD_NS // 2  # frames 0, 1 and 3 are due: 3 is the newest
+        first = source.read(0)
+        assert first is not None and first.sequence == 3
+        rest = [source.read(1.0) for _ in range(2)]
+    assert [f.sequence for f in rest if f] == [4]
+    assert source.counters.as_dict() == {"delivered": 2, "skipped": 2, "dropped": 1, "timeouts": 0}
+
+
 def test_bad_sets_are_refused(tmp_path: Path) -> None:
     _write(tmp_path / "set")
     (tmp_path / "set" / "frames" / "000003.png").unlink()

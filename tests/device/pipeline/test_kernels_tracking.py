@@ -73,6 +73,17 @@ class _ReferenceOrder:
         swapped = math.dist(b, pb) ** 2 + math.dist(a, pe) ** 2
         confidence = 0.5 + 0.5 * abs(straight - swapped) / (straight + swapped + 1e-6)
         swap = 0 if straight <= swapped else 1
+        last = history[-1][1]
+        d_a, d_b = math.dist(a, last), math.dist(b, last)
+        separation = math.dist(a, b)
+        near_swap = 1 if d_b < d_a else 0
+        if (
+            near_swap != swap
+            and confidence < K.NEAR_UNDECIDED
+            and separation >= K.NEAR_MIN_SEPARATION_PX
+            and abs(d_a - d_b) >= K.NEAR_DECISIVE * separation
+        ):
+            swap, confidence = near_swap, 0.5 + 0.5 * abs(d_a - d_b) / (d_a + d_b + 1e-6)
         pred_sweep = math.dist(pb, pe)
         mid_miss = 0.5 * math.dist((a[0] + b[0], a[1] + b[1]), (pb[0] + pe[0], pb[1] + pe[1]))
         sweep_miss = abs(math.dist(a, b) - pred_sweep)
@@ -148,6 +159,35 @@ def test_order_shapes_matches_the_reference_through_swings_gaps_and_bad_frames()
         assert _flat(order.samples) == pytest.approx(_flat(reference.history), abs=1e-9), k
     assert order.order(sa, sb, t1, t1, period)[2] in (0.5, 1.0)  # exposure unknown: no order, nothing remembered
     assert _flat(order.samples) == pytest.approx(_flat(reference.history), abs=1e-9)
+
+
+def test_a_coin_flip_of_the_fitted_path_is_decided_by_nearness() -> None:
+    """A whipping tip turns across its fitted path: the fit's predicted motion (along rows) is square to this
+    frame's tips (apart along columns), a coin flip, while the last sample (where the last exposure ended) lies
+    decisively nearer to one of them (simulated lab-rolling, tuning seed, frames 172, 206, 212, 221, 231: the fit's
+    order was wrong at confidence 0.501-0.505, nearness right)."""
+    order, period, exposure = TimeOrder(), 8_403_361, 4_000_000
+    for k in range(3):
+        begin, end = _shape((100.0 + 10 * k, 40.0)), _shape((104.0 + 10 * k, 40.0))
+        order.order(begin, end, k * period, k * period + exposure, period)
+    t0 = 3 * period
+    a, b = (126.3, 44.0), (125.7, 48.0)
+    history = order.samples
+    pb, pe = _fit(history, t0), _fit(history, t0 + exposure)
+    straight = math.dist(a, pb) ** 2 + math.dist(b, pe) ** 2
+    swapped = math.dist(b, pb) ** 2 + math.dist(a, pe) ** 2
+    assert swapped < straight and 0.5 + 0.5 * (straight - swapped) / (straight + swapped) < K.NEAR_UNDECIDED
+    sa, sb = _shape(a), _shape(b)
+    begin, end, confidence = order.order(sa, sb, t0, t0 + exposure, period)
+    assert begin is sa and end is sb  # a is nearer to where the last exposure ended, (124, 40)
+    assert confidence > 0.5
+    # A decided fit is not overruled: tips apart along the fitted motion, the nearer one given second.
+    order2 = TimeOrder()
+    for k in range(3):
+        begin, end = _shape((100.0 + 10 * k, 40.0)), _shape((104.0 + 10 * k, 40.0))
+        order2.order(begin, end, k * period, k * period + exposure, period)
+    c, d = _shape((128.0, 40.0)), _shape((132.0, 40.0))
+    assert order2.order(d, c, t0, t0 + exposure, period)[0] is c
 
 
 def test_order_shapes_refuses_empty_shapes() -> None:
@@ -343,7 +383,13 @@ def test_track_frame_is_order_then_material_points_then_motion() -> None:
             swap, confidence = 0, (1.0 if a is b else 0.5)
         begin, end = (b, a) if swap else (a, b)
         if t1 > t0:
-            K.uncross_shapes(begin, end, a is b, t1, 4 * period, 3.0, K.Order(order_state, hist_rc, prev_end, splice))
+            undecided = confidence < K.NEAR_UNDECIDED
+            group = K.Order(order_state, hist_rc, prev_end, splice)
+            if K.uncross_shapes(begin, end, a is b, t1, 4 * period, 3.0, undecided, group) > 0 and undecided:
+                count = order_state[K.ORDER_COUNT]  # the tip's stretch may have changed sides: the history follows
+                if count >= 2 and order_state[count - 2] == t0 and order_state[count - 1] == t1:
+                    hist_rc[count - 2] = begin[-1]
+                    hist_rc[count - 1] = end[-1]
             if a is not b:
                 moved += K.restore_tip_sweep(begin, end, fixed, t0, t1, 4 * period, t1 - t0, motion_state, motion_log,
                                              order_state, hist_rc, length0)  # fmt: skip

@@ -17,6 +17,7 @@ from ropecam.device.pipeline._kernels.tip_sweep import (
     restore_tip_sweep,
     shape_length,
     shift_tip,
+    sweep_from_history,
     sweep_from_path,
 )
 from ropecam.device.pipeline._kernels.tip_sweep import MOTION_FRAMES as SWEEP_MOTION_FRAMES
@@ -121,6 +122,45 @@ def test_restore_tip_sweep_moves_collapsed_tips_and_their_history() -> None:
     state[K.MOTION_COUNT] = 0
     assert not restore_tip_sweep(e, f, fixed, t_ns, t_ns + exposure, 4 * period, exposure, state, log,
                                  order_state, hist, -1.0)  # fmt: skip
+
+
+def test_without_the_motion_model_the_time_orders_history_gives_the_path() -> None:
+    # After a frame without shapes (or a flagged one) the motion model is cleared, but the time order keeps the
+    # last frames' tips (simulated lab-rolling, tuning seed, frame 170 after a lost frame: tips 1.0 px apart against
+    # a 10.3 px sweep, 3.7 / 6.5 px off): the line from the last frame's tip at mid-exposure to this frame's
+    # midpoint gives the sweep.
+    fixed, period, exposure, state, log, _, a = _straight_path()
+    state[K.MOTION_COUNT] = 0
+    t_ns = 3 * period  # one frame lost in between
+    order_state = np.zeros(K.ORDER_STATE_SIZE, np.int64)
+    hist = np.zeros((K.HISTORY, 2))
+    # The last measured frame (at period): its tips 8 px apart along +col around col 116, then this frame's own two
+    # samples (taken by the time order before the restore), which the path must not read.
+    order_state[:4] = (period, period + exposure, t_ns, t_ns + exposure)
+    hist[:4] = ((10.0, 112.0), (10.0, 120.0), (10.0, 132.0), (10.0, 132.0))
+    order_state[K.ORDER_COUNT] = 4
+    mid_c = 116.0 + 2.0 * (t_ns - period) / 1e6  # 2 px per ms
+    sweep = sweep_from_history(t_ns + exposure // 2, exposure, 4 * period, order_state, hist, 10.0, mid_c)
+    assert sweep == pytest.approx((0.0, 8.0, 8.0), abs=1e-6)
+    # One sample of the last frame (a one-shape frame, at its mid-exposure): its own sweep is 0.
+    one = order_state.copy()
+    one[:3] = (period + exposure // 2, t_ns, t_ns + exposure)
+    one[K.ORDER_COUNT] = 3
+    single = np.array([(10.0, 116.0), (10.0, 132.0), (10.0, 132.0), (0, 0), (0, 0), (0, 0)])
+    assert sweep_from_history(t_ns + exposure // 2, exposure, 4 * period, one, single, 10.0, mid_c) == pytest.approx(
+        (0.0, 8.0, 0.0), abs=1e-6
+    )
+    # Older than the age limit: no path.
+    assert np.isnan(sweep_from_history(t_ns + exposure // 2, exposure, period, order_state, hist, 10.0, mid_c)[0])
+    # The collapsed tips (both at the midpoint) are moved apart by it, and the history's samples of this frame with
+    # them.
+    shift = mid_c - a[-1, 1]
+    a[:, 1] += np.float32(shift)
+    b = a.copy()
+    assert restore_tip_sweep(a, b, fixed, t_ns, t_ns + exposure, 4 * period, exposure, state, log, order_state, hist,
+                             -1.0)  # fmt: skip
+    assert a[-1].tolist() == pytest.approx([10.0, mid_c - 4.0]) and b[-1].tolist() == pytest.approx([10.0, mid_c + 4.0])
+    assert hist[2:4].ravel().tolist() == pytest.approx([10.0, mid_c - 4.0, 10.0, mid_c + 4.0])
 
 
 def test_collapsed_tips_of_shapes_the_length_check_flags_stay_where_they_are() -> None:

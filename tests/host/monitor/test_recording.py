@@ -486,3 +486,26 @@ def test_monitor_process_reports_a_monitor_that_cannot_start(udp_port: int) -> N
     monitor = MonitorProcess(["--source", f"udp://127.0.0.1:{udp_port}?listen=1", "--no-ui"], start_timeout_s=60)
     code, _, err = monitor.stop()
     assert code == 0 and "receiving on" in err and "stopped by SIGTERM" in err
+
+
+def test_the_stop_handlers_are_in_place_when_the_ready_line_appears(
+    udp_port: int, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # A SIGTERM sent as soon as "receiving on" appears (MonitorProcess.stop, a service manager) must stop the monitor
+    # cleanly: the handler that turns it into a stop request is installed before that line is written (CI at load 16
+    # killed a monitor whose handler came after it: exit -15).
+    from ropecam.host.monitor.cli import StopSignals
+
+    seen: list[object] = []
+
+    class Stderr(io.StringIO):
+        def write(self, text: str) -> int:
+            if "receiving on" in text:
+                seen.append(signal.getsignal(signal.SIGTERM))
+            return super().write(text)
+
+    monkeypatch.setattr("sys.stderr", Stderr())
+    before = signal.getsignal(signal.SIGTERM)
+    assert main(["monitor", "--source", f"udp://127.0.0.1:{udp_port}?listen=1", "--no-ui", "--duration-s", "0.1"]) == 0
+    assert len(seen) == 1 and isinstance(getattr(seen[0], "__self__", None), StopSignals), seen
+    assert signal.getsignal(signal.SIGTERM) is before  # restored

@@ -28,6 +28,7 @@ from ropecam.shared.protocol import (
 )
 from ropecam.shared.protocol.examples import arc_polyline, example_records
 from ropecam.shared.protocol.frame_result import MAX_MATERIAL_POINTS
+from ropecam.shared.protocol.quality import Reason
 from ropecam.shared.protocol.records import COMMAND_VALUES
 
 T_NS = st.integers(-(2**62), 2**62)
@@ -81,6 +82,8 @@ def frame_results(draw: st.DrawFn) -> FrameResult:
         stretch_begin=draw(st.sampled_from([math.nan]) | st.floats(0.0, 10.0)),
         stretch_end=draw(st.sampled_from([math.nan]) | st.floats(0.0, 10.0)),
         pipeline_us=draw(st.integers(0, 2**32 - 1)),
+        reason=draw(st.sampled_from(Reason)),
+        readout_ns=draw(st.integers(0, 2**40 - 1)),
     )
 
 
