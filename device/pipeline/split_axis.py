@@ -16,6 +16,8 @@ from ropecam.device.pipeline.workspace import SplitBuffers
 
 __all__ = ["AxisPolylines"]
 
+_F32_ZERO = np.float32(0.0)
+
 
 class AxisPolylines:
     """Finish the axis polylines of `BlurSplitter`'s step-by-step split (side A / side B into out A / out B) and
@@ -128,28 +130,17 @@ class AxisPolylines:
         (`n` read-only `points`, `chain`, on the read-only planes `gx`, `gy`, `smooth`), from rope end to rope
         end, moved half the edge spacing `width_px` into the rope along `polarity` times the gradient. The end
         nearer `fixed_rc` comes first; `tables_of` gives the width's tables (for the tip fit)."""
-        if n < 8:
+        if fixed_rc is None:
+            fixed, fixed_r, fixed_c = False, _F32_ZERO, _F32_ZERO
+        else:
+            fixed, fixed_r, fixed_c = True, f32(fixed_rc[0]), f32(fixed_rc[1])
+        count = K.static_shape(
+            points, chain, n, gx, gy, smooth, polarity, tables_of(width_px).group, fixed, fixed_r, fixed_c,
+            self.buffers.group,
+        )  # fmt: skip
+        if count == K.NOT_FOUND:
             return None
-        b = self.buffers
-        K.turning_angles(points, n, i32(max(3, round(width_px))), b.turn)
-        if K.find_caps(ro(b.turn), n, i32(max(4, n // 8)), b.idx) < 0:
-            return None
-        e1, e2 = np.int32(b.idx[0]), np.int32(b.idx[1])
-        if fixed_rc is not None:
-            d1 = np.hypot(points[e1, 0] - fixed_rc[0], points[e1, 1] - fixed_rc[1])
-            d2 = np.hypot(points[e2, 0] - fixed_rc[0], points[e2, 1] - fixed_rc[1])
-            if d2 < d1:
-                e1, e2 = e2, e1
-        w = np.float32(width_px)
-        count = K.offset_by_gradient(points, chain, n, e1, e2, i32(1), gx, gy, polarity, w, f32(0.0), self.side_a)
-        if count < 2:
-            return None
-        # The cap's edge was moved half a width back along the axis with the gradient: carry the axis on to the
-        # band's end instead, as for the split shapes.
-        count = self.fit_tip(self.side_a, i32(count), points, n, smooth, tables_of(width_px))
-        if fixed_rc is not None:
-            count = self.anchor_fixed_end(self.side_a, count, fixed_rc, width_px)
-        shape = self.resample(0, i32(count))
-        b.seg[0] = points[e2]
-        b.seg[1] = points[e2]
+        if count < 0:
+            raise RuntimeError(f"resample_polyline returned status {count}")
+        shape = self.shape(0 if self.buffers.info[4] else 2, count)
         return SplitOutcome(Method.STATIC_FALLBACK, shape, shape, None, width_px, 0.0)

@@ -201,6 +201,7 @@ from ropecam.device.pipeline._kernels.static_mask import (
     nearest_cut_end,
     seal_cut_ends,
 )
+from ropecam.device.pipeline._kernels.static_shape import static_shape
 from ropecam.device.pipeline._kernels.thresholds import (
     HIST_PER_UNIT,
     SAMPLE_BUFFERS,
@@ -403,6 +404,7 @@ __all__ = [
     "split_frame",
     "split_shapes",
     "split_width",
+    "static_shape",
     "steady_frame",
     "suppress_rows",
     "sweep_from_history",
