@@ -20,6 +20,7 @@ then gives the blur and sharpening nearest to it.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -329,10 +330,13 @@ class LensBlurEstimate:
         fixed_rc: tuple[float, float],
         edge_width_px: float,
         tip_sweep_px: float,
+        explains: Callable[[EdgeBlur, float, float], bool] | None = None,
     ) -> EdgeBlur | None:
         """Read one frame (its contour, fixed end, the rope's edge spacing and the frame's tip sweep); return the
         frame's reading, or None when the frame does not count (the rope moves more than `MAX_LOCAL_SWEEP_PX`
-        over the stretch, no stretch with two sides, no plausible fit)."""
+        over the stretch, no stretch with two sides, no plausible fit, or `explains` (the reading, the bar width
+        the fit read, `edge_width_px`) says the reading's edge model does not explain the edge spacing the contour
+        shows by that bar: `LensBlur` checks it)."""
         if self.done or not (math.isfinite(edge_width_px) and edge_width_px > 0.0 and math.isfinite(tip_sweep_px)):
             return None
         section = read_cross_section(frame, points, n, fixed_rc, edge_width_px)
@@ -360,5 +364,7 @@ class LensBlurEstimate:
             reading = EdgeBlur(math.sqrt(max(variance, 0.0)), 0.0, 1.0)
         else:
             reading = EdgeBlur(math.sqrt(max(variance, 0.0)), fit.sharpen_gain, fit.sharpen_sigma_px)
+        if explains is not None and not explains(reading, fit.width_px, edge_width_px):
+            return None
         self.read_values.append(reading)
         return reading

@@ -15,10 +15,21 @@ from ropecam.device.pipeline.config import DEFAULT_LENS_BLUR_PX
 from ropecam.device.pipeline.edge_model import BandEdgeModel, shared_model
 from ropecam.device.pipeline.edge_profile import EdgeBlur, LensBlurEstimate
 
-__all__ = ["BLUR_TOLERANCE_PX", "LensBlur"]
+__all__ = ["BLUR_TOLERANCE_PX", "WIDTH_AGREEMENT", "WIDTH_AGREEMENT_FLOOR_PX", "LensBlur"]
 
 BLUR_TOLERANCE_PX = 0.1
 """The measured lens blur (px) or sharpening variance (px^2) replaces the model in use only beyond this change."""
+WIDTH_AGREEMENT = 0.3
+WIDTH_AGREEMENT_FLOOR_PX = 0.5
+"""A frame's blur reading counts only when the rope width its edge model gives for the contour's edge spacing lies
+within ``WIDTH_AGREEMENT`` x the bar width the same fit read off the cross-section, or within
+``WIDTH_AGREEMENT_FLOOR_PX`` (`LensBlur.explains`). A rope moving more than its frame's tip sweep says (a
+flexible rope's root swinging ahead of its tip) widens the profile: the fit takes the motion for lens blur, and
+under that blur the still rope's edge spacing is the blur's own (simulated `lab-rolling`, tuning seed 4, 30 frames from
+0.25 s: readings 0.86-0.94 px, the fit's bar 1.9-2.3 px, the model's rope for spacing 3.1 px 0.3-1.1 px; the rope
+width then fell to the model's floor, 0.3 px, and the split returned empty shapes, every later frame `length`).
+Readings of a still rope agree within 0.32 px (simulated `lab` from the release: 0.47-0.63 px, bar 2.1-2.2 px,
+model 1.85-2.26 px)."""
 
 
 class LensBlur:
@@ -91,14 +102,20 @@ class LensBlur:
         self.measured = None
         return self.use(EdgeBlur(DEFAULT_LENS_BLUR_PX, 0.0, 1.0))
 
+    def explains(self, blur: EdgeBlur, bar_width_px: float, edge_width_px: float) -> bool:
+        """Whether the edge model of `blur` (rounded as `use` rounds it) turns the contour's edge spacing
+        `edge_width_px` into a rope as wide as the bar the blur was read with (`bar_width_px`), within
+        `WIDTH_AGREEMENT` (or `WIDTH_AGREEMENT_FLOOR_PX`)."""
+        model = shared_model(self.weights, *_rounded(blur))
+        gap = abs(model.rope_width(edge_width_px) - bar_width_px)
+        return gap <= max(WIDTH_AGREEMENT * bar_width_px, WIDTH_AGREEMENT_FLOOR_PX)
+
     def use(self, blur: EdgeBlur, tolerance_px: float = 0.0) -> bool:
         """Use the edge model of `blur` (the lens blur rounded to 0.05 px, the sharpening to 0.1, so that
         pipelines share the models' tables: `shared_model`), unless the lens blur and the sharpening's variance
         (gain x sigma^2, px^2) of the model in use are within `tolerance_px` of it; return whether the model
         changed."""
-        lens = round(max(float(blur.lens_blur_px), 0.0) * 20.0) / 20.0
-        gain = round(max(float(blur.sharpen_gain), 0.0) * 10.0) / 10.0
-        radius = round(float(blur.sharpen_sigma_px) * 10.0) / 10.0 if gain > 0.0 else 1.0
+        lens, gain, radius = _rounded(blur)
         model = self.model
         if (lens, gain, radius) == (model.lens_blur_px, model.sharpen_gain, model.sharpen_sigma_px):
             return False
@@ -123,7 +140,10 @@ class LensBlur:
         edge spacing and the frame's tip sweep) while it is being measured; return whether the edge model
         changed (the frame is then to be split again)."""
         estimate = self.estimate
-        if estimate is None or estimate.read(frame, points, n, fixed_rc, edge_width_px, tip_sweep_px) is None:
+        if (
+            estimate is None
+            or estimate.read(frame, points, n, fixed_rc, edge_width_px, tip_sweep_px, self.explains) is None
+        ):
             return False
         value = estimate.value
         assert value is not None
@@ -133,3 +153,11 @@ class LensBlur:
         # Each new model costs its tables (30-60 ms on the first frames): the readings' median changes it only
         # when it moves by more than `BLUR_TOLERANCE_PX` (below that the shapes move by < 0.02 px).
         return self.use(value, 0.0 if len(estimate.read_values) == 1 else BLUR_TOLERANCE_PX)
+
+
+def _rounded(blur: EdgeBlur) -> tuple[float, float, float]:
+    """The lens blur rounded to 0.05 px, the sharpening's gain and sigma to 0.1 (sigma 1 without sharpening): the
+    edge model's key (`shared_model`)."""
+    gain = round(max(float(blur.sharpen_gain), 0.0) * 10.0) / 10.0
+    radius = round(float(blur.sharpen_sigma_px) * 10.0) / 10.0 if gain > 0.0 else 1.0
+    return round(max(float(blur.lens_blur_px), 0.0) * 20.0) / 20.0, gain, radius

@@ -239,3 +239,31 @@ def test_a_decoded_frame_is_read_without_the_cameras_sharpening() -> None:
             assert blur.sharpen_gain > 0.0
     assert np.mean(errors[True]) < 0.15, errors[True]
     assert np.mean(errors[False]) > np.mean(errors[True]) + 0.2, errors  # the rule is what makes the difference
+
+
+def test_a_blur_reading_that_does_not_explain_the_edge_spacing_is_not_kept() -> None:
+    """A rope that moves more than its tip sweep says widens the cross-section: the fit reads a 2.2 px bar under
+    about 1 px of blur. Under that blur the contour's 3.1 px edge spacing (a 2 px rope's under the default blur) is
+    the blur's own, a rope at the model's floor: the reading is dropped and the model stays. A still rope's reading,
+    whose spacing its model turns into the bar the fit read, is kept."""
+    from ropecam.device.pipeline.config import DEFAULT_LENS_BLUR_PX
+    from ropecam.device.pipeline.edge_model import shared_model
+    from ropecam.device.pipeline.edges import gaussian_weights
+    from ropecam.device.pipeline.lens_blur import LensBlur
+
+    weights = gaussian_weights(1.0).astype(np.float64)
+    lens = LensBlur(weights, None)
+    frame, points, fixed = _still_rope(1.0, 2.2, 20.0, 1.0, 0)
+    assert not lens.read(frame, points, len(points), fixed, 3.1, 0.0)
+    assert lens.estimate is not None and lens.estimate.read_values == []
+    assert lens.model.lens_blur_px == DEFAULT_LENS_BLUR_PX
+    # The same frame read without the check (the estimate alone) gives the wrong blur the check refuses.
+    wrong = LensBlurEstimate().read(frame, points, len(points), fixed, 3.1, 0.0)
+    assert wrong is not None and wrong.lens_blur_px > 0.8
+    assert not lens.explains(wrong, 2.2, 3.1)
+
+    frame, points, fixed = _still_rope(0.6, 2.2, 20.0, 1.0, 0)
+    spacing = shared_model(weights, 0.6, 0.0, 1.0).edge_spacing(2.2)
+    assert lens.read(frame, points, len(points), fixed, spacing, 0.0)
+    assert len(lens.estimate.read_values) == 1
+    assert lens.model.lens_blur_px == pytest.approx(0.6, abs=0.1)
