@@ -50,7 +50,10 @@ reason                  fails when                                              
 ``tip_corner``          a split of known exposure without a motion prediction: a fitted tip lies         IMPLAUSIBLE
                         farther than ``tip_corner_widths`` rope widths + ``tip_corner_floor_px`` from
                         its segmentation point (the band's corner it was read at): the tip fit ran
-                        along the band's end or off it
+                        along the band's end or off it; and on any split: its two segmentation points
+                        lie closer together than half the rope's width (the learned edge spacing: one
+                        corner found twice) while its tips lie farther apart than the corners by more
+                        than a width
 ======================  ==============================================================================  ===========
 
 Each check's measure goes into the frame's quality record (`QUALITY_KEYS`), whether it passes or not.
@@ -117,8 +120,9 @@ class ChecksConfig:
         widths and the chord of the same arc before them (``tip_kink_widths`` 0: the check is off).
     tip_corner_widths, tip_corner_floor_px
         Largest distance of a split's fitted tip from its segmentation point, ``tip_corner_widths`` x the rope
-        width + ``tip_corner_floor_px``, on a frame of known exposure without a motion prediction
-        (``tip_corner_widths`` 0: the check is off).
+        width + ``tip_corner_floor_px``, on a frame of known exposure without a motion prediction; on every split,
+        the two segmentation points no closer than half a rope width, or the tips no farther apart than the
+        corners + a width (``tip_corner_widths`` 0: both checks are off).
     """
 
     enabled: bool = True
@@ -184,7 +188,9 @@ _MESSAGES = {
     Reason.TIP_AT_FIXED_END: "a shape's free tip lies at the fixed end (within checks.fixed_end_widths rope widths + "
     "checks.fixed_end_floor_px): it ran out along the rope and back (round a clamp's outline)",
     Reason.TIP_CORNER: "a split's tip lies farther than checks.tip_corner_widths rope widths + "
-    "checks.tip_corner_floor_px from the band's corner it was read at: the tip fit left the band's end",
+    "checks.tip_corner_floor_px from the band's corner it was read at, or the band's two corners lie within half a "
+    "rope width of each other (one corner found twice) while the tips lie farther apart: the tips were not read at "
+    "the band's corners",
 }
 
 
@@ -298,6 +304,7 @@ class SelfChecks:
         contour_area_px2: float = math.nan,
         mask: NDArray[np.uint8] | None = None,
         corner_px: float = math.nan,
+        corners: NDArray[np.float32] | None = None,
     ) -> tuple[FrameStatus, Reason]:
         """Check one measured frame; return its status (OK when every check passes) and the first failed reason.
 
@@ -327,11 +334,15 @@ class SelfChecks:
             How far the split's fitted tips lie from its segmentation points (`tip_corner_px`, measured on the
             split's own tips, before the tracking may move them along the sweep), for ``tip_corner`` (nan: not
             checked).
+        corners
+            The split's segmentation points (2, 2) float32 (row, col), for ``tip_corner``'s coinciding corners
+            (None: not known, not checked).
         """
         code = K.check_frame(
             begin, end, fixed, self._predicted, _nan_if_none(stretch_begin), _nan_if_none(stretch_end), width_px,
             learned_width_px or 0.0, order_confidence, exposure_ns, split, contour_area_px2,
-            _NO_MASK if mask is None else mask, self._thresholds, self._measures,
+            _NO_MASK if mask is None else mask, _NO_CORNERS if corners is None else corners, self._thresholds,
+            self._measures,
         )  # fmt: skip
         if code == K.CHECK_NONE and exposure_ns > 0 and math.isnan(self._predicted[2]):
             # Checks of a frame the motion model cannot check (the first frames, after a gap); a steady frame's
@@ -405,6 +416,9 @@ def _set_quality(quality: dict[str, float], values: tuple[float, ...]) -> None:
 _NO_MASK = np.zeros((1, 1), np.uint8)
 """A mask with nothing masked (`check_frame` reads pixels outside a mask as free)."""
 _NO_MASK.flags.writeable = False
+_NO_CORNERS = np.zeros((0, 2), np.float32)
+"""No segmentation points (`check_frame` then skips ``tip_corner``'s coinciding corners)."""
+_NO_CORNERS.flags.writeable = False
 
 
 def _length_px(shape: NDArray[np.float32]) -> float:

@@ -321,7 +321,7 @@ class ResultFinisher:
         status, reason = checks.check(
             begin, end, self.fixed, result.stretch_begin, result.stretch_end, used_px, learned_px,
             result.order_confidence, exposure_ns, split, area, self.locator.edges.static_mask_ro,
-            corner_px,
+            corner_px, corners if split else None,
         )  # fmt: skip
         self._take_verdict(result, outcome, exposure_ns, status, reason)
 

@@ -31,7 +31,8 @@ CHECK_TIP_MASKED: Final = 7
 CHECK_FALLBACK_SWEEP: Final = 8
 CHECK_TIP_KINK: Final = 9
 CHECK_TIP_AT_FIXED_END: Final = 10
-"""Checked by `SelfChecks` (Python) on frames without a motion prediction, as is `CHECK_TIP_CORNER`."""
+"""Checked by `SelfChecks` (Python) on frames without a motion prediction, as is `CHECK_TIP_CORNER`'s tip distance
+from its corner (`check_frame` checks its coinciding corners on every split)."""
 CHECK_TIP_CORNER: Final = 11
 
 CHECK_THRESHOLDS: Final = np.dtype(
@@ -51,6 +52,7 @@ CHECK_THRESHOLDS: Final = np.dtype(
         ("fallback_sweep_widths", np.float64),
         ("tip_kink_widths", np.float64),
         ("tip_kink_deg", np.float64),
+        ("tip_corner_widths", np.float64),
     ]
 )
 """The checks' thresholds (`ChecksConfig`'s numbers), one record."""
@@ -103,7 +105,18 @@ def predict_tips(t_ns, exposure_ns, motion_state, motion_log, fixed, out_predict
 
 # The shapes as the splitter leaves them (writable) or read-only views; the fixed end is the workspace's.
 _CHECK_SIGNATURES = int64(
-    f4_2d_ro, f4_2d_ro, f4_1d, f8_1d, *(float64,) * 5, int64, boolean, float64, u1_2d_ro, _thresholds_ro, _quality
+    f4_2d_ro,
+    f4_2d_ro,
+    f4_1d,
+    f8_1d,
+    *(float64,) * 5,
+    int64,
+    boolean,
+    float64,
+    u1_2d_ro,
+    f4_2d_ro,
+    _thresholds_ro,
+    _quality,
 )
 """`check_frame`'s one signature: writable shapes are taken through Numba's safe mutable-to-read-only conversion."""
 
@@ -190,7 +203,7 @@ def tip_turn_deg(shape, reach_px):
 @kernel(_CHECK_SIGNATURES)
 def check_frame(
     begin, end, fixed, predicted, stretch_begin, stretch_end, width_px, learned_width_px, order_confidence,
-    exposure_ns, split, contour_area_px2, mask, thresholds, out_quality,
+    exposure_ns, split, contour_area_px2, mask, corners, thresholds, out_quality,
 ):  # fmt: skip
     """Run every self-check on a measured frame; return the first failed check's code (`CHECK_NO_BLUR` before the
     others; `CHECK_NONE`: all passed) and write every measure into `out_quality[0]`.
@@ -200,7 +213,8 @@ def check_frame(
     (nan: unknown); `width_px` the split's width, `learned_width_px` the learned one (0: unknown); `split` whether
     the method gave two shapes (a single shape is checked against the tip's sweep: a fallback);
     `contour_area_px2` the contour's area (used only for a split the motion model cannot check: unknown exposure or
-    no prediction); `mask` the static mask (`tip_mask_distance`). The rules are
+    no prediction); `mask` the static mask (`tip_mask_distance`); `corners` the split's segmentation points (2, 2)
+    (row, col; fewer rows or nan: not known), for ``tip_corner``'s coinciding corners. The rules are
     `ropecam.device.pipeline.checks`' table.
     """
     limits = thresholds[0]
@@ -279,6 +293,18 @@ def check_frame(
         )
     ):
         failed = CHECK_TIP_KINK
+    # The band's far end has two corners, one on each side of the rope's end cap, about the edges' spacing (`width`)
+    # apart or more: each shape's tip is read at one of them. Corners closer than half that are one corner found
+    # twice (the other side of the band's end lost in the rope's texture or the noise), and tips lying farther
+    # apart than the corners by more than the spacing were not read at two corners (simulated `rope photo texture
+    # = 2`, tuning seed, frame 46: corners 1.0 px apart, spacing 3.2 px, tips 8.0 px, the end tip 8.7 px off;
+    # right frames of `rig-soft` and `lab` have corners 0.97 spacings apart where the tip moves along the rope).
+    if failed == CHECK_NONE and split and limits["tip_corner_widths"] > 0.0 and corners.shape[0] >= 2:
+        corner_sep = math.hypot(
+            float64(corners[0, 0]) - float64(corners[1, 0]), float64(corners[0, 1]) - float64(corners[1, 1])
+        )
+        if corner_sep < 0.5 * width and separation > corner_sep + width:  # False for nan corners
+            failed = CHECK_TIP_CORNER
     evidence = math.nan
     unchecked = split and (exposure_ns <= 0 or math.isnan(predicted[2]))
     if unchecked:

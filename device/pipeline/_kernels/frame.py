@@ -173,7 +173,8 @@ def steady_frame(
     ``predicted`` (as `SelfChecks.predict` before the frame); last, on shapes of a known exposure that
     `track_frame` took and with a prediction (``predicted``'s error not nan: the contour's area is not needed),
     `check_frame` of them in time order (`check_width_px` the width the split used, `learned_width_px` the learned
-    one, ``check_thresholds``, the measures into ``check_quality``, the mask ``static_mask``) as
+    one, ``check_thresholds``, the measures into ``check_quality``, the mask ``static_mask``, the corners
+    ``out_seg``) as
     `ResultFinisher.check` makes it; its code goes to ``out["check"]`` (-1: not checked here). Before the
     checks, on a plane (``constants["on_plane"]``), the tracked shapes' material points are placed on it
     (`place_on_plane` with ``plane``, ``fraction``, ``out_points``, ``work_seg``, as `ResultFinisher` places them;
@@ -387,6 +388,7 @@ def steady_frame(
             True,
             0.0,  # the contour's area: not read with a prediction and a known exposure
             buffer2(table, STEADY_ROW.static_mask, np.uint8),
+            buffer2(table, STEADY_ROW.out_seg, np.float32),  # the corners `split_frame` wrote
             thresholds,
             quality,
         )

@@ -368,3 +368,31 @@ def test_a_split_tip_far_from_its_band_corner_is_not_trusted() -> None:
     assert _check(SelfChecks(ChecksConfig(tip_corner_widths=0.0)), corner_px=far, end=off)[0] is FrameStatus.OK
     assert _check(checks, corner_px=far, end=off, exposure_ns=0)[1] is not Reason.TIP_CORNER
     assert _check(checks, end=off) == (FrameStatus.OK, Reason.NONE)  # not measured (nan): not checked
+
+
+def test_a_split_whose_two_corners_coincide_has_no_tips_read_at_them() -> None:
+    """The band's far end has two corners, about a rope width apart or more; a split whose corners lie within half
+    a width (one corner found twice) while its tips lie apart did not read its tips at corners (simulated `rope
+    photo texture = 2`, frame 46: corners 1.0 px apart, tips 8.0 px, a steady frame: checked with a motion
+    prediction too)."""
+    checks = SelfChecks(ChecksConfig())
+    apart = np.array([[210.0, 91.0], [210.0, 109.0]], np.float32)
+    once = np.array([[210.0, 100.0], [210.0, 101.0]], np.float32)  # 1 px apart, the tips 20 px
+    assert _check(checks, corners=apart) == (FrameStatus.OK, Reason.NONE)
+    assert _check(checks, corners=once) == (FrameStatus.IMPLAUSIBLE, Reason.TIP_CORNER)
+    # A tip moving along the rope: the band ends in a ramp whose two corners lie about the edges' spacing apart,
+    # less the smoothing's rounding (rig-soft frame 54, right: 0.97 spacings), and the tips farther apart.
+    ramp = np.array([[210.0, 97.6], [210.0, 102.4]], np.float32)
+    assert _check(checks, corners=ramp) == (FrameStatus.OK, Reason.NONE)
+    near = {"begin": _shape(99.0), "end": _shape(103.0)}  # tips 4 px apart: within the corners' 1 px + a width
+    assert _check(checks, corners=once, **near) == (FrameStatus.OK, Reason.NONE)
+    assert _check(checks, corners=None) == (FrameStatus.OK, Reason.NONE)  # not known: not checked
+    assert _check(checks, corners=np.full((2, 2), np.nan, np.float32)) == (FrameStatus.OK, Reason.NONE)
+    assert _check(SelfChecks(ChecksConfig(tip_corner_widths=0.0)), corners=once)[0] is FrameStatus.OK
+    motion = MotionModel()  # a steady frame: the motion model predicts the tips' midpoint (100), as here
+    for k in range(2):
+        motion.observe(_shape(90.0), _shape(110.0), FIXED, k * 8_403_361 + 2_000_000, 20.0, 4_000_000)
+    for _ in range(3):
+        checks.predict(motion.state, motion.log, FIXED, 2 * 8_403_361, 4_000_000)
+    assert _check(checks, corners=apart) == (FrameStatus.OK, Reason.NONE)
+    assert _check(checks, corners=once) == (FrameStatus.IMPLAUSIBLE, Reason.TIP_CORNER)
