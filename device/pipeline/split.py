@@ -136,6 +136,7 @@ class BlurSplitter:
         self.measure = BandMeasure(self.lens.model, self.dist, self.slope_work)
         self._info, self._seg = buffers.info, buffers.seg  # read every frame (`_frame_outcome`): plain attributes
         self._info_item = self._info.item  # its values one by one, the bound method made once
+        self._axis_shape = self.axis.shape  # a steady frame's shapes (`_frame_outcome`), the bound method made once
         self._shapes_outcome = SplitOutcome(_BLUR_SPLIT, buffers.sides[0][:0], buffers.sides[1][:0], None, 0.0, 0.0)
         """The outcome `_frame_outcome` fills for two shapes, one object for every frame (no allocation per frame):
         valid, as its shapes, until the next split."""
@@ -544,7 +545,7 @@ class BlurSplitter:
         if status == _SHAPES:  # the usual outcome first; read field by field (no list), into one reused outcome
             item = self._info_item
             self.sweep_px = sweep = item(6)
-            shape = self.axis.shape
+            shape = self._axis_shape
             outcome = self._shapes_outcome
             outcome.method, outcome.segmentation_points = _BLUR_SPLIT, self._seg
             outcome.shape_a = shape(0 if item(4) else 2, int(item(0)))

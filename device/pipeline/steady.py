@@ -172,6 +172,9 @@ class SteadyFrame:
             stop: int = K.steady_frame(*args)
         finally:
             self._slot.release()
+            # The end time is the result record's: let it go with the record's (`PipelineResult.reset`), so that
+            # the next frame's end time (an int above 256) is made after this one is freed, not beside it.
+            args[7] = 0
         if stop < 0:
             raise RuntimeError(f"steady_frame refused its arguments (status {stop})")
         return stop

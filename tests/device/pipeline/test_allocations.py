@@ -137,11 +137,12 @@ def test_a_reused_result_record_gets_the_fields_of_a_new_one() -> None:
 def test_the_steady_kernel_calls_allocate_no_python_memory(monkeypatch: pytest.MonkeyPatch) -> None:
     """`steady_frame` and the followed thresholds' `sample_slice` take no array argument (the frame through the
     workspace's `FrameSlot`, the buffers through a table): their calls allocate no Python memory (`tracemalloc`'s
-    peak around each call; an array argument costs Numba's wrapper a 48-byte MemInfo from CPython's allocator)."""
-    peaks: dict[str, list[int]] = {"steady_frame": [], "sample_slice": []}
+    peak around each call; an array argument costs Numba's wrapper a 48-byte MemInfo from CPython's allocator).
+    Nor does the split's step that takes `steady_frame`'s shapes again (`BlurSplitter.adopt_frame`, its views of
+    those point counts made: no bound method or int made per frame)."""
+    peaks: dict[str, list[int]] = {"steady_frame": [], "sample_slice": [], "adopt_frame": []}
 
-    def measured(name: str) -> Callable[..., object]:
-        real = getattr(K, name)
+    def measured(real: Callable[..., object], name: str) -> Callable[..., object]:
 
         def call(*args: object) -> object:
             # Read twice: the first reading's own int (`start`, 32 B) is made after it; the second rebinds it (a
@@ -162,13 +163,19 @@ def test_the_steady_kernel_calls_allocate_no_python_memory(monkeypatch: pytest.M
     for f in rope.frames(24):
         first.process(f.image, f.index, f.t_ns, f.exposure_us)
     pipeline = Pipeline(PipelineConfig(threshold_sample_every=1), (rope.width, rope.height))
-    for name in peaks:
-        monkeypatch.setattr(K, name, measured(name))
+    for name in ("steady_frame", "sample_slice"):
+        monkeypatch.setattr(K, name, measured(getattr(K, name), name))
     tracemalloc.start()
     try:
         for f in rope.frames(24):
             assert pipeline.process(f.image, f.index, f.t_ns, f.exposure_us).status is FrameStatus.OK
+        # The last frame's split taken again, its shapes' views made by the first time.
+        _, points, status, *_ = pipeline._steady.results()
+        adopt = measured(pipeline.splitter.adopt_frame, "adopt_frame")
+        fixed_rc = pipeline.traits.settled.fixed_rc  # type: ignore[union-attr]
+        for _ in range(5):
+            assert adopt(status, points, fixed_rc) is pipeline.splitter._shapes_outcome
     finally:
         tracemalloc.stop()
-    assert len(peaks["steady_frame"]) >= 5 and len(peaks["sample_slice"]) >= 5
+    assert all(len(values) >= 5 for values in peaks.values()), peaks
     assert peaks == {name: [0] * len(values) for name, values in peaks.items()}
