@@ -57,9 +57,10 @@ def contrast_gains(
     apart, the point sweeps ``sweeps[k]``) + `MARGIN_PX`, less a line through the levels of the first and the last
     `BACKGROUND_PX` of samples (the background), divided by the rope's own width `rope_px` (the edge model's for that
     spacing, as the frame's contrast is read: `BandMeasure.contrast`). Readings are averaged over the finite ones
-    of the ``2 CONTRAST_POINTS + 1`` points centred on each point (at least ``CONTRAST_POINTS + 1``); a point
-    without (its sweep beyond `REACH_WIDTHS` spacings, its section leaving the frame, a gain outside
-    [`MIN_GAIN`, `MAX_GAIN`]) gets 1. An
+    of the ``2 CONTRAST_POINTS + 1`` points centred on each point (at least ``CONTRAST_POINTS + 1``). The first
+    ``spacing_px + 2`` points (the fixed end's cap, or the seal across a clamp's exit: sections along the rope)
+    are not read, and the points before the first average take it; any other point without (its sweep beyond
+    `REACH_WIDTHS` spacings, its section leaving the frame, a gain outside [`MIN_GAIN`, `MAX_GAIN`]) gets 1. An
     empty `frame` gives 1 everywhere. `work` (float32, the side's length) keeps the raw readings. Returns the
     number of points or FULL.
     """
@@ -72,11 +73,14 @@ def contrast_gains(
     expected = float(contrast) * float(rope_px)
     reach = REACH_WIDTHS * spacing_px
     edge_samples = int(BACKGROUND_PX / STEP_PX) + 1
+    # The side's first points are the fixed end's cap (or the seal across a clamp's exit): sections there run
+    # along the rope. They take the contrast read just beyond.
+    cap = int(spacing_px + 2.0)
     i = (i_start + 4 * n) % n
     for k in range(count):
         work[k] = np.nan
         d = max(float(sweeps[k]), 0.0)
-        if height > 1 and cols > 1 and expected > 0.0 and d <= reach:
+        if k >= cap and height > 1 and cols > 1 and expected > 0.0 and d <= reach:
             r = chain[i, 0]
             c = chain[i, 1]
             g_r = float(gy[r, c]) * polarity
@@ -134,11 +138,15 @@ def contrast_gains(
         if math.isfinite(work[j]):
             acc += work[j]
             found += 1
+    first = -1
     for k in range(count):
+        out_gains[k] = 1.0
         if found >= half + 1 and acc > 0.0:
             out_gains[k] = expected / (acc / found)
-        else:
-            out_gains[k] = 1.0
+            if first < 0:
+                first = k
+                for j in range(k):  # the cap's points: the first average beyond it
+                    out_gains[j] = out_gains[k]
         enter = k + half + 1
         if enter < count and math.isfinite(work[enter]):
             acc += work[enter]
