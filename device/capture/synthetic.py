@@ -75,6 +75,10 @@ class SyntheticRope:
         radius beyond each end of the centreline).
     blur_px
         Gaussian sigma (px) of the camera's blur applied to the exposed image (0: none, the pixel's area only).
+    unevenness, unevenness_period_px
+        The rope's brightness varies along its length (uneven lighting, a braid's or a dyed rope's pattern): its
+        contrast to the background is multiplied by ``1 + unevenness sin(2 pi s / unevenness_period_px)`` at arc
+        length s from the fixed end (the pattern moves with the rope). 0: a uniform rope.
     """
 
     width: int = 320
@@ -95,12 +99,19 @@ class SyntheticRope:
     nodes: int = field(default=64)
     rope_end: str = "flat"
     blur_px: float = 0.0
+    unevenness: float = 0.0
+    unevenness_period_px: float = 60.0
 
     def __post_init__(self) -> None:
         if self.rope_end not in ("flat", "round"):
             raise ValueError(f"rope_end must be 'flat' or 'round', got {self.rope_end!r}")
         if not (0.0 <= self.blur_px <= 10.0):
             raise ValueError(f"blur_px must be in [0, 10], got {self.blur_px!r}")
+        if not (0.0 <= self.unevenness < 1.0) or not self.unevenness_period_px > 0.0:
+            raise ValueError(
+                f"unevenness must be in [0, 1) and unevenness_period_px > 0, got {self.unevenness!r} and "
+                f"{self.unevenness_period_px!r}"
+            )
 
     def centreline(self, t_s: float) -> NDArray[np.float64]:
         """Return the centreline (nodes, 2) as (u, v) pixels at time `t_s`, fixed end first."""
@@ -115,18 +126,25 @@ class SyntheticRope:
 
     def coverage(self, line_uv: NDArray[np.float64]) -> NDArray[np.float64]:
         """Return the fraction (0-1) of each pixel covered by the rope along `line_uv` (anti-aliased)."""
+        return self._cover(line_uv)[0]
+
+    def _cover(self, line_uv: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """`coverage`, and the arc length along `line_uv` of each pixel's nearest rope point (0 far from it)."""
         radius = 0.5 * self.diameter_px
         out = np.zeros((self.height, self.width))
+        arc_out = np.zeros((self.height, self.width))
         lo = np.floor(line_uv.min(axis=0) - radius - 2).astype(int)
         hi = np.ceil(line_uv.max(axis=0) + radius + 2).astype(int)
         u0, v0 = max(lo[0], 0), max(lo[1], 0)
         u1, v1 = min(hi[0], self.width - 1), min(hi[1], self.height - 1)
         if u1 < u0 or v1 < v0:
-            return out
+            return out, arc_out
         vv, uu = np.mgrid[v0 : v1 + 1, u0 : u1 + 1].astype(np.float64)
         dist = np.full(uu.shape, np.inf)
+        arc = np.zeros(uu.shape)
         reach = radius + 2.0
-        for a, b in itertools.pairwise(line_uv):
+        starts = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(line_uv, axis=0).T))])
+        for (a, b), start in zip(itertools.pairwise(line_uv), starts, strict=False):
             # Only the pixels near the segment: farther ones get no cover from it whatever their distance (the
             # same numbers where it matters, at a fraction of the work for a long rope).
             c0 = max(math.floor(min(a[0], b[0]) - reach) - u0, 0)
@@ -138,7 +156,11 @@ class SyntheticRope:
             uu_s, vv_s, dist_s = uu[r0:r1, c0:c1], vv[r0:r1, c0:c1], dist[r0:r1, c0:c1]
             d = b - a
             t = np.clip(((uu_s - a[0]) * d[0] + (vv_s - a[1]) * d[1]) / max(float(d @ d), 1e-12), 0.0, 1.0)
-            np.minimum(dist_s, np.hypot(uu_s - a[0] - t * d[0], vv_s - a[1] - t * d[1]), out=dist_s)
+            here = np.hypot(uu_s - a[0] - t * d[0], vv_s - a[1] - t * d[1])
+            if self.unevenness > 0.0:
+                nearer = here < dist_s
+                arc[r0:r1, c0:c1][nearer] = start + t[nearer] * math.sqrt(float(d @ d))
+            np.minimum(dist_s, here, out=dist_s)
         cover = np.clip(radius + 0.5 - dist, 0.0, 1.0)
         if self.rope_end == "flat" and len(line_uv) >= 2:
             # A flat end: beyond the end's plane the rope stops (anti-aliased over one pixel), whatever the
@@ -153,7 +175,8 @@ class SyntheticRope:
                 cover[past] = np.clip(radius + 0.5 - across[past], 0.0, 1.0)
                 cover[near] *= np.clip(0.5 - beyond[near], 0.0, 1.0)
         out[v0 : v1 + 1, u0 : u1 + 1] = cover
-        return out
+        arc_out[v0 : v1 + 1, u0 : u1 + 1] = arc
+        return out, arc_out
 
     def render(self, index: int, rng: np.random.Generator | None = None) -> SyntheticFrame:
         """Render frame `index` (exposure starting at ``index / fps``)."""
@@ -165,7 +188,10 @@ class SyntheticRope:
         n_sub = int(min(256, max(4, math.ceil(travel / 0.2))))
         acc = np.zeros((self.height, self.width))
         for k in range(n_sub):
-            acc += self.coverage(self.centreline(t0 + exposure_s * (k + 0.5) / n_sub))
+            cover, arc = self._cover(self.centreline(t0 + exposure_s * (k + 0.5) / n_sub))
+            if self.unevenness > 0.0:
+                cover *= 1.0 + self.unevenness * np.sin(2.0 * math.pi / self.unevenness_period_px * arc)
+            acc += cover
         acc /= n_sub
         if self.blur_px > 0.0:
             acc = _gaussian_blur(acc, self.blur_px)

@@ -133,6 +133,7 @@ class BlurSplitter:
         self._gradients: tuple[NDArray, ...] = ()
         """(gx, gy, mag) of the last `_prepare` as given (writable: `split_shapes` takes them in `Planes`)."""
         self._no_index, self._no_distances = ro(np.zeros(0, np.int32)), ro(np.zeros(0, np.float64))
+        self._no_gains, self._no_frame = self._no_distances, ro(np.zeros((0, 0), np.uint8))
         self.measure = BandMeasure(self.lens.model, self.dist, self.slope_work)
         self._info, self._seg = buffers.info, buffers.seg  # read every frame (`_frame_outcome`): plain attributes
         self._info_item = self._info.item  # its values one by one, the bound method made once
@@ -414,16 +415,25 @@ class BlurSplitter:
             # Every contour point checked by the tip fit (no distances), the sweep table walked (no index).
             status = K.split_shapes(
                 points, chain, n, i_fix, seg_a, seg_b, K.Planes(self._smooth, *self._gradients),
-                np.float32(1.0 / contrast), pol, consts.group, self._no_index, fixed_r, fixed_c, self._no_distances,
-                self.group,
+                self._no_frame if frame is None else frame, np.float32(1.0 / contrast), pol, consts.group,
+                self._no_index, fixed_r, fixed_c, self._no_distances, self.group,
             )  # fmt: skip
             if status >= 0 or status == K.NOT_FOUND:
                 self.sweep_px = sweep
                 return self._written_outcome(status, tables.width_px, sweep)
             inv, half, mag = np.float32(1.0 / contrast), consts.sweep_window, self._mag_ro
             ratios, sweeps = tables.peak_ratio, tables.sweeps_px
-            K.side_sweeps(chain, n, i_fix, seg_a, plus, mag, inv, ratios, sweeps, half, self.work, self.sweeps_a)
-            K.side_sweeps(chain, n, i_fix, seg_b, minus, mag, inv, ratios, sweeps, half, self.work, self.sweeps_b)
+            no, gains = self._no_gains, self.slope_work
+            for seg_i, sign, out, out_ro in ((seg_a, plus, self.sweeps_a, self._sweeps_a_ro),
+                                             (seg_b, minus, self.sweeps_b, self._sweeps_b_ro)):  # fmt: skip
+                K.side_sweeps(chain, n, i_fix, seg_i, sign, mag, inv, no, ratios, sweeps, half, self.work, out)
+                if frame is not None:  # as `split_shapes`: the rope's own contrast along the band
+                    K.contrast_gains(
+                        points, chain, n, i_fix, seg_i, sign, frame, gx, gy, pol, out_ro, consts.width,
+                        np.float32(tables.width_px), np.float32(1.0 / inv), self.work, gains,
+                    )  # fmt: skip
+                    K.side_sweeps(chain, n, i_fix, seg_i, sign, mag, inv, ro(gains), ratios, sweeps, half, self.work,
+                                  out)  # fmt: skip
         sweeps_a, sweeps_b = self._sweeps_a_ro, self._sweeps_b_ro
         smooth_ro = self._ro(self._smooth)
         for _ in range(2):

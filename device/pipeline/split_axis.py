@@ -68,10 +68,12 @@ class AxisPolylines:
         """Start an axis polyline at the fixed end: the inward offset moved the end cap's contour points along
         the rope (0.8 px into it on the rig), so the polyline is started at the foot of the fixed end (the cap's
         centre, on its edge) on the axis fitted just beyond the cap's rounded corners (`anchor_start`); the rope's
-        edge spacing is `width_px`."""
+        edge spacing is `width_px`. With `through_fixed` (a fixed end given, not found) the polyline starts at the
+        fixed end itself."""
         skip = f32(width_px + 2.0 * self.smooth_sigma)
         span = f32(max(8.0 * width_px, 16.0))
-        return i32(K.anchor_start(poly, n, f32(fixed_rc[0]), f32(fixed_rc[1]), skip, span))
+        through = i32(1 if self.through_fixed else 0)
+        return i32(K.anchor_start(poly, n, f32(fixed_rc[0]), f32(fixed_rc[1]), skip, span, through))
 
     def fit_tip(
         self,

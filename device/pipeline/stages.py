@@ -106,6 +106,8 @@ class Stages:
         )  # fmt: skip
         splitter.paper.radius_scaled = config.paper_endpoint_radius_scaled
         splitter.lens.decoded = config.gamma != 1.0  # a camera sharpens the encoded frame (`LensBlurEstimate`)
+        # A given fixed end (the plane origin, `fixed_end_uv`) is where the rope is held: the shapes start there.
+        splitter.axis.through_fixed = config.fixed_end_uv is not None
         tracker = PointTracker(
             config.material_points_m, config.rope_length_m, config.length0_px, config.length0_frames, ws.track
         )

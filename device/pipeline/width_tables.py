@@ -71,6 +71,7 @@ class WidthTables:
             width64_px=float(width), out_step_px=splitter.axis.step, smoothing_px=splitter.axis.output_smoothing,
             scale=self.scale, min_gap=self.min_gap, search_px=float(self.search_px), corner_rad=self.corner,
             grow_px=3.0 * float(self.blur) + 6.0 + width, static_ratio=float(splitter.static_ratio),
+            rope_px=float(self.tables.width_px), through_fixed=float(splitter.axis.through_fixed),
         )  # fmt: skip
         # Its scalars as `steady_frame`'s table holds them (float64, exact), by name.
         self.width_scalars = ro(np.array([float(getattr(self.group, n)) for n in K.SPLIT_WIDTH_SCALARS], np.float64))

@@ -34,6 +34,7 @@ from ropecam.device.pipeline._kernels._common import (
     ZERO,
     f4_1d_ro,
 )
+from ropecam.device.pipeline._kernels.band_contrast import CONTRAST_POINTS, contrast_gains
 from ropecam.device.pipeline._kernels.band_stage import band_stage
 from ropecam.device.pipeline._kernels.canny import (
     detect_edges,
@@ -244,6 +245,7 @@ __all__ = [
     "CHECK_TIP_KINK",
     "CHECK_TIP_MASKED",
     "CONTOUR",
+    "CONTRAST_POINTS",
     "DIR_COL",
     "DIR_ROW",
     "EDGE_NONE",
@@ -324,6 +326,7 @@ __all__ = [
     "chain_length",
     "check_frame",
     "coarse_spans",
+    "contrast_gains",
     "count_border_contacts",
     "count_revisits",
     "count_roi_contacts",

@@ -200,7 +200,10 @@ class SplitWidth(NamedTuple):
     width again as ``width64_px`` (float64: the length check's and the sweep tests'), the output's
     ``out_step_px`` and ``smoothing_px``; the segmentation points' ``scale`` and ``min_gap`` (int32),
     ``search_px`` (float64) and ``corner_rad``, the corner box's growth ``grow_px`` and the ``static_ratio``
-    (sweep / width below which the rope is taken as not moving; float64)."""
+    (sweep / width below which the rope is taken as not moving; float64), and the rope's own width ``rope_px``
+    (float64: the edge model's for this edge spacing, which the band's integral across is the contrast times);
+    ``through_fixed`` (float64) 1 when the fixed end is given (plane, ``fixed_end_uv``): the shapes start at it
+    (`anchor_start`), not at its foot on the fitted axis."""
 
     ratios: Any
     sweeps: Any
@@ -222,6 +225,8 @@ class SplitWidth(NamedTuple):
     corner_rad: Any
     grow_px: Any
     static_ratio: Any
+    rope_px: Any
+    through_fixed: Any
 
 
 SPLIT_WIDTH_SCALARS: Final = SplitWidth._fields[3:]
@@ -229,7 +234,7 @@ SPLIT_WIDTH_SCALARS: Final = SplitWidth._fields[3:]
 representable) that `split_width` reads by these names."""
 SPLIT_WIDTH: Final = types.NamedTuple(
     (f8_1d, f8_1d, f4_1d, int32, float32, float32, float32, float32, float32, float32, float64, float64, float32,
-     float32, int32, int32, float64, float32, float64, float64),
+     float32, int32, int32, float64, float32, float64, float64, float64, float64),
     SplitWidth,
 )  # fmt: skip
 

@@ -151,14 +151,23 @@ def box_mean(work, count, half, out):
         acc += work[min(k + half + 1, count - 1)] - work[max(k - half, 0)]
 
 
-@kernel(int32(i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f8_1d_ro, f8_1d_ro, int32, f4_1d, f4_1d))
-def side_sweeps(chain, n, i_start, i_stop, direction, mag, inv_contrast, ratios, sweeps, half, work, out_sweeps):
+@kernel(
+    int32(i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f8_1d_ro, f8_1d_ro, f8_1d_ro, int32, f4_1d, f4_1d)
+)  # fmt: skip
+def side_sweeps(
+    chain, n, i_start, i_stop, direction, mag, inv_contrast, gains, ratios, sweeps, half, work, out_sweeps
+):  # fmt: skip
     """Write the local sideways sweep (px) at each contour point of one side (from `i_start` stepping `direction`
-    to `i_stop`, cyclic) into `out_sweeps`: the gradient magnitude at its chain pixel times `inv_contrast`, turned
-    into a sweep by the table (`ratios` increasing, `sweeps`; `BandEdgeModel`), then averaged over +-`half` points
-    (ends repeated). `work` is scratch of the same length. Returns the number of points or FULL."""
+    to `i_stop`, cyclic) into `out_sweeps`: the gradient magnitude at its chain pixel times `inv_contrast` (times
+    ``gains[k]`` at the k-th point when `gains` holds the side's points: the frame's contrast over the point's own,
+    `contrast_gains`; empty: 1), turned into a sweep by the table (`ratios` increasing, `sweeps`;
+    `BandEdgeModel`), then averaged over +-`half` points (ends repeated). `work` is scratch of the same length
+    (it keeps the raw sweeps). Returns the number of points or FULL (`gains` neither empty nor as long)."""
     count = ((i_stop - i_start) * direction % n + n) % n + 1
     if count > out_sweeps.shape[0] or count > work.shape[0]:
+        return FULL
+    local = gains.shape[0] > 0
+    if local and gains.shape[0] < count:
         return FULL
     # The table lookup walks from the last point's interval (neighbours' ratios are close): the same interval as
     # A bisection (the last `lo` with ratios[lo] <= x), without its unpredictable branches.
@@ -178,6 +187,8 @@ def side_sweeps(chain, n, i_start, i_stop, direction, mag, inv_contrast, ratios,
             elif ahead < 0:
                 ahead = n - 1
         x = mag[chain[i, 0], chain[i, 1]] * inv_contrast
+        if local:
+            x = np.float32(x * gains[k])
         if m == 0:
             work[k] = np.nan
         elif x <= ratios[0]:
@@ -202,10 +213,11 @@ def side_sweeps(chain, n, i_start, i_stop, direction, mag, inv_contrast, ratios,
 
 
 @kernel(
-    int32(i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f8_1d_ro, f8_1d_ro, i4_1d_ro, int32, f4_1d, f4_1d)
+    int32(i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f8_1d_ro, f8_1d_ro, f8_1d_ro, i4_1d_ro, int32,
+          f4_1d, f4_1d)
 )  # fmt: skip
 def side_sweeps_indexed(
-    chain, n, i_start, i_stop, direction, mag, inv_contrast, ratios, sweeps, index, half, work, out_sweeps
+    chain, n, i_start, i_stop, direction, mag, inv_contrast, gains, ratios, sweeps, index, half, work, out_sweeps
 ):  # fmt: skip
     """`side_sweeps` with the table's interval found by an `index` of `ratios` (``2 nb`` values, made once per
     table by `BlurSplitter`'s per-width constants, see `split.py`'s `_sweep_index`): the same values bit for bit.
@@ -217,10 +229,13 @@ def side_sweeps_indexed(
     function of x, the index was made with the same operations, so no interval is missed. The clamps at the
     table's ends are selects on the interpolated value (computed anyway): neighbouring points alternate between
     the clamp and the interior, a walk from the last interval mispredicted its branches. `ratios` needs two
-    values or more, its last above its first. Returns the number of points or FULL.
+    values or more, its last above its first. `gains` as `side_sweeps`'. Returns the number of points or FULL.
     """
     count = ((i_stop - i_start) * direction % n + n) % n + 1
     if count > out_sweeps.shape[0] or count > work.shape[0]:
+        return FULL
+    local = gains.shape[0] > 0
+    if local and gains.shape[0] < count:
         return FULL
     m = ratios.shape[0]
     buckets = index.shape[0] // 2
@@ -246,6 +261,8 @@ def side_sweeps_indexed(
             elif ahead < 0:
                 ahead = n - 1
         x = mag[chain[i, 0], chain[i, 1]] * inv_contrast
+        if local:
+            x = np.float32(x * gains[k])
         where = (x - r_first) * scale
         where = where if where > 0.0 else 0.0  # (a nan x: bucket 0)
         b = np.int64(where if where < top else top)

@@ -72,9 +72,12 @@ def resample_polyline(poly, n, step_px, out_poly):
     return resample_polyline_of_length(poly, n, polyline_length(poly, n), step_px, out_poly)
 
 
-@kernel(int32(f4_2d, int32, float32, float32, float32, float32))
-def anchor_start(poly, n, point_r, point_c, skip_px, span_px):
-    """Start the polyline `poly` (n points) at the foot of (`point_r`, `point_c`) on its own axis, in place.
+@kernel(int32(f4_2d, int32, float32, float32, float32, float32, int32))
+def anchor_start(poly, n, point_r, point_c, skip_px, span_px, through):
+    """Start the polyline `poly` (n points) at the foot of (`point_r`, `point_c`) on its own axis, in place; with
+    `through` 1 at the point itself (a fixed end that is given, not found: the rope is held there, and where a
+    clamp hides its first pixels the straight line from the point to the axis point A below is the rope there;
+    the foot missed the given point by the fitted axis' angle error times the hidden length).
 
     The axis is the line through the polyline's points at arc lengths `skip_px` and `skip_px + span_px` from its
     start (interpolated); the points before `skip_px` are dropped and the foot of the point on that line becomes
@@ -124,6 +127,9 @@ def anchor_start(poly, n, point_r, point_c, skip_px, span_px):
         return n
     foot_r = a_r + t * d_r
     foot_c = a_c + t * d_c
+    if through == 1:
+        foot_r = np.float64(point_r)
+        foot_c = np.float64(point_c)
     # Keep the points from the first one at or beyond the axis point A (k_a); A itself joins them when it
     # differs from that point, so the shape between the foot and the kept points is the axis line.
     out = 1

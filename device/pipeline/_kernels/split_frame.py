@@ -61,8 +61,8 @@ def split_frame(
        the two corners grown by ``grow_px``, which the tip fit reads;
     3. the sweep: the corners' distance, or below 1.5 widths the mean of the two sides' `slope_sweep_median`
        (the ``contrast`` of `state`; scratch ``scratch[2]``) when finite, capped at 1.5 widths;
-    4. below ``static_ratio`` widths SPLIT_STATIC, else `split_shapes` with ``1 / contrast``, `sweep_index` and
-       the distances of step 1 (the tip fit's search).
+    4. below ``static_ratio`` widths SPLIT_STATIC, else `split_shapes` with `frame` (the rope's contrast along
+       the band), ``1 / contrast``, `sweep_index` and the distances of step 1 (the tip fit's search).
 
     `planes` are the edge stage's (`Planes`), `width` the rope width's tables and scalars (`SplitWidth`),
     `sweep_index` the ratios' index (`split_shapes`'; or empty), `state` the `FRAME_STATES` (float64),
@@ -142,6 +142,6 @@ def split_frame(
         return SPLIT_STATIC
     # The tip fit's search takes the distances from the fixed end that step 1 left in ``scratch[1]``.
     return split_shapes(
-        points, chain, n, i_fix, seg_a, seg_b, planes, np.float32(1.0 / contrast),
+        points, chain, n, i_fix, seg_a, seg_b, planes, frame, np.float32(1.0 / contrast),
         np.float32(state[FRAME_STATE.polarity]), width, sweep_index, fixed_r, fixed_c, scratch[1], buffers,
     )  # fmt: skip

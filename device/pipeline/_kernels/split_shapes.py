@@ -10,6 +10,7 @@ import numpy as np
 from numba import float32, int32
 
 from ropecam.device.pipeline._kernels._common import FULL, INVALID, NOT_FOUND, vector_length
+from ropecam.device.pipeline._kernels.band_contrast import contrast_gains
 from ropecam.device.pipeline._kernels.groups import (
     PLANES,
     SPLIT_WIDTH,
@@ -30,7 +31,7 @@ from ropecam.device.pipeline._kernels.polylines import (
     resample_polyline_of_length,
 )
 from ropecam.device.pipeline._kernels.smoothing import smooth_polyline
-from ropecam.shared.jit import f4_1d, f4_2d_ro, f8_1d, f8_1d_ro, f8_2d, i4_1d_ro, i4_2d_ro, kernel
+from ropecam.shared.jit import f4_1d, f4_2d_ro, f8_1d, f8_1d_ro, f8_2d, i4_1d_ro, i4_2d_ro, kernel, u1_2d_ro
 
 SPLIT_SCALAR: Final = NamedTuple("SplitWidthSlots", [(name, int) for name in SPLIT_WIDTH_SCALARS])(
     *range(len(SPLIT_WIDTH_SCALARS))
@@ -52,30 +53,36 @@ def split_width(scalars, curves, offsets):
         s[SPLIT_SCALAR.width64_px], np.float32(s[SPLIT_SCALAR.out_step_px]), np.float32(s[SPLIT_SCALAR.smoothing_px]),
         np.int32(s[SPLIT_SCALAR.scale]), np.int32(s[SPLIT_SCALAR.min_gap]), s[SPLIT_SCALAR.search_px],
         np.float32(s[SPLIT_SCALAR.corner_rad]), s[SPLIT_SCALAR.grow_px], s[SPLIT_SCALAR.static_ratio],
+        s[SPLIT_SCALAR.rope_px], s[SPLIT_SCALAR.through_fixed],
     )  # fmt: skip
 
 
 @kernel(
-    int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, PLANES, float32, float32, SPLIT_WIDTH, i4_1d_ro, float32,
-          float32, f8_1d_ro, SPLIT_WORK)
+    int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, PLANES, u1_2d_ro, float32, float32, SPLIT_WIDTH, i4_1d_ro,
+          float32, float32, f8_1d_ro, SPLIT_WORK)
 )  # fmt: skip
 def split_shapes(
-    points, chain, n, i_fix, seg_a, seg_b, planes, inv_contrast, polarity, width, sweep_index, fixed_r, fixed_c,
-    fixed_dist, buffers,
+    points, chain, n, i_fix, seg_a, seg_b, planes, frame, inv_contrast, polarity, width, sweep_index, fixed_r,
+    fixed_c, fixed_dist, buffers,
 ):  # fmt: skip
     """The blur split's shapes from its segmentation points, with local sweeps, in one call (the stage's
     sequence of kernels, without a Python step between them): per side (A forward from `i_fix` to `seg_a`, B
-    backward to `seg_b`) `side_sweeps`, `offset_by_table`, `extend_to_band_end`; then the slant correction of
+    backward to `seg_b`) `side_sweeps` with the frame's contrast (``1 / inv_contrast``), then, when `frame` (the
+    frame the planes were made from) is not empty, `contrast_gains` (the rope's contrast across the band at each
+    point where the sweep is below a few widths; into ``scratch[2]``) and `side_sweeps` again with them;
+    `offset_by_table`, `extend_to_band_end`; then the slant correction of
     the two tips (`BlurSplitter._correct_slant`: float32 updates as NumPy makes them), the two lengths, the
     length check (``|La - Lb| > max(3 width64_px, 0.1 max(La, Lb))`` rejects the split), and per side
-    `anchor_start` at the fixed end (`fixed_r`, `fixed_c`; axis from `skip_px` over `span_px`),
+    `anchor_start` at the fixed end (`fixed_r`, `fixed_c`; axis from `skip_px` over `span_px`; through the fixed
+    end itself when ``width.through_fixed`` is 1),
     `resample_polyline_of_length` into out A / out B, then `smooth_polyline` into side A / side B when
     `smoothing_px` > 0 and the shape has 3 points or more. The planes are `planes`' (`Planes`, read only), the
     width's tables and scalars `width`'s (`SplitWidth`), the buffers `buffers`' (`SplitWork`: ``lines`` = [work,
     sweeps of side A, of side B], ``sides`` = [side A, side B, out A, out B], ``scratch[0]`` the arc lengths,
-    ``info``). `fixed_dist` holds the distances of the `points` from (`fixed_r`, `fixed_c`)
-    (`find_segmentation_points`' `out_dist`) for the tip fit's search (`extend_to_band_end_near`: the same
-    results with fewer points checked), or is shorter than `n` (every point checked). `sweep_index` is the
+    ``scratch[2]`` the contrast gains, ``info``). `fixed_dist` holds the distances of the `points` from
+    (`fixed_r`, `fixed_c`) (`find_segmentation_points`' `out_dist`) for the tip fit's search
+    (`extend_to_band_end_near`: the same results with fewer points checked), or is shorter than `n` (every point
+    checked). `sweep_index` is the
     ratios' index for `side_sweeps_indexed` (the same sweeps, found faster), or empty (`side_sweeps`).
 
     Writes ``info[:6] = [count_a, count_b, length_a, length_b, smoothed_a, smoothed_b]`` (a smoothed shape is in
@@ -83,7 +90,7 @@ def split_shapes(
     (the lengths written), or FULL / INVALID when a step did (the caller redoes the steps one by one for its
     message); INVALID when a buffer of `buffers` is too small to hold them.
     """
-    if buffers.lines.shape[0] < 3 or buffers.sides.shape[0] < 4 or buffers.scratch.shape[0] < 1:
+    if buffers.lines.shape[0] < 3 or buffers.sides.shape[0] < 4 or buffers.scratch.shape[0] < 3:
         return INVALID
     mag = planes.mag
     gx = planes.gx
@@ -116,19 +123,31 @@ def split_shapes(
         return INVALID
     plus = np.int32(1)
     minus = np.int32(-1)
-    if sweep_index.shape[0] >= 2:
-        if (
-            side_sweeps_indexed(chain, n, i_fix, seg_a, plus, mag, inv_contrast, ratios, sweeps, sweep_index, half,
-                                work, out_sweeps_a) < 0
-            or side_sweeps_indexed(chain, n, i_fix, seg_b, minus, mag, inv_contrast, ratios, sweeps, sweep_index,
-                                   half, work, out_sweeps_b) < 0
-        ):  # fmt: skip
-            return FULL
-    else:
-        if side_sweeps(chain, n, i_fix, seg_a, plus, mag, inv_contrast, ratios, sweeps, half, work, out_sweeps_a) < 0:
-            return FULL
-        if side_sweeps(chain, n, i_fix, seg_b, minus, mag, inv_contrast, ratios, sweeps, half, work, out_sweeps_b) < 0:
-            return FULL
+    gains = buffers.scratch[2]
+    none = gains[:0]
+    contrast = np.float32(1.0 / inv_contrast)
+    local = frame.shape[0] > 1 and frame.shape[1] > 1
+    for side in range(2):
+        seg = seg_a if side == 0 else seg_b
+        direction = plus if side == 0 else minus
+        out_sweeps = out_sweeps_a if side == 0 else out_sweeps_b
+        for rounds in range(2 if local else 1):
+            factors = gains if rounds == 1 else none
+            if sweep_index.shape[0] >= 2:
+                count = side_sweeps_indexed(chain, n, i_fix, seg, direction, mag, inv_contrast, factors, ratios,
+                                            sweeps, sweep_index, half, work, out_sweeps)  # fmt: skip
+            else:
+                count = side_sweeps(chain, n, i_fix, seg, direction, mag, inv_contrast, factors, ratios, sweeps, half,
+                                    work, out_sweeps)  # fmt: skip
+            if count < 0:
+                return FULL
+            # The rope's own contrast where the sweep read with the frame's is below a few widths (there the
+            # offset depends on it): `side_sweeps` again with the ratio of the two.
+            if rounds == 0 and local and contrast_gains(
+                points, chain, n, i_fix, seg, direction, frame, gx, gy, polarity, out_sweeps, width_px,
+                np.float32(width.rope_px), contrast, work, gains,
+            ) < 0:  # fmt: skip
+                return FULL
     keep = dense_end_points(skip_px, span_px)
     na = offset_by_table_thinned(points, chain, n, i_fix, seg_a, plus, gx, gy, polarity, out_sweeps_a, step_px,
                                  table, keep, keep, out_side_a)  # fmt: skip
@@ -171,8 +190,9 @@ def split_shapes(
     out_info[3] = len_b
     if abs(len_a - len_b) > max(3.0 * width_check_px, 0.1 * max(len_a, len_b)):
         return NOT_FOUND
-    na = anchor_start(out_side_a, na, fixed_r, fixed_c, skip_px, span_px)
-    nb = anchor_start(out_side_b, nb, fixed_r, fixed_c, skip_px, span_px)
+    through = np.int32(width.through_fixed)
+    na = anchor_start(out_side_a, na, fixed_r, fixed_c, skip_px, span_px, through)
+    nb = anchor_start(out_side_b, nb, fixed_r, fixed_c, skip_px, span_px, through)
     len_a = polyline_length(out_side_a, na)
     len_b = polyline_length(out_side_b, nb)
     out_info[2] = len_a

@@ -129,8 +129,9 @@ def _shape_error(result, frame) -> float:
 def test_the_pipeline_measures_the_blur_and_splits_with_it() -> None:
     """A rope under a 1.5 px lens blur, still on the first frames (released at the top of its swing): the
     pipeline measures the blur there, and its shapes of the moving rope that follows are as good as with the
-    true blur given; with the blur assumed 0.5 px they lie over a pixel off (the still rope's blurred edges read
-    as a rope twice as wide, its low edge slope as a sweep)."""
+    true blur given; with the blur assumed 0.5 px they lie 0.8-1 px off (the still rope's blurred edges read
+    as a rope twice as wide, its low edge slope as a sweep; over a pixel before the rope's own contrast along the
+    band, `contrast_gains`, whose readings under this blur differ from the frame's)."""
     rope = SyntheticRope(
         width=200, height=170, fixed_uv=(100.3, 12.6), length_px=140.0, diameter_px=2.5, blur_px=1.5,
         amplitude_rad=0.5, period_s=0.9, phase_rad=0.0, noise_dn=1.0, exposure_us=4000,
@@ -151,7 +152,7 @@ def test_the_pipeline_measures_the_blur_and_splits_with_it() -> None:
     measured, assumed, true = (np.asarray(errors[k]) for k in ("measured", "assumed", "true"))
     assert np.all(measured <= true + 0.1), (measured, true)  # the first readings' median moves a little
     assert np.mean(measured) <= np.mean(true) + 0.02
-    assert np.all(assumed > 1.0), assumed
+    assert np.all(assumed > true + 0.4), (assumed, true)
 
 
 def test_the_pipeline_measures_a_cameras_sharpening_and_splits_with_it() -> None:

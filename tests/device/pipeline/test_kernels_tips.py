@@ -15,6 +15,9 @@ from ropecam.device.pipeline.width_tables import sweep_index
 
 pytestmark = pytest.mark.kernel
 
+NO_GAINS = np.zeros(0, np.float64)
+"""`side_sweeps`' per-point contrast gains: none (the frame's contrast everywhere)."""
+
 
 def _side_slope_samples(chain, n, i_fix, i_seg, direction, mag, lo_frac, hi_frac) -> np.ndarray:
     """(gradient magnitude, arc fraction) at the chain pixels of one side (from `i_fix` stepping `direction` to
@@ -38,15 +41,15 @@ def test_side_sweeps_matches_reference(start, stop, direction) -> None:
     ratios = np.linspace(0.1, 2.0, 40)
     sweeps = np.linspace(8.0, 0.0, 40)
     out = np.zeros(n, np.float32)
-    count = K.side_sweeps(chain, n, start, stop, direction, mag, np.float32(1 / 100), ratios, sweeps, 2,
+    count = K.side_sweeps(chain, n, start, stop, direction, mag, np.float32(1 / 100), NO_GAINS, ratios, sweeps, 2,
                           np.zeros(n, np.float32), out)  # fmt: skip
     idx = [(start + k * direction) % n for k in range((stop - start) * direction % n + 1)]
     assert count == len(idx)
     raw = np.interp(mag[chain[idx, 0], chain[idx, 1]] / 100, ratios, sweeps)
     padded = np.concatenate([[raw[0]] * 2, raw, [raw[-1]] * 2])
     np.testing.assert_allclose(out[:count], np.convolve(padded, np.ones(5) / 5, mode="valid"), atol=1e-4)
-    assert K.side_sweeps(chain, n, 0, n - 1, 1, mag, np.float32(0.01), ratios, sweeps, 2, np.zeros(n, np.float32),
-                         np.zeros(5, np.float32)) == K.FULL  # fmt: skip
+    assert K.side_sweeps(chain, n, 0, n - 1, 1, mag, np.float32(0.01), NO_GAINS, ratios, sweeps, 2,
+                         np.zeros(n, np.float32), np.zeros(5, np.float32)) == K.FULL  # fmt: skip
 
 
 def _walked_sweep(ratios, sweeps, x) -> np.float32:
@@ -86,7 +89,7 @@ def test_side_sweeps_indexed_equals_the_walk_bit_for_bit(kind) -> None:
     chain = np.stack([np.zeros(n), np.arange(n)], axis=1).astype(np.int32)
     expected = np.array([_walked_sweep(ratios, sweeps, np.float32(x)) for x in values], np.float32)
     for start, stop, direction in ((0, n - 1, 1), (n - 1, 0, -1), (7, 3, 1)):
-        args = (chain, n, start, stop, direction, mag, np.float32(1.0), ratios, sweeps)
+        args = (chain, n, start, stop, direction, mag, np.float32(1.0), NO_GAINS, ratios, sweeps)
         for half in (0, 3):
             raw_walk, out_walk = np.zeros(n, np.float32), np.zeros(n, np.float32)
             raw_index, out_index = np.zeros(n, np.float32), np.zeros(n, np.float32)
@@ -96,7 +99,7 @@ def test_side_sweeps_indexed_equals_the_walk_bit_for_bit(kind) -> None:
             # `work` keeps the raw sweeps (before the running average, whose sums round)
             order = [(start + k * direction) % n for k in range(count)]
             assert raw_index[:count].tobytes() == expected[order].tobytes()
-    assert K.side_sweeps_indexed(chain, n, 0, n - 1, 1, mag, np.float32(1.0), ratios, sweeps, index, 2,
+    assert K.side_sweeps_indexed(chain, n, 0, n - 1, 1, mag, np.float32(1.0), NO_GAINS, ratios, sweeps, index, 2,
                                  np.zeros(n, np.float32), np.zeros(5, np.float32)) == K.FULL  # fmt: skip
 
 

@@ -1,0 +1,158 @@
+"""The rope's contrast read across the band at each point of a side (`contrast_gains`).
+
+The local sweep comes from the edge's slope divided by the rope's contrast (`side_sweeps`). One contrast per
+frame, read near the fixed end, misreads the sweep wherever the rope is brighter or darker than there (uneven
+lighting, a braid's or a dyed rope's pattern): where the sweep is below about the rope's width the inward offset
+depends on it, and the two shapes are pushed apart along one stretch and together along the next. Across the band
+the time-averaged coverage integrates to the rope's width whatever the sweep and the blur, so the integral of the
+frame across the band at each point, divided by the width, is the rope's contrast there.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Final
+
+import numpy as np
+from numba import float32, int32
+
+from ropecam.device.pipeline._kernels._common import FULL, f4_1d_ro
+from ropecam.shared.jit import f4_1d, f4_2d_ro, f8_1d, i4_2d_ro, kernel, u1_2d_ro
+
+REACH_WIDTHS: Final = 3.0
+"""Points whose sweep (read with the frame's contrast) exceeds this many rope widths keep the frame's contrast:
+there the inward offset hardly depends on the sweep, and the band is wide enough to hold other structures."""
+MARGIN_PX: Final = 3.0
+"""Samples taken beyond each side of the band (px): the background on both sides, past the lens blur's tails."""
+STEP_PX: Final = 0.5
+"""Spacing of the samples across the band (px)."""
+CONTRAST_POINTS: Final = 10
+"""Readings averaged on each side of a point (contour points about 1 px apart). Below about the blur the edge
+slope changes little with the sweep, so the sweep read from it is steep in the contrast (on a 3 px rope sweeping
+0.6 px, 1 % of contrast is 0.15 px of sweep): the readings' noise (mostly the background level, read over
+`BACKGROUND_PX` on either side) must average to well below 1 %, while a rope's brightness pattern is followed (the
+simulator's `rope_unevenness`: 3-20 cm, 12-80 px along the `lab` rope, whose error wave was the 80 px one)."""
+BACKGROUND_PX: Final = 2.0
+"""The background's level on either side of the band: the mean of the samples within this distance of its end."""
+MIN_GAIN: Final = 0.5
+MAX_GAIN: Final = 2.0
+"""A point's reading that puts the contrast below half or above twice the frame's is not the rope's own (a
+section along the rope at its end cap, another structure in the band): dropped before the average."""
+
+
+@kernel(
+    int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, u1_2d_ro, f4_2d_ro, f4_2d_ro, float32, f4_1d_ro, float32,
+          float32, float32, f4_1d, f8_1d)
+)  # fmt: skip
+def contrast_gains(
+    points, chain, n, i_start, i_stop, direction, frame, gx, gy, polarity, sweeps, spacing_px, rope_px, contrast, work,
+    out_gains,
+):  # fmt: skip
+    """Write, for each contour point of one side (from `i_start` stepping `direction` to `i_stop`, cyclic), the
+    frame's `contrast` over the rope's contrast at that point into `out_gains` (the factor `side_sweeps` applies
+    to the frame's inverse contrast).
+
+    The point's contrast is the integral of `frame` (bilinear, every `STEP_PX`) along ``polarity`` times its
+    gradient (into the rope), from `MARGIN_PX` outside the side to the band's far side (the edges lie `spacing_px`
+    apart, the point sweeps ``sweeps[k]``) + `MARGIN_PX`, less a line through the levels of the first and the last
+    `BACKGROUND_PX` of samples (the background), divided by the rope's own width `rope_px` (the edge model's for that
+    spacing, as the frame's contrast is read: `BandMeasure.contrast`). Readings are averaged over the finite ones
+    of the ``2 CONTRAST_POINTS + 1`` points centred on each point (at least ``CONTRAST_POINTS + 1``). The first
+    ``spacing_px + 2`` points (the fixed end's cap, or the seal across a clamp's exit: sections along the rope)
+    are not read, and the points before the first average take it; any other point without (its sweep beyond
+    `REACH_WIDTHS` spacings, its section leaving the frame, a gain outside [`MIN_GAIN`, `MAX_GAIN`]) gets 1. An
+    empty `frame` gives 1 everywhere. `work` (float32, the side's length) keeps the raw readings. Returns the
+    number of points or FULL.
+    """
+    count = ((i_stop - i_start) * direction % n + n) % n + 1
+    if count > out_gains.shape[0] or count > work.shape[0]:
+        return FULL
+    half = CONTRAST_POINTS
+    height = frame.shape[0]
+    cols = frame.shape[1]
+    expected = float(contrast) * float(rope_px)
+    reach = REACH_WIDTHS * spacing_px
+    edge_samples = int(BACKGROUND_PX / STEP_PX) + 1
+    # The side's first points are the fixed end's cap (or the seal across a clamp's exit): sections there run
+    # along the rope. They take the contrast read just beyond.
+    cap = int(spacing_px + 2.0)
+    i = (i_start + 4 * n) % n
+    for k in range(count):
+        work[k] = np.nan
+        d = max(float(sweeps[k]), 0.0)
+        if k >= cap and height > 1 and cols > 1 and expected > 0.0 and d <= reach:
+            r = chain[i, 0]
+            c = chain[i, 1]
+            g_r = float(gy[r, c]) * polarity
+            g_c = float(gx[r, c]) * polarity
+            norm = math.sqrt(g_r * g_r + g_c * g_c)
+            if norm > 0.0:
+                u_r = g_r / norm
+                u_c = g_c / norm
+                t0 = -MARGIN_PX
+                steps = int((spacing_px + d + 2.0 * MARGIN_PX) / STEP_PX) + 1
+                p_r = float(points[i, 0])
+                p_c = float(points[i, 1])
+                t1 = t0 + (steps - 1) * STEP_PX
+                inside = True
+                for t in (t0, t1):
+                    q_r = p_r + t * u_r
+                    q_c = p_c + t * u_c
+                    if not (0.0 <= q_r <= height - 1.001 and 0.0 <= q_c <= cols - 1.001):
+                        inside = False
+                if inside and steps > 2 * edge_samples:
+                    total = 0.0
+                    first = 0.0
+                    last = 0.0
+                    for j in range(steps):
+                        t = t0 + j * STEP_PX
+                        q_r = p_r + t * u_r
+                        q_c = p_c + t * u_c
+                        r0 = int(q_r)
+                        c0 = int(q_c)
+                        f_r = q_r - r0
+                        f_c = q_c - c0
+                        v = (
+                            (1.0 - f_r) * ((1.0 - f_c) * frame[r0, c0] + f_c * frame[r0, c0 + 1])
+                            + f_r * ((1.0 - f_c) * frame[r0 + 1, c0] + f_c * frame[r0 + 1, c0 + 1])
+                        )  # fmt: skip
+                        total += v
+                        if j < edge_samples:
+                            first += v
+                        if j >= steps - edge_samples:
+                            last += v
+                    # The background: the line through the two end levels, summed over the samples.
+                    background = 0.5 * (first + last) / edge_samples * steps
+                    reading = polarity * (total - background) * STEP_PX
+                    if MIN_GAIN * reading <= expected <= MAX_GAIN * reading:
+                        work[k] = reading
+        i += direction
+        if i == n:
+            i = 0
+        elif i < 0:
+            i = n - 1
+    # The mean of the finite readings over +-half points (a running sum and count).
+    acc = 0.0
+    found = 0
+    for j in range(min(half, count - 1) + 1):
+        if math.isfinite(work[j]):
+            acc += work[j]
+            found += 1
+    first = -1
+    for k in range(count):
+        out_gains[k] = 1.0
+        if found >= half + 1 and acc > 0.0:
+            out_gains[k] = expected / (acc / found)
+            if first < 0:
+                first = k
+                for j in range(k):  # the cap's points: the first average beyond it
+                    out_gains[j] = out_gains[k]
+        enter = k + half + 1
+        if enter < count and math.isfinite(work[enter]):
+            acc += work[enter]
+            found += 1
+        leave = k - half
+        if leave >= 0 and math.isfinite(work[leave]):
+            acc -= work[leave]
+            found -= 1
+    return count
