@@ -55,23 +55,26 @@ STRUCTURE_ROPE_RATIO = 0.5
 """A structure is at most this fraction of the rope's length across (the walk from the tip along each side). Walked
 from its fixed end, a swinging rope's band widens beyond a rope's width part of the way out: the rest, the band's
 far part, is no structure and is as large as the rope."""
+_SPACING_SAMPLES = 128
+"""Outline points the rope's edge spacing is read at (`structure_points`: a cold path, kept to a few ms)."""
 _BLOCK = 256
 """Rows of the distance matrices computed at a time (a cold path: the first frames only)."""
 
 
-def across_distances(points: NDArray[np.float64], gap: int) -> NDArray[np.float64]:
-    """Return, for each point of a closed outline (`points` (n, 2)), the distance to the nearest point of the
-    outline at least `gap` places away along it (either way round) and not at the same place (`SAME_PLACE_PX`):
-    across the rope, the other side."""
+def across_distances(points: NDArray[np.float64], gap: int, every: int = 1) -> NDArray[np.float64]:
+    """Return, for every `every`-th point of a closed outline (`points` (n, 2)), the distance to the nearest point
+    of the outline at least `gap` places away along it (either way round) and not at the same place
+    (`SAME_PLACE_PX`): across the rope, the other side."""
     n = len(points)
     index = np.arange(n)
-    out = np.empty(n)
-    for start in range(0, n, _BLOCK):
-        block = points[start : start + _BLOCK]
-        d2 = ((block[:, None, :] - points[None, :, :]) ** 2).sum(axis=2)
-        ring = np.abs(index[start : start + _BLOCK, None] - index[None, :])
+    chosen = index[::every]
+    out = np.empty(len(chosen))
+    for start in range(0, len(chosen), _BLOCK):
+        rows = chosen[start : start + _BLOCK]
+        d2 = ((points[rows, None, :] - points[None, :, :]) ** 2).sum(axis=2)
+        ring = np.abs(rows[:, None] - index[None, :])
         d2[(np.minimum(ring, n - ring) < gap) | (d2 < SAME_PLACE_PX**2)] = np.inf
-        out[start : start + len(block)] = np.sqrt(d2.min(axis=1))
+        out[start : start + len(rows)] = np.sqrt(d2.min(axis=1))
     return out
 
 
@@ -89,14 +92,15 @@ def zip_sides(points: NDArray[np.float64], tip: int, limit_px: float, close_px: 
         walk's first and second half (0 for a walk of fewer than 4 steps).
     """
     n = len(points)
+    rows, cols = points[:, 0].tolist(), points[:, 1].tolist()  # Python floats: a step of the walk costs ~1 us
     forward = backward = 0
     gaps = []
     opened = False
     while forward + backward < n - 2:
-        a0, b0 = points[(tip + forward) % n], points[(tip - backward) % n]
-        a1, b1 = points[(tip + forward + 1) % n], points[(tip - backward - 1) % n]
-        step_a = math.hypot(a1[0] - b0[0], a1[1] - b0[1])
-        step_b = math.hypot(a0[0] - b1[0], a0[1] - b1[1])
+        a0, b0 = (tip + forward) % n, (tip - backward) % n
+        a1, b1 = (tip + forward + 1) % n, (tip - backward - 1) % n
+        step_a = math.hypot(rows[a1] - rows[b0], cols[a1] - cols[b0])
+        step_b = math.hypot(rows[a0] - rows[b1], cols[a0] - cols[b1])
         nearest = min(step_a, step_b)
         if nearest > limit_px or (opened and nearest < close_px):
             break
@@ -134,7 +138,9 @@ def structure_points(
     gap = max(12, math.ceil(3.0 * width_px + 4.0))
     if n < 4 * gap:
         return None
-    spacing = float(np.median(across_distances(points, gap)))  # most of the outline is the rope's two sides
+    # Most of the outline is the rope's two sides: the median across it, on a subsample, is their spacing.
+    every = max(1, n // _SPACING_SAMPLES)
+    spacing = float(np.median(across_distances(points, gap, every)))
     if not 0.5 * width_px <= spacing <= 2.0 * width_px:
         return None
     limit = ACROSS_WIDTHS * spacing + 1.0
@@ -151,12 +157,15 @@ def structure_points(
         return None
     rope = np.zeros(n, bool)
     rope[(tip + np.arange(-backward, forward + 1)) % n] = True
+    if rope.all():
+        return None  # the rope's outline all round: no structure
     structure = ~rope
     walked = points[rope]
-    for start in range(0, n, _BLOCK):
-        block = points[start : start + _BLOCK]
-        d2 = ((block[:, None, :] - walked[None, :, :]) ** 2).sum(axis=2).min(axis=1)
-        structure[start : start + len(block)] &= d2 >= SAME_PLACE_PX**2
+    candidates = np.flatnonzero(structure)
+    for start in range(0, len(candidates), _BLOCK):
+        block = candidates[start : start + _BLOCK]
+        d2 = ((points[block, None, :] - walked[None, :, :]) ** 2).sum(axis=2).min(axis=1)
+        structure[block] = d2 >= SAME_PLACE_PX**2
     if not structure.any():
         return None
     hull = convex_hull(np.concatenate([points[structure], points[[exit_a, exit_b]]]))
