@@ -7,6 +7,7 @@ from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import i32, ro
+from ropecam.device.pipeline.structure import convex_hull, fill_polygon, grow, structure_points
 from ropecam.device.pipeline.workspace import FixedEndBuffers
 
 __all__ = ["FIXED_END_FRAMES", "FixedEndFinder"]
@@ -47,6 +48,7 @@ class FixedEndFinder:
         self.frames = 0
         """Contours the found fixed end is averaged over."""
         self._first_ends: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None
+        self._structure_at: NDArray[np.float64] | None = None  # where the structure found by `structure` lies
         self.exposure_known = True
         """Whether the frame being measured has a known exposure (set by `RopeLocator.locate`): a stream, where
         a still outline with one thick end is a rope at rest joined to a clamp (`_attached_structure`); a still
@@ -86,11 +88,7 @@ class FixedEndFinder:
         if self.settled:
             return False
         w = width_px or 4.0
-        turn = self.buffers.turn
-        K.turning_angles(ro(points), i32(n), i32(max(3, round(w))), turn)
-        e1 = int(np.argmax(turn[:n]))
-        e2 = int(np.argmax(np.hypot(points[:n, 0] - points[e1, 0], points[:n, 1] - points[e1, 1])))
-        ends = [self._cap_centre(points, n, e, w) for e in (e1, e2)]
+        e1, e2, ends = self._ends(points, n, w)
         if self.mask is not None:
             # Where the rope goes into a masked structure (a clamp), its end is hidden inside it.
             ends = [hidden_end(end, points[:n], w, self.mask) for end in ends]
@@ -106,6 +104,8 @@ class FixedEndFinder:
             attached = _attached_structure(points[:n], e1, e2, ends, w) if self.exposure_known else None
             if attached is not None:
                 k = attached
+            elif self._structure_at is not None:  # the rope is fixed in the structure found on its outline
+                k = int(np.argmin([np.hypot(*(end - self._structure_at)) for end in ends]))
             self.fixed[:] = ends[k]
             self._first_ends = (ends[k].copy(), ends[1 - k].copy())
             self.known = True
@@ -132,6 +132,37 @@ class FixedEndFinder:
         self.frames += 1
         return restarted
 
+    def structure(self, points: NDArray[np.float32], n: int, width_px: float | None) -> NDArray[np.bool_] | None:
+        """Return the region of the structure a still rope's outline (`n` (row, col) `points`, a rope `width_px`
+        wide, None: 4 px) runs round at one end (a clamp, its rod: `structure.structure_points`): the convex hull
+        of its outline and the rope's exit, with the outline's own pixels, grown by a pixel; or None (no end of
+        the outline is such a structure)."""
+        w = width_px or 4.0
+        e1, e2, _ = self._ends(points, n, w)
+        outline = points[:n].astype(np.float64)
+        found = structure_points(outline, (e1, e2), w)
+        if found is None:
+            return None
+        structure, exit_a, exit_b = found
+        corners = convex_hull(np.concatenate([outline[structure], outline[[exit_a, exit_b]]]))
+        if self.configured and np.hypot(*(corners - self.fixed).T).min() > HIDDEN_REACH_PX:
+            return None  # not where the rope is fixed
+        self._structure_at = corners.mean(axis=0)
+        region = fill_polygon(corners, self.shape)
+        rows = np.clip(np.rint(outline[structure, 0]).astype(np.intp), 0, self.shape[0] - 1)
+        cols = np.clip(np.rint(outline[structure, 1]).astype(np.intp), 0, self.shape[1] - 1)
+        region[rows, cols] = True
+        return grow(region)
+
+    def _ends(self, points: NDArray[np.float32], n: int, w: float) -> tuple[int, int, list[NDArray[np.float32]]]:
+        """The contour indices of the outline's two ends (the sharpest turn, and the point farthest from it) and
+        the middles of the rope's ends there (`_cap_centre`)."""
+        turn = self.buffers.turn
+        K.turning_angles(ro(points), i32(n), i32(max(3, round(w))), turn)
+        e1 = int(np.argmax(turn[:n]))
+        e2 = int(np.argmax(np.hypot(points[:n, 0] - points[e1, 0], points[:n, 1] - points[e1, 1])))
+        return e1, e2, [self._cap_centre(points, n, e, w) for e in (e1, e2)]
+
     def _cap_centre(self, points: NDArray[np.float32], n: int, e: int, w: float) -> NDArray[np.float32]:
         """The contour point in the middle of the rope end around contour index `e`: the turning-weighted centroid
         of the points within a width and a half of it, snapped to the contour (a flat end has two corners, its
@@ -156,9 +187,12 @@ def hidden_end(
     `end`, the rope's axis is followed beyond `end` across the structure's edges (masked runs: its outline, its
     bolts') up to its far edge (the last run before `HIDDEN_GAP_PX` of unmasked pixels, within
     `HIDDEN_REACH_PX`), and the end is put halfway between the middles of the first and the last edge: the middle
-    of the clamp along the rope, where a clamp centred on the fixed end holds it. Without a far edge
-    (the axis runs up a rod out of the view) or without a mask next to `end`, `end` is kept. The plane
-    calibration (or ``fixed_end_uv``) gives the fixed end exactly; this is the estimate without it.
+    of the clamp along the rope, where a clamp centred on the fixed end holds it. Where the axis crosses a filled
+    region (`MASK_ALWAYS`: a given mask, or the structure found from the rope's first outlines,
+    `FixedEndFinder.structure`), the structure is that region: the end is put halfway between the first and the
+    last of its pixels along the axis. Without a far edge (the axis runs up a rod out of the view) or without a
+    mask next to `end`, `end` is kept. The plane calibration (or ``fixed_end_uv``) gives the fixed end exactly;
+    this is the estimate without it.
 
     Parameters
     ----------
@@ -188,6 +222,7 @@ def hidden_end(
         return end
     axis /= length
     runs: list[list[float]] = []  # [start, stop] distances of the masked runs along the axis
+    region: list[float] = []  # distances of the pixels of a filled region (`MASK_ALWAYS`) along the axis
     inside = False
     gap = max(HIDDEN_GAP_PX, 4.0 * near)
     t = 0.0
@@ -196,6 +231,8 @@ def hidden_end(
         if not (0 <= r < height and 0 <= c < width):
             break
         masked = mask[r, c] != 0
+        if mask[r, c] == K.MASK_ALWAYS:
+            region.append(t)
         if masked and not inside:
             runs.append([t, t])
         elif masked:
@@ -204,9 +241,14 @@ def hidden_end(
         if not inside and t - (runs[-1][1] if runs else 0.0) > (gap if runs else near):
             break  # beyond the structure's last edge (or no structure right beyond the end)
         t += _STEP_PX
-    if len(runs) < 2 or inside:
+    if inside:
         return end
-    middle = 0.25 * (runs[0][0] + runs[0][1] + runs[-1][0] + runs[-1][1])
+    if region:  # a filled region (a given mask, a structure found from the outline): its middle along the axis
+        middle = 0.5 * (region[0] + region[-1])
+    elif len(runs) >= 2:  # a learned structure's edges: halfway between the first and the last
+        middle = 0.25 * (runs[0][0] + runs[0][1] + runs[-1][0] + runs[-1][1])
+    else:
+        return end
     return np.array([r0 + middle * axis[0], c0 + middle * axis[1]], np.float32)
 
 

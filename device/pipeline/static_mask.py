@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import as_ro
 from ropecam.device.pipeline.edges import EdgeDetector
+from ropecam.device.pipeline.structure import grow
 from ropecam.device.pipeline.workspace import EdgeBuffers
 
 if TYPE_CHECKING:
@@ -78,6 +79,10 @@ class StaticMask:
         """Pixels marked static when the learning ended (0 before)."""
         self.base_dn = 0.0
         """The range a still pixel spans from noise alone (2 x the median learned range + 2), once learned."""
+        self.structure_px = 0
+        """Pixels of the structure found from the rope's first outline (`add_structure`; 0: none)."""
+        self.structure_tried = False
+        """Whether the stream's first outline was searched for a structure (`Stages.mask_structure`)."""
         self._finder: EdgeDetector | None = None  # the structures' detector, made ahead by `prepare`
         buffers.static_mask[:] = K.MASK_FREE
         buffers.static_low[:] = 255
@@ -181,6 +186,15 @@ class StaticMask:
         edge = (finder.edges != 0) & _spread(~still, invert=True)
         return _spread(edge)  # noise moves a static edge by a pixel now and then
 
+    def add_structure(self, region: NDArray[np.bool_]) -> None:
+        """Take the edges in `region` ((height, width) bool: a structure found from the rope's outline,
+        `FixedEndFinder.structure`) out from now on, as those of a given mask (`MASK_ALWAYS`: kept after the
+        learning too, see `ropecam.device.pipeline.structure`)."""
+        if region.shape != self.buffers.static_mask.shape:
+            raise ValueError(f"region is {region.shape}, expected {self.buffers.static_mask.shape}")
+        self.buffers.static_mask[region] = K.MASK_ALWAYS
+        self.structure_px = int(np.count_nonzero(region))
+
     def static(self) -> NDArray[np.bool_]:
         """Return the pixels whose edges are dropped (given, or learned static), True where dropped."""
         return self.buffers.static_mask != K.MASK_FREE
@@ -189,10 +203,5 @@ class StaticMask:
 def _spread(pixels: NDArray[np.bool_], invert: bool = False) -> NDArray[np.bool_]:
     """`pixels` grown over their 3x3 neighbourhoods (with `invert`: the pixels whose 3x3 neighbourhood holds
     none of `pixels`)."""
-    rows = pixels.copy()
-    rows[1:, :] |= pixels[:-1, :]
-    rows[:-1, :] |= pixels[1:, :]
-    grown = rows.copy()
-    grown[:, 1:] |= rows[:, :-1]
-    grown[:, :-1] |= rows[:, 1:]
+    grown = grow(pixels)
     return ~grown if invert else grown
