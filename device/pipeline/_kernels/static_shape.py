@@ -37,7 +37,7 @@ def static_shape(points, chain, n, gx, gy, smooth, polarity, width, fixed, fixed
        `polarity` times the gradient (`gx`, `gy`), into side A;
     3. `extend_to_band_end` (the tip carried to where the band ends on `smooth`, with the width's ``cap_px``,
        ``skip_px``, ``span_px``, ``blur_px``), then with a fixed end `anchor_start` at it (axis from ``skip_px``
-       over ``span_px``);
+       over ``span_px``; through the fixed end itself when ``width.through_fixed`` is 1: a given fixed end);
     4. `resample_polyline` at ``width.out_step_px`` into out A, then, with ``width.smoothing_px`` > 0 and 3 points
        or more, `smooth_polyline` back into side A (``scratch[0]`` its arc lengths).
 
@@ -75,7 +75,9 @@ def static_shape(points, chain, n, gx, gy, smooth, polarity, width, fixed, fixed
         side_a, count, points, n, smooth, width.width_px, width.cap_px, width.skip_px, width.span_px, width.blur_px
     )
     if fixed:
-        count = anchor_start(side_a, count, fixed_r, fixed_c, width.skip_px, width.span_px)
+        count = anchor_start(
+            side_a, count, fixed_r, fixed_c, width.skip_px, width.span_px, np.int32(1 if width.through_fixed else 0)
+        )
     buffers.seg[0, 0] = points[e2, 0]
     buffers.seg[0, 1] = points[e2, 1]
     buffers.seg[1, 0] = points[e2, 0]

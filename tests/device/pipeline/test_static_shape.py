@@ -68,7 +68,8 @@ def _one_by_one(args: tuple) -> tuple[int, np.ndarray, np.ndarray]:
         width.blur_px,
     )  # fmt: skip
     if fixed:
-        count = K.anchor_start(side_a, np.int32(count), fixed_r, fixed_c, width.skip_px, width.span_px)
+        through = np.int32(1 if width.through_fixed else 0)
+        count = K.anchor_start(side_a, np.int32(count), fixed_r, fixed_c, width.skip_px, width.span_px, through)
     buffers.seg[0] = points[e2]
     buffers.seg[1] = points[e2]
     count = K.resample_polyline(side_a, np.int32(count), width.out_step_px, out_a)
