@@ -430,7 +430,7 @@ class BlurSplitter:
                 if frame is not None:  # as `split_shapes`: the rope's own contrast along the band
                     K.contrast_gains(
                         points, chain, n, i_fix, seg_i, sign, frame, gx, gy, pol, out_ro, consts.width,
-                        np.float32(tables.width_px), np.float32(1.0 / inv), self.work, gains,
+                        np.float32(consts.rope_px), np.float32(1.0 / inv), self.work, gains,
                     )  # fmt: skip
                     K.side_sweeps(chain, n, i_fix, seg_i, sign, mag, inv, ro(gains), ratios, sweeps, half, self.work,
                                   out)  # fmt: skip

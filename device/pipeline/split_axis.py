@@ -45,6 +45,9 @@ class AxisPolylines:
         self.step = np.float32(output_step_px)
         self.output_smoothing = np.float32(output_smoothing_px)
         self.smooth_sigma = float(smooth_sigma_px)
+        self.through_fixed = False
+        """Whether the fixed end is given (a plane calibration, ``fixed_end_uv``), not found: the polylines then start
+        at it (`anchor_fixed_end`, `static_shape`), not at the foot of the rope's end there (`Stages` sets it)."""
         sides = buffers.sides
         self.side_a, self.side_b, self.out_a, self.out_b = sides[0], sides[1], sides[2], sides[3]
         # Read-only views made once (a view costs 1-2 us of Python).

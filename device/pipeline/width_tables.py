@@ -3,7 +3,8 @@ edge model's sweep table (`sweep_index`)."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from statistics import NormalDist
+from typing import TYPE_CHECKING, Final
 
 import numpy as np
 from numpy.typing import NDArray
@@ -14,7 +15,16 @@ from ropecam.device.pipeline._views import f32, i32, ro
 if TYPE_CHECKING:
     from ropecam.device.pipeline.split import BlurSplitter
 
-__all__ = ["WidthTables", "sweep_index"]
+__all__ = ["LOCAL_CONTRAST_MAX_BLUR_PX", "WidthTables", "sweep_index"]
+
+LOCAL_CONTRAST_TAIL: Final = 0.03
+"""The share of the edge's step a lens blur may put where `contrast_gains` reads the background (from
+``MARGIN_PX - BACKGROUND_PX`` = 1 px outside the band's edge)."""
+LOCAL_CONTRAST_MAX_BLUR_PX: Final = (K.MARGIN_PX - K.BACKGROUND_PX) / NormalDist().inv_cdf(1.0 - LOCAL_CONTRAST_TAIL)
+"""The largest lens blur (the edge model's, px) with which the split reads the rope's own contrast along the band
+(0.53 px): above it the blur's tail reaches the background's samples and the readings come out low (simulated, tuning
+seed, 60 frames: PSF 1.2 px centreline 0.08 -> 0.30 px with the readings, PSF 2 px 0.10 -> 0.69 px and 8 % of frames
+wrong while OK); the rope's contrast is then the frame's, read near the fixed end."""
 
 
 class WidthTables:
@@ -32,8 +42,8 @@ class WidthTables:
     """
 
     __slots__ = (
-        "blur", "cap", "corner", "curves", "group", "keep", "min_gap", "ratios_ro", "scale", "search_px", "skip",
-        "span", "sweep_index", "sweep_window", "sweeps_ro", "table_ro", "table_step", "tables", "width",
+        "blur", "cap", "corner", "curves", "group", "keep", "min_gap", "ratios_ro", "rope_px", "scale", "search_px",
+        "skip", "span", "sweep_index", "sweep_window", "sweeps_ro", "table_ro", "table_step", "tables", "width",
         "width_scalars",
     )  # fmt: skip
 
@@ -49,6 +59,10 @@ class WidthTables:
         self.table_ro = ro(self.tables.offset_px)
         self.table_step = f32(self.tables.sweep_step_px)
         self.width = f32(width)
+        # The rope's own width for its contrast read along the band (`contrast_gains`); 0 (no reading: the frame's
+        # contrast) under a lens blur above `LOCAL_CONTRAST_MAX_BLUR_PX`.
+        local = splitter.model.lens_blur_px <= LOCAL_CONTRAST_MAX_BLUR_PX
+        self.rope_px = float(self.tables.width_px) if local else 0.0
         self.cap = f32(splitter.tip_cap_ratio * width)
         # The corner is rounded over the edge ramp (up to a rope width) plus the smoothing on each side.
         self.skip = f32(width + 2.0 * splitter.smooth_sigma)
@@ -71,7 +85,7 @@ class WidthTables:
             width64_px=float(width), out_step_px=splitter.axis.step, smoothing_px=splitter.axis.output_smoothing,
             scale=self.scale, min_gap=self.min_gap, search_px=float(self.search_px), corner_rad=self.corner,
             grow_px=3.0 * float(self.blur) + 6.0 + width, static_ratio=float(splitter.static_ratio),
-            rope_px=float(self.tables.width_px), through_fixed=float(splitter.axis.through_fixed),
+            rope_px=self.rope_px, through_fixed=float(splitter.axis.through_fixed),
         )  # fmt: skip
         # Its scalars as `steady_frame`'s table holds them (float64, exact), by name.
         self.width_scalars = ro(np.array([float(getattr(self.group, n)) for n in K.SPLIT_WIDTH_SCALARS], np.float64))

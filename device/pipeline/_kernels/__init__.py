@@ -34,7 +34,7 @@ from ropecam.device.pipeline._kernels._common import (
     ZERO,
     f4_1d_ro,
 )
-from ropecam.device.pipeline._kernels.band_contrast import CONTRAST_POINTS, contrast_gains
+from ropecam.device.pipeline._kernels.band_contrast import BACKGROUND_PX, CONTRAST_POINTS, MARGIN_PX, contrast_gains
 from ropecam.device.pipeline._kernels.band_stage import band_stage
 from ropecam.device.pipeline._kernels.canny import (
     detect_edges,
@@ -235,6 +235,7 @@ from ropecam.device.pipeline._kernels.tracking import (
 from ropecam.device.pipeline._kernels.uncross import nearest_on, uncross_shapes
 
 __all__ = [
+    "BACKGROUND_PX",
     "BAND",
     "BAND_STATE",
     "CHECK_FALLBACK_SWEEP",
@@ -259,6 +260,7 @@ __all__ = [
     "HISTORY",
     "HIST_PER_UNIT",
     "INVALID",
+    "MARGIN_PX",
     "MASK_ALWAYS",
     "MASK_FREE",
     "MASK_STATIC",

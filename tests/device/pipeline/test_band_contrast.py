@@ -13,6 +13,8 @@ from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam.device.pipeline.result import FrameStatus
+from ropecam.device.pipeline.split import BlurSplitter
+from ropecam.device.pipeline.width_tables import LOCAL_CONTRAST_MAX_BLUR_PX
 
 
 def _band(contrast_of_col, rows=40, cols=120, top=15.3, width=3.0, background=30.0):
@@ -126,3 +128,16 @@ def test_an_uneven_rope_measures_nearly_as_an_even_one() -> None:
     # the even rope keeps its accuracy next to the fixed end (0.16 px when the cap's readings counted, 0.12 with
     # the frame's contrast alone)
     assert even_near < 0.14 and even_all < 0.09
+
+
+def test_the_rope_contrast_is_read_along_the_band_only_under_a_mild_lens_blur() -> None:
+    """Under a lens blur whose tail reaches the background's samples (`LOCAL_CONTRAST_MAX_BLUR_PX`, 0.53 px) the
+    split keeps the frame's contrast: its width tables carry no rope width for `contrast_gains` (simulated PSF 1.2
+    and 2 px rows read the rope's contrast low, their centrelines 0.30 and 0.69 px off with it, 0.08 and 0.10
+    without)."""
+    assert 0.5 < LOCAL_CONTRAST_MAX_BLUR_PX < 0.55
+    mild = BlurSplitter(2000, lens_blur_px=0.4)._constants(3.0)
+    strong = BlurSplitter(2000, lens_blur_px=1.2)._constants(3.0)
+    assert mild.rope_px == pytest.approx(float(mild.tables.width_px)) and mild.rope_px > 1.0
+    assert mild.group.rope_px == mild.rope_px
+    assert strong.rope_px == 0.0 and strong.group.rope_px == 0.0
