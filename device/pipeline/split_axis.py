@@ -97,20 +97,17 @@ class AxisPolylines:
         c = tables
         return K.extend_to_band_end(poly, np.int32(n), points, n_points, smooth, c.width, c.cap, c.skip, c.span, c.blur)
 
-    def resample(self, side: int, n: int, length_px: float | None = None) -> NDArray[np.float32]:
-        """Resample the first `n` points of side A (`side` 0) or B (1) at the output step into out A or B, then
-        smooth them across the rope (`smooth_polyline`, with the side as scratch: it is overwritten); return the
-        view holding the result. `length_px`: the side's length when known (`polyline_length` of its points)."""
+    def resample(self, side: int, n: int, length_px: float) -> NDArray[np.float32]:
+        """Resample the first `n` points of side A (`side` 0) or B (1), `length_px` long (`polyline_length` of
+        them), at the output step into out A or B, then smooth them across the rope (`smooth_polyline`, with the
+        side as scratch: it is overwritten); return the view holding the result."""
         if side == 0:
             poly, out, poly_ro, out_ro = self.side_a, self.out_a, self._side_a_ro, self._out_a_ro
         else:
             poly, out, poly_ro, out_ro = self.side_b, self.out_b, self._side_b_ro, self._out_b_ro
-        if length_px is None:
-            count = K.resample_polyline(poly_ro, np.int32(n), self.step, out)
-        else:
-            count = K.resample_polyline_of_length(poly_ro, np.int32(n), length_px, self.step, out)
+        count = K.resample_polyline_of_length(poly_ro, np.int32(n), length_px, self.step, out)
         if count < 0:
-            raise RuntimeError(f"resample_polyline returned status {count}")
+            raise RuntimeError(f"resample_polyline_of_length returned status {count}")
         if self.output_smoothing > 0.0 and count >= 3:
             # After resampling: a quarter of the work of smoothing the dense sides, and as the points only move
             # sideways (by ~0.1 px) their spacing along the rope stays equal to a few thousandths of a pixel.
