@@ -236,9 +236,10 @@ class SelfChecks:
         """The last checked frame's measures, by name (`check_frame` writes them; `quality` holds a copy)."""
         self._settled_frames = 0
         self._carry_sweep = float(thresholds[0]["fallback_sweep_widths"]) > 0.0
-        self._swept = False  # this frame failed `fallback_sweep` (not carried)
-        self._carry = False  # the frame before this one did (`due` moves `_swept` here at each frame's start)
-        """The last frame failed ``fallback_sweep`` on its own prediction (not carried over, `verdict`)."""
+        self._swept = False
+        """This frame failed ``fallback_sweep`` on its own prediction (not carried over, `verdict`)."""
+        self._carry = False
+        """The frame before this one did (`due` moves `_swept` here at each frame's start)."""
         self.buffers = (self._predicted, thresholds, self._measures)
 
     @staticmethod
