@@ -7,9 +7,10 @@ depends on it, and the two shapes are pushed apart along one stretch and togethe
 the time-averaged coverage integrates to the rope's width whatever the sweep and the blur, so the integral of the
 frame across the band at each point, divided by the width, is the rope's contrast there.
 
-The readings are taken at every `CONTRAST_STRIDE`-th point first. Where they spread along the side no more than an
-evenly bright rope's do (`MIN_SPREAD`), the frame's contrast stands and the caller keeps the sweeps it read with it;
-else the other points are read too and the gains are those of every point.
+The readings are taken at every `CONTRAST_STRIDE`-th point first. Where they spread along the side (where it sweeps
+less than `GATE_WIDTHS` spacings) no more than an evenly bright rope's do (`MIN_SPREAD`), the frame's contrast stands
+and the caller keeps the sweeps it read with it; else the other points are read too and the gains are those of
+every point.
 """
 
 from __future__ import annotations
@@ -48,40 +49,63 @@ CONTRAST_STRIDE: Final = 8
 """The first readings are taken at every this many points (each gain then the mean of the ~2-3 of them among the
 ``2 CONTRAST_POINTS + 1`` points around it): enough to tell an uneven rope from an even one (`MIN_SPREAD`) at an
 eighth of the time of reading every point (~80 us per side on the synthetic rig frames)."""
-MIN_SPREAD: Final = 0.06
-"""The spread (standard deviation over mean) of the first readings' gains along a side below which the rope is
-taken as evenly bright and the frame's contrast stands. Read every 8th point, an even rope's gains spread 0.007-0.045
-along a side (simulated `rig`, `rig-soft` and the synthetic rig frames, 88 sides each: the readings' own
-error, largest near the fixed end where a sweep below the blur is steepest in the contrast; applying them put `rig`'s
-centreline 0.06 -> 0.08 px off), the `lab` presets' braided rope's (`rope_unevenness` 0.15 and its photo texture)
-0.083-0.14. By the sweep's sensitivity alone no gate separates them: 1 % of contrast is 0.15 px of sweep on a 3 px
-rope sweeping 0.6 px, so the even rope's 2-4 % would count as uneven; the threshold lies between the two measured
-spreads instead."""
+GATE_WIDTHS: Final = 1.0
+"""The first readings tell an uneven rope from an even one where the sweep (read with the frame's contrast) is at
+most this many edge spacings: there the offset depends most on it, and there an even rope's readings are its
+contrast. Beyond it they come out low as the sweep grows (simulated `rig`, an even rope: the readings over the
+expected 0.96-1.01 below one spacing, 0.88-0.92 at two), an error the gate would take for unevenness."""
+MIN_SPREAD: Final = 0.036
+"""The spread (standard deviation over mean) of the first readings' gains within `GATE_WIDTHS` below which the rope
+is taken as evenly bright and the frame's contrast stands. Read every 8th point, an even rope's gains spread
+0.004-0.026 there (simulated `rig`, `rig-soft` and the synthetic rig frames, 88 sides each, 6-44 readings per side:
+the readings' own error; applied on an even rope such errors had put `rig`'s centreline 0.06 -> 0.08 px off), a
+rope with the simulator's `rope_unevenness` 0.15 on the `rig` scene 0.051-0.080, the `lab` presets' braided rope
+(unevenness 0.15 and its photo texture) 0.055-0.132; the threshold is near the geometric mean of the even ropes'
+largest and the uneven ones' smallest. By the sweep's sensitivity alone no threshold separates them: 1 % of
+contrast is 0.15 px of sweep on a 3 px rope sweeping 0.6 px, so an even rope's 1-2 % would count as uneven."""
+MIN_GATE_READINGS: Final = 4
+"""Fewer first readings within `GATE_WIDTHS` than this cannot tell the two apart: every point is then read."""
 
 
 @kernel(
     int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, u1_2d_ro, f4_2d_ro, f4_2d_ro, float32, f4_1d_ro, float32,
-          float64, int32, int32, f4_1d)
+          float64, int32, int32, int32, f4_1d)
 )  # fmt: skip
 def read_contrast(
     points, chain, n, i_start, count, direction, frame, gx, gy, polarity, sweeps, spacing_px, expected, first, stride,
-    work,
+    skip, work,
 ):  # fmt: skip
     """Write the reading of the rope's contrast times its width at the side's points ``first, first + stride, ...``
-    below `count` (the k-th point is chain index ``i_start + k direction``, cyclic over `n`) into ``work[k]``, nan
-    where there is none (see `contrast_gains`); the other entries are left alone. Returns the number written."""
+    below `count` (the k-th point is chain index ``i_start + k direction``, cyclic over `n`; `stride` below `n`)
+    into ``work[k]``, nan where there is none (see `contrast_gains`), but for every `skip`-th of them from `first`
+    when `skip` > 1 (read before); the other entries are left alone. Returns the number written."""
+    if stride < 1 or stride >= n:
+        return 0
     height = frame.shape[0]
     cols = frame.shape[1]
     reach = REACH_WIDTHS * spacing_px
     edge_samples = int(BACKGROUND_PX / STEP_PX) + 1
     written = 0
+    step = stride * direction
+    i = ((i_start + first * direction) % n + n) % n - step
+    phase = -1
     for k in range(first, count, stride):
+        # One walk along the side (neighbouring points read the same pixels: one pass keeps them in the cache).
+        i += step
+        if i >= n:
+            i -= n
+        elif i < 0:
+            i += n
+        phase += 1
+        if phase == skip:
+            phase = 0
+        if skip > 1 and phase == 0:
+            continue
         work[k] = np.nan
         written += 1
         d = max(float(sweeps[k]), 0.0)
         if d > reach:
             continue
-        i = ((i_start + k * direction) % n + n) % n
         r = chain[i, 0]
         c = chain[i, 1]
         g_r = float(gy[r, c]) * polarity
@@ -187,11 +211,12 @@ def contrast_gains(
 
     Every `stride`-th point is read first (`read_contrast`) and each point's gain is taken from the mean of the
     readings among the ``2 CONTRAST_POINTS + 1`` points centred on it (`average_readings`; at least ``(CONTRAST_POINTS
-    + 1) / stride`` of them, rounded up). When those gains at the points read spread (standard deviation over mean)
-    less than `min_spread`, or no point was read, the frame's contrast stands: returns 0 (`out_gains` is then not
-    to be applied). Else the other points are read too and the gains written are those of every point's readings
-    (at least ``CONTRAST_POINTS + 1`` of them, the points before the first average taking it, 1 where none): with
-    `stride` 1 or `min_spread` 0 every point's. An empty `frame` or a `rope_px` or `contrast` of 0 returns 0.
+    + 1) / stride`` of them, rounded up). When those gains at the points read whose sweep is at most `GATE_WIDTHS`
+    spacings (`MIN_GATE_READINGS` of them or more) spread (standard deviation over mean) less than `min_spread`,
+    or no point was read, the frame's contrast stands: returns 0 (`out_gains` is then not to be applied). Else the
+    other points are read too (one walk) and the gains written are those of every point's readings (at least
+    ``CONTRAST_POINTS + 1`` of them, the points before the first average taking it, 1 where none): with `stride` 1
+    or `min_spread` 0 every point's. An empty `frame` or a `rope_px` or `contrast` of 0 returns 0.
     `work` (float32, the side's length) keeps the raw readings. Returns the number of points when the gains are to
     be applied, 0, or FULL.
     """
@@ -208,26 +233,29 @@ def contrast_gains(
     # along the rope. They take the contrast read just beyond.
     cap = int(spacing_px + 2.0)
     read_contrast(points, chain, n, i_start, count, direction, frame, gx, gy, polarity, sweeps, spacing_px,
-                  expected, np.int32(cap), stride, work)  # fmt: skip
+                  expected, np.int32(cap), stride, np.int32(0), work)  # fmt: skip
     average_readings(work, count, np.int32((half + stride) // stride), expected, out_gains)
     total = 0.0
     squares = 0.0
     found = 0
+    read = 0
+    gate = GATE_WIDTHS * spacing_px
     for k in range(cap, count, stride):
         if math.isfinite(work[k]):
-            g = out_gains[k]
-            total += g
-            squares += g * g
-            found += 1
-    if found == 0:
+            read += 1
+            if sweeps[k] <= gate:
+                g = out_gains[k]
+                total += g
+                squares += g * g
+                found += 1
+    if read == 0:
         return 0
-    mean = total / found
-    spread = math.sqrt(max(squares / found - mean * mean, 0.0)) / mean
-    if spread < min_spread:
-        return 0
-    if stride > 1:
-        for phase in range(1, stride):
-            read_contrast(points, chain, n, i_start, count, direction, frame, gx, gy, polarity, sweeps, spacing_px,
-                          expected, np.int32(cap + phase), stride, work)  # fmt: skip
+    if found >= MIN_GATE_READINGS:
+        mean = total / found
+        if math.sqrt(max(squares / found - mean * mean, 0.0)) < min_spread * mean:
+            return 0
+    if stride > 1:  # the points between, in one walk
+        read_contrast(points, chain, n, i_start, count, direction, frame, gx, gy, polarity, sweeps, spacing_px,
+                      expected, np.int32(cap), np.int32(1), stride, work)  # fmt: skip
         average_readings(work, count, np.int32(half + 1), expected, out_gains)
     return count

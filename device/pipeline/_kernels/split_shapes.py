@@ -70,8 +70,8 @@ def split_shapes(
     backward to `seg_b`) `side_sweeps` with the frame's contrast (``1 / inv_contrast``), then, when `frame` (the
     frame the planes were made from) is not empty and ``width.rope_px`` > 0, `contrast_gains` (the rope's contrast
     across the band at each point where the sweep is below a few widths, read every `CONTRAST_STRIDE`-th point
-    first; into ``scratch[2]``) and, when they spread along the side by `MIN_SPREAD` or more, `side_sweeps` again
-    with them;
+    first; into ``scratch[2]``) and, when they spread along the side by `MIN_SPREAD` or more where it sweeps
+    little, `side_sweeps` again with them;
     `offset_by_table`, `extend_to_band_end`; then the slant correction of
     the two tips (`BlurSplitter._correct_slant`: float32 updates as NumPy makes them), the two lengths, the
     length check (``|La - Lb| > max(3 width64_px, 0.1 max(La, Lb))`` rejects the split), and per side
