@@ -427,11 +427,12 @@ class BlurSplitter:
             for seg_i, sign, out, out_ro in ((seg_a, plus, self.sweeps_a, self._sweeps_a_ro),
                                              (seg_b, minus, self.sweeps_b, self._sweeps_b_ro)):  # fmt: skip
                 K.side_sweeps(chain, n, i_fix, seg_i, sign, mag, inv, no, ratios, sweeps, half, self.work, out)
-                if frame is not None:  # as `split_shapes`: the rope's own contrast along the band
-                    K.contrast_gains(
-                        points, chain, n, i_fix, seg_i, sign, frame, gx, gy, pol, out_ro, consts.width,
-                        np.float32(consts.rope_px), np.float32(1.0 / inv), self.work, gains,
-                    )  # fmt: skip
+                # As `split_shapes`: the rope's own contrast along the band, when it varies along the side.
+                if frame is not None and consts.rope_px > 0.0 and K.contrast_gains(
+                    points, chain, n, i_fix, seg_i, sign, frame, gx, gy, pol, out_ro, consts.width,
+                    np.float32(consts.rope_px), np.float32(1.0 / inv), K.CONTRAST_STRIDE, K.MIN_SPREAD, self.work,
+                    gains,
+                ) > 0:  # fmt: skip
                     K.side_sweeps(chain, n, i_fix, seg_i, sign, mag, inv, ro(gains), ratios, sweeps, half, self.work,
                                   out)  # fmt: skip
         sweeps_a, sweeps_b = self._sweeps_a_ro, self._sweeps_b_ro

@@ -34,7 +34,14 @@ from ropecam.device.pipeline._kernels._common import (
     ZERO,
     f4_1d_ro,
 )
-from ropecam.device.pipeline._kernels.band_contrast import BACKGROUND_PX, CONTRAST_POINTS, MARGIN_PX, contrast_gains
+from ropecam.device.pipeline._kernels.band_contrast import (
+    BACKGROUND_PX,
+    CONTRAST_POINTS,
+    CONTRAST_STRIDE,
+    MARGIN_PX,
+    MIN_SPREAD,
+    contrast_gains,
+)
 from ropecam.device.pipeline._kernels.band_stage import band_stage
 from ropecam.device.pipeline._kernels.canny import (
     detect_edges,
@@ -247,6 +254,7 @@ __all__ = [
     "CHECK_TIP_MASKED",
     "CONTOUR",
     "CONTRAST_POINTS",
+    "CONTRAST_STRIDE",
     "DIR_COL",
     "DIR_ROW",
     "EDGE_NONE",
@@ -264,6 +272,7 @@ __all__ = [
     "MASK_ALWAYS",
     "MASK_FREE",
     "MASK_STATIC",
+    "MIN_SPREAD",
     "MOTION",
     "MOTION_COUNT",
     "MOTION_EXPOSURE",

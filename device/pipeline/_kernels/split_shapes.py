@@ -10,7 +10,7 @@ import numpy as np
 from numba import float32, int32
 
 from ropecam.device.pipeline._kernels._common import FULL, INVALID, NOT_FOUND, vector_length
-from ropecam.device.pipeline._kernels.band_contrast import contrast_gains
+from ropecam.device.pipeline._kernels.band_contrast import CONTRAST_STRIDE, MIN_SPREAD, contrast_gains
 from ropecam.device.pipeline._kernels.groups import (
     PLANES,
     SPLIT_WIDTH,
@@ -68,8 +68,10 @@ def split_shapes(
     """The blur split's shapes from its segmentation points, with local sweeps, in one call (the stage's
     sequence of kernels, without a Python step between them): per side (A forward from `i_fix` to `seg_a`, B
     backward to `seg_b`) `side_sweeps` with the frame's contrast (``1 / inv_contrast``), then, when `frame` (the
-    frame the planes were made from) is not empty, `contrast_gains` (the rope's contrast across the band at each
-    point where the sweep is below a few widths; into ``scratch[2]``) and `side_sweeps` again with them;
+    frame the planes were made from) is not empty and ``width.rope_px`` > 0, `contrast_gains` (the rope's contrast
+    across the band at each point where the sweep is below a few widths, read every `CONTRAST_STRIDE`-th point
+    first; into ``scratch[2]``) and, when they spread along the side by `MIN_SPREAD` or more where it sweeps
+    little, `side_sweeps` again with them;
     `offset_by_table`, `extend_to_band_end`; then the slant correction of
     the two tips (`BlurSplitter._correct_slant`: float32 updates as NumPy makes them), the two lengths, the
     length check (``|La - Lb| > max(3 width64_px, 0.1 max(La, Lb))`` rejects the split), and per side
@@ -126,7 +128,9 @@ def split_shapes(
     gains = buffers.scratch[2]
     none = gains[:0]
     contrast = np.float32(1.0 / inv_contrast)
-    local = frame.shape[0] > 1 and frame.shape[1] > 1
+    # The rope's own contrast is read with a frame and a rope width (none under a strong lens blur: `WidthTables`).
+    local = frame.shape[0] > 1 and frame.shape[1] > 1 and width.rope_px > 0.0
+    stride = np.int32(CONTRAST_STRIDE)
     for side in range(2):
         seg = seg_a if side == 0 else seg_b
         direction = plus if side == 0 else minus
@@ -142,12 +146,17 @@ def split_shapes(
             if count < 0:
                 return FULL
             # The rope's own contrast where the sweep read with the frame's is below a few widths (there the
-            # offset depends on it): `side_sweeps` again with the ratio of the two.
-            if rounds == 0 and local and contrast_gains(
-                points, chain, n, i_fix, seg, direction, frame, gx, gy, polarity, out_sweeps, width_px,
-                np.float32(width.rope_px), contrast, work, gains,
-            ) < 0:  # fmt: skip
-                return FULL
+            # offset depends on it): `side_sweeps` again with the ratio of the two, when it varies along the side
+            # more than an even rope's readings do (else 0: the sweeps read with the frame's contrast stand).
+            if rounds == 0 and local:
+                applied = contrast_gains(
+                    points, chain, n, i_fix, seg, direction, frame, gx, gy, polarity, out_sweeps, width_px,
+                    np.float32(width.rope_px), contrast, stride, MIN_SPREAD, work, gains,
+                )  # fmt: skip
+                if applied < 0:
+                    return FULL
+                if applied == 0:
+                    break
     keep = dense_end_points(skip_px, span_px)
     na = offset_by_table_thinned(points, chain, n, i_fix, seg_a, plus, gx, gy, polarity, out_sweeps_a, step_px,
                                  table, keep, keep, out_side_a)  # fmt: skip

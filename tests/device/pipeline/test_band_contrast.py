@@ -34,13 +34,15 @@ def _band(contrast_of_col, rows=40, cols=120, top=15.3, width=3.0, background=30
     return frame, points, chain, gx, gy
 
 
-def _gains(frame, points, chain, gx, gy, contrast, sweeps=None, width=3.0):
+def _gains(frame, points, chain, gx, gy, contrast, sweeps=None, width=3.0, stride=1, min_spread=0.0, applied=True):
+    """`contrast_gains` on the band's side; every point read first by default (`stride` 1) and the gains written
+    whatever their spread (`min_spread` 0). Asserts that the gains are to be applied, or not (`applied`)."""
     n = points.shape[0]
     sweeps = np.zeros(n, np.float32) if sweeps is None else sweeps
-    work, out = np.zeros(n, np.float32), np.zeros(n, np.float64)
+    work, out = np.zeros(n, np.float32), np.ones(n, np.float64)
     count = K.contrast_gains(points, chain, n, 0, n - 1, 1, frame, gx, gy, np.float32(1.0), sweeps, np.float32(width),
-                             np.float32(width), np.float32(contrast), work, out)  # fmt: skip
-    assert count == n
+                             np.float32(width), np.float32(contrast), stride, min_spread, work, out)  # fmt: skip
+    assert count == (n if applied else 0)
     return out, work
 
 
@@ -62,18 +64,41 @@ def test_contrast_gains_read_the_rope_s_own_contrast_along_it() -> None:
     local = np.convolve(contrast(np.arange(points.shape[0])), np.ones(window) / window, mode="same")
     np.testing.assert_allclose(gains[inner], 120.0 / local[inner], rtol=0.03)
     assert gains.min() < 0.85 and gains.max() > 1.3  # the pattern is followed, not flattened
+    # read every CONTRAST_STRIDE-th point first, the rope found uneven, then every point: the same gains, bit for bit
+    sparse, sparse_raw = _gains(frame, points, chain, gx, gy, 120.0, stride=K.CONTRAST_STRIDE, min_spread=K.MIN_SPREAD)
+    assert sparse.tobytes() == gains.tobytes() and np.array_equal(sparse_raw, raw, equal_nan=True)
+
+
+@pytest.mark.parametrize(("amplitude", "applied"), [(0.0, False), (0.03, False), (0.1, True), (0.3, True)])
+def test_contrast_gains_are_applied_only_where_the_rope_s_brightness_varies(amplitude, applied) -> None:
+    """The first readings (every `CONTRAST_STRIDE`-th point) decide: a rope whose contrast varies along the side
+    (a sine of relative `amplitude`: spread amplitude / sqrt 2) by less than `MIN_SPREAD` keeps the frame's contrast
+    (0 returned, nothing to apply), a more uneven one gets every point's gains."""
+
+    def contrast(cols):
+        return 120.0 * (1.0 + amplitude * np.sin(2.0 * np.pi * cols / 60.0))
+
+    frame, points, chain, gx, gy = _band(contrast, cols=240)
+    every, _ = _gains(frame, points, chain, gx, gy, 120.0)
+    gains, _ = _gains(frame, points, chain, gx, gy, 120.0, stride=K.CONTRAST_STRIDE, min_spread=K.MIN_SPREAD,
+                      applied=applied)  # fmt: skip
+    spread = np.std(every[20:-20]) / np.mean(every[20:-20])
+    assert (spread > K.MIN_SPREAD) == applied
+    if applied:
+        assert gains.tobytes() == every.tobytes()
 
 
 def test_contrast_gains_keep_the_frame_s_contrast_where_they_cannot_read() -> None:
     frame, points, chain, gx, gy = _band(lambda cols: np.full(cols.shape, 120.0))
     n = points.shape[0]
-    # a uniform rope: gain 1 wherever read
+    # a uniform rope: gain 1 wherever read, and not applied once it is found even
     gains, _ = _gains(frame, points, chain, gx, gy, 120.0)
     np.testing.assert_allclose(gains, 1.0, atol=0.02)
-    # sweeps beyond the reach: the frame's contrast
+    _gains(frame, points, chain, gx, gy, 120.0, stride=K.CONTRAST_STRIDE, min_spread=K.MIN_SPREAD, applied=False)
+    # sweeps beyond the reach: nothing read, the frame's contrast
     far = np.full(n, np.float32(K.band_contrast.REACH_WIDTHS * 3.0 + 1.0))
-    gains, raw = _gains(frame, points, chain, gx, gy, 120.0, sweeps=far)
-    assert np.all(gains == 1.0) and np.all(np.isnan(raw))
+    _, raw = _gains(frame, points, chain, gx, gy, 120.0, sweeps=far, applied=False)
+    assert np.all(np.isnan(raw))
     # ... from where the sweep passes it on
     far[:60] = 0.0
     gains, raw = _gains(frame, points, chain, gx, gy, 120.0, sweeps=far)
@@ -81,17 +106,18 @@ def test_contrast_gains_keep_the_frame_s_contrast_where_they_cannot_read() -> No
         np.all(np.isfinite(raw[5:60])) and np.all(np.isnan(raw[60:])) and np.all(gains[60 + K.CONTRAST_POINTS :] == 1)
     )
     # a reading that is not the rope's (a contrast 3x the frame's): dropped
-    gains, raw = _gains(frame, points, chain, gx, gy, 40.0)
-    assert np.all(gains == 1.0) and np.all(np.isnan(raw))
-    # no frame (a split without one): 1 everywhere
-    gains, _ = _gains(np.zeros((0, 0), np.uint8), points, chain, gx, gy, 120.0)
-    assert np.all(gains == 1.0)
+    _, raw = _gains(frame, points, chain, gx, gy, 40.0, applied=False)
+    assert np.all(np.isnan(raw))
+    # no frame (a split without one), no rope width (a strong lens blur): nothing read
+    _gains(np.zeros((0, 0), np.uint8), points, chain, gx, gy, 120.0, applied=False)
+    _gains(frame, points, chain, gx, gy, 120.0, width=0.0, applied=False)
     # sections leaving the frame are not read
-    gains, raw = _gains(frame[:16], points, chain, gx, gy, 120.0)
-    assert np.all(gains == 1.0) and np.all(np.isnan(raw))
+    _, raw = _gains(frame[:16], points, chain, gx, gy, 120.0, applied=False)
+    assert np.all(np.isnan(raw))
     work, out = np.zeros(n - 1, np.float32), np.zeros(n, np.float64)
-    assert K.contrast_gains(points, chain, n, 0, n - 1, 1, frame, gx, gy, np.float32(1.0), np.zeros(n, np.float32),
-                            np.float32(3.0), np.float32(3.0), np.float32(120.0), work, out) == K.FULL  # fmt: skip
+    flat = np.zeros(n, np.float32)
+    assert K.contrast_gains(points, chain, n, 0, n - 1, 1, frame, gx, gy, np.float32(1.0), flat, np.float32(3.0),
+                            np.float32(3.0), np.float32(120.0), 1, 0.0, work, out) == K.FULL  # fmt: skip
 
 
 def _centreline_errors(rope: SyntheticRope, frames: int = 18) -> tuple[float, float]:
@@ -128,6 +154,42 @@ def test_an_uneven_rope_measures_nearly_as_an_even_one() -> None:
     # the even rope keeps its accuracy next to the fixed end (0.16 px when the cap's readings counted, 0.12 with
     # the frame's contrast alone)
     assert even_near < 0.14 and even_all < 0.09
+
+
+def _split_with_and_without_the_frame(rope: SyntheticRope) -> tuple[bool, ...]:
+    """Run a pipeline over 14 frames of `rope`, then its last frame's `split_shapes` again with the frame (the
+    rope's contrast read along the band) and without one (the frame's contrast alone); whether each output (the
+    four shape buffers, the counts and lengths) came out the same, bit for bit."""
+    pipeline = Pipeline(PipelineConfig(), (rope.width, rope.height))
+    pipeline.one_call = False  # each frame's split through `split_frame`, its inputs kept in its arguments
+    for frame in rope.frames(14):
+        result = pipeline.process(frame.image, frame.index, frame.t_ns, frame.exposure_us)
+    assert result.status is FrameStatus.OK, result.message
+    args = pipeline.splitter.frame_call._args
+    points, chain, planes, image, width, index, state, buffers = (args[i] for i in (3, 4, 5, 6, 13, 14, 15, 16))
+    assert width.rope_px > 0.0
+    s = K.FRAME_STATE
+    outputs = []
+    for frame_read in (image, np.zeros((0, 0), np.uint8)):
+        status = K.split_shapes(
+            points, chain, int(state[s.n]), *(int(buffers.idx[i]) for i in (0, 1, 3)), planes, frame_read,
+            np.float32(1.0 / state[s.contrast]), np.float32(state[s.polarity]), width, index,
+            np.float32(state[s.fixed_r]), np.float32(state[s.fixed_c]), np.zeros(0), buffers,
+        )  # fmt: skip
+        assert status == 2
+        outputs.append((*buffers.sides.copy(), buffers.info[:6].copy()))
+    return tuple(np.array_equal(a, b) for a, b in zip(*outputs, strict=True))
+
+
+@pytest.mark.jit_only  # a pipeline over 14 frames
+@pytest.mark.parametrize(("unevenness", "same"), [(0.0, True), (0.3, False)])
+def test_an_even_rope_is_split_as_without_the_readings(unevenness, same) -> None:
+    """On an evenly bright rope the readings along the band are not applied: `split_shapes` with the frame makes the
+    same shapes, bit for bit, as without one (the sweeps read with the frame's contrast alone); on a rope whose
+    brightness varies +-30 % along it they are applied, and the shapes move."""
+    rope = SyntheticRope(diameter_px=3.0, noise_dn=1.0, phase_rad=1.2, unevenness=unevenness, unevenness_period_px=80.0)
+    equal = _split_with_and_without_the_frame(rope)
+    assert all(equal) if same else not all(equal[:4])
 
 
 def test_the_rope_contrast_is_read_along_the_band_only_under_a_mild_lens_blur() -> None:
