@@ -217,6 +217,89 @@ def test_seal_cut_ends_needs_a_mask_and_a_close_partner() -> None:
         np.testing.assert_array_equal(out, edges)
 
 
+def _seal_reference(mask, lo, hi, edges, listed):  # type: ignore[no-untyped-def]
+    """`seal_cut_ends` as its rule reads, pixel by pixel in Python: the edges and list it leaves."""
+    height, width = edges.shape
+    edges, listed = edges.copy(), list(listed)
+    if mask.shape != edges.shape:
+        return edges, listed
+    cut = set()
+    for k in listed:
+        r, c = divmod(int(k), width)
+        if not (1 <= r <= height - 2 and 1 <= c <= width - 2):
+            continue
+        near = [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if (dr, dc) != (0, 0)]
+        masked = any(mask[r + dr, c + dc] != K.MASK_FREE for dr, dc in near)
+        ends = [(dr, dc) for dr, dc in near if edges[r + dr, c + dc] != 0 or (r + dr) * width + c + dc in cut]
+        touching = len(ends) == 2 and max(abs(ends[0][0] - ends[1][0]), abs(ends[0][1] - ends[1][1])) <= 1
+        if masked and (len(ends) == 1 or touching):
+            cut.add(int(k))
+    if len(cut) < 2:
+        return edges, listed
+    reach = K.SEAL_REACH_PX
+
+    def nearest(r: int, c: int) -> int:
+        best, best_d = -1, 4 * reach * reach + 1
+        for rr in range(max(r - reach, 1), min(r + reach + 1, height - 1)):
+            for cc in range(max(c - reach, 1), min(c + reach + 1, width - 1)):
+                d = (rr - r) ** 2 + (cc - c) ** 2
+                if rr * width + cc in cut and 4 <= d < best_d:
+                    best, best_d = rr * width + cc, d
+        return best
+
+    for k in [int(k) for k in listed]:
+        if k not in cut:
+            continue
+        r, c = divmod(k, width)
+        other = nearest(r, c)
+        if other <= k or nearest(*divmod(other, width)) != k:
+            continue
+        r2, c2 = divmod(other, width)
+        steps = max(abs(r2 - r), abs(c2 - c))
+        for s in range(1, steps):
+            pr = int(np.floor(r + (r2 - r) * s / steps + 0.5))
+            pc = int(np.floor(c + (c2 - c) * s / steps + 0.5))
+            if not (1 <= pr <= height - 2 and 1 <= pc <= width - 2 and lo[pr] <= pc <= hi[pr]):
+                continue
+            if edges[pr, pc] == 0 and pr * width + pc not in cut:
+                edges[pr, pc] = 1
+                listed.append(pr * width + pc)
+    return edges, listed
+
+
+@pytest.mark.kernel
+@pytest.mark.parametrize("seed", [5, 6, 7, 8])
+def test_seal_cut_ends_matches_a_slow_reference(seed: int) -> None:
+    """Random short lines (ends next to masked pixels, on the image border, crossing each other) against the rule
+    pixel by pixel: the same edge map and list."""
+    rng = np.random.default_rng(seed)
+    height, width = 28, 36
+    edges = np.zeros((height, width), np.uint8)
+    for _ in range(14):
+        r, c = int(rng.integers(0, height)), int(rng.integers(0, width))
+        dr, dc = int(rng.integers(-1, 2)), int(rng.integers(-1, 2))
+        for _ in range(int(rng.integers(1, 7))):
+            if 0 <= r < height and 0 <= c < width:
+                edges[r, c] = 1
+            r, c = r + dr, c + dc
+    mask = np.zeros(edges.shape, np.uint8)
+    for _ in range(4):
+        r, c = int(rng.integers(0, height - 4)), int(rng.integers(0, width - 4))
+        mask[r : r + int(rng.integers(1, 5)), c : c + int(rng.integers(1, 5))] = rng.choice(
+            [K.MASK_ALWAYS, K.MASK_STATIC]
+        )
+    lo = rng.integers(0, 4, height).astype(np.int32)
+    hi = (width - 1 - rng.integers(0, 4, height)).astype(np.int32)
+    flat = rng.permutation(np.flatnonzero(edges.ravel())).astype(np.int32)  # any order, as the hysteresis lists
+    listed = np.zeros(height * width, np.int32)
+    listed[: len(flat)] = flat
+    expected_edges, expected_list = _seal_reference(mask, lo, hi, edges, flat)
+    out = edges.copy()
+    count = K.seal_cut_ends(_ro(mask), _ro(lo), _ro(hi), out, listed, len(flat))
+    np.testing.assert_array_equal(out, expected_edges)
+    assert listed[:count].tolist() == expected_list
+
+
 def test_a_rope_cut_by_a_clamp_mask_is_measured_from_the_fixed_end(tmp_path: Path) -> None:
     """A clamp block round the fixed end and its rod to the top border, given as a mask: the mask drops the
     clamp's outline, so the rope's edges end at the clamp. The outline is sealed across the clamp's exit; the
