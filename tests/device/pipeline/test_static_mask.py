@@ -26,6 +26,16 @@ def _ro(a: np.ndarray) -> np.ndarray:
     return view
 
 
+_NO_NEAR = _ro(np.zeros(0, np.uint8))  # no summary of the mask: the kernels read it everywhere
+
+
+def _near(mask: np.ndarray) -> np.ndarray:
+    """The mask's summary (`mark_near_blocks`)."""
+    near = np.zeros(K.near_blocks(*mask.shape), np.uint8)
+    assert K.mark_near_blocks(_ro(mask), near) == np.count_nonzero(near)
+    return _ro(near)
+
+
 def _frames(seed: int, count: int, shape: tuple[int, int] = (24, 32)) -> list[np.ndarray]:
     rng = np.random.default_rng(seed)
     return [rng.integers(0, 256, shape).astype(np.uint8) for _ in range(count)]
@@ -93,16 +103,47 @@ def test_drop_static_edges_matches_a_slow_reference(seed: int) -> None:
     edges = np.zeros(shape, np.uint8)
     edges.reshape(-1)[listed] = 1
     expected = _drop_reference(frame, mask, low, high, listed)
-    for image in (_ro(frame), frame.copy()):
+    for image, near in ((_ro(frame), _NO_NEAR), (frame.copy(), _NO_NEAR), (_ro(frame), _near(mask))):
         got_edges, got_list = edges.copy(), edge_list.copy()
-        kept = K.drop_static_edges(image, _ro(mask), _ro(low), _ro(high), got_edges, got_list, 200)
+        kept = K.drop_static_edges(image, _ro(mask), _ro(low), _ro(high), near, got_edges, got_list, 200)
         assert 0 < kept < 200
         assert got_list[:kept].tolist() == expected
         expected_edges = np.zeros(shape, np.uint8)
         expected_edges.reshape(-1)[expected] = 1
         np.testing.assert_array_equal(got_edges, expected_edges)
     placeholder = _ro(np.zeros((1, 1), np.uint8))
-    assert K.drop_static_edges(_ro(frame), placeholder, placeholder, placeholder, edges, edge_list, 200) == 200
+    assert (
+        K.drop_static_edges(_ro(frame), placeholder, placeholder, placeholder, _NO_NEAR, edges, edge_list, 200) == 200
+    )
+
+
+@pytest.mark.kernel
+@pytest.mark.parametrize("seed", [9, 10])
+def test_mark_near_blocks_marks_every_block_next_to_a_masked_pixel(seed: int) -> None:
+    """A block is marked when a pixel of it, or a neighbour on the flat array, is masked: never a block with a
+    masked pixel or 2-D neighbour unmarked (the kernels skip those), and few more."""
+    rng = np.random.default_rng(seed)
+    height, width = 24, 40  # 960 pixels: 15 blocks, rows not aligned with them
+    mask = np.zeros((height, width), np.uint8)
+    for _ in range(3):
+        r, c = int(rng.integers(0, height)), int(rng.integers(0, width))
+        mask[r, c] = rng.choice([K.MASK_ALWAYS, K.MASK_STATIC])
+    mask[height - 1, width - 1] = K.MASK_STATIC  # the last pixel: the last block and the one a row above
+    near = _near(mask)
+    assert near.shape == (15,)
+    grown = cv2.dilate((mask != K.MASK_FREE).astype(np.uint8), np.ones((3, 3), np.uint8)).ravel()
+    flat = (mask != K.MASK_FREE).ravel()
+    for b in range(15):
+        block = slice(b * K.NEAR_BLOCK, (b + 1) * K.NEAR_BLOCK)
+        if grown[block].any():
+            assert near[b] == 1
+        around = np.zeros(height * width, bool)
+        for shift in (-width, 0, width):
+            lo, hi = max(b * 64 + shift - 1, 0), min((b + 1) * 64 - 1 + shift + 1, height * width - 1)
+            if lo <= hi:
+                around[lo : hi + 1] = True
+        assert near[b] == int(flat[around].any())
+    assert K.mark_near_blocks(_ro(mask), np.zeros(14, np.uint8)) == -1
 
 
 def test_static_mask_learns_then_marks_only_still_pixels() -> None:
@@ -122,6 +163,11 @@ def test_static_mask_learns_then_marks_only_still_pixels() -> None:
     static = mask.static()
     assert static[0, 0] and static[0, 5] and not static[11, 5] and not static[11, 21]
     assert mask.static_px == static.size - 1 - 3 * 16
+    np.testing.assert_array_equal(buffers.static_near, _near(buffers.static_mask))  # summarised after each write
+    region = np.zeros((24, 32), bool)
+    region[11, 21] = True
+    mask.add_structure(region)
+    np.testing.assert_array_equal(buffers.static_near, _near(buffers.static_mask))
 
 
 def test_mask_png_must_exist_and_have_the_frames_size(tmp_path: Path) -> None:
@@ -181,10 +227,15 @@ def _seal(edges: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, int, int]:
     listed[: len(flat)] = flat
     lo = np.zeros(height, np.int32)
     hi = np.full(height, width - 1, np.int32)
-    out = edges.copy()
-    count = K.seal_cut_ends(_ro(mask), _ro(lo), _ro(hi), out, listed, len(flat))
-    assert sorted(listed[:count]) == sorted(np.flatnonzero(out.ravel()))  # the list is the map's edges
-    return out, count, len(flat)
+    results = []
+    for near in (_NO_NEAR, _near(mask) if mask.shape == edges.shape else _NO_NEAR):
+        out, got = edges.copy(), listed.copy()
+        count = K.seal_cut_ends(_ro(mask), near, _ro(lo), _ro(hi), out, got, len(flat))
+        assert sorted(got[:count]) == sorted(np.flatnonzero(out.ravel()))  # the list is the map's edges
+        results.append((out, got[:count].tolist()))
+    assert results[0][1] == results[1][1]  # the same with the mask's summary
+    np.testing.assert_array_equal(results[0][0], results[1][0])
+    return results[0][0], len(results[0][1]), len(flat)
 
 
 def test_seal_cut_ends_closes_a_rope_cut_at_a_clamp() -> None:
@@ -294,10 +345,11 @@ def test_seal_cut_ends_matches_a_slow_reference(seed: int) -> None:
     listed = np.zeros(height * width, np.int32)
     listed[: len(flat)] = flat
     expected_edges, expected_list = _seal_reference(mask, lo, hi, edges, flat)
-    out = edges.copy()
-    count = K.seal_cut_ends(_ro(mask), _ro(lo), _ro(hi), out, listed, len(flat))
-    np.testing.assert_array_equal(out, expected_edges)
-    assert listed[:count].tolist() == expected_list
+    for near in (_NO_NEAR, _near(mask)):
+        out, got = edges.copy(), listed.copy()
+        count = K.seal_cut_ends(_ro(mask), near, _ro(lo), _ro(hi), out, got, len(flat))
+        np.testing.assert_array_equal(out, expected_edges)
+        assert got[:count].tolist() == expected_list
 
 
 def test_a_rope_cut_by_a_clamp_mask_is_measured_from_the_fixed_end(tmp_path: Path) -> None:
