@@ -91,6 +91,7 @@ class StaticMask:
             if mask.shape != buffers.static_mask.shape:
                 raise ValueError(f"mask is {mask.shape}, expected {buffers.static_mask.shape}")
             buffers.static_mask[mask] = K.MASK_ALWAYS
+        self.mark_near()
 
     @classmethod
     def from_config(
@@ -164,6 +165,7 @@ class StaticMask:
                 off = (b.static_mask == K.MASK_STATIC) & ~structure
                 b.static_mask[off] = K.MASK_FREE
                 self.static_px -= int(off.sum())
+            self.mark_near()
 
     def _structure(self) -> NDArray[np.bool_]:
         """The pixels on or next to a static edge of the learned scene: an edge of the middle of each pixel's
@@ -194,6 +196,13 @@ class StaticMask:
             raise ValueError(f"region is {region.shape}, expected {self.buffers.static_mask.shape}")
         self.buffers.static_mask[region] = K.MASK_ALWAYS
         self.structure_px = int(np.count_nonzero(region))
+        self.mark_near()
+
+    def mark_near(self) -> None:
+        """Summarise the mask again after a write (`mark_near_blocks`: the per-frame kernels read the mask only
+        in the blocks it marks). Every write of ``static_mask`` is followed by this."""
+        if K.mark_near_blocks(as_ro(self.buffers.static_mask), self.buffers.static_near) < 0:
+            raise ValueError(f"static_near holds {self.buffers.static_near.shape[0]} blocks, fewer than the mask's")
 
     def static(self) -> NDArray[np.bool_]:
         """Return the pixels whose edges are dropped (given, or learned static), True where dropped."""

@@ -104,10 +104,12 @@ class EdgeBuffers:
     static_mask: NDArray[np.uint8]
     static_low: NDArray[np.uint8]
     static_high: NDArray[np.uint8]
+    static_near: NDArray[np.uint8]
     planes: K.Planes
     """`smooth`, `gx`, `gy`, `mag` as the kernels' group (`detect_and_trace`, the split)."""
     static: K.Static
-    """`static_mask`, `static_low`, `static_high` as `detect_and_trace`'s group."""
+    """`static_mask`, `static_low`, `static_high`, `static_near` (the mask's summary, `mark_near_blocks`: all 1
+    until `StaticMask` marks it) as `detect_and_trace`'s group."""
     work: K.EdgeWork
     """`work_spans`, `tmp`, `edges`, `stack` as `detect_and_trace`'s group."""
 
@@ -119,7 +121,7 @@ class EdgeBuffers:
         stack = resident_zeros(height * width, np.int32)
         static = K.Static(
             np.zeros((height, width), np.uint8), np.full((height, width), 255, np.uint8),
-            np.zeros((height, width), np.uint8),
+            np.zeros((height, width), np.uint8), np.ones(K.near_blocks(height, width), np.uint8),
         )  # fmt: skip
         return cls(
             ro(np.array(weights, np.float32)), work_spans, tmp, smooth, gx, gy, mag, edges, stack,
@@ -352,10 +354,10 @@ class Workspace:
                 "hi": r.hi, "moved": r.moved,
                 # detect_and_trace's
                 "weights": e.weights, "static_mask": e.static_mask, "static_low": e.static_low,
-                "static_high": e.static_high, "work_spans": e.work_spans, "tmp": e.tmp, "smooth": e.smooth, "gx": e.gx,
-                "gy": e.gy, "mag": e.mag, "edges": e.edges, "edge_stack": e.stack, "labels": c.labels,
-                "stack": c.stack, "start": c.start, "chain": c.chain, "codes": c.codes, "points": c.points,
-                "counts": c.counts,
+                "static_high": e.static_high, "static_near": e.static_near, "work_spans": e.work_spans, "tmp": e.tmp,
+                "smooth": e.smooth, "gx": e.gx, "gy": e.gy, "mag": e.mag, "edges": e.edges, "edge_stack": e.stack,
+                "labels": c.labels, "stack": c.stack, "start": c.start, "chain": c.chain, "codes": c.codes,
+                "points": c.points, "counts": c.counts,
                 # split_frame's
                 "box_lo": e.box_lo, "box_hi": e.box_hi, "width_scalars": width.width_scalars, "split_state": s.state,
                 "curves": width.curves, "table": width.table_ro, "sweep_index": width.sweep_index, "lines": s.lines,

@@ -39,7 +39,7 @@ _DETECT_AND_TRACE_ARGS: Final = (
 def detect_and_trace(frame, lo, hi, weights, low, high, min_pixels, static, work, planes, contour):
     """`detect_edges` inside the spans `lo`/`hi`, then `trace_rope` on its edges (the edge pixels it lists in
     ``work.stack``, `ring_clear` true: `detect_edges` leaves the edge map 0 next to its spans) after
-    `drop_static_edges` with `static` (`Static`: ``mask``, ``low``, ``high``; 1x1 each: no mask) and
+    `drop_static_edges` with `static` (`Static`: ``mask``, ``low``, ``high``, 1x1 each: no mask; ``near``) and
     `seal_cut_ends` (the rope's sides cut at a masked clamp joined across its exit; with a mask, an open outline
     is walked once): the edge and contour stages in one call, with the same outputs as those calls.
 
@@ -66,8 +66,8 @@ def detect_and_trace(frame, lo, hi, weights, low, high, min_pixels, static, work
         counts[1] = 0
         counts[2] = 0
         return INVALID
-    count = drop_static_edges(frame, static.mask, static.low, static.high, edges, edge_list, count)
-    count = seal_cut_ends(static.mask, lo, hi, edges, edge_list, count)
+    count = drop_static_edges(frame, static.mask, static.low, static.high, static.near, edges, edge_list, count)
+    count = seal_cut_ends(static.mask, static.near, lo, hi, edges, edge_list, count)
     counts[3] = count
     return trace_rope(
         edges, lo, hi, edge_list, count, min_pixels, True, static.mask, planes.mag, planes.gx, planes.gy, contour

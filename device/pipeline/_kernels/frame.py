@@ -122,7 +122,8 @@ STEADY_BUFFERS: Final = (
     ("band_state", BAND_STATE, 1), ("lo", np.int32, 1), ("hi", np.int32, 1), ("moved", np.float32, 2),
     # detect_and_trace's
     ("weights", np.float32, 1), ("static_mask", np.uint8, 2), ("static_low", np.uint8, 2),
-    ("static_high", np.uint8, 2), ("work_spans", np.int32, 2), ("tmp", np.float32, 2), ("smooth", np.float32, 2),
+    ("static_high", np.uint8, 2), ("static_near", np.uint8, 1), ("work_spans", np.int32, 2),
+    ("tmp", np.float32, 2), ("smooth", np.float32, 2),
     ("gx", np.float32, 2), ("gy", np.float32, 2), ("mag", np.float32, 2), ("edges", np.uint8, 2),
     ("edge_stack", np.int32, 1), ("labels", np.int32, 2), ("stack", np.int32, 1), ("start", np.int32, 1),
     ("chain", np.int32, 2), ("codes", np.int32, 1), ("points", np.float32, 2), ("counts", np.int32, 1),
@@ -278,6 +279,7 @@ def steady_frame(
             buffer2(table, STEADY_ROW.static_mask, np.uint8),
             buffer2(table, STEADY_ROW.static_low, np.uint8),
             buffer2(table, STEADY_ROW.static_high, np.uint8),
+            buffer1(table, STEADY_ROW.static_near, np.uint8),
         ),
         EdgeWork(
             buffer2(table, STEADY_ROW.work_spans, np.int32),

@@ -17,7 +17,7 @@ import numpy as np
 from numba import float32, float64, int32, types
 from numba.np.numpy_support import from_dtype
 
-from ropecam.shared.jit import f4_1d, f4_2d, f8_1d, f8_2d, i4_1d, i4_2d, u1_2d
+from ropecam.shared.jit import f4_1d, f4_2d, f8_1d, f8_2d, i4_1d, i4_2d, u1_1d, u1_2d
 
 i8_1d: Final = types.Array(types.int64, 1, "C")
 f4_3d: Final = types.Array(types.float32, 3, "C")
@@ -88,15 +88,17 @@ ORDER_STATE_SIZE: Final = HISTORY + 5
 
 class Static(NamedTuple):
     """The static mask and each pixel's learned grey-level range (`EdgeBuffers`' ``static_mask``,
-    ``static_low``, ``static_high``; uint8, the image's shape, or 1x1 each when there is no mask), which
-    `drop_static_edges` and `seal_cut_ends` read."""
+    ``static_low``, ``static_high``; uint8, the image's shape, or 1x1 each when there is no mask), and the mask's
+    summary ``static_near`` (`mark_near_blocks`; uint8, 1-D; empty: none), which `drop_static_edges` and
+    `seal_cut_ends` read."""
 
     mask: Any
     low: Any
     high: Any
+    near: Any
 
 
-STATIC: Final = types.NamedUniTuple(u1_2d, 3, Static)
+STATIC: Final = types.NamedTuple((u1_2d, u1_2d, u1_2d, u1_1d), Static)
 
 
 class EdgeWork(NamedTuple):

@@ -12,7 +12,7 @@ from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
 pytestmark = pytest.mark.kernel
 
 HEIGHT, WIDTH = 48, 64
-NO_MASK = K.Static(*(np.zeros((1, 1), np.uint8) for _ in range(3)))
+NO_MASK = K.Static(*(np.zeros((1, 1), np.uint8) for _ in range(3)), np.zeros(0, np.uint8))
 """`detect_and_trace`'s static mask and learned range when there is none (1x1)."""
 
 _NO_MASK = np.zeros((1, 1), np.uint8)

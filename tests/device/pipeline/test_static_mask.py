@@ -26,6 +26,16 @@ def _ro(a: np.ndarray) -> np.ndarray:
     return view
 
 
+_NO_NEAR = _ro(np.zeros(0, np.uint8))  # no summary of the mask: the kernels read it everywhere
+
+
+def _near(mask: np.ndarray) -> np.ndarray:
+    """The mask's summary (`mark_near_blocks`)."""
+    near = np.zeros(K.near_blocks(*mask.shape), np.uint8)
+    assert K.mark_near_blocks(_ro(mask), near) == np.count_nonzero(near)
+    return _ro(near)
+
+
 def _frames(seed: int, count: int, shape: tuple[int, int] = (24, 32)) -> list[np.ndarray]:
     rng = np.random.default_rng(seed)
     return [rng.integers(0, 256, shape).astype(np.uint8) for _ in range(count)]
@@ -93,16 +103,47 @@ def test_drop_static_edges_matches_a_slow_reference(seed: int) -> None:
     edges = np.zeros(shape, np.uint8)
     edges.reshape(-1)[listed] = 1
     expected = _drop_reference(frame, mask, low, high, listed)
-    for image in (_ro(frame), frame.copy()):
+    for image, near in ((_ro(frame), _NO_NEAR), (frame.copy(), _NO_NEAR), (_ro(frame), _near(mask))):
         got_edges, got_list = edges.copy(), edge_list.copy()
-        kept = K.drop_static_edges(image, _ro(mask), _ro(low), _ro(high), got_edges, got_list, 200)
+        kept = K.drop_static_edges(image, _ro(mask), _ro(low), _ro(high), near, got_edges, got_list, 200)
         assert 0 < kept < 200
         assert got_list[:kept].tolist() == expected
         expected_edges = np.zeros(shape, np.uint8)
         expected_edges.reshape(-1)[expected] = 1
         np.testing.assert_array_equal(got_edges, expected_edges)
     placeholder = _ro(np.zeros((1, 1), np.uint8))
-    assert K.drop_static_edges(_ro(frame), placeholder, placeholder, placeholder, edges, edge_list, 200) == 200
+    assert (
+        K.drop_static_edges(_ro(frame), placeholder, placeholder, placeholder, _NO_NEAR, edges, edge_list, 200) == 200
+    )
+
+
+@pytest.mark.kernel
+@pytest.mark.parametrize("seed", [9, 10])
+def test_mark_near_blocks_marks_every_block_next_to_a_masked_pixel(seed: int) -> None:
+    """A block is marked when a pixel of it, or a neighbour on the flat array, is masked: never a block with a
+    masked pixel or 2-D neighbour unmarked (the kernels skip those), and few more."""
+    rng = np.random.default_rng(seed)
+    height, width = 24, 40  # 960 pixels: 15 blocks, rows not aligned with them
+    mask = np.zeros((height, width), np.uint8)
+    for _ in range(3):
+        r, c = int(rng.integers(0, height)), int(rng.integers(0, width))
+        mask[r, c] = rng.choice([K.MASK_ALWAYS, K.MASK_STATIC])
+    mask[height - 1, width - 1] = K.MASK_STATIC  # the last pixel: the last block and the one a row above
+    near = _near(mask)
+    assert near.shape == (15,)
+    grown = cv2.dilate((mask != K.MASK_FREE).astype(np.uint8), np.ones((3, 3), np.uint8)).ravel()
+    flat = (mask != K.MASK_FREE).ravel()
+    for b in range(15):
+        block = slice(b * K.NEAR_BLOCK, (b + 1) * K.NEAR_BLOCK)
+        if grown[block].any():
+            assert near[b] == 1
+        around = np.zeros(height * width, bool)
+        for shift in (-width, 0, width):
+            lo, hi = max(b * 64 + shift - 1, 0), min((b + 1) * 64 - 1 + shift + 1, height * width - 1)
+            if lo <= hi:
+                around[lo : hi + 1] = True
+        assert near[b] == int(flat[around].any())
+    assert K.mark_near_blocks(_ro(mask), np.zeros(14, np.uint8)) == -1
 
 
 def test_static_mask_learns_then_marks_only_still_pixels() -> None:
@@ -122,6 +163,11 @@ def test_static_mask_learns_then_marks_only_still_pixels() -> None:
     static = mask.static()
     assert static[0, 0] and static[0, 5] and not static[11, 5] and not static[11, 21]
     assert mask.static_px == static.size - 1 - 3 * 16
+    np.testing.assert_array_equal(buffers.static_near, _near(buffers.static_mask))  # summarised after each write
+    region = np.zeros((24, 32), bool)
+    region[11, 21] = True
+    mask.add_structure(region)
+    np.testing.assert_array_equal(buffers.static_near, _near(buffers.static_mask))
 
 
 def test_mask_png_must_exist_and_have_the_frames_size(tmp_path: Path) -> None:
@@ -181,10 +227,15 @@ def _seal(edges: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, int, int]:
     listed[: len(flat)] = flat
     lo = np.zeros(height, np.int32)
     hi = np.full(height, width - 1, np.int32)
-    out = edges.copy()
-    count = K.seal_cut_ends(_ro(mask), _ro(lo), _ro(hi), out, listed, len(flat))
-    assert sorted(listed[:count]) == sorted(np.flatnonzero(out.ravel()))  # the list is the map's edges
-    return out, count, len(flat)
+    results = []
+    for near in (_NO_NEAR, _near(mask) if mask.shape == edges.shape else _NO_NEAR):
+        out, got = edges.copy(), listed.copy()
+        count = K.seal_cut_ends(_ro(mask), near, _ro(lo), _ro(hi), out, got, len(flat))
+        assert sorted(got[:count]) == sorted(np.flatnonzero(out.ravel()))  # the list is the map's edges
+        results.append((out, got[:count].tolist()))
+    assert results[0][1] == results[1][1]  # the same with the mask's summary
+    np.testing.assert_array_equal(results[0][0], results[1][0])
+    return results[0][0], len(results[0][1]), len(flat)
 
 
 def test_seal_cut_ends_closes_a_rope_cut_at_a_clamp() -> None:
@@ -215,6 +266,90 @@ def test_seal_cut_ends_needs_a_mask_and_a_close_partner() -> None:
         out, count, before = _seal(edges, given)
         assert count == before
         np.testing.assert_array_equal(out, edges)
+
+
+def _seal_reference(mask, lo, hi, edges, listed):  # type: ignore[no-untyped-def]
+    """`seal_cut_ends` as its rule reads, pixel by pixel in Python: the edges and list it leaves."""
+    height, width = edges.shape
+    edges, listed = edges.copy(), list(listed)
+    if mask.shape != edges.shape:
+        return edges, listed
+    cut = set()
+    for k in listed:
+        r, c = divmod(int(k), width)
+        if not (1 <= r <= height - 2 and 1 <= c <= width - 2):
+            continue
+        near = [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if (dr, dc) != (0, 0)]
+        masked = any(mask[r + dr, c + dc] != K.MASK_FREE for dr, dc in near)
+        ends = [(dr, dc) for dr, dc in near if edges[r + dr, c + dc] != 0 or (r + dr) * width + c + dc in cut]
+        touching = len(ends) == 2 and max(abs(ends[0][0] - ends[1][0]), abs(ends[0][1] - ends[1][1])) <= 1
+        if masked and (len(ends) == 1 or touching):
+            cut.add(int(k))
+    if len(cut) < 2:
+        return edges, listed
+    reach = K.SEAL_REACH_PX
+
+    def nearest(r: int, c: int) -> int:
+        best, best_d = -1, 4 * reach * reach + 1
+        for rr in range(max(r - reach, 1), min(r + reach + 1, height - 1)):
+            for cc in range(max(c - reach, 1), min(c + reach + 1, width - 1)):
+                d = (rr - r) ** 2 + (cc - c) ** 2
+                if rr * width + cc in cut and 4 <= d < best_d:
+                    best, best_d = rr * width + cc, d
+        return best
+
+    for k in [int(k) for k in listed]:
+        if k not in cut:
+            continue
+        r, c = divmod(k, width)
+        other = nearest(r, c)
+        if other <= k or nearest(*divmod(other, width)) != k:
+            continue
+        r2, c2 = divmod(other, width)
+        steps = max(abs(r2 - r), abs(c2 - c))
+        for s in range(1, steps):
+            pr = int(np.floor(r + (r2 - r) * s / steps + 0.5))
+            pc = int(np.floor(c + (c2 - c) * s / steps + 0.5))
+            if not (1 <= pr <= height - 2 and 1 <= pc <= width - 2 and lo[pr] <= pc <= hi[pr]):
+                continue
+            if edges[pr, pc] == 0 and pr * width + pc not in cut:
+                edges[pr, pc] = 1
+                listed.append(pr * width + pc)
+    return edges, listed
+
+
+@pytest.mark.kernel
+@pytest.mark.parametrize("seed", [5, 6, 7, 8])
+def test_seal_cut_ends_matches_a_slow_reference(seed: int) -> None:
+    """Random short lines (ends next to masked pixels, on the image border, crossing each other) against the rule
+    pixel by pixel: the same edge map and list."""
+    rng = np.random.default_rng(seed)
+    height, width = 28, 36
+    edges = np.zeros((height, width), np.uint8)
+    for _ in range(14):
+        r, c = int(rng.integers(0, height)), int(rng.integers(0, width))
+        dr, dc = int(rng.integers(-1, 2)), int(rng.integers(-1, 2))
+        for _ in range(int(rng.integers(1, 7))):
+            if 0 <= r < height and 0 <= c < width:
+                edges[r, c] = 1
+            r, c = r + dr, c + dc
+    mask = np.zeros(edges.shape, np.uint8)
+    for _ in range(4):
+        r, c = int(rng.integers(0, height - 4)), int(rng.integers(0, width - 4))
+        mask[r : r + int(rng.integers(1, 5)), c : c + int(rng.integers(1, 5))] = rng.choice(
+            [K.MASK_ALWAYS, K.MASK_STATIC]
+        )
+    lo = rng.integers(0, 4, height).astype(np.int32)
+    hi = (width - 1 - rng.integers(0, 4, height)).astype(np.int32)
+    flat = rng.permutation(np.flatnonzero(edges.ravel())).astype(np.int32)  # any order, as the hysteresis lists
+    listed = np.zeros(height * width, np.int32)
+    listed[: len(flat)] = flat
+    expected_edges, expected_list = _seal_reference(mask, lo, hi, edges, flat)
+    for near in (_NO_NEAR, _near(mask)):
+        out, got = edges.copy(), listed.copy()
+        count = K.seal_cut_ends(_ro(mask), near, _ro(lo), _ro(hi), out, got, len(flat))
+        np.testing.assert_array_equal(out, expected_edges)
+        assert got[:count].tolist() == expected_list
 
 
 def test_a_rope_cut_by_a_clamp_mask_is_measured_from_the_fixed_end(tmp_path: Path) -> None:
