@@ -161,11 +161,17 @@ def structure_points(
         return None  # the rope's outline all round: no structure
     structure = ~rope
     walked = points[rope]
+    exit_mid, along = _exit_axis(points, exit_a, exit_b, min(gap, forward, backward))
     candidates = np.flatnonzero(structure)
     for start in range(0, len(candidates), _BLOCK):
         block = candidates[start : start + _BLOCK]
         d2 = ((points[block, None, :] - walked[None, :, :]) ** 2).sum(axis=2).min(axis=1)
-        structure[block] = d2 >= SAME_PLACE_PX**2
+        # A point beyond the exits, within a width of the rope's sides, is the rope's band walked again: a short
+        # edge across the band (an MJPEG block's step in the rope's brightness) closes a loop of the rope's sides
+        # that the trace runs round, and its middle lies over SAME_PLACE_PX from both sides (simulated lab-mjpeg,
+        # tuning seed, frame 0: a point 52 px along the rope put the region over the rope's first 52 px).
+        inside = (d2 <= spacing * spacing) & ((points[block] - exit_mid) @ along > SAME_PLACE_PX)
+        structure[block] = (d2 >= SAME_PLACE_PX**2) & ~inside
     if not structure.any():
         return None
     hull = convex_hull(np.concatenate([points[structure], points[[exit_a, exit_b]]]))
@@ -177,6 +183,20 @@ def structure_points(
     if extent > STRUCTURE_ROPE_RATIO * 0.5 * (forward + backward):
         return None  # no small structure at a rope's end: the far part of a swinging rope's band, wider than a rope
     return structure, exit_a, exit_b
+
+
+def _exit_axis(
+    points: NDArray[np.float64], exit_a: int, exit_b: int, steps: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Return the middle of the rope's exit (the points `exit_a` and `exit_b` of the outline `points`, where the
+    rope's sides, walked from its tip, part: `zip_sides`) and the unit vector from it along the rope, towards the
+    middle of the sides `steps` points back along each walk (at least 1)."""
+    n = len(points)
+    middle = 0.5 * (points[exit_a] + points[exit_b])
+    back = max(1, steps)
+    along = 0.5 * (points[(exit_a - back) % n] + points[(exit_b + back) % n]) - middle
+    norm = math.hypot(float(along[0]), float(along[1]))
+    return middle, (along / norm if norm > 0.0 else along)
 
 
 def convex_hull(points: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -115,6 +115,34 @@ def test_structure_points_are_the_outline_beyond_the_rope() -> None:
     assert structure_points(points, (0, len(points) // 2), 4.0) is None
 
 
+def test_a_loop_of_the_ropes_own_sides_is_not_the_structure() -> None:
+    """A short edge across the rope's band beyond the block (an MJPEG block's step in the rope's brightness) closes
+    a loop of the rope's sides that the trace runs round apart from the rope's walk: the sides are at the same place
+    as the rope's, the edge across the band lies 1.5 px from both. The region stays the block's (before: the hull
+    reached the edge across the band, 40 px along the rope, and the mask cut the rope there)."""
+    image = _block_and_rope((24, 28), (16, 36, 40, 60))
+    outline = _outline(image)
+    top, bottom = float(outline[:, 0][outline[:, 1] == 120].min()), float(outline[:, 0][outline[:, 1] == 120].max())
+    cols = np.arange(61.0, 101.0)
+    loop = np.concatenate(
+        [
+            np.stack([np.full(cols.size, top), cols], axis=1),
+            [[0.5 * (top + bottom), 100.5]],
+            np.stack([np.full(cols.size, bottom), cols[::-1]], axis=1),
+        ]
+    )
+    at = int(np.argmin(outline[:, 1]))  # on the block's far side
+    points = np.concatenate([outline[: at + 1], loop, outline[at + 1 :]])
+    ends = (int(np.argmin(points[:, 1])), int(np.argmax(points[:, 1])))
+    found = structure_points(points, ends, 4.0)
+    assert found is not None
+    structure, exit_a, exit_b = found
+    assert (points[structure, 1] <= 62).all(), points[structure & (points[:, 1] > 62)]
+    region = fill_polygon(convex_hull(np.concatenate([points[structure], points[[exit_a, exit_b]]])), image.shape)
+    assert region[17:35, 41:59].all()
+    assert not region[:, 66:].any()
+
+
 def test_convex_hull_matches_opencv() -> None:
     rng = np.random.default_rng(7)
     points = rng.uniform(0, 50, (200, 2))
