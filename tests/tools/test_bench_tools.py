@@ -117,16 +117,19 @@ def test_bench_first_frames_times_a_fresh_pipeline(run_tool: RunTool, rig_frames
 def test_bench_glue_takes_a_config_and_names_a_bad_one(run_tool: RunTool, tmp_path: Path) -> None:
     toml = tmp_path / "device.toml"
     toml.write_text("[pipeline]\nstatic_frames = 0\ncanny_low = 15.0\n[capture]\nreadout_us = 2000\n")
+    # A few frames (each synthetic rig frame costs the tool ~0.2 s to render): the config's pipeline runs and reports.
     done = run_tool(
-        "bench.py", "glue", "--frames", "18", "--settle", "16", "--passes", "1", "--plain", "--config", str(toml)
+        "bench.py", "glue", "--frames", "4", "--settle", "2", "--passes", "1", "--plain", "--config", str(toml)
     )
     assert done.returncode == 0, done.stderr
+    assert re.search(r"synthetic rig frames .*: 2 frames per variant", done.stdout), done.stdout
     assert "this tree: pipeline" in done.stdout
+    # The config is read after the frames are made: one frame is enough to reach it.
     toml.write_text("[capture]\nreadout_us = -5\n")
-    done = run_tool("bench.py", "glue", "--frames", "18", "--passes", "1", "--config", str(toml))
+    done = run_tool("bench.py", "glue", "--frames", "1", "--settle", "0", "--passes", "1", "--config", str(toml))
     assert done.returncode == 2 and "readout_us must be an integer >= 0" in done.stderr, done.stderr
     toml.write_text("[pipeline]\ncanny_low = 'low'\n")
-    done = run_tool("bench.py", "glue", "--frames", "18", "--passes", "1", "--config", str(toml))
+    done = run_tool("bench.py", "glue", "--frames", "1", "--settle", "0", "--passes", "1", "--config", str(toml))
     assert done.returncode == 2
     assert f"--config {toml}" in done.stderr and "canny_low" in done.stderr, done.stderr
     assert "Traceback" not in done.stderr
