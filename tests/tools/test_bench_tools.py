@@ -51,10 +51,10 @@ def test_bench_device_reports_the_ratio_and_the_allocations(run_tool: RunTool, t
 
 
 @pytest.mark.slow
-def test_bench_device_names_a_bad_config(run_tool: RunTool, tmp_path: Path) -> None:
+def test_bench_device_names_a_bad_config(run_tool_here: RunTool, tmp_path: Path) -> None:
     toml = tmp_path / "device.toml"
     toml.write_text("[pipeline]\nplane_file = 'no.yaml'\n")  # read before any frame (a bad key: `from_mapping`)
-    done = run_tool("bench.py", "device", "--frames", "4", "--config", str(toml))
+    done = run_tool_here("bench.py", "device", "--frames", "4", "--config", str(toml))
     assert done.returncode == 2
     assert f"--config {toml}" in done.stderr and "no.yaml" in done.stderr, done.stderr
     assert "Traceback" not in done.stderr
@@ -102,31 +102,36 @@ def test_wire_size_keeps_rig_soft_first_frames_within_the_serial_budget(tmp_path
 
 
 @pytest.mark.slow
-def test_bench_first_frames_times_a_fresh_pipeline(run_tool: RunTool, rig_frames: Path) -> None:
+def test_bench_first_frames_times_a_fresh_pipeline(run_tool: RunTool, run_tool_here: RunTool, rig_frames: Path) -> None:
     done = run_tool("bench.py", "first-frames", "--frameset", str(rig_frames), "--runs", "1", "--first", "4")
     assert done.returncode == 0, done.stderr
     assert "this tree: 1 fresh processes" in done.stdout
     first = re.search(r"first 4 frames \(ms\): ((?:[0-9.]+ ?){4})$", done.stdout, re.M)
     assert first is not None, done.stdout
     assert re.search(r"skipped when paced \(from the medians\): 30 FPS \d+, 119 FPS \d+", done.stdout)
-    too_few = run_tool("bench.py", "first-frames", "--frameset", str(rig_frames), "--runs", "1", "--first", "12")
+    too_few = run_tool_here("bench.py", "first-frames", "--frameset", str(rig_frames), "--runs", "1", "--first", "12")
     assert too_few.returncode == 2 and "12 frames, need more than --first 12" in too_few.stderr, too_few.stderr
 
 
 @pytest.mark.slow
-def test_bench_glue_takes_a_config_and_names_a_bad_one(run_tool: RunTool, tmp_path: Path) -> None:
+def test_bench_glue_takes_a_config_and_names_a_bad_one(
+    run_tool: RunTool, run_tool_here: RunTool, tmp_path: Path
+) -> None:
     toml = tmp_path / "device.toml"
     toml.write_text("[pipeline]\nstatic_frames = 0\ncanny_low = 15.0\n[capture]\nreadout_us = 2000\n")
+    # A few frames (each synthetic rig frame costs the tool ~0.2 s to render): the config's pipeline runs and reports.
     done = run_tool(
-        "bench.py", "glue", "--frames", "18", "--settle", "16", "--passes", "1", "--plain", "--config", str(toml)
+        "bench.py", "glue", "--frames", "4", "--settle", "2", "--passes", "1", "--plain", "--config", str(toml)
     )
     assert done.returncode == 0, done.stderr
+    assert re.search(r"synthetic rig frames .*: 2 frames per variant", done.stdout), done.stdout
     assert "this tree: pipeline" in done.stdout
+    # The config is read after the frames are made: one frame is enough to reach it.
     toml.write_text("[capture]\nreadout_us = -5\n")
-    done = run_tool("bench.py", "glue", "--frames", "18", "--passes", "1", "--config", str(toml))
+    done = run_tool_here("bench.py", "glue", "--frames", "1", "--settle", "0", "--passes", "1", "--config", str(toml))
     assert done.returncode == 2 and "readout_us must be an integer >= 0" in done.stderr, done.stderr
     toml.write_text("[pipeline]\ncanny_low = 'low'\n")
-    done = run_tool("bench.py", "glue", "--frames", "18", "--passes", "1", "--config", str(toml))
+    done = run_tool_here("bench.py", "glue", "--frames", "1", "--settle", "0", "--passes", "1", "--config", str(toml))
     assert done.returncode == 2
     assert f"--config {toml}" in done.stderr and "canny_low" in done.stderr, done.stderr
     assert "Traceback" not in done.stderr

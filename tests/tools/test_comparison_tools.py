@@ -43,15 +43,17 @@ def test_accuracy_prints_every_method_and_exposure_and_plots(run_tool: RunTool, 
     assert figure.stat().st_size > 10_000
 
 
-def test_tools_refuse_bad_arguments(run_tool: RunTool) -> None:
-    done = run_tool("evaluate.py", "harris", "--frames", "0")
+def test_tools_refuse_bad_arguments(run_tool_here: RunTool) -> None:
+    done = run_tool_here("evaluate.py", "harris", "--frames", "0")
     assert done.returncode == 2 and "harris: error: --frames must be >= 1, got 0" in done.stderr, done.stderr
-    done = run_tool("evaluate.py", "accuracy", "--methods", "nonsense")
+    done = run_tool_here("evaluate.py", "accuracy", "--methods", "nonsense")
     assert done.returncode == 2 and "invalid choice" in done.stderr
 
 
 @pytest.mark.slow
-def test_e2e_compares_what_the_daemon_measured_with_the_offline_pipeline(run_tool: RunTool, rig_frames: Path) -> None:
+def test_e2e_compares_what_the_daemon_measured_with_the_offline_pipeline(
+    run_tool: RunTool, run_tool_here: RunTool, rig_frames: Path
+) -> None:
     done = run_tool("evaluate.py", "e2e", "--frameset", str(rig_frames), "--fps", "30", "--start-s", "0.1",
                     "--transports", "udp", "--json")  # fmt: skip
     row = json.loads(done.stdout.splitlines()[-1])
@@ -61,5 +63,5 @@ def test_e2e_compares_what_the_daemon_measured_with_the_offline_pipeline(run_too
     assert row["received"] == row["equal_to_offline"] >= 1
     assert row["received"] + row["skipped_at_start"] + row["skipped_after_start"] == row["frames"] == 12
     assert done.returncode == (0 if row["skipped_after_start"] == 0 else 1), done.stderr
-    too_short = run_tool("evaluate.py", "e2e", "--frameset", str(rig_frames), "--fps", "30", "--start-s", "1")
+    too_short = run_tool_here("evaluate.py", "e2e", "--frameset", str(rig_frames), "--fps", "30", "--start-s", "1")
     assert too_short.returncode == 2 and "12 frames last no longer than --start-s 1 s at 30 FPS" in too_short.stderr

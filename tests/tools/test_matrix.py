@@ -8,7 +8,9 @@ import itertools
 import json
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from subprocess import CompletedProcess
 
 import numpy as np
 import pytest
@@ -19,6 +21,9 @@ from ropecam.device.pipeline.pipeline import Pipeline
 
 TOOLS = Path(__file__).resolve().parents[2] / "tools"
 FRAMES = 4
+
+RunTool = Callable[..., CompletedProcess[str]]
+"""The `run_tool_here` fixture (tests/tools/conftest.py)."""
 
 
 def _dense(poly: np.ndarray, step_px: float = 0.005) -> np.ndarray:
@@ -86,11 +91,8 @@ def test_matrix_table_matches_an_independent_computation(tmp_path: Path) -> None
     assert "plots/presets.png" in (out / "index.html").read_text() and (out / "plots" / "presets.png").is_file()
 
 
-def test_matrix_refuses_an_unknown_factor(tmp_path: Path) -> None:
-    done = subprocess.run(
-        [sys.executable, str(TOOLS / "evaluate.py"), "matrix", "--out", str(tmp_path / "m"), "--factor", "nosuch"],
-        capture_output=True, text=True, timeout=120, check=False,
-    )  # fmt: skip
+def test_matrix_refuses_an_unknown_factor(run_tool_here: RunTool, tmp_path: Path) -> None:
+    done = run_tool_here("evaluate.py", "matrix", "--out", str(tmp_path / "m"), "--factor", "nosuch")
     assert done.returncode != 0
     assert "unknown factor(s) ['nosuch']" in done.stderr and "texture" in done.stderr
     assert not (tmp_path / "m").exists()

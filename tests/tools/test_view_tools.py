@@ -1,4 +1,5 @@
-"""tools/bench.py recording-size and tools/evaluate.py montage end to end (subprocesses, small inputs)."""
+"""tools/bench.py recording-size and tools/evaluate.py montage end to end (subprocesses, small inputs; their
+refusals in this process)."""
 
 from __future__ import annotations
 
@@ -43,13 +44,15 @@ def test_recording_size_compares_both_encodings_on_the_same_frames(run_tool: Run
     assert 0.0 < ratio <= 0.5, done.stdout
 
 
-def test_recording_size_names_a_missing_recording(run_tool: RunTool, tmp_path: Path) -> None:
-    done = run_tool("bench.py", "recording-size", str(tmp_path / "none.mcap"), timeout_s=120)
+def test_recording_size_names_a_missing_recording(run_tool_here: RunTool, tmp_path: Path) -> None:
+    done = run_tool_here("bench.py", "recording-size", str(tmp_path / "none.mcap"))
     assert done.returncode == 2 and "none.mcap: no such recording" in done.stderr, done.stderr
 
 
 @pytest.mark.slow
-def test_montage_puts_one_row_per_preset_with_whole_frame_and_crops(run_tool: RunTool, tmp_path: Path) -> None:
+def test_montage_puts_one_row_per_preset_with_whole_frame_and_crops(
+    run_tool: RunTool, run_tool_here: RunTool, tmp_path: Path
+) -> None:
     sets = tmp_path / "sets"
     assert ropecam(["simulate", "rig", "--out", str(sets / "rig"), "--frames", "3", "-q"]) == 0
     out = tmp_path / "montage.png"
@@ -59,5 +62,5 @@ def test_montage_puts_one_row_per_preset_with_whole_frame_and_crops(run_tool: Ru
     # Two rows of 128 px with a 4 px gap; each row: the whole frame at 128 px high and three 128 px crops.
     assert image.shape[0] == 2 * 128 + 4
     assert image.shape[1] > 3 * 128 + 128
-    done = run_tool("evaluate.py", "montage", str(sets), "--presets", "lab", "--out", str(tmp_path / "x.png"))
+    done = run_tool_here("evaluate.py", "montage", str(sets), "--presets", "lab", "--out", str(tmp_path / "x.png"))
     assert done.returncode == 2 and "no frame set" in done.stderr, done.stderr
