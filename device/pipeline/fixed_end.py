@@ -133,7 +133,7 @@ class FixedEndFinder:
         return restarted
 
     def structure(self, points: NDArray[np.float32], n: int, width_px: float | None) -> NDArray[np.bool_] | None:
-        """Return the region of the structure a still rope's outline (`n` (row, col) `points`, a rope `width_px`
+        """Return the region of the structure a rope's outline (`n` (row, col) `points`, a rope `width_px`
         wide, None: 4 px) runs round at one end (a clamp, its rod: `structure.structure_points`): the convex hull
         of its outline and the rope's exit, with the outline's own pixels, grown by a pixel; or None (no end of
         the outline is such a structure)."""
