@@ -188,7 +188,7 @@ def hidden_end(
     bolts') up to its far edge (the last run before `HIDDEN_GAP_PX` of unmasked pixels, within
     `HIDDEN_REACH_PX`), and the end is put halfway between the middles of the first and the last edge: the middle
     of the clamp along the rope, where a clamp centred on the fixed end holds it. Where the axis crosses a filled
-    region (`MASK_ALWAYS`: a given mask, or the structure found from the rope's first outlines,
+    region (`MASK_ALWAYS`: a given mask, or the structure found from the rope's outline on the first frames,
     `FixedEndFinder.structure`), the structure is that region: the end is put halfway between the first and the
     last of its pixels along the axis. Without a far edge (the axis runs up a rod out of the view) or without a
     mask next to `end`, `end` is kept. The plane calibration (or ``fixed_end_uv``) gives the fixed end exactly;
