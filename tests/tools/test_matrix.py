@@ -140,3 +140,28 @@ def test_a_one_point_shape_is_scored_by_its_distance(monkeypatch: pytest.MonkeyP
     points = np.array([[0.0, 0.0], [3.0, 4.0]])
     assert point_to_polyline(points, np.array([[0.0, 0.0]])) == pytest.approx([0.0, 5.0])
     assert point_to_polyline(points, np.array([[0.0, 0.0], [0.0, 4.0]])) == pytest.approx([0.0, 3.0])
+
+
+def test_matrix_renders_another_seed_and_start_on_the_tuning_side_only(tmp_path: Path) -> None:
+    """``--seed`` and ``--first-exposure-s`` replace the tuning set's seed and start (a rope already swinging when
+    the stream starts); with the validation set, or its seed, they are refused."""
+    code = (
+        "import json, sys; sys.path.insert(0, sys.argv[1])\n"
+        "from ropecam.host.sim.presets import PRESETS, preset\n"
+        "from ropecam_tools.matrix_design import build_scenes\n"
+        "presets = {name: preset(name).to_dict() for name in PRESETS}\n"
+        "scenes = build_scenes(presets, 'tuning', only=('factors',), factor_names=('clamp',), seed=3,\n"
+        "                      first_exposure_s=0.3)[0]\n"
+        "print(json.dumps([(c.label, c.overrides['first_exposure_s'], c.overrides['seed']) for c in scenes]))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code, str(TOOLS)], capture_output=True, text=True, timeout=120,
+                          check=False)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout) == [["clamp = off", 0.3, 3], ["clamp = on", 0.3, 3]]
+    for extra in (["--seed-set", "validation", "--seed", "3"], ["--seed", "7919"], ["--first-exposure-s", "-1"]):
+        done = subprocess.run(
+            [sys.executable, str(TOOLS / "evaluate.py"), "matrix", "--out", str(tmp_path / "m"), *extra],
+            capture_output=True, text=True, timeout=120, check=False,
+        )  # fmt: skip
+        assert done.returncode != 0 and "matrix: " in done.stderr, (extra, done.stderr)
+        assert not (tmp_path / "m").exists()

@@ -91,6 +91,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="processes rendering and measuring scenes (default 2; 1: no pool)")  # fmt: skip
     parser.add_argument("--seed-set", choices=tuple(SEED_SETS), default="tuning",
                         help="tuning (default) or validation (other seeds and motion, held-out pairs)")  # fmt: skip
+    parser.add_argument("--seed", type=int, metavar="S",
+                        help="tuning set only: render with seed S instead of the set's (0); the validation set's "
+                        "seed is refused (held out)")  # fmt: skip
+    parser.add_argument("--first-exposure-s", type=float, metavar="T",
+                        help="tuning set only: render the motion from T s after the release instead of the set's "
+                        "(0: the rope at rest when the stream starts; e.g. 0.3: already swinging)")  # fmt: skip
     parser.add_argument("--method", nargs="+", choices=METHODS, default=list(METHODS), metavar="M",
                         help=f"methods to measure (default: {' '.join(METHODS)})")  # fmt: skip
     parser.add_argument("--factor", nargs="+", metavar="NAME",
@@ -143,6 +149,29 @@ def parse_settings(items: list[str]) -> dict[str, Any]:
             value = text.strip()
         out[key.strip()] = value
     return out
+
+
+def _motion_override(args: argparse.Namespace) -> tuple[int | None, float | None]:
+    """The ``--seed`` and ``--first-exposure-s`` given (None: the seed set's).
+
+    Raises
+    ------
+    SystemExit
+        Either given with the validation set, the validation set's seed given, or a negative start.
+    """
+    seed, start = args.seed, args.first_exposure_s
+    if seed is None and start is None:
+        return None, None
+    if args.seed_set != "tuning":
+        raise SystemExit("matrix: --seed and --first-exposure-s render tuning-side scenes; the validation set is "
+                         "held out as it is defined (drop --seed-set validation)")  # fmt: skip
+    if seed is not None and seed == SEED_SETS["validation"].seed:
+        raise SystemExit(f"matrix: --seed {seed} is the validation set's seed (held out): choose another")
+    if seed is not None and seed < 0:
+        raise SystemExit(f"matrix: --seed must be >= 0, got {seed}")
+    if start is not None and not start >= 0.0:
+        raise SystemExit(f"matrix: --first-exposure-s must be >= 0 s after the release, got {start}")
+    return seed, start
 
 
 def _config(scene: Scene, frames: int) -> Any:
@@ -368,6 +397,7 @@ def run(args: argparse.Namespace) -> int:
         raise SystemExit(f"--frames must be >= {MIN_FRAMES}, got {args.frames}")
     if args.workers < 1:
         raise SystemExit(f"--workers must be >= 1, got {args.workers}")
+    seed, first_exposure_s = _motion_override(args)
     started_wall = time.perf_counter()
     presets = {name: preset(name).to_dict() for name in PRESETS}
     paper_timed = {
@@ -377,7 +407,7 @@ def run(args: argparse.Namespace) -> int:
         scenes, missing = build_scenes(
             presets, args.seed_set, tuple(args.only), None if args.factor is None else tuple(args.factor),
             None if args.preset is None else tuple(args.preset), args.photo_dir.resolve(),
-            paper_timed, parse_settings(args.settings),
+            paper_timed, parse_settings(args.settings), seed, first_exposure_s,
         )  # fmt: skip
     except ValueError as exc:
         raise SystemExit(f"matrix: {exc}") from None
@@ -442,8 +472,8 @@ def run(args: argparse.Namespace) -> int:
     usage_children = resource.getrusage(resource.RUSAGE_CHILDREN)
     run_info = {
         "seed_set": args.seed_set,
-        "seed": SEED_SETS[args.seed_set].seed,
-        "first_exposure_s": SEED_SETS[args.seed_set].first_exposure_s,
+        "seed": SEED_SETS[args.seed_set].seed if seed is None else seed,
+        "first_exposure_s": SEED_SETS[args.seed_set].first_exposure_s if first_exposure_s is None else first_exposure_s,
         "frames_per_cell": args.frames,
         "methods": list(methods),
         "sections": list(args.only),

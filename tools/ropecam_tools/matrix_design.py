@@ -315,6 +315,8 @@ def build_scenes(
     photo_dir: Path = REALDATA,
     paper_timed: dict[str, Any] | None = None,
     preset_set: dict[str, Any] | None = None,
+    seed: int | None = None,
+    first_exposure_s: float | None = None,
 ) -> tuple[list[Scene], list[tuple[Factor, str]]]:
     """Return the matrix's scenes and the factor rows left out (with the reason: a key the simulator lacks).
 
@@ -336,6 +338,10 @@ def build_scenes(
     preset_set
         Dotted simulator keys -> values set on every scene of the presets and paper sections (``--set``), e.g.
         ``{"scene.clamp": False}``; their rows are labelled with them.
+    seed, first_exposure_s
+        Render with this seed and from this time after the release (s) instead of the seed set's (None: the set's;
+        the late-swing rows keep their start): another stretch of the motion, e.g. a rope already swinging when
+        the stream starts, rendered on the tuning side.
 
     Raises
     ------
@@ -353,7 +359,10 @@ def build_scenes(
     if preset_names is not None and not set(preset_names) <= set(presets):
         raise ValueError(f"unknown preset(s) {sorted(set(preset_names) - set(presets))}; presets: {', '.join(presets)}")
     seeds = SEED_SETS[seed_set]
-    common = {"seed": seeds.seed, "first_exposure_s": seeds.first_exposure_s}
+    common = {
+        "seed": seeds.seed if seed is None else seed,
+        "first_exposure_s": seeds.first_exposure_s if first_exposure_s is None else first_exposure_s,
+    }
 
     settings: dict[str, Any] = {}
     for key, value in (preset_set or {}).items():
