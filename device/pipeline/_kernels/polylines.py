@@ -298,12 +298,7 @@ def _band_tip(poly, n, smooth, base_r, base_c, dir_r, dir_c, best, width_px, cap
         end = half_level_crossing(smooth, np.float32(base_r), np.float32(base_c), np.float32(dir_r),
                                   np.float32(dir_c), np.float32(best), reach, np.float32(2.0))  # fmt: skip
         if not math.isnan(end):
-            # The smoothing rounds the band's corner inward by about its sigma (`blur_px`): the contour's farthest
-            # point lies at most that much short of the end. A crossing nearer the fixed end than that was read on
-            # noise or texture: near the corner of a sweep of many widths the rope covers the axis for a small part
-            # of the exposure, and the plate's own level moves the crossing (simulated `texture = 0.2`, tuning seed,
-            # frame 32: 3.2 px short, the contour 0.6 px; `read noise = 10 DN` frame 36: 2.8 and 0.8 px).
-            best = max(np.float64(end), best - blur_px)
+            best = end
     extent = max(best - cap_px, 0.0)
     count = trim_polyline_end(poly, n, np.float32(skip_px))
     if count < 2:
@@ -323,8 +318,7 @@ def extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip
     The band's end along that line is the farthest of the contour `points` lying within half a width of it (and
     within -2 to `skip_px` + 4 widths of the base); for a flat end (`cap_px` 0) it is refined to where the smoothed
     image `smooth` falls halfway from the band to the background along the line (`half_level_crossing`, reach
-    ``3 blur_px + 1``), but not to less than that farthest point less `blur_px` (the smoothing's rounding of the
-    corner); the tip goes `cap_px` short of it (half a width for a round end). The polyline is cut
+    ``3 blur_px + 1``); the tip goes `cap_px` short of it (half a width for a round end). The polyline is cut
     `skip_px` from its end and the tip appended, in place. Returns the new point count, or `n` unchanged when the
     polyline is too short or no band end is found.
     """

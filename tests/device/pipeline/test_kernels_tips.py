@@ -222,29 +222,6 @@ def test_extend_to_band_end_carries_the_straight_axis_to_the_end() -> None:
     np.testing.assert_allclose(poly[count - 1], [20.0, 49.8 - 1.5], atol=0.05)
 
 
-def test_extend_to_band_end_does_not_believe_a_crossing_far_short_of_the_contour() -> None:
-    # The band's outline ends at column 49.8 (its corner rounded by the smoothing), but along the axis the level
-    # falls slowly from column 42 to 50 (near the corner of a wide sweep the rope covers the axis for a small part
-    # of the exposure and a textured plate sets the level): the half-level crossing lies near column 47.4, 2.4 px
-    # short of the outline. The tip goes no nearer the fixed end than the outline's end less `blur_px` (1 px).
-    rows, cols = np.mgrid[0:40, 0:70].astype(np.float64)
-    along = np.clip((50.0 - cols) / 8.0, 0.0, 1.0)
-    across = np.exp(-0.5 * ((rows - 20.0) / 1.5) ** 2)
-    image = (30.0 + 30.0 * across * along).astype(np.float32)
-    f = np.float32
-    crossing = 10.0 + K.half_level_crossing(image, f(20.0), f(10.0), f(0.0), f(1.0), f(39.8), f(4.0), f(2.0))
-    assert crossing < 49.8 - 2.0
-    cols_axis = np.arange(8.0, 49.0, 1.0)
-    poly = np.zeros((100, 2), np.float32)
-    poly[: cols_axis.size] = np.stack([np.full(cols_axis.size, 20.0), cols_axis], axis=1)
-    top = np.stack([np.full(45, 18.5), np.arange(5.0, 50.0)], axis=1)
-    end = np.stack([np.arange(18.5, 21.6, 0.5), np.full(7, 49.8)], axis=1)
-    bottom = np.stack([np.full(45, 21.5), np.arange(49.0, 4.0, -1.0)], axis=1)
-    contour = np.concatenate([top, end, bottom]).astype(np.float32)
-    count = K.extend_to_band_end(poly, cols_axis.size, contour, len(contour), image, 3.0, 0.0, 5.0, 9.0, 1.0)
-    np.testing.assert_allclose(poly[count - 1], [20.0, 49.8 - 1.0], atol=0.01)
-
-
 def test_band_edge_model_limits() -> None:
     model = BandEdgeModel(gaussian_weights(1.0), 0.5)
     # A wide rope's edges sit on its outline; blur pushes the edges of a thin one apart.
