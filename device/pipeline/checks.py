@@ -19,7 +19,10 @@ reason                  fails when                                              
 ``tip_motion``          the tips' midpoint lies farther from where the motion model predicted it than    IMPLAUSIBLE
                         ``tip_motion_factor`` x the model's own predicted error plus ``tip_motion_floor_px``
 ``order``               the time order is decided (known exposure, two shapes) with a confidence below   IMPLAUSIBLE
-                        ``min_order_confidence``
+                        ``min_order_confidence``; or a split of known exposure has nothing to decide it
+                        by (no earlier frame in the order's history: confidence 0.5) while its tips lie
+                        more than ``order_unknown_widths`` rope widths apart: either shape may be the
+                        start of the exposure
 ``no_blur``             a split's tips lie more than ``no_blur_px`` (and 4 / ``min_blur_evidence``) px   NO_BLUR
                         apart without
                         evidence of blur: the
@@ -99,6 +102,11 @@ class ChecksConfig:
         ``tip_motion_floor_px`` of its prediction (checked once the model holds two frames).
     min_order_confidence
         Smallest accepted time-order confidence of a frame whose order is decided (0 disables the check).
+    order_unknown_widths
+        Largest tip separation, in rope widths, of a split of known exposure reported OK although nothing decided
+        its time order (the first split of a stream, or after the order's history was dropped: confidence 0.5,
+        the history left unordered);
+        a wrong order puts each shape the tips' separation off (0: the check is off).
     no_blur_px
         Largest tip separation of a split reported from a frame of unknown exposure without evidence of blur (4 /
         `min_blur_evidence` px when that is larger: below it the contour's pixel noise, about a px^2 per px of
@@ -134,6 +142,7 @@ class ChecksConfig:
     tip_motion_factor: float = 3.0
     tip_motion_floor_px: float = 4.0
     min_order_confidence: float = 0.0
+    order_unknown_widths: float = 1.0
     no_blur_px: float = 2.0
     min_blur_evidence: float = 0.3
     tip_mask_widths: float = 1.0
@@ -156,6 +165,7 @@ class ChecksConfig:
         check_range("checks.tip_motion_factor", self.tip_motion_factor, 0.5, 1000.0)
         check_range("checks.tip_motion_floor_px", self.tip_motion_floor_px, 0.0, 10_000.0)
         check_range("checks.min_order_confidence", self.min_order_confidence, 0.0, 1.0)
+        check_range("checks.order_unknown_widths", self.order_unknown_widths, 0.0, 100.0)
         check_range("checks.no_blur_px", self.no_blur_px, 0.0, 10_000.0)
         check_range("checks.min_blur_evidence", self.min_blur_evidence, 0.0, 100.0)
         check_range("checks.tip_mask_widths", self.tip_mask_widths, 0.0, 100.0)
@@ -176,7 +186,9 @@ _MESSAGES = {
     Reason.FIXED_END: "a shape does not start at the fixed end (fixed_end_px beyond checks.fixed_end_widths)",
     Reason.TIP_MOTION: "the tips are not where the motion model predicted them (tip_motion_px beyond "
     "tip_motion_limit_px)",
-    Reason.ORDER: "the time order is not certain enough (order_confidence below checks.min_order_confidence)",
+    Reason.ORDER: "the time order is not certain enough (order_confidence below checks.min_order_confidence), or "
+    "nothing decided it (no earlier frame to go by) while the tips lie more than checks.order_unknown_widths rope "
+    "widths apart: either shape may be the start of the exposure",
     Reason.NO_BLUR: "no blur to split (no exposure time, or no motion prediction yet to check the split against, "
     "and the contour's area shows too little blur for the tips' separation): the static centreline is given instead",
     Reason.TIP_MASKED: "a free tip ends at the static mask, which may hide the rope's end (within "
@@ -306,6 +318,7 @@ class SelfChecks:
         mask: NDArray[np.uint8] | None = None,
         corner_px: float = math.nan,
         corners: NDArray[np.float32] | None = None,
+        order_undecided: bool = False,
     ) -> tuple[FrameStatus, Reason]:
         """Check one measured frame; return its status (OK when every check passes) and the first failed reason.
 
@@ -338,6 +351,9 @@ class SelfChecks:
         corners
             The split's segmentation points (2, 2) float32 (row, col), for ``tip_corner``'s coinciding corners
             (None: not known, not checked).
+        order_undecided
+            Nothing decided the split's time order (no earlier frame in the order's history: `K.order_shapes`
+            kept the split's own pairing and left the history unordered), for ``order``.
         """
         code = K.check_frame(
             begin, end, fixed, self._predicted, _nan_if_none(stretch_begin), _nan_if_none(stretch_end), width_px,
@@ -349,7 +365,7 @@ class SelfChecks:
             # Checks of a frame the motion model cannot check (the first frames, after a gap); a steady frame's
             # tips are checked against the prediction instead (`check_frame`, inside `steady_frame`).
             code = self._unpredicted(
-                begin, end, fixed, learned_width_px or width_px, split, contour_area_px2, corner_px
+                begin, end, fixed, learned_width_px or width_px, split, contour_area_px2, corner_px, order_undecided
             )
         return self.verdict(code)
 
@@ -362,9 +378,11 @@ class SelfChecks:
         split: bool,
         contour_area_px2: float,
         corner_px: float,
+        order_undecided: bool,
     ) -> int:
-        """The code of the first failed check among ``width`` (the band's area), ``tip_at_fixed_end`` and
-        ``tip_corner`` on a frame of known exposure without a motion prediction (`K.CHECK_NONE`: all passed)."""
+        """The code of the first failed check among ``width`` (the band's area), ``tip_at_fixed_end``,
+        ``tip_corner`` and ``order`` (a time order nothing decided) on a frame of known exposure without a motion
+        prediction (`K.CHECK_NONE`: all passed)."""
         config = self.config
         if (
             split
@@ -380,6 +398,18 @@ class SelfChecks:
         corner_limit_px = config.tip_corner_widths * width + config.tip_corner_floor_px
         if split and config.tip_corner_widths > 0.0 and corner_px > corner_limit_px:  # False for nan
             return int(Reason.TIP_CORNER)
+        # Without an earlier frame in the order's history (`order_shapes` then keeps the split's own pairing, with
+        # confidence 0.5) the pairing of shapes and instants is a coin flip; a wrong one puts each shape the tips'
+        # separation off (simulated `lab late swing`, tuning seed, frame 0: a stream that starts mid-swing, tips
+        # 7.4 px apart, both shapes swapped). After still frames the history is ordered (their tips, and nearness
+        # to the last one), even where the confidence is 0.5.
+        if (
+            split
+            and order_undecided
+            and config.order_unknown_widths > 0.0
+            and self._measures[0]["tip_separation_px"] > config.order_unknown_widths * width
+        ):
+            return int(Reason.ORDER)
         return K.CHECK_NONE
 
     def verdict(self, code: int) -> tuple[FrameStatus, Reason]:

@@ -26,6 +26,9 @@ BROKEN_OUTLINE = 0.15
 UNDECIDED_ORDER = 0.6
 """Time order confidence below which a split of a small sweep (`UNDECIDED_SWEEP_WIDTHS`) is a coin flip."""
 
+UNDECIDED_CONFIDENCE = 0.5
+"""The time order's confidence of a split that nothing ordered (`K.order_shapes` without history)."""
+
 UNDECIDED_SWEEP_WIDTHS = 1.25
 """Sweep (rope widths) below which a split whose time order is a coin flip (`UNDECIDED_ORDER`) reports the band's
 middle line for both shapes: a wrong order there puts each shape a whole sweep off, the middle line half of it."""
@@ -318,10 +321,18 @@ class ResultFinisher:
             # (simulated paper-soft 15 ms, tuning seed, frame 48: tips 7 px apart as fitted, moved to 16.9, the end
             # tip 3.8 px off).
             corner_px = max(corner_px, tip_corner_px(begin, end, corners))
+        # A split that found no history to be ordered by keeps its own pairing with confidence 0.5 and leaves the
+        # time order's history unordered (the next frame orders both): nothing decided which shape came first.
+        undecided = (
+            split
+            and exposure_ns > 0
+            and result.order_confidence == UNDECIDED_CONFIDENCE
+            and not self.time_order.state[K.ORDER_ORDERED]
+        )
         status, reason = checks.check(
             begin, end, self.fixed, result.stretch_begin, result.stretch_end, used_px, learned_px,
             result.order_confidence, exposure_ns, split, area, self.locator.edges.static_mask_ro,
-            corner_px, corners if split else None,
+            corner_px, corners if split else None, undecided,
         )  # fmt: skip
         self._take_verdict(result, outcome, exposure_ns, status, reason)
 

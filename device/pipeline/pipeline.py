@@ -29,6 +29,9 @@ from ropecam.shared.protocol.quality import Reason
 
 __all__ = ["Pipeline"]
 
+_ORDER = Reason.ORDER.text
+"""The reason of a split whose time order nothing decided (`SelfChecks`): the frame's state is kept."""
+
 
 @refuse_copies(
     "a Pipeline cannot be copied or pickled: its steady frames read a table of the raw addresses of its buffers, "
@@ -168,7 +171,9 @@ class Pipeline:
                 if not self.static_mask.learning and self._unclean_frames > 0:
                     self.stages.relearn()
             self._measure(image, result, exposure_ns, self.checks.due(self.traits.settled is not None))
-            if result.status is not FrameStatus.OK:
+            if result.status is not FrameStatus.OK and result.reason != _ORDER:
+                # (A split whose time order nothing decided is otherwise a measured frame: its rope, ROI and
+                # motion are right, and the next frame orders both.)
                 self.stages.forget(roi=result.status is FrameStatus.NO_ROPE)
                 if self.static_mask.learning:
                     self._unclean_frames += 1

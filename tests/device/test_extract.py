@@ -34,7 +34,9 @@ def test_extract_frame_set(tmp_path, frames) -> None:
     assert main(["extract", str(root), "--out", str(out), "--quiet"]) == 0
     records = _read(out)
     assert [r["frame"] for r in records] == [0, 1, 2, 3]
-    assert all(r["status"] == "OK" and r["method"] == "BLUR_SPLIT" for r in records)
+    assert all(r["method"] == "BLUR_SPLIT" for r in records)
+    # The rope swings from the first frame: nothing decides that split's time order (kept, not trusted).
+    assert [(r["status"], r["reason"]) for r in records] == [("IMPLAUSIBLE", "order")] + [("OK", "")] * 3
     assert records[1]["t_ns"] == frames[1].t_ns
     assert records[1]["t_end_ns"] == frames[1].t_ns + 12_000_000
     tip = np.array(records[2]["tips"]["end"])
@@ -87,7 +89,7 @@ def test_extract_video(tmp_path, frames) -> None:
     assert main(["extract", str(path), "--out", str(out), "--exposure-ms", "12", "--quiet"]) == 0
     records = _read(out)
     assert len(records) == len(frames)
-    assert all(r["status"] == "OK" for r in records)
+    assert [r["status"] for r in records] == ["IMPLAUSIBLE"] + ["OK"] * (len(frames) - 1)  # 0: its order undecided
     assert records[1]["t_ns"] == round(1e9 / 119.0)
 
 

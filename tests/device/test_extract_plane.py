@@ -43,7 +43,7 @@ def test_the_fixed_end_is_the_plane_origin_and_rows_have_their_times(
     argv = ["extract", str(frameset), "--out", str(out), "--plane", str(plane), "--config", str(config)]
     assert main([*argv, "--readout-us", "5000", "--quiet"]) == 0
     records = _read(out)
-    assert all(r["status"] == "OK" for r in records)
+    assert all(r["status"] == "OK" for r in records[1:])  # frame 0: its time order undecided (the rope swings)
     for record in records:
         assert record["readout_ns"] == 5_000_000
         np.testing.assert_allclose(record["fixed_end"], origin, atol=1e-3)

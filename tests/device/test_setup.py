@@ -59,7 +59,7 @@ def test_setup_writes_a_config_extract_measures_with(tmp_path, rope_set, capsys)
     results = tmp_path / "out.jsonl"
     assert main(["extract", str(rope_set), "--config", str(out), "--out", str(results), "--quiet"]) == 0
     records = [json.loads(line) for line in results.read_text().splitlines()]
-    assert sum(r["status"] == "OK" for r in records) >= FRAMES - 1
+    assert sum(r["status"] == "OK" for r in records) >= FRAMES - 2  # frame 0: its time order undecided
     assert records[-1]["fixed_end"] == pytest.approx(table["fixed_end_uv"], abs=1e-3)
 
 
@@ -132,7 +132,7 @@ def test_setup_with_a_plane_measures_from_its_fixed_end(tmp_path, rope_set) -> N
     results = tmp_path / "out.jsonl"
     assert main(["extract", str(rope_set), "--config", str(out), "--out", str(results), "--quiet"]) == 0
     records = [json.loads(line) for line in results.read_text().splitlines()]
-    assert sum(r["status"] == "OK" for r in records) >= FRAMES - 1
+    assert sum(r["status"] == "OK" for r in records) >= FRAMES - 2  # frame 0: its time order undecided
     assert records[-1]["fixed_end"] == pytest.approx(list(truth), abs=0.05)
 
 

@@ -62,7 +62,8 @@ def test_blur_split_tips_curves_and_order_on_simulated_rig(frame_set: tuple[str,
     tips, curves, order, starts = [], [], [], []
     for k, (record, image) in enumerate(frames):
         r = pipeline.process(image, record.frame, record.t_ns, record.exposure_us)
-        assert r.status is FrameStatus.OK, f"{label} frame {k}: {r.status.name} {r.message}"
+        # Frame 0 (the rope swinging from the start): nothing decides its time order, kept but not trusted.
+        assert r.status is FrameStatus.OK or (k, r.reason) == (0, "order"), f"{label} frame {k}: {r.message}"
         assert r.begin is not None and r.end is not None
         begin_true, end_true = truth["begin_px"][k], truth["end_px"][k]
         begin, end = r.begin[:, ::-1].astype(np.float64), r.end[:, ::-1].astype(np.float64)

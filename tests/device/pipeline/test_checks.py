@@ -173,6 +173,19 @@ def test_an_uncertain_time_order_fails_only_when_asked_and_decidable() -> None:
     assert _check(SelfChecks(ChecksConfig()), order_confidence=0.6) == (FrameStatus.OK, Reason.NONE)  # default off
 
 
+def test_a_split_whose_time_order_nothing_decided_is_not_trusted() -> None:
+    # The first split of a stream that starts mid-swing (no motion prediction, no order history): tips 20 px apart.
+    checks = SelfChecks(ChecksConfig())
+    assert _check(checks, order_confidence=0.5, order_undecided=True) == (FrameStatus.IMPLAUSIBLE, Reason.ORDER)
+    assert _check(checks, order_confidence=0.5) == (FrameStatus.OK, Reason.NONE)  # ordered (after still frames)
+    near = {"begin": _shape(98.0), "end": _shape(102.0), "contour_area_px2": STILL_AREA_PX2 + 200.0}
+    assert _check(checks, **near, order_undecided=True) == (FrameStatus.OK, Reason.NONE)  # within a width
+    one = _shape(100.0)
+    assert _check(checks, begin=one, end=one, split=False, order_undecided=True)[0] is FrameStatus.OK
+    off = SelfChecks(ChecksConfig(order_unknown_widths=0.0))
+    assert _check(off, order_confidence=0.5, order_undecided=True) == (FrameStatus.OK, Reason.NONE)
+
+
 @pytest.mark.parametrize("exposure_ns", [0, 4_000_000], ids=["unknown exposure", "no motion prediction"])
 def test_a_split_needs_evidence_of_blur(exposure_ns: int) -> None:
     checks = SelfChecks(ChecksConfig())

@@ -137,7 +137,8 @@ def test_paper_method_finds_the_tips_within_the_papers_errors(fast_rope, fast_fr
     split = 0
     for frame in fast_frames:
         r = pipeline.process(frame.image, frame.index, frame.t_ns, frame.exposure_us)
-        assert r.status is FrameStatus.OK, r.message
+        # The first split of a stream that starts mid-swing: its time order undecided, kept but not trusted.
+        assert r.status is FrameStatus.OK or (frame.index, r.reason) == (0, "order"), r.message
         assert r.method in (Method.PAPER, Method.CENTERLINE)  # the centreline where no two points are found
         if r.method is Method.PAPER:
             split += 1

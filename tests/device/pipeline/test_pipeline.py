@@ -31,7 +31,12 @@ def test_blur_split_recovers_both_shapes_in_time_order(fast_rope, fast_frames) -
     pipeline = Pipeline(PipelineConfig(), (fast_rope.width, fast_rope.height))
     for frame in fast_frames:
         r = pipeline.process(frame.image, frame.index, frame.t_ns, frame.exposure_us)
-        assert r.status is FrameStatus.OK, r.message
+        if frame.index == 0:
+            # The stream starts mid-swing: nothing decides which shape is the start of the exposure, and the tips
+            # lie farther apart than a rope width, so the shapes are kept but not reported OK (`order`).
+            assert (r.status, r.reason, r.order_confidence) == (FrameStatus.IMPLAUSIBLE, "order", 0.5), r.message
+        else:
+            assert r.status is FrameStatus.OK, r.message
         assert r.method is Method.BLUR_SPLIT
         begin, end = _uv(r.begin), _uv(r.end)
         assert np.hypot(*(begin[0] - frame.begin_uv[0])) < 2.5  # fixed end first
@@ -73,7 +78,7 @@ def test_dark_rope_on_bright_ground(fast_rope) -> None:
     pipeline = Pipeline(PipelineConfig(), (dark.width, dark.height))
     for frame in dark.frames(3):
         r = pipeline.process(frame.image, frame.index, frame.t_ns, frame.exposure_us)
-        assert r.status is FrameStatus.OK
+        assert r.status is (FrameStatus.OK if frame.index else FrameStatus.IMPLAUSIBLE)  # 0: its order undecided
     assert _curve_error(frame.begin_uv, _uv(r.begin)) < 0.5
 
 
@@ -97,7 +102,8 @@ def test_bad_frame_gets_a_status_and_the_next_good_frame_is_measured(fast_rope, 
     height, width = fast_rope.height, fast_rope.width
     pipeline = Pipeline(PipelineConfig(), (width, height))
     first = fast_frames[0]
-    assert pipeline.process(first.image, 0, first.t_ns, first.exposure_us).status is FrameStatus.OK
+    r = pipeline.process(first.image, 0, first.t_ns, first.exposure_us)
+    assert (r.status, r.reason) == (FrameStatus.IMPLAUSIBLE, "order")  # mid-swing: nothing orders the first split
     if kind == "leaving":
         leaving = replace(fast_rope, fixed_uv=(fast_rope.width - 40.0, 20.6), amplitude_rad=0.9, phase_rad=0.0)
         assert leaving.render(0).tip_end_uv[0] > fast_rope.width

@@ -63,7 +63,8 @@ def _shapes(monkeypatch: pytest.MonkeyPatch, path: str, garbage: bool = False, r
             image = image.copy()
             image.flags.writeable = False
         result = pipeline.process(image, frame.index, frame.t_ns, frame.exposure_us)
-        assert result.status is FrameStatus.OK, result.message
+        # The first split of a stream that starts mid-swing: its time order undecided, kept but not trusted.
+        assert result.status is FrameStatus.OK or (frame.index, result.reason) == (0, "order"), result.message
         out.append((pipeline.splitter.sweep_px, np.array(result.begin), np.array(result.end)))
     assert calls["split_frame"] >= 3  # the steady path ran
     if path != "frame":

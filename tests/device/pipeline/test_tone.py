@@ -51,7 +51,8 @@ def _tips(frames: list[np.ndarray], gamma: float) -> np.ndarray:
     tips = []
     for index, (frame, image) in enumerate(frames):
         result = pipeline.process(image, index, frame.t_ns, frame.exposure_us)
-        assert result.status is FrameStatus.OK, result.message
+        # The first split of a stream that starts mid-swing: its time order undecided, kept but not trusted.
+        assert result.status is FrameStatus.OK or (index, result.reason) == (0, "order"), result.message
         tips.append(np.concatenate([result.begin[-1], result.end[-1]]))
     return np.array(tips)
 
