@@ -16,25 +16,18 @@ REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED_DIR = REPO_ROOT.parent / "shared"
 WITHOUT_JIT = os.environ.get("NUMBA_DISABLE_JIT") == "1"
 """True in tests/test_nojit.py's rerun of the `kernel` tests in plain Python."""
-WARMED_IN_BACKGROUND = (
-    "ropecam.shared.protocol._kernels",
-    "ropecam.host.sim._kernels",
-    "ropecam.host.model._kernels",
-)
-"""Kernel modules independent of the device pipeline's, which the collection reaches only after compiling that (the
-protocol's right after it, the host's with the host tests): `pytest_configure` compiles them on the second core."""
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    """When the whole suite runs (`pytest` without paths, as CI runs it), import `WARMED_IN_BACKGROUND` in a
-    background process: on an empty Numba cache (a fresh clone) it compiles them on the second core while the
-    collection compiles the device pipeline (~2.5 min of one core) on the first, and the collection then loads them
-    from the cache instead of compiling them itself (~30 s of one core); on a filled cache it only loads them (~2 s).
-    It imports no module of ropecam.device (that would compile the pipeline twice at once)."""
+    """When the whole suite runs (`pytest` without paths, as CI runs it), run tests/warm_caches.py in a background
+    process: on an empty Numba cache (a fresh clone) it compiles, on the second core, the device kernels that the
+    collection's import of the pipeline reaches last and the protocol's, while the collection compiles the rest on
+    the first (the collection's import ~154 -> ~78 s of one core), then the host's kernels (~30 s), which the
+    collection reaches only with the host tests; on a filled cache it only loads them (~3 s)."""
     if WITHOUT_JIT or config.args_source != pytest.Config.ArgsSource.TESTPATHS:
         return
     config._ropecam_warm = subprocess.Popen(  # type: ignore[attr-defined]
-        [sys.executable, "-c", "; ".join(f"import {module}" for module in WARMED_IN_BACKGROUND)],
+        [sys.executable, str(Path(__file__).parent / "warm_caches.py")],
         cwd=Path(__file__).parent,  # not the repo root: keep the source folders off sys.path
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
