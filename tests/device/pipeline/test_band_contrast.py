@@ -95,6 +95,9 @@ def test_contrast_gains_keep_the_frame_s_contrast_where_they_cannot_read() -> No
     gains, _ = _gains(frame, points, chain, gx, gy, 120.0)
     np.testing.assert_allclose(gains, 1.0, atol=0.02)
     _gains(frame, points, chain, gx, gy, 120.0, stride=K.CONTRAST_STRIDE, min_spread=K.MIN_SPREAD, applied=False)
+    # ... unless it is evenly brighter than the frame's contrast says (a flickering light): every point's gains
+    brighter, _ = _gains(frame, points, chain, gx, gy, 110.0, stride=K.CONTRAST_STRIDE, min_spread=K.MIN_SPREAD)
+    np.testing.assert_allclose(brighter[K.CONTRAST_POINTS : -K.CONTRAST_POINTS], 110.0 / 120.0, rtol=0.02)
     # sweeps beyond the reach: nothing read, the frame's contrast
     far = np.full(n, np.float32(K.band_contrast.REACH_WIDTHS * 3.0 + 1.0))
     _, raw = _gains(frame, points, chain, gx, gy, 120.0, sweeps=far, applied=False)
