@@ -29,8 +29,7 @@ from ropecam.shared.protocol.quality import Reason
 
 __all__ = ["Pipeline"]
 
-_ORDER = Reason.ORDER.text
-"""The reason of a split whose time order nothing decided (`SelfChecks`): the frame's state is kept."""
+_ORDER = Reason.ORDER.text  # a split whose time order nothing decided (`SelfChecks`): a measured frame all the same
 
 
 @refuse_copies(
@@ -171,9 +170,7 @@ class Pipeline:
                 if not self.static_mask.learning and self._unclean_frames > 0:
                     self.stages.relearn()
             self._measure(image, result, exposure_ns, self.checks.due(self.traits.settled is not None))
-            if result.status is not FrameStatus.OK and result.reason != _ORDER:
-                # (A split whose time order nothing decided is otherwise a measured frame: its rope, ROI and
-                # motion are right, and the next frame orders both.)
+            if result.status is not FrameStatus.OK and result.reason != _ORDER:  # (its rope, ROI, motion are right)
                 self.stages.forget(roi=result.status is FrameStatus.NO_ROPE)
                 if self.static_mask.learning:
                     self._unclean_frames += 1

@@ -430,7 +430,7 @@ class BlurSplitter:
                 # As `split_shapes`: the rope's own contrast along the band, when it varies along the side.
                 if frame is not None and consts.rope_px > 0.0 and K.contrast_gains(
                     points, chain, n, i_fix, seg_i, sign, frame, gx, gy, pol, out_ro, consts.width,
-                    np.float32(consts.rope_px), np.float32(1.0 / inv), K.CONTRAST_STRIDE, K.MIN_SPREAD, self.work,
+                    float(np.float32(1.0 / inv)) * float(np.float32(consts.rope_px)), K.CONTRAST_STRIDE, self.work,
                     gains,
                 ) > 0:  # fmt: skip
                     K.side_sweeps(chain, n, i_fix, seg_i, sign, mag, inv, ro(gains), ratios, sweeps, half, self.work,

@@ -76,18 +76,20 @@ MIN_GATE_READINGS: Final = 4
 
 @kernel(
     int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, u1_2d_ro, f4_2d_ro, f4_2d_ro, float32, f4_1d_ro, float32,
-          float64, int32, int32, int32, f4_1d)
+          float64, int32, int32, f4_1d)
 )  # fmt: skip
 def read_contrast(
-    points, chain, n, i_start, count, direction, frame, gx, gy, polarity, sweeps, spacing_px, expected, first, stride,
-    skip, work,
+    points, chain, n, i_start, count, direction, frame, gx, gy, polarity, sweeps, spacing_px, expected, stride, skip,
+    work,
 ):  # fmt: skip
     """Write the reading of the rope's contrast times its width at the side's points ``first, first + stride, ...``
-    below `count` (the k-th point is chain index ``i_start + k direction``, cyclic over `n`; `stride` below `n`)
-    into ``work[k]``, nan where there is none (see `contrast_gains`), but for every `skip`-th of them from `first`
-    when `skip` > 1 (read before); the other entries are left alone. Returns the number written."""
+    below `count` (``first`` = ``int(spacing_px + 2)``, past the fixed end's cap: see `contrast_gains`; the k-th
+    point is chain index ``i_start + k direction``, cyclic over `n`; `stride` below `n`) into ``work[k]``, nan where
+    there is none, but for every `skip`-th of them from ``first`` when `skip` > 1 (read before); the other entries
+    are left alone. Returns the number written."""
     if stride < 1 or stride >= n:
         return 0
+    first = int(spacing_px + 2.0)
     height = frame.shape[0]
     cols = frame.shape[1]
     reach = REACH_WIDTHS * spacing_px
@@ -197,11 +199,11 @@ def average_readings(work, count, need, expected, out_gains):
 
 @kernel(
     int32(f4_2d_ro, i4_2d_ro, int32, int32, int32, int32, u1_2d_ro, f4_2d_ro, f4_2d_ro, float32, f4_1d_ro, float32,
-          float32, float32, int32, float64, f4_1d, f8_1d)
+          float64, int32, f4_1d, f8_1d)
 )  # fmt: skip
 def contrast_gains(
-    points, chain, n, i_start, i_stop, direction, frame, gx, gy, polarity, sweeps, spacing_px, rope_px, contrast,
-    stride, min_spread, work, out_gains,
+    points, chain, n, i_start, i_stop, direction, frame, gx, gy, polarity, sweeps, spacing_px, expected, stride, work,
+    out_gains,
 ):  # fmt: skip
     """Write, for each contour point of one side (from `i_start` stepping `direction` to `i_stop`, cyclic), the
     frame's `contrast` over the rope's contrast at that point into `out_gains` (the factor `side_sweeps` applies
@@ -210,8 +212,9 @@ def contrast_gains(
     The point's contrast is the integral of `frame` (bilinear, every `STEP_PX`) along ``polarity`` times its
     gradient (into the rope), from `MARGIN_PX` outside the side to the band's far side (the edges lie `spacing_px`
     apart, the point sweeps ``sweeps[k]``) + `MARGIN_PX`, less a line through the levels of the first and the last
-    `BACKGROUND_PX` of samples (the background), divided by the rope's own width `rope_px` (the edge model's for that
-    spacing, as the frame's contrast is read: `BandMeasure.contrast`). The first ``spacing_px + 2`` points (the
+    `BACKGROUND_PX` of samples (the background); `expected` is that integral for the frame's contrast (the frame's
+    contrast times the rope's own width, the edge model's for that spacing, as the frame's contrast is read:
+    `BandMeasure.contrast`). The first ``spacing_px + 2`` points (the
     fixed end's cap, or the seal across a clamp's exit: sections along the rope) are not read; any other point
     without a reading (its sweep beyond `REACH_WIDTHS` spacings, its section leaving the frame, a gain outside
     [`MIN_GAIN`, `MAX_GAIN`]) counts as none.
@@ -219,19 +222,18 @@ def contrast_gains(
     Every `stride`-th point is read first (`read_contrast`) and each point's gain is taken from the mean of the
     readings among the ``2 CONTRAST_POINTS + 1`` points centred on it (`average_readings`; at least ``(CONTRAST_POINTS
     + 1) / stride`` of them, rounded up). When those gains at the points read whose sweep is at most `GATE_WIDTHS`
-    spacings (`MIN_GATE_READINGS` of them or more) spread (standard deviation over mean) less than `min_spread`
+    spacings (`MIN_GATE_READINGS` of them or more) spread (standard deviation over mean) less than `MIN_SPREAD`
     and average within `MAX_MEAN_OFFSET` of 1, or no point was read, the frame's contrast stands: returns 0
     (`out_gains` is then not to be applied). Else the other points are read too (one walk) and the gains written
     are those of every point's readings (at least ``CONTRAST_POINTS + 1`` of them, the points before the first
-    average taking it, 1 where none): with `stride` 1 or `min_spread` 0 every point's. An empty `frame` or a
-    `rope_px` or `contrast` of 0 returns 0.
+    average taking it, 1 where none). With `stride` 1 every point is read and its gains written whatever their
+    spread (no gate). An empty `frame` or an `expected` of 0 (no rope width: a strong lens blur) returns 0.
     `work` (float32, the side's length) keeps the raw readings. Returns the number of points when the gains are to
     be applied, 0, or FULL.
     """
     count = ((i_stop - i_start) * direction % n + n) % n + 1
     if count > out_gains.shape[0] or count > work.shape[0]:
         return FULL
-    expected = float(contrast) * float(rope_px)
     if frame.shape[0] <= 1 or frame.shape[1] <= 1 or not expected > 0.0 or stride < 1:
         return 0
     half = CONTRAST_POINTS
@@ -241,7 +243,7 @@ def contrast_gains(
     # along the rope. They take the contrast read just beyond.
     cap = int(spacing_px + 2.0)
     read_contrast(points, chain, n, i_start, count, direction, frame, gx, gy, polarity, sweeps, spacing_px,
-                  expected, np.int32(cap), stride, np.int32(0), work)  # fmt: skip
+                  expected, stride, np.int32(0), work)  # fmt: skip
     average_readings(work, count, np.int32((half + stride) // stride), expected, out_gains)
     total = 0.0
     squares = 0.0
@@ -258,13 +260,13 @@ def contrast_gains(
                 found += 1
     if read == 0:
         return 0
-    if found >= MIN_GATE_READINGS:
+    if stride > 1 and found >= MIN_GATE_READINGS:
         mean = total / found
         spread = math.sqrt(max(squares / found - mean * mean, 0.0))
-        if spread < min_spread * mean and abs(mean - 1.0) < MAX_MEAN_OFFSET:
+        if spread < MIN_SPREAD * mean and abs(mean - 1.0) < MAX_MEAN_OFFSET:
             return 0
     if stride > 1:  # the points between, in one walk
         read_contrast(points, chain, n, i_start, count, direction, frame, gx, gy, polarity, sweeps, spacing_px,
-                      expected, np.int32(cap), np.int32(1), stride, work)  # fmt: skip
+                      expected, np.int32(1), stride, work)  # fmt: skip
         average_readings(work, count, np.int32(half + 1), expected, out_gains)
     return count

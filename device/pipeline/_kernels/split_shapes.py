@@ -10,7 +10,7 @@ import numpy as np
 from numba import float32, int32
 
 from ropecam.device.pipeline._kernels._common import FULL, INVALID, NOT_FOUND, vector_length
-from ropecam.device.pipeline._kernels.band_contrast import CONTRAST_STRIDE, MIN_SPREAD, contrast_gains
+from ropecam.device.pipeline._kernels.band_contrast import CONTRAST_STRIDE, contrast_gains
 from ropecam.device.pipeline._kernels.groups import (
     PLANES,
     SPLIT_WIDTH,
@@ -151,7 +151,7 @@ def split_shapes(
             if rounds == 0 and local:
                 applied = contrast_gains(
                     points, chain, n, i_fix, seg, direction, frame, gx, gy, polarity, out_sweeps, width_px,
-                    np.float32(width.rope_px), contrast, stride, MIN_SPREAD, work, gains,
+                    float(contrast) * float(np.float32(width.rope_px)), stride, work, gains,
                 )  # fmt: skip
                 if applied < 0:
                     return FULL

@@ -34,14 +34,15 @@ def _band(contrast_of_col, rows=40, cols=120, top=15.3, width=3.0, background=30
     return frame, points, chain, gx, gy
 
 
-def _gains(frame, points, chain, gx, gy, contrast, sweeps=None, width=3.0, stride=1, min_spread=0.0, applied=True):
-    """`contrast_gains` on the band's side; every point read first by default (`stride` 1) and the gains written
-    whatever their spread (`min_spread` 0). Asserts that the gains are to be applied, or not (`applied`)."""
+def _gains(frame, points, chain, gx, gy, contrast, sweeps=None, width=3.0, stride=1, applied=True):
+    """`contrast_gains` on the band's side; every point read by default (`stride` 1: the gains written whatever
+    their spread). Asserts that the gains are to be applied, or not (`applied`)."""
     n = points.shape[0]
     sweeps = np.zeros(n, np.float32) if sweeps is None else sweeps
     work, out = np.zeros(n, np.float32), np.ones(n, np.float64)
+    expected = float(np.float32(contrast)) * float(np.float32(width))
     count = K.contrast_gains(points, chain, n, 0, n - 1, 1, frame, gx, gy, np.float32(1.0), sweeps, np.float32(width),
-                             np.float32(width), np.float32(contrast), stride, min_spread, work, out)  # fmt: skip
+                             expected, stride, work, out)  # fmt: skip
     assert count == (n if applied else 0)
     return out, work
 
@@ -65,7 +66,7 @@ def test_contrast_gains_read_the_rope_s_own_contrast_along_it() -> None:
     np.testing.assert_allclose(gains[inner], 120.0 / local[inner], rtol=0.03)
     assert gains.min() < 0.85 and gains.max() > 1.3  # the pattern is followed, not flattened
     # read every CONTRAST_STRIDE-th point first, the rope found uneven, then every point: the same gains, bit for bit
-    sparse, sparse_raw = _gains(frame, points, chain, gx, gy, 120.0, stride=K.CONTRAST_STRIDE, min_spread=K.MIN_SPREAD)
+    sparse, sparse_raw = _gains(frame, points, chain, gx, gy, 120.0, stride=K.CONTRAST_STRIDE)
     assert sparse.tobytes() == gains.tobytes() and np.array_equal(sparse_raw, raw, equal_nan=True)
 
 
@@ -80,7 +81,7 @@ def test_contrast_gains_are_applied_only_where_the_rope_s_brightness_varies(ampl
 
     frame, points, chain, gx, gy = _band(contrast, cols=240)
     every, _ = _gains(frame, points, chain, gx, gy, 120.0)
-    gains, _ = _gains(frame, points, chain, gx, gy, 120.0, stride=K.CONTRAST_STRIDE, min_spread=K.MIN_SPREAD,
+    gains, _ = _gains(frame, points, chain, gx, gy, 120.0, stride=K.CONTRAST_STRIDE,
                       applied=applied)  # fmt: skip
     spread = np.std(every[20:-20]) / np.mean(every[20:-20])
     assert (spread > K.MIN_SPREAD) == applied
@@ -94,9 +95,9 @@ def test_contrast_gains_keep_the_frame_s_contrast_where_they_cannot_read() -> No
     # a uniform rope: gain 1 wherever read, and not applied once it is found even
     gains, _ = _gains(frame, points, chain, gx, gy, 120.0)
     np.testing.assert_allclose(gains, 1.0, atol=0.02)
-    _gains(frame, points, chain, gx, gy, 120.0, stride=K.CONTRAST_STRIDE, min_spread=K.MIN_SPREAD, applied=False)
+    _gains(frame, points, chain, gx, gy, 120.0, stride=K.CONTRAST_STRIDE, applied=False)
     # ... unless it is evenly brighter than the frame's contrast says (a flickering light): every point's gains
-    brighter, _ = _gains(frame, points, chain, gx, gy, 110.0, stride=K.CONTRAST_STRIDE, min_spread=K.MIN_SPREAD)
+    brighter, _ = _gains(frame, points, chain, gx, gy, 110.0, stride=K.CONTRAST_STRIDE)
     np.testing.assert_allclose(brighter[K.CONTRAST_POINTS : -K.CONTRAST_POINTS], 110.0 / 120.0, rtol=0.02)
     # sweeps beyond the reach: nothing read, the frame's contrast
     far = np.full(n, np.float32(K.band_contrast.REACH_WIDTHS * 3.0 + 1.0))
@@ -120,7 +121,7 @@ def test_contrast_gains_keep_the_frame_s_contrast_where_they_cannot_read() -> No
     work, out = np.zeros(n - 1, np.float32), np.zeros(n, np.float64)
     flat = np.zeros(n, np.float32)
     assert K.contrast_gains(points, chain, n, 0, n - 1, 1, frame, gx, gy, np.float32(1.0), flat, np.float32(3.0),
-                            np.float32(3.0), np.float32(120.0), 1, 0.0, work, out) == K.FULL  # fmt: skip
+                            360.0, 1, work, out) == K.FULL  # fmt: skip
 
 
 def _centreline_errors(rope: SyntheticRope, frames: int = 18) -> tuple[float, float]:

@@ -39,7 +39,8 @@ def _run(swing, frames, indices, monkeypatch, profile: bool):
     for i in indices:
         f = frames[i]
         r = pipeline.process(f.image, i, f.t_ns, f.exposure_us)
-        assert r.status is FrameStatus.OK, r.message
+        # Frame 0 (the rope swinging from the start): nothing decides its time order, kept but not trusted.
+        assert r.status is FrameStatus.OK or (i, r.reason) == (0, "order"), r.message
         out.append((np.array(r.begin), np.array(r.end), _band_px(pipeline), pipeline.roi_retries, r.full_frame))
     monkeypatch.undo()
     return pipeline, out

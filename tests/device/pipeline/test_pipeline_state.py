@@ -98,10 +98,12 @@ def test_unknown_exposure_is_measured_without_time_order(swing, swing_frames, ex
         assert r.order_confidence == 0.5
         assert "exposure unknown" in r.message
         assert all(math.isfinite(v) for v in r.begin.ravel())
-    # Known again: measured normally, the order is back after one frame of history.
+    # Known again: measured normally. No frame of known exposure came before, so nothing decides its time order:
+    # OK, or (its tips over a rope width apart) kept but flagged "order".
     frames = [swing_frames[i] for i in (6,)]
     r = pipeline.process(frames[0].image, 6, frames[0].t_ns, frames[0].exposure_us)
-    assert r.status is FrameStatus.OK and r.t_end_ns == r.t_ns + 4_000_000
+    assert r.t_end_ns == r.t_ns + 4_000_000 and r.begin is not None
+    assert r.status is FrameStatus.OK or r.reason == "order", r.message
 
 
 @pytest.mark.parametrize("exposure_us", [-1.0, float("nan"), float("inf"), "4 ms"])
