@@ -133,7 +133,7 @@ class FixedEndFinder:
         return restarted
 
     def structure(self, points: NDArray[np.float32], n: int, width_px: float | None) -> NDArray[np.bool_] | None:
-        """Return the region of the structure a rope's outline (`n` (row, col) `points`, a rope `width_px`
+        """Return the region of the structure a still rope's outline (`n` (row, col) `points`, a rope `width_px`
         wide, None: 4 px) runs round at one end (a clamp, its rod: `structure.structure_points`): the convex hull
         of its outline and the rope's exit, with the outline's own pixels, grown by a pixel; or None (no end of
         the outline is such a structure)."""
@@ -188,7 +188,7 @@ def hidden_end(
     bolts') up to its far edge (the last run before `HIDDEN_GAP_PX` of unmasked pixels, within
     `HIDDEN_REACH_PX`), and the end is put halfway between the middles of the first and the last edge: the middle
     of the clamp along the rope, where a clamp centred on the fixed end holds it. Where the axis crosses a filled
-    region (`MASK_ALWAYS`: a given mask, or the structure found from the rope's outline on the first frames,
+    region (`MASK_ALWAYS`: a given mask, or the structure found from the rope's first outlines,
     `FixedEndFinder.structure`), the structure is that region: the end is put halfway between the first and the
     last of its pixels along the axis. Without a far edge (the axis runs up a rod out of the view) or without a
     mask next to `end`, `end` is kept. The plane calibration (or ``fixed_end_uv``) gives the fixed end exactly;

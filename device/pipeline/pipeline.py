@@ -226,7 +226,7 @@ class Pipeline:
             motion = self._motion
             K.predict_tips(result.t_ns, exposure_ns, motion.state, motion.log, self.fixed, self.checks.buffers[0])
         n, used_roi = self.locator.locate(image, result.t_ns, exposure_ns)
-        if n > 0 and self.stages.mask_structure(n, exposure_ns):  # a clamp the rope runs round: out, again
+        if n > 0 and self.stages.mask_structure(n, exposure_ns):  # a clamp the still rope runs round: out, again
             n, used_roi = self.locator.locate(image, result.t_ns, exposure_ns)
         self._measure_contour(image, result, exposure_ns, n, used_roi)
 

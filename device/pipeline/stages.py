@@ -154,22 +154,18 @@ class Stages:
         self.checks.restart()
 
     def mask_structure(self, n: int, exposure_ns: int) -> bool:
-        """While the static mask is learned (a stream's first frames), take the structure the rope's outline (the
-        tracer's `n` points) runs round at one end (a clamp, its rod: `FixedEndFinder.structure`) into the mask, on
-        each frame until one is found: a rope already swinging joins the clamp's outline on some frames and not on
-        others. Returns whether it did: the frame's contour is then to be found again, and what the frames before
-        taught with the clamp joined to the rope (fixed end, width, Lc0) is learned again (`relearn`)."""
+        """While the static mask is learned (a stream's first frames), take the structure a still rope's outline
+        (the tracer's `n` points) runs round at one end (a clamp, its rod: `FixedEndFinder.structure`) into the
+        mask, on the stream's first outline. Returns whether it did: the frame's contour is then to be found again."""
         mask = self.static_mask
-        if mask.structure_px > 0 or not mask.learning or exposure_ns <= 0 or self.traits.settled is not None:
+        if mask.structure_tried or not mask.learning or exposure_ns <= 0 or self.traits.settled is not None:
             return False
+        mask.structure_tried = True  # the first outline of a stream: a rope released from rest is still there
         region = self.traits.fixed_end.structure(self.tracer.points, n, self.traits.width())
         if region is None:
             return False
         mask.add_structure(region)
-        if mask.seen > 1:
-            self.relearn()
-        else:
-            self.locator.forget()
+        self.locator.forget()
         return True
 
     def relearn(self) -> None:

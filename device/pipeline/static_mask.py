@@ -80,7 +80,9 @@ class StaticMask:
         self.base_dn = 0.0
         """The range a still pixel spans from noise alone (2 x the median learned range + 2), once learned."""
         self.structure_px = 0
-        """Pixels of the structure found from the rope's outline while learning (`add_structure`; 0: none)."""
+        """Pixels of the structure found from the rope's first outline (`add_structure`; 0: none)."""
+        self.structure_tried = False
+        """Whether the stream's first outline was searched for a structure (`Stages.mask_structure`)."""
         self._finder: EdgeDetector | None = None  # the structures' detector, made ahead by `prepare`
         buffers.static_mask[:] = K.MASK_FREE
         buffers.static_low[:] = 255

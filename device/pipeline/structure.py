@@ -1,20 +1,18 @@
-"""The structure a rope runs into at its fixed end (a clamp, the rod holding it), found from the shape of the rope's
-outline on a stream's first frames: the region the static mask takes out of every later frame from then on, before
-it has learned the structure from stillness (`StaticMask`).
+"""The structure a still rope runs into at its fixed end (a clamp, the rod holding it), found from the shape of the
+rope's first outline: the region the static mask takes out of every later frame from the start, before it has
+learned the structure from stillness (`StaticMask`).
 
-On the first frames of a stream the static mask cannot yet tell the still clamp from the rope, and the rope's
-outline runs round the clamp (and up its rod). The split then reads one side along the clamp's outline (the two
-shapes differ in length: no split) or a centreline out along the rope and back. The outline itself shows where the
-rope ends: from its free tip the rope's two sides run across from each other up to where the rope leaves the clamp,
-and there they part or meet (`zip_sides`: both sides walked together from the tip). A rope at rest is a rope's width
-across all along; a rope already swinging when the stream starts is a band as wide as its sweep at the tip that
-narrows towards the fixed end, where it hardly moves: either way the sides part where the rope leaves the clamp. The
+On the first frames of a stream the rope hangs still, and so does the clamp it is fixed in: the static mask cannot
+yet tell them apart, and the rope's outline runs round the clamp (and up its rod). The split then reads one side
+along the clamp's outline (the two shapes differ in length: no split) or a centreline out along the rope and back.
+The outline itself shows where the rope ends: from its free tip the rope's two sides run a rope's width apart up to
+where the rope leaves the clamp, and there they part (`zip_sides`: both sides walked together from the tip). The
 outline's other points are the structure's (a shaded clamp's bevels, a bolt, a rod walked out and back included);
 their convex hull is its region.
 
-The region is kept after the learning: the part of the clamp's outline the rope covered while the mask was learned is
-not still in the learned ranges (the rope was there), so it would join the rope's outline as a whisker once the rope
-swings off it; it lies inside the region (the rope leaves the region where it left the clamp).
+The region is kept after the learning: the part of the clamp's outline the still rope covered while the mask was
+learned is not still in the learned ranges (the rope was there), so it would join the rope's outline as a whisker
+once the rope swings off it; it lies inside the region (the rope leaves the region where it left the clamp).
 """
 
 from __future__ import annotations
@@ -26,6 +24,7 @@ from numpy.typing import NDArray
 
 __all__ = [
     "ACROSS_WIDTHS",
+    "across_distances",
     "convex_hull",
     "fill_polygon",
     "grow",
@@ -34,14 +33,10 @@ __all__ = [
 ]
 
 ACROSS_WIDTHS = 1.6
-"""Once past the tip's end, the rope's two sides, walked together towards the fixed end, are the rope's while they lie
-within this many times (+1 px) their mean distance over the last `window` steps (the band's width there: a rope's
-width at rest, narrowing towards the fixed end while it swings). The smallest clamp simulated (12 x 7.2 px against a
-2.5 px rope, edge spacing 2.6-3.2 px) is 7.2 px across, above 1.6 x 3.2 + 1 = 6.1."""
-GROWTH_PX = 1.0
-"""The walk is past the tip's end (a rope's round end at rest, the band's end as wide as the tip's sweep while it
-swings, across which the walkers move apart) once its sides have grown no more than this over the last `window`
-steps than before them."""
+"""The rope's two sides, walked together from the free tip, are the rope's while they lie within this many rope
+widths (+1 px) of each other (a rope at rest: a width apart); where the rope leaves a clamp they part. The smallest
+clamp simulated (12 x 7.2 px against a 2.5 px rope, edge spacing 2.6-3.2 px) is 7.2 px across, above
+1.6 x 3.2 + 1 = 6.1."""
 SAME_PLACE_PX = 1.5
 """Points of the outline nearer each other than this are one place walked twice (an outline that is a tree: the
 trace walks a line out and back, on the line's own or its neighbouring pixels); a rope's sides lie a rope width,
@@ -49,10 +44,9 @@ trace walks a line out and back, on the line's own or its neighbouring pixels); 
 EXIT_WIDTHS = 2.5
 """The two points where the rope leaves the structure lie at most this many rope widths (+2 px) apart (the rope's
 width across, a pixel or two more where the sides part at a slant)."""
-STRUCTURE_AREA_WIDTHS = 2.5
+STRUCTURE_AREA_WIDTHS = 4.0
 """A structure's region (the convex hull of its outline and the rope's exit) covers at least this many squared
-rope widths (the smallest clamp simulated, 12 x 7.2 px, about eight; where the rope's sides run on through it
-along its inner edges, the part of its outline beyond them, about three; a rope's round end, under one)."""
+rope widths (the smallest clamp simulated, 12 x 7.2 px, about ten)."""
 WIDENING_PX = 0.5
 """A rope's band narrows towards its fixed end (the sweep grows with the distance from it); walked from the free
 tip towards a structure, its sides may not lie more than this much farther apart over the walk's second half than
@@ -61,121 +55,105 @@ STRUCTURE_ROPE_RATIO = 0.5
 """A structure is at most this fraction of the rope's length across (the walk from the tip along each side). Walked
 from its fixed end, a swinging rope's band widens beyond a rope's width part of the way out: the rest, the band's
 far part, is no structure and is as large as the rope."""
+_SPACING_SAMPLES = 128
+"""Outline points the rope's edge spacing is read at (`structure_points`: a cold path, kept to a few ms)."""
 _BLOCK = 256
 """Rows of the distance matrices computed at a time (a cold path: the first frames only)."""
 
 
-def zip_sides(points: NDArray[np.float64], tip: int, width_px: float) -> tuple[int, int, NDArray[np.float64]]:
-    """Walk a closed outline's two sides together from the point `tip` (an index of `points`, (n, 2)) of a rope
-    about `width_px` wide: one step at a time on the side whose step keeps the two walkers nearer.
+def across_distances(points: NDArray[np.float64], gap: int, every: int = 1) -> NDArray[np.float64]:
+    """Return, for every `every`-th point of a closed outline (`points` (n, 2)), the distance to the nearest point
+    of the outline at least `gap` places away along it (either way round) and not at the same place
+    (`SAME_PLACE_PX`): across the rope, the other side."""
+    n = len(points)
+    index = np.arange(n)
+    chosen = index[::every]
+    out = np.empty(len(chosen))
+    for start in range(0, len(chosen), _BLOCK):
+        rows = chosen[start : start + _BLOCK]
+        d2 = ((points[rows, None, :] - points[None, :, :]) ** 2).sum(axis=2)
+        ring = np.abs(rows[:, None] - index[None, :])
+        d2[(np.minimum(ring, n - ring) < gap) | (d2 < SAME_PLACE_PX**2)] = np.inf
+        out[start : start + len(rows)] = np.sqrt(d2.min(axis=1))
+    return out
 
-    Across the tip's end the walkers move apart (a rope's width at rest, the tip's sweep while it swings). Once
-    their distance has grown by no more than `GROWTH_PX` over the last `window` steps (`window`: 3 widths, at
-    least 8), they walk along the band, which narrows towards the fixed end or keeps its width, up to where the
-    sides part, meet or widen: a step farther apart than `ACROSS_WIDTHS` times (+1 px) the walkers' mean
-    distance over the last `window` steps (where the rope leaves a clamp), or nearer than half of it (where the
-    outline is closed across the rope's end, at a clamp or at its fixed end, and where a line is walked out and
-    back), or that mean `WIDENING_PX` above the one over the `window` steps
-    before (the rope's sides going on along a clamp's edges a pixel farther apart: the walk then ends before the
-    steps that widened; a band whose sweep grows along it widens far slower).
+
+def zip_sides(points: NDArray[np.float64], tip: int, limit_px: float, close_px: float) -> tuple[int, int, float, float]:
+    """Walk a closed outline's two sides together from the point `tip` (an index of `points`, (n, 2)): one step at
+    a time on the side whose step keeps the two walkers nearer, while they lie within `limit_px` of each other and,
+    once they have been `close_px` apart, no nearer than that.
 
     Returns
     -------
-    tuple[int, int, NDArray[np.float64]]
-        The steps walked forward and backward, and the walkers' distance after each step.
+    tuple[int, int, float, float]
+        The steps walked forward and backward (the walkers stop where the sides part, as a rope's where it leaves a
+        clamp, or meet again, as where the rope's outline is closed across its end at the clamp or at its fixed
+        end, and where a line is walked out and back), and the median distance between the walkers over the
+        walk's first and second half (0 for a walk of fewer than 4 steps).
     """
     n = len(points)
     rows, cols = points[:, 0].tolist(), points[:, 1].tolist()  # Python floats: a step of the walk costs ~1 us
-    window = max(8, round(3.0 * width_px))
     forward = backward = 0
-    gaps: list[float] = []
-    sums = [0.0]  # the walkers' summed distance over the first k steps
-    sides: list[bool] = []  # whether each step was forward
+    gaps = []
     opened = False
-    along = -1  # the step from which the walkers are along the band (-1: not yet)
-    before = 0.0  # the walkers' largest distance before the last `window` steps
     while forward + backward < n - 2:
         a0, b0 = (tip + forward) % n, (tip - backward) % n
         a1, b1 = (tip + forward + 1) % n, (tip - backward - 1) % n
         step_a = math.hypot(rows[a1] - rows[b0], cols[a1] - cols[b0])
         step_b = math.hypot(rows[a0] - rows[b1], cols[a0] - cols[b1])
         nearest = min(step_a, step_b)
-        k = len(gaps)
-        if k > window:
-            before = max(before, gaps[k - window - 1])
-            if along < 0 and max(gaps[k - window :]) <= before + GROWTH_PX:
-                along = k
-        width = (sums[k] - sums[k - window]) / window if along >= 0 else width_px
-        if opened and nearest < 0.5 * width:
-            break  # the sides meet
-        if along >= 0 and nearest > ACROSS_WIDTHS * width + 1.0:
-            break  # the sides part
-        if 0 <= along <= k - 2 * window:
-            earlier = (sums[k - window] - sums[k - 2 * window]) / window
-            if (sums[k] - sums[k - window]) / window > earlier + WIDENING_PX:
-                while gaps[k - 1] > earlier + WIDENING_PX:
-                    k -= 1  # back to where the sides began to widen
-                moved = sum(sides[k:])
-                forward, backward = forward - moved, backward - (len(sides) - k - moved)
-                del gaps[k:]
-                break  # the sides widen
-        opened = opened or nearest >= 0.5 * width
-        sides.append(step_a <= step_b)
+        if nearest > limit_px or (opened and nearest < close_px):
+            break
+        opened = opened or nearest >= close_px
         if step_a <= step_b:
             forward += 1
+            gaps.append(step_a)
         else:
             backward += 1
-        gaps.append(nearest)
-        sums.append(sums[-1] + nearest)
-    return forward, backward, np.array(gaps)
+            gaps.append(step_b)
+    walked = len(gaps)
+    if walked < 4:
+        return forward, backward, 0.0, 0.0
+    return forward, backward, float(np.median(gaps[: walked // 2])), float(np.median(gaps[walked // 2 :]))
 
 
 def structure_points(
     points: NDArray[np.float64], ends: tuple[int, int], width_px: float
 ) -> tuple[NDArray[np.bool_], int, int] | None:
-    """Find the structure a rope's outline runs round at one of its two `ends` (indices of `points`, (n, 2)
+    """Find the structure a still rope's outline runs round at one of its two `ends` (indices of `points`, (n, 2)
     row, col; a rope `width_px` wide, or a guess).
 
-    From each end the rope's two sides are walked together (`zip_sides`); from the free tip they run along the
-    rope and part or meet where the rope leaves the structure, a rope's width apart. The structure is the rest of
-    the outline, but what lies at the same place as a walked point (`SAME_PLACE_PX`: the rope's sides walked twice
-    where the outline is a tree). Of the two ends, the longer walk that leaves such a structure is the rope's.
+    The rope's free tip is the end from which its two sides walk together (`zip_sides`) farthest, a rope's width
+    apart; they part where the rope leaves the structure. The structure is the rest of the outline, but what lies at
+    the same place as a walked point (`SAME_PLACE_PX`: the rope's sides walked twice where the outline is a tree).
 
     Returns
     -------
     tuple[NDArray[np.bool_], int, int] | None
         Which points are the structure's, and the two points where the rope leaves it (indices); None when no
-        rope leaves a structure cleanly.
+        rope leaves a structure cleanly (the sides never part, or part more than a rope's width apart, or the
+        structure is smaller than a clamp: `STRUCTURE_AREA_WIDTHS`).
     """
     n = len(points)
-    if n < 4 * max(12, math.ceil(3.0 * width_px + 4.0)):
+    gap = max(12, math.ceil(3.0 * width_px + 4.0))
+    if n < 4 * gap:
         return None
-    found = []
-    for tip in ends:
-        forward, backward, gaps = zip_sides(points, tip, width_px)
-        if forward + backward >= n // 4:
-            structure = _beyond_walk(points, tip, forward, backward, gaps, width_px)
-            if structure is not None:
-                found.append((forward + backward, structure))
-    return max(found, key=lambda walk: walk[0])[1] if found else None
-
-
-def _beyond_walk(
-    points: NDArray[np.float64], tip: int, forward: int, backward: int, gaps: NDArray[np.float64], width_px: float
-) -> tuple[NDArray[np.bool_], int, int] | None:
-    """The structure beyond the walk of `zip_sides` from `tip` (its `forward` and `backward` steps and `gaps`), as
-    `structure_points` returns it, or None: the walk does not end a rope's width across (`width_px` within a factor
-    of two) next to a structure (at least `STRUCTURE_AREA_WIDTHS` squared widths, at most `STRUCTURE_ROPE_RATIO` of
-    the rope's walk across) after a band that narrows or stays as wide towards it (`WIDENING_PX`)."""
-    n = len(points)
-    exit_width = float(np.median(gaps[-max(8, round(3.0 * width_px)) :]))
-    if not 0.5 * width_px <= exit_width <= 2.0 * width_px:
-        return None  # no rope's two sides at the walk's end (a line walked out and back lies 0-1 px from itself)
-    half = len(gaps) // 2
-    if float(np.median(gaps[half:])) > float(np.median(gaps[:half])) + WIDENING_PX:
+    # Most of the outline is the rope's two sides: the median across it, on a subsample, is their spacing.
+    every = max(1, n // _SPACING_SAMPLES)
+    spacing = float(np.median(across_distances(points, gap, every)))
+    if not 0.5 * width_px <= spacing <= 2.0 * width_px:
+        return None
+    limit = ACROSS_WIDTHS * spacing + 1.0
+    walks = [zip_sides(points, end, limit, 0.5 * spacing) for end in ends]
+    k = 0 if walks[0][0] + walks[0][1] >= walks[1][0] + walks[1][1] else 1
+    forward, backward, near_tip, near_structure = walks[k]
+    if forward + backward < n // 4 or not 0.5 * spacing <= near_structure <= limit:
+        return None  # no rope's two sides from that tip (a line walked out and back lies 0-1 px from itself)
+    if near_structure > near_tip + WIDENING_PX:
         return None  # the band widens away from the tip: the fixed end of a swinging rope, not its free tip
+    tip = ends[k]
     exit_a, exit_b = (tip + forward) % n, (tip - backward) % n
-    if math.hypot(*(points[exit_a] - points[exit_b])) > EXIT_WIDTHS * exit_width + 2.0:
+    if math.hypot(*(points[exit_a] - points[exit_b])) > EXIT_WIDTHS * spacing + 2.0:
         return None
     rope = np.zeros(n, bool)
     rope[(tip + np.arange(-backward, forward + 1)) % n] = True
@@ -183,8 +161,7 @@ def _beyond_walk(
         return None  # the rope's outline all round: no structure
     structure = ~rope
     walked = points[rope]
-    back = min(max(12, math.ceil(3.0 * width_px + 4.0)), forward, backward)
-    exit_mid, along = _exit_axis(points, exit_a, exit_b, back)
+    exit_mid, along = _exit_axis(points, exit_a, exit_b, min(gap, forward, backward))
     candidates = np.flatnonzero(structure)
     for start in range(0, len(candidates), _BLOCK):
         block = candidates[start : start + _BLOCK]
@@ -193,14 +170,14 @@ def _beyond_walk(
         # edge across the band (an MJPEG block's step in the rope's brightness) closes a loop of the rope's sides
         # that the trace runs round, and its middle lies over SAME_PLACE_PX from both sides (simulated lab-mjpeg,
         # tuning seed, frame 0: a point 52 px along the rope put the region over the rope's first 52 px).
-        inside = (d2 <= exit_width * exit_width) & ((points[block] - exit_mid) @ along > SAME_PLACE_PX)
+        inside = (d2 <= spacing * spacing) & ((points[block] - exit_mid) @ along > SAME_PLACE_PX)
         structure[block] = (d2 >= SAME_PLACE_PX**2) & ~inside
     if not structure.any():
         return None
     hull = convex_hull(np.concatenate([points[structure], points[[exit_a, exit_b]]]))
     rows, cols = hull[:, 0], hull[:, 1]
     area = 0.5 * abs(float(np.dot(rows, np.roll(cols, -1)) - np.dot(cols, np.roll(rows, -1))))
-    if area < STRUCTURE_AREA_WIDTHS * exit_width**2:
+    if area < STRUCTURE_AREA_WIDTHS * spacing**2:
         return None
     extent = float(np.max(np.hypot(*(hull[:, None, :] - hull[None, :, :]).transpose(2, 0, 1))))
     if extent > STRUCTURE_ROPE_RATIO * 0.5 * (forward + backward):

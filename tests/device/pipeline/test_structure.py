@@ -1,6 +1,5 @@
-"""The structure a rope runs into at its fixed end, found from the outline (`ropecam.device.pipeline.structure`):
-the outline's geometry against slow references, and a fresh device on a clamp's first frames, the rope at rest or
-already swinging when the stream starts."""
+"""The structure a still rope runs into at its fixed end, found from the outline (`ropecam.device.pipeline.structure`):
+the outline's geometry against slow references, and a fresh device on a clamp's first frames."""
 
 from __future__ import annotations
 
@@ -9,11 +8,9 @@ import math
 import cv2
 import numpy as np
 
-from ropecam.device.capture.synthetic import SyntheticRope
-from ropecam.device.pipeline.config import PipelineConfig
-from ropecam.device.pipeline.pipeline import Pipeline
-from ropecam.device.pipeline.result import FrameStatus
 from ropecam.device.pipeline.structure import (
+    SAME_PLACE_PX,
+    across_distances,
     convex_hull,
     fill_polygon,
     grow,
@@ -29,14 +26,6 @@ def _outline(image: np.ndarray) -> np.ndarray:
     return points[:, ::-1].astype(np.float64)
 
 
-def _wedge(image: np.ndarray, col0: int, col1: int, row: float, width0: float, width1: float) -> None:
-    """Set the pixels of a band from column `col0` to `col1` round `row`, `width0` rows wide at `col0` and `width1`
-    at `col1` (a swinging rope's blurred band: a rope's width at the fixed end, its sweep at the tip)."""
-    for col in range(col0, col1):
-        half = 0.5 * (width0 + (width1 - width0) * (col - col0) / (col1 - col0))
-        image[round(row - half) : round(row + half), col] = 1
-
-
 def _block_and_rope(rope_rows: tuple[int, int], block: tuple[int, int, int, int]) -> np.ndarray:
     """A 60 x 200 image: a block (rows r0:r1, cols c0:c1) and a rope strip from its right side to column 180."""
     r0, r1, c0, c1 = block
@@ -44,6 +33,21 @@ def _block_and_rope(rope_rows: tuple[int, int], block: tuple[int, int, int, int]
     image[r0:r1, c0:c1] = 1
     image[rope_rows[0] : rope_rows[1], c1 - 1 : 180] = 1
     return image
+
+
+def test_across_distances_match_a_slow_reference() -> None:
+    rng = np.random.default_rng(5)
+    points = rng.uniform(0, 40, (300, 2))
+    gap = 7
+    expected = [
+        min(
+            math.dist(points[i], points[j])
+            for j in range(300)
+            if min(abs(i - j), 300 - abs(i - j)) >= gap and math.dist(points[i], points[j]) >= SAME_PLACE_PX
+        )
+        for i in range(300)
+    ]
+    np.testing.assert_allclose(across_distances(points, gap), expected)
 
 
 def test_fill_polygon_matches_the_pixel_centres_inside() -> None:
@@ -74,31 +78,16 @@ def test_zip_sides_stops_where_the_sides_part_or_meet() -> None:
     rope leaves) or meet (the outline closed across the rope's end)."""
     block = _outline(_block_and_rope((25, 28), (16, 36, 40, 60)))
     tip = int(np.argmax(block[:, 1]))
-    forward, backward, gaps = zip_sides(block, tip, 3.0)
+    forward, backward, middle, _ = zip_sides(block, tip, 1.6 * 3.0 + 1.0, 1.5)
     n = len(block)
     for row, col in block[[(tip + forward) % n, (tip - backward) % n]]:
         assert 23 <= row <= 30 and 57 <= col <= 62, (row, col)  # at the block's right side
-    assert 2.0 <= float(np.median(gaps)) <= 4.0 and len(gaps) == forward + backward
+    assert 2.0 <= middle <= 4.0
     rope = np.zeros((60, 200), np.uint8)
     rope[28:31, 20:180] = 1
     plain = _outline(rope)
-    forward, backward, _ = zip_sides(plain, int(np.argmax(plain[:, 1])), 3.0)
+    forward, backward, _, _ = zip_sides(plain, int(np.argmax(plain[:, 1])), 1.6 * 3.0 + 1.0, 1.5)
     assert forward + backward >= len(plain) - 12  # up to the other end's cap
-
-
-def test_zip_sides_follows_a_swinging_ropes_band_to_the_clamp() -> None:
-    """A rope already swinging: its band is 16 px across at the free tip and 3 px where it leaves the block. From
-    the tip the walkers cross the band's end, then follow its sides as they narrow, and part at the block."""
-    image = np.zeros((60, 200), np.uint8)
-    image[16:36, 40:60] = 1
-    _wedge(image, 59, 180, 26.5, 3.0, 16.0)
-    points = _outline(image)
-    tip = int(np.argmax(points[:, 1]))
-    forward, backward, gaps = zip_sides(points, tip, 3.0)
-    n = len(points)
-    for row, col in points[[(tip + forward) % n, (tip - backward) % n]]:
-        assert 22 <= row <= 31 and 57 <= col <= 64, (row, col)  # where the band leaves the block
-    assert gaps.max() >= 14.0 and gaps[-8:].mean() <= 5.0
 
 
 def test_structure_points_are_the_outline_beyond_the_rope() -> None:
@@ -154,27 +143,6 @@ def test_a_loop_of_the_ropes_own_sides_is_not_the_structure() -> None:
     assert not region[:, 66:].any()
 
 
-def test_a_swinging_ropes_band_leaves_the_block_it_is_held_in() -> None:
-    """The band of a rope swinging when the stream starts, joined to the block it is held in: the block is the
-    structure (found from the free tip, the band narrowing towards it); the same band without the block, walked
-    from either end, leaves none (its fixed end is no structure, nor is its wide free end)."""
-    image = np.zeros((60, 200), np.uint8)
-    image[16:36, 40:60] = 1
-    _wedge(image, 59, 180, 26.5, 3.0, 16.0)
-    points = _outline(image)
-    ends = (int(np.argmin(points[:, 1])), int(np.argmax(points[:, 1])))
-    found = structure_points(points, ends, 4.0)
-    assert found is not None
-    structure, _, _ = found
-    assert (points[structure, 1] <= 64).all() and structure.sum() >= 50
-    region = fill_polygon(convex_hull(points[structure]), image.shape)
-    assert region[18:34, 42:58].all() and not region[:, 66:].any()
-    band = np.zeros((60, 200), np.uint8)
-    _wedge(band, 40, 180, 26.5, 3.0, 16.0)
-    points = _outline(band)
-    assert structure_points(points, (int(np.argmin(points[:, 1])), int(np.argmax(points[:, 1]))), 4.0) is None
-
-
 def test_convex_hull_matches_opencv() -> None:
     rng = np.random.default_rng(7)
     points = rng.uniform(0, 50, (200, 2))
@@ -184,56 +152,34 @@ def test_convex_hull_matches_opencv() -> None:
     assert {tuple(np.round(p, 4)) for p in hull} == {tuple(np.round(p, 4)) for p in expected.astype(np.float64)}
 
 
-def _clamped_rope_frames(rope: SyntheticRope) -> tuple[int, int, float]:
-    """Run a fresh device (nothing given) over the first `static_frames` frames of `rope`, fixed in a clamp block
-    (23 x 14 px, drawn over its end); return the frames measured OK with both tips within 1 px and the shapes
-    starting within 3 px of the fixed end, the frames measured OK otherwise (wrong: silent), and the pixels of the
-    structure found."""
-    learn = PipelineConfig().static_frames
-    pipeline = Pipeline(PipelineConfig(), (rope.width, rope.height))
-    pivot = np.array(rope.fixed_uv)
-    right = wrong = 0
-    for frame in rope.frames(learn):
-        image = frame.image.copy()
-        u, v = round(rope.fixed_uv[0]), round(rope.fixed_uv[1])
-        image[v - 7 : v + 7, u - 11 : u + 12] = 120  # the clamp, 23 x 14 px, centred on the fixed end
-        result = pipeline.process(image, frame.index, frame.t_ns, float(rope.exposure_us))
-        assert pipeline.static_mask.learning
-        if result.status is not FrameStatus.OK:
-            continue
-        near = all(
-            np.hypot(*(shape[-1][::-1] - tip)) < 1.0 and np.hypot(*(shape[0][::-1] - pivot)) < 3.0
-            for shape, tip in ((result.begin, frame.tip_begin_uv), (result.end, frame.tip_end_uv))
-        )
-        right, wrong = right + near, wrong + (not near)
-    return right, wrong, pipeline.static_mask.structure_px
-
-
 def test_a_fresh_device_measures_a_still_rope_in_a_clamp_before_the_mask_is_learned() -> None:
     """A rope released from near horizontal, fixed in a clamp block (drawn over its end), nothing given: on the
     first frames the static mask cannot tell the still clamp from the still rope, and the rope's outline runs round
     the clamp (before: `LOST_TRACK`, "the two shapes differ in length", or a centreline out and back). The clamp is
     found from the outline and masked: every first frame measures the rope from the clamp's middle to its tips."""
+    from ropecam.device.capture.synthetic import SyntheticRope
+    from ropecam.device.pipeline.config import PipelineConfig
+    from ropecam.device.pipeline.pipeline import Pipeline
+    from ropecam.device.pipeline.result import FrameStatus
+
     rope = SyntheticRope(
         width=260, height=120, fixed_uv=(60.3, 30.6), length_px=150.0, diameter_px=3.0, amplitude_rad=1.45,
         period_s=1.2, bend=0.0, phase_rad=0.0,
     )  # fmt: skip
-    right, wrong, structure_px = _clamped_rope_frames(rope)
-    assert right >= PipelineConfig().static_frames - 1 and wrong == 0
-    assert structure_px > 0
-
-
-def test_a_fresh_device_finds_the_clamp_of_a_rope_already_swinging_when_the_stream_starts() -> None:
-    """The rope passes its lowest point as the stream starts (its tip sweeping 13.5 px per 8 ms exposure), a lab's
-    recording started mid-swing: the band of the first outline is as wide as the sweep at the tip and narrows
-    towards the clamp, where the rope hardly moves, so no still outline is ever seen. The clamp is found from the
-    swinging band's outline and masked: every first frame measures the rope from the clamp's middle to its tips
-    (before: the band's sides walked from the tip parted at its wide end, no clamp was found, and the first
-    frames were `LOST_TRACK`, "the two shapes differ in length", `IMPLAUSIBLE`, or OK with the tips 7 px off)."""
-    rope = SyntheticRope(
-        width=260, height=200, fixed_uv=(130.3, 30.6), length_px=150.0, diameter_px=3.0, amplitude_rad=0.9,
-        period_s=0.5, bend=0.0, phase_rad=0.5 * math.pi, exposure_us=8000,
-    )  # fmt: skip
-    right, wrong, structure_px = _clamped_rope_frames(rope)
-    assert right >= PipelineConfig().static_frames - 1 and wrong == 0
-    assert structure_px > 0
+    learn = PipelineConfig().static_frames
+    pipeline = Pipeline(PipelineConfig(), (rope.width, rope.height))
+    pivot = np.array(rope.fixed_uv)
+    ok = 0
+    for frame in rope.frames(learn):
+        image = frame.image.copy()
+        image[24:38, 49:72] = 120  # the clamp, 23 x 14 px, centred on the fixed end
+        result = pipeline.process(image, frame.index, frame.t_ns, float(rope.exposure_us))
+        assert pipeline.static_mask.learning
+        if result.status is not FrameStatus.OK:
+            continue
+        ok += 1
+        for shape, tip in ((result.begin, frame.tip_begin_uv), (result.end, frame.tip_end_uv)):
+            assert np.hypot(*(shape[-1][::-1] - tip)) < 1.0, (frame.index, result.message)
+            assert np.hypot(*(shape[0][::-1] - pivot)) < 3.0, frame.index
+    assert ok >= learn - 1
+    assert pipeline.static_mask.structure_px > 0
