@@ -4,10 +4,11 @@ tests/conftest.py starts this script when the whole suite runs (`pytest` without
 cache (a fresh clone) the collection's first import of the device pipeline compiles every kernel module in the
 order `ropecam.device.pipeline._kernels.__init__` imports them, then the protocol's (~150 s of one core in all).
 This process compiles the part that order reaches last (`DEVICE_LAST`: the blur split's modules, the plane's,
-the paper method's, ..., then the protocol's), importing those modules directly, without the package's
+the paper method's, ...), importing those modules directly, without the package's
 ``__init__`` (which would start with the same modules as the collection): when the collection reaches them it
-loads them from the cache instead of compiling them (measured, cold: the collection's import ~154 s -> ~90 s of
-one core). Then it compiles the host's kernels (`HOST`), which the collection reaches only with the host tests.
+loads them from the cache instead of compiling them (measured, cold: the collection's import ~154 s -> ~78 s of
+one core). Then it compiles `LATER`: the protocol's kernels and the host's, which the collection reaches only with
+the host tests.
 
 A kernel both processes reach before either has cached it is compiled twice, no worse than without this script;
 Numba writes each cache file whole (a temporary file renamed), so neither process reads a half-written one. On a

@@ -111,23 +111,30 @@ def test_matrix_list_names_every_factor_and_leaves_out_what_it_cannot_render(tmp
     assert "Held-out pairs (validation set only)" in done.stdout
 
 
-def test_the_tuning_set_has_a_late_swing_the_validation_set_does_not() -> None:
-    """The tuning set renders `lab` also from 1 s after the release (the whipping, crossing late swing); the
-    validation set keeps its definition (other seed, motion from 0.25 s, no late-swing row)."""
+def _scenes(expression: str) -> object:
+    """The JSON value of `expression`, evaluated in a fresh interpreter (the simulator's presets imported there,
+    not in the test process) with ``presets`` (every preset's dict) and ``build_scenes`` in scope."""
     code = (
         "import json, sys; sys.path.insert(0, sys.argv[1])\n"
         "from ropecam.host.sim.presets import PRESETS, preset\n"
         "from ropecam_tools.matrix_design import build_scenes\n"
         "presets = {name: preset(name).to_dict() for name in PRESETS}\n"
-        "out = {s: [(c.label, c.overrides['first_exposure_s'], c.overrides['seed'])\n"
-        "           for c in build_scenes(presets, s, only=('presets',), preset_names=('lab', 'rig'))[0]]\n"
-        "       for s in ('tuning', 'validation')}\n"
-        "print(json.dumps(out))\n"
+        f"print(json.dumps({expression}))\n"
     )
     done = subprocess.run([sys.executable, "-c", code, str(TOOLS)], capture_output=True, text=True, timeout=120,
                           check=False)  # fmt: skip
     assert done.returncode == 0, done.stderr
-    scenes = json.loads(done.stdout)
+    return json.loads(done.stdout)
+
+
+def test_the_tuning_set_has_a_late_swing_the_validation_set_does_not() -> None:
+    """The tuning set renders `lab` also from 1 s after the release (the whipping, crossing late swing); the
+    validation set keeps its definition (other seed, motion from 0.25 s, no late-swing row)."""
+    scenes = _scenes(
+        "{s: [(c.label, c.overrides['first_exposure_s'], c.overrides['seed'])\n"
+        "     for c in build_scenes(presets, s, only=('presets',), preset_names=('lab', 'rig'))[0]]\n"
+        " for s in ('tuning', 'validation')}"
+    )
     assert scenes["tuning"] == [["rig", 0.0, 0], ["lab", 0.0, 0], ["lab late swing", 1.0, 0]]
     assert scenes["validation"] == [["rig", 0.25, 7919], ["lab", 0.25, 7919]]
 
@@ -145,19 +152,12 @@ def test_a_one_point_shape_is_scored_by_its_distance(monkeypatch: pytest.MonkeyP
 def test_matrix_renders_another_seed_and_start_on_the_tuning_side_only(tmp_path: Path) -> None:
     """``--seed`` and ``--first-exposure-s`` replace the tuning set's seed and start (a rope already swinging when
     the stream starts); with the validation set, or its seed, they are refused."""
-    code = (
-        "import json, sys; sys.path.insert(0, sys.argv[1])\n"
-        "from ropecam.host.sim.presets import PRESETS, preset\n"
-        "from ropecam_tools.matrix_design import build_scenes\n"
-        "presets = {name: preset(name).to_dict() for name in PRESETS}\n"
-        "scenes = build_scenes(presets, 'tuning', only=('factors',), factor_names=('clamp',), seed=3,\n"
-        "                      first_exposure_s=0.3)[0]\n"
-        "print(json.dumps([(c.label, c.overrides['first_exposure_s'], c.overrides['seed']) for c in scenes]))\n"
+    scenes = _scenes(
+        "[(c.label, c.overrides['first_exposure_s'], c.overrides['seed'])\n"
+        " for c in build_scenes(presets, 'tuning', only=('factors',), factor_names=('clamp',), seed=3,\n"
+        "                       first_exposure_s=0.3)[0]]"
     )
-    done = subprocess.run([sys.executable, "-c", code, str(TOOLS)], capture_output=True, text=True, timeout=120,
-                          check=False)  # fmt: skip
-    assert done.returncode == 0, done.stderr
-    assert json.loads(done.stdout) == [["clamp = off", 0.3, 3], ["clamp = on", 0.3, 3]]
+    assert scenes == [["clamp = off", 0.3, 3], ["clamp = on", 0.3, 3]]
     for extra in (["--seed-set", "validation", "--seed", "3"], ["--seed", "7919"], ["--first-exposure-s", "-1"]):
         done = subprocess.run(
             [sys.executable, str(TOOLS / "evaluate.py"), "matrix", "--out", str(tmp_path / "m"), *extra],

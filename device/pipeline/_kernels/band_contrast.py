@@ -206,7 +206,7 @@ def contrast_gains(
     out_gains,
 ):  # fmt: skip
     """Write, for each contour point of one side (from `i_start` stepping `direction` to `i_stop`, cyclic), the
-    frame's `contrast` over the rope's contrast at that point into `out_gains` (the factor `side_sweeps` applies
+    frame's contrast over the rope's contrast at that point into `out_gains` (the factor `side_sweeps` applies
     to the frame's inverse contrast), when the rope's contrast varies along the side.
 
     The point's contrast is the integral of `frame` (bilinear, every `STEP_PX`) along ``polarity`` times its
