@@ -62,6 +62,9 @@ def test_band_snr_reads_the_drawn_band(tmp_path: Path, monkeypatch: pytest.Monke
         assert row["side_px"] == pytest.approx(-WIDTH_PX / 2, abs=0.3)  # the begin side: half a width behind
     (summary,) = summarise(rows)
     assert summary["frames"] == 3 and summary["sweep_from_px"] == 3.0
+    # the band stands still from frame to frame: the prediction is the truth, from frame 2 on
+    (predicted,) = measure_set(tmp_path / "band", predicted=True)
+    assert predicted["frame"] == 2 and predicted["cap_px"] == pytest.approx(rows[2]["cap_px"], abs=1e-6)
 
 
 def test_band_snr_command_prints_its_table(tmp_path: Path, run_tool_here: RunTool) -> None:

@@ -1,7 +1,7 @@
 """What the noise leaves of a blurred rope's band: its edges' signal-to-noise ratio and how well a best-case fit
 places the band's far end and its side, with the geometry taken from the simulator's truth.
 
-    python tools/evaluate.py band-snr SET [--frames N] [--json]
+    python tools/evaluate.py band-snr SET [--frames N] [--predicted] [--json]
 
 For each frame of a simulator frame set (with ``truth.npz``), independently of the pipeline:
 
@@ -17,8 +17,11 @@ For each frame of a simulator frame set (with ``truth.npz``), independently of t
   the edge's geometry (the true tips, the true begin centreline) given: signed distance from the true position.
 
 The scatter of ``cap_px`` and ``side_px`` over frames is the floor any edge or profile method meets at that noise:
-it knows where to look, averages along the whole edge and fits the edge's shape. Frames are grouped by the tip's
-sweep (0-3, 3-10, 10+ px). Simulated frames against the simulator's truth: label the figures with the scene.
+it knows where to look, averages along the whole edge and fits the edge's shape. With ``--predicted`` the edges are
+sought along the geometry extrapolated at constant velocity from the two frames before (their truth: what a motion
+model that knew them exactly would predict), and still measured from the frame's true positions. Frames are grouped
+by the tip's sweep (0-3, 3-10, 10+ px). Simulated frames against the simulator's truth: label the figures with the
+scene.
 """
 
 from __future__ import annotations
@@ -44,6 +47,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of the band SNR evaluation."""
     parser.add_argument("set", type=Path, metavar="SET", help="a simulator frame set (with truth.npz)")
     parser.add_argument("--frames", type=int, metavar="N", help="frames measured (default all)")
+    parser.add_argument("--predicted", action="store_true",
+                        help="seek the far end and the side along the geometry extrapolated from the two frames "
+                        "before (a motion model's best case) instead of the frame's own truth")  # fmt: skip
     parser.add_argument("--json", action="store_true", help="print the per-frame rows and the summary as JSON")
 
 
@@ -92,8 +98,24 @@ def _normal(line: NDArray[np.float64], k: int) -> NDArray[np.float64]:
     return np.array([-tangent[1], tangent[0]])
 
 
-def measure_frame(image: NDArray[np.float64], truth: Any, index: int) -> dict[str, float]:
-    """Return one frame's row (see the module's docstring) from its image (float grey levels) and the set's truth."""
+def predict(truth: Any, index: int) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Return frame `index`'s begin centreline and begin and end tips extrapolated at constant velocity from the
+    two frames before it (``index >= 2``; frames evenly spaced): where a motion model that knew those frames
+    exactly would look."""
+    if index < 2:
+        raise ValueError(f"a prediction needs two earlier frames, got frame {index}")
+    begin, tip_begin, tip_end = (
+        2.0 * truth[key][index - 1] - truth[key][index - 2] for key in ("begin_px", "tip_begin_px", "tip_end_px")
+    )
+    return begin, tip_begin, tip_end
+
+
+def measure_frame(
+    image: NDArray[np.float64], truth: Any, index: int, predicted: tuple[NDArray[np.float64], ...] | None = None
+) -> dict[str, float]:
+    """Return one frame's row (see the module's docstring) from its image (float grey levels) and the set's truth;
+    with `predicted` (`predict`'s begin centreline and tips) the far end and the side are sought along the
+    predicted geometry instead of the true one, their positions still measured from the true ones."""
     import cv2
 
     width = float(truth["width_px"][index])
@@ -120,24 +142,30 @@ def measure_frame(image: NDArray[np.float64], truth: Any, index: int) -> dict[st
             steps.append(float(np.mean(values[inside]) - np.median(values[outside])))
     step = float(np.median(steps)) if steps else math.nan
     arc = float(np.hypot(*np.diff(begin[count // 2 :], axis=0).T).sum())
+    # where the edges are sought: the true geometry, or the predicted one
+    look, look_tb, look_te = (begin, tip_begin, tip_end) if predicted is None else predicted
     # the far end: profiles along the rope's axis through the swept arc, averaged, fitted
-    axis = begin[-1] - begin[-6]
+    axis = look[-1] - look[-6]
     axis = axis / math.hypot(*axis)
     u = np.arange(-14.0, 10.01, 0.5)
-    fractions = np.linspace(0.1, 0.9, max(3, int(sweep))) if sweep > 1 else np.array([0.5])
-    lines = [(tip_begin + f * (tip_end - tip_begin))[:, None] + u * axis[:, None] for f in fractions]
+    look_sweep = float(math.hypot(*(look_te - look_tb)))
+    fractions = np.linspace(0.1, 0.9, max(3, int(look_sweep))) if look_sweep > 1 else np.array([0.5])
+    lines = [(look_tb + f * (look_te - look_tb))[:, None] + u * axis[:, None] for f in fractions]
     cap = np.mean([_sample(image, x, y) for x, y in lines], 0)
     cap_px, cap_step = fit_step(u, cap, bright_below=True)
+    cap_px -= float(np.dot(0.5 * (tip_begin + tip_end) - 0.5 * (look_tb + look_te), axis))
     # the begin side over the last SIDE_LENGTH_PX of arc: profiles along the normal into the band, averaged
-    spacing = float(np.median(np.hypot(*np.diff(begin, axis=0).T)))
-    into = (tip_end - tip_begin) / (sweep + 1e-12)
+    spacing = float(np.median(np.hypot(*np.diff(look, axis=0).T)))
+    into = (look_te - look_tb) / (look_sweep + 1e-12)
     v = np.arange(-10.0, 6.01, 0.5)
-    profiles = []
+    profiles, offsets = [], []
     for k in range(count - 1 - int(SIDE_LENGTH_PX / spacing), count - 4):
-        normal = _normal(begin, k)
+        normal = _normal(look, k)
         normal = normal if np.dot(normal, into) >= 0 else -normal
-        profiles.append(_sample(image, begin[k][0] + v * normal[0], begin[k][1] + v * normal[1]))
+        profiles.append(_sample(image, look[k][0] + v * normal[0], look[k][1] + v * normal[1]))
+        offsets.append(float(np.dot(begin[k] - look[k], normal)))  # the true side from the sought one
     side_px, _ = fit_step(v, np.mean(profiles, 0), bright_below=False)
+    side_px -= float(np.mean(offsets))
     return {
         "frame": index, "sweep_px": sweep, "step": step, "noise": noise, "noise_smooth": noise_smooth,
         "snr_px": step / noise, "snr_edge": step / noise * math.sqrt(arc), "cap_step": cap_step,
@@ -165,8 +193,9 @@ def summarise(rows: list[dict[str, float]]) -> list[dict[str, float]]:
     return out
 
 
-def measure_set(path: Path, frames: int | None = None) -> list[dict[str, float]]:
-    """Return the rows of every frame (at most `frames`) of the simulator frame set at `path`.
+def measure_set(path: Path, frames: int | None = None, predicted: bool = False) -> list[dict[str, float]]:
+    """Return the rows of every frame (at most `frames`) of the simulator frame set at `path`; with `predicted`,
+    the edges sought along `predict`'s geometry (from frame 2 on).
 
     Raises
     ------
@@ -180,17 +209,22 @@ def measure_set(path: Path, frames: int | None = None) -> list[dict[str, float]]
     if truth is None:
         raise ValueError(f"{path}: no truth.npz (a simulator frame set is needed)")
     count = len(frameset) if frames is None else min(frames, len(frameset))
-    return [measure_frame(frameset.read(i).astype(np.float64), truth, i) for i in range(count)]
+    first = 2 if predicted else 0
+    return [
+        measure_frame(frameset.read(i).astype(np.float64), truth, i, predict(truth, i) if predicted else None)
+        for i in range(first, count)
+    ]
 
 
 def run(args: argparse.Namespace) -> int:
     """Measure the band's SNR and the best-case edge placement of one frame set; print the table (or JSON)."""
-    rows = measure_set(args.set, args.frames)
+    rows = measure_set(args.set, args.frames, args.predicted)
     summary = summarise(rows)
     if args.json:
         print(json.dumps({"scene": args.set.name, "frames": rows, "summary": summary}, indent=1))
         return 0
-    print(f"{args.set.name} (simulated; geometry from the truth): the band against the plate's noise")
+    where = "extrapolated from the two frames before" if args.predicted else "from the truth"
+    print(f"{args.set.name} (simulated; geometry {where}): the band against the plate's noise")
     print("| tip sweep (px) | frames | step (DN) | noise px / smoothed (DN) | SNR per px | SNR along the outer "
           "half | far end: bias / scatter (px) | side: bias / scatter (px) |")  # fmt: skip
     print("|---|---|---|---|---|---|---|---|")
