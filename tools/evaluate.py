@@ -13,6 +13,7 @@ from ropecam_tools.cli import dispatch
 
 COMMANDS = {
     "accuracy": "eval_accuracy",
+    "band-snr": "eval_band_snr",
     "calibration": "eval_calibration",
     "harris": "eval_harris",
     "e2e": "eval_e2e",

@@ -23,14 +23,24 @@ def test_a_centreline_out_and_back_along_the_rope_folds_back() -> None:
     assert folds_back(np.concatenate([out, back]), None)
 
 
+def test_a_centreline_that_loops_along_the_way_folds_back() -> None:
+    """The rope's outline broken into loops (simulated lab-hard, fresh device, tuning seed, frame 20): the
+    centreline crosses itself halfway and runs on; its tip lies on no earlier part."""
+    out = _line((80.0, 508.0), (176.0, 584.0))
+    loop = np.concatenate([_line((174.0, 588.0), (150.0, 590.0)), _line((148.0, 588.0), (140.0, 540.0))])
+    on = _line((150.0, 560.0), (195.0, 631.0))  # crosses `out` near (150, 563)
+    assert folds_back(np.concatenate([out, loop, on]), 3.4)
+
+
 @pytest.mark.parametrize(
     "shape",
     [
         _line((80.0, 508.0), (87.0, 908.0)),  # straight
         np.concatenate([_line((10.0, 100.0), (210.0, 100.0)), _line((212.0, 102.0), (212.0, 140.0))]),  # a hook
         np.array([[10.0, 10.0], [12.0, 10.0]], np.float32),  # too short to tell
+        _line((0.0, 0.0), (0.0, 300.0), 0.5),  # densely sampled
     ],
-    ids=["straight", "hooked tip", "two points"],
+    ids=["straight", "hooked tip", "two points", "dense"],
 )
 def test_a_rope_that_does_not_lie_on_itself_does_not_fold(shape) -> None:
     assert not folds_back(shape, 2.0)
