@@ -57,19 +57,24 @@ MAX_SAMPLES = 48
 _u2_2d_ro = types.Array(types.uint16, 2, "C", readonly=True)
 
 
-@kernel(int32(u1_2d_ro, u1_1d, _u2_2d_ro, u1_2d))
-def flatten_frame(frame, table, gain, out):
-    """Write ``min(255, table[frame] * gain / 2**GAIN_BITS)`` (rounded) into `out`; all (height, width), `table` 256
-    entries. Returns 0, or -1 when the shapes differ (nothing written)."""
+@kernel(int32(u1_2d_ro, u1_1d, _u2_2d_ro, u1_2d, u1_2d))
+def flatten_frame(frame, table, gain, linear, out):
+    """Write ``table[frame]`` into `linear`, then ``min(255, linear * gain / 2**GAIN_BITS)`` (rounded) into `out`;
+    all (height, width) C-contiguous, `table` 256 entries. Returns 0, or -1 when the shapes differ (nothing
+    written). Two flat passes: the second (no table lookup) is vectorised, 170 us where one fused pass cost 230 us
+    more than the table's alone (1024x544)."""
     height, width = frame.shape
-    if out.shape[0] != height or out.shape[1] != width or gain.shape[0] != height or gain.shape[1] != width:
-        return -1
+    for a in (gain.shape, linear.shape, out.shape):
+        if a[0] != height or a[1] != width:
+            return -1
     if table.shape[0] < 256:
         return -1
-    for r in range(height):
-        for c in range(width):
-            v = (np.int32(table[frame[r, c]]) * np.int32(gain[r, c]) + 2048) >> 12
-            out[r, c] = 255 if v > 255 else v
+    f, g, lin, o = frame.ravel(), gain.ravel(), linear.ravel(), out.ravel()
+    for i in range(f.size):
+        lin[i] = table[f[i]]
+    for i in range(f.size):
+        v = (np.uint32(lin[i]) * np.uint32(g[i]) + np.uint32(2048)) >> np.uint32(GAIN_BITS)
+        o[i] = min(v, np.uint32(255))
     return 0
 
 
@@ -152,7 +157,7 @@ class BackgroundFlattening:
         The camera's output curve (`PipelineConfig.gamma`; 1: linear).
     """
 
-    __slots__ = ("_out", "gain", "table")
+    __slots__ = ("_linear", "_out", "gain", "table")
 
     def __init__(self, background: NDArray[np.floating], gamma: float) -> None:
         self.table = linear_table(gamma)
@@ -160,6 +165,7 @@ class BackgroundFlattening:
         """Fixed-point gain per pixel (`GAIN_BITS`)."""
         self.gain.flags.writeable = False
         self._out = np.zeros(self.gain.shape, np.uint8)
+        self._linear = np.zeros(self.gain.shape, np.uint8)
 
     @classmethod
     def from_png(cls, path: str, shape: tuple[int, int], gamma: float) -> BackgroundFlattening:
@@ -172,6 +178,6 @@ class BackgroundFlattening:
     def apply(self, frame: NDArray[np.uint8]) -> NDArray[np.uint8]:
         """Return `frame` (camera codes) in linear light with the texture divided out: this stage's buffer, valid
         until the next call."""
-        if flatten_frame(frame, self.table, self.gain, self._out) != 0:
+        if flatten_frame(frame, self.table, self.gain, self._linear, self._out) != 0:
             raise ValueError(f"frame of shape {frame.shape} for a background of shape {self._out.shape}")
         return self._out
