@@ -6,8 +6,10 @@ import argparse
 import json
 import os
 import sys
+import tempfile
 import tomllib
 from collections.abc import Iterable
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +20,7 @@ __all__ = ["DECIDED_KEYS", "read_frames", "register", "run_setup", "with_pipelin
 
 DECIDED_KEYS = (
     "polarity", "canny_low", "canny_high", "lens_blur_px", "sharpen_gain", "sharpen_sigma_px", "rope_width_px",
-    "length0_px", "fixed_end_uv", "static_mask_png",
+    "length0_px", "fixed_end_uv", "static_mask_png", "background_png",
 )  # fmt: skip
 """The `[pipeline]` keys setup decides (an existing table's other keys are kept)."""
 
@@ -27,13 +29,15 @@ Decide a rig's pipeline settings from a few seconds of its frames, with the rope
 measure: edge thresholds, polarity (bright rope on dark ground or the reverse), the camera's blur and sharpening
 (read across the rope's still part near the fixed end), the rope's width and length in pixels, the fixed end, and
 the static mask (pixels that are edges in at least half the frames while the rope moves: clamp, rod, plate edge,
-scratches, a static second cable). Each candidate setting is tried by running the pipeline
-itself over the frames; the one that measures most frames most consistently is kept.
+scratches, a static second cable); on a textured background (a sheet's grain, a table's weave), the background
+itself, learned while the rope moves and divided out of each frame before its edges. Each candidate setting is
+tried by running the pipeline itself over the frames; the one that measures most frames most consistently is kept.
 
 It writes the [pipeline] table of OUT (a device.toml; with --force an existing file keeps its other tables and the
 [pipeline] keys setup does not decide, such as rope_length_m), the static mask beside it (OUT_mask.png, white =
-static), and an overlay picture (OUT_overlay.png) to check by eye before measuring. It prints what it could not
-decide, and why; a scene in which no setting finds a rope ends with exit status 1.
+static), the background when it is used (OUT_background.png, 16-bit, linear light x 256), and an overlay picture
+(OUT_overlay.png) to check by eye before measuring. It prints what it could not decide, and why; a scene in which
+no setting finds a rope ends with exit status 1.
 
 INPUT is what `extract` takes (a frame set, a folder of images in name order, a video) or a camera URL as the
 daemon takes it (v4l2:///dev/video0?width=1024&height=544&fps=119&format=GREY, frames:DIR).
@@ -77,7 +81,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
 
 def _derived_outputs(out: str, overlay: str | None) -> list[Path]:
     path = Path(out)
-    return [path.with_name(path.stem + "_mask.png"), Path(overlay) if overlay else _overlay_path(path)]
+    return [
+        path.with_name(path.stem + "_mask.png"),
+        path.with_name(path.stem + "_background.png"),
+        Path(overlay) if overlay else _overlay_path(path),
+    ]
 
 
 def _overlay_path(out: Path) -> Path:
@@ -243,7 +251,9 @@ def run_setup(
         `plane_file` cannot be read or does not fit the frames (it is then used as the device will: every
         candidate runs with the fixed end it gives, and the table gets ``plane_file``).
     """
+    from ropecam.device.capture.background_file import write_background_png
     from ropecam.device.pipeline.config import PipelineConfig
+    from ropecam.device.setup_background import background_path, choose_background
     from ropecam.device.setup_decide import MIN_MEASURED, decide
     from ropecam.device.setup_overlay import COLOURS, draw_overlay, write_png
     from ropecam.shared.config import from_mapping
@@ -293,7 +303,14 @@ def run_setup(
         raise DataError(f"{source}: the frames are not all of one size (the first is {shape[1]}x{shape[0]})")
     say(f"{len(frames)} frames of {shape[1]}x{shape[0]} from {described}" + (f" at {rate:g} fps" if rate else ""))
     _check_kept(out, base, (shape[1], shape[0]), readout_us, rate)
-    findings = decide(frames, base, say)
+    background, background_note = choose_background([f.image for f in frames], base.gamma, base.smooth_sigma_px)
+    say(background_note)
+    with tempfile.TemporaryDirectory(prefix="ropecam-setup-") as folder:
+        if background is not None:  # every candidate runs with it, as the device will
+            write_background_png(Path(folder) / "background.png", background)
+            base = replace(base, background_png=str(Path(folder) / "background.png"))
+        findings = decide(frames, base, say)
+    findings.notes.append(background_note)
     run = findings.run
     if run.measured < MIN_MEASURED and run.found:
         reasons = "; ".join(f"{why} ({count})" for why, count in sorted(run.reasons.items(), key=lambda i: -i[1]))
@@ -323,6 +340,8 @@ def run_setup(
     mask_path = out.resolve().with_name(out.stem + "_mask.png")
     if findings.mask is not None:
         findings.settings["static_mask_png"] = str(mask_path)
+    if background is not None:
+        findings.settings["background_png"] = str(background_path(out))
     settings = {**kept, **findings.settings}
     config = from_mapping(PipelineConfig, settings, where="the decided settings")
     lines = [
@@ -339,6 +358,8 @@ def run_setup(
         _make_folder(path)
     if findings.mask is not None:
         write_png(mask_path, findings.mask.astype("uint8") * 255)
+    if background is not None:
+        write_background_png(background_path(out), background)
     from_mapping(PipelineConfig, tomllib.loads(text)["pipeline"], where=f"{out} [pipeline]")  # what extract reads
     position = findings.split_frame
     begin = end = segmentation = None
@@ -363,6 +384,8 @@ def run_setup(
     report.append(f"wrote {out}, {overlay_path} (frame {position}: {legend})")
     if findings.mask is not None:
         report.append(f"wrote {out.with_name(out.stem + '_mask.png')}")
+    if background is not None:
+        report.append(f"wrote {background_path(out)}")
     report.append(f"check the overlay, then: ropecam-device extract INPUT --config {out} --out results.jsonl")
     print("\n".join(report), file=sys.stderr)
     return 0

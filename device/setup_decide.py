@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ropecam.device.pipeline.background import BackgroundFlattening
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.edge_profile import EdgeBlur
 from ropecam.device.pipeline.edges import EdgeDetector
@@ -186,7 +187,11 @@ def static_mask(
     pixel's edge frequency (0-1)."""
     height, width = frames[0].image.shape
     detector = EdgeDetector(height, width, config.smooth_sigma_px, config.canny_low, config.canny_high)
-    tone = ToneCurve(config.gamma, (height, width))
+    tone = (
+        BackgroundFlattening.from_png(config.background_png, (height, width), config.gamma)
+        if config.background_png
+        else ToneCurve(config.gamma, (height, width))
+    )
     lo = np.zeros(height, np.int32)
     hi = np.full(height, width - 1, np.int32)
     picks = np.unique(np.linspace(0, len(frames) - 1, min(samples, len(frames))).round().astype(int))

@@ -112,6 +112,10 @@ class PipelineConfig:
     static_mask_png
         A mask image of the frames' size (non-zero: never the rope; edges there are dropped from the first
         frame), or "" for none.
+    background_png
+        The static background (a 16-bit PNG of linear light x 256, written by ``ropecam-device setup`` for a
+        textured background), or "" for none: its texture is divided out of each frame before the edges
+        (`ropecam.device.pipeline.background`).
     plane_file
         A plane calibration (``plane.yaml`` of ``ropecam calibrate plane``, read by the application with
         `ropecam.shared.plane.read_plane_file`): the fixed end is then its origin projected into the image (unless
@@ -152,6 +156,7 @@ class PipelineConfig:
     static_margin_dn: int = 3
     static_relative: float = 0.1
     static_mask_png: str = ""
+    background_png: str = ""
     plane_file: str | None = None
     checks: ChecksConfig = field(default_factory=ChecksConfig)
 
@@ -226,6 +231,8 @@ class PipelineConfig:
         check_range("static_relative", self.static_relative, 0.0, 1.0)
         if not isinstance(self.static_mask_png, str):
             raise ConfigError(f'static_mask_png must be a file path or "", got {self.static_mask_png!r}')
+        if not isinstance(self.background_png, str):
+            raise ConfigError(f'background_png must be a file path or "", got {self.background_png!r}')
         if self.plane_file is not None and (not isinstance(self.plane_file, str) or not self.plane_file):
             raise ConfigError(f"plane_file must be the path of a plane.yaml, got {self.plane_file!r}")
         if not isinstance(self.checks, ChecksConfig):

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ropecam.device.pipeline.background import BackgroundFlattening
 from ropecam.device.pipeline.checks import SelfChecks
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.contour import ContourTracer
@@ -39,8 +40,9 @@ class Stages:
     workspace: Workspace
     """Every buffer of the per-frame path, by stage (its arrays cannot be replaced: `steady_frame`'s table holds
     their addresses)."""
-    tone: ToneCurve
-    """The gamma curve applied to each frame (`PipelineConfig.gamma`)."""
+    tone: ToneCurve | BackgroundFlattening
+    """The gamma curve applied to each frame (`PipelineConfig.gamma`); with ``background_png`` in the same pass
+    the background's texture divided out (`BackgroundFlattening`)."""
     edges: EdgeDetector
     tracer: ContourTracer
     static_mask: StaticMask
@@ -79,7 +81,9 @@ class Stages:
             The wired stages, with a new workspace.
         """
         height, width = shape
-        tone = ToneCurve(config.gamma, shape)
+        tone: ToneCurve | BackgroundFlattening = ToneCurve(config.gamma, shape)
+        if config.background_png:
+            tone = BackgroundFlattening.from_png(config.background_png, shape, config.gamma)
         cap = config.max_contour
         weights = gaussian_weights(config.smooth_sigma_px)
         fraction = np.array(config.material_points_m, np.float64) / config.rope_length_m

@@ -43,6 +43,7 @@ def inputs(tmp_path_factory: pytest.TempPathFactory, plane_yaml: PlaneYaml) -> d
 
 BAD = {
     "mask": ("[pipeline]\nstatic_mask_png = '{mask}'\n", r"static_mask_png: mask {mask} is 32x20 px, the frames are"),
+    "background": ("[pipeline]\nbackground_png = '{mask}'\n", r"background_png: {mask} is uint8 with shape"),
     "plane": ("[pipeline]\nplane_file = '{plane}'\n", r"{plane}: the plane origin (the rope's fixed end) projects"),
     "readout_negative": ("[capture]\nreadout_us = -3\n", "readout_us must be >= 0 (0 = global shutter), got -3"),
     "readout_too_long": ("[capture]\nreadout_us = 20000\n", "readout_us is 20000 us, longer than the frame period"),
