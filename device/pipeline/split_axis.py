@@ -53,16 +53,17 @@ class AxisPolylines:
         # Read-only views made once (a view costs 1-2 us of Python).
         self._side_a_ro, self._side_b_ro = ro(self.side_a), ro(self.side_b)
         self._out_a_ro, self._out_b_ro = ro(self.out_a), ro(self.out_b)
-        self._shape_views: tuple[dict[int, NDArray[np.float32]], ...] = ({}, {}, {}, {})
+        self._shape_views: tuple[dict[float, NDArray[np.float32]], ...] = ({}, {}, {}, {})
         """Views of the first n points of `side_a`, `side_b`, `out_a`, `out_b` by n, each made once: a steady frame
         then makes no array object for its shapes (`shape`)."""
 
-    def shape(self, row: int, count: int) -> NDArray[np.float32]:
-        """The first `count` points of ``sides[row]`` (0: `side_a`, 1: `side_b`, 2: `out_a`, 3: `out_b`)."""
+    def shape(self, row: int, count: float) -> NDArray[np.float32]:
+        """The first `count` points of ``sides[row]`` (0: `side_a`, 1: `side_b`, 2: `out_a`, 3: `out_b`). `count`
+        may be the float a kernel wrote (a whole number: it finds the view made for the int, without making one)."""
         views = self._shape_views[row]
         view = views.get(count)
         if view is None:
-            view = views[count] = self.buffers.sides[row][:count]
+            view = views[count] = self.buffers.sides[row][: int(count)]
         return view
 
     def anchor_fixed_end(
