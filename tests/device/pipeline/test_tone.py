@@ -40,6 +40,7 @@ def test_a_linear_camera_passes_frames_unchanged_and_a_wrong_frame_is_refused() 
         ToneCurve(2.2, (4, 5)).apply(np.zeros((5, 4), np.uint8))
 
 
+@pytest.mark.kernel
 @pytest.mark.parametrize("gamma", [1.0, 2.2])
 def test_a_frame_is_taken_through_the_slot_as_apply_maps_it_and_any_other_frame_is_refused(gamma: float) -> None:
     """`take` (a stream's frames: `K.take_frame` reads the frame through a slot, no array argument) gives what
