@@ -26,6 +26,8 @@ from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam.device.pipeline.result import FrameStatus, PipelineResult
+from ropecam.device.pipeline.split_axis import AxisPolylines
+from ropecam.device.pipeline.workspace import SplitBuffers
 
 SCRIPT = textwrap.dedent(
     """
@@ -267,3 +269,31 @@ def test_a_steady_frame_allocates_no_python_memory(monkeypatch: pytest.MonkeyPat
     assert statuses == {FrameStatus.OK}
     assert pipeline.thresholds.following  # its cycles ended on these frames (every 2nd)
     assert peaks == dict.fromkeys(measured, 0)
+
+
+def test_a_shape_count_makes_the_views_of_its_neighbours_once() -> None:
+    """`AxisPolylines.shape`: a point count without a view makes the views of the counts near it on the four rows,
+    so that the next frames' shapes (a rope's counts move by a few points) take theirs without allocating; a count
+    given as the float a kernel wrote finds the same view."""
+    axis = AxisPolylines(SplitBuffers.make(1000), 2.0, 0.0, 1.0)
+    first = axis.shape(0, 204.0)
+    assert first.shape == (204, 2) and first.base is not None
+    assert axis.shape(0, 204) is first
+    calls = [(1, 184.0), (2, 207.0), (3, 229.0), (0, 179.0)]  # within an eighth of 204
+    views: list[object] = [None] * len(calls)
+    peaks = [-1] * len(calls)
+    tracemalloc.start()
+    try:
+        for i in range(len(calls)):
+            row, count = calls[i]
+            start = tracemalloc.get_traced_memory()[0]
+            tracemalloc.reset_peak()
+            start = tracemalloc.get_traced_memory()[0]
+            tracemalloc.reset_peak()
+            views[i] = axis.shape(row, count)
+            peaks[i] = tracemalloc.get_traced_memory()[1] - start
+    finally:
+        tracemalloc.stop()
+    assert peaks == [0] * len(calls)
+    assert [v.shape[0] for v in views] == [184, 207, 229, 179]  # type: ignore[attr-defined]
+    assert axis.shape(3, 900.0).shape == (900, 2)  # far from any: made then
