@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import operator
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -23,6 +24,7 @@ __all__ = [
     "array_layout_known",
     "as_ro",
     "buffer_table",
+    "cell_property",
     "f32",
     "i32",
     "resident_zeros",
@@ -36,6 +38,20 @@ def ro(array: NDArray[Any]) -> NDArray[Any]:
     view = array.view()
     view.flags.writeable = False
     return view
+
+
+def cell_property(cells: str, index: int, doc: str) -> property:
+    """Return a property that reads and writes the int cell `index` of the array attribute `cells` (a count or a
+    time a kernel keeps there; read on demand as a Python int)."""
+    get = operator.attrgetter(cells)
+
+    def read(self: Any) -> int:
+        return int(get(self)[index])
+
+    def write(self: Any, value: int) -> None:
+        get(self)[index] = value
+
+    return property(read, write, doc=doc)
 
 
 def as_ro(array: NDArray[Any]) -> NDArray[Any]:

@@ -430,12 +430,15 @@ class SelfChecks:
             code = K.CHECK_FALLBACK_SWEEP
         self._swept = code == K.CHECK_FALLBACK_SWEEP and not carried
         if code == K.CHECK_NONE or not self.config.enabled:
-            return FrameStatus.OK, Reason.NONE
+            return _PASSED
         failed = Reason(code)
         return (FrameStatus.NO_BLUR if failed is Reason.NO_BLUR else FrameStatus.IMPLAUSIBLE), failed
 
 
 _Q0, _Q1, _Q2, _Q3, _Q4, _Q5, _Q6 = QUALITY_KEYS  # `_set_quality`'s keys (seven: `CHECK_QUALITY`'s fields)
+_PASSED = (FrameStatus.OK, Reason.NONE)
+"""`verdict`'s answer when every check passed, made once: reading an attribute of an Enum class costs Python 3.11 a
+48-byte method-wrapper each time (its metaclass has a `__getattr__`), a Python allocation per frame."""
 
 
 def _set_quality(quality: dict[str, float], values: tuple[float, ...]) -> None:

@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import as_ro, f32, i32, ro
+from ropecam.device.pipeline._views import as_ro, cell_property, f32, i32, ro
 from ropecam.device.pipeline.workspace import ContourBuffers, expose
 
 if TYPE_CHECKING:
@@ -49,18 +49,15 @@ class ContourTracer:
             raise ValueError(f"buffers are for {buffers.labels.shape} images and {buffers.points.shape[0]} points")
         self.buffers = buffers
         """The labels, chain, points and counts (`ContourBuffers`; each also a read-only attribute: ``self.points``).
-        ``counts`` holds, of the last trace: component pixels, ROI contacts, chain pixels on the image border (and,
-        after `detect_and_trace`, the edge pixels found)."""
+        ``counts`` holds, of the last trace: component pixels, ROI contacts, chain pixels on the image border, (after
+        `detect_and_trace`) the edge pixels found and the contour's point count (`K.CONTOUR_POINTS`): the kernels
+        write them (`steady_frame` the point count too), the attributes below read them on demand."""
+        self._counts = buffers.counts
         self.count = 0
-        self.component_px = 0
         self.contacts = -1
-        """ROI contacts of the last traced contour (-1: not counted, see `roi_contacts`)."""
         self.on_border = -1
-        """Chain pixels on the image border of the last traced contour (-1: not counted)."""
         self.joined = False
         """Whether the contour of the last `trace_next` was joined to the contour it dropped."""
-        self._counts = buffers.counts  # the per-frame path reads it here (a plain attribute is the fastest)
-        self._count = buffers.counts.item  # its values one by one (`adopt`), the bound method made once
         self.chain_ro = ro(self.chain)
         self.points_ro = ro(self.points)
         self._width32 = np.int32(width)
@@ -69,6 +66,12 @@ class ContourTracer:
         self._detector: EdgeDetector | None = None
         self._detect_args: tuple[Any, ...] = ()
         """The arguments of `detect_and_trace` after the frame and the spans (the detector's buffers, then ours)."""
+
+    # The counts (`ContourBuffers.counts`) as attributes, read and written on demand.
+    component_px = cell_property("_counts", 0, "Pixels of the last traced component.")
+    contacts = cell_property("_counts", 1, "ROI contacts of the last traced contour (-1: not counted, `roi_contacts`).")
+    on_border = cell_property("_counts", 2, "Chain pixels on the image border of the last contour (-1: not counted).")
+    count = cell_property("_counts", K.CONTOUR_POINTS, "Points of the last traced contour (0: none).")
 
     def trace(
         self,
@@ -103,7 +106,6 @@ class ContourTracer:
             n = K.trace_rope(
                 edges, lo, hi, edge_list, int(n_edges), self._min32, True, _NO_MASK, mag, gx, gy, self.group
             )
-            self.component_px, self.contacts, self.on_border = self.counts[:3].tolist()
             self.count = n if n > 0 else 0  # FULL: a contour longer than the buffers is not a rope
             return self.count
         size = K.keep_largest_component(edges, as_ro(lo), as_ro(hi), self._min32, self.labels, self.stack, self.start)
@@ -183,7 +185,6 @@ class ContourTracer:
             detector.edges, lo, hi, ro(detector.stack), len(others), self._min32, False,
             detector.static_mask_ro, detector.mag_ro, detector.gx_ro, detector.gy_ro, self.group,
         )  # fmt: skip
-        self.component_px, self.contacts, self.on_border = self.counts[:3].tolist()
         self.count = n if n > 0 else 0
         # Joined to what was dropped: the new contour passes next to the dropped chain's pixels.
         r, c = (self.chain[: self.count] + 1).T  # in `gone`'s padded frame
@@ -207,18 +208,23 @@ class ContourTracer:
     def adopt(
         self, detector: EdgeDetector, frame: NDArray[np.uint8], lo: NDArray[np.int32], hi: NDArray[np.int32], n: int
     ) -> int:
-        """Take the results of a `detect_and_trace` kernel call (made here, or inside `steady_frame`) of `frame` in
-        the spans `lo`/`hi` into this tracer and `detector`, as `detect_and_trace` does; returns the number of
-        contour points (0 when none). Raises RuntimeError as `detect_and_trace`."""
-        item = self._count  # field by field: no list per frame
-        self.component_px, self.contacts, self.on_border, count = item(0), item(1), item(2), item(3)
-        if count < 0:
-            raise RuntimeError(f"detect_edges returned status {count} (frame {frame.shape}, spans {lo.shape})")
-        detector.count = count
+        """Take the results of a `detect_and_trace` kernel call (made here) of `frame` in the spans `lo`/`hi`, which
+        returned `n`, into this tracer and `detector`, as `detect_and_trace` does; returns the number of contour
+        points (0 when none). Raises RuntimeError as `detect_and_trace`."""
+        self.count = n if n > 0 else 0  # FULL: a contour longer than the buffers is not a rope
+        self.adopt_steady(detector, frame, lo, hi)
+        if detector.count < 0:
+            raise RuntimeError(f"detect_edges returned status {detector.count} (frame {frame.shape}, spans {lo.shape})")
+        return self.count
+
+    def adopt_steady(
+        self, detector: EdgeDetector, frame: NDArray[np.uint8], lo: NDArray[np.int32], hi: NDArray[np.int32]
+    ) -> None:
+        """Take the results of the `detect_and_trace` call `steady_frame` made of `frame` in the spans `lo`/`hi` (the
+        counts it wrote, the point count too, are read on demand; it refused a bad edge stage before the call)."""
+        detector.counts = self._counts  # its edge pixel count is ours (`EdgeDetector.count`)
         detector.spans = (lo, hi)
         detector.frame = frame
-        self.count = n if n > 0 else 0  # FULL: a contour longer than the buffers is not a rope
-        return self.count
 
     def roi_contacts(self, lo: NDArray[np.int32], hi: NDArray[np.int32]) -> int:
         """Return how many contour pixels touch the border of the region of interest `lo`/`hi` (the `contacts`

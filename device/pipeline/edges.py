@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import as_ro, ro
+from ropecam.device.pipeline._views import as_ro, cell_property, ro
 from ropecam.device.pipeline.workspace import EdgeBuffers, expose
 
 __all__ = ["EdgeDetector", "gaussian_weights"]
@@ -60,9 +60,11 @@ class EdgeDetector:
             raise ValueError(f"buffers are for {buffers.edges.shape} images, expected {self.shape}")
         self.buffers = buffers
         """The planes, edge map and list, spans (`EdgeBuffers`; each also a read-only attribute: ``self.gx``)."""
+        self._own_counts = np.zeros(4, np.int32)
+        self.counts = self._own_counts
+        """The cells whose ``[3]`` is `count`: this detector's own after `detect`, the contour tracer's after a
+        `detect_and_trace` call, which writes it there (`ContourTracer.adopt`)."""
         self.count = 0
-        """Edge pixels found by the last `detect`; their flat indices are ``stack[:count]`` (the strong pixels in
-        raster order, then the weak pixels joined to them)."""
         # Read-only views made once: a view per kernel call costs microseconds of Python.
         self.weights_ro = self.weights
         self.edges_ro, self.mag_ro, self.gx_ro, self.gy_ro = (ro(a) for a in (self.edges, self.mag, self.gx, self.gy))
@@ -77,6 +79,13 @@ class EdgeDetector:
         """The row spans (lo, hi) of the last `detect` (read-only views; none before the first)."""
         self.frame: NDArray[np.uint8] = self.edges
         """The frame of the last `detect` (what `refresh` smooths)."""
+
+    count = cell_property(
+        "counts",
+        3,
+        "Edge pixels found by the last detection; their flat indices are ``stack[:count]`` (the strong "
+        "pixels in raster order, then the weak pixels joined to them).",
+    )
 
     def set_thresholds(self, low: float, high: float) -> None:
         """Set the hysteresis thresholds (``0 < low <= high``); the stages that pass them to a kernel made once
@@ -120,8 +129,9 @@ class EdgeDetector:
         )  # fmt: skip
         if count < 0:
             raise RuntimeError(f"detect_edges returned status {count}")
+        self.counts = self._own_counts
         self.count = int(count)
-        return self.count
+        return int(count)
 
     def smooth_box(self, frame: NDArray[np.uint8], r0: int, r1: int, c0: int, c1: int) -> int:
         """Make `smooth` hold this frame's smoothed image over rows `r0`..`r1` and columns `c0`..`c1` (inclusive,

@@ -20,6 +20,11 @@ from ropecam.device.pipeline.traits import RopeTraits
 
 __all__ = ["BROKEN_OUTLINE", "FrameClock", "ResultFinisher", "max_age_ns"]
 
+# Enum members the per-frame path reads, looked up once: reading an attribute of an Enum class costs Python 3.11 a
+# 48-byte method-wrapper each time (its metaclass has a `__getattr__`), a Python allocation per frame.
+_OK, _BLUR_SPLIT = FrameStatus.OK, Method.BLUR_SPLIT
+
+
 BROKEN_OUTLINE = 0.15
 """Largest part of the contour's pixels walked twice (spurs of noise and texture) before it is no band outline."""
 
@@ -35,37 +40,57 @@ middle line for both shapes: a wrong order there puts each shape a whole sweep o
 
 
 def max_age_ns(period_ns: int | None) -> int:
-    """The age (ns) past which the time order's history is dropped: four frame periods of `period_ns` (None:
-    the default period)."""
-    return 4 * (period_ns or DEFAULT_PERIOD_NS)
+    """The age (ns) past which the time order's history is dropped: `K.AGE_PERIODS` (four) frame periods of
+    `period_ns` (None: the default period)."""
+    return K.AGE_PERIODS * (period_ns or DEFAULT_PERIOD_NS)
 
 
 class FrameClock:
-    """A stream's frame period (the shortest time between frame starts seen) and each frame's exposure in ns."""
+    """A stream's frame period (the shortest time between frame starts seen) and each frame's exposure in ns.
 
-    __slots__ = ("_exposure_key", "_exposure_value", "last_t_ns", "max_age_ns", "period_ns")
+    The period is kept in int64 cells (`K.CLOCK_CELLS`, ``cells``) that a kernel updates from each frame's start
+    (`tick`; a steady frame's `steady_frame` call ticks them itself): the arithmetic on ns times makes no Python int
+    per frame. `period_ns`, `max_age_ns` and `last_t_ns` read them on demand.
+    """
 
-    def __init__(self) -> None:
-        self.period_ns: int | None = None
-        """The frame period (ns; None until two frames were seen)."""
-        self.max_age_ns = max_age_ns(None)
-        """`max_age_ns` of `period_ns` (made when the period changes, not on every frame)."""
-        self.last_t_ns: int | None = None
-        """The start of the last frame (ns)."""
+    __slots__ = ("_exposure_key", "_exposure_value", "cells")
+
+    def __init__(self, cells: np.ndarray | None = None) -> None:
+        self.cells = np.zeros(len(K.CLOCK_CELLS), np.int64) if cells is None else cells
+        """The clock's `K.CLOCK_CELLS` (int64; the pipeline's are in its workspace, where `steady_frame` reads
+        them)."""
+        self.cells[:] = 0
+        self.cells[K.CLOCK.max_age_ns] = max_age_ns(None)
         self._exposure_key: float | None = None  # the last float exposure_us and what `exposure_in_ns` made of it
         self._exposure_value: tuple[int, str] = (0, "")
 
-    def start(self, t: int, exposure_us: float | None) -> tuple[int, str]:
-        """Take the start `t` (ns) of a frame exposed for `exposure_us`; return the exposure in ns and what is
-        wrong with it (`exposure_in_ns`)."""
-        last = self.last_t_ns
-        if last is not None and t > last:
-            gap_ns = t - last
-            period = self.period_ns
-            if period is None or gap_ns < period:
-                self.period_ns = gap_ns
-                self.max_age_ns = max_age_ns(gap_ns)
-        self.last_t_ns = t
+    @property
+    def period_ns(self) -> int | None:
+        """The frame period (ns; None until two frames were seen)."""
+        return int(self.cells[K.CLOCK.period_ns]) or None
+
+    @property
+    def max_age_ns(self) -> int:
+        """`max_age_ns` of `period_ns`."""
+        return int(self.cells[K.CLOCK.max_age_ns])
+
+    @property
+    def last_t_ns(self) -> int | None:
+        """The start of the last frame (ns; None before the first, or after it was set to None)."""
+        return int(self.cells[K.CLOCK.last_t_ns]) if self.cells[K.CLOCK.seen] else None
+
+    @last_t_ns.setter
+    def last_t_ns(self, t_ns: int | None) -> None:
+        self.cells[K.CLOCK.seen] = t_ns is not None
+        self.cells[K.CLOCK.last_t_ns] = t_ns or 0
+
+    def tick(self, t: int) -> None:
+        """Take the start `t` (ns) of a frame: a gap from the last start shorter than the period is the new period
+        (`K.tick_clock`)."""
+        K.tick_clock(self.cells, t)
+
+    def exposure(self, exposure_us: float | None) -> tuple[int, str]:
+        """Return the exposure `exposure_us` in ns and what is wrong with it (`exposure_in_ns`)."""
         if type(exposure_us) is float and exposure_us == self._exposure_key:
             return self._exposure_value  # the usual case: the same exposure every frame
         exposure_ns, exposure_problem = exposure_in_ns(exposure_us)
@@ -271,7 +296,7 @@ class ResultFinisher:
         after_still, self.after_still = self.after_still, outcome.shape_a is outcome.shape_b
         if (
             after_still
-            and outcome.method is Method.BLUR_SPLIT
+            and outcome.method is _BLUR_SPLIT
             and result.order_confidence < UNDECIDED_ORDER
             and outcome.sweep_px < UNDECIDED_SWEEP_WIDTHS * outcome.width_px
         ):
@@ -280,7 +305,7 @@ class ResultFinisher:
                 outcome, placed, checked = static, 1, -1
         if placed < 0 and self.tracker.plane is not None:  # by arc length on the plane (metres), not in pixels
             self.tracker.place_on_plane(result.begin, result.end)
-        result.status = FrameStatus.OK
+        result.status = _OK
         if checked < 0:
             self.check(result, outcome, exposure_ns, corner_px)
         else:
@@ -311,7 +336,7 @@ class ResultFinisher:
         if split and checks.needs_area(exposure_ns):
             area = contour_area_px2(self.tracer.points, self.locator.prev_count)
         used_px = outcome.width_px
-        if outcome.method is Method.BLUR_SPLIT:
+        if outcome.method is _BLUR_SPLIT:
             # The split reports the rope's width (`EdgeTables.width_px`), the traits the edges' spacing: compare
             # the spacings (a thin rope's edges lie up to 3x its width apart, and its width read from them swings
             # by 2x for a 0.1 px change of spacing).
@@ -344,7 +369,7 @@ class ResultFinisher:
         blur, or of an unknown exposure, is replaced by the static centreline or dropped)."""
         checks = self.checks
         result.quality = checks.quality
-        if status is FrameStatus.OK:
+        if status is _OK:
             return
         split = outcome.shape_a is not outcome.shape_b
         result.status, result.reason, result.message = status, reason.text, checks.message(reason)

@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import i32, ro
+from ropecam.device.pipeline._views import cell_property, i32, ro
 from ropecam.device.pipeline.contour import ContourTracer
 from ropecam.device.pipeline.edges import EdgeDetector
 from ropecam.device.pipeline.fixed_end import HIDDEN_REACH_PX, FixedEndFinder
@@ -39,7 +39,9 @@ class RopeLocator:
     around what was found (up to `ROI_RETRIES` times) before the next way is tried.
 
     Keeps the last frame's contour (the tracer's own buffer, `prev_count` points) for the next frame's band, and
-    counts the frames found each way.
+    counts the frames found each way. Those counts and times are int64 cells (``buffers.cells``, `K.LOCATE_CELLS`),
+    which `steady_frame` updates itself on a steady frame: its Python makes no int of them; the attributes read and
+    write them on demand.
 
     Parameters
     ----------
@@ -76,11 +78,10 @@ class RopeLocator:
         # per frame). Valid because nothing traces between the end of a frame and the band building at the start
         # of the next one (`locate` builds the band first); `prev_count` = 0 marks it stale.
         self.prev_points_ro = tracer.points_ro
-        self.prev_count = 0
-        self.prev_t_ns = 0
-        """Start of the exposure of the frame of the last contour (valid when `prev_count` > 0)."""
-        self.need_gap_ns = 0
-        """The time gap over which the motion model's band error (profile) was measured."""
+        self._cells = buffers.cells
+        self.kept = False
+        """Whether a contour is kept for the next frame's band (`prev_count` > 0; a plain attribute: the steady
+        frame's test)."""
         height, width = self.shape
         self.band_args = (
             self.margin_px, height, width, *motion.need_args, fixed_end.fixed, motion.group, buffers.band,
@@ -91,10 +92,16 @@ class RopeLocator:
         self.set_canny_low(canny_low)
         self.cut = False
         """Whether this frame's contour was cut from a structure it touched (`_attached`): its tip may be cut."""
-        self.frames_full = 0
-        self.frames_coarse = 0
-        self.frames_roi = 0
-        self.roi_retries = 0
+
+    # The cells (`K.LOCATE_CELLS`) as attributes, read and written on demand.
+    prev_count = cell_property("_cells", K.LOCATE.prev_count, "Point count of the kept contour (0: none).")
+    prev_t_ns = cell_property("_cells", K.LOCATE.prev_t_ns, "Start of the kept contour's frame (ns).")
+    need_gap_ns = cell_property("_cells", K.LOCATE.need_gap_ns, "The gap the band's error was measured over (ns).")
+    gap_ns = cell_property("_cells", K.LOCATE.gap_ns, "The gap from the kept contour's frame to the last steady one.")
+    frames_roi = cell_property("_cells", K.LOCATE.frames_roi, "Frames found in the band predicted for them.")
+    frames_coarse = cell_property("_cells", K.LOCATE.frames_coarse, "Frames found around the coarse cells.")
+    frames_full = cell_property("_cells", K.LOCATE.frames_full, "Frames searched whole.")
+    roi_retries = cell_property("_cells", K.LOCATE.roi_retries, "Widenings of a band the rope ran out of.")
 
     def set_canny_low(self, canny_low: float) -> None:
         """Follow the edge detector's low threshold (the coarse look's step)."""
@@ -103,6 +110,7 @@ class RopeLocator:
     def forget(self) -> None:
         """Forget the last contour: the next frame is searched without a band."""
         self.prev_count = 0
+        self.kept = False
 
     def locate(self, image: NDArray[np.uint8], t_ns: int, exposure_ns: int) -> tuple[int, bool]:
         """Find the rope's contour in the frame exposed from `t_ns` for `exposure_ns`.
@@ -149,9 +157,10 @@ class RopeLocator:
 
     def keep(self, n: int, t_ns: int) -> None:
         """The contour of the frame exposed from `t_ns` (`n` points in the tracer) is the one the next frame's
-        band is built around."""
+        band is built around (`steady_frame` keeps a steady frame's itself, and counts it in `frames_roi`)."""
         self.prev_count = n
         self.prev_t_ns = t_ns
+        self.kept = n > 0
 
     def _locate_elsewhere(self, image: NDArray[np.uint8]) -> tuple[int, bool]:
         """`locate` without a band: around the coarse look's cells, else in the whole frame."""

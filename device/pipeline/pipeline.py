@@ -31,6 +31,9 @@ __all__ = ["Pipeline"]
 
 _ORDER = Reason.ORDER.text  # a split whose time order nothing decided (`SelfChecks`): a measured frame all the same
 
+# Enum members read per frame, looked up once (an Enum class's attribute costs Python 3.11 a 48-byte method-wrapper).
+_OK, _BAD_FRAME = FrameStatus.OK, FrameStatus.BAD_FRAME
+
 
 @refuse_copies(
     "a Pipeline cannot be copied or pickled: its steady frames read a table of the raw addresses of its buffers, "
@@ -89,9 +92,8 @@ class Pipeline:
         self.one_call = True
         """Make a steady frame in one kernel call (`steady_frame`); False: with the calls one by one (the same
         results; the tools that time or record single kernels set it)."""
-        self._clock = FrameClock()
-        self._u8 = np.dtype(np.uint8)
-        self._strides = (width, 1)
+        self._clock = FrameClock(stages.workspace.clock)
+        self._u8, self._rows = np.dtype(np.uint8), float(height)  # (a float height: `set_rolling`'s, no int made)
         self._unclean_frames = 0  # frames without an OK result while the static mask was being learned
         self._no_quality: dict[str, float] = {}  # a reused result's quality before the checks ran (`process`)
 
@@ -133,30 +135,28 @@ class Pipeline:
         """
         start_s = time.perf_counter()  # a float: no new int object per frame
         t = int(t_ns)
-        exposure_ns, exposure_problem = self._clock.start(t, exposure_us)
+        exposure_ns, exposure_problem = self._clock.exposure(exposure_us)
         if out is None:
             result = PipelineResult(int(index), t, t + exposure_ns, FrameStatus.BAD_FRAME)
         else:
             result = out
             # The last frame's end time let go before the new one is made (an int above 256: a new object).
-            result.reset(int(index), t, t, FrameStatus.BAD_FRAME, self._no_quality)
+            result.reset(int(index), t, t, _BAD_FRAME, self._no_quality)
             result.t_end_ns = t + exposure_ns
         result.readout_ns = self.readout_ns
         if self.readout_ns and self.tracker.plane is not None:
             # A rolling shutter's shapes are the rope at each row's instant: their material points are placed
             # by the rope's arc length at one instant, which needs the line time in exposures (`_kernels.plane`).
-            self.tracker.set_rolling(self.readout_ns / (self.shape[0] * exposure_ns) if exposure_ns > 0 else 0.0)
-        if type(frame) is np.ndarray and frame.dtype is self._u8 and frame.shape == self.shape:
-            problem = exposure_problem  # the usual case, without building the messages of `frame_problem`
-        else:
-            problem = frame_problem(frame, self.shape) or exposure_problem
+            self.tracker.set_rolling(self.readout_ns / (self._rows * exposure_ns) if exposure_ns > 0 else 0.0)
+        # The usual frame (C-contiguous, of the size) in linear light, checked by a kernel (no int of its shape made).
+        image = self._tone.take(frame) if type(frame) is np.ndarray and frame.dtype is self._u8 else None
+        problem = exposure_problem if image is not None else frame_problem(frame, self.shape) or exposure_problem
         if problem:
             result.message = problem
+            self._clock.tick(t)
             self.stages.forget(roi=True)
         else:
-            assert isinstance(frame, np.ndarray)
-            image = frame if frame.strides == self._strides else np.ascontiguousarray(frame)
-            image = self._tone.apply(image)
+            image = self._tone.apply(np.ascontiguousarray(frame)) if image is None else image  # (not C-contiguous)
             if self.thresholds.measuring:
                 measured = self.thresholds.measure(image)
                 if measured is not None:
@@ -170,7 +170,7 @@ class Pipeline:
                 if not self.static_mask.learning and self._unclean_frames > 0:
                     self.stages.relearn()
             self._measure(image, result, exposure_ns, self.checks.due(self.traits.settled is not None))
-            if result.status is not FrameStatus.OK and result.reason != _ORDER:  # (its rope, ROI, motion are right)
+            if result.status is not _OK and result.reason != _ORDER:  # (its rope, ROI, motion are right)
                 self.stages.forget(roi=result.status is FrameStatus.NO_ROPE)
                 if self.static_mask.learning:
                     self._unclean_frames += 1
@@ -187,10 +187,9 @@ class Pipeline:
 
         Builds the threshold measurement's detector (`EdgeThresholds.prepare`) and the learned static mask's
         (`StaticMask.prepare`), runs a blank frame (every buffer touched, the kernels' dispatch ready; it finds no
-        rope and leaves no state) and, when the config gives
-        `rope_width_px`, builds the edge model's tables for that width (10-20 ms, once per process:
-        `edge_model.shared_model`). A measured width is known only from the first frames; its tables are then built
-        on the frame that first needs them.
+        rope and leaves no state) and, when the config gives `rope_width_px`, builds the edge model's tables for that
+        width (10-20 ms, once per process: `edge_model.shared_model`). A measured width is known only from the first
+        frames; its tables are then built on the frame that first needs them.
         """
         height, width = self.shape
         self.thresholds.prepare()
@@ -216,12 +215,13 @@ class Pipeline:
 
     # ----------------------------------------------------------------------------------------------------------
     def _measure(self, image: NDArray[np.uint8], result: PipelineResult, exposure_ns: int, predict: bool) -> None:
-        """Measure the frame; `predict`: the self-checks predict the tips first (`SelfChecks.due`)."""
-        if self.locator.prev_count > 0 and self.traits.settled is not None and self.one_call:
+        """Measure the frame (the clock ticked here or by `steady_frame`); `predict`: predict the tips first."""
+        if self.locator.kept and self.traits.settled is not None and self.one_call:
             args = self._steady.args()
             if args is not None:
                 self._measure_steady(image, result, exposure_ns, args, predict)
                 return
+        self._clock.tick(result.t_ns)
         if predict:
             motion = self._motion
             K.predict_tips(result.t_ns, exposure_ns, motion.state, motion.log, self.fixed, self.checks.buffers[0])
@@ -236,27 +236,26 @@ class Pipeline:
         """Measure a steady frame in one kernel call (`SteadyFrame`), then go on from where the call stopped as
         `RopeLocator.locate` and `_measure_contour` go on after those calls: the same state and result as the
         calls one by one."""
-        steady, loc = self._steady, self.locator
-        stop = steady.run(args, image, result.t_ns, result.t_end_ns, exposure_ns, self._clock.max_age_ns, predict)
-        motion_px, points, status, revisits, swap, confidence, stretch_begin, stretch_end, checked, placed = (
-            steady.results()
-        )
-        n = self.tracer.adopt(self.edges, image, loc.lo_ro, loc.hi_ro, points)
+        steady, loc, tracer = self._steady, self.locator, self.tracer
+        stop = steady.run(args, image, result.t_ns, result.t_end_ns, exposure_ns, predict)
+        motion_px, status, swap, confidence, stretch_begin, stretch_end, checked, placed = steady.results()
+        tracer.adopt_steady(self.edges, image, loc.lo_ro, loc.hi_ro)
         if stop == K.STEADY_AFTER_CONTOUR:
-            n, used_roi = loc.locate_in_band(image, motion_px, steady.gap_ns, n)
+            n = tracer.adopt(self.edges, image, loc.lo_ro, loc.hi_ro, tracer.count)
+            n, used_roi = loc.locate_in_band(image, motion_px, loc.gap_ns, n)
             self._measure_contour(image, result, exposure_ns, n, used_roi)
             return
-        # The contour lies whole in the band and off the image border: `locate_in_band` and `_measure_contour`
-        # up to the split.
-        loc.found_in_band(steady.gap_ns)
+        # The contour lies whole in the band and off the image border: `locate_in_band` and `_measure_contour` up to
+        # the split (`steady_frame` counted it, kept it and its gap: `found_in_band`, `_keep_contour`).
+        loc.motion.owed = True
         result.full_frame = False
-        self._keep_contour(result, n)
-        outcome = self.splitter.adopt_frame(status, n, self.traits.settled.fixed_rc)  # type: ignore[union-attr]
+        result.fixed_end = self.fixed
+        outcome = self.splitter.adopt_frame(status, self.traits.settled.fixed_rc)  # type: ignore[union-attr]
         if outcome is False:  # a buffer too small for the one-call split: the split step by step
             width_px, fixed_rc, _, polarity = self.traits.settled  # type: ignore[misc]  # `SteadyFrame.args` checked it
             e = self.edges
             outcome = self.splitter.split(
-                self.tracer.points, self.tracer.chain, n, fixed_rc, width_px, e.gx, e.gy, e.edges, e.mag,
+                tracer.points, tracer.chain, tracer.count, fixed_rc, width_px, e.gx, e.gy, e.edges, e.mag,
                 e.smooth, polarity, edge_stage=e, frame=image,
             )  # fmt: skip
             self._finisher.finish(result, outcome, exposure_ns, self._clock.period_ns)
@@ -266,7 +265,9 @@ class Pipeline:
             )
         else:  # not two shapes, no band outline, shapes `track_frame` refused or made without a known exposure
             tracked = (swap, confidence, stretch_begin, stretch_end) if stop == K.STEADY_DONE else None
-            counted = revisits if stop in (K.STEADY_BROKEN, K.STEADY_AFTER_SHAPES) and exposure_ns > 0 else None
+            counted = (
+                steady.revisits() if stop in (K.STEADY_BROKEN, K.STEADY_AFTER_SHAPES) and exposure_ns > 0 else None
+            )
             self._finisher.finish(result, outcome, exposure_ns, self._clock.period_ns, counted, tracked)
 
     def _measure_contour(
@@ -281,9 +282,8 @@ class Pipeline:
             result.message = "no edge component large enough to be the rope"
             return
         self._keep_contour(result, n)
-        points = self.tracer.points
-        traits = self.traits
-        settled = traits.settled
+        tracer, traits = self.tracer, self.traits
+        points, settled = tracer.points, traits.settled
         if settled is not None:
             width_px, fixed_rc, exclude, polarity = settled
             measure = False
@@ -295,7 +295,6 @@ class Pipeline:
             exclude = 3.0 * (width_px or 4.0) + 10.0
             fixed_rc = (float(self.fixed[0]), float(self.fixed[1]))
             polarity = traits.polarity()
-        tracer = self.tracer
         clipped = tracer.on_border != 0 and tracer.border_contacts(fixed_rc, exclude) > 0  # the trace counts them
         e = self.edges
         outcome = self.splitter.split(

@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import ro
+from ropecam.device.pipeline._views import cell_property, ro
 from ropecam.device.pipeline.edge_model import BandEdgeModel
 from ropecam.device.pipeline.edge_profile import EdgeBlur
 from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
@@ -112,8 +112,8 @@ class BlurSplitter:
         self.corner_scale = int(corner_scale_px)
         self._refresh: Callable[[int, int, int, int], None] | None = None
         self.side_a, self.side_b, self.out_a, self.out_b = self.sides[0], self.sides[1], self.sides[2], self.sides[3]
+        self._state = buffers.state
         self._count = 0
-        """The stored contour's point count (`_n`)."""
         self._given = False
         """Whether the last `_prepare` was given the width and polarity (nothing measured)."""
         self.axis = AxisPolylines(buffers, output_step_px, output_smoothing_px, smooth_sigma_px)
@@ -156,6 +156,10 @@ class BlurSplitter:
         self._polarity32 = np.float32(0.0)
         self._views: dict[int, tuple[NDArray, NDArray]] = {}
         self._per_width: dict[float, WidthTables] = {}
+
+    _count = cell_property(
+        "_state", K.FRAME_STATE.n, "The stored contour's point count (`_n`): `split_frame`'s, which it reads there."
+    )
 
     @property
     def _n(self) -> np.int32:
@@ -539,13 +543,13 @@ class BlurSplitter:
             self._ro(self._smooth), self._constants,
         )  # fmt: skip
 
-    def adopt_frame(self, status: int, n: int, fixed_rc: tuple[float, float]) -> SplitOutcome | bool | None:
+    def adopt_frame(self, status: int, fixed_rc: tuple[float, float]) -> SplitOutcome | bool | None:
         """Take the results of a `split_frame` call made inside `steady_frame` (with the state `split` would have
-        set, on the contour, frame and spans of the key of `SplitFrameCall.one_call_key`), as `split` would have
-        after making it. Returns as `split`, or False when the kernel reported a full buffer: `split` then redoes
-        the frame's split step by step (it makes the same `split_frame` call first, with the same result)."""
+        set, on the contour, frame and spans of the key of `SplitFrameCall.one_call_key`; the contour's point count
+        in that state), as `split` would have after making it. Returns as `split`, or False when the kernel
+        reported a full buffer: `split` then redoes the frame's split step by step (it makes the same `split_frame`
+        call first, with the same result)."""
         self.failure = "contour found but no segmentation points"
-        self._count = n
         return self._frame_outcome(status, fixed_rc)
 
     def _frame_outcome(self, status: int, fixed_rc: tuple[float, float]) -> SplitOutcome | bool | None:
@@ -559,8 +563,8 @@ class BlurSplitter:
             shape = self._axis_shape
             outcome = self._shapes_outcome
             outcome.method, outcome.segmentation_points = _BLUR_SPLIT, self._seg
-            outcome.shape_a = shape(0 if item(4) else 2, int(item(0)))
-            outcome.shape_b = shape(1 if item(5) else 3, int(item(1)))
+            outcome.shape_a = shape(0 if item(4) else 2, item(0))  # the counts as floats: no int made
+            outcome.shape_b = shape(1 if item(5) else 3, item(1))
             outcome.width_px, outcome.sweep_px = width_px, sweep
             return outcome
         if status < 0 and status != K.NOT_FOUND:

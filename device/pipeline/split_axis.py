@@ -19,6 +19,10 @@ __all__ = ["AxisPolylines"]
 _F32_ZERO = np.float32(0.0)
 
 
+_VIEW_BLOCK = 16
+"""Fewest counts on each side of a count without a view whose views `AxisPolylines.shape` makes with it."""
+
+
 class AxisPolylines:
     """Finish the axis polylines of `BlurSplitter`'s step-by-step split (side A / side B into out A / out B) and
     make its centreline fallback (`centreline`).
@@ -53,16 +57,25 @@ class AxisPolylines:
         # Read-only views made once (a view costs 1-2 us of Python).
         self._side_a_ro, self._side_b_ro = ro(self.side_a), ro(self.side_b)
         self._out_a_ro, self._out_b_ro = ro(self.out_a), ro(self.out_b)
-        self._shape_views: tuple[dict[int, NDArray[np.float32]], ...] = ({}, {}, {}, {})
-        """Views of the first n points of `side_a`, `side_b`, `out_a`, `out_b` by n, each made once: a steady frame
-        then makes no array object for its shapes (`shape`)."""
+        self._shape_views: tuple[dict[float, NDArray[np.float32]], ...] = ({}, {}, {}, {})
+        """Views of the first n points of `side_a`, `side_b`, `out_a`, `out_b` by n, made once, in blocks: a steady
+        frame then makes no array object for its shapes (`shape`)."""
 
-    def shape(self, row: int, count: int) -> NDArray[np.float32]:
-        """The first `count` points of ``sides[row]`` (0: `side_a`, 1: `side_b`, 2: `out_a`, 3: `out_b`)."""
-        views = self._shape_views[row]
-        view = views.get(count)
+    def shape(self, row: int, count: float) -> NDArray[np.float32]:
+        """The first `count` points of ``sides[row]`` (0: `side_a`, 1: `side_b`, 2: `out_a`, 3: `out_b`). `count`
+        may be the float a kernel wrote (a whole number: it finds the view made for the int, without making one).
+        A count without a view makes the views of every count within an eighth of it (at least `_VIEW_BLOCK`) on
+        the four rows: a rope's shapes keep their point counts within a few percent (`lab`, 60 frames: 202-206), so
+        the next frames' counts find theirs."""
+        view = self._shape_views[row].get(count)
         if view is None:
-            view = views[count] = self.buffers.sides[row][:count]
+            n = int(count)
+            reach = max(_VIEW_BLOCK, n // 8)
+            for views, side in zip(self._shape_views, self.buffers.sides, strict=True):
+                for k in range(max(0, n - reach), min(n + reach, len(side)) + 1):
+                    if k not in views:
+                        views[k] = side[:k]
+            view = self._shape_views[row][n]
         return view
 
     def anchor_fixed_end(

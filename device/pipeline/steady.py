@@ -7,6 +7,10 @@ code, with the buffers passed as one table of their addresses (`Workspace.steady
 workspace's frame slot: this saves the dispatch of ~80 arguments (25-50 us per frame), and the call has no array
 argument (each would cost a MemInfo of Python allocation). The kernel stops where the stages' Python would take
 another turn; the pipeline goes on from there with the same state as after the same calls made one by one.
+
+A steady frame makes no Python object (`tests/device/pipeline/test_allocations.py`): the counts and times the call
+updates (the frame clock, the band's gap, the kept contour, the tracer's counts) are cells it writes
+(`_kernels.cells`), which the stages read on demand; Python reads back only its small results (`results`).
 """
 
 from __future__ import annotations
@@ -29,6 +33,9 @@ from ropecam.device.pipeline.traits import RopeTraits
 from ropecam.device.pipeline.workspace import Workspace, steady_constants
 
 __all__ = ["SteadyFrame"]
+
+_RESULTS = ("motion_px", "status", "swap", "confidence", "stretch_begin", "stretch_end", "check", "placed")
+"""The fields of `K.STEADY_OUT` Python reads after every call (`SteadyFrame.results`)."""
 
 
 class SteadyFrame:
@@ -64,10 +71,10 @@ class SteadyFrame:
         self._motion, self._fixed_end = locator.motion, locator.fixed_end  # read every frame (`run`)
         self.out = workspace.steady_out
         """The last call's results (one `STEADY_OUT` record, read by name: ``out["points"]``)."""
-        self._out_item = self.out.item  # the record as one tuple of Python scalars (the bound method made once)
+        # Its small results as one tuple of Python scalars (ints within CPython's cached -5..256, floats: no
+        # allocation; the bound method made once): not the point count nor the pixels walked twice (`revisits`).
+        self._out_item = self.out[list(_RESULTS)].item
         self._slot = workspace.frame_slot
-        self.gap_ns = 0
-        """The time (ns) from the last contour's frame to the one of the last call."""
         self._bound: tuple[Any, ...] | None = None
         """(the split's steady key, the rope width's tables, Lc0, `steady_frame`'s argument list, the tracker's
         plane, the table, the constants) of the last steady frame: its table holds the addresses of the
@@ -120,7 +127,7 @@ class SteadyFrame:
         )  # fmt: skip
         self._plane[:] = 0.0 if plane is None else plane
         table = self.workspace.steady_table(width_tables, self.checks.buffers, self._plane, constants)
-        args = [table.ctypes.data, 0, False, False, False, 0, 0, 0, 0, 0.0, False, 0.0, 0.0]
+        args = [table.ctypes.data, False, False, 0, 0, 0, 0.0, False, 0.0, 0.0]
         self._bound = (key, width_tables, length0_px, args, plane, table, constants)
         return args
 
@@ -131,14 +138,13 @@ class SteadyFrame:
         t_ns: int,
         t_end_ns: int,
         exposure_ns: int,
-        max_age_ns: int,
         predict: bool,
     ) -> int:
         """Make the frame exposed from `t_ns` to `t_end_ns` (`exposure_ns`) in one `steady_frame` call with the
-        argument list `args` (from `args`); its results are in `out`, the time since the last contour's frame in
-        `gap_ns`. With `predict` (`SelfChecks.due`) the call predicts the tips first (`SelfChecks.predict`'s
-        kernel); it places the shapes it tracked on the tracker's plane and checks them as `ResultFinisher` would
-        (``out["placed"]``, ``out["check"]``).
+        argument list `args` (from `args`); its results are in `out`, the frame's start in the frame clock, the
+        time since the last contour's frame in the locator's `gap_ns`. With `predict` (`SelfChecks.due`) the call
+        predicts the tips first (`SelfChecks.predict`'s kernel); it places the shapes it tracked on the tracker's
+        plane and checks them as `ResultFinisher` would (``out["placed"]``, ``out["check"]``).
 
         Returns
         -------
@@ -151,22 +157,15 @@ class SteadyFrame:
         RuntimeError
             The kernel refused its arguments.
         """
-        loc = self.locator
-        self.gap_ns = gap_ns = t_ns - loc.prev_t_ns
-        args[1] = loc.prev_count
-        args[2] = self._motion.owed
-        # `RopeLocator.locate`'s ``2 * gap_ns <= 3 * need_gap_ns``, without two new ints per frame (the same test:
-        # 1.5 x an int below 2**52 is exact in a float, and Python compares an int with a float exactly).
-        args[3] = gap_ns <= 1.5 * loc.need_gap_ns
-        args[4] = self._fixed_end.known
-        args[5] = t_ns
-        args[6] = exposure_ns
-        args[7] = t_end_ns
-        args[8] = max_age_ns
-        args[9] = self.splitter.sweep_px  # `split_frame`'s last sweep
-        args[10] = predict
-        args[11] = self.splitter.width  # the width the checks compare (`ResultFinisher.check`)
-        args[12] = self.traits.settled[0]  # type: ignore[index]  # `args` checked it
+        args[1] = self._motion.owed
+        args[2] = self._fixed_end.known
+        args[3] = t_ns
+        args[4] = exposure_ns
+        args[5] = t_end_ns
+        args[6] = self.splitter.sweep_px  # `split_frame`'s last sweep
+        args[7] = predict
+        args[8] = self.splitter.width  # the width the checks compare (`ResultFinisher.check`)
+        args[9] = self.traits.settled[0]  # type: ignore[index]  # `args` checked it
         self._slot.hold(image)
         try:
             stop: int = K.steady_frame(*args)
@@ -174,12 +173,16 @@ class SteadyFrame:
             self._slot.release()
             # The end time is the result record's: let it go with the record's (`PipelineResult.reset`), so that
             # the next frame's end time (an int above 256) is made after this one is freed, not beside it.
-            args[7] = 0
+            args[5] = 0
         if stop < 0:
             raise RuntimeError(f"steady_frame refused its arguments (status {stop})")
         return stop
 
-    def results(self) -> tuple[float, int, int, int, int, float, float, float, int, int]:
-        """The last call's results, in `STEADY_OUT`'s order (motion_px, points, status, revisits, swap, confidence,
-        stretch_begin, stretch_end, check, placed), as Python scalars."""
+    def results(self) -> tuple[float, int, int, float, float, float, int, int]:
+        """The last call's small results (motion_px, status, swap, confidence, stretch_begin, stretch_end, check,
+        placed: `_RESULTS`), as Python scalars."""
         return self._out_item()  # type: ignore[no-any-return]
+
+    def revisits(self) -> int:
+        """The last call's contour pixels walked twice (-1: not counted)."""
+        return int(self.out[0]["revisits"])

@@ -136,9 +136,9 @@ class EdgeThresholds:
         return self.used
 
     def _from_level(self, noise: float) -> tuple[float, float]:
-        low = min(max(LOW_PER_NOISE * noise, self.floor_low), self.low)
-        high = min(max(HIGH_PER_NOISE * noise, self.floor_high), self.high)
-        return low, max(high, low)
+        low = _clamp(LOW_PER_NOISE * noise, self.floor_low, self.low)
+        high = _clamp(HIGH_PER_NOISE * noise, self.floor_high, self.high)
+        return low, low if low > high else high  # max(high, low)
 
     def _median(self, frame: NDArray[np.uint8]) -> float:
         """The median gradient magnitude of `frame`'s smoothed image on a grid of `_STEP` px."""
@@ -178,7 +178,10 @@ class EdgeThresholds:
         if phase < cycle:
             return None
         self._phase = 0
-        median = float(K.histogram_median(self._hist_ro))
+        # The histogram through the table too where it can (an array argument costs a MemInfo of Python allocation).
+        median = float(
+            K.sample_median(self._table_address) if self._table_address else K.histogram_median(self._hist_ro)
+        )
         if median < 0.0 or self._level is None:
             return None
         self._level += FOLLOW_WEIGHT * (median - self._level)
@@ -199,3 +202,10 @@ class EdgeThresholds:
         if self._level is not None:
             return self._level
         return float(np.mean(self._medians)) if self._medians else None
+
+
+def _clamp(value: float, floor: float, ceiling: float) -> float:
+    """``min(max(value, floor), ceiling)`` by comparisons: `min` and `max` of two values make an iterator of their
+    arguments (48 bytes of Python allocation, on the steady frame that ends a followed-threshold cycle)."""
+    value = floor if floor > value else value
+    return ceiling if ceiling < value else value

@@ -15,14 +15,21 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._views import FrameSlot, array_layout_known, buffer_table
 
 __all__ = ["ToneCurve"]
 
 
 class ToneCurve:
-    """The inverse of a camera's gamma curve, applied to frames of one size into one buffer."""
+    """The inverse of a camera's gamma curve, applied to frames of one size into one buffer.
 
-    __slots__ = ("_out", "gamma", "table")
+    `take` takes each frame of a stream: its kernel (`K.take_frame`) reads the frame through a slot and the table
+    and buffer through a table of their addresses, so that the call has no array argument (each costs Numba's
+    wrapper a 48-byte MemInfo of Python allocation) and checks the frame's size and layout without making Python
+    ints of its shape.
+    """
+
+    __slots__ = ("_address", "_buffers", "_mapped", "_out", "_slot", "gamma", "table")
 
     def __init__(self, gamma: float, shape: tuple[int, int]) -> None:
         """`gamma` >= 1 (1: linear, nothing to undo), frames of `shape` (height, width)."""
@@ -31,6 +38,26 @@ class ToneCurve:
         self.table = np.round(255.0 * codes**self.gamma).astype(np.uint8)
         """Code -> linear light (0-255, rounded)."""
         self._out = np.zeros(shape, np.uint8)
+        self._mapped = self.gamma != 1.0
+        self._slot = FrameSlot(*shape)
+        self._buffers = buffer_table({"frame_slot": self._slot, "table": self.table, "out": self._out}, K.TONE_BUFFERS)
+        self._address = int(self._buffers.ctypes.data) if array_layout_known() else 0
+
+    def take(self, frame: NDArray[np.uint8]) -> NDArray[np.uint8] | None:
+        """Return the uint8 `frame` in linear light as `apply` does when it is a C-contiguous array of the curve's
+        shape; None for any other frame (nothing done)."""
+        if not self._address:  # NumPy's array layout is not the one the kernel reads: as arguments
+            if frame.shape != self._out.shape or not frame.flags.c_contiguous:
+                return None
+            return self.apply(frame)
+        self._slot.hold(frame)
+        try:
+            taken = K.take_frame(self._address, self._mapped)
+        finally:
+            self._slot.release()
+        if taken == K.FRAME_AS_GIVEN:
+            return frame
+        return self._out if taken == K.FRAME_MAPPED else None
 
     def apply(self, frame: NDArray[np.uint8]) -> NDArray[np.uint8]:
         """Return `frame` in linear light: `frame` itself when the curve is linear, else this curve's buffer (valid

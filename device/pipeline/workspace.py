@@ -152,7 +152,7 @@ class ContourBuffers:
         arrays = (
             resident_zeros((height, width), np.int32), resident_zeros(height * width, np.int32),
             np.zeros(2, np.int32), np.zeros((capacity, 2), np.int32), np.zeros(capacity, np.int32),
-            np.zeros((capacity, 2), np.float32), np.zeros(4, np.int32),
+            np.zeros((capacity, 2), np.float32), np.zeros(K.TRACER_COUNTS, np.int32),
         )  # fmt: skip
         return cls(*arrays, K.Contour(*arrays))
 
@@ -161,7 +161,8 @@ class ContourBuffers:
 class RoiBuffers:
     """Where the rope is searched: the row spans `lo`/`hi` of the band, the spans a widening adds
     (`grow_lo`/`grow_hi`), the last contour moved by the prediction (`moved`; `no_moved` for the widening's bands,
-    whose moved points are not kept) and the coarse search's cell sums, labels and stack."""
+    whose moved points are not kept), the coarse search's cell sums, labels and stack and the locator's counts and
+    times (`cells`, `K.LOCATE_CELLS`)."""
 
     lo: NDArray[np.int32]
     hi: NDArray[np.int32]
@@ -172,6 +173,7 @@ class RoiBuffers:
     coarse_sums: NDArray[np.int32]
     coarse_labels: NDArray[np.int32]
     coarse_stack: NDArray[np.int32]
+    cells: NDArray[np.int64]
     band: K.Band
     """`lo`, `hi`, `moved` as `band_stage`'s group."""
 
@@ -183,7 +185,8 @@ class RoiBuffers:
         return cls(
             lo, hi, np.zeros(height, np.int32), np.zeros(height, np.int32), moved, np.zeros((0, 2), np.float32),
             resident_zeros(cells, np.int32), resident_zeros(cells, np.int32),
-            resident_zeros(max(cells[0] * cells[1], width), np.int32), K.Band(lo, hi, moved),
+            resident_zeros(max(cells[0] * cells[1], width), np.int32), np.zeros(len(K.LOCATE_CELLS), np.int64),
+            K.Band(lo, hi, moved),
         )  # fmt: skip
 
 
@@ -304,8 +307,8 @@ class TrackBuffers:
 @_group
 class Workspace:
     """Every buffer of one pipeline, by stage (see the module's docstring), the steady frame's results
-    (``steady_out``, one `STEADY_OUT` record) and the slot that holds the frame while a kernel reads it through a
-    table (``frame_slot``: `steady_frame`, `sample_slice`)."""
+    (``steady_out``, one `STEADY_OUT` record), the slot that holds the frame while a kernel reads it through a
+    table (``frame_slot``: `steady_frame`) and the frame clock's cells (``clock``, `K.CLOCK_CELLS`: `FrameClock`)."""
 
     edges: EdgeBuffers
     contour: ContourBuffers
@@ -317,6 +320,7 @@ class Workspace:
     track: TrackBuffers
     steady_out: NDArray[np.void]
     frame_slot: FrameSlot
+    clock: NDArray[np.int64]
 
     @classmethod
     def make(
@@ -328,7 +332,7 @@ class Workspace:
             EdgeBuffers.make(height, width, weights), ContourBuffers.make(height, width, capacity),
             RoiBuffers.make(height, width, capacity), FixedEndBuffers.make(capacity), MotionBuffers.make(),
             OrderBuffers.make(capacity), SplitBuffers.make(capacity), TrackBuffers.make(fraction, capacity),
-            np.zeros(1, K.STEADY_OUT), FrameSlot(height, width),
+            np.zeros(1, K.STEADY_OUT), FrameSlot(height, width), np.zeros(len(K.CLOCK_CELLS), np.int64),
         )  # fmt: skip
 
     def steady_table(
@@ -342,9 +346,9 @@ class Workspace:
         (`ropecam.device.pipeline.width_tables.WidthTables`: ``width_scalars``, ``curves``, ``table_ro``,
         ``sweep_index``), the self-checks' `checks` (`SelfChecks.buffers`: predicted, thresholds, measures), the
         `plane` parameters (`plane_params`' values in writable memory), the `constants` (`steady_constants`), the
-        results ``steady_out`` and the ``frame_slot``, by the names of `STEADY_BUFFERS`. Its raw addresses are
-        valid while this workspace, `width`, the checks' arrays, `plane` and `constants` live: the caller keeps
-        them with it."""
+        results ``steady_out``, the ``frame_slot`` and the clock's and locator's cells, by the names of
+        `STEADY_BUFFERS`. Its raw addresses are valid while this workspace, `width`, the checks' arrays, `plane` and
+        `constants` live: the caller keeps them with it."""
         e, c, r, m, s, t = self.edges, self.contour, self.roi, self.motion, self.split, self.track
         return buffer_table(
             {
@@ -373,6 +377,8 @@ class Workspace:
                 "plane": plane,
                 # steady_frame's own
                 "frame_slot": self.frame_slot, "constants": constants, "out": self.steady_out,
+                # the frame clock's and the locator's cells
+                "clock": self.clock, "locate": r.cells,
             },
             K.STEADY_BUFFERS,
         )  # fmt: skip

@@ -61,6 +61,16 @@ from ropecam.device.pipeline._kernels.canny_gradient import (
     smooth_rows,
     sobel_rows,
 )
+from ropecam.device.pipeline._kernels.cells import (
+    AGE_PERIODS,
+    CLOCK,
+    CLOCK_CELLS,
+    CONTOUR_POINTS,
+    LOCATE,
+    LOCATE_CELLS,
+    TRACER_COUNTS,
+    tick_clock,
+)
 from ropecam.device.pipeline._kernels.centerline import band_sides
 from ropecam.device.pipeline._kernels.checks import (
     CHECK_FALLBACK_SWEEP,
@@ -218,6 +228,7 @@ from ropecam.device.pipeline._kernels.thresholds import (
     SAMPLE_BUFFERS,
     histogram_median,
     sample_gradient_histogram,
+    sample_median,
     sample_slice,
 )
 from ropecam.device.pipeline._kernels.tip_sweep import (
@@ -226,7 +237,7 @@ from ropecam.device.pipeline._kernels.tip_sweep import (
     sweep_from_history,
     sweep_from_path,
 )
-from ropecam.device.pipeline._kernels.tone import apply_table
+from ropecam.device.pipeline._kernels.tone import FRAME_AS_GIVEN, FRAME_MAPPED, TONE_BUFFERS, apply_table, take_frame
 from ropecam.device.pipeline._kernels.tracking import (
     MOTION_COUNT,
     MOTION_EXPOSURE,
@@ -245,6 +256,7 @@ from ropecam.device.pipeline._kernels.tracking import (
 from ropecam.device.pipeline._kernels.uncross import nearest_on, uncross_shapes
 
 __all__ = [
+    "AGE_PERIODS",
     "BACKGROUND_PX",
     "BAND",
     "BAND_STATE",
@@ -255,7 +267,10 @@ __all__ = [
     "CHECK_THRESHOLDS",
     "CHECK_TIP_KINK",
     "CHECK_TIP_MASKED",
+    "CLOCK",
+    "CLOCK_CELLS",
     "CONTOUR",
+    "CONTOUR_POINTS",
     "CONTRAST_POINTS",
     "CONTRAST_STRIDE",
     "DIR_COL",
@@ -264,13 +279,17 @@ __all__ = [
     "EDGE_STRONG",
     "EDGE_WEAK",
     "EDGE_WORK",
+    "FRAME_AS_GIVEN",
     "FRAME_INFO",
+    "FRAME_MAPPED",
     "FRAME_STATE",
     "FRAME_STATES",
     "FULL",
     "HISTORY",
     "HIST_PER_UNIT",
     "INVALID",
+    "LOCATE",
+    "LOCATE_CELLS",
     "MARGIN_PX",
     "MASK_ALWAYS",
     "MASK_FREE",
@@ -317,6 +336,8 @@ __all__ = [
     "STEADY_OUT",
     "STEADY_ROW",
     "TAN_22_5",
+    "TONE_BUFFERS",
+    "TRACER_COUNTS",
     "TRACK",
     "TWO",
     "VISITED",
@@ -404,6 +425,7 @@ __all__ = [
     "restore_tip_sweep",
     "sample_bilinear",
     "sample_gradient_histogram",
+    "sample_median",
     "sample_slice",
     "score_knots",
     "seal_cut_ends",
@@ -429,7 +451,9 @@ __all__ = [
     "suppress_rows",
     "sweep_from_history",
     "sweep_from_path",
+    "take_frame",
     "thin_chain",
+    "tick_clock",
     "tip_mask_distance",
     "tip_turn_deg",
     "trace_closed",

@@ -29,6 +29,7 @@ from numba import boolean, float64, int64
 
 from ropecam.device.pipeline._kernels._common import INVALID
 from ropecam.device.pipeline._kernels.band_stage import band_stage
+from ropecam.device.pipeline._kernels.cells import CLOCK, CLOCK_CELLS, CONTOUR_POINTS, LOCATE, LOCATE_CELLS, clock_tick
 from ropecam.device.pipeline._kernels.checks import CHECK_QUALITY, CHECK_THRESHOLDS, check_frame, predict_tips
 from ropecam.device.pipeline._kernels.detect import detect_and_trace
 from ropecam.device.pipeline._kernels.groups import (
@@ -142,6 +143,8 @@ STEADY_BUFFERS: Final = (
     ("plane", np.float64, 1),
     # steady_frame's own: the frame slot (`FrameSlot`: its row is address, 1, height, width), the constants, the results
     ("frame_slot", np.int64, 1), ("constants", STEADY_CONSTANTS, 1), ("out", STEADY_OUT, 1),
+    # the frame clock's and the locator's cells (`cells`)
+    ("clock", np.int64, 1), ("locate", np.int64, 1),
 )  # fmt: skip
 """The buffers of `steady_frame`'s table, in its row order: (name, dtype, dimensions), C-contiguous; each is the
 argument of that name of the kernel it is listed under, the last three `steady_frame`'s own."""
@@ -155,20 +158,25 @@ of the table's buffers, kept in this file so that an edit of it recompiles the k
 
 # No array argument (each would cost a MemInfo of Python allocation per call): the table by its address, the frame
 # through the table's frame slot (`tables.slot_frame_address`).
-@kernel(int64(int64, int64, boolean, boolean, boolean, int64, int64, int64, int64, float64, boolean, float64, float64))
+@kernel(int64(int64, boolean, boolean, int64, int64, int64, float64, boolean, float64, float64))
 def steady_frame(
-    table_address, prev_count, measure, use_profile, predict, t_ns, exposure_ns, t_end_ns, max_age_ns,
-    last_sweep_px, predict_tips_now, check_width_px, learned_width_px,
+    table_address, measure, predict, t_ns, exposure_ns, t_end_ns, last_sweep_px, predict_tips_now, check_width_px,
+    learned_width_px,
 ):  # fmt: skip
-    """One steady frame, exposed from `t_ns` to `t_end_ns` (`exposure_ns`): `band_stage` around the last contour
-    (`prev_count` points of ``prev_points``, `measure` and `use_profile` and `predict` as its arguments) into the
-    spans ``lo``/``hi``; `detect_and_trace` of `frame` in them; when it found a contour (``points``, ``chain``)
-    that touches neither the band's border nor the image's, `split_frame` of it (``split_state``'s
+    """One steady frame, exposed from `t_ns` to `t_end_ns` (`exposure_ns`): its start taken into the frame clock
+    (`clock_tick` of ``clock``); `band_stage` around the last contour (``locate``'s ``prev_count`` points of
+    ``prev_points``, `measure` and `predict` as its arguments, its `use_profile` whether twice the time gap from
+    ``locate``'s ``prev_t_ns`` is at most three times its ``need_gap_ns``; the gap goes to its ``gap_ns``) into the
+    spans ``lo``/``hi``; `detect_and_trace` of `frame` in them (the point count, 0 for none, to ``counts``'s
+    `CONTOUR_POINTS`); when it found a contour (``points``, ``chain``) that touches neither the band's border nor
+    the image's, it is the frame's kept contour (``locate``: as `RopeLocator.found_in_band` and `keep`, the frame
+    counted in ``frames_roi``) and `split_frame` of it (``split_state``'s
     ``last_sweep_px`` set to `last_sweep_px`, its ``n`` to the point count; the width's group made by
     `split_width` of ``width_scalars``, ``curves``, ``table``) with the same planes, frame, weights and spans; when
     that made the two shapes (views of ``sides``, smoothed or not as ``split_info`` says), `track_frame` of them
     with the new sweep, ``fixed``, the band's motion state and `max_age_ns` (first, for a known exposure, the
-    contour's pixels walked twice are counted: more than ``broken_outline`` of them stop it).
+    contour's pixels walked twice are counted: more than ``broken_outline`` of them stop it); `max_age_ns` is
+    ``clock``'s.
 
     The self-checks' two calls are made here too: first, when `predict_tips_now`, `predict_tips` into
     ``predicted`` (as `SelfChecks.predict` before the frame); last, on shapes of a known exposure that
@@ -192,7 +200,7 @@ def steady_frame(
     STEADY_AFTER_SHAPES): everything before that point is done and written exactly as the calls one by one write
     it, nothing after it; or INVALID, before any call, when ``constants`` or ``out`` holds no record, the frame
     slot no C-contiguous (height, width) array, or ``split_state``, ``split_info``, ``width_scalars``, ``curves``,
-    ``predicted``, ``check_thresholds`` or ``check_quality`` is too short.
+    ``predicted``, ``check_thresholds``, ``check_quality``, ``counts``, ``clock`` or ``locate`` is too short.
     """
     table = table_at(table_address, len(STEADY_BUFFERS))
     constants = buffer1(table, STEADY_ROW.constants, STEADY_CONSTANTS)
@@ -210,6 +218,9 @@ def steady_frame(
     predicted = buffer1(table, STEADY_ROW.predicted, np.float64)
     thresholds = buffer1(table, STEADY_ROW.check_thresholds, CHECK_THRESHOLDS)
     quality = buffer1(table, STEADY_ROW.check_quality, CHECK_QUALITY)
+    counts = buffer1(table, STEADY_ROW.counts, np.int32)
+    clock = buffer1(table, STEADY_ROW.clock, np.int64)
+    cells = buffer1(table, STEADY_ROW.locate, np.int64)
     if (
         split_state.shape[0] < len(FRAME_STATES)
         or split_info.shape[0] < FRAME_INFO
@@ -218,8 +229,15 @@ def steady_frame(
         or predicted.shape[0] < 3
         or thresholds.shape[0] < 1
         or quality.shape[0] < 1
+        or counts.shape[0] <= CONTOUR_POINTS
+        or clock.shape[0] < len(CLOCK_CELLS)
+        or cells.shape[0] < len(LOCATE_CELLS)
     ):
         return INVALID
+    clock_tick(clock, t_ns)
+    max_age_ns = clock[CLOCK.max_age_ns]
+    gap_ns = t_ns - cells[LOCATE.prev_t_ns]
+    cells[LOCATE.gap_ns] = gap_ns
     lo = buffer1(table, STEADY_ROW.lo, np.int32)
     hi = buffer1(table, STEADY_ROW.hi, np.int32)
     fixed = buffer1(table, STEADY_ROW.fixed, np.float32)
@@ -237,9 +255,9 @@ def steady_frame(
         predict_tips(t_ns, exposure_ns, motion.state, motion.log, fixed, predicted)
     result["motion_px"] = band_stage(
         buffer2(table, STEADY_ROW.prev_points, np.float32),
-        prev_count,
+        cells[LOCATE.prev_count],
         measure,
-        use_profile,
+        2 * gap_ns <= 3 * cells[LOCATE.need_gap_ns],
         predict,
         t_ns,
         exposure_ns,
@@ -265,7 +283,6 @@ def steady_frame(
     chain = buffer2(table, STEADY_ROW.chain, np.int32)
     edges = buffer2(table, STEADY_ROW.edges, np.uint8)
     points = buffer2(table, STEADY_ROW.points, np.float32)
-    counts = buffer1(table, STEADY_ROW.counts, np.int32)
     planes = Planes(smooth, gx, gy, mag)
     n = detect_and_trace(
         frame,
@@ -299,8 +316,13 @@ def steady_frame(
         ),
     )
     result["points"] = n
+    counts[CONTOUR_POINTS] = max(n, 0)  # FULL: a contour longer than the buffers is not a rope
     if n <= 0 or counts[1] != 0 or counts[2] != 0:
         return STEADY_AFTER_CONTOUR
+    cells[LOCATE.need_gap_ns] = gap_ns
+    cells[LOCATE.frames_roi] += 1
+    cells[LOCATE.prev_count] = n
+    cells[LOCATE.prev_t_ns] = t_ns
     split_state[FRAME_STATE.last_sweep_px] = last_sweep_px
     split_state[FRAME_STATE.n] = n
     sides = buffer3(table, STEADY_ROW.sides, np.float32)

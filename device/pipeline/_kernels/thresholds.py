@@ -85,16 +85,18 @@ _SAMPLE_FRAME, _SAMPLE_WEIGHTS, _SAMPLE_WORK, _SAMPLE_HIST = range(len(SAMPLE_BU
 @kernel(int64(int64, int64, int64, int64))
 def sample_slice(table_address, row0, row_step, col_step):
     """`sample_gradient_histogram` of the frame in the frame slot, with the weights, scratch and histogram of the
-    table at `table_address` (`SAMPLE_BUFFERS`): no array argument, so no Python allocation per call. Returns as
-    `sample_gradient_histogram`, or -2 (INVALID) when the slot holds no C-contiguous (height, width) frame."""
+    table at `table_address` (`SAMPLE_BUFFERS`): no array argument, so no Python allocation per call. Returns 0, or
+    -2 (INVALID) when the slot holds no C-contiguous (height, width) frame (not the sample count: a Python int above
+    256 is a new object)."""
     table = table_at(table_address, len(SAMPLE_BUFFERS))
     address = slot_frame_address(table, _SAMPLE_FRAME)
     if address == 0:
         return -2
-    return sample_gradient_histogram(
+    sampled = sample_gradient_histogram(
         slot_frame(table, _SAMPLE_FRAME, address), buffer1(table, _SAMPLE_WEIGHTS, np.float32), row0, row_step,
         col_step, buffer2(table, _SAMPLE_WORK, np.float32), buffer1(table, _SAMPLE_HIST, np.int32),
     )  # fmt: skip
+    return min(sampled, 0)
 
 
 @kernel(float32(i4_1d_ro))
@@ -113,3 +115,10 @@ def histogram_median(hist):
         if seen >= half:
             return float32((b + 0.5) / HIST_PER_UNIT)
     return float32((hist.shape[0] - 0.5) / HIST_PER_UNIT)
+
+
+@kernel(float32(int64))
+def sample_median(table_address):
+    """`histogram_median` of the histogram of `sample_slice`'s table at `table_address` (no array argument: no
+    Python allocation per call)."""
+    return histogram_median(buffer1(table_at(table_address, len(SAMPLE_BUFFERS)), _SAMPLE_HIST, np.int32))

@@ -26,6 +26,8 @@ from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam.device.pipeline.result import FrameStatus, PipelineResult
+from ropecam.device.pipeline.split_axis import AxisPolylines
+from ropecam.device.pipeline.workspace import SplitBuffers
 
 SCRIPT = textwrap.dedent(
     """
@@ -155,7 +157,7 @@ def test_the_steady_kernel_calls_allocate_no_python_memory(monkeypatch: pytest.M
     workspace's `FrameSlot`, the buffers through a table): their calls allocate no Python memory (`tracemalloc`'s
     peak around each call; an array argument costs Numba's wrapper a 48-byte MemInfo from CPython's allocator).
     Nor does the split's step that takes `steady_frame`'s shapes again (`BlurSplitter.adopt_frame`, its views of
-    those point counts made: no bound method or int made per frame)."""
+    those point counts made: no bound method or int made per frame). The whole steady frame: below."""
     peaks: dict[str, list[int]] = {"steady_frame": [], "sample_slice": [], "adopt_frame": []}
 
     def measured(real: Callable[..., object], name: str) -> Callable[..., object]:
@@ -192,13 +194,106 @@ def test_the_steady_kernel_calls_allocate_no_python_memory(monkeypatch: pytest.M
         pipeline = Pipeline(PipelineConfig(threshold_sample_every=1), (rope.width, rope.height))
         for f in frames:
             assert pipeline.process(f.image, f.index, f.t_ns, f.exposure_us).status is FrameStatus.OK
+        # Its first two calls take the dispatcher's argument tuples from CPython's allocator (the pipeline's argument
+        # tables hold tuples of that size: their free list is empty; `test_a_steady_frame_allocates_no_python_memory`).
+        del peaks["steady_frame"][:2]
         # The last frame's split taken again, its shapes' views made by the first time.
-        _, points, status, *_ = pipeline._steady.results()
+        _, status, *_ = pipeline._steady.results()
         adopt = measured(pipeline.splitter.adopt_frame, "adopt_frame")
         fixed_rc = pipeline.traits.settled.fixed_rc  # type: ignore[union-attr]
         for _ in range(5):
-            assert adopt(status, points, fixed_rc) is pipeline.splitter._shapes_outcome
+            assert adopt(status, fixed_rc) is pipeline.splitter._shapes_outcome
     finally:
         tracemalloc.stop()
     assert all(len(values) >= 5 for values in peaks.values()), peaks
     assert peaks == {name: [0] * len(values) for name, values in peaks.items()}
+
+
+@pytest.mark.jit_only  # without JIT the kernels are Python, which allocates
+@pytest.mark.parametrize("gamma", [1.0, 2.2])
+def test_a_steady_frame_allocates_no_python_memory(monkeypatch: pytest.MonkeyPatch, gamma: float) -> None:
+    """A steady frame (one `steady_frame` call that made, ordered and checked the frame's shapes) with a reused
+    result record makes no Python object: `tracemalloc`'s peak over `Pipeline.process` is 0 bytes on every one,
+    with a camera's gamma undone (`ToneCurve`) and a followed-threshold cycle's end among them. On a 320 px wide
+    frame whose contour has more points than 256 (ints up to 256 are CPython's cached ones, any other is made): its
+    shape read, a count read from a cell or a time subtracted in Python would show."""
+    rope = SyntheticRope(exposure_us=4000, amplitude_rad=0.6, period_s=0.9, diameter_px=3.0, fps=119.0)
+    frames = [(f.image, f.index, f.t_ns, float(f.exposure_us)) for f in rope.frames(32)]
+    if gamma != 1.0:  # as the camera encodes them (`ToneCurve` maps them back)
+        encode = np.round(255.0 * (np.arange(256) / 255.0) ** (1.0 / gamma)).astype(np.uint8)
+        frames = [(encode[image], *rest) for image, *rest in frames]
+    config = PipelineConfig(gamma=gamma, threshold_update_frames=2, threshold_sample_every=1)
+    # The steady frames, and the first of them (which makes the call's argument table once), from a first pipeline.
+    stops: list[int] = []
+    real = K.steady_frame
+
+    def counted(*args: object) -> int:
+        stops.append(stop := real(*args))
+        return stop
+
+    monkeypatch.setattr(K, "steady_frame", counted)
+    first = Pipeline(config, (rope.width, rope.height))
+    steady = []
+    for image, index, t_ns, exposure_us in frames:
+        calls = len(stops)
+        first.process(image, index, t_ns, exposure_us)
+        if len(stops) > calls and stops[-1] == K.STEADY_DONE:
+            steady.append(index)
+    monkeypatch.setattr(K, "steady_frame", real)
+    # The first steady frame makes the call's argument table (once per rope width, Lc0 and thresholds); in the next
+    # two the kernel's dispatcher takes its argument tuples from CPython's allocator (a new pipeline's argument
+    # tables hold tuples of that size: its free list is empty). The first pipeline's frames ran every line of the
+    # steady path (CPython 3.11 specialises a line's tuple unpacking after its first runs: until then each makes an
+    # iterator).
+    measured = steady[3:]
+    assert len(measured) >= 8, steady
+    assert first.tracer.count > 256  # the contour's point count is an int CPython makes
+    pipeline = Pipeline(config, (rope.width, rope.height))
+    record = PipelineResult(0, 0, 0, FrameStatus.BAD_FRAME)
+    peaks, statuses = {}, set()
+    tracemalloc.start()
+    try:
+        for image, index, t_ns, exposure_us in frames:
+            # Read twice: the first reading's own int is made after it, the second rebinds it.
+            start = tracemalloc.get_traced_memory()[0]
+            tracemalloc.reset_peak()
+            start = tracemalloc.get_traced_memory()[0]
+            tracemalloc.reset_peak()
+            pipeline.process(image, index, t_ns, exposure_us, out=record)
+            peak = tracemalloc.get_traced_memory()[1]
+            if index in measured:
+                peaks[index] = peak - start
+                statuses.add(record.status)
+    finally:
+        tracemalloc.stop()
+    assert statuses == {FrameStatus.OK}
+    assert pipeline.thresholds.following  # its cycles ended on these frames (every 2nd)
+    assert peaks == dict.fromkeys(measured, 0)
+
+
+def test_a_shape_count_makes_the_views_of_its_neighbours_once() -> None:
+    """`AxisPolylines.shape`: a point count without a view makes the views of the counts near it on the four rows,
+    so that the next frames' shapes (a rope's counts move by a few points) take theirs without allocating; a count
+    given as the float a kernel wrote finds the same view."""
+    axis = AxisPolylines(SplitBuffers.make(1000), 2.0, 0.0, 1.0)
+    first = axis.shape(0, 204.0)
+    assert first.shape == (204, 2) and first.base is not None
+    assert axis.shape(0, 204) is first
+    calls = [(1, 184.0), (2, 207.0), (3, 229.0), (0, 179.0)]  # within an eighth of 204
+    views: list[object] = [None] * len(calls)
+    peaks = [-1] * len(calls)
+    tracemalloc.start()
+    try:
+        for i in range(len(calls)):
+            row, count = calls[i]
+            start = tracemalloc.get_traced_memory()[0]
+            tracemalloc.reset_peak()
+            start = tracemalloc.get_traced_memory()[0]
+            tracemalloc.reset_peak()
+            views[i] = axis.shape(row, count)
+            peaks[i] = tracemalloc.get_traced_memory()[1] - start
+    finally:
+        tracemalloc.stop()
+    assert peaks == [0] * len(calls)
+    assert [v.shape[0] for v in views] == [184, 207, 229, 179]  # type: ignore[attr-defined]
+    assert axis.shape(3, 900.0).shape == (900, 2)  # far from any: made then

@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from ropecam.device.capture.synthetic import SyntheticRope
+from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline.config import PipelineConfig
+from ropecam.device.pipeline.finish import FrameClock, max_age_ns
 from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam.device.pipeline.result import FrameStatus
 
@@ -170,3 +172,20 @@ def test_results_do_not_depend_on_what_earlier_frames_left_in_the_planes(swing, 
         assert want[0] is have[0]
         np.testing.assert_array_equal(want[1], have[1])
         np.testing.assert_array_equal(want[2], have[2])
+
+
+@pytest.mark.kernel
+def test_the_frame_clock_keeps_the_shortest_gap_between_frame_starts_in_its_cells() -> None:
+    """`FrameClock.tick` (`K.tick_clock`, which `steady_frame` makes too): the period is the shortest gap between
+    frame starts seen (a dropped frame's longer gap, a start that goes back: not taken), the time order's age
+    `AGE_PERIODS` of it; unknown (None, the default period's age) until two starts were seen."""
+    clock = FrameClock()
+    assert (clock.period_ns, clock.max_age_ns, clock.last_t_ns) == (None, max_age_ns(None), None)
+    for t_ns in (10**15, 10**15 + 8_400_000, 10**15 + 25_200_000, 10**15 + 25_000_000):
+        clock.tick(t_ns)
+    assert (clock.period_ns, clock.max_age_ns, clock.last_t_ns) == (8_400_000, 4 * 8_400_000, 10**15 + 25_000_000)
+    clock.tick(10**15 + 33_300_000)  # 8.3 ms after the last start: the shorter gap
+    assert (clock.period_ns, clock.max_age_ns) == (8_300_000, K.AGE_PERIODS * 8_300_000)
+    clock.last_t_ns = None  # (`Pipeline.warm_up`'s blank frame is not the stream's)
+    clock.tick(10**15 + 33_400_000)
+    assert (clock.period_ns, clock.last_t_ns) == (8_300_000, 10**15 + 33_400_000)

@@ -196,7 +196,7 @@ def test_steady_frame_refuses_bad_tables_and_frames_before_any_call() -> None:
         table = buffer_table({**buffers, **replaced}, K.STEADY_BUFFERS)
         slot.hold(frame)
         try:
-            return int(K.steady_frame(table.ctypes.data, 0, False, False, False, 0, 0, 0, 0, 0.0, False, 0.0, 0.0))
+            return int(K.steady_frame(table.ctypes.data, False, False, 0, 0, 0, 0.0, False, 0.0, 0.0))
         finally:
             slot.release()
 
@@ -210,7 +210,7 @@ def test_steady_frame_refuses_bad_tables_and_frames_before_any_call() -> None:
     assert call() == K.INVALID
     frame = np.zeros((3, 3), np.uint8)
     table = buffer_table(buffers, K.STEADY_BUFFERS)  # an empty slot
-    assert K.steady_frame(table.ctypes.data, 0, False, False, False, 0, 0, 0, 0, 0.0, False, 0.0, 0.0) == K.INVALID
+    assert K.steady_frame(table.ctypes.data, False, False, 0, 0, 0, 0.0, False, 0.0, 0.0) == K.INVALID
     # The split's state and info shorter than the kernels need: refused too (the split's state is 3 long).
     assert call() == K.INVALID
     np.testing.assert_array_equal(buffers["band_state"], band_state)  # nothing written: band_stage did not run

@@ -140,16 +140,20 @@ def test_following_samples_one_frame_in_sample_every() -> None:
 
 
 def test_sample_slice_reads_the_frame_through_its_slot_as_the_array_kernel_does() -> None:
-    """`follow`'s kernel takes no array argument (`K.sample_slice`: the frame through a `FrameSlot`): the same
-    histogram as `sample_gradient_histogram` given the frame; a frame the slot was not made for is refused."""
+    """`follow`'s kernels take no array argument (`K.sample_slice`: the frame through a `FrameSlot`; `K.sample_median`):
+    the same histogram as `sample_gradient_histogram` given the frame, the same median; a frame the slot was not made
+    for is refused."""
     thresholds = EdgeThresholds(120, 160, 1.0, 200.0, 500.0, frames=1, update_frames=2)
     assert thresholds._table_address != 0
     frame = _noise(5.0, (120, 160))
     want = np.zeros_like(thresholds._hist)
     K.sample_gradient_histogram(frame, thresholds._weights, 3, 16, 5, thresholds._work.copy(), want)
     thresholds._slot.hold(frame)
-    assert K.sample_slice(thresholds._table_address, 3, 16, 5) > 0
+    assert K.sample_slice(thresholds._table_address, 3, 16, 5) == 0  # (not the sample count: no int made)
+    assert want.sum() > 0
     np.testing.assert_array_equal(thresholds._hist, want)
+    # The median through the table too (`follow`'s cycle end): as given the histogram.
+    assert K.sample_median(thresholds._table_address) == K.histogram_median(want)
     thresholds._slot.hold(_noise(5.0, (120, 161)))
     assert K.sample_slice(thresholds._table_address, 3, 16, 5) == K.INVALID
     thresholds._slot.release()

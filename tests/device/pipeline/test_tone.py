@@ -40,6 +40,23 @@ def test_a_linear_camera_passes_frames_unchanged_and_a_wrong_frame_is_refused() 
         ToneCurve(2.2, (4, 5)).apply(np.zeros((5, 4), np.uint8))
 
 
+@pytest.mark.kernel
+@pytest.mark.parametrize("gamma", [1.0, 2.2])
+def test_a_frame_is_taken_through_the_slot_as_apply_maps_it_and_any_other_frame_is_refused(gamma: float) -> None:
+    """`take` (a stream's frames: `K.take_frame` reads the frame through a slot, no array argument) gives what
+    `apply` gives a C-contiguous frame of the curve's shape, and None for a frame of another shape or layout."""
+    curve = ToneCurve(gamma, (3, 256))
+    frame = np.tile(np.arange(256, dtype=np.uint8), (3, 1))
+    want = curve.apply(frame).copy()
+    taken = curve.take(frame)
+    assert taken is not None
+    np.testing.assert_array_equal(taken, want)
+    assert (taken is frame) == (gamma == 1.0)
+    wide = np.tile(np.arange(256, dtype=np.uint8), (3, 2))
+    for other in (np.zeros((4, 256), np.uint8), wide[:, ::2], np.zeros(768, np.uint8)):
+        assert curve.take(other) is None
+
+
 @pytest.mark.parametrize("gamma", [0.5, 3.5])
 def test_gamma_outside_its_range_is_a_config_error(gamma: float) -> None:
     with pytest.raises(ConfigError, match="gamma"):
