@@ -48,12 +48,13 @@ def _by_hand(folder: Path, method: str) -> dict[str, float]:
     assert truth is not None
     length = fs.meta["rig"]["rope_length_m"]
     pipeline = Pipeline(PipelineConfig(method=method, rope_length_m=length, material_points_m=(length,)), fs.image_size)
-    tips, curves, missing = [], [], 0
+    tips, curves, missing, flagged = [], [], 0, 0
     for position, record in enumerate(fs.records):
         result = pipeline.process(fs.read(position), position, record.t_ns, float(record.exposure_us))
         if result.begin is None or result.end is None:
             missing += 1
             continue
+        flagged += result.status.name not in ("OK", "NO_BLUR")
         for ours_rc, true_uv in ((result.begin, truth["begin_px"][position]), (result.end, truth["end_px"][position])):
             ours = np.asarray(ours_rc, dtype=np.float64)[:, ::-1]
             tips.append(float(np.linalg.norm(ours[-1] - true_uv[-1])))
@@ -61,7 +62,8 @@ def _by_hand(folder: Path, method: str) -> dict[str, float]:
             samples = _even(true_uv, 100)
             curves.append(float(np.mean([np.min(np.linalg.norm(dense - p, axis=1)) for p in samples])))
     return {"tip_mean_px": float(np.mean(tips)), "tip_p95_px": float(np.percentile(tips, 95)),
-            "curve_mean_px": float(np.mean(curves)), "missing_pct": 100.0 * missing / len(fs.records)}  # fmt: skip
+            "curve_mean_px": float(np.mean(curves)), "missing_pct": 100.0 * missing / len(fs.records),
+            "flagged_pct": 100.0 * flagged / len(fs.records)}  # fmt: skip
 
 
 @pytest.mark.slow

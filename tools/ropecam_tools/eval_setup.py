@@ -72,16 +72,16 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(
         "| scene | setup | tip mean px | tip p95 px | centreline mean px | material mm "
-        "| missing % | silent % | order % |"
+        "| missing % | flagged % | silent % | order % |"
     )
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for row in rows:
         if isinstance(row["setup"], str):
-            print(f"| {row['scene']} | {row['setup']} | | | | | | | |")
+            print(f"| {row['scene']} | {row['setup']} | | | | | | | | |")
             continue
         decided = ", ".join(f"{k}={v}" for k, v in row["setup"].items())
         cells = [row[k] for k in ("tip_mean_px", "tip_p95_px", "curve_mean_px", "material_mean_mm")]
-        cells += [row[k] for k in ("missing_pct", "silent_pct", "order_right_pct")]
+        cells += [row[k] for k in ("missing_pct", "flagged_pct", "silent_pct", "order_right_pct")]
         text = " | ".join("-" if isinstance(c, float) and math.isnan(c) else f"{c:.2f}" for c in cells)
         print(f"| {row['scene']} | {decided} | {text} |")
     return 0

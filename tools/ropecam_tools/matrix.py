@@ -12,7 +12,8 @@ Renders simulator frame sets with exact ground truth and runs each pipeline meth
 
 Columns per cell (scene x method): tip mean / p95 (px, begin and end tips pooled), centreline mean (px), material-
 point error (mm on the motion plane, back-projected with the simulator's true camera: a perfect calibration),
-missing % (no begin/end shapes), silent failures % (status OK but tip error > 3 px or centreline error > 1 px),
+missing % (no begin/end shapes), flagged % (both shapes, but a status that says not to trust them: any status
+but OK and NO_BLUR), silent failures % (status OK but tip error > 3 px or centreline error > 1 px),
 time order right % (frames whose tip moves >= 2 px), pipeline time per frame (ms, the pipeline's own clock).
 
 Every figure is measured on simulated frames against the simulator's exact truth; the paper's figures are against

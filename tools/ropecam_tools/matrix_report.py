@@ -19,6 +19,7 @@ COLUMNS = (
     ("curve_mean_px", "centreline mean (px)", 2),
     ("material_mean_mm", "material pt (mm)", 2),
     ("missing_pct", "missing %", 0),
+    ("flagged_pct", "flagged %", 0),
     ("silent_pct", "silent %", 0),
     ("order_right_pct", "order right %", 0),
     ("pipeline_ms", "ms/frame", 1),

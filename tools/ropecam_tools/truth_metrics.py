@@ -11,6 +11,9 @@ into the figures of a table row. Definitions (also in docs/robustness.md):
   (mm);
 * silent failure: a frame whose status is OK but whose worse tip error exceeds `SILENT_TIP_PX` or whose worse
   centreline error exceeds `SILENT_CURVE_PX`;
+* flagged: a frame with both shapes whose status tells the user not to trust them (any status but OK and the
+  no-blur status `TRUSTED_STATUSES`): the device says so, so it is not silent, but it is not a measurement either;
+  missing + flagged is the share of frames that give the user no trusted shape;
 * time order: among frames whose true tip moves at least `ORDER_MIN_SWEEP_PX`, our begin/end tips are closer to the
   true begin/end tips than to the swapped ones.
 """
@@ -28,6 +31,9 @@ from numpy.typing import NDArray
 SILENT_TIP_PX = 3.0
 SILENT_CURVE_PX = 1.0
 ORDER_MIN_SWEEP_PX = 2.0
+TRUSTED_STATUSES = frozenset({"OK", "NO_BLUR"})
+"""Statuses whose shapes a user may take as measured (NO_BLUR: the rope did not move; its shapes are the still
+centreline)."""
 CURVE_SAMPLES = 100
 MATERIAL_FRACTIONS = (0.25, 0.5, 0.75, 1.0)
 """Material points tracked, as fractions of the rope's length from the fixed end."""
@@ -254,7 +260,8 @@ def summarise(frames: list[FrameErrors]) -> dict[str, Any]:
     """Return the figures of a table row (percentages 0-100, NaN where nothing was measured).
 
     Tip statistics pool the begin and end tips of every frame with shapes; missing % counts frames without both
-    shapes; silent % and missing % are of all frames.
+    shapes; flagged % frames with both shapes and a status outside `TRUSTED_STATUSES`; silent %, missing % and
+    flagged % are of all frames.
     """
     measured = [f for f in frames if f.shapes]
     tips = [f.tip_begin_px for f in measured] + [f.tip_end_px for f in measured]
@@ -271,6 +278,7 @@ def summarise(frames: list[FrameErrors]) -> dict[str, Any]:
         "curve_mean_px": _stat(curves, "mean"),
         "material_mean_mm": _stat([f.material_mm for f in measured], "mean"),
         "missing_pct": 100.0 * (len(frames) - len(measured)) / n,
+        "flagged_pct": 100.0 * sum(f.status not in TRUSTED_STATUSES for f in measured) / n,
         "silent_pct": 100.0 * sum(f.silent for f in frames) / n,
         "order_right_pct": 100.0 * float(np.mean(orders)) if orders else math.nan,
         "order_frames": len(orders),
