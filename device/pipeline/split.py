@@ -458,8 +458,8 @@ class BlurSplitter:
                 nb = K.offset_by_table(
                     points, chain, n, i_fix, seg_b, minus, gx, gy, pol, sweeps_b, local, sw, step, table, self.side_b
                 )
-            na = self.axis.fit_tip(self.side_a, na, points, n, smooth_ro, consts)
-            nb = self.axis.fit_tip(self.side_b, nb, points, n, smooth_ro, consts)
+            na = self.axis.fit_tip(self.side_a, na, points, n, smooth_ro, consts, seg_a, seg_b)
+            nb = self.axis.fit_tip(self.side_b, nb, points, n, smooth_ro, consts, seg_a, seg_b)
             # The fitted tips are sharper than the band's rounded corners: their distance across the rope is the
             # sideways sweep at the tip. Where it differs, the offsets of the proportional model are redone with it.
             if local:

@@ -99,16 +99,23 @@ class AxisPolylines:
         n_points: np.int32,
         smooth: NDArray[np.float32],
         tables: WidthTables,
+        seg_a: int,
+        seg_b: int,
     ) -> int:
         """Put the free end of an axis polyline where the band ends along that axis, less the cap.
 
         The segmentation point is only as good as the corner of the band, which the smoothing rounds over a few
         pixels: the axis is fitted on the straight side before the corner and carried on to where the band ends
         along it (`extend_to_band_end`, among the contour's `n_points` `points`, on the read-only smoothed image
-        `smooth`, with the width's `tables`).
+        `smooth`, with the width's `tables`; the segmentation points ``points[seg_a]``, ``points[seg_b]`` say how
+        far the band's far end sweeps across the axis).
         """
         c = tables
-        return K.extend_to_band_end(poly, np.int32(n), points, n_points, smooth, c.width, c.cap, c.skip, c.span, c.blur)
+        gap_r = points[seg_b, 0] - points[seg_a, 0]
+        gap_c = points[seg_b, 1] - points[seg_a, 1]
+        return K.extend_to_band_end(
+            poly, np.int32(n), points, n_points, smooth, c.width, c.cap, c.skip, c.span, c.blur, gap_r, gap_c
+        )
 
     def resample(self, side: int, n: int, length_px: float) -> NDArray[np.float32]:
         """Resample the first `n` points of side A (`side` 0) or B (1), `length_px` long (`polyline_length` of

@@ -285,8 +285,17 @@ def _band_axis(poly, n, skip_px, span_px):
     return 1.0, mr + t * dir_r, mc + t * dir_c, dir_r, dir_c
 
 
-@kernel(int32(f4_2d, int32, f4_2d_ro, float64, float64, float64, float64, float64, float32, float32, float32, float32))
-def _band_tip(poly, n, smooth, base_r, base_c, dir_r, dir_c, best, width_px, cap_px, skip_px, blur_px):
+WIDE_SWEEP_WIDTHS: Final = 3.0
+"""Edge spacings across the axis between the band's two far corners (the segmentation points, on the corners the
+smoothing rounds: about the sweep at the tip less 0.6 of a width) beyond which the tip fit does not take the
+half-level crossing nearer the fixed end than the contour's end less the smoothing's sigma (`_band_tip`)."""
+
+
+@kernel(
+    int32(f4_2d, int32, f4_2d_ro, float64, float64, float64, float64, float64, float32, float32, float32, float32,
+          float32, float32)
+)  # fmt: skip
+def _band_tip(poly, n, smooth, base_r, base_c, dir_r, dir_c, best, width_px, cap_px, skip_px, blur_px, gap_r, gap_c):
     """`extend_to_band_end` once the axis (`_band_axis`) and the contour's farthest point along it (`best`) are
     known: the flat end's refinement on `smooth`, the cut and the new tip. Returns the new count or `n`."""
     if cap_px == 0.0:
@@ -298,6 +307,15 @@ def _band_tip(poly, n, smooth, base_r, base_c, dir_r, dir_c, best, width_px, cap
         end = half_level_crossing(smooth, np.float32(base_r), np.float32(base_c), np.float32(dir_r),
                                   np.float32(dir_c), np.float32(best), reach, np.float32(2.0))  # fmt: skip
         if not math.isnan(end):
+            # Near the corner of a sweep of many widths the rope covers the axis for a small part of the exposure
+            # (a fourth at 4 widths), and a textured or noisy plate moves the crossing there, mostly nearer the fixed
+            # end (simulated `texture = 0.2`, tuning seed, frame 32: 3.2 px short, the contour's end 0.6 px;
+            # `read noise = 10 DN` frame 36: 2.8 and 0.8 px). The smoothing rounds the corner inward by about its
+            # sigma, so the crossing is not taken nearer than that to the contour's end there. A narrow sweep keeps
+            # the crossing: a whipping tip's band ends in a ramp its contour runs beyond (lab-rolling's sweeps of
+            # at most 1.7 widths, where the bound put tips up to 0.8 px farther off).
+            if abs(gap_r * dir_c - gap_c * dir_r) > WIDE_SWEEP_WIDTHS * width_px:
+                end = max(end, np.float32(best - blur_px))
             best = end
     extent = max(best - cap_px, 0.0)
     count = trim_polyline_end(poly, n, np.float32(skip_px))
@@ -308,8 +326,10 @@ def _band_tip(poly, n, smooth, base_r, base_c, dir_r, dir_c, best, width_px, cap
     return count + 1
 
 
-@kernel(int32(f4_2d, int32, f4_2d_ro, int32, f4_2d_ro, float32, float32, float32, float32, float32))
-def extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip_px, span_px, blur_px):
+@kernel(
+    int32(f4_2d, int32, f4_2d_ro, int32, f4_2d_ro, float32, float32, float32, float32, float32, float32, float32)
+)  # fmt: skip
+def extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip_px, span_px, blur_px, gap_r, gap_c):
     """Replace the free end of the axis polyline `poly` (n points) by the axis carried on to where the band ends.
 
     The last `skip_px` of arc are the band's rounded corner (smoothing and the end's blur pull the edge inward
@@ -318,9 +338,11 @@ def extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip
     The band's end along that line is the farthest of the contour `points` lying within half a width of it (and
     within -2 to `skip_px` + 4 widths of the base); for a flat end (`cap_px` 0) it is refined to where the smoothed
     image `smooth` falls halfway from the band to the background along the line (`half_level_crossing`, reach
-    ``3 blur_px + 1``); the tip goes `cap_px` short of it (half a width for a round end). The polyline is cut
-    `skip_px` from its end and the tip appended, in place. Returns the new point count, or `n` unchanged when the
-    polyline is too short or no band end is found.
+    ``3 blur_px + 1``), but, where the band's far corners lie more than `WIDE_SWEEP_WIDTHS` edge spacings apart
+    across the line (``(gap_r, gap_c)``: corner B less corner A, the segmentation points; 0, 0 for a still rope),
+    not to less than that farthest point less `blur_px`; the tip goes `cap_px` short of it (half a width for a
+    round end). The polyline is cut `skip_px` from its end and the tip appended, in place. Returns the new point
+    count, or `n` unchanged when the polyline is too short or no band end is found.
     """
     if n < 3 or n >= poly.shape[0]:
         return n
@@ -337,15 +359,18 @@ def extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip
             best = along
     if best < -1e29:
         return n
-    return _band_tip(poly, n, smooth, base_r, base_c, dir_r, dir_c, best, width_px, cap_px, skip_px, blur_px)
+    return _band_tip(
+        poly, n, smooth, base_r, base_c, dir_r, dir_c, best, width_px, cap_px, skip_px, blur_px, gap_r, gap_c
+    )
 
 
 @kernel(
-    int32(f4_2d, int32, f4_2d_ro, int32, f4_2d_ro, float32, float32, float32, float32, float32, f8_1d_ro, float32,
-          float32)
+    int32(f4_2d, int32, f4_2d_ro, int32, f4_2d_ro, float32, float32, float32, float32, float32, float32, float32,
+          f8_1d_ro, float32, float32)
 )  # fmt: skip
 def extend_to_band_end_near(
-    poly, n, points, n_points, smooth, width_px, cap_px, skip_px, span_px, blur_px, fixed_dist, fixed_r, fixed_c
+    poly, n, points, n_points, smooth, width_px, cap_px, skip_px, span_px, blur_px, gap_r, gap_c, fixed_dist,
+    fixed_r, fixed_c,
 ):  # fmt: skip
     """`extend_to_band_end` (same results) looking for the band's end only among the contour points whose distance
     from (`fixed_r`, `fixed_c`), given in ``fixed_dist[:n_points]`` (`find_segmentation_points`' distances from
@@ -357,7 +382,9 @@ def extend_to_band_end_near(
     if n < 3 or n >= poly.shape[0]:
         return n
     if fixed_dist.shape[0] < n_points:
-        return extend_to_band_end(poly, n, points, n_points, smooth, width_px, cap_px, skip_px, span_px, blur_px)
+        return extend_to_band_end(
+            poly, n, points, n_points, smooth, width_px, cap_px, skip_px, span_px, blur_px, gap_r, gap_c
+        )
     ok, base_r, base_c, dir_r, dir_c = _band_axis(poly, n, skip_px, span_px)
     if ok == 0.0:
         return n
@@ -382,4 +409,6 @@ def extend_to_band_end_near(
             best = along
     if best < -1e29:
         return n
-    return _band_tip(poly, n, smooth, base_r, base_c, dir_r, dir_c, best, width_px, cap_px, skip_px, blur_px)
+    return _band_tip(
+        poly, n, smooth, base_r, base_c, dir_r, dir_c, best, width_px, cap_px, skip_px, blur_px, gap_r, gap_c
+    )

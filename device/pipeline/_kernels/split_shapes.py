@@ -72,7 +72,8 @@ def split_shapes(
     across the band at each point where the sweep is below a few widths, read every `CONTRAST_STRIDE`-th point
     first; into ``scratch[2]``) and, when they spread along the side by `MIN_SPREAD` or more where it sweeps
     little, `side_sweeps` again with them;
-    `offset_by_table`, `extend_to_band_end`; then the slant correction of
+    `offset_by_table`, `extend_to_band_end` (the segmentation points' gap bounding a wide sweep's tip);
+    then the slant correction of
     the two tips (`BlurSplitter._correct_slant`: float32 updates as NumPy makes them), the two lengths, the
     length check (``|La - Lb| > max(3 width64_px, 0.1 max(La, Lb))`` rejects the split), and per side
     `anchor_start` at the fixed end (`fixed_r`, `fixed_c`; axis from `skip_px` over `span_px`; through the fixed
@@ -164,10 +165,12 @@ def split_shapes(
                                  table, keep, keep, out_side_b)  # fmt: skip
     if na < 0 or nb < 0:
         return FULL
+    gap_r = points[seg_b, 0] - points[seg_a, 0]
+    gap_c = points[seg_b, 1] - points[seg_a, 1]
     na = extend_to_band_end_near(out_side_a, na, points, n, smooth, width_px, cap_px, skip_px, span_px, blur_px,
-                                 fixed_dist, fixed_r, fixed_c)  # fmt: skip
+                                 gap_r, gap_c, fixed_dist, fixed_r, fixed_c)  # fmt: skip
     nb = extend_to_band_end_near(out_side_b, nb, points, n, smooth, width_px, cap_px, skip_px, span_px, blur_px,
-                                 fixed_dist, fixed_r, fixed_c)  # fmt: skip
+                                 gap_r, gap_c, fixed_dist, fixed_r, fixed_c)  # fmt: skip
     if na >= 3 and nb >= 3:
         a1r = float(out_side_a[na - 1, 0])
         a1c = float(out_side_a[na - 1, 1])

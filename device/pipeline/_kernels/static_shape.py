@@ -72,8 +72,9 @@ def static_shape(points, chain, n, gx, gy, smooth, polarity, width, fixed, fixed
     # The cap's edge was moved half a width back along the axis with the gradient: carry the axis on to the band's
     # end instead, as for the split shapes.
     count = extend_to_band_end(
-        side_a, count, points, n, smooth, width.width_px, width.cap_px, width.skip_px, width.span_px, width.blur_px
-    )
+        side_a, count, points, n, smooth, width.width_px, width.cap_px, width.skip_px, width.span_px, width.blur_px,
+        np.float32(0.0), np.float32(0.0),
+    )  # fmt: skip
     if fixed:
         count = anchor_start(
             side_a, count, fixed_r, fixed_c, width.skip_px, width.span_px, np.int32(1 if width.through_fixed else 0)

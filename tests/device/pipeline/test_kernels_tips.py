@@ -212,14 +212,50 @@ def test_extend_to_band_end_carries_the_straight_axis_to_the_end() -> None:
     end = np.stack([np.arange(18.5, 21.6, 0.5), np.full(7, 49.8)], axis=1)
     bottom = np.stack([np.full(45, 21.5), np.arange(49.0, 4.0, -1.0)], axis=1)
     contour = np.concatenate([top, end, bottom]).astype(np.float32)
-    count = K.extend_to_band_end(poly, cols.size, contour, len(contour), image, 3.0, 0.0, 5.0, 9.0, 1.0)
+    count = K.extend_to_band_end(poly, cols.size, contour, len(contour), image, 3.0, 0.0, 5.0, 9.0, 1.0, 0.0, 0.0)
     assert count < cols.size + 1
     np.testing.assert_allclose(poly[count - 1], [20.0, tip], atol=0.05)
     assert np.all(np.abs(poly[: count - 1, 0] - 20.0) < 1e-4)  # the bent corner was cut away
     # A round end: the tip stays `cap_px` short of the band's end (the contour's farthest point along the axis).
     poly[: cols.size] = np.stack([rows, cols], axis=1)
-    count = K.extend_to_band_end(poly, cols.size, contour, len(contour), image, 3.0, 1.5, 5.0, 9.0, 1.0)
+    count = K.extend_to_band_end(poly, cols.size, contour, len(contour), image, 3.0, 1.5, 5.0, 9.0, 1.0, 0.0, 0.0)
     np.testing.assert_allclose(poly[count - 1], [20.0, 49.8 - 1.5], atol=0.05)
+
+
+def test_extend_to_band_end_bounds_the_crossing_of_a_wide_sweep_only() -> None:
+    # The band's outline ends at column 49.8 (its corner rounded by the smoothing), but along the axis the level
+    # falls slowly from column 42 to 50 (near the corner of a wide sweep the rope covers the axis for a small part
+    # of the exposure and a textured plate sets the level): the half-level crossing lies near column 47.4, 2.4 px
+    # short of the outline.
+    rows, cols = np.mgrid[0:40, 0:70].astype(np.float64)
+    along = np.clip((50.0 - cols) / 8.0, 0.0, 1.0)
+    across = np.exp(-0.5 * ((rows - 20.0) / 1.5) ** 2)
+    image = (30.0 + 30.0 * across * along).astype(np.float32)
+    f = np.float32
+    crossing = 10.0 + K.half_level_crossing(image, f(20.0), f(10.0), f(0.0), f(1.0), f(39.8), f(4.0), f(2.0))
+    assert crossing < 49.8 - 2.0
+    cols_axis = np.arange(8.0, 49.0, 1.0)
+    top = np.stack([np.full(45, 18.5), np.arange(5.0, 50.0)], axis=1)
+    end = np.stack([np.arange(18.5, 21.6, 0.5), np.full(7, 49.8)], axis=1)
+    bottom = np.stack([np.full(45, 21.5), np.arange(49.0, 4.0, -1.0)], axis=1)
+    contour = np.concatenate([top, end, bottom]).astype(np.float32)
+    width = 3.0
+    # The band's far corners (the segmentation points) 3.5 widths apart across the axis: the tip goes no nearer
+    # the fixed end than the outline's end less `blur_px` (1 px), whichever way the gap points.
+    for gap_r, gap_c in ((3.5 * width, 0.0), (-3.5 * width, 2.0)):
+        poly = np.zeros((100, 2), np.float32)
+        poly[: cols_axis.size] = np.stack([np.full(cols_axis.size, 20.0), cols_axis], axis=1)
+        count = K.extend_to_band_end(poly, cols_axis.size, contour, len(contour), image, width, 0.0, 5.0, 9.0, 1.0,
+                                     gap_r, gap_c)  # fmt: skip
+        np.testing.assert_allclose(poly[count - 1], [20.0, 49.8 - 1.0], atol=0.01)
+    # Corners 2.5 widths apart, or a gap along the axis (a whipping tip: its band ends in a ramp its outline runs
+    # beyond): the crossing stands.
+    for gap_r, gap_c in ((2.5 * width, 0.0), (0.0, 8.0 * width)):
+        poly = np.zeros((100, 2), np.float32)
+        poly[: cols_axis.size] = np.stack([np.full(cols_axis.size, 20.0), cols_axis], axis=1)
+        count = K.extend_to_band_end(poly, cols_axis.size, contour, len(contour), image, width, 0.0, 5.0, 9.0, 1.0,
+                                     gap_r, gap_c)  # fmt: skip
+        np.testing.assert_allclose(poly[count - 1], [20.0, crossing], atol=0.01)
 
 
 def test_band_edge_model_limits() -> None:
@@ -307,13 +343,13 @@ def test_extend_to_band_end_near_equals_the_full_search() -> None:
             expected[: cols.size] = np.stack([rows, cols], axis=1)
             got = expected.copy()
             n_expected = K.extend_to_band_end(
-                expected, cols.size, contour, len(contour), image, 3.0, cap, 5.0, 9.0, 1.0
+                expected, cols.size, contour, len(contour), image, 3.0, cap, 5.0, 9.0, 1.0, 14.0, 0.0
             )
             for fixed_dist in (dist, dist[:0]):
                 got[: cols.size] = np.stack([rows, cols], axis=1)
                 n_got = K.extend_to_band_end_near(
-                    got, cols.size, contour, len(contour), image, f(3.0), f(cap), f(5.0), f(9.0), f(1.0), fixed_dist,
-                    fixed_r, fixed_c,
+                    got, cols.size, contour, len(contour), image, f(3.0), f(cap), f(5.0), f(9.0), f(1.0), f(14.0),
+                    f(0.0), fixed_dist, fixed_r, fixed_c,
                 )  # fmt: skip
                 assert n_got == n_expected
                 np.testing.assert_array_equal(got, expected)
@@ -323,5 +359,6 @@ def test_extend_to_band_end_near_equals_the_full_search() -> None:
     far = contour[:1] + f(300.0)
     dist = np.hypot(far[:, 0], far[:, 1]).astype(np.float64)
     assert (
-        K.extend_to_band_end_near(poly, cols.size, far, 1, image, 3.0, 0.0, 5.0, 9.0, 1.0, dist, 0.0, 0.0) == cols.size
+        K.extend_to_band_end_near(poly, cols.size, far, 1, image, 3.0, 0.0, 5.0, 9.0, 1.0, 0.0, 0.0, dist, 0.0, 0.0)
+        == cols.size
     )

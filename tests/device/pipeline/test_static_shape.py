@@ -65,7 +65,7 @@ def _one_by_one(args: tuple) -> tuple[int, np.ndarray, np.ndarray]:
         return K.NOT_FOUND, np.empty((0, 2), np.float32), buffers.seg
     count = K.extend_to_band_end(
         side_a, np.int32(count), points, n, smooth, width.width_px, width.cap_px, width.skip_px, width.span_px,
-        width.blur_px,
+        width.blur_px, np.float32(0.0), np.float32(0.0),
     )  # fmt: skip
     if fixed:
         through = np.int32(1 if width.through_fixed else 0)
