@@ -20,8 +20,9 @@ from ropecam.device.pipeline.traits import RopeTraits
 
 __all__ = ["BROKEN_OUTLINE", "FrameClock", "ResultFinisher", "max_age_ns"]
 
-BROKEN_OUTLINE = 0.15
-"""Largest part of the contour's pixels walked twice (spurs of noise and texture) before it is no band outline."""
+BROKEN_OUTLINE = K.BROKEN_OUTLINE
+"""Largest part of the contour's pixels walked twice (spurs of noise and texture) before it is no band outline (a
+contour open at one end is joined first: `K.join_open_ends`)."""
 
 UNDECIDED_ORDER = 0.6
 """Time order confidence below which a split of a small sweep (`UNDECIDED_SWEEP_WIDTHS`) is a coin flip."""

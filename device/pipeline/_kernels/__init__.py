@@ -77,6 +77,7 @@ from ropecam.device.pipeline._kernels.checks import (
 )
 from ropecam.device.pipeline._kernels.contacts import count_border_contacts, count_roi_contacts
 from ropecam.device.pipeline._kernels.contour import (
+    close_open_outline,
     first_listed,
     flood_flat,
     flood_labels,
@@ -159,7 +160,7 @@ from ropecam.device.pipeline._kernels.offsets import (
     side_sweeps_indexed,
     slope_sweep_median,
 )
-from ropecam.device.pipeline._kernels.outline import OPEN_RATIO, keep_open_once
+from ropecam.device.pipeline._kernels.outline import JOIN_REACH_PX, OPEN_RATIO, join_open_ends, keep_open_once
 from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots, thin_chain
 from ropecam.device.pipeline._kernels.plane import (
     PLANE,
@@ -181,7 +182,7 @@ from ropecam.device.pipeline._kernels.polylines import (
     trim_polyline_end,
 )
 from ropecam.device.pipeline._kernels.prediction import need_profile
-from ropecam.device.pipeline._kernels.revisits import VISITED, count_revisits
+from ropecam.device.pipeline._kernels.revisits import BROKEN_OUTLINE, JOINED_REVISITS, VISITED, count_revisits
 from ropecam.device.pipeline._kernels.smoothing import smooth_polyline
 from ropecam.device.pipeline._kernels.spans import (
     coarse_spans,
@@ -248,6 +249,7 @@ __all__ = [
     "BACKGROUND_PX",
     "BAND",
     "BAND_STATE",
+    "BROKEN_OUTLINE",
     "CHECK_FALLBACK_SWEEP",
     "CHECK_NONE",
     "CHECK_NO_BLUR",
@@ -271,6 +273,8 @@ __all__ = [
     "HISTORY",
     "HIST_PER_UNIT",
     "INVALID",
+    "JOINED_REVISITS",
+    "JOIN_REACH_PX",
     "MARGIN_PX",
     "MASK_ALWAYS",
     "MASK_FREE",
@@ -340,6 +344,7 @@ __all__ = [
     "box_mean",
     "chain_length",
     "check_frame",
+    "close_open_outline",
     "coarse_spans",
     "contrast_gains",
     "count_border_contacts",
@@ -366,6 +371,7 @@ __all__ = [
     "histogram_median",
     "in_spans",
     "is_cut_end",
+    "join_open_ends",
     "keep_largest_closed",
     "keep_largest_component",
     "keep_largest_listed",
