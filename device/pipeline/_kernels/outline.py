@@ -188,8 +188,8 @@ def join_open_ends(edges, lo, hi, static_mask, n, contour):
     axis: a ramp too faint for an edge; simulated `lab`, tuning seed, 240 frames, frame 90: the sides end 2.5 px
     apart), and the outline check then finds more than `BROKEN_OUTLINE` of the chain's pixels walked twice. Such a
     chain (longer than the component: the walk comes back) that touches `static_mask` (its other end sealed at the
-    clamp, `seal_cut_ends`; not while the mask is learned: a still rope's outline open at the clamp is what the
-    clamp's search reads, `structure_points`) has its two ends (`pick_open_ends`, within
+    clamp, `seal_cut_ends`; a learned mask is empty while it is learned, and a still rope's outline open at its
+    clamp then is what the clamp's search reads, `structure_points`) has its two ends (`pick_open_ends`, within
     `JOIN_REACH_PX`; ``contour.stack`` as scratch) joined by a line of the component's pixels (`draw_join`), as a
     cap would close it. Returns the two ends (flat ``row * width + col``), what `draw_join` changed (0: nothing
     joined, the map as it was) and the joined component's first pixel in raster order (where to trace it from)."""
