@@ -24,9 +24,9 @@ __all__ = ["BROKEN_OUTLINE", "FrameClock", "ResultFinisher", "max_age_ns"]
 # 48-byte method-wrapper each time (its metaclass has a `__getattr__`), a Python allocation per frame.
 _OK, _BLUR_SPLIT = FrameStatus.OK, Method.BLUR_SPLIT
 
-
-BROKEN_OUTLINE = 0.15
-"""Largest part of the contour's pixels walked twice (spurs of noise and texture) before it is no band outline."""
+BROKEN_OUTLINE = K.BROKEN_OUTLINE
+"""Largest part of the contour's pixels walked twice (spurs of noise and texture) before it is no band outline (a
+contour open at one end is joined first: `K.join_open_ends`)."""
 
 UNDECIDED_ORDER = 0.6
 """Time order confidence below which a split of a small sweep (`UNDECIDED_SWEEP_WIDTHS`) is a coin flip."""

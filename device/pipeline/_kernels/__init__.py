@@ -87,6 +87,7 @@ from ropecam.device.pipeline._kernels.checks import (
 )
 from ropecam.device.pipeline._kernels.contacts import count_border_contacts, count_roi_contacts
 from ropecam.device.pipeline._kernels.contour import (
+    close_open_outline,
     first_listed,
     flood_flat,
     flood_labels,
@@ -169,7 +170,7 @@ from ropecam.device.pipeline._kernels.offsets import (
     side_sweeps_indexed,
     slope_sweep_median,
 )
-from ropecam.device.pipeline._kernels.outline import OPEN_RATIO, keep_open_once
+from ropecam.device.pipeline._kernels.outline import JOIN_REACH_PX, OPEN_RATIO, join_open_ends, keep_open_once
 from ropecam.device.pipeline._kernels.paper import OPERATOR, apply_operator, score_knots, thin_chain
 from ropecam.device.pipeline._kernels.plane import (
     PLANE,
@@ -191,7 +192,7 @@ from ropecam.device.pipeline._kernels.polylines import (
     trim_polyline_end,
 )
 from ropecam.device.pipeline._kernels.prediction import need_profile
-from ropecam.device.pipeline._kernels.revisits import VISITED, count_revisits
+from ropecam.device.pipeline._kernels.revisits import BROKEN_OUTLINE, JOINED_REVISITS, VISITED, count_revisits
 from ropecam.device.pipeline._kernels.smoothing import smooth_polyline
 from ropecam.device.pipeline._kernels.spans import (
     coarse_spans,
@@ -260,6 +261,7 @@ __all__ = [
     "BACKGROUND_PX",
     "BAND",
     "BAND_STATE",
+    "BROKEN_OUTLINE",
     "CHECK_FALLBACK_SWEEP",
     "CHECK_NONE",
     "CHECK_NO_BLUR",
@@ -288,6 +290,8 @@ __all__ = [
     "HISTORY",
     "HIST_PER_UNIT",
     "INVALID",
+    "JOINED_REVISITS",
+    "JOIN_REACH_PX",
     "LOCATE",
     "LOCATE_CELLS",
     "MARGIN_PX",
@@ -361,6 +365,7 @@ __all__ = [
     "box_mean",
     "chain_length",
     "check_frame",
+    "close_open_outline",
     "coarse_spans",
     "contrast_gains",
     "count_border_contacts",
@@ -387,6 +392,7 @@ __all__ = [
     "histogram_median",
     "in_spans",
     "is_cut_end",
+    "join_open_ends",
     "keep_largest_closed",
     "keep_largest_component",
     "keep_largest_listed",

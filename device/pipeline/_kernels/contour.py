@@ -13,7 +13,15 @@ from ropecam.device.pipeline._kernels._common import DIR_COL, DIR_ROW, FULL, NOT
 from ropecam.device.pipeline._kernels.contacts import count_border_contacts, count_roi_contacts
 from ropecam.device.pipeline._kernels.geometry import refine_subpixel
 from ropecam.device.pipeline._kernels.groups import CONTOUR
-from ropecam.device.pipeline._kernels.outline import OPEN_RATIO, keep_open_once, touches_mask
+from ropecam.device.pipeline._kernels.outline import (
+    OPEN_RATIO,
+    draw_join,
+    join_open_ends,
+    joined_pixels,
+    keep_open_once,
+    touches_mask,
+)
+from ropecam.device.pipeline._kernels.revisits import JOINED_REVISITS, count_revisits
 from ropecam.device.pipeline._kernels.spans import in_spans
 from ropecam.shared.jit import (
     f4_2d,
@@ -461,6 +469,37 @@ def refine_inner(mag, gx, gy, lo, hi, chain, n, scratch, out_points):
     return contacts
 
 
+@kernel(int32(u1_2d, i4_1d_ro, i4_1d_ro, u1_2d_ro, boolean, int32, CONTOUR))
+def close_open_outline(edges, lo, hi, static_mask, inner, n, contour):
+    """`join_open_ends` on the `n`-point trace in `contour`; the join kept when the component traced again (as
+    `trace_rope` traces: `trace_closed` when `inner`) walks at most `JOINED_REVISITS` of its pixels twice (a
+    ring), else taken out and the component traced as before. Writes `contour` as `trace_rope` (``counts[0]``:
+    the component with the join's pixels); returns the chain length."""
+    a, b, changed, start = join_open_ends(edges, lo, hi, static_mask, n, contour)
+    if changed == 0:
+        return n
+    width = np.int64(edges.shape[1])
+    chain = contour.chain
+    m = n
+    for attempt in range(2):
+        r = int32(start // width)
+        c = int32(start - r * width)
+        if inner:
+            m = trace_closed(edges.reshape(edges.shape[0] * width), width, r, c, chain, contour.codes)
+        else:
+            m = trace_contour(edges, lo, hi, r, c, chain, contour.codes)
+        if attempt == 1 or (m > 0 and count_revisits(chain, m, edges) <= JOINED_REVISITS * m):
+            break
+        draw_join(edges, lo, hi, a, b, changed)  # not a ring: the line out again, the old trace
+        start = np.int64(contour.start[0]) * width + contour.start[1]
+        changed = 0
+    if changed != 0:
+        contour.start[0] = start // width
+        contour.start[1] = start - start // width * width
+        contour.counts[0] += joined_pixels(changed)
+    return m
+
+
 _NO_FIXED: Final = -1e9
 """A fixed end far off the image: `count_border_contacts` then counts every chain pixel on the image border."""
 
@@ -520,6 +559,8 @@ def trace_rope(edges, lo, hi, edge_list, n_edges, min_pixels, ring_clear, static
                 out_counts[0] = size
                 if n >= OPEN_RATIO * size and touches_mask(static_mask, out_chain, n):
                     n = keep_open_once(out_chain, out_codes, n, size)
+                elif n > size:
+                    n = close_open_outline(edges, lo, hi, static_mask, True, n, contour)
                 out_counts[1] = refine_inner(mag, gx, gy, lo, hi, out_chain, n, scratch, out_points)
                 return n
         # Another component is larger, or the chain overflows (its size is then reported): the general way.
@@ -540,6 +581,8 @@ def trace_rope(edges, lo, hi, edge_list, n_edges, min_pixels, ring_clear, static
         return n
     if n >= OPEN_RATIO * size and touches_mask(static_mask, out_chain, n):
         n = keep_open_once(out_chain, out_codes, n, size)
+    elif n > size:
+        n = close_open_outline(edges, lo, hi, static_mask, inner, n, contour)
     if inner:
         out_counts[1] = refine_inner(mag, gx, gy, lo, hi, out_chain, n, scratch, out_points)
         return n

@@ -10,6 +10,11 @@ from numba import int32, int64, uint8
 
 from ropecam.shared.jit import i4_2d_ro, kernel, u1_2d
 
+BROKEN_OUTLINE: Final = 0.15
+"""Largest part of the contour's pixels walked twice (spurs of noise and texture) before it is no band outline."""
+JOINED_REVISITS: Final = 0.05
+"""Largest part of the contour's pixels walked twice once an open outline's two ends are joined
+(`close_open_outline`): the join made a ring, with a few spurs."""
 VISITED: Final = 0x80
 """Bit of the edge map that marks a pixel the contour has walked (cleared again before returning)."""
 

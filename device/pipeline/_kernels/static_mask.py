@@ -168,29 +168,36 @@ wider) below its mask into a cap wider than the rope's, which the fixed-end gues
 _CUT: Final = 3  # an edge pixel marked as a cut end while the ends are paired (edges are 1 otherwise)
 
 
-@kernel(boolean(u1_2d, u1_2d_ro, int64, int64))
-def is_cut_end(edges, mask, r, c):
-    """Whether the edge pixel (`r`, `c`) (not on the image border) ends a line where the mask cut it: it has one
-    edge neighbour, or two that touch each other (a line's end), and a masked neighbour."""
+@kernel(boolean(u1_2d, int64, int64, int64))
+def ends_line(edges, r, c, value):
+    """Whether the edge pixel (`r`, `c`) (not on the image border) ends a line of `edges`' pixels of `value` (0:
+    of any nonzero value): it has one such neighbour, or two that touch each other."""
     count = 0
-    masked = False
     first_r = 0
     first_c = 0
     touching = True
     for dr in range(-1, 2):
         for dc in range(-1, 2):
-            if dr == 0 and dc == 0:
-                continue
-            if mask[r + dr, c + dc] != MASK_FREE:
-                masked = True
-            if edges[r + dr, c + dc] != 0:
+            v = edges[r + dr, c + dc]
+            if (dr != 0 or dc != 0) and v != 0 and (value == 0 or v == value):
                 count += 1
                 if count == 1:
                     first_r = dr
                     first_c = dc
                 elif abs(dr - first_r) > 1 or abs(dc - first_c) > 1:
                     touching = False
-    return masked and (count == 1 or (count == 2 and touching))
+    return count == 1 or (count == 2 and touching)
+
+
+@kernel(boolean(u1_2d, u1_2d_ro, int64, int64))
+def is_cut_end(edges, mask, r, c):
+    """Whether the edge pixel (`r`, `c`) (not on the image border) ends a line where the mask cut it: it ends a
+    line (`ends_line`) and has a masked neighbour."""
+    for dr in range(-1, 2):
+        for dc in range(-1, 2):
+            if (dr != 0 or dc != 0) and mask[r + dr, c + dc] != MASK_FREE:
+                return ends_line(edges, r, c, np.int64(0))
+    return False
 
 
 @kernel(int64(u1_2d, int64, int64, int64))

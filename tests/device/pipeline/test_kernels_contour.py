@@ -575,3 +575,67 @@ def test_trace_rope_walks_an_open_outline_once() -> None:
     assert counts[0] == mask.sum()
     assert mask.sum() - 4 <= n <= mask.sum()  # once (the walk cuts the cap's corners), not out and back
     assert {tuple(chain[0]), tuple(chain[n - 1])} == {(5, 10), (5, 14)}
+
+
+def _open_band(reach_px=4):
+    """A band's outline open at its far end (a tip moving along the rope: no edge there), closed at the clamp,
+    whose sides are two pixels thick along part of their length (an out-and-back walk of 1.2-1.6 x its pixels),
+    with the clamp's mask above it."""
+    mask = np.zeros((50, 40), bool)
+    mask[5:40, 10] = True  # one side, to its open end (39, 10)
+    mask[5:40, 10 + reach_px] = True  # the other
+    mask[5, 10 : 11 + reach_px] = True  # sealed at the clamp
+    mask[10:22, 11] = True  # two pixels thick in places
+    mask[22:34, 9 + reach_px] = True
+    static = np.zeros(mask.shape, np.uint8)
+    static[:5, 8 : 13 + reach_px] = K.MASK_ALWAYS
+    static.flags.writeable = False
+    return mask, static
+
+
+def _trace_rope_on(mask, static, ring_clear):
+    height, width = mask.shape
+    edges = mask.astype(np.uint8)
+    listed = np.flatnonzero(edges.ravel()).astype(np.int32)
+    lo = np.full(height, 1, np.int32)
+    hi = np.full(height, width - 2, np.int32)
+    mag = np.ones(mask.shape, np.float32)
+    gx = np.zeros(mask.shape, np.float32)
+    chain = np.zeros((4 * mask.size, 2), np.int32)
+    contour = K.Contour(
+        np.zeros(mask.shape, np.int32), np.zeros(height * width, np.int32), np.zeros(2, np.int32), chain,
+        np.zeros(4 * mask.size, np.int32), np.zeros((4 * mask.size, 2), np.float32), np.zeros(3, np.int32),
+    )  # fmt: skip
+    n = K.trace_rope(edges, lo, hi, listed, len(listed), 5, ring_clear, static, mag, gx, gx, contour)
+    return n, edges, contour
+
+
+@pytest.mark.parametrize("ring_clear", [False, True])
+def test_trace_rope_joins_a_band_outline_open_at_its_far_end(ring_clear) -> None:
+    """An outline walked out and back because the band's far end has no edge (simulated `lab`, 240 frames, frame
+    90: `LOST_TRACK`, "the band's edge is broken") is joined there and traced as a ring."""
+    mask, static = _open_band()
+    size, edges, chain, _ = _trace(mask)
+    n = len(chain)
+    assert size < n < K.OPEN_RATIO * size  # not `keep_open_once`'s
+    assert K.count_revisits(chain, np.int32(n), edges) > K.BROKEN_OUTLINE * n  # broken, as traced alone
+    m, edges, contour = _trace_rope_on(mask, static, ring_clear)
+    assert K.count_revisits(contour.chain[:m], np.int32(m), edges) <= K.JOINED_REVISITS * m
+    assert contour.counts[0] == size + 3  # the join's pixels (39, 11..13)
+    assert np.all(edges[39, 10:15] == 1)
+    assert m <= size + 3
+    # Without the clamp's mask (the mask still being learned: a still rope open at its clamp) it is left alone.
+    no_static = np.zeros_like(static)
+    no_static.flags.writeable = False
+    m, edges, contour = _trace_rope_on(mask, no_static, ring_clear)
+    assert m == n and contour.counts[0] == size and not edges[39, 11:14].any()
+
+
+def test_trace_rope_leaves_an_open_outline_whose_ends_lie_apart() -> None:
+    """Ends farther apart than `JOIN_REACH_PX`: no join (the outline check then says the band's edge is broken)."""
+    mask, static = _open_band(K.JOIN_REACH_PX + 2)
+    size, _, chain, _ = _trace(mask)
+    assert size < len(chain) < K.OPEN_RATIO * size
+    m, edges, contour = _trace_rope_on(mask, static, True)
+    assert m == len(chain) and contour.counts[0] == size
+    np.testing.assert_array_equal(edges != 0, mask)
