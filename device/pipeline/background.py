@@ -17,8 +17,8 @@ which writes it as a 16-bit PNG of linear light x 256 (`ropecam.device.capture.b
 a rod, the rope's part near the fixed end that stays in most frames) keep the gain 1: they are neither divided
 out nor ringed by a halo.
 
-`BackgroundFlattening` takes the tone curve's place (`Stages.tone`): the gamma table and the gain in one
-pass, into one buffer. Without ``background_png`` the pipeline does not make one.
+`BackgroundFlattening` takes the tone curve's place (`Stages.tone`): the gamma table, then the gain, in two flat
+passes over the frame (`K.flatten_frame`). Without ``background_png`` the pipeline does not make one.
 """
 
 from __future__ import annotations
@@ -27,10 +27,9 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from numba import int32, types
 from numpy.typing import NDArray
 
-from ropecam.shared.jit import kernel, u1_1d, u1_2d, u1_2d_ro
+from ropecam.device.pipeline import _kernels as K
 
 __all__ = [
     "GAIN_BITS",
@@ -46,36 +45,13 @@ LEVEL_SIGMA_PX = 8.0
 MAX_GAIN = 1.5
 """Largest gain (and 1 / smallest) of a pixel: a clamp, rod or the still rope in the background is not divided
 out."""
-GAIN_BITS = 12
-"""Fixed-point bits of the gain (4096 = 1)."""
+GAIN_BITS = K.GAIN_BITS
+"""Fixed-point bits of the gain (4096 = 1; `K.flatten_frame` reads the gain in it)."""
 QUANTILE = 0.5
 """Per-pixel quantile of the normalised frames taken as the background: a rope (of either polarity) covering a
 pixel in fewer than half of the frames does not change it."""
 MAX_SAMPLES = 48
 """Frames `learn_background` reads at most (evenly spread)."""
-
-_u2_2d_ro = types.Array(types.uint16, 2, "C", readonly=True)
-
-
-@kernel(int32(u1_2d_ro, u1_1d, _u2_2d_ro, u1_2d, u1_2d))
-def flatten_frame(frame, table, gain, linear, out):
-    """Write ``table[frame]`` into `linear`, then ``min(255, linear * gain / 2**GAIN_BITS)`` (rounded) into `out`;
-    all (height, width) C-contiguous, `table` 256 entries. Returns 0, or -1 when the shapes differ (nothing
-    written). Two flat passes: the second (no table lookup) is vectorised, 170 us where one fused pass cost 230 us
-    more than the table's alone (1024x544)."""
-    height, width = frame.shape
-    for a in (gain.shape, linear.shape, out.shape):
-        if a[0] != height or a[1] != width:
-            return -1
-    if table.shape[0] < 256:
-        return -1
-    f, g, lin, o = frame.ravel(), gain.ravel(), linear.ravel(), out.ravel()
-    for i in range(f.size):
-        lin[i] = table[f[i]]
-    for i in range(f.size):
-        v = (np.uint32(lin[i]) * np.uint32(g[i]) + np.uint32(2048)) >> np.uint32(GAIN_BITS)
-        o[i] = min(v, np.uint32(255))
-    return 0
 
 
 def linear_table(gamma: float) -> NDArray[np.uint8]:
@@ -147,7 +123,7 @@ def _gaussian(image: NDArray[np.float32], sigma_px: float) -> NDArray[np.float32
 
 
 class BackgroundFlattening:
-    """The camera's gamma undone and a static background's texture divided out, in one pass per frame.
+    """The camera's gamma undone and a static background's texture divided out, in two flat passes per frame.
 
     Parameters
     ----------
@@ -175,9 +151,16 @@ class BackgroundFlattening:
 
         return cls(read_background_png(path, shape), gamma)
 
+    def take(self, frame: NDArray[np.uint8]) -> NDArray[np.uint8] | None:
+        """Return `apply(frame)` when `frame` is a C-contiguous array of the background's shape; None for any other
+        frame (nothing done), as `ToneCurve.take` (the pipeline's first step on every frame)."""
+        if frame.shape != self._out.shape or not frame.flags.c_contiguous:
+            return None
+        return self.apply(frame)
+
     def apply(self, frame: NDArray[np.uint8]) -> NDArray[np.uint8]:
         """Return `frame` (camera codes) in linear light with the texture divided out: this stage's buffer, valid
         until the next call."""
-        if flatten_frame(frame, self.table, self.gain, self._linear, self._out) != 0:
+        if K.flatten_frame(frame, self.table, self.gain, self._linear, self._out) != 0:
             raise ValueError(f"frame of shape {frame.shape} for a background of shape {self._out.shape}")
         return self._out

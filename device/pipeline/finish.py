@@ -224,11 +224,10 @@ class ResultFinisher:
     def refuse_fold(self, result: PipelineResult, lengths_seen: int) -> None:
         """After `finish` of a frame of known exposure measured before Lc0 is known (the tracker had seen
         `lengths_seen` lengths before it): an OK shape that runs out along the rope and back or crosses itself
-        (`folds_back`) is a
-        `length` status, and its length is taken back from the Lc0 estimate. The `length` check needs Lc0, which the
-        first shapes are still measuring (simulated lab-hard with its gamma, frame 0: out 400 px and back 260, OK
-        with its tip 260 px off). Streams only: a still photo's rope may lie in loops. No status with the
-        self-checks off (`checks.enabled`)."""
+        (`folds_back`) is a `length` status, and its length is taken back from the Lc0 estimate. The `length` check
+        needs Lc0, which the first shapes are still measuring (simulated lab-hard with its gamma, frame 0: out
+        400 px and back 260, OK with its tip 260 px off). Streams only: a still photo's rope may lie in loops. No
+        status with the self-checks off (`checks.enabled`)."""
         begin, end = result.begin, result.end
         if result.status is not FrameStatus.OK or begin is None or end is None:
             return

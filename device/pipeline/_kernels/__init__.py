@@ -238,7 +238,15 @@ from ropecam.device.pipeline._kernels.tip_sweep import (
     sweep_from_history,
     sweep_from_path,
 )
-from ropecam.device.pipeline._kernels.tone import FRAME_AS_GIVEN, FRAME_MAPPED, TONE_BUFFERS, apply_table, take_frame
+from ropecam.device.pipeline._kernels.tone import (
+    FRAME_AS_GIVEN,
+    FRAME_MAPPED,
+    GAIN_BITS,
+    TONE_BUFFERS,
+    apply_table,
+    flatten_frame,
+    take_frame,
+)
 from ropecam.device.pipeline._kernels.tracking import (
     MOTION_COUNT,
     MOTION_EXPOSURE,
@@ -287,6 +295,7 @@ __all__ = [
     "FRAME_STATE",
     "FRAME_STATES",
     "FULL",
+    "GAIN_BITS",
     "HISTORY",
     "HIST_PER_UNIT",
     "INVALID",
@@ -384,6 +393,7 @@ __all__ = [
     "find_segmentation_points_seg",
     "finish_edges",
     "first_listed",
+    "flatten_frame",
     "flood_flat",
     "flood_labels",
     "grow_edges",

@@ -6,7 +6,7 @@ from typing import Final
 
 import numba
 import numpy as np
-from numba import boolean, int32, int64
+from numba import boolean, int32, int64, types
 
 from ropecam.device.pipeline._kernels._common import INVALID
 from ropecam.device.pipeline._kernels.tables import buffer1, buffer2, slot_frame, slot_frame_address, table_at
@@ -29,6 +29,34 @@ def apply_table(frame, table, out):
     if out.shape[0] != height or out.shape[1] != width or table.shape[0] < 256:
         return -1
     _map(frame, table, out)
+    return 0
+
+
+GAIN_BITS: Final = 12
+"""Fixed-point bits of `flatten_frame`'s gain (4096 = 1)."""
+
+_u2_2d_ro = types.Array(types.uint16, 2, "C", readonly=True)
+
+
+@kernel(int32(u1_2d_ro, u1_1d, _u2_2d_ro, u1_2d, u1_2d))
+def flatten_frame(frame, table, gain, linear, out):
+    """Write ``table[frame]`` into `linear` (as `apply_table`), then ``min(255, linear * gain / 2**GAIN_BITS)``
+    (rounded) into `out`: a static background's texture divided out (`ropecam.device.pipeline.background`). All
+    (height, width) C-contiguous, `table` 256 entries. Returns 0, or -1 when the shapes differ (nothing written).
+    Two passes: the second (no table lookup) is vectorised; one fused pass cost more (docs/speed.md, dark15)."""
+    height, width = frame.shape
+    for a in (gain.shape, linear.shape, out.shape):
+        if a[0] != height or a[1] != width:
+            return -1
+    if table.shape[0] < 256:
+        return -1
+    # Flat, not `_map`'s rows and columns: two 2-D passes measured 714 us against 427 for two flat ones (dark15).
+    f, g, lin, o = frame.ravel(), gain.ravel(), linear.ravel(), out.ravel()
+    for i in range(f.size):
+        lin[i] = table[f[i]]
+    for i in range(f.size):
+        v = (np.uint32(lin[i]) * np.uint32(g[i]) + np.uint32(2048)) >> np.uint32(GAIN_BITS)
+        o[i] = min(v, np.uint32(255))
     return 0
 
 
