@@ -90,10 +90,13 @@ def touches_mask(mask, chain, n):
     return False
 
 
-JOIN_REACH_PX: Final = 4
+JOIN_REACH_PX: Final = 8
 """How far apart (px, per axis) the two ends of a band's outline that is open at one end may lie to be joined
 (`pick_open_ends`): a blurred band's far end is a ramp where its tip moves along the rope's axis, too faint for an
-edge, and its two sides end there a rope width (2-2.5 px on the simulated lab presets) plus a pixel apart."""
+edge, and its two sides end there a rope width (2-2.5 px on the simulated lab presets) plus a pixel apart, or up to
+7 px where the tip also sweeps sideways (simulated `lab late swing` frame 39, `lab` 240 frames frame 158). 4 px
+left those two frames `LOST_TRACK`; 8 px measured no other row changed but plate edge 0.7 (one more frame
+measured, flagged or within 3 px; docs/robustness.md)."""
 
 
 @kernel(types.UniTuple(int64, 2)(u1_2d, i4_2d, int32, int64, i4_1d))

@@ -611,24 +611,26 @@ def _trace_rope_on(mask, static, ring_clear):
 
 
 @pytest.mark.parametrize("ring_clear", [False, True])
-def test_trace_rope_joins_a_band_outline_open_at_its_far_end(ring_clear) -> None:
+@pytest.mark.parametrize("apart", [4, 7])
+def test_trace_rope_joins_a_band_outline_open_at_its_far_end(ring_clear, apart) -> None:
     """An outline walked out and back because the band's far end has no edge (simulated `lab`, 240 frames, frame
-    90: `LOST_TRACK`, "the band's edge is broken") is joined there and traced as a ring."""
-    mask, static = _open_band()
+    90: `LOST_TRACK`, "the band's edge is broken"; its ends 3 px apart, frame 158's 7 px) is joined there and traced
+    as a ring."""
+    mask, static = _open_band(apart)
     size, edges, chain, _ = _trace(mask)
     n = len(chain)
     assert size < n < K.OPEN_RATIO * size  # not `keep_open_once`'s
     assert K.count_revisits(chain, np.int32(n), edges) > K.BROKEN_OUTLINE * n  # broken, as traced alone
     m, edges, contour = _trace_rope_on(mask, static, ring_clear)
     assert K.count_revisits(contour.chain[:m], np.int32(m), edges) <= K.JOINED_REVISITS * m
-    assert contour.counts[0] == size + 3  # the join's pixels (39, 11..13)
-    assert np.all(edges[39, 10:15] == 1)
-    assert m <= size + 3
+    assert contour.counts[0] == size + apart - 1  # the join's pixels (39, 11..9 + apart)
+    assert np.all(edges[39, 10 : 11 + apart] == 1)
+    assert m <= size + apart - 1
     # Without the clamp's mask (the mask still being learned: a still rope open at its clamp) it is left alone.
     no_static = np.zeros_like(static)
     no_static.flags.writeable = False
     m, edges, contour = _trace_rope_on(mask, no_static, ring_clear)
-    assert m == n and contour.counts[0] == size and not edges[39, 11:14].any()
+    assert m == n and contour.counts[0] == size and not edges[39, 11 : 10 + apart].any()
 
 
 def test_trace_rope_leaves_an_open_outline_whose_ends_lie_apart() -> None:
