@@ -35,6 +35,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ropecam_tools.truth_metrics import open_truth_set
+
 SWEEP_CLASSES_PX = ((0.0, 3.0), (3.0, 10.0), (10.0, math.inf))
 """Frames are summarised by the tip's sweep in these ranges (px)."""
 SIDE_LENGTH_PX = 40.0
@@ -202,12 +204,7 @@ def measure_set(path: Path, frames: int | None = None, predicted: bool = False) 
     ValueError
         The frame set has no ground truth.
     """
-    from ropecam.device.capture.frameset import FrameSet
-
-    frameset = FrameSet(path)
-    truth = frameset.truth()
-    if truth is None:
-        raise ValueError(f"{path}: no truth.npz (a simulator frame set is needed)")
+    frameset, truth = open_truth_set(path)
     count = len(frameset) if frames is None else min(frames, len(frameset))
     first = 2 if predicted else 0
     return [

@@ -188,6 +188,23 @@ def frameset_plane(meta: dict[str, Any]) -> Any:
     )  # fmt: skip
 
 
+def open_truth_set(path: str | Path) -> tuple[Any, dict[str, NDArray[Any]]]:
+    """Return the simulator frame set at `path` (a `FrameSet`) and its ``truth.npz`` arrays.
+
+    Raises
+    ------
+    ValueError
+        The frame set has no ground truth.
+    """
+    from ropecam.device.capture.frameset import FrameSet
+
+    frameset = FrameSet(path)
+    truth = frameset.truth()
+    if truth is None:
+        raise ValueError(f"{path}: no truth.npz (a simulator frame set is needed)")
+    return frameset, truth
+
+
 def measure_frameset(
     path: str | Path, method: str, frames: int | None = None, plane: bool = False, config: Any = None
 ) -> list[FrameErrors]:
@@ -217,14 +234,10 @@ def measure_frameset(
     ValueError
         The frame set has no ground truth.
     """
-    from ropecam.device.capture.frameset import FrameSet
     from ropecam.device.pipeline.config import PipelineConfig
     from ropecam.device.pipeline.pipeline import Pipeline
 
-    fs = FrameSet(path)
-    truth = fs.truth()
-    if truth is None:
-        raise ValueError(f"{path}: no truth.npz (a simulator frame set is needed)")
+    fs, truth = open_truth_set(path)
     rig = fs.meta.get("rig", {})
     length_m = float(rig.get("rope_length_m", 1.0))
     config = replace(
