@@ -14,6 +14,7 @@ from ropecam_tools.cli import dispatch
 COMMANDS = {
     "device": "bench_device",
     "glue": "bench_glue",
+    "cold": "bench_cold",
     "kernels": "bench_kernels",
     "bands": "bench_bands",
     "protocol": "bench_protocol",

@@ -10,6 +10,7 @@ from collections.abc import Callable
 from pathlib import Path
 from subprocess import CompletedProcess
 
+import numpy as np
 import pytest
 
 from ropecam.host.cli import main as host_main
@@ -134,4 +135,42 @@ def test_bench_glue_takes_a_config_and_names_a_bad_one(
     done = run_tool_here("bench.py", "glue", "--frames", "1", "--settle", "0", "--passes", "1", "--config", str(toml))
     assert done.returncode == 2
     assert f"--config {toml}" in done.stderr and "canny_low" in done.stderr, done.stderr
+    assert "Traceback" not in done.stderr
+
+
+@pytest.mark.slow
+def test_bench_cold_times_each_condition_on_steady_frames(run_tool: RunTool) -> None:
+    done = run_tool("bench.py", "cold", "--frames", "20", "--passes", "4", "--settle", "12", "--json")
+    assert done.returncode == 0, done.stderr
+    report = json.loads(done.stdout.splitlines()[-1])
+    assert report["frames"] == 20 and report["passes"] == 4
+    conditions = report["conditions"]
+    assert list(conditions) == ["canny", "canny+planes", "memset", "warm"]
+    # 8 frames counted per pass, 2 per condition (those made by one `steady_frame` call: most of them here)
+    assert 16 <= sum(row["frames"] for row in conditions.values()) <= 32
+    for row in conditions.values():
+        assert 0 < row["frames"] <= 8
+        assert row["steady"] > 0 and row["take"] > 0 and row["rest"] > 0  # the glue is never free
+        assert row["total"] >= row["steady"]
+
+
+def test_plane_line_index_reads_one_index_per_cache_line_of_the_grown_spans(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "tools"))
+    from ropecam_tools.bench_cold import plane_line_index
+
+    width = 100
+    lo = np.array([5, 1, 0, 40, 97], np.int32)
+    hi = np.array([30, 0, 2, 40, 99], np.int32)  # row 1 empty
+    expected = []
+    for r in range(5):
+        if hi[r] >= lo[r]:
+            first, last = max(lo[r] - 3, 0), min(hi[r] + 10, width - 1)
+            expected += [r * width + c for c in range(first, last + 1, 16)]
+    assert plane_line_index(lo, hi, width).tolist() == expected
+
+
+def test_bench_cold_refuses_fewer_frames_than_it_leaves_out(run_tool_here: RunTool) -> None:
+    done = run_tool_here("bench.py", "cold", "--frames", "2", "--settle", "5")
+    assert done.returncode == 2
+    assert "--frames 2" in done.stderr and "--settle 5" in done.stderr, done.stderr
     assert "Traceback" not in done.stderr
