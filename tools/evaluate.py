@@ -14,6 +14,7 @@ from ropecam_tools.cli import dispatch
 COMMANDS = {
     "accuracy": "eval_accuracy",
     "band-snr": "eval_band_snr",
+    "band-track": "eval_band_track",
     "calibration": "eval_calibration",
     "harris": "eval_harris",
     "e2e": "eval_e2e",

@@ -1,0 +1,100 @@
+"""`evaluate.py band-track`: the edge-free band tracker follows a rope drawn swinging about its fixed end with a known
+width, contrast and noise, from frame 0's truth."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+from collections.abc import Callable
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from ropecam.device.capture.frameset import FrameSetWriter
+
+RunTool = Callable[..., subprocess.CompletedProcess[str]]
+
+CONTRAST_DN, WIDTH_PX, NOISE_DN, BLUR_PX = 60.0, 2.0, 4.0, 0.6
+FIXED_UV, LENGTH_PX = (20.0, 40.0), 200.0
+PERIOD_MS, EXPOSURE_MS = 10.0, 4.0
+ALPHA_RAD_MS2 = 7.2e-5
+"""The rope's angular acceleration from rest: the tip sweeps about 3 px during frame 5's exposure."""
+
+
+def _rope(t_ms: float, points: int = 201) -> np.ndarray:
+    """The rope at time `t_ms` after its release: a straight line of LENGTH_PX from the fixed end, turned by
+    0.5 alpha t^2 from the +u axis towards +v; (points, 2) u, v."""
+    angle = 0.5 * ALPHA_RAD_MS2 * t_ms**2
+    s = np.linspace(0.0, LENGTH_PX, points)
+    return np.stack([FIXED_UV[0] + s * math.cos(angle), FIXED_UV[1] + s * math.sin(angle)], axis=1)
+
+
+def _coverage(line: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """The share of each pixel a rope of WIDTH_PX along the segment `line[0]`..`line[-1]` covers (a ramp of 1 px
+    across its side, cut square at both ends)."""
+    start, tip = line[0], line[-1]
+    axis = (tip - start) / LENGTH_PX
+    du, dv = cols - start[0], rows - start[1]
+    along = du * axis[0] + dv * axis[1]
+    across = np.abs(-du * axis[1] + dv * axis[0])
+    side = np.clip(WIDTH_PX / 2 + 0.5 - across, 0.0, 1.0)
+    return side * np.clip(along + 0.5, 0.0, 1.0) * np.clip(LENGTH_PX + 0.5 - along, 0.0, 1.0)
+
+
+def _write_swing_set(root: Path, frames: int = 6) -> None:
+    height, width = 120, 250
+    rows, cols = np.mgrid[0:height, 0:width].astype(np.float64)
+    rng = np.random.default_rng(5)
+    begins, ends = [], []
+    with FrameSetWriter(root, (width, height), 1000.0 / PERIOD_MS) as writer:
+        for i in range(frames):
+            t0 = i * PERIOD_MS
+            instants = np.linspace(t0, t0 + EXPOSURE_MS, 24)
+            band = np.mean([_coverage(_rope(t), rows, cols) for t in instants], axis=0)
+            clean = cv2.GaussianBlur(40.0 + CONTRAST_DN * band, (0, 0), BLUR_PX)
+            noisy = clean + rng.normal(0.0, NOISE_DN, clean.shape)
+            writer.add(np.clip(np.round(noisy), 0, 255).astype(np.uint8), int(t0 * 1e6), int(EXPOSURE_MS * 1000))
+            begins.append(_rope(t0))
+            ends.append(_rope(t0 + EXPOSURE_MS))
+        begin, end = np.array(begins), np.array(ends)
+        writer.write_truth({
+            "begin_px": begin, "end_px": end, "tip_begin_px": begin[:, -1], "tip_end_px": end[:, -1],
+            "width_px": np.full(frames, WIDTH_PX),
+        })  # fmt: skip
+
+
+def test_band_track_follows_the_drawn_swing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "tools"))
+    from ropecam_tools.eval_band_track import summarise, track_set
+
+    _write_swing_set(tmp_path / "swing")
+    rows = track_set(tmp_path / "swing", frames=6, blur_px=BLUR_PX)
+    assert [r["frame"] for r in rows] == [1, 2, 3, 4, 5]
+    assert rows[-1]["sweep_px"] == pytest.approx(3.1, abs=0.2)
+    # frame 1 is predicted still (one frame known), from frame 2 on the velocity is measured
+    assert rows[0]["tip_px"] < 1.5 and rows[0]["curve_px"] < 0.7, rows[0]
+    for row in rows[1:]:
+        assert row["tip_px"] < 0.5, row
+        assert row["curve_px"] < 0.4, row
+    for row in rows:
+        assert row["silent"] is (row["trusted"] and (row["tip_px"] > 3.0 or row["curve_px"] > 1.0))
+    summary = summarise(rows)
+    assert summary["lost_from"] is None and summary["silent"] == 0 and summary["frames"] == 5
+
+
+def test_band_track_without_a_second_frame_is_refused(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "tools"))
+    from ropecam_tools.eval_band_track import track_set
+
+    _write_swing_set(tmp_path / "swing", frames=1)
+    with pytest.raises(ValueError, match="at least 2 frames"):
+        track_set(tmp_path / "swing", frames=5)
+
+
+def test_band_track_command_prints_its_table(tmp_path: Path, run_tool_here: RunTool) -> None:
+    _write_swing_set(tmp_path / "swing", frames=3)
+    done = run_tool_here("evaluate.py", "band-track", str(tmp_path / "swing"), "--frames", "3")
+    assert done.returncode == 0, done.stderr
+    assert "| 2 |" in done.stdout and "simulated" in done.stdout and "silent" in done.stdout
