@@ -152,8 +152,8 @@ def sobel_suppress(
         # Steps over the Sobel span (all inside the image): the spans' pixels labelled, the ring around them set
         # to EDGE_NONE in the same store (no scalar loops of 1-3 columns whose exits mispredict). The first step
         # starts at the span's first column, as the Sobel steps do, not at the multiple of 8 before it (0.4 steps
-        # fewer per row on the rig; docs/speed/edges7.md). Nothing reads the gradients outside the Sobel spans
-        # (`measure_widths` stops at the spans since edges7).
+        # fewer per row on the rig; docs/speed.md, ledger rows edges7). Nothing reads the gradients outside the
+        # Sobel spans (`measure_widths` stops at the spans since edges7).
         p0 = s0
         p1 = padded_end(p0, s1, width)
         for step in range((p1 - p0 + 1) // LANES):
