@@ -6,9 +6,10 @@ from __future__ import annotations
 
 from typing import Final
 
+import numpy as np
 from numba import int32, int64, uint8
 
-from ropecam.shared.jit import i4_2d_ro, kernel, u1_2d
+from ropecam.shared.jit import i4_1d, i4_2d, i4_2d_ro, kernel, u1_2d
 
 BROKEN_OUTLINE: Final = 0.15
 """Largest part of the contour's pixels walked twice (spurs of noise and texture) before it is no band outline."""
@@ -46,3 +47,55 @@ def count_revisits(chain, n, edges):
     if n > 1 and chain[n - 1, 0] == chain[0, 0] and chain[n - 1, 1] == chain[0, 1]:
         revisits -= 1  # the closing pixel
     return revisits
+
+
+MAX_EXCURSION: Final = 64
+"""Longest walk (chain points) from a pixel back to the same pixel that `prune_excursions` takes out: a spur of up
+to 32 px walked out and back, or a small loop hung on the outline. Noise edges joined to a band's side make such
+walks (simulated `read noise = 10 DN`, tuning seed, frame 26: a 28 px spur along a side next to the tip, whose
+turnaround the split took for a corner). A broken band edge walked out and back is hundreds of points long: it
+stays whole, with whatever hangs on it, for the outline check (`BROKEN_OUTLINE`)."""
+
+
+@kernel(int32(i4_2d, i4_1d, int32, int64, i4_1d))
+def prune_excursions(chain, codes, n, width, scratch):
+    """Take out of a contour the walks that leave a pixel and come back to it within `MAX_EXCURSION` points, in
+    place.
+
+    `chain` (n, 2) row, col and `codes` (n) are a trace of an image `width` px wide. Each pixel's last visit is
+    written into `scratch` (flat ``row * width + col``; its other slots are not read); from a pixel's first
+    visit, a walk back to it within `MAX_EXCURSION` points (a spur out and back, a loop hung on the outline at
+    one pixel) is dropped and the pixel kept once, with the code of its last visit (a code is the step to the next
+    point). A longer walk back is kept whole, with the short ones inside it: a spur is not eaten from its tip.
+    The last point is not taken for a revisit of the first (a trace closed on its start). Returns the new count
+    (`n` when no pixel is walked twice, or a pixel lies outside `scratch`: nothing taken out); the points and
+    codes past it are left as they were.
+    """
+    if n < 8:
+        return n
+    size = scratch.shape[0]
+    for k in range(n - 1):
+        flat = np.int64(chain[k, 0]) * width + chain[k, 1]
+        if flat < 0 or flat >= size:
+            return n
+        scratch[flat] = k
+    kept = 0
+    protect = -1
+    k = 0
+    while k < n:
+        last = k
+        if k < n - 1:
+            last = np.int64(scratch[np.int64(chain[k, 0]) * width + chain[k, 1]])
+        jump = k
+        if last > k and k > protect:
+            if last - k <= MAX_EXCURSION:
+                jump = last
+            else:
+                protect = last
+        if kept != k or jump != k:
+            chain[kept, 0] = chain[k, 0]
+            chain[kept, 1] = chain[k, 1]
+            codes[kept] = codes[jump]
+        kept += 1
+        k = jump + 1
+    return int32(kept)

@@ -345,6 +345,7 @@ def test_trace_rope_equals_the_kernels_one_by_one(blurred_frames, frame, ring_cl
     size = K.keep_largest_listed(ref_edges, lo, hi, stack, count, 20, ring_clear, labels, work_stack, start)
     chain, codes = np.zeros((capacity, 2), np.int32), np.zeros(capacity, np.int32)
     n = K.trace_contour(ref_edges, lo, hi, start[0], start[1], chain, codes)
+    n = K.prune_excursions(chain, codes, n, width, work_stack)
     points = np.zeros((capacity, 2), np.float32)
     K.refine_subpixel(mag, gx, gy, chain, n, points)
     contacts = K.count_roi_contacts(chain, n, lo, hi, width)
@@ -372,6 +373,7 @@ def test_trace_rope_equals_the_kernels_one_by_one(blurred_frames, frame, ring_cl
     ref_edges = edges.copy()
     K.keep_largest_listed(ref_edges, lo2, hi2, stack, count, 20, ring_clear, labels, work_stack, start)
     n = K.trace_contour(ref_edges, lo2, hi2, start[0], start[1], chain, codes)
+    n = K.prune_excursions(chain, codes, n, width, work_stack)
     got = K.trace_rope(edges, lo2, hi2, stack, count, 20, ring_clear, _NO_MASK, mag, gx, gy, K.Contour(*out))
     assert got == n > 0
     assert out[6][1] == K.count_roi_contacts(chain, n, lo2, hi2, width) > 0
@@ -477,6 +479,7 @@ def test_trace_rope_traced_first_equals_the_kernels_one_by_one(case, spans) -> N
         assert out[6].tolist() == [0, 0, 0] and out[2].tolist() == [-3, -3]
         return
     n = K.trace_contour(ref, lo, hi, start[0], start[1], chain, codes)
+    n = K.prune_excursions(chain, codes, n, width, work_stack)
     K.refine_subpixel(mag, gx, gy, chain, n, points)
     assert got == n > 0
     np.testing.assert_array_equal(out[2], start)
