@@ -194,6 +194,7 @@ from ropecam.device.pipeline._kernels.polylines import (
 from ropecam.device.pipeline._kernels.prediction import need_profile
 from ropecam.device.pipeline._kernels.revisits import (
     BROKEN_OUTLINE,
+    EXCURSION_AREA_PX2,
     JOINED_REVISITS,
     MAX_EXCURSION,
     VISITED,
@@ -296,6 +297,7 @@ __all__ = [
     "EDGE_STRONG",
     "EDGE_WEAK",
     "EDGE_WORK",
+    "EXCURSION_AREA_PX2",
     "FRAME_AS_GIVEN",
     "FRAME_INFO",
     "FRAME_MAPPED",

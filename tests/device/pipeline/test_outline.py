@@ -39,11 +39,17 @@ def _ring(top: int, left: int, bottom: int, right: int) -> list[tuple[int, int]]
 
 def _prune_reference(chain: list[tuple[int, int]], codes: list[int]) -> tuple[list[tuple[int, int]], list[int]]:
     """`prune_excursions` as its rule reads, on lists: from a point's first visit (not inside a longer walk back
-    kept), the walk to its last visit (the chain's last point not counted) dropped when at most MAX_EXCURSION."""
+    kept), the walk to its last visit (the chain's last point not counted) dropped when at most MAX_EXCURSION
+    points long, enclosing at most EXCURSION_AREA_PX2 plus half a pixel per point, and followed by a point more
+    than a pixel from the one before it."""
     n = len(chain)
     if n < 8:
         return chain, codes
     last = {point: k for k, point in enumerate(chain[:-1])}
+    if any(
+        k < last[chain[k]] and last[chain[k]] >= n - 1 - K.MAX_EXCURSION for k in range(min(K.MAX_EXCURSION, n - 1))
+    ):
+        return chain, codes  # the trace starts inside a walk out and back that ends with the chain
     kept: list[tuple[int, int]] = []
     kept_codes: list[int] = []
     protect = -1
@@ -52,7 +58,12 @@ def _prune_reference(chain: list[tuple[int, int]], codes: list[int]) -> tuple[li
         back = last[chain[k]] if k < n - 1 else k
         jump = k
         if back > k > protect:
-            if back - k <= K.MAX_EXCURSION:
+            walk = chain[k : back + 1]
+            area = 0.5 * abs(
+                sum(c0 * r1 - c1 * r0 for (r0, c0), (r1, c1) in zip(walk, walk[1:] + walk[:1], strict=True))
+            )
+            goes_on = k > 0 and back < n - 1 and max(map(abs, np.subtract(chain[back + 1], chain[k - 1]))) > 1
+            if back - k <= K.MAX_EXCURSION and area <= K.EXCURSION_AREA_PX2 + 0.5 * (back - k) and goes_on:
                 jump = back
             else:
                 protect = back
@@ -96,6 +107,12 @@ def test_prune_excursions_keeps_an_outline_walked_once_and_a_long_walk_back_whol
     chain = line[:31] + spur + line[30:] + line[-2:0:-1]
     got, _ = _prune(chain, 200)
     assert got == chain
+    # A clamp's outline (12 px) hung on the rope's at one pixel: a wide loop, kept (the clamp's search reads it).
+    top = ring.index((10, 30))
+    clamp = [(r, 30) for r in range(9, 3, -1)] + [(4, c) for c in range(31, 37)] + [(r, 36) for r in range(5, 10)]
+    clamp += [(9, c) for c in range(35, 30, -1)]
+    chain = ring[: top + 1] + clamp + ring[top:]
+    assert _prune(chain, 200)[0] == chain
     # A closed chain that ends on its first pixel: that is no walk back.
     closed = ring + ring[:1]
     assert _prune(closed, 80)[0] == closed
