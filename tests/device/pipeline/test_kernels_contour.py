@@ -644,3 +644,24 @@ def test_trace_rope_leaves_an_open_outline_whose_ends_lie_apart() -> None:
     m, edges, contour = _trace_rope_on(mask, static, True)
     assert m == len(chain) and contour.counts[0] == size
     np.testing.assert_array_equal(edges != 0, mask)
+
+
+@pytest.mark.parametrize("ring_clear", [False, True])
+def test_trace_rope_drops_a_spur_of_noise_hung_on_a_band_side(ring_clear) -> None:
+    """A band's closed outline with a spur of noise off one side next to its far end (simulated `read noise =
+    10 DN`, tuning seed, frame 26: a spur's turnaround was taken for the band's corner): traced as the ring alone,
+    as the outline without the spur traces."""
+    band = np.zeros((60, 40), bool)
+    band[5, 10:19] = band[54, 10:19] = True
+    band[5:55, 10] = band[5:55, 18] = True
+    spur = band.copy()
+    spur[44, 3:10] = True  # 7 px out of the left side, 10 px from the far end
+    m_ref, _, ref = _trace_rope_on(band, _NO_MASK, ring_clear)
+    ref_chain = ref.chain[:m_ref].copy()
+    _, _, raw, _ = _trace(spur)
+    assert len(raw) > m_ref  # the spur walked out and back
+    m, _, contour = _trace_rope_on(spur, _NO_MASK, ring_clear)
+    assert m == m_ref
+    differ = np.flatnonzero(np.any(contour.chain[:m] != ref_chain, axis=1))
+    assert len(differ) <= 1  # the trace cuts the corner into the spur's root: that pixel kept for the side's
+    assert np.abs(contour.chain[differ] - ref_chain[differ]).max(initial=0) <= 1
