@@ -665,3 +665,22 @@ def test_trace_rope_drops_a_spur_of_noise_hung_on_a_band_side(ring_clear) -> Non
     differ = np.flatnonzero(np.any(contour.chain[:m] != ref_chain, axis=1))
     assert len(differ) <= 1  # the trace cuts the corner into the spur's root: that pixel kept for the side's
     assert np.abs(contour.chain[differ] - ref_chain[differ]).max(initial=0) <= 1
+
+
+@pytest.mark.parametrize("ring_clear", [False, True])
+def test_trace_rope_joins_an_open_outline_that_walks_few_pixels_twice(ring_clear) -> None:
+    """An outline open at its far end whose sides are two pixels thick along most of their length walks only a few
+    of its pixels twice (between `JOINED_REVISITS` and `BROKEN_OUTLINE`: simulated `plate edge = 0.7`, tuning seed,
+    frame 27, 14.5 %, where a side cut by the plate's masked bevel left the band open): joined as well."""
+    apart = 4
+    mask, static = _open_band(apart)
+    mask[8:36, 11] = True  # both sides two pixels thick from the clamp nearly to the open end
+    mask[8:36, 9 + apart] = True
+    size, edges, chain, _ = _trace(mask)
+    n = len(chain)
+    revisits = K.count_revisits(chain, np.int32(n), edges)
+    assert K.JOINED_REVISITS * n < revisits <= K.BROKEN_OUTLINE * n
+    m, edges, contour = _trace_rope_on(mask, static, ring_clear)
+    assert contour.counts[0] == size + apart - 1  # the join's pixels
+    assert np.all(edges[39, 10 : 11 + apart] == 1)
+    assert K.count_revisits(contour.chain[:m], np.int32(m), edges) <= K.JOINED_REVISITS * m
