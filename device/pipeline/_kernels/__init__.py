@@ -192,7 +192,15 @@ from ropecam.device.pipeline._kernels.polylines import (
     trim_polyline_end,
 )
 from ropecam.device.pipeline._kernels.prediction import need_profile
-from ropecam.device.pipeline._kernels.revisits import BROKEN_OUTLINE, JOINED_REVISITS, VISITED, count_revisits
+from ropecam.device.pipeline._kernels.revisits import (
+    BROKEN_OUTLINE,
+    EXCURSION_AREA_PX2,
+    JOINED_REVISITS,
+    MAX_EXCURSION,
+    VISITED,
+    count_revisits,
+    prune_excursions,
+)
 from ropecam.device.pipeline._kernels.smoothing import smooth_polyline
 from ropecam.device.pipeline._kernels.spans import (
     coarse_spans,
@@ -289,6 +297,7 @@ __all__ = [
     "EDGE_STRONG",
     "EDGE_WEAK",
     "EDGE_WORK",
+    "EXCURSION_AREA_PX2",
     "FRAME_AS_GIVEN",
     "FRAME_INFO",
     "FRAME_MAPPED",
@@ -307,6 +316,7 @@ __all__ = [
     "MASK_ALWAYS",
     "MASK_FREE",
     "MASK_STATIC",
+    "MAX_EXCURSION",
     "MIN_SPREAD",
     "MOTION",
     "MOTION_COUNT",
@@ -432,6 +442,7 @@ __all__ = [
     "polyline_length",
     "predict_motion",
     "predict_tips",
+    "prune_excursions",
     "quotient",
     "refine_inner",
     "refine_subpixel",
