@@ -209,10 +209,12 @@ from ropecam.device.pipeline._kernels.spans import (
     union_spans,
 )
 from ropecam.device.pipeline._kernels.split_frame import (
+    BODY_WINDOWS,
     FRAME_INFO,
     FRAME_STATE,
     FRAME_STATES,
     SPLIT_STATIC,
+    body_sweep,
     split_frame,
 )
 from ropecam.device.pipeline._kernels.split_shapes import SPLIT_SCALAR, split_shapes, split_width
@@ -277,6 +279,7 @@ __all__ = [
     "BACKGROUND_PX",
     "BAND",
     "BAND_STATE",
+    "BODY_WINDOWS",
     "BROKEN_OUTLINE",
     "CHECK_FALLBACK_SWEEP",
     "CHECK_NONE",
@@ -381,6 +384,7 @@ __all__ = [
     "axis_offset",
     "band_sides",
     "band_stage",
+    "body_sweep",
     "box_mean",
     "chain_length",
     "check_frame",
