@@ -70,7 +70,8 @@ class PipelineConfig:
     material_points_m
         Arc lengths (metres of unstretched rope from the fixed end) of the tracked material points.
     static_ratio
-        Below this ratio of tip sweep to rope width the blur cannot be split: the centreline fallback is used.
+        Below this ratio of tip sweep to rope width the blur cannot be split: the centreline fallback is used
+        (unless the body's own sweep reaches it: a whip's tip turning while a wave sweeps the body).
     corner_scale_px
         Chord length (contour points) of the turning angle used to find the segmentation points.
     paper_endpoint_radius_px

@@ -49,7 +49,8 @@ class BlurSplitter:
     method
         The configured method.
     static_ratio
-        Tip sweep / rope width below which the centreline fallback replaces the split.
+        Tip sweep / rope width below which the centreline fallback replaces the split (when the body's own sweep,
+        `K.body_sweep`, is below it too).
     corner_scale_px
         Chord (points) of the turning angle that finds the segmentation points.
     paper_radius_px
@@ -405,8 +406,14 @@ class BlurSplitter:
             if math.isfinite(from_slope):
                 sweep = min(from_slope, 1.5 * width)
         self.sweep_px = sweep
+        # A tip that turns while a wave sweeps the body (a whip) ends the band one rope wide: the body's own
+        # sweep keeps the split, whose sides are then the two shapes there (the band's middle is half a sweep off).
         if sweep < self.static_ratio * width:
-            return self.static(fixed_rc)
+            body = self.measure.body_sweep(
+                self._chain, self._n, self._mag_ro, i_fix, seg_a, seg_b, self._contrast(fixed_rc), consts
+            )
+            if not body >= self.static_ratio * width:
+                return self.static(fixed_rc)
         tables = consts.tables
         table, step = consts.table_ro, consts.table_step
         gx, gy, pol = self._gx, self._gy, self.polarity_used

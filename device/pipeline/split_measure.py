@@ -28,6 +28,7 @@ width that is not the rope's at all: an edge model made of a lens blur read acro
 _PLUS, _MINUS = np.int32(1), np.int32(-1)
 _SLOPE_LOW, _SLOPE_HIGH = np.float32(0.5), np.float32(0.85)
 """The arc fractions of each side whose edge slope gives the sweep (as `split_frame`)."""
+_TO_TIP = np.int32(1)
 
 Spans = tuple[NDArray[np.int32], NDArray[np.int32]]
 
@@ -209,13 +210,36 @@ class BandMeasure:
         for seg, direction in ((seg_a, _PLUS), (seg_b, _MINUS)):
             median = K.slope_sweep_median(
                 chain, n, i_fix, seg, direction, mag, _SLOPE_LOW, _SLOPE_HIGH, self._contrast32, tables.ratios_ro,
-                tables.sweeps_ro, self.slope_work,
+                tables.sweeps_ro, _TO_TIP, self.slope_work,
             )  # fmt: skip
             if math.isfinite(median):
                 estimates.append(median)
         if not estimates:
             return float("nan")
         return estimates[0] if len(estimates) == 1 else (estimates[0] + estimates[1]) / 2.0
+
+    def body_sweep(
+        self,
+        chain: NDArray[np.int32],
+        n: np.int32,
+        mag: NDArray[np.float32],
+        i_fix: np.int32,
+        seg_a: np.int32,
+        seg_b: np.int32,
+        contrast: float,
+        tables: WidthTables,
+    ) -> float:
+        """Return the body's own sweep (px): the largest median local sweep read from the edge slope over the
+        stretches of both sides between the arc fractions `K.BODY_WINDOWS` (`K.body_sweep`, as `split_frame`
+        decides with it); nan without a contrast reading or samples."""
+        if not contrast >= 5.0:
+            return float("nan")
+        return float(
+            K.body_sweep(
+                chain, n, i_fix, seg_a, seg_b, mag, np.float32(contrast), K.BODY_WINDOWS, tables.ratios_ro,
+                tables.sweeps_ro, self.slope_work,
+            )
+        )  # fmt: skip
 
     def contrast(
         self,

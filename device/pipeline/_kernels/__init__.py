@@ -192,7 +192,15 @@ from ropecam.device.pipeline._kernels.polylines import (
     trim_polyline_end,
 )
 from ropecam.device.pipeline._kernels.prediction import need_profile
-from ropecam.device.pipeline._kernels.revisits import BROKEN_OUTLINE, JOINED_REVISITS, VISITED, count_revisits
+from ropecam.device.pipeline._kernels.revisits import (
+    BROKEN_OUTLINE,
+    EXCURSION_AREA_PX2,
+    JOINED_REVISITS,
+    MAX_EXCURSION,
+    VISITED,
+    count_revisits,
+    prune_excursions,
+)
 from ropecam.device.pipeline._kernels.smoothing import smooth_polyline
 from ropecam.device.pipeline._kernels.spans import (
     coarse_spans,
@@ -201,10 +209,12 @@ from ropecam.device.pipeline._kernels.spans import (
     union_spans,
 )
 from ropecam.device.pipeline._kernels.split_frame import (
+    BODY_WINDOWS,
     FRAME_INFO,
     FRAME_STATE,
     FRAME_STATES,
     SPLIT_STATIC,
+    body_sweep,
     split_frame,
 )
 from ropecam.device.pipeline._kernels.split_shapes import SPLIT_SCALAR, split_shapes, split_width
@@ -269,6 +279,7 @@ __all__ = [
     "BACKGROUND_PX",
     "BAND",
     "BAND_STATE",
+    "BODY_WINDOWS",
     "BROKEN_OUTLINE",
     "CHECK_FALLBACK_SWEEP",
     "CHECK_NONE",
@@ -289,6 +300,7 @@ __all__ = [
     "EDGE_STRONG",
     "EDGE_WEAK",
     "EDGE_WORK",
+    "EXCURSION_AREA_PX2",
     "FRAME_AS_GIVEN",
     "FRAME_INFO",
     "FRAME_MAPPED",
@@ -307,6 +319,7 @@ __all__ = [
     "MASK_ALWAYS",
     "MASK_FREE",
     "MASK_STATIC",
+    "MAX_EXCURSION",
     "MIN_SPREAD",
     "MOTION",
     "MOTION_COUNT",
@@ -371,6 +384,7 @@ __all__ = [
     "axis_offset",
     "band_sides",
     "band_stage",
+    "body_sweep",
     "box_mean",
     "chain_length",
     "check_frame",
@@ -432,6 +446,7 @@ __all__ = [
     "polyline_length",
     "predict_motion",
     "predict_tips",
+    "prune_excursions",
     "quotient",
     "refine_inner",
     "refine_subpixel",

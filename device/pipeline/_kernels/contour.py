@@ -21,7 +21,7 @@ from ropecam.device.pipeline._kernels.outline import (
     keep_open_once,
     touches_mask,
 )
-from ropecam.device.pipeline._kernels.revisits import JOINED_REVISITS, count_revisits
+from ropecam.device.pipeline._kernels.revisits import JOINED_REVISITS, count_revisits, prune_excursions
 from ropecam.device.pipeline._kernels.spans import in_spans
 from ropecam.shared.jit import (
     f4_2d,
@@ -511,8 +511,9 @@ def trace_rope(edges, lo, hi, edge_list, n_edges, min_pixels, ring_clear, static
     """The contour stage in one call: `keep_largest_listed`, `trace_contour` from the component's start,
     `keep_open_once` when the chain walks out and back along a curve that touches `static_mask` (the rope cut by
     the mask at its clamp: walked once; without a mask, a 1x1 placeholder, an out-and-back walk is a broken band
-    edge or a photo's looped rope, kept as it is for the outline check), `refine_subpixel`
-    of the chain and `count_roi_contacts`; same outputs as those calls in that order. When
+    edge or a photo's looped rope, kept as it is for the outline check; `close_open_outline` otherwise),
+    `prune_excursions` (spurs and small loops of noise hung on the outline taken out; ``stack`` as scratch),
+    `refine_subpixel` of the chain and `count_roi_contacts`; same outputs as those calls in that order. When
     `ring_clear` and the spans keep off the image border, the trace is `trace_closed` (no span tests), run
     first from the first listed pixel: `keep_traced` then floods only the pixels the chain missed (when another
     component is larger, the component is chosen again by `keep_largest_closed` and traced from its start),
@@ -561,6 +562,7 @@ def trace_rope(edges, lo, hi, edge_list, n_edges, min_pixels, ring_clear, static
                     n = keep_open_once(out_chain, out_codes, n, size)
                 elif n > size:
                     n = close_open_outline(edges, lo, hi, static_mask, True, n, contour)
+                n = prune_excursions(out_chain, out_codes, n, width, stack)
                 out_counts[1] = refine_inner(mag, gx, gy, lo, hi, out_chain, n, scratch, out_points)
                 return n
         # Another component is larger, or the chain overflows (its size is then reported): the general way.
@@ -583,6 +585,7 @@ def trace_rope(edges, lo, hi, edge_list, n_edges, min_pixels, ring_clear, static
         n = keep_open_once(out_chain, out_codes, n, size)
     elif n > size:
         n = close_open_outline(edges, lo, hi, static_mask, inner, n, contour)
+    n = prune_excursions(out_chain, out_codes, n, width, stack)
     if inner:
         out_counts[1] = refine_inner(mag, gx, gy, lo, hi, out_chain, n, scratch, out_points)
         return n

@@ -450,15 +450,19 @@ def _select(values, m, rank):
     return values[rank]
 
 
-@kernel(float64(i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, float32, float32, f8_1d_ro, f8_1d_ro, f8_1d))
-def slope_sweep_median(chain, n, i_fix, i_seg, direction, mag, lo_frac, hi_frac, contrast, ratios, sweeps, work):
+@kernel(
+    float64(i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, float32, float32, f8_1d_ro, f8_1d_ro, int32, f8_1d)
+)
+def slope_sweep_median(
+    chain, n, i_fix, i_seg, direction, mag, lo_frac, hi_frac, contrast, ratios, sweeps, to_tip, work
+):  # fmt: skip
     """Return one side's tip sweep read from the edge slope: over the chain pixels from `i_fix` stepping
     `direction` to `i_seg` whose arc fraction f (by index) lies in [lo_frac, hi_frac), the local sweep d of the
     gradient height ``mag / contrast`` (float32, as NumPy divides a float32 array by a Python float; then
-    `np.interp` on (`ratios`, `sweeps`)), extrapolated to the tip as d / f; the median of those (as
-    `np.median`). `work` holds the values (reordered in place: `_select`). nan with fewer than 6 samples or a
-    full `work`. The same as sampling the magnitudes and taking the median with NumPy (the tests' reference),
-    without ~150 us of NumPy calls."""
+    `np.interp` on (`ratios`, `sweeps`)), extrapolated to the tip as d / f when `to_tip` is 1 (0: the local sweep
+    d itself); the median of those (as `np.median`). `work` holds the values (reordered in place: `_select`). nan
+    with fewer than 6 samples or a full `work`. The same as sampling the magnitudes and taking the median with
+    NumPy (the tests' reference), without ~150 us of NumPy calls."""
     count = ((i_seg - i_fix) * direction % n + n) % n + 1
     if count < 2:
         return np.nan
@@ -494,7 +498,7 @@ def slope_sweep_median(chain, n, i_fix, i_seg, direction, mag, lo_frac, hi_frac,
             else:
                 slope = (sweeps[lo + 1] - sweeps[lo]) / (ratios[lo + 1] - ratios[lo])
                 d = slope * (x - ratios[lo]) + sweeps[lo]
-        work[m] = d / float(np.float32(frac))
+        work[m] = d / float(np.float32(frac)) if to_tip == 1 else d
         m += 1
     if m < 6:
         return np.nan

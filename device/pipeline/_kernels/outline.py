@@ -15,7 +15,7 @@ import numpy as np
 from numba import boolean, int32, int64, types
 
 from ropecam.device.pipeline._kernels.groups import CONTOUR
-from ropecam.device.pipeline._kernels.revisits import BROKEN_OUTLINE, count_revisits
+from ropecam.device.pipeline._kernels.revisits import JOINED_REVISITS, count_revisits
 from ropecam.device.pipeline._kernels.static_mask import MASK_FREE, ends_line
 from ropecam.shared.jit import i4_1d, i4_1d_ro, i4_2d, kernel, u1_2d, u1_2d_ro
 
@@ -189,8 +189,11 @@ def join_open_ends(edges, lo, hi, static_mask, n, contour):
     The traced component (1 in `edges`; its `n`-point chain, start and size ``counts[0]`` in `contour`) is
     walked out and back along a curve when the band's far end has no edge (a blurred tip moving along the rope's
     axis: a ramp too faint for an edge; simulated `lab`, tuning seed, 240 frames, frame 90: the sides end 2.5 px
-    apart), and the outline check then finds more than `BROKEN_OUTLINE` of the chain's pixels walked twice. Such a
-    chain (longer than the component: the walk comes back) that touches `static_mask` (its other end sealed at the
+    apart), and the outline check then finds more than `BROKEN_OUTLINE` of the chain's pixels walked twice; where
+    the sides are two pixels thick along most of their length the walks out and back take different pixels and
+    fewer are walked twice (simulated `plate edge = 0.7`, tuning seed, frame 27: 14.5 %, the band's side cut by the
+    plate's masked bevel). Such a chain (longer than the component, more than `JOINED_REVISITS` of its pixels
+    walked twice: the walk comes back) that touches `static_mask` (its other end sealed at the
     clamp, `seal_cut_ends`; a learned mask is empty while it is learned, and a still rope's outline open at its
     clamp then is what the clamp's search reads, `structure_points`) has its two ends (`pick_open_ends`, within
     `JOIN_REACH_PX`; ``contour.stack`` as scratch) joined by a line of the component's pixels (`draw_join`), as a
@@ -198,7 +201,7 @@ def join_open_ends(edges, lo, hi, static_mask, n, contour):
     joined, the map as it was) and the joined component's first pixel in raster order (where to trace it from)."""
     chain = contour.chain
     none = (np.int64(-1), np.int64(-1), np.int64(0), np.int64(-1))
-    if n <= contour.counts[0] or count_revisits(chain, n, edges) <= BROKEN_OUTLINE * n:
+    if n <= contour.counts[0] or count_revisits(chain, n, edges) <= JOINED_REVISITS * n:
         return none
     if not touches_mask(static_mask, chain, n):
         return none

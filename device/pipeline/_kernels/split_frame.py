@@ -7,7 +7,7 @@ import math
 from typing import Any, Final, NamedTuple
 
 import numpy as np
-from numba import int32
+from numba import float32, float64, int32
 
 from ropecam.device.pipeline._kernels._common import INVALID, f4_1d_ro
 from ropecam.device.pipeline._kernels.canny_gradient import smooth_box
@@ -15,7 +15,7 @@ from ropecam.device.pipeline._kernels.geometry import find_segmentation_points_s
 from ropecam.device.pipeline._kernels.groups import PLANES, SPLIT_WIDTH, SPLIT_WORK
 from ropecam.device.pipeline._kernels.offsets import slope_sweep_median
 from ropecam.device.pipeline._kernels.split_shapes import split_shapes
-from ropecam.shared.jit import f4_2d, f4_2d_ro, f8_1d_ro, i4_1d, i4_1d_ro, i4_2d_ro, kernel, u1_2d_ro
+from ropecam.shared.jit import f4_2d, f4_2d_ro, f8_1d, f8_1d_ro, i4_1d, i4_1d_ro, i4_2d_ro, kernel, u1_2d_ro
 
 FRAME_STATES: Final = ("fixed_r", "fixed_c", "polarity", "contrast", "last_sweep_px", "n")
 """`split_frame`'s `state` (float64), in order: the fixed end and the polarity (float32 values, exactly), the
@@ -32,6 +32,30 @@ below ``static_ratio`` widths)."""
 _SLOPE_LOW: Final = np.float32(0.5)
 _SLOPE_HIGH: Final = np.float32(0.85)
 """The arc fractions of each side whose edge slope gives the sweep (`BlurSplitter._sweep_from_gradient`)."""
+BODY_WINDOWS: Final = np.array([0.1, 0.3, 0.5], dtype=np.float32)
+BODY_WINDOWS.setflags(write=False)
+"""The arc fractions bounding the stretches of each side whose edge slope gives the body's own sweep (`body_sweep`):
+a wave running down a whipping rope sweeps part of the body while the tip turns (the simulated late swing: a
+stretch at 20-60 % of the rope swept 3-4 px with the tip 1-2 px), and the band is wide there with its end one rope
+wide."""
+
+
+@kernel(float64(i4_2d_ro, int32, int32, int32, int32, f4_2d_ro, float32, f4_1d_ro, f8_1d_ro, f8_1d_ro, f8_1d))
+def body_sweep(chain, n, i_fix, seg_a, seg_b, mag, contrast, windows, ratios, sweeps, work):
+    """Return the body's own sweep (px): the largest, over both sides and the stretches between consecutive arc
+    fractions of `windows`, of the median local sweep read from the edge slope (`slope_sweep_median` with
+    ``to_tip`` 0, not extrapolated to the tip; side a from `i_fix` to `seg_a` forwards, side b to `seg_b`
+    backwards; `work` its scratch); nan when no stretch has the samples."""
+    best = np.nan
+    for side in range(2):
+        for w in range(windows.shape[0] - 1):
+            median = slope_sweep_median(
+                chain, n, i_fix, seg_a if side == 0 else seg_b, np.int32(1 if side == 0 else -1), mag, windows[w],
+                windows[w + 1], contrast, ratios, sweeps, np.int32(0), work,
+            )  # fmt: skip
+            if math.isfinite(median) and not median <= best:
+                best = median
+    return best
 
 
 def _signature(frame_type: Any) -> Any:
@@ -61,8 +85,9 @@ def split_frame(
        the two corners grown by ``grow_px``, which the tip fit reads;
     3. the sweep: the corners' distance, or below 1.5 widths the mean of the two sides' `slope_sweep_median`
        (the ``contrast`` of `state`; scratch ``scratch[2]``) when finite, capped at 1.5 widths;
-    4. below ``static_ratio`` widths SPLIT_STATIC, else `split_shapes` with `frame` (the rope's contrast along
-       the band), ``1 / contrast``, `sweep_index` and the distances of step 1 (the tip fit's search).
+    4. below ``static_ratio`` widths SPLIT_STATIC unless the body's own sweep (`body_sweep`) reaches them, else
+       `split_shapes` with `frame` (the rope's contrast along the band), ``1 / contrast``, `sweep_index` and the
+       distances of step 1 (the tip fit's search).
 
     `planes` are the edge stage's (`Planes`), `width` the rope width's tables and scalars (`SplitWidth`),
     `sweep_index` the ratios' index (`split_shapes`'; or empty), `state` the `FRAME_STATES` (float64),
@@ -130,7 +155,7 @@ def split_frame(
         for side in range(2):
             median = slope_sweep_median(
                 chain, n, i_fix, seg_a if side == 0 else seg_b, np.int32(1 if side == 0 else -1), planes.mag,
-                _SLOPE_LOW, _SLOPE_HIGH, contrast32, width.ratios, width.sweeps, scratch[2],
+                _SLOPE_LOW, _SLOPE_HIGH, contrast32, width.ratios, width.sweeps, np.int32(1), scratch[2],
             )  # fmt: skip
             if math.isfinite(median):
                 total += median
@@ -139,7 +164,15 @@ def split_frame(
             sweep = min(total if count == 1 else total / 2.0, 1.5 * width64)
     out_info[6] = sweep
     if sweep < width.static_ratio * width64:
-        return SPLIT_STATIC
+        # A whip's tip turns while a wave sweeps the body: the band's end is one rope wide, its body is not.
+        if not contrast >= 5.0:
+            return SPLIT_STATIC
+        body = body_sweep(
+            chain, n, i_fix, seg_a, seg_b, planes.mag, np.float32(contrast), BODY_WINDOWS, width.ratios,
+            width.sweeps, scratch[2],
+        )  # fmt: skip
+        if not body >= width.static_ratio * width64:
+            return SPLIT_STATIC
     # The tip fit's search takes the distances from the fixed end that step 1 left in ``scratch[1]``.
     return split_shapes(
         points, chain, n, i_fix, seg_a, seg_b, planes, frame, np.float32(1.0 / contrast),

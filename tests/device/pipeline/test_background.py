@@ -94,3 +94,27 @@ def test_setup_divides_a_textured_sheet_out_and_extract_measures(tmp_path) -> No
     assert main(["extract", str(root), "--config", str(out), "--out", str(results), "--quiet"]) == 0
     records = [json.loads(line) for line in results.read_text().splitlines()]
     assert sum(r["status"] == "OK" for r in records) >= FRAMES - 2
+
+
+def test_a_clamp_wider_than_the_level_keeps_the_sheet_round_it_flat() -> None:
+    """A dark clamp 40 px wide on the textured sheet (as `lab-dark`'s): the sheet 4-12 px round it is flattened as
+    the sheet far from it (its gradients no higher), where a plainness test against a Gaussian of the background
+    took the clamp's inside for plain and darkened a ring of sheet round it whose gradients passed the thresholds
+    and broke the rope's outline where it leaves the clamp (`flat_gain`)."""
+    from ropecam.device.pipeline.edges import EdgeDetector
+
+    height, width = 160, 200
+    sheet = 180.0 * _texture((height, width), 0.08)
+    sheet[40:70, 80:120] = 25.0
+    background = cv2.GaussianBlur(sheet.astype(np.float32), (0, 0), 0.7)
+    frame = np.clip(background + np.random.default_rng(4).normal(0.0, 2.0, sheet.shape), 0, 255)
+    out = BackgroundFlattening(background, 1.0).apply(frame.round().astype(np.uint8))
+    detector = EdgeDetector(height, width, 1.0, 1e9, 1e9)
+    detector.detect(out, np.zeros(height, np.int32), np.full(height, width - 1, np.int32))
+    ring = np.zeros((height, width), bool)
+    ring[28:82, 68:132] = True
+    ring[36:74, 76:124] = False
+    far = np.zeros((height, width), bool)
+    far[100:150, 20:180] = True
+    assert np.percentile(detector.mag[ring], 90) < 1.3 * np.percentile(detector.mag[far], 90)
+    assert np.array_equal(out[45:65, 85:115], frame[45:65, 85:115].round().astype(np.uint8))  # the clamp: gain 1

@@ -345,6 +345,7 @@ def test_trace_rope_equals_the_kernels_one_by_one(blurred_frames, frame, ring_cl
     size = K.keep_largest_listed(ref_edges, lo, hi, stack, count, 20, ring_clear, labels, work_stack, start)
     chain, codes = np.zeros((capacity, 2), np.int32), np.zeros(capacity, np.int32)
     n = K.trace_contour(ref_edges, lo, hi, start[0], start[1], chain, codes)
+    n = K.prune_excursions(chain, codes, n, width, work_stack)
     points = np.zeros((capacity, 2), np.float32)
     K.refine_subpixel(mag, gx, gy, chain, n, points)
     contacts = K.count_roi_contacts(chain, n, lo, hi, width)
@@ -372,6 +373,7 @@ def test_trace_rope_equals_the_kernels_one_by_one(blurred_frames, frame, ring_cl
     ref_edges = edges.copy()
     K.keep_largest_listed(ref_edges, lo2, hi2, stack, count, 20, ring_clear, labels, work_stack, start)
     n = K.trace_contour(ref_edges, lo2, hi2, start[0], start[1], chain, codes)
+    n = K.prune_excursions(chain, codes, n, width, work_stack)
     got = K.trace_rope(edges, lo2, hi2, stack, count, 20, ring_clear, _NO_MASK, mag, gx, gy, K.Contour(*out))
     assert got == n > 0
     assert out[6][1] == K.count_roi_contacts(chain, n, lo2, hi2, width) > 0
@@ -477,6 +479,7 @@ def test_trace_rope_traced_first_equals_the_kernels_one_by_one(case, spans) -> N
         assert out[6].tolist() == [0, 0, 0] and out[2].tolist() == [-3, -3]
         return
     n = K.trace_contour(ref, lo, hi, start[0], start[1], chain, codes)
+    n = K.prune_excursions(chain, codes, n, width, work_stack)
     K.refine_subpixel(mag, gx, gy, chain, n, points)
     assert got == n > 0
     np.testing.assert_array_equal(out[2], start)
@@ -641,3 +644,43 @@ def test_trace_rope_leaves_an_open_outline_whose_ends_lie_apart() -> None:
     m, edges, contour = _trace_rope_on(mask, static, True)
     assert m == len(chain) and contour.counts[0] == size
     np.testing.assert_array_equal(edges != 0, mask)
+
+
+@pytest.mark.parametrize("ring_clear", [False, True])
+def test_trace_rope_drops_a_spur_of_noise_hung_on_a_band_side(ring_clear) -> None:
+    """A band's closed outline with a spur of noise off one side next to its far end (simulated `read noise =
+    10 DN`, tuning seed, frame 26: a spur's turnaround was taken for the band's corner): traced as the ring alone,
+    as the outline without the spur traces."""
+    band = np.zeros((60, 40), bool)
+    band[5, 10:19] = band[54, 10:19] = True
+    band[5:55, 10] = band[5:55, 18] = True
+    spur = band.copy()
+    spur[44, 3:10] = True  # 7 px out of the left side, 10 px from the far end
+    m_ref, _, ref = _trace_rope_on(band, _NO_MASK, ring_clear)
+    ref_chain = ref.chain[:m_ref].copy()
+    _, _, raw, _ = _trace(spur)
+    assert len(raw) > m_ref  # the spur walked out and back
+    m, _, contour = _trace_rope_on(spur, _NO_MASK, ring_clear)
+    assert m == m_ref
+    differ = np.flatnonzero(np.any(contour.chain[:m] != ref_chain, axis=1))
+    assert len(differ) <= 1  # the trace cuts the corner into the spur's root: that pixel kept for the side's
+    assert np.abs(contour.chain[differ] - ref_chain[differ]).max(initial=0) <= 1
+
+
+@pytest.mark.parametrize("ring_clear", [False, True])
+def test_trace_rope_joins_an_open_outline_that_walks_few_pixels_twice(ring_clear) -> None:
+    """An outline open at its far end whose sides are two pixels thick along most of their length walks only a few
+    of its pixels twice (between `JOINED_REVISITS` and `BROKEN_OUTLINE`: simulated `plate edge = 0.7`, tuning seed,
+    frame 27, 14.5 %, where a side cut by the plate's masked bevel left the band open): joined as well."""
+    apart = 4
+    mask, static = _open_band(apart)
+    mask[8:36, 11] = True  # both sides two pixels thick from the clamp nearly to the open end
+    mask[8:36, 9 + apart] = True
+    size, edges, chain, _ = _trace(mask)
+    n = len(chain)
+    revisits = K.count_revisits(chain, np.int32(n), edges)
+    assert K.JOINED_REVISITS * n < revisits <= K.BROKEN_OUTLINE * n
+    m, edges, contour = _trace_rope_on(mask, static, ring_clear)
+    assert contour.counts[0] == size + apart - 1  # the join's pixels
+    assert np.all(edges[39, 10 : 11 + apart] == 1)
+    assert K.count_revisits(contour.chain[:m], np.int32(m), edges) <= K.JOINED_REVISITS * m

@@ -295,14 +295,43 @@ def test_slope_sweep_median_matches_numpy(start, stop, direction) -> None:
     pairs = _side_slope_samples(chain, n, start, stop, direction, mag, 0.5, 0.85)
     m = len(pairs)
     contrast = 97.3
-    expected = float(np.median(np.interp(pairs[:, 0] / contrast, ratios, sweeps) / pairs[:, 1]))
+    local = np.interp(pairs[:, 0] / contrast, ratios, sweeps)
+    expected = float(np.median(local / pairs[:, 1]))
     got = K.slope_sweep_median(chain, n, start, stop, direction, mag, np.float32(0.5), np.float32(0.85),
-                               np.float32(contrast), ratios, sweeps, np.zeros(n))  # fmt: skip
+                               np.float32(contrast), ratios, sweeps, np.int32(1), np.zeros(n))  # fmt: skip
     assert m >= 6
     assert got == pytest.approx(expected, rel=1e-12)
+    # to_tip 0: the local sweeps' median, not extrapolated to the tip
+    got_local = K.slope_sweep_median(chain, n, start, stop, direction, mag, np.float32(0.5), np.float32(0.85),
+                                     np.float32(contrast), ratios, sweeps, np.int32(0), np.zeros(n))  # fmt: skip
+    assert got_local == pytest.approx(float(np.median(local)), rel=1e-12)
     few = K.slope_sweep_median(chain, n, 0, 8, 1, mag, np.float32(0.5), np.float32(0.85), np.float32(contrast),
-                               ratios, sweeps, np.zeros(n))  # fmt: skip
+                               ratios, sweeps, np.int32(1), np.zeros(n))  # fmt: skip
     assert math.isnan(few)  # fewer than 6 samples
+
+
+def test_body_sweep_is_the_largest_stretch_median_of_either_side() -> None:
+    rng = np.random.default_rng(11)
+    n = 120
+    chain = np.stack([np.arange(n) % 12, np.arange(n) // 12], axis=1).astype(np.int32)
+    mag = rng.uniform(10, 200, (12, 10)).astype(np.float32)
+    mag[:, 3] = 15.0  # a stretch of side a with a shallow edge: a wide local sweep there
+    ratios = np.linspace(0.1, 2.0, 40)
+    sweeps = np.linspace(8.0, 0.0, 40)
+    contrast = 97.3
+    i_fix, seg_a, seg_b = 0, 55, 65
+    expected = -np.inf
+    for i_seg, direction in ((seg_a, 1), (seg_b, -1)):
+        for lo, hi in zip(K.BODY_WINDOWS[:-1], K.BODY_WINDOWS[1:], strict=True):
+            pairs = _side_slope_samples(chain, n, i_fix, i_seg, direction, mag, lo, hi)
+            if len(pairs) >= 6:
+                expected = max(expected, float(np.median(np.interp(pairs[:, 0] / contrast, ratios, sweeps))))
+    got = K.body_sweep(chain, n, i_fix, seg_a, seg_b, mag, np.float32(contrast), K.BODY_WINDOWS, ratios, sweeps,
+                       np.zeros(n))  # fmt: skip
+    assert got == pytest.approx(expected, rel=1e-12)
+    assert got > 6.0  # the shallow stretch's, not the median of the whole side
+    assert math.isnan(K.body_sweep(chain, n, 0, 8, 112, mag, np.float32(contrast), K.BODY_WINDOWS, ratios, sweeps,
+                                   np.zeros(n)))  # fmt: skip  # sides too short for 6 samples in a stretch
 
 
 def test_select_finds_the_rank_as_sorting_does() -> None:
