@@ -48,8 +48,10 @@ MAX_GAIN = 1.5
 """Largest gain (and 1 / smallest) of a pixel: a clamp, rod or the still rope in the background is not divided
 out."""
 COARSE_BLOCK_PX = 64
-"""Side (px) of the squares whose medians are the sheet's coarse level (`coarse_level`): more than twice a clamp's
-width, less than the light's variation."""
+"""Side (px) of the squares whose medians are the sheet's coarse level (`coarse_level`), less than the light's
+variation. A dark structure covering less than half of a square does not move its median (`lab-dark`'s 40x24 px
+clamp covers at most 23 % of one, its 12 px rod 19 %); a larger one (a clamp over ~64x64 px) sets its squares' level
+to its own and the sheet round it is divided by too little."""
 GAIN_BITS = K.GAIN_BITS
 """Fixed-point bits of the gain (4096 = 1; `K.flatten_frame` reads the gain in it)."""
 QUANTILE = 0.5

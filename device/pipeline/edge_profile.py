@@ -302,7 +302,7 @@ class LensBlurEstimate:
         edges beyond the lens's blur, and the model with the lens's blur expects gentler still edges than the frame
         shows: it reads a sweep of a few pixels as less and pulls both shapes towards the band's middle
         (simulated `lab-dark`, tuning seed, 60 frames: the sharpened fit's 0.50 px against the plain bar's
-        0.30; 0.05-0.3 px inwards on every frame, centreline 0.17 -> 0.15 px, seed 3 0.26 -> 0.13 px). A bright
+        0.30; 0.05-0.3 px inwards on every frame, centreline 0.17 -> 0.15 px, seed 3 0.26 -> 0.17 px). A bright
         rope's plain bar takes the halo on the rope for a narrower, blurrier bar (`lab late swing`: 0.76 px and a
         1.1 px rope against the sharpened fit's 0.41 px and 2.1 px).
     """

@@ -16,8 +16,10 @@ not counted):
 
 For each: median per frame of the whole `Pipeline.process`, of the `steady_frame` call (the kernel with its
 dispatch), of `take_frame` (the frame's check), and of the rest (the Python glue, frame by frame). The two wrapped
-calls cost ~0.1-0.3 us each (`timing.KernelTimer`), in every condition. Only frames made by one `steady_frame` call
-are counted.
+calls cost ~0.1-0.3 us each (`timing.KernelTimer`), in every condition. Only frames on which `steady_frame` ran
+are counted; where it stopped early (after the contour, say) the step-by-step kernels that finish the frame land in
+the rest. The pipeline runs with the default `PipelineConfig` (the rig's): time a set that needs its setup's config
+(``lab``) with ``bench.py device --config``.
 
     taskset -c 1 python tools/bench.py cold [--frameset DIR] [--frames N] [--passes P] [--json]
 """

@@ -15,6 +15,8 @@ import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
+from ropecam.shared.errors import RopecamError
+
 
 class UsageError(ValueError):
     """A bad combination of arguments found by a subcommand's `run`: reported as argparse does (exit code 2)."""
@@ -25,6 +27,14 @@ def positive_int(text: str) -> int:
     value = int(text)
     if value < 1:
         raise argparse.ArgumentTypeError(f"must be >= 1, got {value}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    """An argparse type: a finite number > 0."""
+    value = float(text)
+    if not 0.0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
     return value
 
 
@@ -53,7 +63,8 @@ def dispatch(doc: str, commands: Mapping[str, str], argv: Sequence[str] | None =
     Returns
     -------
     int
-        The subcommand's exit code (argparse exits with 2 on bad arguments or a `UsageError`).
+        The subcommand's exit code (argparse exits with 2 on bad arguments, a `UsageError`, or a `RopecamError`
+        such as a frame set or config file that cannot be read: the message names it).
     """
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -76,6 +87,6 @@ def dispatch(doc: str, commands: Mapping[str, str], argv: Sequence[str] | None =
     args = parser.parse_args(argv)
     try:
         return int(args._run(args))
-    except UsageError as exc:
+    except (UsageError, RopecamError) as exc:  # a bad argument, or a file it names that cannot be used
         subparsers[args.command].error(str(exc))
         raise AssertionError("unreachable") from exc  # argparse's error() exits

@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from ropecam_tools.cli import UsageError, positive_float, positive_int
 from ropecam_tools.truth_metrics import SILENT_CURVE_PX, SILENT_TIP_PX, open_truth_set, point_to_polyline, resample
 
 RESAMPLE_POINTS = 201
@@ -63,6 +64,8 @@ CAP_SIGMA_GATE_PX = 0.5
 SWEEP_GATE_PX = 8.0
 """... and the fitted tips lie less than this apart (px): beyond about 10 px of sweep the band's far end is below the
 noise even for a fit that knows where it runs (`eval_band_snr`, docs/robustness.md)."""
+MAX_WINDOWS = (RESAMPLE_POINTS - 3 - int(SKIP_FRACTION * RESAMPLE_POINTS)) // 2
+"""Most fit windows along the rope: each window holds at least two of the resampled points it fits."""
 TAU_STEPS = 9
 """Instants of the exposure summed in the model band."""
 
@@ -70,11 +73,12 @@ TAU_STEPS = 9
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of the band tracker evaluation."""
     parser.add_argument("set", type=Path, metavar="SET", help="a simulator frame set (with truth.npz)")
-    parser.add_argument("--frames", type=int, default=30, metavar="N", help="frames tracked (default 30)")
-    parser.add_argument("--blur-px", type=float, default=0.6, metavar="B",
+    parser.add_argument("--frames", type=positive_int, default=30, metavar="N", help="frames tracked (default 30)")
+    parser.add_argument("--blur-px", type=positive_float, default=0.6, metavar="B",
                         help="the model band's Gaussian blur (px; default 0.6, chosen from 0.6 / 0.8 / 1.0 on "
                         "lab-hard's tuning seed)")  # fmt: skip
-    parser.add_argument("--windows", type=int, default=10, metavar="W", help="fit windows along the rope (10)")
+    parser.add_argument("--windows", type=positive_int, default=10, metavar="W",
+                        help=f"fit windows along the rope (default 10, at most {MAX_WINDOWS})")  # fmt: skip
     parser.add_argument("--seed", choices=("truth", "pipeline"), default="truth",
                         help="seed from frame 0's truth (its centreline and width), or from the pipeline's frame 0 "
                         "(its begin shape whatever its status, cut where it turns back; the width fitted across "
@@ -311,7 +315,7 @@ def track_set(
     frameset, truth = open_truth_set(path)
     count = min(frames, len(frameset))
     if count < 2:
-        raise ValueError(f"{path}: band-track needs at least 2 frames, got {count}")
+        raise UsageError(f"{path}: band-track needs at least 2 frames, got {count}")
     gamma = frameset.camera_gamma or 1.0
     if seed == "truth":
         line, width_px = truth["begin_px"][0], float(truth["width_px"][0])
@@ -359,7 +363,12 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Track one frame set's band from frame 0's truth; print the per-frame table and the summary (or JSON)."""
+    """Track one frame set's band from its seed (frame 0's truth or the pipeline's frame 0); print the per-frame
+    table and the summary (or JSON)."""
+    if args.windows > MAX_WINDOWS:
+        raise UsageError(f"--windows {args.windows}: at most {MAX_WINDOWS} (two resampled points per window)")
+    if not (args.set / "truth.npz").is_file():
+        raise UsageError(f"{args.set}: not a simulator frame set (no truth.npz; make one with `ropecam simulate`)")
     rows = track_set(args.set, args.frames, args.blur_px, args.windows, args.seed)
     summary = summarise(rows)
     if args.json:

@@ -97,10 +97,12 @@ def test_setup_divides_a_textured_sheet_out_and_extract_measures(tmp_path) -> No
 
 
 def test_a_clamp_wider_than_the_level_keeps_the_sheet_round_it_flat() -> None:
-    """A dark clamp 40 px wide on the textured sheet (as `lab-dark`'s): the sheet 4-12 px round it is flattened as
-    the sheet far from it (its gradients no higher), where a plainness test against a Gaussian of the background
-    took the clamp's inside for plain and darkened a ring of sheet round it whose gradients passed the thresholds
-    and broke the rope's outline where it leaves the clamp (`flat_gain`)."""
+    """A dark clamp 40 px wide on the textured sheet (as `lab-dark`'s) is left as it is (gain 1) and the sheet 4-12 px
+    round it is flattened as the sheet far from it (its gradients no higher). A plainness test against a Gaussian
+    of the background took the clamp's inside for plain and divided it (the last assertion fails with it); on the
+    simulator's shaded clamp with its rod that also darkened a ring of sheet round it whose gradients broke the
+    rope's outline where it leaves the clamp (`flat_gain`). This plain block does not make that ring with the old
+    test, so the ring assertion guards the property, not that regression."""
     from ropecam.device.pipeline.edges import EdgeDetector
 
     height, width = 160, 200
