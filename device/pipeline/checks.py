@@ -32,10 +32,12 @@ reason                  fails when                                              
                         ``min_blur_evidence`` x the area the split's sweep implies (0.5 x length x tip
                         separation, the rope turning about its fixed end); the frame then carries the
                         static centreline instead of the split
-``tip_masked``          the static mask begins within ``tip_mask_widths`` rope widths +                 IMPLAUSIBLE
-                        ``tip_mask_floor_px`` beyond either shape's free tip, along the rope: the mask
-                        may have cut the rope there (a rope crossing a masked plate edge ends at it),
-                        and the rope's end is not seen
+``tip_masked``          the static mask lies within ``tip_mask_widths`` rope widths +                   IMPLAUSIBLE
+                        ``tip_mask_floor_px`` beyond either shape's free tip, along the rope (or up to
+                        a width behind it or beside it): the mask may have cut the rope there (a rope
+                        crossing a masked plate edge or cable ends at it), and the rope's end is not
+                        seen; unless the frame shows both tips as the rope's ends (the rope at each
+                        tip, and beyond it the still scene the mask learned: `StaticMask.shows_end`)
 ``fallback_sweep``      the blur split fell back to one shape (the band's middle: the rope at           IMPLAUSIBLE
                         mid-exposure) while the tip's path over the last frames swept more than
                         ``fallback_sweep_widths`` rope widths during the exposure: the shape is neither
@@ -66,6 +68,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -76,6 +79,9 @@ from ropecam.shared.config import check_range
 from ropecam.shared.errors import ConfigError
 from ropecam.shared.protocol.frame_result import FrameStatus
 from ropecam.shared.protocol.quality import QUALITY_KEYS, Reason
+
+if TYPE_CHECKING:
+    from ropecam.device.pipeline.static_mask import StaticMask
 
 __all__ = ["QUALITY_KEYS", "ChecksConfig", "Reason", "SelfChecks", "contour_area_px2"]
 
@@ -319,6 +325,8 @@ class SelfChecks:
         corner_px: float = math.nan,
         corners: NDArray[np.float32] | None = None,
         order_undecided: bool = False,
+        static: StaticMask | None = None,
+        frame: NDArray[np.uint8] | None = None,
     ) -> tuple[FrameStatus, Reason]:
         """Check one measured frame; return its status (OK when every check passes) and the first failed reason.
 
@@ -354,6 +362,10 @@ class SelfChecks:
         order_undecided
             Nothing decided the split's time order (no earlier frame in the order's history: `K.order_shapes`
             kept the split's own pairing and left the history unordered), for ``order``.
+        static, frame
+            The learned static mask and the frame (its shape, uint8 in linear light): a ``tip_masked`` verdict is
+            withdrawn (the checks made again without the mask) when the frame shows both tips as the rope's ends
+            (`StaticMask.shows_end`: the rope at each tip, the learned still scene beyond it). None: it stands.
         """
         code = K.check_frame(
             begin, end, fixed, self._predicted, _nan_if_none(stretch_begin), _nan_if_none(stretch_end), width_px,
@@ -361,6 +373,18 @@ class SelfChecks:
             _NO_MASK if mask is None else mask, _NO_CORNERS if corners is None else corners, self._thresholds,
             self._measures,
         )  # fmt: skip
+        if code == K.CHECK_TIP_MASKED and static is not None and frame is not None:
+            # A tip at the mask is the mask's doing only where the rope goes on under it: where the frame shows the
+            # rope at both tips and the still scene it learned beyond them, nothing is hidden (simulated texture,
+            # dust and scratches rows: the mask covers the plate's grain and specks, not the rope's end).
+            width = learned_width_px or width_px
+            reach_px = self.config.tip_mask_widths * width + self.config.tip_mask_floor_px
+            if static.shows_end(begin, frame, width, reach_px) and static.shows_end(end, frame, width, reach_px):
+                code = K.check_frame(
+                    begin, end, fixed, self._predicted, _nan_if_none(stretch_begin), _nan_if_none(stretch_end),
+                    width_px, learned_width_px or 0.0, order_confidence, exposure_ns, split, contour_area_px2,
+                    _NO_MASK, _NO_CORNERS if corners is None else corners, self._thresholds, self._measures,
+                )  # fmt: skip
         if code == K.CHECK_NONE and exposure_ns > 0 and math.isnan(self._predicted[2]):
             # Checks of a frame the motion model cannot check (the first frames, after a gap); a steady frame's
             # tips are checked against the prediction instead (`check_frame`, inside `steady_frame`).

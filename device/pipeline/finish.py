@@ -14,6 +14,7 @@ from ropecam.device.pipeline.locate import RopeLocator
 from ropecam.device.pipeline.motion import MotionModel
 from ropecam.device.pipeline.result import FrameStatus, Method, PipelineResult, exposure_in_ns
 from ropecam.device.pipeline.split import BlurSplitter, SplitOutcome
+from ropecam.device.pipeline.static_mask import StaticMask
 from ropecam.device.pipeline.time_order import DEFAULT_PERIOD_NS, TimeOrder
 from ropecam.device.pipeline.tracking import PointTracker
 from ropecam.device.pipeline.traits import RopeTraits
@@ -108,6 +109,8 @@ class ResultFinisher:
         The pipeline's stages whose results and state the last steps read and update.
     fixed
         The fixed end (row, col) float32 (`RopeTraits.fixed_end`).
+    static_mask
+        The learned static mask (None: a ``tip_masked`` verdict always stands).
     """
 
     def __init__(
@@ -121,7 +124,10 @@ class ResultFinisher:
         tracer: ContourTracer,
         locator: RopeLocator,
         fixed: np.ndarray,
+        static_mask: StaticMask | None = None,
     ) -> None:
+        self.static_mask = static_mask
+        """The learned static mask: its scene tells a tip at the mask from a rope the mask cut (`SelfChecks.check`)."""
         self.splitter, self.tracker, self.time_order, self.motion = splitter, tracker, time_order, motion
         self.checks, self.traits, self.tracer, self.locator, self.fixed = checks, traits, tracer, locator, fixed
         self.after_still = False
@@ -305,7 +311,7 @@ class ResultFinisher:
         if placed < 0 and self.tracker.plane is not None:  # by arc length on the plane (metres), not in pixels
             self.tracker.place_on_plane(result.begin, result.end)
         result.status = _OK
-        if checked < 0:
+        if checked < 0 or checked == K.CHECK_TIP_MASKED:  # (`check` withdraws a tip_masked the frame disproves)
             self.check(result, outcome, exposure_ns, corner_px)
         else:
             status, reason = self.checks.verdict(checked)
@@ -357,7 +363,7 @@ class ResultFinisher:
         status, reason = checks.check(
             begin, end, self.fixed, result.stretch_begin, result.stretch_end, used_px, learned_px,
             result.order_confidence, exposure_ns, split, area, self.locator.edges.static_mask_ro,
-            corner_px, corners if split else None, undecided,
+            corner_px, corners if split else None, undecided, self.static_mask, self.locator.edges.frame,
         )  # fmt: skip
         self._take_verdict(result, outcome, exposure_ns, status, reason)
 

@@ -124,7 +124,7 @@ class Stages:
         time_order = TimeOrder(ws.order)
         locator = RopeLocator(config.roi_margin_px, edges, tracer, motion, traits.fixed_end, config.canny_low, ws.roi)
         finisher = ResultFinisher(
-            splitter, tracker, time_order, motion, checks, traits, tracer, locator, ws.fixed_end.fixed
+            splitter, tracker, time_order, motion, checks, traits, tracer, locator, ws.fixed_end.fixed, static_mask
         )
         steady = SteadyFrame(ws, config.roi_margin_px, edges, tracer, splitter, tracker, locator, traits, checks)
         return cls(

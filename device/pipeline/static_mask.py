@@ -84,6 +84,7 @@ class StaticMask:
         self.structure_tried = False
         """Whether the stream's first outline was searched for a structure (`Stages.mask_structure`)."""
         self._finder: EdgeDetector | None = None  # the structures' detector, made ahead by `prepare`
+        self._low_ro, self._high_ro = as_ro(buffers.static_low), as_ro(buffers.static_high)  # (`shows_end`)
         buffers.static_mask[:] = K.MASK_FREE
         buffers.static_low[:] = 255
         buffers.static_high[:] = 0
@@ -197,6 +198,19 @@ class StaticMask:
         self.buffers.static_mask[region] = K.MASK_ALWAYS
         self.structure_px = int(np.count_nonzero(region))
         self.mark_near()
+
+    def shows_end(self, shape: NDArray[np.float32], frame: NDArray[np.uint8], width_px: float, reach_px: float) -> bool:
+        """Return whether `frame` shows the free tip of `shape` ((n, 2) float32 row, col, the tip last) as the rope's
+        end (`K.tip_end_seen`): the rope at the tip, and beyond it, within `reach_px` and two rope widths
+        (`width_px`) more, every pixel as the learned still scene had it. False until the mask is learned (nothing
+        to compare with): a ``tip_masked`` verdict then stands."""
+        if not self.marked or self.frames == 0:
+            return False
+        if frame.shape != self.buffers.static_low.shape:
+            return False
+        still_dn = self.base_dn + 2.0 * self.margin_dn  # the learned still range, widened by the margin each side
+        low, high = self._low_ro, self._high_ro
+        return bool(K.tip_end_seen(shape, as_ro(frame), low, high, width_px, reach_px, still_dn, self.relative))
 
     def mark_near(self) -> None:
         """Summarise the mask again after a write (`mark_near_blocks`: the per-frame kernels read the mask only

@@ -82,6 +82,8 @@ from ropecam.device.pipeline._kernels.checks import (
     CHECK_TIP_MASKED,
     check_frame,
     predict_tips,
+    tip_direction,
+    tip_end_seen,
     tip_mask_distance,
     tip_turn_deg,
 )
@@ -485,6 +487,8 @@ __all__ = [
     "take_frame",
     "thin_chain",
     "tick_clock",
+    "tip_direction",
+    "tip_end_seen",
     "tip_mask_distance",
     "tip_turn_deg",
     "trace_closed",

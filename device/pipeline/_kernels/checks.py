@@ -124,15 +124,24 @@ TIP_DIRECTION_PX: Final = 3.0
 """The tip's direction is read over this much of the shape's end (px)."""
 
 
-@kernel(float64(f4_2d_ro, u1_2d_ro, float64, float64))
-def tip_mask_distance(shape, mask, width_px, reach_px):
-    """Return how far (px) beyond the free tip of `shape` (row, col; the last point) the static `mask` (not
-    `MASK_FREE`) begins, looking along the shape's direction at its end, across the rope's `width_px`, up to
-    `reach_px`; nan when no masked pixel lies within reach (or the shape has fewer than two points). Pixels
-    outside `mask` (a 1x1 placeholder: no mask) are free."""
+TIP_END_CLEAR_PX: Final = 1.0
+"""How far (px) past a free tip's end cap (half the rope's width) the band's blurred end may still show (the 1 px
+smoothing and the lens blur): `tip_end_seen` reads the learned scene only beyond it (simulated scratches, dust
+and texture rows, tuning seed: up to 1 px past tips within 0.3 px of the truth, 2-4 px past tips 1.5-3 px short
+of it)."""
+TIP_END_BEYOND_WIDTHS: Final = 2.0
+"""`tip_end_seen` reads the learned scene this many rope widths beyond the ``tip_masked`` reach: a rope the mask
+cut goes on past the masked pixels."""
+
+
+@kernel(types.UniTuple(float64, 4)(f4_2d_ro))
+def tip_direction(shape):
+    """Return the free tip of `shape` (row, col; its last point) and the unit direction of its last
+    `TIP_DIRECTION_PX` of arc (tip row, tip col, direction row, direction col); the direction is (0, 0) when the
+    shape has fewer than two points or no length there."""
     n = shape.shape[0]
-    if n < 2 or not reach_px > 0.0:
-        return math.nan
+    if n < 2:
+        return (math.nan, math.nan, 0.0, 0.0)
     tr = float64(shape[n - 1, 0])
     tc = float64(shape[n - 1, 1])
     k = n - 2
@@ -142,21 +151,77 @@ def tip_mask_distance(shape, mask, width_px, reach_px):
     dc = tc - float64(shape[k, 1])
     norm = math.hypot(dr, dc)
     if norm == 0.0:
+        return (tr, tc, 0.0, 0.0)
+    return (tr, tc, dr / norm, dc / norm)
+
+
+@kernel(float64(f4_2d_ro, u1_2d_ro, float64, float64))
+def tip_mask_distance(shape, mask, width_px, reach_px):
+    """Return where (px along the shape's direction at its free end, `tip_direction`; negative: behind the tip) the
+    static `mask` (not `MASK_FREE`) lies near the free tip of `shape` (row, col; the last point): sampled every
+    half pixel from a rope's `width_px` behind the tip to `reach_px` beyond it, out to a width either side of the
+    shape's line (a tip read just past a masked cable the rope crossed ends beside or behind it), nearest to the
+    tip's end first along the line; nan when no masked pixel lies there (or the shape has fewer than two points).
+    Pixels outside `mask` (a 1x1 placeholder: no mask) are free."""
+    if not reach_px > 0.0:
         return math.nan
-    dr /= norm
-    dc /= norm
+    tr, tc, dr, dc = tip_direction(shape)
+    if dr == 0.0 and dc == 0.0:
+        return math.nan
     height = mask.shape[0]
     width = mask.shape[1]
     half = 0.5 * width_px
-    steps = int(reach_px * 2.0) + 1
-    for step in range(steps):
+    behind = int(width_px * 2.0)
+    for step in range(-behind, int(reach_px * 2.0) + 1):
         along = 0.5 * step
-        for side in (-half, 0.0, half):
+        for side in (-width_px, -half, 0.0, half, width_px):
             r = math.floor(tr + along * dr - side * dc + 0.5)
             c = math.floor(tc + along * dc + side * dr + 0.5)
             if 0 <= r < height and 0 <= c < width and mask[r, c] != MASK_FREE:
                 return along
     return math.nan
+
+
+@kernel(boolean(f4_2d_ro, u1_2d_ro, u1_2d_ro, u1_2d_ro, float64, float64, float64, float64))
+def tip_end_seen(shape, frame, low, high, width_px, reach_px, still_dn, relative):
+    """Whether `frame` shows the free tip of `shape` (row, col; the last point) as the rope's end: at the tip or up
+    to a pixel behind it (the tip is read at the band's half level) some pixel across the rope's `width_px` lies
+    outside its learned grey-level range [`low`, `high`] (the rope is there), and from half a width +
+    `TIP_END_CLEAR_PX` to `reach_px` + `TIP_END_BEYOND_WIDTHS` widths beyond it, along the shape's direction at
+    its end (`tip_direction`, sampled as `tip_mask_distance` samples it), every pixel lies inside a still pixel's
+    learned range (``high - low <= still_dn + relative * high``): the view there is as it was learned, so the
+    static mask hides no rope there. A pixel the rope crossed while the mask was learned has a range as wide as
+    the rope's contrast and shows nothing. False when the shape has fewer than two points, a sample lies outside
+    the image or the arrays are not of one shape."""
+    height = frame.shape[0]
+    width = frame.shape[1]
+    if low.shape[0] != height or low.shape[1] != width or high.shape[0] != height or high.shape[1] != width:
+        return False
+    tr, tc, dr, dc = tip_direction(shape)
+    if dr == 0.0 and dc == 0.0:
+        return False
+    half = 0.5 * width_px
+    steps = int((reach_px + TIP_END_BEYOND_WIDTHS * width_px) * 2.0) + 1
+    clear_px = half + TIP_END_CLEAR_PX
+    on_rope = False
+    for step in range(-2, steps):
+        along = 0.5 * step
+        if step > 0 and along < clear_px:
+            continue
+        for side in (-half, 0.0, half):
+            r = math.floor(tr + along * dr - side * dc + 0.5)
+            c = math.floor(tc + along * dc + side * dr + 0.5)
+            if not (0 <= r < height and 0 <= c < width):
+                return False
+            v = int64(frame[r, c])
+            lo = int64(low[r, c])
+            hi = int64(high[r, c])
+            inside = lo <= v <= hi
+            if step <= 0:
+                on_rope = on_rope or not inside
+            elif not inside or hi - lo > still_dn + relative * hi:
+                return False
+    return on_rope
 
 
 @kernel(float64(f4_2d_ro, float64))

@@ -273,15 +273,16 @@ def test_a_tip_that_ends_at_the_static_mask_is_not_trusted() -> None:
 
 
 def _tip_mask_distance_reference(shape: np.ndarray, mask: np.ndarray, width_px: float, reach_px: float) -> float:
-    """Slow reference of `tip_mask_distance`: every sample point beyond the tip, nearest first."""
+    """Slow reference of `tip_mask_distance`: every sample point from a width behind the tip to the reach beyond
+    it, a width either side, in order along the line."""
     tip = shape[-1].astype(np.float64)
     back = next(
         (p.astype(np.float64) for p in shape[-2::-1] if np.hypot(*(tip - p)) >= 3.0), shape[0].astype(np.float64)
     )
     u = (tip - back) / np.hypot(*(tip - back))
     v = np.array([-u[1], u[0]])
-    for along in np.arange(0.0, reach_px + 0.25, 0.5):
-        for side in (-0.5 * width_px, 0.0, 0.5 * width_px):
+    for along in np.arange(-int(2.0 * width_px) / 2.0, reach_px + 0.25, 0.5):
+        for side in (-width_px, -0.5 * width_px, 0.0, 0.5 * width_px, width_px):
             r, c = np.floor(tip + along * u + side * v + 0.5).astype(int)
             if 0 <= r < mask.shape[0] and 0 <= c < mask.shape[1] and mask[r, c]:
                 return float(along)
@@ -409,3 +410,115 @@ def test_a_split_whose_two_corners_coincide_has_no_tips_read_at_them() -> None:
         checks.predict(motion.state, motion.log, FIXED, 2 * 8_403_361, 4_000_000)
     assert _check(checks, corners=apart) == (FrameStatus.OK, Reason.NONE)
     assert _check(checks, corners=once) == (FrameStatus.IMPLAUSIBLE, Reason.TIP_CORNER)
+
+
+def _scene(*shapes: np.ndarray, size: tuple[int, int] = (260, 200)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A frame of a plate at 25 DN with a 5 px wide rope at 200 DN along each of `shapes` (row, col), and the
+    plate's learned range: a still 22-28 DN everywhere (read-only arrays, as the mask's)."""
+    frame = np.full(size, 25, np.uint8)
+    for shape in shapes:
+        for r, c in _along(shape):
+            frame[r - 2 : r + 3, c - 2 : c + 3] = 200
+    low, high = np.full(size, 22, np.uint8), np.full(size, 28, np.uint8)
+    return frame, low, high
+
+
+def _along(shape: np.ndarray) -> list[tuple[int, int]]:
+    """The pixels of the polyline `shape` (row, col), sampled every 0.25 px."""
+    out = []
+    for a, b in zip(shape[:-1].astype(np.float64), shape[1:].astype(np.float64), strict=True):
+        for t in np.linspace(0.0, 1.0, max(2, int(4 * np.hypot(*(b - a))) + 1)):
+            out.append(tuple(np.floor(a + t * (b - a) + 0.5).astype(int)))
+    return out
+
+
+def _tip_end_seen_reference(shape, frame, low, high, width_px, reach_px, still_dn, relative):  # type: ignore[no-untyped-def]
+    """Slow reference of `tip_end_seen`: the sample points from a pixel behind the tip to beyond it, as
+    `_tip_mask_distance_reference` takes them."""
+    from ropecam.device.pipeline._kernels.checks import TIP_END_BEYOND_WIDTHS, TIP_END_CLEAR_PX
+
+    tip = shape[-1].astype(np.float64)
+    back = next(
+        (p.astype(np.float64) for p in shape[-2::-1] if np.hypot(*(tip - p)) >= 3.0), shape[0].astype(np.float64)
+    )
+    u = (tip - back) / np.hypot(*(tip - back))
+    v = np.array([-u[1], u[0]])
+    on_rope = False
+    for along in np.arange(-1.0, reach_px + TIP_END_BEYOND_WIDTHS * width_px + 0.25, 0.5):
+        if 0.0 < along < 0.5 * width_px + TIP_END_CLEAR_PX:
+            continue
+        for side in (-0.5 * width_px, 0.0, 0.5 * width_px):
+            r, c = np.floor(tip + along * u + side * v + 0.5).astype(int)
+            if not (0 <= r < frame.shape[0] and 0 <= c < frame.shape[1]):
+                return False
+            value, lo, hi = int(frame[r, c]), int(low[r, c]), int(high[r, c])
+            inside = lo <= value <= hi
+            if along <= 0.0:
+                on_rope = on_rope or not inside
+            elif not inside or hi - lo > still_dn + relative * hi:
+                return False
+    return on_rope
+
+
+@pytest.mark.parametrize(
+    "change", ["none", "speck far", "rope goes on", "speck beyond", "wide range", "tip off the rope", "rope cut"]
+)
+def test_tip_end_seen_matches_its_reference(change: str) -> None:
+    from ropecam.device.pipeline import _kernels as K
+
+    shape = _shape(100.0)  # from (10, 100) straight down to its tip at (210, 100)
+    frame, low, high = _scene(shape)
+    if change == "speck far":
+        frame[240:242, 100:102] = 60  # a dust speck beyond the reach that was not there while learning
+    elif change == "rope goes on":
+        frame[211:225, 98:103] = 200  # the rope goes on 14 px past the shape's tip
+    elif change == "speck beyond":
+        frame[216:218, 100:102] = 60  # a speck 6 px past the tip
+    elif change == "wide range":
+        high[214:220, 90:110] = 220  # the rope crossed there while the mask was learned: it shows nothing
+    elif change == "tip off the rope":
+        frame[196:] = 25  # the rope ends 14 px short of the shape's tip: the tip ran on over the plate
+    elif change == "rope cut":
+        frame[211:214] = 25  # a masked plate edge the rope's edges were dropped at ...
+        frame[214:230, 98:103] = 200  # ... and the rope beyond it
+    frame.flags.writeable = low.flags.writeable = high.flags.writeable = False
+    expected = _tip_end_seen_reference(shape, frame, low, high, WIDTH_PX, 7.0, 8.0, 0.1)
+    assert K.tip_end_seen(shape, frame, low, high, WIDTH_PX, 7.0, 8.0, 0.1) == expected
+    assert expected is (change in ("none", "speck far"))
+
+
+def _learned_plate(size: tuple[int, int] = (260, 200)) -> object:
+    """A static mask learned over a still plate at 25 DN (every range 22-28 DN: margin 3)."""
+    from ropecam.device.pipeline.static_mask import StaticMask
+    from ropecam.device.pipeline.workspace import EdgeBuffers
+
+    static = StaticMask(EdgeBuffers.make(*size, np.ones(1, np.float32)), frames=1, margin_dn=3, relative=0.1)
+    static.learn(np.full(size, 25, np.uint8))
+    static.learn(np.full(size, 25, np.uint8))  # marks the mask: no structure on the plain plate
+    assert static.marked and (static.buffers.static_low == 22).all() and (static.buffers.static_high == 28).all()
+    return static
+
+
+def test_a_tip_at_the_mask_with_the_learned_scene_beyond_it_is_trusted() -> None:
+    """`tip_masked` stands where the frame cannot show the rope's end (no learned scene, the rope going on under
+    the mask) and is withdrawn where it shows the rope at both tips and the still scene it learned beyond them
+    (a speck of dust or the plate's grain masked just past a tip)."""
+    from ropecam.device.pipeline.static_mask import StaticMask
+    from ropecam.device.pipeline.workspace import EdgeBuffers
+
+    begin, end = _shape(90.0), _shape(110.0)  # `_check`'s shapes, their tips at row 210
+    frame, _, _ = _scene(begin, end)
+    static = _learned_plate()
+    checks = SelfChecks(ChecksConfig())
+    mask = _mask_across(212)
+    assert _check(checks, mask=mask) == (FrameStatus.IMPLAUSIBLE, Reason.TIP_MASKED)
+    assert _check(checks, mask=mask, static=static, frame=frame) == (FrameStatus.OK, Reason.NONE)
+    cut = frame.copy()
+    cut[214:230, 106:113] = 200  # the end shape's rope goes on past the mask: the mask cut it
+    assert _check(checks, mask=mask, static=static, frame=cut) == (FrameStatus.IMPLAUSIBLE, Reason.TIP_MASKED)
+    fresh = StaticMask(EdgeBuffers.make(260, 200, np.ones(1, np.float32)), frames=1, margin_dn=3, relative=0.1)
+    assert _check(checks, mask=mask, static=fresh, frame=frame)[1] is Reason.TIP_MASKED  # nothing learned yet
+    # Withdrawn, the checks after it still run: a tip that turns at its end is still refused.
+    kinked = _kinked(70.0)
+    frame, _, _ = _scene(begin, kinked)
+    assert _check(checks, end=kinked, mask=_mask_across(222), static=static, frame=frame)[1] is Reason.TIP_KINK
