@@ -88,8 +88,10 @@ class ContourTracer:
 
         `edge_list` (optional): the first `n_edges` entries are the flat indices of every edge pixel inside the
         spans, in any order (as `EdgeDetector.detect` leaves them in its `stack`); the component is then
-        chosen in time proportional to the edges instead of the span pixels (same result). `edges` must then be 0
-        next to the spans outside them, as `EdgeDetector.detect` leaves it.
+        chosen in time proportional to the edges instead of the span pixels, and `K.trace_rope` also takes noise
+        spurs and small loops out of the outline (`prune_excursions`), which the path without it does not (only
+        tests call that path). `edges` must then be 0 next to the spans outside them, as `EdgeDetector.detect`
+        leaves it.
 
         Returns
         -------

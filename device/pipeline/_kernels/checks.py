@@ -160,8 +160,9 @@ def tip_mask_distance(shape, mask, width_px, reach_px):
     """Return where (px along the shape's direction at its free end, `tip_direction`; negative: behind the tip) the
     static `mask` (not `MASK_FREE`) lies near the free tip of `shape` (row, col; the last point): sampled every
     half pixel from a rope's `width_px` behind the tip to `reach_px` beyond it, out to a width either side of the
-    shape's line (a tip read just past a masked cable the rope crossed ends beside or behind it), nearest to the
-    tip's end first along the line; nan when no masked pixel lies there (or the shape has fewer than two points).
+    shape's line (a tip read just past a masked cable the rope crossed ends beside or behind it): the first
+    masked pixel met walking from behind the tip forward (callers read only whether one is found); nan when no
+    masked pixel lies there (or the shape has fewer than two points).
     Pixels outside `mask` (a 1x1 placeholder: no mask) are free."""
     if not reach_px > 0.0:
         return math.nan

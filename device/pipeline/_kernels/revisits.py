@@ -14,7 +14,8 @@ from ropecam.shared.jit import i4_1d, i4_2d, i4_2d_ro, kernel, u1_2d
 BROKEN_OUTLINE: Final = 0.15
 """Largest part of the contour's pixels walked twice (spurs of noise and texture) before it is no band outline."""
 JOINED_REVISITS: Final = 0.05
-"""Largest part of the contour's pixels walked twice once an open outline's two ends are joined
+"""Part of the contour's pixels walked twice above which an open outline's two ends are tried for a join
+(`join_open_ends`, session 16: sides two pixels thick walk 5-15 % twice), and the largest part once they are joined
 (`close_open_outline`): the join made a ring, with a few spurs."""
 VISITED: Final = 0x80
 """Bit of the edge map that marks a pixel the contour has walked (cleared again before returning)."""
