@@ -69,3 +69,38 @@ def test_a_body_swept_wider_than_the_tip_is_split(whip: Path) -> None:
         assert result.begin is not None and result.end is not None
         errors = (_curve_error(begin_true[k], result.begin[:, ::-1]), _curve_error(end_true[k], result.end[:, ::-1]))
         assert max(errors) < 0.45, (k, np.round(errors, 2))
+
+
+def test_the_fused_split_and_its_steps_keep_the_same_whip_split(whip: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`split_frame` (one call) and the step-by-step split (`split_frame` reporting a full buffer) decide the body's
+    sweep alike: on the whip frames both keep the split, with the same shapes (`test_split_fused`'s swing never
+    takes this branch)."""
+    from ropecam.device.pipeline import _kernels as K
+
+    frames = FrameSet(whip)
+    width, height = frames.meta["image_size"]
+    real = K.split_frame
+
+    def run(fused: bool) -> list[tuple]:
+        calls = [0]
+
+        def split_frame(*args):  # type: ignore[no-untyped-def]
+            calls[0] += 1
+            return real(*args) if fused else K.FULL
+
+        monkeypatch.setattr(K, "split_frame", split_frame)
+        pipeline = Pipeline(PipelineConfig(), (width, height))
+        out = []
+        for k, (record, image) in enumerate(frames):
+            result = pipeline.process(image, record.frame, record.t_ns, record.exposure_us)
+            if k in WHIP:
+                assert result.method is Method.BLUR_SPLIT, (fused, k, result.method, result.message)
+                out.append((np.array(result.begin), np.array(result.end)))
+        assert calls[0] >= len(WHIP)  # the steady split ran (or was sent to its steps) on the whip frames
+        return out
+
+    fused, steps = run(True), run(False)
+    for k, ((begin_f, end_f), (begin_s, end_s)) in zip(WHIP, zip(fused, steps, strict=True), strict=True):
+        assert begin_f.shape == begin_s.shape and end_f.shape == end_s.shape, k
+        np.testing.assert_allclose(begin_f, begin_s, atol=1e-3, err_msg=f"frame {k}")
+        np.testing.assert_allclose(end_f, end_s, atol=1e-3, err_msg=f"frame {k}")
