@@ -121,3 +121,12 @@ def test_band_track_refuses_a_folder_that_is_not_a_frame_set(tmp_path: Path, run
     done = run_tool_here("evaluate.py", "band-track", str(tmp_path / "nowhere"))
     assert done.returncode == 2 and "nowhere" in done.stderr and "truth.npz" in done.stderr, done.stderr
     assert "Traceback" not in done.stderr
+
+
+def test_band_track_reports_an_unreadable_frame_set_as_a_runtime_error(tmp_path: Path, run_tool_here: RunTool) -> None:
+    broken = tmp_path / "broken"
+    broken.mkdir()
+    np.savez(broken / "truth.npz", begin_px=np.zeros((1, 2, 2)))  # truth, but no frame-set metadata
+    done = run_tool_here("evaluate.py", "band-track", str(broken))
+    assert done.returncode == 1, (done.stdout, done.stderr)
+    assert "band-track: error:" in done.stderr and "broken" in done.stderr and "Traceback" not in done.stderr

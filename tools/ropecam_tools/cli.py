@@ -15,7 +15,8 @@ import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-from ropecam.shared.errors import RopecamError
+from ropecam.shared.cli import EXIT_RUNTIME
+from ropecam.shared.errors import ConfigError, RopecamError
 
 
 class UsageError(ValueError):
@@ -63,8 +64,9 @@ def dispatch(doc: str, commands: Mapping[str, str], argv: Sequence[str] | None =
     Returns
     -------
     int
-        The subcommand's exit code (argparse exits with 2 on bad arguments, a `UsageError`, or a `RopecamError`
-        such as a frame set or config file that cannot be read: the message names it).
+        The subcommand's exit code, by the policy of `ropecam.shared.cli`: argparse exits with 2 on bad arguments,
+        a `UsageError` or a `ConfigError`; any other `RopecamError` (a frame set that cannot be read, say) is
+        printed, naming what failed, and gives 1.
     """
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -87,6 +89,9 @@ def dispatch(doc: str, commands: Mapping[str, str], argv: Sequence[str] | None =
     args = parser.parse_args(argv)
     try:
         return int(args._run(args))
-    except (UsageError, RopecamError) as exc:  # a bad argument, or a file it names that cannot be used
+    except (UsageError, ConfigError) as exc:
         subparsers[args.command].error(str(exc))
         raise AssertionError("unreachable") from exc  # argparse's error() exits
+    except RopecamError as exc:  # bad data: reported as every ropecam command reports it, without a traceback
+        print(f"{subparsers[args.command].prog}: error: {exc}", file=sys.stderr)
+        return EXIT_RUNTIME
