@@ -40,6 +40,27 @@ def fast_frames(fast_rope: SyntheticRope) -> list[SyntheticFrame]:
     return list(fast_rope.frames(6))
 
 
+def distance_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
+    """Each point's distance (px) to the polyline `poly` (both (n, 2), the same axis order), segment by segment."""
+    a, d = poly[:-1][None], np.diff(poly, axis=0)[None]
+    p = points[:, None]
+    t = np.clip(((p - a) * d).sum(-1) / np.maximum((d * d).sum(-1), 1e-12), 0.0, 1.0)
+    return np.min(np.hypot(*(p - a - t[..., None] * d).transpose(2, 0, 1)), axis=1)
+
+
+def resample(poly: np.ndarray, count: int) -> np.ndarray:
+    """`count` points evenly spaced by arc length along the polyline `poly` (n, 2)."""
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(poly, axis=0).T))])
+    target = np.linspace(0.0, s[-1], count)
+    return np.stack([np.interp(target, s, poly[:, 0]), np.interp(target, s, poly[:, 1])], axis=1)
+
+
+def curve_error(true: np.ndarray, ours: np.ndarray) -> float:
+    """A shape's centreline error (px): the mean distance from 100 points evenly spaced along the true curve to our
+    polyline (both (n, 2), the same axis order), as the matrix measures it."""
+    return float(distance_to_polyline(resample(true, 100), ours).mean())
+
+
 def full_spans(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
     """Return row spans covering the whole image."""
     return np.zeros(height, np.int32), np.full(height, width - 1, np.int32)

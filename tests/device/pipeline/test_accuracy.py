@@ -22,20 +22,9 @@ from ropecam.host.sim.dynamics import solve_trajectory
 from ropecam.host.sim.generate import write_frameset
 from ropecam.host.sim.presets import preset
 
+from .conftest import curve_error
+
 FRAMES = 14
-
-
-def _distance_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
-    a, d = poly[:-1][None], np.diff(poly, axis=0)[None]
-    p = points[:, None]
-    t = np.clip(((p - a) * d).sum(-1) / np.maximum((d * d).sum(-1), 1e-12), 0.0, 1.0)
-    return np.min(np.hypot(*(p - a - t[..., None] * d).transpose(2, 0, 1)), axis=1)
-
-
-def _resample(poly: np.ndarray, count: int) -> np.ndarray:
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(poly, axis=0).T))])
-    target = np.linspace(0.0, s[-1], count)
-    return np.stack([np.interp(target, s, poly[:, 0]), np.interp(target, s, poly[:, 1])], axis=1)
 
 
 @pytest.fixture(scope="module", params=[("rig", "bright"), ("rig-soft", "bright"), ("rig", "dark")])
@@ -69,7 +58,7 @@ def test_blur_split_tips_curves_and_order_on_simulated_rig(frame_set: tuple[str,
         begin, end = r.begin[:, ::-1].astype(np.float64), r.end[:, ::-1].astype(np.float64)
         tips += [np.hypot(*(begin[-1] - begin_true[-1])), np.hypot(*(end[-1] - end_true[-1]))]
         for ours, true in ((begin, begin_true), (end, end_true)):
-            curves.append(float(_distance_to_polyline(_resample(true, 100), ours).mean()))
+            curves.append(curve_error(true, ours))
             axis = (true[1] - true[0]) / np.hypot(*(true[1] - true[0]))
             starts.append(float(np.dot(ours[0] - true[0], axis)))  # the start's offset along the rope
         if k > 0 and np.hypot(*(end_true[-1] - begin_true[-1])) >= 2.0:  # frame 0: no history to order by

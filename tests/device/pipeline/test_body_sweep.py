@@ -19,25 +19,14 @@ from ropecam.host.sim.dynamics import solve_trajectory
 from ropecam.host.sim.generate import write_frameset
 from ropecam.host.sim.presets import preset
 
+from .conftest import curve_error, resample
+
 FIRST_S = 1.12
 """``rig-soft`` (4 ms, 119 FPS; the motion of the ``lab`` presets) from 1.12 s after the release: on frames 4-8 the
 tip sweeps 0.9-2.0 px per exposure while a stretch at 20-30 % of the rope sweeps 3.1-3.9 px (a wave running down
 the body); main 524728d reported them as the static fallback, centreline 0.6-0.8 px off."""
 FRAMES = 9
 WHIP = range(4, 9)
-
-
-def _resample(poly: np.ndarray, count: int) -> np.ndarray:
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(poly, axis=0).T))])
-    target = np.linspace(0.0, s[-1], count)
-    return np.stack([np.interp(target, s, poly[:, 0]), np.interp(target, s, poly[:, 1])], axis=1)
-
-
-def _curve_error(true_uv: np.ndarray, ours_uv: np.ndarray) -> float:
-    a, d = ours_uv[:-1][None], np.diff(ours_uv, axis=0)[None]
-    p = _resample(true_uv, 100)[:, None]
-    t = np.clip(((p - a) * d).sum(-1) / np.maximum((d * d).sum(-1), 1e-12), 0.0, 1.0)
-    return float(np.min(np.hypot(*(p - a - t[..., None] * d).transpose(2, 0, 1)), axis=1).mean())
 
 
 @pytest.fixture(scope="module")
@@ -62,12 +51,12 @@ def test_a_body_swept_wider_than_the_tip_is_split(whip: Path) -> None:
             continue
         # The scene is what the test is about: the tip sweeps at most 2.1 px, a stretch of the body 3 px or more.
         tip_sweep = np.hypot(*(end_true[k, -1] - begin_true[k, -1]))
-        body_sweep = np.hypot(*(_resample(end_true[k], 100) - _resample(begin_true[k], 100)).T).max()
+        body_sweep = np.hypot(*(resample(end_true[k], 100) - resample(begin_true[k], 100)).T).max()
         assert tip_sweep < 2.1 and body_sweep > 3.0, (k, tip_sweep, body_sweep)
         assert result.status is FrameStatus.OK, f"frame {k}: {result.status.name} {result.message}"
         assert result.method is Method.BLUR_SPLIT, f"frame {k}: {result.method}"
         assert result.begin is not None and result.end is not None
-        errors = (_curve_error(begin_true[k], result.begin[:, ::-1]), _curve_error(end_true[k], result.end[:, ::-1]))
+        errors = (curve_error(begin_true[k], result.begin[:, ::-1]), curve_error(end_true[k], result.end[:, ::-1]))
         assert max(errors) < 0.45, (k, np.round(errors, 2))
 
 

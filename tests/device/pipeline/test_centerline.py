@@ -15,6 +15,8 @@ from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam.device.pipeline.result import FrameStatus, Method
 
+from .conftest import distance_to_polyline
+
 
 def _arc(poly: np.ndarray) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(poly.astype(np.float64), axis=0).T))])
@@ -185,13 +187,6 @@ def _ideal_midline(frame: SyntheticFrame) -> np.ndarray:
     return 0.5 * (_at_arc(b, _arc(b), s * _arc(b)[-1]) + _at_arc(e, _arc(e), s * _arc(e)[-1]))
 
 
-def _distance_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
-    a, d = poly[:-1][None], np.diff(poly, axis=0)[None]
-    p = points[:, None]
-    t = np.clip(((p - a) * d).sum(-1) / np.maximum((d * d).sum(-1), 1e-12), 0.0, 1.0)
-    return np.min(np.hypot(*(p - a - t[..., None] * d).transpose(2, 0, 1)), axis=1)
-
-
 @pytest.mark.parametrize("rope_end", ["flat", "round"])
 def test_centerline_is_the_middle_of_the_band_on_flat_and_round_ends(fast_rope, fast_frames, rope_end) -> None:
     # Before the band's far end was cut at its middle, the centreline ended at the contour point farthest from
@@ -208,8 +203,8 @@ def test_centerline_is_the_middle_of_the_band_on_flat_and_round_ends(fast_rope, 
         sweep = float(np.hypot(*(frame.tip_begin_uv - frame.tip_end_uv)))
         assert sweep > 10.0  # a wide band: the far end's middle is far from both tips
         # The whole rope, along the middle of the band ...
-        assert _distance_to_polyline(ours, ideal).mean() < 0.1
-        assert _distance_to_polyline(ideal[::10], ours).mean() < 0.15
+        assert distance_to_polyline(ours, ideal).mean() < 0.1
+        assert distance_to_polyline(ideal[::10], ours).mean() < 0.15
         # ... to the middle of the tip's track (a round end's cap lies a radius beyond the end of the axis).
         tip_error = float(np.hypot(*(ours[-1] - ideal[-1])))
         assert tip_error < (0.6 if rope_end == "flat" else radius + 0.3), tip_error
@@ -224,6 +219,6 @@ def test_centerline_is_sub_pixel_on_a_short_exposure(fast_rope) -> None:
         ours = r.begin[:, ::-1].astype(np.float64)
         for true in (frame.begin_uv, frame.end_uv):
             assert (
-                _distance_to_polyline(_at_arc(true, _arc(true), np.linspace(0, _arc(true)[-1], 100)), ours).mean() < 0.5
+                distance_to_polyline(_at_arc(true, _arc(true), np.linspace(0, _arc(true)[-1], 100)), ours).mean() < 0.5
             )
             assert np.hypot(*(ours[-1] - true[-1])) < 1.0

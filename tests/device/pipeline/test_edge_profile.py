@@ -14,6 +14,8 @@ from ropecam.device.pipeline.edge_profile import LensBlurEstimate, fit_bar_profi
 from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam.shared.errors import ConfigError
 
+from .conftest import distance_to_polyline
+
 
 def _unsharp(image: np.ndarray, gain: float, sigma_px: float) -> np.ndarray:
     """``image + gain (image - G * image)``, G a separable Gaussian of `sigma_px` (the border repeated)."""
@@ -107,22 +109,14 @@ def test_one_edge_only_is_no_cross_section() -> None:
     assert read_cross_section(frame, one_side, len(one_side), fixed, 3.0) is None
 
 
-def _curve_error(ours_rc: np.ndarray, truth_uv: np.ndarray) -> float:
-    """Mean distance (px) of our points (row, col) to the true centreline (u, v), densely resampled."""
-    t = np.linspace(0.0, 1.0, 2000)
-    s = np.linspace(0.0, 1.0, len(truth_uv))
-    dense = np.stack([np.interp(t, s, truth_uv[:, 1]), np.interp(t, s, truth_uv[:, 0])], axis=1)
-    return float(np.mean(np.min(np.hypot(*(ours_rc[:, None, :] - dense[None]).transpose(2, 0, 1)), axis=1)))
-
-
 def _shape_error(result, frame) -> float:
     """The worse of a frame's two shapes' curve errors (px), in the better of the two time orders (the first
     frames' time order is a guess)."""
     pairs = ((result.begin, frame.begin_uv), (result.end, frame.end_uv))
     swapped = ((result.begin, frame.end_uv), (result.end, frame.begin_uv))
     return min(
-        max(_curve_error(ours, truth) for ours, truth in pairs),
-        max(_curve_error(ours, truth) for ours, truth in swapped),
+        max(float(distance_to_polyline(ours[:, ::-1], truth).mean()) for ours, truth in pairs),
+        max(float(distance_to_polyline(ours[:, ::-1], truth).mean()) for ours, truth in swapped),
     )
 
 

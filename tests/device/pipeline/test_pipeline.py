@@ -15,16 +15,11 @@ from ropecam.device.pipeline.result import FrameStatus, Method
 from ropecam.device.pipeline.split import SplitOutcome
 from ropecam.shared.errors import ConfigError
 
+from .conftest import curve_error
+
 
 def _uv(points: np.ndarray) -> np.ndarray:
     return points[:, ::-1].astype(np.float64)
-
-
-def _curve_error(true_uv: np.ndarray, ours_uv: np.ndarray) -> float:
-    a, d = ours_uv[:-1][None], np.diff(ours_uv, axis=0)[None]
-    p = true_uv[:, None]
-    t = np.clip(((p - a) * d).sum(-1) / np.maximum((d * d).sum(-1), 1e-12), 0, 1)
-    return float(np.min(np.hypot(*(p - a - t[..., None] * d).transpose(2, 0, 1)), axis=1).mean())
 
 
 def test_blur_split_recovers_both_shapes_in_time_order(fast_rope, fast_frames) -> None:
@@ -44,8 +39,8 @@ def test_blur_split_recovers_both_shapes_in_time_order(fast_rope, fast_frames) -
             assert r.order_confidence > 0.5
             assert np.hypot(*(begin[-1] - frame.tip_begin_uv)) < 1.0
             assert np.hypot(*(end[-1] - frame.tip_end_uv)) < 1.0
-            assert _curve_error(frame.begin_uv, begin) < 0.25
-            assert _curve_error(frame.end_uv, end) < 0.25
+            assert curve_error(frame.begin_uv, begin) < 0.25
+            assert curve_error(frame.end_uv, end) < 0.25
         assert 0.9 < r.stretch_begin < 1.1
     assert pipeline.frames_roi >= len(fast_frames) - 2  # after the first frame the ROI is enough
 
@@ -56,7 +51,7 @@ def test_static_rope_gives_the_centreline(static_frame, rope) -> None:
     assert r.status is FrameStatus.OK
     assert r.method is Method.STATIC_FALLBACK
     assert r.begin is r.end
-    assert _curve_error(static_frame.begin_uv, _uv(r.begin)) < 0.5
+    assert curve_error(static_frame.begin_uv, _uv(r.begin)) < 0.5
     assert np.hypot(*(_uv(r.begin)[-1] - static_frame.tip_begin_uv)) < 1.5
 
 
@@ -69,7 +64,7 @@ def test_comparison_methods(fast_rope, fast_frames, method, expected) -> None:
         statuses.append(r.status)
         if r.status is FrameStatus.OK:
             assert r.method is expected  # the blur is wide enough here: no centreline fallback for "paper"
-            assert _curve_error(frame.begin_uv, _uv(r.begin)) < 6.0
+            assert curve_error(frame.begin_uv, _uv(r.begin)) < 6.0
     assert FrameStatus.OK in statuses
 
 
@@ -79,7 +74,7 @@ def test_dark_rope_on_bright_ground(fast_rope) -> None:
     for frame in dark.frames(3):
         r = pipeline.process(frame.image, frame.index, frame.t_ns, frame.exposure_us)
         assert r.status is (FrameStatus.OK if frame.index else FrameStatus.IMPLAUSIBLE)  # 0: its order undecided
-    assert _curve_error(frame.begin_uv, _uv(r.begin)) < 0.5
+    assert curve_error(frame.begin_uv, _uv(r.begin)) < 0.5
 
 
 def _bad_inputs(height: int, width: int) -> dict[str, object]:
@@ -240,5 +235,5 @@ def test_a_first_split_of_a_small_sweep_reports_the_middle_line() -> None:
     assert r.begin is r.end
     assert r.order_confidence < 0.6  # kept: the reason for the middle line
     middle = _uv(r.begin)
-    assert _curve_error(frame.begin_uv, middle) < 1.0
-    assert _curve_error(frame.end_uv, middle) < 1.0
+    assert curve_error(frame.begin_uv, middle) < 1.0
+    assert curve_error(frame.end_uv, middle) < 1.0
