@@ -13,7 +13,9 @@ from pathlib import Path
 from typing import Any, Final
 
 import numba
+from llvmlite import binding as llvm
 from numba import types
+from numba.core.compiler import CompilerBase, DefaultPassBuilder
 
 __all__ = [
     "KernelStatus",
@@ -93,20 +95,67 @@ def drop_stale_caches(package_dir: str | Path) -> bool:
     return True
 
 
-def kernel(signature: Any) -> Callable[[Callable[..., Any]], Any]:
+def kernel(signature: Any, own_callees: bool = False) -> Callable[[Callable[..., Any]], Any]:
     """Compile a function eagerly with `signature`, cached, GIL-free and with NumPy's error model.
 
     Parameters
     ----------
     signature
         A Numba signature such as ``int32(u1_2d_ro, uint8, i4_2d)``.
+    own_callees
+        Run the kernels it calls from its own copies of them (`_OwnCalleesLibrary`), not from their own compiled
+        libraries: for a fused kernel called once per frame (``steady_frame``), whose callees' code then lies in
+        one place instead of ~50 (docs/speed.md, "the code a steady frame runs"). Same results, more machine code
+        (its callees compiled once more, in its object).
 
     Returns
     -------
     Callable
         A decorator producing the compiled dispatcher (a plain Python function under ``NUMBA_DISABLE_JIT=1``).
     """
+    if own_callees:
+        return numba.njit(signature, cache=True, nogil=True, error_model="numpy", pipeline_class=_OwnCalleesCompiler)
     return numba.njit(signature, cache=True, nogil=True, error_model="numpy")
+
+
+def _own_callees_library(codegen: Any, name: str) -> Any:
+    """A code library of `codegen`'s kind whose linked-in callees become private to it (`_OwnCalleesLibrary`)."""
+    base = type(codegen)._library_class
+    cls = _OWN_LIBRARY_CLASSES.get(base)
+    if cls is None:
+
+        class _OwnCalleesLibrary(base):  # type: ignore[misc, valid-type]
+            """Numba links a callee's module into its caller's as ``linkonce_odr`` (weak) copies; the loader then
+            sends every call that LLVM did not inline to the first definition loaded, the callee's own library,
+            so a fused kernel's code runs from as many places as it has callees. Made private before the
+            module's optimisation, the copies are the ones called (and those left unused are dropped). Private,
+            not internal: an internal function keeps its name in the object's symbols, and a library loaded
+            later bound its calls to such a copy, which LLVM had compiled for this caller's arguments only (a
+            crash, from the on-disk cache); a private one has no symbol."""
+
+            def _optimize_final_module(self) -> None:
+                for function in self._final_module.functions:
+                    if not function.is_declaration and function.linkage == llvm.Linkage.linkonce_odr:
+                        function.linkage = llvm.Linkage.private
+                super()._optimize_final_module()
+
+        cls = _OWN_LIBRARY_CLASSES[base] = _OwnCalleesLibrary
+    library = cls(codegen, name)
+    library.enable_object_caching()
+    return library
+
+
+_OWN_LIBRARY_CLASSES: dict[type, type] = {}
+
+
+class _OwnCalleesCompiler(CompilerBase):  # type: ignore[misc]
+    """Numba's nopython pipeline, lowering into an `_own_callees_library` (`kernel`'s ``own_callees``)."""
+
+    def define_pipelines(self) -> list[Any]:
+        state = self.state
+        if state.library is None:
+            state.library = _own_callees_library(state.targetctx.codegen(), state.func_id.func_qualname)
+        return [DefaultPassBuilder.define_nopython_pipeline(state)]
 
 
 def _array(dtype: Any, ndim: int, readonly: bool = False) -> types.Array:

@@ -157,8 +157,9 @@ of the table's buffers, kept in this file so that an edit of it recompiles the k
 
 
 # No array argument (each would cost a MemInfo of Python allocation per call): the table by its address, the frame
-# through the table's frame slot (`tables.slot_frame_address`).
-@kernel(int64(int64, boolean, boolean, int64, int64, int64, float64, boolean, float64, float64))
+# through the table's frame slot (`tables.slot_frame_address`). Its callees run from its own object (`own_callees`:
+# 11-20 us per `rig` frame, docs/speed.md row speed17 (17)).
+@kernel(int64(int64, boolean, boolean, int64, int64, int64, float64, boolean, float64, float64), own_callees=True)
 def steady_frame(
     table_address, measure, predict, t_ns, exposure_ns, t_end_ns, last_sweep_px, predict_tips_now, check_width_px,
     learned_width_px,
