@@ -162,6 +162,29 @@ class Stages:
         (the tracer's `n` points) runs round at one end (a clamp, its rod: `FixedEndFinder.structure`) into the
         mask, on the stream's first outline. Returns whether it did: the frame's contour is then to be found again."""
         mask = self.static_mask
+        if mask.learned_due:  # the learned mask just marked: the clamp's outline, but for what the rope swept
+            mask.learned_due = False
+            if mask.structure_px == 0 and exposure_ns > 0 and self.traits.settled is None:
+                learned = self.traits.fixed_end.learned_structure(
+                    self.tracer.points, n, self.traits.width(), mask.buffers.static_mask
+                )
+                if learned is not None:
+                    mask.add_structure(learned)
+                    self.locator.forget()
+                    return True
+            return False
+        if mask.structure_tried and mask.learning and not mask.early_tried and mask.structure_px == 0:
+            early = mask.early() if exposure_ns > 0 else None
+            if early is None:
+                return False
+            mask.early_tried = True  # the first outline showed no clamp (a rope already swinging): look again
+            learned = self.traits.fixed_end.learned_structure(self.tracer.points, n, self.traits.width(), early)
+            if learned is None:
+                return False
+            mask.add_structure(learned)
+            self.relearn()  # what the first frames taught was read across the clamp
+            self.locator.forget()
+            return True
         if mask.structure_tried or not mask.learning or exposure_ns <= 0 or self.traits.settled is not None:
             return False
         mask.structure_tried = True  # the first outline of a stream: a rope released from rest is still there
