@@ -31,7 +31,8 @@ LEARNED_THICK = 0.2
 of its extent across (a clamp is a block; the simulated 24 x 14 px clamp on its 10 px rod up to the top border:
 0.24); a still stretch of the rope is a line."""
 LEARNED_THICK_WIDTHS = 2.5
-"""... and at least this many rope widths thick (a still stretch of the rope, its two edges grown: about 1 + 4/w)."""
+"""... and at least this many rope widths thick (a still stretch of the rope: its two edges a width apart, each
+grown by a pixel, about a width + 2 px)."""
 LEARNED_MAX_WIDTH_PX = 4.0
 """The widest rope width the thickness and area limits of `learned_structure` are scaled by (px)."""
 LEARNED_AREA_WIDTHS = 10.0
@@ -175,7 +176,8 @@ class FixedEndFinder:
         self, points: NDArray[np.float32], n: int, width_px: float | None, mask: NDArray[np.uint8]
     ) -> NDArray[np.bool_] | None:
         """Return the region of the still structure the rope's outline (`n` (row, col) `points`, a rope `width_px`
-        wide, None: 4 px) ends at, found in the learned mask (`mask`: `K.MASK_STATIC` pixels), or None.
+        wide, None: 4 px) ends at, found in the still structures `mask` (its `K.MASK_STATIC` pixels: the learned
+        mask, or `StaticMask.early`'s), or None.
 
         A rope already swinging when the stream starts does not run round its clamp as a still rope does
         (`structure`: its band is wider than the rope and its fixed end moves along the clamp's edge), and the
@@ -188,7 +190,7 @@ class FixedEndFinder:
         rope's length (half the outline) across; the region is that hull filled, with
         its pixels, grown by a pixel (as `structure`'s)."""
         # The width learned on frames whose outline ran round the clamp is the clamp's (8 px on the simulated
-        # 24 px clamp, seed 3 from 0.15 s); no rope simulated is wider than 4 px.
+        # 24 px clamp, seed 3 from 0.15 s); the matrix's widest rope is 4 px.
         w = min(width_px or 4.0, LEARNED_MAX_WIDTH_PX)
         _, _, ends = self._ends(points, n, w)
         height, width = self.shape
@@ -236,6 +238,11 @@ class FixedEndFinder:
             return None
         self._structure_at = best[1].mean(axis=0)
         return grow(best[2])
+
+    def end_points(self, points: NDArray[np.float32], n: int, width_px: float | None) -> list[NDArray[np.float32]]:
+        """Return the middles of the rope's two ends on the outline (`n` (row, col) `points`, a rope `width_px` wide,
+        None: 4 px; `_ends`)."""
+        return self._ends(points, n, width_px or 4.0)[2]
 
     def _ends(self, points: NDArray[np.float32], n: int, w: float) -> tuple[int, int, list[NDArray[np.float32]]]:
         """The contour indices of the outline's two ends (the sharpest turn, and the point farthest from it) and

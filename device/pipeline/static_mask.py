@@ -86,6 +86,10 @@ class StaticMask:
         """Pixels of the structure found from the rope's first outline (`add_structure`; 0: none)."""
         self.structure_tried = False
         """Whether the stream's first outline was searched for a structure (`Stages.mask_structure`)."""
+        self.first_ends: list[NDArray[np.float32]] = []
+        """The two ends of the stream's first outline (`Stages.mask_structure`)."""
+        self.swinging = False
+        """Whether the rope swung between the stream's first two outlines (`Stages.mask_structure`)."""
         self.early_tried = False
         """Whether the still structures of the first frames were searched early (`Stages.mask_structure`)."""
         self.learned_due = False

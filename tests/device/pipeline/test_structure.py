@@ -187,7 +187,7 @@ def test_a_fresh_device_measures_a_still_rope_in_a_clamp_before_the_mask_is_lear
 
 def test_a_fresh_device_finds_the_clamp_of_a_rope_already_swinging_in_the_learned_mask() -> None:
     """A rope already swinging when the stream starts, fixed in a shaded clamp block with two bolts, nothing given,
-    and a first outline that shows no clamp (the search on it is skipped here: on the simulated clamp rows started
+    and a first outline that shows no clamp (its search made to find nothing here: on the simulated clamp rows started
     mid-swing, seed 3 from 0.15 s and seed 5 from 0.4 s, it finds nothing). The still structures of the first
     `EARLY_FRAMES` frames (`StaticMask.early`) hold the clamp's outline but for the stretch the rope swept where it
     leaves the clamp; the clamp is found there at the rope's end (`FixedEndFinder.learned_structure`) and filled,
@@ -205,7 +205,7 @@ def test_a_fresh_device_finds_the_clamp_of_a_rope_already_swinging_in_the_learne
     )  # fmt: skip
     learn = PipelineConfig().static_frames
     pipeline = Pipeline(PipelineConfig(), (rope.width, rope.height))
-    pipeline.static_mask.structure_tried = True  # the first outline showed no clamp
+    pipeline.traits.fixed_end.structure = lambda *args: None  # the first outline shows no clamp
     pivot = np.array(rope.fixed_uv)
     after = []
     for frame in rope.frames(learn + 12):
