@@ -7,7 +7,13 @@ from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import i32, ro
-from ropecam.device.pipeline.structure import convex_hull, fill_polygon, grow, structure_points
+from ropecam.device.pipeline.structure import (
+    STRUCTURE_ROPE_RATIO,
+    convex_hull,
+    fill_polygon,
+    grow,
+    structure_points,
+)
 from ropecam.device.pipeline.workspace import FixedEndBuffers
 
 __all__ = ["FIXED_END_FRAMES", "FixedEndFinder"]
@@ -20,6 +26,18 @@ HIDDEN_GAP_PX = 16.0
 """Longest stretch of unmasked pixels between two edges of one structure along the rope's axis (px): a clamp's
 face between its outline and its bolts' is shorter; the plate beyond the clamp's far side is longer."""
 _STEP_PX = 0.5
+LEARNED_THICK = 0.2
+"""A structure found in the learned mask (`FixedEndFinder.learned_structure`) is at its thinnest at least this part
+of its extent across (a clamp is a block; the simulated 24 x 14 px clamp on its 10 px rod up to the top border:
+0.24); a still stretch of the rope is a line."""
+LEARNED_THICK_WIDTHS = 2.5
+"""... and at least this many rope widths thick (a still stretch of the rope: its two edges a width apart, each
+grown by a pixel, about a width + 2 px)."""
+LEARNED_MAX_WIDTH_PX = 4.0
+"""The widest rope width the thickness and area limits of `learned_structure` are scaled by (px)."""
+LEARNED_AREA_WIDTHS = 10.0
+"""... and covers at least this many squared rope widths (the smallest clamp simulated, 12 x 7.2 px, its edges
+grown: about 16 x 11 px, 26 squared widths of a 2.6 px rope; a speck of dust grown: 2-4)."""
 
 
 class FixedEndFinder:
@@ -154,6 +172,78 @@ class FixedEndFinder:
         region[rows, cols] = True
         return grow(region)
 
+    def learned_structure(
+        self, points: NDArray[np.float32], n: int, width_px: float | None, mask: NDArray[np.uint8]
+    ) -> NDArray[np.bool_] | None:
+        """Return the region of the still structure the rope's outline (`n` (row, col) `points`, a rope `width_px`
+        wide, None: 4 px) ends at, found in the still structures `mask` (its `K.MASK_STATIC` pixels: the learned
+        mask, or `StaticMask.early`'s), or None.
+
+        A rope already swinging when the stream starts does not run round its clamp as a still rope does
+        (`structure`: its band is wider than the rope and its fixed end moves along the clamp's edge), and the
+        learned mask has the clamp's outline but for the stretch the rope swept while it was learned: a gap where
+        the rope leaves the clamp, whose edge pieces join the rope's outline once it swings on, and across which
+        `hidden_end` sees no structure. The static pixels connected to an end of the outline (8-neighbours, within
+        `HIDDEN_REACH_PX`) are a structure when their convex hull is no line (its thinnest width at least
+        `LEARNED_THICK` of its extent and `LEARNED_THICK_WIDTHS` rope widths: a still stretch of the rope itself
+        is a thin band), covers `LEARNED_AREA_WIDTHS` squared widths and is at most `STRUCTURE_ROPE_RATIO` of the
+        rope's length (half the outline) across; the region is that hull filled, with
+        its pixels, grown by a pixel (as `structure`'s)."""
+        # The width learned on frames whose outline ran round the clamp is the clamp's (8 px on the simulated
+        # 24 px clamp, seed 3 from 0.15 s); the matrix's widest rope is 4 px.
+        w = min(width_px or 4.0, LEARNED_MAX_WIDTH_PX)
+        _, _, ends = self._ends(points, n, w)
+        height, width = self.shape
+        static = mask == K.MASK_STATIC
+        best: tuple[float, NDArray[np.float64], NDArray[np.bool_]] | None = None
+        for end in ends:
+            r, c = round(float(end[0])), round(float(end[1]))
+            reach = int(HIDDEN_REACH_PX)
+            r0, r1, c0, c1 = max(r - reach, 0), min(r + reach + 1, height), max(c - reach, 0), min(c + reach + 1, width)
+            window = static[r0:r1, c0:c1]
+            near = round(2.0 * w) + 2
+            seed = np.zeros_like(window)
+            sr0, sc0 = max(r - near - r0, 0), max(c - near - c0, 0)
+            seed[sr0 : r - r0 + near + 1, sc0 : c - c0 + near + 1] = True
+            component = seed & window
+            if not component.any():
+                continue
+            while True:  # the 8-connected static pixels reached from the end
+                grown = grow(component) & window
+                if np.array_equal(grown, component):
+                    break
+                component = grown
+            rows, cols = np.nonzero(component)
+            pixels = np.stack([rows + r0, cols + c0], axis=1).astype(np.float64)
+            if len(pixels) < 3:
+                continue
+            hull = convex_hull(pixels)
+            if len(hull) < 3:
+                continue
+            thin, extent = _hull_widths(hull)
+            area = 0.5 * abs(
+                float(np.dot(hull[:, 0], np.roll(hull[:, 1], -1)) - np.dot(hull[:, 1], np.roll(hull[:, 0], -1)))
+            )
+            if thin < max(LEARNED_THICK * extent, LEARNED_THICK_WIDTHS * w) or area < LEARNED_AREA_WIDTHS * w * w:
+                continue
+            if extent > STRUCTURE_ROPE_RATIO * 0.5 * n:
+                continue  # no small structure at the rope's end (dust all over a plate, learned as one)
+            if self.configured and np.hypot(*(hull - self.fixed).T).min() > HIDDEN_REACH_PX:
+                continue
+            if best is None or area > best[0]:
+                region = fill_polygon(hull, self.shape)
+                region[r0:r1, c0:c1] |= component
+                best = (area, hull, region)
+        if best is None:
+            return None
+        self._structure_at = best[1].mean(axis=0)
+        return grow(best[2])
+
+    def end_points(self, points: NDArray[np.float32], n: int, width_px: float | None) -> list[NDArray[np.float32]]:
+        """Return the middles of the rope's two ends on the outline (`n` (row, col) `points`, a rope `width_px` wide,
+        None: 4 px; `_ends`)."""
+        return self._ends(points, n, width_px or 4.0)[2]
+
     def _ends(self, points: NDArray[np.float32], n: int, w: float) -> tuple[int, int, list[NDArray[np.float32]]]:
         """The contour indices of the outline's two ends (the sharpest turn, and the point farthest from it) and
         the middles of the rope's ends there (`_cap_centre`)."""
@@ -283,3 +373,15 @@ def _attached_structure(
         return None
     middle = float(np.hypot(across[:, 0], across[:, 1]).min())
     return wide if middle <= 2.3 * narrow else None
+
+
+def _hull_widths(hull: NDArray[np.float64]) -> tuple[float, float]:
+    """The thinnest width of a convex polygon `hull` ((m, 2) corners in order: over its edges' directions, the
+    farthest corner from each edge's line) and its extent (the farthest two corners apart)."""
+    edges = np.roll(hull, -1, axis=0) - hull
+    lengths = np.hypot(edges[:, 0], edges[:, 1])
+    keep = lengths > 0
+    normals = np.stack([-edges[keep, 1], edges[keep, 0]], axis=1) / lengths[keep, None]
+    depth = np.abs(((hull[None, :, :] - hull[keep][:, None, :]) * normals[:, None, :]).sum(axis=2)).max(axis=1)
+    extent = float(np.max(np.hypot(*(hull[:, None, :] - hull[None, :, :]).transpose(2, 0, 1))))
+    return float(depth.min()), extent

@@ -26,7 +26,12 @@ from ropecam.device.pipeline.traits import RopeTraits
 from ropecam.device.pipeline.workspace import Workspace, refuse_copies
 from ropecam.shared.plane import PlaneCalibration
 
-__all__ = ["Stages"]
+__all__ = ["SWINGING_PX", "Stages"]
+
+SWINGING_PX = 3.0
+"""An end of the rope's outline that moved farther than this (px) from the stream's first outline to its second is a
+rope already swinging (a rope released from rest falls about a pixel there): only then are the first frames' still
+structures searched for its clamp (`Stages.mask_structure`)."""
 
 
 @refuse_copies(
@@ -160,11 +165,45 @@ class Stages:
     def mask_structure(self, n: int, exposure_ns: int) -> bool:
         """While the static mask is learned (a stream's first frames), take the structure a still rope's outline
         (the tracer's `n` points) runs round at one end (a clamp, its rod: `FixedEndFinder.structure`) into the
-        mask, on the stream's first outline. Returns whether it did: the frame's contour is then to be found again."""
+        mask, on the stream's first outline. When that outline showed none (a rope already swinging), take the
+        block-like still structure at an end of the outline (`FixedEndFinder.learned_structure`) from the still
+        structures of the first `EARLY_FRAMES` frames (`StaticMask.early`; the traits are then learned again), or
+        else from the learned mask on the first outline after it is marked. Returns whether it did: the frame's
+        contour is then to be found again."""
         mask = self.static_mask
+        finder = self.traits.fixed_end
+        if mask.learned_due:  # the learned mask just marked: the clamp's outline, but for what the rope swept
+            mask.learned_due = False
+            if mask.swinging and mask.structure_px == 0 and exposure_ns > 0 and self.traits.settled is None:
+                learned = self.traits.fixed_end.learned_structure(
+                    self.tracer.points, n, self.traits.width(), mask.buffers.static_mask
+                )
+                if learned is not None:
+                    mask.add_structure(learned)
+                    self.locator.forget()
+                    return True
+            return False
+        if mask.structure_tried and mask.learning and not mask.early_tried and mask.structure_px == 0:
+            early = mask.early() if exposure_ns > 0 and not finder.configured and mask.first_ends else None
+            if early is None:
+                return False
+            mask.early_tried = True  # the first outline showed no clamp: a rope already swinging? look again
+            ends = finder.end_points(self.tracer.points, n, self.traits.width())
+            moved = max(min(float(np.hypot(*(a - b))) for b in ends) for a in mask.first_ends)
+            mask.swinging = moved > SWINGING_PX
+            if not mask.swinging:
+                return False  # a rope at rest (released from rest): its own still part is no clamp
+            learned = finder.learned_structure(self.tracer.points, n, self.traits.width(), early)
+            if learned is None:
+                return False
+            mask.add_structure(learned)
+            self.relearn()  # what the first frames taught was read across the clamp
+            self.locator.forget()
+            return True
         if mask.structure_tried or not mask.learning or exposure_ns <= 0 or self.traits.settled is not None:
             return False
         mask.structure_tried = True  # the first outline of a stream: a rope released from rest is still there
+        mask.first_ends = finder.end_points(self.tracer.points, n, self.traits.width())
         region = self.traits.fixed_end.structure(self.tracer.points, n, self.traits.width())
         if region is None:
             return False

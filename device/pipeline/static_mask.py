@@ -19,6 +19,9 @@ if TYPE_CHECKING:
 
 __all__ = ["StaticMask"]
 
+EARLY_FRAMES = 2
+"""Frames learned before the still structures are looked at early (`StaticMask.early`), when the stream's first
+outline showed none."""
 _SAMPLE_STEP = 7
 """Pixel step of the subsample whose median learned range is the noise level (one pixel in 49)."""
 
@@ -83,6 +86,15 @@ class StaticMask:
         """Pixels of the structure found from the rope's first outline (`add_structure`; 0: none)."""
         self.structure_tried = False
         """Whether the stream's first outline was searched for a structure (`Stages.mask_structure`)."""
+        self.first_ends: list[NDArray[np.float32]] = []
+        """The two ends of the stream's first outline (`Stages.mask_structure`)."""
+        self.swinging = False
+        """Whether the rope swung between the stream's first two outlines (`Stages.mask_structure`)."""
+        self.early_tried = False
+        """Whether the still structures of the first frames were searched early (`Stages.mask_structure`)."""
+        self.learned_due = False
+        """Whether the learned mask was just marked and its structures are still to be searched for the one the
+        rope is fixed in (`Stages.mask_structure`, on the next outline traced step by step)."""
         self._finder: EdgeDetector | None = None  # the structures' detector, made ahead by `prepare`
         self._low_ro, self._high_ro = as_ro(buffers.static_low), as_ro(buffers.static_high)  # (`shows_end`)
         buffers.static_mask[:] = K.MASK_FREE
@@ -155,10 +167,9 @@ class StaticMask:
             raise ValueError(f"frame is {frame.shape}, expected {b.static_low.shape}")
         self.marked = True
         if self.seen == self.frames:
-            spread = b.static_high[::_SAMPLE_STEP, ::_SAMPLE_STEP].astype(np.int16)
-            spread -= b.static_low[::_SAMPLE_STEP, ::_SAMPLE_STEP]
-            self.base_dn = 2.0 * float(np.median(spread)) + 2.0
-            structure = self._structure() if self.detector is not None else None
+            self.learned_due = True
+            self.base_dn = self._noise_dn()
+            structure = self._structure(self.base_dn) if self.detector is not None else None
             self.static_px = int(
                 K.mark_static(b.static_low, b.static_high, self.base_dn, self.relative, self.margin_dn, b.static_mask)
             )
@@ -168,7 +179,31 @@ class StaticMask:
                 self.static_px -= int(off.sum())
             self.mark_near()
 
-    def _structure(self) -> NDArray[np.bool_]:
+    def early(self) -> NDArray[np.uint8] | None:
+        """Return the still structures of the frames learned so far (at least `EARLY_FRAMES`), as a mask
+        (`K.MASK_STATIC` where still on a structure, as the learned mask would mark them now), or None (fewer
+        frames, or no detector). The learned mask itself is not written: a rope already swinging when the stream
+        starts is not still over a few frames, but its part held next to the clamp may be (`Stages.mask_structure`
+        takes only a block-like structure at the rope's end from this)."""
+        b = self.buffers
+        if self.detector is None or self.seen < EARLY_FRAMES:
+            return None
+        base_dn = self._noise_dn()
+        low, high = b.static_low.astype(np.int16), b.static_high.astype(np.int16)
+        still = (high >= low) & (high - low <= base_dn + self.relative * high)
+        early = np.full(b.static_mask.shape, K.MASK_FREE, np.uint8)
+        early[still & self._structure(base_dn, keep=True)] = K.MASK_STATIC
+        return early
+
+    def _noise_dn(self) -> float:
+        """The range a still pixel spans from noise alone over the frames learned so far: 2 x the median range of a
+        subsample (one pixel in `_SAMPLE_STEP` squared) + 2."""
+        b = self.buffers
+        spread = b.static_high[::_SAMPLE_STEP, ::_SAMPLE_STEP].astype(np.int16)
+        spread -= b.static_low[::_SAMPLE_STEP, ::_SAMPLE_STEP]
+        return 2.0 * float(np.median(spread)) + 2.0
+
+    def _structure(self, base_dn: float, keep: bool = False) -> NDArray[np.bool_]:
         """The pixels on or next to a static edge of the learned scene: an edge of the middle of each pixel's
         range, found by an edge detector with the pipeline's smoothing and current thresholds over the whole
         frame (once, when the learning ends), whose 3x3 neighbourhood stayed still. The border of the area the
@@ -178,11 +213,14 @@ class StaticMask:
         assert d is not None
         height, width = b.static_low.shape
         low, high = b.static_low.astype(np.int16), b.static_high.astype(np.int16)
-        still = (high >= low) & (high - low <= self.base_dn + self.relative * high)
+        still = (high >= low) & (high - low <= base_dn + self.relative * high)
         middle = ((low + high) // 2).astype(np.uint8)
-        finder, self._finder = self._finder, None  # made ahead by `prepare`, or now; needed once
+        finder = self._finder  # made ahead by `prepare`, or now; needed once (and by `early` before)
+        self._finder = finder if keep else None
         if finder is None:
             finder = self._make_finder()
+            if keep:
+                self._finder = finder
         else:
             finder.set_thresholds(float(d.low), float(d.high))
         finder.detect(middle, np.zeros(height, np.int32), np.full(height, width - 1, np.int32))

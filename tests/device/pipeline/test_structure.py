@@ -183,3 +183,44 @@ def test_a_fresh_device_measures_a_still_rope_in_a_clamp_before_the_mask_is_lear
             assert np.hypot(*(shape[0][::-1] - pivot)) < 3.0, frame.index
     assert ok >= learn - 1
     assert pipeline.static_mask.structure_px > 0
+
+
+def test_a_fresh_device_finds_the_clamp_of_a_rope_already_swinging_in_the_learned_mask() -> None:
+    """A rope already swinging when the stream starts, fixed in a shaded clamp block with two bolts, nothing given,
+    and a first outline that shows no clamp (its search made to find nothing here: on the simulated clamp rows started
+    mid-swing, seed 3 from 0.15 s and seed 5 from 0.4 s, it finds nothing). The still structures of the first
+    `EARLY_FRAMES` frames (`StaticMask.early`) hold the clamp's outline but for the stretch the rope swept where it
+    leaves the clamp; the clamp is found there at the rope's end (`FixedEndFinder.learned_structure`) and filled,
+    and every later frame measures the rope from the clamp's middle to its tips (without it: the band's edge
+    broken by the clamp's unmasked edge pieces, `LOST_TRACK`, on every frame, the learned mask's too)."""
+    from ropecam.device.capture.synthetic import SyntheticRope
+    from ropecam.device.pipeline.config import PipelineConfig
+    from ropecam.device.pipeline.pipeline import Pipeline
+    from ropecam.device.pipeline.result import FrameStatus
+    from ropecam.device.pipeline.static_mask import EARLY_FRAMES
+
+    rope = SyntheticRope(
+        width=360, height=200, fixed_uv=(180.3, 30.6), length_px=150.0, diameter_px=3.0, amplitude_rad=1.1,
+        period_s=0.6, bend=0.0, phase_rad=0.5 * math.pi,
+    )  # fmt: skip
+    learn = PipelineConfig().static_frames
+    pipeline = Pipeline(PipelineConfig(), (rope.width, rope.height))
+    pipeline.traits.fixed_end.structure = lambda *args: None  # the first outline shows no clamp
+    pivot = np.array(rope.fixed_uv)
+    after = []
+    for frame in rope.frames(learn + 12):
+        image = frame.image.copy()
+        image[24:38, 169:192] = 190  # the clamp, 23 x 14 px, centred on the fixed end: a bright rim,
+        image[25:37, 170:191] = 120  # a grey face
+        image[29:33, 173:177] = image[29:33, 184:188] = 60  # and two dark bolts
+        result = pipeline.process(image, frame.index, frame.t_ns, float(rope.exposure_us))
+        if frame.index < EARLY_FRAMES - 1:  # (a frame is learned from before it is measured)
+            continue
+        after.append(result.status)
+        if result.status is FrameStatus.OK:
+            for shape, tip in ((result.begin, frame.tip_begin_uv), (result.end, frame.tip_end_uv)):
+                assert np.hypot(*(shape[-1][::-1] - tip)) < 1.5, (frame.index, result.message)
+                assert np.hypot(*(shape[0][::-1] - pivot)) < 3.0, frame.index
+    assert pipeline.static_mask.structure_px > 0
+    # The frame the clamp is found on, and the one the mask is marked on, may have no time order yet.
+    assert after.count(FrameStatus.OK) >= len(after) - 2, after
