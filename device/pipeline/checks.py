@@ -59,6 +59,10 @@ reason                  fails when                                              
                         lie closer together than half the rope's width (the learned edge spacing: one
                         corner found twice) while its tips lie farther apart than the corners by more
                         than a width
+``tip_short``           one shape (the blur split's static fallback) of a frame of known exposure ends   IMPLAUSIBLE
+                        farther than ``tip_short_widths`` rope widths + ``tip_short_floor_px`` from the
+                        contour's farthest point from the fixed end (the band's far end): its tip was
+                        read at a cap inside the band, short of the rope's end
 ======================  ==============================================================================  ===========
 
 Each check's measure goes into the frame's quality record (`QUALITY_KEYS`), whether it passes or not.
@@ -137,6 +141,10 @@ class ChecksConfig:
         width + ``tip_corner_floor_px``, on a frame of known exposure without a motion prediction; on every split,
         the two segmentation points no closer than half a rope width, or the tips no farther apart than the
         corners + a width (``tip_corner_widths`` 0: both checks are off).
+    tip_short_widths, tip_short_floor_px
+        Largest distance of one shape's free tip (the blur split's static fallback, frames of known exposure) from
+        the contour's farthest point from the fixed end, ``tip_short_widths`` x the rope width +
+        ``tip_short_floor_px`` (``tip_short_widths`` 0: the check is off).
     """
 
     enabled: bool = True
@@ -159,6 +167,8 @@ class ChecksConfig:
     tip_kink_deg: float = 15.0
     tip_corner_widths: float = 1.5
     tip_corner_floor_px: float = 2.0
+    tip_short_widths: float = 1.0
+    tip_short_floor_px: float = 2.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.enabled, bool):
@@ -182,6 +192,8 @@ class ChecksConfig:
         check_range("checks.tip_kink_deg", self.tip_kink_deg, 0.0, 180.0)
         check_range("checks.tip_corner_widths", self.tip_corner_widths, 0.0, 100.0)
         check_range("checks.tip_corner_floor_px", self.tip_corner_floor_px, 0.0, 100.0)
+        check_range("checks.tip_short_widths", self.tip_short_widths, 0.0, 100.0)
+        check_range("checks.tip_short_floor_px", self.tip_short_floor_px, 0.0, 100.0)
 
 
 _MESSAGES = {
@@ -209,6 +221,8 @@ _MESSAGES = {
     "checks.tip_corner_floor_px from the band's corner it was read at, or the band's two corners lie within half a "
     "rope width of each other (one corner found twice) while the tips lie farther apart: the tips were not read at "
     "the band's corners",
+    Reason.TIP_SHORT: "one shape's free tip ends farther than checks.tip_short_widths rope widths + "
+    "checks.tip_short_floor_px short of the contour's far end: it was read inside the band, not at the rope's end",
 }
 
 
@@ -247,8 +261,9 @@ class SelfChecks:
         thresholds = np.zeros(1, K.CHECK_THRESHOLDS)
         for name in K.CHECK_THRESHOLDS.names:
             thresholds[0][name] = getattr(config, name)
-        if not fallback_single:
+        if not fallback_single:  # one shape is the method's answer, not a fallback
             thresholds[0]["fallback_sweep_widths"] = 0.0
+            thresholds[0]["tip_short_widths"] = 0.0
         self._thresholds = ro(thresholds)
         self._measures = np.zeros(1, K.CHECK_QUALITY)
         """The last checked frame's measures, by name (`check_frame` writes them; `quality` holds a copy)."""
@@ -357,8 +372,9 @@ class SelfChecks:
             split's own tips, before the tracking may move them along the sweep), for ``tip_corner`` (nan: not
             checked).
         corners
-            The split's segmentation points (2, 2) float32 (row, col), for ``tip_corner``'s coinciding corners
-            (None: not known, not checked).
+            The split's segmentation points (2, 2) float32 (row, col), for ``tip_corner``'s coinciding corners; for
+            one shape (`split` False) the contour's farthest point from the fixed end (1, 2: `K.contour_far_end`),
+            for ``tip_short`` (None: not known, not checked).
         order_undecided
             Nothing decided the split's time order (no earlier frame in the order's history: `K.order_shapes`
             kept the split's own pairing and left the history unordered), for ``order``.
@@ -385,12 +401,17 @@ class SelfChecks:
                     width_px, learned_width_px or 0.0, order_confidence, exposure_ns, split, contour_area_px2,
                     _NO_MASK, _NO_CORNERS if corners is None else corners, self._thresholds, self._measures,
                 )  # fmt: skip
-        if code == K.CHECK_NONE and exposure_ns > 0 and math.isnan(self._predicted[2]):
+        if (code == K.CHECK_NONE or code == K.CHECK_TIP_SHORT) and exposure_ns > 0 and math.isnan(self._predicted[2]):
             # Checks of a frame the motion model cannot check (the first frames, after a gap); a steady frame's
-            # tips are checked against the prediction instead (`check_frame`, inside `steady_frame`).
-            code = self._unpredicted(
-                begin, end, fixed, learned_width_px or width_px, split, contour_area_px2, corner_px, order_undecided
-            )
+            # tips are checked against the prediction instead (`check_frame`, inside `steady_frame`). ``tip_short``
+            # is the last check: a frame fails it only when it passes these too.
+            code = (
+                self._unpredicted(
+                    begin, end, fixed, learned_width_px or width_px, split, contour_area_px2, corner_px,
+                    order_undecided,
+                )
+                or code
+            )  # fmt: skip
         return self.verdict(code)
 
     def _unpredicted(

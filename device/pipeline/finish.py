@@ -24,6 +24,7 @@ __all__ = ["BROKEN_OUTLINE", "FrameClock", "ResultFinisher", "max_age_ns"]
 # Enum members the per-frame path reads, looked up once: reading an attribute of an Enum class costs Python 3.11 a
 # 48-byte method-wrapper each time (its metaclass has a `__getattr__`), a Python allocation per frame.
 _OK, _BLUR_SPLIT = FrameStatus.OK, Method.BLUR_SPLIT
+_ORDER, _TIP_SHORT = Reason.ORDER.text, Reason.TIP_SHORT.text
 
 BROKEN_OUTLINE = K.BROKEN_OUTLINE
 """Largest part of the contour's pixels walked twice (spurs of noise and texture) before it is no band outline (a
@@ -130,6 +131,10 @@ class ResultFinisher:
         """The learned static mask: its scene tells a tip at the mask from a rope the mask cut (`SelfChecks.check`)."""
         self.splitter, self.tracker, self.time_order, self.motion = splitter, tracker, time_order, motion
         self.checks, self.traits, self.tracer, self.locator, self.fixed = checks, traits, tracer, locator, fixed
+        self._far_end = np.full((1, 2), np.nan, np.float32)
+        """The contour's farthest point from the fixed end (`K.contour_far_end`) of a one-shape frame."""
+        self.short_only = False
+        """Whether the last checked frame failed ``tip_short`` alone (every other check passed: OK but for it)."""
         self.after_still = False
         """Whether the last frame that reached the self-checks was a single shape (a still rope): the time order of
         a split right after it has no motion to go by."""
@@ -148,6 +153,7 @@ class ResultFinisher:
         period is `period_ns` (None: not known yet), the contour's pixels walked twice `revisits` (None: counted
         here when needed)."""
         rejected = ""
+        self.short_only = False
         if not exposure_ns and (outcome is None or self._still(outcome)):
             # Unknown exposure (a still photo) and no split, or one without blur between its tips: the rope is
             # the static centreline, which follows the contour whole where a split's two sides may pair across a
@@ -227,6 +233,12 @@ class ResultFinisher:
             result.status, result.reason = FrameStatus.NO_BLUR, Reason.NO_BLUR.text
             result.message = f"{self.checks.message(Reason.NO_BLUR)} (the split: {rejected})"
 
+    def measured_all_the_same(self, result: PipelineResult) -> bool:
+        """Whether `result`, flagged, was measured as an OK frame is (its rope, ROI and motion are right, and the
+        pipeline's state goes on as after an OK frame): a split whose time order nothing decided (``order``), or
+        one shape that only ``tip_short`` flagged (its contour is the band's; its centreline's tip is not)."""
+        return result.reason == _ORDER or (result.reason == _TIP_SHORT and self.short_only)
+
     def refuse_fold(self, result: PipelineResult, lengths_seen: int) -> None:
         """After `finish` of a frame of known exposure measured before Lc0 is known (the tracker had seen
         `lengths_seen` lengths before it): an OK shape that runs out along the rope and back or crosses itself
@@ -235,7 +247,8 @@ class ResultFinisher:
         400 px and back 260, OK with its tip 260 px off). Streams only: a still photo's rope may lie in loops. No
         status with the self-checks off (`checks.enabled`)."""
         begin, end = result.begin, result.end
-        if result.status is not FrameStatus.OK or begin is None or end is None:
+        # (a one-shape frame only `tip_short` flagged passed every other check: its fold is withdrawn from Lc0 too)
+        if (result.status is not FrameStatus.OK and not self.short_only) or begin is None or end is None:
             return
         if not (folds_back(begin, result.rope_width_px) or folds_back(end, result.rope_width_px)):
             return
@@ -311,7 +324,7 @@ class ResultFinisher:
         if placed < 0 and self.tracker.plane is not None:  # by arc length on the plane (metres), not in pixels
             self.tracker.place_on_plane(result.begin, result.end)
         result.status = _OK
-        if checked < 0 or checked == K.CHECK_TIP_MASKED:  # (`check` withdraws a tip_masked the frame disproves)
+        if checked < 0:  # (`steady_frame` withdrew a tip_masked the frame disproves, as `check` does)
             self.check(result, outcome, exposure_ns, corner_px)
         else:
             status, reason = self.checks.verdict(checked)
@@ -360,10 +373,15 @@ class ResultFinisher:
             and result.order_confidence == UNDECIDED_CONFIDENCE
             and not self.time_order.state[K.ORDER_ORDERED]
         )
+        if not split and exposure_ns > 0:
+            # One shape: the band's far end it should reach (``tip_short``), from the contour it was read on.
+            K.contour_far_end(self.tracer.points_ro, self.locator.prev_count, self.fixed, self._far_end)
+            corners = self._far_end
         status, reason = checks.check(
             begin, end, self.fixed, result.stretch_begin, result.stretch_end, used_px, learned_px,
             result.order_confidence, exposure_ns, split, area, self.locator.edges.static_mask_ro,
-            corner_px, corners if split else None, undecided, self.static_mask, self.locator.edges.frame,
+            corner_px, corners if split or exposure_ns > 0 else None, undecided, self.static_mask,
+            self.locator.edges.frame,
         )  # fmt: skip
         self._take_verdict(result, outcome, exposure_ns, status, reason)
 
@@ -376,11 +394,28 @@ class ResultFinisher:
         result.quality = checks.quality
         if status is _OK:
             return
+        self.short_only = reason is Reason.TIP_SHORT
         split = outcome.shape_a is not outcome.shape_b
         result.status, result.reason, result.message = status, reason.text, checks.message(reason)
-        if (reason is Reason.NO_BLUR or (split and not exposure_ns)) and not self._use_static(result):
-            # Without a known exposure only a split that passes every check shows blur: never report another.
-            result.begin = result.end = result.material_begin = result.material_end = None
+        if reason is Reason.NO_BLUR or (split and not exposure_ns):
+            static = self._use_static(result)
+            if static is None:
+                # Without a known exposure only a split that passes every check shows blur: never report another.
+                result.begin = result.end = result.material_begin = result.material_end = None
+            elif exposure_ns > 0 and self._short(static.shape_a, outcome.width_px):
+                # The static centreline given instead is one shape too: it must reach the band's far end (simulated
+                # lab-hard through the paper's camera at 9 ms, fresh device, tuning seed, frame 28: NO_BLUR with a
+                # centreline 58 px off, its tip 10.7 px from the contour's far end).
+                result.status, result.reason = FrameStatus.IMPLAUSIBLE, Reason.TIP_SHORT.text
+                result.message = checks.message(Reason.TIP_SHORT)
+
+    def _short(self, shape: np.ndarray, width_px: float) -> bool:
+        """``tip_short`` of one shape of this frame's contour (`K.tip_short`: its tip against the contour's far end,
+        the learned width or else `width_px`)."""
+        traits = self.traits
+        learned_px = traits.settled[0] if traits.settled is not None else traits.width()
+        K.contour_far_end(self.tracer.points_ro, self.locator.prev_count, self.fixed, self._far_end)
+        return bool(K.tip_short(shape, self._far_end, learned_px or width_px, self.checks.buffers[1]))
 
     def _use_static(self, result: PipelineResult) -> SplitOutcome | None:
         """Give `result` the static centreline of the frame's contour (one shape for both instants, its material

@@ -29,7 +29,6 @@ from ropecam.shared.protocol.quality import Reason
 
 __all__ = ["Pipeline"]
 
-_ORDER = Reason.ORDER.text  # a split whose time order nothing decided (`SelfChecks`): a measured frame all the same
 
 # Enum members read per frame, looked up once (an Enum class's attribute costs Python 3.11 a 48-byte method-wrapper).
 _OK, _BAD_FRAME = FrameStatus.OK, FrameStatus.BAD_FRAME
@@ -170,7 +169,7 @@ class Pipeline:
                 if not self.static_mask.learning and self._unclean_frames > 0:
                     self.stages.relearn()
             self._measure(image, result, exposure_ns, self.checks.due(self.traits.settled is not None))
-            if result.status is not _OK and result.reason != _ORDER:  # (its rope, ROI, motion are right)
+            if result.status is not _OK and not self._finisher.measured_all_the_same(result):
                 self.stages.forget(roi=result.status is FrameStatus.NO_ROPE)
                 if self.static_mask.learning:
                     self._unclean_frames += 1

@@ -131,7 +131,9 @@ class Stages:
         finisher = ResultFinisher(
             splitter, tracker, time_order, motion, checks, traits, tracer, locator, ws.fixed_end.fixed, static_mask
         )
-        steady = SteadyFrame(ws, config.roi_margin_px, edges, tracer, splitter, tracker, locator, traits, checks)
+        steady = SteadyFrame(
+            ws, config.roi_margin_px, edges, tracer, splitter, tracker, locator, traits, checks, static_mask
+        )
         return cls(
             ws, tone, edges, tracer, static_mask, thresholds, splitter, tracker, traits, motion, checks,
             time_order, locator, finisher, steady,

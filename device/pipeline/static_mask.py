@@ -246,9 +246,14 @@ class StaticMask:
             return False
         if frame.shape != self.buffers.static_low.shape:
             return False
-        still_dn = self.base_dn + 2.0 * self.margin_dn  # the learned still range, widened by the margin each side
+        still_dn, relative = self.still_range()
         low, high = self._low_ro, self._high_ro
-        return bool(K.tip_end_seen(shape, as_ro(frame), low, high, width_px, reach_px, still_dn, self.relative))
+        return bool(K.tip_end_seen(shape, as_ro(frame), low, high, width_px, reach_px, still_dn, relative))
+
+    def still_range(self) -> tuple[float, float]:
+        """The range a learned still pixel may span, (grey levels, part of its high level): `shows_end`'s, and
+        `steady_frame`'s (its ``still_dn``, ``still_relative``). Meaningful once the mask is learned."""
+        return self.base_dn + 2.0 * self.margin_dn, self.relative  # the still range, widened by the margin each side
 
     def mark_near(self) -> None:
         """Summarise the mask again after a write (`mark_near_blocks`: the per-frame kernels read the mask only

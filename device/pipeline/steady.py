@@ -28,6 +28,7 @@ from ropecam.device.pipeline.edges import EdgeDetector
 from ropecam.device.pipeline.finish import BROKEN_OUTLINE
 from ropecam.device.pipeline.locate import RopeLocator
 from ropecam.device.pipeline.split import BlurSplitter
+from ropecam.device.pipeline.static_mask import StaticMask
 from ropecam.device.pipeline.tracking import PointTracker
 from ropecam.device.pipeline.traits import RopeTraits
 from ropecam.device.pipeline.workspace import Workspace, steady_constants
@@ -50,6 +51,9 @@ class SteadyFrame:
     edges, tracer, splitter, tracker, locator, traits, checks
         The pipeline's stages: the call does their kernels' work (the self-checks' prediction and checks too), and
         they take its results.
+    static_mask
+        The learned static mask, whose still scene withdraws a ``tip_masked`` verdict inside the call as
+        `SelfChecks.check` does (None: the verdict stands, as `ResultFinisher` without a mask).
     """
 
     def __init__(
@@ -63,8 +67,10 @@ class SteadyFrame:
         locator: RopeLocator,
         traits: RopeTraits,
         checks: SelfChecks,
+        static_mask: StaticMask | None = None,
     ) -> None:
         self.workspace, self.margin_px = workspace, margin_px
+        self.static_mask = static_mask
         self.edges, self.tracer, self.splitter, self.tracker = edges, tracer, splitter, tracker
         self.locator, self.traits, self.checks = locator, traits, checks
         self._frame_call = splitter.frame_call
@@ -77,8 +83,9 @@ class SteadyFrame:
         self._slot = workspace.frame_slot
         self._bound: tuple[Any, ...] | None = None
         """(the split's steady key, the rope width's tables, Lc0, `steady_frame`'s argument list, the tracker's
-        plane, the table, the constants) of the last steady frame: its table holds the addresses of the
-        workspace's buffers, of those tables, of the constants and of a copy of the plane."""
+        plane, the table, the constants, whether the static mask had learned its scene) of the last steady frame:
+        its table holds the addresses of the workspace's buffers, of those tables, of the constants and of a copy
+        of the plane."""
         self._plane = np.zeros(K.PLANE_PARAMS, np.float64)
         """The tracker's plane parameters as the table's writable row (zeros without a plane)."""
 
@@ -97,12 +104,15 @@ class SteadyFrame:
         key, width_tables = call
         bound = self._bound
         plane = self.tracker.plane
+        static = self.static_mask
+        learned = static is not None and static.marked and static.frames > 0  # a bool: no object made
         if (
             bound is not None
             and bound[0] is key
             and bound[1] is width_tables
             and bound[2] == length0_px
             and bound[4] is plane
+            and bound[7] is learned
         ):
             return bound[3]  # type: ignore[no-any-return]
         self._bound = None
@@ -120,15 +130,17 @@ class SteadyFrame:
             return None
         gain, floor_px, floor_share = self.locator.motion.need_args
         height, width = e.shape
+        still_dn, still_relative = static.still_range() if static is not None and learned else (-1.0, 0.0)
         constants = steady_constants(
             margin_px=self.margin_px, height=height, width=width, gain=gain, floor_px=floor_px,
             floor_share=floor_share, low=e.low, high=e.high, min_pixels=tracer.min_pixels, length0_px=length0_px,
-            broken_outline=BROKEN_OUTLINE, on_plane=plane is not None,
+            broken_outline=BROKEN_OUTLINE, on_plane=plane is not None, still_dn=still_dn,
+            still_relative=still_relative,
         )  # fmt: skip
         self._plane[:] = 0.0 if plane is None else plane
         table = self.workspace.steady_table(width_tables, self.checks.buffers, self._plane, constants)
         args = [table.ctypes.data, False, False, 0, 0, 0, 0.0, False, 0.0, 0.0]
-        self._bound = (key, width_tables, length0_px, args, plane, table, constants)
+        self._bound = (key, width_tables, length0_px, args, plane, table, constants, learned)
         return args
 
     def run(

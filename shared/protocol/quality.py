@@ -42,6 +42,7 @@ class Reason(IntEnum):
     TIP_KINK = 9
     TIP_AT_FIXED_END = 10
     TIP_CORNER = 11
+    TIP_SHORT = 12
 
     @property
     def text(self) -> str:

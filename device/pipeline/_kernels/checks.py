@@ -17,7 +17,7 @@ from numba.np.numpy_support import from_dtype
 from ropecam.device.pipeline._kernels.static_mask import MASK_FREE
 from ropecam.device.pipeline._kernels.tip_sweep import sweep_from_path
 from ropecam.device.pipeline._kernels.tracking import MOTION_COUNT, i8_1d, predict_motion
-from ropecam.shared.jit import f4_1d, f4_2d_ro, f8_1d, f8_2d, kernel, u1_2d_ro
+from ropecam.shared.jit import f4_1d, f4_2d, f4_2d_ro, f8_1d, f8_2d, kernel, u1_2d_ro
 
 CHECK_NONE: Final = 0
 """Every check passed."""
@@ -34,6 +34,7 @@ CHECK_TIP_AT_FIXED_END: Final = 10
 """Checked by `SelfChecks` (Python) on frames without a motion prediction, as is `CHECK_TIP_CORNER`'s tip distance
 from its corner (`check_frame` checks its coinciding corners on every split)."""
 CHECK_TIP_CORNER: Final = 11
+CHECK_TIP_SHORT: Final = 12
 
 CHECK_THRESHOLDS: Final = np.dtype(
     [
@@ -53,6 +54,8 @@ CHECK_THRESHOLDS: Final = np.dtype(
         ("tip_kink_widths", np.float64),
         ("tip_kink_deg", np.float64),
         ("tip_corner_widths", np.float64),
+        ("tip_short_widths", np.float64),
+        ("tip_short_floor_px", np.float64),
     ]
 )
 """The checks' thresholds (`ChecksConfig`'s numbers), one record."""
@@ -155,6 +158,13 @@ def tip_direction(shape):
     return (tr, tc, dr / norm, dc / norm)
 
 
+@kernel(types.UniTuple(int64, 2)(float64, float64, float64, float64, float64, float64))
+def tip_pixel(tr, tc, dr, dc, along, side):
+    """The pixel (row, col) `along` px from the tip (`tr`, `tc`) along its unit direction (`dr`, `dc`) and `side` px
+    across it (towards (-`dc`, `dr`)): the sampling of `tip_mask_distance` and `tip_end_seen`."""
+    return math.floor(tr + along * dr - side * dc + 0.5), math.floor(tc + along * dc + side * dr + 0.5)
+
+
 @kernel(float64(f4_2d_ro, u1_2d_ro, float64, float64))
 def tip_mask_distance(shape, mask, width_px, reach_px):
     """Return where (px along the shape's direction at its free end, `tip_direction`; negative: behind the tip) the
@@ -176,8 +186,7 @@ def tip_mask_distance(shape, mask, width_px, reach_px):
     for step in range(-behind, int(reach_px * 2.0) + 1):
         along = 0.5 * step
         for side in (-width_px, -half, 0.0, half, width_px):
-            r = math.floor(tr + along * dr - side * dc + 0.5)
-            c = math.floor(tc + along * dc + side * dr + 0.5)
+            r, c = tip_pixel(tr, tc, dr, dc, along, side)
             if 0 <= r < height and 0 <= c < width and mask[r, c] != MASK_FREE:
                 return along
     return math.nan
@@ -210,8 +219,7 @@ def tip_end_seen(shape, frame, low, high, width_px, reach_px, still_dn, relative
         if step > 0 and along < clear_px:
             continue
         for side in (-half, 0.0, half):
-            r = math.floor(tr + along * dr - side * dc + 0.5)
-            c = math.floor(tc + along * dc + side * dr + 0.5)
+            r, c = tip_pixel(tr, tc, dr, dc, along, side)
             if not (0 <= r < height and 0 <= c < width):
                 return False
             v = int64(frame[r, c])
@@ -266,6 +274,45 @@ def tip_turn_deg(shape, reach_px):
     return math.nan
 
 
+@kernel(boolean(f4_2d_ro, int64, f4_1d, f4_2d))
+def contour_far_end(points, n, fixed, out_far):
+    """Write the point of the closed contour's first `n` `points` (row, col) farthest from the fixed end `fixed`
+    (row, col) into ``out_far[0]`` (the band's far end, `check_frame`'s ``tip_short``); return whether there was
+    one (nan written when `n` < 1, `n` exceeds the points or `out_far` has no row)."""
+    if out_far.shape[0] < 1:
+        return False
+    out_far[0, 0] = math.nan
+    out_far[0, 1] = math.nan
+    if n < 1 or n > points.shape[0]:
+        return False
+    fr = float64(fixed[0])
+    fc = float64(fixed[1])
+    best = -1.0
+    for k in range(n):
+        d = (float64(points[k, 0]) - fr) ** 2 + (float64(points[k, 1]) - fc) ** 2
+        if d > best:
+            best = d
+            out_far[0, 0] = points[k, 0]
+            out_far[0, 1] = points[k, 1]
+    return True
+
+
+@kernel(boolean(f4_2d_ro, f4_2d_ro, float64, _thresholds_ro))
+def tip_short(shape, far_end, width, thresholds):
+    """``tip_short``: whether the free tip of `shape` (row, col; its last point) lies farther than
+    ``tip_short_widths`` x `width` + ``tip_short_floor_px`` (`thresholds`) from the band's far end ``far_end[0]``
+    (`contour_far_end`). False when the check is off (``tip_short_widths`` 0), the shape is empty, or the far end
+    is not known (no row, nan)."""
+    limits = thresholds[0]
+    n = shape.shape[0]
+    if limits["tip_short_widths"] <= 0.0 or n < 1 or far_end.shape[0] < 1:
+        return False
+    gap = math.hypot(
+        float64(shape[n - 1, 0]) - float64(far_end[0, 0]), float64(shape[n - 1, 1]) - float64(far_end[0, 1])
+    )
+    return gap > limits["tip_short_widths"] * width + limits["tip_short_floor_px"]  # False for a nan far end
+
+
 @kernel(_CHECK_SIGNATURES)
 def check_frame(
     begin, end, fixed, predicted, stretch_begin, stretch_end, width_px, learned_width_px, order_confidence,
@@ -279,9 +326,10 @@ def check_frame(
     (nan: unknown); `width_px` the split's width, `learned_width_px` the learned one (0: unknown); `split` whether
     the method gave two shapes (a single shape is checked against the tip's sweep: a fallback);
     `contour_area_px2` the contour's area (used only for a split the motion model cannot check: unknown exposure or
-    no prediction); `mask` the static mask (`tip_mask_distance`); `corners` the split's segmentation points (2, 2)
-    (row, col; fewer rows or nan: not known), for ``tip_corner``'s coinciding corners. The rules are
-    `ropecam.device.pipeline.checks`' table.
+    no prediction); `mask` the static mask (`tip_mask_distance`); `corners` the band's far end as the contour gives
+    it (row, col; fewer rows or nan: not known): on a split its two segmentation points (2, 2), for
+    ``tip_corner``'s coinciding corners; on one shape the contour's farthest point from the fixed end (1, 2,
+    `contour_far_end`), for ``tip_short``. The rules are `ropecam.device.pipeline.checks`' table.
     """
     limits = thresholds[0]
     q = out_quality[0]
@@ -371,6 +419,14 @@ def check_frame(
         )
         if corner_sep < 0.5 * width and separation > corner_sep + width:  # False for nan corners
             failed = CHECK_TIP_CORNER
+    # One shape of a stream (the split's static fallback: the still rope's centreline, carried to the band's end)
+    # ends where the band does: its free tip lies within a width or so of the contour's farthest point from the
+    # fixed end (`contour_far_end`, in `corners`' first row). A tip short of it ended on a cap read inside the band
+    # (simulated lab through the paper's camera at 9 ms, fresh device, tuning seed, frame 59: OK, 11.4 px short).
+    # Not on frames of unknown exposure: a still photo's rope may lie in loops, its farthest point anywhere.
+    # Checked last (`SelfChecks.check` then runs its own checks too): a frame it flags passed every other check.
+    if failed == CHECK_NONE and not split and exposure_ns > 0 and tip_short(begin, corners, width, thresholds):
+        failed = CHECK_TIP_SHORT
     evidence = math.nan
     unchecked = split and (exposure_ns <= 0 or math.isnan(predicted[2]))
     if unchecked:

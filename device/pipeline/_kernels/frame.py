@@ -30,7 +30,14 @@ from numba import boolean, float64, int64
 from ropecam.device.pipeline._kernels._common import INVALID
 from ropecam.device.pipeline._kernels.band_stage import band_stage
 from ropecam.device.pipeline._kernels.cells import CLOCK, CLOCK_CELLS, CONTOUR_POINTS, LOCATE, LOCATE_CELLS, clock_tick
-from ropecam.device.pipeline._kernels.checks import CHECK_QUALITY, CHECK_THRESHOLDS, check_frame, predict_tips
+from ropecam.device.pipeline._kernels.checks import (
+    CHECK_QUALITY,
+    CHECK_THRESHOLDS,
+    CHECK_TIP_MASKED,
+    check_frame,
+    predict_tips,
+    tip_end_seen,
+)
 from ropecam.device.pipeline._kernels.detect import detect_and_trace
 from ropecam.device.pipeline._kernels.groups import (
     BAND_STATE,
@@ -100,12 +107,16 @@ STEADY_CONSTANTS: Final = np.dtype(
         ("length0_px", np.float64),
         ("broken_outline", np.float64),
         ("on_plane", np.int64),
+        ("still_dn", np.float64),
+        ("still_relative", np.float64),
     ]
 )
 """`steady_frame`'s `constants`, one record: the scalars of its kernels that do not change between frames (the band's
 margin, the image size, the band's need model, the Canny thresholds, the smallest component, Lc0), the largest
-part of the contour's pixels walked twice before it is no band outline, and whether the material points are placed
-on a plane (1: ``plane`` holds its `plane_params`; 0: in pixels)."""
+part of the contour's pixels walked twice before it is no band outline, whether the material points are placed
+on a plane (1: ``plane`` holds its `plane_params`; 0: in pixels), and the learned static scene's still range
+(``still_dn`` + ``still_relative`` x the high level, as `StaticMask.shows_end` reads it; ``still_dn`` negative:
+no learned scene, a ``tip_masked`` verdict stands)."""
 
 _SHAPES: Final = 2
 """`split_frame`'s return when it made the two shapes."""
@@ -184,8 +195,9 @@ def steady_frame(
     `track_frame` took and with a prediction (``predicted``'s error not nan: the contour's area is not needed),
     `check_frame` of them in time order (`check_width_px` the width the split used, `learned_width_px` the learned
     one, ``check_thresholds``, the measures into ``check_quality``, the mask ``static_mask``, the corners
-    ``out_seg``) as
-    `ResultFinisher.check` makes it; its code goes to ``out["check"]`` (-1: not checked here). Before the
+    ``out_seg``) as `ResultFinisher.check` makes it, a ``tip_masked`` verdict withdrawn as `SelfChecks.check`
+    withdraws it (`tip_end_seen` of both tips on ``static_low``/``static_high`` with ``constants``' still range,
+    then `check_frame` again without the mask); its code goes to ``out["check"]`` (-1: not checked here). Before the
     checks, on a plane (``constants["on_plane"]``), the tracked shapes' material points are placed on it
     (`place_on_plane` with ``plane``, ``fraction``, ``out_points``, ``work_seg``, as `ResultFinisher` places them;
     not when a shape is longer than ``work_seg``: ``out["placed"]`` is then -1 and the stages' Python places them).
@@ -399,22 +411,41 @@ def steady_frame(
         place_on_plane(begin, end, False, fraction, buffer1(table, STEADY_ROW.plane, np.float64), out_points, work_seg)
         result["placed"] = 1
     if exposure_ns > 0 and not math.isnan(predicted[2]) and shape_a.shape[0] > 0 and shape_b.shape[0] > 0:
-        result["check"] = check_frame(
-            begin,
-            end,
-            fixed,
-            predicted,
-            stretch_begin,
-            stretch_end,
-            check_width_px,
-            learned_width_px,
-            confidence,
-            exposure_ns,
-            True,
-            0.0,  # the contour's area: not read with a prediction and a known exposure
-            buffer2(table, STEADY_ROW.static_mask, np.uint8),
-            buffer2(table, STEADY_ROW.out_seg, np.float32),  # the corners `split_frame` wrote
-            thresholds,
-            quality,
-        )
+        mask = buffer2(table, STEADY_ROW.static_mask, np.uint8)
+        corners = buffer2(table, STEADY_ROW.out_seg, np.float32)  # the corners `split_frame` wrote
+        # (the contour's area: not read with a prediction and a known exposure)
+        code = check_frame(begin, end, fixed, predicted, stretch_begin, stretch_end, check_width_px,
+                           learned_width_px, confidence, exposure_ns, True, 0.0, mask, corners, thresholds,
+                           quality)  # fmt: skip
+        if code == CHECK_TIP_MASKED and c["still_dn"] >= 0.0:
+            # `SelfChecks.check`'s withdrawal: where the frame shows both tips as the rope's ends (the rope at each
+            # tip, the learned still scene beyond it: `StaticMask.shows_end`), the checks again without the mask.
+            width = learned_width_px if learned_width_px != 0.0 else check_width_px
+            reach_px = thresholds[0]["tip_mask_widths"] * width + thresholds[0]["tip_mask_floor_px"]
+            low = buffer2(table, STEADY_ROW.static_low, np.uint8)
+            high = buffer2(table, STEADY_ROW.static_high, np.uint8)
+            still_dn = c["still_dn"]
+            relative = c["still_relative"]
+            if tip_end_seen(begin, frame, low, high, width, reach_px, still_dn, relative) and tip_end_seen(
+                end, frame, low, high, width, reach_px, still_dn, relative
+            ):
+                code = check_frame(
+                    begin,
+                    end,
+                    fixed,
+                    predicted,
+                    stretch_begin,
+                    stretch_end,
+                    check_width_px,
+                    learned_width_px,
+                    confidence,
+                    exposure_ns,
+                    True,
+                    0.0,
+                    mask[:0],  # no row of the mask: nothing masked
+                    corners,
+                    thresholds,
+                    quality,
+                )  # fmt: skip (no row of the mask: nothing masked)
+        result["check"] = code
     return STEADY_DONE

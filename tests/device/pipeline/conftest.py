@@ -40,6 +40,32 @@ def fast_frames(fast_rope: SyntheticRope) -> list[SyntheticFrame]:
     return list(fast_rope.frames(6))
 
 
+@pytest.fixture(scope="session")
+def swinging_rope() -> SyntheticRope:
+    """A rope swinging over a plain plate with little noise (the tip's end stands out from the learned plate)."""
+    return SyntheticRope(
+        width=240, height=200, fixed_uv=(120.3, 20.6), length_px=120.0, amplitude_rad=0.5, noise_dn=1.0
+    )
+
+
+@pytest.fixture(scope="session")
+def dusty_frames(swinging_rope: SyntheticRope) -> list[tuple[SyntheticFrame, np.ndarray]]:
+    """32 frames of `swinging_rope`, each with its image on a dusty plate: specks (2x2 px, 40 DN brighter, every
+    6 px) that the rope hides. The static mask learns the dust, so every free tip ends within reach of it."""
+    rope = swinging_rope
+    out = []
+    for frame in rope.frames(32):
+        image = frame.image.astype(np.float64)
+        cover = np.clip((image - rope.background) / (rope.rope_level - rope.background), 0.0, 1.0)
+        specks = np.zeros(image.shape, bool)
+        for dr in range(2):
+            for dc in range(2):
+                specks[3 + dr :: 6, 2 + dc :: 6] = True
+        image[specks] += 40.0 * (1.0 - cover[specks])
+        out.append((frame, np.clip(np.rint(image), 0, 255).astype(np.uint8)))
+    return out
+
+
 def distance_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
     """Each point's distance (px) to the polyline `poly` (both (n, 2), the same axis order), segment by segment."""
     a, d = poly[:-1][None], np.diff(poly, axis=0)[None]

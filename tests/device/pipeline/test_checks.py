@@ -522,3 +522,28 @@ def test_a_tip_at_the_mask_with_the_learned_scene_beyond_it_is_trusted() -> None
     kinked = _kinked(70.0)
     frame, _, _ = _scene(begin, kinked)
     assert _check(checks, end=kinked, mask=_mask_across(222), static=static, frame=frame)[1] is Reason.TIP_KINK
+
+
+def test_one_shape_short_of_the_band_s_far_end_is_not_trusted() -> None:
+    """One shape (the blur split's static fallback) of a stream ends where the band does: its tip farther than a
+    rope width + 2 px (7 px here) from the contour's farthest point from the fixed end was read inside the band
+    (simulated lab through the paper's camera at 9 ms, fresh device, frame 59: OK, 11.4 px short)."""
+    from ropecam.device.pipeline import _kernels as K
+
+    checks = SelfChecks(ChecksConfig())
+    still = _shape(100.0)
+    contour = np.array([[10.0, 98.0], [212.0, 98.0], [212.5, 100.0], [212.0, 102.0], [10.0, 102.0]], np.float32)
+    far = np.full((1, 2), np.nan, np.float32)
+    assert K.contour_far_end(contour, 5, FIXED, far) and far[0].tolist() == [212.5, 100.0]
+    one = {"end": still, "split": False, "stretch_end": 1.01}
+    assert _check(checks, begin=still, corners=far, **one) == (FrameStatus.OK, Reason.NONE)  # 2.5 px from it
+    short = _shape(100.0, length=190)  # the static centreline's cap read 10 px inside the band
+    one["end"] = short
+    assert _check(checks, begin=short, corners=far, **one) == (FrameStatus.IMPLAUSIBLE, Reason.TIP_SHORT)
+    assert _check(checks, begin=short, corners=far, exposure_ns=0, **one)[1] is not Reason.TIP_SHORT  # a photo
+    assert _check(SelfChecks(ChecksConfig(tip_short_widths=0.0)), begin=short, corners=far, **one)[0] is FrameStatus.OK
+    assert _check(SelfChecks(ChecksConfig(), fallback_single=False), begin=short, corners=far, **one)[0] is (
+        FrameStatus.OK
+    )  # the centreline method's one shape is its answer
+    assert _check(checks, begin=short, corners=None, **one) == (FrameStatus.OK, Reason.NONE)  # not known
+    assert not K.contour_far_end(contour, 0, FIXED, far) and np.isnan(far).all()

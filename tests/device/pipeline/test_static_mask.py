@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from ropecam.device.capture.mask_file import read_mask_png
-from ropecam.device.capture.synthetic import SyntheticRope
+from ropecam.device.capture.synthetic import SyntheticFrame, SyntheticRope
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
@@ -508,38 +508,22 @@ def test_a_clipped_centreline_is_the_rope_only_from_its_fixed_end_and_no_longer_
     assert not _rope_from(rope[:0], fixed, 16.0, 364.0)
 
 
-_SWINGING = SyntheticRope(
-    width=240, height=200, fixed_uv=(120.3, 20.6), length_px=120.0, amplitude_rad=0.5, noise_dn=1.0
-)
-"""A rope swinging over a plain plate with little noise (the tip's end stands out from the learned plate)."""
-
-
-def _dusty(image: np.ndarray, rope: SyntheticRope, step: int = 6) -> np.ndarray:
-    """`image` with dust specks on the plate (2x2 px, 40 DN brighter, every `step` px), which the rope hides."""
-    out = image.astype(np.float64)
-    cover = np.clip((out - rope.background) / (rope.rope_level - rope.background), 0.0, 1.0)
-    specks = np.zeros(image.shape, bool)
-    for dr in range(2):
-        for dc in range(2):
-            specks[3 + dr :: step, 2 + dc :: step] = True
-    out[specks] += 40.0 * (1.0 - cover[specks])
-    return np.clip(np.rint(out), 0, 255).astype(np.uint8)
-
-
-def test_a_tip_beside_masked_dust_is_measured_when_the_frame_shows_its_end() -> None:
+def test_a_tip_beside_masked_dust_is_measured_when_the_frame_shows_its_end(
+    swinging_rope: SyntheticRope, dusty_frames: list[tuple[SyntheticFrame, np.ndarray]]
+) -> None:
     """Dust all over the plate is learned as static, so every free tip ends within reach of the mask. Where the
     frame shows the rope at the tips and the plate as learned beyond them, the frames are OK and right (the
-    `tip_masked` verdict withdrawn); without that evidence (the finisher given no static mask) every one is
-    flagged, as before."""
-    rope = _SWINGING
+    `tip_masked` verdict withdrawn, on steady frames inside `steady_frame`); without that evidence (the finisher
+    and the steady frame given no static mask) every one is flagged, as before."""
+    rope = swinging_rope
     statuses = {}
     for evidence in (True, False):
         pipeline = Pipeline(PipelineConfig(static_frames=6), (rope.width, rope.height))
         if not evidence:
-            pipeline._finisher.static_mask = None
+            pipeline._finisher.static_mask = pipeline._steady.static_mask = None
         statuses[evidence] = []
-        for frame in rope.frames(14):
-            result = pipeline.process(_dusty(frame.image, rope), frame.index, frame.t_ns, float(rope.exposure_us))
+        for frame, image in dusty_frames[:14]:
+            result = pipeline.process(image, frame.index, frame.t_ns, float(rope.exposure_us))
             if frame.index <= 6:  # learning, and the frame that marks the mask (its tips on the first sweep's edge)
                 continue
             statuses[evidence].append((result.status, result.reason))
@@ -551,11 +535,11 @@ def test_a_tip_beside_masked_dust_is_measured_when_the_frame_shows_its_end() -> 
     assert statuses[True] == [(FrameStatus.OK, "")] * 7
 
 
-def test_a_rope_cut_by_a_masked_band_stays_tip_masked(tmp_path: Path) -> None:
+def test_a_rope_cut_by_a_masked_band_stays_tip_masked(tmp_path: Path, swinging_rope: SyntheticRope) -> None:
     """A given mask across the rope's lower part drops its edges there: the shapes end at the mask with the rope
     going on beyond it. The frame shows the rope past the tips, so the `tip_masked` verdict stands (learned
     scene or not)."""
-    rope = _SWINGING
+    rope = swinging_rope
     mask = np.zeros((rope.height, rope.width), np.uint8)
     mask[100:104] = 255
     path = tmp_path / "band.png"
