@@ -130,3 +130,45 @@ def test_band_track_reports_an_unreadable_frame_set_as_a_runtime_error(tmp_path:
     done = run_tool_here("evaluate.py", "band-track", str(broken))
     assert done.returncode == 1, (done.stdout, done.stderr)
     assert "band-track: error:" in done.stderr and "broken" in done.stderr and "Traceback" not in done.stderr
+
+
+def test_search_finds_a_turned_rope_without_the_track(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "tools"))
+    from ropecam_tools.eval_band_track import bent, search_rope
+
+    shape = _rope(0.0)
+    truth = bent(shape, math.radians(6.0), math.radians(-4.0))
+    rows, cols = np.mgrid[0:160, 0:250].astype(np.float64)
+    # evidence: a band 8 px wide round the turned and bent line (its distance to the line's points)
+    distance = np.min(np.hypot(cols[..., None] - truth[:, 0], rows[..., None] - truth[:, 1]), axis=-1)
+    evidence = cv2.GaussianBlur(np.where(distance < 4.0, 1.0, 0.0), (0, 0), 2.0)
+    found, score = search_rope(evidence, shape)
+    assert score > 0.8
+    assert np.hypot(*(found - truth).T).max() < 1.0
+
+
+def test_band_track_reseeds_a_lost_track_and_does_not_trust_it_meanwhile(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "tools"))
+    from ropecam_tools import eval_band_track
+    from ropecam_tools.eval_band_track import bent, summarise, track_set
+
+    _write_swing_set(tmp_path / "swing", frames=8)
+    real = eval_band_track.BandTracker
+
+    def lost_from_the_start(seed: np.ndarray, *args: object) -> object:
+        # seeded 5 degrees off (the tip 17 px away, beyond the fit's reach): the track starts lost
+        return real(bent(seed, math.radians(-5.0), 0.0), *args)
+
+    monkeypatch.setattr(eval_band_track, "BandTracker", lost_from_the_start)
+    rows = track_set(tmp_path / "swing", frames=8, blur_px=BLUR_PX)
+    summary = summarise(rows)
+    assert summary["silent"] == 0
+    assert not rows[0]["locked"] and not rows[0]["trusted"]
+    assert summary["reseeds"] >= 1
+    reseeded = next(r["frame"] for r in rows if r["reseeded"])
+    after = [r for r in rows if r["frame"] > reseeded + 1]
+    assert after, rows
+    for row in after:
+        assert row["locked"] and row["curve_px"] < 0.5 and row["tip_px"] < 1.0, row

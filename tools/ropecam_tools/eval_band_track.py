@@ -1,6 +1,6 @@
 """An edge-free band tracker's best case: the blurred band fitted frame to frame from a seed, without edges.
 
-    python tools/evaluate.py band-track SET [--frames N] [--blur-px B] [--windows W] [--json]
+    python tools/evaluate.py band-track SET [--frames N] [--blur-px B] [--windows W] [--no-search] [--json]
 
 A prototype measured offline (numpy/scipy, not the device's pipeline) to decide whether a model-based band fit can
 replace the edge path where the band's edges are below the noise (`lab-hard`, docs/robustness.md). On a simulator
@@ -11,9 +11,10 @@ frame set (with ``truth.npz``):
   the set's gamma and true plane) gives its begin shape whatever its status, cut at its point farthest from the
   fixed end (a first-frames shape that runs out along the rope and back, `folds_back`), and the rope's width is
   fitted across it (`fit_width`);
-* **prediction**: each frame's middle line (the rope at mid-exposure, by arc fraction) extrapolated at constant
-  acceleration from the three frames before (constant velocity from two); the sweep (begin to end) from the
-  predicted velocity times the exposure;
+* **prediction**: each frame's middle line (the rope at mid-exposure, by arc fraction) from a quadratic in time
+  fitted per point to the last `HISTORY` frames' middle lines and to their own sweeps (a velocity measured within
+  the frame, once the prediction gives its sign), evaluated one period ahead; the sweep (begin to end) from that
+  velocity times the exposure (`BandTracker.predict`);
 * **fit**: the frame in linear light (the set's ``camera.gamma`` undone) is sampled on lines across the predicted
   middle line (every `RESAMPLE_POINTS` along the rope), and in each of `windows` windows along the rope (the first
   `SKIP_FRACTION` near the clamp left out) a model band is fitted by least squares to all the window's profiles
@@ -22,10 +23,21 @@ frame set (with ``truth.npz``):
   correction free under Gaussian priors (`MID_PRIOR_PX`, `SWEEP_PRIOR_PX`). The begin and end centrelines are the
   predicted ones moved along the normal by the windows' corrections (interpolated; 0 at the fixed end);
 * **length**: the far end is fitted along the rope's axis at the tip (profiles across the sweep averaged, a blurred
-  step: `eval_band_snr.fit_step`'s model), and the carried length moved by it when its uncertainty is small;
-* **gate**: a frame is *trusted* when the far end agrees with the carried length within `CAP_GATE_PX`, its fit's
-  uncertainty is below `CAP_SIGMA_GATE_PX` and the fitted tips lie less than `SWEEP_GATE_PX` apart: what a device
-  could report as OK without the truth.
+  step: `eval_band_snr.fit_step`'s model) and updates the carried length through a scalar Kalman filter (the
+  length drifts by `LENGTH_DRIFT_PX` a frame at most; a far end beyond `CAP_INNOVATION_GATE` standard deviations
+  is not used);
+* **uncertainty**: the tips' standard error: across the rope the last window's offset, slope and sweep propagated
+  with their covariance (the Jacobian's, widened by the residuals' correlation along the profiles), along it the
+  carried length's;
+* **lock and re-acquisition** (``--search``, the default): each frame minus the median of `BACKGROUND_FRAMES`
+  frames of the set (setup's learned background), smoothed, is searched for the band without the track: the last
+  locked middle line turned about the fixed end and bent at `SEARCH_JOINTS` joints (`search_rope`). A frame is *locked*
+  when the evidence along the tracked middle line's outer part (from `LOCK_FROM`) is at least `LOCK_RATIO` of
+  the search's line's; after two unlocked
+  frames the track restarts from the search's lines of those two frames;
+* **gate**: a frame is *trusted* when it is locked, the far end agrees with the carried length (within
+  `CAP_INNOVATION_GATE` standard deviations), the tips' standard error is below `TIP_SIGMA_GATE_PX` and no window's
+  contrast fell below `CONTRAST_GATE` of their median: what a device could report as OK without the truth.
 
 Per frame: the tips' and centrelines' errors against the truth (as `truth_metrics` defines them), the fit's own
 indicators, and whether the frame is trusted; trusted frames with a tip over `SILENT_TIP_PX` or a centreline over
@@ -39,6 +51,7 @@ import argparse
 import itertools
 import json
 import math
+import time
 from pathlib import Path
 from typing import Any
 
@@ -57,17 +70,50 @@ MID_PRIOR_PX = 3.0
 """Prior standard deviation of a window's middle offset (and its slope) from the prediction (px)."""
 SWEEP_PRIOR_PX = 1.0
 """Prior standard deviation of a window's sweep from the predicted sweep (px)."""
-CAP_GATE_PX = 1.0
-"""A frame is trusted when its far end lies within this distance of the carried length (px) ..."""
-CAP_SIGMA_GATE_PX = 0.5
-"""... and the far end's fit gives an uncertainty below this (px) ..."""
-SWEEP_GATE_PX = 8.0
-"""... and the fitted tips lie less than this apart (px): beyond about 10 px of sweep the band's far end is below the
-noise even for a fit that knows where it runs (`eval_band_snr`, docs/robustness.md)."""
+TIP_SIGMA_GATE_PX = 0.5
+"""... and the tips' standard error (across from the last window's fit, along from the carried length) is below
+this (px) ..."""
+CONTRAST_GATE = 0.5
+"""... and no window's fitted contrast is below this share of the windows' median (a window that lost the band) ..."""
+TIP_MARGIN_POINTS = 2
+"""Resampled points at the tip left out of the side fit (the band's far end)."""
 MAX_WINDOWS = (RESAMPLE_POINTS - 3 - int(SKIP_FRACTION * RESAMPLE_POINTS)) // 2
 """Most fit windows along the rope: each window holds at least two of the resampled points it fits."""
+HISTORY = 5
+"""Frames whose middle lines and sweeps the motion prediction fits (a quadratic in time per point)."""
+VELOCITY_WEIGHT = 0.3
+"""Weight of a frame's own sweep (as a velocity) against its middle line in the prediction's fit: the sweep is
+measured over the exposure (a fraction of the period), so its velocity is noisier than the middle lines'."""
+SIGN_SWEEP_PX = 3.0
+"""A frame's sweep counts as a velocity only when the tip's predicted sweep is at least this (px): a band is the same
+whichever side the rope started from, so its sign comes from the prediction."""
+CURVATURE_PRIOR = 0.05
+"""A weak prior (zero acceleration) that keeps the quadratic determined while only one or two frames are known."""
+LENGTH_SIGMA0_PX = 0.5
+"""Uncertainty of the seed's length (px)."""
+LENGTH_DRIFT_PX = 0.3
+"""How much the rope's length in the image may change from frame to frame (px; the projection changes it by about
+0.15 px per frame on `lab-hard`'s swing)."""
+CAP_BIAS_PX = 0.3
+"""Error of the far end's fit beyond its statistical one (px: the step model's bias)."""
+CAP_INNOVATION_GATE = 3.0
+"""A far end further than this many standard deviations from the carried length is not used for the length."""
 TAU_STEPS = 9
 """Instants of the exposure summed in the model band."""
+SEARCH_TURN_DEG = 45.0
+"""The re-acquisition search turns each joint of the last locked middle line by up to this much (degrees)."""
+SEARCH_JOINTS = 8
+"""Joints of the re-acquisition search's bent line (evenly spaced from the fixed end)."""
+LOCK_FROM = 0.6
+"""The lock compares the evidence along the outer part of the lines from this fraction of the rope on, where a
+lost track strays first."""
+SEARCH_SMOOTH_PX = 3.0
+"""Gaussian smoothing of the frame minus its background for the re-acquisition search (px)."""
+LOCK_RATIO = 0.97
+"""A frame is locked when the evidence along the tracked middle line is at least this share of the search's best
+line's; two frames in a row below it and the track is re-seeded from the search."""
+BACKGROUND_FRAMES = 48
+"""Frames whose per-pixel median is the background of the re-acquisition search (setup's count)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -83,6 +129,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="seed from frame 0's truth (its centreline and width), or from the pipeline's frame 0 "
                         "(its begin shape whatever its status, cut where it turns back; the width fitted across "
                         "it)")  # fmt: skip
+    parser.add_argument("--no-search", dest="search", action="store_false",
+                        help="track without the search that checks the lock and re-seeds a lost track (and "
+                        "without the background it needs)")  # fmt: skip
     parser.add_argument("--json", action="store_true", help="print the per-frame rows and the summary as JSON")
 
 
@@ -134,7 +183,8 @@ def fit_window(
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:  # fmt: skip
     """Fit one window's model band to its `profiles` ((m, k) at offsets `t`), the begin and end sides predicted at
     `begin0`, `end0` ((m,) offsets). Return the parameters (level, contrast, middle offset, sweep correction, slope
-    of the middle offset over the window) and their standard errors (from the fit's Jacobian and residual)."""
+    of the middle offset over the window) and their covariance (from the fit's Jacobian and residual, widened by
+    the residuals' correlation along the profiles)."""
     from scipy.optimize import least_squares
 
     along = (np.arange(len(begin0)) - (len(begin0) - 1) / 2) / max(len(begin0) - 1, 1)
@@ -151,12 +201,18 @@ def fit_window(
 
     start = [float(np.median(profiles)), max(float(profiles.max() - np.median(profiles)), 1.0), 0.0, 0.0, 0.0]
     fit = least_squares(residual, start, bounds=([-50.0, 0.0, -8.0, -8.0, -8.0], [300.0, 300.0, 8.0, 8.0, 8.0]))
-    spread = float(np.std(fit.fun[: profiles.size]))
+    residuals = fit.fun[: profiles.size].reshape(profiles.shape)
+    spread = float(np.std(residuals))
+    # neighbouring samples of a profile share the noise (0.5 px steps, a sharpened sensor): the Jacobian's
+    # covariance assumes independent samples, so widen it by the residuals' own correlation along the profile
+    centred = residuals - residuals.mean()
+    rho = float(np.sum(centred[:, 1:] * centred[:, :-1]) / (np.sum(centred * centred) + 1e-12))
+    rho = min(max(rho, 0.0), 0.95)
     try:
-        errors = np.sqrt(np.diag(np.linalg.inv(fit.jac.T @ fit.jac))) * spread
+        covariance = np.linalg.inv(fit.jac.T @ fit.jac) * spread**2 * (1.0 + rho) / (1.0 - rho)
     except np.linalg.LinAlgError:
-        errors = np.full(5, math.inf)
-    return fit.x, errors
+        covariance = np.full((5, 5), math.inf)
+    return fit.x, covariance
 
 
 def fit_far_end(
@@ -231,6 +287,75 @@ def pipeline_seed(frameset: Any) -> NDArray[np.float64]:
     return shape[: turn + 1]
 
 
+def median_background(frameset: Any, gamma: float, count: int) -> NDArray[np.float64]:
+    """Return the per-pixel median (linear light) of `count` frames spread over `frameset`: the plate and every
+    static structure (clamp, second cable) without the moving rope, as setup's learned background is."""
+    picks = np.unique(np.linspace(0, len(frameset) - 1, min(count, len(frameset))).astype(int))
+    stack = np.stack([(frameset.read(int(i)).astype(np.float32) / 255.0) ** gamma for i in picks])
+    return 255.0 * np.median(stack, axis=0).astype(np.float64)
+
+
+def chained(shape: NDArray[np.float64], angles: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Return `shape` ((n, 2), fixed end first) bent at `len(angles)` evenly spaced joints from its first point:
+    the part beyond joint k turned by ``angles[k]`` (rad) about it, joint by joint from the fixed end."""
+    out = shape.copy()
+    for k, angle in enumerate(angles):
+        joint = k * len(shape) // len(angles)
+        c, s = math.cos(angle), math.sin(angle)
+        d = out[joint:] - out[joint]
+        out[joint:] = out[joint] + np.stack([c * d[:, 0] - s * d[:, 1], s * d[:, 0] + c * d[:, 1]], axis=1)
+    return out
+
+
+def bent(shape: NDArray[np.float64], turn_rad: float, bend_rad: float) -> NDArray[np.float64]:
+    """Return `shape` ((n, 2), fixed end first) turned by `turn_rad` about its first point and its outer half
+    turned by `bend_rad` more about its middle point."""
+    return chained(shape, np.array([turn_rad, bend_rad]))
+
+
+def line_score(evidence: NDArray[np.float64], line: NDArray[np.float64], start: float = SKIP_FRACTION) -> float:
+    """Return the mean of `evidence` (the frame minus its background, smoothed) along `line` beyond the fraction
+    `start` of it (0 outside the frame): the band's level where the line runs inside it."""
+    from scipy.ndimage import map_coordinates
+
+    points = line[int(start * len(line)) :]
+    return float(map_coordinates(evidence, [points[:, 1], points[:, 0]], order=1, mode="constant", cval=0.0).mean())
+
+
+def search_rope(evidence: NDArray[np.float64], shape: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
+    """Find the band in `evidence` (the frame minus its background, smoothed, the rope brighter) without a track:
+    `shape` (a middle line known before, fixed end first) bent at `SEARCH_JOINTS` joints, traced from the fixed
+    end (each joint turned by up to `SEARCH_TURN_DEG` either way, the first twice that, in 0.5 degree steps, where
+    the evidence along its segment and the next is highest), then every joint refined (0.25 degree steps up to 2)
+    on the whole line.
+    Return the line and the evidence along it."""
+    count = len(shape)
+    angles = np.zeros(SEARCH_JOINTS)
+    for joint in range(SEARCH_JOINTS):
+        lo = max(joint * count // SEARCH_JOINTS, int(SKIP_FRACTION * count))
+        hi = min((joint + 2) * count // SEARCH_JOINTS, count)
+        best = -math.inf
+        base = angles[joint]
+        reach = 2.0 * SEARCH_TURN_DEG if joint == 0 else SEARCH_TURN_DEG  # the whole rope may have swung far
+        for offset in np.radians(np.arange(-reach, reach + 1e-9, 0.5)):
+            trial = angles.copy()
+            trial[joint] = base + offset
+            score = line_score(evidence, chained(shape, trial)[lo:hi], 0.0)
+            if score > best:
+                best, chosen = score, trial
+        angles = chosen
+    best = line_score(evidence, chained(shape, angles))
+    for joint in range(SEARCH_JOINTS):
+        base = angles[joint]
+        for offset in np.radians(np.arange(-2.0, 2.01, 0.25)):
+            trial = angles.copy()
+            trial[joint] = base + offset
+            score = line_score(evidence, chained(shape, trial))
+            if score > best:
+                best, angles = score, trial
+    return chained(shape, angles), best
+
+
 class BandTracker:
     """Follow the band from a seed centreline, one frame at a time (see the module's docstring).
 
@@ -251,35 +376,96 @@ class BandTracker:
             raise ValueError(f"windows must be at least 1, got {windows}")
         self.length_px = float(_arc(seed)[-1])
         self.length0_px = self.length_px
+        self.length_var = LENGTH_SIGMA0_PX**2
         self.width_px, self.blur_px, self.period_ns, self.windows = width_px, blur_px, period_ns, windows
-        self.mids = [resample_to(seed, self.length_px)]
+        still = resample_to(seed, self.length_px)
+        # per frame: the middle line (by arc fraction of the seed's length) and its velocity (px per frame period)
+        self.mids = [still]
+        self.velocities = [np.zeros_like(still)]
+        self.velocity_weights = [VELOCITY_WEIGHT]  # the seed is still
+        self.reference = still
+        self.found: NDArray[np.float64] | None = None
+        self.unlocked = 0
+        self.seconds: dict[str, float] = {}
+        """Processor time spent per part of `track` (sample, windows, far_end, search; s), summed over the frames:
+        the machine is shared, so not wall time."""
+        """The last locked middle line: the shape the re-acquisition search turns and bends."""
 
-    def track(self, image: NDArray[np.float64], exposure_ns: float) -> dict[str, Any]:
+    def _lap(self, part: str, since: float) -> float:
+        now = time.process_time()
+        self.seconds[part] = self.seconds.get(part, 0.0) + now - since
+        return now
+
+    def reseed(self, before: NDArray[np.float64], now: NDArray[np.float64]) -> None:
+        """Restart the track from two consecutive frames' middle lines found by the search (`before`, `now`): their
+        difference is the velocity; neither frame's sweep is used (the search does not measure it)."""
+        self.mids = [resample_to(before, self.length0_px), resample_to(now, self.length0_px)]
+        self.velocities = [np.zeros_like(self.mids[0]), np.zeros_like(self.mids[0])]
+        self.velocity_weights = [0.0, 0.0]
+
+    def predict(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Return the next frame's middle line and its velocity (px per frame period): per point, a quadratic in
+        time fitted by least squares to the last `HISTORY` frames' middle lines and to their own sweeps (each
+        frame's end side minus its begin side, a velocity measured within the frame, weighted by
+        `VELOCITY_WEIGHT` when the frame's predicted sweep gave its sign: a band does not say which side came
+        first), evaluated one period ahead."""
+        count = len(self.mids)
+        taus = np.arange(-count + 1, 1, dtype=np.float64)
+        rows = [[1.0, tau, tau * tau] for tau in taus]
+        rows += [[0.0, w, 2.0 * w * tau] for tau, w in zip(taus, self.velocity_weights, strict=True)]
+        rows.append([0.0, 0.0, CURVATURE_PRIOR])
+        design = np.array(rows)
+        weights = np.array(self.velocity_weights)[:, None, None]
+        targets = np.concatenate(
+            [np.stack(self.mids), weights * np.stack(self.velocities), np.zeros((1, *self.mids[0].shape))]
+        )
+        coef = np.linalg.lstsq(design, targets.reshape(len(design), -1), rcond=None)[0].reshape(3, *self.mids[0].shape)
+        return coef[0] + coef[1] + coef[2], coef[1] + 2.0 * coef[2]
+
+    def track(
+        self, image: NDArray[np.float64], exposure_ns: float, evidence: NDArray[np.float64] | None = None
+    ) -> dict[str, Any]:
         """Fit the band in `image` (linear light, float) and return the begin and end centrelines (``begin``,
         ``end``), the far end's offset from the carried length and its uncertainty (``cap_px``, ``cap_sigma_px``),
-        the largest standard error of a window's side (``side_sigma_px``) and whether the frame is trusted."""
-        velocity = (self.mids[-1] - self.mids[-2]) / self.period_ns if len(self.mids) > 1 else 0.0 * self.mids[-1]
-        if len(self.mids) > 2:  # a swinging rope accelerates: constant velocity lags and loses it at 10-15 px sweeps
-            velocity = velocity + (self.mids[-1] - 2 * self.mids[-2] + self.mids[-3]) / self.period_ns
-        mid = self.mids[-1] + velocity * self.period_ns
-        sweep = velocity * exposure_ns
+        the tips' standard error (``tip_sigma_px``: across the rope from the last window's fit, along it the
+        carried length's), the largest standard error of a window's side (``side_sigma_px``) and whether the frame
+        is trusted.
+
+        With `evidence` (the frame minus its background, smoothed by `SEARCH_SMOOTH_PX`), the band is also sought
+        without the track (`search_rope`); the frame is *locked* when the evidence along the tracked middle line is
+        at least `LOCK_RATIO` of the search's best, and after two frames in a row that are not, the track is
+        re-seeded from the search's lines of those two frames (``reseeded``)."""
+        mid, velocity = self.predict()
+        sweep = velocity * exposure_ns / self.period_ns
         begin0, end0 = mid - sweep / 2, mid + sweep / 2
         normal, tangent = _frame_normals(mid)
         t_begin = np.einsum("ij,ij->i", begin0 - mid, normal)
         t_end = np.einsum("ij,ij->i", end0 - mid, normal)
         reach = float(np.max(np.abs(t_end - t_begin))) / 2 + self.width_px + 8.0
         t = np.arange(-reach, reach + 0.01, 0.5)
+        clock = time.process_time()
         profiles = _sample(image, mid[:, None, :] + t[None, :, None] * normal[:, None, :])
-        bounds = np.linspace(int(SKIP_FRACTION * RESAMPLE_POINTS), RESAMPLE_POINTS - 3, self.windows + 1).astype(int)
-        knots, begin_shift, end_shift, sigmas = [0.0], [0.0], [0.0], []
+        clock = self._lap("sample", clock)
+        last = RESAMPLE_POINTS - 1 - TIP_MARGIN_POINTS
+        bounds = np.linspace(int(SKIP_FRACTION * RESAMPLE_POINTS), last, self.windows + 1).astype(int)
+        knots, begin_shift, end_shift, sigmas, contrasts = [0.0], [0.0], [0.0], [], []
         for a, b in itertools.pairwise(bounds):
-            q, errors = fit_window(profiles[a:b], t, t_begin[a:b], t_end[a:b], self.width_px, self.blur_px)
+            q, covariance = fit_window(profiles[a:b], t, t_begin[a:b], t_end[a:b], self.width_px, self.blur_px)
+            errors = np.sqrt(np.diag(covariance))
             knots.append((a + b - 1) / 2)
             begin_shift.append(q[2] - q[3] / 2)
             end_shift.append(q[2] + q[3] / 2)
             sigmas.append(float(max(errors[2], errors[3])))
+            contrasts.append(float(q[1]))
+        clock = self._lap("windows", clock)
         # the last window's slope carries its offset to the tip
-        tip_shift = q[2] + q[4] * ((RESAMPLE_POINTS - 1) - (a + b - 1) / 2) / max(b - a - 1, 1)
+        lever = ((RESAMPLE_POINTS - 1) - (a + b - 1) / 2) / max(b - a - 1, 1)
+        tip_shift = q[2] + q[4] * lever
+        # the tips' standard errors across the rope: the last window's offset, slope and sweep, with their covariance
+        across_sigma_px = max(
+            float(math.sqrt(max(g @ covariance @ g, 0.0)))
+            for g in (np.array([0.0, 0.0, 1.0, -0.5, lever]), np.array([0.0, 0.0, 1.0, 0.5, lever]))
+        )
         knots.append(RESAMPLE_POINTS - 1.0)
         begin_shift.append(tip_shift - q[3] / 2)
         end_shift.append(tip_shift + q[3] / 2)
@@ -288,24 +474,64 @@ class BandTracker:
         end = end0 + np.interp(index, knots, end_shift)[:, None] * normal
         carried = resample_to(begin, self.length_px)[-1], resample_to(end, self.length_px)[-1]
         cap_px, cap_sigma_px = fit_far_end(image, carried[0], carried[1], tangent[-1], self.blur_px)
-        if cap_sigma_px < 1.0 and abs(cap_px) < 6.0:
-            self.length_px += cap_px
+        clock = self._lap("far_end", clock)
+        # the length is nearly constant (the rope's projection changes it slowly): a scalar Kalman filter, not a sum
+        self.length_var += LENGTH_DRIFT_PX**2
+        noise_var = cap_sigma_px**2 + CAP_BIAS_PX**2
+        if math.isfinite(cap_sigma_px) and cap_px**2 < CAP_INNOVATION_GATE**2 * (self.length_var + noise_var):
+            gain = self.length_var / (self.length_var + noise_var)
+            self.length_px += gain * cap_px
+            self.length_var *= 1.0 - gain
         begin, end = resample_to(begin, self.length_px), resample_to(end, self.length_px)
         sweep_px = float(math.hypot(*(end[-1] - begin[-1])))
-        trusted = abs(cap_px) < CAP_GATE_PX and cap_sigma_px < CAP_SIGMA_GATE_PX and sweep_px < SWEEP_GATE_PX
-        self.mids.append(resample_to(0.5 * (begin + end), self.length0_px))
-        return {
+        tip_sigma_px = math.sqrt(across_sigma_px**2 + self.length_var)
+        contrast_ratio = min(contrasts) / (float(np.median(contrasts)) + 1e-9)
+        cap_agrees = cap_px**2 < CAP_INNOVATION_GATE**2 * (self.length_var + noise_var)
+        trusted = bool(cap_agrees and tip_sigma_px < TIP_SIGMA_GATE_PX and contrast_ratio > CONTRAST_GATE)
+        mid_line = resample_to(0.5 * (begin + end), self.length0_px)
+        locked, reseeded, found_score, tracked_score = True, False, math.nan, math.nan
+        if evidence is not None:
+            found, _ = search_rope(evidence, self.reference)
+            found_score = line_score(evidence, found, LOCK_FROM)
+            tracked_score = line_score(evidence, mid_line, LOCK_FROM)
+            locked = tracked_score >= LOCK_RATIO * found_score
+            clock = self._lap("search", clock)
+            trusted = trusted and locked
+            self.unlocked = 0 if locked else self.unlocked + 1
+            if self.unlocked >= 2 and self.found is not None:
+                reseeded = True
+                self.unlocked = 0
+            before, self.found = self.found, found
+        if locked:
+            self.reference = mid_line
+        result = {
             "begin": begin, "end": end, "cap_px": cap_px, "cap_sigma_px": cap_sigma_px,
-            "side_sigma_px": max(sigmas), "trusted": trusted,
+            "side_sigma_px": max(sigmas), "trusted": trusted, "across_sigma_px": across_sigma_px,
+            "length_sigma_px": math.sqrt(self.length_var), "tip_sigma_px": tip_sigma_px,
+            "contrast_ratio": contrast_ratio, "tip_shift_px": float(tip_shift), "sweep_fit_px": sweep_px,
+            "locked": locked, "reseeded": reseeded, "score_ratio": tracked_score / found_score,
         }  # fmt: skip
+        if reseeded:
+            self.reseed(before, self.found)
+            return result
+        self.mids.append(mid_line)
+        self.velocities.append(
+            (resample_to(end, self.length0_px) - resample_to(begin, self.length0_px)) * self.period_ns / exposure_ns
+        )
+        signed = float(math.hypot(*sweep[-1])) >= SIGN_SWEEP_PX
+        self.velocity_weights.append(VELOCITY_WEIGHT if signed else 0.0)
+        del self.mids[:-HISTORY], self.velocities[:-HISTORY], self.velocity_weights[:-HISTORY]
+        return result
 
 
 def track_set(
-    path: Path, frames: int = 30, blur_px: float = 0.6, windows: int = 10, seed: str = "truth"
+    path: Path, frames: int = 30, blur_px: float = 0.6, windows: int = 10, seed: str = "truth", search: bool = True
 ) -> list[dict[str, Any]]:
     """Track the band over the first `frames` frames of the simulator frame set at `path` from frame 0 (`seed`:
     ``"truth"`` or ``"pipeline"``, see the module's docstring) and return one row per frame from frame 1 on (the
-    errors against the truth, the fit's indicators, ``trusted``).
+    errors against the truth, the fit's indicators, ``trusted``). With `search`, every frame is also searched
+    without the track (against the median of `BACKGROUND_FRAMES` frames of the set) to check the lock and to
+    re-seed a lost track.
 
     Raises
     ------
@@ -325,10 +551,19 @@ def track_set(
     else:
         raise ValueError(f"seed must be 'truth' or 'pipeline', got {seed!r}")
     tracker = BandTracker(line, width_px, blur_px, 1e9 / float(frameset.fps), windows)
+    background = median_background(frameset, gamma, BACKGROUND_FRAMES) if search else None
     rows = []
     for index in range(1, count):
+        from scipy.ndimage import gaussian_filter
+
         image = 255.0 * (frameset.read(index).astype(np.float64) / 255.0) ** gamma
-        fitted = tracker.track(image, float(frameset.records[index].exposure_us) * 1000.0)
+        clock = time.process_time()
+        evidence = None if background is None else gaussian_filter(image - background, SEARCH_SMOOTH_PX)
+        evidence_ms = 1000.0 * (time.process_time() - clock)
+        spent = dict(tracker.seconds)
+        fitted = tracker.track(image, float(frameset.records[index].exposure_us) * 1000.0, evidence)
+        cpu_ms = {part: 1000.0 * (seconds - spent.get(part, 0.0)) for part, seconds in tracker.seconds.items()}
+        cpu_ms["evidence"] = evidence_ms
         true_b, true_e = truth["begin_px"][index], truth["end_px"][index]
         tip = max(math.hypot(*(fitted["begin"][-1] - true_b[-1])), math.hypot(*(fitted["end"][-1] - true_e[-1])))
         curve = max(
@@ -338,7 +573,11 @@ def track_set(
         rows.append({
             "frame": index, "sweep_px": float(math.hypot(*(truth["tip_end_px"][index] - truth["tip_begin_px"][index]))),
             "tip_px": tip, "curve_px": curve, "cap_px": fitted["cap_px"], "cap_sigma_px": fitted["cap_sigma_px"],
-            "side_sigma_px": fitted["side_sigma_px"], "trusted": bool(fitted["trusted"]),
+            "side_sigma_px": fitted["side_sigma_px"], "tip_sigma_px": fitted["tip_sigma_px"],
+            "across_sigma_px": fitted["across_sigma_px"], "length_sigma_px": fitted["length_sigma_px"],
+            "contrast_ratio": fitted["contrast_ratio"], "score_ratio": fitted["score_ratio"],
+            "locked": bool(fitted["locked"]), "reseeded": bool(fitted["reseeded"]), "trusted": bool(fitted["trusted"]),
+            "cpu_ms": cpu_ms,
             "silent": bool(fitted["trusted"] and (tip > SILENT_TIP_PX or curve > SILENT_CURVE_PX)),
         })  # fmt: skip
     return rows
@@ -346,19 +585,26 @@ def track_set(
 
 def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """Return the tracked frames' figures: tip mean / p95 and centreline mean over every frame and over the trusted
-    ones, the trusted and silent counts, and the first frame whose centreline is over `SILENT_CURVE_PX` off (the
-    track lost)."""
+    ones, the trusted and silent counts, how often the tip lies within three of its own standard errors (every frame
+    and the trusted ones), the re-seeds, the frames whose centreline is over `SILENT_CURVE_PX` off (the track lost)
+    and the first of them."""
     tips = np.array([r["tip_px"] for r in rows])
     curves = np.array([r["curve_px"] for r in rows])
     trusted = np.array([r["trusted"] for r in rows])
+    bounded = tips <= 3.0 * np.array([r["tip_sigma_px"] for r in rows])
     lost = [r["frame"] for r in rows if r["curve_px"] > SILENT_CURVE_PX]
     return {
         "frames": len(rows), "tip_mean_px": float(tips.mean()), "tip_p95_px": float(np.percentile(tips, 95)),
         "curve_mean_px": float(curves.mean()), "trusted": int(trusted.sum()),
         "trusted_tip_mean_px": float(tips[trusted].mean()) if trusted.any() else math.nan,
+        "trusted_tip_p95_px": float(np.percentile(tips[trusted], 95)) if trusted.any() else math.nan,
         "trusted_tip_max_px": float(tips[trusted].max()) if trusted.any() else math.nan,
+        "trusted_curve_mean_px": float(curves[trusted].mean()) if trusted.any() else math.nan,
         "trusted_curve_max_px": float(curves[trusted].max()) if trusted.any() else math.nan,
         "silent": int(sum(r["silent"] for r in rows)), "lost_from": lost[0] if lost else None,
+        "lost_frames": len(lost), "reseeds": int(sum(r.get("reseeded", False) for r in rows)),
+        "within_3_sigma": float(bounded.mean()),
+        "trusted_within_3_sigma": float(bounded[trusted].mean()) if trusted.any() else math.nan,
     }  # fmt: skip
 
 
@@ -369,22 +615,28 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--windows {args.windows}: at most {MAX_WINDOWS} (two resampled points per window)")
     if not (args.set / "truth.npz").is_file():
         raise UsageError(f"{args.set}: not a simulator frame set (no truth.npz; make one with `ropecam simulate`)")
-    rows = track_set(args.set, args.frames, args.blur_px, args.windows, args.seed)
+    rows = track_set(args.set, args.frames, args.blur_px, args.windows, args.seed, args.search)
     summary = summarise(rows)
     if args.json:
         print(json.dumps({"scene": args.set.name, "seed": args.seed, "frames": rows, "summary": summary}, indent=1))
         return 0
     seeded = "frame 0's truth" if args.seed == "truth" else "the pipeline's frame 0, cut where it turns back"
     print(f"{args.set.name} (simulated; seeded with {seeded}): the band tracked without edges")
-    print("| frame | sweep (px) | tip (px) | centreline (px) | far end vs length (px) | its sigma | trusted |")
-    print("|---|---|---|---|---|---|---|")
+    print("| frame | sweep (px) | tip (px) | its sigma | centreline (px) | far end vs length (px) | its sigma | locked "
+          "| trusted |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         trusted = ("yes" if r["trusted"] else "no") + (" (silent)" if r["silent"] else "")
-        print(f"| {r['frame']} | {r['sweep_px']:.1f} | {r['tip_px']:.2f} | {r['curve_px']:.2f} | {r['cap_px']:+.2f} | "
-              f"{r['cap_sigma_px']:.2f} | {trusted} |")  # fmt: skip
+        locked = ("yes" if r["locked"] else "no") + (" (re-seeded)" if r["reseeded"] else "")
+        print(f"| {r['frame']} | {r['sweep_px']:.1f} | {r['tip_px']:.2f} | {r['tip_sigma_px']:.2f} | "
+              f"{r['curve_px']:.2f} | {r['cap_px']:+.2f} | {r['cap_sigma_px']:.2f} | {locked} | "
+              f"{trusted} |")  # fmt: skip
     s = summary
     print(f"\nall {s['frames']} frames: tip {s['tip_mean_px']:.2f} / p95 {s['tip_p95_px']:.2f} px, centreline "
-          f"{s['curve_mean_px']:.2f} px; trusted {s['trusted']} (tip mean {s['trusted_tip_mean_px']:.2f}, max "
-          f"{s['trusted_tip_max_px']:.2f} px, centreline max {s['trusted_curve_max_px']:.2f} px), silent "
-          f"{s['silent']}; centreline over {SILENT_CURVE_PX:g} px from frame {s['lost_from']}")  # fmt: skip
+          f"{s['curve_mean_px']:.2f} px; trusted {s['trusted']} (tip mean {s['trusted_tip_mean_px']:.2f}, p95 "
+          f"{s['trusted_tip_p95_px']:.2f}, max {s['trusted_tip_max_px']:.2f} px, centreline mean "
+          f"{s['trusted_curve_mean_px']:.2f}, max {s['trusted_curve_max_px']:.2f} px), silent {s['silent']}; tip "
+          f"within 3 of its standard errors on {100 * s['within_3_sigma']:.0f} % of the frames "
+          f"({100 * s['trusted_within_3_sigma']:.0f} % of the trusted); {s['reseeds']} re-seeds; centreline over "
+          f"{SILENT_CURVE_PX:g} px on {s['lost_frames']} frames, the first {s['lost_from']}")  # fmt: skip
     return 0
