@@ -229,6 +229,74 @@ def half_level_crossing(image, base_r, base_c, dir_r, dir_c, guess, reach_px, fl
     return best
 
 
+RAMP_DEPTH_PX: Final = 6.0
+"""How far behind the half-level crossing (px along the axis) `ramp_end_crossing` reads the band's own level: a tip
+that slides along the rope during the exposure ends the band in a ramp as long as that slide (4-11 px on the
+simulated late swing's whipping frames, tuning seed), longer than `half_level_crossing`'s reach (3 blur + 1)."""
+RAMP_RISE: Final = 0.15
+"""The band's level that far behind must exceed the level just behind the crossing by this fraction of the band's
+contrast for the end to count as a ramp (a braided rope's brightness varies by about 5 % along it)."""
+
+
+@kernel(float32(f4_2d_ro, float32, float32, float32, float32, float32, float32, float32))
+def _line_level(image, base_r, base_c, dir_r, dir_c, t_from, t_to, lateral_px):
+    """The mean of `image` (bilinear) along the line from (`base_r`, `base_c`) along (`dir_r`, `dir_c`) between
+    `t_from` and `t_to`, every 0.25 px, over three parallel lines `lateral_px` apart."""
+    total = 0.0
+    count = 0
+    t = t_from
+    while t <= t_to:
+        for lateral in (-lateral_px, np.float32(0.0), lateral_px):
+            total += sample_bilinear(image, base_r + t * dir_r + lateral * dir_c, base_c + t * dir_c - lateral * dir_r)
+            count += 1
+        t += np.float32(0.25)
+    return np.float32(total / count) if count > 0 else np.float32(np.nan)
+
+
+@kernel(float32(f4_2d_ro, float32, float32, float32, float32, float32, float32, float32))
+def ramp_end_crossing(image, base_r, base_c, dir_r, dir_c, end, reach_px, flank_px):
+    """Return where the intensity along a line drops halfway from the band's level `RAMP_DEPTH_PX` behind `end`
+    (a distance along the line from (`base_r`, `base_c`) along the unit (`dir_r`, `dir_c`): the half-level
+    crossing `half_level_crossing` found with `reach_px`, `flank_px`) to the outside level beyond it, when the
+    band's end is a ramp longer than that reach: nan otherwise.
+
+    Levels are read as `half_level_crossing` reads them (three lines 0.5 px apart, over `flank_px`): near over
+    [end - reach - flank, end - reach], deep over [end - depth - flank, end - depth], outside over
+    [end + reach, end + reach + flank]. A ramp is a deep level beyond the near one (towards the band's side) by
+    `RAMP_RISE` of the deep level's contrast with the outside; the crossing of their mean nearest to `end`, within
+    [end - depth, end + reach], is returned (linear interpolation). A ramp longer than about the depth puts the
+    deep level on it too, and the crossing then lies between the ramp's middle and `end` (a 10 px ramp under a
+    0.7 px blur: 0.4 px past its middle, against 2.6 px)."""
+    depth = np.float32(RAMP_DEPTH_PX)
+    if not reach_px < depth:
+        return np.float32(np.nan)
+    half_px = np.float32(0.5)
+    near = _line_level(image, base_r, base_c, dir_r, dir_c, end - reach_px - flank_px, end - reach_px, half_px)
+    deep = _line_level(image, base_r, base_c, dir_r, dir_c, end - depth - flank_px, end - depth, half_px)
+    outside = _line_level(image, base_r, base_c, dir_r, dir_c, end + reach_px, end + reach_px + flank_px, half_px)
+    contrast = abs(deep - outside)
+    sign = 1.0 if deep > outside else -1.0
+    if not (contrast >= 2.0 and sign * (deep - near) > RAMP_RISE * contrast):
+        return np.float32(np.nan)
+    half = 0.5 * (deep + outside)
+    best = np.float32(np.nan)
+    best_gap = 1e30
+    prev = 0.0
+    t = -depth
+    k = 0
+    while t <= reach_px:
+        value = sign * (_line_level(image, base_r, base_c, dir_r, dir_c, end + t, end + t, half_px) - half)
+        if k > 0 and prev > 0.0 >= value:
+            cross = t - 0.25 + 0.25 * prev / (prev - value)
+            if abs(cross) < best_gap:
+                best_gap = abs(cross)
+                best = np.float32(end + cross)
+        prev = value
+        t += np.float32(0.25)
+        k += 1
+    return best
+
+
 _AXIS: Final = types.UniTuple(float64, 5)
 """`_band_axis`'s return: (ok, base_r, base_c, dir_r, dir_c)."""
 
@@ -307,6 +375,14 @@ def _band_tip(poly, n, smooth, base_r, base_c, dir_r, dir_c, best, width_px, cap
         end = half_level_crossing(smooth, np.float32(base_r), np.float32(base_c), np.float32(dir_r),
                                   np.float32(dir_c), np.float32(best), reach, np.float32(2.0))  # fmt: skip
         if not math.isnan(end):
+            # A tip sliding along the rope ends the band in a ramp longer than the reach: the level just behind
+            # the crossing is still on it, and the crossing lies towards the ramp's outer end (simulated late
+            # swing, tuning seed, frames 50-53: 0.7-1.7 px). The band's level farther behind gives the ramp's middle,
+            # the tip at mid-exposure.
+            ramp = ramp_end_crossing(smooth, np.float32(base_r), np.float32(base_c), np.float32(dir_r),
+                                     np.float32(dir_c), end, reach, np.float32(2.0))  # fmt: skip
+            if not math.isnan(ramp):
+                end = ramp
             # Near the corner of a sweep of many widths the rope covers the axis for a small part of the exposure
             # (a fourth at 4 widths), and a textured or noisy plate moves the crossing there, mostly nearer the fixed
             # end (simulated `texture = 0.2`, tuning seed, frame 32: 3.2 px short, the contour's end 0.6 px;

@@ -36,6 +36,13 @@ SHIFT_SPAN: Final = 3.0
 less towards the fixed end: the shape never folds back on itself (the points move by at most a third of their
 spacing more than their neighbours)."""
 SHIFT_MIN_PX: Final = 4.0
+MIN_SLIDE_PX: Final = 1.0
+SLIDE_SHARE: Final = 0.5
+"""A tip whose path slides along its own axis by at least `MIN_SLIDE_PX`, and by at least `SLIDE_SHARE` of its
+sweep, counts as collapsed when the measured tips lie apart along that axis by less than `COLLAPSED` of the
+path's slide, however far apart across it: the band's corners show the sweep across the rope, not along it
+(simulated late swing, tuning seed: frames 13 and 47 slid 3.4 and 2.5 px with a sideways sweep of 2.8-2.9 px, the
+tips 0.8-1.4 px off, not collapsed as a whole; frames 17-18 slid 1.4-1.8 px, below `MIN_SWEEP_PX`)."""
 MAX_GROWTH: Final = 2.0
 SAME_PATH_PX: Final = 4.0
 """A sweep from the path larger than ``MAX_GROWTH`` x the last frame's sweep (the motion model's) + this is no
@@ -151,6 +158,28 @@ def shift_tip(shape, d_r, d_c):
         k -= 1
 
 
+@kernel(boolean(f4_2d, f4_2d, float64, float64, float64))
+def _slid(begin, end, s_r, s_c, sweep):
+    """Whether the path's sweep (`s_r`, `s_c`; length `sweep`) slides the tip along its axis (the mean direction
+    of both shapes' last three points) by `MIN_SLIDE_PX` and `SLIDE_SHARE` of the sweep or more, and the measured
+    tips of `begin` and `end` lie apart along that axis, in the path's direction, by less than `COLLAPSED` of it."""
+    nb = begin.shape[0]
+    ne = end.shape[0]
+    if nb < 3 or ne < 3 or not sweep >= MIN_SLIDE_PX:
+        return False
+    u_r = float64(begin[nb - 1, 0]) - float64(begin[nb - 3, 0]) + float64(end[ne - 1, 0]) - float64(end[ne - 3, 0])
+    u_c = float64(begin[nb - 1, 1]) - float64(begin[nb - 3, 1]) + float64(end[ne - 1, 1]) - float64(end[ne - 3, 1])
+    norm = math.hypot(u_r, u_c)
+    if not norm > 0.0:
+        return False
+    slide = (s_r * u_r + s_c * u_c) / norm
+    if not (abs(slide) >= MIN_SLIDE_PX and abs(slide) >= SLIDE_SHARE * sweep):
+        return False
+    measured = ((float64(end[ne - 1, 0]) - float64(begin[nb - 1, 0])) * u_r
+                + (float64(end[ne - 1, 1]) - float64(begin[nb - 1, 1])) * u_c) / norm  # fmt: skip
+    return measured * math.copysign(1.0, slide) < COLLAPSED * abs(slide)
+
+
 @kernel(boolean(f4_2d, f4_2d, f4_1d, int64, int64, int64, int64, i8_1d, f8_2d, i8_1d, f8_2d, float64))
 def restore_tip_sweep(
     begin, end, fixed, t_ns, t_end_ns, max_age_ns, exposure_ns, motion_state, motion_log, order_state, hist_rc,
@@ -188,7 +217,9 @@ def restore_tip_sweep(
         s_r, s_c, last_sweep = sweep_from_history(t_ns + exposure_ns // 2, exposure_ns, max_age_ns, order_state,
                                                   hist_rc, mid_r, mid_c)  # fmt: skip
     sweep = math.hypot(s_r, s_c)
-    if not (sweep >= MIN_SWEEP_PX and math.hypot(er - br, ec - bc) < COLLAPSED * sweep):
+    if not (sweep >= MIN_SWEEP_PX and math.hypot(er - br, ec - bc) < COLLAPSED * sweep) and not _slid(
+        begin, end, s_r, s_c, sweep
+    ):
         return False
     # The motion model keeps its midpoints about the fixed end of their time: read about another one (the fixed
     # end was found again), they give a path that jumps. A sweep far beyond the last frame's is no path.

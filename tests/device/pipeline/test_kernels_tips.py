@@ -258,6 +258,53 @@ def test_extend_to_band_end_bounds_the_crossing_of_a_wide_sweep_only() -> None:
         np.testing.assert_allclose(poly[count - 1], [20.0, crossing], atol=0.01)
 
 
+def _ramp_image(inner: float, outer: float, blur: float = 0.7) -> np.ndarray:
+    """A horizontal band (row 20, 3 px wide) from column 5 whose end is a ramp: covered for the whole exposure up to
+    column `inner`, for none of it beyond `outer`, linearly between (a tip sliding along the rope from `outer` to
+    `inner`), blurred across (closed form) and along (numerically), as float32."""
+    rows, cols = np.mgrid[0:40, 0:70].astype(float)
+    s = blur * math.sqrt(2)
+    across = 0.5 * (erf((rows - 20.0 + 1.5) / s) - erf((rows - 20.0 - 1.5) / s))
+    fine = np.arange(0.0, 70.0, 0.05)
+    coverage = np.clip((outer - fine) / (outer - inner), 0.0, 1.0) * (fine >= 5.0)
+    kernel = np.exp(-0.5 * (np.arange(-100, 101) * 0.05 / blur) ** 2)
+    blurred = np.convolve(coverage, kernel / kernel.sum(), mode="same")
+    along = np.interp(cols, fine, blurred)
+    return (30 + 150 * across * along).astype(np.float32)
+
+
+def test_ramp_end_crossing_reads_the_middle_of_a_sliding_tips_ramp() -> None:
+    f = np.float32
+    reach = f(3 * 0.5 + 1)
+    # A tip that slid 10 px along the rope (columns 50 -> 40): the crossing within the usual reach of the outline's
+    # end (column 49) is still on the ramp, past its middle (column 45, the tip at mid-exposure).
+    image = _ramp_image(40.0, 50.0)
+    end = K.half_level_crossing(image, f(20.0), f(10.0), f(0.0), f(1.0), f(39.0), reach, f(2.0))
+    assert 10.0 + end > 47.0
+    ramp = K.ramp_end_crossing(image, f(20.0), f(10.0), f(0.0), f(1.0), end, reach, f(2.0))
+    assert 45.0 <= 10.0 + ramp < 45.5  # its deep level 6-8 px behind is at the ramp's inner end
+    # A ramp of 8 px (columns 51 -> 43): the deep level is the band's, the crossing the ramp's middle.
+    image = _ramp_image(43.0, 51.0)
+    end = K.half_level_crossing(image, f(20.0), f(10.0), f(0.0), f(1.0), f(40.0), reach, f(2.0))
+    ramp = K.ramp_end_crossing(image, f(20.0), f(10.0), f(0.0), f(1.0), end, reach, f(2.0))
+    assert 10.0 + ramp == pytest.approx(47.0, abs=0.1)
+    # A flat end that did not slide (or slid less than the reach): no ramp, the crossing stands.
+    for image in (_band_image(50.3, blur=0.7), _ramp_image(48.5, 50.5)):
+        end = K.half_level_crossing(image, f(20.0), f(10.0), f(0.0), f(1.0), f(39.5), reach, f(2.0))
+        assert math.isnan(K.ramp_end_crossing(image, f(20.0), f(10.0), f(0.0), f(1.0), end, reach, f(2.0)))
+    # Through the tip fit: the outline ends at column 49.5, the tip goes to the ramp's middle.
+    image = _ramp_image(40.0, 50.0)
+    cols = np.arange(8.0, 46.0, 1.0)
+    poly = np.zeros((100, 2), np.float32)
+    poly[: cols.size] = np.stack([np.full(cols.size, 20.0), cols], axis=1)
+    top = np.stack([np.full(45, 18.5), np.arange(5.0, 50.0)], axis=1)
+    tip = np.stack([np.arange(18.5, 21.6, 0.5), np.full(7, 49.5)], axis=1)
+    bottom = np.stack([np.full(45, 21.5), np.arange(49.0, 4.0, -1.0)], axis=1)
+    contour = np.concatenate([top, tip, bottom]).astype(np.float32)
+    count = K.extend_to_band_end(poly, cols.size, contour, len(contour), image, 3.0, 0.0, 5.0, 9.0, 0.5, 0.0, 0.0)
+    assert poly[count - 1, 0] == pytest.approx(20.0, abs=1e-4) and 45.0 <= poly[count - 1, 1] < 45.6  # not 47-48
+
+
 def test_band_edge_model_limits() -> None:
     model = BandEdgeModel(gaussian_weights(1.0), 0.5)
     # A wide rope's edges sit on its outline; blur pushes the edges of a thin one apart.

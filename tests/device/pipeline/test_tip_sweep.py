@@ -124,6 +124,38 @@ def test_restore_tip_sweep_moves_collapsed_tips_and_their_history() -> None:
                                  order_state, hist, -1.0)  # fmt: skip
 
 
+def test_tips_apart_across_but_not_along_a_sliding_path_are_moved() -> None:
+    # A tip sliding along its own axis while the rope sweeps a little sideways (simulated late swing, tuning seed,
+    # frames 13 and 47: 3.4 / 2.5 px along, 2.8-2.9 px across): the band's corners show the sideways part only,
+    # and the tips lie apart by more than `COLLAPSED` of the whole sweep. Along the axis they are collapsed.
+    fixed, period, exposure, state, log, t_ns, a = _straight_path()  # the path slides 8 px along +col
+    order_state = np.zeros(K.ORDER_STATE_SIZE, np.int64)
+    hist = np.zeros((K.HISTORY, 2))
+    args = (fixed, t_ns, t_ns + exposure, 4 * period, exposure, state, log, order_state, hist, -1.0)
+    b = a.copy()
+    b[:, 0] += np.float32(5.0)  # 5 px across (more than 0.6 x 8), 0 along
+    c, d = a.copy(), b.copy()
+    assert restore_tip_sweep(c, d, *args)
+    # to the midpoint -/+ half the path's sweep (8 px along, and across the midpoint's own step from the model's)
+    s_r, s_c = sweep_from_path(fixed, t_ns + exposure // 2, exposure, 4 * period, state, log, 12.5, 132.0)
+    assert s_c == pytest.approx(8.0) and abs(s_r) < 0.3 * s_c
+    assert c[-1].tolist() == pytest.approx([12.5 - s_r / 2, 132.0 - s_c / 2], abs=1e-4)
+    assert d[-1].tolist() == pytest.approx([12.5 + s_r / 2, 132.0 + s_c / 2], abs=1e-4)
+    # Apart along the axis by the path's slide: they stand.
+    c, d = a.copy(), b.copy()
+    d[-3:, 1] += np.float32(8.0)
+    kept = d.copy()
+    assert not restore_tip_sweep(c, d, *args)
+    assert d.tolist() == kept.tolist()
+    # A rope across the path (its tips' axis along rows, the tips 7 px apart along the path, more than 0.6 of its
+    # 10.6 px): the path does not slide along the rope, nothing moves.
+    rows = np.arange(-62.0, 10.1, 2.0)
+    c = np.stack([rows, np.full_like(rows, 132.0)], axis=1).astype(np.float32)
+    d = c.copy()
+    d[:, 1] += np.float32(7.0)
+    assert not restore_tip_sweep(c, d, *args)
+
+
 def test_without_the_motion_model_the_time_orders_history_gives_the_path() -> None:
     # After a frame without shapes (or a flagged one) the motion model is cleared, but the time order keeps the
     # last frames' tips (simulated lab-rolling, tuning seed, frame 170 after a lost frame: tips 1.0 px apart against
