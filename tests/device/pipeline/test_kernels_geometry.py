@@ -270,7 +270,8 @@ def test_find_caps_keeps_the_ends_apart_on_a_band_walked_twice() -> None:
     assert idx.tolist() == [0, 2 * half]  # without a distance: the same end twice
     assert K.find_caps(turn, points, n, n // 8, 8.0, idx) == 2
     assert idx.tolist() == [0, half]
-    assert K.find_caps(turn, points, n, n // 8, 100.0, idx) == K.NOT_FOUND
+    assert K.find_caps(turn, points, n, n // 8, 100.0, idx) == 2
+    assert idx.tolist() == [0, 2 * half]  # no end that far: as without the distance
 
 
 def _rope_image(width_px: float, bright: bool) -> np.ndarray:
