@@ -397,11 +397,13 @@ class BlurSplitter:
         seg[1, 0] = br
         seg[1, 1] = bc
         sweep = math.hypot(ar - br, ac - bc)
+        # Read once per split: while it is learned each reading is one of the first `CONTRAST_FRAMES` frames'.
+        contrast = self._contrast(fixed_rc)
         if sweep < 1.5 * width:
             # The corners of the band are a rope width apart whatever the sweep below that: read the sweep from
             # the edge slope instead (contrast / sweep, see `BandMeasure.sweep_from_gradient`).
             from_slope = self.measure.sweep_from_gradient(
-                self._chain, self._n, self._mag_ro, i_fix, seg_a, seg_b, self._contrast(fixed_rc), consts
+                self._chain, self._n, self._mag_ro, i_fix, seg_a, seg_b, contrast, consts
             )
             if math.isfinite(from_slope):
                 sweep = min(from_slope, 1.5 * width)
@@ -409,9 +411,7 @@ class BlurSplitter:
         # A tip that turns while a wave sweeps the body (a whip) ends the band one rope wide: the body's own
         # sweep keeps the split, whose sides are then the two shapes there (the band's middle is half a sweep off).
         if sweep < self.static_ratio * width:
-            body = self.measure.body_sweep(
-                self._chain, self._n, self._mag_ro, i_fix, seg_a, seg_b, self._contrast(fixed_rc), consts
-            )
+            body = self.measure.body_sweep(self._chain, self._n, self._mag_ro, i_fix, seg_a, seg_b, contrast, consts)
             if not body >= self.static_ratio * width:
                 return self.static(fixed_rc)
         tables = consts.tables
@@ -419,7 +419,6 @@ class BlurSplitter:
         gx, gy, pol = self._gx, self._gy, self.polarity_used
         # The local sweep along each side, from the edge's slope (contrast / sweep): a whipping rope does not
         # sweep in proportion to the distance from the fixed end. Without a contrast reading, that proportion.
-        contrast = self._contrast(fixed_rc)
         local = plus if contrast >= 5.0 else self._zero
         if local:
             # The usual case, in one kernel call; its rare failures (a full buffer) are redone step by step below.

@@ -70,10 +70,16 @@ def measure_widths(edges, lo, hi, mag, gx, gy, chain, n, polarity, max_px, out_w
     return n
 
 
-@kernel(int32(f4_1d_ro, int32, int32, i4_1d))
-def find_caps(turn, n, min_gap, out_idx):
+@kernel(int32(f4_1d_ro, f4_2d_ro, int32, int32, float32, i4_1d))
+def find_caps(turn, points, n, min_gap, min_dist, out_idx):
     """Write into `out_idx` the contour indices of the two rope ends: the largest turning angle, then the largest
-    at least `min_gap` chain steps from it. Returns 2 or NOT_FOUND."""
+    at least `min_gap` chain steps and `min_dist` px (between the `points`) from it (none so far: the largest at
+    least `min_gap` steps away, as before the distance). Returns 2 or NOT_FOUND.
+
+    The distance: a band open at the clamp is traced out and back, so each of its pixels comes twice, a
+    contour's length apart; the open ends' U-turns (turning through 180 degrees) then made both "ends", and the
+    static centreline ran from the clamp to the tip and back (lab-dark, 240 frames: 212 and 213, tips 372 px off).
+    """
     if n < 3:
         return NOT_FOUND
     e1 = 0
@@ -82,13 +88,20 @@ def find_caps(turn, n, min_gap, out_idx):
             e1 = i
     e2 = -1
     best = -1.0
+    near = -1  # the largest at least `min_gap` steps away, however near: taken when no end lies `min_dist` away
+    best_near = -1.0
     for i in range(n):
         gap = abs(i - e1)
         if min(gap, n - gap) < min_gap:
             continue
-        if turn[i] > best:
+        if turn[i] > best_near:
+            best_near = turn[i]
+            near = i
+        if turn[i] > best and math.hypot(points[i, 0] - points[e1, 0], points[i, 1] - points[e1, 1]) >= min_dist:
             best = turn[i]
             e2 = i
+    if e2 < 0:
+        e2 = near
     if e2 < 0:
         return NOT_FOUND
     out_idx[0] = e1

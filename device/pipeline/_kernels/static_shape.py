@@ -20,6 +20,9 @@ from ropecam.shared.jit import f4_2d_ro, i4_2d_ro, kernel
 
 MIN_POINTS: Final = 8
 """Contours with fewer points have no centreline."""
+ONE_PASS: Final = 0.7
+"""The largest fraction of the contour the walk from the first end to the second takes forward (a side of a
+closed outline: about half); more, and the walk goes backward (see `static_shape`)."""
 
 
 @kernel(
@@ -31,9 +34,10 @@ def static_shape(points, chain, n, gx, gy, smooth, polarity, width, fixed, fixed
     move, as the kernels one by one make it:
 
     1. `turning_angles` at the scale of the rope width (at least 3 points) into ``turn``, and `find_caps` (the two
-       rope ends at least ``max(4, n // 8)`` points apart) into ``idx``; with a fixed end (`fixed`: at `fixed_r`,
-       `fixed_c`), the end nearer it first;
-    2. `offset_by_gradient` from the first end to the second, half the width ``width.width_px`` into the rope along
+       rope ends at least ``max(4, n // 8)`` points and two widths + 2 px apart) into ``idx``; with a fixed end
+       (`fixed`: at `fixed_r`, `fixed_c`), the end nearer it first;
+    2. `offset_by_gradient` from the first end to the second (forward, or backward when forward takes more than
+       `ONE_PASS` of the contour), half the width ``width.width_px`` into the rope along
        `polarity` times the gradient (`gx`, `gy`), into side A;
     3. `extend_to_band_end` (the tip carried to where the band ends on `smooth`, with the width's ``cap_px``,
        ``skip_px``, ``span_px``, ``blur_px``), then with a fixed end `anchor_start` at it (axis from ``skip_px``
@@ -55,7 +59,7 @@ def static_shape(points, chain, n, gx, gy, smooth, polarity, width, fixed, fixed
     out_a = buffers.sides[2]
     width64 = width.width64_px
     turning_angles(points, n, np.int32(max(3, int(np.rint(width64)))), turn)
-    if find_caps(turn, n, np.int32(max(4, n // 8)), idx) < 0:
+    if find_caps(turn, points, n, np.int32(max(4, n // 8)), np.float32(2.0 * width64 + 2.0), idx) < 0:
         return NOT_FOUND
     e1 = idx[0]
     e2 = idx[1]
@@ -64,8 +68,13 @@ def static_shape(points, chain, n, gx, gy, smooth, polarity, width, fixed, fixed
         d2 = math.hypot(points[e2, 0] - fixed_r, points[e2, 1] - fixed_c)
         if d2 < d1:
             e1, e2 = e2, e1
+    # One pass from end to end: on a trace that walks its band twice (out and back) the forward way from the
+    # first end can pass the second end's other copy and the first end again; then the backward way is one pass.
+    direction = np.int32(1)
+    if (e2 - e1 + n) % n > ONE_PASS * n:
+        direction = np.int32(-1)
     count = offset_by_gradient(
-        points, chain, n, e1, e2, np.int32(1), gx, gy, polarity, width.width_px, np.float32(0.0), side_a
+        points, chain, n, e1, e2, direction, gx, gy, polarity, width.width_px, np.float32(0.0), side_a
     )
     if count < 2:
         return NOT_FOUND

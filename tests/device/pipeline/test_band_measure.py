@@ -41,6 +41,8 @@ def test_a_frame_with_a_wrong_width_does_not_set_the_contrast() -> None:
             if name == "block" and frame.index in last_readings:
                 image[12:40, 96:106] = image.max()  # a bright block hanging from the fixed end (no mask)
             result = pipeline.process(image, frame.index, frame.t_ns, float(rope.exposure_us))
+            # One reading per split (the split once read it up to three times a frame, and settled after four)
+            assert len(pipeline.splitter.measure.contrasts) == min(frame.index + 1, CONTRAST_FRAMES)
             if frame.index in last_readings and name == "block":
                 assert pipeline.splitter.width > 6.0  # the contour took the block in: a wrong edge spacing
             if frame.index > last_readings[-1]:

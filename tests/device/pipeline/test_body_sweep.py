@@ -21,12 +21,15 @@ from ropecam.host.sim.presets import preset
 
 from .conftest import curve_error, resample
 
-FIRST_S = 1.12
-"""``rig-soft`` (4 ms, 119 FPS; the motion of the ``lab`` presets) from 1.12 s after the release: on frames 4-8 the
-tip sweeps 0.9-2.0 px per exposure while a stretch at 20-30 % of the rope sweeps 3.1-3.9 px (a wave running down
-the body); main 524728d reported them as the static fallback, centreline 0.6-0.8 px off."""
-FRAMES = 9
-WHIP = range(4, 9)
+LEAD = 6
+"""Frames before 1.12 s: the contrast is read on the first ten splits (`CONTRAST_FRAMES`), and only then does the
+steady split (`split_frame`) run, so the whip frames come after ten."""
+FIRST_S = 1.12 - LEAD / 119.0
+"""``rig-soft`` (4 ms, 119 FPS; the motion of the ``lab`` presets) from 1.12 s after the release: on frames 4-8 from
+then the tip sweeps 0.9-2.0 px per exposure while a stretch at 20-30 % of the rope sweeps 3.1-3.9 px (a wave running
+down the body); main 524728d reported them as the static fallback, centreline 0.6-0.8 px off."""
+FRAMES = 9 + LEAD
+WHIP = range(4 + LEAD, 9 + LEAD)
 
 
 @pytest.fixture(scope="module")

@@ -247,10 +247,31 @@ def test_trim_polyline_end_matches_reference() -> None:
 def test_find_caps_matches_reference() -> None:
     turn = np.zeros(40, np.float32)
     turn[[3, 5, 22, 38]] = [3.0, 2.9, 2.5, 2.8]
+    points = np.stack([np.arange(40, dtype=np.float32), np.zeros(40, np.float32)], axis=1)
     idx = np.zeros(2, np.int32)
-    assert K.find_caps(turn, 40, 8, idx) == 2
+    assert K.find_caps(turn, points, 40, 8, 0.0, idx) == 2
     assert idx.tolist() == [3, 22]  # 5 and 38 are within 8 steps of 3 (cyclic)
-    assert K.find_caps(turn, 2, 1, idx) == K.NOT_FOUND
+    assert K.find_caps(turn, points, 2, 1, 0.0, idx) == K.NOT_FOUND
+
+
+def test_find_caps_keeps_the_ends_apart_on_a_band_walked_twice() -> None:
+    # A band open at one end, traced out and back: every pixel twice, half the contour apart. Its U-turns at the
+    # open end turn most, and both copies of one are far apart along the chain but at the same pixel.
+    half = 40
+    along = np.concatenate([np.arange(half), np.arange(half)[::-1]]).astype(np.float32)
+    points = np.stack([along, np.zeros(2 * half, np.float32)], axis=1)
+    points = np.concatenate([points, points])  # walked twice
+    n = points.shape[0]
+    turn = np.zeros(n, np.float32)
+    turn[[0, 2 * half]] = np.pi  # the U-turn at the open end, both copies
+    turn[[half, 3 * half]] = [2.0, 1.9]  # the band's far end (its cap), both copies
+    idx = np.zeros(2, np.int32)
+    assert K.find_caps(turn, points, n, n // 8, 0.0, idx) == 2
+    assert idx.tolist() == [0, 2 * half]  # without a distance: the same end twice
+    assert K.find_caps(turn, points, n, n // 8, 8.0, idx) == 2
+    assert idx.tolist() == [0, half]
+    assert K.find_caps(turn, points, n, n // 8, 100.0, idx) == 2
+    assert idx.tolist() == [0, 2 * half]  # no end that far: as without the distance
 
 
 def _rope_image(width_px: float, bright: bool) -> np.ndarray:

@@ -49,7 +49,8 @@ def _one_by_one(args: tuple) -> tuple[int, np.ndarray, np.ndarray]:
     if n < 8:
         return K.NOT_FOUND, np.empty((0, 2), np.float32), buffers.seg
     K.turning_angles(points, n, np.int32(max(3, round(width.width64_px))), buffers.turn)
-    if K.find_caps(buffers.turn, n, np.int32(max(4, n // 8)), buffers.idx) < 0:
+    min_dist = np.float32(2.0 * width.width64_px + 2.0)
+    if K.find_caps(buffers.turn, points, n, np.int32(max(4, n // 8)), min_dist, buffers.idx) < 0:
         return K.NOT_FOUND, np.empty((0, 2), np.float32), buffers.seg
     e1, e2 = np.int32(buffers.idx[0]), np.int32(buffers.idx[1])
     if fixed:
@@ -58,8 +59,9 @@ def _one_by_one(args: tuple) -> tuple[int, np.ndarray, np.ndarray]:
         if d2 < d1:
             e1, e2 = e2, e1
     side_a, out_a = buffers.sides[0], buffers.sides[2]
+    direction = np.int32(-1 if (e2 - e1 + n) % n > 0.7 * n else 1)
     count = K.offset_by_gradient(
-        points, chain, n, e1, e2, np.int32(1), gx, gy, polarity, width.width_px, np.float32(0.0), side_a
+        points, chain, n, e1, e2, direction, gx, gy, polarity, width.width_px, np.float32(0.0), side_a
     )
     if count < 2:
         return K.NOT_FOUND, np.empty((0, 2), np.float32), buffers.seg
