@@ -463,9 +463,10 @@ class SelfChecks:
         _set_quality(self.quality, self._measures.item())
         # A one-shape frame right after one that failed `fallback_sweep` has no prediction to check its sweep
         # against (that failure cleared the motion model): the tip swept a frame ago, so it fails too (once: a rope
-        # coming to rest must be reported again).
+        # coming to rest must be reported again). ``tip_short`` is the last check: a frame that failed only it
+        # passed every other one, so the carried failure takes its place (it clears the motion model again).
         carried = (
-            code == K.CHECK_NONE
+            (code == K.CHECK_NONE or code == K.CHECK_TIP_SHORT)
             and self._carry
             and self._carry_sweep
             and self.quality[_Q3] == 0.0

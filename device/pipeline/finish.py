@@ -311,6 +311,7 @@ class ResultFinisher:
         (confidence below `UNDECIDED_ORDER`: the still frames give no motion to go by) reports the band's middle
         line instead (its confidence kept). `corner_px`: the split's tips from its segmentation points, as
         `check` takes it."""
+        self.short_only = False  # (every frame's, `finish_tracked`'s too: `_take_verdict` sets it)
         after_still, self.after_still = self.after_still, outcome.shape_a is outcome.shape_b
         if (
             after_still
@@ -353,12 +354,7 @@ class ResultFinisher:
         area = 0.0
         if split and checks.needs_area(exposure_ns):
             area = contour_area_px2(self.tracer.points, self.locator.prev_count)
-        used_px = outcome.width_px
-        if outcome.method is _BLUR_SPLIT:
-            # The split reports the rope's width (`EdgeTables.width_px`), the traits the edges' spacing: compare
-            # the spacings (a thin rope's edges lie up to 3x its width apart, and its width read from them swings
-            # by 2x for a 0.1 px change of spacing).
-            used_px = self.splitter.width
+        used_px = self._check_width(outcome)
         corners = outcome.segmentation_points
         if split and corners is not None and not math.isnan(corner_px):
             # ... and the tips as reported: a restore that moved them off the corners is not trusted either
@@ -402,12 +398,18 @@ class ResultFinisher:
             if static is None:
                 # Without a known exposure only a split that passes every check shows blur: never report another.
                 result.begin = result.end = result.material_begin = result.material_end = None
-            elif exposure_ns > 0 and self._short(static.shape_a, outcome.width_px):
+            elif exposure_ns > 0 and self._short(static.shape_a, self._check_width(outcome)):
                 # The static centreline given instead is one shape too: it must reach the band's far end (simulated
                 # lab-hard through the paper's camera at 9 ms, fresh device, tuning seed, frame 28: NO_BLUR with a
                 # centreline 58 px off, its tip 10.7 px from the contour's far end).
                 result.status, result.reason = FrameStatus.IMPLAUSIBLE, Reason.TIP_SHORT.text
                 result.message = checks.message(Reason.TIP_SHORT)
+
+    def _check_width(self, outcome: SplitOutcome) -> float:
+        """The width the self-checks compare where no width is learned yet: the split reports the rope's width
+        (`EdgeTables.width_px`), the traits the edges' spacing, so for a blur split the spacing (a thin rope's edges
+        lie up to 3x its width apart, and its width read from them swings by 2x for a 0.1 px change of spacing)."""
+        return self.splitter.width if outcome.method is _BLUR_SPLIT else outcome.width_px
 
     def _short(self, shape: np.ndarray, width_px: float) -> bool:
         """``tip_short`` of one shape of this frame's contour (`K.tip_short`: its tip against the contour's far end,

@@ -135,7 +135,7 @@ class SteadyFrame:
             margin_px=self.margin_px, height=height, width=width, gain=gain, floor_px=floor_px,
             floor_share=floor_share, low=e.low, high=e.high, min_pixels=tracer.min_pixels, length0_px=length0_px,
             broken_outline=BROKEN_OUTLINE, on_plane=plane is not None, still_dn=still_dn,
-            still_relative=still_relative,
+            still_relative=still_relative, rope_width_px=float(width_tables.tables.width_px),
         )  # fmt: skip
         self._plane[:] = 0.0 if plane is None else plane
         table = self.workspace.steady_table(width_tables, self.checks.buffers, self._plane, constants)

@@ -277,8 +277,8 @@ def tip_turn_deg(shape, reach_px):
 @kernel(boolean(f4_2d_ro, int64, f4_1d, f4_2d))
 def contour_far_end(points, n, fixed, out_far):
     """Write the point of the closed contour's first `n` `points` (row, col) farthest from the fixed end `fixed`
-    (row, col) into ``out_far[0]`` (the band's far end, `check_frame`'s ``tip_short``); return whether there was
-    one (nan written when `n` < 1, `n` exceeds the points or `out_far` has no row)."""
+    (row, col) into ``out_far[0]`` (the band's far end, `check_frame`'s ``tip_short``); return whether one was
+    written (nan left when `n` < 1, `n` exceeds the points or `fixed` is nan; nothing when `out_far` has no row)."""
     if out_far.shape[0] < 1:
         return False
     out_far[0, 0] = math.nan
@@ -294,7 +294,7 @@ def contour_far_end(points, n, fixed, out_far):
             best = d
             out_far[0, 0] = points[k, 0]
             out_far[0, 1] = points[k, 1]
-    return True
+    return best >= 0.0
 
 
 @kernel(boolean(f4_2d_ro, f4_2d_ro, float64, _thresholds_ro))

@@ -55,7 +55,7 @@ from ropecam.device.pipeline._kernels.groups import (
 from ropecam.device.pipeline._kernels.plane import place_on_plane
 from ropecam.device.pipeline._kernels.revisits import count_revisits
 from ropecam.device.pipeline._kernels.split_frame import FRAME_INFO, FRAME_STATE, FRAME_STATES, split_frame
-from ropecam.device.pipeline._kernels.split_shapes import SPLIT_SCALAR, split_width
+from ropecam.device.pipeline._kernels.split_shapes import split_width
 from ropecam.device.pipeline._kernels.tables import buffer1, buffer2, buffer3, slot_frame, slot_frame_address, table_at
 from ropecam.device.pipeline._kernels.tracking import track_frame
 from ropecam.shared.jit import kernel
@@ -109,6 +109,7 @@ STEADY_CONSTANTS: Final = np.dtype(
         ("on_plane", np.int64),
         ("still_dn", np.float64),
         ("still_relative", np.float64),
+        ("rope_width_px", np.float64),
     ]
 )
 """`steady_frame`'s `constants`, one record: the scalars of its kernels that do not change between frames (the band's
@@ -116,7 +117,8 @@ margin, the image size, the band's need model, the Canny thresholds, the smalles
 part of the contour's pixels walked twice before it is no band outline, whether the material points are placed
 on a plane (1: ``plane`` holds its `plane_params`; 0: in pixels), and the learned static scene's still range
 (``still_dn`` + ``still_relative`` x the high level, as `StaticMask.shows_end` reads it; ``still_dn`` negative:
-no learned scene, a ``tip_masked`` verdict stands)."""
+no learned scene, a ``tip_masked`` verdict stands), and the rope's width that `track_frame` takes (the edge model's
+width for the edge spacing, as the step-by-step path gives it: `SplitOutcome.width_px`)."""
 
 _SHAPES: Final = 2
 """`split_frame`'s return when it made the two shapes."""
@@ -397,7 +399,7 @@ def steady_frame(
         motion,
         c["length0_px"],
         Track(fraction, out_points, buffer1(table, STEADY_ROW.out_lengths, np.float64), work_seg),
-        width_scalars[SPLIT_SCALAR.width64_px],
+        c["rope_width_px"],
     )
     result["swap"] = swap
     result["confidence"] = confidence

@@ -25,7 +25,8 @@ from ropecam.shared.jit import f4_1d, f4_2d, f8_2d, kernel
 MOTION_FRAMES: Final = 3
 """Measured frames kept by the motion model (`observe_motion`; its layout is `tracking`'s docstring)."""
 MIN_SWEEP_PX: Final = 2.0
-"""A sweep estimated shorter than this is left as measured (within the tips' own noise)."""
+"""A sweep estimated shorter than this is left as measured (within the tips' own noise), unless the path slides the
+tip along its own axis (`_slid`, from `MIN_SLIDE_PX`)."""
 COLLAPSED: Final = 0.6
 """The measured tips count as collapsed when they lie closer than this fraction of the estimated sweep: the split
 lost at least 40 % of it. Where the band's corners resolve the sweep (a sideways motion, a slanted end that
@@ -40,9 +41,14 @@ MIN_SLIDE_PX: Final = 1.0
 SLIDE_SHARE: Final = 0.5
 """A tip whose path slides along its own axis by at least `MIN_SLIDE_PX`, and by at least `SLIDE_SHARE` of its
 sweep, counts as collapsed when the measured tips lie apart along that axis by less than `COLLAPSED` of the
-path's slide, however far apart across it: the band's corners show the sweep across the rope, not along it
-(simulated late swing, tuning seed: frames 13 and 47 slid 3.4 and 2.5 px with a sideways sweep of 2.8-2.9 px, the
-tips 0.8-1.4 px off, not collapsed as a whole; frames 17-18 slid 1.4-1.8 px, below `MIN_SWEEP_PX`)."""
+path's slide, and across it by no more than the path's whole sweep plus `SLIDE_ACROSS_PX`: the band's corners
+show the sweep across the rope, not along it (simulated late swing, tuning seed: frames 13 and 47 slid 3.4 and 2.5 px
+with a sideways sweep of 2.8-2.9 px, the tips 0.8-1.4 px off, not collapsed as a whole; frames 17-18 slid 1.4-1.8
+px, below `MIN_SWEEP_PX`). Tips farther apart than that, or in the reverse order along the axis by as much, were
+measured apart: they are not a collapse (review of session 17)."""
+SLIDE_ACROSS_PX: Final = 2.0
+"""How much farther apart across the axis than the path's whole sweep (about a lab rope's width) tips that `_slid`
+moves may lie: tips farther apart were measured apart, the path is not theirs."""
 MAX_GROWTH: Final = 2.0
 SAME_PATH_PX: Final = 4.0
 """A sweep from the path larger than ``MAX_GROWTH`` x the last frame's sweep (the motion model's) + this is no
@@ -162,7 +168,8 @@ def shift_tip(shape, d_r, d_c):
 def _slid(begin, end, s_r, s_c, sweep):
     """Whether the path's sweep (`s_r`, `s_c`; length `sweep`) slides the tip along its axis (the mean direction
     of both shapes' last three points) by `MIN_SLIDE_PX` and `SLIDE_SHARE` of the sweep or more, and the measured
-    tips of `begin` and `end` lie apart along that axis, in the path's direction, by less than `COLLAPSED` of it."""
+    tips of `begin` and `end` lie apart along that axis (either way) by less than `COLLAPSED` of it, and across it by
+    at most the whole sweep plus `SLIDE_ACROSS_PX`."""
     nb = begin.shape[0]
     ne = end.shape[0]
     if nb < 3 or ne < 3 or not sweep >= MIN_SLIDE_PX:
@@ -175,9 +182,11 @@ def _slid(begin, end, s_r, s_c, sweep):
     slide = (s_r * u_r + s_c * u_c) / norm
     if not (abs(slide) >= MIN_SLIDE_PX and abs(slide) >= SLIDE_SHARE * sweep):
         return False
-    measured = ((float64(end[ne - 1, 0]) - float64(begin[nb - 1, 0])) * u_r
-                + (float64(end[ne - 1, 1]) - float64(begin[nb - 1, 1])) * u_c) / norm  # fmt: skip
-    return measured * math.copysign(1.0, slide) < COLLAPSED * abs(slide)
+    d_r = float64(end[ne - 1, 0]) - float64(begin[nb - 1, 0])
+    d_c = float64(end[ne - 1, 1]) - float64(begin[nb - 1, 1])
+    measured = (d_r * u_r + d_c * u_c) / norm
+    across = abs(d_c * u_r - d_r * u_c) / norm
+    return abs(measured) < COLLAPSED * abs(slide) and across <= sweep + SLIDE_ACROSS_PX
 
 
 @kernel(boolean(f4_2d, f4_2d, f4_1d, int64, int64, int64, int64, i8_1d, f8_2d, i8_1d, f8_2d, float64))

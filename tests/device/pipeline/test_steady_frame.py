@@ -13,9 +13,11 @@ import pytest
 
 from ropecam.device.capture.synthetic import SyntheticRope
 from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline import steady as steady_module
 from ropecam.device.pipeline._views import FrameSlot, array_layout_known, buffer_table
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
+from ropecam.device.pipeline.result import FrameStatus
 from ropecam.device.pipeline.workspace import steady_constants
 from ropecam.shared.plane import PlaneCalibration
 
@@ -312,3 +314,68 @@ def test_the_table_buffers_cannot_be_replaced() -> None:
     # Every buffer of the table is one of the workspace's (or of the rope width's tables, which the pipeline
     # keeps with the table).
     assert pipeline.edges.gx is ws.edges.gx and pipeline.tracker.work is ws.track.work
+
+
+@pytest.mark.jit_only  # a dozen frames of a pipeline
+def test_the_one_call_gives_track_frame_the_rope_width_the_steps_give_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    """`track_frame` tests for crossing shapes against the rope's width (`uncross_shapes`). The step-by-step path
+    gives it the edge model's width for the edge spacing (`SplitOutcome.width_px`); the one call bound the edge
+    spacing instead until session 17 (the late swing's crossing frames 30 and 53: centreline 0.62 and 0.53 px in
+    one call, 0.32 and 0.22 step by step)."""
+    made: list[dict] = []
+    real = steady_module.steady_constants
+
+    def recorded(**values: float):
+        made.append(values)
+        return real(**values)
+
+    monkeypatch.setattr(steady_module, "steady_constants", recorded)
+    frames = _frames(46)[:24]  # (to the jump at frame 24)
+    pipeline = Pipeline(PipelineConfig(), (frames[0][0].shape[1], frames[0][0].shape[0]))
+    for image, index, t_ns, exposure_us in frames:
+        pipeline.process(image, index, t_ns, exposure_us)
+    assert made, "no steady frame was bound"
+    steps_width = float(pipeline.splitter.frame_call.width_px)
+    assert made[-1]["rope_width_px"] == steps_width
+    assert abs(steps_width - float(pipeline.splitter.width)) > 0.1  # the scene tells the two widths apart
+
+
+@pytest.mark.jit_only  # 2 x 32 frames of a pipeline
+def test_steady_frames_on_a_dusty_plate_are_the_calls_one_by_one(
+    monkeypatch: pytest.MonkeyPatch, swinging_rope: SyntheticRope, dusty_frames: list[tuple[object, np.ndarray]]
+) -> None:
+    """On a dusty plate the learned mask reaches every free tip (`tip_masked`) and the frame disproves it: the one
+    call withdraws the verdict itself (`steady_frame`), the steps in `SelfChecks.check`; the same results frame for
+    frame (review of session 17)."""
+    rope = swinging_rope
+    frames = [(image, f.index, f.t_ns, float(rope.exposure_us)) for f, image in dusty_frames]  # type: ignore[attr-defined]
+    config = PipelineConfig(static_frames=6)
+    rows: dict[bool, list[dict]] = {}
+    stops: list[int] = []
+    real = K.steady_frame
+
+    def counted(*args):
+        stops.append(int(real(*args)))
+        return stops[-1]
+
+    with monkeypatch.context() as patch:
+        patch.setattr(K, "steady_frame", counted)
+        for fused in (True, False):
+            pipeline = Pipeline(config, (rope.width, rope.height))
+            pipeline.one_call = fused
+            rows[fused] = []
+            for frame in frames:
+                result = pipeline.process(*frame)
+                rows[fused].append(
+                    {
+                        f.name: _copy(getattr(result, f.name))
+                        for f in dataclasses.fields(result)
+                        if f.name != "pipeline_us"
+                    }
+                )
+    assert stops.count(K.STEADY_DONE) >= 5  # the one call measured whole frames
+    blind = Pipeline(config, (rope.width, rope.height))
+    blind._finisher.static_mask = blind._steady.static_mask = None
+    assert sum(blind.process(*frame).reason == "tip_masked" for frame in frames) >= 5  # verdicts to withdraw
+    assert {row["status"] for row in rows[True]} == {FrameStatus.OK}
+    _assert_identical(rows[True], rows[False])

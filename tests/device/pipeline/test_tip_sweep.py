@@ -147,6 +147,15 @@ def test_tips_apart_across_but_not_along_a_sliding_path_are_moved() -> None:
     kept = d.copy()
     assert not restore_tip_sweep(c, d, *args)
     assert d.tolist() == kept.tolist()
+    # In the reverse order along the axis by as much, or farther apart across than the whole sweep and a rope
+    # width: measured apart, they stand (review of session 17: each was moved ~12 px).
+    for shift_r, shift_c in ((0.0, -8.0), (16.0, 0.0)):
+        c, d = a.copy(), a.copy()
+        d[-3:, 0] += np.float32(shift_r)
+        d[-3:, 1] += np.float32(shift_c)
+        kept = d.copy()
+        assert not restore_tip_sweep(c, d, *args), (shift_r, shift_c)
+        assert d.tolist() == kept.tolist()
     # A rope across the path (its tips' axis along rows, the tips 7 px apart along the path, more than 0.6 of its
     # 10.6 px): the path does not slide along the rope, nothing moves.
     rows = np.arange(-62.0, 10.1, 2.0)
