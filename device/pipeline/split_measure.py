@@ -231,7 +231,12 @@ class BandMeasure:
     ) -> float:
         """Return the body's own sweep (px): the largest median local sweep read from the edge slope over the
         stretches of both sides between the arc fractions `K.BODY_WINDOWS` (`K.body_sweep`, as `split_frame`
-        decides with it); nan without a contrast reading or samples."""
+        decides with it); nan without a contrast reading or samples.
+
+        The arguments and the contrast floor are `sweep_from_gradient`'s: both read the edge slope of the same two
+        sides (`K.slope_sweep_median`), the tip's sweep extrapolated there, the body's own here. Two calls because
+        `BlurSplitter._split` wants this one only when the tip's sweep is below ``static_ratio`` widths (as
+        `split_frame`)."""
         if not contrast >= 5.0:
             return float("nan")
         return float(

@@ -108,6 +108,11 @@ def smooth_rows(frame, weights, hor_lo, hor_hi, r_begin, r_end, out_tmp):
     w0 = weights[0]
     w1 = weights[min(1, 2 * radius)]
     w2 = weights[min(2, 2 * radius)]
+    # Each pass's row loop starts as the others' do (here, `smooth_columns`, `sobel_rows`, `suppress_rows`): the
+    # span of row r + AHEAD asked for, then the row's span padded to whole vectors. Written out in each on purpose:
+    # the planes asked for and the strides differ per pass, and a step kernel the loops share costs its call where
+    # Numba does not inline it (docs/speed.md, house10: +3-37 % on the split's and the band's loops; not measured
+    # on these passes). `smooth_box`, inside the steady frame's `split_frame`, runs this pass and `smooth_columns`.
     for r in range(r_begin, r_end + 1):
         ahead = r + AHEAD
         if ahead <= r_end and hor_hi[ahead] >= hor_lo[ahead]:
@@ -325,7 +330,7 @@ def sobel_rows(smooth, sob_lo, sob_hi, r_begin, r_end, out_gx, out_gy, out_mag):
     ogy = out_gy.reshape(size)
     omag = out_mag.reshape(size)
     u1 = np.uint64(1)
-    for r in range(r_begin, r_end + 1):
+    for r in range(r_begin, r_end + 1):  # the row loop's start as `smooth_rows`' (see the comment there)
         ahead = r + AHEAD
         if ahead <= r_end and sob_hi[ahead] >= sob_lo[ahead]:
             first = ahead * width + np.int64(sob_lo[ahead])
