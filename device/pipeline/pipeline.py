@@ -230,7 +230,7 @@ class Pipeline:
         self._measure_contour(image, result, exposure_ns, n, used_roi)
 
     def _measure_steady(
-        self, image: NDArray[np.uint8], result: PipelineResult, exposure_ns: int, args: list, predict: bool
+        self, image: NDArray[np.uint8], result: PipelineResult, exposure_ns: int, args: int, predict: bool
     ) -> None:
         """Measure a steady frame in one kernel call (`SteadyFrame`), then go on from where the call stopped as
         `RopeLocator.locate` and `_measure_contour` go on after those calls: the same state and result as the
