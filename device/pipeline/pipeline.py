@@ -156,14 +156,9 @@ class Pipeline:
             self.stages.forget(roi=True)
         else:
             image = self._tone.apply(np.ascontiguousarray(frame)) if image is None else image  # (not C-contiguous)
-            if self.thresholds.measuring:
-                measured = self.thresholds.measure(image)
-                if measured is not None:
-                    self.stages.set_thresholds(*measured)
-            elif self.thresholds.following:
-                followed = self.thresholds.follow(image)
-                if followed is not None:
-                    self.stages.set_thresholds(*followed)
+            thresholds = self.thresholds.update(image)  # measured on the first frames, then followed
+            if thresholds is not None:
+                self.stages.set_thresholds(*thresholds)
             if self.static_mask.learning:
                 self.static_mask.learn(image)
                 if not self.static_mask.learning and self._unclean_frames > 0:
