@@ -102,7 +102,7 @@ class SteadyFrame:
         """The tracker's plane parameters as the table's writable row (zeros without a plane)."""
 
     def unbind(self) -> None:
-        """Make the argument list again on the next `args` (a constant in it, such as a threshold, changed)."""
+        """Make the table again on the next `args` (a constant in it, such as a threshold, changed)."""
         self._bound = None
 
     def args(self) -> int | None:
