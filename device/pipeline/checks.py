@@ -248,8 +248,8 @@ class SelfChecks:
     """
 
     __slots__ = (
-        "_carry", "_carry_sweep", "_measures", "_predicted", "_settled_frames", "_swept", "_thresholds", "buffers",
-        "config", "quality",
+        "_carry", "_carry_sweep", "_measure_cells", "_measures", "_predicted", "_settled_frames", "_swept",
+        "_thresholds", "buffers", "config", "quality",
     )  # fmt: skip
 
     def __init__(self, config: ChecksConfig, fallback_single: bool = True) -> None:
@@ -267,6 +267,7 @@ class SelfChecks:
         self._thresholds = ro(thresholds)
         self._measures = np.zeros(1, K.CHECK_QUALITY)
         """The last checked frame's measures, by name (`check_frame` writes them; `quality` holds a copy)."""
+        self._measure_cells = memoryview(self._measures.view(np.float64))  # the same, cell by cell (`verdict`)
         self._settled_frames = 0
         self._carry_sweep = float(thresholds[0]["fallback_sweep_widths"]) > 0.0
         self._swept = False
@@ -460,7 +461,7 @@ class SelfChecks:
     def verdict(self, code: int) -> tuple[FrameStatus, Reason]:
         """The status and reason of `check_frame`'s `code` (its measures are in ``buffers[2]``, which go into
         `quality`): `check`'s last step, for a `check_frame` call made elsewhere (the pipeline's `steady_frame`)."""
-        _set_quality(self.quality, self._measures.item())
+        _set_quality(self.quality, self._measure_cells)
         # A one-shape frame right after one that failed `fallback_sweep` has no prediction to check its sweep
         # against (that failure cleared the motion model): the tip swept a frame ago, so it fails too (once: a rope
         # coming to rest must be reported again). ``tip_short`` is the last check: a frame that failed only it
@@ -487,10 +488,16 @@ _PASSED = (FrameStatus.OK, Reason.NONE)
 48-byte method-wrapper each time (its metaclass has a `__getattr__`), a Python allocation per frame."""
 
 
-def _set_quality(quality: dict[str, float], values: tuple[float, ...]) -> None:
-    """Set the measures `values` (in `QUALITY_KEYS` order) into `quality` without making an object: no iterator, no
-    list (a frame then replaces the floats of the dict's keys)."""
-    (quality[_Q0], quality[_Q1], quality[_Q2], quality[_Q3], quality[_Q4], quality[_Q5], quality[_Q6]) = values
+def _set_quality(quality: dict[str, float], values: memoryview) -> None:
+    """Set the measures `values` (float64 cells in `QUALITY_KEYS` order) into `quality` without making an object: no
+    iterator, no list, no NumPy scalar (a frame then replaces the floats of the dict's keys)."""
+    quality[_Q0] = values[0]
+    quality[_Q1] = values[1]
+    quality[_Q2] = values[2]
+    quality[_Q3] = values[3]
+    quality[_Q4] = values[4]
+    quality[_Q5] = values[5]
+    quality[_Q6] = values[6]
 
 
 _NO_MASK = np.zeros((1, 1), np.uint8)

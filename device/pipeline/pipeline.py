@@ -156,14 +156,9 @@ class Pipeline:
             self.stages.forget(roi=True)
         else:
             image = self._tone.apply(np.ascontiguousarray(frame)) if image is None else image  # (not C-contiguous)
-            if self.thresholds.measuring:
-                measured = self.thresholds.measure(image)
-                if measured is not None:
-                    self.stages.set_thresholds(*measured)
-            elif self.thresholds.following:
-                followed = self.thresholds.follow(image)
-                if followed is not None:
-                    self.stages.set_thresholds(*followed)
+            thresholds = self.thresholds.update(image)  # measured on the first frames, then followed
+            if thresholds is not None:
+                self.stages.set_thresholds(*thresholds)
             if self.static_mask.learning:
                 self.static_mask.learn(image)
                 if not self.static_mask.learning and self._unclean_frames > 0:
@@ -230,7 +225,7 @@ class Pipeline:
         self._measure_contour(image, result, exposure_ns, n, used_roi)
 
     def _measure_steady(
-        self, image: NDArray[np.uint8], result: PipelineResult, exposure_ns: int, args: list, predict: bool
+        self, image: NDArray[np.uint8], result: PipelineResult, exposure_ns: int, args: int, predict: bool
     ) -> None:
         """Measure a steady frame in one kernel call (`SteadyFrame`), then go on from where the call stopped as
         `RopeLocator.locate` and `_measure_contour` go on after those calls: the same state and result as the

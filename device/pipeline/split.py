@@ -137,7 +137,7 @@ class BlurSplitter:
         self._no_gains, self._no_frame = self._no_distances, ro(np.zeros((0, 0), np.uint8))
         self.measure = BandMeasure(self.lens.model, self.dist, self.slope_work)
         self._info, self._seg = buffers.info, buffers.seg  # read every frame (`_frame_outcome`): plain attributes
-        self._info_item = self._info.item  # its values one by one, the bound method made once
+        self._info_cells = memoryview(self._info)  # its values one by one (a memoryview's item: no NumPy scalar)
         self._axis_shape = self.axis.shape  # a steady frame's shapes (`_frame_outcome`), the bound method made once
         self._shapes_outcome = SplitOutcome(_BLUR_SPLIT, buffers.sides[0][:0], buffers.sides[1][:0], None, 0.0, 0.0)
         """The outcome `_frame_outcome` fills for two shapes, one object for every frame (no allocation per frame):
@@ -564,13 +564,13 @@ class BlurSplitter:
         width_px = self.frame_call.width_px
         info = self._info
         if status == _SHAPES:  # the usual outcome first; read field by field (no list), into one reused outcome
-            item = self._info_item
-            self.sweep_px = sweep = item(6)
+            item = self._info_cells
+            self.sweep_px = sweep = item[6]
             shape = self._axis_shape
             outcome = self._shapes_outcome
             outcome.method, outcome.segmentation_points = _BLUR_SPLIT, self._seg
-            outcome.shape_a = shape(0 if item(4) else 2, item(0))  # the counts as floats: no int made
-            outcome.shape_b = shape(1 if item(5) else 3, item(1))
+            outcome.shape_a = shape(0 if item[4] else 2, item[0])  # the counts as floats: no int made
+            outcome.shape_b = shape(1 if item[5] else 3, item[1])
             outcome.width_px, outcome.sweep_px = width_px, sweep
             return outcome
         if status < 0 and status != K.NOT_FOUND:

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
-from ropecam.device.pipeline._views import array_layout_known
+from ropecam.device.pipeline._views import RecordCells, array_layout_known
 from ropecam.device.pipeline.checks import SelfChecks
 from ropecam.device.pipeline.contour import ContourTracer
 from ropecam.device.pipeline.edges import EdgeDetector
@@ -35,8 +35,18 @@ from ropecam.device.pipeline.workspace import Workspace, steady_constants
 
 __all__ = ["SteadyFrame"]
 
-_RESULTS = ("motion_px", "status", "swap", "confidence", "stretch_begin", "stretch_end", "check", "placed")
-"""The fields of `K.STEADY_OUT` Python reads after every call (`SteadyFrame.results`)."""
+_OUT = RecordCells(np.zeros(1, K.STEADY_OUT)).slots
+_MOTION_PX, _STATUS, _SWAP, _CONFIDENCE = _OUT["motion_px"], _OUT["status"], _OUT["swap"], _OUT["confidence"]
+_STRETCH_BEGIN, _STRETCH_END = _OUT["stretch_begin"], _OUT["stretch_end"]
+_CHECK, _PLACED, _REVISITS = _OUT["check"], _OUT["placed"], _OUT["revisits"]
+"""The cells of the `K.STEADY_OUT` fields Python reads after a call (`SteadyFrame.results`, `revisits`)."""
+_ARGS = RecordCells(np.zeros(1, K.STEADY_ARGS)).slots
+_MEASURE, _PREDICT, _T_NS, _EXPOSURE_NS, _T_END_NS = (
+    _ARGS["measure"], _ARGS["predict"], _ARGS["t_ns"], _ARGS["exposure_ns"], _ARGS["t_end_ns"]
+)  # fmt: skip
+_LAST_SWEEP_PX, _PREDICT_TIPS_NOW = _ARGS["last_sweep_px"], _ARGS["predict_tips_now"]
+_CHECK_WIDTH_PX, _LEARNED_WIDTH_PX = _ARGS["check_width_px"], _ARGS["learned_width_px"]
+"""The cells of the `K.STEADY_ARGS` fields `SteadyFrame.run` writes before a call."""
 
 
 class SteadyFrame:
@@ -77,26 +87,28 @@ class SteadyFrame:
         self._motion, self._fixed_end = locator.motion, locator.fixed_end  # read every frame (`run`)
         self.out = workspace.steady_out
         """The last call's results (one `STEADY_OUT` record, read by name: ``out["points"]``)."""
-        # Its small results as one tuple of Python scalars (ints within CPython's cached -5..256, floats: no
-        # allocation; the bound method made once): not the point count nor the pixels walked twice (`revisits`).
-        self._out_item = self.out[list(_RESULTS)].item
+        # Its small results read cell by cell (ints within CPython's cached -5..256, floats from its free list: no
+        # allocation), the per-frame scalars written so (`run`): no NumPy scalar, no argument to type.
+        out, frame_args = RecordCells(self.out), RecordCells(workspace.steady_args)
+        self._out_ints, self._out_floats = out.ints, out.floats
+        self._arg_ints, self._arg_floats = frame_args.ints, frame_args.floats
         self._slot = workspace.frame_slot
         self._bound: tuple[Any, ...] | None = None
-        """(the split's steady key, the rope width's tables, Lc0, `steady_frame`'s argument list, the tracker's
-        plane, the table, the constants, whether the static mask had learned its scene) of the last steady frame:
-        its table holds the addresses of the workspace's buffers, of those tables, of the constants and of a copy
-        of the plane."""
+        """(the split's steady key, the rope width's tables, Lc0, the table's address, the tracker's plane, the
+        table, the constants, whether the static mask had learned its scene) of the last steady frame: its table
+        holds the addresses of the workspace's buffers, of those tables, of the constants and of a copy of the
+        plane."""
         self._plane = np.zeros(K.PLANE_PARAMS, np.float64)
         """The tracker's plane parameters as the table's writable row (zeros without a plane)."""
 
     def unbind(self) -> None:
-        """Make the argument list again on the next `args` (a constant in it, such as a threshold, changed)."""
+        """Make the table again on the next `args` (a constant in it, such as a threshold, changed)."""
         self._bound = None
 
-    def args(self) -> list[Any] | None:
-        """`steady_frame`'s argument list when this frame can be one kernel call (the split took its one-call
-        path on the last frame with the workspace's buffers, and Lc0 is settled, so `track_frame` runs); `run`
-        sets its per-frame slots. None otherwise."""
+    def args(self) -> int | None:
+        """`steady_frame`'s argument, the address of its table, when this frame can be one kernel call (the split
+        took its one-call path on the last frame with the workspace's buffers, and Lc0 is settled, so `track_frame`
+        runs); `run` writes the per-frame scalars into the table's ``args`` record. None otherwise."""
         call = self._frame_call.one_call_key()
         length0_px = self.tracker.length0_settled_px
         if call is None or length0_px < 0.0 or not array_layout_known():
@@ -139,24 +151,24 @@ class SteadyFrame:
         )  # fmt: skip
         self._plane[:] = 0.0 if plane is None else plane
         table = self.workspace.steady_table(width_tables, self.checks.buffers, self._plane, constants)
-        args = [table.ctypes.data, False, False, 0, 0, 0, 0.0, False, 0.0, 0.0]
-        self._bound = (key, width_tables, length0_px, args, plane, table, constants, learned)
-        return args
+        address = table.ctypes.data
+        self._bound = (key, width_tables, length0_px, address, plane, table, constants, learned)
+        return address
 
     def run(
         self,
-        args: list[Any],
+        address: int,
         image: NDArray[np.uint8],
         t_ns: int,
         t_end_ns: int,
         exposure_ns: int,
         predict: bool,
     ) -> int:
-        """Make the frame exposed from `t_ns` to `t_end_ns` (`exposure_ns`) in one `steady_frame` call with the
-        argument list `args` (from `args`); its results are in `out`, the frame's start in the frame clock, the
-        time since the last contour's frame in the locator's `gap_ns`. With `predict` (`SelfChecks.due`) the call
-        predicts the tips first (`SelfChecks.predict`'s kernel); it places the shapes it tracked on the tracker's
-        plane and checks them as `ResultFinisher` would (``out["placed"]``, ``out["check"]``).
+        """Make the frame exposed from `t_ns` to `t_end_ns` (`exposure_ns`) in one `steady_frame` call on the table
+        at `address` (from `args`); its results are in `out`, the frame's start in the frame clock, the time since
+        the last contour's frame in the locator's `gap_ns`. With `predict` (`SelfChecks.due`) the call predicts the
+        tips first (`SelfChecks.predict`'s kernel); it places the shapes it tracked on the tracker's plane and
+        checks them as `ResultFinisher` would (``out["placed"]``, ``out["check"]``).
 
         Returns
         -------
@@ -169,32 +181,34 @@ class SteadyFrame:
         RuntimeError
             The kernel refused its arguments.
         """
-        args[1] = self._motion.owed
-        args[2] = self._fixed_end.known
-        args[3] = t_ns
-        args[4] = exposure_ns
-        args[5] = t_end_ns
-        args[6] = self.splitter.sweep_px  # `split_frame`'s last sweep
-        args[7] = predict
-        args[8] = self.splitter.width  # the width the checks compare (`ResultFinisher.check`)
-        args[9] = self.traits.settled[0]  # type: ignore[index]  # `args` checked it
+        ints, floats = self._arg_ints, self._arg_floats
+        ints[_MEASURE] = self._motion.owed
+        ints[_PREDICT] = self._fixed_end.known
+        ints[_T_NS] = t_ns
+        ints[_EXPOSURE_NS] = exposure_ns
+        ints[_T_END_NS] = t_end_ns
+        floats[_LAST_SWEEP_PX] = self.splitter.sweep_px  # `split_frame`'s last sweep
+        ints[_PREDICT_TIPS_NOW] = predict
+        floats[_CHECK_WIDTH_PX] = self.splitter.width  # the width the checks compare (`ResultFinisher.check`)
+        floats[_LEARNED_WIDTH_PX] = self.traits.settled[0]  # type: ignore[index]  # `args` checked it
         self._slot.hold(image)
         try:
-            stop: int = K.steady_frame(*args)
+            stop: int = K.steady_frame(address)
         finally:
             self._slot.release()
-            # The end time is the result record's: let it go with the record's (`PipelineResult.reset`), so that
-            # the next frame's end time (an int above 256) is made after this one is freed, not beside it.
-            args[5] = 0
         if stop < 0:
             raise RuntimeError(f"steady_frame refused its arguments (status {stop})")
         return stop
 
     def results(self) -> tuple[float, int, int, float, float, float, int, int]:
         """The last call's small results (motion_px, status, swap, confidence, stretch_begin, stretch_end, check,
-        placed: `_RESULTS`), as Python scalars."""
-        return self._out_item()  # type: ignore[no-any-return]
+        placed), as Python scalars."""
+        ints, floats = self._out_ints, self._out_floats
+        return (
+            floats[_MOTION_PX], ints[_STATUS], ints[_SWAP], floats[_CONFIDENCE], floats[_STRETCH_BEGIN],
+            floats[_STRETCH_END], ints[_CHECK], ints[_PLACED],
+        )  # fmt: skip
 
     def revisits(self) -> int:
         """The last call's contour pixels walked twice (-1: not counted)."""
-        return int(self.out[0]["revisits"])
+        return self._out_ints[_REVISITS]

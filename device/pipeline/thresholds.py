@@ -153,6 +153,19 @@ class EdgeThresholds:
         """Whether the thresholds follow the frames (measured first, `update_frames` > 0)."""
         return self.update_frames > 0 and self._level is not None
 
+    def update(self, frame: NDArray[np.uint8]) -> tuple[float, float] | None:
+        """The frame's turn, one call per frame (the pipeline's): `measure` it while frames are being measured,
+        else `follow` when following; returns new thresholds (low, high), else None. The usual frame (following,
+        not its slice's) returns at once, without the calls of the properties or of `follow`."""
+        if len(self._medians) < self.frames:  # `measuring`
+            return self.measure(frame)
+        if self.update_frames == 0 or self._level is None:  # not `following`
+            return None
+        if self._wait:  # a frame `follow` skips
+            self._wait -= 1
+            return None
+        return self.follow(frame)
+
     def follow(self, frame: NDArray[np.uint8]) -> tuple[float, float] | None:
         """On one frame in `sample_every` (the others return None at once), sample the next slice of the grid
         (every `update_frames`-th row of it, in turn); at the end of a cycle, average its median into the noise

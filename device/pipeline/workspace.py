@@ -307,8 +307,9 @@ class TrackBuffers:
 @_group
 class Workspace:
     """Every buffer of one pipeline, by stage (see the module's docstring), the steady frame's results
-    (``steady_out``, one `STEADY_OUT` record), the slot that holds the frame while a kernel reads it through a
-    table (``frame_slot``: `steady_frame`) and the frame clock's cells (``clock``, `K.CLOCK_CELLS`: `FrameClock`)."""
+    (``steady_out``, one `STEADY_OUT` record) and per-frame scalars (``steady_args``, one `STEADY_ARGS` record), the
+    slot that holds the frame while a kernel reads it through a table (``frame_slot``: `steady_frame`) and the frame
+    clock's cells (``clock``, `K.CLOCK_CELLS`: `FrameClock`)."""
 
     edges: EdgeBuffers
     contour: ContourBuffers
@@ -319,6 +320,7 @@ class Workspace:
     split: SplitBuffers
     track: TrackBuffers
     steady_out: NDArray[np.void]
+    steady_args: NDArray[np.void]
     frame_slot: FrameSlot
     clock: NDArray[np.int64]
 
@@ -332,7 +334,8 @@ class Workspace:
             EdgeBuffers.make(height, width, weights), ContourBuffers.make(height, width, capacity),
             RoiBuffers.make(height, width, capacity), FixedEndBuffers.make(capacity), MotionBuffers.make(),
             OrderBuffers.make(capacity), SplitBuffers.make(capacity), TrackBuffers.make(fraction, capacity),
-            np.zeros(1, K.STEADY_OUT), FrameSlot(height, width), np.zeros(len(K.CLOCK_CELLS), np.int64),
+            np.zeros(1, K.STEADY_OUT), np.zeros(1, K.STEADY_ARGS), FrameSlot(height, width),
+            np.zeros(len(K.CLOCK_CELLS), np.int64),
         )  # fmt: skip
 
     def steady_table(
@@ -346,9 +349,9 @@ class Workspace:
         (`ropecam.device.pipeline.width_tables.WidthTables`: ``width_scalars``, ``curves``, ``table_ro``,
         ``sweep_index``), the self-checks' `checks` (`SelfChecks.buffers`: predicted, thresholds, measures), the
         `plane` parameters (`plane_params`' values in writable memory), the `constants` (`steady_constants`), the
-        results ``steady_out``, the ``frame_slot`` and the clock's and locator's cells, by the names of
-        `STEADY_BUFFERS`. Its raw addresses are valid while this workspace, `width`, the checks' arrays, `plane` and
-        `constants` live: the caller keeps them with it."""
+        results ``steady_out``, the per-frame scalars ``steady_args``, the ``frame_slot`` and the clock's and
+        locator's cells, by the names of `STEADY_BUFFERS`. Its raw addresses are valid while this workspace,
+        `width`, the checks' arrays, `plane` and `constants` live: the caller keeps them with it."""
         e, c, r, m, s, t = self.edges, self.contour, self.roi, self.motion, self.split, self.track
         return buffer_table(
             {
@@ -377,6 +380,7 @@ class Workspace:
                 "plane": plane,
                 # steady_frame's own
                 "frame_slot": self.frame_slot, "constants": constants, "out": self.steady_out,
+                "args": self.steady_args,
                 # the frame clock's and the locator's cells
                 "clock": self.clock, "locate": r.cells,
             },

@@ -9,8 +9,9 @@ the frame's kernels have evicted the dispatcher's data, ~80 arguments in all. `s
 from compiled code, and takes the buffers, which are the same every frame, as one table of their addresses and
 shapes (`STEADY_BUFFERS`, made once by `ropecam.device.pipeline._views.buffer_table`), passed as its address; in
 the table are its constant scalars as one named record (`STEADY_CONSTANTS`), its results as another
-(`STEADY_OUT`) and the frame, through a slot that holds it during the call (`tables.slot_frame_address`): 13
-scalar arguments, no array (an array argument costs a MemInfo of Python allocation per call). It stops where the
+(`STEADY_OUT`), its per-frame scalars as a third (`STEADY_ARGS`) and the frame, through a slot that holds it
+during the call (`tables.slot_frame_address`): one int argument, no array (an array argument costs a MemInfo of
+Python allocation per call). It stops where the
 stages' Python would have taken another turn (a contour that leaves the band, a split that is not two shapes, a
 contour that is no band outline, shapes `track_frame` does not take), so that Python goes on from there with the
 same state as after the same calls made one by one.
@@ -25,7 +26,7 @@ import math
 from typing import Final, NamedTuple
 
 import numpy as np
-from numba import boolean, float64, int64
+from numba import int64
 
 from ropecam.device.pipeline._kernels._common import INVALID
 from ropecam.device.pipeline._kernels.band_stage import band_stage
@@ -93,6 +94,23 @@ contour pixels walked twice (`count_revisits`; -1: not counted), then `track_fra
 1), the order confidence, the stretch of the begin shape and of the end shape; then the self-checks' code
 (`check_frame`; -1: not checked in the call, the stages' Python checks the frame); last 1 when the call placed the
 material points on the plane (`place_on_plane`, whatever it returned), -1 when it did not."""
+STEADY_ARGS: Final = np.dtype(
+    [
+        ("measure", np.int64),
+        ("predict", np.int64),
+        ("t_ns", np.int64),
+        ("exposure_ns", np.int64),
+        ("t_end_ns", np.int64),
+        ("last_sweep_px", np.float64),
+        ("predict_tips_now", np.int64),
+        ("check_width_px", np.float64),
+        ("learned_width_px", np.float64),
+    ]
+)
+"""`steady_frame`'s per-frame scalars, one record (the flags 0 or 1; every field 8 bytes wide, so that Python writes
+them through two memoryviews, `_views.RecordCells`): passed in the table rather than as arguments, the call's
+dispatch is one int (a call of ten scalar arguments took ~5 us more after `cv2.Canny` than one of one: the
+dispatcher types each argument)."""
 STEADY_CONSTANTS: Final = np.dtype(
     [
         ("margin_px", np.int64),
@@ -156,11 +174,12 @@ STEADY_BUFFERS: Final = (
     ("plane", np.float64, 1),
     # steady_frame's own: the frame slot (`FrameSlot`: its row is address, 1, height, width), the constants, the results
     ("frame_slot", np.int64, 1), ("constants", STEADY_CONSTANTS, 1), ("out", STEADY_OUT, 1),
+    ("args", STEADY_ARGS, 1),
     # the frame clock's and the locator's cells (`cells`)
     ("clock", np.int64, 1), ("locate", np.int64, 1),
 )  # fmt: skip
 """The buffers of `steady_frame`'s table, in its row order: (name, dtype, dimensions), C-contiguous; each is the
-argument of that name of the kernel it is listed under, the last three `steady_frame`'s own."""
+argument of that name of the kernel it is listed under, the last four `steady_frame`'s own."""
 
 STEADY_ROW: Final = NamedTuple("SteadyRows", [(name, int) for name, _, _ in STEADY_BUFFERS])(
     *range(len(STEADY_BUFFERS))
@@ -172,15 +191,14 @@ of the table's buffers, kept in this file so that an edit of it recompiles the k
 # No array argument (each would cost a MemInfo of Python allocation per call): the table by its address, the frame
 # through the table's frame slot (`tables.slot_frame_address`). Its callees run from its own object (`own_callees`:
 # 11-20 us per `rig` frame, docs/speed.md row speed17 (17)).
-@kernel(int64(int64, boolean, boolean, int64, int64, int64, float64, boolean, float64, float64), own_callees=True)
-def steady_frame(
-    table_address, measure, predict, t_ns, exposure_ns, t_end_ns, last_sweep_px, predict_tips_now, check_width_px,
-    learned_width_px,
-):  # fmt: skip
-    """One steady frame, exposed from `t_ns` to `t_end_ns` (`exposure_ns`): its start taken into the frame clock
-    (`clock_tick` of ``clock``); `band_stage` around the last contour (``locate``'s ``prev_count`` points of
-    ``prev_points``, `measure` and `predict` as its arguments, its `use_profile` whether twice the time gap from
-    ``locate``'s ``prev_t_ns`` is at most three times its ``need_gap_ns``; the gap goes to its ``gap_ns``) into the
+@kernel(int64(int64), own_callees=True)
+def steady_frame(table_address):
+    """One steady frame, its per-frame scalars the fields of the table's record ``args`` (`STEADY_ARGS`: `measure`,
+    `predict`, `t_ns`, `exposure_ns`, `t_end_ns`, `last_sweep_px`, `predict_tips_now`, `check_width_px`,
+    `learned_width_px`; the flags 0 or 1), exposed from `t_ns` to `t_end_ns` (`exposure_ns`): its start taken into
+    the frame clock (`clock_tick` of ``clock``); `band_stage` around the last contour (``locate``'s ``prev_count``
+    points of ``prev_points``, `measure` and `predict` as its arguments, its `use_profile` whether twice the time gap
+    from ``locate``'s ``prev_t_ns`` is at most three times its ``need_gap_ns``; the gap goes to its ``gap_ns``) into the
     spans ``lo``/``hi``; `detect_and_trace` of `frame` in them (the point count, 0 for none, to ``counts``'s
     `CONTOUR_POINTS`); when it found a contour (``points``, ``chain``) that touches neither the band's border nor
     the image's, it is the frame's kept contour (``locate``: as `RopeLocator.found_in_band` and `keep`, the frame
@@ -213,16 +231,28 @@ def steady_frame(
 
     Returns STEADY_DONE, or where it stopped (STEADY_AFTER_CONTOUR, STEADY_AFTER_SPLIT, STEADY_BROKEN,
     STEADY_AFTER_SHAPES): everything before that point is done and written exactly as the calls one by one write
-    it, nothing after it; or INVALID, before any call, when ``constants`` or ``out`` holds no record, the frame
-    slot no C-contiguous (height, width) array, or ``split_state``, ``split_info``, ``width_scalars``, ``curves``,
-    ``predicted``, ``check_thresholds``, ``check_quality``, ``counts``, ``clock`` or ``locate`` is too short.
+    it, nothing after it; or INVALID, before any call, when ``constants``, ``out`` or ``args`` holds no record, the
+    frame slot no C-contiguous (height, width) array, or ``split_state``, ``split_info``, ``width_scalars``,
+    ``curves``, ``predicted``, ``check_thresholds``, ``check_quality``, ``counts``, ``clock`` or ``locate`` is too
+    short.
     """
     table = table_at(table_address, len(STEADY_BUFFERS))
     constants = buffer1(table, STEADY_ROW.constants, STEADY_CONSTANTS)
     out = buffer1(table, STEADY_ROW.out, STEADY_OUT)
+    frame_args = buffer1(table, STEADY_ROW.args, STEADY_ARGS)
     frame_address = slot_frame_address(table, STEADY_ROW.frame_slot)
-    if constants.shape[0] < 1 or out.shape[0] < 1 or frame_address == 0:
+    if constants.shape[0] < 1 or out.shape[0] < 1 or frame_args.shape[0] < 1 or frame_address == 0:
         return INVALID
+    a = frame_args[0]
+    measure = a["measure"] != 0
+    predict = a["predict"] != 0
+    t_ns = a["t_ns"]
+    exposure_ns = a["exposure_ns"]
+    t_end_ns = a["t_end_ns"]
+    last_sweep_px = a["last_sweep_px"]
+    predict_tips_now = a["predict_tips_now"] != 0
+    check_width_px = a["check_width_px"]
+    learned_width_px = a["learned_width_px"]
     frame = slot_frame(table, STEADY_ROW.frame_slot, frame_address)
     c = constants[0]
     result = out[0]

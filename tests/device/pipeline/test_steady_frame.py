@@ -14,7 +14,7 @@ import pytest
 from ropecam.device.capture.synthetic import SyntheticRope
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline import steady as steady_module
-from ropecam.device.pipeline._views import FrameSlot, array_layout_known, buffer_table
+from ropecam.device.pipeline._views import FrameSlot, RecordCells, array_layout_known, buffer_table
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
 from ropecam.device.pipeline.result import FrameStatus
@@ -198,7 +198,7 @@ def test_steady_frame_refuses_bad_tables_and_frames_before_any_call() -> None:
         table = buffer_table({**buffers, **replaced}, K.STEADY_BUFFERS)
         slot.hold(frame)
         try:
-            return int(K.steady_frame(table.ctypes.data, False, False, 0, 0, 0, 0.0, False, 0.0, 0.0))
+            return int(K.steady_frame(table.ctypes.data))
         finally:
             slot.release()
 
@@ -206,17 +206,40 @@ def test_steady_frame_refuses_bad_tables_and_frames_before_any_call() -> None:
     assert isinstance(out, np.ndarray)
     assert call(constants=np.zeros(0, K.STEADY_CONSTANTS)) == K.INVALID  # no constants record
     assert call(out=np.zeros(0, K.STEADY_OUT)) == K.INVALID  # no result record
+    assert call(args=np.zeros(0, K.STEADY_ARGS)) == K.INVALID  # no record of the frame's scalars
     frame = np.zeros((3, 4), np.uint8)  # a frame of another size than the slot's
     assert call() == K.INVALID
     frame = np.zeros((3, 6), np.uint8)[:, ::2]  # of the slot's size, not C-contiguous
     assert call() == K.INVALID
     frame = np.zeros((3, 3), np.uint8)
     table = buffer_table(buffers, K.STEADY_BUFFERS)  # an empty slot
-    assert K.steady_frame(table.ctypes.data, False, False, 0, 0, 0, 0.0, False, 0.0, 0.0) == K.INVALID
+    assert K.steady_frame(table.ctypes.data) == K.INVALID
     # The split's state and info shorter than the kernels need: refused too (the split's state is 3 long).
     assert call() == K.INVALID
     np.testing.assert_array_equal(buffers["band_state"], band_state)  # nothing written: band_stage did not run
     assert not out.view(np.uint8).any()
+
+
+def test_record_cells_read_and_write_the_records_fields() -> None:
+    """`steady_frame`'s per-frame scalars are written, its results read, cell by cell (`RecordCells`): each cell is
+    its field, ints and floats exactly."""
+    record = np.zeros(1, K.STEADY_ARGS)
+    cells = RecordCells(record)
+    cells.ints[cells.slot("t_ns")] = 2**62 + 3
+    cells.ints[cells.slot("predict")] = True
+    cells.floats[cells.slot("last_sweep_px")] = 0.1
+    cells.floats[cells.slot("check_width_px")] = np.float32(2.7)  # a float32 widened as NumPy widens it
+    assert record["t_ns"][0] == 2**62 + 3 and record["predict"][0] == 1 and record["measure"][0] == 0
+    assert record["last_sweep_px"][0] == 0.1 and record["check_width_px"][0] == np.float64(np.float32(2.7))
+    out = np.zeros(1, K.STEADY_OUT)
+    out["swap"], out["confidence"], out["placed"] = 1, 0.75, -1
+    read = RecordCells(out)
+    assert read.ints[read.slot("swap")] == 1 and read.floats[read.slot("confidence")] == 0.75
+    assert read.ints[read.slot("placed")] == -1
+    with pytest.raises(ValueError, match="8-byte fields"):
+        RecordCells(np.zeros(1, K.STEADY_CONSTANTS))  # float32 and int32 fields
+    with pytest.raises(ValueError, match="one C-contiguous record"):
+        RecordCells(np.zeros(2, K.STEADY_OUT))
 
 
 def test_frame_slot_reads_numpys_array_layout() -> None:

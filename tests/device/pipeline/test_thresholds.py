@@ -139,6 +139,24 @@ def test_following_samples_one_frame_in_sample_every() -> None:
     assert changes > 0  # the rising noise moved them
 
 
+@pytest.mark.parametrize("update_frames", [0, 2])
+def test_update_measures_then_follows_as_the_calls_one_by_one(update_frames: int) -> None:
+    """`update` (the pipeline's one call per frame) gives what `measure` on the measured frames, then `follow` when
+    following, give: the same thresholds on the same frames, the same noise level after each."""
+    rng = np.random.default_rng(5)
+    frames = [np.clip(80.0 + rng.normal(0.0, 1.0 + 0.4 * i, (120, 160)), 0, 255).astype(np.uint8) for i in range(24)]
+    one = EdgeThresholds(120, 160, 1.0, 200.0, 500.0, frames=2, update_frames=update_frames, sample_every=3)
+    steps = EdgeThresholds(120, 160, 1.0, 200.0, 500.0, frames=2, update_frames=update_frames, sample_every=3)
+    changes = 0
+    for frame in frames:
+        want = steps.measure(frame) if steps.measuring else steps.follow(frame) if steps.following else None
+        got = one.update(frame)
+        assert got == want and one.noise == steps.noise and one.used == steps.used
+        changes += got is not None
+    # the measurement, then (following) the rising noise's
+    assert changes > 1 if update_frames else changes == 1
+
+
 def test_sample_slice_reads_the_frame_through_its_slot_as_the_array_kernel_does() -> None:
     """`follow`'s kernels take no array argument (`K.sample_slice`: the frame through a `FrameSlot`; `K.sample_median`):
     the same histogram as `sample_gradient_histogram` given the frame, the same median; a frame the slot was not made
