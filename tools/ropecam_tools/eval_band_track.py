@@ -248,7 +248,9 @@ def _covariance(fit: Any, shape: tuple[int, ...]) -> NDArray[np.float64]:
         return np.full((len(fit.x), len(fit.x)), math.inf)
 
 
-def _along(line: NDArray[np.float64], arcs: NDArray[np.float64], values: NDArray[np.float64], s: NDArray[np.float64]):
+def _along(
+    line: NDArray[np.float64], arcs: NDArray[np.float64], values: NDArray[np.float64], s: NDArray[np.float64]
+) -> NDArray[np.float64]:
     """Interpolate per-point `values` ((n, ...) of `line`, at arc lengths `arcs`) at arc lengths `s`, held at the
     last point's value beyond the line's end."""
     flat = values.reshape(len(values), -1)
@@ -469,6 +471,12 @@ class BandTracker:
         The frame period.
     windows
         Fit windows along the rope.
+    tip_fit
+        Fit the outer `TIP_WINDOWS` windows and the far end together (`fit_tip`); without it, carry the last window's
+        straight offset to the tip and fit the far end apart (session 17's model).
+    restart_search
+        After a re-seed, seek the next frame's band with the search before fitting it, instead of extrapolating it
+        from the two searched lines.
     """
 
     def __init__(
