@@ -65,12 +65,13 @@ def _write_swing_set(root: Path, frames: int = 6) -> None:
         })  # fmt: skip
 
 
-def test_band_track_follows_the_drawn_swing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize("tip_fit", [True, False], ids=["tip-fit", "straight-tip"])
+def test_band_track_follows_the_drawn_swing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, tip_fit: bool) -> None:
     monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "tools"))
     from ropecam_tools.eval_band_track import summarise, track_set
 
     _write_swing_set(tmp_path / "swing")
-    rows = track_set(tmp_path / "swing", frames=6, blur_px=BLUR_PX)
+    rows = track_set(tmp_path / "swing", frames=6, blur_px=BLUR_PX, tip_fit=tip_fit)
     assert [r["frame"] for r in rows] == [1, 2, 3, 4, 5]
     assert rows[-1]["sweep_px"] == pytest.approx(3.1, abs=0.2)
     # frame 1 is predicted still (one frame known), from frame 2 on the velocity is measured
@@ -168,7 +169,60 @@ def test_band_track_reseeds_a_lost_track_and_does_not_trust_it_meanwhile(
     assert not rows[0]["locked"] and not rows[0]["trusted"]
     assert summary["reseeds"] >= 1
     reseeded = next(r["frame"] for r in rows if r["reseeded"])
-    after = [r for r in rows if r["frame"] > reseeded + 1]
+    after = [r for r in rows if r["frame"] > reseeded]  # the first frame after it is searched before it is fitted
     assert after, rows
     for row in after:
         assert row["locked"] and row["curve_px"] < 0.5 and row["tip_px"] < 1.0, row
+
+
+def test_tip_fit_measures_a_curled_tip_and_its_far_end(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "tools"))
+    from ropecam_tools.eval_band_track import RESAMPLE_POINTS, _frame_normals, fit_tip, resample_to
+
+    # a still rope whose outer 60 px curl towards +v (a circle of radius 400 px); predicted straight and 3 px short
+    s = np.linspace(0.0, LENGTH_PX, 401)
+    bend = np.clip(s - (LENGTH_PX - 60.0), 0.0, None)
+    angle = bend / 400.0
+    du, dv = np.cos(angle), np.sin(angle)
+    rope = np.stack([FIXED_UV[0] + np.cumsum(du) * (s[1] - s[0]), FIXED_UV[1] + np.cumsum(dv) * (s[1] - s[0])], axis=1)
+    rope -= rope[0] - np.array(FIXED_UV)
+    rows, cols = np.mgrid[0:80, 0:250].astype(np.float64)
+    inner = rope[:-4]  # the far end cut square: its last 2 px (about the radius) left to the round cap of the distance
+    distance = np.min(np.hypot(cols[..., None] - inner[:, 0], rows[..., None] - inner[:, 1]), axis=-1)
+    cover = np.clip(WIDTH_PX / 2 + 0.5 - distance, 0.0, 1.0)
+    image = cv2.GaussianBlur(40.0 + CONTRAST_DN * cover, (0, 0), BLUR_PX)
+    image = image + np.random.default_rng(2).normal(0.0, 1.0, image.shape)
+    true_length = LENGTH_PX - 4 * (s[1] - s[0]) + WIDTH_PX / 2
+    straight = resample_to(_rope(0.0), LENGTH_PX)
+    normal, _ = _frame_normals(straight)
+    zero = np.zeros(RESAMPLE_POINTS)
+    start = RESAMPLE_POINTS - 40
+    q, covariance, shifts = fit_tip(image, straight, normal, zero, zero, start, true_length - 3.0, WIDTH_PX, BLUR_PX)
+    # where the rope is at the carried length (3 px short of its end), across the straight prediction
+    at = np.interp(true_length - 3.0, s, np.arange(len(s)))
+    tip_v = float(np.interp(at, np.arange(len(s)), rope[:, 1])) - FIXED_UV[1]
+    assert tip_v > 3.0  # the curl: a straight extrapolation of the part's start is this far off
+    assert q[2] == pytest.approx(tip_v * float(normal[-1, 1]), abs=0.5), q
+    assert q[6] == pytest.approx(3.0, abs=0.6), q
+    assert math.sqrt(covariance[2, 2]) < 0.3 and math.sqrt(covariance[6, 6]) < 0.5, covariance
+    assert len(shifts) == RESAMPLE_POINTS - start
+
+
+def test_a_reseeded_track_measures_the_far_end_afresh(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "tools"))
+    from ropecam_tools.eval_band_track import SEARCH_SMOOTH_PX, BandTracker
+    from scipy.ndimage import gaussian_filter
+
+    rows, cols = np.mgrid[0:120, 0:250].astype(np.float64)
+    clean = cv2.GaussianBlur(40.0 + CONTRAST_DN * _coverage(_rope(0.0), rows, cols), (0, 0), BLUR_PX)
+    image = clean + np.random.default_rng(3).normal(0.0, NOISE_DN, clean.shape)
+    evidence = gaussian_filter(image - 40.0, SEARCH_SMOOTH_PX)
+    short = _rope(0.0)[:195]  # the carried length 6 px short of the rope's (a length a lost track left wrong)
+    tracker = BandTracker(short, WIDTH_PX, BLUR_PX, PERIOD_MS * 1e6, 10)
+    kept = tracker.track(image, EXPOSURE_MS * 1e6, evidence)
+    assert kept["cap_px"] == pytest.approx(6.0, abs=1.0) and tracker.length_px < LENGTH_PX - 4.0  # beyond the gate
+    assert not kept["trusted"]
+    tracker.reseed(short, short)
+    after = tracker.track(image, EXPOSURE_MS * 1e6, evidence)
+    assert tracker.length_px == pytest.approx(LENGTH_PX, abs=1.0)
+    assert math.hypot(*(after["begin"][-1] - _rope(0.0)[-1])) < 1.0, after["begin"][-1]

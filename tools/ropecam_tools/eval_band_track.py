@@ -22,19 +22,27 @@ frame set (with ``truth.npz``):
   `blur_px`, with level and contrast free, its middle offset (plus a slope along the window) and its sweep
   correction free under Gaussian priors (`MID_PRIOR_PX`, `SWEEP_PRIOR_PX`). The begin and end centrelines are the
   predicted ones moved along the normal by the windows' corrections (interpolated; 0 at the fixed end);
-* **length**: the far end is fitted along the rope's axis at the tip (profiles across the sweep averaged, a blurred
-  step: `eval_band_snr.fit_step`'s model) and updates the carried length through a scalar Kalman filter (the
-  length drifts by `LENGTH_DRIFT_PX` a frame at most; a far end beyond `CAP_INNOVATION_GATE` standard deviations
-  is not used);
-* **uncertainty**: the tips' standard error: across the rope the last window's offset, slope and sweep propagated
-  with their covariance (the Jacobian's, widened by the residuals' correlation along the profiles), along it the
-  carried length's;
+* **tip** (the default; ``--straight-tip`` for session 17's model): the outer `TIP_WINDOWS` windows and the far end
+  are one fit (`fit_tip`): the profiles from the outer part's start to `TIP_BEYOND_PX` beyond the carried length
+  (every 0.5 px along the line near the far end), one model band whose middle offset is a quadratic along the part
+  (the offset at the carried length, a slope and a curvature under a prior: the tip is measured where it is, not a
+  straight window's offset extrapolated to a curling tip), cut square by a blurred step along the line whose
+  position from the carried length (``cap``) is free;
+* **length**: the far end (with ``--straight-tip``: fitted apart along the rope's axis at the tip, profiles across
+  the sweep averaged, a blurred step: `eval_band_snr.fit_step`'s model) updates the carried length through a scalar
+  Kalman filter (the length drifts by `LENGTH_DRIFT_PX` a frame at most; a far end beyond `CAP_INNOVATION_GATE`
+  standard deviations is not used);
+* **uncertainty**: the tips' standard error: across the rope the tip fit's offset and sweep (with
+  ``--straight-tip``: the last window's offset, slope and sweep) propagated with their covariance (the Jacobian's,
+  widened by the residuals' correlation along the profiles), along it the carried length's;
 * **lock and re-acquisition** (``--search``, the default): each frame minus the median of `BACKGROUND_FRAMES`
   frames of the set (setup's learned background), smoothed, is searched for the band without the track: the last
   locked middle line turned about the fixed end and bent at `SEARCH_JOINTS` joints (`search_rope`). A frame is *locked*
   when the evidence along the tracked middle line's outer part (from `LOCK_FROM`) is at least `LOCK_RATIO` of
   the search's line's; after two unlocked
-  frames the track restarts from the search's lines of those two frames;
+  frames the track restarts from the search's lines of those two frames: the next frame is searched (from the
+  last found line) before it is fitted, instead of extrapolated from the two, and the carried length's uncertainty
+  is widened to `RESEED_LENGTH_SIGMA_PX`, so that the tip fit measures the far end afresh;
 * **gate**: a frame is *trusted* when it is locked, the far end agrees with the carried length (within
   `CAP_INNOVATION_GATE` standard deviations), the tips' standard error is below `TIP_SIGMA_GATE_PX` and no window's
   contrast fell below `CONTRAST_GATE` of their median: what a device could report as OK without the truth.
@@ -109,9 +117,26 @@ LOCK_FROM = 0.6
 lost track strays first."""
 SEARCH_SMOOTH_PX = 3.0
 """Gaussian smoothing of the frame minus its background for the re-acquisition search (px)."""
-LOCK_RATIO = 0.97
+LOCK_RATIO = 0.99
 """A frame is locked when the evidence along the tracked middle line is at least this share of the search's best
 line's; two frames in a row below it and the track is re-seeded from the search."""
+TIP_WINDOWS = 2
+"""The outer windows replaced by one fit of the rope's outer part together with its far end (`fit_tip`)."""
+TIP_BEYOND_PX = 18.0
+"""How far beyond the carried length the tip fit samples the plate (px; beyond `CAP_REACH_PX`)."""
+TIP_FINE_PX = 12.0
+"""The tip fit samples its profiles every 0.5 px along the line within this of the carried length (px), every
+2 px before: the far end is a step along the line."""
+CURL_PRIOR_PX = 2.0
+"""Prior standard deviation of the tip fit's curvature term (px at the start of the part, its offset and slope
+held)."""
+CAP_REACH_PX = 15.0
+"""The tip fit seeks the far end within this of the carried length (px)."""
+RESEED_LENGTH_SIGMA_PX = 5.0
+"""The carried length's uncertainty after a re-seed (px): the far end is then measured afresh."""
+CAP_PRIOR_PX = 8.0
+"""A weak prior on the far end's offset from the carried length in the tip fit (px): the carried length has its own
+uncertainty, which the Kalman filter combines."""
 BACKGROUND_FRAMES = 48
 """Frames whose per-pixel median is the background of the re-acquisition search (setup's count)."""
 
@@ -132,6 +157,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-search", dest="search", action="store_false",
                         help="track without the search that checks the lock and re-seeds a lost track (and "
                         "without the background it needs)")  # fmt: skip
+    parser.add_argument("--straight-tip", dest="tip_fit", action="store_false",
+                        help="carry the last window's straight offset to the tip and fit the far end apart (session "
+                        "17's model) instead of fitting the outer windows and the far end together")  # fmt: skip
     parser.add_argument("--json", action="store_true", help="print the per-frame rows and the summary as JSON")
 
 
@@ -201,7 +229,13 @@ def fit_window(
 
     start = [float(np.median(profiles)), max(float(profiles.max() - np.median(profiles)), 1.0), 0.0, 0.0, 0.0]
     fit = least_squares(residual, start, bounds=([-50.0, 0.0, -8.0, -8.0, -8.0], [300.0, 300.0, 8.0, 8.0, 8.0]))
-    residuals = fit.fun[: profiles.size].reshape(profiles.shape)
+    return fit.x, _covariance(fit, profiles.shape)
+
+
+def _covariance(fit: Any, shape: tuple[int, ...]) -> NDArray[np.float64]:
+    """Return the covariance of a profile fit's parameters (`fit`: scipy's least-squares result whose first
+    residuals are the profiles' of `shape`, the priors' after them)."""
+    residuals = fit.fun[: shape[0] * shape[1]].reshape(shape)
     spread = float(np.std(residuals))
     # neighbouring samples of a profile share the noise (0.5 px steps, a sharpened sensor): the Jacobian's
     # covariance assumes independent samples, so widen it by the residuals' own correlation along the profile
@@ -209,10 +243,78 @@ def fit_window(
     rho = float(np.sum(centred[:, 1:] * centred[:, :-1]) / (np.sum(centred * centred) + 1e-12))
     rho = min(max(rho, 0.0), 0.95)
     try:
-        covariance = np.linalg.inv(fit.jac.T @ fit.jac) * spread**2 * (1.0 + rho) / (1.0 - rho)
+        return np.linalg.inv(fit.jac.T @ fit.jac) * spread**2 * (1.0 + rho) / (1.0 - rho)
     except np.linalg.LinAlgError:
-        covariance = np.full((5, 5), math.inf)
-    return fit.x, covariance
+        return np.full((len(fit.x), len(fit.x)), math.inf)
+
+
+def _along(
+    line: NDArray[np.float64], arcs: NDArray[np.float64], values: NDArray[np.float64], s: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Interpolate per-point `values` ((n, ...) of `line`, at arc lengths `arcs`) at arc lengths `s`, held at the
+    last point's value beyond the line's end."""
+    flat = values.reshape(len(values), -1)
+    out = np.stack([np.interp(s, arcs, flat[:, k]) for k in range(flat.shape[1])], axis=1)
+    return out.reshape(-1, *values.shape[1:])
+
+
+def fit_tip(
+    image: NDArray[np.float64], mid: NDArray[np.float64], normal: NDArray[np.float64],
+    t_begin: NDArray[np.float64], t_end: NDArray[np.float64], start: int, length_px: float,
+    width_px: float, blur_px: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:  # fmt: skip
+    """Fit the rope's outer part and its far end together: from resampled point `start` of the predicted middle line
+    `mid` ((n, 2), its normals `normal`, the predicted sides' offsets `t_begin`, `t_end` along them) to
+    `TIP_BEYOND_PX` beyond the carried length `length_px` (the middle line continued straight), one model band whose
+    middle offset is a quadratic along the part (its value at the carried length, its slope and its curvature: the
+    tip is measured where it is, not extrapolated from a window's straight offset), with a sweep correction, cut
+    square at the far end (a blurred step along the line, its position ``cap`` from the carried length free).
+
+    Return the parameters (level, contrast, offset at the carried length, sweep correction, slope, curvature, cap),
+    their covariance (the Jacobian's, widened by the residuals' correlation along the profiles) and the shift of
+    the middle at each resampled point from `start` on."""
+    from scipy.optimize import least_squares
+    from scipy.special import erfc
+
+    arcs = _arc(mid)
+    s_start = float(arcs[start])
+    span = max(length_px - s_start, 1.0)
+    fine_from = length_px - TIP_FINE_PX
+    s = np.concatenate([np.arange(s_start, fine_from, 2.0), np.arange(fine_from, length_px + TIP_BEYOND_PX, 0.5)])
+    beyond = np.maximum(s - arcs[-1], 0.0)
+    direction = mid[-1] - mid[-4]
+    direction /= math.hypot(*direction) + 1e-12
+    points = _along(mid, arcs, mid, s) + beyond[:, None] * direction[None, :]
+    normals = _along(mid, arcs, normal, s)
+    normals /= np.hypot(*normals.T)[:, None] + 1e-12
+    tb, te = np.interp(s, arcs, t_begin), np.interp(s, arcs, t_end)
+    reach = float(np.max(np.abs(te - tb))) / 2 + width_px + 8.0
+    t = np.arange(-reach, reach + 0.01, 0.5)
+    profiles = _sample(image, points[:, None, :] + t[None, :, None] * normals[:, None, :])
+    x = (s - length_px) / span
+    scale = float(np.std(profiles)) + 1e-6
+    priors = np.array([math.inf, math.inf, MID_PRIOR_PX, SWEEP_PRIOR_PX, MID_PRIOR_PX, CURL_PRIOR_PX, CAP_PRIOR_PX])
+    root2blur = math.sqrt(2.0) * blur_px
+
+    def residual(q: NDArray[np.float64]) -> NDArray[np.float64]:
+        level, contrast, offset, sweep, slope, curl, cap = q
+        shift = offset + slope * x + curl * x * x
+        across = band_profile(
+            t[None, :], (tb + shift - sweep / 2)[:, None], (te + shift + sweep / 2)[:, None], width_px, blur_px
+        )
+        along = 0.5 * erfc((s - length_px - cap) / root2blur)
+        model = level + contrast * across * along[:, None]
+        return np.concatenate([(model - profiles).ravel(), q[2:] / priors[2:] * scale])
+
+    inside = s < length_px - 2.0
+    first = [float(np.median(profiles)), max(float(profiles[inside].max() - np.median(profiles)), 1.0)]
+    fit = least_squares(
+        residual, [*first, 0.0, 0.0, 0.0, 0.0, 0.0],
+        bounds=([-50.0, 0.0, -8.0, -8.0, -8.0, -8.0, -CAP_REACH_PX], [300.0, 300.0, 8.0, 8.0, 8.0, 8.0, CAP_REACH_PX]),
+    )  # fmt: skip
+    xs = (arcs[start:] - length_px) / span
+    offset, slope, curl = fit.x[2], fit.x[4], fit.x[5]
+    return fit.x, _covariance(fit, profiles.shape), offset + slope * xs + curl * xs * xs
 
 
 def fit_far_end(
@@ -369,15 +471,28 @@ class BandTracker:
         The frame period.
     windows
         Fit windows along the rope.
+    tip_fit
+        Fit the outer `TIP_WINDOWS` windows and the far end together (`fit_tip`); without it, carry the last window's
+        straight offset to the tip and fit the far end apart (session 17's model).
+    restart_search
+        After a re-seed, seek the next frame's band with the search before fitting it, instead of extrapolating it
+        from the two searched lines.
     """
 
-    def __init__(self, seed: NDArray[np.float64], width_px: float, blur_px: float, period_ns: float, windows: int):
+    def __init__(
+        self, seed: NDArray[np.float64], width_px: float, blur_px: float, period_ns: float, windows: int,
+        tip_fit: bool = True, restart_search: bool = True,
+    ):  # fmt: skip
         if windows < 1:
             raise ValueError(f"windows must be at least 1, got {windows}")
         self.length_px = float(_arc(seed)[-1])
         self.length0_px = self.length_px
         self.length_var = LENGTH_SIGMA0_PX**2
         self.width_px, self.blur_px, self.period_ns, self.windows = width_px, blur_px, period_ns, windows
+        self.tip_fit = tip_fit
+        self.restart_search = restart_search
+        self.restarted = False
+        """Whether the next frame is the first after a re-seed (sought by the search before it is fitted)."""
         still = resample_to(seed, self.length_px)
         # per frame: the middle line (by arc fraction of the seed's length) and its velocity (px per frame period)
         self.mids = [still]
@@ -402,6 +517,9 @@ class BandTracker:
         self.mids = [resample_to(before, self.length0_px), resample_to(now, self.length0_px)]
         self.velocities = [np.zeros_like(self.mids[0]), np.zeros_like(self.mids[0])]
         self.velocity_weights = [0.0, 0.0]
+        self.restarted = self.restart_search
+        # a lost track's far-end fits were not used (beyond the gate) or were wrong: the length is measured afresh
+        self.length_var = max(self.length_var, RESEED_LENGTH_SIGMA_PX**2)
 
     def predict(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Return the next frame's middle line and its velocity (px per frame period): per point, a quadratic in
@@ -435,7 +553,18 @@ class BandTracker:
         without the track (`search_rope`); the frame is *locked* when the evidence along the tracked middle line is
         at least `LOCK_RATIO` of the search's best, and after two frames in a row that are not, the track is
         re-seeded from the search's lines of those two frames (``reseeded``)."""
-        mid, velocity = self.predict()
+        searched = None
+        if self.restarted and evidence is not None:
+            # the first frame after a re-seed: the band sought in this frame from the last frame's line, not
+            # extrapolated from two searched lines (whose errors at the tip the extrapolation doubles)
+            clock = time.process_time()
+            searched, _ = search_rope(evidence, self.mids[-1])
+            self._lap("search", clock)
+            mid = resample_to(searched, self.length0_px)
+            velocity = mid - self.mids[-1]
+        else:
+            mid, velocity = self.predict()
+        self.restarted = False
         sweep = velocity * exposure_ns / self.period_ns
         begin0, end0 = mid - sweep / 2, mid + sweep / 2
         normal, tangent = _frame_normals(mid)
@@ -448,8 +577,11 @@ class BandTracker:
         clock = self._lap("sample", clock)
         last = RESAMPLE_POINTS - 1 - TIP_MARGIN_POINTS
         bounds = np.linspace(int(SKIP_FRACTION * RESAMPLE_POINTS), last, self.windows + 1).astype(int)
+        tip_from = int(bounds[-1 - TIP_WINDOWS]) if self.tip_fit and self.windows > TIP_WINDOWS else RESAMPLE_POINTS
         knots, begin_shift, end_shift, sigmas, contrasts = [0.0], [0.0], [0.0], [], []
         for a, b in itertools.pairwise(bounds):
+            if b > tip_from:
+                break
             q, covariance = fit_window(profiles[a:b], t, t_begin[a:b], t_end[a:b], self.width_px, self.blur_px)
             errors = np.sqrt(np.diag(covariance))
             knots.append((a + b - 1) / 2)
@@ -458,23 +590,46 @@ class BandTracker:
             sigmas.append(float(max(errors[2], errors[3])))
             contrasts.append(float(q[1]))
         clock = self._lap("windows", clock)
-        # the last window's slope carries its offset to the tip
-        lever = ((RESAMPLE_POINTS - 1) - (a + b - 1) / 2) / max(b - a - 1, 1)
-        tip_shift = q[2] + q[4] * lever
-        # the tips' standard errors across the rope: the last window's offset, slope and sweep, with their covariance
-        across_sigma_px = max(
-            float(math.sqrt(max(g @ covariance @ g, 0.0)))
-            for g in (np.array([0.0, 0.0, 1.0, -0.5, lever]), np.array([0.0, 0.0, 1.0, 0.5, lever]))
-        )
-        knots.append(RESAMPLE_POINTS - 1.0)
-        begin_shift.append(tip_shift - q[3] / 2)
-        end_shift.append(tip_shift + q[3] / 2)
-        index = np.arange(RESAMPLE_POINTS)
-        begin = begin0 + np.interp(index, knots, begin_shift)[:, None] * normal
-        end = end0 + np.interp(index, knots, end_shift)[:, None] * normal
-        carried = resample_to(begin, self.length_px)[-1], resample_to(end, self.length_px)[-1]
-        cap_px, cap_sigma_px = fit_far_end(image, carried[0], carried[1], tangent[-1], self.blur_px)
-        clock = self._lap("far_end", clock)
+        if tip_from < RESAMPLE_POINTS:
+            # the outer part and the far end in one fit: the tip is where the quadratic offset puts it at the
+            # carried length, and the far end's step is fitted with the sides that meet it
+            q, covariance, shifts = fit_tip(
+                image, mid, normal, t_begin, t_end, tip_from, self.length_px, self.width_px, self.blur_px
+            )
+            errors = np.sqrt(np.diag(covariance))
+            index = np.arange(tip_from, RESAMPLE_POINTS)
+            knots += [float(i) for i in index]
+            begin_shift += list(shifts - q[3] / 2)
+            end_shift += list(shifts + q[3] / 2)
+            sigmas.append(float(max(errors[2], errors[3])))
+            contrasts.append(float(q[1]))
+            across_sigma_px = max(
+                float(math.sqrt(max(g @ covariance @ g, 0.0)))
+                for g in (np.array([0, 0, 1.0, -0.5, 0, 0, 0]), np.array([0, 0, 1.0, 0.5, 0, 0, 0]))
+            )
+            tip_shift, cap_px, cap_sigma_px = float(q[2]), float(q[6]), float(errors[6])
+            index = np.arange(RESAMPLE_POINTS)
+            begin = begin0 + np.interp(index, knots, begin_shift)[:, None] * normal
+            end = end0 + np.interp(index, knots, end_shift)[:, None] * normal
+        else:
+            # the last window's slope carries its offset to the tip
+            lever = ((RESAMPLE_POINTS - 1) - (a + b - 1) / 2) / max(b - a - 1, 1)
+            tip_shift = q[2] + q[4] * lever
+            # the tips' standard errors across the rope: the last window's offset, slope and sweep, with their
+            # covariance
+            across_sigma_px = max(
+                float(math.sqrt(max(g @ covariance @ g, 0.0)))
+                for g in (np.array([0.0, 0.0, 1.0, -0.5, lever]), np.array([0.0, 0.0, 1.0, 0.5, lever]))
+            )
+            knots.append(RESAMPLE_POINTS - 1.0)
+            begin_shift.append(tip_shift - q[3] / 2)
+            end_shift.append(tip_shift + q[3] / 2)
+            index = np.arange(RESAMPLE_POINTS)
+            begin = begin0 + np.interp(index, knots, begin_shift)[:, None] * normal
+            end = end0 + np.interp(index, knots, end_shift)[:, None] * normal
+            carried = resample_to(begin, self.length_px)[-1], resample_to(end, self.length_px)[-1]
+            cap_px, cap_sigma_px = fit_far_end(image, carried[0], carried[1], tangent[-1], self.blur_px)
+        clock = self._lap("tip" if tip_from < RESAMPLE_POINTS else "far_end", clock)
         # the length is nearly constant (the rope's projection changes it slowly): a scalar Kalman filter, not a sum
         self.length_var += LENGTH_DRIFT_PX**2
         noise_var = cap_sigma_px**2 + CAP_BIAS_PX**2
@@ -491,10 +646,11 @@ class BandTracker:
         mid_line = resample_to(0.5 * (begin + end), self.length0_px)
         locked, reseeded, found_score, tracked_score = True, False, math.nan, math.nan
         if evidence is not None:
-            found, _ = search_rope(evidence, self.reference)
+            found = searched if searched is not None else search_rope(evidence, self.reference)[0]
             found_score = line_score(evidence, found, LOCK_FROM)
             tracked_score = line_score(evidence, mid_line, LOCK_FROM)
-            locked = tracked_score >= LOCK_RATIO * found_score
+            # a far end at the tip fit's reach: the line ran along the band past its end (a lost tip)
+            locked = tracked_score >= LOCK_RATIO * found_score and abs(cap_px) < CAP_REACH_PX - 0.5
             clock = self._lap("search", clock)
             trusted = trusted and locked
             self.unlocked = 0 if locked else self.unlocked + 1
@@ -525,8 +681,9 @@ class BandTracker:
 
 
 def track_set(
-    path: Path, frames: int = 30, blur_px: float = 0.6, windows: int = 10, seed: str = "truth", search: bool = True
-) -> list[dict[str, Any]]:
+    path: Path, frames: int = 30, blur_px: float = 0.6, windows: int = 10, seed: str = "truth", search: bool = True,
+    tip_fit: bool = True,
+) -> list[dict[str, Any]]:  # fmt: skip
     """Track the band over the first `frames` frames of the simulator frame set at `path` from frame 0 (`seed`:
     ``"truth"`` or ``"pipeline"``, see the module's docstring) and return one row per frame from frame 1 on (the
     errors against the truth, the fit's indicators, ``trusted``). With `search`, every frame is also searched
@@ -550,7 +707,7 @@ def track_set(
         width_px = fit_width(255.0 * (frameset.read(0).astype(np.float64) / 255.0) ** gamma, line, blur_px)
     else:
         raise ValueError(f"seed must be 'truth' or 'pipeline', got {seed!r}")
-    tracker = BandTracker(line, width_px, blur_px, 1e9 / float(frameset.fps), windows)
+    tracker = BandTracker(line, width_px, blur_px, 1e9 / float(frameset.fps), windows, tip_fit)
     background = median_background(frameset, gamma, BACKGROUND_FRAMES) if search else None
     rows = []
     for index in range(1, count):
@@ -615,7 +772,7 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--windows {args.windows}: at most {MAX_WINDOWS} (two resampled points per window)")
     if not (args.set / "truth.npz").is_file():
         raise UsageError(f"{args.set}: not a simulator frame set (no truth.npz; make one with `ropecam simulate`)")
-    rows = track_set(args.set, args.frames, args.blur_px, args.windows, args.seed, args.search)
+    rows = track_set(args.set, args.frames, args.blur_px, args.windows, args.seed, args.search, args.tip_fit)
     summary = summarise(rows)
     if args.json:
         print(json.dumps({"scene": args.set.name, "seed": args.seed, "frames": rows, "summary": summary}, indent=1))
