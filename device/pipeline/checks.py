@@ -63,6 +63,10 @@ reason                  fails when                                              
                         farther than ``tip_short_widths`` rope widths + ``tip_short_floor_px`` from the
                         contour's farthest point from the fixed end (the band's far end): its tip was
                         read at a cap inside the band, short of the rope's end
+``fixed_end_guess``     a frame of known exposure measured about a fixed end only guessed on an outline  IMPLAUSIBLE
+                        (`FixedEndFinder.confirmed` false) that shows no rope at rest (the guess's outline
+                        no band, or its ends' widths across more than half a rope width apart; or the
+                        frame's tips more than a width apart): checked by `ResultFinisher` after the others
 ======================  ==============================================================================  ===========
 
 Each check's measure goes into the frame's quality record (`QUALITY_KEYS`), whether it passes or not.
@@ -223,6 +227,8 @@ _MESSAGES = {
     "the band's corners",
     Reason.TIP_SHORT: "one shape's free tip ends farther than checks.tip_short_widths rope widths + "
     "checks.tip_short_floor_px short of the contour's far end: it was read inside the band, not at the rope's end",
+    Reason.FIXED_END_GUESS: "the rope moves and its fixed end is still a guess on the outline (not given, held by no "
+    "structure, no end yet seen staying while the other moved): the shapes may run from the free tip",
 }
 
 

@@ -24,7 +24,7 @@ __all__ = ["BROKEN_OUTLINE", "FrameClock", "ResultFinisher", "max_age_ns"]
 # Enum members the per-frame path reads, looked up once: reading an attribute of an Enum class costs Python 3.11 a
 # 48-byte method-wrapper each time (its metaclass has a `__getattr__`), a Python allocation per frame.
 _OK, _BLUR_SPLIT = FrameStatus.OK, Method.BLUR_SPLIT
-_ORDER, _TIP_SHORT = Reason.ORDER.text, Reason.TIP_SHORT.text
+_ORDER, _TIP_SHORT, _GUESS = Reason.ORDER.text, Reason.TIP_SHORT.text, Reason.FIXED_END_GUESS.text
 
 BROKEN_OUTLINE = K.BROKEN_OUTLINE
 """Largest part of the contour's pixels walked twice (spurs of noise and texture) before it is no band outline (a
@@ -232,12 +232,34 @@ class ResultFinisher:
         if rejected and result.status is FrameStatus.OK:
             result.status, result.reason = FrameStatus.NO_BLUR, Reason.NO_BLUR.text
             result.message = f"{self.checks.message(Reason.NO_BLUR)} (the split: {rejected})"
+        if result.status is _OK and exposure_ns > 0 and self.checks.config.enabled:
+            self._refuse_guess(result)
+
+    def _refuse_guess(self, result: PipelineResult) -> None:
+        """``fixed_end_guess``: an OK frame of known exposure measured about a fixed end that is only a guess on a
+        contour (`FixedEndFinder.confirmed` false: not given, held by no structure, no end yet seen staying while
+        the other moved) is not reported OK unless it shows a rope at rest (`FixedEndFinder.still`, and its two
+        shapes' tips within a rope width): a rope already swinging when the stream starts may have had its fixed
+        end guessed at the free tip, and its shapes then run from the tip (simulated `read noise = 10 DN` from 0.4 s,
+        tuning seed, frame 0: OK with both tips 404 px off). The frame is otherwise a measured one
+        (`measured_all_the_same`): once the end is confirmed (the next frame, where the free end has moved) the
+        frames are measured as before, about the other end if the guess was wrong (`FixedEndFinder.find`)."""
+        finder = self.traits.fixed_end
+        if finder.confirmed:
+            return
+        begin, end = result.begin, result.end
+        still = finder.still
+        if still and begin is not None and end is not None and begin is not end and len(begin) and len(end):
+            still = _tip_gap_px(begin, end) <= (self.traits.width() or 4.0)
+        if not still:
+            result.status, result.reason = FrameStatus.IMPLAUSIBLE, _GUESS
+            result.message = self.checks.message(Reason.FIXED_END_GUESS)
 
     def measured_all_the_same(self, result: PipelineResult) -> bool:
         """Whether `result`, flagged, was measured as an OK frame is (its rope, ROI and motion are right, and the
         pipeline's state goes on as after an OK frame): a split whose time order nothing decided (``order``), or
         one shape that only ``tip_short`` flagged (its contour is the band's; its centreline's tip is not)."""
-        return result.reason == _ORDER or (result.reason == _TIP_SHORT and self.short_only)
+        return result.reason == _ORDER or result.reason == _GUESS or (result.reason == _TIP_SHORT and self.short_only)
 
     def refuse_fold(self, result: PipelineResult, lengths_seen: int) -> None:
         """After `finish` of a frame of known exposure measured before Lc0 is known (the tracker had seen
@@ -248,7 +270,9 @@ class ResultFinisher:
         status with the self-checks off (`checks.enabled`)."""
         begin, end = result.begin, result.end
         # (a one-shape frame only `tip_short` flagged passed every other check: its fold is withdrawn from Lc0 too)
-        if (result.status is not FrameStatus.OK and not self.short_only) or begin is None or end is None:
+        # (nor is one flagged only as measured about a guessed fixed end, `_refuse_guess`)
+        flagged = result.status is not FrameStatus.OK and not self.short_only and result.reason != _GUESS
+        if flagged or begin is None or end is None:
             return
         if not (folds_back(begin, result.rope_width_px) or folds_back(end, result.rope_width_px)):
             return

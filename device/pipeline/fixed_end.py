@@ -7,6 +7,7 @@ from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import i32, ro
+from ropecam.device.pipeline.checks import contour_area_px2
 from ropecam.device.pipeline.structure import (
     STRUCTURE_ROPE_RATIO,
     convex_hull,
@@ -35,6 +36,14 @@ LEARNED_THICK_WIDTHS = 2.5
 grown by a pixel, about a width + 2 px)."""
 LEARNED_MAX_WIDTH_PX = 4.0
 """The widest rope width the thickness and area limits of `learned_structure` are scaled by (px)."""
+STILL_ACROSS_WIDTHS = 0.5
+"""Largest difference of the widths across an outline's two ends, in rope widths, of a rope at rest
+(`FixedEndFinder.still`): a free end sweeping half a width during the exposure widens its end of the band by about
+that much (the simulated tuning scenes' still first frames: at most 0.35 px apart, 1.1 px with gamma 2.6)."""
+STILL_BAND = 0.25
+"""Smallest part of a still rope's area (half the outline's points x the rope width) an outline encloses that is a
+band round the rope (`FixedEndFinder.still`); a line walked out and back (a band's edge broken by noise, simulated
+`read noise = 10 DN` from 0.4 s, frame 0: 1 px^2) encloses nothing and shows neither a still rope nor a sweep."""
 LEARNED_AREA_WIDTHS = 10.0
 """... and covers at least this many squared rope widths (the smallest clamp simulated, 12 x 7.2 px, its edges
 grown: about 16 x 11 px, 26 squared widths of a 2.6 px rope; a speck of dust grown: 2-4)."""
@@ -63,6 +72,13 @@ class FixedEndFinder:
         """The fixed end (row, col) float32: valid once `known`."""
         self.known = self.configured
         """Whether `fixed` holds a fixed end (configured, or guessed on a first contour)."""
+        self._confirmed = False  # the guessed end was confirmed: by a structure, or by one end staying still
+        self._decided_at: NDArray[np.float32] | None = None  # the end motion confirmed, kept over a `restart`
+        self.still = True
+        """Whether the outline the fixed end was guessed on showed a rope at rest (`_still`): a frame measured about
+        the guess may be reported OK only then, and only with its tips within a rope width (`ResultFinisher`,
+        ``fixed_end_guess``). (Both ends of a later outline moving is no sign: a still rope's end found inside a
+        structure once the static mask is learned (`hidden_end`) moves too.)"""
         self.frames = 0
         """Contours the found fixed end is averaged over."""
         self._first_ends: tuple[NDArray[np.float32], NDArray[np.float32]] | None = None
@@ -78,10 +94,23 @@ class FixedEndFinder:
             self.fixed[:] = (fixed_end_uv[1], fixed_end_uv[0])
 
     def restart(self) -> None:
-        """Forget a found fixed end (a configured one stays): the next contours find it again."""
+        """Forget a found fixed end (a configured one stays): the next contours find it again. Which end of the
+        rope is fixed, once motion decided it (`find`), is kept: the next guess takes the end nearest it."""
+        if self.known and self._confirmed and self._first_ends is None and not self.configured:
+            self._decided_at = self.fixed.copy()
         self.known = self.configured
+        self._confirmed = False
+        self.still = True
         self.frames = 0
         self._first_ends = None
+
+    @property
+    def confirmed(self) -> bool:
+        """Whether the fixed end is more than a guess on one contour: configured; or the end a structure holds
+        (a clamp found on the outline or in the learned mask, `structure`, `learned_structure`); or one end of the
+        outline stayed where it was while the other moved away (`find`, also before a `restart`); or averaged over
+        `FIXED_END_FRAMES` contours, each with an end within reach of it."""
+        return self.configured or self._confirmed or self.settled
 
     @property
     def settled(self) -> bool:
@@ -111,8 +140,7 @@ class FixedEndFinder:
             # Where the rope goes into a masked structure (a clamp), its end is hidden inside it.
             ends = [hidden_end(end, points[:n], w, self.mask) for end in ends]
         if not self.known:
-            m = max(4, round(2 * w))
-            widths = [np.hypot(*(points[(e - m) % n] - points[(e + m) % n])) for e in (e1, e2)]
+            widths = _across(points, n, e1, e2, w)
             if abs(widths[0] - widths[1]) <= 0.25 * min(widths):
                 top_centre = np.array([0.0, 0.5 * (self.shape[1] - 1)])
                 far = [float(np.hypot(*(end - top_centre))) for end in ends]
@@ -120,10 +148,18 @@ class FixedEndFinder:
             else:
                 k = 0 if widths[0] < widths[1] else 1
             attached = _attached_structure(points[:n], e1, e2, ends, w) if self.exposure_known else None
+            held = None  # the end a structure found on the outline holds
+            if self._structure_at is not None:
+                held = int(np.argmin([np.hypot(*(end - self._structure_at)) for end in ends]))
             if attached is not None:
                 k = attached
-            elif self._structure_at is not None:  # the rope is fixed in the structure found on its outline
-                k = int(np.argmin([np.hypot(*(end - self._structure_at)) for end in ends]))
+            elif held is not None:  # the rope is fixed in the structure found on its outline
+                k = held
+            self._confirmed = k == held
+            if self._decided_at is not None:  # the traits learned again: the end motion decided before
+                k = int(np.argmin([np.hypot(*(end - self._decided_at)) for end in ends]))
+                self._confirmed = True
+            self.still = self._confirmed or self._still(points, n, e1, e2, w)
             self.fixed[:] = ends[k]
             self._first_ends = (ends[k].copy(), ends[1 - k].copy())
             self.known = True
@@ -136,6 +172,7 @@ class FixedEndFinder:
             moved_other = min(float(np.hypot(*(end - other))) for end in ends)
             if max(moved_guess, moved_other) > max(2.0 * w, 5.0) and min(moved_guess, moved_other) < w:
                 self._first_ends = None  # decided
+                self._confirmed = True
                 if moved_guess > moved_other:
                     # The guessed end moved: it is the free end. Start again from the other one.
                     self.fixed[:] = other
@@ -149,6 +186,16 @@ class FixedEndFinder:
         self.fixed[:] = (self.fixed * k + chosen) / (k + 1)
         self.frames += 1
         return restarted
+
+    def _still(self, points: NDArray[np.float32], n: int, e1: int, e2: int, w: float) -> bool:
+        """Whether the outline (`n` (row, col) `points`, its ends at contour indices `e1`, `e2`, a rope `w` px wide)
+        shows a rope at rest: its two ends as wide across as each other within `STILL_ACROSS_WIDTHS` rope widths (a
+        free end that sweeps during the exposure widens its end of the band), and a band round the rope (it encloses
+        at least `STILL_BAND` of half its points x the width)."""
+        across = _across(points, n, e1, e2, w)
+        if abs(across[0] - across[1]) > STILL_ACROSS_WIDTHS * w:
+            return False
+        return contour_area_px2(points, n) >= STILL_BAND * 0.5 * n * w
 
     def structure(self, points: NDArray[np.float32], n: int, width_px: float | None) -> NDArray[np.bool_] | None:
         """Return the region of the structure a still rope's outline (`n` (row, col) `points`, a rope `width_px`
@@ -340,6 +387,13 @@ def hidden_end(
     else:
         return end
     return np.array([r0 + middle * axis[0], c0 + middle * axis[1]], np.float32)
+
+
+def _across(points: NDArray[np.float32], n: int, e1: int, e2: int, w: float) -> list[float]:
+    """The widths across the outline's (`n` (row, col) `points`) two ends at contour indices `e1`, `e2` (a rope `w` px
+    wide): the distance between the points `2 w` (at least 4) contour points either side of each."""
+    m = max(4, round(2 * w))
+    return [float(np.hypot(*(points[(e - m) % n] - points[(e + m) % n]))) for e in (e1, e2)]
 
 
 def _attached_structure(

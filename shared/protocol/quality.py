@@ -43,6 +43,7 @@ class Reason(IntEnum):
     TIP_AT_FIXED_END = 10
     TIP_CORNER = 11
     TIP_SHORT = 12
+    FIXED_END_GUESS = 13
 
     @property
     def text(self) -> str:

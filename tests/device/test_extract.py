@@ -55,7 +55,9 @@ def test_extract_image_folder_with_a_broken_file_and_config(tmp_path, frames) ->
     argv = ["extract", str(folder), "--out", str(out), "--fps", "119", "--exposure-ms", "12", "--config", str(config)]
     assert main([*argv, "--quiet"]) == 0
     records = _read(out)
-    assert [r["status"] for r in records] == ["OK", "BAD_FRAME", "OK", "OK"]
+    # Frame 0, of a rope already swinging, is measured about a fixed end not yet confirmed (``fixed_end_guess``).
+    assert [r["status"] for r in records] == ["IMPLAUSIBLE", "BAD_FRAME", "OK", "OK"]
+    assert records[0]["reason"] == "fixed_end_guess"
     assert "001.png" in records[1]["message"]
     assert records[0]["method"] == "CENTERLINE"
     assert records[2]["t_ns"] == round(2 * 1e9 / 119)
@@ -89,7 +91,10 @@ def test_extract_video(tmp_path, frames) -> None:
     assert main(["extract", str(path), "--out", str(out), "--exposure-ms", "12", "--quiet"]) == 0
     records = _read(out)
     assert len(records) == len(frames)
-    assert [r["status"] for r in records] == ["IMPLAUSIBLE"] + ["OK"] * (len(frames) - 1)  # 0: its order undecided
+    assert [r["status"] for r in records[2:]] == ["OK"] * (len(frames) - 2)
+    assert (records[0]["status"], records[0]["reason"]) == ("IMPLAUSIBLE", "order")  # its order undecided
+    # Frame 1 (the MJPG's outline): OK, or measured about a fixed end not yet confirmed by the frames' motion.
+    assert records[1]["status"] == "OK" or records[1]["reason"] == "fixed_end_guess", records[1]
     assert records[1]["t_ns"] == round(1e9 / 119.0)
 
 

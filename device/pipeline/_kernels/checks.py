@@ -35,6 +35,9 @@ CHECK_TIP_AT_FIXED_END: Final = 10
 from its corner (`check_frame` checks its coinciding corners on every split)."""
 CHECK_TIP_CORNER: Final = 11
 CHECK_TIP_SHORT: Final = 12
+CHECK_FIXED_END_GUESS: Final = 13
+"""Checked by `ResultFinisher` (Python) after the others, on frames before the fixed end is confirmed (never a steady
+frame's: the fixed end has settled by then)."""
 
 CHECK_THRESHOLDS: Final = np.dtype(
     [

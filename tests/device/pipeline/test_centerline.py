@@ -196,7 +196,10 @@ def test_centerline_is_the_middle_of_the_band_on_flat_and_round_ends(fast_rope, 
     pipeline = Pipeline(PipelineConfig(method="centerline"), (fast_rope.width, fast_rope.height))
     for frame in frames:
         r = pipeline.process(frame.image, frame.index, frame.t_ns, frame.exposure_us)
-        assert r.status is FrameStatus.OK and r.method is Method.CENTERLINE
+        # The first frame of a rope already swinging is measured about a fixed end only guessed (`fixed_end_guess`);
+        # the next one confirms it (the tip moved, the fixed end did not).
+        assert r.status is FrameStatus.OK or (frame.index == 0 and r.reason == "fixed_end_guess"), r.message
+        assert r.method is Method.CENTERLINE
         assert r.begin is r.end
         ours = r.begin[:, ::-1].astype(np.float64)
         ideal = _ideal_midline(frame)

@@ -64,7 +64,9 @@ def test_a_faint_rope_is_found_with_measured_thresholds() -> None:
         errors = []
         for frame in frames:
             result = pipeline.process(frame.image, frame.index, frame.t_ns, float(rope.exposure_us))
-            if result.status is not FrameStatus.OK:
+            # (a frame measured about a fixed end not yet confirmed, the rope already swinging, is flagged
+            # `fixed_end_guess`: its tips count all the same)
+            if result.status is not FrameStatus.OK and result.reason != "fixed_end_guess":
                 errors.append(np.inf)
                 continue
             tips = (result.begin[-1][::-1], result.end[-1][::-1])  # (row, col) -> (u, v)
