@@ -13,8 +13,11 @@ error was 1-5 px with both tips right.
 shape to the end shape, over the distance the split reads by the fixed end, `FLOOR_SPAN`, or deep below the
 distance either side, `PROMINENCE`) and decides each stretch between two pinches by continuity: between exposures
 the rope moves on from where the last one ended, so of the two sides on a stretch, the start shape is the one
-nearer to the previous frame's end shape. The stretch that holds the tip keeps the tip's order. The previous end
-shape is kept in the time order's group (`Order`): ``prev_end`` and its count and time in ``state``.
+nearer to the previous frame's end shape. The stretch that holds the tip keeps the tip's order. By the fixed end
+the two shapes lie too close for nearness to say anything, and the edges' noise cuts that part into many short
+stretches: they take the side of the first stretch beyond them that nearness orders, unless the separation dips
+between them (a crossing by the fixed end). The previous end shape (or the one shape of a one-shape frame) is kept
+in the time order's group (`Order`): ``prev_end`` and its count and time in ``state``.
 """
 
 from __future__ import annotations
@@ -164,6 +167,52 @@ def _resample_into(source, count, out_count, out):
     return out_count
 
 
+@kernel(types.UniTuple(int64, 3)(f4_2d, int64, int64, int64, int64, int64, float64, float64))
+def _next_stretch(match, nb, ne, k, start_b, start_e, limit, width_px):
+    """The stretch of the begin shape that starts at point `start_b` (its match on the end shape at `start_e`),
+    searched for its pinch from point `k` on (``match[:nb]``: each begin point's distance to the end shape and
+    the index of its match there, of `ne` points; the pinches' `limit` and the rope's width as in
+    `uncross_shapes`). Returns (the point where it ends, its stop on begin, its stop on end): the last stretch
+    (the tip's, to point ``nb - 2``) stops at `nb` and `ne`."""
+    while k < nb - 1:
+        last = k == nb - 2
+        gap = match[k, 0]
+        pinch = gap <= match[k - 1, 0] and gap <= match[k + 1, 0] and gap < width_px
+        if pinch and gap >= limit:
+            # Above the limit only a dip to `PROMINENCE` of the separation on both sides is a crossing.
+            before = 0.0
+            for i in range(start_b, k):
+                before = max(before, float(match[i, 0]))
+            after = 0.0
+            for i in range(k + 1, nb):
+                after = max(after, float(match[i, 0]))
+            pinch = gap <= PROMINENCE * min(before, after)
+        if pinch or last:
+            stop_b = nb if last else k
+            stop_e = ne if last else min(max(int(match[k, 1]), start_e + 1), ne - 1)
+            if last or (stop_b - start_b >= 2 and stop_e - start_e >= 2):
+                return k, stop_b, stop_e
+        k += 1
+    return nb - 2, nb, ne
+
+
+@kernel(int64(f4_2d, f4_2d, f4_2d, int64, int64, int64, int64, f4_2d, int64, float64))
+def _side_of(begin, end, match, start_b, stop_b, start_e, stop_e, prev, n_prev, width_px):
+    """Which side the stretch ``begin[start_b:stop_b]`` / ``end[start_e:stop_e]`` takes by nearness to the
+    previous end shape ``prev[:n_prev]``: 1 exchange (the end side is nearer by `DECISIVE` of their mean
+    separation, from ``match``), 0 keep, -1 undecided (the sides lie less than `PINCH_WIDTHS` rope widths
+    apart: nearness says nothing)."""
+    separation = 0.0
+    for i in range(start_b, stop_b):
+        separation += match[i, 0]
+    separation /= stop_b - start_b
+    if not separation >= PINCH_WIDTHS * width_px:
+        return -1
+    keep = _mean_distance(begin, start_b, stop_b, prev, n_prev)
+    other = _mean_distance(end, start_e, stop_e, prev, n_prev)
+    return 1 if other < keep - DECISIVE * separation else 0
+
+
 @kernel(int32(f4_2d, f4_2d, boolean, int64, int64, float64, boolean, ORDER))
 def uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, tip_undecided, order):
     """Exchange the stretches of `begin` and `end` (float32 (n, 2), fixed end first, in time order by the tip)
@@ -175,10 +224,15 @@ def uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, tip_undec
     and `PROMINENCE` x the largest distance on either side of it. On every stretch between pinches but the last
     (the tip's; it too when `tip_undecided`: the tips' order was a coin flip), the side decisively nearer
     (`DECISIVE`) to the previous end shape (kept at most `max_age_ns` before this exposure's end) is the start of
-    the exposure. The exchanged shapes keep their point counts (each resampled
-    evenly along its new arc). Nothing is exchanged for a `single` shape, without a previous end shape, or when a
-    shape is longer than ``order.prev_end``. Uses ``order.splice`` as scratch (its rows hold the new begin, the new
-    end, and each begin point's (distance, match) on `end`).
+    the exposure. The stretches before the first one that nearness decides (sides less than `PINCH_WIDTHS`
+    rope widths apart: by the fixed end, where the edges' noise makes pinches every few points) take its
+    exchange, back to where the separation between a stretch and it dips to `PROMINENCE` of that stretch's
+    largest (a crossing there): without one they are part of the same stretch of rope, moving the one way. The
+    exchanged shapes keep their point counts (each resampled evenly along its new arc). Nothing is exchanged for
+    a `single` shape (it is remembered as the previous end shape: the rope at mid-exposure, from which the next
+    exposure's start lies nearer than its end, as from an end shape), without a previous end shape, or when a
+    shape is longer than ``order.prev_end``. Uses ``order.splice`` as scratch (its rows hold the new begin, the
+    new end, and each begin point's (distance, match) on `end`).
 
     Returns the stretches exchanged (0 or more), or -1 when the shapes were not looked at.
     """
@@ -188,13 +242,13 @@ def uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, tip_undec
     cap = prev.shape[0]
     nb = begin.shape[0]
     ne = end.shape[0]
-    if single or nb > cap or ne > cap or splice.shape[0] < 3 or splice.shape[1] < nb + ne:
+    if nb > cap or ne > cap or splice.shape[0] < 3 or splice.shape[1] < nb + ne:
         state[ORDER_PREV_COUNT] = 0
         return -1
     n_prev = state[ORDER_PREV_COUNT]
     fresh = n_prev >= 2 and 0 <= t_end_ns - state[ORDER_PREV_T] <= max_age_ns
     flipped = 0
-    if fresh and nb >= 5 and ne >= 5:
+    if fresh and nb >= 5 and ne >= 5 and not single:
         # The distance of each begin point to the end shape, and its match there (in splice[2]).
         match = splice[2]
         lo = 0
@@ -210,42 +264,66 @@ def uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, tip_undec
         for k in range(max(3, nb // FLOOR_SPAN)):
             floor = min(floor, float(match[k, 0]))
         limit = PINCH_WIDTHS * width_px + min(floor, PINCH_WIDTHS * width_px)
-        # Stretches between pinches, from the fixed end; the last one (the tip's) keeps its side.
+        # The side of the first stretch that nearness decides (it starts at point `first`); the undecided ones
+        # before it take it back to where the separation between them and it dips to `PROMINENCE` of their own
+        # (a crossing near the fixed end). Their ends are kept in ``splice[0]`` until it is written below.
         out_b = splice[0]
+        head = 0
+        first = nb
+        count = 0
+        k = 2
+        start_b = 0
+        start_e = 0
+        while k < nb - 1:
+            k, stop_b, stop_e = _next_stretch(match, nb, ne, k, start_b, start_e, limit, width_px)
+            last = stop_b == nb
+            if last and not tip_undecided:
+                break
+            side = _side_of(begin, end, match, start_b, stop_b, start_e, stop_e, prev, n_prev, width_px)
+            if side >= 0:
+                head = side
+                first = start_b
+                break
+            if last:
+                break
+            out_b[count, 0] = np.float32(stop_b)
+            count += 1
+            start_b = stop_b
+            start_e = stop_e
+            k += 1
+        cut = nb  # the head's stretches from this point on take its side
+        if head == 1 and first < nb:
+            cut = first
+            valley = float(match[first, 0])
+            for s in range(count - 1, -1, -1):
+                stop = int(out_b[s, 0])
+                start = int(out_b[s - 1, 0]) if s > 0 else 0
+                peak = 0.0
+                low = math.inf
+                for i in range(start, stop):
+                    peak = max(peak, float(match[i, 0]))
+                    low = min(low, float(match[i, 0]))
+                if valley <= PROMINENCE * peak:
+                    break
+                cut = start
+                valley = min(valley, low)
+        # Stretches between pinches, from the fixed end; the last one (the tip's) keeps its side.
         out_e = splice[1]
         kb = 0  # begin's points written
         ke = 0
         start_b = 0
         start_e = 0
-        for k in range(2, nb - 1):
-            last = k == nb - 2
-            gap = match[k, 0]
-            pinch = gap <= match[k - 1, 0] and gap <= match[k + 1, 0] and gap < width_px
-            if pinch and gap >= limit:
-                # Above the limit only a dip to `PROMINENCE` of the separation on both sides is a crossing.
-                before = 0.0
-                for i in range(start_b, k):
-                    before = max(before, float(match[i, 0]))
-                after = 0.0
-                for i in range(k + 1, nb):
-                    after = max(after, float(match[i, 0]))
-                pinch = gap <= PROMINENCE * min(before, after)
-            if not (pinch or last):
-                continue
-            stop_b = nb if last else k
-            stop_e = ne if last else min(max(int(match[k, 1]), start_e + 1), ne - 1)
-            if (stop_b - start_b < 2 or stop_e - start_e < 2) and not last:
-                continue
+        in_head = True
+        k = 2
+        while k < nb - 1:
+            k, stop_b, stop_e = _next_stretch(match, nb, ne, k, start_b, start_e, limit, width_px)
+            last = stop_b == nb
             swap = False
             if not last or tip_undecided:
-                separation = 0.0
-                for i in range(start_b, stop_b):
-                    separation += match[i, 0]
-                separation /= stop_b - start_b
-                if separation >= PINCH_WIDTHS * width_px:
-                    keep = _mean_distance(begin, start_b, stop_b, prev, n_prev)
-                    other = _mean_distance(end, start_e, stop_e, prev, n_prev)
-                    swap = other < keep - DECISIVE * separation
+                side = _side_of(begin, end, match, start_b, stop_b, start_e, stop_e, prev, n_prev, width_px)
+                if side >= 0:
+                    in_head = False
+                swap = side == 1 or (side < 0 and in_head and start_b >= cut)
             src_b = end if swap else begin
             src_e = begin if swap else end
             lo_b, hi_b = (start_e, stop_e) if swap else (start_b, stop_b)
@@ -264,6 +342,7 @@ def uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, tip_undec
             start_e = stop_e
             if last:
                 break
+            k += 1
         if flipped > 0 and kb >= 2 and ke >= 2:
             _resample_into(out_b, kb, nb, begin)
             _resample_into(out_e, ke, ne, end)
@@ -274,4 +353,4 @@ def uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, tip_undec
         prev[k, 1] = end[k, 1]
     state[ORDER_PREV_COUNT] = ne
     state[ORDER_PREV_T] = t_end_ns
-    return flipped
+    return -1 if single else flipped

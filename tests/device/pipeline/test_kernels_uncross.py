@@ -216,3 +216,65 @@ def test_a_rigid_swing_with_noisy_edges_is_never_exchanged() -> None:
         _remember(order, line(angle - 0.02), 0)
         begin, end = line(angle), line(angle + 0.02)
         assert K.uncross_shapes(begin, end, False, _PERIOD_NS, 4 * _PERIOD_NS, 3.0, False, order.group) == 0, trial
+
+
+def _body_and_tip(head: np.ndarray) -> np.ndarray:
+    """A rope's motion over one exposure (rows): `head` (x < 20), then the body moving 0 -> 2.6 -> 0 px to larger
+    rows up to a crossing at x = 60, and the tip moving the other way (4 px at the end)."""
+    body = 25.0 * (_X / 60.0) ** 3 * (1.0 - _X / 60.0)
+    return np.where(_X < 20.0, head, np.where(_X < 60.0, body, -0.1 * (_X - 60.0)))
+
+
+def test_the_stretches_by_the_fixed_end_take_the_side_of_the_stretch_beyond_them() -> None:
+    # By the fixed end the two shapes lie a fraction of a width apart, and the edges' noise makes pinches there
+    # every few points: nearness cannot order those stretches. Without a crossing between them and the first
+    # stretch nearness orders, they are the same stretch of rope and are exchanged with it (simulated `lab late
+    # swing`, tuning seed, frames 8, 13-16, 28-30: the body's order restored, the first 10-30 % of the rope left
+    # the wrong way round, 0.5-1.2 px off, on each of them).
+    base = 25.0 * (_X / 60.0) ** 3 * (1.0 - _X / 60.0)
+    ripple = 1.0 + 0.4 * np.sin(2.0 * np.pi * _X / 4.0)  # a dip every 4 points: pinches below half a width
+    step = _body_and_tip(base * ripple)
+    order = OrderBuffers.make(256)
+    _remember(order, _shape(np.full_like(_X, 10.0)), 0)
+    true_begin, true_end = 10.0 + step, 10.0 + 2.0 * step
+    begin, end = _sides(true_begin, true_end)
+    assert np.abs(begin[12:25, 0] - true_begin[12:25]).max() > 0.3  # the stretch by the fixed end too
+    flipped = K.uncross_shapes(begin, end, False, _PERIOD_NS + _EXPOSURE_NS, 4 * _PERIOD_NS, 2.0, False, order.group)
+    assert flipped >= 2
+    off_b = np.abs(begin[:, 0] - np.interp(begin[:, 1], _X, true_begin))
+    off_e = np.abs(end[:, 0] - np.interp(end[:, 1], _X, true_end))
+    assert max(off_b[12:].max(), off_e[12:].max()) < 0.05
+    # the first points, where the separation fades to the edges' noise (a dip to a third of it), are left alone
+    assert max(off_b.max(), off_e.max()) <= np.abs(step[:12]).max() + 0.01
+
+
+def test_a_crossing_by_the_fixed_end_keeps_the_stretch_before_it() -> None:
+    # The first 20 % of the rope moves the other way (a crossing at x = 20, 0.3 px apart at most there): its
+    # sides are right, only the body is the wrong way round, and the body's exchange must not be carried past
+    # the crossing (simulated `lab late swing`, tuning seed, frames 10, 25, 51-52: 0.2-0.3 px off where it was).
+    step = _body_and_tip(-0.3 * np.sin(np.pi * _X / 20.0))
+    order = OrderBuffers.make(256)
+    _remember(order, _shape(np.full_like(_X, 10.0)), 0)
+    true_begin, true_end = 10.0 + step, 10.0 + 2.0 * step
+    begin, end = _sides(true_begin, true_end)
+    assert np.abs(begin[:19, 0] - true_begin[:19]).max() < 1e-5  # right by the fixed end
+    assert np.abs(begin[25:55, 0] - true_begin[25:55]).max() > 1.0  # the body the wrong way round
+    K.uncross_shapes(begin, end, False, _PERIOD_NS + _EXPOSURE_NS, 4 * _PERIOD_NS, 2.0, False, order.group)
+    np.testing.assert_allclose(begin[:, 0], np.interp(begin[:, 1], _X, true_begin), atol=0.05)
+    np.testing.assert_allclose(end[:, 0], np.interp(end[:, 1], _X, true_end), atol=0.05)
+
+
+def test_a_single_shape_is_the_previous_shape_of_the_next_split() -> None:
+    # A one-shape frame (the split's static fallback: the band's middle, the rope at mid-exposure) is remembered:
+    # the next exposure's start lies nearer to it than its end (simulated `lab-rolling`, tuning seed, set up from
+    # its first 2 s: frame 71, the first split after two fallbacks, had its body the wrong way round, centreline
+    # 1.0 px off, reported OK).
+    order = OrderBuffers.make(256)
+    middle = _shape(_wave(0.0))
+    assert K.uncross_shapes(middle, middle, True, 0, 4 * _PERIOD_NS, 2.0, False, order.group) == -1
+    assert order.state[K.ORDER_PREV_COUNT] == len(_X)
+    true_begin, true_end = _wave(1.0), _wave(2.0)
+    begin, end = _sides(true_begin, true_end)
+    flipped = K.uncross_shapes(begin, end, False, _PERIOD_NS + _EXPOSURE_NS, 4 * _PERIOD_NS, 2.0, False, order.group)
+    assert flipped == 1
+    np.testing.assert_allclose(begin[:, 0], np.interp(begin[:, 1], _X, true_begin), atol=0.02)
