@@ -183,7 +183,7 @@ def side_sweeps(
     if local and gains.shape[0] < count:
         return FULL
     # The table lookup walks from the last point's interval (neighbours' ratios are close): the same interval as
-    # A bisection (the last `lo` with ratios[lo] <= x), without its unpredictable branches.
+    # a bisection finds (the last `lo` with ratios[lo] <= x), without its unpredictable branches.
     m = ratios.shape[0]
     lo = 0
     i = (i_start + 4 * n) % n
