@@ -138,6 +138,8 @@ class ResultFinisher:
         self.after_still = False
         """Whether the last frame that reached the self-checks was a single shape (a still rope): the time order of
         a split right after it has no motion to go by."""
+        self._period_ns: int | None = None
+        """The frame period `finish` was given (None: not known yet), for ``fallback_sweep``'s history age."""
 
     def finish(
         self,
@@ -154,6 +156,7 @@ class ResultFinisher:
         here when needed)."""
         rejected = ""
         self.short_only = False
+        self._period_ns = period_ns
         if not exposure_ns and (outcome is None or self._still(outcome)):
             # Unknown exposure (a still photo) and no split, or one without blur between its tips: the rope is
             # the static centreline, which follows the contour whole where a split's two sides may pair across a
@@ -397,6 +400,16 @@ class ResultFinisher:
             # One shape: the band's far end it should reach (``tip_short``), from the contour it was read on.
             K.contour_far_end(self.tracer.points_ro, self.locator.prev_count, self.fixed, self._far_end)
             corners = self._far_end
+            if checks.buffers[1][0]["fallback_sweep_widths"] > 0.0:
+                # A motion model cleared by a flagged frame (``fallback_sweep`` clears it) gives no sweep: the time
+                # order's history still holds the last frames' tips, and this shape's tip is the tip at
+                # mid-exposure (simulated lab-mjpeg set up from its first 2 s, tuning seed, frame 70: the third of
+                # three static fallbacks after two flagged ones, the tip 10.7 px on from frame 69's, a sweep of
+                # 4.7 px, its tip 3.04 px off and reported OK).
+                K.predict_sweep_from_history(
+                    result.t_ns + exposure_ns // 2, exposure_ns, max_age_ns(self._period_ns),
+                    self.time_order.state, self.time_order.hist_rc, begin, checks.buffers[0],
+                )  # fmt: skip
         status, reason = checks.check(
             begin, end, self.fixed, result.stretch_begin, result.stretch_end, used_px, learned_px,
             result.order_confidence, exposure_ns, split, area, self.locator.edges.static_mask_ro,

@@ -15,7 +15,7 @@ from numba import boolean, float64, int64, types
 from numba.np.numpy_support import from_dtype
 
 from ropecam.device.pipeline._kernels.static_mask import MASK_FREE
-from ropecam.device.pipeline._kernels.tip_sweep import sweep_from_path
+from ropecam.device.pipeline._kernels.tip_sweep import sweep_from_history, sweep_from_path
 from ropecam.device.pipeline._kernels.tracking import MOTION_COUNT, i8_1d, predict_motion
 from ropecam.shared.jit import f4_1d, f4_2d, f4_2d_ro, f8_1d, f8_2d, kernel, u1_2d_ro
 
@@ -105,6 +105,24 @@ def predict_tips(t_ns, exposure_ns, motion_state, motion_log, fixed, out_predict
     out_predicted[2] = error_px
     s_r, s_c = sweep_from_path(fixed, t_ns + exposure_ns // 2, exposure_ns, _NO_AGE_LIMIT, motion_state, motion_log,
                                out_predicted[0], out_predicted[1])  # fmt: skip
+    out_predicted[3] = math.hypot(s_r, s_c)
+    return True
+
+
+@kernel(boolean(int64, int64, int64, i8_1d, f8_2d, f4_2d, f8_1d))
+def predict_sweep_from_history(t_mid_ns, exposure_ns, max_age_ns, order_state, hist_rc, shape, out_predicted):
+    """Write how far the tip sweeps during the exposure of `exposure_ns` centred on `t_mid_ns` into
+    ``out_predicted[3]`` where the motion model gives no sweep (nan there: cleared by a flagged frame, a gap):
+    `sweep_from_history` from the time order's history (`order_state`, `hist_rc`: the last earlier frame's tip no
+    older than `max_age_ns`) to the tip of `shape`, one shape's tip being the tip at mid-exposure (the split's
+    static fallback, the band's middle). Leaves a sweep already there; returns whether it wrote one."""
+    n = shape.shape[0]
+    if n < 1 or exposure_ns <= 0 or not math.isnan(out_predicted[3]):
+        return False
+    s_r, s_c, _ = sweep_from_history(t_mid_ns, exposure_ns, max_age_ns, order_state, hist_rc,
+                                     float64(shape[n - 1, 0]), float64(shape[n - 1, 1]))  # fmt: skip
+    if math.isnan(s_r):
+        return False
     out_predicted[3] = math.hypot(s_r, s_c)
     return True
 

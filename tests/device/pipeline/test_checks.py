@@ -7,9 +7,11 @@ import math
 import numpy as np
 import pytest
 
+from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline.checks import ChecksConfig, Reason, SelfChecks, contour_area_px2, tip_corner_px
 from ropecam.device.pipeline.motion import MotionModel
 from ropecam.device.pipeline.result import FrameStatus
+from ropecam.device.pipeline.time_order import TimeOrder
 from ropecam.shared.config import from_mapping
 from ropecam.shared.errors import ConfigError
 
@@ -156,6 +158,43 @@ def test_the_one_shape_frame_after_a_fallback_sweep_failure_fails_too_once() -> 
     # A one-shape method (centreline) never carries it.
     centreline = SelfChecks(ChecksConfig(), fallback_single=False)
     assert _check(centreline, begin=middle, end=middle, split=False)[1] is Reason.NONE
+
+
+def test_a_one_shape_frame_without_a_prediction_takes_its_sweep_from_the_time_orders_history() -> None:
+    # Three static fallbacks in a row (simulated lab-mjpeg set up from its first 2 s, tuning seed, frames 68-70): the
+    # first fails ``fallback_sweep`` on the motion model's path, which the failure clears; the second fails by the
+    # carry; the third had nothing to check its sweep against and was reported OK with its tip 3.04 px off. The
+    # time order's history still holds the last one-shape frames' tips (at mid-exposure, as this frame's is).
+    period_ns, exposure_ns = 8_403_361, 4_000_000
+    order = TimeOrder()
+    for k, tip_col in enumerate((96.0, 116.0)):  # two one-shape frames, the tip 20 px on each frame
+        shape = _shape(tip_col)
+        order.order(shape, shape, k * period_ns, k * period_ns + exposure_ns, period_ns)
+    checks = SelfChecks(ChecksConfig())
+    predicted, thresholds, _ = checks.buffers
+    for tip_col, expected in ((136.0, Reason.FALLBACK_SWEEP), (117.0, Reason.NONE)):  # 9.5 px and 0.5 px swept
+        checks.restart()  # no prediction (a flagged frame cleared the motion model), nothing carried
+        checks.due(settled=False)  # a new frame
+        middle = _shape(tip_col)
+        assert _check(checks, begin=middle, end=middle, split=False)[1] is Reason.NONE  # nothing to check against
+        t_mid_ns = 2 * period_ns + exposure_ns // 2
+        assert K.predict_sweep_from_history(
+            t_mid_ns, exposure_ns, 4 * period_ns, order.state, order.hist_rc, middle, predicted
+        )
+        assert predicted[3] == pytest.approx(abs(tip_col - 116.0) * exposure_ns / period_ns, rel=1e-6)
+        assert _check(checks, begin=middle, end=middle, split=False)[1] is expected, tip_col
+        assert thresholds[0]["fallback_sweep_widths"] * WIDTH_PX == pytest.approx(7.5)  # between the two sweeps
+    # A sweep already there (the motion model's) stands; a history too old gives none.
+    predicted[3] = 1.0
+    assert not K.predict_sweep_from_history(
+        2 * period_ns, exposure_ns, 4 * period_ns, order.state, order.hist_rc, middle, predicted
+    )
+    assert predicted[3] == 1.0
+    predicted[3] = math.nan
+    assert not K.predict_sweep_from_history(
+        20 * period_ns, exposure_ns, 4 * period_ns, order.state, order.hist_rc, middle, predicted
+    )
+    assert math.isnan(predicted[3])
 
 
 def test_shapes_of_different_lengths_fail_only_as_a_split() -> None:
