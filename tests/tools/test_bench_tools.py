@@ -174,3 +174,22 @@ def test_bench_cold_refuses_fewer_frames_than_it_leaves_out(run_tool_here: RunTo
     assert done.returncode == 2
     assert "--frames 2" in done.stderr and "--settle 5" in done.stderr, done.stderr
     assert "Traceback" not in done.stderr
+
+
+@pytest.mark.slow
+def test_wire_size_measures_the_device_with_the_given_config(tmp_path: Path, run_tool: RunTool) -> None:
+    """`--config` measures the device as that device.toml's [pipeline] table sets it (a set-up rig), not a fresh
+    device: a fixed end given far from the rope finds no rope on any frame; a bad key is named, with the file."""
+    frames = tmp_path / "rig-soft"
+    assert host_main(["simulate", "rig-soft", "--out", str(frames), "--frames", "5", "-q"]) == 0
+    far = tmp_path / "far.toml"
+    far.write_text("[pipeline]\nfixed_end_uv = [1000.0, 540.0]\n")
+    done = run_tool("bench.py", "wire-size", str(frames), "--config", str(far), "--json")
+    assert done.returncode == 0, done.stdout + done.stderr
+    (row,) = [json.loads(line) for line in done.stdout.splitlines()]
+    assert row["frames"] == 5 and row["statuses"] == {"NO_ROPE": 5}, row
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[pipeline]\nfixed_end_u = [1000.0, 540.0]\n")
+    done = run_tool("bench.py", "wire-size", str(frames), "--config", str(bad))
+    assert done.returncode == 2 and f"--config {bad}" in done.stderr and "'fixed_end_u'" in done.stderr, done.stderr
+    assert "Traceback" not in done.stderr and done.stdout == ""

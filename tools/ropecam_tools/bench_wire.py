@@ -14,6 +14,7 @@ shapes right (the lab presets' shapes are not yet right: issue 19).
 
     python tools/bench.py wire-size sim/rig sim/rig-soft sim/lab [--source both] [--fps 119 --baud 921600]
     python tools/bench.py wire-size sim/rig-soft --first 6 --check     # exit 1 when a frame is over the budget
+    python tools/bench.py wire-size sim/lab --config device.toml       # the device as `ropecam-device setup` set it
 """
 
 from __future__ import annotations
@@ -45,15 +46,16 @@ def budget_bytes(baud: float, fps: float) -> float:
     return baud / 10.0 / fps
 
 
-def device_records(frameset: Path, first: int | None) -> list[FrameResult]:
-    """The FrameResult records the daemon sends for the frames of `frameset` (default pipeline settings)."""
+def device_records(frameset: Path, first: int | None, config: Any = None) -> list[FrameResult]:
+    """The FrameResult records the daemon sends for the frames of `frameset`, measured with `config` (a
+    `PipelineConfig`; None: the default settings) and its plane calibration, as `extract` and the daemon use them."""
     from ropecam.device.capture.frameset import FrameSet
     from ropecam.device.pipeline.config import PipelineConfig
-    from ropecam.device.pipeline.pipeline import Pipeline
     from ropecam.device.pipeline.result import to_wire
+    from ropecam_tools.bench_device import new_pipeline
 
     frames = FrameSet(frameset)
-    pipeline = Pipeline(PipelineConfig(), frames.image_size)
+    pipeline = new_pipeline(config or PipelineConfig(), frames.image_size)
     pipeline.warm_up()
     records = []
     for k, (row, image) in enumerate(frames):
@@ -172,19 +174,29 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--shape-tolerance-px", type=float, default=SenderConfig().shape_tolerance_px,
         help="shape codec tolerance (default: the daemon's [sender] shape_tolerance_px, %(default)s)",
     )  # fmt: skip
+    parser.add_argument(
+        "--config",
+        metavar="TOML",
+        help="measure the device with the [pipeline] table of this device.toml (`ropecam-device setup` writes it), "
+        "with its plane_file and mask, as a set-up rig runs (default: the defaults, a fresh device)",
+    )
+    parser.add_argument("--method", default="blur_split", choices=("blur_split", "paper", "centerline"))
     parser.add_argument("--check", action="store_true", help="exit 1 when a framed message is over the budget")
     parser.add_argument("--json", action="store_true", help="print one JSON object per set and source")
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the subcommand with the parsed `args`; return the exit code (1: over the budget with --check)."""
+    from ropecam_tools.bench_device import load_config
+
     budget = budget_bytes(args.baud, args.fps)
+    config = load_config(args)
     sources = ("device", "truth") if args.source == "both" else (args.source,)
     rows: list[dict[str, Any]] = []
     for path in (Path(p) for p in args.framesets):
         for source in sources:
             if source == "device":
-                records = device_records(path, args.first)
+                records = device_records(path, args.first, config)
             else:
                 records = truth_records(path, args.first, args.noise_px)
             row = report_row(path.name, source, records, args.shape_tolerance_px, budget)
