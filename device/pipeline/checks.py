@@ -254,8 +254,8 @@ class SelfChecks:
     """
 
     __slots__ = (
-        "_carry", "_carry_sweep", "_measure_cells", "_measures", "_predicted", "_settled_frames", "_swept",
-        "_thresholds", "buffers", "config", "quality",
+        "_carry", "_measure_cells", "_measures", "_predicted", "_settled_frames", "_swept",
+        "_thresholds", "buffers", "checks_sweep", "config", "quality",
     )  # fmt: skip
 
     def __init__(self, config: ChecksConfig, fallback_single: bool = True) -> None:
@@ -275,7 +275,8 @@ class SelfChecks:
         """The last checked frame's measures, by name (`check_frame` writes them; `quality` holds a copy)."""
         self._measure_cells = memoryview(self._measures.view(np.float64))  # the same, cell by cell (`verdict`)
         self._settled_frames = 0
-        self._carry_sweep = float(thresholds[0]["fallback_sweep_widths"]) > 0.0
+        self.checks_sweep = float(thresholds[0]["fallback_sweep_widths"]) > 0.0
+        """Whether ``fallback_sweep`` is checked (its threshold above 0: a one shape that is a fallback)."""
         self._swept = False
         """This frame failed ``fallback_sweep`` on its own prediction (not carried over, `verdict`)."""
         self._carry = False
@@ -475,7 +476,7 @@ class SelfChecks:
         carried = (
             (code == K.CHECK_NONE or code == K.CHECK_TIP_SHORT)
             and self._carry
-            and self._carry_sweep
+            and self.checks_sweep
             and self.quality[_Q3] == 0.0
             and math.isnan(self._predicted[2])
         )

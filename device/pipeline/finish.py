@@ -400,7 +400,7 @@ class ResultFinisher:
             # One shape: the band's far end it should reach (``tip_short``), from the contour it was read on.
             K.contour_far_end(self.tracer.points_ro, self.locator.prev_count, self.fixed, self._far_end)
             corners = self._far_end
-            if checks.buffers[1][0]["fallback_sweep_widths"] > 0.0:
+            if checks.checks_sweep:
                 # A motion model cleared by a flagged frame (``fallback_sweep`` clears it) gives no sweep: the time
                 # order's history still holds the last frames' tips, and this shape's tip is the tip at
                 # mid-exposure (simulated lab-mjpeg set up from its first 2 s, tuning seed, frame 70: the third of
