@@ -110,6 +110,8 @@ class ResultFinisher:
         The pipeline's stages whose results and state the last steps read and update.
     fixed
         The fixed end (row, col) float32 (`RopeTraits.fixed_end`).
+    clock
+        The stream's clock (the pipeline's): the frame period that ages the time order's history.
     static_mask
         The learned static mask (None: a ``tip_masked`` verdict always stands).
     """
@@ -125,8 +127,10 @@ class ResultFinisher:
         tracer: ContourTracer,
         locator: RopeLocator,
         fixed: np.ndarray,
+        clock: FrameClock,
         static_mask: StaticMask | None = None,
     ) -> None:
+        self.clock = clock
         self.static_mask = static_mask
         """The learned static mask: its scene tells a tip at the mask from a rope the mask cut (`SelfChecks.check`)."""
         self.splitter, self.tracker, self.time_order, self.motion = splitter, tracker, time_order, motion
@@ -138,25 +142,20 @@ class ResultFinisher:
         self.after_still = False
         """Whether the last frame that reached the self-checks was a single shape (a still rope): the time order of
         a split right after it has no motion to go by."""
-        self._period_ns: int | None = None
-        """The frame period `finish` was given (None: not known yet), for ``fallback_sweep``'s history age."""
 
     def finish(
         self,
         result: PipelineResult,
         outcome: SplitOutcome | None,
         exposure_ns: int,
-        period_ns: int | None,
         revisits: int | None = None,
         tracked: tuple[int, float, float, float] | None = None,
     ) -> None:
         """Fill `result` from the split's `outcome`: the shapes in time order and the material points (with
-        `tracked`, the results of a `track_frame` call made on them already), or why there are none; the frame
-        period is `period_ns` (None: not known yet), the contour's pixels walked twice `revisits` (None: counted
-        here when needed)."""
+        `tracked`, the results of a `track_frame` call made on them already), or why there are none; the contour's
+        pixels walked twice `revisits` (None: counted here when needed). The frame period is the clock's."""
         rejected = ""
         self.short_only = False
-        self._period_ns = period_ns
         if not exposure_ns and (outcome is None or self._still(outcome)):
             # Unknown exposure (a still photo) and no split, or one without blur between its tips: the rope is
             # the static centreline, which follows the contour whole where a split's two sides may pair across a
@@ -212,7 +211,7 @@ class ResultFinisher:
             order, motion = self.time_order, self.motion
             try:
                 swap, confidence, stretch_begin, stretch_end = K.track_frame(
-                    a, b, a is b, result.t_ns, result.t_end_ns, max_age_ns(period_ns), order.group, self.fixed,
+                    a, b, a is b, result.t_ns, result.t_end_ns, self.clock.max_age_ns, order.group, self.fixed,
                     float(self.splitter.sweep_px), exposure_ns, motion.group, tracker.length0_settled_px, tracker.group,
                     float(outcome.width_px),
                 )  # fmt: skip
@@ -224,7 +223,7 @@ class ResultFinisher:
             self._take_tracked(result, outcome, swap, confidence, stretch_begin, stretch_end)
         else:
             # The first frames (Lc0 still being measured) or shapes `track_frame` does not take: step by step.
-            begin, end, confidence = self.time_order.order(a, b, result.t_ns, result.t_end_ns, period_ns)
+            begin, end, confidence = self.time_order.order(a, b, result.t_ns, result.t_end_ns, self.clock.period_ns)
             result.begin, result.end, result.order_confidence = begin, end, confidence
             (result.material_begin, result.stretch_begin, result.material_end, result.stretch_end) = (
                 tracker.track_shapes(begin, end)
@@ -407,7 +406,7 @@ class ResultFinisher:
                 # three static fallbacks after two flagged ones, the tip 10.7 px on from frame 69's, a sweep of
                 # 4.7 px, its tip 3.04 px off and reported OK).
                 K.predict_sweep_from_history(
-                    result.t_ns + exposure_ns // 2, exposure_ns, max_age_ns(self._period_ns),
+                    result.t_ns + exposure_ns // 2, exposure_ns, self.clock.max_age_ns,
                     self.time_order.state, self.time_order.hist_rc, begin, checks.buffers[0],
                 )  # fmt: skip
         status, reason = checks.check(

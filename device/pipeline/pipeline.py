@@ -19,7 +19,6 @@ from numpy.typing import NDArray
 from ropecam.device.pipeline import _kernels as K
 from ropecam.device.pipeline._views import as_ro
 from ropecam.device.pipeline.config import PipelineConfig
-from ropecam.device.pipeline.finish import FrameClock
 from ropecam.device.pipeline.result import FrameStatus, PipelineResult, frame_problem
 from ropecam.device.pipeline.stages import Stages
 from ropecam.device.pipeline.workspace import refuse_copies
@@ -91,7 +90,7 @@ class Pipeline:
         self.one_call = True
         """Make a steady frame in one kernel call (`steady_frame`); False: with the calls one by one (the same
         results; the tools that time or record single kernels set it)."""
-        self._clock = FrameClock(stages.workspace.clock)
+        self._clock = stages.clock
         self._u8, self._rows = np.dtype(np.uint8), float(height)  # (a float height: `set_rolling`'s, no int made)
         self._unclean_frames = 0  # frames without an OK result while the static mask was being learned
         self._no_quality: dict[str, float] = {}  # a reused result's quality before the checks ran (`process`)
@@ -252,7 +251,7 @@ class Pipeline:
                 tracer.points, tracer.chain, tracer.count, fixed_rc, width_px, e.gx, e.gy, e.edges, e.mag,
                 e.smooth, polarity, edge_stage=e, frame=image,
             )  # fmt: skip
-            self._finisher.finish(result, outcome, exposure_ns, self._clock.period_ns)
+            self._finisher.finish(result, outcome, exposure_ns)
         elif stop == K.STEADY_DONE and exposure_ns > 0:
             self._finisher.finish_tracked(
                 result, outcome, exposure_ns, swap, confidence, stretch_begin, stretch_end, checked, placed
@@ -262,7 +261,7 @@ class Pipeline:
             counted = (
                 steady.revisits() if stop in (K.STEADY_BROKEN, K.STEADY_AFTER_SHAPES) and exposure_ns > 0 else None
             )
-            self._finisher.finish(result, outcome, exposure_ns, self._clock.period_ns, counted, tracked)
+            self._finisher.finish(result, outcome, exposure_ns, counted, tracked)
 
     def _measure_contour(
         self, image: NDArray[np.uint8], result: PipelineResult, exposure_ns: int, n: int, used_roi: bool
@@ -320,7 +319,7 @@ class Pipeline:
             return
         unknown_length = self.tracker.length0_settled_px < 0.0  # before `finish` feeds this frame's shapes to Lc0
         seen = self.tracker.lengths_seen
-        self._finisher.finish(result, outcome, exposure_ns, self._clock.period_ns)
+        self._finisher.finish(result, outcome, exposure_ns)
         if unknown_length and exposure_ns > 0:
             self._finisher.refuse_fold(result, seen)
         if self.locator.cut and result.status is FrameStatus.OK and self.checks.config.enabled:

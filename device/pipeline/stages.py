@@ -12,7 +12,7 @@ from ropecam.device.pipeline.checks import SelfChecks
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.contour import ContourTracer
 from ropecam.device.pipeline.edges import EdgeDetector, gaussian_weights
-from ropecam.device.pipeline.finish import ResultFinisher
+from ropecam.device.pipeline.finish import FrameClock, ResultFinisher
 from ropecam.device.pipeline.locate import RopeLocator
 from ropecam.device.pipeline.motion import MotionModel
 from ropecam.device.pipeline.split import BlurSplitter
@@ -65,6 +65,9 @@ class Stages:
     locator: RopeLocator
     finisher: ResultFinisher
     steady: SteadyFrame
+    clock: FrameClock
+    """The stream's frame period and each frame's exposure (its cells in the workspace, where `steady_frame` ticks
+    them; the finisher reads the period from it)."""
 
     @classmethod
     def make(cls, config: PipelineConfig, shape: tuple[int, int], plane: PlaneCalibration | None) -> Stages:
@@ -128,15 +131,17 @@ class Stages:
         checks = SelfChecks(config.checks, fallback_single=config.method == "blur_split")
         time_order = TimeOrder(ws.order)
         locator = RopeLocator(config.roi_margin_px, edges, tracer, motion, traits.fixed_end, config.canny_low, ws.roi)
+        clock = FrameClock(ws.clock)
         finisher = ResultFinisher(
-            splitter, tracker, time_order, motion, checks, traits, tracer, locator, ws.fixed_end.fixed, static_mask
-        )
+            splitter, tracker, time_order, motion, checks, traits, tracer, locator, ws.fixed_end.fixed, clock,
+            static_mask,
+        )  # fmt: skip
         steady = SteadyFrame(
             ws, config.roi_margin_px, edges, tracer, splitter, tracker, locator, traits, checks, static_mask
         )
         return cls(
             ws, tone, edges, tracer, static_mask, thresholds, splitter, tracker, traits, motion, checks,
-            time_order, locator, finisher, steady,
+            time_order, locator, finisher, steady, clock,
         )  # fmt: skip
 
     def set_thresholds(self, low: float, high: float) -> None:
