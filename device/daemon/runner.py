@@ -120,6 +120,7 @@ class Daemon:
             self.sender = ResultSender(
                 self.transport, sender_config.device_id, sender_config.queue_frames, sequence, link_broken=broken,
                 shape_config=ShapeCodecConfig(tolerance_px=sender_config.shape_tolerance_px),
+                frame_budget_bytes=sender_config.frame_budget_bytes,
             )  # fmt: skip
             self.listener = ControlListener(
                 self.transport,
@@ -153,6 +154,7 @@ class Daemon:
                 encode_errors=stats.encode_errors,
                 link_errors=stats.link_errors,
                 closed_dropped=stats.dropped_closed,
+                budget_cuts=stats.budget_cuts,
             )
         if self.transport is not None:
             totals.update(messages_dropped=self.transport.stats.send_dropped)
@@ -352,6 +354,7 @@ class Daemon:
             "encode_errors": link["encode_errors"],
             "link_errors": link["link_errors"],
             "closed_dropped": link["closed_dropped"],
+            "budget_cuts": link["budget_cuts"],
             "link_reopened": self.link_reopened,
             "camera_reopened": self.camera_reopened,
             "control_applied": applied,

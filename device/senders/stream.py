@@ -21,6 +21,7 @@ from typing import Any
 
 from ropecam.shared.errors import ProtocolError, TransportError
 from ropecam.shared.protocol import FrameResult, ShapeHint, encode_message
+from ropecam.shared.protocol.budget import encode_within_budget
 from ropecam.shared.protocol.shapes import ShapeCodecConfig
 from ropecam.shared.transport.base import Transport
 
@@ -42,6 +43,8 @@ class SenderStats:
     bytes_sent: int = 0
     dropped_closed: int = 0
     """Messages submitted after `close`, or still queued when the drain timeout ran out."""
+    budget_cuts: int = 0
+    """Frame results sent with looser shapes, or without shapes, to stay within the byte budget (`budget`)."""
 
 
 class ResultSender:
@@ -65,6 +68,9 @@ class ResultSender:
         Event set when the link is considered broken (shared with the control listener); a new one by default.
     shape_config
         Tolerance and quantum of the shape codec for frame results (the codec's default 0.05 px when None).
+    frame_budget_bytes
+        Most bytes a frame result may take on a serial line (COBS-framed); one over it is sent with looser shapes
+        or without them, and says so (`ropecam.shared.protocol.budget`). 0: no budget.
     """
 
     def __init__(
@@ -77,6 +83,7 @@ class ResultSender:
         broken_after: int = 3,
         link_broken: threading.Event | None = None,
         shape_config: ShapeCodecConfig | None = None,
+        frame_budget_bytes: int = 0,
     ) -> None:
         self.transport = transport
         self.device_id = device_id
@@ -91,9 +98,8 @@ class ResultSender:
         self._failures_in_row = 0
         self.link_broken = link_broken if link_broken is not None else threading.Event()
         self._hint = ShapeHint()
-        self._frame_options: dict[str, object] = {"hint": self._hint}
-        if shape_config is not None:
-            self._frame_options["shape_config"] = shape_config
+        self._shape_config = shape_config or ShapeCodecConfig()
+        self._frame_budget = frame_budget_bytes
         self._thread = threading.Thread(target=self._run, name="ropecam-sender", daemon=True)
         self._thread.start()
 
@@ -170,17 +176,25 @@ class ResultSender:
             if self._sequence == (sequence + 1) & 0xFFFFFFFF:
                 self._sequence = sequence
 
+    def _encode(self, record: Any, sequence: int) -> bytes:
+        if not isinstance(record, FrameResult):
+            return encode_message(record, device_id=self.device_id, sequence=sequence, t_ns=self._clock_ns())
+        data, cut = encode_within_budget(
+            record, self._frame_budget, device_id=self.device_id, sequence=sequence, t_ns=self._clock_ns(),
+            shape_config=self._shape_config, hint=self._hint,
+        )  # fmt: skip
+        if cut:
+            self.stats.budget_cuts += 1
+        return data
+
     def _run(self) -> None:
         while True:
             taken = self._next()
             if taken is None:
                 return
             record, sequence = taken
-            options = self._frame_options if isinstance(record, FrameResult) else None
             try:
-                data = encode_message(
-                    record, device_id=self.device_id, sequence=sequence, t_ns=self._clock_ns(), pack_options=options
-                )
+                data = self._encode(record, sequence)
             except (ValueError, ProtocolError) as exc:
                 self._give_back(sequence)
                 self.stats.encode_errors += 1

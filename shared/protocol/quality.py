@@ -4,8 +4,9 @@ Wire layout (appended to the version 1 payload; all varints as `bytecodec`)::
 
     reason        uint8     `Reason` code (0 = none)
     readout_ns    uvarint   rolling-shutter readout time of the frame (0 = global shutter)
-    present       uvarint   bit k set: measure QUALITY_KEYS[k] follows
-    values        svarint   each present measure, in units of its `QUALITY_SCALES` entry, in key order
+    present       uvarint   bit k set: measure RECORD_KEYS[k] follows
+    values        svarint   each present measure, in units of its scale (`QUALITY_SCALES`; 0.01 px for the
+                            sender's ``wire_tolerance_px``), in key order
 
 The measures are coded coarsely (ratios to 1e-3, pixels to 0.1 px): they say how plausible a frame was, they are
 not measurements. A value that is not finite is not present; a value beyond +-QUALITY_LIMIT units is clipped to it.
@@ -21,7 +22,16 @@ from typing import Final
 from ropecam.shared.errors import ProtocolError
 from ropecam.shared.protocol.bytecodec import ByteReader, ByteWriter
 
-__all__ = ["QUALITY_KEYS", "QUALITY_SCALES", "Reason", "check_quality", "pack_quality", "unpack_quality"]
+__all__ = [
+    "QUALITY_KEYS",
+    "QUALITY_SCALES",
+    "RECORD_KEYS",
+    "WIRE_TOLERANCE_KEY",
+    "Reason",
+    "check_quality",
+    "pack_quality",
+    "unpack_quality",
+]
 
 
 class Reason(IntEnum):
@@ -74,12 +84,18 @@ QUALITY_KEYS: Final = (
 """The per-frame measures of the self-checks (`ropecam.device.pipeline.checks`), in wire order."""
 QUALITY_SCALES: Final = (1e-3, 1e-3, 0.1, 0.1, 0.1, 0.1, 1e-2)
 """The unit of each key on the wire."""
+WIRE_TOLERANCE_KEY: Final = "wire_tolerance_px"
+"""The sender's measure (`budget`): present only on a frame the serial budget cut, the tolerance its shapes were
+coded with (px), 0 when its shapes and material points were left out."""
+RECORD_KEYS: Final = (*QUALITY_KEYS, WIRE_TOLERANCE_KEY)
+"""Every measure a quality record may carry, in wire order: the self-checks' and then the sender's."""
+_SCALES: Final = (*QUALITY_SCALES, 1e-2)
 QUALITY_LIMIT: Final = 2**31 - 1
-_INDEX: Final = {key: k for k, key in enumerate(QUALITY_KEYS)}
+_INDEX: Final = {key: k for k, key in enumerate(RECORD_KEYS)}
 
 
 def check_quality(quality: Mapping[str, float]) -> dict[str, float]:
-    """Return a checked copy of `quality` (keys from QUALITY_KEYS, float values; non-finite ones dropped).
+    """Return a checked copy of `quality` (keys from RECORD_KEYS, float values; non-finite ones dropped).
 
     Raises
     ------
@@ -89,7 +105,7 @@ def check_quality(quality: Mapping[str, float]) -> dict[str, float]:
     checked = {}
     for key, value in quality.items():
         if key not in _INDEX:
-            raise ValueError(f"quality key {key!r} is not one of {QUALITY_KEYS}")
+            raise ValueError(f"quality key {key!r} is not one of {RECORD_KEYS}")
         number = float(value)
         if math.isfinite(number):
             checked[key] = number
@@ -104,9 +120,9 @@ def pack_quality(w: ByteWriter, reason: Reason, readout_ns: int, quality: Mappin
     for key in quality:
         present |= 1 << _INDEX[key]
     w.uvarint(present)
-    for k, key in enumerate(QUALITY_KEYS):
+    for k, key in enumerate(RECORD_KEYS):
         if present >> k & 1:
-            w.svarint(round(max(-QUALITY_LIMIT, min(QUALITY_LIMIT, quality[key] / QUALITY_SCALES[k]))))
+            w.svarint(round(max(-QUALITY_LIMIT, min(QUALITY_LIMIT, quality[key] / _SCALES[k]))))
 
 
 def unpack_quality(r: ByteReader) -> tuple[Reason, int, dict[str, float]]:
@@ -117,9 +133,9 @@ def unpack_quality(r: ByteReader) -> tuple[Reason, int, dict[str, float]]:
     except ValueError as exc:
         raise ProtocolError(f"FrameResult: unknown reason code {code} (a newer device?)") from exc
     readout_ns = r.uvarint("readout_ns", 2**40 - 1)
-    present = r.uvarint("quality keys", (1 << len(QUALITY_KEYS)) - 1)
+    present = r.uvarint("quality keys", (1 << len(RECORD_KEYS)) - 1)
     quality = {}
-    for k, key in enumerate(QUALITY_KEYS):
+    for k, key in enumerate(RECORD_KEYS):
         if present >> k & 1:
-            quality[key] = r.svarint(key, QUALITY_LIMIT) * QUALITY_SCALES[k]
+            quality[key] = r.svarint(key, QUALITY_LIMIT) * _SCALES[k]
     return reason, readout_ns, quality

@@ -83,12 +83,15 @@ def test_bench_kernels_times_every_kernel_inside_the_pipeline(run_tool: RunTool)
 
 
 @pytest.mark.slow
-def test_wire_size_keeps_rig_soft_first_frames_within_the_serial_budget(tmp_path: Path, run_tool: RunTool) -> None:
+def test_wire_size_keeps_rig_soft_first_frames_within_the_serial_budget(
+    tmp_path: Path, run_tool: RunTool, run_tool_here: RunTool
+) -> None:
     """Issue 19 acceptance 8: with the quality record, rig-soft's first frames (the curling rope, where the first
     blur split of a 2 px sweep is the roughest shape) fit the 921600-baud serial line at 119 FPS (774 B framed), for
     the device's shapes and for the true ones; the true shapes' mean stays <= 200 B. The device's mean over these
-    five frames holds that first split (238.8 B measured with the lens blur read from the image: frame 3 534 B);
-    over the set's 60 frames it is 185.5 B (`bench.py wire-size`, the acceptance's mean)."""
+    five frames holds that first split (238.8 B measured at 0.1 px with the lens blur read from the image: frame 3
+    534 B); over the tuning matrix's 60 frames it is 168 B at the sender's 0.25 px (`bench.py wire-size`, the
+    acceptance's mean). The sender's byte budget cuts none of these frames; a budget below 256 B is refused."""
     frames = tmp_path / "rig-soft"
     assert host_main(["simulate", "rig-soft", "--out", str(frames), "--frames", "5", "-q"]) == 0
     done = run_tool("bench.py", "wire-size", str(frames), "--source", "both", "--check", "--json")
@@ -99,7 +102,10 @@ def test_wire_size_keeps_rig_soft_first_frames_within_the_serial_budget(tmp_path
         assert row["budget_bytes"] == pytest.approx(921600 / 10 / 119, abs=0.1)
         assert row["over_budget"] == 0 and max(row["first_6_framed"]) == row["max_framed_bytes"] <= 774
         assert row["mean_bytes"] <= (200 if row["source"] == "truth" else 260)
+        assert row["cut"] == 0 and row["cut_frames"] == []
     assert rows[0]["statuses"] == {"OK": 5}
+    refused = run_tool_here("bench.py", "wire-size", str(frames), "--frame-budget-bytes", "100")
+    assert refused.returncode == 2 and "--frame-budget-bytes must be 0 (none) or >= 256, got 100" in refused.stderr
 
 
 @pytest.mark.slow

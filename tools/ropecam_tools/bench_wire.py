@@ -2,9 +2,11 @@
 
 For each recorded frame set (e.g. `ropecam simulate PRESET --out DIR`) it reports the FrameResult messages as the
 daemon sends them: the device pipeline's results (warmed up as the daemon warms it), `to_wire`, `encode_message`
-with the stream's `ShapeHint` and the sender's shape tolerance (`[sender] shape_tolerance_px`), protocol version
-2 (with the quality record); and the COBS-framed bytes the serial link carries. The budget is the serial line's
-bytes per frame: ``baud / 10 / fps`` (8N1), 774 B at 921600 baud and 119 FPS.
+with the stream's `ShapeHint`, the sender's shape tolerance (`[sender] shape_tolerance_px`) and its byte budget
+(`[sender] frame_budget_bytes`: a frame over it goes with looser shapes or none, `ropecam.shared.protocol.budget`;
+``--frame-budget-bytes 0`` measures without it), protocol version 2 (with the quality record); and the
+COBS-framed bytes the serial link carries. The serial line's bytes per frame are ``baud / 10 / fps`` (8N1), 774 B
+at 921600 baud and 119 FPS; ``cut`` counts the frames the sender's budget cut, ``over_budget`` those over the line's.
 
 With ``--source truth`` (or ``both``) the frame set's true shapes go through the same encoder instead, resampled at
 the pipeline's output step with Gaussian noise of ``--noise-px`` per coordinate (0.01 px: the device's shapes on
@@ -27,7 +29,8 @@ from typing import Any
 import numpy as np
 
 from ropecam.device.daemon.config import SenderConfig
-from ropecam.shared.protocol import FrameResult, ShapeHint, encode_message
+from ropecam.shared.protocol import FrameResult, ShapeHint
+from ropecam.shared.protocol.budget import MIN_BUDGET_BYTES, encode_within_budget
 from ropecam.shared.protocol.framing import frame as cobs_frame
 from ropecam.shared.protocol.shapes import ShapeCodecConfig
 
@@ -124,24 +127,30 @@ def truth_records(frameset: Path, first: int | None, noise_px: float, seed: int 
     return records
 
 
-def wire_sizes(records: list[FrameResult], tolerance_px: float) -> tuple[np.ndarray, np.ndarray]:
-    """Encode `records` as one device stream (the sender's hint and tolerance); return the message bytes and the
-    COBS-framed bytes of each."""
+def wire_sizes(
+    records: list[FrameResult], tolerance_px: float, frame_budget_bytes: int = 0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Encode `records` as one device stream (the sender's hint, tolerance and byte budget); return the message
+    bytes, the COBS-framed bytes and the budget's cut (`encode_within_budget`, 0: as measured) of each."""
     hint = ShapeHint()
-    options = {"hint": hint, "shape_config": ShapeCodecConfig(tolerance_px=tolerance_px)}
-    messages, framed = [], []
+    config = ShapeCodecConfig(tolerance_px=tolerance_px)
+    messages, framed, cuts = [], [], []
     for sequence, record in enumerate(records):
-        message = encode_message(
-            record, device_id=1, sequence=sequence, t_ns=record.exposure_end_t_ns + 2_000_000, pack_options=options
-        )
+        message, cut = encode_within_budget(
+            record, frame_budget_bytes, device_id=1, sequence=sequence, t_ns=record.exposure_end_t_ns + 2_000_000,
+            shape_config=config, hint=hint,
+        )  # fmt: skip
         messages.append(len(message))
         framed.append(len(cobs_frame(message)))
-    return np.array(messages), np.array(framed)
+        cuts.append(cut)
+    return np.array(messages), np.array(framed), np.array(cuts)
 
 
-def report_row(label: str, source: str, records: list[FrameResult], tolerance_px: float, budget: float) -> dict:
+def report_row(
+    label: str, source: str, records: list[FrameResult], tolerance_px: float, budget: float, frame_budget_bytes: int = 0
+) -> dict:
     """Sizes of one frame set from one source."""
-    messages, framed = wire_sizes(records, tolerance_px)
+    messages, framed, cuts = wire_sizes(records, tolerance_px, frame_budget_bytes)
     statuses: dict[str, int] = {}
     for record in records:
         statuses[record.status.name] = statuses.get(record.status.name, 0) + 1
@@ -154,6 +163,8 @@ def report_row(label: str, source: str, records: list[FrameResult], tolerance_px
         "max_framed_bytes": int(framed.max()) if len(framed) else None,
         "worst_frame": int(records[worst].frame_index) if worst >= 0 else None,
         "over_budget": int(np.sum(framed > budget)),
+        "cut": int(np.sum(cuts > 0)),
+        "cut_frames": [int(records[k].frame_index) for k in np.flatnonzero(cuts)],
         "first_6_framed": framed[:6].tolist(),
         "statuses": statuses,
     }
@@ -175,6 +186,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="shape codec tolerance (default: the daemon's [sender] shape_tolerance_px, %(default)s)",
     )  # fmt: skip
     parser.add_argument(
+        "--frame-budget-bytes", type=int, default=SenderConfig().frame_budget_bytes,
+        help="the sender's byte budget per frame (default: the daemon's [sender] frame_budget_bytes, %(default)s; "
+        "0: none)",
+    )  # fmt: skip
+    parser.add_argument(
         "--config",
         metavar="TOML",
         help="measure the device with the [pipeline] table of this device.toml (`ropecam-device setup` writes it), "
@@ -188,7 +204,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the subcommand with the parsed `args`; return the exit code (1: over the budget with --check)."""
     from ropecam_tools.bench_device import load_config
+    from ropecam_tools.cli import UsageError
 
+    if args.frame_budget_bytes != 0 and args.frame_budget_bytes < MIN_BUDGET_BYTES:
+        raise UsageError(
+            f"--frame-budget-bytes must be 0 (none) or >= {MIN_BUDGET_BYTES}, got {args.frame_budget_bytes}"
+        )
     budget = budget_bytes(args.baud, args.fps)
     config = load_config(args)
     sources = ("device", "truth") if args.source == "both" else (args.source,)
@@ -199,7 +220,7 @@ def run(args: argparse.Namespace) -> int:
                 records = device_records(path, args.first, config)
             else:
                 records = truth_records(path, args.first, args.noise_px)
-            row = report_row(path.name, source, records, args.shape_tolerance_px, budget)
+            row = report_row(path.name, source, records, args.shape_tolerance_px, budget, args.frame_budget_bytes)
             rows.append(row)
             if args.json:
                 print(json.dumps({**row, "budget_bytes": round(budget, 1)}), flush=True)
@@ -207,12 +228,14 @@ def run(args: argparse.Namespace) -> int:
                 print(
                     f"{row['set']:<14} {source:<6} {row['frames']:>4} frames: mean {row['mean_bytes']} B, max "
                     f"{row['max_framed_bytes']} B framed (frame {row['worst_frame']}), {row['over_budget']} over the "
-                    f"budget of {budget:.0f} B; first frames {row['first_6_framed']}",
+                    f"budget of {budget:.0f} B, {row['cut']} cut by the sender's budget {row['cut_frames']}; first "
+                    f"frames {row['first_6_framed']}",
                     flush=True,
                 )
     if not args.json:
         print(
             f"budget: {args.baud:.0f} baud 8N1 at {args.fps:g} FPS; shape tolerance {args.shape_tolerance_px} px; "
-            "bytes: whole messages (header, payload, CRC); max: COBS-framed as on the serial line"
+            f"sender's budget {args.frame_budget_bytes} B; bytes: whole messages (header, payload, CRC); max: "
+            "COBS-framed as on the serial line"
         )
     return 1 if args.check and any(row["over_budget"] for row in rows) else 0

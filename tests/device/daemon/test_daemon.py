@@ -39,8 +39,10 @@ from ropecam.shared.protocol import (
     Status,
     decode_message,
     encode_message,
+    frame,
     polyline_distances_px,
 )
+from ropecam.shared.protocol.budget import BUDGET_TOLERANCES_PX
 from ropecam.shared.protocol.frame_result import FrameStatus, Reason
 from ropecam.shared.transport import open_transport
 
@@ -300,6 +302,7 @@ def test_a_stalled_notify_socket_drops_notifications_instead_of_blocking(tmp_pat
         ("[sender]\nsink = 'serial://'\n", "sender.sink: .*a device path is required"),
         ("[sender]\nsink = 'serial:///dev/ttyS0?baud=fast'\n", "sender.sink: .*baud='fast' is not an integer"),
         ("[sender]\ndevice_id = 0\n", r"sender.device_id must be in \[1, 65534\]"),
+        ("[sender]\nframe_budget_bytes = 100\n", r"sender.frame_budget_bytes must be 0 \(no budget\) or .*got 100"),
         ("[pipeline]\nmethod = 'magic'\n", "method"),
         ("[control]\nkey_hex = '12'\n", "at least 16 are required"),
         ("[capture]\nreadout_us = -1\n", r"capture.readout_us must be >= 0 \(0 = global shutter\)"),
@@ -339,3 +342,46 @@ def test_self_check_failures_are_sent_with_their_reason_and_counted(rig_set: Pat
     counters = dict([m.record for m in messages if isinstance(m.record, Status)][-1].counters)
     assert counters["check_fixed_end"] == counters["frames_implausible"] == len(flagged)
     host.close()
+
+
+def test_the_byte_budget_keeps_every_frame_within_it_and_says_which_were_cut(rig_set: Path) -> None:
+    """#19 acceptance 8's mechanism end to end: rough shapes (the output smoothing off: ~460 B per frame at 0.05 px,
+    docs/protocol.md) against a budget of 450 B: every frame arrives within it, the cut ones with their
+    shapes within the looser tolerance their quality record names (or without shapes, named 0), the others as
+    measured, and the Status counts the cut frames."""
+    rough = dataclasses.replace(PIPELINE, output_smoothing_px=0.0)
+    config = dataclasses.replace(
+        _config(rig_set, "loop://daemon-budget", shape_tolerance_px=0.05, frame_budget_bytes=450), pipeline=rough
+    )
+    host = open_transport("loop://daemon-budget")
+    with running(Daemon(config)) as run:
+        assert run.wait() == EXIT_OK
+    sizes, results = {}, []
+    until = time.monotonic() + 0.5
+    while time.monotonic() < until:
+        data = host.receive(0.05)
+        if data is not None:
+            record = decode_message(data).record
+            if isinstance(record, FrameResult):
+                sizes[record.frame_index] = len(frame(data))
+            results.append(record)
+    host.close()
+    frames = [r for r in results if isinstance(r, FrameResult)]
+    recorded = FrameSet(rig_set)
+    pipeline = Pipeline(rough, recorded.image_size)
+    expected = {r.frame: to_wire(pipeline.process(image, r.frame, r.t_ns, r.exposure_us)) for r, image in recorded}
+    assert [r.frame_index for r in frames] == sorted(expected) and max(sizes.values()) <= 450
+    cut = [r for r in frames if "wire_tolerance_px" in r.quality]
+    assert cut and len(cut) < len(frames), sizes  # the budget cut some frames, not all
+    for got in frames:
+        want = expected[got.frame_index]
+        assert (got.status, got.reason, got.frame_index) == (want.status, want.reason, want.frame_index)
+        tolerance = got.quality.get("wire_tolerance_px", 0.05)
+        if tolerance == 0.0:
+            assert got.begin_px is None and got.end_px is None
+            continue
+        assert tolerance == 0.05 or round(tolerance, 2) in BUDGET_TOLERANCES_PX
+        for name in ("begin_px", "end_px"):
+            assert polyline_distances_px(getattr(want, name), getattr(got, name)).max() <= tolerance + 1e-6
+    counters = dict([r for r in results if isinstance(r, Status)][-1].counters)
+    assert counters["budget_cuts"] == len(cut)

@@ -74,7 +74,7 @@ def test_material_mask_padding_bits_are_refused() -> None:
     ("last_bytes", "fragment"),
     [
         (bytes([max(Reason) + 1, 0, 0]), f"unknown reason code {max(Reason) + 1}"),  # the first code not defined
-        (b"\x00\x00\x80\x01", "quality keys"),
+        (b"\x00\x00\x80\x02", "quality keys"),  # bit 8: the first measure not defined (RECORD_KEYS has 8)
     ],
     ids=["reason", "quality key"],
 )
