@@ -22,6 +22,8 @@ from ropecam.shared.protocol import (
     encode_message,
 )
 from ropecam.shared.protocol.examples import example_records
+from ropecam.shared.protocol.quality import WIRE_TOLERANCE_KEY
+from ropecam.shared.protocol.shapes import ShapeCodecConfig, polyline_distances_px
 
 GOLDEN_DIR = Path(__file__).resolve().parents[2] / "data" / "golden"
 REGENERATE = os.environ.get("ROPECAM_REGENERATE_GOLDEN") == "1"
@@ -92,3 +94,27 @@ def test_every_supported_version_has_a_complete_golden_set() -> None:
     for version in SUPPORTED_VERSIONS:
         names = {p.stem for p in _path(version, "x").parent.glob("*.bin")}
         assert {_name(*c[:2]) for c in CASES} <= names, version
+
+
+def test_a_frame_the_byte_budget_cut_has_its_own_golden_file(frames_match) -> None:
+    """Version 2's quality record gained ``wire_tolerance_px`` (bit 7) without a layout change: a frame the sender's
+    byte budget cut (its shapes coded at 1 px) is kept as bytes, so the key's bit and value stay readable."""
+    version = 2
+    record = _example(MessageType.FRAME_RESULT, version)
+    record = dataclasses.replace(record, quality={**record.quality, WIRE_TOLERANCE_KEY: 1.0})
+    path = _path(version, "frame_result_budget_cut")
+    if REGENERATE and not path.is_file():
+        loose = {"shape_config": ShapeCodecConfig(tolerance_px=1.0)}
+        data = encode_message(
+            record, device_id=DEVICE_ID, sequence=SEQUENCE, t_ns=T_NS, version=version, pack_options=loose
+        )
+        path.write_bytes(data)
+    assert path.is_file(), f"{path} is missing: run with ROPECAM_REGENERATE_GOLDEN=1 once"
+    message = decode_message(path.read_bytes())
+    assert message.header.version == version
+    assert message.record.quality[WIRE_TOLERANCE_KEY] == 1.0
+    assert {k: v for k, v in message.record.quality.items() if k != WIRE_TOLERANCE_KEY} == pytest.approx(
+        _example(MessageType.FRAME_RESULT, version).quality, abs=1e-4
+    )
+    assert polyline_distances_px(record.begin_px, message.record.begin_px).max() <= 1.0 + 1e-6
+    assert polyline_distances_px(record.end_px, message.record.end_px).max() <= 1.0 + 1e-6
