@@ -23,6 +23,7 @@ from ropecam.host.calibration.geometry import CameraModel, PlanePose, pixels_to_
 from ropecam.host.compare.shutter import frame_points
 from ropecam.host.compare.tracks import MaterialPointTracks
 from ropecam.shared.errors import ConfigError, DataError
+from ropecam.shared.protocol.quality import WIRE_TOLERANCE_KEY
 
 if TYPE_CHECKING:
     from ropecam.shared.protocol.records import FrameResult
@@ -62,13 +63,19 @@ class MeasuredFrame:
 
 
 def measured_frame(record: FrameResult) -> MeasuredFrame:
-    """Return the `MeasuredFrame` of a decoded FrameResult (what ``ropecam-device extract`` writes of it)."""
+    """Return the `MeasuredFrame` of a decoded FrameResult (what ``ropecam-device extract`` writes of it).
+
+    A frame the sender's byte budget cut (its quality record carries ``wire_tolerance_px``: shapes coded at 0.5-2 px
+    or left out, `ropecam.shared.protocol.budget`) has no measured shapes here: the tracks and the comparison use
+    only shapes within the stream's own tolerance. The recording keeps the frame as it came.
+    """
+    cut = WIRE_TOLERANCE_KEY in record.quality
     return MeasuredFrame(
         record.frame_index,
         record.exposure_start_t_ns,
         record.exposure_end_t_ns,
-        record.begin_px,
-        record.end_px,
+        None if cut else record.begin_px,
+        None if cut else record.end_px,
         record.status.name,
         int(getattr(record, "readout_ns", 0)),  # wire v2 carries it; v1 is a global shutter
     )

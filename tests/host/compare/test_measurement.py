@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 from pathlib import Path
@@ -10,8 +11,16 @@ import numpy as np
 import pytest
 
 from ropecam.host.calibration.geometry import CameraModel, PlanePose
-from ropecam.host.compare.measurement import points_at_arc_lengths, read_extract_jsonl, tracks_from_frames
+from ropecam.host.compare.measurement import (
+    measured_frame,
+    points_at_arc_lengths,
+    read_extract_jsonl,
+    tracks_from_frames,
+)
 from ropecam.shared.errors import DataError
+from ropecam.shared.protocol import FrameStatus, MessageType, decode_message, encode_message
+from ropecam.shared.protocol.examples import example_records
+from ropecam.shared.protocol.quality import WIRE_TOLERANCE_KEY
 
 CAMERA = CameraModel(np.array([[1000.0, 0, 500], [0, 1000.0, 300], [0, 0, 1]]), np.zeros(5), (1000, 600))
 PLANE = PlanePose(np.eye(3), np.array([0.0, 0.0, 1.0]))  # fronto-parallel at 1 m: 1 px = 1 mm, origin at (500, 300)
@@ -96,3 +105,23 @@ def test_no_measured_shape_is_a_data_error(tmp_path: Path) -> None:
     frames = read_extract_jsonl(_write(tmp_path / "m.jsonl", records))
     with pytest.raises(DataError, match=r"m\.jsonl: no frame has a measured rope shape"):
         fit_release(frames, (CAMERA, PLANE), RopeConfig(length_m=0.2), SolverConfig(), label=str(tmp_path / "m.jsonl"))
+
+
+def test_a_frame_the_senders_byte_budget_cut_gives_no_samples() -> None:
+    """Shapes the sender coded looser than the stream's tolerance (or left out) to fit the serial budget are not
+    measured shapes for the tracks: decoded from the wire, that frame's samples are NaN, the other frame's not."""
+    example = example_records()[MessageType.FRAME_RESULT]
+    shape = np.column_stack([500.0 + np.linspace(0.0, 200.0, 41), np.full(41, 300.0)])  # 0.2 m from the origin
+    sent = dataclasses.replace(example, status=FrameStatus.OK, begin_px=shape, end_px=shape + np.array([0.0, 1.0]))
+    frames = []
+    for i, quality in enumerate(({}, {WIRE_TOLERANCE_KEY: 1.0})):
+        start = sent.exposure_start_t_ns + i * 8_400_000  # the next frame at 119 FPS
+        record = dataclasses.replace(
+            sent, frame_index=sent.frame_index + i, exposure_start_t_ns=start, exposure_end_t_ns=start + 4_000_000,
+            quality={**sent.quality, **quality},
+        )  # fmt: skip
+        message = encode_message(record, device_id=1, sequence=1, t_ns=record.exposure_start_t_ns)
+        frames.append(measured_frame(decode_message(message).record))
+    assert frames[0].begin_px is not None and frames[1].begin_px is None and frames[1].end_px is None
+    tracks, _ = tracks_from_frames(frames, CAMERA, PLANE, [0.1], 0.2)
+    assert np.all(np.isfinite(tracks.positions_m[:2])) and np.all(np.isnan(tracks.positions_m[2:]))
