@@ -226,3 +226,25 @@ def test_a_reseeded_track_measures_the_far_end_afresh(monkeypatch: pytest.Monkey
     after = tracker.track(image, EXPOSURE_MS * 1e6, evidence)
     assert tracker.length_px == pytest.approx(LENGTH_PX, abs=1.0)
     assert math.hypot(*(after["begin"][-1] - _rope(0.0)[-1])) < 1.0, after["begin"][-1]
+
+
+def test_a_far_end_outside_the_length_gate_is_a_doubt(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "tools"))
+    from ropecam_tools.eval_band_track import SEARCH_SMOOTH_PX, BandTracker
+    from scipy.ndimage import gaussian_filter
+
+    rows, cols = np.mgrid[0:120, 0:250].astype(np.float64)
+    clean = cv2.GaussianBlur(40.0 + CONTRAST_DN * _coverage(_rope(0.0), rows, cols), (0, 0), BLUR_PX)
+    image = clean + np.random.default_rng(3).normal(0.0, NOISE_DN, clean.shape)
+    evidence = gaussian_filter(image - 40.0, SEARCH_SMOOTH_PX)
+    short = _rope(0.0)[:195]  # the carried length 6 px short: every far end lies beyond the length's gate
+    tracker = BandTracker(short, WIDTH_PX, BLUR_PX, PERIOD_MS * 1e6, 10)
+    seeded = tracker.reference.copy()
+    first = tracker.track(image, EXPOSURE_MS * 1e6, evidence)
+    # the line itself lies on the band (locked), but its far end is refused: not a reference for the search
+    assert first["locked"] and not first["in_gate"] and not first["trusted"] and not first["reseeded"]
+    np.testing.assert_array_equal(tracker.reference, seeded)
+    second = tracker.track(image, EXPOSURE_MS * 1e6, evidence)
+    assert not second["in_gate"] and second["reseeded"]  # two doubts in a row: restarted, the length measured afresh
+    tracker.track(image, EXPOSURE_MS * 1e6, evidence)
+    assert tracker.length_px == pytest.approx(LENGTH_PX, abs=1.0)

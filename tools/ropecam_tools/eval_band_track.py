@@ -37,10 +37,12 @@ frame set (with ``truth.npz``):
   widened by the residuals' correlation along the profiles), along it the carried length's;
 * **lock and re-acquisition** (``--search``, the default): each frame minus the median of `BACKGROUND_FRAMES`
   frames of the set (setup's learned background), smoothed, is searched for the band without the track: the last
-  locked middle line turned about the fixed end and bent at `SEARCH_JOINTS` joints (`search_rope`). A frame is *locked*
-  when the evidence along the tracked middle line's outer part (from `LOCK_FROM`) is at least `LOCK_RATIO` of
-  the search's line's; after two unlocked
-  frames the track restarts from the search's lines of those two frames: the next frame is searched (from the
+  sure middle line (locked, its far end within the length's gate) turned about the fixed end and bent at
+  `SEARCH_JOINTS` joints (`search_rope`, the device kernel `search_band_line`). A frame is *locked* when the evidence
+  along the tracked middle line's outer part (from `LOCK_FROM`) is at least `LOCK_RATIO` of the search's line's. A
+  frame that is not locked, or whose far end the length's gate refuses, is a *doubt*: it is not the search's next
+  shape (a runaway line would turn its own shape and keep its score ratio near 1), and after two doubts in a row
+  the track restarts from the search's lines of those two frames: the next frame is searched (from the
   last found line) before it is fitted, instead of extrapolated from the two, and the carried length's uncertainty
   is widened to `RESEED_LENGTH_SIGMA_PX`, so that the tip fit measures the far end afresh;
 * **gate**: a frame is *trusted* when it is locked, the far end agrees with the carried length (within
@@ -429,33 +431,17 @@ def search_rope(evidence: NDArray[np.float64], shape: NDArray[np.float64]) -> tu
     `shape` (a middle line known before, fixed end first) bent at `SEARCH_JOINTS` joints, traced from the fixed
     end (each joint turned by up to `SEARCH_TURN_DEG` either way, the first twice that, in 0.5 degree steps, where
     the evidence along its segment and the next is highest), then every joint refined (0.25 degree steps up to 2)
-    on the whole line.
+    on the whole line (the device kernel `search_band_line`).
     Return the line and the evidence along it."""
-    count = len(shape)
-    angles = np.zeros(SEARCH_JOINTS)
-    for joint in range(SEARCH_JOINTS):
-        lo = max(joint * count // SEARCH_JOINTS, int(SKIP_FRACTION * count))
-        hi = min((joint + 2) * count // SEARCH_JOINTS, count)
-        best = -math.inf
-        base = angles[joint]
-        reach = 2.0 * SEARCH_TURN_DEG if joint == 0 else SEARCH_TURN_DEG  # the whole rope may have swung far
-        for offset in np.radians(np.arange(-reach, reach + 1e-9, 0.5)):
-            trial = angles.copy()
-            trial[joint] = base + offset
-            score = line_score(evidence, chained(shape, trial)[lo:hi], 0.0)
-            if score > best:
-                best, chosen = score, trial
-        angles = chosen
-    best = line_score(evidence, chained(shape, angles))
-    for joint in range(SEARCH_JOINTS):
-        base = angles[joint]
-        for offset in np.radians(np.arange(-2.0, 2.01, 0.25)):
-            trial = angles.copy()
-            trial[joint] = base + offset
-            score = line_score(evidence, chained(shape, trial))
-            if score > best:
-                best, angles = score, trial
-    return chained(shape, angles), best
+    from ropecam.device.pipeline._kernels import search_band_line
+
+    shape = np.ascontiguousarray(shape, dtype=np.float64)
+    found = np.empty_like(shape)
+    best = search_band_line(
+        np.ascontiguousarray(evidence, dtype=np.float64), shape, SEARCH_JOINTS, SKIP_FRACTION, SEARCH_TURN_DEG, 0.5,
+        2.0, 0.25, found,
+    )  # fmt: skip
+    return found, float(best)
 
 
 class BandTracker:
@@ -633,7 +619,8 @@ class BandTracker:
         # the length is nearly constant (the rope's projection changes it slowly): a scalar Kalman filter, not a sum
         self.length_var += LENGTH_DRIFT_PX**2
         noise_var = cap_sigma_px**2 + CAP_BIAS_PX**2
-        if math.isfinite(cap_sigma_px) and cap_px**2 < CAP_INNOVATION_GATE**2 * (self.length_var + noise_var):
+        in_gate = math.isfinite(cap_sigma_px) and cap_px**2 < CAP_INNOVATION_GATE**2 * (self.length_var + noise_var)
+        if in_gate:
             gain = self.length_var / (self.length_var + noise_var)
             self.length_px += gain * cap_px
             self.length_var *= 1.0 - gain
@@ -653,19 +640,22 @@ class BandTracker:
             locked = tracked_score >= LOCK_RATIO * found_score and abs(cap_px) < CAP_REACH_PX - 0.5
             clock = self._lap("search", clock)
             trusted = trusted and locked
-            self.unlocked = 0 if locked else self.unlocked + 1
+            # a far end the length's gate refuses is a doubt like a lost lock: a runaway line keeps its score
+            # ratio near 1 (the search turns its own line) while its far end runs out along the band
+            doubt = not locked or not in_gate
+            self.unlocked = self.unlocked + 1 if doubt else 0
             if self.unlocked >= 2 and self.found is not None:
                 reseeded = True
                 self.unlocked = 0
             before, self.found = self.found, found
-        if locked:
+        if locked and in_gate:
             self.reference = mid_line
         result = {
             "begin": begin, "end": end, "cap_px": cap_px, "cap_sigma_px": cap_sigma_px,
             "side_sigma_px": max(sigmas), "trusted": trusted, "across_sigma_px": across_sigma_px,
             "length_sigma_px": math.sqrt(self.length_var), "tip_sigma_px": tip_sigma_px,
             "contrast_ratio": contrast_ratio, "tip_shift_px": float(tip_shift), "sweep_fit_px": sweep_px,
-            "locked": locked, "reseeded": reseeded, "score_ratio": tracked_score / found_score,
+            "locked": locked, "reseeded": reseeded, "score_ratio": tracked_score / found_score, "in_gate": in_gate,
         }  # fmt: skip
         if reseeded:
             self.reseed(before, self.found)
@@ -734,6 +724,7 @@ def track_set(
             "across_sigma_px": fitted["across_sigma_px"], "length_sigma_px": fitted["length_sigma_px"],
             "contrast_ratio": fitted["contrast_ratio"], "score_ratio": fitted["score_ratio"],
             "locked": bool(fitted["locked"]), "reseeded": bool(fitted["reseeded"]), "trusted": bool(fitted["trusted"]),
+            "in_gate": bool(fitted["in_gate"]),
             "cpu_ms": cpu_ms,
             "silent": bool(fitted["trusted"] and (tip > SILENT_TIP_PX or curve > SILENT_CURVE_PX)),
         })  # fmt: skip
