@@ -65,6 +65,17 @@ def _write_swing_set(root: Path, frames: int = 6) -> None:
         })  # fmt: skip
 
 
+def _still_frame() -> tuple[np.ndarray, np.ndarray]:
+    """The rope at rest drawn with noise, and the search's evidence of it (minus the plate, smoothed)."""
+    from ropecam_tools.eval_band_track import SEARCH_SMOOTH_PX
+    from scipy.ndimage import gaussian_filter
+
+    rows, cols = np.mgrid[0:120, 0:250].astype(np.float64)
+    clean = cv2.GaussianBlur(40.0 + CONTRAST_DN * _coverage(_rope(0.0), rows, cols), (0, 0), BLUR_PX)
+    image = clean + np.random.default_rng(3).normal(0.0, NOISE_DN, clean.shape)
+    return image, gaussian_filter(image - 40.0, SEARCH_SMOOTH_PX)
+
+
 @pytest.mark.parametrize("tip_fit", [True, False], ids=["tip-fit", "straight-tip"])
 def test_band_track_follows_the_drawn_swing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, tip_fit: bool) -> None:
     monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "tools"))
@@ -213,13 +224,9 @@ def test_tip_fit_measures_a_curled_tip_and_its_far_end(monkeypatch: pytest.Monke
 
 def test_a_reseeded_track_measures_the_far_end_afresh(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "tools"))
-    from ropecam_tools.eval_band_track import SEARCH_SMOOTH_PX, BandTracker
-    from scipy.ndimage import gaussian_filter
+    from ropecam_tools.eval_band_track import BandTracker
 
-    rows, cols = np.mgrid[0:120, 0:250].astype(np.float64)
-    clean = cv2.GaussianBlur(40.0 + CONTRAST_DN * _coverage(_rope(0.0), rows, cols), (0, 0), BLUR_PX)
-    image = clean + np.random.default_rng(3).normal(0.0, NOISE_DN, clean.shape)
-    evidence = gaussian_filter(image - 40.0, SEARCH_SMOOTH_PX)
+    image, evidence = _still_frame()
     short = _rope(0.0)[:195]  # the carried length 6 px short of the rope's (a length a lost track left wrong)
     tracker = BandTracker(short, WIDTH_PX, BLUR_PX, PERIOD_MS * 1e6, 10)
     kept = tracker.track(image, EXPOSURE_MS * 1e6, evidence)
@@ -233,13 +240,9 @@ def test_a_reseeded_track_measures_the_far_end_afresh(monkeypatch: pytest.Monkey
 
 def test_a_far_end_outside_the_length_gate_is_a_doubt(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "tools"))
-    from ropecam_tools.eval_band_track import SEARCH_SMOOTH_PX, BandTracker
-    from scipy.ndimage import gaussian_filter
+    from ropecam_tools.eval_band_track import BandTracker
 
-    rows, cols = np.mgrid[0:120, 0:250].astype(np.float64)
-    clean = cv2.GaussianBlur(40.0 + CONTRAST_DN * _coverage(_rope(0.0), rows, cols), (0, 0), BLUR_PX)
-    image = clean + np.random.default_rng(3).normal(0.0, NOISE_DN, clean.shape)
-    evidence = gaussian_filter(image - 40.0, SEARCH_SMOOTH_PX)
+    image, evidence = _still_frame()
     short = _rope(0.0)[:195]  # the carried length 6 px short: every far end lies beyond the length's gate
     tracker = BandTracker(short, WIDTH_PX, BLUR_PX, PERIOD_MS * 1e6, 10)
     seeded = tracker.reference.copy()
@@ -273,13 +276,9 @@ def test_band_profile_integrates_the_exposure(monkeypatch: pytest.MonkeyPatch, s
 
 def test_a_reseeded_track_is_not_trusted_while_searched_lines_predict_it(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "tools"))
-    from ropecam_tools.eval_band_track import HISTORY, SEARCH_SMOOTH_PX, BandTracker
-    from scipy.ndimage import gaussian_filter
+    from ropecam_tools.eval_band_track import HISTORY, BandTracker
 
-    rows, cols = np.mgrid[0:120, 0:250].astype(np.float64)
-    clean = cv2.GaussianBlur(40.0 + CONTRAST_DN * _coverage(_rope(0.0), rows, cols), (0, 0), BLUR_PX)
-    image = clean + np.random.default_rng(3).normal(0.0, NOISE_DN, clean.shape)
-    evidence = gaussian_filter(image - 40.0, SEARCH_SMOOTH_PX)
+    image, evidence = _still_frame()
     tracker = BandTracker(_rope(0.0), WIDTH_PX, BLUR_PX, PERIOD_MS * 1e6, 10)
     assert tracker.track(image, EXPOSURE_MS * 1e6, evidence)["trusted"]  # a still rope, seeded right
     tracker.reseed(_rope(0.0), _rope(0.0))
