@@ -87,6 +87,10 @@ def test_band_track_follows_the_drawn_swing(tmp_path: Path, monkeypatch: pytest.
     assert rows[-1]["sweep_px"] == pytest.approx(3.1, abs=0.2)
     # frame 1 is predicted still (one frame known), from frame 2 on the velocity is measured
     assert rows[0]["tip_px"] < 1.5 and rows[0]["curve_px"] < 0.7, rows[0]
+    if tip_fit:
+        # from the still prediction the sweep's correction starts off 0, where the band (even in it) has no gradient:
+        # measured, not left at its prior (0.06 px across the rope; 0.34 px started at 0)
+        assert rows[0]["across_sigma_px"] < 0.2, rows[0]
     # the drawn rope's sides are a 1 px ramp blurred, not the model's blurred box: with the exposure integrated
     # exactly, tips 0.24-0.43 px and centrelines 0.32-0.44 px with the tip fit (frame 2 of the straight tip: 0.55 and
     # 0.45 px); with nine instants 0.07-0.32 and 0.21-0.37 px, but frame 1 1.16 px off at the tip

@@ -112,6 +112,10 @@ CAP_INNOVATION_GATE = 3.0
 """A far end further than this many standard deviations from the carried length is not used for the length."""
 STILL_SWEEP_PX = 1e-6
 """A sweep below this (px) is a still rope in the model band (the moving band's closed form divides by the sweep)."""
+SWEEP_START_PX = 0.1
+"""The sweep correction's start in a fit whose predicted sweep is below this everywhere (px): the model band is even
+in the sweep, so from a still prediction a fit started at 0 has no gradient in it and stays there, its uncertainty
+the prior's."""
 SEARCH_TURN_DEG = 45.0
 """The re-acquisition search turns each joint of the last locked middle line by up to this much (degrees)."""
 SEARCH_JOINTS = 8
@@ -250,7 +254,8 @@ def fit_window(
         )
         return np.concatenate([(model - profiles).ravel(), q[2:] / priors[2:] * scale])
 
-    start = [float(np.median(profiles)), max(float(profiles.max() - np.median(profiles)), 1.0), 0.0, 0.0, 0.0]
+    sweep0 = SWEEP_START_PX if float(np.max(np.abs(end0 - begin0))) < SWEEP_START_PX else 0.0
+    start = [float(np.median(profiles)), max(float(profiles.max() - np.median(profiles)), 1.0), 0.0, sweep0, 0.0]
     fit = least_squares(residual, start, bounds=([-50.0, 0.0, -8.0, -8.0, -8.0], [300.0, 300.0, 8.0, 8.0, 8.0]))
     return fit.x, _covariance(fit, profiles.shape)
 
@@ -331,8 +336,9 @@ def fit_tip(
 
     inside = s < length_px - 2.0
     first = [float(np.median(profiles)), max(float(profiles[inside].max() - np.median(profiles)), 1.0)]
+    sweep0 = SWEEP_START_PX if float(np.max(np.abs(te - tb))) < SWEEP_START_PX else 0.0
     fit = least_squares(
-        residual, [*first, 0.0, 0.0, 0.0, 0.0, 0.0],
+        residual, [*first, 0.0, sweep0, 0.0, 0.0, 0.0],
         bounds=([-50.0, 0.0, -8.0, -8.0, -8.0, -8.0, -CAP_REACH_PX], [300.0, 300.0, 8.0, 8.0, 8.0, 8.0, CAP_REACH_PX]),
     )  # fmt: skip
     xs = (arcs[start:] - length_px) / span
