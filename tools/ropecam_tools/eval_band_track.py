@@ -19,8 +19,9 @@ frame set (with ``truth.npz``):
   middle line (every `RESAMPLE_POINTS` along the rope), and in each of `windows` windows along the rope (the first
   `SKIP_FRACTION` near the clamp left out) a model band is fitted by least squares to all the window's profiles
   together: a rope of the learned width moving linearly from the begin to the end side, Gaussian-blurred by
-  `blur_px`, with level and contrast free, its middle offset (plus a slope along the window) and its sweep
-  correction free under Gaussian priors (`MID_PRIOR_PX`, `SWEEP_PRIOR_PX`). The begin and end centrelines are the
+  `blur_px` (the exposure integrated in closed form, `band_profile`), with level and contrast free, its middle
+  offset (plus a slope along the window) and its sweep correction free under Gaussian priors (`MID_PRIOR_PX`,
+  `SWEEP_PRIOR_PX`). The begin and end centrelines are the
   predicted ones moved along the normal by the windows' corrections (interpolated; 0 at the fixed end);
 * **tip** (the default; ``--straight-tip`` for session 17's model): the outer `TIP_WINDOWS` windows and the far end
   are one fit (`fit_tip`): the profiles from the outer part's start to `TIP_BEYOND_PX` beyond the carried length
@@ -37,15 +38,18 @@ frame set (with ``truth.npz``):
   widened by the residuals' correlation along the profiles), along it the carried length's;
 * **lock and re-acquisition** (``--search``, the default): each frame minus the median of `BACKGROUND_FRAMES`
   frames of the set (setup's learned background), smoothed, is searched for the band without the track: the last
-  locked middle line turned about the fixed end and bent at `SEARCH_JOINTS` joints (`search_rope`). A frame is *locked*
-  when the evidence along the tracked middle line's outer part (from `LOCK_FROM`) is at least `LOCK_RATIO` of
-  the search's line's; after two unlocked
-  frames the track restarts from the search's lines of those two frames: the next frame is searched (from the
+  sure middle line (locked, its far end within the length's gate) turned about the fixed end and bent at
+  `SEARCH_JOINTS` joints (`search_rope`, the device kernel `search_band_line`). A frame is *locked* when the evidence
+  along the tracked middle line's outer part (from `LOCK_FROM`) is at least `LOCK_RATIO` of the search's line's. A
+  frame that is not locked, or whose far end the length's gate refuses, is a *doubt*: it is not the search's next
+  shape (a runaway line would turn its own shape and keep its score ratio near 1), and after two doubts in a row
+  the track restarts from the search's lines of those two frames: the next frame is searched (from the
   last found line) before it is fitted, instead of extrapolated from the two, and the carried length's uncertainty
   is widened to `RESEED_LENGTH_SIGMA_PX`, so that the tip fit measures the far end afresh;
 * **gate**: a frame is *trusted* when it is locked, the far end agrees with the carried length (within
   `CAP_INNOVATION_GATE` standard deviations), the tips' standard error is below `TIP_SIGMA_GATE_PX` and no window's
-  contrast fell below `CONTRAST_GATE` of their median: what a device could report as OK without the truth.
+  contrast fell below `CONTRAST_GATE` of their median, and (after a re-seed) the searched lines have left the
+  prediction's history (`HISTORY` frames): what a device could report as OK without the truth.
 
 Per frame: the tips' and centrelines' errors against the truth (as `truth_metrics` defines them), the fit's own
 indicators, and whether the frame is trusted; trusted frames with a tip over `SILENT_TIP_PX` or a centreline over
@@ -106,8 +110,12 @@ CAP_BIAS_PX = 0.3
 """Error of the far end's fit beyond its statistical one (px: the step model's bias)."""
 CAP_INNOVATION_GATE = 3.0
 """A far end further than this many standard deviations from the carried length is not used for the length."""
-TAU_STEPS = 9
-"""Instants of the exposure summed in the model band."""
+STILL_SWEEP_PX = 1e-6
+"""A sweep below this (px) is a still rope in the model band (the moving band's closed form divides by the sweep)."""
+SWEEP_START_PX = 0.1
+"""The sweep correction's start in a fit whose predicted sweep is below this everywhere (px): the model band is even
+in the sweep, so from a still prediction a fit started at 0 has no gradient in it and stays there, its uncertainty
+the prior's."""
 SEARCH_TURN_DEG = 45.0
 """The re-acquisition search turns each joint of the last locked middle line by up to this much (degrees)."""
 SEARCH_JOINTS = 8
@@ -192,17 +200,36 @@ def _sample(image: NDArray[np.float64], points: NDArray[np.float64]) -> NDArray[
     return map_coordinates(image, [points[..., 1], points[..., 0]], order=1, mode="nearest")
 
 
+def _erf_integral(z: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Return the integral of the standard normal distribution function up to `z`: z Phi(z) + phi(z)."""
+    from scipy.special import ndtr
+
+    return z * ndtr(z) + np.exp(-0.5 * z * z) / math.sqrt(2.0 * math.pi)
+
+
 def band_profile(
     t: NDArray[np.float64], begin: NDArray[np.float64], end: NDArray[np.float64], width_px: float, blur_px: float
 ) -> NDArray[np.float64]:
     """Return the share of the exposure a rope of `width_px` covers at offsets `t` while it moves linearly from
-    offset `begin` to `end` (broadcast together), Gaussian-blurred by `blur_px`."""
-    from scipy.special import erf
+    offset `begin` to `end` (broadcast together), Gaussian-blurred by `blur_px`.
 
-    taus = np.linspace(0.0, 1.0, TAU_STEPS)
-    x = t[..., None] - (begin[..., None] + taus * (end - begin)[..., None])
-    scale = math.sqrt(2.0) * blur_px
-    return (0.5 * (erf((x + width_px / 2) / scale) - erf((x - width_px / 2) / scale))).mean(-1)
+    The exposure is integrated in closed form: a blurred side at offset a - tau d (tau over the exposure, d the
+    sweep) averages to blur / d (G(a / blur) - G((a - d) / blur)), G the normal distribution's integral
+    (`_erf_integral`). A sum over a few instants would leave ripples between them: at 17 px of sweep nine instants
+    are 2.1 px apart against a 2 px rope and 0.6 px of blur, and the model's plateau (2 / 17 of the contrast)
+    ripples by half its height."""
+    from scipy.special import ndtr
+
+    sweep = np.asarray(end - begin, dtype=np.float64)
+    still = np.abs(sweep) < STILL_SWEEP_PX
+    divisor = np.where(still, 1.0, sweep)
+
+    def side(a: NDArray[np.float64]) -> NDArray[np.float64]:
+        moving = blur_px / divisor * (_erf_integral(a / blur_px) - _erf_integral((a - divisor) / blur_px))
+        return np.where(still, ndtr((a - 0.5 * sweep) / blur_px), moving)
+
+    x = t - begin
+    return side(x + width_px / 2) - side(x - width_px / 2)
 
 
 def fit_window(
@@ -227,7 +254,8 @@ def fit_window(
         )
         return np.concatenate([(model - profiles).ravel(), q[2:] / priors[2:] * scale])
 
-    start = [float(np.median(profiles)), max(float(profiles.max() - np.median(profiles)), 1.0), 0.0, 0.0, 0.0]
+    sweep0 = SWEEP_START_PX if float(np.max(np.abs(end0 - begin0))) < SWEEP_START_PX else 0.0
+    start = [float(np.median(profiles)), max(float(profiles.max() - np.median(profiles)), 1.0), 0.0, sweep0, 0.0]
     fit = least_squares(residual, start, bounds=([-50.0, 0.0, -8.0, -8.0, -8.0], [300.0, 300.0, 8.0, 8.0, 8.0]))
     return fit.x, _covariance(fit, profiles.shape)
 
@@ -308,8 +336,9 @@ def fit_tip(
 
     inside = s < length_px - 2.0
     first = [float(np.median(profiles)), max(float(profiles[inside].max() - np.median(profiles)), 1.0)]
+    sweep0 = SWEEP_START_PX if float(np.max(np.abs(te - tb))) < SWEEP_START_PX else 0.0
     fit = least_squares(
-        residual, [*first, 0.0, 0.0, 0.0, 0.0, 0.0],
+        residual, [*first, 0.0, sweep0, 0.0, 0.0, 0.0],
         bounds=([-50.0, 0.0, -8.0, -8.0, -8.0, -8.0, -CAP_REACH_PX], [300.0, 300.0, 8.0, 8.0, 8.0, 8.0, CAP_REACH_PX]),
     )  # fmt: skip
     xs = (arcs[start:] - length_px) / span
@@ -429,33 +458,17 @@ def search_rope(evidence: NDArray[np.float64], shape: NDArray[np.float64]) -> tu
     `shape` (a middle line known before, fixed end first) bent at `SEARCH_JOINTS` joints, traced from the fixed
     end (each joint turned by up to `SEARCH_TURN_DEG` either way, the first twice that, in 0.5 degree steps, where
     the evidence along its segment and the next is highest), then every joint refined (0.25 degree steps up to 2)
-    on the whole line.
+    on the whole line (the device kernel `search_band_line`).
     Return the line and the evidence along it."""
-    count = len(shape)
-    angles = np.zeros(SEARCH_JOINTS)
-    for joint in range(SEARCH_JOINTS):
-        lo = max(joint * count // SEARCH_JOINTS, int(SKIP_FRACTION * count))
-        hi = min((joint + 2) * count // SEARCH_JOINTS, count)
-        best = -math.inf
-        base = angles[joint]
-        reach = 2.0 * SEARCH_TURN_DEG if joint == 0 else SEARCH_TURN_DEG  # the whole rope may have swung far
-        for offset in np.radians(np.arange(-reach, reach + 1e-9, 0.5)):
-            trial = angles.copy()
-            trial[joint] = base + offset
-            score = line_score(evidence, chained(shape, trial)[lo:hi], 0.0)
-            if score > best:
-                best, chosen = score, trial
-        angles = chosen
-    best = line_score(evidence, chained(shape, angles))
-    for joint in range(SEARCH_JOINTS):
-        base = angles[joint]
-        for offset in np.radians(np.arange(-2.0, 2.01, 0.25)):
-            trial = angles.copy()
-            trial[joint] = base + offset
-            score = line_score(evidence, chained(shape, trial))
-            if score > best:
-                best, angles = score, trial
-    return chained(shape, angles), best
+    from ropecam.device.pipeline._kernels import search_band_line
+
+    shape = np.ascontiguousarray(shape, dtype=np.float64)
+    found = np.empty_like(shape)
+    best = search_band_line(
+        np.ascontiguousarray(evidence, dtype=np.float64), shape, SEARCH_JOINTS, SKIP_FRACTION, SEARCH_TURN_DEG, 0.5,
+        2.0, 0.25, found,
+    )  # fmt: skip
+    return found, float(best)
 
 
 class BandTracker:
@@ -498,6 +511,8 @@ class BandTracker:
         self.mids = [still]
         self.velocities = [np.zeros_like(still)]
         self.velocity_weights = [VELOCITY_WEIGHT]  # the seed is still
+        self.searched_lines = [False]
+        """Per middle line of the prediction's history, whether the search gave it (a re-seed) instead of a fit."""
         self.reference = still
         self.found: NDArray[np.float64] | None = None
         self.unlocked = 0
@@ -517,6 +532,7 @@ class BandTracker:
         self.mids = [resample_to(before, self.length0_px), resample_to(now, self.length0_px)]
         self.velocities = [np.zeros_like(self.mids[0]), np.zeros_like(self.mids[0])]
         self.velocity_weights = [0.0, 0.0]
+        self.searched_lines = [True, True]
         self.restarted = self.restart_search
         # a lost track's far-end fits were not used (beyond the gate) or were wrong: the length is measured afresh
         self.length_var = max(self.length_var, RESEED_LENGTH_SIGMA_PX**2)
@@ -633,7 +649,8 @@ class BandTracker:
         # the length is nearly constant (the rope's projection changes it slowly): a scalar Kalman filter, not a sum
         self.length_var += LENGTH_DRIFT_PX**2
         noise_var = cap_sigma_px**2 + CAP_BIAS_PX**2
-        if math.isfinite(cap_sigma_px) and cap_px**2 < CAP_INNOVATION_GATE**2 * (self.length_var + noise_var):
+        in_gate = math.isfinite(cap_sigma_px) and cap_px**2 < CAP_INNOVATION_GATE**2 * (self.length_var + noise_var)
+        if in_gate:
             gain = self.length_var / (self.length_var + noise_var)
             self.length_px += gain * cap_px
             self.length_var *= 1.0 - gain
@@ -642,7 +659,13 @@ class BandTracker:
         tip_sigma_px = math.sqrt(across_sigma_px**2 + self.length_var)
         contrast_ratio = min(contrasts) / (float(np.median(contrasts)) + 1e-9)
         cap_agrees = cap_px**2 < CAP_INNOVATION_GATE**2 * (self.length_var + noise_var)
-        trusted = bool(cap_agrees and tip_sigma_px < TIP_SIGMA_GATE_PX and contrast_ratio > CONTRAST_GATE)
+        # a re-seeded track is not trusted while the searched lines are in the prediction's history: the search
+        # bends a known shape at a few joints, and its centreline's error shows in no fit's uncertainty (seed 0,
+        # the first frames after a re-seed: tips 0.5-0.9 px, centrelines 1.01-1.06 px)
+        fitted_history = not any(self.searched_lines)
+        trusted = bool(
+            cap_agrees and tip_sigma_px < TIP_SIGMA_GATE_PX and contrast_ratio > CONTRAST_GATE and fitted_history
+        )
         mid_line = resample_to(0.5 * (begin + end), self.length0_px)
         locked, reseeded, found_score, tracked_score = True, False, math.nan, math.nan
         if evidence is not None:
@@ -653,19 +676,22 @@ class BandTracker:
             locked = tracked_score >= LOCK_RATIO * found_score and abs(cap_px) < CAP_REACH_PX - 0.5
             clock = self._lap("search", clock)
             trusted = trusted and locked
-            self.unlocked = 0 if locked else self.unlocked + 1
+            # a far end the length's gate refuses is a doubt like a lost lock: a runaway line keeps its score
+            # ratio near 1 (the search turns its own line) while its far end runs out along the band
+            doubt = not locked or not in_gate
+            self.unlocked = self.unlocked + 1 if doubt else 0
             if self.unlocked >= 2 and self.found is not None:
                 reseeded = True
                 self.unlocked = 0
             before, self.found = self.found, found
-        if locked:
+        if locked and in_gate:
             self.reference = mid_line
         result = {
             "begin": begin, "end": end, "cap_px": cap_px, "cap_sigma_px": cap_sigma_px,
             "side_sigma_px": max(sigmas), "trusted": trusted, "across_sigma_px": across_sigma_px,
             "length_sigma_px": math.sqrt(self.length_var), "tip_sigma_px": tip_sigma_px,
             "contrast_ratio": contrast_ratio, "tip_shift_px": float(tip_shift), "sweep_fit_px": sweep_px,
-            "locked": locked, "reseeded": reseeded, "score_ratio": tracked_score / found_score,
+            "locked": locked, "reseeded": reseeded, "score_ratio": tracked_score / found_score, "in_gate": in_gate,
         }  # fmt: skip
         if reseeded:
             self.reseed(before, self.found)
@@ -676,7 +702,9 @@ class BandTracker:
         )
         signed = float(math.hypot(*sweep[-1])) >= SIGN_SWEEP_PX
         self.velocity_weights.append(VELOCITY_WEIGHT if signed else 0.0)
+        self.searched_lines.append(False)
         del self.mids[:-HISTORY], self.velocities[:-HISTORY], self.velocity_weights[:-HISTORY]
+        del self.searched_lines[:-HISTORY]
         return result
 
 
@@ -734,6 +762,7 @@ def track_set(
             "across_sigma_px": fitted["across_sigma_px"], "length_sigma_px": fitted["length_sigma_px"],
             "contrast_ratio": fitted["contrast_ratio"], "score_ratio": fitted["score_ratio"],
             "locked": bool(fitted["locked"]), "reseeded": bool(fitted["reseeded"]), "trusted": bool(fitted["trusted"]),
+            "in_gate": bool(fitted["in_gate"]),
             "cpu_ms": cpu_ms,
             "silent": bool(fitted["trusted"] and (tip > SILENT_TIP_PX or curve > SILENT_CURVE_PX)),
         })  # fmt: skip

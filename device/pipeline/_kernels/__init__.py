@@ -42,6 +42,13 @@ from ropecam.device.pipeline._kernels.band_contrast import (
     MIN_SPREAD,
     contrast_gains,
 )
+from ropecam.device.pipeline._kernels.band_search import (
+    best_turn,
+    sample_or_zero,
+    search_band_line,
+    turn_from,
+    turned_score,
+)
 from ropecam.device.pipeline._kernels.band_stage import band_stage
 from ropecam.device.pipeline._kernels.canny import (
     detect_edges,
@@ -394,6 +401,7 @@ __all__ = [
     "axis_offset",
     "band_sides",
     "band_stage",
+    "best_turn",
     "body_sweep",
     "box_mean",
     "chain_length",
@@ -470,9 +478,11 @@ __all__ = [
     "sample_bilinear",
     "sample_gradient_histogram",
     "sample_median",
+    "sample_or_zero",
     "sample_slice",
     "score_knots",
     "seal_cut_ends",
+    "search_band_line",
     "shift_tip",
     "side_sweeps",
     "side_sweeps_indexed",
@@ -509,6 +519,8 @@ __all__ = [
     "track_frame",
     "track_shapes",
     "trim_polyline_end",
+    "turn_from",
+    "turned_score",
     "turning_angles",
     "uncross_shapes",
     "union_spans",
