@@ -210,8 +210,7 @@ class BlurSplitter:
         """Forget what the first frames read off the band (the contrast readings, and the lens blur and sharpening
         when they were measured rather than given): they were read on contours the static mask did not yet clean,
         where a clamp's edges pass for the rope's (`Stages.relearn`)."""
-        self.measure.contrasts.clear()
-        self.measure.contrast_px = float("nan")
+        self.measure.forget()
         self.frame_call.key = None
         if self.lens.restart():
             self._forget_model()
@@ -358,7 +357,7 @@ class BlurSplitter:
             call = self.frame_call
             call.bind(
                 consts, edge_stage, self._bound_views, fixed_rc, self._fixed32, self.polarity_used,
-                self.measure.contrast_for(width),
+                self.measure.contrast_for(width), self.measure.decision_contrast(width),
             )  # fmt: skip
             outcome = self._frame_outcome(call.call(edge_stage, frame, self.sweep_px, self._count), fixed_rc)
             if outcome is not False:
@@ -399,11 +398,12 @@ class BlurSplitter:
         sweep = math.hypot(ar - br, ac - bc)
         # Read once per split: while it is learned each reading is one of the first `CONTRAST_FRAMES` frames'.
         contrast = self._contrast(fixed_rc)
+        decide = contrast * self.measure.ratio_gain  # the decision's (`BandMeasure.ratio_gain`)
         if sweep < 1.5 * width:
             # The corners of the band are a rope width apart whatever the sweep below that: read the sweep from
             # the edge slope instead (contrast / sweep, see `BandMeasure.sweep_from_gradient`).
             from_slope = self.measure.sweep_from_gradient(
-                self._chain, self._n, self._mag_ro, i_fix, seg_a, seg_b, contrast, consts
+                self._chain, self._n, self._mag_ro, i_fix, seg_a, seg_b, decide, consts
             )
             if math.isfinite(from_slope):
                 sweep = min(from_slope, 1.5 * width)
@@ -411,7 +411,7 @@ class BlurSplitter:
         # A tip that turns while a wave sweeps the body (a whip) ends the band one rope wide: the body's own
         # sweep keeps the split, whose sides are then the two shapes there (the band's middle is half a sweep off).
         if sweep < self.static_ratio * width:
-            body = self.measure.body_sweep(self._chain, self._n, self._mag_ro, i_fix, seg_a, seg_b, contrast, consts)
+            body = self.measure.body_sweep(self._chain, self._n, self._mag_ro, i_fix, seg_a, seg_b, decide, consts)
             if not body >= self.static_ratio * width:
                 return self.static(fixed_rc)
         tables = consts.tables
@@ -536,6 +536,7 @@ class BlurSplitter:
 
     def _contrast(self, fixed_rc: tuple[float, float]) -> float:
         """The rope's contrast (`BandMeasure.contrast`) read on the contour stored by `_prepare`."""
+        self.measure.ratio_applies = self.lens.decoded and float(self.polarity_used) < 0.0
         return self.measure.contrast(
             self._points, self._chain, int(self._n), self._gx, self._gy, self._smooth, self._refresh,
             float(self.polarity_used), self.width, fixed_rc,

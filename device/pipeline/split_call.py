@@ -39,7 +39,7 @@ class SplitFrameCall:
         took this path from a given width and polarity; None when the next one is not to take it directly."""
         self._args: list[Any] | None = None
         """`split_frame`'s arguments after three keys: the width tables, the edge stage, the contour's views."""
-        self._state_key: tuple[tuple[float, float], np.float32, float] | None = None
+        self._state_key: tuple[tuple[float, float], np.float32, float, float] | None = None
         self.width_px = 0.0
         """The rope width (px) of the width tables of the last `bind`."""
 
@@ -87,18 +87,27 @@ class SplitFrameCall:
         fixed32: tuple[np.float32, np.float32],
         polarity: np.float32,
         contrast: float,
+        decision_contrast: float,
     ) -> None:
         """Set the kernel's inputs for a contour whose read-only `views` are (points, chain, gx, gy, mag) (the
         planes those of `edge_stage`), split with `tables`, about the fixed end `fixed_rc` (`fixed32` its float32
-        pair), with `polarity` and `contrast`. The fixed end, polarity and contrast are the same objects from
+        pair), with `polarity` and `contrast` (`decision_contrast` the split/static decision's,
+        `BandMeasure.decision_contrast`). The fixed end, polarity and contrast are the same objects from
         frame to frame once settled, and so are the buffers: both are set only when one of them changes."""
         state = self.buffers.state
         key = self._state_key
-        if key is None or key[0] is not fixed_rc or key[1] is not polarity or key[2] != contrast:
-            self._state_key = (fixed_rc, polarity, contrast)
+        if (
+            key is None
+            or key[0] is not fixed_rc
+            or key[1] is not polarity
+            or key[2] != contrast
+            or key[3] != decision_contrast
+        ):
+            self._state_key = (fixed_rc, polarity, contrast, decision_contrast)
             state[_STATE.fixed_r], state[_STATE.fixed_c] = fixed32
             state[_STATE.polarity] = polarity
             state[_STATE.contrast] = contrast
+            state[_STATE.decision_contrast] = decision_contrast
         self.width_px = tables.tables.width_px
         args = self._args
         if args is None or args[0] is not tables or args[1] is not edge_stage or args[2] is not views:

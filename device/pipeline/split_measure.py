@@ -14,7 +14,7 @@ from ropecam.device.pipeline._views import f32
 from ropecam.device.pipeline.edge_model import BandEdgeModel
 from ropecam.device.pipeline.width_tables import WidthTables
 
-__all__ = ["CONTRAST_FRAMES", "MAX_CONTRAST", "BandMeasure"]
+__all__ = ["CONTRAST_FRAMES", "GAIN_READINGS", "MAX_CONTRAST", "MAX_RATIO_GAIN", "BandMeasure"]
 
 CONTRAST_FRAMES = 10
 """Frames whose contrast readings (median) are kept afterwards: the lighting does not change."""
@@ -25,6 +25,11 @@ readings are divided by a modelled rope width that can be a third of the rope's 
 (`lab-dark`: 0.5-1.5 px for edge spacings 2.90-2.98 px, 163 levels read as up to 480). A larger one comes from a
 width that is not the rope's at all: an edge model made of a lens blur read across a clamp's edges (`clamp on`:
 1.15 px for 0.4, a 2.4 px rope read as 0.30 px, 1516 levels)."""
+MAX_RATIO_GAIN = 1.5
+"""The largest `BandMeasure.ratio_gain` kept (a still rope's edge slope at most this much above the model's)."""
+GAIN_READINGS = 3
+"""The fewest contrast readings whose median gives `BandMeasure.ratio_gain` (1 before): one reading scatters by
+5 % (simulated `lab-dark`, tuning seed: frame 0 read 1.175 where the ten read 1.08-1.16; session 18, dark18)."""
 _PLUS, _MINUS = np.int32(1), np.int32(-1)
 _SLOPE_LOW, _SLOPE_HIGH = np.float32(0.5), np.float32(0.85)
 """The arc fractions of each side whose edge slope gives the sweep (as `split_frame`)."""
@@ -62,6 +67,37 @@ class BandMeasure:
         self._contrast_key = math.nan
         self._contrast32 = np.float32(0.0)
         self._whole: Spans | None = None
+        self.slopes: list[float] = []
+        """The gradient magnitudes (median) where each of `contrasts` was read: the still rope's edge slope."""
+        self.ratio_applies = False
+        """Whether `ratio_gain` is read (a dark rope in gamma-decoded frames: set by the splitter before
+        `contrast`)."""
+        self.ratio_gain = 1.0
+        """How much steeper the still rope's edges are than the edge model's, per unit of the contrast read (1-1.5;
+        1 unless `ratio_applies`): the split/static decision reads its sweeps from the edge slope with the contrast
+        times it (`decision_contrast`); the local sweeps of a split are the model's own.
+
+        A camera sharpens the gamma-encoded frame; decoded, the bright halo beside a dark rope is stretched, so its
+        edges are steeper, and the integral across the band (the contrast) smaller, than the model's blurred bar:
+        the still rope's slope over the contrast stands 1.08-1.19 times above the model's largest, where every
+        sweep reads 0 (session 18, dark18). Sweeps of 2-5 px were then read as none and the frames fell back to
+        the band's middle, half a sweep off (simulated `lab-dark`, setup on 240 frames, the swing's turn, frames
+        72-84 and 208-212: tips 0.7-2.7 px off). Read where the contrast is read, near the fixed end, where the rope
+        moves least: the median magnitude over the contrast (medians over the first `CONTRAST_FRAMES` readings)
+        over the model's still rope's. The local sweeps keep the model's heights: with the gain there too (tried,
+        session 18) short exposures' small sweeps read 0.5-1.5 px too large (the paper camera at 1 ms)."""
+
+    def forget(self) -> None:
+        """Forget the contrast readings and what they gave (`BlurSplitter.restart`)."""
+        self.contrasts.clear()
+        self.slopes.clear()
+        self.contrast_px = float("nan")
+        self.ratio_gain = 1.0
+
+    def decision_contrast(self, width_px: float) -> float:
+        """The contrast the split/static decision reads the sweep from the edge slope with: `contrast_for` times
+        `ratio_gain`."""
+        return self.contrast_for(width_px) * self.ratio_gain
 
     def rescale(self, width_px: float | None = None) -> None:
         """Divide the contrast readings' integrals by the rope width of the current `model` (it changed) and of
@@ -69,8 +105,14 @@ class BandMeasure:
         if width_px is not None:
             self._width_px = width_px
         if self.contrasts and math.isfinite(self._width_px):
-            contrast = float(np.median(self.contrasts)) / self.model.tables(self._width_px).width_px
+            tables = self.model.tables(self._width_px)
+            contrast = float(np.median(self.contrasts)) / tables.width_px
             self.contrast_px = contrast if contrast <= MAX_CONTRAST else math.nan
+            gain = 1.0
+            if self.ratio_applies and len(self.slopes) >= GAIN_READINGS and math.isfinite(self.contrast_px):
+                gain = float(np.median(self.slopes)) / self.contrast_px / float(tables.peak_ratio[-1])
+                gain = min(max(gain, 1.0), MAX_RATIO_GAIN) if math.isfinite(gain) else 1.0
+            self.ratio_gain = gain
 
     def contrast_for(self, width_px: float) -> float:
         """The rope's contrast over the rope width of the edge spacing `width_px` in use (`contrast`'s readings;
@@ -313,5 +355,6 @@ class BandMeasure:
         # that took the clamp's rod in, 6-12 px: `lab-dark` read 38 instead of about 190 grey levels, and every
         # later sweep from the edge slope was 0: static centrelines half a sweep off, reported OK).
         self.contrasts.append(integral)
+        self.slopes.append(float(np.median(np.hypot(gx[rc[:, 0], rc[:, 1]], gy[rc[:, 0], rc[:, 1]])[ok])))
         self.rescale(width)
         return self.contrast_px

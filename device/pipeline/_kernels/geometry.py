@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Final
 
 import numpy as np
 from numba import boolean, float32, float64, int32, int64, types
@@ -128,60 +129,79 @@ def _step(i, n, forward):
     return i - 1 if i > 0 else n - 1
 
 
-@kernel(boolean(f8_1d_ro, f4_1d_ro, int32, int32, float32, float32))
-def _is_corner(dist, turn, n, i, threshold, level):
-    """Whether contour point `i` is a local maximum of `turn` above `level` at least `threshold` from the fixed
-    end (`dist`: distances from it)."""
+CORNER_PERSIST: Final = 0.5
+"""The least turning angle at twice the corner scale, per unit of the angle at the scale, of a corner candidate
+(`_is_corner`). A corner of the band turns over its rounding, a rope width or so, and turns as much or more when
+read over chords twice as long (0.7-1.5 times on simulated `lab-dark`'s 240-frame set, frames 31, 98, 178, 182);
+a dent of a pixel or two in a faint band's side (a broken edge closed across its gap) turns sharply at the scale
+and hardly over the longer chords (0.33 times: frame 98's end side, 11 px short of the band's end: taken for the
+corner, the end tip 7.6 px off while OK)."""
+
+
+@kernel(boolean(f4_2d_ro, f8_1d_ro, f4_1d_ro, int32, int32, int32, float32, float32))
+def _is_corner(points, dist, turn, n, scale, i, threshold, level):
+    """Whether contour point `i` is a local maximum of `turn` (the turning angles at `scale`) above `level`, at
+    least `threshold` from the fixed end (`dist`: distances from it), whose turn persists over chords twice as long
+    (`CORNER_PERSIST`; `points`: the contour)."""
     before = i - 1 if i > 0 else n - 1
     after = i + 1 if i + 1 < n else 0
     if turn[i] <= level or turn[i] < turn[before] or turn[i] < turn[after]:
         return False
-    return dist[i] >= threshold
+    if dist[i] < threshold:
+        return False
+    return _turn_at(points, n, 2 * scale, i) >= CORNER_PERSIST * turn[i]
 
 
 @kernel(
-    int32(f4_1d_ro, f8_1d_ro, f4_1d_ro, int64, int64, int64, float64, float64, int32, float64, float64, int64, int64,
-          i4_1d)
+    int32(f4_2d_ro, int32, f4_1d_ro, f8_1d_ro, f4_1d_ro, int64, int64, int64, float64, float64, int32, float64,
+          float64, int64, int64, i4_1d)
 )  # fmt: skip
 def _pick_corners(
-    turn, dist, arc, n, i_fix, i_far, threshold, total, min_gap, level_a, level_b, zone_a, zone_b, out_idx
+    points, scale, turn, dist, arc, n, i_fix, i_far, threshold, total, min_gap, level_a, level_b, zone_a, zone_b,
+    out_idx,
 ):  # fmt: skip
     """`_split_from` once the arc lengths `arc` from the fixed end (`total` the contour's length) and each side's
-    corner level and first tip-zone step (`level_a`, `zone_a`, `level_b`, `zone_b`) are known: the corner pair,
-    or the fallback of the largest turning angles."""
+    corner level and first tip-zone step (`level_a`, `zone_a`, `level_b`, `zone_b`) are known: the corner pair
+    (`_is_corner` on the contour `points`, turning angles `turn` at `scale`), or the fallback of the largest
+    turning angles."""
     len_a = (i_far - i_fix + n) % n
     len_b = (i_fix - i_far + n) % n
-    best_delta = 1e30
-    for rep in range(2):
-        pick_sum = -1.0
-        ia = (i_fix + zone_a) % n
-        for step_a in range(zone_a, len_a):
-            if step_a > zone_a:
-                ia = _step(ia, n, True)
-            if not _is_corner(dist, turn, n, ia, threshold, level_a):
-                continue
-            ib = (i_fix - zone_b + n) % n
-            for step_b in range(zone_b, len_b):
-                if step_b > zone_b:
-                    ib = _step(ib, n, False)
-                if not _is_corner(dist, turn, n, ib, threshold, level_b):
+    # The far point is a candidate only when no pair is found without it: it lies on the band's end, often where
+    # the end meets a cap rather than at the cap's corner with the side (simulated `lab-dark`, 240 frames, 178:
+    # 6 steps before the end side's corner, and the better match of arc lengths, 2.0 px off), but on a faint end
+    # side whose dent is no corner (`CORNER_PERSIST`) it can be the only corner left (frame 98).
+    for far in range(2):
+        best_delta = 1e30
+        for rep in range(2):
+            pick_sum = -1.0
+            ia = (i_fix + zone_a) % n
+            for step_a in range(zone_a, len_a + far):
+                if step_a > zone_a:
+                    ia = _step(ia, n, True)
+                if not _is_corner(points, dist, turn, n, scale, ia, threshold, level_a):
                     continue
-                gap = abs(ia - ib)
-                if min(gap, n - gap) < min_gap:
-                    continue
-                delta = abs(arc[ia] - (total - arc[ib]))
-                if rep == 0:
-                    best_delta = min(best_delta, delta)
-                elif delta <= best_delta + 2.0 and turn[ia] + turn[ib] > pick_sum:
-                    pick_sum = turn[ia] + turn[ib]
-                    out_idx[1] = ia
-                    out_idx[3] = ib
-        if rep == 0 and best_delta > 1e29:
-            break
-        if rep == 1 and pick_sum >= 0.0:
-            out_idx[0] = i_fix
-            out_idx[2] = i_far
-            return 4
+                ib = (i_fix - zone_b + n) % n
+                for step_b in range(zone_b, len_b + far):
+                    if step_b > zone_b:
+                        ib = _step(ib, n, False)
+                    if not _is_corner(points, dist, turn, n, scale, ib, threshold, level_b):
+                        continue
+                    gap = abs(ia - ib)
+                    if min(gap, n - gap) < min_gap:
+                        continue
+                    delta = abs(arc[ia] - (total - arc[ib]))
+                    if rep == 0:
+                        best_delta = min(best_delta, delta)
+                    elif delta <= best_delta + 2.0 and turn[ia] + turn[ib] > pick_sum:
+                        pick_sum = turn[ia] + turn[ib]
+                        out_idx[1] = ia
+                        out_idx[3] = ib
+            if rep == 0 and best_delta > 1e29:
+                break
+            if rep == 1 and pick_sum >= 0.0:
+                out_idx[0] = i_fix
+                out_idx[2] = i_far
+                return 4
     # Side A: forward from the fixed end to the far point; side B: backward. Each gets the point of largest turning
     # in the tip zone; the pair must be `min_gap` chain steps apart (the far point may itself be a corner), so the
     # best pair is taken over "A first, then B away from it" and "B first, then A away from it".
@@ -226,18 +246,21 @@ def _pick_corners(
 
 
 @kernel(
-    int32(f4_2d_ro, f4_1d_ro, f8_1d_ro, int64, int64, int64, float64, float32, int32, float32, f4_1d, i4_1d)
+    int32(f4_2d_ro, int32, f4_1d_ro, f8_1d_ro, int64, int64, int64, float64, float32, int32, float32, f4_1d, i4_1d)
 )  # fmt: skip
-def _split_from(points, turn, dist, n, i_fix, i_far, r_far, search_px, min_gap, corner_rad, work_arc, out_idx):
+def _split_from(
+    points, scale, turn, dist, n, i_fix, i_far, r_far, search_px, min_gap, corner_rad, work_arc, out_idx
+):  # fmt: skip
     """Find the two segmentation points once the fixed end `i_fix`, the far point `i_far` and its distance `r_far`
     are known: side A runs forward along the chain from the fixed end to the far point, side B backward. Among the
     points at least ``r_far - search_px`` from the fixed end, the corner candidates of each side are the local
-    maxima of the turning angle above `corner_rad` and above half the side's sharpest; of the pairs at least
-    `min_gap` chain steps apart, those whose arc lengths from the fixed end differ by at most 2 px more than the
-    best-matching pair's compete, and the sharpest (largest sum) wins. Without candidates, the points of largest
-    turning angle on each side (at least `min_gap` apart) are used. `dist` holds each point's distance from the
-    fixed end; `work_arc` (n) is scratch. Writes ``out_idx = [fixed, seg_a, far, seg_b]``; returns 4, NOT_FOUND
-    or FULL."""
+    maxima of the turning angle (at `scale`) above `corner_rad` and above half the side's sharpest, whose turn
+    persists at twice the scale (`CORNER_PERSIST`); of the pairs at least `min_gap` chain steps apart, those whose
+    arc lengths from the fixed end differ by at most 2 px more than the best-matching pair's compete, and the
+    sharpest (largest sum) wins; the far point is a candidate when no pair is found without it. Without
+    candidates, the points of largest turning angle on each side (at least `min_gap` apart) are used. `dist`
+    holds each point's distance from the fixed end; `work_arc` (n) is scratch. Writes ``out_idx = [fixed, seg_a,
+    far, seg_b]``; returns 4, NOT_FOUND or FULL."""
     threshold = r_far - search_px
     len_a = (i_far - i_fix + n) % n
     len_b = (i_fix - i_far + n) % n
@@ -277,8 +300,9 @@ def _split_from(points, turn, dist, n, i_fix, i_far, r_far, search_px, min_gap, 
                     level_b = max(level_b, 0.5 * turn[i])
                     zone_b = min(zone_b, step)
     return _pick_corners(
-        turn, dist, arc, n, i_fix, i_far, threshold, total, min_gap, level_a, level_b, zone_a, zone_b, out_idx
-    )
+        points, scale, turn, dist, arc, n, i_fix, i_far, threshold, total, min_gap, level_a, level_b, zone_a, zone_b,
+        out_idx,
+    )  # fmt: skip
 
 
 @kernel(int32(f4_2d_ro, int32, int32, float32, float32, float32, int32, float32, f8_1d, f4_1d, f4_1d, i4_1d))
@@ -322,7 +346,7 @@ def find_segmentation_points(
             out_turn[k] = _turn_at(points, n, scale, k)
             done = max(done, j)
     return _split_from(
-        points, out_turn, out_dist, n, i_fix, i_far, r_far, search_px, min_gap, corner_rad, work_arc, out_idx
+        points, scale, out_turn, out_dist, n, i_fix, i_far, r_far, search_px, min_gap, corner_rad, work_arc, out_idx
     )
 
 
@@ -407,8 +431,9 @@ def find_segmentation_points_seg(
         arc[i] = total
     total += work_seg[i_fix]
     return _pick_corners(
-        out_turn, out_dist, arc, n, i_fix, i_far, threshold, total, min_gap, level_a, level_b, zone_a, zone_b, out_idx
-    )
+        points, scale, out_turn, out_dist, arc, n, i_fix, i_far, threshold, total, min_gap, level_a, level_b, zone_a,
+        zone_b, out_idx,
+    )  # fmt: skip
 
 
 @kernel(float64(f4_2d_ro, int64, int64, int64, int64))

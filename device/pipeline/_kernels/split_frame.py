@@ -17,10 +17,11 @@ from ropecam.device.pipeline._kernels.offsets import slope_sweep_median
 from ropecam.device.pipeline._kernels.split_shapes import split_shapes
 from ropecam.shared.jit import f4_2d, f4_2d_ro, f8_1d, f8_1d_ro, i4_1d, i4_1d_ro, i4_2d_ro, kernel, u1_2d_ro
 
-FRAME_STATES: Final = ("fixed_r", "fixed_c", "polarity", "contrast", "last_sweep_px", "n")
+FRAME_STATES: Final = ("fixed_r", "fixed_c", "polarity", "contrast", "last_sweep_px", "n", "decision_contrast")
 """`split_frame`'s `state` (float64), in order: the fixed end and the polarity (float32 values, exactly), the
 contrast as measured, the last frame's sweep (px), the contour's point count (a Python int in a float64 array
-costs less than an int32 scalar made per frame)."""
+costs less than an int32 scalar made per frame), the contrast the split/static decision reads the sweep from the
+edge slope with (`BandMeasure.decision_contrast`: the contrast times the still rope's slope over the model's)."""
 FRAME_STATE: Final = NamedTuple("SplitFrameState", [(name, int) for name in FRAME_STATES])(*range(len(FRAME_STATES)))
 """The index of each value of `split_frame`'s `state` (``FRAME_STATE.contrast``), from `FRAME_STATES`."""
 FRAME_INFO: Final = 7
@@ -147,9 +148,10 @@ def split_frame(
     out_seg[1, 1] = points[seg_b, 1]
     sweep = math.hypot(ar - br, ac - bc)
     contrast = state[FRAME_STATE.contrast]
+    decide = np.float32(state[FRAME_STATE.decision_contrast])
     if sweep < 1.5 * width64 and contrast >= 5.0:
         # The corners are a rope width apart whatever the sweep below that: the sweep from the edge slope.
-        contrast32 = np.float32(contrast)
+        contrast32 = decide
         total = 0.0
         count = 0
         for side in range(2):
@@ -168,7 +170,7 @@ def split_frame(
         if not contrast >= 5.0:
             return SPLIT_STATIC
         body = body_sweep(
-            chain, n, i_fix, seg_a, seg_b, planes.mag, np.float32(contrast), BODY_WINDOWS, width.ratios,
+            chain, n, i_fix, seg_a, seg_b, planes.mag, decide, BODY_WINDOWS, width.ratios,
             width.sweeps, scratch[2],
         )  # fmt: skip
         if not body >= width.static_ratio * width64:

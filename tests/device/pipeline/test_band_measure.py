@@ -11,7 +11,7 @@ import pytest
 from ropecam.device.capture.synthetic import SyntheticRope
 from ropecam.device.pipeline.config import PipelineConfig
 from ropecam.device.pipeline.pipeline import Pipeline
-from ropecam.device.pipeline.result import FrameStatus
+from ropecam.device.pipeline.result import FrameStatus, Method
 from ropecam.device.pipeline.split_measure import CONTRAST_FRAMES
 
 
@@ -80,3 +80,46 @@ def test_a_contrast_no_8bit_rope_has_is_not_kept(static_frames: int) -> None:
     assert not measure.contrast_settled
     if static_frames:  # read again once the mask is known (`Stages.relearn`)
         assert len(measure.contrasts) < CONTRAST_FRAMES
+
+
+def test_a_decoded_dark_ropes_steeper_edges_split_its_small_sweeps(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A 2 px dark rope on a bright plate through a camera's gamma 2.2 and its unsharp mask (as the simulated
+    `lab-dark`), swinging from rest (sweeps of 0-5 px), decoded by the pipeline: the still rope's edge slope over
+    its contrast, read near the fixed end, stands above the edge model's (`BandMeasure.ratio_gain` > 1). Read with
+    the model's own heights every small sweep is still and falls back to the band's middle, half a sweep off; the
+    decision read with the gain splits them, and their tips are placed better. A bright rope in linear frames
+    keeps the model's heights (gain 1)."""
+    from ropecam.device.pipeline import split_measure
+
+    from .test_edge_profile import _decoded_dark_rope
+
+    rope, frames, images = _decoded_dark_rope(0.4, 3)
+    runs = {}
+    for cap in (split_measure.MAX_RATIO_GAIN, 1.0):  # 1.0: no gain, the model's own heights
+        monkeypatch.setattr(split_measure, "MAX_RATIO_GAIN", cap)
+        pipeline = Pipeline(PipelineConfig(gamma=2.2), (rope.width, rope.height))
+        splits, errors = 0, {}
+        for frame, image in zip(frames, images, strict=True):
+            result = pipeline.process(image, frame.index, frame.t_ns, float(rope.exposure_us))
+            sweep = float(np.hypot(*(frame.end_uv[-1] - frame.begin_uv[-1])))
+            if sweep >= 2.0 and result.begin is not None and result.end is not None:
+                splits += result.method is Method.BLUR_SPLIT
+                errors[frame.index] = _tip_errors(result, frame)
+        runs[cap] = (pipeline.splitter.measure.ratio_gain, splits, errors)
+    (gain, splits, errors), (no_gain, splits_before, errors_before) = runs.values()
+    assert gain > 1.05 and no_gain == 1.0, (gain, no_gain)
+    both = sorted(set(errors) & set(errors_before))
+    assert len(both) >= 8, (errors, errors_before)
+    assert splits > splits_before, (splits, splits_before)
+    error = float(np.mean([errors[i] for i in both]))
+    error_before = float(np.mean([errors_before[i] for i in both]))
+    assert error < error_before - 0.1, (error, error_before, errors, errors_before)
+    bright = Pipeline(PipelineConfig(lens_blur_px=0.5), (200, 170))
+    still = SyntheticRope(
+        width=200, height=170, fixed_uv=(100.3, 12.6), length_px=140.0, diameter_px=2.5, blur_px=0.5,
+        amplitude_rad=0.5, period_s=0.9, phase_rad=0.0, noise_dn=1.0, exposure_us=4000,
+    )  # fmt: skip
+    for frame in still.frames(CONTRAST_FRAMES):
+        bright.process(frame.image, frame.index, frame.t_ns, 4000.0)
+    assert len(bright.splitter.measure.contrasts) == CONTRAST_FRAMES
+    assert bright.splitter.measure.ratio_gain == 1.0

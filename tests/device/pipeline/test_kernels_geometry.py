@@ -42,21 +42,23 @@ def turning_angles_far(points, n, scale, fixed_r, fixed_c, search_px, out_dist, 
     return int(np.count_nonzero(needed))
 
 
-def split_contour(points, turn, dist, n, fixed_r, fixed_c, search_px, min_gap, corner_rad, work_arc, out_idx) -> int:
-    """The segmentation points of a closed contour from its turning angles `turn` and distances `dist` from the
-    fixed end (`turning_angles_far`): the fixed end is the nearest point, the far point the farthest, then as
-    `find_segmentation_points` (its `_split_from`). Writes ``out_idx = [fixed, seg_a, far, seg_b]``; returns 4,
-    NOT_FOUND or FULL."""
+def split_contour(
+    points, turn, dist, n, fixed_r, fixed_c, search_px, min_gap, corner_rad, work_arc, out_idx, scale=3
+) -> int:
+    """The segmentation points of a closed contour from its turning angles `turn` (at `scale`) and distances `dist`
+    from the fixed end (`turning_angles_far`): the fixed end is the nearest point, the far point the farthest,
+    then as `find_segmentation_points` (its `_split_from`). Writes ``out_idx = [fixed, seg_a, far, seg_b]``;
+    returns 4, NOT_FOUND or FULL."""
     if n < 8:
         return K.NOT_FOUND
     if dist.shape[0] < n:
         return K.FULL
     i_fix, i_far = int(np.argmin(dist[:n])), int(np.argmax(dist[:n]))
-    return int(
-        _split_from(
-            points, turn, dist, n, i_fix, i_far, float(dist[i_far]), search_px, min_gap, corner_rad, work_arc, out_idx
-        )
+    far_r = float(dist[i_far])
+    found = _split_from(
+        points, np.int32(scale), turn, dist, n, i_fix, i_far, far_r, search_px, min_gap, corner_rad, work_arc, out_idx
     )
+    return int(found)
 
 
 def _edge_image(angle_deg: float, offset_px: float, size: int = 41) -> tuple[np.ndarray, np.ndarray, float]:
@@ -357,6 +359,32 @@ def test_split_takes_the_corners_whose_sides_are_equally_long() -> None:
     assert turn[at[1]] > turn[at[0]]
     assert split_contour(pts, turn, dist, n, 5.0, 0.0, 20.0, 4, 0.5, np.zeros(n - 1, np.float32), idx) == K.FULL
     assert split_contour(pts, turn, dist[:-1], n, 5.0, 0.0, 20.0, 4, 0.5, np.zeros(n, np.float32), idx) == K.FULL
+
+
+def test_split_takes_no_dent_of_a_faint_side_for_its_corner() -> None:
+    # A band from a fixed end at (5, 0) whose end tip swept outward: side A to the begin tip's corner (0, 100), the
+    # band's end out to the end tip at (16, 104), the farthest point, and side B back with a dent of 1.5 px 12 px
+    # from its end (a faint side's broken edge closed across its gap; simulated `lab-dark`, 240 frames, frame 98).
+    # The dent is side B's sharpest turn but for the far point (which is a candidate only without other pairs), but
+    # it does not turn over chords twice as long.
+    pts = _outline([(5, 0), (0, 0), (0, 100), (16, 104), (10.6, 93), (12.1, 92), (10.5, 91), (10, 0)], 1.0)
+    n = len(pts)
+    dent = int(np.argmin(np.hypot(pts[:, 0] - 12.1, pts[:, 1] - 92.0)))
+    assert _turn_at(pts, n, 3, dent) > 1.0
+    assert _turn_at(pts, n, 6, dent) < 0.5 * _turn_at(pts, n, 3, dent)
+    idx = np.zeros(4, np.int32)
+    args = (np.int32(3), np.float32(5.0), np.float32(0.0), np.float32(20.0), np.int32(4), np.float32(0.5))
+    found = K.find_segmentation_points(pts, np.int32(n), *args, np.zeros(n), np.zeros(n, np.float32),
+                                       np.zeros(n, np.float32), idx)  # fmt: skip
+    assert found == 4
+    np.testing.assert_allclose(pts[idx[1]], [0, 100], atol=0.6)
+    np.testing.assert_allclose(pts[idx[3]], [16, 104], atol=0.6)  # the far point: no other corner on side B
+    # Without the dent the far point is the end's corner all the same.
+    plain = _outline([(5, 0), (0, 0), (0, 100), (16, 104), (10, 0)], 1.0)
+    m = len(plain)
+    assert K.find_segmentation_points(plain, np.int32(m), *args, np.zeros(m), np.zeros(m, np.float32),
+                                      np.zeros(m, np.float32), idx) == 4  # fmt: skip
+    np.testing.assert_allclose(plain[idx[3]], [16, 104], atol=0.6)
 
 
 def test_turning_angles_far_equals_turning_angles_in_the_tip_zone() -> None:
