@@ -16,8 +16,11 @@ the rope moves on from where the last one ended, so of the two sides on a stretc
 nearer to the previous frame's end shape. The stretch that holds the tip keeps the tip's order. By the fixed end
 the two shapes lie too close for nearness to say anything, and the edges' noise cuts that part into many short
 stretches: they take the side of the first stretch beyond them that nearness orders, unless the separation dips
-between them (a crossing by the fixed end). The previous end shape (or the one shape of a one-shape frame) is kept
-in the time order's group (`Order`): ``prev_end`` and its count and time in ``state``.
+between them (a crossing by the fixed end). A stretch further on whose sides lie too close for nearness (between
+two crossings at the turn of the swing) takes the side of the next decided stretch towards the tip (the tip's own
+at last), exchanged once for every crossing between the two (`_resolve_sides`). The previous end shape (or the
+one shape of a one-shape frame) is kept in the time order's group (`Order`): ``prev_end`` and its count and time
+in ``state``.
 """
 
 from __future__ import annotations
@@ -53,6 +56,12 @@ DECISIVE: Final = 0.25
 stretch's mean separation, and that separation is at least `PINCH_WIDTHS` rope widths: where the two sides lie
 within noise of each other, nearness decides nothing (measured: a rope swinging as a rigid pendulum, whose shapes
 never cross, had stretches by the fixed end exchanged on noise, with steps in the shapes)."""
+CROSSING_PEAK_WIDTHS: Final = 0.4
+"""A pinch between two stretches is a crossing (the band's sides change shapes there) only when the separation
+on both sides of it reaches this many rope widths: below, the noise of the edges makes pinches (by the fixed end)
+whose sides lie too close for an exchange to matter."""
+_RESOLVED: Final = 3.0
+"""Added to the side (0 keep, 1 exchange) an undecided stretch takes from its neighbours (`_resolve_sides`)."""
 _WINDOW: Final = 24
 """Segments searched either side of the proportional guess for the first point of a stretch on another shape: the
 shapes run the same way from the fixed end with similar point spacing, so a point's match is near the same arc
@@ -213,6 +222,107 @@ def _side_of(begin, end, match, start_b, stop_b, start_e, stop_e, prev, n_prev, 
     return 1 if other < keep - DECISIVE * separation else 0
 
 
+@kernel(int64(f4_2d, f4_2d, f4_2d, int64, int64, float64, float64, f4_2d, int64, boolean))
+def _stretch_sides(begin, end, match, nb, ne, limit, width_px, prev, n_prev, tip_undecided):
+    """Walk the stretches between pinches from the fixed end (as `_next_stretch`) and write each one's side into
+    ``match[nb + s]`` (rows past the begin points' matches; ``match`` has at least `nb` + `ne` rows and there are
+    fewer stretches than `ne`): (`_side_of`'s 1, 0 or -1, the stretch's first point). The tip's stretch keeps
+    the tip's order (0) unless `tip_undecided` and nearness exchanges it. Returns the number of stretches."""
+    count = 0
+    k = 2
+    start_b = 0
+    start_e = 0
+    while k < nb - 1:
+        k, stop_b, stop_e = _next_stretch(match, nb, ne, k, start_b, start_e, limit, width_px)
+        last = stop_b == nb
+        side = 0
+        if not last or tip_undecided:
+            side = _side_of(begin, end, match, start_b, stop_b, start_e, stop_e, prev, n_prev, width_px)
+            if last:
+                side = max(side, 0)
+        match[nb + count, 0] = np.float32(side)
+        match[nb + count, 1] = np.float32(start_b)
+        count += 1
+        start_b = stop_b
+        start_e = stop_e
+        if last:
+            break
+        k += 1
+    return count
+
+
+@kernel(boolean(f4_2d, int64, int64, float64))
+def _crossing(match, nb, k, least_peak):
+    """Whether the pinch at begin point `k` (``match[:nb]``: each begin point's distance to the end shape) is a
+    crossing: its distance at most `PROMINENCE` of the largest separation on each side of it (up to where the
+    separation falls below the pinch's again), and both of those at least `least_peak`."""
+    gap = float(match[k, 0])
+    left = 0.0
+    i = k - 1
+    while i >= 0 and float(match[i, 0]) >= gap:
+        left = max(left, float(match[i, 0]))
+        i -= 1
+    right = 0.0
+    i = k + 1
+    while i < nb and float(match[i, 0]) >= gap:
+        right = max(right, float(match[i, 0]))
+        i += 1
+    peak = min(left, right)
+    return peak >= least_peak and gap <= PROMINENCE * peak
+
+
+@kernel(types.void(f4_2d, int64, int64, float64))
+def _resolve_sides(match, nb, count, least_peak):
+    """Give each undecided stretch of ``match[nb:nb + count]`` (`_stretch_sides`' rows) a side, written as
+    `_RESOLVED` + that side (0 keep, 1 exchange; the decided rows keep theirs).
+
+    The stretches before the first decided one (by the fixed end) take its exchange back to where the separation
+    between them and it dips to `PROMINENCE` of their own largest (a crossing by the fixed end), and keep their
+    side beyond (as do all of them when it keeps its side: a dip by the fixed end is as often two shapes that
+    come close without crossing, read closer than they are). A stretch after a decided one takes the side of the
+    nearest decided stretch towards the tip (the tip's own at last), exchanged once for every crossing
+    (`_crossing`) between the two: the band's side that is one shape before a crossing is the other shape after
+    it."""
+    first = count
+    for s in range(count):
+        if match[nb + s, 0] >= 0.0:
+            first = s
+            break
+    cut = nb
+    if first < count and match[nb + first, 0] == 1.0:
+        start = int(match[nb + first, 1])
+        cut = start
+        valley = float(match[start, 0])
+        for s in range(first - 1, -1, -1):
+            lo = int(match[nb + s, 1])
+            hi = int(match[nb + s + 1, 1])
+            peak = 0.0
+            low = math.inf
+            for i in range(lo, hi):
+                peak = max(peak, float(match[i, 0]))
+                low = min(low, float(match[i, 0]))
+            if valley <= PROMINENCE * peak:
+                break
+            cut = lo
+            valley = min(valley, low)
+    for s in range(min(first, count)):
+        match[nb + s, 0] = np.float32(_RESOLVED + (1.0 if match[nb + s, 1] >= cut else 0.0))
+    for s in range(first + 1, count):
+        if match[nb + s, 0] >= 0.0:
+            continue
+        # The tip's stretch is always decided (`_stretch_sides`), so one lies beyond every undecided stretch.
+        side = 0
+        flips = 0
+        for t in range(s + 1, count):
+            if _crossing(match, nb, int(match[nb + t, 1]), least_peak):
+                flips += 1
+            value = match[nb + t, 0]
+            if value == 0.0 or value == 1.0:
+                side = int(value)
+                break
+        match[nb + s, 0] = np.float32(_RESOLVED + ((side + flips) % 2))
+
+
 @kernel(int32(f4_2d, f4_2d, boolean, int64, int64, float64, boolean, ORDER))
 def uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, tip_undecided, order):
     """Exchange the stretches of `begin` and `end` (float32 (n, 2), fixed end first, in time order by the tip)
@@ -227,12 +337,15 @@ def uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, tip_undec
     the exposure. The stretches before the first one that nearness decides (sides less than `PINCH_WIDTHS`
     rope widths apart: by the fixed end, where the edges' noise makes pinches every few points) take its
     exchange, back to where the separation between a stretch and it dips to `PROMINENCE` of that stretch's
-    largest (a crossing there): without one they are part of the same stretch of rope, moving the one way. The
+    largest (a crossing there): without one they are part of the same stretch of rope, moving the one way. An
+    undecided stretch after a decided one takes the side of the nearest decided stretch towards the tip (the tip's
+    stretch, in the tip's order, at last), exchanged once for every crossing between them (`_crossing`: a pinch
+    below `PROMINENCE` of the separation on both sides, each at least `CROSSING_PEAK_WIDTHS` rope widths). The
     exchanged shapes keep their point counts (each resampled evenly along its new arc). Nothing is exchanged for
     a `single` shape (it is remembered as the previous end shape: the rope at mid-exposure, from which the next
     exposure's start lies nearer than its end, as from an end shape), without a previous end shape, or when a
     shape is longer than ``order.prev_end``. Uses ``order.splice`` as scratch (its rows hold the new begin, the
-    new end, and each begin point's (distance, match) on `end`).
+    new end, and each begin point's (distance, match) on `end`, then each stretch's side and first point).
 
     Returns the stretches exchanged (0 or more), or -1 when the shapes were not looked at.
     """
@@ -264,66 +377,25 @@ def uncross_shapes(begin, end, single, t_end_ns, max_age_ns, width_px, tip_undec
         for k in range(max(3, nb // FLOOR_SPAN)):
             floor = min(floor, float(match[k, 0]))
         limit = PINCH_WIDTHS * width_px + min(floor, PINCH_WIDTHS * width_px)
-        # The side of the first stretch that nearness decides (it starts at point `first`); the undecided ones
-        # before it take it back to where the separation between them and it dips to `PROMINENCE` of their own
-        # (a crossing near the fixed end). Their ends are kept in ``splice[0]`` until it is written below.
+        # Each stretch's side (rows `nb` on of ``match``: the side, the stretch's first point): nearness's, the
+        # tip's order for the tip's stretch; then the undecided ones resolved (`_resolve_sides`).
+        count = _stretch_sides(begin, end, match, nb, ne, limit, width_px, prev, n_prev, tip_undecided)
+        _resolve_sides(match, nb, count, CROSSING_PEAK_WIDTHS * width_px)
+        # Stretches between pinches, from the fixed end, each from the side resolved above.
         out_b = splice[0]
-        head = 0
-        first = nb
-        count = 0
-        k = 2
-        start_b = 0
-        start_e = 0
-        while k < nb - 1:
-            k, stop_b, stop_e = _next_stretch(match, nb, ne, k, start_b, start_e, limit, width_px)
-            last = stop_b == nb
-            if last and not tip_undecided:
-                break
-            side = _side_of(begin, end, match, start_b, stop_b, start_e, stop_e, prev, n_prev, width_px)
-            if side >= 0:
-                head = side
-                first = start_b
-                break
-            if last:
-                break
-            out_b[count, 0] = np.float32(stop_b)
-            count += 1
-            start_b = stop_b
-            start_e = stop_e
-            k += 1
-        cut = nb  # the head's stretches from this point on take its side
-        if head == 1 and first < nb:
-            cut = first
-            valley = float(match[first, 0])
-            for s in range(count - 1, -1, -1):
-                stop = int(out_b[s, 0])
-                start = int(out_b[s - 1, 0]) if s > 0 else 0
-                peak = 0.0
-                low = math.inf
-                for i in range(start, stop):
-                    peak = max(peak, float(match[i, 0]))
-                    low = min(low, float(match[i, 0]))
-                if valley <= PROMINENCE * peak:
-                    break
-                cut = start
-                valley = min(valley, low)
-        # Stretches between pinches, from the fixed end; the last one (the tip's) keeps its side.
         out_e = splice[1]
         kb = 0  # begin's points written
         ke = 0
         start_b = 0
         start_e = 0
-        in_head = True
         k = 2
-        while k < nb - 1:
+        s = 0
+        while k < nb - 1 and s < count:
             k, stop_b, stop_e = _next_stretch(match, nb, ne, k, start_b, start_e, limit, width_px)
             last = stop_b == nb
-            swap = False
-            if not last or tip_undecided:
-                side = _side_of(begin, end, match, start_b, stop_b, start_e, stop_e, prev, n_prev, width_px)
-                if side >= 0:
-                    in_head = False
-                swap = side == 1 or (side < 0 and in_head and start_b >= cut)
+            resolved = match[nb + s, 0]
+            swap = resolved == 1.0 or resolved == _RESOLVED + 1.0
+            s += 1
             src_b = end if swap else begin
             src_e = begin if swap else end
             lo_b, hi_b = (start_e, stop_e) if swap else (start_b, stop_b)

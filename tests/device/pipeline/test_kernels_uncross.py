@@ -90,6 +90,29 @@ def test_a_crossing_read_above_half_a_width_is_still_a_pinch(reading: str) -> No
     np.testing.assert_allclose(end[:, 0], np.interp(end[:, 1], _X, true_end), atol=tolerance)
 
 
+def test_a_close_stretch_between_two_crossings_takes_its_side_from_the_tips_stretch() -> None:
+    # A wave with two crossings at the turn of the swing (simulated lab, tuning seed, setup-240 frames 179, 202,
+    # 217): the body and the tip move one way, the stretch between them the other, and that stretch's two shapes
+    # lie less than half a rope width apart on average, so nearness to the previous end shape decides nothing.
+    # It lies between two crossings: the band's side that is the start shape on the tip's stretch is the end shape
+    # there. Kept as the split gave it, it was the wrong way round (centreline 0.3-0.6 px off, tips right).
+    order = OrderBuffers.make(256)
+    _remember(order, _shape(np.full_like(_X, 10.0)), 0)
+    v = np.where(_X < 40.0, 3.0 * np.sin(np.pi * _X / 40.0), 0.0)
+    v = np.where((_X >= 40.0) & (_X < 60.0), -1.0 * np.sin(np.pi * (_X - 40.0) / 20.0), v)
+    v = np.where(_X >= 60.0, 4.0 * (_X - 60.0) / 40.0, v)
+    true_begin, true_end = 10.0 + v, 10.0 + 2.0 * v
+    begin, end = _sides(true_begin, true_end)
+    middle = (_X > 40.0) & (_X < 60.0)
+    assert np.abs(begin[middle, 0] - true_begin[middle]).max() > 0.9  # the middle is the wrong way round
+    assert np.abs(begin[~middle, 0] - true_begin[~middle]).max() < 1e-5  # the rest is right
+    assert np.abs(true_end - true_begin)[middle].mean() < 0.5 * 2.0  # too close for nearness
+    flipped = K.uncross_shapes(begin, end, False, _PERIOD_NS + _EXPOSURE_NS, 4 * _PERIOD_NS, 2.0, False, order.group)
+    assert flipped == 1
+    np.testing.assert_allclose(begin[:, 0], np.interp(begin[:, 1], _X, true_begin), atol=0.05)
+    np.testing.assert_allclose(end[:, 0], np.interp(end[:, 1], _X, true_end), atol=0.05)
+
+
 @pytest.mark.parametrize("undecided", [False, True])
 def test_the_tips_stretch_follows_the_previous_end_shape_only_when_the_tips_order_was_a_coin_flip(
     undecided: bool,
