@@ -8,6 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ropecam.device.pipeline import _kernels as K
+from ropecam.device.pipeline._kernels.outline import draw_join, pick_open_ends
 from ropecam.device.pipeline._views import as_ro, cell_property, f32, i32, ro
 from ropecam.device.pipeline.workspace import ContourBuffers, expose
 
@@ -191,6 +192,48 @@ class ContourTracer:
         # Joined to what was dropped: the new contour passes next to the dropped chain's pixels.
         r, c = (self.chain[: self.count] + 1).T  # in `gone`'s padded frame
         self.joined = bool((gone[r - 1, c] | gone[r + 1, c] | gone[r, c - 1] | gone[r, c + 1]).any())
+        return self.count
+
+    def rejoin_gap(self, detector: EdgeDetector, reach_px: int) -> int:
+        """Join the two line ends of the last traced component that lie within `reach_px` (per axis) of each other
+        about half the chain apart (`K.pick_open_ends`): a gap in one side of the band, where noise or texture broke
+        its edge (the outline is then a tree walked out and back, and the split's two sides differ in length). The
+        component (1 in the detector's edges, in its spans) is copied, the join drawn on the copy (`K.draw_join`)
+        and traced again; kept when the new chain walks at most `K.JOINED_REVISITS` of its pixels twice (a ring),
+        spurs pruned and refined as `trace` does. A cold path (a frame that found no split): it allocates. Returns
+        the new point count, written into `chain`, `codes`, `points` and `count`, or 0 (nothing written)."""
+        n = self.count
+        lo, hi = detector.spans
+        if n < 8 or lo is None:
+            return 0
+        edges = (detector.edges == 1).astype(np.uint8)
+        chain = self.chain[:n].copy()
+        scratch = np.empty(n, np.int32)
+        i, j = pick_open_ends(edges, chain, i32(n), np.int64(reach_px), scratch)
+        if i < 0:
+            return 0
+        width = self.shape[1]
+        a = np.int64(chain[i, 0]) * width + chain[i, 1]
+        b = np.int64(chain[j, 0]) * width + chain[j, 1]
+        changed, _ = draw_join(edges, as_ro(lo), as_ro(hi), a, b, np.int64(-1))
+        if changed == 0:
+            return 0
+        first = int(np.flatnonzero(edges.reshape(-1))[0])
+        capacity = self.chain.shape[0]
+        new_chain = np.empty((capacity, 2), np.int32)
+        codes = np.empty(capacity, np.int32)
+        m = K.trace_contour(
+            ro(edges), as_ro(lo), as_ro(hi), i32(first // width), i32(first % width), new_chain, codes
+        )  # fmt: skip
+        if m <= 0 or K.count_revisits(ro(new_chain), i32(m), edges) > K.JOINED_REVISITS * m:
+            return 0
+        m = K.prune_excursions(new_chain, codes, i32(m), np.int64(width), np.empty(edges.size, np.int32))
+        points = np.empty((capacity, 2), np.float32)
+        K.refine_subpixel(detector.mag_ro, detector.gx_ro, detector.gy_ro, ro(new_chain), i32(m), points)
+        self.chain[:m] = new_chain[:m]
+        self.codes[:m] = codes[:m]
+        self.points[:m] = points[:m]
+        self.count = int(m)
         return self.count
 
     def forget_args(self) -> None:

@@ -30,6 +30,12 @@ BROKEN_OUTLINE = K.BROKEN_OUTLINE
 """Largest part of the contour's pixels walked twice (spurs of noise and texture) before it is no band outline (a
 contour open at one end is joined first: `K.join_open_ends`)."""
 
+REJOIN_REACH_PX = 20
+"""How far apart (px, per axis) the two ends of a gap in a band's side may lie to be joined when the frame found no
+split (`ContourTracer.rejoin_gap`): noise or texture breaks a side where the sweeping band is faint (simulated
+`read noise = 10 DN`, seed 3 from 0.3 s, frames 2-4, and `rope photo texture = 2`, frames 9 and 11: gaps of 12-18 px
+along one side, the outline walked out and back, the two sides 416 and 1128 px long)."""
+
 UNDECIDED_ORDER = 0.6
 """Time order confidence below which a split of a small sweep (`UNDECIDED_SWEEP_WIDTHS`) is a coin flip."""
 
@@ -142,6 +148,8 @@ class ResultFinisher:
         self.after_still = False
         """Whether the last frame that reached the self-checks was a single shape (a still rope): the time order of
         a split right after it has no motion to go by."""
+        self.rejoined = False
+        """Whether the last frame's shapes were read from its outline with a gap in a side joined (`_rejoined`)."""
 
     def finish(
         self,
@@ -156,12 +164,16 @@ class ResultFinisher:
         pixels walked twice `revisits` (None: counted here when needed). The frame period is the clock's."""
         rejected = ""
         self.short_only = False
+        self.rejoined = False
         if not exposure_ns and (outcome is None or self._still(outcome)):
             # Unknown exposure (a still photo) and no split, or one without blur between its tips: the rope is
             # the static centreline, which follows the contour whole where a split's two sides may pair across a
             # loop of the rope.
             rejected = self.splitter.failure if outcome is None else ""
             outcome = self.splitter.static((float(self.fixed[0]), float(self.fixed[1]))) or outcome
+        if outcome is None and exposure_ns > 0:
+            outcome = self._rejoined()
+            revisits = None
         if outcome is None:
             result.status = FrameStatus.LOST_TRACK
             result.message = self.splitter.failure
@@ -174,6 +186,11 @@ class ResultFinisher:
             revisits = 0
         elif revisits is None:
             revisits = K.count_revisits(self.tracer.chain_ro, np.int32(n), self.locator.edges.edges)
+        if revisits > BROKEN_OUTLINE * n:
+            rejoined = self._rejoined()
+            if rejoined is not None and rejoined.shape_a is not rejoined.shape_b:
+                outcome, n = rejoined, self.locator.prev_count
+                revisits = K.count_revisits(self.tracer.chain_ro, np.int32(n), self.locator.edges.edges)
         if revisits > BROKEN_OUTLINE * n:
             # A faint far side on a textured plate broke the band's edge: the contour went out along each piece
             # and back (a tree walk), and any two "sides" read from it are guesses.
@@ -304,6 +321,7 @@ class ResultFinisher:
         `swap`, `confidence`, `stretch_begin`, `stretch_end` are taken as they are (no tuple made per frame).
         `checked` is the code of the `check_frame` call `steady_frame` made on the shapes (-1: none, `check` makes
         it here); `placed` 1 when it placed their material points on the plane (-1: placed here, if on a plane)."""
+        self.rejoined = False
         self._take_outcome(result, outcome)
         self._take_tracked(result, outcome, swap, confidence, stretch_begin, stretch_end)
         self._conclude(result, outcome, exposure_ns, checked, placed)
@@ -356,6 +374,41 @@ class ResultFinisher:
         else:
             status, reason = self.checks.verdict(checked)
             self._take_verdict(result, outcome, exposure_ns, status, reason)
+
+    def _rejoined(self) -> SplitOutcome | None:
+        """The split of the frame's contour with a gap in one of its sides joined (`ContourTracer.rejoin_gap`): two
+        shapes, or None (no such gap, the joined outline no ring, or still no split, or a single shape: the
+        contour, the splitter's state and its failure then as they were). A cold path, for a frame that found no
+        split or whose outline was broken: the joined contour becomes the frame's (the locator keeps it for the
+        next band). The default method only: the paper's and the centreline methods stay the references they
+        were."""
+        tracer, edges, traits = self.tracer, self.locator.edges, self.traits
+        if self.splitter.method != "blur_split":
+            return None
+        n = self.locator.prev_count
+        saved = (tracer.chain[:n].copy(), tracer.codes[:n].copy(), tracer.points[:n].copy(), tracer.count)
+        failure = self.splitter.failure
+        if tracer.rejoin_gap(edges, REJOIN_REACH_PX) == 0:
+            return None
+        if traits.settled is not None:
+            width_px, fixed_rc, _, polarity = traits.settled
+        else:
+            width_px, polarity = traits.width(), traits.polarity()
+            fixed_rc = (float(self.fixed[0]), float(self.fixed[1]))
+        m = tracer.count
+        args = (fixed_rc, width_px, edges.gx, edges.gy, edges.edges, edges.mag, edges.smooth, polarity)
+        outcome = self.splitter.split(tracer.points, tracer.chain, m, *args, edge_stage=edges, frame=edges.frame)
+        if outcome is not None and outcome.shape_a is not outcome.shape_b:
+            self.locator.prev_count = m
+            self.rejoined = True
+            return outcome
+        # No two shapes on the joined contour: the frame's own contour back, and its split made again (the
+        # splitter's state as the frame left it).
+        tracer.chain[:n], tracer.codes[:n], tracer.points[:n] = saved[0], saved[1], saved[2]
+        tracer.count = saved[3]
+        self.splitter.split(tracer.points, tracer.chain, n, *args, edge_stage=edges, frame=edges.frame)
+        self.splitter.failure = failure
+        return None
 
     def _still(self, outcome: SplitOutcome) -> bool:
         """Whether `outcome` is a split without blur between its tips (closer than ``checks.no_blur_px``)."""
@@ -429,6 +482,14 @@ class ResultFinisher:
         self.short_only = reason is Reason.TIP_SHORT
         split = outcome.shape_a is not outcome.shape_b
         result.status, result.reason, result.message = status, reason.text, checks.message(reason)
+        if reason is Reason.NO_BLUR and self.rejoined:
+            # A gap was joined only because the split of a blurred band failed: a joined outline without blur is
+            # no band (simulated lab-hard through the paper's camera at 1 ms, tuning seed, frame 40: NO_BLUR with
+            # a centreline 309 px off). The frame stays lost, as it was.
+            result.status, result.reason = FrameStatus.LOST_TRACK, ""
+            result.message = "a band's side joined across a gap shows no blur: not the rope's band"
+            result.begin = result.end = result.material_begin = result.material_end = None
+            return
         if reason is Reason.NO_BLUR or (split and not exposure_ns):
             static = self._use_static(result)
             if static is None:

@@ -220,7 +220,12 @@ class FixedEndFinder:
         return grow(region)
 
     def learned_structure(
-        self, points: NDArray[np.float32], n: int, width_px: float | None, mask: NDArray[np.uint8]
+        self,
+        points: NDArray[np.float32],
+        n: int,
+        width_px: float | None,
+        mask: NDArray[np.uint8],
+        first_ends: list[NDArray[np.float32]] | None = None,
     ) -> NDArray[np.bool_] | None:
         """Return the region of the still structure the rope's outline (`n` (row, col) `points`, a rope `width_px`
         wide, None: 4 px) ends at, found in the still structures `mask` (its `K.MASK_STATIC` pixels: the learned
@@ -235,7 +240,14 @@ class FixedEndFinder:
         `LEARNED_THICK` of its extent and `LEARNED_THICK_WIDTHS` rope widths: a still stretch of the rope itself
         is a thin band), covers `LEARNED_AREA_WIDTHS` squared widths and is at most `STRUCTURE_ROPE_RATIO` of the
         rope's length (half the outline) across; the region is that hull filled, with
-        its pixels, grown by a pixel (as `structure`'s)."""
+        its pixels, grown by a pixel (as `structure`'s).
+
+        With `first_ends` (the ends of the stream's first outline), an end that moved away from both of them while
+        the other end stayed within a rope width of one is the free tip: nothing there is taken. A faint rope's
+        tip band (simulated `contrast = 30 DN` from 0.3 s, seed 3, frame 1: ~10 DN over the plate where its tip
+        swept 7 px) changes by less than the still test's allowance between two frames, and its edge in the middle
+        image made a block-like "structure" at the tip: the fixed end was then taken there, confirmed, and the
+        frame reported OK with both tips 404 px off."""
         # The width learned on frames whose outline ran round the clamp is the clamp's (8 px on the simulated
         # 24 px clamp, seed 3 from 0.15 s); the matrix's widest rope is 4 px.
         w = min(width_px or 4.0, LEARNED_MAX_WIDTH_PX)
@@ -243,7 +255,10 @@ class FixedEndFinder:
         height, width = self.shape
         static = mask == K.MASK_STATIC
         best: tuple[float, NDArray[np.float64], NDArray[np.bool_]] | None = None
-        for end in ends:
+        moved = [min(float(np.hypot(*(end - first))) for first in first_ends) for end in ends] if first_ends else []
+        for k, end in enumerate(ends):
+            if moved and moved[k] > max(2.0 * w, 5.0) and moved[1 - k] < w:
+                continue  # the free tip, not where a structure holds the rope
             r, c = round(float(end[0])), round(float(end[1]))
             reach = int(HIDDEN_REACH_PX)
             r0, r1, c0, c1 = max(r - reach, 0), min(r + reach + 1, height), max(c - reach, 0), min(c + reach + 1, width)

@@ -162,9 +162,12 @@ class Pipeline:
                 self.static_mask.learn(image)
                 if not self.static_mask.learning and self._unclean_frames > 0:
                     self.stages.relearn()
+            self._finisher.rejoined = False
             self._measure(image, result, exposure_ns, self.checks.due(self.traits.settled is not None))
             if result.status is not _OK and not self._finisher.measured_all_the_same(result):
                 self.stages.forget(roi=result.status is FrameStatus.NO_ROPE)
+                if self._finisher.rejoined:  # shapes of a joined outline the checks doubt: no time order by them
+                    self._time_order.clear()
                 if self.static_mask.learning:
                     self._unclean_frames += 1
             elif self.static_mask.learning and self.splitter.measure.contrast_rejected:

@@ -200,7 +200,7 @@ class Stages:
             mask.swinging = moved > SWINGING_PX
             if not mask.swinging:
                 return False  # a rope at rest (released from rest): its own still part is no clamp
-            learned = finder.learned_structure(self.tracer.points, n, self.traits.width(), early)
+            learned = finder.learned_structure(self.tracer.points, n, self.traits.width(), early, mask.first_ends)
             if learned is None:
                 return False
             mask.add_structure(learned)

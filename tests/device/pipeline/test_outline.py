@@ -131,3 +131,47 @@ def test_prune_excursions_matches_a_slow_reference() -> None:
     # a pixel outside the scratch map: nothing taken out
     outside = [(0, 0), (1, 0), (0, 0)] * 4 + [(99, 0), (2, 0)]
     assert _prune(outside, 30)[0] == outside
+
+
+def _band_with_side_gap(gap: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A 60 x 200 edge map: a band's outline (rows 20-30, cols 10-180) whose lower side has a gap of `gap` px
+    starting at column 120, with the full-frame spans."""
+    edges = np.zeros((60, 200), np.uint8)
+    for r, c in _ring(20, 10, 30, 180):
+        if not (r == 30 and 120 <= c < 120 + gap):
+            edges[r, c] = 1
+    lo = np.zeros(60, np.int32)
+    hi = np.full(60, 199, np.int32)
+    return edges, lo, hi
+
+
+def test_rejoin_gap_closes_a_gap_in_a_bands_side_and_leaves_a_wide_one() -> None:
+    """Noise or texture breaks one side of a sweeping band where it is faint: the outline is walked out and back
+    (its two sides then differ in length and the split is rejected). `ContourTracer.rejoin_gap` joins the gap's two
+    ends within its reach and traces a ring again; a gap beyond the reach is left, and the chain with it."""
+    from types import SimpleNamespace
+
+    from ropecam.device.pipeline._views import ro
+    from ropecam.device.pipeline.contour import ContourTracer
+
+    for gap, joined in ((14, True), (30, False)):
+        edges, lo, hi = _band_with_side_gap(gap)
+        planes = np.ones((60, 200), np.float32)
+        tracer = ContourTracer(60, 200, 4000, 10)
+        n = tracer.trace(edges.copy(), lo, hi, planes, planes, planes)
+        component = int(edges.sum())
+        assert n > 1.3 * component  # the side's pieces walked out and back
+        before = tracer.chain[:n].copy()
+        detector = SimpleNamespace(
+            edges=edges, spans=(ro(lo), ro(hi)), mag_ro=ro(planes), gx_ro=ro(planes), gy_ro=ro(planes)
+        )
+        m = tracer.rejoin_gap(detector, 20)  # type: ignore[arg-type]
+        if joined:
+            ring = 2 * (180 - 10) + 2 * (30 - 20)
+            assert abs(m - ring) <= 4, (m, ring)
+            assert K.count_revisits(ro(tracer.chain), np.int32(m), edges) <= K.JOINED_REVISITS * m
+            assert tracer.count == m
+        else:
+            assert m == 0
+            np.testing.assert_array_equal(tracer.chain[:n], before)
+        np.testing.assert_array_equal(edges, _band_with_side_gap(gap)[0])  # the detector's map is left as it was

@@ -224,3 +224,41 @@ def test_a_fresh_device_finds_the_clamp_of_a_rope_already_swinging_in_the_learne
     assert pipeline.static_mask.structure_px > 0
     # The frame the clamp is found on, and the one the mask is marked on, may have no time order yet.
     assert after.count(FrameStatus.OK) >= len(after) - 2, after
+
+
+def test_a_still_structure_at_the_free_tip_of_a_rope_already_swinging_is_not_taken_for_its_clamp() -> None:
+    """A rope already swinging when the stream starts, no clamp, nothing given, and a still block just beyond its
+    free tip on the first frames (no rope reaches it). The still structures of the first `EARLY_FRAMES` frames
+    hold the block at the outline's moving end; taken for the clamp (`FixedEndFinder.learned_structure`), it made
+    the tip the fixed end, "confirmed", and frames were reported OK a rope length off (simulated `contrast = 30 DN`
+    from 0.3 s, seed 3, frame 1: a faint tip band read as still). The end that moved while the other stayed is the
+    free tip: nothing there is taken, and every frame measured OK is right."""
+    from ropecam.device.capture.synthetic import SyntheticRope
+    from ropecam.device.pipeline.config import PipelineConfig
+    from ropecam.device.pipeline.pipeline import Pipeline
+    from ropecam.device.pipeline.result import FrameStatus
+    from ropecam.device.pipeline.static_mask import EARLY_FRAMES
+
+    rope = SyntheticRope(
+        width=360, height=200, fixed_uv=(180.3, 30.6), length_px=150.0, diameter_px=3.0, amplitude_rad=1.1,
+        period_s=0.6, bend=0.0, phase_rad=0.5 * math.pi,
+    )  # fmt: skip
+    frames = list(rope.frames(14))
+    tip = frames[EARLY_FRAMES - 1].tip_end_uv
+    pivot = np.array(rope.fixed_uv)
+    out = (tip - pivot) / np.hypot(*(tip - pivot))
+    centre = pivot + out * (rope.length_px + 9.0)  # beyond the tip's reach
+    r, c = round(float(centre[1])), round(float(centre[0]))
+    pipeline = Pipeline(PipelineConfig(), (rope.width, rope.height))
+    statuses = []
+    for frame in frames:
+        image = frame.image.copy()
+        image[r - 5 : r + 6, c - 5 : c + 6] = 150  # the still block, 11 x 11 px
+        result = pipeline.process(image, frame.index, frame.t_ns, float(rope.exposure_us))
+        statuses.append(result.status)
+        if result.status is FrameStatus.OK:
+            for shape, tip_uv in ((result.begin, frame.tip_begin_uv), (result.end, frame.tip_end_uv)):
+                assert np.hypot(*(shape[-1][::-1] - tip_uv)) < 1.5, (frame.index, result.message)
+                assert np.hypot(*(shape[0][::-1] - pivot)) < 3.0, frame.index
+    assert np.hypot(*(pipeline.fixed[::-1] - pivot)) < 3.0
+    assert statuses.count(FrameStatus.OK) >= len(statuses) - 3, statuses
