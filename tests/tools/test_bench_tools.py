@@ -104,6 +104,13 @@ def test_wire_size_keeps_rig_soft_first_frames_within_the_serial_budget(
         assert row["mean_bytes"] <= (200 if row["source"] == "truth" else 260)
         assert row["cut"] == 0 and row["cut_frames"] == []
     assert rows[0]["statuses"] == {"OK": 5}
+    # A budget the frames cannot meet at this tolerance: the cut frames are counted with the status they carry.
+    tight = run_tool_here(
+        "bench.py", "wire-size", str(frames), "--shape-tolerance-px", "0.02", "--frame-budget-bytes", "256", "--json"
+    )
+    assert tight.returncode == 0, tight.stdout + tight.stderr
+    row = json.loads(tight.stdout.splitlines()[0])
+    assert row["cut"] >= 1 and row["cut_statuses"] == {"OK": row["cut"]} and row["max_framed_bytes"] <= 256
     refused = run_tool_here("bench.py", "wire-size", str(frames), "--frame-budget-bytes", "100")
     assert refused.returncode == 2 and "--frame-budget-bytes must be 0 (none) or >= 256, got 100" in refused.stderr
 

@@ -155,6 +155,9 @@ def report_row(
     for record in records:
         statuses[record.status.name] = statuses.get(record.status.name, 0) + 1
     worst = int(np.argmax(framed)) if len(framed) else -1
+    cut_statuses: dict[str, int] = {}  # whether the budget cut frames the device reported OK
+    for k in np.flatnonzero(cuts):
+        cut_statuses[records[k].status.name] = cut_statuses.get(records[k].status.name, 0) + 1
     return {
         "set": label,
         "source": source,
@@ -165,6 +168,7 @@ def report_row(
         "over_budget": int(np.sum(framed > budget)),
         "cut": int(np.sum(cuts > 0)),
         "cut_frames": [int(records[k].frame_index) for k in np.flatnonzero(cuts)],
+        "cut_statuses": cut_statuses,
         "first_6_framed": framed[:6].tolist(),
         "statuses": statuses,
     }
@@ -228,7 +232,8 @@ def run(args: argparse.Namespace) -> int:
                 print(
                     f"{row['set']:<14} {source:<6} {row['frames']:>4} frames: mean {row['mean_bytes']} B, max "
                     f"{row['max_framed_bytes']} B framed (frame {row['worst_frame']}), {row['over_budget']} over the "
-                    f"budget of {budget:.0f} B, {row['cut']} cut by the sender's budget {row['cut_frames']}; first "
+                    f"budget of {budget:.0f} B, {row['cut']} cut by the sender's budget {row['cut_frames']} "
+                    f"{row['cut_statuses']}; first "
                     f"frames {row['first_6_framed']}",
                     flush=True,
                 )
