@@ -497,6 +497,9 @@ class Daemon:
             source.stop()
             self.capture = self._capture_totals(source)
             if self.sender is not None:
+                # The last frames' results first (their counts, such as ``budget_cuts``, are the sender's once sent):
+                # a Status goes ahead of queued frames, and this one is the run's final word.
+                self.sender.wait_sent(_BROKEN_LINK_DRAIN_S if self._link_broken() else 2.0)
                 self._send_status(source)
             self._close_link()
         return code

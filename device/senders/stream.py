@@ -93,6 +93,7 @@ class ResultSender:
         self._urgent: collections.deque[Any] = collections.deque()
         self._wake = threading.Condition()
         self._stop = False
+        self._in_flight = False  # a record taken from a queue and not yet sent or dropped (`wait_sent`)
         self._sequence = first_sequence & 0xFFFFFFFF
         self._broken_after = max(1, broken_after)
         self._failures_in_row = 0
@@ -136,6 +137,20 @@ class ResultSender:
         with self._wake:
             return len(self._frames) + len(self._urgent)
 
+    def wait_sent(self, timeout_s: float) -> bool:
+        """Wait up to `timeout_s` seconds until every queued message went out (sent, or dropped by the link) and none
+        is being encoded; return whether that happened. The counters in `stats` are then final for what was queued
+        (a final Status made before would go ahead of the frames still queued and miss their counts)."""
+        deadline = time.monotonic() + timeout_s
+        while self._thread.is_alive() and not self._stop:
+            with self._wake:
+                if not (self._frames or self._urgent or self._in_flight):
+                    return True
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.002)
+        return False
+
     def close(self, drain_timeout_s: float = 2.0) -> None:
         """Send what is queued for up to `drain_timeout_s` seconds, then stop the thread.
 
@@ -161,11 +176,13 @@ class ResultSender:
     def _next(self) -> tuple[Any, int] | None:
         """The next record and the sequence number it carries (taken under the lock, never after `close`)."""
         with self._wake:
+            self._in_flight = False  # the record taken last (if any) is done with
             while not self._stop and not self._frames and not self._urgent:
                 self._wake.wait(timeout=0.5)
             if self._stop:
                 return None
             record = self._urgent.popleft() if self._urgent else self._frames.popleft()
+            self._in_flight = True
             sequence = self._sequence
             self._sequence = (sequence + 1) & 0xFFFFFFFF
             return record, sequence

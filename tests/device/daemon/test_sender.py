@@ -4,6 +4,7 @@ after close, and the link-broken event after failed sends in a row."""
 from __future__ import annotations
 
 import threading
+import time
 
 from ropecam.device.senders.stream import ResultSender
 from ropecam.shared.errors import TransportError
@@ -110,3 +111,23 @@ def _wait_tried(sender: ResultSender, attempts: int) -> None:
             return
         event.wait(0.01)
     raise AssertionError(f"only {sender.stats.sent + sender.stats.link_errors} of {attempts} sends tried")
+
+
+def test_wait_sent_returns_once_the_queue_and_the_record_in_hand_are_sent() -> None:
+    """A final Status is made after `wait_sent`: the frames queued before it are out and counted, including the one
+    the sender thread had taken but not yet sent; a line that hangs makes it give up after its timeout."""
+    line = SlowLine()
+    sender = ResultSender(line, device_id=1)
+    for i in range(3):
+        sender.submit(Log(level=20, text=f"message {i}"))
+    assert not sender.wait_sent(0.05)  # the line hangs on the first message: nothing went out
+    line.gate.release(2)
+    deadline = time.monotonic() + 5.0
+    while len(line.sequences) < 2 and time.monotonic() < deadline:
+        time.sleep(0.001)
+    assert len(line.sequences) == 2
+    assert not sender.wait_sent(0.05)  # the third is taken from the queue (or about to be), not sent
+    line.gate.release(1)
+    assert sender.wait_sent(5.0) and sender.stats.sent == 3 and sender.backlog() == 0
+    sender.close(0.0)
+    assert not sender.wait_sent(0.0)  # closed: nothing will be sent any more
