@@ -377,7 +377,13 @@ class FrameResult:
         config = shape_config or _DEFAULT_SHAPES
         w = ByteWriter()
         w.uvarint(self.frame_index)
-        w.svarint(self.exposure_start_t_ns - t_ns_ref)
+        offset = self.exposure_start_t_ns - t_ns_ref
+        if not -(2**63) <= offset < 2**63:  # two int64 times may lie farther apart than a zigzag varint holds
+            raise ValueError(
+                f"exposure_start_t_ns ({self.exposure_start_t_ns}) lies {offset} ns from the message's t_ns "
+                f"({t_ns_ref}): the exposure start is coded relative to it, within [-2**63, 2**63) ns"
+            )
+        w.svarint(offset)
         w.uvarint(self.exposure_end_t_ns - self.exposure_start_t_ns)
         w.raw(bytes([self.status, self.method]))
         w.fixed("H", round(self.order_confidence * _CONFIDENCE_SCALE))
