@@ -390,6 +390,7 @@ class ResultFinisher:
         failure = self.splitter.failure
         if tracer.rejoin_gap(edges, REJOIN_REACH_PX) == 0:
             return None
+        readings = len(self.splitter.measure.contrasts)  # the frame's own split read the contrast already
         if traits.settled is not None:
             width_px, fixed_rc, _, polarity = traits.settled
         else:
@@ -399,6 +400,7 @@ class ResultFinisher:
         args = (fixed_rc, width_px, edges.gx, edges.gy, edges.edges, edges.mag, edges.smooth, polarity)
         outcome = self.splitter.split(tracer.points, tracer.chain, m, *args, edge_stage=edges, frame=edges.frame)
         if outcome is not None and outcome.shape_a is not outcome.shape_b:
+            self.splitter.measure.keep_readings(readings)
             self.locator.prev_count = m
             self.rejoined = True
             return outcome
@@ -407,6 +409,7 @@ class ResultFinisher:
         tracer.chain[:n], tracer.codes[:n], tracer.points[:n] = saved[0], saved[1], saved[2]
         tracer.count = saved[3]
         self.splitter.split(tracer.points, tracer.chain, n, *args, edge_stage=edges, frame=edges.frame)
+        self.splitter.measure.keep_readings(readings)
         self.splitter.failure = failure
         return None
 

@@ -94,6 +94,20 @@ class BandMeasure:
         self.contrast_px = float("nan")
         self.ratio_gain = 1.0
 
+    def keep_readings(self, count: int) -> None:
+        """Drop the contrast readings after the first `count`, and what they gave: a frame's contour split again
+        (`ResultFinisher._rejoined`: the joined outline, then the frame's own once more) is read once, by the
+        frame's own split, so that the first `CONTRAST_FRAMES` readings (and `GAIN_READINGS`) are as many frames."""
+        if len(self.contrasts) <= count:
+            return
+        del self.contrasts[count:]
+        del self.slopes[count:]
+        if self.contrasts:
+            self.rescale()
+        else:
+            self.contrast_px = float("nan")
+            self.ratio_gain = 1.0
+
     def decision_contrast(self, width_px: float) -> float:
         """The contrast the split/static decision reads the sweep from the edge slope with: `contrast_for` times
         `ratio_gain`."""

@@ -19,6 +19,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any, Final
 
+from ropecam.shared.errors import ProtocolError
 from ropecam.shared.protocol.frame_result import FrameResult, ShapeHint
 from ropecam.shared.protocol.quality import WIRE_TOLERANCE_KEY
 from ropecam.shared.protocol.shapes import ShapeCodecConfig
@@ -78,6 +79,9 @@ def encode_within_budget(
     ------
     ValueError
         `budget_bytes` is neither 0 nor >= MIN_BUDGET_BYTES, or `record` cannot be encoded (as `encode_message`).
+    ProtocolError
+        Not even the record without shapes and material points fits (not with a budget >= MIN_BUDGET_BYTES): the
+        sender counts it as a frame it cannot encode and goes on (an AssertionError ended its thread).
     """
     if budget_bytes != 0 and budget_bytes < MIN_BUDGET_BYTES:
         raise ValueError(f"budget_bytes must be 0 (no budget) or >= {MIN_BUDGET_BYTES}, got {budget_bytes!r}")
@@ -106,7 +110,10 @@ def encode_within_budget(
     )  # fmt: skip
     message = encode_message(bare, device_id=device_id, sequence=sequence, t_ns=t_ns, signer=signer, version=version)
     if framed_bytes_bound(len(message)) > budget_bytes:
-        raise AssertionError(f"a FrameResult without shapes took {len(message)} B, over {budget_bytes} B")
+        raise ProtocolError(
+            f"frame {record.frame_index}: without shapes and material points the FrameResult still takes "
+            f"{framed_bytes_bound(len(message))} framed bytes, over budget_bytes={budget_bytes}"
+        )
     return message, len(BUDGET_TOLERANCES_PX) + 1
 
 

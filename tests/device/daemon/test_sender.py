@@ -6,9 +6,12 @@ from __future__ import annotations
 import threading
 import time
 
+import pytest
+
 from ropecam.device.senders.stream import ResultSender
 from ropecam.shared.errors import TransportError
-from ropecam.shared.protocol import Log, MessageType, decode_message
+from ropecam.shared.protocol import FrameResult, Log, MessageType, budget, decode_message
+from ropecam.shared.protocol.examples import example_records
 from ropecam.shared.transport.base import Transport
 
 
@@ -76,6 +79,27 @@ def test_encode_error_does_not_use_up_a_sequence_number() -> None:
     sender = ResultSender(line, device_id=1)
     sender.submit(Unpackable())
     sender.submit(Log(level=20, text="fine"))
+    sender.close(2.0)
+    assert sender.stats.encode_errors == 1 and line.sequences == [0]
+
+
+def test_a_frame_the_budget_cannot_hold_is_an_encode_error_and_the_sender_goes_on(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A frame result that fits the byte budget in no form (not reachable with a budget >= MIN_BUDGET_BYTES: made
+    here by a size bound that no message meets) is counted and skipped like any frame that cannot be encoded; the
+    sender thread keeps sending (it ended on the budget's AssertionError, and every later message was lost)."""
+    monkeypatch.setattr(budget, "framed_bytes_bound", lambda message_bytes: 10**9)
+    line = SlowLine()
+    line.gate.release(10)
+    sender = ResultSender(line, device_id=1, frame_budget_bytes=774)
+    record = example_records()[MessageType.FRAME_RESULT]
+    assert isinstance(record, FrameResult)
+    sender.submit_frame(record)
+    until = time.monotonic() + 5.0
+    while sender.backlog() and time.monotonic() < until:  # the frame taken first (logs go ahead of frames)
+        time.sleep(0.01)
+    sender.submit(Log(level=20, text="after the frame"))
     sender.close(2.0)
     assert sender.stats.encode_errors == 1 and line.sequences == [0]
 

@@ -123,3 +123,43 @@ def test_a_decoded_dark_ropes_steeper_edges_split_its_small_sweeps(monkeypatch: 
         bright.process(frame.image, frame.index, frame.t_ns, 4000.0)
     assert len(bright.splitter.measure.contrasts) == CONTRAST_FRAMES
     assert bright.splitter.measure.ratio_gain == 1.0
+
+
+def test_a_frames_outline_joined_across_a_gap_is_read_for_the_contrast_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """`ResultFinisher._rejoined` splits the joined outline, and the frame's own contour again when it keeps no two
+    shapes: each split reads the contrast while it is learned. The frame keeps the one reading of its own split, so
+    that the first `CONTRAST_FRAMES` readings are as many frames (`lab-dark`, tuning seed, default config: frame 0
+    made 3 of them, its own, the lens blur's second split, and the joined outline's) and what they give is as
+    before the attempt. Here the "join" leaves the contour as it is (the attempt's splits are then as the frame's)."""
+    from ropecam.device.pipeline.contour import ContourTracer
+
+    rope = SyntheticRope(
+        width=200, height=170, fixed_uv=(100.3, 12.6), length_px=140.0, diameter_px=2.5, blur_px=0.5,
+        amplitude_rad=0.5, period_s=0.9, phase_rad=0.0, noise_dn=1.0, exposure_us=4000,
+    )  # fmt: skip
+    pipeline = Pipeline(PipelineConfig(lens_blur_px=0.5, static_frames=0), (rope.width, rope.height))
+    measure = pipeline.splitter.measure
+    for frame in rope.frames(3):
+        pipeline.process(frame.image, frame.index, frame.t_ns, 4000.0)
+        readings, contrast = list(measure.contrasts), measure.contrast_px
+        assert 0 < len(readings) < CONTRAST_FRAMES
+        monkeypatch.setattr(ContourTracer, "rejoin_gap", lambda self, detector, reach_px: self.count)
+        for split_twice in (False, True):  # the joined outline kept, or not (the frame's contour split again)
+            if split_twice:
+                monkeypatch.setattr(type(pipeline.splitter), "split", _one_shape(type(pipeline.splitter).split))
+            pipeline._finisher._rejoined()
+            assert measure.contrasts == readings and measure.slopes[: len(readings)] == measure.slopes
+            assert measure.contrast_px == contrast
+        monkeypatch.undo()
+
+
+def _one_shape(split):
+    """`BlurSplitter.split` whose first call's outcome is given as None (no two shapes on the joined outline)."""
+    calls = []
+
+    def wrapped(self, *args, **kwargs):
+        outcome = split(self, *args, **kwargs)
+        calls.append(1)
+        return None if len(calls) == 1 else outcome
+
+    return wrapped
