@@ -190,9 +190,12 @@ def test_bench_cold_refuses_fewer_frames_than_it_leaves_out(run_tool_here: RunTo
 
 
 @pytest.mark.slow
-def test_wire_size_measures_the_device_with_the_given_config(tmp_path: Path, run_tool: RunTool) -> None:
+def test_wire_size_measures_the_device_with_the_given_config(
+    tmp_path: Path, run_tool: RunTool, run_tool_here: RunTool
+) -> None:
     """`--config` measures the device as that device.toml's [pipeline] table sets it (a set-up rig), not a fresh
-    device: a fixed end given far from the rope finds no rope on any frame; a bad key is named, with the file."""
+    device: a fixed end given far from the rope finds no rope on any frame; its [sender] table's tolerance and byte
+    budget are the sender's; a bad key is named, with the file."""
     frames = tmp_path / "rig-soft"
     assert host_main(["simulate", "rig-soft", "--out", str(frames), "--frames", "5", "-q"]) == 0
     far = tmp_path / "far.toml"
@@ -206,3 +209,13 @@ def test_wire_size_measures_the_device_with_the_given_config(tmp_path: Path, run
     done = run_tool("bench.py", "wire-size", str(frames), "--config", str(bad))
     assert done.returncode == 2 and f"--config {bad}" in done.stderr and "'fixed_end_u'" in done.stderr, done.stderr
     assert "Traceback" not in done.stderr and done.stdout == ""
+    tight = tmp_path / "tight.toml"
+    tight.write_text("[sender]\nshape_tolerance_px = 0.02\nframe_budget_bytes = 256\n")
+    done = run_tool_here("bench.py", "wire-size", str(frames), "--config", str(tight), "--json")
+    assert done.returncode == 0, done.stdout + done.stderr
+    (row,) = [json.loads(line) for line in done.stdout.splitlines()]
+    assert row["cut"] >= 1 and row["max_framed_bytes"] <= 256, row  # the toml's budget, not the default 774 B
+    small = tmp_path / "small.toml"
+    small.write_text("[sender]\nframe_budget_bytes = 100\n")
+    done = run_tool_here("bench.py", "wire-size", str(frames), "--config", str(small))
+    assert done.returncode == 2 and f"--config {small}" in done.stderr and "frame_budget_bytes" in done.stderr

@@ -186,23 +186,40 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--baud", type=float, default=921600.0, help="serial line rate (default 921600)")
     parser.add_argument("--fps", type=float, default=119.0, help="frame rate of the budget (default 119)")
     parser.add_argument(
-        "--shape-tolerance-px", type=float, default=SenderConfig().shape_tolerance_px,
-        help="shape codec tolerance (default: the daemon's [sender] shape_tolerance_px, %(default)s)",
+        "--shape-tolerance-px", type=float,
+        help="shape codec tolerance (default: --config's [sender] shape_tolerance_px, else the daemon's "
+        f"{SenderConfig().shape_tolerance_px})",
     )  # fmt: skip
     parser.add_argument(
-        "--frame-budget-bytes", type=int, default=SenderConfig().frame_budget_bytes,
-        help="the sender's byte budget per frame (default: the daemon's [sender] frame_budget_bytes, %(default)s; "
-        "0: none)",
+        "--frame-budget-bytes", type=int,
+        help="the sender's byte budget per frame (default: --config's [sender] frame_budget_bytes, else the "
+        f"daemon's {SenderConfig().frame_budget_bytes}; 0: none)",
     )  # fmt: skip
     parser.add_argument(
         "--config",
         metavar="TOML",
         help="measure the device with the [pipeline] table of this device.toml (`ropecam-device setup` writes it), "
-        "with its plane_file and mask, as a set-up rig runs (default: the defaults, a fresh device)",
+        "with its plane_file and mask, as a set-up rig runs, and its [sender] table's shape tolerance and byte "
+        "budget (default: the defaults, a fresh device)",
     )
     parser.add_argument("--method", default="blur_split", choices=("blur_split", "paper", "centerline"))
     parser.add_argument("--check", action="store_true", help="exit 1 when a framed message is over the budget")
     parser.add_argument("--json", action="store_true", help="print one JSON object per set and source")
+
+
+def _sender_config(path: str | None) -> SenderConfig:
+    """The [sender] table of the device.toml at `path` (its keys checked as the daemon checks them), else the
+    daemon's defaults."""
+    if not path:
+        return SenderConfig()
+    from ropecam.shared.config import from_mapping, read_toml
+    from ropecam.shared.errors import RopecamError
+    from ropecam_tools.cli import UsageError
+
+    try:
+        return from_mapping(SenderConfig, dict(read_toml(path).get("sender", {})), where=f"{path} [sender]")
+    except (RopecamError, ValueError) as exc:
+        raise UsageError(f"--config {path}: {exc}") from exc
 
 
 def run(args: argparse.Namespace) -> int:
@@ -210,12 +227,21 @@ def run(args: argparse.Namespace) -> int:
     from ropecam_tools.bench_device import load_config
     from ropecam_tools.cli import UsageError
 
-    if args.frame_budget_bytes != 0 and args.frame_budget_bytes < MIN_BUDGET_BYTES:
+    if (
+        args.frame_budget_bytes is not None
+        and args.frame_budget_bytes != 0
+        and args.frame_budget_bytes < MIN_BUDGET_BYTES
+    ):
         raise UsageError(
             f"--frame-budget-bytes must be 0 (none) or >= {MIN_BUDGET_BYTES}, got {args.frame_budget_bytes}"
         )
     budget = budget_bytes(args.baud, args.fps)
     config = load_config(args)
+    sender = _sender_config(args.config)
+    if args.shape_tolerance_px is None:
+        args.shape_tolerance_px = sender.shape_tolerance_px
+    if args.frame_budget_bytes is None:
+        args.frame_budget_bytes = sender.frame_budget_bytes
     sources = ("device", "truth") if args.source == "both" else (args.source,)
     rows: list[dict[str, Any]] = []
     for path in (Path(p) for p in args.framesets):
