@@ -21,11 +21,12 @@ from typing import Any, Final
 
 from ropecam.shared.errors import ProtocolError
 from ropecam.shared.protocol.frame_result import FrameResult, ShapeHint
+from ropecam.shared.protocol.framing import framed_bytes_bound
 from ropecam.shared.protocol.quality import WIRE_TOLERANCE_KEY
 from ropecam.shared.protocol.shapes import ShapeCodecConfig
 from ropecam.shared.protocol.wire import PROTOCOL_VERSION, encode_message
 
-__all__ = ["BUDGET_TOLERANCES_PX", "MIN_BUDGET_BYTES", "encode_within_budget", "framed_bytes_bound"]
+__all__ = ["BUDGET_TOLERANCES_PX", "MIN_BUDGET_BYTES", "encode_within_budget"]
 
 BUDGET_TOLERANCES_PX: Final = (0.5, 1.0, 2.0)
 """Shape tolerances tried, in order, for a frame over the budget (looser than any configured sender tolerance
@@ -33,12 +34,6 @@ would be: the frames that need them are the rough ones)."""
 MIN_BUDGET_BYTES: Final = 256
 """The smallest budget accepted: a FrameResult without shapes and material points (header, times, status, tips,
 fixed end, stretch, a full quality record, the authentication trailer) always fits in it."""
-
-
-def framed_bytes_bound(message_bytes: int) -> int:
-    """The most bytes a message of `message_bytes` takes on a serial line: COBS adds one byte per 254 (and one),
-    plus the two delimiters (`framing.frame`)."""
-    return message_bytes + message_bytes // 254 + 3
 
 
 def encode_within_budget(
@@ -60,7 +55,7 @@ def encode_within_budget(
     record
         The FrameResult as measured.
     budget_bytes
-        Largest framed size (`framed_bytes_bound`) of the message; 0 means no budget.
+        Largest framed size (`framing.framed_bytes_bound`) of the message; 0 means no budget.
     device_id, sequence, t_ns, signer, version
         As `encode_message`.
     shape_config

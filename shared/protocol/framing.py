@@ -16,7 +16,7 @@ from ropecam.shared.errors import ProtocolError
 from ropecam.shared.protocol._kernels import cobs_encode_into
 from ropecam.shared.protocol.wire import MAX_MESSAGE_BYTES
 
-__all__ = ["Deframer", "DeframerStats", "cobs_decode", "cobs_encode", "frame"]
+__all__ = ["Deframer", "DeframerStats", "cobs_decode", "cobs_encode", "frame", "framed_bytes_bound"]
 
 DELIMITER: Final = 0
 _MAX_FRAME_BYTES: Final = MAX_MESSAGE_BYTES + MAX_MESSAGE_BYTES // 254 + 2
@@ -59,6 +59,12 @@ def cobs_decode(data: bytes | bytearray | memoryview) -> bytes:
 def frame(message: bytes | bytearray | memoryview) -> bytes:
     """Return `message` framed for a byte stream: delimiter, COBS, delimiter."""
     return b"\x00" + cobs_encode(message) + b"\x00"
+
+
+def framed_bytes_bound(message_bytes: int) -> int:
+    """The most bytes `frame` makes of a message of `message_bytes`: COBS adds one byte per 254 (and one), plus the
+    two delimiters."""
+    return message_bytes + message_bytes // 254 + 3
 
 
 @dataclass(slots=True)

@@ -11,12 +11,8 @@ import pytest
 
 from ropecam.shared.errors import ProtocolError
 from ropecam.shared.protocol import FrameResult, FrameStatus, ShapeHint, decode_message, encode_message, frame
-from ropecam.shared.protocol.budget import (
-    BUDGET_TOLERANCES_PX,
-    MIN_BUDGET_BYTES,
-    encode_within_budget,
-    framed_bytes_bound,
-)
+from ropecam.shared.protocol.budget import BUDGET_TOLERANCES_PX, MIN_BUDGET_BYTES, encode_within_budget
+from ropecam.shared.protocol.framing import framed_bytes_bound
 from ropecam.shared.protocol.quality import RECORD_KEYS, WIRE_TOLERANCE_KEY, Reason
 from ropecam.shared.protocol.shapes import ShapeCodecConfig
 from ropecam.shared.protocol.wire import MessageType
