@@ -105,8 +105,7 @@ class BandMeasure:
         if self.contrasts:
             self.rescale()
         else:
-            self.contrast_px = float("nan")
-            self.ratio_gain = 1.0
+            self.forget()
 
     def decision_contrast(self, width_px: float) -> float:
         """The contrast the split/static decision reads the sweep from the edge slope with: `contrast_for` times
